@@ -1,0 +1,309 @@
+"""Theorem 18.1 dynamics: explicit rod accelerations in end-point coordinates, tendon forces.
+
+State per rod ``r`` with end nodes ``(a, b)`` (the paper's eq. 18.24)::
+
+    q1 = p_a + p_b    (twice the mass centre)        q2 = p_b - p_a    (the rod vector, |q2| = L)
+
+stacked rod by rod as ``q = [q1_0, q2_0, q1_1, q2_1, ...]`` (length ``6R``; for a shell this is
+exactly the paper's ``q = [q_11, ..., q_n1, ..., q_nm]``).  Accelerations (eqs. 18.17, 18.20)::
+
+    q1'' = (2/m) (f_a + f_b)
+    q2'' = -(|q2'|^2 / L^2) q2 + (6 / (m L^2)) skew(q2)^2 (f_a - f_b)
+
+with ``f`` the total nodal forces: tendons (eqs. 18.39-18.40), external forces ``w`` and gravity.
+No mass matrix is formed and no linear system is solved.  Every function is pure and vectorized
+over rods and tendons; the ``q``-to-node maps also broadcast over leading (e.g. time) axes.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import NamedTuple
+
+import numpy as np
+
+from tensegrity.structure import Structure
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class State:
+    """The time-varying state: time ``t`` [s], coordinates ``q`` (6R,) [m], rates ``qdot`` [m/s]."""
+
+    t: float
+    q: np.ndarray
+    qdot: np.ndarray
+
+
+# --------------------------------------------------------------------------- coordinates
+def rods_view(q: np.ndarray) -> np.ndarray:
+    """View ``q`` (..., 6R) as (..., R, 2, 3): ``[..., r, 0]`` is ``q1``, ``[..., r, 1]`` is ``q2``."""
+    return q.reshape(*q.shape[:-1], -1, 2, 3)
+
+
+def coordinates_from_nodes(structure: Structure, node_value: np.ndarray) -> np.ndarray:
+    """``q`` (..., 6R) from node positions (..., N, 3): ``q1 = p_a + p_b``, ``q2 = p_b - p_a``.
+
+    Being linear, the same map takes node velocities to ``qdot``.
+    """
+    a, b = structure.rod_nodes[:, 0], structure.rod_nodes[:, 1]
+    pa, pb = node_value[..., a, :], node_value[..., b, :]
+    q = np.stack([pa + pb, pb - pa], axis=-2)  # (..., R, 2, 3)
+    return q.reshape(*q.shape[:-3], 6 * structure.n_rods)
+
+
+def nodes_from_coordinates(structure: Structure, q: np.ndarray) -> np.ndarray:
+    """Node positions ``p = P q`` (eq. 18.26), shape (..., N, 3); also velocities from ``qdot``."""
+    rods = rods_view(q)
+    q1, q2 = rods[..., 0, :], rods[..., 1, :]
+    p = np.empty((*q.shape[:-1], structure.n_nodes, 3))
+    p[..., structure.rod_nodes[:, 0], :] = 0.5 * (q1 - q2)
+    p[..., structure.rod_nodes[:, 1], :] = 0.5 * (q1 + q2)
+    return p
+
+
+def project_to_constraints(
+    structure: Structure, q: np.ndarray, qdot: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Project onto the rod constraints: ``|q2| = L`` and ``q2 . q2' = 0`` for every rod.
+
+    Returns new arrays ``(q, qdot)``; ``q1`` and ``q1'`` are unchanged.
+    """
+    q, qdot = q.copy(), qdot.copy()
+    q2, v2 = rods_view(q)[..., 1, :], rods_view(qdot)[..., 1, :]
+    norm = np.linalg.norm(q2, axis=-1, keepdims=True)
+    q2 *= structure.rod_length[:, None] / norm
+    v2 -= np.sum(q2 * v2, axis=-1, keepdims=True) / structure.rod_length[:, None] ** 2 * q2
+    return q, qdot
+
+
+def rod_length_error(structure: Structure, q: np.ndarray) -> np.ndarray:
+    """Relative rod-length error ``(|q2| - L) / L``, shape (..., R)."""
+    return np.linalg.norm(rods_view(q)[..., 1, :], axis=-1) / structure.rod_length - 1.0
+
+
+def initial_state(structure: Structure, *, t: float = 0.0) -> State:
+    """The state of the structure's node positions and velocities, projected onto the rod
+    constraints (a velocity component that would stretch a rod is removed)."""
+    q = coordinates_from_nodes(structure, structure.node_position)
+    qdot = coordinates_from_nodes(structure, structure.node_velocity)
+    q, qdot = project_to_constraints(structure, q, qdot)
+    return State(t=float(t), q=q, qdot=qdot)
+
+
+# --------------------------------------------------------------------------- tendons
+def rest_lengths(structure: Structure, control: np.ndarray | None = None) -> np.ndarray:
+    """Controlled rest lengths ``Lbar = L0 - u`` [m], shape (S,) (eq. 18.40).
+
+    Raises
+    ------
+    ValueError
+        If ``control`` has the wrong shape, is not finite, or makes some ``Lbar < 0``.
+    """
+    if control is None:
+        return structure.tendon_rest_length
+    u = np.asarray(control, dtype=float)
+    if u.shape != (structure.n_tendons,):
+        raise ValueError(f"control: expected shape ({structure.n_tendons},), got {u.shape}")
+    if not np.all(np.isfinite(u)):
+        raise ValueError("control: must be finite")
+    rest = structure.tendon_rest_length - u
+    bad = np.flatnonzero(rest < 0)
+    if bad.size:
+        s = bad[0]
+        raise ValueError(
+            f"control[{s}] ({structure.tendon_name[s]!r}): u = {u[s]} m makes the rest length "
+            f"L0 - u = {rest[s]} m negative"
+        )
+    return rest
+
+
+def tendon_vectors(structure: Structure, p: np.ndarray) -> np.ndarray:
+    """Tendon vectors ``t = p_head - p_tail`` [m], shape (..., S, 3)."""
+    return p[..., structure.tendon_nodes[:, 1], :] - p[..., structure.tendon_nodes[:, 0], :]
+
+
+def tendon_lengths(structure: Structure, p: np.ndarray) -> np.ndarray:
+    """Tendon lengths ``|t|`` [m], shape (..., S) (output ``y_l`` of eq. 18.60)."""
+    return np.linalg.norm(tendon_vectors(structure, p), axis=-1)
+
+
+class TendonForces(NamedTuple):
+    """Tendon quantities at one instant, each of shape (..., S) unless stated."""
+
+    length: np.ndarray  #: ``|t|`` [m]
+    length_rate: np.ndarray  #: ``d|t|/dt`` [m/s]
+    direction: np.ndarray  #: ``t / |t|`` (..., S, 3); zero for a tendon of zero length
+    tension: np.ndarray  #: total tension [N], >= 0
+    elastic_tension: np.ndarray  #: ``k max(|t| - Lbar, 0)`` [N]
+
+
+def tendon_forces(
+    structure: Structure, p: np.ndarray, v: np.ndarray, rest_length: np.ndarray
+) -> TendonForces:
+    """Tendon tensions: ``T = max(k (l - Lbar) + c l', 0)`` while taut (``l > Lbar``), else 0.
+
+    The elastic part is eq. 18.40 with the slack rule of the spec; the damping ``c l'`` acts only
+    while taut, and a string never pushes (the sum is clipped at 0), so damping only dissipates.
+    """
+    t = tendon_vectors(structure, p)
+    length = np.linalg.norm(t, axis=-1)
+    direction = np.divide(t, length[..., None], out=np.zeros_like(t), where=length[..., None] > 0)
+    length_rate = np.sum(direction * tendon_vectors(structure, v), axis=-1)
+    stretch = length - rest_length
+    taut = stretch > 0
+    elastic = np.where(taut, structure.tendon_stiffness * stretch, 0.0)
+    tension = np.where(taut, np.maximum(elastic + structure.tendon_damping * length_rate, 0.0), 0.0)
+    return TendonForces(length, length_rate, direction, tension, elastic)
+
+
+def tendon_tensions(
+    structure: Structure,
+    p: np.ndarray,
+    v: np.ndarray | None = None,
+    *,
+    control: np.ndarray | None = None,
+) -> np.ndarray:
+    """Tendon tensions [N], shape (..., S) (output ``y_f`` of eq. 18.60); damping needs ``v``."""
+    v = np.zeros_like(p) if v is None else v
+    return tendon_forces(structure, p, v, rest_lengths(structure, control)).tension
+
+
+def critical_damping(structure: Structure) -> Structure:
+    """The structure with the "artificial critical damping" of the paper's example (§18.5).
+
+    The paper does not define it; ours has two parts (see ``docs/paper-notes.md``):
+
+    - each tendon gets ``c = 2 sqrt(k mu)`` [N s/m], with ``mu = m_a m_b / (m_a + m_b)`` the
+      reduced mass of its end nodes (half a rod's mass each): critical damping of the tendon's own
+      axial vibration between two such point masses;
+    - each rod gets mass-proportional damping ``alpha = 2 sqrt(k_mean / m_mean)`` [1/s]: critical
+      damping of a rod of mean mass on a tendon of mean stiffness.  Tendon damping alone cannot
+      remove the motion of a tensegrity's mechanisms (modes that change no tendon length to first
+      order, stiffened only by prestress), so without this part a shell rocks for minutes.
+    """
+    m = structure.node_mass[structure.tendon_nodes]
+    reduced = m[:, 0] * m[:, 1] / (m[:, 0] + m[:, 1])
+    rate = 2.0 * np.sqrt(structure.tendon_stiffness.mean() / structure.rod_mass.mean())
+    return structure.replace(
+        tendon_damping=2.0 * np.sqrt(structure.tendon_stiffness * reduced),
+        rod_damping=np.full(structure.n_rods, rate),
+    )
+
+
+# --------------------------------------------------------------------------- accelerations
+#: Kinetic energy is ``sum m (|q1'|^2 / 8 + |q2'|^2 / 24)``; the rate ``alpha`` of mass-proportional
+#: damping then dissipates ``alpha m (|q1'|^2 / 4 + |q2'|^2 / 12)``: these are the weights x 2.
+_INERTIA_WEIGHT = np.array([[1 / 4], [1 / 12]])
+
+
+class Evaluation(NamedTuple):
+    """One evaluation of the equations of motion."""
+
+    qddot: np.ndarray  #: accelerations (6R,) [m/s^2]
+    tendons: TendonForces
+    dissipated_power: float  #: power removed by tendon and rod damping [W], >= 0
+    external_power: float  #: power delivered by the external nodal forces ``w`` [W]
+
+
+def evaluate(
+    structure: Structure,
+    q: np.ndarray,
+    qdot: np.ndarray,
+    *,
+    rest_length: np.ndarray,
+    external_force: np.ndarray | None = None,
+    gravity: np.ndarray | None = None,
+) -> Evaluation:
+    """Evaluate Theorem 18.1 for all rods (eqs. 18.17-18.20, 18.39-18.40).
+
+    Parameters
+    ----------
+    q, qdot : ndarray, shape (6R,)
+        Coordinates [m] and rates [m/s].
+    rest_length : ndarray, shape (S,)
+        Controlled rest lengths ``Lbar`` [m] (see :func:`rest_lengths`).
+    external_force : ndarray, shape (N, 3), optional
+        Nodal forces ``w`` [N].
+    gravity : ndarray, shape (3,), optional
+        Uniform gravitational acceleration [m/s^2]; each end node carries half the rod's weight.
+    """
+    p = nodes_from_coordinates(structure, q)
+    v = nodes_from_coordinates(structure, qdot)
+    tendons = tendon_forces(structure, p, v, rest_length)
+    # f = -C^T (T t_hat): the tail is pulled toward the head and the head toward the tail.
+    force = -(structure.tendon_incidence_transpose @ (tendons.tension[:, None] * tendons.direction))
+    external_power = 0.0
+    if external_force is not None:
+        force += external_force
+        external_power = float(np.sum(external_force * v))
+    if gravity is not None:
+        force += structure.node_mass[:, None] * gravity
+
+    a, b = structure.rod_nodes[:, 0], structure.rod_nodes[:, 1]
+    f_sum, f_diff = force[a] + force[b], force[a] - force[b]
+    rods, rates = rods_view(q), rods_view(qdot)
+    q2, v2 = rods[:, 1], rates[:, 1]
+    m, L2 = structure.rod_mass[:, None], structure.rod_length[:, None] ** 2
+    # skew(q2)^2 f = q2 (q2 . f) - |q2|^2 f
+    skew2_f = q2 * np.sum(q2 * f_diff, axis=1, keepdims=True) - np.sum(q2 * q2, axis=1, keepdims=True) * f_diff
+    qddot = np.empty((structure.n_rods, 2, 3))
+    qddot[:, 0] = (2.0 / m) * f_sum
+    qddot[:, 1] = -(np.sum(v2 * v2, axis=1, keepdims=True) / L2) * q2 + (6.0 / (m * L2)) * skew2_f
+    alpha = structure.rod_damping[:, None, None]
+    qddot -= alpha * rates
+    dissipated = float(
+        np.sum((tendons.tension - tendons.elastic_tension) * tendons.length_rate)
+        + np.sum(alpha * structure.rod_mass[:, None, None] * _INERTIA_WEIGHT * rates**2)
+    )
+    return Evaluation(qddot.reshape(-1), tendons, dissipated, external_power)
+
+
+def accelerations(
+    structure: Structure,
+    q: np.ndarray,
+    qdot: np.ndarray,
+    *,
+    control: np.ndarray | None = None,
+    external_force: np.ndarray | None = None,
+    gravity: np.ndarray | None = None,
+) -> np.ndarray:
+    """``q''`` (6R,) [m/s^2] of eq. 18.59: ``q'' = -(K_r(q') + K_p(q)) q + B(q) u + D(q) w``.
+
+    ``control`` is the rest-length change ``u`` (S,) [m]; see :func:`evaluate` for the rest.
+    """
+    return evaluate(
+        structure,
+        q,
+        qdot,
+        rest_length=rest_lengths(structure, control),
+        external_force=external_force,
+        gravity=gravity,
+    ).qddot
+
+
+# --------------------------------------------------------------------------- energy
+def kinetic_energy(structure: Structure, qdot: np.ndarray) -> np.ndarray:
+    """Kinetic energy [J] with each rod's true inertia, shape (...,):
+    ``sum m/8 |q1'|^2 + m/24 |q2'|^2`` (translation of the centre plus rotation, ``I = m L^2/12``)."""
+    rates = rods_view(qdot)
+    per_rod = structure.rod_mass * (
+        np.sum(rates[..., 0, :] ** 2, axis=-1) / 8 + np.sum(rates[..., 1, :] ** 2, axis=-1) / 24
+    )
+    return per_rod.sum(axis=-1)
+
+
+def elastic_energy(
+    structure: Structure, p: np.ndarray, rest_length: np.ndarray | None = None
+) -> np.ndarray:
+    """Elastic energy of the taut tendons ``sum k max(l - Lbar, 0)^2 / 2`` [J], shape (...,)."""
+    rest = structure.tendon_rest_length if rest_length is None else rest_length
+    stretch = np.maximum(tendon_lengths(structure, p) - rest, 0.0)
+    return 0.5 * np.sum(structure.tendon_stiffness * stretch**2, axis=-1)
+
+
+def gravity_energy(structure: Structure, q: np.ndarray, gravity: np.ndarray | None) -> np.ndarray:
+    """Gravitational potential ``-sum m g . (q1/2)`` [J], shape (...,); zero without gravity."""
+    if gravity is None:
+        return np.zeros(q.shape[:-1])
+    centre = 0.5 * rods_view(q)[..., 0, :]
+    return -np.sum(structure.rod_mass * (centre @ np.asarray(gravity, dtype=float)), axis=-1)

@@ -1,0 +1,185 @@
+"""The class 1 tensegrity shell of ``n x m`` two-rod elements (Skelton, Pinaud, Mingori, §18.2).
+
+The connectivity is the table of ``shared/spec/shell-topology.md`` (read off eq. 18.31 and the
+closure rules 18.2-18.14); see ``docs/paper-notes.md`` for where it departs from printed lines.
+
+Numbering (0-based, the paper's stacking order of ``q``, eq. 18.24):
+
+- element ``(i, j)``, ``i = 1..n`` around, ``j = 1..m`` up, has index ``e = (j-1) n + (i-1)``;
+- node ``p_k,ij`` (``k = 1..4``) has index ``4 e + (k-1)``;
+- rod 1 of the element (``p1 -> p2``) has index ``2 e``, rod 2 (``p3 -> p4``) has ``2 e + 1``;
+- tendons are listed element by element, ``alpha`` ascending, named ``t{alpha}_{i}_{j}``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from tensegrity.structure import Structure
+
+#: Tendon ``alpha`` of element ``(i, j)`` as ``(boundary, at_boundary, elsewhere)``.  Each end pair
+#: ``(head, tail)`` names node ``p_k`` of element ``(i + di, j + dj)`` as ``(k, di, dj)``; the
+#: ``boundary`` ("base": ``j = 1``, "top": ``j = m``) is where the first pair applies instead of the
+#: second, ``None`` where the tendon is absent.  This is the spec's table, column by column.
+_TENDON_TABLE: dict[int, tuple] = {
+    1: ("base", ((2, 0, 0), (1, 1, 0)), ((2, 0, 0), (4, 0, -1))),
+    2: ("base", ((1, 0, 0), (1, 1, 0)), ((1, 0, 0), (4, 0, -1))),
+    3: (None, None, ((3, -1, 0), (1, 0, 0))),
+    4: (None, None, ((2, 0, 0), (3, -1, 0))),
+    5: (None, None, ((4, 0, 0), (2, 0, 0))),
+    6: ("top", ((4, 1, 0), (4, 0, 0)), ((1, 1, 1), (4, 0, 0))),
+    7: ("top", ((3, 0, 0), (4, 1, 0)), ((3, 0, 0), (1, 1, 1))),
+    8: (None, None, ((2, 0, 0), (3, 0, 0))),
+    9: ("base", None, ((1, 1, 0), (2, 0, 0))),
+    10: ("top", None, ((4, 1, 0), (3, 0, 0))),
+}
+
+
+def shell_node_index(k: int, i: int, j: int, n: int) -> int:
+    """0-based index of node ``p_k,ij`` (``k = 1..4``; ``i`` is taken cyclically mod ``n``)."""
+    return 4 * ((j - 1) * n + (i - 1) % n) + (k - 1)
+
+
+def shell_tendons(n: int, m: int, *, primal: bool = False) -> list[tuple[str, int, int]]:
+    """The shell's tendons as ``(name, tail, head)``, tendon vector ``p_head - p_tail``.
+
+    For ``m = 1`` the element is both base and top: ``t1, t2`` take the base column, ``t6, t7``
+    the top column, and ``t9, t10`` are absent (Appendix C).  The primal shell (Definition 18.6)
+    has no ``t9``, ``t10``.  Counts: ``n (10 m - 2)``, or ``8 n m`` primal.
+    """
+    _check_size(n, m)
+    tendons = []
+    for j in range(1, m + 1):
+        for i in range(1, n + 1):
+            for alpha, (boundary, at_boundary, elsewhere) in _TENDON_TABLE.items():
+                on_boundary = (boundary == "base" and j == 1) or (boundary == "top" and j == m)
+                ends = at_boundary if on_boundary else elsewhere
+                if ends is None or (primal and alpha >= 9):
+                    continue
+                (kh, dih, djh), (kt, dit, djt) = ends
+                head = shell_node_index(kh, i + dih, j + djh, n)
+                tail = shell_node_index(kt, i + dit, j + djt, n)
+                tendons.append((f"t{alpha}_{i}_{j}", tail, head))
+    return tendons
+
+
+def _check_size(n: int, m: int) -> None:
+    if not isinstance(n, (int, np.integer)) or isinstance(n, bool) or n < 3:
+        raise ValueError(f"n: a shell needs n >= 3 elements around, got {n!r}")
+    if not isinstance(m, (int, np.integer)) or isinstance(m, bool) or m < 1:
+        raise ValueError(f"m: a shell needs m >= 1 stages, got {m!r}")
+
+
+def shell_layout(
+    n: int,
+    m: int,
+    *,
+    rod_length: float = 1.0,
+    radius: float | None = None,
+    stage_height: float | None = None,
+    twist: float | None = None,
+) -> np.ndarray:
+    """Node positions (4nm, 3) [m] on a cylinder about the z axis, ``n``-fold symmetric.
+
+    Stage ``j`` spans heights ``(j-1) h .. j h``: ``p1`` at its bottom, ``p2`` and ``p3`` at
+    mid-height, ``p4`` at its top, so each rod rises ``h/2`` and sweeps an angle
+    ``dtheta = 2 asin(c / 2R)`` about the axis, with ``c = sqrt(L^2 - (h/2)^2)``.  In element
+    ``i`` of stage ``j``: ``theta(p1) = 2 pi (i-1)/n + (j-1) twist``, ``theta(p2) = theta(p1) +
+    dtheta``, ``theta(p3) = theta(p2) + pi/n``, ``theta(p4) = theta(p3) + dtheta``.
+
+    Parameters
+    ----------
+    rod_length : float
+        ``L`` [m]; every rod's end points are exactly ``L`` apart.
+    radius : float, optional
+        Cylinder radius ``R`` [m].  Default: each rod sweeps ``dtheta = 3 pi / (2n)``.
+    stage_height : float, optional
+        ``h`` [m], with ``0 < h < 2 L``.  Default ``L``.
+    twist : float, optional
+        Rotation [rad] of each stage relative to the one below.  Default ``2 dtheta``, which puts
+        a stage's bottom ring midway between the top nodes of the stage below.
+    """
+    _check_size(n, m)
+    L = float(rod_length)
+    h = L if stage_height is None else float(stage_height)
+    if not (math.isfinite(L) and L > 0):
+        raise ValueError(f"rod_length: must be > 0, got {rod_length!r}")
+    if not (math.isfinite(h) and 0 < h < 2 * L):
+        raise ValueError(f"stage_height: must be in (0, 2 rod_length) = (0, {2 * L}), got {h!r}")
+    chord = math.sqrt(L**2 - (h / 2) ** 2)
+    if radius is None:
+        sweep = 3 * math.pi / (2 * n)
+        R = chord / (2 * math.sin(sweep / 2))
+    else:
+        R = float(radius)
+        if not (math.isfinite(R) and R >= chord / 2):
+            raise ValueError(
+                f"radius: must be >= {chord / 2!r} m for rods of length {L} to fit a stage of "
+                f"height {h}, got {radius!r}"
+            )
+        sweep = 2 * math.asin(chord / (2 * R))
+    stage_twist = 2 * sweep if twist is None else float(twist)
+    if not math.isfinite(stage_twist):
+        raise ValueError(f"twist: must be finite, got {twist!r}")
+
+    i = np.arange(n)
+    j = np.arange(m)[:, None]
+    theta1 = 2 * math.pi * i / n + j * stage_twist  # (m, n)
+    angles = np.stack(
+        [theta1, theta1 + sweep, theta1 + sweep + math.pi / n, theta1 + 2 * sweep + math.pi / n],
+        axis=-1,
+    )  # (m, n, 4)
+    heights = np.stack([j * h, (j + 0.5) * h, (j + 0.5) * h, (j + 1) * h], axis=-1)
+    heights = np.broadcast_to(heights, angles.shape)
+    xyz = np.stack([R * np.cos(angles), R * np.sin(angles), heights], axis=-1)
+    return xyz.reshape(4 * n * m, 3)
+
+
+def class1_shell(
+    n: int = 3,
+    m: int = 1,
+    *,
+    primal: bool = False,
+    rod_mass: float = 1.0,
+    rod_length: float = 1.0,
+    stiffness: float = 100.0,
+    rest_length: float | None = None,
+    damping: float = 0.0,
+    radius: float | None = None,
+    stage_height: float | None = None,
+    twist: float | None = None,
+) -> Structure:
+    """The class 1 shell of ``n x m`` two-rod elements, nodes on a cylinder (Figure 18.10).
+
+    All rods share ``rod_mass`` [kg] and ``rod_length`` [m]; all tendons share ``stiffness``
+    [N/m], ``rest_length`` [m] and ``damping`` [N s/m], as in the paper's example.  The default
+    rest length is half the shortest tendon of the initial layout, so every tendon starts taut.
+    Layout parameters are those of :func:`shell_layout`.
+
+    Returns
+    -------
+    Structure
+        ``4nm`` nodes, ``2nm`` rods, ``n(10m-2)`` tendons (``8nm`` if ``primal``).
+    """
+    position = shell_layout(
+        n, m, rod_length=rod_length, radius=radius, stage_height=stage_height, twist=twist
+    )
+    tendons = shell_tendons(n, m, primal=primal)
+    tendon_nodes = np.array([(tail, head) for _, tail, head in tendons])
+    if rest_length is None:
+        lengths = np.linalg.norm(position[tendon_nodes[:, 1]] - position[tendon_nodes[:, 0]], axis=1)
+        rest_length = 0.5 * float(lengths.min())
+    n_rods, n_tendons = 2 * n * m, len(tendons)
+    return Structure(
+        node_position=position,
+        rod_nodes=np.arange(4 * n * m).reshape(n_rods, 2),
+        rod_mass=np.full(n_rods, float(rod_mass)),
+        rod_length=np.full(n_rods, float(rod_length)),
+        tendon_nodes=tendon_nodes,
+        tendon_stiffness=np.full(n_tendons, float(stiffness)),
+        tendon_rest_length=np.full(n_tendons, float(rest_length)),
+        tendon_damping=np.full(n_tendons, float(damping)),
+        tendon_name=tuple(name for name, _, _ in tendons),
+    )

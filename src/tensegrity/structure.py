@@ -1,0 +1,378 @@
+"""The immutable model of a class 1 tensegrity structure: topology and parameters.
+
+A :class:`Structure` plays the part of MuJoCo's ``MjModel``: it holds everything that does not
+change during a simulation (node layout at rest, rods, tendons and their parameters) as flat,
+read-only NumPy arrays named ``<object>_<property>``.  The time-varying state lives in
+:class:`tensegrity.dynamics.State`.
+
+Conventions (SI units throughout)
+---------------------------------
+- ``N`` nodes, ``R`` rods, ``S`` tendons (strings).
+- Rod ``r`` joins nodes ``rod_nodes[r] = (a, b)``; its vector is ``r = p_b - p_a`` (the paper's
+  ``r_1ij = p_2ij - p_1ij``).  In a class 1 structure every node belongs to exactly one rod.
+- Tendon ``s`` joins ``tendon_nodes[s] = (tail, head)``; its vector is ``t = p_head - p_tail``
+  (the paper's tendon vector, head minus tail).  Its tension pulls both ends toward each other.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping, Sequence
+from functools import cached_property
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+
+#: Relative tolerance on ``| |p_b - p_a| - L | / L`` accepted for the node positions of a rod.
+ROD_LENGTH_RTOL = 1e-6
+
+
+def _readonly(array: np.ndarray) -> np.ndarray:
+    array = np.ascontiguousarray(array)
+    array.setflags(write=False)
+    return array
+
+
+def _float_array(value: Any, field: str, shape: tuple[int | None, ...]) -> np.ndarray:
+    """Convert ``value`` to a finite float array of the given shape (``None`` = any length)."""
+    try:
+        array = np.array(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{field}: expected numbers, got {value!r:.80}") from exc
+    if array.ndim != len(shape) or any(
+        want is not None and got != want for got, want in zip(array.shape, shape)
+    ):
+        pretty = "(" + ", ".join("n" if s is None else str(s) for s in shape) + ")"
+        raise ValueError(f"{field}: expected shape {pretty}, got {array.shape}")
+    bad = np.argwhere(~np.isfinite(array))
+    if bad.size:
+        index = ",".join(str(i) for i in bad[0])
+        raise ValueError(f"{field}[{index}]: must be finite, got {array[tuple(bad[0])]}")
+    return array
+
+
+def _index_array(value: Any, field: str, n_nodes: int) -> np.ndarray:
+    """Convert ``value`` to an ``(n, 2)`` int array of node indices in ``[0, n_nodes)``."""
+    array = np.array(value)
+    if array.size == 0:
+        array = array.reshape(0, 2)
+    if array.ndim != 2 or array.shape[1] != 2:
+        raise ValueError(f"{field}: expected shape (n, 2) of node indices, got {array.shape}")
+    if not (np.issubdtype(array.dtype, np.integer) or np.all(np.mod(array, 1) == 0)):
+        raise ValueError(f"{field}: node indices must be integers")
+    array = array.astype(np.int64)
+    for k, (a, b) in enumerate(array):
+        for node in (a, b):
+            if not 0 <= node < n_nodes:
+                raise ValueError(
+                    f"{field}[{k}]: node index {node} out of range [0, {n_nodes - 1}]"
+                )
+        if a == b:
+            raise ValueError(f"{field}[{k}]: joins node {a} to itself")
+    return array
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Structure:
+    """A class 1 tensegrity structure (rigid rods, elastic tendons), validated at construction.
+
+    Parameters
+    ----------
+    node_position : array_like, shape (N, 3)
+        Node positions of the initial configuration [m].
+    rod_nodes : array_like of int, shape (R, 2)
+        Node indices ``(a, b)`` of each rod; the rod vector is ``p_b - p_a``.
+    rod_mass : array_like, shape (R,)
+        Rod masses [kg], > 0.  Mass is uniform along the rod (inertia ``m L^2 / 12``).
+    rod_length : array_like, shape (R,)
+        Rod lengths [m], > 0.  ``node_position`` must agree to within ``ROD_LENGTH_RTOL``.
+    tendon_nodes : array_like of int, shape (S, 2)
+        Node indices ``(tail, head)`` of each tendon; the tendon vector is ``p_head - p_tail``.
+    tendon_stiffness : array_like, shape (S,)
+        Axial stiffness ``k`` [N/m], > 0.
+    tendon_rest_length : array_like, shape (S,)
+        Rest length ``L0`` before control [m], >= 0.
+    tendon_damping : array_like, shape (S,), optional
+        Viscous damping ``c`` [N s/m], >= 0, acting only while the tendon is taut.  Default 0.
+    tendon_name : sequence of str, optional
+        Unique tendon names.  Default ``"s0", "s1", ...``.
+    node_velocity : array_like, shape (N, 3), optional
+        Initial node velocities [m/s].  Default zero.
+    rod_damping : array_like, shape (R,), optional
+        Mass-proportional ("artificial", to ground) damping rate ``alpha`` [1/s], >= 0: adds
+        ``-alpha q'`` to the rod's accelerations, i.e. a force ``-alpha dm v`` on every mass
+        element.  Default 0.
+
+    Raises
+    ------
+    ValueError
+        Naming the field and element, e.g. ``tendons[3] ('t5_1_1').stiffness: must be > 0``.
+    """
+
+    node_position: np.ndarray
+    rod_nodes: np.ndarray
+    rod_mass: np.ndarray
+    rod_length: np.ndarray
+    tendon_nodes: np.ndarray
+    tendon_stiffness: np.ndarray
+    tendon_rest_length: np.ndarray
+    tendon_damping: np.ndarray | None = None
+    tendon_name: tuple[str, ...] | None = None
+    node_velocity: np.ndarray | None = None
+    rod_damping: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        set_ = lambda name, value: object.__setattr__(self, name, value)  # noqa: E731
+        position = _float_array(self.node_position, "nodes", (None, 3))
+        n_nodes = position.shape[0]
+        if n_nodes == 0:
+            raise ValueError("nodes: a structure needs at least one rod (two nodes)")
+        velocity = (
+            np.zeros_like(position)
+            if self.node_velocity is None
+            else _float_array(self.node_velocity, "velocities", (n_nodes, 3))
+        )
+        rod_nodes = _index_array(self.rod_nodes, "rods", n_nodes)
+        n_rods = rod_nodes.shape[0]
+        rod_mass = _float_array(self.rod_mass, "rods.mass", (n_rods,))
+        rod_length = _float_array(self.rod_length, "rods.length", (n_rods,))
+        rod_damping = _float_array(
+            np.zeros(n_rods) if self.rod_damping is None else self.rod_damping,
+            "rods.damping",
+            (n_rods,),
+        )
+        for field, values, strict in (
+            ("mass", rod_mass, True),
+            ("length", rod_length, True),
+            ("damping", rod_damping, False),
+        ):
+            bad = np.flatnonzero(values <= 0 if strict else values < 0)
+            if bad.size:
+                raise ValueError(
+                    f"rods[{bad[0]}].{field}: must be {'>' if strict else '>='} 0, "
+                    f"got {values[bad[0]]}"
+                )
+        self._check_class1(rod_nodes, n_nodes)
+        distance = np.linalg.norm(position[rod_nodes[:, 1]] - position[rod_nodes[:, 0]], axis=1)
+        bad = np.flatnonzero(np.abs(distance - rod_length) > ROD_LENGTH_RTOL * rod_length)
+        if bad.size:
+            r = bad[0]
+            raise ValueError(
+                f"rods[{r}].length: is {rod_length[r]!r} m but nodes {rod_nodes[r, 0]} and "
+                f"{rod_nodes[r, 1]} are {distance[r]!r} m apart (relative tolerance "
+                f"{ROD_LENGTH_RTOL:g})"
+            )
+
+        tendon_nodes = _index_array(self.tendon_nodes, "tendons", n_nodes)
+        n_tendons = tendon_nodes.shape[0]
+        names = (
+            tuple(f"s{k}" for k in range(n_tendons))
+            if self.tendon_name is None
+            else tuple(self.tendon_name)
+        )
+        if len(names) != n_tendons:
+            raise ValueError(f"tendons.name: expected {n_tendons} names, got {len(names)}")
+        seen: dict[str, int] = {}
+        for k, name in enumerate(names):
+            if not isinstance(name, str) or not name:
+                raise ValueError(f"tendons[{k}].name: must be a non-empty string, got {name!r}")
+            if name in seen:
+                raise ValueError(f"tendons[{k}].name: {name!r} is also the name of tendons[{seen[name]}]")
+            seen[name] = k
+        pairs: dict[tuple[int, int], int] = {}
+        for k, (a, b) in enumerate(tendon_nodes):
+            key = (min(a, b), max(a, b))
+            if key in pairs:
+                raise ValueError(
+                    f"tendons[{k}] ({names[k]!r}).nodes: joins nodes {a} and {b}, as does "
+                    f"tendons[{pairs[key]}] ({names[pairs[key]]!r})"
+                )
+            pairs[key] = k
+        damping = np.zeros(n_tendons) if self.tendon_damping is None else self.tendon_damping
+        tendon_values = {
+            "stiffness": (_float_array(self.tendon_stiffness, "tendons.stiffness", (n_tendons,)), True),
+            "rest_length": (_float_array(self.tendon_rest_length, "tendons.rest_length", (n_tendons,)), False),
+            "damping": (_float_array(damping, "tendons.damping", (n_tendons,)), False),
+        }
+        for field, (values, strict) in tendon_values.items():
+            bad = np.flatnonzero(values <= 0 if strict else values < 0)
+            if bad.size:
+                k = bad[0]
+                raise ValueError(
+                    f"tendons[{k}] ({names[k]!r}).{field}: must be {'>' if strict else '>='} 0, "
+                    f"got {values[k]}"
+                )
+
+        set_("node_position", _readonly(position))
+        set_("node_velocity", _readonly(velocity))
+        set_("rod_nodes", _readonly(rod_nodes))
+        set_("rod_mass", _readonly(rod_mass))
+        set_("rod_length", _readonly(rod_length))
+        set_("rod_damping", _readonly(rod_damping))
+        set_("tendon_nodes", _readonly(tendon_nodes))
+        set_("tendon_stiffness", _readonly(tendon_values["stiffness"][0]))
+        set_("tendon_rest_length", _readonly(tendon_values["rest_length"][0]))
+        set_("tendon_damping", _readonly(tendon_values["damping"][0]))
+        set_("tendon_name", names)
+
+    @staticmethod
+    def _check_class1(rod_nodes: np.ndarray, n_nodes: int) -> None:
+        owner = np.full(n_nodes, -1)
+        for r, (a, b) in enumerate(rod_nodes):
+            for node in (a, b):
+                if owner[node] >= 0:
+                    raise ValueError(
+                        f"rods[{r}].nodes: node {node} is already an end of rods[{owner[node]}] "
+                        "(class 1: every node belongs to one rod)"
+                    )
+                owner[node] = r
+        free = np.flatnonzero(owner < 0)
+        if free.size:
+            raise ValueError(
+                f"nodes[{free[0]}]: belongs to no rod; every node must be the end of exactly "
+                "one rod (massless free nodes have no dynamics)"
+            )
+
+    # ------------------------------------------------------------------ sizes
+    @property
+    def n_nodes(self) -> int:
+        """Number of nodes ``N``."""
+        return self.node_position.shape[0]
+
+    @property
+    def n_rods(self) -> int:
+        """Number of rods ``R``."""
+        return self.rod_nodes.shape[0]
+
+    @property
+    def n_tendons(self) -> int:
+        """Number of tendons ``S``."""
+        return self.tendon_nodes.shape[0]
+
+    @property
+    def n_coordinates(self) -> int:
+        """Length of the generalized coordinate vector ``q`` (``6 R``; ``12 nm`` for a shell)."""
+        return 6 * self.n_rods
+
+    @property
+    def n_dof(self) -> int:
+        """Degrees of freedom: 5 per rod (spin about a rod's own axis is not one)."""
+        return 5 * self.n_rods
+
+    # ------------------------------------------------------------ derived data
+    @cached_property
+    def tendon_incidence(self) -> sp.csr_matrix:
+        """Sparse incidence ``C`` (S, N) with ``t = C p``: +1 at the head, -1 at the tail."""
+        s = np.arange(self.n_tendons)
+        rows = np.concatenate([s, s])
+        cols = np.concatenate([self.tendon_nodes[:, 1], self.tendon_nodes[:, 0]])
+        data = np.concatenate([np.ones(self.n_tendons), -np.ones(self.n_tendons)])
+        return sp.csr_matrix((data, (rows, cols)), shape=(self.n_tendons, self.n_nodes))
+
+    @cached_property
+    def tendon_incidence_transpose(self) -> sp.csr_matrix:
+        """``C^T`` (N, S) in CSR form, for assembling nodal forces ``f = -C^T (T t_hat)``."""
+        return self.tendon_incidence.T.tocsr()
+
+    @cached_property
+    def node_mass(self) -> np.ndarray:
+        """Half of the owning rod's mass at each node [kg], shape (N,)."""
+        mass = np.empty(self.n_nodes)
+        mass[self.rod_nodes[:, 0]] = self.rod_mass / 2
+        mass[self.rod_nodes[:, 1]] = self.rod_mass / 2
+        return _readonly(mass)
+
+    @property
+    def total_mass(self) -> float:
+        """Sum of rod masses [kg]."""
+        return float(self.rod_mass.sum())
+
+    def tendon_index(self, name: str) -> int:
+        """Index of the tendon called ``name``."""
+        try:
+            return self.tendon_name.index(name)
+        except ValueError:
+            raise KeyError(f"no tendon named {name!r}") from None
+
+    def replace(self, **changes: Any) -> Structure:
+        """A copy with some fields changed, validated again (``dataclasses.replace``)."""
+        return dataclasses.replace(self, **changes)
+
+    # -------------------------------------------------------------- JSON form
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON form: ``{"nodes", "velocities", "rods", "tendons"}`` with 0-based indices."""
+        return {
+            "nodes": self.node_position.tolist(),
+            "velocities": self.node_velocity.tolist(),
+            "rods": [
+                {"nodes": [int(a), int(b)], "mass": float(m), "length": float(L), "damping": float(c)}
+                for (a, b), m, L, c in zip(
+                    self.rod_nodes, self.rod_mass, self.rod_length, self.rod_damping
+                )
+            ],
+            "tendons": [
+                {
+                    "name": name,
+                    "nodes": [int(a), int(b)],
+                    "stiffness": float(k),
+                    "rest_length": float(L0),
+                    "damping": float(c),
+                }
+                for name, (a, b), k, L0, c in zip(
+                    self.tendon_name,
+                    self.tendon_nodes,
+                    self.tendon_stiffness,
+                    self.tendon_rest_length,
+                    self.tendon_damping,
+                )
+            ],
+        }
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> Structure:
+        """Build from the JSON form; a malformed document raises ``ValueError`` naming the key.
+
+        Extra keys are allowed (and ignored) at every level, for later features.
+        """
+        if not isinstance(data, Mapping):
+            raise ValueError(f"structure: expected a JSON object, got {type(data).__name__}")
+        nodes = _require(data, "nodes", "structure", Sequence)
+        rods = _require(data, "rods", "structure", Sequence)
+        tendons = _require(data, "tendons", "structure", Sequence)
+        rod_items = [_require_item(rod, f"rods[{k}]") for k, rod in enumerate(rods)]
+        tendon_items = [_require_item(t, f"tendons[{k}]") for k, t in enumerate(tendons)]
+        return cls(
+            node_position=nodes,
+            node_velocity=data.get("velocities"),
+            rod_nodes=[_require(r, "nodes", f"rods[{k}]") for k, r in enumerate(rod_items)]
+            or np.zeros((0, 2), int),
+            rod_mass=[_require(r, "mass", f"rods[{k}]") for k, r in enumerate(rod_items)],
+            rod_length=[_require(r, "length", f"rods[{k}]") for k, r in enumerate(rod_items)],
+            rod_damping=[r.get("damping", 0.0) for r in rod_items],
+            tendon_nodes=[_require(t, "nodes", f"tendons[{k}]") for k, t in enumerate(tendon_items)]
+            or np.zeros((0, 2), int),
+            tendon_stiffness=[
+                _require(t, "stiffness", f"tendons[{k}]") for k, t in enumerate(tendon_items)
+            ],
+            tendon_rest_length=[
+                _require(t, "rest_length", f"tendons[{k}]") for k, t in enumerate(tendon_items)
+            ],
+            tendon_damping=[t.get("damping", 0.0) for t in tendon_items],
+            tendon_name=tuple(t.get("name", f"s{k}") for k, t in enumerate(tendon_items)),
+        )
+
+
+def _require_item(item: Any, where: str) -> Mapping[str, Any]:
+    if not isinstance(item, Mapping):
+        raise ValueError(f"{where}: expected a JSON object, got {type(item).__name__}")
+    return item
+
+
+def _require(data: Mapping[str, Any], key: str, where: str, kind: type | None = None) -> Any:
+    if key not in data:
+        raise ValueError(f"{where}: missing key {key!r}")
+    value = data[key]
+    if kind is not None and (not isinstance(value, kind) or isinstance(value, str)):
+        raise ValueError(f"{where}.{key}: expected a list, got {type(value).__name__}")
+    return value
