@@ -38,7 +38,7 @@ class Integrator(Protocol):
     """What ``simulate`` needs of an integrator.
 
     Attributes ``t``, ``y`` are the current time and state; ``t_old`` the time at the start of
-    the last step; ``nfev`` counts right-hand-side evaluations since the first :meth:`start`.
+    the last step; ``total_nfev`` counts right-hand-side evaluations over all (re)starts.
     """
 
     name: str
@@ -46,7 +46,7 @@ class Integrator(Protocol):
     t: float
     t_old: float
     y: np.ndarray
-    nfev: int
+    total_nfev: int
 
     def start(self, fun: RightHandSide, t0: float, y0: np.ndarray, t_bound: float) -> None:
         """(Re)start at ``(t0, y0)``, integrating toward ``t_bound``."""
@@ -76,12 +76,12 @@ class AdaptiveIntegrator:
             if not value > 0:
                 raise ValueError(f"{field}: must be > 0, got {value!r}")
         self.name, self.rtol, self.atol, self.max_step = method, rtol, atol, max_step
-        self.nfev = 0
+        self._nfev_before_restart = 0
         self._solver: integrate.OdeSolver | None = None
 
     def start(self, fun: RightHandSide, t0: float, y0: np.ndarray, t_bound: float) -> None:
         if self._solver is not None:
-            self.nfev += self._solver.nfev
+            self._nfev_before_restart += self._solver.nfev
         self._solver = ADAPTIVE_METHODS[self.name](
             fun, t0, y0, t_bound, rtol=self.rtol, atol=self.atol, max_step=self.max_step
         )
@@ -101,7 +101,7 @@ class AdaptiveIntegrator:
     @property
     def total_nfev(self) -> int:
         """Right-hand-side evaluations over all restarts."""
-        return self.nfev + (self._solver.nfev if self._solver is not None else 0)
+        return self._nfev_before_restart + (self._solver.nfev if self._solver is not None else 0)
 
     def interpolate(self, t: float | np.ndarray) -> np.ndarray:
         return self._solver.dense_output()(t)
@@ -118,11 +118,7 @@ class RK4:
         if not (np.isfinite(dt) and dt > 0):
             raise ValueError(f"dt: must be > 0, got {dt!r}")
         self.dt = float(dt)
-        self.nfev = 0
-
-    @property
-    def total_nfev(self) -> int:
-        return self.nfev
+        self.total_nfev = 0
 
     def start(self, fun: RightHandSide, t0: float, y0: np.ndarray, t_bound: float) -> None:
         self._fun, self.t_bound = fun, float(t_bound)
@@ -132,7 +128,7 @@ class RK4:
         self._previous: tuple[np.ndarray, np.ndarray] | None = None  # (y_old, f_old)
 
     def _eval(self, t: float, y: np.ndarray) -> np.ndarray:
-        self.nfev += 1
+        self.total_nfev += 1
         return self._fun(t, y)
 
     def step(self) -> None:

@@ -399,7 +399,8 @@ def _check_blowup(model, t, y, energy0, scale0, max_length_error, max_growth) ->
     if error.max() > max_length_error:
         r = int(np.argmax(error))
         return (f"unstable: rods[{r}] length error {error[r]:.3g} (relative) exceeds "
-                f"{max_length_error:g} at t = {t:.6g} s")
+                f"{max_length_error:g} within one step at t = {t:.6g} s (step too large, or the "
+                "motion is unstable)")
     total, scale = model.energy_balance(t, y)
     if total - energy0 > max_growth * max(scale0, scale, 1e-300):
         return (f"unstable: energy grew by {total - energy0:.3g} J (scale {max(scale0, scale):.3g} J)"

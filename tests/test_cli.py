@@ -1,0 +1,145 @@
+"""The command line: the main job on its default example, info, export, and its errors."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from tensegrity.cli import main
+from tensegrity.io import read_structure, read_trajectory
+
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.fixture(scope="module")
+def default_run(tmp_path_factory):
+    """``tensegrity simulate`` with no options but the output folder: the paper's example."""
+    out = tmp_path_factory.mktemp("results")
+    code = main(["simulate", "--out", str(out)])
+    return code, out
+
+
+def test_default_example_writes_every_promised_file(default_run):
+    code, out = default_run
+    assert code == 0
+    for name in ("trajectory.h5", "structure.json", "initial.png", "equilibrium.png",
+                 "tendon_lengths.png"):
+        path = out / name
+        assert path.is_file() and path.stat().st_size > 0, name
+        if name.endswith(".png"):
+            assert path.read_bytes()[:8] == PNG_SIGNATURE
+    assert not list(out.glob("*.tmp")), "temporary files left behind"
+
+
+def test_default_example_reaches_a_taut_steady_state(default_run):
+    _, out = default_run
+    trajectory = read_trajectory(out / "trajectory.h5")
+    structure = read_structure(out / "structure.json")
+    # The paper's (3,1) shell: 12 nodes, 6 rods, 24 tendons, all alike, critically damped.
+    assert (structure.n_nodes, structure.n_rods, structure.n_tendons) == (12, 6, 24)
+    assert np.ptp(structure.tendon_stiffness) == 0 and np.ptp(structure.tendon_rest_length) == 0
+    assert np.all(structure.tendon_damping > 0)
+    assert trajectory.status == 1, trajectory.message
+    assert trajectory.residual_acceleration[-1] < 1e-6
+    assert np.abs(trajectory.velocities[-1]).max() < 1e-6
+    assert np.all(trajectory.tendon_tension[-1] > 0), "a tendon is slack at equilibrium"
+    # It moved: the equilibrium is not the initial layout.
+    assert np.abs(trajectory.nodes[-1] - trajectory.nodes[0]).max() > 0.05
+    # Rod lengths held, energy accounted for.
+    p = trajectory.nodes
+    rods = structure.rod_nodes
+    lengths = np.linalg.norm(p[:, rods[:, 1]] - p[:, rods[:, 0]], axis=-1)
+    assert np.abs(lengths - 1.0).max() < 1e-9
+    e = trajectory.energy
+    total = e["kinetic"] + e["elastic"] + e["dissipated"]
+    assert np.abs(total - total[0]).max() < 1e-6 * total[0]
+
+
+def test_default_example_prints_a_summary(tmp_path, capsys):
+    assert main(["simulate", "--out", str(tmp_path), "--t-end", "0.5", "--sample-dt", "0.05"]) == 0
+    printed = capsys.readouterr().out
+    for words in ("final residual acceleration", "largest rod-length error", "energy dissipated",
+                  "slack tendons", "wall time"):
+        assert words in printed
+
+
+def test_export_then_simulate_and_info_a_structure_file(tmp_path, capsys):
+    path = tmp_path / "s.json"
+    assert main(["export", "--n", "4", "--m", "2", "-o", str(path)]) == 0
+    data = json.loads(path.read_text())
+    assert len(data["nodes"]) == 32 and len(data["rods"]) == 16 and len(data["tendons"]) == 72
+    assert main(["info", "--structure", str(path)]) == 0
+    printed = capsys.readouterr().out
+    assert "tendons" in printed and "72" in printed and "80 (5 per rod)" in printed
+    out = tmp_path / "run"
+    code = main(["simulate", "--structure", str(path), "--t-end", "0.2", "--no-steady-state",
+                 "--method", "rk4", "--dt", "1e-3", "--sample-dt", "0.05", "--out", str(out)])
+    assert code == 0
+    trajectory = read_trajectory(out / "trajectory.h5")
+    assert trajectory.nodes.shape == (5, 32, 3)
+    assert trajectory.time[-1] == pytest.approx(0.2)
+
+
+@pytest.mark.parametrize(
+    "argv, words",
+    [
+        (["simulate", "--n", "2"], "n"),
+        (["simulate", "--m", "0"], "m"),
+        (["simulate", "--stiffness", "-1"], "--stiffness"),
+        (["simulate", "--damping", "lots"], "--damping"),
+        (["simulate", "--method", "rk4"], "--dt"),
+        (["simulate", "--method", "euler"], "--method"),
+        (["simulate", "--dt", "1e-3"], "--dt"),
+        (["simulate", "--t-end", "nan"], "--t-end"),
+        (["simulate", "--structure", "missing.json"], "missing.json"),
+        (["simulate", "--structure", "x.json", "--n", "4"], "--n"),
+        (["info", "--rest-length", "-0.5"], "--rest-length"),
+        (["export", "--n", "3"], "--output"),
+        (["bogus"], "bogus"),
+    ],
+)
+def test_bad_input_is_one_line_exit_2_and_writes_nothing(argv, words, tmp_path, capsys,
+                                                           monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("tensegrity: error:"), err
+    assert words in err
+    assert "Traceback" not in err
+    assert not list(tmp_path.iterdir())
+
+
+def test_bad_structure_file_names_the_element(tmp_path, capsys):
+    path = tmp_path / "bad.json"
+    main(["export", "-o", str(path)])
+    data = json.loads(path.read_text())
+    data["tendons"][2]["stiffness"] = -5
+    path.write_text(json.dumps(data))
+    capsys.readouterr()
+    assert main(["simulate", "--structure", str(path), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert "tendons[2]" in err and "stiffness" in err and err.count("\n") == 1
+    assert not (tmp_path / "out").exists()
+
+
+def test_unstable_run_fails_with_exit_1_and_writes_nothing(tmp_path, capsys):
+    out = tmp_path / "out"
+    code = main(["simulate", "--method", "rk4", "--dt", "0.05", "--damping", "none",
+                 "--out", str(out)])
+    assert code == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "unstable" in err
+    assert not out.exists() or not list(out.iterdir())
+
+
+def test_console_script_errors_without_traceback(tmp_path):
+    completed = subprocess.run(
+        [sys.executable, "-m", "tensegrity.cli", "simulate", "--n", "1"],
+        capture_output=True, text=True, cwd=tmp_path,
+    )
+    assert completed.returncode == 2
+    assert completed.stderr.count("\n") == 1 and "Traceback" not in completed.stderr
