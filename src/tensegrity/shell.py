@@ -72,6 +72,13 @@ def _check_size(n: int, m: int) -> None:
         raise ValueError(f"m: a shell needs m >= 1 stages, got {m!r}")
 
 
+def _real(value: object, name: str) -> float:
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: must be a number, got {value!r}") from None
+
+
 def shell_layout(
     n: int,
     m: int,
@@ -102,8 +109,8 @@ def shell_layout(
         a stage's bottom ring midway between the top nodes of the stage below.
     """
     _check_size(n, m)
-    L = float(rod_length)
-    h = L if stage_height is None else float(stage_height)
+    L = _real(rod_length, "rod_length")
+    h = L if stage_height is None else _real(stage_height, "stage_height")
     if not (math.isfinite(L) and L > 0):
         raise ValueError(f"rod_length: must be > 0, got {rod_length!r}")
     if not (math.isfinite(h) and 0 < h < 2 * L):
@@ -113,14 +120,14 @@ def shell_layout(
         sweep = 3 * math.pi / (2 * n)
         R = chord / (2 * math.sin(sweep / 2))
     else:
-        R = float(radius)
+        R = _real(radius, "radius")
         if not (math.isfinite(R) and R >= chord / 2):
             raise ValueError(
                 f"radius: must be >= {chord / 2!r} m for rods of length {L} to fit a stage of "
                 f"height {h}, got {radius!r}"
             )
         sweep = 2 * math.asin(chord / (2 * R))
-    stage_twist = 2 * sweep if twist is None else float(twist)
+    stage_twist = 2 * sweep if twist is None else _real(twist, "twist")
     if not math.isfinite(stage_twist):
         raise ValueError(f"twist: must be finite, got {twist!r}")
 

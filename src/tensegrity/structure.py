@@ -54,7 +54,10 @@ def _float_array(value: Any, field: str, shape: tuple[int | None, ...]) -> np.nd
 
 def _index_array(value: Any, field: str, n_nodes: int) -> np.ndarray:
     """Convert ``value`` to an ``(n, 2)`` int array of node indices in ``[0, n_nodes)``."""
-    array = np.array(value)
+    try:
+        array = np.array(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{field}: expected shape (n, 2) of node indices") from None
     if array.size == 0:
         array = array.reshape(0, 2)
     if array.ndim != 2 or array.shape[1] != 2:
@@ -340,27 +343,72 @@ class Structure:
         nodes = _require(data, "nodes", "structure", Sequence)
         rods = _require(data, "rods", "structure", Sequence)
         tendons = _require(data, "tendons", "structure", Sequence)
+        rows = {"nodes": nodes}
+        if data.get("velocities") is not None:
+            rows["velocities"] = _require(data, "velocities", "structure", Sequence)
+        points = {
+            key: [_vector(row, f"{key}[{k}]") for k, row in enumerate(value)]
+            for key, value in rows.items()
+        }
         rod_items = [_require_item(rod, f"rods[{k}]") for k, rod in enumerate(rods)]
         tendon_items = [_require_item(t, f"tendons[{k}]") for k, t in enumerate(tendons)]
+
         return cls(
-            node_position=nodes,
-            node_velocity=data.get("velocities"),
-            rod_nodes=[_require(r, "nodes", f"rods[{k}]") for k, r in enumerate(rod_items)]
-            or np.zeros((0, 2), int),
-            rod_mass=[_require(r, "mass", f"rods[{k}]") for k, r in enumerate(rod_items)],
-            rod_length=[_require(r, "length", f"rods[{k}]") for k, r in enumerate(rod_items)],
-            rod_damping=[r.get("damping", 0.0) for r in rod_items],
-            tendon_nodes=[_require(t, "nodes", f"tendons[{k}]") for k, t in enumerate(tendon_items)]
-            or np.zeros((0, 2), int),
-            tendon_stiffness=[
-                _require(t, "stiffness", f"tendons[{k}]") for k, t in enumerate(tendon_items)
-            ],
-            tendon_rest_length=[
-                _require(t, "rest_length", f"tendons[{k}]") for k, t in enumerate(tendon_items)
-            ],
-            tendon_damping=[t.get("damping", 0.0) for t in tendon_items],
+            node_position=points["nodes"] or np.zeros((0, 3)),
+            node_velocity=points.get("velocities"),
+            rod_nodes=_node_pairs(rod_items, "rods"),
+            rod_mass=_numbers(rod_items, "rods", "mass"),
+            rod_length=_numbers(rod_items, "rods", "length"),
+            rod_damping=_numbers(rod_items, "rods", "damping", default=0.0),
+            tendon_nodes=_node_pairs(tendon_items, "tendons"),
+            tendon_stiffness=_numbers(tendon_items, "tendons", "stiffness"),
+            tendon_rest_length=_numbers(tendon_items, "tendons", "rest_length"),
+            tendon_damping=_numbers(tendon_items, "tendons", "damping", default=0.0),
             tendon_name=tuple(t.get("name", f"s{k}") for k, t in enumerate(tendon_items)),
         )
+
+
+def _number(value: Any, where: str) -> float:
+    """A JSON number (not a string, a bool or a list)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ValueError(f"{where}: expected a number, got {value!r:.80}")
+    return float(value)
+
+
+def _vector(value: Any, where: str) -> list[float]:
+    """A JSON list of three numbers."""
+    if not isinstance(value, Sequence) or isinstance(value, str) or len(value) != 3:
+        raise ValueError(f"{where}: expected a list of 3 numbers [x, y, z], got {value!r:.80}")
+    return [_number(x, f"{where}[{k}]") for k, x in enumerate(value)]
+
+
+def _numbers(
+    items: Sequence[Mapping[str, Any]], kind: str, key: str, *, default: float | None = None
+) -> list[float]:
+    """``item[key]`` of every item as a number; a missing key takes ``default`` or is an error."""
+    values = []
+    for k, item in enumerate(items):
+        if key not in item and default is None:
+            raise ValueError(f"{kind}[{k}]: missing key {key!r}")
+        values.append(_number(item.get(key, default), f"{kind}[{k}].{key}"))
+    return values
+
+
+def _node_pairs(items: Sequence[Mapping[str, Any]], kind: str) -> Any:
+    """``item["nodes"]`` of every item, checked to be two integer node indices."""
+    pairs = [
+        _node_pair(_require(item, "nodes", f"{kind}[{k}]"), f"{kind}[{k}].nodes")
+        for k, item in enumerate(items)
+    ]
+    return pairs or np.zeros((0, 2), int)
+
+
+def _node_pair(value: Any, where: str) -> list[int]:
+    """A JSON list of two integer node indices."""
+    if (not isinstance(value, Sequence) or isinstance(value, str) or len(value) != 2
+            or any(isinstance(x, bool) or not isinstance(x, int) for x in value)):
+        raise ValueError(f"{where}: expected two integer node indices [a, b], got {value!r:.80}")
+    return list(value)
 
 
 def _require_item(item: Any, where: str) -> Mapping[str, Any]:
