@@ -9,8 +9,10 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
-from collections.abc import Sequence
+import tempfile
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -90,13 +92,21 @@ _SHELL_OPTIONS = ("n", "m", "primal", "stiffness", "rest_length")
 def _structure(args: argparse.Namespace) -> Structure:
     """The structure the options describe (a file, or a shell)."""
     if getattr(args, "structure", None) is not None:
-        given = [f"--{name.replace('_', '-')}" for name in _SHELL_OPTIONS if getattr(args, name)]
+        given = [
+            f"--{name.replace('_', '-')}"
+            for name in _SHELL_OPTIONS
+            if getattr(args, name) not in (None, False)
+        ]
         if given:
             raise CommandError(f"{' '.join(given)}: shell options cannot be combined with --structure")
         from tensegrity.io import read_structure
 
         return read_structure(args.structure)
-    options = {"n": args.n or 3, "m": args.m or 1, "primal": args.primal}
+    options = {
+        "n": 3 if args.n is None else args.n,
+        "m": 1 if args.m is None else args.m,
+        "primal": args.primal,
+    }
     if args.stiffness is not None:
         options["stiffness"] = args.stiffness
     if args.rest_length is not None:
@@ -143,13 +153,34 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     )
     if not result.success:
         raise CommandError(f"simulation failed: {result.message} (nothing written)", EXIT_FAILED)
-    out = args.out
-    out.mkdir(parents=True, exist_ok=True)
-    figures = save_figures(result, out)
-    write_structure(out / "structure.json", structure)
-    write_trajectory(out / "trajectory.h5", result)
-    _print_summary(result, [out / "trajectory.h5", out / "structure.json", *figures])
+    written = _write_all(args.out, lambda staging: [
+        write_trajectory(staging / "trajectory.h5", result),
+        write_structure(staging / "structure.json", structure),
+        *save_figures(result, staging),
+    ])
+    _print_summary(result, written)
     return 0
+
+
+def _write_all(out: Path, write: Callable[[Path], list[Path]]) -> list[Path]:
+    """Write every output into a staging folder inside ``out``, then move them into ``out``.
+
+    Either all files appear (each by an atomic rename) or, if any write fails, none does and a
+    folder created for them is removed again.
+    """
+    created = not out.exists()
+    out.mkdir(parents=True, exist_ok=True)
+    try:
+        with tempfile.TemporaryDirectory(dir=out, prefix=".staging-") as staging:
+            moved = []
+            for path in write(Path(staging)):
+                os.replace(path, out / path.name)
+                moved.append(out / path.name)
+            return moved
+    except BaseException:
+        if created and not any(out.iterdir()):
+            out.rmdir()
+        raise
 
 
 def _print_summary(result, files: Sequence[Path]) -> None:

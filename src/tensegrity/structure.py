@@ -408,6 +408,8 @@ def _node_pair(value: Any, where: str) -> list[int]:
     if (not isinstance(value, Sequence) or isinstance(value, str) or len(value) != 2
             or any(isinstance(x, bool) or not isinstance(x, int) for x in value)):
         raise ValueError(f"{where}: expected two integer node indices [a, b], got {value!r:.80}")
+    if any(not 0 <= x < 2**62 for x in value):
+        raise ValueError(f"{where}: node index out of range in {value!r:.80}")
     return list(value)
 
 

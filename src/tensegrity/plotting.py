@@ -1,0 +1,458 @@
+"""Figures of a structure and of a simulation, like the paper's Figures 18.10-18.12.
+
+- :func:`figure_structure` -- the structure in 3-D: rods thick and dark, tendons thin (coloured by
+  tension when tensions are given), slack tendons dashed red (Figures 18.10 and 18.11);
+- :func:`figure_tendon_lengths` -- tendon lengths against time (Figure 18.12);
+- :func:`save_figures` -- the three figures of a simulation as PNG files, written atomically.
+
+Figures are built as :class:`matplotlib.figure.Figure` objects with the Agg canvas, without
+``pyplot``: nothing here changes the global backend or pyplot state, no window opens, and the
+functions work in headless sessions and alongside a user's own interactive backend.  To show a
+figure in a notebook, display the returned ``Figure``; to draw into your own 3-D axes, use
+:func:`draw_structure`.
+
+SI units throughout: positions and lengths in m, tensions in N, time in s.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.cm import ScalarMappable
+from matplotlib.colors import Normalize
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.ticker import MaxNLocator
+
+from tensegrity.io import atomic_path
+from tensegrity.structure import Structure
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+
+    from tensegrity.io import Trajectory
+    from tensegrity.simulate import SimulationResult
+
+ROD_COLOR = "#26282b"
+TENDON_COLOR = "#2f6fb0"
+SLACK_COLOR = "#d62728"
+#: Colour map of tendon tension; the yellow end is cut off so that every tendon shows on white.
+TENSION_CMAP = "viridis"
+_CMAP_RANGE = (0.0, 0.85)
+ROD_WIDTH = 4.0
+TENDON_WIDTH = 1.3
+#: At most this many tendons get a legend entry each in :func:`figure_tendon_lengths`.
+MAX_LEGEND_TENDONS = 12
+#: Above this many tendons, :func:`figure_tendon_lengths` draws the range and median only.
+MAX_TENDON_LINES = 500
+
+
+def _new_figure(figsize: tuple[float, float]) -> Figure:
+    figure = Figure(figsize=figsize, layout="constrained")
+    FigureCanvasAgg(figure)
+    return figure
+
+
+def _tension_colormap():
+    import matplotlib
+    from matplotlib.colors import ListedColormap
+
+    base = matplotlib.colormaps[TENSION_CMAP]
+    return ListedColormap(base(np.linspace(*_CMAP_RANGE, 256)), name=f"{TENSION_CMAP}_cut")
+
+
+def _positions(structure: Structure, node_position: Any) -> np.ndarray:
+    p = np.asarray(node_position, dtype=float)
+    if p.shape != (structure.n_nodes, 3):
+        raise ValueError(
+            f"node_position: expected shape ({structure.n_nodes}, 3) for this structure, "
+            f"got {p.shape}"
+        )
+    return p
+
+
+def _tensions(structure: Structure, tension: Any) -> np.ndarray | None:
+    if tension is None:
+        return None
+    t = np.asarray(tension, dtype=float)
+    if t.shape != (structure.n_tendons,):
+        raise ValueError(
+            f"tension: expected shape ({structure.n_tendons},) for this structure, got {t.shape}"
+        )
+    return t
+
+
+def draw_structure(
+    ax: Axes,
+    structure: Structure,
+    node_position: Any,
+    tension: Any = None,
+    *,
+    color_by_tension: bool = True,
+    show_nodes: bool = True,
+    legend: bool = True,
+) -> dict[str, Any]:
+    """Draw a structure on 3-D axes: rods thick and dark, tendons thin, slack tendons dashed.
+
+    The axes get equal scales on x, y and z (``set_box_aspect`` from the data ranges), limits
+    that fit the structure and labels in m.
+
+    Parameters
+    ----------
+    ax : mpl_toolkits.mplot3d.axes3d.Axes3D
+        Axes with ``projection="3d"``.
+    structure : Structure
+        ``N`` nodes, ``R`` rods, ``S`` tendons.
+    node_position : array_like, shape (N, 3)
+        Node positions to draw [m] (e.g. ``result.node_position[k]``).
+    tension : array_like, shape (S,), optional
+        Tendon tensions [N].  Tendons with ``tension <= 0`` are slack: drawn dashed in red, with a
+        legend entry ``"slack tendons (k)"``.  Taut tendons are coloured by tension
+        (``color_by_tension``; see the returned ``"mappable"`` for a colour bar), unless their
+        tensions agree to 1e-4 relative (one colour then, no colour bar).
+    color_by_tension : bool
+        Colour taut tendons by tension (default) rather than in one colour.
+    show_nodes : bool
+        Mark the nodes (rod ends) with dots.
+    legend : bool
+        Add a legend (rods, tendons, slack tendons if any).
+
+    Returns
+    -------
+    dict
+        The artists: ``"rods"``, ``"tendons"`` (taut or all), ``"slack"`` (None if no tendon is
+        slack), ``"nodes"`` (or None), and ``"mappable"``: a ``ScalarMappable`` of the tension
+        colours, or None.
+    """
+    from mpl_toolkits.mplot3d.art3d import Line3DCollection
+
+    p = _positions(structure, node_position)
+    tension = _tensions(structure, tension)
+    segments = lambda pairs: p[pairs] if len(pairs) else np.zeros((0, 2, 3))  # noqa: E731
+
+    tendon_pairs = structure.tendon_nodes
+    slack = np.zeros(structure.n_tendons, bool) if tension is None else tension <= 0
+    taut_pairs = tendon_pairs[~slack]
+    mappable = None
+    taut_tension = None if tension is None else tension[~slack]
+    if (color_by_tension and taut_tension is not None and taut_tension.size
+            and not _uniform(taut_tension)):
+        low, high = float(taut_tension.min()), float(taut_tension.max())
+        mappable = ScalarMappable(Normalize(low, high), _tension_colormap())
+        mappable.set_array(taut_tension)
+        tendon_colors = mappable.to_rgba(taut_tension)
+    else:
+        tendon_colors = TENDON_COLOR
+    tendons = Line3DCollection(
+        segments(taut_pairs), colors=tendon_colors, linewidths=TENDON_WIDTH, zorder=1
+    )
+    ax.add_collection3d(tendons)
+    slack_lines = None
+    if slack.any():
+        slack_lines = Line3DCollection(
+            segments(tendon_pairs[slack]), colors=SLACK_COLOR, linewidths=TENDON_WIDTH + 0.3,
+            linestyles=(0, (4, 2.5)), zorder=2,
+        )
+        ax.add_collection3d(slack_lines)
+    rods = Line3DCollection(
+        segments(structure.rod_nodes), colors=ROD_COLOR, linewidths=ROD_WIDTH, zorder=3,
+        capstyle="round",
+    )
+    ax.add_collection3d(rods)
+    nodes = None
+    if show_nodes:
+        nodes = ax.scatter(*p.T, s=14, color=ROD_COLOR, depthshade=False, zorder=4)
+
+    _fit_axes(ax, p)
+    if legend:
+        handles = [Line2D([], [], color=ROD_COLOR, lw=ROD_WIDTH, solid_capstyle="round",
+                          label=f"rods ({structure.n_rods})")]
+        n_taut = int(np.count_nonzero(~slack))
+        if n_taut or tension is None:
+            color = mappable.cmap(0.5) if mappable is not None else TENDON_COLOR
+            what = "tendons" if tension is None else "taut tendons"
+            handles.append(Line2D([], [], color=color, lw=TENDON_WIDTH + 0.5,
+                                  label=f"{what} ({n_taut})"))
+        if slack.any():
+            handles.append(Line2D([], [], color=SLACK_COLOR, lw=TENDON_WIDTH + 0.5,
+                                  ls=(0, (4, 2.5)), label=f"slack tendons ({int(slack.sum())})"))
+        ax.legend(handles=handles, loc="upper left", fontsize="small", framealpha=0.85)
+    return {"rods": rods, "tendons": tendons, "slack": slack_lines, "nodes": nodes,
+            "mappable": mappable}
+
+
+def _uniform(values: np.ndarray) -> bool:
+    """True if ``values`` agree to 1e-4 relative: one colour, no colour bar."""
+    return float(np.ptp(values)) <= 1e-4 * float(np.max(np.abs(values)))
+
+
+def _fit_axes(ax: Axes, p: np.ndarray) -> None:
+    """Limits around ``p`` (N, 3) with a margin, equal scales, labels in m."""
+    low, high = p.min(axis=0), p.max(axis=0)
+    span = high - low
+    size = float(span.max()) if span.max() > 0 else 1.0
+    span = np.maximum(span, 0.08 * size)  # a flat structure still gets a visible box
+    centre = 0.5 * (low + high)
+    half = 0.5 * span + 0.04 * size
+    ax.set_xlim(centre[0] - half[0], centre[0] + half[0])
+    ax.set_ylim(centre[1] - half[1], centre[1] + half[1])
+    ax.set_zlim(centre[2] - half[2], centre[2] + half[2])
+    ax.set_box_aspect(tuple(2 * half))
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_zlabel("z [m]")
+    for axis in (ax.xaxis, ax.yaxis, ax.zaxis):
+        axis.set_major_locator(MaxNLocator(nbins=5))
+    ax.tick_params(labelsize="small")
+
+
+def figure_structure(
+    structure: Structure,
+    node_position: Any,
+    tension: Any = None,
+    *,
+    title: str | None = "Tensegrity structure",
+    subtitle: str | None = None,
+    elev: float = 22.0,
+    azim: float = -58.0,
+    figsize: tuple[float, float] = (7.5, 6.5),
+) -> Figure:
+    """A figure of the structure at ``node_position``, optionally with tensions (Fig. 18.10/18.11).
+
+    Parameters
+    ----------
+    structure : Structure
+    node_position : array_like, shape (N, 3)
+        Node positions [m].
+    tension : array_like, shape (S,), optional
+        Tendon tensions [N]: taut tendons are coloured by tension (with a colour bar), slack ones
+        (``<= 0``) dashed red.
+    title : str, optional
+        Figure title.
+    subtitle : str, optional
+        A second, smaller line; default: counts of nodes, rods, tendons (slack, tension range).
+    elev, azim : float
+        View angles [degrees].
+    figsize : (float, float)
+        Size [inches].
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        With an Agg canvas; save it with ``figure.savefig(path)``.
+    """
+    figure = _new_figure(figsize)
+    ax = figure.add_subplot(projection="3d")
+    artists = draw_structure(ax, structure, node_position, tension)
+    ax.view_init(elev=elev, azim=azim)
+    if artists["mappable"] is not None:
+        figure.colorbar(artists["mappable"], ax=ax, shrink=0.6, pad=0.1,
+                        label="tendon tension [N]")
+    if subtitle is None:
+        subtitle = (f"{structure.n_nodes} nodes, {structure.n_rods} rods, "
+                    f"{structure.n_tendons} tendons")
+        t = _tensions(structure, tension)
+        if t is not None and t.size:
+            n_slack = int(np.sum(t <= 0))
+            taut = t[t > 0]
+            subtitle += f"; {n_slack} slack" if n_slack else "; all taut"
+            if taut.size and _uniform(taut):
+                subtitle += f"; tension {taut.mean():.4g} N" + (" in every taut tendon"
+                                                                if n_slack else " in every tendon")
+            elif taut.size:
+                subtitle += f"; tension {taut.min():.4g} .. {taut.max():.4g} N"
+
+    _titles(figure, title, subtitle)
+    return figure
+
+
+def _titles(figure: Figure, title: str | None, subtitle: str | None) -> None:
+    if title and subtitle:
+        figure.suptitle(f"{title}\n", fontsize="large", fontweight="bold")
+        figure.text(0.5, 0.955, subtitle, ha="center", va="top", fontsize="small", color="0.3",
+                    transform=figure.transFigure)
+    elif title or subtitle:
+        figure.suptitle(title or subtitle, fontsize="large" if title else "small",
+                        fontweight="bold" if title else "normal")
+
+
+def _family(name: str) -> str:
+    """``"t3_2_1"`` -> ``"t3"``: the name without trailing ``_<number>`` indices."""
+    return re.sub(r"(_\d+)+$", "", name) or name
+
+
+def _natural_key(text: str) -> list:
+    """Sort key with numbers compared as numbers: ``t9`` before ``t10``."""
+    return [(0, int(part), "") if part.isdigit() else (1, 0, part)
+            for part in re.split(r"(\d+)", text) if part]
+
+
+def figure_tendon_lengths(
+    time: Any,
+    tendon_length: Any,
+    names: Sequence[str],
+    *,
+    rest_length: Any = None,
+    title: str | None = "Tendon lengths",
+    subtitle: str | None = None,
+    figsize: tuple[float, float] = (8.0, 5.0),
+) -> Figure:
+    """Tendon lengths against time, one line per tendon (Figure 18.12).
+
+    With at most ``MAX_LEGEND_TENDONS`` tendons each gets a legend entry.  Otherwise, if the names
+    fall into a few families (``t3_1_1``, ``t3_2_1``, ... form family ``t3``, as for a shell),
+    lines are coloured by family with one legend entry per family; if not, a note gives the count
+    instead of a legend.  Above ``MAX_TENDON_LINES`` tendons only the range (min..max over
+    tendons) and the median are drawn.
+
+    Parameters
+    ----------
+    time : array_like, shape (T,)
+        Sample times [s].
+    tendon_length : array_like, shape (T, S)
+        Tendon lengths [m].
+    names : sequence of str, length S
+        Tendon names.
+    rest_length : float or array_like, shape (S,), optional
+        Rest lengths [m]; if all equal, drawn as a dashed line (a tendon below it is slack).
+    title, subtitle : str, optional
+    figsize : (float, float)
+        Size [inches].
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    t = np.asarray(time, dtype=float)
+    lengths = np.asarray(tendon_length, dtype=float)
+    names = list(names)
+    if t.ndim != 1 or lengths.shape != (t.size, len(names)):
+        raise ValueError(
+            f"tendon_length: expected shape (T, S) = ({t.size}, {len(names)}) for {t.size} "
+            f"times and {len(names)} names, got {lengths.shape}"
+        )
+    figure = _new_figure(figsize)
+    ax = figure.add_subplot()
+    S = len(names)
+    note = None
+    marker = "o" if t.size == 1 else None
+    if S == 0:
+        note = "no tendons"
+    elif S > MAX_TENDON_LINES:
+        ax.fill_between(t, lengths.min(axis=1), lengths.max(axis=1), color=TENDON_COLOR,
+                        alpha=0.25, lw=0, label=f"range over {S} tendons")
+        ax.plot(t, np.median(lengths, axis=1), color=TENDON_COLOR, lw=1.5, marker=marker,
+                label="median")
+        ax.legend(fontsize="small", loc="best")
+    elif S <= MAX_LEGEND_TENDONS:
+        for k, name in enumerate(names):
+            ax.plot(t, lengths[:, k], lw=1.4, marker=marker, label=name)
+        ax.legend(fontsize="small", loc="best", ncols=2 if S > 6 else 1)
+    else:
+        families = sorted(dict.fromkeys(_family(name) for name in names), key=_natural_key)
+        if len(families) <= 10:
+            colors = {f: f"C{k}" for k, f in enumerate(families)}
+            for k, name in enumerate(names):
+                ax.plot(t, lengths[:, k], lw=1.3, color=colors[_family(name)], alpha=0.9,
+                        marker=marker)
+            counts = {f: sum(_family(n) == f for n in names) for f in families}
+            handles = [Line2D([], [], color=colors[f], lw=2, label=f"{f} ({counts[f]})")
+                       for f in families]
+            ax.legend(handles=handles, fontsize="small", loc="best", title="tendon family",
+                      title_fontsize="small", ncols=2 if len(families) > 5 else 1)
+        else:
+            for k in range(S):
+                ax.plot(t, lengths[:, k], lw=1.0, alpha=0.8, marker=marker)
+            note = f"{S} tendons (legend omitted)"
+    if rest_length is not None and S:
+        rest = np.broadcast_to(np.asarray(rest_length, dtype=float), (S,))
+        if np.ptp(rest) == 0:
+            ax.axhline(rest[0], color="0.35", ls="--", lw=1.0, zorder=0)
+            ax.annotate(f"rest length {rest[0]:.4g} m", (1.0, rest[0]),
+                        xycoords=("axes fraction", "data"), xytext=(-4, -3),
+                        textcoords="offset points", ha="right", va="top",
+                        fontsize="small", color="0.35")
+    if note:
+        ax.text(0.99, 0.98, note, transform=ax.transAxes, ha="right", va="top",
+                fontsize="small", color="0.3")
+    if t.size > 1:
+        ax.set_xlim(t[0], t[-1])
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("tendon length [m]")
+    ax.grid(True, alpha=0.3)
+    _titles(figure, title, subtitle)
+    return figure
+
+
+def _run_data(result: SimulationResult | Trajectory) -> dict[str, Any]:
+    """The arrays the figures need, from a ``SimulationResult`` or a ``Trajectory``."""
+    time = result.t if hasattr(result, "t") else result.time
+    nodes = result.node_position if hasattr(result, "node_position") else result.nodes
+    return dict(time=np.asarray(time), nodes=np.asarray(nodes), structure=result.structure,
+                tension=np.asarray(result.tendon_tension),
+                length=np.asarray(result.tendon_length), status=result.status,
+                message=result.message, settings=getattr(result, "settings", {}) or {})
+
+
+def save_figures(
+    result: SimulationResult | Trajectory, out_dir: str | Path, *, dpi: int = 150
+) -> list[Path]:
+    """Write the figures of a simulation as PNG files in ``out_dir``, each atomically.
+
+    - ``initial.png``: the structure at the first sample (Figure 18.10);
+    - ``equilibrium.png``: at the last sample, tendons coloured by tension, slack ones dashed
+      (Figure 18.11; titled "Steady-state equilibrium" only if the run reached one);
+    - ``tendon_lengths.png``: tendon lengths against time (Figure 18.12).
+
+    Parameters
+    ----------
+    result : SimulationResult or Trajectory
+        A run from :func:`tensegrity.simulate.simulate`, or one read back with
+        :func:`tensegrity.io.read_trajectory`.
+    out_dir : str or pathlib.Path
+        Output folder, created if missing.
+    dpi : int
+        Resolution; the default gives about 1100 x 1000 pixels for the structure figures.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The three files, in the order above.
+    """
+    data = _run_data(result)
+    structure, time, nodes, tension = data["structure"], data["time"], data["nodes"], data["tension"]
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    if data["status"] == 1:
+        final_title = f"Steady-state equilibrium (t = {time[-1]:.4g} s)"
+    elif data["status"] < 0:
+        final_title = f"Last state before failure (t = {time[-1]:.4g} s)"
+    else:
+        final_title = f"Final configuration (t = {time[-1]:.4g} s)"
+    rest = None if data["settings"].get("control") else structure.tendon_rest_length
+    figures = {
+        "initial.png": figure_structure(
+            structure, nodes[0], tension[0], title=f"Initial configuration (t = {time[0]:.4g} s)"
+        ),
+        "equilibrium.png": figure_structure(structure, nodes[-1], tension[-1], title=final_title),
+        "tendon_lengths.png": figure_tendon_lengths(
+            time, data["length"], structure.tendon_name, rest_length=rest,
+            title="Tendon lengths", subtitle=_first_upper(data["message"]),
+        ),
+    }
+    paths = []
+    for name, figure in figures.items():
+        path = out / name
+        with atomic_path(path) as tmp:
+            figure.savefig(tmp, format="png", dpi=dpi, facecolor="white")
+        paths.append(path)
+    return paths
+
+
+def _first_upper(text: str) -> str:
+    return text[:1].upper() + text[1:] if text else text

@@ -1,0 +1,136 @@
+"""Figures: valid PNGs of sensible size, written atomically, slack tendons marked, no pyplot or
+backend side effects."""
+
+from __future__ import annotations
+
+import struct
+
+import matplotlib
+import numpy as np
+import pytest
+from matplotlib.figure import Figure
+
+from tensegrity import class1_shell, critical_damping, simulate
+from tensegrity.io import read_trajectory, write_trajectory
+from tensegrity.plotting import (
+    draw_structure,
+    figure_structure,
+    figure_tendon_lengths,
+    save_figures,
+)
+
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.fixture(scope="module")
+def result():
+    return simulate(critical_damping(class1_shell(3, 1)), (0.0, 0.3), sample_dt=0.05)
+
+
+def png_size(path):
+    data = path.read_bytes()
+    assert data[:8] == PNG_SIGNATURE, f"{path} is not a PNG"
+    assert data[12:16] == b"IHDR"
+    return struct.unpack(">II", data[16:24])
+
+
+def legend_texts(ax):
+    legend = ax.get_legend()
+    return [] if legend is None else [t.get_text() for t in legend.get_texts()]
+
+
+def test_save_figures_writes_three_sensible_pngs(tmp_path, result):
+    backend = matplotlib.get_backend()
+    out = tmp_path / "figs"  # created on demand
+    paths = save_figures(result, out)
+    assert [p.name for p in paths] == ["initial.png", "equilibrium.png", "tendon_lengths.png"]
+    for path in paths:
+        assert path.parent == out and path.stat().st_size > 10_000
+        width, height = png_size(path)
+        assert 600 <= width <= 3000 and 400 <= height <= 3000, (path.name, width, height)
+    assert sorted(p.name for p in out.iterdir()) == sorted(p.name for p in paths)
+    assert matplotlib.get_backend() == backend
+
+
+def test_save_figures_accepts_a_trajectory_read_back(tmp_path, result):
+    write_trajectory(tmp_path / "run.h5", result)
+    paths = save_figures(read_trajectory(tmp_path / "run.h5"), tmp_path / "figs")
+    assert all(png_size(p)[0] > 0 for p in paths)
+
+
+def test_failed_figure_write_leaves_old_file_and_no_temp(tmp_path, result, monkeypatch):
+    old = tmp_path / "initial.png"
+    old.write_bytes(b"old")
+
+    def failing_savefig(self, *args, **kwargs):
+        raise RuntimeError("renderer failed")
+
+    monkeypatch.setattr(Figure, "savefig", failing_savefig)
+    with pytest.raises(RuntimeError, match="renderer failed"):
+        save_figures(result, tmp_path)
+    assert [p.name for p in tmp_path.iterdir()] == ["initial.png"]
+    assert old.read_bytes() == b"old"
+
+
+def test_slack_tendons_are_marked_in_the_legend(result):
+    s = result.structure
+    tension = result.tendon_tension[-1].copy()
+    tension[[1, 7]] = [0.0, -0.5]
+    figure = figure_structure(s, result.node_position[-1], tension, title="slack")
+    ax = figure.axes[0]
+    texts = legend_texts(ax)
+    assert "slack tendons (2)" in texts and f"taut tendons ({s.n_tendons - 2})" in texts
+    png = figure_structure(s, result.node_position[-1], tension)
+    assert isinstance(png, Figure)
+
+
+def test_no_slack_entry_when_all_taut_and_equal_scales(result):
+    s = result.structure
+    figure = Figure()
+    ax = figure.add_subplot(projection="3d")
+    p = result.node_position[0]
+    artists = draw_structure(ax, s, p, result.tendon_tension[0])
+    texts = legend_texts(ax)
+    assert artists["slack"] is None and not any("slack" in t for t in texts)
+    assert artists["mappable"] is not None  # the initial tensions differ: coloured by tension
+    figure.draw_without_rendering()  # projects the 3-D segments
+    assert len(artists["rods"].get_segments()) == s.n_rods
+    assert len(artists["tendons"].get_segments()) == s.n_tendons
+    # equal scale: box aspect proportional to the axis ranges
+    ranges = np.array([np.ptp(ax.get_xlim()), np.ptp(ax.get_ylim()), np.ptp(ax.get_zlim())])
+    aspect = np.array(ax.get_box_aspect())
+    assert np.allclose(aspect / aspect.max(), ranges / ranges.max(), rtol=1e-6)
+    assert [ax.get_xlabel(), ax.get_ylabel(), ax.get_zlabel()] == ["x [m]", "y [m]", "z [m]"]
+
+
+def test_structure_without_tension_and_bad_shapes(result):
+    s = result.structure
+    figure = figure_structure(s, s.node_position, title="layout")
+    assert legend_texts(figure.axes[0]) == [f"rods ({s.n_rods})", f"tendons ({s.n_tendons})"]
+    assert len(figure.axes) == 1  # no colour bar without tensions
+    with pytest.raises(ValueError, match="node_position"):
+        figure_structure(s, s.node_position[:-1])
+    with pytest.raises(ValueError, match="tension"):
+        figure_structure(s, s.node_position, np.ones(3))
+
+
+def test_tendon_lengths_figure_labels_and_legends(result):
+    t, lengths = result.t, result.tendon_length
+    names = result.structure.tendon_name
+    # few tendons: one legend entry each
+    few = figure_tendon_lengths(t, lengths[:, :4], names[:4])
+    ax = few.axes[0]
+    assert legend_texts(ax) == list(names[:4])
+    assert "[s]" in ax.get_xlabel() and "[m]" in ax.get_ylabel()
+    assert len(ax.get_lines()) == 4
+    # a shell's 24 tendons: one entry per family t1..t8
+    shell = figure_tendon_lengths(t, lengths, names, rest_length=result.structure.tendon_rest_length)
+    assert legend_texts(shell.axes[0]) == [f"t{a} (3)" for a in range(1, 9)]
+    # many unrelated names: no legend, a note instead
+    odd = [f"tendon-{k}" for k in range(len(names))]
+    many = figure_tendon_lengths(t, lengths, odd)
+    ax = many.axes[0]
+    assert ax.get_legend() is None
+    assert any(f"{len(names)} tendons" in text.get_text() for text in ax.texts)
+    with pytest.raises(ValueError, match="tendon_length"):
+        figure_tendon_lengths(t, lengths, names[:3])
