@@ -78,6 +78,7 @@ class AdaptiveIntegrator:
         self.name, self.rtol, self.atol, self.max_step = method, rtol, atol, max_step
         self._nfev_before_restart = 0
         self._solver: integrate.OdeSolver | None = None
+        self._dense = None
 
     def start(self, fun: RightHandSide, t0: float, y0: np.ndarray, t_bound: float) -> None:
         if self._solver is not None:
@@ -85,10 +86,12 @@ class AdaptiveIntegrator:
         self._solver = ADAPTIVE_METHODS[self.name](
             fun, t0, y0, t_bound, rtol=self.rtol, atol=self.atol, max_step=self.max_step
         )
+        self._dense = None
         self.t_old = self.t = float(t0)
 
     def step(self) -> None:
         self.t_old = self._solver.t
+        self._dense = None
         message = self._solver.step()
         if self._solver.status == "failed":
             raise IntegrationError(f"{self.name} failed at t = {self._solver.t:.9g} s: {message}")
@@ -104,7 +107,9 @@ class AdaptiveIntegrator:
         return self._nfev_before_restart + (self._solver.nfev if self._solver is not None else 0)
 
     def interpolate(self, t: float | np.ndarray) -> np.ndarray:
-        return self._solver.dense_output()(t)
+        if self._dense is None:  # built once per step: it may cost extra evaluations
+            self._dense = self._solver.dense_output()
+        return self._dense(t)
 
 
 class RK4:

@@ -230,7 +230,7 @@ def simulate(
     velocity_tol: float = 1e-6,
     acceleration_tol: float = 1e-6,
     projection_tol: float = 1e-12,
-    max_rod_length_error: float = 1e-6,
+    max_rod_length_error: float = 1e-3,
     max_energy_growth: float = 0.1,
     progress: bool = False,
 ) -> SimulationResult:
@@ -252,9 +252,10 @@ def simulate(
     sample_dt : float, optional
         Output spacing [s]; default ``(t_end - t0) / 1000``.  The last sample is where the run ended.
     locate_switches : bool
-        Adaptive methods only: stop each step that a tendon goes slack or taut in at the switch
-        (found by bisection on the dense output to 1e-13 s relative) and restart there, so the
-        method keeps its order across the kink of the tension law.
+        Adaptive methods only: when a tendon goes slack or taut within a step, find the switch
+        (bisection on the step's dense output, to 1e-13 s relative), discard the step, integrate
+        again from its start up to the switch and restart there, so that no stage of any step
+        sees both sides of a kink of the tension law and the method keeps its order.
     steady_state : bool
         Stop at the first sample where every node's speed is below ``velocity_tol`` [m/s] and
         every node's acceleration below ``acceleration_tol`` [m/s^2].
@@ -320,22 +321,26 @@ def simulate(
     recorder.add(t0, y)
     next_sample = 1
     integrator.start(model, t0, y, t_end)
-    indicator = model.switch_indicator(t0, y)
     locate = locate_switches and integrator.adaptive
+    indicator = model.switch_indicator(t0, y) if locate else None
+    switch_time = None  # while re-integrating up to a located switch
     try:
         while integrator.t < t_end:
+            t_old, y_old = integrator.t, integrator.y.copy()
             integrator.step()
             counts["nsteps"] += 1
             t_new, y_new = integrator.t, integrator.y
-            restart = not integrator.adaptive
-            if locate:
+            if locate and switch_time is None:
                 new_indicator = model.switch_indicator(t_new, y_new)
                 switched = np.flatnonzero((new_indicator > 0) != (indicator > 0))
                 if switched.size:
-                    t_new = _first_switch(model, integrator, switched, indicator > 0)
-                    y_new = integrator.interpolate(t_new)
+                    # Some stages of this step saw the far side of a kink: discard it and
+                    # integrate again from its start up to the switch, then restart there.
+                    switch_time = _first_switch(model, integrator, switched, indicator > 0)
                     counts["nswitches"] += 1
-                    restart = True
+                    integrator.start(model, t_old, y_old, switch_time)
+                    continue
+                indicator = new_indicator
             failure = _check_blowup(
                 model, t_new, y_new, energy0, scale0, max_rod_length_error, max_energy_growth
             )
@@ -354,11 +359,13 @@ def simulate(
                     break
             if status == STATUS_STEADY:
                 break
-            if restart or length_error > projection_tol:
+            at_switch = switch_time is not None and t_new >= switch_time
+            if not integrator.adaptive or at_switch or length_error > projection_tol:
                 y_new = model.project(y_new)
                 counts["nprojections"] += 1
                 integrator.start(model, t_new, y_new, t_end)
-            indicator = model.switch_indicator(t_new, y_new) if locate else indicator
+                indicator = model.switch_indicator(t_new, y_new) if locate else None
+                switch_time = None
             if bar is not None:
                 bar.update(t_new - bar.n)
     except (IntegrationError, ValueError, FloatingPointError) as exc:
