@@ -1,0 +1,374 @@
+"""Export a class 1 structure to MuJoCo's MJCF, to cross-check the dynamics against a peer.
+
+The model written by :func:`to_mjcf` is the same mechanical system as Theorem 18.1:
+
+- **Rod** ``r`` (nodes ``a, b``) is a body ``rod{r}`` with a free joint ``rod{r}`` at the rod's
+  centre.  The body's local ``z`` axis points along ``p_b - p_a``; its mass is ``m`` and its
+  inertia about the centre is ``diag(m L^2/12, m L^2/12, eps)`` with
+  ``eps = SPIN_INERTIA_RATIO * m L^2 / 12`` (but at least ``SPIN_INERTIA_MIN``; see below).
+  Sites ``node{a}`` at ``z = -L/2`` and ``node{b}`` at ``z = +L/2`` are its end points, named by
+  node index; a capsule geom without contacts shows the rod in a viewer (it has no mass).
+- **Tendon** ``s`` is a spatial tendon named ``tendon_name[s]`` from site ``node{tail}`` to site
+  ``node{head}`` with ``stiffness="k"``, ``springlength="0 Lbar"`` and ``damping="c"``.  The
+  two-value spring length is a deadband: MuJoCo's spring force is ``k (l - Lbar)`` above ``Lbar``
+  and exactly 0 between 0 and ``Lbar``, i.e. our ``T = k max(l - Lbar, 0)``.
+- Contacts are disabled, gravity is ``gravity`` (zero by default), the integrator and time step are
+  options; ``<size memory>`` is set explicitly (MuJoCo's own estimate explodes for large models).
+  The energy flag is on, so ``data.energy`` holds (elastic + gravity, kinetic) energy [J].
+- A keyframe ``initial`` holds the initial ``qpos`` and ``qvel``.  The bodies' default pose
+  (``qpos0``) is already the initial configuration, but the initial *velocities* are only in the
+  keyframe: call ``mujoco.mj_resetDataKeyframe(model, data, 0)`` after creating ``MjData``.
+
+Differences from :mod:`tensegrity.dynamics` that matter when comparing
+----------------------------------------------------------------------
+- **Tendon damping.**  MuJoCo's tendon damping ``-c l'`` acts whether the tendon is taut or slack,
+  and the total force may push; ours acts only while taut and a tendon never pushes
+  (``T = max(k (l - Lbar) + c l', 0)`` while ``l > Lbar``).  Compare trajectories with damping 0:
+  with damped tendons the two models really differ (a released (3,1) shell with ``c = 10 N s/m``
+  differs by 5 cm after 0.05 s, as contracting tendons would push in MuJoCo).
+- **Rod damping** (``Structure.rod_damping``, mass-proportional damping to ground) has no
+  counterpart in the exported model; a structure with nonzero rod damping is refused.
+- **Spin.**  Our rods have no spin degree of freedom; a MuJoCo free body does.  Since every tendon
+  attaches on the rod's axis, tendons exert no torque about it, and with the inertia symmetric
+  about the axis Euler's equations keep the spin rate at zero (``I3 w3' = (I1 - I2) w1 w2 = 0``)
+  and leave the transverse motion independent of ``I3``.  So ``eps`` only has to be positive and
+  large enough that round-off torques (about 1e-16 of the tendon moments) cannot spin the rod up:
+  ``SPIN_INERTIA_RATIO = 1e-6`` gives spin rates below 1e-9 rad/s after 0.5 s of a (4,2) shell,
+  invisible at the nodes (they lie on the spin axis) and in the energy (``eps w3^2 / 2``); node
+  trajectories with ratios from 1e-12 to 1e-2 differ by less than 1e-13 m.  (MuJoCo requires
+  inertias above ``mjMINVAL = 1e-15``, so ``eps`` must stay above that for very light rods.)
+- **Rod lengths.**  The sites are exactly ``rod_length`` apart, centred on the midpoint of the
+  structure's two nodes and along the line joining them: the same projection onto the rod
+  constraint that :func:`tensegrity.dynamics.initial_state` makes (equal to ``node_position`` up
+  to round-off when the nodes are exactly ``L`` apart).  Likewise the initial angular velocity is
+  ``u x (v_b - v_a) / L`` with zero spin, which drops any rod-stretching velocity component just
+  as ``initial_state`` does.
+
+Reading positions: after ``mujoco.mj_step`` with the RK4 integrator, ``data.site_xpos`` still
+holds the last Runge-Kutta stage, not the end of the step; :func:`mujoco_node_positions` calls
+``mujoco.mj_kinematics`` first.
+
+MuJoCo is an optional dependency: :func:`to_mjcf` and :func:`write_mjcf` only build text;
+:func:`mujoco_node_positions` and :func:`mujoco_node_velocities` import ``mujoco`` when called.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+import xml.etree.ElementTree as ET
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from tensegrity.structure import Structure
+
+#: Inertia about a rod's own axis, as a fraction of its transverse inertia ``m L^2 / 12`` ...
+SPIN_INERTIA_RATIO = 1e-6
+#: ... but at least this [kg m^2] (MuJoCo refuses inertias below ``mjMINVAL = 1e-15``), and at
+#: most the transverse inertia.
+SPIN_INERTIA_MIN = 1e-13
+#: MuJoCo's ``mjMINVAL``: the smallest mass [kg] and inertia [kg m^2] of a moving body.
+_MUJOCO_MINVAL = 1e-15
+
+#: MuJoCo's ``integrator`` keywords accepted by :func:`to_mjcf`.
+INTEGRATORS = ("Euler", "RK4", "implicit", "implicitfast")
+
+#: ``<size memory>`` is ``MEMORY_BASE + MEMORY_PER_ELEMENT * (6 R + S)`` bytes, rounded up to a
+#: mebibyte.  MuJoCo's arena holds the contact/constraint buffers (unused here: contacts are off and
+#: there are no equality constraints or limits) and the stack of temporaries, which grows linearly
+#: in the number of degrees of freedom plus tendons.  Peak use measured on class 1 shells from
+#: (3,1) to (30,30) with MuJoCo 4.0: about 50 bytes per (dof + tendon) with Euler/implicitfast, 120
+#: with RK4, 360 with implicit, so this leaves a margin of 5x (implicit) to 17x (RK4).  (MuJoCo's
+#: own estimate asks for 1.2 GB for a (20,20) shell, which needs 1 MB.)
+MEMORY_BASE = 1 << 20
+MEMORY_PER_ELEMENT = 2 << 10
+
+_SITE_RADIUS_FRACTION = 0.02  # visual only: site and capsule radii relative to the rod length
+
+
+def _float(x: float) -> str:
+    """Shortest decimal that round-trips the double ``x`` exactly."""
+    return repr(float(x))
+
+
+def _floats(values: Any) -> str:
+    return " ".join(_float(x) for x in np.ravel(values))
+
+
+def _quat_z_to(u: np.ndarray) -> np.ndarray:
+    """Unit quaternion ``(w, x, y, z)`` of a rotation taking the ``z`` axis to the unit ``u``.
+
+    ``q = (1 + u_z, -u_y, u_x, 0)`` normalized, accurate for ``u_z >= 0``; for ``u_z < 0`` it is
+    composed as a half turn about ``x`` (``z -> -z``) followed by the rotation taking ``z`` to
+    ``-u`` (hence ``-z`` to ``u``), which avoids the cancellation in ``1 + u_z``.
+    """
+    if u[2] >= 0:
+        q = np.array([1.0 + u[2], -u[1], u[0], 0.0])
+        return q / np.linalg.norm(q)
+    w, x, y, _ = _quat_z_to(-u)
+    # (w, x, y, 0) * (0, 1, 0, 0): Hamilton product with the half turn about x.
+    q = np.array([-x, w, 0.0, -y])
+    return q / np.linalg.norm(q)
+
+
+def _rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Rotate ``v`` by the unit quaternion ``q = (w, x, y, z)``."""
+    w, r = q[0], q[1:]
+    return v + 2.0 * np.cross(r, np.cross(r, v) + w * v)
+
+
+def rod_frames(structure: Structure) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Free-joint state of every rod: ``(centre, quat, velocity, omega_local)``.
+
+    Returns
+    -------
+    centre : ndarray, shape (R, 3)
+        Rod centres ``(p_a + p_b) / 2`` [m].
+    quat : ndarray, shape (R, 4)
+        Orientations ``(w, x, y, z)`` taking the body ``z`` axis to ``(p_b - p_a) / |p_b - p_a|``.
+    velocity : ndarray, shape (R, 3)
+        Centre velocities ``(v_a + v_b) / 2`` [m/s], world frame.
+    omega_local : ndarray, shape (R, 3)
+        Angular velocities [rad/s] in the body frame (MuJoCo's free-joint convention), the world
+        value being ``u x (v_b - v_a) / L``: no spin, rod-stretching velocity dropped.
+    """
+    a, b = structure.rod_nodes[:, 0], structure.rod_nodes[:, 1]
+    p, v = structure.node_position, structure.node_velocity
+    centre = 0.5 * (p[a] + p[b])
+    axis = p[b] - p[a]
+    axis = axis / np.linalg.norm(axis, axis=1, keepdims=True)
+    quat = np.array([_quat_z_to(u) for u in axis])
+    velocity = 0.5 * (v[a] + v[b])
+    omega = np.cross(axis, v[b] - v[a]) / structure.rod_length[:, None]
+    conjugate = quat * np.array([1.0, -1.0, -1.0, -1.0])
+    omega_local = np.array([_rotate(qc, w) for qc, w in zip(conjugate, omega)])
+    return centre, quat, velocity, omega_local
+
+
+def mjcf_memory(structure: Structure) -> int:
+    """The ``<size memory>`` [bytes] written by :func:`to_mjcf` (see ``MEMORY_PER_ELEMENT``)."""
+    elements = structure.n_coordinates + structure.n_tendons
+    size = MEMORY_BASE + MEMORY_PER_ELEMENT * elements
+    mebibyte = 1 << 20
+    return -(-size // mebibyte) * mebibyte
+
+
+def to_mjcf(
+    structure: Structure,
+    *,
+    timestep: float = 1e-4,
+    integrator: str = "RK4",
+    gravity: Any = (0.0, 0.0, 0.0),
+    name: str = "tensegrity",
+) -> str:
+    """MJCF XML of ``structure`` for MuJoCo: free rod bodies, spatial deadband-spring tendons.
+
+    See the module docstring for the modelling choices (spin inertia, deadband spring, damping,
+    keyframe).  All numbers are written with 17 significant digits, so the model's parameters and
+    initial state are bit-identical to ``structure``'s (after the rod-constraint projection).
+
+    Parameters
+    ----------
+    structure : Structure
+        A class 1 structure without rod damping (``rod_damping`` must be all zero).
+    timestep : float
+        MuJoCo time step [s], > 0.
+    integrator : str
+        One of ``"Euler"``, ``"RK4"``, ``"implicit"``, ``"implicitfast"``.
+    gravity : array_like, shape (3,)
+        Gravitational acceleration [m/s^2].  Default zero (MuJoCo's default is ``0 0 -9.81``).
+    name : str
+        The model name.
+
+    Returns
+    -------
+    str
+        The MJCF document.  Bodies ``rod{r}`` with free joints ``rod{r}``, sites ``node{i}``,
+        tendons named ``structure.tendon_name``, keyframe ``initial`` (index 0).
+
+    Raises
+    ------
+    ValueError
+        Naming the field: ``timestep``, ``integrator``, ``gravity``, ``name``;
+        ``rods[r].damping`` when a rod has damping MuJoCo cannot represent; ``rods[r].mass`` when
+        its mass or inertia ``m L^2 / 12`` is below MuJoCo's minimum ``1e-15``.
+    """
+    if not isinstance(structure, Structure):
+        raise ValueError(f"structure: expected a Structure, got {type(structure).__name__}")
+    try:
+        dt = float(timestep)
+    except (TypeError, ValueError):
+        raise ValueError(f"timestep: must be a number, got {timestep!r}") from None
+    if not (math.isfinite(dt) and dt > 0):
+        raise ValueError(f"timestep: must be > 0 and finite, got {timestep!r}")
+    if integrator not in INTEGRATORS:
+        raise ValueError(f"integrator: must be one of {', '.join(INTEGRATORS)}, got {integrator!r}")
+    try:
+        g = np.array(gravity, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"gravity: expected 3 numbers, got {gravity!r}") from None
+    if g.shape != (3,) or not np.all(np.isfinite(g)):
+        raise ValueError(f"gravity: expected 3 finite numbers, got {gravity!r}")
+    if not isinstance(name, str) or not name:
+        raise ValueError(f"name: must be a non-empty string, got {name!r}")
+    damped = np.flatnonzero(structure.rod_damping != 0)
+    if damped.size:
+        r = damped[0]
+        raise ValueError(
+            f"rods[{r}].damping: is {structure.rod_damping[r]!r} 1/s; mass-proportional rod "
+            "damping has no MuJoCo counterpart, export the structure with rod_damping = 0"
+        )
+
+    mass, length = structure.rod_mass, structure.rod_length
+    transverse = mass * length**2 / 12.0
+    light = np.flatnonzero((mass <= _MUJOCO_MINVAL) | (transverse <= _MUJOCO_MINVAL))
+    if light.size:
+        r = light[0]
+        raise ValueError(
+            f"rods[{r}].mass: mass {mass[r]!r} kg and inertia m L^2/12 = {transverse[r]!r} kg m^2 "
+            f"must both exceed MuJoCo's minimum {_MUJOCO_MINVAL:g} (choose other units)"
+        )
+    spin = np.minimum(transverse, np.maximum(SPIN_INERTIA_RATIO * transverse, SPIN_INERTIA_MIN))
+    centre, quat, velocity, omega_local = rod_frames(structure)
+
+    root = ET.Element("mujoco", model=name)
+    ET.SubElement(root, "compiler", angle="radian", inertiafromgeom="false", autolimits="true")
+    option = ET.SubElement(
+        root, "option", timestep=_float(dt), integrator=integrator, gravity=_floats(g)
+    )
+    ET.SubElement(option, "flag", contact="disable", energy="enable")
+    ET.SubElement(root, "size", memory=str(mjcf_memory(structure)))
+
+    world = ET.SubElement(root, "worldbody")
+    for r, (a, b) in enumerate(structure.rod_nodes):
+        m, L = float(mass[r]), float(length[r])
+        body = ET.SubElement(
+            world, "body", name=f"rod{r}", pos=_floats(centre[r]), quat=_floats(quat[r])
+        )
+        ET.SubElement(body, "freejoint", name=f"rod{r}")
+        ET.SubElement(
+            body, "inertial", pos="0 0 0", mass=_float(m),
+            diaginertia=_floats([transverse[r], transverse[r], spin[r]]),
+        )
+        radius = _float(_SITE_RADIUS_FRACTION * L)
+        ET.SubElement(
+            body, "geom", type="capsule", size=radius, fromto=_floats([0, 0, -L / 2, 0, 0, L / 2]),
+            contype="0", conaffinity="0", group="1",
+        )
+        ET.SubElement(body, "site", name=f"node{a}", pos=_floats([0, 0, -L / 2]), size=radius)
+        ET.SubElement(body, "site", name=f"node{b}", pos=_floats([0, 0, L / 2]), size=radius)
+
+    if structure.n_tendons:
+        tendons = ET.SubElement(root, "tendon")
+        for s, (tail, head) in enumerate(structure.tendon_nodes):
+            spatial = ET.SubElement(
+                tendons, "spatial", name=structure.tendon_name[s],
+                stiffness=_float(structure.tendon_stiffness[s]),
+                springlength=f"0 {_float(structure.tendon_rest_length[s])}",
+                damping=_float(structure.tendon_damping[s]),
+                width=_float(0.5 * _SITE_RADIUS_FRACTION * float(length.min())),
+            )
+            ET.SubElement(spatial, "site", site=f"node{tail}")
+            ET.SubElement(spatial, "site", site=f"node{head}")
+
+    keyframe = ET.SubElement(root, "keyframe")
+    ET.SubElement(
+        keyframe, "key", name="initial", time="0",
+        qpos=_floats(np.concatenate([centre, quat], axis=1)),
+        qvel=_floats(np.concatenate([velocity, omega_local], axis=1)),
+    )
+    ET.indent(root, space="  ")
+    return ET.tostring(root, encoding="unicode") + "\n"
+
+
+def write_mjcf(path: str | os.PathLike, structure: Structure, **options: Any) -> Path:
+    """Write :func:`to_mjcf` ``(structure, **options)`` to ``path``, atomically.
+
+    The document is written to a temporary file in the same directory, flushed to disk and moved
+    over ``path`` with :func:`os.replace`, so ``path`` never holds a partial model; on any error
+    the temporary file is removed and ``path`` is unchanged.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+    """
+    text = to_mjcf(structure, **options)  # validate before touching the file system
+    final = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=final.parent, prefix=f".{final.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+        try:
+            os.chmod(tmp, os.stat(final).st_mode & 0o7777)
+        except FileNotFoundError:
+            umask = os.umask(0)
+            os.umask(umask)
+            os.chmod(tmp, 0o666 & ~umask)
+        os.replace(tmp, final)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        raise
+    return final
+
+
+def node_site_ids(model: Any, n_nodes: int) -> np.ndarray:
+    """Site ids of ``node0 .. node{n_nodes-1}`` in a model built from :func:`to_mjcf`, (N,).
+
+    Raises
+    ------
+    ValueError
+        If ``n_nodes`` is not a positive integer or a node site is missing.
+    """
+    import mujoco
+
+    if isinstance(n_nodes, bool) or not isinstance(n_nodes, (int, np.integer)) or n_nodes < 1:
+        raise ValueError(f"n_nodes: must be a positive integer, got {n_nodes!r}")
+    ids = np.array(
+        [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, f"node{i}") for i in range(n_nodes)]
+    )
+    missing = np.flatnonzero(ids < 0)
+    if missing.size:
+        raise ValueError(f"n_nodes: the model has no site 'node{missing[0]}'")
+    return ids
+
+
+def mujoco_node_positions(model: Any, data: Any, n_nodes: int) -> np.ndarray:
+    """Node positions [m], shape (N, 3), of a MuJoCo model built from :func:`to_mjcf`.
+
+    Calls ``mujoco.mj_kinematics`` first (after ``mj_step`` with RK4, ``site_xpos`` holds the last
+    Runge-Kutta stage, not the end of the step), then reads ``site_xpos`` in node order.
+    """
+    import mujoco
+
+    ids = node_site_ids(model, n_nodes)
+    mujoco.mj_kinematics(model, data)
+    return data.site_xpos[ids].copy()
+
+
+def mujoco_node_velocities(model: Any, data: Any, n_nodes: int) -> np.ndarray:
+    """Node velocities [m/s], shape (N, 3), world frame, of a model built from :func:`to_mjcf`.
+
+    Calls ``mujoco.mj_kinematics``, ``mujoco.mj_comPos`` and ``mujoco.mj_comVel`` (which
+    ``mj_objectVelocity`` needs) first.
+    """
+    import mujoco
+
+    ids = node_site_ids(model, n_nodes)
+    mujoco.mj_kinematics(model, data)
+    mujoco.mj_comPos(model, data)
+    mujoco.mj_comVel(model, data)
+    out = np.empty((n_nodes, 3))
+    twist = np.empty(6)
+    for k, site in enumerate(ids):
+        mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_SITE, int(site), twist, 0)
+        out[k] = twist[3:]
+    return out
