@@ -143,3 +143,19 @@ def test_console_script_errors_without_traceback(tmp_path):
     )
     assert completed.returncode == 2
     assert completed.stderr.count("\n") == 1 and "Traceback" not in completed.stderr
+
+
+def test_matrices_command_writes_the_model_at_the_equilibrium(tmp_path, capsys):
+    import scipy.io
+
+    out = tmp_path / "m"
+    assert main(["matrices", "--n", "3", "--m", "1", "--at", "equilibrium", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "B " in printed and "36 x 24" in printed and "75 x 36" in printed
+    index = json.loads((out / "matrices.json").read_text())
+    assert index["at"] == "equilibrium"
+    K_p = scipy.io.mmread(out / "K_p.mtx").tocsr()
+    q = np.load(out / "state.npz")["q"]
+    # (18.61) with u = 0, w = 0: the equilibrium satisfies K_p(q) q = 0.
+    assert np.abs(K_p @ q).max() < 1e-6
+    assert not list(out.glob("*.tmp")) and not list(out.glob(".staging-*"))

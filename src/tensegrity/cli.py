@@ -1,4 +1,4 @@
-"""Command-line interface: ``tensegrity simulate | info | export``.
+"""Command-line interface: ``tensegrity simulate | info | export | matrices``.
 
 A thin layer over the library.  Errors are one line on stderr with exit code 2 (bad input) or
 1 (the simulation failed); nothing is written unless the whole run succeeded, and every file is
@@ -250,6 +250,38 @@ def _cmd_export(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_matrices(args: argparse.Namespace) -> int:
+    from tensegrity.matrices import undamped, write_matrices
+    from tensegrity.simulate import simulate
+
+    structure = undamped(_structure(args))
+    if args.at == "equilibrium":
+        # Tight rest tolerances: with the damping removed, K_p q = q'' is then below ~1e-8.
+        result = simulate(dynamics.critical_damping(structure), (0.0, args.t_end),
+                          steady_state=True, velocity_tol=1e-9, acceleration_tol=1e-9,
+                          rtol=1e-10, sample_dt=0.1, progress=sys.stderr.isatty())
+        if result.status != 1:
+            raise CommandError(
+                f"no equilibrium found by damped simulation within --t-end {args.t_end:g} s: "
+                f"{result.message}", EXIT_FAILED)
+        state = result.final_state
+    else:
+        state = dynamics.initial_state(structure)
+    rows: list = []
+
+    def write(staging: Path) -> list[Path]:
+        rows.extend(write_matrices(staging, structure, state.q, state.qdot, at=args.at))
+        return sorted(staging.iterdir())
+
+    written = _write_all(args.out, write)
+    width = max(len(name) for name, _, _ in rows)
+    print(f"{'matrix':<{width}}  {'shape':>13}  non-zeros")
+    for name, (n_rows, n_cols), nnz in rows:
+        print(f"{name:<{width}}  {n_rows:>6} x {n_cols:<6}  {nnz}")
+    print(f"evaluated at the {args.at} state; wrote {len(written)} files to {args.out}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="tensegrity", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
@@ -288,6 +320,22 @@ def build_parser() -> argparse.ArgumentParser:
                         help="tendon damping to store (default none)")
     export.add_argument("-o", "--output", type=Path, required=True, help="output .json file")
     export.set_defaults(run=_cmd_export)
+
+    matrices = sub.add_parser(
+        "matrices",
+        help="write the paper's matrices (Q, R, T, B^d, B^o, H, K_r, K_p, B, D, ...) of a shell",
+        description="Write the matrix model (18.59) of a class 1 shell as .npz and Matrix Market "
+                    "(.mtx) files with an index (matrices.json).",
+    )
+    _add_structure_options(matrices)
+    matrices.add_argument("--at", choices=("initial", "equilibrium"), default="initial",
+                          help="state at which the state-dependent matrices are evaluated: the "
+                               "initial layout, or the equilibrium reached by damped simulation")
+    matrices.add_argument("--t-end", type=_positive, default=60.0,
+                          help="longest damped simulation when looking for the equilibrium [s]")
+    matrices.add_argument("--out", type=Path, default=Path("matrices"),
+                          help="output folder (default ./matrices)")
+    matrices.set_defaults(run=_cmd_matrices)
     return parser
 
 

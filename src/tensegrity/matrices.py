@@ -1,0 +1,847 @@
+"""The explicit matrix model of the class 1 shell (Skelton, Pinaud, Mingori, §18.4-18.5, App. B-E)::
+
+    q'' + (K_r(q') + K_p(q)) q = B(q) u + D(q) w                                   (18.59)
+
+    K_p = H K~,   K~ = B^d K^d + B^o K^o,   B = H [B^d P^d, B^o P^o] T,   D = H W^o
+
+Every matrix is built from the shell's topology (:func:`tensegrity.shell.shell_tendons`, i.e. the
+table of ``shared/spec/shell-topology.md``), never typed in from the printed blocks, and is a
+``scipy.sparse.csr_matrix`` in the paper's orderings.  ``tests/test_matrices.py`` checks the
+blocks against the printed forms and the accelerations against :func:`dynamics.accelerations`.
+``docs/matrix-model.md`` describes the model and every place where the printed equations are
+inconsistent (and what this module does there).
+
+Orderings (``e = (j-1) n + (i-1)`` is the element index, elements stacked ``(1,1) .. (n,1),
+(1,2) .. (n,m)``; every entry of a "vector" ordering below is a 3-vector):
+
+- ``q`` (12nm): per element ``[q1, q2, q3, q4] = [p1+p2, p2-p1, p3+p4, p4-p3]`` (18.24).
+- ``w`` (12nm): per element the external forces on ``[p1, p2, p3, p4]`` (18.16), i.e. node order.
+- ``f`` (12nm): per element ``[f1+f2, f1-f2, f3+f4, f3-f4]`` of the nodal forces (18.20).
+- ``l`` (12nm): the independent vectors (18.28): ``[rho_11, r1, r2, t5]`` for (1,1),
+  ``[t1_(i-1)1, r1, r2, t5]`` for (i,1), ``[r1, r2, t5, t1]`` for j > 1.
+- ``l^d``, ``f^d`` (24nm+3): ``t1_n1``, then per element ``t2 t3 t4 t6 t7 t8 t9 t10`` (18.37).
+- ``f^o`` (6nm): per element ``[t5, t1]`` (18.16).
+- ``u~`` (10nm+1, scalars): one per slot of ``f^d`` then of ``f^o`` (18.54).
+- ``u`` (n(10m-2) scalars, 8nm for the primal shell): per element the tendons of ``f^d`` that
+  exist (``t9`` left out at j = 1, ``t10`` at j = m), then per element ``[u5, u1]`` (18.57-18.58,
+  Appendix C); :attr:`ShellTopology.u_names` names the tendon of each entry.
+
+A "slot" of ``l^d``/``f^d``/``f^o`` is a tendon vector the paper carries; ``t9_i1`` and
+``t10_im`` are closure copies (``t9_i1 = -t1_i1``, ``t10_im = -t7_im``) and ``t1_n1`` appears in
+both ``f^d`` and ``f^o``: such a copy holds the force of its tendon (with the vector's sign) but its
+column of ``B^d``/``B^o`` is zero, so that each tendon acts once (as in Appendices C and E).
+
+The state-dependent matrices are evaluated without Python loops over elements
+(:meth:`ShellMatrixModel.evaluate`); the topology matrices are built once per ``(n, m, primal)``
+and cached (read-only).  The matrix model is undamped, like the paper's.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import json
+import re
+from collections import deque
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+
+from tensegrity import dynamics
+from tensegrity.shell import class1_shell, shell_node_index, shell_tendons
+from tensegrity.structure import Structure
+
+#: Tendons of ``f^d_ij`` / ``l^d`` slots, in the paper's order (18.16, 18.31).
+D_ALPHAS = (2, 3, 4, 6, 7, 8, 9, 10)
+#: Tendons of ``f^o_ij``, in the paper's order (18.16).
+O_ALPHAS = (5, 1)
+
+_TENDON_NAME = re.compile(r"t(\d+)_(\d+)_(\d+)")
+_I3 = sp.identity(3, format="csr")
+
+#: W of Appendices C/E: per element ``[f1+f2, f1-f2, f3+f4, f3-f4] = W [f1, f2, f3, f4]``.
+_W_ELEMENT = np.array([[1, 1, 0, 0], [1, -1, 0, 0], [0, 0, 1, 1], [0, 0, 1, -1]], dtype=float)
+
+
+# ============================================================================ topology
+@dataclasses.dataclass(frozen=True, eq=False)
+class ShellTopology:
+    """The constant matrices of an ``(n, m)`` shell, in the paper's orderings (read-only CSR).
+
+    Attributes
+    ----------
+    Q : (12nm, 12nm)
+        ``q = Q l`` (18.28).
+    Q_inv : (12nm, 12nm)
+        ``l = Q^-1 q``, computed with the block formulas of Appendix B.
+    R : (24nm+3, 12nm)
+        ``l^d = R q`` (18.37): the vectors of the ``f^d`` slots.
+    R_o : (6nm, 12nm)
+        ``[t5; t1]`` of every element ``= R_o q``: the rows of ``Q^-1`` for ``t5_ij`` and
+        ``t1_ij`` (the paper's choice below 18.42), and ``R_0`` (the ``t1_n1`` row of ``R``) for
+        ``t1_n1``, which is not in ``l``.
+    T : (10nm+1, n(10m-2)) or (10nm+1, 8nm) primal
+        ``u~ = T u`` (18.55): every slot gets the rest-length change of its tendon.
+    W_o : (12nm, 12nm)
+        ``BlockDiag[W]`` (18.15): ``f = W^o f_nodes``.
+    B_d : (12nm, 24nm+3), B_o : (12nm, 6nm)
+        ``f = B^d f^d + B^o f^o + W^o w`` (18.15, Appendix E).
+    P : (12nm, 12nm)
+        ``p = P q`` (18.26), node positions in node order.
+    """
+
+    n: int
+    m: int
+    primal: bool
+    Q: sp.csr_matrix
+    Q_inv: sp.csr_matrix
+    R: sp.csr_matrix
+    R_o: sp.csr_matrix
+    T: sp.csr_matrix
+    W_o: sp.csr_matrix
+    B_d: sp.csr_matrix
+    B_o: sp.csr_matrix
+    P: sp.csr_matrix
+    #: label of each 3-vector of ``l``: ``rho_1_1``, ``r1_i_j``, ``r2_i_j``, ``t5_i_j``, ``t1_i_j``
+    l_labels: tuple[str, ...]
+    #: slot label of each 3-vector of ``l^d`` / ``f^d`` (``t1_n_1``, then ``t{alpha}_i_j``)
+    d_slots: tuple[str, ...]
+    #: tendon whose force a ``f^d`` slot carries (``None``: no tendon, primal ``t9``/``t10``)
+    d_tendon: tuple[str | None, ...]
+    #: ``+1`` if the slot vector is its tendon's vector (head - tail), ``-1`` if its negative
+    d_sign: np.ndarray
+    #: whether the slot's column of ``B^d`` is non-zero (false for the closure copies)
+    d_counted: np.ndarray
+    o_slots: tuple[str, ...]
+    o_tendon: tuple[str | None, ...]
+    o_sign: np.ndarray
+    o_counted: np.ndarray
+    #: tendon name of each entry of ``u``
+    u_names: tuple[str, ...]
+
+    @property
+    def n_coordinates(self) -> int:
+        """``12nm``."""
+        return 12 * self.n * self.m
+
+    @property
+    def n_controls(self) -> int:
+        """Length of ``u``: ``n(10m-2)``, or ``8nm`` for the primal shell."""
+        return len(self.u_names)
+
+    @property
+    def utilde_slots(self) -> tuple[str, ...]:
+        """Slot of each entry of ``u~`` (``f^d`` slots, then ``f^o`` slots)."""
+        return self.d_slots + self.o_slots
+
+    def matrices(self) -> dict[str, sp.csr_matrix]:
+        """The constant matrices by name."""
+        return {name: getattr(self, name) for name in _TOPOLOGY_MATRICES}
+
+
+_TOPOLOGY_MATRICES = ("Q", "Q_inv", "R", "R_o", "T", "W_o", "B_d", "B_o", "P")
+
+
+def _frozen_csr(matrix: Any) -> sp.csr_matrix:
+    """A CSR copy without explicit zeros, sorted, with read-only arrays."""
+    out = sp.csr_matrix(matrix, dtype=float, copy=True)
+    out.eliminate_zeros()
+    out.sort_indices()
+    for array in (out.data, out.indices, out.indptr):
+        array.setflags(write=False)
+    return out
+
+
+def _kron3(scalar: Any) -> sp.csr_matrix:
+    """``scalar (x) I3``: a matrix on 3-vectors from its scalar pattern."""
+    return sp.kron(sp.csr_matrix(scalar), _I3, format="csr")
+
+
+def _parse(name: str) -> tuple[int, int, int]:
+    match = _TENDON_NAME.fullmatch(name)
+    if match is None:
+        raise ValueError(f"{name!r} is not a shell tendon name t<alpha>_<i>_<j>")
+    alpha, i, j = (int(g) for g in match.groups())
+    return alpha, i, j
+
+
+def control_names(n: int, m: int, primal: bool = False) -> tuple[str, ...]:
+    """Tendon name of each entry of ``u`` (the paper's order, 18.54-18.58 / Appendix C)."""
+    return shell_topology(n, m, primal).u_names
+
+
+def shell_topology(n: int, m: int, primal: bool = False) -> ShellTopology:
+    """The constant matrices of the ``(n, m)`` shell (cached; the matrices are read-only).
+
+    For ``m = 1`` the primal and the full shell coincide (t9 and t10 are closure copies of t1 and
+    t7 there), and ``primal`` is ignored.
+    """
+    return _build_topology(int(n), int(m), bool(primal) and m > 1)
+
+
+@functools.lru_cache(maxsize=32)
+def _build_topology(n: int, m: int, primal: bool) -> ShellTopology:
+    full = {name: (tail, head) for name, tail, head in shell_tendons(n, m)}  # validates n, m
+    present = {name for name, _, _ in shell_tendons(n, m, primal=primal)}
+    n_nodes = 4 * n * m
+    elements = [(i, j) for j in range(1, m + 1) for i in range(1, n + 1)]
+
+    def node(k: int, i: int, j: int) -> int:
+        return shell_node_index(k, i, j, n)
+
+    # ---- l and Q (18.27-18.28): node positions from the independent vectors along a tree.
+    l_vectors: list[tuple[str, int | None, int]] = []
+    for i, j in elements:
+        r1 = (f"r1_{i}_{j}", node(1, i, j), node(2, i, j))
+        r2 = (f"r2_{i}_{j}", node(3, i, j), node(4, i, j))
+        t5 = (f"t5_{i}_{j}", *full[f"t5_{i}_{j}"])
+        if j == 1:
+            first = (
+                ("rho_1_1", None, node(1, 1, 1)) if i == 1 else (f"t1_{i-1}_1", *full[f"t1_{i-1}_1"])
+            )
+            l_vectors += [first, r1, r2, t5]
+        else:
+            l_vectors += [r1, r2, t5, (f"t1_{i}_{j}", *full[f"t1_{i}_{j}"])]
+    G = _positions_along_tree(n_nodes, l_vectors)  # p = G l (scalar pattern)
+    rods = np.arange(n_nodes).reshape(-1, 2)  # rod r joins nodes (2r, 2r+1), as class1_shell
+    M = np.zeros((n_nodes, n_nodes))  # q = M p: q1 = p_a + p_b, q2 = p_b - p_a
+    P = np.zeros((n_nodes, n_nodes))  # p = P q (18.26)
+    for r, (a, b) in enumerate(rods):
+        M[2 * r, [a, b]] = 1.0
+        M[2 * r + 1, [a, b]] = (-1.0, 1.0)
+        P[a, [2 * r, 2 * r + 1]] = (0.5, -0.5)
+        P[b, [2 * r, 2 * r + 1]] = (0.5, 0.5)
+    Q = _frozen_csr(_kron3(M @ G))
+    Q_inv = _frozen_csr(_appendix_b_inverse(Q, n, m))
+    l_index = {label: k for k, (label, _, _) in enumerate(l_vectors)}
+
+    # ---- slots of l^d / f^d (18.31-18.37) and f^o (18.16)
+    def slot(name: str) -> tuple[tuple[int, int], str | None, int, bool]:
+        """(tail, head) of the slot vector, its tendon, sign, and whether B counts it."""
+        if name in full:
+            return full[name], (name if name in present else None), 1, True
+        alpha, i, j = _parse(name)
+        if alpha == 9 and j == 1:  # (18.2): t9_i1 = -t1_i1
+            partner = f"t1_{i}_1"
+        elif alpha == 10 and j == m:  # (18.7): t10_im = -t7_im
+            partner = f"t7_{i}_{m}"
+        else:  # pragma: no cover - the table has no other gaps
+            raise AssertionError(f"no geometry for slot {name}")
+        tail, head = full[partner]
+        return (head, tail), partner, -1, False
+
+    d_slots = [f"t1_{n}_1"] + [f"t{a}_{i}_{j}" for i, j in elements for a in D_ALPHAS]
+    o_slots = [f"t{a}_{i}_{j}" for i, j in elements for a in O_ALPHAS]
+    d_info = [slot(name) for name in d_slots]
+    o_info = [slot(name) for name in o_slots]
+    o_info[o_slots.index(f"t1_{n}_1")] = (*o_info[o_slots.index(f"t1_{n}_1")][:3], False)
+
+    R_scalar = np.array([P[head] - P[tail] for (tail, head), *_ in d_info])
+    R = _frozen_csr(_kron3(R_scalar))
+    # R_o: rows of Q^-1 for t5_ij, t1_ij; R_0 for t1_n1 (not in l).
+    blocks = []
+    for name in o_slots:
+        rows = R[0:3] if name == f"t1_{n}_1" else Q_inv[3 * l_index[name] : 3 * l_index[name] + 3]
+        blocks.append(rows)
+    R_o = _frozen_csr(sp.vstack(blocks))
+
+    # ---- u and T (18.54-18.58)
+    u_names = [name for name in d_slots[1:] if name in present]
+    u_names += o_slots
+    u_column = {name: k for k, name in enumerate(u_names)}
+    tendons = [info[1] for info in d_info + o_info]
+    rows = [r for r, t in enumerate(tendons) if t is not None]
+    T = _frozen_csr(
+        sp.csr_matrix(
+            (np.ones(len(rows)), (rows, [u_column[tendons[r]] for r in rows])),
+            shape=(len(tendons), len(u_names)),
+        )
+    )
+
+    # ---- B^d, B^o, W^o (18.15): a tendon pulls its tail toward its head (+f) and vice versa.
+    def incidence(info: list) -> np.ndarray:
+        N = np.zeros((n_nodes, len(info)))
+        for s, ((tail, head), _, _, counted) in enumerate(info):
+            if counted:
+                N[tail, s] += 1.0
+                N[head, s] -= 1.0
+        return N
+
+    W = np.kron(np.eye(n * m), _W_ELEMENT)
+    return ShellTopology(
+        n=n,
+        m=m,
+        primal=primal,
+        Q=Q,
+        Q_inv=Q_inv,
+        R=R,
+        R_o=R_o,
+        T=T,
+        W_o=_frozen_csr(_kron3(W)),
+        B_d=_frozen_csr(_kron3(W @ incidence(d_info))),
+        B_o=_frozen_csr(_kron3(W @ incidence(o_info))),
+        P=_frozen_csr(_kron3(P)),
+        l_labels=tuple(label for label, _, _ in l_vectors),
+        d_slots=tuple(d_slots),
+        d_tendon=tuple(info[1] for info in d_info),
+        d_sign=_readonly(np.array([info[2] for info in d_info], dtype=float)),
+        d_counted=_readonly(np.array([info[3] for info in d_info])),
+        o_slots=tuple(o_slots),
+        o_tendon=tuple(info[1] for info in o_info),
+        o_sign=_readonly(np.array([info[2] for info in o_info], dtype=float)),
+        o_counted=_readonly(np.array([info[3] for info in o_info])),
+        u_names=tuple(u_names),
+    )
+
+
+def _readonly(array: np.ndarray) -> np.ndarray:
+    array.setflags(write=False)
+    return array
+
+
+def _positions_along_tree(
+    n_nodes: int, vectors: Sequence[tuple[str, int | None, int]]
+) -> np.ndarray:
+    """``G`` with ``p = G l``: walk the tree the vectors ``l_k = p_head - p_tail`` span.
+
+    The one vector without a tail is the root's position.  Raises if the vectors do not form a
+    spanning tree (then they would not be independent, or not determine every node).
+    """
+    adjacency: list[list[tuple[int, int, float]]] = [[] for _ in range(n_nodes)]
+    roots = [k for k, (_, tail, _) in enumerate(vectors) if tail is None]
+    if len(roots) != 1 or len(vectors) != n_nodes:
+        raise ValueError("l: expected one position and n_nodes - 1 edge vectors")
+    for k, (_, tail, head) in enumerate(vectors):
+        if tail is not None:
+            adjacency[tail].append((head, k, 1.0))
+            adjacency[head].append((tail, k, -1.0))
+    G = np.zeros((n_nodes, len(vectors)))
+    root = vectors[roots[0]][2]
+    G[root, roots[0]] = 1.0
+    seen, used = {root}, {roots[0]}
+    queue = deque([root])
+    while queue:
+        here = queue.popleft()
+        for there, k, sign in adjacency[here]:
+            if k in used:
+                continue
+            used.add(k)
+            if there in seen:
+                raise ValueError(f"l: {vectors[k][0]} closes a loop; the vectors are dependent")
+            G[there] = G[here]
+            G[there, k] += sign
+            seen.add(there)
+            queue.append(there)
+    if len(seen) != n_nodes:
+        raise ValueError("l: the vectors do not reach every node")
+    return G
+
+
+# ----------------------------------------------------------------- Appendix B
+def _lower_pattern(first: Any, diag: Any, column: Any, below: Any, count: int) -> sp.csr_matrix:
+    """``[[first], [column, diag], [column, below, diag], [column, below, below, diag], ...]``."""
+    grid = [[None] * count for _ in range(count)]
+    for r in range(count):
+        grid[r][r] = first if r == 0 else diag
+        if r >= 1:
+            grid[r][0] = column
+        for c in range(1, r):
+            grid[r][c] = below
+    return sp.bmat(grid, format="csr")
+
+
+def _pattern_inverse(first_inv, diag_inv, column, below, count: int) -> sp.csr_matrix:
+    """Inverse of :func:`_lower_pattern` by Appendix B's substitution (18.B.5-18.B.6).
+
+    ``x_{j+1} = diag^-1 (y_{j+1} - y_j) + Theta x_j`` with ``Theta = I - diag^-1 below`` gives the
+    blocks ``(1,1) = first^-1``, ``(j,j) = diag^-1``, ``(j,1) = Theta^{j-2} L21`` and
+    ``(j,k) = Theta^{j-k-1} L32`` (``1 < k < j``), where ``L21 = -diag^-1 column first^-1`` and
+    ``L32 = -diag^-1 below diag^-1``: Appendix B's ``Lambda_11, Lambda_22, Lambda_21, Lambda_32``
+    and powers of ``Theta``.
+    """
+    size = diag_inv.shape[0]
+    theta = sp.identity(size, format="csr") - diag_inv @ below
+    lam21 = -(diag_inv @ column @ first_inv)
+    lam32 = -(diag_inv @ below @ diag_inv)
+    powers = [sp.identity(size, format="csr")]
+    for _ in range(max(count - 2, 0)):
+        powers.append(theta @ powers[-1])
+    grid = [[None] * count for _ in range(count)]
+    grid[0][0] = first_inv
+    for r in range(1, count):
+        grid[r][r] = diag_inv
+        grid[r][0] = powers[r - 1] @ lam21
+        for c in range(1, r):
+            grid[r][c] = powers[r - c - 1] @ lam32
+    return sp.bmat(grid, format="csr")
+
+
+def _pattern_blocks(matrix: sp.csr_matrix, size: int, count: int, what: str):
+    """The four blocks of a :func:`_lower_pattern` matrix; raises if it is not one."""
+    block = lambda r, c: sp.csr_matrix(matrix[r * size : (r + 1) * size, c * size : (c + 1) * size])  # noqa: E731
+    first, diag = block(0, 0), block(1, 1) if count > 1 else None
+    column = block(1, 0) if count > 1 else None
+    below = block(2, 1) if count > 2 else sp.csr_matrix((size, size))
+    rebuilt = _lower_pattern(first, diag, column, below, count)
+    if count > 1 and abs(rebuilt - matrix).max() != 0:
+        raise AssertionError(f"{what} does not have the block pattern of (18.29)")
+    return first, diag, column, below
+
+
+def _block_inverse(block: sp.csr_matrix) -> sp.csr_matrix:
+    return sp.csr_matrix(np.linalg.inv(block.toarray()))
+
+
+def _appendix_b_inverse(Q: sp.csr_matrix, n: int, m: int) -> sp.csr_matrix:
+    """``Q^-1`` from Appendix B: only ``Q11^-1`` and ``Q22^-1`` need inverting, and ``Q11`` has
+    the same block pattern (``A, B`` on the diagonal, ``D`` in the first column, ``E`` below) on
+    12 x 12 blocks, so it is inverted the same way from ``A^-1`` and ``B^-1``."""
+    Q11 = sp.csr_matrix(Q[: 12 * n, : 12 * n])
+    A, B, D, E = _pattern_blocks(Q11, 12, n, "Q11")
+    lam11 = _pattern_inverse(_block_inverse(A), _block_inverse(B), D, E, n)
+    if m == 1:
+        return lam11
+    _, Q22, Q21, Q32 = _pattern_blocks(Q, 12 * n, m, "Q")
+    C = sp.csr_matrix(Q22[:12, :12])
+    if abs(sp.kron(sp.identity(n), C) - Q22).max() != 0:
+        raise AssertionError("Q22 is not BlockDiag[C] (18.29)")
+    lam22 = sp.kron(sp.identity(n), _block_inverse(C), format="csr")
+    return _pattern_inverse(lam11, lam22, Q21, Q32, m)
+
+
+# ============================================================================ a structure
+def shell_size(structure: Structure) -> tuple[int, int, bool]:
+    """``(n, m, primal)`` of a class 1 shell; ``ValueError`` if ``structure`` is not one.
+
+    The structure must have the rods and tendons of ``class1_shell(n, m, primal=...)``: rod ``r``
+    joining nodes ``2r, 2r+1`` and every tendon named ``t{alpha}_{i}_{j}`` joining the nodes of
+    the topology table (in any order).  Parameters (masses, stiffnesses, ...) may differ.
+    """
+    try:
+        parsed = [_parse(name) for name in structure.tendon_name]
+    except ValueError as exc:
+        raise ValueError(f"tendons: {exc}; the matrix model needs a class 1 shell") from None
+    if not parsed:
+        raise ValueError("tendons: a class 1 shell has tendons")
+    n = max(i for _, i, _ in parsed)
+    m = max(j for _, _, j in parsed)
+    primal = m > 1 and all(alpha <= 8 for alpha, _, _ in parsed)
+    try:
+        expected = {name: (tail, head) for name, tail, head in shell_tendons(n, m, primal=primal)}
+    except ValueError as exc:
+        raise ValueError(f"tendons: names imply a shell with {exc}") from None
+    if structure.n_rods != 2 * n * m or not np.array_equal(
+        structure.rod_nodes, np.arange(4 * n * m).reshape(-1, 2)
+    ):
+        raise ValueError(
+            f"rods: the tendon names imply an ({n},{m}) shell, whose rod r joins nodes 2r, 2r+1 "
+            f"({2 * n * m} rods); the structure has {structure.n_rods} rods"
+        )
+    got = {name: (int(a), int(b)) for name, (a, b) in zip(structure.tendon_name, structure.tendon_nodes)}
+    if got != expected:
+        wrong = sorted(set(got.items()) ^ set(expected.items()))
+        raise ValueError(
+            f"tendons: not the ({n},{m}){' primal' if primal else ''} shell of the topology table; "
+            f"first difference: {wrong[0][0]!r}"
+        )
+    return n, m, primal
+
+
+def undamped(structure: Structure) -> Structure:
+    """``structure`` without tendon or rod damping (the matrix model (18.59) is undamped)."""
+    return structure.replace(
+        tendon_damping=np.zeros(structure.n_tendons), rod_damping=np.zeros(structure.n_rods)
+    )
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class StateMatrices:
+    """The state-dependent matrices of (18.59) at one ``(q, q', u)`` (CSR, no explicit zeros).
+
+    ``K_d``, ``K_o``, ``P_d``, ``P_o`` are (18.45)-(18.50) with ``k = 0`` for a slack tendon
+    (``|t| <= L0 - u``) or for a slot without tendon; ``K_tilde``, ``B_tilde`` (18.52);
+    ``K_p = H K_tilde``, ``B = H B_tilde T``, ``D = H W^o`` (18.59); ``H``, ``K_r`` (18.20).
+    """
+
+    q: np.ndarray
+    qdot: np.ndarray
+    u: np.ndarray
+    utilde: np.ndarray
+    taut_d: np.ndarray  #: per ``f^d`` slot: its tendon is taut
+    taut_o: np.ndarray  #: per ``f^o`` slot
+    H: sp.csr_matrix
+    K_r: sp.csr_matrix
+    K_d: sp.csr_matrix
+    K_o: sp.csr_matrix
+    P_d: sp.csr_matrix
+    P_o: sp.csr_matrix
+    K_tilde: sp.csr_matrix
+    B_tilde: sp.csr_matrix
+    K_p: sp.csr_matrix
+    B: sp.csr_matrix
+    D: sp.csr_matrix
+    C_t: sp.csr_matrix  #: tendon vectors ``t = C_t q`` (3 nu, 12nm), tendons in ``u`` order (18.43)
+    y_l: np.ndarray  #: tendon lengths (nu,) [m] (18.60)
+    y_f: np.ndarray  #: tensions (nu,) [N], 0 when slack (18.60)
+    C_l: sp.csr_matrix  #: ``d y_l / d q`` (nu, 12nm): linearized length output
+    C_f: sp.csr_matrix  #: ``d y_f / d q`` (nu, 12nm): linearized tension output
+
+    def qddot(self, w: np.ndarray | None = None) -> np.ndarray:
+        """``q'' = -(K_r + K_p) q + B u + D w`` (18.59); ``w`` (12nm,) or (4nm, 3), default 0."""
+        acc = -(self.K_r @ self.q) - self.K_p @ self.q + self.B @ self.u
+        if w is not None:
+            acc = acc + self.D @ np.asarray(w, dtype=float).reshape(-1)
+        return acc
+
+    def matrices(self) -> dict[str, sp.csr_matrix]:
+        """The state-dependent matrices by name."""
+        return {name: getattr(self, name) for name in _STATE_MATRICES}
+
+
+_STATE_MATRICES = (
+    "H", "K_r", "K_d", "K_o", "P_d", "P_o", "K_tilde", "B_tilde", "K_p", "B", "D", "C_t", "C_l",
+    "C_f",
+)
+
+
+class ShellMatrixModel:
+    """The matrix model (18.59) of one class 1 shell structure.
+
+    Built once per structure (slot-to-tendon maps, parameters); :meth:`evaluate` then forms the
+    state-dependent matrices with vectorized NumPy and sparse products only.
+
+    Raises
+    ------
+    ValueError
+        If ``structure`` is not a class 1 shell (see :func:`shell_size`) or has damping (the
+        paper's matrix model is undamped; see :func:`undamped`).
+    """
+
+    def __init__(self, structure: Structure) -> None:
+        if np.any(structure.tendon_damping != 0) or np.any(structure.rod_damping != 0):
+            raise ValueError(
+                "structure has tendon or rod damping, which the matrix model (18.59) does not "
+                "represent; use tensegrity.matrices.undamped(structure)"
+            )
+        n, m, primal = shell_size(structure)
+        self.structure = structure
+        self.topology = top = shell_topology(n, m, primal)
+        index = {name: s for s, name in enumerate(structure.tendon_name)}
+
+        def slot_parameters(tendons: tuple[str | None, ...]) -> tuple[np.ndarray, np.ndarray]:
+            idx = np.array([-1 if t is None else index[t] for t in tendons])
+            has = idx >= 0
+            k = np.where(has, structure.tendon_stiffness[np.where(has, idx, 0)], 0.0)
+            rest = np.where(has, structure.tendon_rest_length[np.where(has, idx, 0)], 0.0)
+            return k, rest
+
+        self._k_d, self._L0_d = slot_parameters(top.d_tendon)
+        self._k_o, self._L0_o = slot_parameters(top.o_tendon)
+        #: structure tendon index of each entry of ``u``
+        self.control_index = _readonly(np.array([index[name] for name in top.u_names]))
+        incidence = structure.tendon_incidence[self.control_index]
+        self._tendon_map = _clean(sp.kron(incidence, sp.identity(3)) @ top.P)
+        self._k_u = structure.tendon_stiffness[self.control_index]
+        self._L0_u = structure.tendon_rest_length[self.control_index]
+        self._mass = structure.rod_mass
+        self._length2 = structure.rod_length**2
+        n_rods = structure.n_rods
+        self._q2_rows = (6 * np.arange(n_rods)[:, None] + 3 + np.arange(3)).reshape(-1)
+
+    # ------------------------------------------------------------------ controls
+    def control_to_structure(self, u: np.ndarray) -> np.ndarray:
+        """``u`` (paper order) as the ``control`` of :func:`dynamics.accelerations` (S,)."""
+        u = self._check_u(u)
+        control = np.zeros(self.structure.n_tendons)
+        control[self.control_index] = u
+        return control
+
+    def control_from_structure(self, control: np.ndarray) -> np.ndarray:
+        """The ``u`` (paper order) of a ``control`` array in structure tendon order."""
+        control = np.asarray(control, dtype=float)
+        if control.shape != (self.structure.n_tendons,):
+            raise ValueError(f"control: expected shape ({self.structure.n_tendons},), got {control.shape}")
+        return control[self.control_index]
+
+    def _check_u(self, u: np.ndarray | None) -> np.ndarray:
+        nu = self.topology.n_controls
+        if u is None:
+            return np.zeros(nu)
+        u = np.asarray(u, dtype=float)
+        if u.shape != (nu,):
+            raise ValueError(f"u: expected shape ({nu},) (tendons in the paper's order), got {u.shape}")
+        return u
+
+    # ------------------------------------------------------------------ evaluation
+    def evaluate(self, q: np.ndarray, qdot: np.ndarray, u: np.ndarray | None = None) -> StateMatrices:
+        """All state-dependent matrices of (18.59) at ``q``, ``q'`` and the control ``u``.
+
+        ``u`` (paper order, default 0) enters ``K_p`` and ``B`` through which tendons are slack
+        (``k = 0`` when ``|t| <= Lbar = L0 - u``, as in :func:`dynamics.tendon_forces`).
+
+        Raises
+        ------
+        ValueError
+            On a wrong shape, or a ``u`` that makes some rest length negative.
+        """
+        top = self.topology
+        nq = top.n_coordinates
+        q = np.asarray(q, dtype=float)
+        qdot = np.asarray(qdot, dtype=float)
+        for name, value in (("q", q), ("qdot", qdot)):
+            if value.shape != (nq,):
+                raise ValueError(f"{name}: expected shape ({nq},), got {value.shape}")
+        u = self._check_u(u)
+        dynamics.rest_lengths(self.structure, self.control_to_structure(u))  # L0 - u >= 0
+        utilde = top.T @ u
+        nd = len(top.d_slots)
+        K_d, P_d, taut_d = _tendon_terms(top.R, q, self._k_d, self._L0_d, utilde[:nd])
+        K_o, P_o, taut_o = _tendon_terms(top.R_o, q, self._k_o, self._L0_o, utilde[nd:])
+        H = self._h_matrix(q)
+        K_r = self._kr_matrix(qdot)
+        K_tilde = _clean(top.B_d @ K_d + top.B_o @ K_o)
+        B_tilde = _clean(sp.hstack([top.B_d @ P_d, top.B_o @ P_o], format="csr"))
+        t = (self._tendon_map @ q).reshape(-1, 3)
+        y_l = np.linalg.norm(t, axis=1)
+        taut = y_l > self._L0_u - u
+        y_f = np.where(taut, self._k_u * (y_l - (self._L0_u - u)), 0.0)
+        unit = t / np.where(y_l > 0, y_l, 1.0)[:, None]
+        rows = sp.csr_matrix(
+            (unit.reshape(-1), np.arange(3 * len(y_l)), 3 * np.arange(len(y_l) + 1)),
+            shape=(len(y_l), 3 * len(y_l)),
+        )  # BlockDiag[t_hat^T]: d|t|/dq = t_hat^T C_t
+        C_l = _clean(rows @ self._tendon_map)
+        return StateMatrices(
+            q=q,
+            qdot=qdot,
+            u=u,
+            utilde=utilde,
+            taut_d=taut_d,
+            taut_o=taut_o,
+            H=H,
+            K_r=K_r,
+            K_d=K_d,
+            K_o=K_o,
+            P_d=P_d,
+            P_o=P_o,
+            K_tilde=K_tilde,
+            B_tilde=B_tilde,
+            K_p=_clean(H @ K_tilde),
+            B=_clean(H @ B_tilde @ top.T),
+            D=_clean(H @ top.W_o),
+            C_t=self._tendon_map,
+            y_l=y_l,
+            y_f=y_f,
+            C_l=C_l,
+            C_f=_clean(sp.diags(np.where(taut, self._k_u, 0.0)) @ C_l),
+        )
+
+    def qddot(
+        self,
+        q: np.ndarray,
+        qdot: np.ndarray,
+        u: np.ndarray | None = None,
+        w: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """``q''`` from the matrix form (18.59)."""
+        return self.evaluate(q, qdot, u).qddot(w)
+
+    def _h_matrix(self, q: np.ndarray) -> sp.csr_matrix:
+        """``H = BlockDiag[H_ij]``: per rod ``(2/m) [[I, 0], [0, (3/L^2) skew(q2)^2]]`` (18.20)."""
+        q2 = q.reshape(-1, 2, 3)[:, 1]
+        n_rods = q2.shape[0]
+        blocks = np.empty((2 * n_rods, 3, 3))
+        blocks[0::2] = (2.0 / self._mass)[:, None, None] * np.eye(3)
+        skew2 = q2[:, :, None] * q2[:, None, :] - np.sum(q2 * q2, axis=1)[:, None, None] * np.eye(3)
+        blocks[1::2] = (6.0 / (self._mass * self._length2))[:, None, None] * skew2
+        diagonal = np.arange(2 * n_rods)
+        H = sp.bsr_matrix((blocks, diagonal, np.arange(2 * n_rods + 1)), shape=(6 * n_rods, 6 * n_rods))
+        return _clean(H.tocsr())
+
+    def _kr_matrix(self, qdot: np.ndarray) -> sp.csr_matrix:
+        """``K_r = BlockDiag[Omega_ij]``: ``|q2'|^2 / L^2`` on the ``q2`` rows (Theorem 18.1 with
+        the proof's ``q2'^T q2'``, not the printed ``q2^T q2``)."""
+        v2 = qdot.reshape(-1, 2, 3)[:, 1]
+        rate = np.repeat(np.sum(v2 * v2, axis=1) / self._length2, 3)
+        n = qdot.shape[0]
+        return _clean(sp.csr_matrix((rate, (self._q2_rows, self._q2_rows)), shape=(n, n)))
+
+
+def _tendon_terms(
+    R: sp.csr_matrix, q: np.ndarray, k: np.ndarray, rest0: np.ndarray, utilde: np.ndarray
+) -> tuple[sp.csr_matrix, sp.csr_matrix, np.ndarray]:
+    """``K`` (18.45) and ``P = BlockDiag[b]`` (18.46) for slots with vectors ``t = R q``.
+
+    ``f = -K q + P u~ = k (|t| - L0 + u~) t/|t|`` while taut, else 0.
+    """
+    t = (R @ q).reshape(-1, 3)
+    length = np.linalg.norm(t, axis=1)
+    taut = (k > 0) & (length - (rest0 - utilde) > 0)
+    safe = np.where(taut, length, 1.0)
+    scale = np.where(taut, k * (rest0 / safe - 1.0), 0.0)
+    K = _clean(sp.diags(np.repeat(scale, 3)) @ R)
+    b = np.where(taut[:, None], k[:, None] * t / safe[:, None], 0.0)
+    n_slots = t.shape[0]
+    P = sp.csr_matrix(
+        (b.reshape(-1), np.repeat(np.arange(n_slots), 3), np.arange(3 * n_slots + 1)),
+        shape=(3 * n_slots, n_slots),
+    )
+    return K, _clean(P), taut
+
+
+def _clean(matrix: sp.spmatrix) -> sp.csr_matrix:
+    """CSR in canonical form (no explicit zeros, sorted indices), so that later operations do not
+    reorder it in place and every product is summed in one fixed order."""
+    out = sp.csr_matrix(matrix)
+    out.sum_duplicates()
+    out.eliminate_zeros()
+    out.sort_indices()
+    return out
+
+
+# ============================================================================ files
+_DESCRIPTIONS = {
+    "Q": ("18.28", "q = Q l: coordinates from the independent vectors l"),
+    "Q_inv": ("App. B", "l = Q^-1 q, by the block formulas of Appendix B"),
+    "R": ("18.37", "l^d = R q: the vectors of the f^d slots (t1_n1, then t2 t3 t4 t6 t7 t8 t9 t10 per element)"),
+    "R_o": ("18.43", "[t5; t1] per element = R_o q: rows of Q^-1 (R_0 for t1_n1)"),
+    "T": ("18.55", "u~ = T u: the rest-length change of every slot from the independent u"),
+    "W_o": ("18.15", "W^o = BlockDiag[W]: f = W^o (nodal forces)"),
+    "B_d": ("18.15", "f = B^d f^d + B^o f^o + W^o w"),
+    "B_o": ("18.15", "f = B^d f^d + B^o f^o + W^o w"),
+    "P": ("18.26", "p = P q: node positions"),
+    "H": ("18.20", "H = BlockDiag[H_ij], H = (2/m) diag(I, (3/L^2) skew(q2)^2) per rod"),
+    "K_r": ("18.20", "K_r = BlockDiag[Omega_ij], |q2'|^2/L^2 on the q2 rows"),
+    "K_d": ("18.47", "f^d = -K^d q + P^d u~^d (k = 0 for a slack tendon)"),
+    "K_o": ("18.48", "f^o = -K^o q + P^o u~^o"),
+    "P_d": ("18.47", "P^d = BlockDiag[b], b = k t/|t| for a taut tendon"),
+    "P_o": ("18.48", "P^o = BlockDiag[b]"),
+    "K_tilde": ("18.52", "K~ = B^d K^d + B^o K^o"),
+    "B_tilde": ("18.52", "B~ = [B^d P^d, B^o P^o]"),
+    "K_p": ("18.59", "K_p = H K~"),
+    "B": ("18.59", "B = H B~ T: q'' = -(K_r + K_p) q + B u + D w"),
+    "D": ("18.59", "D = H W^o"),
+    "C_t": ("18.43", "tendon vectors t = C_t q, one 3-row block per entry of u"),
+    "C_l": ("18.60", "d y_l / d q: linearized tendon-length output, y_l = |C_t q| per tendon"),
+    "C_f": ("18.60", "d y_f / d q: linearized tension output, y_f = k (y_l - L0 + u) when taut"),
+}
+
+
+def write_matrices(
+    out_dir: str | Path,
+    structure_or_size: Structure | Sequence[int],
+    q: np.ndarray | None = None,
+    qdot: np.ndarray | None = None,
+    u: np.ndarray | None = None,
+    w: np.ndarray | None = None,
+    *,
+    at: str | None = None,
+) -> list[tuple[str, tuple[int, int], int]]:
+    """Write every matrix of the model as ``NAME.npz`` and ``NAME.mtx``, the state as
+    ``state.npz`` and an index ``matrices.json``, each file atomically.
+
+    Parameters
+    ----------
+    out_dir : path
+        Output folder, created if needed.
+    structure_or_size : Structure or (n, m) or (n, m, primal)
+        An undamped class 1 shell, or the size of ``class1_shell(n, m, primal=primal)``.
+    q, qdot : ndarray (12nm,), optional
+        The state at which the state-dependent matrices are evaluated.  Default: the structure's
+        initial state (:func:`dynamics.initial_state`).
+    u : ndarray (n(10m-2),), optional
+        Control in the paper's order (:func:`control_names`); default 0.
+    w : ndarray (12nm,) or (4nm, 3), optional
+        External nodal forces (only recorded; ``D`` does not depend on them); default 0.
+    at : str, optional
+        A label for the state (e.g. ``"initial"``, ``"equilibrium"``), recorded in the index.
+
+    Returns
+    -------
+    list of (name, shape, nnz)
+        One row per matrix, in the order written.
+    """
+    import scipy.io
+
+    from tensegrity.io import atomic_path
+
+    if isinstance(structure_or_size, Structure):
+        structure = structure_or_size
+    else:
+        size = tuple(structure_or_size)
+        if len(size) not in (2, 3):
+            raise ValueError(f"structure_or_size: expected a Structure or (n, m[, primal]), got {size!r}")
+        structure = class1_shell(size[0], size[1], primal=bool(size[2]) if len(size) == 3 else False)
+    model = ShellMatrixModel(structure)
+    top = model.topology
+    if q is None or qdot is None:
+        state = dynamics.initial_state(structure)
+        q = state.q if q is None else q
+        qdot = state.qdot if qdot is None else qdot
+    state = model.evaluate(q, qdot, u)
+    w_vec = np.zeros(top.n_coordinates) if w is None else np.asarray(w, dtype=float).reshape(-1)
+    if w_vec.shape != (top.n_coordinates,):
+        raise ValueError(f"w: expected {top.n_coordinates} numbers, got {w_vec.size}")
+    if not (np.all(np.isfinite(state.q)) and np.all(np.isfinite(state.qdot)) and np.all(np.isfinite(w_vec))):
+        raise ValueError("q, qdot, w: must be finite")
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    matrices = {**top.matrices(), **state.matrices()}
+    rows, entries = [], []
+    for name, matrix in matrices.items():
+        with atomic_path(out / f"{name}.npz") as tmp:
+            with open(tmp, "wb") as handle:
+                sp.save_npz(handle, matrix, compressed=True)
+        with atomic_path(out / f"{name}.mtx") as tmp:
+            with open(tmp, "wb") as handle:
+                scipy.io.mmwrite(handle, matrix, comment=f"tensegrity matrix {name} ({_DESCRIPTIONS[name][1]})")
+        shape = (int(matrix.shape[0]), int(matrix.shape[1]))
+        rows.append((name, shape, int(matrix.nnz)))
+        equation, description = _DESCRIPTIONS[name]
+        entries.append({
+            "name": name, "shape": list(shape), "nnz": int(matrix.nnz), "equation": equation,
+            "description": description, "npz": f"{name}.npz", "mtx": f"{name}.mtx",
+            "state_dependent": name in _STATE_MATRICES,
+        })
+    p = dynamics.nodes_from_coordinates(structure, state.q)
+    with atomic_path(out / "state.npz") as tmp:
+        with open(tmp, "wb") as handle:
+            np.savez(handle, q=state.q, qdot=state.qdot, node_position=p, u=state.u,
+                     utilde=state.utilde, w=w_vec, qddot=state.qddot(w_vec))
+    index = {
+        "format": "tensegrity-matrices",
+        "version": 1,
+        "model": "q'' + (K_r(q') + K_p(q)) q = B(q) u + D(q) w  (Skelton, Pinaud, Mingori, eq. 18.59)",
+        "shell": {"n": top.n, "m": top.m, "primal": top.primal, "nodes": structure.n_nodes,
+                  "rods": structure.n_rods, "tendons": structure.n_tendons},
+        "at": at,
+        "state": {
+            "file": "state.npz",
+            "q": state.q.tolist(),
+            "qdot": state.qdot.tolist(),
+            "node_position": p.tolist(),
+            "u": state.u.tolist(),
+            "w": w_vec.tolist(),
+        },
+        "orderings": {
+            "q": "per element (i,j), e = (j-1) n + (i-1): [p1+p2, p2-p1, p3+p4, p4-p3], 3 numbers each",
+            "w": "per element: forces on nodes p1, p2, p3, p4 (node order), 3 numbers each",
+            "u": "one tendon per entry (u_tendon); u = rest-length change [m], Lbar = L0 - u",
+            "l": list(top.l_labels),
+            "ld_slots": [{"slot": s, "tendon": t, "sign": int(g), "counted": bool(c)}
+                         for s, t, g, c in zip(top.d_slots, top.d_tendon, top.d_sign, top.d_counted)],
+            "fo_slots": [{"slot": s, "tendon": t, "sign": int(g), "counted": bool(c)}
+                         for s, t, g, c in zip(top.o_slots, top.o_tendon, top.o_sign, top.o_counted)],
+        },
+        "u_tendon": list(top.u_names),
+        "matrices": entries,
+        "notes": "undamped model; see docs/matrix-model.md for the orderings and the departures "
+                 "from the printed equations",
+    }
+    with atomic_path(out / "matrices.json") as tmp:
+        tmp.write_text(json.dumps(index, indent=1) + "\n", encoding="utf-8")
+    return rows
