@@ -1,0 +1,1 @@
+"""Analysis and control of tensegrity structures (issue 4)."""

@@ -1,0 +1,312 @@
+"""One function per CLI verb: compute, write JSON and figures into ``out_dir``, return the table.
+
+``run_equilibrium``, ``run_modes``, ``run_controllability`` and ``run_control`` each take a
+:class:`~tensegrity.structure.Structure` and an output folder (created if missing), write every
+file atomically (:func:`tensegrity.io.atomic_path`) and return the readable text to print.
+Files:
+
+==========================  ================================================================
+verb                        files
+==========================  ================================================================
+``equilibrium``             ``equilibrium.json`` (node positions, tensions, slack tendons,
+                            residuals, per route, and their agreement), ``equilibrium.png``
+``modes``                   ``modes.json`` (frequencies [Hz], kinds, node mode shapes, verdict,
+                            optional FFT and nonlinear checks), ``frequencies.png``,
+                            ``mode_shapes.png``
+``controllability``         ``controllability.json`` (ranks per input set and per output set,
+                            modes missed, Gramians), ``controllability.png``,
+                            ``observability.png``
+``control``                 ``control.json`` (plan and closed-loop results),
+                            ``control_motion.png``, ``control_inputs.png``,
+                            ``control_shapes.png``
+==========================  ================================================================
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from tensegrity import dynamics
+from tensegrity.analysis import report
+from tensegrity.analysis.equilibrium import (
+    EquilibriumResult,
+    compare_equilibria,
+    equilibrium_by_simulation,
+    find_equilibrium,
+)
+from tensegrity.structure import Structure
+
+
+def _out(out_dir: str | Path) -> Path:
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    return out
+
+
+def _structure_summary(s: Structure) -> dict[str, Any]:
+    return {"nodes": s.n_nodes, "rods": s.n_rods, "tendons": s.n_tendons,
+            "tendon_names": list(s.tendon_name)}
+
+
+def _equilibrium(structure: Structure) -> EquilibriumResult:
+    eq = find_equilibrium(structure)
+    if not eq.converged:
+        raise RuntimeError(f"no equilibrium found: {eq.message}")
+    return eq
+
+
+# ------------------------------------------------------------------------------ equilibrium
+def run_equilibrium(
+    structure: Structure,
+    out_dir: str | Path,
+    *,
+    method: str = "both",
+    t_end: float = 60.0,
+    velocity_tol: float = 1e-6,
+    acceleration_tol: float = 1e-6,
+) -> str:
+    """``tensegrity equilibrium``: the equilibrium by least squares, by damped simulation, or
+    both (``method``: ``"least_squares"``, ``"simulation"``, ``"both"``) and their agreement."""
+    from tensegrity.plotting import figure_structure
+
+    if method not in ("both", "least_squares", "simulation"):
+        raise ValueError(f"method: expected 'both', 'least_squares' or 'simulation', got {method!r}")
+    out = _out(out_dir)
+    results: dict[str, EquilibriumResult] = {}
+    if method in ("both", "least_squares"):
+        results["least_squares"] = find_equilibrium(structure)
+    if method in ("both", "simulation"):
+        results["simulation"] = equilibrium_by_simulation(
+            structure, t_end=t_end, velocity_tol=velocity_tol, acceleration_tol=acceleration_tol)
+    data: dict[str, Any] = {"structure": _structure_summary(structure)}
+    data |= {name: r.to_dict() for name, r in results.items()}
+    text = []
+    for name, r in results.items():
+        text.append(f"[{name}] {r.message}")
+        text.append(report.key_values([
+            ("converged", r.converged),
+            ("residual force max |Q|", f"{r.residual_force:.3e} N"),
+            ("residual acceleration max |q''|", f"{r.residual_acceleration:.3e} m/s^2"),
+            ("tension range", f"{r.tension.min():.6g} .. {r.tension.max():.6g} N"),
+            ("slack tendons", ", ".join(r.slack_names) or "none"),
+        ]))
+    if len(results) == 2:
+        agreement = compare_equilibria(results["least_squares"], results["simulation"])
+        data["agreement"] = agreement
+        text.append(report.key_values([
+            ("routes agree: node distance", f"{agreement['node_distance']:.3e} m (after "
+                                            "removing rigid-body motion)"),
+            ("routes agree: tension difference", f"{agreement['tension_difference']:.3e} N"),
+        ]))
+    main = results.get("least_squares") or results["simulation"]
+    text.append(report.table(
+        ["tendon", "tension [N]", "length [m]", "rest length [m]", "slack"],
+        [(n, T, l, r, "yes" if sl else "")
+         for n, T, l, r, sl in zip(structure.tendon_name, main.tension, main.tendon_length,
+                                   main.rest_length, main.slack)]))
+    written = [report.write_json(out / "equilibrium.json", data)]
+    fig = figure_structure(structure, main.node_position, main.tension,
+                           title=f"Equilibrium ({main.method.replace('_', ' ')})")
+    written.append(report.save_figure(fig, out / "equilibrium.png"))
+    text.append("wrote " + ", ".join(str(p) for p in written))
+    return "\n\n".join(text)
+
+
+# ------------------------------------------------------------------------------ modes
+def run_modes(
+    structure: Structure,
+    out_dir: str | Path,
+    *,
+    shapes: int = 6,
+    check_fft: bool = False,
+    check_simulation: bool = False,
+) -> str:
+    """``tensegrity modes``: natural frequencies [Hz], mode shapes, rigid-body modes, mechanisms
+    and the stability verdict at the equilibrium (least squares); optionally the FFT check of
+    the best-separated mode and the perturbed nonlinear simulations."""
+    from tensegrity.analysis.linearize import linearize
+    from tensegrity.analysis.modes import measure_frequency, modal_analysis, stability_by_simulation
+
+    out = _out(out_dir)
+    eq = _equilibrium(structure)
+    lin = linearize(structure, eq)
+    modes = modal_analysis(lin)
+    data: dict[str, Any] = {"structure": _structure_summary(structure),
+                            "equilibrium_residual_force_N": eq.residual_force}
+    data |= modes.to_dict()
+    text = [modes.verdict]
+    rows = [(i, modes.kind[i], modes.frequency_hz[i], modes.omega_squared[i])
+            for i in range(len(modes.kind))]
+    text.append(report.table(["mode", "kind", "frequency [Hz]", "omega^2 [1/s^2]"], rows))
+    if check_fft:
+        check = measure_frequency(modes)
+        data["fft_check"] = check.to_dict()
+        text.append(f"FFT check, mode {check.mode}: linearization {check.linear_hz:.6g} Hz, "
+                    f"nonlinear simulation {check.measured_hz:.6g} Hz (relative difference "
+                    f"{check.relative_error:.2e})")
+    if check_simulation:
+        sim = stability_by_simulation(modes)
+        data["simulation_check"] = sim.to_dict()
+        text.append(sim.verdict)
+    written = [report.write_json(out / "modes.json", data)]
+    written.append(report.save_figure(report.figure_frequencies(modes), out / "frequencies.png"))
+    chosen = [int(i) for i in modes.elastic_indices()[:shapes]]
+    if chosen:
+        written.append(report.save_figure(report.figure_mode_shapes(modes, chosen),
+                                          out / "mode_shapes.png"))
+    text.append("wrote " + ", ".join(str(p) for p in written))
+    return "\n\n".join(text)
+
+
+# ------------------------------------------------------------------------------ controllability
+def run_controllability(
+    structure: Structure,
+    out_dir: str | Path,
+    *,
+    inputs: Sequence[str] | None = None,
+    outputs: Sequence[str] | None = None,
+    damping: str = "critical",
+) -> str:
+    """``tensegrity controllability``: ranks, PBH per mode and Gramians for each input set
+    (tendon-name patterns; default all tendons, each family, one tendon) and observability for
+    each output set (default node positions, tendon lengths, tensions, node 0).  Gramians use
+    ``damping`` (``"critical"``: the paper's artificial critical damping; ``"as-is"``)."""
+    from tensegrity.analysis.controllability import controllability_table
+    from tensegrity.analysis.linearize import linearize
+    from tensegrity.analysis.modes import modal_analysis
+
+    out = _out(out_dir)
+    eq = _equilibrium(structure)
+    if damping == "critical":
+        damped = dynamics.critical_damping(structure)
+    elif damping == "as-is":
+        damped = structure
+    else:
+        raise ValueError(f"damping: expected 'critical' or 'as-is', got {damping!r}")
+    lin = linearize(damped, eq)
+    modes = modal_analysis(lin)
+    input_sets = None if inputs is None else {p: p for p in inputs}
+    output_sets = None if outputs is None else {p: p for p in outputs}
+    ctrl, obs = controllability_table(lin, modes, input_sets, output_sets)
+    text = [f"{lin.A.shape[0]} states (5 per rod and their rates), of which "
+            f"{ctrl[0].elastic_states} non-rigid; rank = 2 x (modes reached), PBH per mode with "
+            f"relative tolerance {ctrl[0].pbh_rtol:g}; Gramians with {damping} damping"]
+
+    def rows(results):
+        out_rows = []
+        for r in results:
+            g = r.gramian_eigenvalues
+            missed = r.missed_modes()
+            out_rows.append((r.name, len(r.signals), f"{r.rank}/{r.n_states}",
+                             f"{r.elastic_rank}/{r.elastic_states}",
+                             ", ".join(str(m) for m in missed[:12]) + (" ..." if len(missed) > 12 else "")
+                             or "none",
+                             "-" if g is None else f"{max(g.min(), 0.0):.3g} .. {g.max():.3g}"))
+        return out_rows
+
+    text.append("Controllability (inputs: rest-length changes)\n" + report.table(
+        ["input set", "tendons", "rank", "non-rigid rank", "modes not reached", "Gramian eig"],
+        rows(ctrl)))
+    text.append("Observability\n" + report.table(
+        ["output set", "outputs", "rank", "non-rigid rank", "modes not seen", "Gramian eig"],
+        rows(obs)))
+    data = {"structure": _structure_summary(structure), "states": lin.A.shape[0],
+            "pbh_rtol": ctrl[0].pbh_rtol, "damping": damping,
+            "modes": [{"index": i, "kind": k, "frequency_hz": float(f)}
+                      for i, (k, f) in enumerate(zip(modes.kind, modes.frequency_hz))],
+            "controllability": [r.to_dict() for r in ctrl],
+            "observability": [r.to_dict() for r in obs]}
+    written = [report.write_json(out / "controllability.json", data),
+               report.save_figure(report.figure_reach(ctrl, modes), out / "controllability.png"),
+               report.save_figure(report.figure_reach(obs, modes), out / "observability.png")]
+    text.append("wrote " + ", ".join(str(p) for p in written))
+    return "\n\n".join(text)
+
+
+# ------------------------------------------------------------------------------ control
+def rings(structure: Structure, p: np.ndarray, rtol: float = 1e-6) -> tuple[list[int], list[int]]:
+    """Bottom and top "rings": the nodes at the lowest and at the highest z (within ``rtol`` of
+    the structure's height) -- the default for structure files."""
+    z = p[:, 2]
+    span = float(np.ptp(z)) or 1.0
+    bottom = np.flatnonzero(z <= z.min() + rtol * span).tolist()
+    top = np.flatnonzero(z >= z.max() - rtol * span).tolist()
+    return bottom, top
+
+
+def run_control(
+    structure: Structure,
+    out_dir: str | Path,
+    *,
+    height: float = 0.8,
+    twist_back: bool = True,
+    actuators: str = "t1_*",
+    steps: tuple[int, int] = (8, 4),
+    bottom: Sequence[int] | None = None,
+    top: Sequence[int] | None = None,
+    closed_loop: bool = True,
+    move_time: float = 2.0,
+    settle_time: float = 4.0,
+    min_rest_length: float = 0.05,
+    max_change: float = 0.25,
+    min_tension: float = 1.0,
+    tolerance: float = 1e-6,
+) -> str:
+    """``tensegrity control``: shorten the structure to ``height`` times its equilibrium height
+    with the ``actuators`` (tendon pattern; twist free), then (``twist_back``) restore the twist
+    with every tendon, by a quasi-static sequence of equilibria, then (``closed_loop``) play it
+    with LQR feedback on the nonlinear model.  ``bottom``/``top``: node indices of the two rings
+    (default: the nodes at the lowest and the highest z of the equilibrium)."""
+    from tensegrity.analysis.shape_control import Bounds, closed_loop as run_closed_loop
+    from tensegrity.analysis.shape_control import describe_plan, height_twist, quasi_static
+
+    out = _out(out_dir)
+    eq = _equilibrium(structure)
+    if bottom is None or top is None:
+        b, t = rings(structure, eq.node_position)
+        bottom = b if bottom is None else bottom
+        top = t if top is None else top
+    output = height_twist(eq.node_position, bottom, top)
+    y0 = output.value(eq.node_position)
+    phases: list[Any] = [{"targets": (height * y0[0], None), "actuators": actuators}]
+    n_steps = [steps[0]]
+    if twist_back:
+        phases.append((height * y0[0], 0.0))
+        n_steps.append(steps[1])
+    bounds = Bounds(min_rest_length=min_rest_length, max_change=max_change,
+                    min_tension=min_tension)
+    plan = quasi_static(structure, output, phases, start=eq, steps=n_steps, bounds=bounds,
+                        tolerance=[tolerance, tolerance])
+    data: dict[str, Any] = {"structure": _structure_summary(structure), "bottom": list(bottom),
+                            "top": list(top), "bounds": dataclasses.asdict(bounds),
+                            "open_loop": describe_plan(plan)}
+    text = [f"open loop (quasi-static, {len(plan.equilibria) - 1} steps): {plan.message}",
+            report.table(["step", "phase", *[f"{n} [{u}]" for n, u in zip(output.names, output.units)],
+                          "min tension [N]", "max |u| [m]"],
+                         [(k, int(plan.phase[k]), *plan.outputs[k], plan.min_tension[k],
+                           float(np.abs(plan.control[k]).max()))
+                          for k in range(len(plan.equilibria))])]
+    closed = None
+    if closed_loop:
+        closed = run_closed_loop(plan, move_time=move_time, settle_time=settle_time)
+        data["closed_loop"] = {
+            "reached": closed.reached, "message": closed.message,
+            "final_outputs": closed.outputs[-1].tolist(), "final_error": closed.final_error.tolist(),
+            "tolerance": closed.tolerance.tolist(), "min_tension_N": closed.min_tension,
+            "min_rest_length_m": closed.min_rest_length, "saturated": closed.saturated,
+            "max_rod_length_error": closed.max_rod_length_error,
+            "duration_s": float(closed.t[-1]), "gains": closed.gains,
+        }
+        text.append(f"closed loop (LQR, nonlinear model, {closed.t[-1]:.3g} s): {closed.message}")
+    written = [report.write_json(out / "control.json", data),
+               report.save_figure(report.figure_shape_motion(plan, closed), out / "control_motion.png"),
+               report.save_figure(report.figure_shape_controls(plan, closed),
+                                  out / "control_inputs.png"),
+               report.save_figure(report.figure_shape_structures(plan), out / "control_shapes.png")]
+    text.append("wrote " + ", ".join(str(p) for p in written))
+    return "\n\n".join(text)

@@ -1,0 +1,440 @@
+"""Static equilibria (eq. 18.61): directly by least squares / Newton, or by damped simulation.
+
+Two routes, which agree (``tests/test_analysis_equilibrium.py``):
+
+- :func:`find_equilibrium` solves ``Q(x) = 0`` -- the generalized forces in the reduced
+  coordinates of :mod:`.coordinates`, so every rod keeps its length exactly -- with
+  ``scipy.optimize.least_squares`` and the analytic Jacobian of :mod:`.statics`, then polishes
+  with Newton steps.  A free structure's equilibria come in 6-dimensional families (rigid-body
+  motions); the family is gauged by Eckart's conditions with respect to the starting
+  configuration (6 extra residuals: same mass centre, no mass-weighted rotation), so the solution
+  is isolated and the Jacobian has full column rank when the structure is stiff.  External
+  forces or gravity fix the orientation themselves; then only the mass centre is gauged (and a
+  free structure under a net force has no equilibrium: the solver reports its residual).
+- :func:`equilibrium_by_simulation` runs the paper's route: the structure with artificial
+  critical damping (:func:`tensegrity.dynamics.critical_damping`) is simulated until it is at
+  rest.  Convergence test: every node speed below ``velocity_tol`` [m/s] *and* every node
+  acceleration below ``acceleration_tol`` [m/s^2] at a sample (``simulate(steady_state=True)``).
+
+Both report an :class:`EquilibriumResult`: node positions, tensions, slack tendons and residuals.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+import scipy.optimize
+
+from tensegrity import dynamics
+from tensegrity.analysis.coordinates import Chart, align
+from tensegrity.analysis.statics import (
+    force_jacobian,
+    rod_compression,
+    statics,
+)
+from tensegrity.structure import Structure
+
+#: Default force tolerance, relative to ``mean(k) * mean(rod length)`` (100 N for the default
+#: shell: 1e-10 N there).
+FORCE_RTOL = 1e-12
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class EquilibriumResult:
+    """An equilibrium of a structure (or the best attempt at one).
+
+    Attributes
+    ----------
+    structure : Structure
+    q : (6R,) coordinates [m].  node_position : (N, 3) [m].
+    control : (S,) rest-length changes ``u`` [m] (``Lbar = L0 - u``).
+    rest_length : (S,) ``Lbar`` [m].  tendon_length : (S,) [m].
+    tension : (S,) [N] (0 for slack tendons).  slack : (S,) bool, ``l <= Lbar``.
+    rod_compression : (R,) axial compression of each rod [N] (> 0 compressed).
+    residual_force : max ``|Q|``, the generalized forces (eq. 18.61 in reduced coordinates) [N].
+    residual_acceleration : max ``|q''|`` of Theorem 18.1 at rest (``q' = 0``) [m/s^2].
+    converged : whether the method's convergence test passed.
+    method : ``"least_squares"`` or ``"simulation"``.
+    message : how it ended.  nfev : evaluations (residuals, or right-hand sides).
+    """
+
+    structure: Structure
+    q: np.ndarray
+    node_position: np.ndarray
+    control: np.ndarray
+    rest_length: np.ndarray
+    tendon_length: np.ndarray
+    tension: np.ndarray
+    slack: np.ndarray
+    rod_compression: np.ndarray
+    residual_force: float
+    residual_acceleration: float
+    converged: bool
+    method: str
+    message: str
+    nfev: int
+    external_force: np.ndarray | None = None
+    gravity: np.ndarray | None = None
+
+    @property
+    def slack_names(self) -> list[str]:
+        """Names of the slack tendons."""
+        return [n for n, sl in zip(self.structure.tendon_name, self.slack) if sl]
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready summary: node positions, tensions, slack tendons and residuals."""
+        s = self.structure
+        return {
+            "method": self.method,
+            "converged": bool(self.converged),
+            "message": self.message,
+            "residual_force_N": float(self.residual_force),
+            "residual_acceleration_m_s2": float(self.residual_acceleration),
+            "node_position_m": self.node_position.tolist(),
+            "tendons": [
+                {"name": name, "tension_N": float(T), "length_m": float(l),
+                 "rest_length_m": float(r), "slack": bool(sl)}
+                for name, T, l, r, sl in zip(s.tendon_name, self.tension, self.tendon_length,
+                                             self.rest_length, self.slack)
+            ],
+            "rod_compression_N": self.rod_compression.tolist(),
+            "slack_tendons": self.slack_names,
+        }
+
+
+def _force_scale(structure: Structure) -> float:
+    return float(np.mean(structure.tendon_stiffness) * np.mean(structure.rod_length))
+
+
+def _start_q(structure: Structure, start: Any) -> np.ndarray:
+    if start is None:
+        return dynamics.coordinates_from_nodes(structure, structure.node_position)
+    start = np.asarray(start, dtype=float)
+    if start.shape == (structure.n_nodes, 3):
+        start = dynamics.coordinates_from_nodes(structure, start)
+    if start.shape != (structure.n_coordinates,):
+        raise ValueError(f"start: expected node positions ({structure.n_nodes}, 3) or q "
+                         f"({structure.n_coordinates},), got shape {start.shape}")
+    q, _ = dynamics.project_to_constraints(structure, start, np.zeros_like(start))
+    return q
+
+
+def make_result(
+    structure: Structure,
+    q: np.ndarray,
+    control: np.ndarray | None,
+    *,
+    external_force: np.ndarray | None = None,
+    gravity: np.ndarray | None = None,
+    converged: bool,
+    method: str,
+    message: str,
+    nfev: int,
+) -> EquilibriumResult:
+    """An :class:`EquilibriumResult` at ``q`` (residuals evaluated there)."""
+    u = np.zeros(structure.n_tendons) if control is None else np.asarray(control, dtype=float)
+    rest = dynamics.rest_lengths(structure, u)
+    chart = Chart.at(structure, q)
+    x0 = np.zeros(chart.size)
+    st = statics(chart, x0, rest, external_force, gravity)
+    qddot = dynamics.accelerations(structure, st.q, np.zeros_like(st.q), control=u,
+                                   external_force=external_force, gravity=gravity)
+    return EquilibriumResult(
+        structure=structure,
+        q=st.q,
+        node_position=st.p,
+        control=u,
+        rest_length=rest,
+        tendon_length=st.tendons.length,
+        tension=st.tendons.tension,
+        slack=st.tendons.length <= rest,
+        rod_compression=rod_compression(structure, st.force, chart.direction),
+        residual_force=float(np.max(np.abs(st.generalized_force))),
+        residual_acceleration=float(np.max(np.abs(qddot))),
+        converged=converged,
+        method=method,
+        message=message,
+        nfev=nfev,
+        external_force=None if external_force is None else np.asarray(external_force, float),
+        gravity=None if gravity is None else np.asarray(gravity, float),
+    )
+
+
+class _Gauge:
+    """Eckart's conditions about a reference configuration ``p_ref``: 6 residuals [N], linear in
+    ``p``, scaled by the mean tendon stiffness so that they weigh like forces."""
+
+    def __init__(self, structure: Structure, p_ref: np.ndarray, rotations: bool = True) -> None:
+        self.rotations = rotations
+        self.w = structure.node_mass / structure.node_mass.sum()
+        self.p_ref = p_ref
+        self.arm = p_ref - self.w @ p_ref
+        radius = np.sqrt(self.w @ np.sum(self.arm**2, axis=1)) or 1.0
+        self.scale = float(np.mean(structure.tendon_stiffness))
+        self.rot_scale = self.scale / radius
+
+    def residual(self, p: np.ndarray) -> np.ndarray:
+        d = p - self.p_ref
+        parts = [self.scale * (self.w @ d)]
+        if self.rotations:
+            parts.append(self.rot_scale * (self.w @ np.cross(self.arm, d)))
+        return np.concatenate(parts)
+
+    def jacobian(self, J: np.ndarray) -> np.ndarray:
+        """Rows (6, 5R) from ``J = dp/dx`` (3N, 5R)."""
+        Jn = J.reshape(-1, 3, J.shape[1])
+        translation = np.einsum("i,ikc->kc", self.w, Jn)
+        if not self.rotations:
+            return self.scale * translation
+        skew = np.zeros((len(self.w), 3, 3))
+        a = self.arm
+        skew[:, 0, 1], skew[:, 0, 2] = -a[:, 2], a[:, 1]
+        skew[:, 1, 0], skew[:, 1, 2] = a[:, 2], -a[:, 0]
+        skew[:, 2, 0], skew[:, 2, 1] = -a[:, 1], a[:, 0]
+        rotation = np.einsum("i,ikl,ilc->kc", self.w, skew, Jn)
+        return np.vstack([self.scale * translation, self.rot_scale * rotation])
+
+
+def find_equilibrium(
+    structure: Structure,
+    start: Any = None,
+    *,
+    control: np.ndarray | None = None,
+    external_force: np.ndarray | None = None,
+    gravity: np.ndarray | None = None,
+    gauge: bool = True,
+    gauge_reference: np.ndarray | None = None,
+    descend: bool = True,
+    force_tol: float | None = None,
+    max_rounds: int = 10,
+    max_nfev: int = 2000,
+) -> EquilibriumResult:
+    """Solve ``K_p(q) q = B(q) u + D(q) w`` (eq. 18.61) with the rod-length constraints.
+
+    Unknowns: the ``5R`` reduced coordinates of :class:`Chart` (rod centres and two angles per
+    rod), so the rod constraints hold exactly.  Residuals: the generalized forces ``Q`` [N, N m]
+    and, if ``gauge``, Eckart's 6 conditions with respect to ``start`` (fixing the rigid-body
+    motion).  ``scipy.optimize.least_squares`` (Levenberg-Marquardt) with the analytic Jacobian;
+    the chart is re-based at each round's solution (it is exact only within 90 degrees of its
+    base), and rounds end with Newton steps.
+
+    Parameters
+    ----------
+    start : (N, 3) node positions or (6R,) q, optional
+        Starting guess (rods are first projected onto their lengths); default the structure's
+        node positions.
+    control : (S,) rest-length changes ``u`` [m], optional.
+    external_force : (N, 3) nodal forces ``w`` [N], optional.  gravity : (3,), optional.
+    gauge_reference : (N, 3), optional
+        The configuration Eckart's conditions refer to (default ``start``): pass the same one
+        to a sequence of solves to keep them all in one frame.
+    descend : bool
+        First go down the potential energy (elastic, minus the work of ``w`` and gravity) from
+        ``start`` by a modified Newton method (analytic gradient ``-Q`` and Hessian
+        ``K = -dQ/dx``, eigenvalues made positive, line search; gauge added as a penalty), so that the root found is a minimum -- a stable equilibrium -- rather than
+        whatever stationary point is nearest.  Without it, least squares alone converges to
+        the nearest root, which may be a saddle (e.g. the (3,1) shell from its cylinder layout
+        then lands on an equilibrium with 3 slack tendons).
+    force_tol : float, optional
+        Convergence: ``max |Q| <= force_tol`` [N].  Default ``1e-12 * mean(k) * mean(L_rod)``.
+
+    Returns
+    -------
+    EquilibriumResult
+        ``converged`` False (with a message) if the tolerance was not met; the residual is
+        reported either way.
+    """
+    q = _start_q(structure, start)
+    u = np.zeros(structure.n_tendons) if control is None else np.asarray(control, dtype=float)
+    rest = dynamics.rest_lengths(structure, u)
+    tol = FORCE_RTOL * _force_scale(structure) if force_tol is None else float(force_tol)
+    p_ref = (dynamics.nodes_from_coordinates(structure, q) if gauge_reference is None
+             else np.asarray(gauge_reference, dtype=float))
+    # Loads that are not invariant under rotation (external forces, gravity) fix the orientation
+    # themselves: then only the translation is gauged.
+    eckart = (_Gauge(structure, p_ref, rotations=external_force is None and gravity is None)
+              if gauge else None)
+    nfev = 0
+
+    def residual(chart: Chart, x: np.ndarray) -> np.ndarray:
+        st = statics(chart, x, rest, external_force, gravity)
+        parts = [st.generalized_force]
+        if eckart is not None:
+            parts.append(eckart.residual(st.p))
+        return np.concatenate(parts)
+
+    def jacobian(chart: Chart, x: np.ndarray) -> np.ndarray:
+        st = statics(chart, x, rest, external_force, gravity)
+        rows = [force_jacobian(chart, x, st)]
+        if eckart is not None:
+            rows.append(eckart.jacobian(chart.jacobian_matrix(x)))
+        return np.vstack(rows)
+
+    if descend:
+        q, used = _descend(structure, q, rest, external_force, gravity, eckart)
+        nfev += used
+    message = "did not converge"
+    converged = False
+    for _ in range(max_rounds):
+        chart = Chart.at(structure, q)
+        x0 = np.zeros(chart.size)
+        fit = scipy.optimize.least_squares(
+            lambda x: residual(chart, x), x0, jac=lambda x: jacobian(chart, x),
+            method="lm" if eckart is not None or chart.size <= structure.n_coordinates else "trf",
+            xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=max_nfev,
+        )
+        nfev += fit.nfev
+        x = fit.x
+        if np.max(np.abs(chart.split(x)[1])) > 1.0:  # far out on the chart: re-base, go again
+            q = chart.q(x)
+            continue
+        # Newton polish on a chart based at the solution.
+        q = chart.q(x)
+        for _ in range(5):
+            chart = Chart.at(structure, q)
+            x0 = np.zeros(chart.size)
+            r = residual(chart, x0)
+            nfev += 1
+            if np.max(np.abs(r[: chart.size])) <= tol:
+                break
+            step, *_ = np.linalg.lstsq(jacobian(chart, x0), -r, rcond=None)
+            q = chart.q(step)
+        chart = Chart.at(structure, q)
+        r = residual(chart, np.zeros(chart.size))
+        force_residual = float(np.max(np.abs(r[: chart.size])))
+        if force_residual <= tol:
+            converged = True
+            message = f"converged: max |Q| = {force_residual:.3g} N <= {tol:.3g} N"
+            break
+        message = (f"did not converge: max |Q| = {force_residual:.3g} N > {tol:.3g} N "
+                   f"({fit.message})")
+        if fit.status > 0 and force_residual > 1e3 * tol:
+            break  # a least-squares minimum that is no equilibrium: going on will not help
+    return make_result(structure, q, u, external_force=external_force, gravity=gravity,
+                       converged=converged, method="least_squares", message=message, nfev=nfev)
+
+
+def potential_energy(structure, p, q, rest, external_force, gravity) -> float:
+    """Elastic energy minus the work of constant external forces and gravity [J]."""
+    energy = float(dynamics.elastic_energy(structure, p, rest))
+    if external_force is not None:
+        energy -= float(np.sum(np.asarray(external_force) * p))
+    if gravity is not None:
+        energy += float(dynamics.gravity_energy(structure, q, np.asarray(gravity, float)))
+    return energy
+
+
+def _descend(structure, q, rest, external_force, gravity, eckart, max_iter=500):
+    """Newton descent of the potential energy plus the gauge penalty ``|g|^2 / (2 mean k)``.
+
+    Each step solves ``|H| d = -grad`` with ``|H|`` the Hessian ``K = -dQ/dx`` (plus the
+    penalty's) with its eigenvalues replaced by their absolute values (floored at ``1e-8`` of
+    the largest), so that every step goes down even where ``K`` is indefinite; the step is
+    capped at 0.25 (rad, or rod lengths) and halved until the energy decreases (Armijo).  The
+    chart is re-based at every iterate.  Near a minimum this is Newton's method.
+    """
+    k_mean = float(np.mean(structure.tendon_stiffness))
+    length = float(np.mean(structure.rod_length))
+    nfev = 0
+
+    def value(chart, x):
+        st = statics(chart, x, rest, external_force, gravity)
+        v = potential_energy(structure, st.p, st.q, rest, external_force, gravity)
+        if eckart is not None:
+            g = eckart.residual(st.p)
+            v += 0.5 * float(g @ g) / k_mean
+        return v
+
+    for _ in range(max_iter):
+        chart = Chart.at(structure, q)
+        x0 = np.zeros(chart.size)
+        st = statics(chart, x0, rest, external_force, gravity)
+        grad = -st.generalized_force
+        H = -force_jacobian(chart, x0, st)
+        H = 0.5 * (H + H.T)
+        energy = potential_energy(structure, st.p, st.q, rest, external_force, gravity)
+        if eckart is not None:
+            g = eckart.residual(st.p)
+            G = eckart.jacobian(chart.jacobian_matrix(x0))
+            grad = grad + G.T @ g / k_mean
+            H = H + G.T @ G / k_mean
+            energy += 0.5 * float(g @ g) / k_mean
+        nfev += 1
+        if np.max(np.abs(grad)) <= 1e-9 * k_mean * length:
+            break
+        lam, V = np.linalg.eigh(H)
+        floor = 1e-8 * max(np.max(np.abs(lam)), 1e-300)
+        step = -V @ ((V.T @ grad) / np.maximum(np.abs(lam), floor))
+        scale = np.concatenate([np.full(3, length), np.ones(2)] * structure.n_rods)
+        biggest = np.max(np.abs(step) / scale) / 0.25
+        if biggest > 1.0:
+            step /= biggest
+        slope = float(grad @ step)
+        for _ in range(40):
+            nfev += 1
+            if value(chart, step) <= energy + 1e-4 * slope:
+                break
+            step *= 0.5
+        else:
+            break  # no descent along a descent direction: at a minimum within round-off
+        q = chart.q(step)
+    return q, nfev
+
+
+def equilibrium_by_simulation(
+    structure: Structure,
+    *,
+    control: np.ndarray | None = None,
+    initial: dynamics.State | None = None,
+    damping: str = "critical",
+    t_end: float = 60.0,
+    velocity_tol: float = 1e-6,
+    acceleration_tol: float = 1e-6,
+    sample_dt: float = 0.01,
+    **simulate_options: Any,
+) -> EquilibriumResult:
+    """The paper's route: simulate with damping until the structure is at rest.
+
+    Convergence test: at some sample, every node speed ``< velocity_tol`` [m/s] and every node
+    acceleration ``< acceleration_tol`` [m/s^2] (``simulate(..., steady_state=True)``);
+    ``converged`` is False if ``t_end`` came first or the run failed.
+
+    Parameters
+    ----------
+    damping : ``"critical"`` (default: :func:`tensegrity.dynamics.critical_damping`, the paper's
+        "artificial critical damping") or ``"as-is"`` (the structure's own damping).
+    """
+    from tensegrity.simulate import STATUS_STEADY, simulate
+
+    if damping == "critical":
+        damped = dynamics.critical_damping(structure)
+    elif damping == "as-is":
+        damped = structure
+    else:
+        raise ValueError(f"damping: expected 'critical' or 'as-is', got {damping!r}")
+    result = simulate(
+        damped, (0.0, float(t_end)), initial=initial, control=control, steady_state=True,
+        velocity_tol=velocity_tol, acceleration_tol=acceleration_tol, sample_dt=sample_dt,
+        **simulate_options,
+    )
+    converged = result.status == STATUS_STEADY
+    message = (f"{result.message} (node speeds < {velocity_tol:g} m/s, accelerations < "
+               f"{acceleration_tol:g} m/s^2)" if converged else f"not at rest: {result.message}")
+    return make_result(structure, result.q[-1], control, converged=converged,
+                       method="simulation", message=message, nfev=result.nfev)
+
+
+def compare_equilibria(a: EquilibriumResult, b: EquilibriumResult) -> dict[str, float]:
+    """How far apart two equilibria of the same structure are, blind to rigid-body motion.
+
+    Returns ``{"node_distance": max node distance after aligning b onto a [m],
+    "tension_difference": max |T_a - T_b| [N]}``.
+    """
+    w = a.structure.node_mass
+    aligned = align(b.node_position, a.node_position, w)
+    return {
+        "node_distance": float(np.max(np.linalg.norm(aligned - a.node_position, axis=1))),
+        "tension_difference": float(np.max(np.abs(a.tension - b.tension))),
+    }

@@ -1,0 +1,281 @@
+"""Linearization of Theorem 18.1 about an equilibrium, in coordinates that respect the rods.
+
+State ``z = [x, x']`` (10R,): the reduced coordinates ``x`` of :class:`Chart` (per rod the
+centre displacement ``dc`` [m] and two angles ``phi`` [rad]) based at the equilibrium, and
+their rates.  With the diagonal mass matrix ``M`` (``m`` and ``m L^2 / 12``), the tangent
+stiffness ``K = -dQ/dx`` (tendons' material and geometric stiffness plus the rods' geometric
+term; symmetric at an equilibrium), the damping ``C`` (taut tendons' ``c t t^T`` plus the rods'
+mass-proportional ``alpha M``)::
+
+    z' = A z + B du + D dw,   A = [[0, I], [-M^-1 K, -M^-1 C]],
+                              B = [[0], [M^-1 dQ/du]],  D = [[0], [M^-1 J^T]]
+    y  = C z + F du           (node positions, tendon lengths, tensions)
+
+``u`` is the rest-length change of every tendon [m] (``Lbar = L0 - u``; a taut tendon's tension
+grows by ``k du``), ``w`` the nodal forces [N] (the paper's ``B(q)``, ``D(q)`` of eq. 18.59).
+Only taut tendons enter (a slack one has no stiffness, no damping and no control authority);
+tendons exactly at their rest length count as taut with zero tension (``include_threshold``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from tensegrity import dynamics
+from tensegrity.analysis.coordinates import Chart, mass_matrix, rigid_body_basis
+from tensegrity.analysis.equilibrium import EquilibriumResult, make_result
+from tensegrity.analysis.statics import (
+    equilibrium_matrix,
+    force_jacobian,
+    node_stiffness,
+    statics,
+)
+from tensegrity.structure import Structure
+
+#: Output groups of :class:`Linearization`, in the order of ``C``'s rows.
+OUTPUT_GROUPS = ("position", "length", "tension")
+_AXES = "xyz"
+_ROD_COORDS = ("cx", "cy", "cz", "phi1", "phi2")
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Linearization:
+    """The linearized model about an equilibrium (see the module docstring).
+
+    Attributes
+    ----------
+    structure, equilibrium : the structure and the :class:`EquilibriumResult` linearized about.
+    chart : the reduced coordinates, based at the equilibrium.
+    mass : (5R,) diagonal of ``M``.  stiffness : ``K`` (5R, 5R).  damping : ``C`` (5R, 5R).
+    force_input : ``dQ/du`` (5R, S) [N/m].  equilibrium_matrix : (5R, S), ``Q = A_eq T``.
+    A : (10R, 10R).  B : (10R, S).  D : (10R, 3N).  C : (3N + 2S, 10R).  F : (3N + 2S, S).
+    taut : (S,) bool, tendons that act in the linearization.
+    state_names (``rod{r}_cx`` ... ``rod{r}_phi2``, then the same with ``_dot``), input_names
+    (the tendon names), disturbance_names (``w{i}_x``...), output_names (``p{i}_x``...,
+    ``length_{tendon}``, ``tension_{tendon}``).
+    rigid_basis : (5R, 6) rigid-body motions, ``M``-orthonormal.
+    """
+
+    structure: Structure
+    equilibrium: EquilibriumResult
+    chart: Chart
+    mass: np.ndarray
+    stiffness: np.ndarray
+    damping: np.ndarray
+    force_input: np.ndarray
+    equilibrium_matrix: np.ndarray
+    A: np.ndarray
+    B: np.ndarray
+    D: np.ndarray
+    C: np.ndarray
+    F: np.ndarray
+    taut: np.ndarray
+    state_names: tuple[str, ...]
+    input_names: tuple[str, ...]
+    disturbance_names: tuple[str, ...]
+    output_names: tuple[str, ...]
+    rigid_basis: np.ndarray
+
+    @property
+    def n_dof(self) -> int:
+        """``5 R``."""
+        return self.mass.size
+
+    def output_indices(self, outputs: str | Sequence[str] | None) -> np.ndarray:
+        """Row indices of ``C`` for output group names (``"position"``, ``"length"``,
+        ``"tension"``), output names, or None (all)."""
+        if outputs is None:
+            return np.arange(len(self.output_names))
+        if isinstance(outputs, str):
+            outputs = [outputs]
+        s = self.structure
+        sizes = {"position": 3 * s.n_nodes, "length": s.n_tendons, "tension": s.n_tendons}
+        starts = np.cumsum([0] + [sizes[g] for g in OUTPUT_GROUPS])
+        lookup = {name: k for k, name in enumerate(self.output_names)}
+        rows: list[int] = []
+        for item in outputs:
+            if item in sizes:
+                g = OUTPUT_GROUPS.index(item)
+                rows.extend(range(starts[g], starts[g + 1]))
+            elif item in lookup:
+                rows.append(lookup[item])
+            else:
+                raise KeyError(f"no output or output group named {item!r}")
+        return np.array(rows, dtype=int)
+
+    def input_indices(self, inputs: Sequence[str] | None) -> np.ndarray:
+        """Column indices of ``B`` for tendon names (or None: all tendons)."""
+        if inputs is None:
+            return np.arange(self.structure.n_tendons)
+        return np.array([self.structure.tendon_index(name) for name in inputs], dtype=int)
+
+    def statespace(
+        self,
+        inputs: Sequence[str] | None = None,
+        outputs: str | Sequence[str] | None = None,
+        *,
+        disturbances: bool = False,
+    ):
+        """A named ``control.StateSpace``: inputs are rest-length changes of the tendons named
+        (default all), then the nodal forces if ``disturbances``; outputs as
+        :meth:`output_indices`."""
+        import control
+
+        cols = self.input_indices(inputs)
+        rows = self.output_indices(outputs)
+        B, F = self.B[:, cols], self.F[np.ix_(rows, cols)]
+        names = [_signal(self.input_names[c]) for c in cols]
+        if disturbances:
+            B = np.hstack([B, self.D])
+            F = np.hstack([F, np.zeros((rows.size, self.D.shape[1]))])
+            names += list(self.disturbance_names)
+        return control.ss(self.A, B, self.C[rows], F, inputs=names,
+                          outputs=[_signal(self.output_names[r]) for r in rows],
+                          states=list(self.state_names))
+
+    def state(self, q: np.ndarray, qdot: np.ndarray | None = None) -> np.ndarray:
+        """The linear state ``z = [x, x']`` (10R,) of a nonlinear state ``(q, q')``: ``x`` exact
+        (chart inverse), ``x'`` to first order."""
+        x = self.chart.x(q)
+        v = np.zeros_like(x) if qdot is None else self.chart.velocity_x(q, qdot)
+        return np.concatenate([x, v])
+
+    def configuration(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(q, q')`` of a linear state ``z``: ``q`` exact on the rod constraints, ``q'`` the
+        first-order map at the equilibrium (projected onto the velocity constraints)."""
+        n = self.n_dof
+        q = self.chart.q(z[:n])
+        qdot = self.chart.velocity_q(z[n:])
+        return dynamics.project_to_constraints(self.structure, q, qdot)
+
+
+def _signal(name: str) -> str:
+    """A python-control signal name (no '.' allowed there)."""
+    return name.replace(".", "_")
+
+
+def linearize(
+    structure: Structure,
+    equilibrium: EquilibriumResult | np.ndarray | None = None,
+    *,
+    control: np.ndarray | None = None,
+    include_threshold: bool = True,
+) -> Linearization:
+    """Linearize about an equilibrium (an :class:`EquilibriumResult`, or its ``q``).
+
+    ``control`` (with a bare ``q``) is the rest-length change ``u`` of the equilibrium.  The
+    structure's own damping enters ``C``; pass ``critical_damping(structure)`` for a damped
+    model.  External forces and gravity of an :class:`EquilibriumResult` are taken into account.
+    """
+    if isinstance(equilibrium, EquilibriumResult):
+        eq = equilibrium
+        if eq.structure is not structure:
+            eq = make_result(structure, eq.q, eq.control, external_force=eq.external_force,
+                             gravity=eq.gravity, converged=eq.converged, method=eq.method,
+                             message=eq.message, nfev=eq.nfev)
+    else:
+        q = (dynamics.coordinates_from_nodes(structure, structure.node_position)
+             if equilibrium is None else np.asarray(equilibrium, dtype=float))
+        eq = make_result(structure, q, control, converged=True, method="given",
+                         message="given configuration", nfev=0)
+    s = structure
+    chart = Chart.at(s, eq.q)
+    x0 = np.zeros(chart.size)
+    st = statics(chart, x0, eq.rest_length, eq.external_force, eq.gravity)
+    tendons = st.tendons
+    active = tendons.taut | (tendons.at_threshold & include_threshold)
+    J = chart.jacobian_matrix(x0)
+    K = -force_jacobian(chart, x0, st)
+    if include_threshold and np.any(tendons.at_threshold):
+        K_thr = node_stiffness(s, tendons._replace(taut=np.zeros_like(tendons.taut)),
+                               include_threshold=True)
+        K = K + J.T @ K_thr @ J
+    K = 0.5 * (K + K.T)
+    mass = mass_matrix(s)
+    C_node = node_stiffness(s, tendons._replace(taut=active), include_threshold=False, damping=True)
+    damping = J.T @ C_node @ J + np.diag(np.repeat(s.rod_damping, 5) * mass)
+    A_eq = equilibrium_matrix(chart, tendons.direction, x0)
+    k_eff = np.where(active, s.tendon_stiffness, 0.0)
+    c_eff = np.where(active, s.tendon_damping, 0.0)
+    force_input = A_eq * k_eff
+
+    n = chart.size
+    inv_m = 1.0 / mass
+    A = np.zeros((2 * n, 2 * n))
+    A[:n, n:] = np.eye(n)
+    A[n:, :n] = -inv_m[:, None] * K
+    A[n:, n:] = -inv_m[:, None] * damping
+    B = np.vstack([np.zeros((n, s.n_tendons)), inv_m[:, None] * force_input])
+    D = np.vstack([np.zeros((n, 3 * s.n_nodes)), inv_m[:, None] * J.T])
+    zeros = np.zeros((s.n_tendons, n))
+    C = np.vstack([
+        np.hstack([J, np.zeros_like(J)]),
+        np.hstack([-A_eq.T, zeros]),
+        np.hstack([-(k_eff[:, None] * A_eq.T), -(c_eff[:, None] * A_eq.T)]),
+    ])
+    F = np.vstack([np.zeros((3 * s.n_nodes, s.n_tendons)), np.zeros((s.n_tendons, s.n_tendons)),
+                   np.diag(k_eff)])
+    rod_states = [f"rod{r}_{c}" for r in range(s.n_rods) for c in _ROD_COORDS]
+    names = s.tendon_name
+    return Linearization(
+        structure=s, equilibrium=eq, chart=chart, mass=mass, stiffness=K, damping=damping,
+        force_input=force_input, equilibrium_matrix=A_eq, A=A, B=B, D=D, C=C, F=F, taut=active,
+        state_names=tuple(rod_states + [f"{name}_dot" for name in rod_states]),
+        input_names=tuple(names),
+        disturbance_names=tuple(f"w{i}_{a}" for i in range(s.n_nodes) for a in _AXES),
+        output_names=tuple([f"p{i}_{a}" for i in range(s.n_nodes) for a in _AXES]
+                           + [f"length_{name}" for name in names]
+                           + [f"tension_{name}" for name in names]),
+        rigid_basis=rigid_body_basis(chart),
+    )
+
+
+def finite_difference_check(lin: Linearization, h: float = 1e-6) -> dict[str, float]:
+    """Largest relative differences between the analytic ``A``, ``B``, ``C`` blocks and central
+    differences of the nonlinear model (Theorem 18.1 accelerations and the outputs), at the
+    equilibrium: a check that the linearization is the derivative of the simulated dynamics."""
+    s, eq = lin.structure, lin.equilibrium
+    n = lin.n_dof
+
+    def accel(z: np.ndarray, u: np.ndarray) -> np.ndarray:
+        q, qdot = lin.configuration(z)
+        qddot = dynamics.accelerations(s, q, qdot, control=u, external_force=eq.external_force,
+                                       gravity=eq.gravity)
+        # x'' = (dc'', E^T q2''/L) at the base (the chart's second derivative vanishes at z = 0
+        # for velocity-free perturbations, and is second order in the velocity otherwise)
+        return lin.chart.velocity_x(q, qddot)
+
+    def outputs(z: np.ndarray, u: np.ndarray) -> np.ndarray:
+        q, qdot = lin.configuration(z)
+        p = dynamics.nodes_from_coordinates(s, q)
+        v = dynamics.nodes_from_coordinates(s, qdot)
+        forces = dynamics.tendon_forces(s, p, v, dynamics.rest_lengths(s, u))
+        return np.concatenate([(p - eq.node_position).ravel(), forces.length - eq.tendon_length,
+                               forces.tension])
+
+    z0 = np.zeros(2 * n)
+    A_fd = np.column_stack([(accel(z0 + h * e, eq.control) - accel(z0 - h * e, eq.control)) / (2 * h)
+                            for e in np.eye(2 * n)])
+    B_fd = np.column_stack([(accel(z0, eq.control + h * e) - accel(z0, eq.control - h * e)) / (2 * h)
+                            for e in np.eye(s.n_tendons)])
+    C_fd = np.column_stack([(outputs(z0 + h * e, eq.control) - outputs(z0 - h * e, eq.control)) / (2 * h)
+                            for e in np.eye(2 * n)])
+    F_fd = np.column_stack([(outputs(z0, eq.control + h * e) - outputs(z0, eq.control - h * e)) / (2 * h)
+                            for e in np.eye(s.n_tendons)])
+
+    def rel(a: np.ndarray, b: np.ndarray) -> float:
+        return float(np.max(np.abs(a - b)) / max(np.max(np.abs(b)), 1e-300))
+
+    return {"A": rel(lin.A[n:], A_fd), "B": rel(lin.B[n:], B_fd), "C": rel(lin.C, C_fd),
+            "F": rel(lin.F, F_fd)}
+
+
+def describe(lin: Linearization) -> dict[str, Any]:
+    """Sizes of the linearized model, for tables and JSON."""
+    return {"states": int(lin.A.shape[0]), "inputs": int(lin.B.shape[1]),
+            "disturbances": int(lin.D.shape[1]), "outputs": int(lin.C.shape[0]),
+            "taut_tendons": int(np.sum(lin.taut))}

@@ -1,0 +1,237 @@
+"""Tables, figures and JSON files of the analyses (written atomically, figures on Agg).
+
+Figures are :class:`matplotlib.figure.Figure` objects with an Agg canvas (no pyplot), as in
+:mod:`tensegrity.plotting`.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from tensegrity.io import atomic_path
+from tensegrity.plotting import draw_structure
+
+if TYPE_CHECKING:
+    from tensegrity.analysis.controllability import ReachResult
+    from tensegrity.analysis.modes import ModalAnalysis
+    from tensegrity.analysis.shape_control import ClosedLoop, QuasiStatic
+
+KIND_COLORS = {"rigid": "#7f7f7f", "mechanism": "#d62728", "elastic": "#2f6fb0",
+               "unstable": "#ff7f0e"}
+
+
+def _new_figure(figsize: tuple[float, float]) -> Figure:
+    figure = Figure(figsize=figsize, layout="constrained")
+    FigureCanvasAgg(figure)
+    return figure
+
+
+# ------------------------------------------------------------------------------ text and files
+def table(headers: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
+    """A plain-text table: columns padded to their widest cell, numbers right-aligned."""
+    cells = [[_cell(v) for v in row] for row in rows]
+    widths = [max([len(h)] + [len(r[i]) for r in cells]) for i, h in enumerate(headers)]
+    numeric = [all(_is_number(row[i]) for row in rows) if rows else False
+               for i in range(len(headers))]
+
+    def line(values: Sequence[str]) -> str:
+        return "  ".join(v.rjust(w) if num else v.ljust(w)
+                         for v, w, num in zip(values, widths, numeric)).rstrip()
+
+    out = [line(headers), line(["-" * w for w in widths])]
+    out.extend(line(r) for r in cells)
+    return "\n".join(out)
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
+
+
+def _cell(value: Any) -> str:
+    if isinstance(value, (float, np.floating)):
+        return f"{value:.6g}"
+    return str(value)
+
+
+def key_values(rows: Sequence[tuple[str, Any]]) -> str:
+    """``name  value`` lines, names padded."""
+    width = max(len(name) for name, _ in rows)
+    return "\n".join(f"{name:<{width}}  {_cell(value)}" for name, value in rows)
+
+
+def _json_default(value: Any) -> Any:
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, (np.integer,)):
+        return int(value)
+    if isinstance(value, (np.floating,)):
+        return float(value)
+    if isinstance(value, (np.bool_,)):
+        return bool(value)
+    raise TypeError(f"not JSON serializable: {type(value).__name__}")
+
+
+def _finite(value: Any) -> Any:
+    """Replace non-finite floats by None (JSON has no inf/nan)."""
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite(v) for v in value]
+    if isinstance(value, (float, np.floating)) and not math.isfinite(float(value)):
+        return None
+    return value
+
+
+def write_json(path: str | Path, data: dict[str, Any]) -> Path:
+    """Write ``data`` as indented JSON, atomically; non-finite numbers become ``null``."""
+    text = json.dumps(_finite(json.loads(json.dumps(data, default=_json_default))), indent=2,
+                      allow_nan=False) + "\n"
+    with atomic_path(path) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+    return Path(path)
+
+
+def save_figure(figure: Figure, path: str | Path, *, dpi: int = 130) -> Path:
+    """Save a figure as PNG, atomically."""
+    with atomic_path(path) as tmp:
+        figure.savefig(tmp, format="png", dpi=dpi, facecolor="white")
+    return Path(path)
+
+
+# ------------------------------------------------------------------------------ modes
+def figure_frequencies(modes: ModalAnalysis, *, title: str = "Natural frequencies") -> Figure:
+    """Frequencies [Hz] against mode number, coloured by kind (rigid, mechanism, elastic)."""
+    fig = _new_figure((7.5, 4.0))
+    ax = fig.add_subplot()
+    index = np.arange(len(modes.kind))
+    for kind, color in KIND_COLORS.items():
+        sel = [i for i, k in enumerate(modes.kind) if k == kind]
+        if sel:
+            ax.vlines(index[sel], 0, modes.frequency_hz[sel], color=color, lw=2)
+            ax.plot(index[sel], modes.frequency_hz[sel], "o", color=color, ms=4,
+                    label=f"{kind} ({len(sel)})")
+    ax.set_xlabel("mode")
+    ax.set_ylabel("frequency [Hz]")
+    ax.set_title(title, fontsize="medium")
+    ax.legend(fontsize="small", loc="upper left")
+    ax.grid(alpha=0.3)
+    return fig
+
+
+def figure_mode_shapes(modes: ModalAnalysis, indices: Sequence[int], *, amplitude: float | None = None,
+                       columns: int = 3) -> Figure:
+    """The equilibrium (grey) and each mode's displaced shape (largest node displacement
+    ``amplitude`` [m], default 15% of the structure's size), one 3-D panel per mode."""
+    from mpl_toolkits.mplot3d.art3d import Line3DCollection
+
+    lin = modes.linearization
+    s, p0 = lin.structure, lin.equilibrium.node_position
+    size = float(np.ptp(p0, axis=0).max()) or 1.0
+    amplitude = 0.15 * size if amplitude is None else amplitude
+    rows = max(1, math.ceil(len(indices) / columns))
+    fig = _new_figure((4.0 * min(columns, len(indices)), 3.8 * rows))
+    for k, i in enumerate(indices):
+        ax = fig.add_subplot(rows, min(columns, len(indices)), k + 1, projection="3d")
+        shape = modes.node_shapes[i]
+        largest = float(np.max(np.linalg.norm(shape, axis=1))) or 1.0
+        p = p0 + amplitude / largest * shape
+        pairs = np.vstack([s.rod_nodes, s.tendon_nodes])
+        ax.add_collection3d(Line3DCollection(p0[pairs], colors="0.8", linewidths=0.8))
+        draw_structure(ax, s, p, None, legend=False, show_nodes=False)
+        ax.set_title(f"mode {i}: {modes.frequency_hz[i]:.4g} Hz ({modes.kind[i]})",
+                     fontsize="small")
+        ax.tick_params(labelsize="x-small")
+    return fig
+
+
+# ------------------------------------------------------------------------------ controllability
+def figure_reach(results: Sequence[ReachResult], modes: ModalAnalysis) -> Figure:
+    """Which mode clusters each input (output) set reaches (sees): a PBH map."""
+    clusters = [t for t in results[0].mode_tests]
+    data = np.array([[t.rank / t.multiplicity for t in r.mode_tests] for r in results])
+    fig = _new_figure((max(6.0, 0.22 * len(clusters) + 3), 0.35 * len(results) + 2.2))
+    ax = fig.add_subplot()
+    image = ax.imshow(data, aspect="auto", cmap="RdYlGn", vmin=0, vmax=1, interpolation="nearest")
+    ax.set_yticks(range(len(results)), [f"{r.name} ({r.rank}/{r.n_states})" for r in results],
+                  fontsize="small")
+    labels = ["rigid" if t.kind == "rigid" else f"{t.frequency_hz:.3g}" for t in clusters]
+    ax.set_xticks(range(len(clusters)), labels, rotation=90, fontsize="x-small")
+    ax.set_xlabel("mode cluster (frequency [Hz])")
+    kind = results[0].property
+    ax.set_title(f"PBH test of {kind}: fraction of each cluster reached"
+                 if kind == "controllability" else
+                 f"PBH test of {kind}: fraction of each cluster seen", fontsize="medium")
+    fig.colorbar(image, ax=ax, shrink=0.8)
+    return fig
+
+
+# ------------------------------------------------------------------------------ shape control
+def figure_shape_motion(plan: QuasiStatic, closed: ClosedLoop | None = None) -> Figure:
+    """Outputs against time (closed loop) or step (open loop), with their targets."""
+    names, units = plan.output.names, plan.output.units
+    fig = _new_figure((8.0, 2.6 * len(names)))
+    axes = fig.subplots(len(names), 1, sharex=True, squeeze=False)[:, 0]
+    for j, ax in enumerate(axes):
+        if closed is not None:
+            ax.plot(closed.t, closed.outputs[:, j], color="#2f6fb0", label="closed loop (nonlinear)")
+            ax.plot(closed.t, closed.reference_outputs[:, j], "--", color="0.4",
+                    label="quasi-static plan")
+            final = plan.targets[-1, j]
+            if np.isfinite(final):
+                ax.axhline(final, color="#d62728", lw=0.8, label="target")
+            ax.set_xlabel("time [s]")
+        else:
+            steps = np.arange(len(plan.equilibria))
+            ax.plot(steps, plan.outputs[:, j], "o-", color="#2f6fb0", label="equilibria")
+            ax.plot(steps, plan.targets[:, j], "x", color="#d62728", label="targets")
+            ax.set_xlabel("step")
+        ax.set_ylabel(f"{names[j]} [{units[j]}]")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize="small")
+    fig.suptitle("Shape control: outputs", fontsize="medium")
+    return fig
+
+
+def figure_shape_controls(plan: QuasiStatic, closed: ClosedLoop | None = None) -> Figure:
+    """Rest-length changes ``u`` of every tendon and the smallest tension."""
+    fig = _new_figure((8.0, 6.0))
+    ax_u, ax_t = fig.subplots(2, 1, sharex=True)
+    if closed is not None:
+        x, u, tmin, xlabel = closed.t, closed.control, closed.tension.min(axis=1), "time [s]"
+    else:
+        x = np.arange(len(plan.equilibria))
+        u, tmin, xlabel = plan.control, plan.min_tension, "step"
+    ax_u.plot(x, u, lw=0.8)
+    ax_u.set_ylabel("rest-length change u [m]")
+    ax_u.grid(alpha=0.3)
+    ax_t.plot(x, tmin, color="#2f6fb0", label="smallest tendon tension")
+    ax_t.axhline(plan.bounds.min_tension, color="#d62728", lw=0.8, label="floor")
+    ax_t.set_ylabel("tension [N]")
+    ax_t.set_xlabel(xlabel)
+    ax_t.grid(alpha=0.3)
+    ax_t.legend(fontsize="small")
+    fig.suptitle("Shape control: controls (every tendon) and the smallest tension",
+                 fontsize="medium")
+    return fig
+
+
+def figure_shape_structures(plan: QuasiStatic) -> Figure:
+    """The structure before and after, tendons coloured by tension."""
+    fig = _new_figure((11.0, 5.0))
+    first, last = plan.equilibria[0], plan.equilibria[-1]
+    for k, (eq, title) in enumerate([(first, "initial equilibrium"), (last, "final equilibrium")]):
+        ax = fig.add_subplot(1, 2, k + 1, projection="3d")
+        draw_structure(ax, plan.structure, eq.node_position, eq.tension, legend=k == 0)
+        y = plan.output.value(eq.node_position)
+        ax.set_title(title + ": " + ", ".join(f"{n} {v:.4g} {u}" for n, v, u in
+                                             zip(plan.output.names, y, plan.output.units)),
+                     fontsize="small")
+    return fig

@@ -1,0 +1,533 @@
+"""Shape control by rest-length changes: quasi-static (open-loop) and LQR (closed-loop).
+
+Outputs ``y = h(p)`` are functions of the node positions ``p = P q`` (eq. 18.60) with analytic
+Jacobians: node coordinates (``y_p = C P q``, :func:`node_outputs`) or the height and twist of a
+ring-to-ring structure such as a shell (:func:`height_twist`).  A free structure has no fixed
+frame, so every configuration is first moved rigidly onto a reference (the initial equilibrium)
+by a mass-weighted Kabsch fit -- the equilibria of the sequence are solved directly in that frame
+(Eckart's conditions, :func:`~tensegrity.analysis.equilibrium.find_equilibrium`'s
+``gauge_reference``), and simulated states are aligned the same way before outputs or feedback
+are evaluated.
+
+Control ``u`` is the rest-length change of every tendon (``Lbar = L0 - u``) within bounds:
+``Lbar >= min_rest_length``, ``|u| <= max_change``, and every tendon kept taut with at least
+``min_tension``.
+
+- :func:`quasi_static` -- an open-loop sequence of equilibria: per step, the sensitivity
+  ``dy/du`` of the equilibrium (from the tangent stiffness with the gauge), a minimum-norm
+  change ``du`` that moves the outputs to the next target under the bounds and the linearized
+  tension floor (a small QP, SLSQP), then the exact nonlinear equilibrium for the new ``u``;
+  the remaining error is corrected by the next step, and the last target by Newton iterations.
+- :func:`closed_loop` -- the sequence played in time as a feed-forward ``u_ff(t)``, ``x_ff(t)``,
+  plus LQR state feedback (``control.lqr`` on the non-rigid part of the linearization at
+  scheduled equilibria of the sequence), simulated on the nonlinear model (Theorem 18.1 with the
+  slack law; DOP853, rod constraints projected at every sample).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+import scipy.integrate
+import scipy.optimize
+
+from tensegrity import dynamics
+from tensegrity.analysis.coordinates import Chart, align, mass_complement, mass_matrix
+from tensegrity.analysis.equilibrium import EquilibriumResult, find_equilibrium
+from tensegrity.analysis.statics import equilibrium_matrix, force_jacobian, statics
+from tensegrity.structure import Structure
+
+
+# ------------------------------------------------------------------------------ outputs
+@dataclasses.dataclass(frozen=True)
+class ShapeOutput:
+    """Outputs ``y = value(p)`` (ny,) with Jacobian ``jacobian(p)`` (ny, 3N), and their names/units."""
+
+    names: tuple[str, ...]
+    units: tuple[str, ...]
+    value: Callable[[np.ndarray], np.ndarray]
+    jacobian: Callable[[np.ndarray], np.ndarray]
+
+
+def node_outputs(structure: Structure, nodes: Sequence[int], axes: str = "xyz") -> ShapeOutput:
+    """Coordinates ``axes`` of the nodes ``nodes``: ``y_p = C P q`` with a selection ``C``."""
+    rows = [3 * int(i) + "xyz".index(a) for i in nodes for a in axes]
+    C = np.zeros((len(rows), 3 * structure.n_nodes))
+    C[np.arange(len(rows)), rows] = 1.0
+    return ShapeOutput(tuple(f"p{i}_{a}" for i in nodes for a in axes), ("m",) * len(rows),
+                       lambda p: C @ p.reshape(-1), lambda p: C)
+
+
+def shell_rings(n: int, m: int) -> tuple[list[int], list[int]]:
+    """Node indices of a shell's bottom ring (``p1`` of stage 1) and top ring (``p4`` of stage m)."""
+    from tensegrity.shell import shell_node_index
+
+    return ([shell_node_index(1, i, 1, n) for i in range(1, n + 1)],
+            [shell_node_index(4, i, m, n) for i in range(1, n + 1)])
+
+
+def height_twist(reference: np.ndarray, bottom: Sequence[int], top: Sequence[int]) -> ShapeOutput:
+    """Height ``H`` [m] and twist ``Theta`` [rad] of the top ring relative to the bottom ring.
+
+    ``H`` = mean z of ``top`` minus mean z of ``bottom``.  ``Theta`` = mean change of the
+    azimuth (about the vertical axis through the reference's centroid) of the ``top`` nodes
+    minus that of the ``bottom`` nodes, relative to ``reference`` (N, 3): 0 there.
+    """
+    bottom, top = np.asarray(bottom, int), np.asarray(top, int)
+    axis = reference.mean(axis=0)[:2]
+    ref_angle = np.arctan2(reference[:, 1] - axis[1], reference[:, 0] - axis[0])
+
+    def value(p: np.ndarray) -> np.ndarray:
+        angle = np.arctan2(p[:, 1] - axis[1], p[:, 0] - axis[0])
+        turn = np.angle(np.exp(1j * (angle - ref_angle)))
+        return np.array([p[top, 2].mean() - p[bottom, 2].mean(),
+                         turn[top].mean() - turn[bottom].mean()])
+
+    def jacobian(p: np.ndarray) -> np.ndarray:
+        J = np.zeros((2, p.shape[0], 3))
+        J[0, top, 2] = 1.0 / top.size
+        J[0, bottom, 2] = -1.0 / bottom.size
+        d = p[:, :2] - axis
+        r2 = np.sum(d**2, axis=1)
+        dtheta = np.stack([-d[:, 1] / r2, d[:, 0] / r2], axis=1)  # (N, 2)
+        J[1, top, :2] = dtheta[top] / top.size
+        J[1, bottom, :2] = -dtheta[bottom] / bottom.size
+        return J.reshape(2, -1)
+
+    return ShapeOutput(("height", "twist"), ("m", "rad"), value, jacobian)
+
+
+# ------------------------------------------------------------------------------ bounds
+@dataclasses.dataclass(frozen=True)
+class Bounds:
+    """Limits on the control: ``Lbar = L0 - u >= min_rest_length`` [m], ``|u| <= max_change``
+    [m], and every tendon's tension ``>= min_tension`` [N] (taut, with a margin)."""
+
+    min_rest_length: float = 0.05
+    max_change: float = 0.25
+    min_tension: float = 1.0
+
+    def u_limits(self, structure: Structure) -> tuple[np.ndarray, np.ndarray]:
+        """``(low, high)`` for ``u`` (S,)."""
+        high = np.minimum(self.max_change, structure.tendon_rest_length - self.min_rest_length)
+        return np.full(structure.n_tendons, -self.max_change), high
+
+
+# ------------------------------------------------------------------------------ sensitivities
+def sensitivities(
+    eq: EquilibriumResult, output: ShapeOutput, reference: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(dy/du, dT/du, dx/du)`` of the equilibrium with Eckart's gauge to ``reference``.
+
+    From ``dQ/dx dx + dQ/du du = 0`` and the 6 linearized gauge conditions (solved in the least
+    squares sense; consistent, so exact), tensions ``T = k (l - L0 + u)``.
+    """
+    from tensegrity.analysis.equilibrium import _Gauge
+
+    s = eq.structure
+    chart = Chart.at(s, eq.q)
+    x0 = np.zeros(chart.size)
+    st = statics(chart, x0, eq.rest_length)
+    dQdx = force_jacobian(chart, x0, st)
+    A_eq = equilibrium_matrix(chart, st.tendons.direction)
+    taut = st.tendons.length > eq.rest_length
+    k = np.where(taut, s.tendon_stiffness, 0.0)
+    dQdu = A_eq * k
+    J = chart.jacobian_matrix(x0)
+    G = _Gauge(s, reference).jacobian(J)
+    lhs = np.vstack([dQdx, G])
+    rhs = -np.vstack([dQdu, np.zeros((G.shape[0], s.n_tendons))])
+    dxdu, *_ = np.linalg.lstsq(lhs, rhs, rcond=None)
+    dydu = output.jacobian(eq.node_position) @ J @ dxdu
+    dldu = -A_eq.T @ dxdu
+    dTdu = k[:, None] * (dldu + np.eye(s.n_tendons))
+    return dydu, dTdu, dxdu
+
+
+# ------------------------------------------------------------------------------ open loop
+@dataclasses.dataclass(frozen=True, eq=False)
+class QuasiStatic:
+    """An open-loop sequence of equilibria (``K`` steps, the initial equilibrium first).
+
+    Attributes
+    ----------
+    equilibria : the K equilibria (all in the frame of the first).
+    control : (K, S) rest-length changes ``u`` [m].  outputs : (K, ny) achieved.
+    targets : (K, ny) wanted (NaN where an output is free in that phase).
+    phase : (K,) index of the phase of each step.  min_tension : (K,) [N].
+    final_error : (ny,) achieved minus wanted at the end.  reached : within ``tolerance``.
+    """
+
+    structure: Structure
+    output: ShapeOutput
+    bounds: Bounds
+    equilibria: tuple[EquilibriumResult, ...]
+    control: np.ndarray
+    outputs: np.ndarray
+    targets: np.ndarray
+    phase: np.ndarray
+    min_tension: np.ndarray
+    final_error: np.ndarray
+    tolerance: np.ndarray
+    reached: bool
+    message: str
+
+    @property
+    def reference(self) -> np.ndarray:
+        return self.equilibria[0].node_position
+
+
+def _step_control(dydu, dTdu, want_dy, free, T, u, bounds: Bounds, low, high, active):
+    """Minimum-norm ``du`` with ``dydu du = want_dy`` (constrained outputs), ``u + du`` within
+    ``[low, high]`` and ``T + dTdu du >= min_tension`` (SLSQP); only the ``active`` tendons move."""
+    fixed = ~free
+    du = np.zeros(u.size)
+    dydu, dTdu, u, low, high = dydu[:, active], dTdu[:, active], u[active], low[active], high[active]
+    S = u.size
+    constraints = [{"type": "ineq", "fun": lambda d: T + dTdu @ d - bounds.min_tension,
+                    "jac": lambda d: dTdu}]
+    if fixed.any():
+        Af, bf = dydu[fixed], want_dy[fixed]
+        constraints.append({"type": "eq", "fun": lambda d: Af @ d - bf, "jac": lambda d: Af})
+        d0, *_ = np.linalg.lstsq(Af, bf, rcond=None)
+    else:
+        d0 = np.zeros(S)
+    fit = scipy.optimize.minimize(
+        lambda d: 0.5 * float(d @ d), np.clip(d0, low - u, high - u), jac=lambda d: d,
+        bounds=list(zip(low - u, high - u)), constraints=constraints, method="SLSQP",
+        options={"maxiter": 200, "ftol": 1e-14},
+    )
+    du[active] = fit.x
+    return du, fit
+
+
+def quasi_static(
+    structure: Structure,
+    output: ShapeOutput,
+    phases: Sequence[Sequence[float | None] | dict[str, Any]],
+    *,
+    start: EquilibriumResult | None = None,
+    steps: int | Sequence[int] = 10,
+    bounds: Bounds = Bounds(),
+    tolerance: Sequence[float] | None = None,
+    max_corrections: int = 8,
+) -> QuasiStatic:
+    """Drive the outputs through ``phases`` by a sequence of equilibria.
+
+    Parameters
+    ----------
+    phases : one per phase: its final targets, one entry per output (``None``: free in that
+        phase), or a dict ``{"targets": [...], "actuators": "t1_*"}`` to move only the tendons
+        matching a pattern (see :func:`~tensegrity.analysis.controllability.resolve_inputs`;
+        the others keep their ``u``).  Within a phase the constrained outputs move linearly from
+        their values at the phase's start to its targets in ``steps`` equal steps.
+    start : the initial equilibrium (default :func:`find_equilibrium` from the structure).
+    tolerance : per output, for ``reached`` (default 1e-6 m / 1e-6 rad).
+    """
+    s = structure
+    eq = find_equilibrium(s) if start is None else start
+    reference = eq.node_position
+    low, high = bounds.u_limits(s)
+    ny = len(output.names)
+    tol = np.full(ny, 1e-6) if tolerance is None else np.asarray(tolerance, float)
+    steps_list = [steps] * len(phases) if isinstance(steps, int) else list(steps)
+    u = eq.control.copy()
+    eqs, controls, ys, wants, phase_of = [eq], [u.copy()], [output.value(reference)], [
+        np.full(ny, np.nan)], [0]
+    message = "reached every target"
+
+    def advance(eq, u, want, free, active):
+        y = output.value(eq.node_position)
+        dydu, dTdu, _ = sensitivities(eq, output, reference)
+        du, fit = _step_control(dydu, dTdu, np.where(free, 0.0, want - y), free, eq.tension, u,
+                                bounds, low, high, active)
+        u_new = np.clip(u + du, low, high)
+        new = find_equilibrium(s, eq.q, control=u_new, gauge_reference=reference)
+        return new, u_new, fit
+
+    for k, (spec, n_steps) in enumerate(zip(phases, steps_list)):
+        targets = spec["targets"] if isinstance(spec, dict) else spec
+        active = np.ones(s.n_tendons, bool)
+        if isinstance(spec, dict) and spec.get("actuators") not in (None, "all"):
+            active[:] = False
+            for name in _match_tendons(s, spec["actuators"]):
+                active[s.tendon_index(name)] = True
+        free = np.array([t is None for t in targets])
+        final = np.array([np.nan if t is None else float(t) for t in targets])
+        y_start = output.value(eq.node_position)
+        for j in range(1, n_steps + 1):
+            want = np.where(free, np.nan, y_start + (final - y_start) * j / n_steps)
+            eq, u, fit = advance(eq, u, want, free, active)
+            if not eq.converged:
+                message = f"phase {k}, step {j}: equilibrium not found ({eq.message})"
+                break
+            # corrections at the end of the phase
+            if j == n_steps:
+                for _ in range(max_corrections):
+                    err = np.where(free, 0.0, output.value(eq.node_position) - want)
+                    if np.all(np.abs(err) <= 0.1 * tol):
+                        break
+                    eq, u, fit = advance(eq, u, want, free, active)
+            eqs.append(eq)
+            controls.append(u.copy())
+            ys.append(output.value(eq.node_position))
+            wants.append(want)
+            phase_of.append(k)
+        if not eq.converged:
+            break
+    ys_a, wants_a = np.array(ys), np.array(wants)
+    final_targets = wants_a[-1]
+    err = np.where(np.isnan(final_targets), 0.0, ys_a[-1] - final_targets)
+    min_t = np.array([e.tension.min() for e in eqs])
+    rest_ok = all(np.all(e.rest_length >= bounds.min_rest_length - 1e-12) for e in eqs)
+    reached = bool(np.all(np.abs(err) <= tol) and min_t.min() >= bounds.min_tension * (1 - 1e-6)
+                   and rest_ok and all(e.converged for e in eqs) and message.startswith("reached"))
+    if not reached and message.startswith("reached"):
+        message = (f"missed: error {err.tolist()} (tolerance {tol.tolist()}), min tension "
+                   f"{min_t.min():.4g} N, rest lengths within bounds: {rest_ok}")
+    return QuasiStatic(s, output, bounds, tuple(eqs), np.array(controls), ys_a, wants_a,
+                       np.array(phase_of), min_t, err, tol, reached, message)
+
+
+def _match_tendons(s: Structure, pattern: str | Sequence[str]) -> list[str]:
+    import fnmatch
+
+    parts = [p.strip() for p in pattern.split(",")] if isinstance(pattern, str) else list(pattern)
+    names = [n for n in s.tendon_name if any(fnmatch.fnmatchcase(n, p) for p in parts)]
+    if not names:
+        raise KeyError(f"no tendon matches {pattern!r}")
+    return names
+
+
+# ------------------------------------------------------------------------------ closed loop
+@dataclasses.dataclass(frozen=True, eq=False)
+class ClosedLoop:
+    """A closed-loop run on the nonlinear model.
+
+    Attributes
+    ----------
+    t : (T,) [s].  q, qdot : (T, 6R).  node_position : (T, N, 3) aligned onto the reference.
+    control : (T, S) applied ``u`` [m].  tension : (T, S) [N].  outputs : (T, ny).
+    reference_outputs : (T, ny) of the feed-forward path.  final_error : (ny,) vs. the last target.
+    min_tension : smallest tension over the run [N].  min_rest_length : smallest ``Lbar`` [m].
+    reached : final error within tolerance, no tendon slack at any sample, bounds respected.
+    """
+
+    structure: Structure
+    t: np.ndarray
+    q: np.ndarray
+    qdot: np.ndarray
+    node_position: np.ndarray
+    control: np.ndarray
+    tension: np.ndarray
+    outputs: np.ndarray
+    reference_outputs: np.ndarray
+    final_error: np.ndarray
+    tolerance: np.ndarray
+    min_tension: float
+    min_rest_length: float
+    max_rod_length_error: float
+    saturated: bool
+    reached: bool
+    message: str
+    gains: int
+    nfev: int
+
+
+class _Schedule:
+    """Feed-forward and LQR gains along the quasi-static sequence, played at ``times``."""
+
+    def __init__(self, plan: QuasiStatic, times: np.ndarray, gain_steps: Sequence[int], weights):
+        self.plan, self.times = plan, times
+        s = plan.structure
+        self.mass = mass_matrix(s)
+        self.gain_steps = list(gain_steps)
+        self.gains = {}
+        for k in self.gain_steps:
+            K, Z = _lqr_gain(s, plan.equilibria[k], plan.output, plan.reference, weights)
+            n = Z.shape[1]
+            # du = -K [Z^T M dx; Z^T M dx'] = -Kx dx - Kv dx'
+            self.gains[k] = (K[:, :n] @ (Z.T * self.mass), K[:, n:] @ (Z.T * self.mass))
+        self.charts = {k: Chart.at(s, plan.equilibria[k].q) for k in range(len(plan.equilibria))}
+        #: the next equilibrium in the chart of each step
+        self.x_next = {k: self.charts[k].x(plan.equilibria[k + 1].q)
+                       for k in range(len(plan.equilibria) - 1)}
+
+    def segment(self, t: float) -> tuple[int, float]:
+        k = int(np.clip(np.searchsorted(self.times, t, side="right") - 1, 0, len(self.times) - 1))
+        if k == len(self.times) - 1:
+            return k, 0.0
+        return k, (t - self.times[k]) / (self.times[k + 1] - self.times[k])
+
+    def feedforward(self, t: float):
+        """``(u_ff, chart, x_ff, xdot_ff, gain)`` at time ``t`` (chart of the segment's start)."""
+        k, frac = self.segment(t)
+        chart = self.charts[k]
+        u = self.plan.control
+        if frac == 0.0 and k == len(self.times) - 1:
+            return u[k], chart, np.zeros(chart.size), np.zeros(chart.size), self._gain(k)
+        x_next = self.x_next[k]
+        dt = self.times[k + 1] - self.times[k]
+        return (u[k] + frac * (u[k + 1] - u[k]), chart, frac * x_next, x_next / dt,
+                self._gain(k + (frac >= 0.5)))
+
+    def _gain(self, k: int):
+        nearest = min(self.gain_steps, key=lambda g: abs(g - k))
+        return self.gains[nearest]
+
+
+def _lqr_gain(s: Structure, eq: EquilibriumResult, output: ShapeOutput, reference, weights):
+    """LQR gain on the non-rigid part at ``eq``: returns ``(K, Z)`` with ``du = -K [Z^T M dx;
+    Z^T M dx']``."""
+    import control
+
+    from tensegrity.analysis.linearize import linearize
+
+    lin = linearize(s, eq)
+    Z = mass_complement(lin.rigid_basis, lin.mass)
+    n = Z.shape[1]
+    A = np.block([[np.zeros((n, n)), np.eye(n)],
+                  [-(Z.T @ lin.stiffness @ Z), -(Z.T @ lin.damping @ Z)]])
+    B = np.vstack([np.zeros((n, s.n_tendons)), Z.T @ lin.force_input])
+    Cy = output.jacobian(eq.node_position) @ lin.chart.jacobian_matrix() @ Z
+    q_out, q_state, q_rate, r_u = weights
+    Q = np.zeros((2 * n, 2 * n))
+    Q[:n, :n] = q_out * Cy.T @ Cy + q_state * np.eye(n)
+    Q[n:, n:] = q_rate * np.eye(n)
+    Q = 0.5 * (Q + Q.T)
+    K, _, _ = control.lqr(A, B, Q, r_u * np.eye(s.n_tendons), method="scipy")
+    return np.asarray(K), Z
+
+
+def closed_loop(
+    plan: QuasiStatic,
+    *,
+    move_time: float = 2.0,
+    settle_time: float = 3.0,
+    gain_every: int | None = None,
+    weights: tuple[float, float, float, float] = (1e3, 0.0, 0.1, 10.0),
+    sample_dt: float = 0.02,
+    rtol: float = 1e-8,
+    plant: Structure | None = None,
+) -> ClosedLoop:
+    """Play the quasi-static plan in time with LQR feedback, on the nonlinear model.
+
+    Each step of the plan takes ``move_time / steps-per-phase`` ... precisely: the K - 1 steps
+    share ``move_time`` per phase equally; then ``settle_time`` at the final target.
+    ``u(t) = u_ff(t) - K_k [Z^T M (x - x_ff(t)); Z^T M (x' - x'_ff(t))]`` with ``x`` the
+    reduced coordinates of the (aligned) state in the chart of the current step, and ``K_k``
+    the LQR gain (weights ``(q_out, q_state, q_rate, r_u)``: outputs, elastic coordinates and
+    rates, controls) at the nearest of every ``gain_every``-th equilibrium (default: one gain,
+    designed at the final equilibrium; ``control.lqr`` costs about 4 s for a (4,2) shell).  ``u`` is clipped to
+    the bounds (``saturated`` tells if it ever was).  ``plant``: the structure simulated
+    (default the plan's; e.g. with damping).
+    """
+    s = plan.structure
+    plant = s if plant is None else plant
+    n_steps = len(plan.equilibria)
+    phase = plan.phase
+    per_phase = {k: int(np.sum(phase[1:] == k)) for k in np.unique(phase[1:])}
+    durations = [move_time / per_phase[phase[k]] for k in range(1, n_steps)]
+    times = np.concatenate([[0.0], np.cumsum(durations)])
+    t_end = times[-1] + settle_time
+    gain_steps = sorted(({n_steps - 1} if gain_every is None
+                         else set(range(0, n_steps, gain_every)) | {n_steps - 1}))
+    schedule = _Schedule(plan, times, gain_steps, weights)
+    low, high = plan.bounds.u_limits(s)
+    reference = plan.reference
+    weights_n = s.node_mass
+    saturated = [False]
+    nfev = [0]
+
+    def feedback(t: float, q: np.ndarray, qdot: np.ndarray) -> np.ndarray:
+        u_ff, chart, x_ff, v_ff, (Kx, Kv) = schedule.feedforward(t)
+        p = dynamics.nodes_from_coordinates(s, q)
+        v = dynamics.nodes_from_coordinates(s, qdot)
+        pa, R = _aligned(p, reference, weights_n)
+        qa = dynamics.coordinates_from_nodes(s, pa)
+        va = dynamics.coordinates_from_nodes(s, v @ R)
+        u = u_ff - Kx @ (chart.x(qa) - x_ff) - Kv @ (chart.velocity_x(qa, va) - v_ff)
+        clipped = np.clip(u, low, high)
+        if np.any(clipped != u):
+            saturated[0] = True
+        return clipped
+
+    def rhs(t: float, y: np.ndarray) -> np.ndarray:
+        n = s.n_coordinates
+        q, qdot = y[:n], y[n:]
+        u = feedback(t, q, qdot)
+        nfev[0] += 1
+        ev = dynamics.evaluate(plant, q, qdot, rest_length=plant.tendon_rest_length - u)
+        return np.concatenate([qdot, ev.qddot])
+
+    n = s.n_coordinates
+    state = np.concatenate([plan.equilibria[0].q, np.zeros(n)])
+    samples = np.arange(0.0, t_end + 0.5 * sample_dt, sample_dt)
+    rows_q, rows_v = [state[:n]], [state[n:]]
+    max_err = 0.0
+    for t0, t1 in zip(samples[:-1], samples[1:]):
+        sol = scipy.integrate.solve_ivp(rhs, (t0, t1), state, method="DOP853", rtol=rtol,
+                                        atol=1e-10)
+        if not sol.success:
+            break
+        end = sol.y[:, -1]
+        max_err = max(max_err, float(np.max(np.abs(dynamics.rod_length_error(s, end[:n])))))
+        q, qdot = dynamics.project_to_constraints(s, end[:n], end[n:])
+        state = np.concatenate([q, qdot])
+        rows_q.append(q)
+        rows_v.append(qdot)
+    t = samples[: len(rows_q)]
+    Q, V = np.array(rows_q), np.array(rows_v)
+    P = dynamics.nodes_from_coordinates(s, Q)
+    aligned = align(P, reference, weights_n)
+    controls = np.array([feedback(tt, qq, vv) for tt, qq, vv in zip(t, Q, V)])
+    vel = dynamics.nodes_from_coordinates(s, V)
+    tension = np.array([dynamics.tendon_forces(plant, p, v, plant.tendon_rest_length - u).tension
+                        for p, v, u in zip(P, vel, controls)])
+    ys = np.array([plan.output.value(p) for p in aligned])
+    ref_ys = np.array([_interp_outputs(plan, times, tt) for tt in t])
+    final_target = plan.targets[-1]
+    err = np.where(np.isnan(final_target), 0.0, ys[-1] - final_target)
+    rest = plant.tendon_rest_length - controls
+    complete = len(rows_q) == samples.size
+    reached = bool(complete and np.all(np.abs(err) <= plan.tolerance) and tension.min() > 0
+                   and rest.min() >= plan.bounds.min_rest_length - 1e-12)
+    message = (f"{'reached' if reached else 'missed'}: final error {np.abs(err).tolist()} "
+               f"(tolerance {plan.tolerance.tolist()}), min tension {tension.min():.4g} N, "
+               f"min rest length {rest.min():.4g} m" + ("" if complete else "; integration failed"))
+    return ClosedLoop(s, t, Q, V, aligned, controls, tension, ys, ref_ys, err, plan.tolerance,
+                      float(tension.min()), float(rest.min()), max_err, saturated[0], reached,
+                      message, len(gain_steps), nfev[0])
+
+
+def _interp_outputs(plan: QuasiStatic, times: np.ndarray, t: float) -> np.ndarray:
+    y = plan.outputs
+    return np.array([np.interp(t, times, y[:, j]) for j in range(y.shape[1])])
+
+
+def _aligned(p: np.ndarray, reference: np.ndarray, weights: np.ndarray):
+    """Kabsch fit of ``p`` onto ``reference``: ``(aligned p, R)`` with aligned = (p - c) R + c_ref."""
+    w = weights / weights.sum()
+    c, c_ref = w @ p, w @ reference
+    h = (w[:, None] * (p - c)).T @ (reference - c_ref)
+    u, _, vt = np.linalg.svd(h)
+    d = np.sign(np.linalg.det(u @ vt)) or 1.0
+    R = u @ np.diag([1.0, 1.0, d]) @ vt
+    return (p - c) @ R + c_ref, R
+
+
+def describe_plan(plan: QuasiStatic) -> dict[str, Any]:
+    """JSON-ready summary of an open-loop plan."""
+    return {
+        "outputs": list(plan.output.names), "units": list(plan.output.units),
+        "steps": len(plan.equilibria), "reached": plan.reached, "message": plan.message,
+        "initial_outputs": plan.outputs[0].tolist(), "final_outputs": plan.outputs[-1].tolist(),
+        "final_targets": [None if np.isnan(v) else float(v) for v in plan.targets[-1]],
+        "final_error": plan.final_error.tolist(), "tolerance": plan.tolerance.tolist(),
+        "min_tension_N": float(plan.min_tension.min()),
+        "min_rest_length_m": float(min(e.rest_length.min() for e in plan.equilibria)),
+        "final_control_m": dict(zip(plan.structure.tendon_name, plan.control[-1].tolist())),
+    }

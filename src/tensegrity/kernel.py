@@ -1,0 +1,531 @@
+"""A compiled (numba) right-hand side and fixed-step RK4 loop for Theorem 18.1.
+
+The physics is exactly that of :func:`tensegrity.dynamics.evaluate` (the readable NumPy reference):
+
+- tendon tension ``T = max(k (l - Lbar) + c l', 0)`` while taut (``l > Lbar``), else 0;
+- nodal forces from tendons, external forces ``w`` and gravity (half a rod's weight per end);
+- accelerations (eqs. 18.17, 18.20) plus mass-proportional rod damping ``-alpha q'``::
+
+      q1'' = (2/m) (f_a + f_b) - alpha q1'
+      q2'' = -(|q2'|^2 / L^2) q2 + (6 / (m L^2)) skew(q2)^2 (f_a - f_b) - alpha q2'
+
+- the power removed by tendon and rod damping and the power of ``w``.
+
+Differences from the reference are round-off only (the summation order of the nodal forces, one
+reciprocal instead of three divisions per tendon); the kernel is compiled without ``fastmath`` so
+that the two agree to ~1e-15 relative.  As in the reference, rest lengths must be ``>= 0``
+(``dynamics.rest_lengths`` checks them); they are not checked again here, for speed.
+
+The loops over rods and tendons run inside one compiled function writing into preallocated
+buffers, and :func:`rk4_steps` runs a whole fixed-step RK4 integration (with projection onto the
+rod constraints ``|q2| = L``, ``q2 . q2' = 0`` after every step, as ``simulate(method="rk4")``
+does) in compiled code, so that small structures are not dominated by Python call overhead.
+
+This module imports numba; import it lazily (``from tensegrity.kernel import FastKernel`` inside
+the function that needs it) so that ``import tensegrity`` stays fast.  Compiled code is cached on
+disk (``cache=True``): the first use on a machine compiles for a few seconds, later processes load
+the cache in well under a second.
+
+Usage::
+
+    from tensegrity.kernel import FastKernel
+
+    kernel = FastKernel(structure)
+    qddot, tension, dissipated, external = kernel.evaluate(q, qdot, rest_length)
+    q, qdot = kernel.rk4(q, qdot, dt=1e-4, n_steps=1000, rest_length=rest_length)
+
+A :class:`FastKernel` owns scratch buffers and is therefore not thread-safe: use one per thread.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+from tensegrity.structure import Structure
+
+__all__ = ["FastKernel", "KernelEvaluation", "RK4Result", "pack", "project", "rhs", "rk4_steps"]
+
+_JIT = dict(cache=True, fastmath=False, nogil=True, boundscheck=False, error_model="numpy")
+
+
+# --------------------------------------------------------------------------- compiled code
+# Packed model arrays (built by :func:`pack`), few arguments being cheaper to pass from Python:
+#   rod_nodes (R, 2) int64        end nodes (a, b) of each rod
+#   rod_param (R, 5) float64      m, L, alpha, 2/m, 6/(m L^2)
+#   tendon_nodes (S, 2) int64     (tail, head) of each tendon
+#   tendon_param (S, 2) float64   k, c
+#   node_work (3, N, 3) float64   scratch: node positions, velocities, total forces
+ROD_MASS, ROD_LENGTH, ROD_DAMPING, ROD_C1, ROD_C2 = range(5)
+
+
+@njit(**_JIT)
+def rhs(
+    q, qdot, rod_nodes, rod_param, tendon_nodes, tendon_param, rest_length,
+    has_external, external_force, has_gravity, gravity,
+    node_work, qddot, tension, elastic_tension,
+):  # pragma: no cover - compiled
+    """Theorem 18.1 for all rods: fills ``qddot`` (6R,), ``tension`` and ``elastic_tension`` (S,).
+
+    ``external_force`` (N, 3) is read only if ``has_external``, ``gravity`` (3,) only if
+    ``has_gravity``.  ``node_work`` is left holding node positions, velocities and total nodal
+    forces.  Returns ``(dissipated_power, external_power)``.
+    """
+    p = node_work[0]
+    v = node_work[1]
+    force = node_work[2]
+    n_rods = rod_nodes.shape[0]
+    n_tendons = tendon_nodes.shape[0]
+    # Node positions and velocities p = P q (eq. 18.26); forces start at gravity or zero.
+    for r in range(n_rods):
+        a = rod_nodes[r, 0]
+        b = rod_nodes[r, 1]
+        o = 6 * r
+        half_m = rod_param[r, ROD_MASS] / 2
+        for i in range(3):
+            q1 = q[o + i]
+            q2 = q[o + 3 + i]
+            p[a, i] = 0.5 * (q1 - q2)
+            p[b, i] = 0.5 * (q1 + q2)
+            v1 = qdot[o + i]
+            v2 = qdot[o + 3 + i]
+            v[a, i] = 0.5 * (v1 - v2)
+            v[b, i] = 0.5 * (v1 + v2)
+            if has_gravity:
+                force[a, i] = half_m * gravity[i]
+                force[b, i] = half_m * gravity[i]
+            else:
+                force[a, i] = 0.0
+                force[b, i] = 0.0
+
+    # Tendons: the tail is pulled toward the head and the head toward the tail.
+    tendon_dissipation = 0.0
+    for s in range(n_tendons):
+        tail = tendon_nodes[s, 0]
+        head = tendon_nodes[s, 1]
+        tx = p[head, 0] - p[tail, 0]
+        ty = p[head, 1] - p[tail, 1]
+        tz = p[head, 2] - p[tail, 2]
+        length = np.sqrt(tx * tx + ty * ty + tz * tz)
+        stretch = length - rest_length[s]
+        if stretch > 0.0:  # taut (then length > 0: rest lengths are >= 0)
+            inv = 1.0 / length  # one division instead of three (differs by an ulp at most)
+            ex = tx * inv
+            ey = ty * inv
+            ez = tz * inv
+            rate = (
+                ex * (v[head, 0] - v[tail, 0])
+                + ey * (v[head, 1] - v[tail, 1])
+                + ez * (v[head, 2] - v[tail, 2])
+            )
+            elastic = tendon_param[s, 0] * stretch
+            total = elastic + tendon_param[s, 1] * rate
+            if total < 0.0:
+                total = 0.0
+            tension[s] = total
+            elastic_tension[s] = elastic
+            tendon_dissipation += (total - elastic) * rate
+            fx = total * ex
+            fy = total * ey
+            fz = total * ez
+            force[tail, 0] += fx
+            force[tail, 1] += fy
+            force[tail, 2] += fz
+            force[head, 0] -= fx
+            force[head, 1] -= fy
+            force[head, 2] -= fz
+        else:
+            tension[s] = 0.0
+            elastic_tension[s] = 0.0
+
+    # Rods: eqs. 18.17, 18.20 and mass-proportional damping.
+    external_power = 0.0
+    rod_dissipation = 0.0
+    for r in range(n_rods):
+        a = rod_nodes[r, 0]
+        b = rod_nodes[r, 1]
+        o = 6 * r
+        if has_external:
+            for i in range(3):
+                external_power += external_force[a, i] * v[a, i] + external_force[b, i] * v[b, i]
+                force[a, i] += external_force[a, i]
+                force[b, i] += external_force[b, i]
+        L = rod_param[r, ROD_LENGTH]
+        L2 = L * L
+        alpha = rod_param[r, ROD_DAMPING]
+        c1 = rod_param[r, ROD_C1]
+        c2 = rod_param[r, ROD_C2]
+        sx = force[a, 0] + force[b, 0]
+        sy = force[a, 1] + force[b, 1]
+        sz = force[a, 2] + force[b, 2]
+        dx = force[a, 0] - force[b, 0]
+        dy = force[a, 1] - force[b, 1]
+        dz = force[a, 2] - force[b, 2]
+        x = q[o + 3]
+        y = q[o + 4]
+        z = q[o + 5]
+        u1x = qdot[o]
+        u1y = qdot[o + 1]
+        u1z = qdot[o + 2]
+        ux = qdot[o + 3]
+        uy = qdot[o + 4]
+        uz = qdot[o + 5]
+        q2_dot_f = x * dx + y * dy + z * dz
+        q2_sq = x * x + y * y + z * z
+        v2_sq = ux * ux + uy * uy + uz * uz
+        cq = v2_sq / L2
+        # skew(q2)^2 f = q2 (q2 . f) - |q2|^2 f
+        qddot[o] = c1 * sx - alpha * u1x
+        qddot[o + 1] = c1 * sy - alpha * u1y
+        qddot[o + 2] = c1 * sz - alpha * u1z
+        qddot[o + 3] = -cq * x + c2 * (x * q2_dot_f - q2_sq * dx) - alpha * ux
+        qddot[o + 4] = -cq * y + c2 * (y * q2_dot_f - q2_sq * dy) - alpha * uy
+        qddot[o + 5] = -cq * z + c2 * (z * q2_dot_f - q2_sq * dz) - alpha * uz
+        if alpha != 0.0:
+            v1_sq = u1x * u1x + u1y * u1y + u1z * u1z
+            rod_dissipation += alpha * rod_param[r, ROD_MASS] * (v1_sq / 4.0 + v2_sq / 12.0)
+    return tendon_dissipation + rod_dissipation, external_power
+
+
+@njit(**_JIT)
+def project(q, qdot, rod_param):  # pragma: no cover - compiled
+    """In place: ``q2 *= L / |q2|``, then ``q2' -= (q2 . q2' / L^2) q2`` for every rod.
+
+    Returns the largest relative rod-length error ``| |q2| / L - 1 |`` before the projection
+    (NaN if some ``q2`` or ``q2'`` is not finite).
+    """
+    worst = 0.0
+    for r in range(rod_param.shape[0]):
+        o = 6 * r + 3
+        L = rod_param[r, ROD_LENGTH]
+        norm = np.sqrt(q[o] * q[o] + q[o + 1] * q[o + 1] + q[o + 2] * q[o + 2])
+        error = abs(norm / L - 1.0)
+        if not error <= worst:  # also catches NaN
+            worst = error
+        scale = L / norm
+        for i in range(3):
+            q[o + i] = q[o + i] * scale
+        dot = q[o] * qdot[o] + q[o + 1] * qdot[o + 1] + q[o + 2] * qdot[o + 2]
+        if not np.isfinite(dot):
+            worst = np.nan
+        c = dot / (L * L)
+        for i in range(3):
+            qdot[o + i] -= c * q[o + i]
+    return worst
+
+
+@njit(**_JIT)
+def rk4_steps(
+    q, qdot, dt, n_steps, max_rod_length_error,
+    rod_nodes, rod_param, tendon_nodes, tendon_param, rest_length,
+    has_external, external_force, has_gravity, gravity,
+    node_work, tension, elastic_tension, stage_work,
+):  # pragma: no cover - compiled
+    """Advance ``(q, qdot)`` in place by ``n_steps`` classical RK4 steps of ``dt``, projecting
+    onto the rod constraints after every step; inputs are constant over the call.
+
+    The stage arithmetic is that of :class:`tensegrity.integrators.RK4` on ``y = [q, q']``:
+    ``y + h/6 (k1 + 2 k2 + 2 k3 + k4)``.  ``stage_work`` is (5, 6R) scratch.
+
+    Stops early, after the step (already projected), if a step ends with a relative rod-length
+    error above ``max_rod_length_error`` or a non-finite rod vector or rate (blow-up).
+
+    Returns ``(steps_taken, dissipated_energy, external_work, worst_rod_length_error)``: the
+    energies integrated over the steps with the RK4 weights, and the largest relative rod-length
+    error seen at the end of a step before its projection (NaN if the state became non-finite).
+    """
+    n = q.shape[0]
+    q_stage = stage_work[0]
+    v_stage = stage_work[1]
+    accel = stage_work[2]
+    acc_q = stage_work[3]
+    acc_v = stage_work[4]
+    h = dt
+    hh = h / 2
+    h6 = h / 6
+    dissipated = 0.0
+    external = 0.0
+    worst = 0.0
+    taken = 0
+    model = (rod_nodes, rod_param, tendon_nodes, tendon_param, rest_length,
+             has_external, external_force, has_gravity, gravity, node_work)
+    while taken < n_steps:
+        # k1 = [v, a(q, v)]
+        d1, w1 = rhs(q, qdot, *model, accel, tension, elastic_tension)
+        for i in range(n):
+            acc_q[i] = qdot[i]
+            acc_v[i] = accel[i]
+            q_stage[i] = q[i] + hh * qdot[i]
+            v_stage[i] = qdot[i] + hh * accel[i]
+        # k2 at y + h/2 k1
+        d2, w2 = rhs(q_stage, v_stage, *model, accel, tension, elastic_tension)
+        for i in range(n):
+            acc_q[i] = acc_q[i] + 2.0 * v_stage[i]
+            acc_v[i] = acc_v[i] + 2.0 * accel[i]
+            q_stage[i] = q[i] + hh * v_stage[i]
+            v_stage[i] = qdot[i] + hh * accel[i]
+        # k3 at y + h/2 k2
+        d3, w3 = rhs(q_stage, v_stage, *model, accel, tension, elastic_tension)
+        for i in range(n):
+            acc_q[i] = acc_q[i] + 2.0 * v_stage[i]
+            acc_v[i] = acc_v[i] + 2.0 * accel[i]
+            q_stage[i] = q[i] + h * v_stage[i]
+            v_stage[i] = qdot[i] + h * accel[i]
+        # k4 at y + h k3
+        d4, w4 = rhs(q_stage, v_stage, *model, accel, tension, elastic_tension)
+        for i in range(n):
+            q[i] = q[i] + h6 * (acc_q[i] + v_stage[i])
+            qdot[i] = qdot[i] + h6 * (acc_v[i] + accel[i])
+        dissipated = dissipated + h6 * (d1 + 2.0 * d2 + 2.0 * d3 + d4)
+        external = external + h6 * (w1 + 2.0 * w2 + 2.0 * w3 + w4)
+        error = project(q, qdot, rod_param)
+        taken += 1
+        if not error <= worst:
+            worst = error
+        if not error <= max_rod_length_error:
+            break
+    return taken, dissipated, external, worst
+
+
+def pack(structure: Structure) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(rod_nodes, rod_param, tendon_nodes, tendon_param)``: the structure as the contiguous,
+    writable arrays the compiled functions take (``2/m`` and ``6/(m L^2)`` computed as
+    ``dynamics.evaluate`` computes them)."""
+    m, L = structure.rod_mass, structure.rod_length
+    rod_param = np.empty((structure.n_rods, 5))
+    rod_param[:, ROD_MASS] = m
+    rod_param[:, ROD_LENGTH] = L
+    rod_param[:, ROD_DAMPING] = structure.rod_damping
+    rod_param[:, ROD_C1] = 2.0 / m
+    rod_param[:, ROD_C2] = 6.0 / (m * L**2)
+    tendon_param = np.empty((structure.n_tendons, 2))
+    tendon_param[:, 0] = structure.tendon_stiffness
+    tendon_param[:, 1] = structure.tendon_damping
+    return (
+        np.array(structure.rod_nodes, dtype=np.int64, order="C"),
+        rod_param,
+        np.array(structure.tendon_nodes.reshape(-1, 2), dtype=np.int64, order="C"),
+        tendon_param,
+    )
+
+
+# --------------------------------------------------------------------------- Python wrapper
+class KernelEvaluation(NamedTuple):
+    """One evaluation by :meth:`FastKernel.evaluate`."""
+
+    qddot: np.ndarray  #: accelerations (6R,) [m/s^2]
+    tension: np.ndarray  #: tendon tensions (S,) [N], damping included
+    dissipated_power: float  #: [W], >= 0
+    external_power: float  #: power of the external nodal forces [W]
+
+
+class RK4Result(NamedTuple):
+    """The end of :meth:`FastKernel.rk4_with_work`."""
+
+    q: np.ndarray
+    qdot: np.ndarray
+    dissipated_energy: float  #: energy removed by damping over the steps taken [J]
+    external_work: float  #: work of the external forces over the steps taken [J]
+    n_steps: int  #: steps taken (fewer than asked if it stopped on a blow-up)
+    #: largest relative rod-length error at the end of a step, before its projection (NaN: the
+    #: state was not finite)
+    max_rod_length_error: float
+
+
+_F64 = np.dtype(np.float64)
+
+
+def _float_input(value, shape: tuple[int, ...], field: str) -> np.ndarray:
+    """``value`` as a writable C-contiguous float64 array of ``shape``, copied only if needed.
+
+    (Writable, because numba compiles a separate specialization for read-only arrays.)
+    """
+    if type(value) is np.ndarray and value.dtype == _F64 and value.flags.carray:
+        array = value
+    else:
+        array = np.array(value, dtype=np.float64, order="C")
+    if array.shape != shape:
+        raise ValueError(f"{field}: expected shape {shape}, got {array.shape}")
+    return array
+
+
+def _check_buffer(array: np.ndarray, shape: tuple[int, ...], field: str) -> None:
+    if not (
+        type(array) is np.ndarray
+        and array.dtype == _F64
+        and array.flags.carray
+        and array.shape == shape
+    ):
+        raise ValueError(
+            f"{field}: expected a writable C-contiguous float64 array of shape {shape}"
+        )
+
+
+class FastKernel:
+    """The compiled equations of motion of one :class:`Structure`.
+
+    ``__init__`` packs the structure's data into contiguous, writable int64/float64 arrays (see
+    :func:`pack`) and allocates scratch buffers; compilation happens (or the disk cache is loaded)
+    on first use, or at :meth:`warm_up`.
+    """
+
+    def __init__(self, structure: Structure) -> None:
+        self.structure = structure
+        self.n_rods, self.n_tendons, self.n_nodes = (
+            structure.n_rods, structure.n_tendons, structure.n_nodes,
+        )
+        self.n_coordinates = 6 * self.n_rods
+        self._rod_nodes, self._rod_param, self._tendon_nodes, self._tendon_param = pack(structure)
+        self._node_work = np.zeros((3, self.n_nodes, 3))
+        self._elastic = np.zeros(self.n_tendons)
+        self._no_external = np.zeros((1, 3))
+        self._no_gravity = np.zeros(3)
+        self._last_rest_source = None
+        self._last_rest = None
+
+    # ------------------------------------------------------------------ inputs
+    def _rest(self, rest_length) -> np.ndarray:
+        # The common case passes the same read-only array (structure.tendon_rest_length) again and
+        # again: keep one writable copy of it instead of copying on every call.
+        if rest_length is self._last_rest_source and not rest_length.flags.writeable:
+            return self._last_rest
+        rest = _float_input(rest_length, (self.n_tendons,), "rest_length")
+        if (rest is not rest_length and type(rest_length) is np.ndarray
+                and not rest_length.flags.writeable):
+            self._last_rest_source, self._last_rest = rest_length, rest
+        return rest
+
+    def _loads(self, external_force, gravity):
+        if external_force is None:
+            has_w, w = False, self._no_external
+        else:
+            has_w, w = True, _float_input(external_force, (self.n_nodes, 3), "external_force")
+        if gravity is None:
+            has_g, g = False, self._no_gravity
+        else:
+            has_g, g = True, _float_input(gravity, (3,), "gravity")
+        return has_w, w, has_g, g
+
+    # ------------------------------------------------------------------ API
+    def evaluate(
+        self,
+        q: np.ndarray,
+        qdot: np.ndarray,
+        rest_length: np.ndarray,
+        external_force: np.ndarray | None = None,
+        gravity: np.ndarray | None = None,
+        out: tuple[np.ndarray, np.ndarray] | None = None,
+        elastic_tension_out: np.ndarray | None = None,
+    ) -> KernelEvaluation:
+        """``(qddot, tension, dissipated_power, external_power)``, as ``dynamics.evaluate``.
+
+        Parameters
+        ----------
+        q, qdot : (6R,) coordinates and rates.
+        rest_length : (S,) controlled rest lengths ``Lbar >= 0`` (see ``dynamics.rest_lengths``).
+        external_force : (N, 3), optional.  gravity : (3,), optional.
+        out : ``(qddot, tension)`` float64 C-contiguous buffers of shapes (6R,), (S,) to fill
+            (and return) instead of allocating new arrays.
+        elastic_tension_out : (S,), optional buffer that receives ``k max(l - Lbar, 0)`` (for
+            the power of a time-varying control).
+        """
+        n = self.n_coordinates
+        q = _float_input(q, (n,), "q")
+        qdot = _float_input(qdot, (n,), "qdot")
+        rest = self._rest(rest_length)
+        has_w, w, has_g, g = self._loads(external_force, gravity)
+        if out is None:
+            qddot, tension = np.empty(n), np.empty(self.n_tendons)
+        else:
+            qddot, tension = out
+            _check_buffer(qddot, (n,), "out[0]")
+            _check_buffer(tension, (self.n_tendons,), "out[1]")
+        if elastic_tension_out is None:
+            elastic = self._elastic
+        else:
+            elastic = elastic_tension_out
+            _check_buffer(elastic, (self.n_tendons,), "elastic_tension_out")
+        dissipated, external = rhs(
+            q, qdot, self._rod_nodes, self._rod_param, self._tendon_nodes, self._tendon_param,
+            rest, has_w, w, has_g, g, self._node_work, qddot, tension, elastic,
+        )
+        return KernelEvaluation(qddot, tension, dissipated, external)
+
+    def rk4_with_work(
+        self,
+        q: np.ndarray,
+        qdot: np.ndarray,
+        dt: float,
+        n_steps: int,
+        rest_length: np.ndarray,
+        external_force: np.ndarray | None = None,
+        gravity: np.ndarray | None = None,
+        *,
+        max_rod_length_error: float = np.inf,
+    ) -> RK4Result:
+        """``n_steps`` RK4 steps of ``dt`` (projection after each), inputs constant over the call.
+
+        Returns new arrays ``q``, ``qdot`` (the inputs are not modified), the dissipated energy
+        and external work over the steps (RK4-integrated like ``simulate``'s ODE state), the
+        number of steps taken and the largest relative rod-length error seen at the end of a step
+        before its projection.  The loop stops early, after the offending step, when that error
+        exceeds ``max_rod_length_error`` or the state is not finite (error NaN): blow-up checks
+        as in ``simulate`` without leaving compiled code.
+        """
+        n = self.n_coordinates
+        dt = float(dt)
+        if not (np.isfinite(dt) and dt > 0):
+            raise ValueError(f"dt: must be > 0, got {dt!r}")
+        if int(n_steps) != n_steps or n_steps < 0:
+            raise ValueError(f"n_steps: must be an integer >= 0, got {n_steps!r}")
+        q = np.array(q, dtype=np.float64, order="C", copy=True)
+        qdot = np.array(qdot, dtype=np.float64, order="C", copy=True)
+        for name, x in (("q", q), ("qdot", qdot)):
+            if x.shape != (n,):
+                raise ValueError(f"{name}: expected shape {(n,)}, got {x.shape}")
+        rest = self._rest(rest_length)
+        has_w, w, has_g, g = self._loads(external_force, gravity)
+        taken, dissipated, external, worst = rk4_steps(
+            q, qdot, dt, int(n_steps), float(max_rod_length_error),
+            self._rod_nodes, self._rod_param, self._tendon_nodes, self._tendon_param, rest,
+            has_w, w, has_g, g, self._node_work, np.empty(self.n_tendons), self._elastic,
+            np.empty((5, n)),
+        )
+        return RK4Result(q, qdot, dissipated, external, taken, worst)
+
+    def rk4(
+        self,
+        q: np.ndarray,
+        qdot: np.ndarray,
+        dt: float,
+        n_steps: int,
+        rest_length: np.ndarray,
+        external_force: np.ndarray | None = None,
+        gravity: np.ndarray | None = None,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """``(q, qdot)`` after ``n_steps`` RK4 steps of ``dt``; see :meth:`rk4_with_work`."""
+        result = self.rk4_with_work(q, qdot, dt, n_steps, rest_length, external_force, gravity)
+        return result.q, result.qdot
+
+    def project(self, q: np.ndarray, qdot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """New arrays projected onto ``|q2| = L``, ``q2 . q2' = 0`` (as
+        ``dynamics.project_to_constraints``)."""
+        n = self.n_coordinates
+        q = np.array(q, dtype=np.float64, order="C", copy=True)
+        qdot = np.array(qdot, dtype=np.float64, order="C", copy=True)
+        for name, x in (("q", q), ("qdot", qdot)):
+            if x.shape != (n,):
+                raise ValueError(f"{name}: expected shape {(n,)}, got {x.shape}")
+        project(q, qdot, self._rod_param)
+        return q, qdot
+
+    def warm_up(self) -> None:
+        """Compile (or load from the disk cache) every compiled function now."""
+        q = np.zeros(self.n_coordinates)
+        q[3::6] = self._rod_param[:, ROD_LENGTH]
+        qdot = np.zeros(self.n_coordinates)
+        rest = np.zeros(self.n_tendons)
+        self.evaluate(q, qdot, rest)
+        self.rk4(q, qdot, 1e-3, 1, rest)

@@ -1,0 +1,796 @@
+"""Long simulations streamed to an HDF5 trajectory file in segments, resumable after interruption.
+
+:func:`simulate_to_file` cuts ``t_span`` into segments on a fixed grid of boundaries and runs
+:func:`tensegrity.simulate.simulate` once per segment, each starting from the last state of the one
+before.  After every segment its samples are appended to resizable, chunked datasets and a
+checkpoint is stored in the same file, so that
+
+- memory is that of one segment, whatever the length of the run;
+- an interrupted run (Ctrl-C, an exception, a killed process) is resumed from its last finished
+  segment by calling :func:`simulate_to_file` again with the same arguments, and produces exactly
+  the samples an uninterrupted run with the same segments produces (the checkpoint holds the
+  state bit for bit), with no sample lost or repeated.
+
+Segment grid
+------------
+With sample spacing ``sample_dt`` and ``K = max(1, round(segment / sample_dt))`` samples per
+segment, segment ``k`` spans ``[t0 + k K sample_dt, t0 + (k+1) K sample_dt]``, the last one ending
+at ``t_end``.  Each segment's first sample is the previous segment's last, and is not stored
+again.  The integrator restarts at every boundary (an adaptive method chooses its first step
+again, ``rk4`` may take one shorter step to land on the boundary, the state is projected onto the
+rod constraints), so a segmented run agrees with one :func:`simulate` call over the whole span only
+to the integration tolerance, but bit for bit with any other run on the same grid.  Blow-up
+detection (``max_energy_growth``) compares the energy balance with its value at the start of each
+segment rather than of the run.
+
+Energy bookkeeping is continuous: ``dissipated``, ``external_work`` and ``control_work`` restart at
+zero in every :func:`simulate` call and are offset here by their values at the segment start, so
+the stored columns are those of one run.
+
+The file and how an incomplete one shows
+----------------------------------------
+While the run goes on, the data live in ``path + ".partial"`` (:data:`PARTIAL_SUFFIX`), whose
+``format`` attribute is ``"tensegrity-trajectory-partial"`` (:data:`PARTIAL_FORMAT`) and whose
+``complete`` attribute is false; :func:`tensegrity.io.read_trajectory` refuses it ("not a
+tensegrity trajectory file").  When the run ends (end time reached, steady state, or a failed,
+unstable segment) the attributes are set to those of a finished trajectory (``format =
+"tensegrity-trajectory"``, ``complete = True``, ``status``, ``message``), the file is flushed to
+disk and renamed onto ``path`` (an atomic :func:`os.replace`).  So a file under ``path`` is always
+complete, and :func:`tensegrity.io.read_trajectory` reads it: the datasets have the names and
+layout of :func:`tensegrity.io.write_trajectory` (module docstring of :mod:`tensegrity.io`), stored
+exactly (float64, gzip level 4 with byte shuffle) in chunks of about 1 MiB.  Extra root attributes:
+``complete``, ``stream_settings`` (JSON) and ``stream_settings_hash``; an extra group
+``checkpoint`` (see :class:`Checkpoint`).
+
+A segment is stored in this order: its rows are appended to every dataset; the new checkpoint is
+written into whichever of the two slots ``checkpoint/a``, ``checkpoint/b`` is not current; one
+attribute write, ``checkpoint.attrs["current"]`` (0 or 1), then commits it.  An interruption anywhere before
+that write leaves the previous checkpoint current, and its ``n_samples`` tells how many rows count.
+
+The partial file is open only while a segment's samples and the checkpoint are written (the
+simulation itself runs with the file closed), then closed and ``fsync``-ed.  An interruption raised
+as a Python exception (``KeyboardInterrupt`` included) at any moment leaves it consistent: rows
+written after the last checkpoint are dropped on resume.  HDF5 has no journal, so a process killed
+hard (``SIGKILL``, power loss) during that short write can leave the partial file unreadable;
+:func:`simulate_to_file` then says so, and ``resume=False`` starts again.
+
+Resuming
+--------
+``resume=True`` (the default) continues ``path + ".partial"`` if it exists, after checking that
+the structure and every setting (``t_span``, ``sample_dt``, the segment grid and all
+:func:`simulate` options, defaults filled in) are those of the checkpoint: otherwise it raises
+``ValueError`` naming what differs.  Arrays (``initial``, ``control``, ``external_force``,
+``gravity``) are compared through a SHA-256 of their bytes; a callable ``control`` or
+``external_force`` only through its module and qualified name, so a changed function body under
+the same name is not detected.  If ``path`` already holds a finished streamed run with the same
+settings, nothing is run and its summary is returned.  A finished file with other settings is
+replaced (atomically, at the end of the new run), as every writer of :mod:`tensegrity.io` does.
+``resume=False`` discards a partial file and starts again.
+
+SI units throughout: m, kg, s, N, J.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import inspect
+import json
+import math
+import os
+import time
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from tensegrity import dynamics
+from tensegrity import io as tio
+from tensegrity.dynamics import State
+from tensegrity.simulate import STATUS_END, STATUS_FAILED, simulate
+from tensegrity.structure import Structure
+
+PathLike = str | os.PathLike
+
+#: Suffix of the file a run writes into until it ends.
+PARTIAL_SUFFIX = ".partial"
+#: ``format`` attribute of an unfinished streamed file (:func:`tensegrity.io.read_trajectory`
+#: refuses it).
+PARTIAL_FORMAT = "tensegrity-trajectory-partial"
+#: Version of the checkpoint layout and of the settings hash.
+STREAM_VERSION = 1
+#: Default budget [bytes] for the samples of one segment when ``segment`` is not given.
+DEFAULT_SEGMENT_BYTES = 64 * 2**20
+#: Most samples per segment when ``segment`` is not given.
+DEFAULT_SEGMENT_SAMPLES = 1000
+#: Target size [bytes] of one HDF5 chunk.
+CHUNK_BYTES = 2**20
+
+_SIMULATE_PARAMETERS = {
+    name: p.default
+    for name, p in inspect.signature(simulate).parameters.items()
+    if p.kind is inspect.Parameter.KEYWORD_ONLY
+}
+#: ``simulate`` options handled here rather than passed through.
+_OWN_OPTIONS = ("sample_dt", "progress")
+_COUNTERS = ("nfev", "nsteps", "nswitches", "nprojections")
+_WORK_COLUMNS = ("dissipated", "external_work", "control_work")
+
+
+# ----------------------------------------------------------------------------- results
+@dataclasses.dataclass(frozen=True)
+class StreamProgress:
+    """What a ``progress`` callback of :func:`simulate_to_file` receives after each segment.
+
+    Attributes
+    ----------
+    segment : int
+        Segments finished so far (all sessions), ``1..n_segments``.
+    n_segments : int
+        Segments of the whole run.
+    t : float
+        Time of the last stored sample [s].
+    n_samples : int
+        Samples stored so far.
+    wall_time : float
+        Wall time of the run so far, all sessions [s].
+    """
+
+    segment: int
+    n_segments: int
+    t: float
+    n_samples: int
+    wall_time: float
+
+
+@dataclasses.dataclass(frozen=True)
+class Checkpoint:
+    """The resumable state stored in an (unfinished or finished) streamed file.
+
+    Stored in the file as the current slot (``checkpoint/a`` or ``checkpoint/b``, named by the
+    attribute ``current`` of the group ``checkpoint``): datasets ``q``, ``qdot`` (6R,) and the
+    other fields as attributes.
+
+    Attributes
+    ----------
+    next_segment : int
+        Index of the first segment not yet stored (``n_segments`` when all are).
+    n_segments : int
+    n_samples : int
+        Rows of every dataset that belong to the run; rows past them (an interrupted write) are
+        dropped on resume.
+    state : State
+        State at the end of the last stored segment (``t`` [s], ``q`` [m], ``qdot`` [m/s]).
+    energy_offset : dict of str to float
+        ``dissipated``, ``external_work``, ``control_work`` [J] at ``state.t``.
+    counts : dict of str to int
+        ``nfev``, ``nsteps``, ``nswitches``, ``nprojections`` summed over the stored segments.
+    max_rod_length_error : float
+    wall_time : float
+        Wall time of the stored segments, all sessions [s].
+    settings_hash : str
+        SHA-256 of the structure and settings of the run.
+    ended : bool
+        The run has ended (end time, steady state or failure): a resume only finishes the file.
+    status : int
+        ``1`` steady state, ``0`` end time reached or still running, ``-1`` failed.
+    message : str
+    """
+
+    next_segment: int
+    n_segments: int
+    n_samples: int
+    state: State
+    energy_offset: dict[str, float]
+    counts: dict[str, int]
+    max_rod_length_error: float
+    wall_time: float
+    settings_hash: str
+    ended: bool = False
+    status: int = STATUS_END
+    message: str = "running"
+
+
+@dataclasses.dataclass(frozen=True)
+class StreamSummary:
+    """How a streamed run ended (:func:`simulate_to_file`).
+
+    Attributes
+    ----------
+    path : pathlib.Path
+        The finished trajectory file (readable with :func:`tensegrity.io.read_trajectory`).
+    status : int
+        ``1`` steady state reached, ``0`` end time reached, ``-1`` a segment failed (unstable);
+        the samples up to the failure are stored.
+    message : str
+    n_samples : int
+        Samples stored.
+    t_first, t_last : float
+        Times of the first and last samples [s].
+    n_segments : int
+        Segments of the grid.
+    segments_stored : int
+        Segments stored (fewer than ``n_segments`` after a steady state or a failure).
+    segments_run : int
+        Segments simulated by this call (0 if the file was already finished).
+    resumed_from : int or None
+        Segment this call resumed from, or None for a fresh run.
+    samples_per_segment : int
+        ``K``: segments are ``K sample_dt`` long.
+    nfev, nsteps, nswitches, nprojections : int
+        Summed over all segments.
+    max_rod_length_error : float
+    wall_time : float
+        Over all sessions [s].
+    settings_hash : str
+    """
+
+    path: Path
+    status: int
+    message: str
+    n_samples: int
+    t_first: float
+    t_last: float
+    n_segments: int
+    segments_stored: int
+    segments_run: int
+    resumed_from: int | None
+    samples_per_segment: int
+    nfev: int
+    nsteps: int
+    nswitches: int
+    nprojections: int
+    max_rod_length_error: float
+    wall_time: float
+    settings_hash: str
+
+    @property
+    def success(self) -> bool:
+        """True unless a segment failed."""
+        return self.status >= 0
+
+
+# ----------------------------------------------------------------------------- settings
+def _digest(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+def _array_token(value: Any) -> dict[str, Any]:
+    array = np.ascontiguousarray(np.asarray(value, dtype=float))
+    return {"shape": list(array.shape), "sha256": _digest(array.tobytes())}
+
+
+def _option_token(name: str, value: Any) -> Any:
+    """A JSON-able, comparable form of one ``simulate`` option."""
+    if value is None or isinstance(value, (bool, str)):
+        return value
+    if name == "initial":
+        if not isinstance(value, State):
+            raise TypeError(f"initial: expected a State, got {type(value).__name__}")
+        return {"q": _array_token(value.q), "qdot": _array_token(value.qdot)}
+    if callable(value):
+        module = getattr(value, "__module__", None) or "?"
+        qualname = getattr(value, "__qualname__", None) or type(value).__qualname__
+        return {"callable": f"{module}.{qualname}"}
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        return float(value)
+    return {"array": _array_token(value)}
+
+
+def _stream_settings(
+    structure: Structure, t0: float, t1: float, sample_dt: float, samples_per_segment: int,
+    options: Mapping[str, Any],
+) -> dict[str, Any]:
+    """The canonical settings of a run; every simulate option appears, defaults filled in."""
+    filled = {
+        name: options.get(name, default)
+        for name, default in _SIMULATE_PARAMETERS.items()
+        if name not in _OWN_OPTIONS
+    }
+    structure_json = json.dumps(structure.to_dict(), allow_nan=False, sort_keys=True)
+    return {
+        "stream_version": STREAM_VERSION,
+        "structure": _digest(structure_json.encode()),
+        "t_span": [t0, t1],
+        "sample_dt": sample_dt,
+        "samples_per_segment": samples_per_segment,
+        "options": {name: _option_token(name, value) for name, value in sorted(filled.items())},
+    }
+
+
+def _settings_json(settings: Mapping[str, Any]) -> str:
+    return json.dumps(settings, sort_keys=True, allow_nan=False)
+
+
+def _differences(stored: Mapping[str, Any], wanted: Mapping[str, Any], prefix: str = "") -> list[str]:
+    """Human-readable differences between two settings dicts."""
+    out = []
+    for key in sorted(set(stored) | set(wanted)):
+        a, b = stored.get(key, "<absent>"), wanted.get(key, "<absent>")
+        if isinstance(a, Mapping) and isinstance(b, Mapping) and key != "structure":
+            out += _differences(a, b, f"{prefix}{key}.")
+        elif a != b:
+            if key == "structure":
+                out.append("structure (a different structure or parameters)")
+            else:
+                out.append(f"{prefix}{key}: checkpoint has {json.dumps(a)}, this call "
+                           f"{json.dumps(b)}")
+    return out
+
+
+# ----------------------------------------------------------------------------- grid
+def segment_grid(
+    t_span: tuple[float, float], sample_dt: float, samples_per_segment: int
+) -> np.ndarray:
+    """Segment boundaries [s]: ``t0 + k K sample_dt`` for ``k = 0 .. n-1``, then ``t_end``.
+
+    A last segment shorter than ``1e-9 sample_dt`` is merged into the one before.
+
+    Returns
+    -------
+    ndarray, shape (n_segments + 1,)
+    """
+    t0, t1 = (float(x) for x in t_span)
+    length = samples_per_segment * sample_dt
+    n_segments = max(1, math.ceil((t1 - t0 - 1e-9 * sample_dt) / length))
+    bounds = t0 + np.arange(n_segments + 1) * length
+    bounds[-1] = t1
+    return bounds
+
+
+def _samples_per_segment(structure: Structure, segment: float | None, sample_dt: float) -> int:
+    if segment is None:
+        n, s = structure.n_coordinates, structure.n_tendons
+        row_bytes = 8 * (2 * n + 6 * structure.n_nodes + 2 * s + 8)
+        # The recorder holds a segment's samples twice while it builds the result's arrays.
+        return int(max(1, min(DEFAULT_SEGMENT_SAMPLES, DEFAULT_SEGMENT_BYTES // (2 * row_bytes))))
+    segment = float(segment)
+    if not (math.isfinite(segment) and segment > 0):
+        raise ValueError(f"segment: must be a duration > 0 in s, got {segment!r}")
+    return max(1, round(segment / sample_dt))
+
+
+# ----------------------------------------------------------------------------- HDF5
+def _chunk_rows(row_shape: tuple[int, ...], samples_per_segment: int) -> int:
+    row_bytes = 8 * max(1, math.prod(row_shape))
+    return int(max(1, min(samples_per_segment + 1, CHUNK_BYTES // row_bytes)))
+
+
+def _row_shapes(structure: Structure) -> dict[str, tuple[int, ...]]:
+    N, S, n = structure.n_nodes, structure.n_tendons, structure.n_coordinates
+    return {
+        "time": (), "nodes": (N, 3), "velocities": (N, 3), "tendon_length": (S,),
+        "tendon_tension": (S,), "energy": (len(tio.ENERGY_COLUMNS),), "q": (n,), "qdot": (n,),
+        "residual_acceleration": (),
+    }
+
+
+def _create_partial(
+    partial: Path, structure: Structure, settings: dict[str, Any], settings_hash: str,
+    samples_per_segment: int, n_segments: int, state: State,
+) -> None:
+    """Create the partial file (atomically: it appears only once it holds its empty layout)."""
+    import h5py
+
+    with tio.atomic_path(partial) as tmp:
+        with h5py.File(tmp, "w", libver=("v108", "v108")) as f:
+            f.attrs["format"] = PARTIAL_FORMAT
+            f.attrs["version"] = tio.TRAJECTORY_VERSION
+            f.attrs["complete"] = False
+            f.attrs["structure"] = json.dumps(structure.to_dict(), allow_nan=False)
+            f.attrs["settings"] = _settings_json(settings)
+            f.attrs["stream_settings"] = _settings_json(settings)
+            f.attrs["stream_settings_hash"] = settings_hash
+            f.attrs["status"] = STATUS_END
+            f.attrs["message"] = "running"
+            for name in _COUNTERS:
+                f.attrs[name] = 0
+            f.attrs["max_rod_length_error"] = 0.0
+            f.attrs["wall_time"] = 0.0
+            f.attrs["tendon_names"] = np.array(structure.tendon_name, dtype=h5py.string_dtype())
+            for name, shape in _row_shapes(structure).items():
+                f.create_dataset(
+                    name, shape=(0, *shape), dtype="f8",
+                    maxshape=(None, *(d if d > 0 else None for d in shape)),
+                    chunks=(_chunk_rows(shape, samples_per_segment), *(max(d, 1) for d in shape)),
+                    compression="gzip", compression_opts=4, shuffle=True,
+                )
+            f["energy"].attrs["columns"] = np.array(tio.ENERGY_COLUMNS, dtype=h5py.string_dtype())
+            group = f.create_group("checkpoint")
+            group.attrs["version"] = STREAM_VERSION
+            for slot in _SLOTS:
+                sub = group.create_group(slot)
+                sub.create_dataset("q", data=np.asarray(state.q, dtype=float))
+                sub.create_dataset("qdot", data=np.asarray(state.qdot, dtype=float))
+            _write_checkpoint(group["a"], Checkpoint(
+                next_segment=0, n_segments=n_segments, n_samples=0, state=state,
+                energy_offset=dict.fromkeys(_WORK_COLUMNS, 0.0), counts=dict.fromkeys(_COUNTERS, 0),
+                max_rod_length_error=0.0, wall_time=0.0, settings_hash=settings_hash,
+            ))
+            group.attrs["current"] = np.int64(0)
+
+
+#: The two checkpoint slots; the group attribute ``current`` (0 or 1) names the valid one.
+_SLOTS = ("a", "b")
+
+
+def _store_checkpoint(f, checkpoint: Checkpoint) -> None:
+    """Write ``checkpoint`` into the slot that is not current, then make it current (the commit)."""
+    group = f["checkpoint"]
+    spare = 1 - int(group.attrs["current"])
+    _write_checkpoint(group[_SLOTS[spare]], checkpoint)
+    # One in-place write of an existing scalar attribute (a single HDF5 call, where assigning
+    # attrs[...] would delete and re-create it): the commit point.
+    group.attrs.modify("current", np.int64(spare))
+
+
+def _write_checkpoint(slot, checkpoint: Checkpoint) -> None:
+    """Fill one checkpoint slot (a group with datasets ``q``, ``qdot``)."""
+    slot["q"][...] = checkpoint.state.q
+    slot["qdot"][...] = checkpoint.state.qdot
+    a = slot.attrs
+    a["next_segment"] = checkpoint.next_segment
+    a["n_segments"] = checkpoint.n_segments
+    a["n_samples"] = checkpoint.n_samples
+    a["t"] = float(checkpoint.state.t)
+    for name, value in checkpoint.energy_offset.items():
+        a[f"offset_{name}"] = float(value)
+    for name, value in checkpoint.counts.items():
+        a[name] = int(value)
+    a["max_rod_length_error"] = float(checkpoint.max_rod_length_error)
+    a["wall_time"] = float(checkpoint.wall_time)
+    a["settings_hash"] = checkpoint.settings_hash
+    a["ended"] = bool(checkpoint.ended)
+    a["status"] = int(checkpoint.status)
+    a["message"] = str(checkpoint.message)
+
+
+def _read_checkpoint_open(f, path: PathLike) -> Checkpoint:
+    group = f.get("checkpoint")
+    if group is None or group.attrs.get("current") not in (0, 1):
+        raise tio._file_error(path, "no checkpoint (not written by tensegrity.stream)")
+    version = int(group.attrs.get("version", 0))
+    if version > STREAM_VERSION:
+        raise tio._file_error(path, f"checkpoint version {version} is newer than this library "
+                                    f"reads ({STREAM_VERSION}); upgrade tensegrity")
+    slot = group[_SLOTS[int(group.attrs["current"])]]
+    a = slot.attrs
+    try:
+        return Checkpoint(
+            next_segment=int(a["next_segment"]),
+            n_segments=int(a["n_segments"]),
+            n_samples=int(a["n_samples"]),
+            state=State(t=float(a["t"]), q=np.asarray(slot["q"][()]),
+                        qdot=np.asarray(slot["qdot"][()])),
+            energy_offset={name: float(a[f"offset_{name}"]) for name in _WORK_COLUMNS},
+            counts={name: int(a[name]) for name in _COUNTERS},
+            max_rod_length_error=float(a["max_rod_length_error"]),
+            wall_time=float(a["wall_time"]),
+            settings_hash=tio._text(a["settings_hash"]),
+            ended=bool(a["ended"]),
+            status=int(a["status"]),
+            message=tio._text(a["message"]),
+        )
+    except KeyError as exc:
+        raise tio._file_error(path, f"checkpoint: missing attribute {exc}") from exc
+
+
+def _open_h5(path: Path, mode: str):
+    import h5py
+
+    try:
+        return h5py.File(path, mode, libver=("v108", "v108"))
+    except OSError as exc:
+        raise tio._file_error(
+            path, f"cannot open as HDF5 ({exc}); if the run was killed while writing, start "
+                  "again with resume=False"
+        ) from exc
+
+
+def read_checkpoint(path: PathLike) -> Checkpoint:
+    """The checkpoint of a streamed file: ``path`` itself, or ``path + ".partial"`` if only that
+    exists.
+
+    Raises
+    ------
+    ValueError
+        One line starting with the file name if neither file exists, or it holds no checkpoint.
+    """
+    path = Path(path)
+    target = path if path.exists() else Path(str(path) + PARTIAL_SUFFIX)
+    if not target.exists():
+        raise tio._file_error(path, f"no such file (nor {target.name})")
+    with _open_h5(target, "r") as f:
+        return _read_checkpoint_open(f, target)
+
+
+def _append(f, arrays: Mapping[str, np.ndarray], start: int) -> int:
+    """Write ``arrays`` (rows ``start ..``) into the resizable datasets; return the new length."""
+    count = len(arrays["time"])
+    for name, value in arrays.items():
+        dataset = f[name]
+        dataset.resize(start + count, axis=0)
+        if count:
+            dataset[start : start + count] = value
+    return start + count
+
+
+def _truncate(f, n_samples: int, path: Path) -> None:
+    for name in tio._ARRAY_DATASETS:
+        if name not in f:
+            raise tio._file_error(path, f"missing dataset {name!r}")
+        rows = f[name].shape[0]
+        if rows < n_samples:
+            raise tio._file_error(path, f"dataset {name!r} has {rows} rows, fewer than the "
+                                        f"{n_samples} of its checkpoint")
+        if rows > n_samples:
+            f[name].resize(n_samples, axis=0)
+
+
+def _fsync(path: Path) -> None:
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def _summary(path: Path, f, checkpoint: Checkpoint, samples_per_segment: int, segments_run: int,
+             resumed_from: int | None) -> StreamSummary:
+    time_ = f["time"]
+    n = time_.shape[0]
+    return StreamSummary(
+        path=path,
+        status=int(f.attrs["status"]),
+        message=tio._text(f.attrs["message"]),
+        n_samples=n,
+        t_first=float(time_[0]) if n else math.nan,
+        t_last=float(time_[n - 1]) if n else math.nan,
+        n_segments=checkpoint.n_segments,
+        segments_stored=checkpoint.next_segment,
+        segments_run=segments_run,
+        resumed_from=resumed_from,
+        samples_per_segment=samples_per_segment,
+        **checkpoint.counts,
+        max_rod_length_error=checkpoint.max_rod_length_error,
+        wall_time=checkpoint.wall_time,
+        settings_hash=checkpoint.settings_hash,
+    )
+
+
+def _finished_summary(path: Path, settings_hash: str, samples_per_segment: int) -> StreamSummary | None:
+    """The summary of a finished streamed file at ``path`` with these settings, else None."""
+    import h5py
+
+    try:
+        f = h5py.File(path, "r")
+    except OSError:
+        return None
+    with f:
+        a = f.attrs
+        if (tio._text(a.get("format")) != tio.TRAJECTORY_FORMAT or not bool(a.get("complete", False))
+                or tio._text(a.get("stream_settings_hash")) != settings_hash):
+            return None
+        checkpoint = _read_checkpoint_open(f, path)
+        return _summary(path, f, checkpoint, samples_per_segment, 0, None)
+
+
+# ----------------------------------------------------------------------------- the run
+def simulate_to_file(
+    structure: Structure,
+    t_span: tuple[float, float],
+    path: PathLike,
+    *,
+    segment: float | None = None,
+    resume: bool = True,
+    progress: bool | Callable[[StreamProgress], None] = False,
+    **simulate_options: Any,
+) -> StreamSummary:
+    """Simulate ``structure`` over ``t_span = (t0, t_end)`` [s], streaming samples to ``path``.
+
+    See the module docstring for the segment grid, the file and resuming.
+
+    Parameters
+    ----------
+    structure : Structure
+    t_span : (float, float)
+        ``(t0, t_end)`` [s], ``t0 < t_end``.
+    path : str or os.PathLike
+        The finished trajectory file (conventionally ``*.h5``); its directory must exist.  Until
+        the run ends the data are in ``path + ".partial"``.
+    segment : float, optional
+        Segment duration [s], rounded to a whole number ``K >= 1`` of sample intervals.  Default:
+        at most 1000 samples, and few enough that one segment's samples take about 64 MiB (one
+        sample of a (100, 100) shell takes about 5 MB).  Memory use is about twice one segment's
+        samples, independent of the length of the run.
+    resume : bool
+        Continue ``path + ".partial"`` from its checkpoint if it exists (default), after checking
+        that it was started with the same structure and settings; return at once if ``path`` is
+        a finished run with the same settings.  False: start again.
+    progress : bool or callable
+        True: a ``tqdm`` bar over segments on stderr.  A callable is called with a
+        :class:`StreamProgress` after each stored segment (once its checkpoint is on disk); an
+        exception it raises (``KeyboardInterrupt`` included) stops the run, which can be resumed.
+    **simulate_options
+        Passed to :func:`tensegrity.simulate.simulate` for every segment: ``sample_dt`` [s]
+        (default ``(t_end - t0) / 1000``), ``initial`` (used by the first segment), ``control``,
+        ``external_force``, ``gravity``, ``method``, ``rtol``, ``atol``, ``dt``,
+        ``locate_switches``, ``steady_state``, ``velocity_tol``, ``acceleration_tol``,
+        ``projection_tol``, ``max_rod_length_error``, ``max_energy_growth``.  Controls and forces
+        given as functions receive the absolute time.  (``progress`` is this function's: it
+        reports segments, not the integration within one.)
+
+    Returns
+    -------
+    StreamSummary
+        ``status`` ``1`` (steady state: the run stops at the first steady sample), ``0`` (end time
+        reached) or ``-1`` (a segment went unstable: its samples up to the failure are stored,
+        ``message`` says why, and the run ends; the file is finished all the same).
+
+    Raises
+    ------
+    ValueError
+        Invalid arguments, or a partial file whose checkpoint does not match this call (the
+        message lists the differing settings), or an unreadable partial file.
+    KeyboardInterrupt, Exception
+        Whatever interrupts the run propagates; the partial file keeps every finished segment
+        and the run resumes from there.
+    """
+    t0, t1 = (float(x) for x in t_span)
+    if not (math.isfinite(t0) and math.isfinite(t1) and t1 > t0):
+        raise ValueError(f"t_span: need finite t0 < t_end, got {t_span!r}")
+    unknown = sorted(set(simulate_options) - set(_SIMULATE_PARAMETERS))
+    if unknown:
+        raise TypeError(f"simulate_to_file: unknown option {unknown[0]!r}")
+    options = dict(simulate_options)
+    sample_dt = options.pop("sample_dt", None)
+    sample_dt = (t1 - t0) / 1000 if sample_dt is None else float(sample_dt)
+    if not (math.isfinite(sample_dt) and sample_dt > 0):
+        raise ValueError(f"sample_dt: must be > 0, got {sample_dt!r}")
+    initial = options.pop("initial", None)
+    K = _samples_per_segment(structure, segment, sample_dt)
+    bounds = segment_grid((t0, t1), sample_dt, K)
+    n_segments = len(bounds) - 1
+    settings = _stream_settings(structure, t0, t1, sample_dt, K, {**options, "initial": initial})
+    settings_hash = _digest(_settings_json(settings).encode())
+
+    final = Path(path)
+    partial = Path(str(final) + PARTIAL_SUFFIX)
+    if not final.parent.is_dir():
+        raise tio._file_error(final, "its directory does not exist")
+    if resume and final.exists() and not partial.exists():
+        done = _finished_summary(final, settings_hash, K)
+        if done is not None:
+            return done
+    if not resume and partial.exists():
+        partial.unlink()
+
+    resumed_from: int | None = None
+    if partial.exists():
+        with _open_h5(partial, "a") as f:
+            fmt = tio._text(f.attrs.get("format"))
+            if fmt != PARTIAL_FORMAT:
+                raise tio._file_error(partial, f"not a partial streamed trajectory (format {fmt!r})")
+            checkpoint = _read_checkpoint_open(f, partial)
+            if checkpoint.settings_hash != settings_hash:
+                try:
+                    stored = json.loads(tio._text(f.attrs["stream_settings"]))
+                except (KeyError, TypeError, json.JSONDecodeError):
+                    stored = {}
+                diff = _differences(stored, settings) or ["settings hash"]
+                raise tio._file_error(
+                    partial, "cannot resume: the checkpoint was made with other settings ("
+                             + "; ".join(diff) + "); pass resume=False to start again")
+            _truncate(f, checkpoint.n_samples, partial)
+        resumed_from = checkpoint.next_segment
+    else:
+        start = dynamics.initial_state(structure, t=t0) if initial is None else State(
+            t=t0, q=np.asarray(initial.q, dtype=float), qdot=np.asarray(initial.qdot, dtype=float))
+        _create_partial(partial, structure, settings, settings_hash, K, n_segments, start)
+        with _open_h5(partial, "r") as f:
+            checkpoint = _read_checkpoint_open(f, partial)
+
+    bar = None
+    if progress is True:
+        from tqdm import tqdm
+
+        bar = tqdm(total=n_segments, initial=checkpoint.next_segment, unit="segment",
+                   desc="simulating", leave=False)
+    callback = progress if callable(progress) else None
+    status, message = STATUS_END, f"reached t_end = {t1:g} s"
+    if checkpoint.ended:  # interrupted between the last segment and the rename
+        status, message = checkpoint.status, checkpoint.message
+    segments_run = 0
+    try:
+        for k in range(checkpoint.next_segment, n_segments if not checkpoint.ended else 0):
+            wall0 = time.perf_counter()
+            start_state = (initial if k == 0 else
+                           State(t=float(bounds[k]), q=checkpoint.state.q, qdot=checkpoint.state.qdot))
+            result = simulate(structure, (float(bounds[k]), float(bounds[k + 1])),
+                              initial=start_state, sample_dt=sample_dt, progress=False, **options)
+            keep = slice(0 if k == 0 else 1, None)
+            offset = checkpoint.energy_offset
+            energy = np.column_stack([
+                result.energy[name][keep] + offset.get(name, 0.0) for name in tio.ENERGY_COLUMNS
+            ])
+            arrays = {
+                "time": result.t[keep], "nodes": result.node_position[keep],
+                "velocities": result.node_velocity[keep], "tendon_length": result.tendon_length[keep],
+                "tendon_tension": result.tendon_tension[keep], "energy": energy,
+                "q": result.q[keep], "qdot": result.qdot[keep],
+                "residual_acceleration": result.residual_acceleration[keep],
+            }
+            if energy.shape[0]:
+                offset = {name: float(energy[-1, tio.ENERGY_COLUMNS.index(name)])
+                          for name in _WORK_COLUMNS}
+            last = result.final_state
+            run_settings = dict(result.settings, t_span=[t0, t1], stream=dict(
+                segment=K * sample_dt, samples_per_segment=K, n_segments=n_segments))
+            ended = result.status != STATUS_END or k == n_segments - 1
+            if result.status != STATUS_END:
+                status, message = result.status, result.message
+            counts = {name: checkpoint.counts[name] + int(getattr(result, name))
+                      for name in _COUNTERS}
+            max_error = max(checkpoint.max_rod_length_error, float(result.max_rod_length_error))
+            del result
+            with _open_h5(partial, "a") as f:
+                n_samples = _append(f, arrays, checkpoint.n_samples)
+                checkpoint = Checkpoint(
+                    next_segment=k + 1, n_segments=n_segments, n_samples=n_samples,
+                    state=State(t=float(bounds[k + 1]) if not ended else float(last.t),
+                                q=np.asarray(last.q, dtype=float),
+                                qdot=np.asarray(last.qdot, dtype=float)),
+                    energy_offset=offset, counts=counts, max_rod_length_error=max_error,
+                    wall_time=checkpoint.wall_time + (time.perf_counter() - wall0),
+                    settings_hash=settings_hash, ended=ended, status=status,
+                    message=message if ended else f"running: {k + 1} of {n_segments} segments",
+                )
+                _store_checkpoint(f, checkpoint)
+                f.attrs["settings"] = json.dumps(run_settings, default=tio._json_default)
+                f.attrs["message"] = checkpoint.message
+                f.attrs["status"] = int(status)
+                for name in _COUNTERS:
+                    f.attrs[name] = counts[name]
+                f.attrs["max_rod_length_error"] = max_error
+                f.attrs["wall_time"] = checkpoint.wall_time
+                f.flush()
+            _fsync(partial)
+            del arrays
+            segments_run += 1
+            if bar is not None:
+                bar.update(1)
+            if callback is not None:
+                callback(StreamProgress(
+                    segment=k + 1, n_segments=n_segments, t=checkpoint.state.t,
+                    n_samples=checkpoint.n_samples, wall_time=checkpoint.wall_time,
+                ))
+            if ended:
+                break
+    finally:
+        if bar is not None:
+            bar.close()
+
+    # Finish: the attributes of a complete trajectory, then the atomic rename onto ``path``.
+    with _open_h5(partial, "a") as f:
+        if not checkpoint.ended:  # pragma: no cover - the loop ends only on an ended segment
+            raise RuntimeError("stream: finishing a run that has not ended")
+        f.attrs["status"] = int(status)
+        f.attrs["message"] = message
+        f.attrs["complete"] = True
+        f.attrs["format"] = tio.TRAJECTORY_FORMAT
+        f.flush()
+        summary = _summary(final, f, checkpoint, K, segments_run, resumed_from)
+    _fsync(partial)
+    os.chmod(partial, tio._new_file_mode(final))
+    os.replace(partial, final)
+    tio._fsync_directory(final.parent)
+    return summary
+
+
+__all__ = [
+    "Checkpoint", "PARTIAL_FORMAT", "PARTIAL_SUFFIX", "StreamProgress", "StreamSummary",
+    "read_checkpoint", "segment_grid", "simulate_to_file",
+]

@@ -1,0 +1,315 @@
+"""The compiled kernel (``tensegrity.kernel``) against the NumPy reference ``dynamics.evaluate``.
+
+Random consistent states (every rod exactly ``L`` long, no rod-stretching velocity), random rest
+lengths with a third of the tendons slack and one at zero, random tendon and rod damping (so that
+some taut tendons have their tension clipped at zero), random external forces and gravity.  The
+compiled RK4 loop is compared with ``integrators.RK4`` driven by ``dynamics.evaluate`` and
+projected after every step, as ``simulate(method="rk4")`` does.
+"""
+
+from __future__ import annotations
+
+import zlib
+
+import numpy as np
+import pytest
+
+pytest.importorskip("numba")
+
+from tensegrity import Structure, class1_shell, dynamics  # noqa: E402
+from tensegrity.integrators import RK4  # noqa: E402
+from tensegrity.kernel import FastKernel  # noqa: E402
+
+TOL = 1e-12
+
+
+def random_general_structure(rng, n_rods: int = 9, n_tendons: int = 40) -> Structure:
+    """Rods of random masses and lengths whose end nodes are numbered in a scrambled order (so an
+    index mix-up between rods, nodes and coordinates shows), and random tendons between them."""
+    nodes = rng.permutation(2 * n_rods).reshape(n_rods, 2)
+    length = rng.uniform(0.5, 2.0, n_rods)
+    position = np.empty((2 * n_rods, 3))
+    for r, (a, b) in enumerate(nodes):
+        d = rng.standard_normal(3)
+        centre = 2.0 * rng.standard_normal(3)
+        position[a] = centre - 0.5 * length[r] * d / np.linalg.norm(d)
+        position[b] = centre + 0.5 * length[r] * d / np.linalg.norm(d)
+    pairs = set()
+    while len(pairs) < n_tendons:
+        a, b = (int(x) for x in rng.choice(2 * n_rods, 2, replace=False))
+        if {a, b} in [set(x) for x in nodes.tolist()] or (min(a, b), max(a, b)) in pairs:
+            continue
+        pairs.add((min(a, b), max(a, b)))
+    tendon_nodes = np.array([(a, b) if rng.random() < 0.5 else (b, a) for a, b in sorted(pairs)])
+    return Structure(
+        node_position=position,
+        rod_nodes=nodes,
+        rod_mass=rng.uniform(0.3, 3.0, n_rods),
+        rod_length=length,
+        tendon_nodes=tendon_nodes,
+        tendon_stiffness=rng.uniform(10.0, 500.0, n_tendons),
+        tendon_rest_length=np.zeros(n_tendons),
+    )
+
+
+def with_random_parameters(structure: Structure, rng: np.random.Generator) -> Structure:
+    """Unequal masses, stiffnesses and (large enough to clip some tensions) damping values."""
+    return structure.replace(
+        rod_mass=rng.uniform(0.3, 3.0, structure.n_rods),
+        tendon_stiffness=rng.uniform(10.0, 500.0, structure.n_tendons),
+        tendon_damping=rng.uniform(0.5, 40.0, structure.n_tendons),
+        rod_damping=rng.uniform(0.1, 5.0, structure.n_rods),
+    )
+
+
+def random_consistent_state(structure, rng, speed=2.0, jitter=0.15):
+    """``(q, qdot)`` near the layout with every ``|q2| = L`` and ``q2 . q2' = 0``."""
+    p = np.empty((structure.n_nodes, 3))
+    v = np.empty((structure.n_nodes, 3))
+    for r, (a, b) in enumerate(structure.rod_nodes):
+        L = structure.rod_length[r]
+        p0a, p0b = structure.node_position[a], structure.node_position[b]
+        centre = 0.5 * (p0a + p0b) + jitter * rng.standard_normal(3)
+        d = (p0b - p0a) / L + jitter * rng.standard_normal(3)
+        d *= L / np.linalg.norm(d)
+        p[a], p[b] = centre - d / 2, centre + d / 2
+        vc = speed * rng.standard_normal(3)
+        dv = np.cross(speed * rng.standard_normal(3), d)
+        v[a], v[b] = vc - dv / 2, vc + dv / 2
+    q = dynamics.coordinates_from_nodes(structure, p)
+    qdot = dynamics.coordinates_from_nodes(structure, v)
+    return q, qdot
+
+
+def random_rest_lengths(structure, q, rng):
+    """A third of the tendons slack (``Lbar`` above the current length), one at ``Lbar = 0``,
+    the rest taut by a random amount."""
+    lengths = dynamics.tendon_lengths(structure, dynamics.nodes_from_coordinates(structure, q))
+    S = structure.n_tendons
+    rest = lengths * rng.uniform(0.3, 0.98, S)
+    slack = rng.permutation(S)[: S // 3]
+    rest[slack] = lengths[slack] * rng.uniform(1.02, 1.5, slack.size)
+    taut = np.setdiff1d(np.arange(S), slack)
+    rest[taut[0]] = 0.0
+    return rest, slack
+
+
+def _rel(actual, expected, scale=None) -> float:
+    scale = np.max(np.abs(expected)) if scale is None else scale
+    return float(np.max(np.abs(np.asarray(actual) - np.asarray(expected))) / max(scale, 1e-300))
+
+
+CASES = [
+    pytest.param(dict(n=3, m=1), id="shell(3,1)"),
+    pytest.param(dict(n=4, m=2), id="shell(4,2)"),
+    pytest.param(dict(n=10, m=10), id="shell(10,10)"),
+    pytest.param(dict(n=4, m=2, primal=True), id="primal(4,2)"),
+    pytest.param(dict(n=3, m=1, primal=True), id="primal(3,1)"),
+    pytest.param(None, id="general"),
+]
+
+
+def _structure(case, rng) -> Structure:
+    base = random_general_structure(rng) if case is None else class1_shell(**case)
+    return with_random_parameters(base, rng)
+
+
+def _seed(case, *extra) -> int:
+    return zlib.crc32(repr((sorted(case.items()) if case else "general", extra)).encode())
+
+
+# --------------------------------------------------------------------------- evaluate
+
+
+@pytest.mark.parametrize("loads", ["none", "gravity", "external", "both"])
+@pytest.mark.parametrize("case", CASES)
+def test_evaluate_matches_numpy_reference(case, loads):
+    rng = np.random.default_rng(_seed(case, loads))
+    structure = _structure(case, rng)
+    kernel = FastKernel(structure)
+    clipped_seen = 0
+    for trial in range(4):
+        q, qdot = random_consistent_state(structure, rng, speed=[0.5, 2.0, 5.0, 10.0][trial])
+        rest, slack = random_rest_lengths(structure, q, rng)
+        with_w = loads in ("external", "both")
+        w = 20.0 * rng.standard_normal((structure.n_nodes, 3)) if with_w else None
+        g = rng.standard_normal(3) * [1, 1, 10] if loads in ("gravity", "both") else None
+        ref = dynamics.evaluate(structure, q, qdot, rest_length=rest, external_force=w, gravity=g)
+        got = kernel.evaluate(q, qdot, rest, external_force=w, gravity=g)
+
+        assert got.qddot.shape == (structure.n_coordinates,)
+        assert _rel(got.qddot, ref.qddot) < TOL, f"trial {trial}: qddot"
+        assert _rel(got.tension, ref.tendons.tension) < TOL, f"trial {trial}: tension"
+        # Slack tendons are exactly zero in both.
+        assert np.all(got.tension[slack] == 0.0) and np.array_equal(
+            got.tension == 0.0, ref.tendons.tension == 0.0
+        )
+        power_scale = abs(ref.dissipated_power) + abs(ref.external_power) + 1.0
+        assert abs(got.dissipated_power - ref.dissipated_power) < TOL * power_scale
+        assert got.dissipated_power >= 0.0
+        assert abs(got.external_power - ref.external_power) < TOL * power_scale
+        if w is None:
+            assert got.external_power == 0.0
+        # Taut tendons whose damping term made the tension negative (clipped to zero).
+        taut = np.setdiff1d(np.arange(structure.n_tendons), slack)
+        clipped_seen += int(np.sum(got.tension[taut] == 0.0))
+    assert clipped_seen > 0, "no taut tendon had its tension clipped: the test lost coverage"
+
+
+def test_evaluate_buffers_and_input_forms():
+    """``out`` buffers are filled and returned; read-only, non-contiguous, list and float32
+    inputs give the same answer as plain arrays; the elastic tension can be asked for."""
+    rng = np.random.default_rng(3)
+    structure = with_random_parameters(class1_shell(4, 2), rng)
+    kernel = FastKernel(structure)
+    q, qdot = random_consistent_state(structure, rng)
+    rest, _ = random_rest_lengths(structure, q, rng)
+    g = np.array([0.0, 0.0, -9.81])
+    w = rng.standard_normal((structure.n_nodes, 3))
+    ref = dynamics.evaluate(structure, q, qdot, rest_length=rest, external_force=w, gravity=g)
+
+    qddot, tension, elastic = (np.full(structure.n_coordinates, np.nan),
+                               np.full(structure.n_tendons, np.nan),
+                               np.full(structure.n_tendons, np.nan))
+    got = kernel.evaluate(q, qdot, rest, w, g, out=(qddot, tension), elastic_tension_out=elastic)
+    assert got.qddot is qddot and got.tension is tension
+    assert _rel(qddot, ref.qddot) < TOL
+    assert _rel(elastic, ref.tendons.elastic_tension) < TOL
+
+    ro = [np.array(x) for x in (q, qdot, rest)]
+    for x in ro:
+        x.setflags(write=False)
+    strided = np.repeat(q, 2)[::2]
+    assert not strided.flags.c_contiguous
+    for args in (ro, (strided, qdot, rest), (q.tolist(), qdot, list(rest))):
+        again = kernel.evaluate(*args, w, g)
+        assert np.array_equal(again.qddot, got.qddot)
+    # The structure's own (read-only) rest lengths, twice: a cached copy, same answer.
+    a = kernel.evaluate(q, qdot, structure.tendon_rest_length).qddot
+    b = kernel.evaluate(q, qdot, structure.tendon_rest_length).qddot
+    ref0 = dynamics.evaluate(structure, q, qdot, rest_length=structure.tendon_rest_length).qddot
+    assert np.array_equal(a, b) and _rel(a, ref0) < TOL
+
+    with pytest.raises(ValueError, match="q: expected shape"):
+        kernel.evaluate(q[:-1], qdot, rest)
+    with pytest.raises(ValueError, match="external_force"):
+        kernel.evaluate(q, qdot, rest, external_force=np.zeros((3, 3)))
+    with pytest.raises(ValueError, match="out"):
+        kernel.evaluate(q, qdot, rest, out=(np.empty(3), tension))
+
+
+# --------------------------------------------------------------------------- RK4
+
+
+def python_rk4(structure, q, qdot, dt, n_steps, rest, w, g):
+    """``integrators.RK4`` on ``y = [q, q', E_d, W_w]`` with ``dynamics.evaluate``, projected
+    onto the rod constraints after every step (as ``simulate(method="rk4")``)."""
+    n = structure.n_coordinates
+
+    def fun(t, y):
+        ev = dynamics.evaluate(structure, y[:n], y[n : 2 * n], rest_length=rest,
+                               external_force=w, gravity=g)
+        return np.concatenate([y[n : 2 * n], ev.qddot, [ev.dissipated_power, ev.external_power]])
+
+    integrator = RK4(dt=dt)
+    y = np.concatenate([q, qdot, [0.0, 0.0]])
+    t, worst = 0.0, 0.0
+    for _ in range(n_steps):
+        integrator.start(fun, t, y, t + dt)
+        integrator.step()
+        t, y = integrator.t, integrator.y
+        worst = max(worst, float(np.max(np.abs(dynamics.rod_length_error(structure, y[:n])))))
+        qp, vp = dynamics.project_to_constraints(structure, y[:n], y[n : 2 * n])
+        y = np.concatenate([qp, vp, y[2 * n :]])
+    return y[:n], y[n : 2 * n], y[2 * n], y[2 * n + 1], worst
+
+
+@pytest.mark.parametrize(
+    "case", [CASES[0], CASES[1], CASES[2], CASES[3], CASES[5]]
+)
+def test_rk4_loop_matches_python_rk4(case):
+    rng = np.random.default_rng(_seed(case, "rk4"))
+    structure = _structure(case, rng)
+    kernel = FastKernel(structure)
+    q0, qdot0 = random_consistent_state(structure, rng, speed=3.0)
+    rest, _ = random_rest_lengths(structure, q0, rng)
+    w = 5.0 * rng.standard_normal((structure.n_nodes, 3))
+    g = np.array([0.2, -0.4, -9.81])
+    dt, n_steps = 1e-4, 100
+    q_in, qdot_in = q0.copy(), qdot0.copy()
+
+    got = kernel.rk4_with_work(q0, qdot0, dt, n_steps, rest, w, g)
+    q_ref, qdot_ref, dissipated_ref, work_ref, worst_ref = python_rk4(
+        structure, q0, qdot0, dt, n_steps, rest, w, g
+    )
+
+    assert np.array_equal(q0, q_in) and np.array_equal(qdot0, qdot_in), "inputs were modified"
+    assert _rel(got.q, q_ref) < TOL
+    assert _rel(got.qdot, qdot_ref) < TOL
+    assert abs(got.dissipated_energy - dissipated_ref) < TOL * (abs(dissipated_ref) + 1e-3)
+    assert abs(got.external_work - work_ref) < TOL * (abs(work_ref) + 1e-3)
+    assert got.n_steps == n_steps
+    assert 0.0 < got.max_rod_length_error and abs(got.max_rod_length_error - worst_ref) < 1e-14
+    # It moved, and it stayed on the constraints.
+    assert _rel(got.q, q0) > 1e-6
+    assert np.max(np.abs(dynamics.rod_length_error(structure, got.q))) < 1e-14
+    q2, v2 = dynamics.rods_view(got.q)[:, 1], dynamics.rods_view(got.qdot)[:, 1]
+    assert np.max(np.abs(np.sum(q2 * v2, axis=1))) < 1e-12 * np.max(np.abs(got.qdot))
+    # rk4() is rk4_with_work() without the energies; split calls continue the same trajectory.
+    q_a, qdot_a = kernel.rk4(q0, qdot0, dt, n_steps, rest, w, g)
+    assert np.array_equal(q_a, got.q) and np.array_equal(qdot_a, got.qdot)
+    q_b, qdot_b = kernel.rk4(*kernel.rk4(q0, qdot0, dt, 40, rest, w, g), dt, 60, rest, w, g)
+    assert np.array_equal(q_b, got.q) and np.array_equal(qdot_b, got.qdot)
+
+
+def test_rk4_zero_steps_and_bad_arguments():
+    structure = class1_shell(3, 1)
+    kernel = FastKernel(structure)
+    state = dynamics.initial_state(structure)
+    q, qdot = kernel.rk4(state.q, state.qdot, 1e-4, 0, structure.tendon_rest_length)
+    assert np.array_equal(q, state.q) and q is not state.q
+    for dt in (0.0, -1e-4, np.nan):
+        with pytest.raises(ValueError, match="dt"):
+            kernel.rk4(state.q, state.qdot, dt, 1, structure.tendon_rest_length)
+    with pytest.raises(ValueError, match="n_steps"):
+        kernel.rk4(state.q, state.qdot, 1e-4, -1, structure.tendon_rest_length)
+
+
+def test_rk4_stops_on_blow_up():
+    """Too large a step stretches the rods: the loop stops after the first step whose rod-length
+    error exceeds the limit; a non-finite state stops it at once with error NaN."""
+    structure = class1_shell(3, 1, stiffness=1e4)
+    kernel = FastKernel(structure)
+    state = dynamics.initial_state(structure)
+    rest = structure.tendon_rest_length
+    fine = kernel.rk4_with_work(state.q, state.qdot, 1e-4, 20, rest, max_rod_length_error=1e-3)
+    assert fine.n_steps == 20 and fine.max_rod_length_error < 1e-3
+    coarse = kernel.rk4_with_work(state.q, state.qdot, 0.05, 20, rest, max_rod_length_error=1e-3)
+    assert coarse.n_steps < 20 and coarse.max_rod_length_error > 1e-3
+    no_limit = kernel.rk4_with_work(state.q, state.qdot, 0.05, coarse.n_steps, rest)
+    assert np.array_equal(no_limit.q, coarse.q)
+    bad = state.qdot.copy()
+    bad[4] = np.nan
+    nan = kernel.rk4_with_work(state.q, bad, 1e-4, 20, rest, max_rod_length_error=1e-3)
+    assert nan.n_steps == 1 and np.isnan(nan.max_rod_length_error)
+
+
+def test_project_matches_reference():
+    rng = np.random.default_rng(11)
+    structure = random_general_structure(rng)
+    q, qdot = random_consistent_state(structure, rng)
+    q = q * (1 + 1e-3 * rng.standard_normal(q.size))
+    qdot = qdot + rng.standard_normal(q.size)
+    expected = dynamics.project_to_constraints(structure, q, qdot)
+    got = FastKernel(structure).project(q, qdot)
+    assert _rel(got[0], expected[0]) < TOL and _rel(got[1], expected[1]) < TOL
+
+
+def test_import_tensegrity_does_not_import_numba():
+    """The kernel is imported lazily: ``import tensegrity`` alone must not pull in numba."""
+    import subprocess
+    import sys
+
+    code = "import sys, tensegrity; print('numba' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"

@@ -1,0 +1,317 @@
+"""Streamed, resumable simulations (tensegrity.stream): an interrupted and resumed run stores
+exactly the samples of an uninterrupted one, no sample is lost or repeated, memory does not grow
+with the length of the run, the finished file is an ordinary trajectory, and a checkpoint made
+with other settings is refused."""
+
+from __future__ import annotations
+
+import tracemalloc
+
+import h5py
+import numpy as np
+import pytest
+
+from tensegrity import class1_shell, critical_damping, simulate
+from tensegrity import stream as stream_module
+from tensegrity.io import ENERGY_COLUMNS, read_trajectory
+from tensegrity.stream import (
+    PARTIAL_SUFFIX,
+    StreamProgress,
+    read_checkpoint,
+    segment_grid,
+    simulate_to_file,
+)
+
+#: A damped (3,1) shell: tendons go slack and taut, energy is dissipated from the start.
+SHELL = class1_shell(3, 1, damping=0.5)
+#: Fast options: a short adaptive run at a loose tolerance (exactness is against other streamed
+#: runs, which is independent of the tolerance).
+FAST = dict(sample_dt=0.01, rtol=1e-6, atol=1e-9)
+DATASETS = ("time", "nodes", "velocities", "tendon_length", "tendon_tension", "energy", "q",
+            "qdot", "residual_acceleration")
+
+
+def datasets(path):
+    with h5py.File(path, "r") as f:
+        return {name: f[name][()] for name in DATASETS}
+
+
+def stop_after(n_segments):
+    """A progress callback that interrupts the run once ``n_segments`` segments are stored."""
+    seen = []
+
+    def callback(info: StreamProgress) -> None:
+        seen.append(info)
+        if info.segment == n_segments:
+            raise KeyboardInterrupt
+    return callback, seen
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    """An uninterrupted run: 0.5 s in segments of 0.1 s (5 segments, 51 samples)."""
+    path = tmp_path_factory.mktemp("reference") / "run.h5"
+    summary = simulate_to_file(SHELL, (0.0, 0.5), path, segment=0.1, **FAST)
+    return path, summary
+
+
+# ----------------------------------------------------------------------------- the grid
+def test_segment_grid_is_aligned_with_samples():
+    assert np.allclose(segment_grid((0.0, 0.5), 0.01, 10), [0, 0.1, 0.2, 0.3, 0.4, 0.5])
+    # A last, shorter segment ends at t_end; a sliver below 1e-9 sample_dt is merged.
+    assert np.allclose(segment_grid((1.0, 1.55), 0.01, 20), [1.0, 1.2, 1.4, 1.55])
+    assert np.allclose(segment_grid((0.0, 0.4 + 1e-13), 0.01, 10), [0, 0.1, 0.2, 0.3, 0.4 + 1e-13])
+    assert segment_grid((0.0, 0.05), 0.01, 10).tolist() == [0.0, 0.05]
+
+
+# ----------------------------------------------------------------------------- a whole run
+def test_uninterrupted_run_is_a_complete_trajectory(reference):
+    path, summary = reference
+    assert summary.status == 0 and summary.message == "reached t_end = 0.5 s"
+    assert (summary.n_segments, summary.segments_stored, summary.segments_run) == (5, 5, 5)
+    assert summary.resumed_from is None and summary.samples_per_segment == 10
+    assert not path.with_name(path.name + PARTIAL_SUFFIX).exists()
+    trajectory = read_trajectory(path)
+    assert trajectory.status == 0 and trajectory.success
+    assert trajectory.structure.to_dict() == SHELL.to_dict()
+    assert trajectory.settings["t_span"] == [0.0, 0.5]
+    assert trajectory.settings["stream"]["n_segments"] == 5
+    assert trajectory.nfev == summary.nfev > 0
+    assert list(trajectory.energy) == list(ENERGY_COLUMNS)
+    # No sample missing or repeated: 51 samples, one every sample_dt, t0 and t_end included.
+    t = trajectory.time
+    assert t.size == summary.n_samples == 51
+    assert t[0] == 0.0 and t[-1] == 0.5
+    assert np.allclose(np.diff(t), 0.01, rtol=1e-9, atol=0)
+    with h5py.File(path, "r") as f:
+        assert f.attrs["complete"] and f["q"].chunks is not None and f["q"].maxshape[0] is None
+
+
+def test_segments_agree_with_one_simulate_call_and_energy_is_continuous(reference):
+    """Restarting the integrator at every boundary changes the result only at the level of the
+    integration tolerance, and the works carry on across boundaries instead of restarting at 0."""
+    path, _ = reference
+    trajectory = read_trajectory(path)
+    whole = simulate(SHELL, (0.0, 0.5), **FAST)
+    assert np.array_equal(whole.t.size, trajectory.time.size)
+    assert np.allclose(trajectory.time, whole.t, rtol=0, atol=1e-12)
+    assert np.max(np.abs(trajectory.nodes - whole.node_position)) < 1e-4  # rtol 1e-6, 0.5 s
+    dissipated = trajectory.energy["dissipated"]
+    assert np.all(np.diff(dissipated) >= 0) and dissipated[-1] > 1.0
+    assert abs(dissipated[-1] - whole.energy["dissipated"][-1]) < 1e-4 * dissipated[-1]
+    e = trajectory.energy
+    total = (e["kinetic"] + e["elastic"] + e["gravity"] + e["dissipated"] - e["external_work"]
+             - e["control_work"])
+    assert np.max(np.abs(total - total[0])) < 1e-3 * dissipated[-1]
+
+
+def test_times_with_a_shorter_last_segment_and_t0_not_zero(tmp_path):
+    path = tmp_path / "run.h5"
+    summary = simulate_to_file(SHELL, (1.0, 1.25), path, segment=0.1, **FAST)
+    t = read_trajectory(path).time
+    assert summary.n_segments == 3 and t.size == 26
+    assert t[0] == 1.0 and t[-1] == 1.25
+    assert np.allclose(np.diff(t), 0.01, rtol=1e-9, atol=0)
+
+
+# ----------------------------------------------------------------------------- resuming
+def test_interrupted_and_resumed_run_is_bitwise_the_uninterrupted_one(tmp_path, reference):
+    ref_path, ref_summary = reference
+    path = tmp_path / "run.h5"
+    partial = tmp_path / ("run.h5" + PARTIAL_SUFFIX)
+    callback, seen = stop_after(2)
+    with pytest.raises(KeyboardInterrupt):
+        simulate_to_file(SHELL, (0.0, 0.5), path, segment=0.1, progress=callback, **FAST)
+    assert [info.segment for info in seen] == [1, 2]
+    assert seen[-1].n_samples == 21 and seen[-1].t == pytest.approx(0.2)
+    # The incomplete run is visible as such: no file under the final name, and the partial file
+    # is refused by read_trajectory.
+    assert not path.exists() and partial.exists()
+    with pytest.raises(ValueError, match="not a tensegrity trajectory"):
+        read_trajectory(partial)
+    checkpoint = read_checkpoint(path)
+    assert (checkpoint.next_segment, checkpoint.n_samples, checkpoint.ended) == (2, 21, False)
+    assert checkpoint.state.t == pytest.approx(0.2)
+
+    summary = simulate_to_file(SHELL, (0.0, 0.5), path, segment=0.1, **FAST)
+    assert summary.resumed_from == 2 and summary.segments_run == 3
+    assert not partial.exists()
+    got, want = datasets(path), datasets(ref_path)
+    for name in DATASETS:
+        assert got[name].shape == want[name].shape, name
+        assert np.array_equal(got[name], want[name]), name
+    assert (summary.nfev, summary.nsteps, summary.nswitches, summary.nprojections) == (
+        ref_summary.nfev, ref_summary.nsteps, ref_summary.nswitches, ref_summary.nprojections)
+    assert read_trajectory(path).message == "reached t_end = 0.5 s"
+
+
+def test_interruption_inside_a_segment_and_inside_a_write(tmp_path, reference, monkeypatch):
+    """Interrupted while simulating segment 3, then while storing segment 4 (its rows appended
+    and its checkpoint written to the spare slot, but not committed): the previous checkpoint
+    stays current and the rows past it are dropped on resume."""
+    ref_path, _ = reference
+    path = tmp_path / "run.h5"
+    calls = []
+
+    def simulate_then_interrupt(*args, **kwargs):
+        calls.append(args[1])
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        return simulate(*args, **kwargs)
+
+    monkeypatch.setattr(stream_module, "simulate", simulate_then_interrupt)
+    with pytest.raises(KeyboardInterrupt):
+        simulate_to_file(SHELL, (0.0, 0.5), path, segment=0.1, **FAST)
+    assert read_checkpoint(path).next_segment == 2
+    monkeypatch.setattr(stream_module, "simulate", simulate)
+
+    write_checkpoint = stream_module._write_checkpoint
+
+    def interrupt_before_commit(slot, checkpoint):
+        write_checkpoint(slot, checkpoint)  # the spare slot is written in full, ...
+        if checkpoint.next_segment == 4:
+            raise KeyboardInterrupt  # ... but not made current
+
+    monkeypatch.setattr(stream_module, "_write_checkpoint", interrupt_before_commit)
+    with pytest.raises(KeyboardInterrupt):
+        simulate_to_file(SHELL, (0.0, 0.5), path, segment=0.1, **FAST)
+    partial = tmp_path / ("run.h5" + PARTIAL_SUFFIX)
+    with h5py.File(partial, "r") as f:
+        assert f["time"].shape[0] == 41  # segment 4's rows are there ...
+    checkpoint = read_checkpoint(path)
+    assert (checkpoint.next_segment, checkpoint.n_samples) == (3, 31)  # ... but not committed
+    assert checkpoint.state.t == pytest.approx(0.3)
+    monkeypatch.setattr(stream_module, "_write_checkpoint", write_checkpoint)
+
+    summary = simulate_to_file(SHELL, (0.0, 0.5), path, segment=0.1, **FAST)
+    assert summary.resumed_from == 3
+    got, want = datasets(path), datasets(ref_path)
+    for name in DATASETS:
+        assert np.array_equal(got[name], want[name]), name
+
+
+def test_finished_run_is_not_run_again(reference):
+    path, summary = reference
+    again = simulate_to_file(SHELL, (0.0, 0.5), path, segment=0.1, **FAST)
+    assert again.segments_run == 0 and again.n_samples == summary.n_samples
+    assert again.settings_hash == summary.settings_hash
+
+
+@pytest.mark.parametrize("change, words", [
+    (dict(rtol=1e-7), ["options.rtol", "1e-06", "1e-07"]),
+    (dict(segment=0.2), ["samples_per_segment"]),
+    (dict(t_span=(0.0, 0.6)), ["t_span"]),
+    (dict(structure=class1_shell(3, 1, damping=0.6)), ["structure"]),
+    (dict(gravity=(0.0, 0.0, -9.81)), ["options.gravity"]),
+])
+def test_resume_with_other_settings_is_refused(tmp_path, change, words):
+    path = tmp_path / "run.h5"
+    callback, _ = stop_after(1)
+    with pytest.raises(KeyboardInterrupt):
+        simulate_to_file(SHELL, (0.0, 0.5), path, segment=0.1, progress=callback, **FAST)
+    arguments = dict(structure=SHELL, t_span=(0.0, 0.5), segment=0.1, **FAST)
+    arguments.update(change)
+    structure, t_span = arguments.pop("structure"), arguments.pop("t_span")
+    with pytest.raises(ValueError, match="cannot resume") as info:
+        simulate_to_file(structure, t_span, path, **arguments)
+    message = str(info.value)
+    assert message.startswith(str(path) + PARTIAL_SUFFIX) and "\n" not in message
+    for word in words:
+        assert word in message, message
+    assert read_checkpoint(path).next_segment == 1  # left as it was
+    if "structure" in change:
+        return
+    # resume=False starts again with the new settings.
+    summary = simulate_to_file(structure, t_span, path, resume=False, **arguments)
+    assert summary.resumed_from is None and summary.status == 0
+    assert read_trajectory(path).time[-1] == t_span[1]
+
+
+def test_explicit_default_options_match_omitted_ones(tmp_path):
+    path = tmp_path / "run.h5"
+    callback, _ = stop_after(1)
+    with pytest.raises(KeyboardInterrupt):
+        simulate_to_file(SHELL, (0.0, 0.3), path, segment=0.1, progress=callback, **FAST)
+    summary = simulate_to_file(SHELL, (0.0, 0.3), path, segment=0.1, method="DOP853",
+                               steady_state=False, gravity=None, **FAST)
+    assert summary.resumed_from == 1
+
+
+# ----------------------------------------------------------------------------- endings
+def test_unstable_segment_stops_the_run_and_records_the_failure(tmp_path):
+    path = tmp_path / "run.h5"
+    summary = simulate_to_file(SHELL, (0.0, 1.0), path, segment=0.2, sample_dt=0.05,
+                               method="rk4", dt=0.05)
+    assert summary.status == -1 and not summary.success
+    assert summary.message.startswith("unstable")
+    assert summary.segments_stored < summary.n_segments
+    trajectory = read_trajectory(path)
+    assert trajectory.status == -1 and trajectory.message == summary.message
+    assert trajectory.time.size == summary.n_samples >= 1
+    assert np.all(np.diff(trajectory.time) > 0)
+
+
+def test_steady_state_stops_the_run(tmp_path):
+    path = tmp_path / "run.h5"
+    structure = critical_damping(class1_shell(3, 1))
+    summary = simulate_to_file(structure, (0.0, 20.0), path, segment=1.0, sample_dt=0.05,
+                               rtol=1e-6, atol=1e-9, steady_state=True, velocity_tol=1e-3,
+                               acceleration_tol=1e-3)
+    assert summary.status == 1 and summary.message.startswith("steady state")
+    assert summary.segments_stored < summary.n_segments
+    trajectory = read_trajectory(path)
+    assert trajectory.status == 1 and trajectory.time[-1] == summary.t_last < 20.0
+    assert np.abs(trajectory.velocities[-1]).max() < 1e-3
+
+
+# ----------------------------------------------------------------------------- memory
+def test_memory_does_not_grow_with_the_length_of_the_run(tmp_path):
+    """Peak traced memory of a run twice as long grows by far less than its extra samples take
+    (a plain simulate call, which keeps every sample, grows by about that much)."""
+    structure = class1_shell(4, 2, damping=0.5)
+    options = dict(method="rk4", dt=2e-3, sample_dt=2e-3)
+    simulate_to_file(structure, (0.0, 0.02), tmp_path / "warm.h5", segment=0.01, **options)
+
+    def peak(t_end, run):
+        tracemalloc.start()
+        try:
+            run(t_end)
+            return tracemalloc.get_traced_memory()[1]
+        finally:
+            tracemalloc.stop()
+
+    def streamed(t_end):
+        simulate_to_file(structure, (0.0, t_end), tmp_path / f"run{t_end}.h5", segment=0.04,
+                         **options)
+
+    short, long = peak(0.16, streamed), peak(0.32, streamed)
+    extra_samples = read_trajectory(tmp_path / "run0.32.h5").time.size - read_trajectory(
+        tmp_path / "run0.16.h5").time.size
+    with h5py.File(tmp_path / "run0.32.h5", "r") as f:
+        row_bytes = sum(f[name].dtype.itemsize * int(np.prod(f[name].shape[1:])) for name in DATASETS)
+    extra_bytes = extra_samples * row_bytes
+    assert extra_bytes > 150_000
+    print("MEM", short, long, extra_bytes)
+    assert long - short < 0.2 * extra_bytes, (short, long, extra_bytes)
+    # The same check catches a run that keeps its samples:
+    kept_short = peak(0.16, lambda t: simulate(structure, (0.0, t), **options))
+    kept_long = peak(0.32, lambda t: simulate(structure, (0.0, t), **options))
+    print("KEPT", kept_short, kept_long)
+    assert kept_long - kept_short > 0.5 * extra_bytes
+
+
+# ----------------------------------------------------------------------------- arguments
+def test_invalid_arguments(tmp_path):
+    path = tmp_path / "run.h5"
+    with pytest.raises(ValueError, match="t_span"):
+        simulate_to_file(SHELL, (1.0, 1.0), path)
+    with pytest.raises(ValueError, match="segment"):
+        simulate_to_file(SHELL, (0.0, 1.0), path, segment=-1.0)
+    with pytest.raises(ValueError, match="sample_dt"):
+        simulate_to_file(SHELL, (0.0, 1.0), path, sample_dt=0.0)
+    with pytest.raises(TypeError, match="unknown option"):
+        simulate_to_file(SHELL, (0.0, 1.0), path, rtoll=1e-3)
+    with pytest.raises(ValueError, match="directory"):
+        simulate_to_file(SHELL, (0.0, 1.0), tmp_path / "missing" / "run.h5")
+    assert list(tmp_path.iterdir()) == []
+
