@@ -126,3 +126,31 @@ def test_gramians_need_damping_and_solve_the_lyapunov_equation(shell, equilibriu
     assert np.sort(g)[2] > 1e-6 * g.max()
     obs = observability(damped, dmodes, "position")
     assert obs.gramian_eigenvalues.min() > 0
+
+
+def test_gramian_equals_the_time_integral(shell, equilibrium):
+    """The Lyapunov-solver Gramian of the non-rigid part against the integral
+    W = int_0^inf e^{At} B B^T e^{A^T t} dt of the *full* damped linearization (60 states, rigid
+    modes included: tendons never excite them), computed independently by Van Loan's matrix
+    exponential over dt = 5 ms (small enough for expm to be accurate to ~1e-12) and doubling
+    (W <- W + Phi W Phi^T, Phi <- Phi^2) to 0.005 x 2^18 s, then expressed in the non-rigid coordinates eta = Z^T M x."""
+    import scipy.linalg
+
+    from tensegrity.analysis.coordinates import mass_complement
+
+    lin = linearize(critical_damping(shell), equilibrium)
+    result = controllability(lin, modal_analysis(lin), "t1_*")
+    B = lin.B[:, lin.input_indices(result.signals)]
+    n, dt = lin.A.shape[0], 0.005
+    block = scipy.linalg.expm(np.block([[-lin.A, B @ B.T], [np.zeros((n, n)), lin.A.T]]) * dt)
+    phi = block[n:, n:].T
+    W = phi @ block[:n, n:]
+    for _ in range(18):
+        W, phi = W + phi @ W @ phi.T, phi @ phi
+    Z = mass_complement(lin.rigid_basis, lin.mass)
+    # converged: every non-rigid motion has died out (rigid positions never do)
+    assert np.max(np.abs(phi @ np.kron(np.eye(2), Z))) < 1e-9
+    P = np.kron(np.eye(2), Z.T * lin.mass)  # [x, x'] -> [eta, eta']
+    expected = np.linalg.eigvalsh(0.5 * (P @ W @ P.T + (P @ W @ P.T).T))
+    got = np.sort(result.gramian_eigenvalues)
+    np.testing.assert_allclose(got, expected, rtol=0, atol=1e-9 * expected.max())

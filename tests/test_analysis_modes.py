@@ -53,6 +53,21 @@ def test_linearization_with_control_about_a_controlled_equilibrium(shell, equili
     assert max(errors.values()) < 1e-7, errors
 
 
+def test_linearization_under_external_forces_includes_the_disturbance_matrix(shell, equilibrium):
+    """About an equilibrium loaded by self-balanced nodal forces (rod 0 pulled apart by 2 N per
+    metre of its axis at each end), A, B and the nodal-force matrix D against central
+    differences of Theorem 18.1 with the load perturbed."""
+    w = np.zeros((shell.n_nodes, 3))
+    a, b = shell.rod_nodes[0]
+    axis = equilibrium.node_position[b] - equilibrium.node_position[a]
+    w[a], w[b] = -2.0 * axis, 2.0 * axis
+    eq = find_equilibrium(shell, equilibrium.node_position, external_force=w)
+    assert eq.converged
+    errors = finite_difference_check(linearize(critical_damping(shell), eq))
+    assert set(errors) == {"A", "B", "D", "C", "F"}
+    assert max(errors.values()) < 1e-7, errors
+
+
 def test_six_rigid_body_modes_and_the_full_spectrum(modes):
     """The closed-form rigid-body motions have zero stiffness; the generalized eigenvalues of
     (K, M) computed without separating them are the same 6 zeros plus the elastic spectrum."""

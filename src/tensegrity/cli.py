@@ -1,4 +1,5 @@
-"""Command-line interface: ``tensegrity simulate | info | export | matrices``.
+"""Command-line interface: ``tensegrity simulate | info | export | matrices | equilibrium | modes
+| controllability | control``.
 
 A thin layer over the library.  Errors are one line on stderr with exit code 2 (bad input) or
 1 (the simulation failed); nothing is written unless the whole run succeeded, and every file is
@@ -282,6 +283,108 @@ def _cmd_matrices(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_analysis(args: argparse.Namespace) -> int:
+    """``equilibrium | modes | controllability | control``: :mod:`tensegrity.analysis.commands`."""
+    import inspect
+
+    from tensegrity.analysis import commands
+
+    run = getattr(commands, f"run_{args.command}")
+    structure = _structure(args)
+    options = {name: getattr(args, name) for name in inspect.signature(run).parameters
+               if name not in ("structure", "out_dir") and hasattr(args, name)}
+    outputs: list = []
+
+    def write(staging: Path) -> list[Path]:
+        try:
+            outputs.append(run(structure, staging, **options))
+        except RuntimeError as exc:  # no equilibrium, a failed simulation: nothing written
+            raise CommandError(f"{exc} (nothing written)", EXIT_FAILED) from None
+        except KeyError as exc:  # a tendon or output pattern that matches nothing
+            raise CommandError(str(exc.args[0])) from None
+        return outputs[0].files
+
+    written = _write_all(args.out, write)
+    print(outputs[0].text)
+    print("\nwrote " + ", ".join(str(f) for f in written))
+    if outputs[0].problem:
+        raise CommandError(f"{outputs[0].problem} (results written)", EXIT_FAILED)
+    return 0
+
+
+def _add_analysis_parsers(sub) -> None:
+    """The analysis verbs (issue 4); option names are the keywords of ``commands.run_<verb>``."""
+    verbs = {
+        "equilibrium": "static equilibrium by least squares and by damped simulation: node "
+                       "positions, tensions, slack tendons, residuals",
+        "modes": "natural frequencies [Hz], mode shapes, rigid-body modes, mechanisms and the "
+                 "stability verdict at the equilibrium",
+        "controllability": "controllability (observability) ranks, PBH test per mode and "
+                           "Gramians per set of actuated tendons (measured outputs)",
+        "control": "shape control: shorten to --height of the equilibrium height, twist back; "
+                   "open loop (equilibria) and closed loop (LQR on the nonlinear model)",
+    }
+    parsers = {}
+    for verb, text in verbs.items():
+        parsers[verb] = p = sub.add_parser(verb, help=text, description=text[0].upper() + text[1:]
+                                           + f"; writes {verb}.json and figures to --out.")
+        _add_structure_options(p)
+        p.add_argument("--out", type=Path, default=Path(verb),
+                       help=f"output folder (default ./{verb})")
+        p.set_defaults(run=_cmd_analysis)
+    p = parsers["equilibrium"]
+    p.add_argument("--method", choices=("both", "least_squares", "simulation"), default="both",
+                   help="least squares (eq. 18.61, analytic Jacobian), damped simulation to rest, "
+                        "or both and their agreement (default both)")
+    p.add_argument("--t-end", type=_positive, default=60.0, help="longest damped simulation [s]")
+    p.add_argument("--velocity-tol", type=_positive, default=1e-6,
+                   help="at rest when node speeds are below this [m/s] (default 1e-6)")
+    p.add_argument("--acceleration-tol", type=_positive, default=1e-6,
+                   help="... and node accelerations below this [m/s^2] (default 1e-6)")
+    p = parsers["modes"]
+    p.add_argument("--shapes", type=int, default=6, help="mode shapes to draw (default 6)")
+    p.add_argument("--check-fft", action="store_true",
+                   help="measure the best-separated frequency by FFT of an undamped simulation")
+    p.add_argument("--check-simulation", action="store_true",
+                   help="perturb the equilibrium and simulate with and without damping")
+    p = parsers["controllability"]
+    p.add_argument("--inputs", nargs="+", metavar="PATTERN",
+                   help="sets of actuated tendons, each 'all' or comma-separated name patterns "
+                        "(default: all, each family, the first tendon)")
+    p.add_argument("--outputs", nargs="+", metavar="PATTERN",
+                   help="sets of outputs: position, length, tension, all or name patterns like "
+                        "'p0_*' (default: position, length, tension, p0_*)")
+    p.add_argument("--damping", choices=("critical", "as-is"), default="critical",
+                   help="damping of the linearization used for the Gramians (default critical)")
+    p = parsers["control"]
+    p.add_argument("--height", type=_positive, default=0.8,
+                   help="target height as a fraction of the equilibrium height (default 0.8)")
+    p.add_argument("--no-twist-back", dest="twist_back", action="store_false",
+                   help="only shorten (twist free), do not restore the twist")
+    p.add_argument("--actuators", default="t1_*",
+                   help="tendons that shorten the structure (default 't1_*'); every tendon "
+                        "takes part in the twist-back")
+    p.add_argument("--steps", type=int, nargs=2, default=(8, 4), metavar=("SHORTEN", "TWIST"),
+                   help="quasi-static steps per phase (default 8 4)")
+    p.add_argument("--bottom", type=int, nargs="+", metavar="NODE",
+                   help="bottom ring nodes (default: the lowest nodes)")
+    p.add_argument("--top", type=int, nargs="+", metavar="NODE",
+                   help="top ring nodes (default: the highest nodes)")
+    p.add_argument("--no-closed-loop", dest="closed_loop", action="store_false",
+                   help="open loop only (no LQR simulation)")
+    p.add_argument("--move-time", type=_positive, default=2.0, help="closed loop: time per phase [s]")
+    p.add_argument("--settle-time", type=_positive, default=4.0,
+                   help="closed loop: time at the final target [s]")
+    p.add_argument("--min-rest-length", type=_non_negative, default=0.05,
+                   help="bound: rest lengths >= this [m] (default 0.05)")
+    p.add_argument("--max-change", type=_positive, default=0.25,
+                   help="bound: |rest-length change| <= this [m] (default 0.25)")
+    p.add_argument("--min-tension", type=_positive, default=1.0,
+                   help="bound: every tendon taut with at least this tension [N] (default 1)")
+    p.add_argument("--tolerance", type=_positive, default=1e-6,
+                   help="targets reached within this [m, rad] (default 1e-6)")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="tensegrity", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
@@ -336,6 +439,7 @@ def build_parser() -> argparse.ArgumentParser:
     matrices.add_argument("--out", type=Path, default=Path("matrices"),
                           help="output folder (default ./matrices)")
     matrices.set_defaults(run=_cmd_matrices)
+    _add_analysis_parsers(sub)
     return parser
 
 

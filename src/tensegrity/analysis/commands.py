@@ -1,9 +1,11 @@
-"""One function per CLI verb: compute, write JSON and figures into ``out_dir``, return the table.
+"""One function per CLI verb: compute, write JSON and figures into ``out_dir``, return the tables.
 
 ``run_equilibrium``, ``run_modes``, ``run_controllability`` and ``run_control`` each take a
 :class:`~tensegrity.structure.Structure` and an output folder (created if missing), write every
-file atomically (:func:`tensegrity.io.atomic_path`) and return the readable text to print.
-Files:
+file atomically (:func:`tensegrity.io.atomic_path`) and return an :class:`Output`: the readable
+tables, the files written and, if the analysis did not succeed (no equilibrium, targets missed),
+a one-line problem.  The ``tensegrity`` command runs them in a staging folder and moves all
+files into place together (:mod:`tensegrity.cli`).  Files:
 
 ==========================  ================================================================
 verb                        files
@@ -27,7 +29,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -40,6 +42,14 @@ from tensegrity.analysis.equilibrium import (
     find_equilibrium,
 )
 from tensegrity.structure import Structure
+
+
+class Output(NamedTuple):
+    """What a verb produced."""
+
+    text: str  #: tables and verdicts to print
+    files: list[Path]  #: the files written
+    problem: str | None  #: why the analysis did not succeed (None if it did)
 
 
 def _out(out_dir: str | Path) -> Path:
@@ -69,7 +79,7 @@ def run_equilibrium(
     t_end: float = 60.0,
     velocity_tol: float = 1e-6,
     acceleration_tol: float = 1e-6,
-) -> str:
+) -> Output:
     """``tensegrity equilibrium``: the equilibrium by least squares, by damped simulation, or
     both (``method``: ``"least_squares"``, ``"simulation"``, ``"both"``) and their agreement."""
     from tensegrity.plotting import figure_structure
@@ -113,8 +123,8 @@ def run_equilibrium(
     fig = figure_structure(structure, main.node_position, main.tension,
                            title=f"Equilibrium ({main.method.replace('_', ' ')})")
     written.append(report.save_figure(fig, out / "equilibrium.png"))
-    text.append("wrote " + ", ".join(str(p) for p in written))
-    return "\n\n".join(text)
+    failed = [f"{name}: {r.message}" for name, r in results.items() if not r.converged]
+    return Output("\n\n".join(text), written, "; ".join(failed) or None)
 
 
 # ------------------------------------------------------------------------------ modes
@@ -125,7 +135,7 @@ def run_modes(
     shapes: int = 6,
     check_fft: bool = False,
     check_simulation: bool = False,
-) -> str:
+) -> Output:
     """``tensegrity modes``: natural frequencies [Hz], mode shapes, rigid-body modes, mechanisms
     and the stability verdict at the equilibrium (least squares); optionally the FFT check of
     the best-separated mode and the perturbed nonlinear simulations."""
@@ -159,8 +169,7 @@ def run_modes(
     if chosen:
         written.append(report.save_figure(report.figure_mode_shapes(modes, chosen),
                                           out / "mode_shapes.png"))
-    text.append("wrote " + ", ".join(str(p) for p in written))
-    return "\n\n".join(text)
+    return Output("\n\n".join(text), written, None)
 
 
 # ------------------------------------------------------------------------------ controllability
@@ -171,7 +180,7 @@ def run_controllability(
     inputs: Sequence[str] | None = None,
     outputs: Sequence[str] | None = None,
     damping: str = "critical",
-) -> str:
+) -> Output:
     """``tensegrity controllability``: ranks, PBH per mode and Gramians for each input set
     (tendon-name patterns; default all tendons, each family, one tendon) and observability for
     each output set (default node positions, tendon lengths, tensions, node 0).  Gramians use
@@ -224,8 +233,7 @@ def run_controllability(
     written = [report.write_json(out / "controllability.json", data),
                report.save_figure(report.figure_reach(ctrl, modes), out / "controllability.png"),
                report.save_figure(report.figure_reach(obs, modes), out / "observability.png")]
-    text.append("wrote " + ", ".join(str(p) for p in written))
-    return "\n\n".join(text)
+    return Output("\n\n".join(text), written, None)
 
 
 # ------------------------------------------------------------------------------ control
@@ -256,7 +264,7 @@ def run_control(
     max_change: float = 0.25,
     min_tension: float = 1.0,
     tolerance: float = 1e-6,
-) -> str:
+) -> Output:
     """``tensegrity control``: shorten the structure to ``height`` times its equilibrium height
     with the ``actuators`` (tendon pattern; twist free), then (``twist_back``) restore the twist
     with every tendon, by a quasi-static sequence of equilibria, then (``closed_loop``) play it
@@ -265,12 +273,22 @@ def run_control(
     from tensegrity.analysis.shape_control import Bounds, closed_loop as run_closed_loop
     from tensegrity.analysis.shape_control import describe_plan, height_twist, quasi_static
 
+    if not height > 0:
+        raise ValueError(f"height: must be > 0 (a fraction of the equilibrium height), got {height}")
+    if len(steps) != 2 or min(steps) < 1:
+        raise ValueError(f"steps: expected two step counts >= 1, got {list(steps)}")
+    for name, nodes in (("bottom", bottom), ("top", top)):
+        bad = [i for i in nodes or () if not 0 <= i < structure.n_nodes]
+        if bad:
+            raise ValueError(f"{name}: node {bad[0]} out of range 0..{structure.n_nodes - 1}")
     out = _out(out_dir)
     eq = _equilibrium(structure)
     if bottom is None or top is None:
         b, t = rings(structure, eq.node_position)
         bottom = b if bottom is None else bottom
         top = t if top is None else top
+    if set(bottom) & set(top):
+        raise ValueError(f"bottom, top: the rings share nodes {sorted(set(bottom) & set(top))}")
     output = height_twist(eq.node_position, bottom, top)
     y0 = output.value(eq.node_position)
     phases: list[Any] = [{"targets": (height * y0[0], None), "actuators": actuators}]
@@ -308,5 +326,6 @@ def run_control(
                report.save_figure(report.figure_shape_controls(plan, closed),
                                   out / "control_inputs.png"),
                report.save_figure(report.figure_shape_structures(plan), out / "control_shapes.png")]
-    text.append("wrote " + ", ".join(str(p) for p in written))
-    return "\n\n".join(text)
+    missed = [f"{name}: {r.message}" for name, r in (("open loop", plan), ("closed loop", closed))
+              if r is not None and not r.reached]
+    return Output("\n\n".join(text), written, "; ".join(missed) or None)

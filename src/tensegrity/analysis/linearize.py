@@ -235,15 +235,18 @@ def linearize(
 
 
 def finite_difference_check(lin: Linearization, h: float = 1e-6) -> dict[str, float]:
-    """Largest relative differences between the analytic ``A``, ``B``, ``C`` blocks and central
-    differences of the nonlinear model (Theorem 18.1 accelerations and the outputs), at the
-    equilibrium: a check that the linearization is the derivative of the simulated dynamics."""
+    """Largest relative differences between the analytic ``A``, ``B``, ``D``, ``C``, ``F`` blocks
+    and central differences of the nonlinear model (Theorem 18.1 accelerations and the outputs),
+    at the equilibrium: a check that the linearization is the derivative of the simulated
+    dynamics.  ``h`` is the step in every state, input [m] and nodal force [N]."""
     s, eq = lin.structure, lin.equilibrium
     n = lin.n_dof
+    w0 = np.zeros((s.n_nodes, 3)) if eq.external_force is None else eq.external_force
 
-    def accel(z: np.ndarray, u: np.ndarray) -> np.ndarray:
+    def accel(z: np.ndarray, u: np.ndarray, dw: np.ndarray | None = None) -> np.ndarray:
         q, qdot = lin.configuration(z)
-        qddot = dynamics.accelerations(s, q, qdot, control=u, external_force=eq.external_force,
+        w = w0 if dw is None else w0 + dw.reshape(w0.shape)
+        qddot = dynamics.accelerations(s, q, qdot, control=u, external_force=w,
                                        gravity=eq.gravity)
         # x'' = (dc'', E^T q2''/L) at the base (the chart's second derivative vanishes at z = 0
         # for velocity-free perturbations, and is second order in the velocity otherwise)
@@ -262,6 +265,8 @@ def finite_difference_check(lin: Linearization, h: float = 1e-6) -> dict[str, fl
                             for e in np.eye(2 * n)])
     B_fd = np.column_stack([(accel(z0, eq.control + h * e) - accel(z0, eq.control - h * e)) / (2 * h)
                             for e in np.eye(s.n_tendons)])
+    D_fd = np.column_stack([(accel(z0, eq.control, h * e) - accel(z0, eq.control, -h * e)) / (2 * h)
+                            for e in np.eye(3 * s.n_nodes)])
     C_fd = np.column_stack([(outputs(z0 + h * e, eq.control) - outputs(z0 - h * e, eq.control)) / (2 * h)
                             for e in np.eye(2 * n)])
     F_fd = np.column_stack([(outputs(z0, eq.control + h * e) - outputs(z0, eq.control - h * e)) / (2 * h)
@@ -270,8 +275,8 @@ def finite_difference_check(lin: Linearization, h: float = 1e-6) -> dict[str, fl
     def rel(a: np.ndarray, b: np.ndarray) -> float:
         return float(np.max(np.abs(a - b)) / max(np.max(np.abs(b)), 1e-300))
 
-    return {"A": rel(lin.A[n:], A_fd), "B": rel(lin.B[n:], B_fd), "C": rel(lin.C, C_fd),
-            "F": rel(lin.F, F_fd)}
+    return {"A": rel(lin.A[n:], A_fd), "B": rel(lin.B[n:], B_fd), "D": rel(lin.D[n:], D_fd),
+            "C": rel(lin.C, C_fd), "F": rel(lin.F, F_fd)}
 
 
 def describe(lin: Linearization) -> dict[str, Any]:

@@ -13,11 +13,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from tensegrity.io import atomic_path
-from tensegrity.plotting import draw_structure
+from tensegrity.plotting import _family, _natural_key, _new_figure, draw_structure
 
 if TYPE_CHECKING:
     from tensegrity.analysis.controllability import ReachResult
@@ -26,12 +25,6 @@ if TYPE_CHECKING:
 
 KIND_COLORS = {"rigid": "#7f7f7f", "mechanism": "#d62728", "elastic": "#2f6fb0",
                "unstable": "#ff7f0e"}
-
-
-def _new_figure(figsize: tuple[float, float]) -> Figure:
-    figure = Figure(figsize=figsize, layout="constrained")
-    FigureCanvasAgg(figure)
-    return figure
 
 
 # ------------------------------------------------------------------------------ text and files
@@ -109,8 +102,8 @@ def save_figure(figure: Figure, path: str | Path, *, dpi: int = 130) -> Path:
 # ------------------------------------------------------------------------------ modes
 def figure_frequencies(modes: ModalAnalysis, *, title: str = "Natural frequencies") -> Figure:
     """Frequencies [Hz] against mode number, coloured by kind (rigid, mechanism, elastic)."""
-    fig = _new_figure((7.5, 4.0))
-    ax = fig.add_subplot()
+    fig = _new_figure((11.0, 4.6))
+    ax, ax_table = fig.subplots(1, 2, width_ratios=[2.2, 1])
     index = np.arange(len(modes.kind))
     for kind, color in KIND_COLORS.items():
         sel = [i for i, k in enumerate(modes.kind) if k == kind]
@@ -123,7 +116,28 @@ def figure_frequencies(modes: ModalAnalysis, *, title: str = "Natural frequencie
     ax.set_title(title, fontsize="medium")
     ax.legend(fontsize="small", loc="upper left")
     ax.grid(alpha=0.3)
+    _frequency_table(ax_table, modes)
     return fig
+
+
+def _frequency_table(ax, modes: ModalAnalysis, max_rows: int = 18) -> None:
+    """Distinct frequencies (to 1e-6 relative) with their modes, multiplicity and kind."""
+    rows: list[list[str]] = []
+    for i, (f, kind) in enumerate(zip(modes.frequency_hz, modes.kind)):
+        if rows and rows[-1][3] == kind and abs(f - rows[-1][4]) <= 1e-6 * max(f, 1e-300):
+            rows[-1][0] = rows[-1][0].split("-")[0] + f"-{i}"
+            rows[-1][2] = str(int(rows[-1][2]) + 1)
+        else:
+            rows.append([str(i), f"{f:.4g}", "1", kind, f])
+    shown = [r[:4] for r in rows[:max_rows]]
+    if len(rows) > max_rows:
+        shown.append(["...", f"{len(rows) - max_rows} more", "", ""])
+    ax.axis("off")
+    table = ax.table(cellText=shown, colLabels=["modes", "f [Hz]", "mult.", "kind"],
+                     loc="upper center", cellLoc="center")
+    table.auto_set_font_size(False)
+    table.set_fontsize(8)
+    table.scale(1.0, 1.1)
 
 
 def figure_mode_shapes(modes: ModalAnalysis, indices: Sequence[int], *, amplitude: float | None = None,
@@ -209,7 +223,17 @@ def figure_shape_controls(plan: QuasiStatic, closed: ClosedLoop | None = None) -
     else:
         x = np.arange(len(plan.equilibria))
         u, tmin, xlabel = plan.control, plan.min_tension, "step"
-    ax_u.plot(x, u, lw=0.8)
+    names = plan.structure.tendon_name
+    families = sorted(set(map(_family, names)), key=_natural_key)
+    colors = {f: f"C{k % 10}" for k, f in enumerate(families)}
+    labelled: set[str] = set()
+    for j, family in enumerate(_family(n) for n in names):
+        label = family if family not in labelled and len(families) <= 12 else None
+        labelled.add(family)
+        ax_u.plot(x, u[:, j], lw=0.9, color=colors[family], label=label)
+    if len(families) <= 12:
+        ax_u.legend(fontsize="small", ncols=min(len(families), 6), title="tendon family",
+                    title_fontsize="small")
     ax_u.set_ylabel("rest-length change u [m]")
     ax_u.grid(alpha=0.3)
     ax_t.plot(x, tmin, color="#2f6fb0", label="smallest tendon tension")
@@ -229,7 +253,10 @@ def figure_shape_structures(plan: QuasiStatic) -> Figure:
     first, last = plan.equilibria[0], plan.equilibria[-1]
     for k, (eq, title) in enumerate([(first, "initial equilibrium"), (last, "final equilibrium")]):
         ax = fig.add_subplot(1, 2, k + 1, projection="3d")
-        draw_structure(ax, plan.structure, eq.node_position, eq.tension, legend=k == 0)
+        artists = draw_structure(ax, plan.structure, eq.node_position, eq.tension, legend=k == 0)
+        if artists["mappable"] is not None:
+            fig.colorbar(artists["mappable"], ax=ax, shrink=0.6, pad=0.1,
+                         label="tendon tension [N]")
         y = plan.output.value(eq.node_position)
         ax.set_title(title + ": " + ", ".join(f"{n} {v:.4g} {u}" for n, v, u in
                                              zip(plan.output.names, y, plan.output.units)),
