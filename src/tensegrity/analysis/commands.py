@@ -33,13 +33,13 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from tensegrity import dynamics
 from tensegrity.analysis import report
 from tensegrity.analysis.equilibrium import (
     EquilibriumResult,
     compare_equilibria,
     equilibrium_by_simulation,
     find_equilibrium,
+    with_damping,
 )
 from tensegrity.structure import Structure
 
@@ -189,14 +189,9 @@ def run_controllability(
     from tensegrity.analysis.linearize import linearize
     from tensegrity.analysis.modes import modal_analysis
 
+    damped = with_damping(structure, damping)
     out = _out(out_dir)
     eq = _equilibrium(structure)
-    if damping == "critical":
-        damped = dynamics.critical_damping(structure)
-    elif damping == "as-is":
-        damped = structure
-    else:
-        raise ValueError(f"damping: expected 'critical' or 'as-is', got {damping!r}")
     lin = linearize(damped, eq)
     modes = modal_analysis(lin)
     input_sets = None if inputs is None else {p: p for p in inputs}

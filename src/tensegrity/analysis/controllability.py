@@ -35,9 +35,9 @@ from typing import Any
 
 import numpy as np
 
-from tensegrity.analysis.coordinates import mass_complement
 from tensegrity.analysis.linearize import OUTPUT_GROUPS, Linearization
 from tensegrity.analysis.modes import RIGID, ModalAnalysis
+from tensegrity.structure import Structure
 
 #: :func:`krylov_rank` drops Krylov directions with singular value below ``RANK_RTOL * ||A||``.
 RANK_RTOL = 1e-6
@@ -123,7 +123,13 @@ class ReachResult:
 # ---------------------------------------------------------------------------- sets
 def resolve_inputs(lin: Linearization, pattern: str | Sequence[str]) -> tuple[str, ...]:
     """Tendon names matching ``pattern`` (``"all"``, comma-separated fnmatch patterns, or a list)."""
-    names = lin.structure.tendon_name
+    return match_tendons(lin.structure, pattern)
+
+
+def match_tendons(structure: Structure, pattern: str | Sequence[str]) -> tuple[str, ...]:
+    """Names of ``structure``'s tendons matching ``pattern`` (see :func:`resolve_inputs`);
+    ``KeyError`` if none does."""
+    names = structure.tendon_name
     parts = _parts(pattern)
     if parts == ["all"]:
         return tuple(names)
@@ -236,15 +242,6 @@ def _mode_tests(modes: ModalAnalysis, matrix_of, scale: float, rtol: float) -> t
     return tuple(tests)
 
 
-def _elastic_part(lin: Linearization) -> tuple[np.ndarray, np.ndarray]:
-    """``(A_e, Z)``: the non-rigid part in coordinates ``[eta, eta']`` with ``x = Z eta``."""
-    Z = mass_complement(lin.rigid_basis, lin.mass)
-    n = Z.shape[1]
-    A = np.block([[np.zeros((n, n)), np.eye(n)],
-                  [-(Z.T @ lin.stiffness @ Z), -(Z.T @ lin.damping @ Z)]])
-    return A, Z
-
-
 def _gramian(A_e: np.ndarray, BB: np.ndarray) -> tuple[np.ndarray | None, str]:
     import control
 
@@ -257,11 +254,15 @@ def _gramian(A_e: np.ndarray, BB: np.ndarray) -> tuple[np.ndarray | None, str]:
     return np.linalg.eigvalsh(W), "Gramian of the non-rigid part (control.lyap)"
 
 
-def _rank(tests: Sequence[ModeTest]) -> tuple[int, int]:
-    """``(rank, elastic rank)``: 2 states per mode reached (seen)."""
-    total = sum(2 * t.rank for t in tests)
+def _result(kind: str, lin: Linearization, name: str, signals: tuple[str, ...],
+            tests: tuple[ModeTest, ...], pbh_rtol: float, A_e: np.ndarray,
+            QQ: np.ndarray) -> ReachResult:
+    """The :class:`ReachResult`: rank ``2 x`` modes reached (seen), Gramian of ``(A_e, QQ)``."""
+    rank = sum(2 * t.rank for t in tests)
     rigid = sum(2 * t.rank for t in tests if t.kind == RIGID)
-    return total, total - rigid
+    gram, note = _gramian(A_e, QQ)
+    return ReachResult(kind, name, signals, lin.A.shape[0], rank, pbh_rtol, A_e.shape[0],
+                       rank - rigid, tests, pbh_rtol, gram, note)
 
 
 def controllability(
@@ -278,12 +279,10 @@ def controllability(
     Bf = lin.force_input[:, cols]
     scale = float(np.linalg.norm(Bf / np.sqrt(lin.mass)[:, None], 2))
     tests = _mode_tests(modes, lambda V, w: V.T @ Bf, scale, pbh_rtol)
-    rank, elastic_rank = _rank(tests)
-    A_e, Z = _elastic_part(lin)
+    A_e, Z = lin.elastic_part()
     B_e = np.vstack([np.zeros((Z.shape[1], cols.size)), Z.T @ Bf])
-    gram, note = _gramian(A_e, B_e @ B_e.T)
-    return ReachResult("controllability", name or _name(inputs), signals, lin.A.shape[0], rank,
-                       pbh_rtol, A_e.shape[0], elastic_rank, tests, pbh_rtol, gram, note)
+    return _result("controllability", lin, name or _name(inputs), signals, tests, pbh_rtol,
+                   A_e, B_e @ B_e.T)
 
 
 def observability(
@@ -304,12 +303,10 @@ def observability(
     scale = float(np.linalg.norm(np.hstack([Cx / root[None, :] / w_ref, Cv / root[None, :]]), 2))
     tests = _mode_tests(modes, lambda V, w: (Cx @ V) / w_ref + 1j * (w / w_ref) * (Cv @ V),
                         scale, pbh_rtol)
-    rank, elastic_rank = _rank(tests)
-    A_e, Z = _elastic_part(lin)
+    A_e, Z = lin.elastic_part()
     C_e = np.hstack([Cx @ Z, Cv @ Z])
-    gram, note = _gramian(A_e.T, C_e.T @ C_e)
-    return ReachResult("observability", name or _name(outputs), signals, lin.A.shape[0], rank,
-                       pbh_rtol, A_e.shape[0], elastic_rank, tests, pbh_rtol, gram, note)
+    return _result("observability", lin, name or _name(outputs), signals, tests, pbh_rtol,
+                   A_e.T, C_e.T @ C_e)
 
 
 def _name(pattern: str | Sequence[str]) -> str:

@@ -20,6 +20,7 @@ The kinetic energy in these coordinates at ``phi = 0`` is ``x'^T M x' / 2`` with
 from __future__ import annotations
 
 import dataclasses
+from typing import Any
 
 import numpy as np
 
@@ -158,6 +159,22 @@ class Chart:
         return np.concatenate([fa + fb, torque], axis=1).reshape(-1)
 
 
+def configuration(structure: Structure, value: Any = None, *, name: str = "q") -> np.ndarray:
+    """``q`` (6R,) of a configuration given as node positions (N, 3), as ``q`` (6R,), or None
+    (the structure's node positions); rods projected onto their lengths.  ``ValueError`` naming
+    ``name`` for any other shape."""
+    if value is None:
+        return dynamics.coordinates_from_nodes(structure, structure.node_position)
+    value = np.asarray(value, dtype=float)
+    if value.shape == (structure.n_nodes, 3):
+        value = dynamics.coordinates_from_nodes(structure, value)
+    if value.shape != (structure.n_coordinates,):
+        raise ValueError(f"{name}: expected node positions ({structure.n_nodes}, 3) or q "
+                         f"({structure.n_coordinates},), got shape {value.shape}")
+    q, _ = dynamics.project_to_constraints(structure, value, np.zeros_like(value))
+    return q
+
+
 def mass_matrix(structure: Structure) -> np.ndarray:
     """Diagonal of ``M`` (5R,): ``m`` for the centre, ``m L^2 / 12`` for the two angles."""
     m, L = structure.rod_mass, structure.rod_length
@@ -212,22 +229,22 @@ def align(p: np.ndarray, reference: np.ndarray, weights: np.ndarray) -> np.ndarr
     ``sum w (reference - c) x (aligned - reference) = 0``): the gauge used throughout.
     """
     p = np.asarray(p, dtype=float)
-    w = np.asarray(weights, dtype=float) / np.sum(weights)
-    ref_c = w @ reference
     if p.ndim == 2:
-        return _align_one(p, reference - ref_c, w) + ref_c
+        return kabsch(p, reference, weights)[0]
     flat = p.reshape(-1, *p.shape[-2:])
-    out = np.stack([_align_one(one, reference - ref_c, w) for one in flat]) + ref_c
-    return out.reshape(p.shape)
+    return np.stack([kabsch(one, reference, weights)[0] for one in flat]).reshape(p.shape)
 
 
-def _align_one(p: np.ndarray, ref0: np.ndarray, w: np.ndarray) -> np.ndarray:
-    p0 = p - w @ p
-    h = (w[:, None] * p0).T @ ref0
+def kabsch(p: np.ndarray, reference: np.ndarray, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Weighted Kabsch fit of ``p`` (N, 3) onto ``reference``: ``(aligned, R)`` with
+    ``aligned = (p - c) R + c_ref`` (``c``, ``c_ref`` the weighted centroids, ``R`` a rotation)."""
+    w = np.asarray(weights, dtype=float) / np.sum(weights)
+    c, c_ref = w @ p, w @ reference
+    h = (w[:, None] * (p - c)).T @ (reference - c_ref)
     u, _, vt = np.linalg.svd(h)
     d = np.sign(np.linalg.det(u @ vt)) or 1.0
     rotation = u @ np.diag([1.0, 1.0, d]) @ vt
-    return p0 @ rotation
+    return (p - c) @ rotation + c_ref, rotation
 
 
 def deformation(p: np.ndarray, reference: np.ndarray, weights: np.ndarray) -> np.ndarray:

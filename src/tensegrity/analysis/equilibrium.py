@@ -28,7 +28,7 @@ import numpy as np
 import scipy.optimize
 
 from tensegrity import dynamics
-from tensegrity.analysis.coordinates import Chart, align
+from tensegrity.analysis.coordinates import Chart, align, configuration
 from tensegrity.analysis.statics import (
     force_jacobian,
     rod_compression,
@@ -106,19 +106,6 @@ class EquilibriumResult:
 
 def _force_scale(structure: Structure) -> float:
     return float(np.mean(structure.tendon_stiffness) * np.mean(structure.rod_length))
-
-
-def _start_q(structure: Structure, start: Any) -> np.ndarray:
-    if start is None:
-        return dynamics.coordinates_from_nodes(structure, structure.node_position)
-    start = np.asarray(start, dtype=float)
-    if start.shape == (structure.n_nodes, 3):
-        start = dynamics.coordinates_from_nodes(structure, start)
-    if start.shape != (structure.n_coordinates,):
-        raise ValueError(f"start: expected node positions ({structure.n_nodes}, 3) or q "
-                         f"({structure.n_coordinates},), got shape {start.shape}")
-    q, _ = dynamics.project_to_constraints(structure, start, np.zeros_like(start))
-    return q
 
 
 def make_result(
@@ -246,7 +233,7 @@ def find_equilibrium(
         ``converged`` False (with a message) if the tolerance was not met; the residual is
         reported either way.
     """
-    q = _start_q(structure, start)
+    q = configuration(structure, start, name="start")
     u = np.zeros(structure.n_tendons) if control is None else np.asarray(control, dtype=float)
     rest = dynamics.rest_lengths(structure, u)
     tol = FORCE_RTOL * _force_scale(structure) if force_tol is None else float(force_tol)
@@ -408,14 +395,8 @@ def equilibrium_by_simulation(
     """
     from tensegrity.simulate import STATUS_STEADY, simulate
 
-    if damping == "critical":
-        damped = dynamics.critical_damping(structure)
-    elif damping == "as-is":
-        damped = structure
-    else:
-        raise ValueError(f"damping: expected 'critical' or 'as-is', got {damping!r}")
     result = simulate(
-        damped, (0.0, float(t_end)), initial=initial, control=control, steady_state=True,
+        with_damping(structure, damping), (0.0, float(t_end)), initial=initial, control=control, steady_state=True,
         velocity_tol=velocity_tol, acceleration_tol=acceleration_tol, sample_dt=sample_dt,
         **simulate_options,
     )
@@ -424,6 +405,16 @@ def equilibrium_by_simulation(
                f"{acceleration_tol:g} m/s^2)" if converged else f"not at rest: {result.message}")
     return make_result(structure, result.q[-1], control, converged=converged,
                        method="simulation", message=message, nfev=result.nfev)
+
+
+def with_damping(structure: Structure, damping: str) -> Structure:
+    """``"critical"``: :func:`tensegrity.dynamics.critical_damping` (the paper's artificial
+    critical damping); ``"as-is"``: the structure's own damping."""
+    if damping == "critical":
+        return dynamics.critical_damping(structure)
+    if damping == "as-is":
+        return structure
+    raise ValueError(f"damping: expected 'critical' or 'as-is', got {damping!r}")
 
 
 def compare_equilibria(a: EquilibriumResult, b: EquilibriumResult) -> dict[str, float]:

@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from tensegrity import dynamics
-from tensegrity.analysis.coordinates import Chart, mass_matrix, rigid_body_basis
+from tensegrity.analysis.coordinates import Chart, mass_complement, mass_matrix, rigid_body_basis
 from tensegrity.analysis.equilibrium import EquilibriumResult, make_result
 from tensegrity.analysis.statics import (
     equilibrium_matrix,
@@ -84,6 +84,16 @@ class Linearization:
     def n_dof(self) -> int:
         """``5 R``."""
         return self.mass.size
+
+    def elastic_part(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(A_e, Z)``: the state matrix (2k, 2k) of the non-rigid part in coordinates
+        ``[eta, eta']`` with ``x = Z eta``, ``Z`` (5R, k) the ``M``-orthonormal complement of the
+        rigid-body motions (``Z^T M Z = I``): ``A_e = [[0, I], [-Z^T K Z, -Z^T C Z]]``."""
+        Z = mass_complement(self.rigid_basis, self.mass)
+        n = Z.shape[1]
+        A = np.block([[np.zeros((n, n)), np.eye(n)],
+                      [-(Z.T @ self.stiffness @ Z), -(Z.T @ self.damping @ Z)]])
+        return A, Z
 
     def output_indices(self, outputs: str | Sequence[str] | None) -> np.ndarray:
         """Row indices of ``C`` for output group names (``"position"``, ``"length"``,
@@ -260,17 +270,16 @@ def finite_difference_check(lin: Linearization, h: float = 1e-6) -> dict[str, fl
         return np.concatenate([(p - eq.node_position).ravel(), forces.length - eq.tendon_length,
                                forces.tension])
 
-    z0 = np.zeros(2 * n)
-    A_fd = np.column_stack([(accel(z0 + h * e, eq.control) - accel(z0 - h * e, eq.control)) / (2 * h)
-                            for e in np.eye(2 * n)])
-    B_fd = np.column_stack([(accel(z0, eq.control + h * e) - accel(z0, eq.control - h * e)) / (2 * h)
-                            for e in np.eye(s.n_tendons)])
-    D_fd = np.column_stack([(accel(z0, eq.control, h * e) - accel(z0, eq.control, -h * e)) / (2 * h)
-                            for e in np.eye(3 * s.n_nodes)])
-    C_fd = np.column_stack([(outputs(z0 + h * e, eq.control) - outputs(z0 - h * e, eq.control)) / (2 * h)
-                            for e in np.eye(2 * n)])
-    F_fd = np.column_stack([(outputs(z0, eq.control + h * e) - outputs(z0, eq.control - h * e)) / (2 * h)
-                            for e in np.eye(s.n_tendons)])
+    def central(f, size: int) -> np.ndarray:
+        """Columns ``(f(h e_j) - f(-h e_j)) / 2h`` for the unit vectors of length ``size``."""
+        return np.column_stack([(f(h * e) - f(-h * e)) / (2 * h) for e in np.eye(size)])
+
+    z0, u0 = np.zeros(2 * n), eq.control
+    A_fd = central(lambda dz: accel(z0 + dz, u0), 2 * n)
+    B_fd = central(lambda du: accel(z0, u0 + du), s.n_tendons)
+    D_fd = central(lambda dw: accel(z0, u0, dw), 3 * s.n_nodes)
+    C_fd = central(lambda dz: outputs(z0 + dz, u0), 2 * n)
+    F_fd = central(lambda du: outputs(z0, u0 + du), s.n_tendons)
 
     def rel(a: np.ndarray, b: np.ndarray) -> float:
         return float(np.max(np.abs(a - b)) / max(np.max(np.abs(b)), 1e-300))

@@ -355,10 +355,5 @@ def stability_by_simulation(
 
 def _slowest_decay(lin: Linearization) -> float:
     """Smallest decay rate ``-Re(lambda)`` [1/s] among the non-rigid eigenvalues of ``A``."""
-    from tensegrity.analysis.coordinates import mass_complement as complement
-
-    Z = complement(lin.rigid_basis, lin.mass)
-    Ke, Ce = Z.T @ lin.stiffness @ Z, Z.T @ lin.damping @ Z
-    n = Z.shape[1]
-    A = np.block([[np.zeros((n, n)), np.eye(n)], [-Ke, -Ce]])
+    A, _ = lin.elastic_part()
     return float(np.min(-np.linalg.eigvals(A).real))

@@ -24,9 +24,14 @@ import numpy as np
 import scipy.optimize
 
 from tensegrity import dynamics
-from tensegrity.analysis.coordinates import Chart, rigid_body_basis
+from tensegrity.analysis.coordinates import Chart, configuration, rigid_body_basis
 from tensegrity.analysis.equilibrium import EquilibriumResult, find_equilibrium
-from tensegrity.analysis.statics import equilibrium_matrix, rod_compression, tendon_state
+from tensegrity.analysis.statics import (
+    equilibrium_matrix,
+    rod_compression,
+    tendon_state,
+    unit_tension_forces,
+)
 from tensegrity.structure import Structure
 
 #: Singular values of the (column-scaled) equilibrium matrix below ``SVD_RTOL`` times the largest
@@ -34,13 +39,15 @@ from tensegrity.structure import Structure
 SVD_RTOL = 1e-9
 
 
-def _q(structure: Structure, q: Any) -> np.ndarray:
-    if q is None:
-        return dynamics.coordinates_from_nodes(structure, structure.node_position)
-    q = np.asarray(q, dtype=float)
-    if q.shape == (structure.n_nodes, 3):
-        return dynamics.coordinates_from_nodes(structure, q)
-    return q
+def _equilibrium_matrix(structure: Structure, q: Any):
+    """``(q, chart, direction, A)`` at a configuration (node positions, ``q`` or None): tendon
+    unit vectors (S, 3) and the equilibrium matrix ``A`` (5R, S) of
+    :func:`~tensegrity.analysis.statics.equilibrium_matrix`."""
+    q = configuration(structure, q)
+    chart = Chart.at(structure, q)
+    p = dynamics.nodes_from_coordinates(structure, q)
+    direction = tendon_state(structure, p, structure.tendon_rest_length).direction
+    return q, chart, direction, equilibrium_matrix(chart, direction)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -76,11 +83,7 @@ class SelfStress:
 
 def self_stress(structure: Structure, q: Any = None, *, rtol: float = SVD_RTOL) -> SelfStress:
     """Self-stress states and infinitesimal mechanisms at ``q`` (default: the structure's nodes)."""
-    q = _q(structure, q)
-    chart = Chart.at(structure, q)
-    p = dynamics.nodes_from_coordinates(structure, q)
-    tendons = tendon_state(structure, p, structure.tendon_rest_length)
-    A = equilibrium_matrix(chart, tendons.direction)
+    q, chart, _, A = _equilibrium_matrix(structure, q)
     u, sv, vt = np.linalg.svd(A)
     rank = int(np.sum(sv > rtol * (sv[0] if sv.size else 0.0)))
     states = vt[rank:].T
@@ -129,11 +132,7 @@ def feasible_prestress(
     ``compressed_rods``, every rod in compression (``>= 0``).  Solved by ``linprog`` (HiGHS).
     The result is scaled so that the mean tension is ``mean_tension`` [N].
     """
-    q = _q(structure, q)
-    chart = Chart.at(structure, q)
-    p = dynamics.nodes_from_coordinates(structure, q)
-    tendons = tendon_state(structure, p, structure.tendon_rest_length)
-    A = equilibrium_matrix(chart, tendons.direction)
+    q, chart, direction, A = _equilibrium_matrix(structure, q)
     S = structure.n_tendons
     # variables [T (S), t]; minimize -t
     cost = np.zeros(S + 1)
@@ -143,7 +142,8 @@ def feasible_prestress(
     b_eq = np.concatenate([np.zeros(A.shape[0]), [float(S)]])
     A_ub = [np.hstack([-np.eye(S), np.ones((S, 1))])]  # t - T_s <= 0
     b_ub = [np.zeros(S)]
-    unit = _unit_compression(structure, chart, tendons.direction)  # (R, S)
+    unit = rod_compression(structure, unit_tension_forces(structure, direction),
+                           chart.direction)  # (R, S) per unit tension
     if compressed_rods:
         A_ub.append(np.hstack([-unit, np.zeros((structure.n_rods, 1))]))  # -compression <= 0
         b_ub.append(np.zeros(structure.n_rods))
@@ -164,17 +164,6 @@ def feasible_prestress(
     )
 
 
-def _unit_compression(structure: Structure, chart: Chart, direction: np.ndarray) -> np.ndarray:
-    """Rod compression (R, S) per unit tension of each tendon."""
-    from tensegrity.analysis.statics import unit_tension_forces
-
-    unit = unit_tension_forces(structure, direction)  # (N, 3, S)
-    out = np.empty((structure.n_rods, structure.n_tendons))
-    for s in range(structure.n_tendons):
-        out[:, s] = rod_compression(structure, unit[:, :, s], chart.direction)
-    return out
-
-
 def rest_lengths_for_tensions(
     structure: Structure,
     q: Any,
@@ -187,7 +176,7 @@ def rest_lengths_for_tensions(
     ``structure``.  ``stiffness`` defaults to the structure's.  Raises ``ValueError`` if a
     tension is negative or needs ``Lbar < 0`` (too stiff a demand for that tendon).
     """
-    q = _q(structure, q)
+    q = configuration(structure, q)
     T = np.asarray(tension, dtype=float)
     k = structure.tendon_stiffness if stiffness is None else np.asarray(stiffness, dtype=float)
     if np.any(T < 0):

@@ -35,7 +35,8 @@ import scipy.integrate
 import scipy.optimize
 
 from tensegrity import dynamics
-from tensegrity.analysis.coordinates import Chart, align, mass_complement, mass_matrix
+from tensegrity.analysis.controllability import match_tendons
+from tensegrity.analysis.coordinates import Chart, align, kabsch, mass_matrix
 from tensegrity.analysis.equilibrium import EquilibriumResult, find_equilibrium
 from tensegrity.analysis.statics import equilibrium_matrix, force_jacobian, statics
 from tensegrity.structure import Structure
@@ -251,9 +252,9 @@ def quasi_static(
     for k, (spec, n_steps) in enumerate(zip(phases, steps_list)):
         targets = spec["targets"] if isinstance(spec, dict) else spec
         active = np.ones(s.n_tendons, bool)
-        if isinstance(spec, dict) and spec.get("actuators") not in (None, "all"):
+        if isinstance(spec, dict) and spec.get("actuators") is not None:
             active[:] = False
-            for name in _match_tendons(s, spec["actuators"]):
+            for name in match_tendons(s, spec["actuators"]):
                 active[s.tendon_index(name)] = True
         free = np.array([t is None for t in targets])
         final = np.array([np.nan if t is None else float(t) for t in targets])
@@ -290,16 +291,6 @@ def quasi_static(
                    f"{min_t.min():.4g} N, rest lengths within bounds: {rest_ok}")
     return QuasiStatic(s, output, bounds, tuple(eqs), np.array(controls), ys_a, wants_a,
                        np.array(phase_of), min_t, err, tol, reached, message)
-
-
-def _match_tendons(s: Structure, pattern: str | Sequence[str]) -> list[str]:
-    import fnmatch
-
-    parts = [p.strip() for p in pattern.split(",")] if isinstance(pattern, str) else list(pattern)
-    names = [n for n in s.tendon_name if any(fnmatch.fnmatchcase(n, p) for p in parts)]
-    if not names:
-        raise KeyError(f"no tendon matches {pattern!r}")
-    return names
 
 
 # ------------------------------------------------------------------------------ closed loop
@@ -387,10 +378,8 @@ def _lqr_gain(s: Structure, eq: EquilibriumResult, output: ShapeOutput, referenc
     from tensegrity.analysis.linearize import linearize
 
     lin = linearize(s, eq)
-    Z = mass_complement(lin.rigid_basis, lin.mass)
+    A, Z = lin.elastic_part()
     n = Z.shape[1]
-    A = np.block([[np.zeros((n, n)), np.eye(n)],
-                  [-(Z.T @ lin.stiffness @ Z), -(Z.T @ lin.damping @ Z)]])
     B = np.vstack([np.zeros((n, s.n_tendons)), Z.T @ lin.force_input])
     Cy = output.jacobian(eq.node_position) @ lin.chart.jacobian_matrix() @ Z
     q_out, q_state, q_rate, r_u = weights
@@ -446,7 +435,7 @@ def closed_loop(
         u_ff, chart, x_ff, v_ff, (Kx, Kv) = schedule.feedforward(t)
         p = dynamics.nodes_from_coordinates(s, q)
         v = dynamics.nodes_from_coordinates(s, qdot)
-        pa, R = _aligned(p, reference, weights_n)
+        pa, R = kabsch(p, reference, weights_n)
         qa = dynamics.coordinates_from_nodes(s, pa)
         va = dynamics.coordinates_from_nodes(s, v @ R)
         u = u_ff - Kx @ (chart.x(qa) - x_ff) - Kv @ (chart.velocity_x(qa, va) - v_ff)
@@ -506,17 +495,6 @@ def closed_loop(
 def _interp_outputs(plan: QuasiStatic, times: np.ndarray, t: float) -> np.ndarray:
     y = plan.outputs
     return np.array([np.interp(t, times, y[:, j]) for j in range(y.shape[1])])
-
-
-def _aligned(p: np.ndarray, reference: np.ndarray, weights: np.ndarray):
-    """Kabsch fit of ``p`` onto ``reference``: ``(aligned p, R)`` with aligned = (p - c) R + c_ref."""
-    w = weights / weights.sum()
-    c, c_ref = w @ p, w @ reference
-    h = (w[:, None] * (p - c)).T @ (reference - c_ref)
-    u, _, vt = np.linalg.svd(h)
-    d = np.sign(np.linalg.det(u @ vt)) or 1.0
-    R = u @ np.diag([1.0, 1.0, d]) @ vt
-    return (p - c) @ R + c_ref, R
 
 
 def describe_plan(plan: QuasiStatic) -> dict[str, Any]:

@@ -172,6 +172,7 @@ def equilibrium_matrix(chart: Chart, direction: np.ndarray, x: np.ndarray | None
 
 def rod_compression(structure: Structure, force: np.ndarray, direction: np.ndarray) -> np.ndarray:
     """Axial compression of each rod [N] (> 0 compressed) from the nodal forces on its ends:
-    ``(f_a - f_b) . n / 2``, ``n`` the unit vector from ``a`` to ``b``."""
+    ``(f_a - f_b) . n / 2``, ``n`` (R, 3) the unit vector from ``a`` to ``b``.  ``force`` is
+    (N, 3), or (N, 3, ...) for several force sets at once (result (R, ...))."""
     fa, fb = force[structure.rod_nodes[:, 0]], force[structure.rod_nodes[:, 1]]
-    return 0.5 * np.sum((fa - fb) * direction, axis=1)
+    return 0.5 * np.einsum("rk...,rk->r...", fa - fb, direction)
