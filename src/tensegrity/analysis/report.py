@@ -200,16 +200,15 @@ def figure_shape_motion(plan: QuasiStatic, closed: ClosedLoop | None = None) -> 
                     label="quasi-static plan")
             final = plan.targets[-1, j]
             if np.isfinite(final):
-                ax.axhline(final, color="#d62728", lw=0.8, label="target")
-            ax.set_xlabel("time [s]")
+                ax.axhline(final, color="#d62728", lw=0.8, label="final target")
         else:
             steps = np.arange(len(plan.equilibria))
             ax.plot(steps, plan.outputs[:, j], "o-", color="#2f6fb0", label="equilibria")
             ax.plot(steps, plan.targets[:, j], "x", color="#d62728", label="targets")
-            ax.set_xlabel("step")
         ax.set_ylabel(f"{names[j]} [{units[j]}]")
         ax.grid(alpha=0.3)
         ax.legend(fontsize="small")
+    axes[-1].set_xlabel("step" if closed is None else "time [s]")
     fig.suptitle("Shape control: outputs", fontsize="medium")
     return fig
 
