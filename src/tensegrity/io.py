@@ -40,7 +40,7 @@ import json
 import os
 import stat
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -173,6 +173,28 @@ def _os_problem(exc: OSError) -> str:
     if isinstance(exc, PermissionError):
         return "permission denied"
     return f"cannot read: {exc.strerror or exc}"
+
+
+# ------------------------------------------------------------------- staged output folders
+def write_staged(out: Path, write: Callable[[Path], list[Path]]) -> list[Path]:
+    """Write every output into a staging folder inside ``out``, then move them into ``out``.
+
+    Either all files appear (each by an atomic rename) or, if any write fails, none does and a
+    folder created for them is removed again.
+    """
+    created = not out.exists()
+    out.mkdir(parents=True, exist_ok=True)
+    try:
+        with tempfile.TemporaryDirectory(dir=out, prefix=".staging-") as staging:
+            moved = []
+            for path in write(Path(staging)):
+                os.replace(path, out / path.name)
+                moved.append(out / path.name)
+            return moved
+    except BaseException:
+        if created and not any(out.iterdir()):
+            out.rmdir()
+        raise
 
 
 # ----------------------------------------------------------------------------- structures
