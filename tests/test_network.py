@@ -231,3 +231,16 @@ def test_bad_files_are_one_line_starting_with_the_name(tmp_path):
         read_network(tmp_path / "short.npz")
     with pytest.raises(ValueError, match="MJCF files are written for MuJoCo, not read back"):
         read_network(tmp_path / "model.xml")
+
+
+def test_the_documented_yaml_and_toml_examples_describe_one_structure():
+    import pathlib
+    import re
+
+    text = (pathlib.Path(__file__).parents[1] / "docs" / "networks.md").read_text()
+    yaml_doc = re.search(r"```yaml\n(.*?)```", text, re.S).group(1)
+    toml_doc = re.search(r"```toml\n(.*?)```", text, re.S).group(1)
+    a = network_from_dict(yaml.safe_load(yaml_doc))
+    b = network_from_dict(tomllib.loads(toml_doc))
+    assert a.to_dict() == b.to_dict()
+    assert a.tendon_name == ("bottom", "top") and a.rod_mass.tolist() == [2.0, 1.0]
