@@ -244,3 +244,13 @@ def test_the_documented_yaml_and_toml_examples_describe_one_structure():
     b = network_from_dict(tomllib.loads(toml_doc))
     assert a.to_dict() == b.to_dict()
     assert a.tendon_name == ("bottom", "top") and a.rod_mass.tolist() == [2.0, 1.0]
+
+
+def test_io_read_structure_reads_every_format(tmp_path):
+    """Callers of io.read_structure (the analysis commands) take every structure file too."""
+    from tensegrity.io import read_structure
+
+    s = varied_shell()
+    for suffix in ("yaml", "toml", "npz"):
+        write_network(tmp_path / f"s.{suffix}", s)
+        assert read_structure(tmp_path / f"s.{suffix}").to_dict() == s.to_dict()

@@ -34,7 +34,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from tensegrity.network import incidence
+from tensegrity.network import from_connectivity, incidence
 from tensegrity.structure import Structure
 
 
@@ -101,18 +101,22 @@ def _count(value: Any, name: str, low: int) -> int:
     return int(value)
 
 
-def _prestressed(
-    position: np.ndarray,
-    rods: np.ndarray,
-    tendons: np.ndarray,
-    names: tuple[str, ...],
-    *,
-    rod_mass: float,
-    stiffness: float,
-    tension: float,
-    damping: float,
+def _draft(
+    position: np.ndarray, rods: np.ndarray, tendons: np.ndarray, names: tuple[str, ...], *,
+    rod_mass: Any, stiffness: Any, damping: Any, rest_fraction: float = 1.0,
 ) -> Structure:
-    """A structure whose rest lengths realize the geometry's best self-stress (mean ``tension``).
+    """The structure of a layout (via :func:`~tensegrity.network.from_connectivity`), with every
+    rest length ``rest_fraction`` times the tendon's length in the layout."""
+    n = position.shape[0]
+    return from_connectivity(
+        position.T, incidence(rods, n), incidence(tendons, n),
+        rod_mass=_positive(rod_mass, "rod_mass"), tendon_stiffness=_positive(stiffness, "stiffness"),
+        tendon_prestrain=1.0 / rest_fraction - 1.0, tendon_damping=float(damping), tendon_name=names,
+    )
+
+
+def _prestressed(draft: Structure, tension: Any) -> Structure:
+    """``draft`` with rest lengths that realize its layout's best self-stress (mean ``tension``).
 
     The self-stress maximizing the smallest tendon tension (a linear program) is scaled to the
     mean ``tension`` [N] and realized by rest lengths ``l - T / k``; the layout is then an
@@ -120,14 +124,7 @@ def _prestressed(
     """
     from tensegrity.analysis.prestress import feasible_prestress, rest_lengths_for_tensions
 
-    length = np.linalg.norm(position[rods[:, 1]] - position[rods[:, 0]], axis=1)
-    S = tendons.shape[0]
-    draft = Structure(
-        node_position=position, rod_nodes=rods, rod_mass=np.full(rods.shape[0], rod_mass),
-        rod_length=length, tendon_nodes=tendons, tendon_stiffness=np.full(S, stiffness),
-        tendon_rest_length=np.zeros(S), tendon_damping=np.full(S, damping), tendon_name=names,
-    )
-    prestress = feasible_prestress(draft, mean_tension=tension)
+    prestress = feasible_prestress(draft, mean_tension=_positive(tension, "tension"))
     if not prestress.feasible:
         raise ValueError(f"layout: no self-stress with every tendon taut ({prestress.message})")
     rest, _ = rest_lengths_for_tensions(draft, None, prestress.tension)
@@ -223,10 +220,9 @@ def prism(
         Mean tendon tension of the prestress [N].
     """
     layout = prism_layout(n, rod_length=rod_length, height=height)
-    rods, tendons, names = prism_members(n)
-    return _prestressed(layout, rods, tendons, names, rod_mass=_positive(rod_mass, "rod_mass"),
-                        stiffness=_positive(stiffness, "stiffness"),
-                        tension=_positive(tension, "tension"), damping=float(damping))
+    draft = _draft(layout, *prism_members(n), rod_mass=rod_mass, stiffness=stiffness,
+                   damping=damping)
+    return _prestressed(draft, tension)
 
 
 # ---------------------------------------------------------------------------- octahedron
@@ -264,9 +260,9 @@ def octahedron(
     tails, heads = np.nonzero(np.triu(np.isclose(distance, string, rtol=1e-12)))
     tendons = _pairs(tails, heads)
     names = tuple(f"s{k}" for k in range(tendons.shape[0]))
-    return _prestressed(position, rods, tendons, names, rod_mass=_positive(rod_mass, "rod_mass"),
-                        stiffness=_positive(stiffness, "stiffness"),
-                        tension=_positive(tension, "tension"), damping=float(damping))
+    draft = _draft(position, rods, tendons, names, rod_mass=rod_mass, stiffness=stiffness,
+                   damping=damping)
+    return _prestressed(draft, tension)
 
 
 # --------------------------------------------------------------------------------- tower
@@ -344,17 +340,8 @@ def tower(
     for j in range(m):
         c, s = math.cos(j * turn), math.sin(j * turn)
         layout.append(stage @ np.array([[c, s, 0], [-s, c, 0], [0, 0, 1]]) + [0, 0, j * pitch])
-    position = np.vstack(layout)
-    rods, tendons, names = tower_members(n, m)
-    length = np.linalg.norm(position[tendons[:, 1]] - position[tendons[:, 0]], axis=1)
-    draft = Structure(
-        node_position=position, rod_nodes=rods,
-        rod_mass=np.full(rods.shape[0], _positive(rod_mass, "rod_mass")),
-        rod_length=np.full(rods.shape[0], float(rod_length)), tendon_nodes=tendons,
-        tendon_stiffness=np.full(len(names), _positive(stiffness, "stiffness")),
-        tendon_rest_length=0.9 * length, tendon_damping=np.full(len(names), float(damping)),
-        tendon_name=names,
-    )
+    draft = _draft(np.vstack(layout), *tower_members(n, m), rod_mass=rod_mass,
+                   stiffness=stiffness, damping=damping, rest_fraction=0.9)
     found = form_find(draft, mean_tension=_positive(tension, "tension"))
     if not found.stable:
         raise ValueError(f"tower: form-finding found no stable all-taut equilibrium ({found.verdict})")

@@ -219,7 +219,16 @@ def read_structure(path: PathLike) -> Structure:
         One line starting with the file name: ``"s.json: no such file"``,
         ``"s.json: invalid JSON at line 3, column 5: Expecting ',' delimiter"``,
         ``"s.json: tendons[2] ('t3_1_1').stiffness: must be > 0, got -5.0"``, ...
+
+    Notes
+    -----
+    A ``.yaml``, ``.yml``, ``.toml`` or ``.npz`` file is read by
+    :func:`tensegrity.network.read_network` instead (docs/networks.md); any other name as JSON.
     """
+    if Path(path).suffix.lower() in (".yaml", ".yml", ".toml", ".npz"):
+        from tensegrity.network import read_network
+
+        return read_network(path)
     try:
         text = Path(path).read_bytes().decode("utf-8")
     except OSError as exc:
