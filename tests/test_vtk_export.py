@@ -135,6 +135,37 @@ def test_cli_vtk_verb_and_simulate_vtk(run, tmp_path, capsys):
     assert main(["simulate", "--kind", "prism", "--t-end", "0.2", "--no-steady-state",
                  "--sample-dt", "0.1", "--vtk", "--out", str(out)]) == 0
     assert [t for t, _ in read_pvd(out / "vtk" / "tensegrity.pvd")] == pytest.approx([0, 0.1, 0.2])
+    printed = capsys.readouterr().out
+    assert f"{out / 'vtk' / 'tensegrity.pvd'}" in printed and ".vtp" not in printed
+    # again into the same folder: the files are replaced
+    assert main(["simulate", "--kind", "prism", "--t-end", "0.1", "--no-steady-state",
+                 "--sample-dt", "0.1", "--vtk", "--out", str(out)]) == 0
+    assert [t for t, _ in read_pvd(out / "vtk" / "tensegrity.pvd")] == pytest.approx([0, 0.1])
+    assert not [p for p in out.rglob("*") if p.name.startswith(".staging")]
     assert main(["vtk", str(tmp_path / "missing.h5"), "-o", str(tmp_path / "w")]) == 2
     assert "missing.h5: no such file" in capsys.readouterr().err
     assert not (tmp_path / "w").exists()
+
+
+def test_write_staged_keeps_subfolders_and_cleans_up(tmp_path):
+    from tensegrity.io import write_staged
+
+    def write(staging):
+        (staging / "sub").mkdir()
+        files = [staging / "sub" / "a.txt", staging / "b.txt"]
+        for f in files:
+            f.write_text(f.name)
+        return files
+
+    out = tmp_path / "new" / "out"
+    assert write_staged(out, write) == [out / "sub" / "a.txt", out / "b.txt"]
+    assert (out / "sub" / "a.txt").read_text() == "a.txt"
+    assert sorted(p.name for p in out.iterdir()) == ["b.txt", "sub"]
+
+    def failing(staging):
+        write(staging)
+        raise RuntimeError("late failure")
+
+    with pytest.raises(RuntimeError):
+        write_staged(tmp_path / "other" / "out", failing)
+    assert not (tmp_path / "other").exists()  # every folder it created is gone

@@ -191,20 +191,19 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     if not result.success:
         raise CommandError(f"simulation failed: {result.message} (nothing written)", EXIT_FAILED)
     written = _write_all(args.out, lambda staging: [
-        *([_vtk_folder(staging, result)] if args.vtk else []),
         write_trajectory(staging / "trajectory.h5", result),
         write_structure(staging / "structure.json", structure),
         *save_figures(result, staging),
+        *(_vtk_files(staging / "vtk", result) if args.vtk else []),
     ])
-    _print_summary(result, written)
+    _print_summary(result, [f for f in written if f.parent == args.out or f.suffix == ".pvd"])
     return 0
 
 
-def _vtk_folder(staging: Path, result) -> Path:
+def _vtk_files(folder: Path, result) -> list[Path]:
     from tensegrity.vtk_export import write_vtk
 
-    write_vtk(staging / "vtk", result)
-    return staging / "vtk"
+    return write_vtk(folder, result)  # the .vtp files, then the .pvd collection
 
 
 def _print_summary(result, files: Sequence[Path]) -> None:

@@ -179,21 +179,30 @@ def _os_problem(exc: OSError) -> str:
 def write_staged(out: Path, write: Callable[[Path], list[Path]]) -> list[Path]:
     """Write every output into a staging folder inside ``out``, then move them into ``out``.
 
-    Either all files appear (each by an atomic rename) or, if any write fails, none does and a
-    folder created for them is removed again.
+    ``write(staging)`` writes the files and returns them in the order they are to be moved;
+    a file in a subfolder of ``staging`` goes to the same subfolder of ``out`` (created if
+    missing; files already there and not rewritten stay).  Either all files appear (each by an
+    atomic rename) or, if any write fails, none does and the folders created for them are
+    removed again.
     """
-    created = not out.exists()
+    out = Path(out)
+    created = [folder for folder in (out, *out.parents) if not folder.exists()]
     out.mkdir(parents=True, exist_ok=True)
     try:
         with tempfile.TemporaryDirectory(dir=out, prefix=".staging-") as staging:
             moved = []
             for path in write(Path(staging)):
-                os.replace(path, out / path.name)
-                moved.append(out / path.name)
+                target = out / Path(path).relative_to(staging)
+                if not target.parent.exists():
+                    target.parent.mkdir(parents=True)
+                    created.append(target.parent)
+                os.replace(path, target)
+                moved.append(target)
             return moved
     except BaseException:
-        if created and not any(out.iterdir()):
-            out.rmdir()
+        for folder in sorted(created, key=lambda f: len(f.parts), reverse=True):
+            with contextlib.suppress(OSError):
+                folder.rmdir()  # only if empty
         raise
 
 
