@@ -129,6 +129,12 @@ tendons:
                                 "rods": [{"nodes": [0, 1]}, {"nodes": [2, 3]}],
                                 "tendons": [{"nodes": [0, 2], "rest_length": 0.9}]})
     assert listed.tendon_nodes.tolist() == [[0, 2]] and listed.tendon_name == ("s0",)
+    # YAML reads a node called 1 as an integer: such names work too
+    numbered = network_from_dict(yaml.safe_load(
+        "nodes: {1: [0, 0, 0], 2: [0, 0, 1], 3: [1, 0, 0], 4: [1, 0, 1]}\n"
+        "rods: [{nodes: [1, 2]}, {nodes: [3, 4]}]\n"
+        "tendons: [{nodes: [1, 3], rest_length: 0.9}]\n"))
+    assert numbered.tendon_nodes.tolist() == [[0, 2]]
 
 
 # ------------------------------------------------------------------------------- errors
@@ -199,6 +205,10 @@ BASE = {"nodes": {"a": [0, 0, 0], "b": [0, 0, 1], "c": [1, 0, 0], "d": [1, 0, 1]
          r"^rods\[0\]\.length: must be > 0"),
         ({"nodes": {"a": [0, 0], "b": [0, 0, 1], "c": [1, 0, 0], "d": [1, 0, 1]}},
          r"^nodes\.a: expected a list of 3 numbers"),
+        ({"tendons": [{"nodes": ["a", ["c"]], "rest_length": 0.9}]},
+         r"^tendons\[0\]\.nodes: no node \['c'\]"),
+        ({"nodes": {"a": [0, 0, 0], True: [0, 0, 1], "c": [1, 0, 0], "d": [1, 0, 1]}},
+         r"^nodes: node names must be non-empty strings \(or integers\), got True"),
         ({"format": "other"}, r"^format: expected 'tensegrity-network'"),
         ({"version": 2}, r"^version: this library reads version <= 1"),
         ({"extra": 1}, r"^network: unknown key 'extra'"),

@@ -416,8 +416,9 @@ def _named_points(value: Any, where: str) -> tuple[list[Any], list[list[float]]]
     if isinstance(value, Mapping):
         names = list(value)
         for name in names:
-            if not isinstance(name, str) or not name:
-                raise ValueError(f"{where}: node names must be non-empty strings, got {name!r:.80}")
+            if isinstance(name, bool) or not isinstance(name, (str, int)) or name == "":
+                raise ValueError(f"{where}: node names must be non-empty strings (or integers), "
+                                 f"got {name!r:.80}")
         return names, [_vector(value[name], f"{where}.{name}") for name in names]
     if isinstance(value, Sequence) and not isinstance(value, str):
         return list(range(len(value))), [_vector(row, f"{where}[{k}]") for k, row in enumerate(value)]
@@ -450,7 +451,7 @@ def _members(value: Any, kind: str, keys: Sequence[str], index: Mapping[Any, int
             raise ValueError(f"{label}.nodes: expected two node references, got {ends!r:.80}")
         pair = []
         for end in ends:
-            if isinstance(end, bool) or end not in index:
+            if isinstance(end, bool) or not isinstance(end, (str, int)) or end not in index:
                 raise ValueError(f"{label}.nodes: no node {'named ' if isinstance(end, str) else ''}"
                                  f"{end!r:.80}")
             pair.append(index[end])
