@@ -58,6 +58,10 @@ def test_from_connectivity_round_trip():
     )
     assert again.to_dict() == s.to_dict()
     # Defaults: bar lengths from N (to round-off), scalars broadcast.
+    import scipy.sparse as sp
+
+    sparse = from_connectivity(N, sp.csr_matrix(C_b), s.tendon_incidence, tendon_rest_length=0.3)
+    assert np.array_equal(sparse.tendon_nodes, s.tendon_nodes)
     plain = from_connectivity(N, C_b, C_s, tendon_rest_length=0.3)
     np.testing.assert_allclose(plain.rod_length, s.rod_length, rtol=1e-15)
     assert np.all(plain.rod_mass == 1.0) and np.all(plain.tendon_stiffness == 100.0)

@@ -90,7 +90,8 @@ class Connectivity(NamedTuple):
 
 # ----------------------------------------------------------------------- N, C_b, C_s
 def member_nodes(C: Any, field: str, n_nodes: int) -> np.ndarray:
-    """``(tail, head)`` node pairs (k, 2) of a connectivity matrix ``C`` (k, n_nodes).
+    """``(tail, head)`` node pairs (k, 2) of a connectivity matrix ``C`` (k, n_nodes), dense or
+    ``scipy.sparse``.
 
     Raises
     ------
@@ -98,6 +99,8 @@ def member_nodes(C: Any, field: str, n_nodes: int) -> np.ndarray:
         ``C_b: has 5 columns but N has 6 nodes``, or ``C_s[3]: expected exactly one -1 and one
         +1 (zeros elsewhere), got -1 at [0, 2], +1 at []``.
     """
+    if hasattr(C, "toarray"):  # a scipy.sparse matrix
+        C = C.toarray()
     try:
         C = np.array(C, dtype=float)
     except (TypeError, ValueError):
