@@ -10,17 +10,15 @@ from __future__ import annotations
 
 import argparse
 import math
-import os
 import sys
-import tempfile
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
 from tensegrity import dynamics
 from tensegrity.integrators import ADAPTIVE_METHODS, FIXED_STEP_METHODS
-from tensegrity.shell import class1_shell
+from tensegrity.io import write_staged as _write_all
 from tensegrity.structure import Structure
 
 EXIT_FAILED, EXIT_USAGE = 1, 2
@@ -75,44 +73,74 @@ def _damping(text: str) -> str | float:
 
 
 def _add_structure_options(parser: argparse.ArgumentParser, *, allow_file: bool = True) -> None:
+    from tensegrity.generators import KINDS
+
     group = parser.add_argument_group("structure (default: the paper's (3,1) class 1 shell)")
     if allow_file:
-        group.add_argument("--structure", type=Path, metavar="FILE.json",
-                           help="a structure file (JSON form) instead of a generated shell")
-    group.add_argument("--n", type=int, help="elements around the shell, >= 3 (default 3)")
-    group.add_argument("--m", type=int, help="stages up the shell, >= 1 (default 1)")
+        group.add_argument("--structure", type=Path, metavar="FILE",
+                           help="a structure file (.json, .yaml, .toml or connectivity .npz) "
+                                "instead of a generated one")
+    group.add_argument("--kind", choices=list(KINDS), metavar="|".join(KINDS),
+                       help="generated structure (default shell): "
+                            + "; ".join(f"{name}: {kind.summary}" for name, kind in KINDS.items()))
+    group.add_argument("--n", type=int, help="shell elements around (default 3), or bars of a "
+                                             "prism or tower stage")
+    group.add_argument("--m", type=int, help="shell or tower stages (default 1 for a shell)")
     group.add_argument("--primal", action="store_true", help="primal shell: no t9, t10 tendons")
     group.add_argument("--stiffness", type=_positive, help="tendon stiffness k [N/m] (default 100)")
     group.add_argument("--rest-length", type=_non_negative,
-                       help="tendon rest length L0 [m] (default: half the shortest initial tendon)")
+                       help="shell tendon rest length L0 [m] (default: half the shortest initial "
+                            "tendon)")
+    group.add_argument("--set", type=_assignment, action="append", metavar="NAME=VALUE",
+                       help="any other option of the generator, e.g. tension=8 or overlap=0.2 "
+                            "(repeatable; see the generator's docstring)")
+
+
+def _assignment(text: str) -> tuple[str, object]:
+    name, sep, value = text.partition("=")
+    if not sep or not name.isidentifier():
+        raise argparse.ArgumentTypeError(f"expected NAME=VALUE, got {text!r}")
+    for kind in (int, float):
+        try:
+            return name, kind(value)
+        except ValueError:
+            pass
+    return name, {"true": True, "false": False}.get(value.lower(), value)
 
 
 _SHELL_OPTIONS = ("n", "m", "primal", "stiffness", "rest_length")
 
 
 def _structure(args: argparse.Namespace) -> Structure:
-    """The structure the options describe (a file, or a shell)."""
+    """The structure the options describe (a file, or a generated structure)."""
+    given = {name: getattr(args, name) for name in _SHELL_OPTIONS
+             if getattr(args, name) is not None and getattr(args, name) is not False}
+    flags = [f"--{name.replace('_', '-')}" for name in given]
     if getattr(args, "structure", None) is not None:
-        given = [
-            f"--{name.replace('_', '-')}"
-            for name in _SHELL_OPTIONS
-            if getattr(args, name) not in (None, False)
-        ]
-        if given:
-            raise CommandError(f"{' '.join(given)}: shell options cannot be combined with --structure")
-        from tensegrity.io import read_structure
+        flags += ["--kind"] * (args.kind is not None) + ["--set"] * bool(args.set)
+        if flags:
+            raise CommandError(f"{' '.join(flags)}: generator options cannot be combined with "
+                               "--structure")
+        from tensegrity.network import read_network
 
-        return read_structure(args.structure)
-    options = {
-        "n": 3 if args.n is None else args.n,
-        "m": 1 if args.m is None else args.m,
-        "primal": args.primal,
-    }
-    if args.stiffness is not None:
-        options["stiffness"] = args.stiffness
-    if args.rest_length is not None:
-        options["rest_length"] = args.rest_length
-    return class1_shell(**options)
+        return read_network(args.structure)
+    from tensegrity import generators
+
+    kind = args.kind or "shell"
+    valid = generators.options(kind)
+    for name in given:
+        if name not in valid:
+            raise CommandError(f"--{name.replace('_', '-')}: not an option of --kind {kind} "
+                               f"(its options: {', '.join(valid)})")
+    for name, value in args.set or ():
+        if name not in valid:
+            raise CommandError(f"--set {name}: not an option of --kind {kind} "
+                               f"(its options: {', '.join(valid)})")
+        given[name] = value
+    try:
+        return generators.generate(kind, **given)
+    except TypeError as exc:  # a value of the wrong type that slipped past the generator's checks
+        raise CommandError(f"--kind {kind}: {exc}") from exc
 
 
 def _apply_damping(structure: Structure, damping: str | float | None) -> Structure:
@@ -141,9 +169,18 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         raise CommandError(f"--dt: method {args.method!r} is fixed-step and needs --dt")
     if args.method not in FIXED_STEP_METHODS and args.dt is not None:
         raise CommandError(f"--dt: only for fixed-step methods ({', '.join(FIXED_STEP_METHODS)})")
+    force = None
+    if args.force_table is not None:
+        from tensegrity.loads import read_force_table
+
+        force = read_force_table(args.force_table)
+        if force.n_nodes != structure.n_nodes:
+            raise CommandError(f"--force-table: {args.force_table} has forces for {force.n_nodes} "
+                               f"nodes, the structure has {structure.n_nodes}")
     result = simulate(
         structure,
         (0.0, args.t_end),
+        external_force=force,
         method=args.method,
         rtol=args.rtol,
         atol=args.atol,
@@ -158,30 +195,16 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         write_trajectory(staging / "trajectory.h5", result),
         write_structure(staging / "structure.json", structure),
         *save_figures(result, staging),
+        *(_vtk_files(staging / "vtk", result) if args.vtk else []),
     ])
-    _print_summary(result, written)
+    _print_summary(result, [f for f in written if f.parent == args.out or f.suffix == ".pvd"])
     return 0
 
 
-def _write_all(out: Path, write: Callable[[Path], list[Path]]) -> list[Path]:
-    """Write every output into a staging folder inside ``out``, then move them into ``out``.
+def _vtk_files(folder: Path, result) -> list[Path]:
+    from tensegrity.vtk_export import write_vtk
 
-    Either all files appear (each by an atomic rename) or, if any write fails, none does and a
-    folder created for them is removed again.
-    """
-    created = not out.exists()
-    out.mkdir(parents=True, exist_ok=True)
-    try:
-        with tempfile.TemporaryDirectory(dir=out, prefix=".staging-") as staging:
-            moved = []
-            for path in write(Path(staging)):
-                os.replace(path, out / path.name)
-                moved.append(out / path.name)
-            return moved
-    except BaseException:
-        if created and not any(out.iterdir()):
-            out.rmdir()
-        raise
+    return write_vtk(folder, result)  # the .vtp files, then the .pvd collection
 
 
 def _print_summary(result, files: Sequence[Path]) -> None:
@@ -242,12 +265,23 @@ def _range(values: np.ndarray, unit: str) -> str:
 
 
 def _cmd_export(args: argparse.Namespace) -> int:
-    from tensegrity.io import write_structure
+    from tensegrity.network import FORMATS, write_network
 
     structure = _apply_damping(_structure(args), args.damping)
-    write_structure(args.output, structure)
-    print(f"wrote {args.output} ({structure.n_nodes} nodes, {structure.n_rods} rods, "
+    fmt = args.format or FORMATS.get(args.output.suffix.lower(), "json")
+    write_network(args.output, structure, format=fmt)
+    print(f"wrote {args.output} ({fmt}: {structure.n_nodes} nodes, {structure.n_rods} rods, "
           f"{structure.n_tendons} tendons)")
+    return 0
+
+
+def _cmd_vtk(args: argparse.Namespace) -> int:
+    from tensegrity.io import read_trajectory
+    from tensegrity.vtk_export import write_vtk
+
+    written = write_vtk(args.output, read_trajectory(args.trajectory), every=args.every,
+                        name=args.name)
+    print(f"wrote {len(written) - 1} VTK files and {written[-1]} (open it in ParaView)")
     return 0
 
 
@@ -402,6 +436,12 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--no-steady-state", action="store_true",
                      help="run to --t-end even after the structure has come to rest")
     sim.add_argument("--out", type=Path, default=Path("results"), help="output folder (default ./results)")
+    sim.add_argument("--force-table", type=Path, metavar="FILE.npz|FILE.csv",
+                     help="external nodal forces [N] from a time table, linear in between, held "
+                          "after its end (.npz: time (T,), force (T, N, 3); .csv: rows t, f0x, "
+                          "f0y, f0z, f1x, ...)")
+    sim.add_argument("--vtk", action="store_true",
+                     help="also write the run for ParaView: OUT/vtk/tensegrity.pvd + .vtp files")
     integration = sim.add_argument_group("integration")
     integration.add_argument("--method", default="DOP853",
                              choices=[*ADAPTIVE_METHODS, *FIXED_STEP_METHODS],
@@ -417,12 +457,24 @@ def build_parser() -> argparse.ArgumentParser:
     _add_structure_options(info)
     info.set_defaults(run=_cmd_info)
 
-    export = sub.add_parser("export", help="write a structure file (JSON form)")
+    export = sub.add_parser("export", help="write a generated structure to a file (any format)")
     _add_structure_options(export, allow_file=False)
     export.add_argument("--damping", type=_damping, metavar="none|critical|VALUE",
                         help="tendon damping to store (default none)")
-    export.add_argument("-o", "--output", type=Path, required=True, help="output .json file")
+    export.add_argument("--format", choices=("json", "yaml", "toml", "connectivity", "mjcf"),
+                        help="file format (default: from the suffix .json .yaml .toml .npz .xml, "
+                             "else json)")
+    export.add_argument("-o", "--output", type=Path, required=True, help="output file")
     export.set_defaults(run=_cmd_export)
+
+    vtk = sub.add_parser("vtk", help="convert a trajectory to VTK files for ParaView",
+                         description="Write a trajectory (trajectory.h5) as one VTK PolyData file "
+                                     "per sample (.vtp) and a collection (.pvd) for ParaView.")
+    vtk.add_argument("trajectory", type=Path, help="a trajectory.h5 written by simulate")
+    vtk.add_argument("-o", "--output", type=Path, required=True, help="output folder")
+    vtk.add_argument("--every", type=int, default=1, help="keep one sample in EVERY (default 1)")
+    vtk.add_argument("--name", default="tensegrity", help="file name stem (default tensegrity)")
+    vtk.set_defaults(run=_cmd_vtk)
 
     matrices = sub.add_parser(
         "matrices",

@@ -40,7 +40,7 @@ import json
 import os
 import stat
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -175,6 +175,37 @@ def _os_problem(exc: OSError) -> str:
     return f"cannot read: {exc.strerror or exc}"
 
 
+# ------------------------------------------------------------------- staged output folders
+def write_staged(out: Path, write: Callable[[Path], list[Path]]) -> list[Path]:
+    """Write every output into a staging folder inside ``out``, then move them into ``out``.
+
+    ``write(staging)`` writes the files and returns them in the order they are to be moved;
+    a file in a subfolder of ``staging`` goes to the same subfolder of ``out`` (created if
+    missing; files already there and not rewritten stay).  Either all files appear (each by an
+    atomic rename) or, if any write fails, none does and the folders created for them are
+    removed again.
+    """
+    out = Path(out)
+    created = [folder for folder in (out, *out.parents) if not folder.exists()]
+    out.mkdir(parents=True, exist_ok=True)
+    try:
+        with tempfile.TemporaryDirectory(dir=out, prefix=".staging-") as staging:
+            moved = []
+            for path in write(Path(staging)):
+                target = out / Path(path).relative_to(staging)
+                if not target.parent.exists():
+                    target.parent.mkdir(parents=True)
+                    created.append(target.parent)
+                os.replace(path, target)
+                moved.append(target)
+            return moved
+    except BaseException:
+        for folder in sorted(created, key=lambda f: len(f.parts), reverse=True):
+            with contextlib.suppress(OSError):
+                folder.rmdir()  # only if empty
+        raise
+
+
 # ----------------------------------------------------------------------------- structures
 def read_structure(path: PathLike) -> Structure:
     """Read a structure file (the JSON form of :meth:`Structure.to_dict`).
@@ -197,7 +228,16 @@ def read_structure(path: PathLike) -> Structure:
         One line starting with the file name: ``"s.json: no such file"``,
         ``"s.json: invalid JSON at line 3, column 5: Expecting ',' delimiter"``,
         ``"s.json: tendons[2] ('t3_1_1').stiffness: must be > 0, got -5.0"``, ...
+
+    Notes
+    -----
+    A ``.yaml``, ``.yml``, ``.toml`` or ``.npz`` file is read by
+    :func:`tensegrity.network.read_network` instead (docs/networks.md); any other name as JSON.
     """
+    if Path(path).suffix.lower() in (".yaml", ".yml", ".toml", ".npz"):
+        from tensegrity.network import read_network
+
+        return read_network(path)
     try:
         text = Path(path).read_bytes().decode("utf-8")
     except OSError as exc:

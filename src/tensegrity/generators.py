@@ -1,0 +1,348 @@
+"""Generators of the class 1 structures people test with, and the registry the CLI uses.
+
+- :func:`prism`: the regular ``n``-bar prism (``n = 3``: the simplex; ``n = 4``: the 4-bar prism)
+  at its equilibrium twist ``pi/2 - pi/n``;
+- :func:`octahedron`: the 6-bar expanded octahedron;
+- :func:`tower`: a tower of stacked, interlaced ``n``-bar prisms (Snelson's Needle Tower,
+  the paper's Figure 18.3);
+- the class 1 shell :func:`tensegrity.shell.class1_shell` (kind ``shell``).
+
+Every generator returns a validated :class:`~tensegrity.structure.Structure` with rods of
+``rod_length`` (default 1 m) and ``rod_mass`` (default 1 kg), tendons of ``stiffness`` (default
+100 N/m), all taut and prestressed: the rest lengths realize a self-stress of the generated
+geometry with mean tendon tension ``tension`` [N] (found by the linear program of
+:func:`tensegrity.analysis.prestress.feasible_prestress`), so the generated layout is an
+equilibrium of the free structure (its stability is checked in the tests by modal analysis and
+damped simulation).
+
+Registry: :data:`KINDS` maps a kind name to ``"module:function"`` and a one-line summary;
+:func:`generate` imports the function lazily, so any module (the class 2 joints, planar
+structures, ...) registers its generator with one line in :data:`KINDS` or one call to
+:func:`register`.
+
+Node numbering of the prisms: bottom nodes ``0..n-1``, top nodes ``n..2n-1``; bar ``i`` joins
+bottom node ``i`` (tail) to top node ``n + i`` (head).
+"""
+
+from __future__ import annotations
+
+import importlib
+import inspect
+import math
+from collections.abc import Callable
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from tensegrity.network import from_connectivity, incidence
+from tensegrity.structure import Structure
+
+
+class Kind(NamedTuple):
+    """A registered generator: ``target`` is ``"module:function"``; ``summary`` one line."""
+
+    target: str
+    summary: str
+
+
+#: Generator kinds of ``tensegrity export --kind``: name -> Kind (imported on first use).
+KINDS: dict[str, Kind] = {
+    "shell": Kind("tensegrity.shell:class1_shell", "the paper's class 1 shell of n x m two-rod elements"),
+    "prism": Kind("tensegrity.generators:prism", "regular n-bar prism (n = 3: simplex), equilibrium twist"),
+    "octahedron": Kind("tensegrity.generators:octahedron", "6-bar expanded octahedron"),
+    "tower": Kind("tensegrity.generators:tower", "m stacked interlaced n-bar prisms (Needle Tower)"),
+}
+
+
+def register(kind: str, target: str, summary: str) -> None:
+    """Register generator ``target`` (``"module:function"``) under ``kind``."""
+    if not kind or not isinstance(kind, str):
+        raise ValueError(f"kind: must be a non-empty string, got {kind!r}")
+    KINDS[kind] = Kind(target, summary)
+
+
+def generator(kind: str) -> Callable[..., Any]:
+    """The function registered under ``kind`` (``ValueError`` listing the kinds if unknown)."""
+    if kind not in KINDS:
+        raise ValueError(f"kind: unknown {kind!r} (expected one of {', '.join(KINDS)})")
+    module, _, name = KINDS[kind].target.partition(":")
+    return getattr(importlib.import_module(module), name)
+
+
+def options(kind: str) -> tuple[str, ...]:
+    """The keyword options the generator of ``kind`` accepts."""
+    parameters = inspect.signature(generator(kind)).parameters.values()
+    return tuple(p.name for p in parameters if p.kind in (p.KEYWORD_ONLY, p.POSITIONAL_OR_KEYWORD))
+
+
+def generate(kind: str, **kwargs: Any) -> Any:
+    """Call the generator of ``kind`` with ``kwargs``; an unknown option names the valid ones."""
+    valid = options(kind)
+    for name in kwargs:
+        if name not in valid:
+            raise ValueError(f"{name}: not an option of kind {kind!r} (its options: {', '.join(valid)})")
+    return generator(kind)(**kwargs)
+
+
+# ----------------------------------------------------------------------------- helpers
+def _positive(value: Any, name: str) -> float:
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: must be a number, got {value!r}") from None
+    if not (math.isfinite(x) and x > 0):
+        raise ValueError(f"{name}: must be > 0, got {value!r}")
+    return x
+
+
+def _count(value: Any, name: str, low: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
+        raise ValueError(f"{name}: must be an integer >= {low}, got {value!r}")
+    return int(value)
+
+
+def _draft(
+    position: np.ndarray, rods: np.ndarray, tendons: np.ndarray, names: tuple[str, ...], *,
+    rod_mass: Any, stiffness: Any, damping: Any, rest_fraction: float = 1.0,
+) -> Structure:
+    """The structure of a layout (via :func:`~tensegrity.network.from_connectivity`), with every
+    rest length ``rest_fraction`` times the tendon's length in the layout."""
+    n = position.shape[0]
+    return from_connectivity(
+        position.T, incidence(rods, n), incidence(tendons, n),
+        rod_mass=_positive(rod_mass, "rod_mass"), tendon_stiffness=_positive(stiffness, "stiffness"),
+        tendon_prestrain=1.0 / rest_fraction - 1.0, tendon_damping=float(damping), tendon_name=names,
+    )
+
+
+def _prestressed(draft: Structure, tension: Any) -> Structure:
+    """``draft`` with rest lengths that realize its layout's best self-stress (mean ``tension``).
+
+    The self-stress maximizing the smallest tendon tension (a linear program) is scaled to the
+    mean ``tension`` [N] and realized by rest lengths ``l - T / k``; the layout is then an
+    equilibrium.  ``ValueError`` if the layout has no self-stress with every tendon taut.
+    """
+    from tensegrity.analysis.prestress import feasible_prestress, rest_lengths_for_tensions
+
+    prestress = feasible_prestress(draft, mean_tension=_positive(tension, "tension"))
+    if not prestress.feasible:
+        raise ValueError(f"layout: no self-stress with every tendon taut ({prestress.message})")
+    rest, _ = rest_lengths_for_tensions(draft, None, prestress.tension)
+    return draft.replace(tendon_rest_length=rest)
+
+
+def _pairs(tails: np.ndarray, heads: np.ndarray) -> np.ndarray:
+    return np.column_stack([tails, heads]).astype(np.int64)
+
+
+# --------------------------------------------------------------------------------- prism
+def prism_twist(n: int) -> float:
+    """Equilibrium twist ``pi/2 - pi/n`` [rad] of the regular ``n``-bar prism (see :func:`prism`)."""
+    return math.pi / 2 - math.pi / _count(n, "n", 3)
+
+
+def prism_layout(
+    n: int, *, rod_length: float = 1.0, height: float | None = None, twist: float | None = None
+) -> np.ndarray:
+    """Node positions (2n, 3) [m] of an ``n``-bar prism about the ``z`` axis.
+
+    Bottom node ``i`` at angle ``2 pi i / n``, height 0; top node ``n + i`` at angle
+    ``2 pi i / n + twist + 2 pi / n``, height ``h``: bar ``i`` (bottom ``i`` -> top ``n + i``)
+    sweeps ``twist + 2 pi / n`` about the axis, and the side string from bottom node ``i`` to top
+    node ``n + i - 1`` sweeps ``twist``.  All nodes at one radius ``r``, with
+    ``L^2 = h^2 + 2 r^2 (1 - cos(twist + 2 pi / n))``.
+
+    Parameters
+    ----------
+    height : float, optional
+        ``h`` [m] at the equilibrium twist, in ``(0, L)``; default ``L / sqrt(2)`` (bars at 45
+        degrees to the axis).  It fixes the radius ``r``.
+    twist : float, optional
+        [rad], default :func:`prism_twist` ``(n)``, the equilibrium.  Another twist keeps ``r``
+        and changes the height (a start away from equilibrium).
+    """
+    n = _count(n, "n", 3)
+    L = _positive(rod_length, "rod_length")
+    h0 = L / math.sqrt(2) if height is None else _positive(height, "height")
+    if not h0 < L:
+        raise ValueError(f"height: must be < rod_length = {L}, got {height!r}")
+    r = math.sqrt((L**2 - h0**2) / (2 * (1 - math.cos(prism_twist(n) + 2 * math.pi / n))))
+    sweep = (prism_twist(n) if twist is None else float(twist)) + 2 * math.pi / n
+    chord2 = 2 * r**2 * (1 - math.cos(sweep))
+    if not (math.isfinite(sweep) and chord2 < L**2):
+        raise ValueError(f"twist: a bar of length {L} cannot sweep {sweep!r} rad at radius {r!r}")
+    h = math.sqrt(L**2 - chord2)
+    angle = 2 * math.pi * np.arange(n) / n
+    bottom = np.column_stack([r * np.cos(angle), r * np.sin(angle), np.zeros(n)])
+    top = np.column_stack([r * np.cos(angle + sweep), r * np.sin(angle + sweep), np.full(n, h)])
+    return np.vstack([bottom, top])
+
+
+def prism_members(n: int) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
+    """Rods (n, 2), tendons (3n, 2) and tendon names of the ``n``-bar prism.
+
+    Tendons: bottom ring ``b{i}`` (bottom ``i`` -> ``i+1``), top ring ``t{i}`` (top ``i`` ->
+    ``i+1``), side ``s{i}`` (bottom ``i`` -> top ``i-1``), in that order.
+    """
+    i = np.arange(n)
+    rods = _pairs(i, n + i)
+    tendons = np.vstack([_pairs(i, (i + 1) % n), _pairs(n + i, n + (i + 1) % n),
+                         _pairs(i, n + (i - 1) % n)])
+    names = tuple(f"{kind}{k}" for kind in "bts" for k in range(n))
+    return rods, tendons, names
+
+
+def prism(
+    n: int = 3,
+    *,
+    rod_length: float = 1.0,
+    rod_mass: float = 1.0,
+    height: float | None = None,
+    stiffness: float = 100.0,
+    tension: float = 5.0,
+    damping: float = 0.0,
+) -> Structure:
+    """The regular ``n``-bar prism at its equilibrium twist (``n = 3``: the simplex).
+
+    ``n`` bars between a bottom and a top ``n``-gon of ring strings, ``n`` side strings
+    (:func:`prism_members`), laid out by :func:`prism_layout` with the twist ``pi/2 - pi/n``
+    (30 degrees for ``n = 3``, 45 for ``n = 4``), the only twist at which the prism has a self-stress
+    with all strings in tension (derivation and source: ``docs/networks.md``).  Rest lengths
+    realize that self-stress with mean tendon tension ``tension`` [N].
+
+    Parameters
+    ----------
+    rod_length : float
+        [m].  rod_mass : [kg].  stiffness : tendon stiffness [N/m].  damping : tendon [N s/m].
+    height : float, optional
+        Prism height [m] in ``(0, rod_length)``; default ``rod_length / sqrt(2)``.
+    tension : float
+        Mean tendon tension of the prestress [N].
+    """
+    layout = prism_layout(n, rod_length=rod_length, height=height)
+    draft = _draft(layout, *prism_members(n), rod_mass=rod_mass, stiffness=stiffness,
+                   damping=damping)
+    return _prestressed(draft, tension)
+
+
+# ---------------------------------------------------------------------------- octahedron
+def octahedron(
+    *,
+    rod_length: float = 1.0,
+    rod_mass: float = 1.0,
+    stiffness: float = 100.0,
+    tension: float = 5.0,
+    damping: float = 0.0,
+) -> Structure:
+    """The 6-bar expanded octahedron: three pairs of parallel bars, 24 equal strings.
+
+    Bars of length ``L`` in pairs parallel to ``x`` (at ``z = +-L/4``), ``y`` (at ``x = +-L/4``)
+    and ``z`` (at ``y = +-L/4``): a pair is ``L/2`` apart, the symmetric equilibrium (every
+    string ``sqrt(6)/4 L`` long, bar force ``sqrt(6)`` times the string tension; derivation in
+    ``docs/networks.md``).  Each node has four strings, to the nearest ends of the two bar pairs
+    it is not parallel to: the 24 edges of the 8 triangles around the octahedron's faces.
+    Nodes ``2r, 2r+1`` are the ends of rod ``r`` (``-`` end first).
+    """
+    L = _positive(rod_length, "rod_length")
+    a = L / 4
+    nodes = []
+    for axis in range(3):  # bar pairs parallel to x, y, z
+        for offset in (-a, a):
+            for end in (-L / 2, L / 2):
+                p = np.zeros(3)
+                p[axis] = end
+                p[(axis + 2) % 3] = offset  # x-bars offset in z, y-bars in x, z-bars in y
+                nodes.append(p)
+    position = np.array(nodes)
+    rods = _pairs(np.arange(0, 12, 2), np.arange(1, 12, 2))
+    distance = np.linalg.norm(position[:, None] - position[None], axis=2)
+    string = math.sqrt(6) / 4 * L
+    tails, heads = np.nonzero(np.triu(np.isclose(distance, string, rtol=1e-12)))
+    tendons = _pairs(tails, heads)
+    names = tuple(f"s{k}" for k in range(tendons.shape[0]))
+    draft = _draft(position, rods, tendons, names, rod_mass=rod_mass, stiffness=stiffness,
+                   damping=damping)
+    return _prestressed(draft, tension)
+
+
+# --------------------------------------------------------------------------------- tower
+def tower_members(n: int, m: int) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
+    """Rods and tendons of ``m`` stacked ``n``-bar prisms, stage ``j`` on nodes ``2nj .. 2nj+2n-1``.
+
+    Each stage is a prism (:func:`prism_members` numbering, side strings ``side{i}_{j}``); the
+    bottom ring ``base{i}`` closes stage 0 and the top ring ``top{i}`` stage ``m-1``.  Between
+    stages ``j`` and ``j+1`` the rings are replaced by a zig-zag of ``2n`` saddle strings (bottom
+    node ``i`` of stage ``j+1`` to top nodes ``i``, ``saddle{i}a_{j}``, and ``i+1``,
+    ``saddle{i}b_{j}``, of stage ``j``) and ``2n`` vertical strings that hold the stages
+    interlaced: bottom node ``i`` of stage ``j`` to bottom node ``i`` of stage ``j+1``
+    (``low{i}_{j}``) and top to top (``high{i}_{j}``).  Without these the saddle strings would
+    pull the stages apart until they merely touch (no overlap).
+    """
+    i = np.arange(n)
+    rods, tendons, names = [], [], []
+
+    def add(pairs: np.ndarray, label: str) -> None:
+        tendons.append(pairs)
+        names.extend(label.format(k) for k in range(n))
+
+    for j in range(m):
+        low, high = 2 * n * j, 2 * n * j + n  # first bottom and first top node of stage j
+        rods.append(_pairs(low + i, high + i))
+        add(_pairs(low + i, high + (i - 1) % n), f"side{{}}_{j}")
+        if j == 0:
+            add(_pairs(low + i, low + (i + 1) % n), "base{}")
+        if j == m - 1:
+            add(_pairs(high + i, high + (i + 1) % n), "top{}")
+        else:
+            add(_pairs(high + i, high + n + i), f"saddle{{}}a_{j}")
+            add(_pairs(high + (i + 1) % n, high + n + i), f"saddle{{}}b_{j}")
+            add(_pairs(low + i, low + 2 * n + i), f"low{{}}_{j}")
+            add(_pairs(high + i, high + 2 * n + i), f"high{{}}_{j}")
+    return np.vstack(rods), np.vstack(tendons), tuple(names)
+
+
+def tower(
+    n: int = 3,
+    m: int = 3,
+    *,
+    rod_length: float = 1.0,
+    rod_mass: float = 1.0,
+    overlap: float = 0.3,
+    stiffness: float = 100.0,
+    tension: float = 5.0,
+    damping: float = 0.0,
+) -> Structure:
+    """A tower of ``m`` stacked ``n``-bar prisms (Snelson's Needle Tower, Figure 18.3).
+
+    Stage ``j`` is the prism of :func:`prism_layout` turned by ``j (twist + 3 pi / n)`` about the
+    axis (so its bottom nodes sit midway, in angle, between the top nodes of the stage below)
+    and raised by ``j (1 - overlap) h``: consecutive stages overlap by ``overlap`` of a stage's
+    height ``h``.  Members: :func:`tower_members`.  That rough layout is not an equilibrium;
+    form-finding (:func:`tensegrity.analysis.prestress.form_find`, from rest lengths of 0.9 times
+    the initial lengths) moves it to a stable equilibrium with every tendon taut, and the rest
+    lengths are set to realize the self-stress of that geometry with mean tension ``tension``
+    [N].  The returned structure's nodes are at that equilibrium.
+
+    Raises
+    ------
+    ValueError
+        If form-finding ends without a stable, all-taut equilibrium (it names the verdict).
+    """
+    from tensegrity.analysis.prestress import form_find
+
+    n, m = _count(n, "n", 3), _count(m, "m", 1)
+    if not 0 <= overlap < 1:
+        raise ValueError(f"overlap: must be in [0, 1), got {overlap!r}")
+    stage = prism_layout(n, rod_length=rod_length)
+    turn = prism_twist(n) + 3 * math.pi / n
+    pitch = (1 - overlap) * stage[n, 2]
+    layout = []
+    for j in range(m):
+        c, s = math.cos(j * turn), math.sin(j * turn)
+        layout.append(stage @ np.array([[c, s, 0], [-s, c, 0], [0, 0, 1]]) + [0, 0, j * pitch])
+    draft = _draft(np.vstack(layout), *tower_members(n, m), rod_mass=rod_mass,
+                   stiffness=stiffness, damping=damping, rest_fraction=0.9)
+    found = form_find(draft, mean_tension=_positive(tension, "tension"))
+    if not found.stable:
+        raise ValueError(f"tower: form-finding found no stable all-taut equilibrium ({found.verdict})")
+    return found.structure

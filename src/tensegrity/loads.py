@@ -1,0 +1,113 @@
+"""Tabulated nodal forces: a time table of forces as the callable ``simulate(external_force=...)``.
+
+A table gives the external force on every node at increasing times ``t_k``; between them the
+force is interpolated linearly, and outside ``[t_0, t_last]`` it is held at the end values
+(``outside="hold"``) or zero (``outside="zero"``).  Files: ``.npz`` with arrays ``time`` (T,) [s]
+and ``force`` (T, N, 3) [N], or ``.csv`` with one row per time, ``t, f0x, f0y, f0z, f1x, ...``
+(``1 + 3N`` numbers; lines starting with ``#`` are comments).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+
+from tensegrity.io import PathLike, _file_error, _os_problem
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class ForceTable:
+    """External nodal forces from a time table, linear in between; call it as ``w(t)``.
+
+    Parameters
+    ----------
+    time : array_like, shape (T,)
+        Strictly increasing, finite times [s], ``T >= 1`` (one row: a constant force).
+    force : array_like, shape (T, N, 3)
+        Forces [N] on each node at each time.
+    outside : ``"hold"`` or ``"zero"``
+        The force before ``time[0]`` and after ``time[-1]``: the end rows, or zero.
+
+    Raises
+    ------
+    ValueError
+        Naming the field: ``time: must increase strictly, but time[3] = 0.2 <= time[2] = 0.2``,
+        ``force: expected shape (T, N, 3) with T = 4 rows like time, got (3, 12, 3)``, ...
+    """
+
+    time: np.ndarray
+    force: np.ndarray
+    outside: str = "hold"
+
+    def __post_init__(self) -> None:
+        time = np.array(self.time, dtype=float)
+        force = np.array(self.force, dtype=float)
+        if time.ndim != 1 or time.size == 0:
+            raise ValueError(f"time: expected a non-empty 1-D array, got shape {time.shape}")
+        if force.ndim != 3 or force.shape[0] != time.size or force.shape[2] != 3:
+            raise ValueError(f"force: expected shape (T, N, 3) with T = {time.size} rows like time, "
+                             f"got {force.shape}")
+        for name, array in (("time", time), ("force", force)):
+            bad = np.argwhere(~np.isfinite(array))
+            if bad.size:
+                raise ValueError(f"{name}[{', '.join(map(str, bad[0]))}]: must be finite")
+        step = np.flatnonzero(np.diff(time) <= 0)
+        if step.size:
+            k = step[0] + 1
+            raise ValueError(f"time: must increase strictly, but time[{k}] = {float(time[k])!r} <= "
+                             f"time[{k - 1}] = {float(time[k - 1])!r}")
+        if self.outside not in ("hold", "zero"):
+            raise ValueError(f"outside: expected 'hold' or 'zero', got {self.outside!r}")
+        time.setflags(write=False)
+        force.setflags(write=False)
+        object.__setattr__(self, "time", time)
+        object.__setattr__(self, "force", force)
+
+    @property
+    def n_nodes(self) -> int:
+        """Number of nodes ``N`` the table is for."""
+        return self.force.shape[1]
+
+    def __call__(self, t: float) -> np.ndarray:
+        """The nodal forces (N, 3) [N] at time ``t`` [s]."""
+        time = self.time
+        if t < time[0] or t > time[-1]:
+            if self.outside == "zero":
+                return np.zeros(self.force.shape[1:])
+            return self.force[0] if t < time[0] else self.force[-1]
+        k = min(int(np.searchsorted(time, t, side="right")), time.size - 1)
+        if k == 0:
+            return self.force[0]
+        w = (t - time[k - 1]) / (time[k] - time[k - 1])
+        return (1.0 - w) * self.force[k - 1] + w * self.force[k]
+
+
+def read_force_table(path: PathLike, *, outside: str = "hold") -> ForceTable:
+    """Read a force table from ``.npz`` (``time``, ``force``) or ``.csv`` (see the module doc).
+
+    Raises
+    ------
+    ValueError
+        One line starting with the file name.
+    """
+    suffix = Path(path).suffix.lower()
+    if suffix not in (".npz", ".csv"):
+        raise _file_error(path, f"unknown force table suffix {suffix!r} (expected .npz or .csv)")
+    try:
+        if suffix == ".npz":
+            with np.load(path, allow_pickle=False) as archive:
+                missing = [name for name in ("time", "force") if name not in archive.files]
+                if missing:
+                    raise ValueError(f"missing array {missing[0]!r} (expected time (T,), force (T, N, 3))")
+                return ForceTable(archive["time"], archive["force"], outside)
+        rows = np.loadtxt(path, delimiter=",", comments="#", ndmin=2)
+        if (rows.shape[1] - 1) % 3 or rows.shape[1] < 4:
+            raise ValueError(f"expected rows of 1 + 3N numbers (t, f0x, f0y, f0z, ...), got "
+                             f"{rows.shape[1]}")
+        return ForceTable(rows[:, 0], rows[:, 1:].reshape(rows.shape[0], -1, 3), outside)
+    except OSError as exc:
+        raise _file_error(path, _os_problem(exc)) from exc
+    except ValueError as exc:
+        raise _file_error(path, str(exc)) from exc
