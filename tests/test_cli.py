@@ -113,6 +113,38 @@ def test_bad_input_is_one_line_exit_2_and_writes_nothing(argv, words, tmp_path, 
     assert not list(tmp_path.iterdir())
 
 
+@pytest.mark.parametrize(
+    "argv, words",
+    [
+        (["simulate", "--out", "afile"], "--out: afile exists and is not a folder"),
+        (["simulate", "--out", "afile/sub"], "--out: afile exists and is not a folder"),
+        (["matrices", "--at", "equilibrium", "--out", "afile"], "--out: afile exists"),
+        (["export", "-o", "afile/s.json"], "--output: folder afile does not exist"),
+        (["export", "-o", "missing/s.json"], "--output: folder missing does not exist"),
+        (["export", "-o", "."], "--output: . is a folder"),
+    ],
+)
+def test_unusable_output_path_fails_before_any_work(argv, words, tmp_path, capsys, monkeypatch):
+    """An output path that cannot be written is refused up front (no simulation is run), in one
+    line naming the option, and the file in the way is left as it was."""
+    import importlib
+
+    module = importlib.import_module("tensegrity.simulate")  # the package exports the function
+
+    def no_simulation(*args, **kwargs):
+        raise AssertionError("simulated although the output path is unusable")
+
+    monkeypatch.setattr(module, "simulate", no_simulation)
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "afile").write_text("keep me")
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("tensegrity: error:"), err
+    assert words in err and "Errno" not in err and ".tmp" not in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["afile"]
+    assert (tmp_path / "afile").read_text() == "keep me"
+
+
 def test_bad_structure_file_names_the_element(tmp_path, capsys):
     path = tmp_path / "bad.json"
     main(["export", "-o", str(path)])

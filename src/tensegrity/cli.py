@@ -131,6 +131,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     from tensegrity.plotting import save_figures
     from tensegrity.simulate import simulate
 
+    _check_output_folder(args.out, "--out")
     structure = _structure(args)
     damping = args.damping
     if damping is None and getattr(args, "structure", None) is None:
@@ -160,6 +161,15 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     ])
     _print_summary(result, written)
     return 0
+
+
+def _check_output_folder(folder: Path, option: str) -> None:
+    """Fail up front, before any work, if ``folder`` cannot be (or become) a folder."""
+    for path in (folder, *folder.parents):
+        if path.exists():
+            if not path.is_dir():
+                raise CommandError(f"{option}: {path} exists and is not a folder")
+            return
 
 
 def _write_all(out: Path, write: Callable[[Path], list[Path]]) -> list[Path]:
@@ -244,6 +254,10 @@ def _cmd_export(args: argparse.Namespace) -> int:
     from tensegrity.io import write_structure
 
     structure = _apply_damping(_structure(args), args.damping)
+    if args.output.is_dir():
+        raise CommandError(f"--output: {args.output} is a folder, expected a file name")
+    if not args.output.parent.is_dir():
+        raise CommandError(f"--output: folder {args.output.parent} does not exist")
     write_structure(args.output, structure)
     print(f"wrote {args.output} ({structure.n_nodes} nodes, {structure.n_rods} rods, "
           f"{structure.n_tendons} tendons)")
@@ -254,6 +268,7 @@ def _cmd_matrices(args: argparse.Namespace) -> int:
     from tensegrity.matrices import undamped, write_matrices
     from tensegrity.simulate import simulate
 
+    _check_output_folder(args.out, "--out")
     structure = undamped(_structure(args))
     if args.at == "equilibrium":
         # Tight rest tolerances: with the damping removed, K_p q = q'' is then below ~1e-8.
