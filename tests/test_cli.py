@@ -59,6 +59,19 @@ def test_default_example_reaches_a_taut_steady_state(default_run):
     assert np.abs(total - total[0]).max() < 1e-6 * total[0]
 
 
+def test_default_example_settles_into_the_expanded_octahedron(default_run):
+    """Closed form: the (3,1) shell has the connectivity of the expanded octahedron (6 rods,
+    4 tendons at every node), whose equilibrium with equal tendons has every tendon
+    ``sqrt(6)/4`` times the rod length long (e.g. Tibert & Pellegrino 2003)."""
+    _, out = default_run
+    trajectory = read_trajectory(out / "trajectory.h5")
+    structure = read_structure(out / "structure.json")
+    assert np.all(np.bincount(structure.tendon_nodes.ravel()) == 4)
+    lengths = trajectory.tendon_length[-1]
+    assert np.abs(lengths / structure.rod_length[0] - np.sqrt(6) / 4).max() < 1e-6
+    assert np.abs(trajectory.tendon_length[0] / structure.rod_length[0] - np.sqrt(6) / 4).max() > 0.1
+
+
 def test_default_example_prints_a_summary(tmp_path, capsys):
     assert main(["simulate", "--out", str(tmp_path), "--t-end", "0.5", "--sample-dt", "0.05"]) == 0
     printed = capsys.readouterr().out
