@@ -59,6 +59,19 @@ def test_default_example_reaches_a_taut_steady_state(default_run):
     assert np.abs(total - total[0]).max() < 1e-6 * total[0]
 
 
+def test_default_example_settles_into_the_expanded_octahedron(default_run):
+    """Closed form: the (3,1) shell has the connectivity of the expanded octahedron (6 rods,
+    4 tendons at every node), whose equilibrium with equal tendons has every tendon
+    ``sqrt(6)/4`` times the rod length long (e.g. Tibert & Pellegrino 2003)."""
+    _, out = default_run
+    trajectory = read_trajectory(out / "trajectory.h5")
+    structure = read_structure(out / "structure.json")
+    assert np.all(np.bincount(structure.tendon_nodes.ravel()) == 4)
+    lengths = trajectory.tendon_length[-1]
+    assert np.abs(lengths / structure.rod_length[0] - np.sqrt(6) / 4).max() < 1e-6
+    assert np.abs(trajectory.tendon_length[0] / structure.rod_length[0] - np.sqrt(6) / 4).max() > 0.1
+
+
 def test_default_example_prints_a_summary(tmp_path, capsys):
     assert main(["simulate", "--out", str(tmp_path), "--t-end", "0.5", "--sample-dt", "0.05"]) == 0
     printed = capsys.readouterr().out
@@ -111,6 +124,38 @@ def test_bad_input_is_one_line_exit_2_and_writes_nothing(argv, words, tmp_path, 
     assert words in err
     assert "Traceback" not in err
     assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize(
+    "argv, words",
+    [
+        (["simulate", "--out", "afile"], "--out: afile exists and is not a folder"),
+        (["simulate", "--out", "afile/sub"], "--out: afile exists and is not a folder"),
+        (["matrices", "--at", "equilibrium", "--out", "afile"], "--out: afile exists"),
+        (["export", "-o", "afile/s.json"], "--output: folder afile does not exist"),
+        (["export", "-o", "missing/s.json"], "--output: folder missing does not exist"),
+        (["export", "-o", "."], "--output: . is a folder"),
+    ],
+)
+def test_unusable_output_path_fails_before_any_work(argv, words, tmp_path, capsys, monkeypatch):
+    """An output path that cannot be written is refused up front (no simulation is run), in one
+    line naming the option, and the file in the way is left as it was."""
+    import importlib
+
+    module = importlib.import_module("tensegrity.simulate")  # the package exports the function
+
+    def no_simulation(*args, **kwargs):
+        raise AssertionError("simulated although the output path is unusable")
+
+    monkeypatch.setattr(module, "simulate", no_simulation)
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "afile").write_text("keep me")
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("tensegrity: error:"), err
+    assert words in err and "Errno" not in err and ".tmp" not in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["afile"]
+    assert (tmp_path / "afile").read_text() == "keep me"
 
 
 def test_bad_structure_file_names_the_element(tmp_path, capsys):

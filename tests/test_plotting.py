@@ -134,3 +134,31 @@ def test_tendon_lengths_figure_labels_and_legends(result):
     assert any(f"{len(names)} tendons" in text.get_text() for text in ax.texts)
     with pytest.raises(ValueError, match="tendon_length"):
         figure_tendon_lengths(t, lengths, names[:3])
+
+
+@pytest.mark.parametrize("tendons", [1, 0], ids=["every-tendon-slack", "no-tendons"])
+def test_figures_of_a_structure_without_taut_tendons(tmp_path, tendons):
+    """Two rods drifting together: their one tendon (if any) goes slack; the figures are still
+    drawn, the slack tendon marked, and no empty set of taut tendons is drawn."""
+    from tensegrity import Structure
+
+    structure = Structure(
+        node_position=[[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]],
+        node_velocity=[[0, 0.5, 0], [0, 0.5, 0], [0, -0.5, 0], [0, -0.5, 0]],
+        rod_nodes=[[0, 1], [2, 3]], rod_mass=[1.0, 1.0], rod_length=[1.0, 1.0],
+        tendon_nodes=[[0, 2]][:tendons], tendon_stiffness=[10.0][:tendons],
+        tendon_rest_length=[0.9][:tendons],
+    )
+    r = simulate(structure, (0.0, 0.5), sample_dt=0.05)
+    assert r.status == 0, r.message
+    assert r.slack_count[-1] == tendons  # the rods have moved closer than the rest length
+    paths = save_figures(r, tmp_path)
+    assert [p.name for p in paths] == ["initial.png", "equilibrium.png", "tendon_lengths.png"]
+    assert all(png_size(p)[0] > 0 for p in paths)
+    figure = Figure()
+    ax = figure.add_subplot(projection="3d")
+    artists = draw_structure(ax, structure, r.node_position[-1], r.tendon_tension[-1])
+    assert artists["tendons"] is None
+    assert (artists["slack"] is not None) == bool(tendons)
+    expected = ["rods (2)"] + [f"slack tendons ({tendons})"] * bool(tendons)
+    assert legend_texts(ax) == expected

@@ -470,6 +470,38 @@ def test_huge_stiffness_reports_unstable():
     assert r.t[-1] < 1.0
 
 
+def _parallel_rods_on_springs():
+    """Two parallel rods joined end to end by zero-rest-length tendons: released at rest they
+    translate against each other without turning (``f_a = f_b`` on each rod), so rod lengths
+    stay exact and only the energy check can see an unstable step.  Relative motion is a linear
+    oscillator with ``w = sqrt(4 k / m) = 20 rad/s``; RK4 is unstable for ``w dt > 2.79``."""
+    return Structure(
+        node_position=[[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], rod_nodes=[[0, 1], [2, 3]],
+        rod_mass=[1.0, 1.0], rod_length=[1.0, 1.0], tendon_nodes=[[0, 2], [1, 3]],
+        tendon_stiffness=[100.0, 100.0], tendon_rest_length=[0.0, 0.0],
+    )
+
+
+def test_energy_growth_with_exact_rod_lengths_reports_unstable():
+    structure = _parallel_rods_on_springs()
+    stable = simulate(structure, (0.0, 5.0), method="rk4", dt=0.01, sample_dt=0.1)
+    assert stable.status == 0, stable.message  # w dt = 0.2: fine
+    r = simulate(structure, (0.0, 5.0), method="rk4", dt=0.2, sample_dt=0.2)  # w dt = 4
+    assert r.status == -1 and r.message.startswith("unstable: energy grew"), r.message
+    assert r.max_rod_length_error < 1e-12  # not caught by the rod-length check
+    assert r.t[-1] < 1.0
+
+
+@pytest.mark.filterwarnings("ignore::RuntimeWarning")
+def test_non_finite_state_reports_unstable():
+    """With the energy check switched off the same run overflows; it must stop there."""
+    structure = _parallel_rods_on_springs()
+    r = simulate(structure, (0.0, 200.0), method="rk4", dt=0.2, sample_dt=0.2,
+                 max_energy_growth=np.inf)
+    assert r.status == -1 and "not finite" in r.message, r.message
+    assert r.t[-1] < 200.0
+
+
 def test_nan_external_force_fails_the_run():
     structure = class1_shell(3, 1)
 

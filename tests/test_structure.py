@@ -258,8 +258,11 @@ def test_node_positions_contradicting_rod_length_are_rejected(factor):
     kwargs = base_kwargs()
     a, b = np.array(NODES[2]), np.array(NODES[3])  # rod 1, length 1
     kwargs["node_position"][3] = list(a + (b - a) * (1 + factor * ROD_LENGTH_RTOL))
-    with pytest.raises(ValueError, match=names("rod", at(1), "length")):
+    with pytest.raises(ValueError, match=names("rod", at(1), "length")) as excinfo:
         Structure(**kwargs)
+    # plain numbers for the user, not numpy reprs such as "np.float64(1.0)"
+    message = str(excinfo.value)
+    assert "is 1.0 m but nodes 2 and 3 are " in message and "np." not in message, message
 
 
 @pytest.mark.parametrize("factor", [0.5, -0.5, 0.9, -0.9])

@@ -160,6 +160,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     from tensegrity.plotting import save_figures
     from tensegrity.simulate import simulate
 
+    _check_output_folder(args.out, "--out")
     structure = _structure(args)
     damping = args.damping
     if damping is None and getattr(args, "structure", None) is None:
@@ -199,6 +200,15 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     ])
     _print_summary(result, [f for f in written if f.parent == args.out or f.suffix == ".pvd"])
     return 0
+
+
+def _check_output_folder(folder: Path, option: str) -> None:
+    """Fail up front, before any work, if ``folder`` cannot be (or become) a folder."""
+    for path in (folder, *folder.parents):
+        if path.exists():
+            if not path.is_dir():
+                raise CommandError(f"{option}: {path} exists and is not a folder")
+            return
 
 
 def _vtk_files(folder: Path, result) -> list[Path]:
@@ -268,6 +278,10 @@ def _cmd_export(args: argparse.Namespace) -> int:
     from tensegrity.network import FORMATS, write_network
 
     structure = _apply_damping(_structure(args), args.damping)
+    if args.output.is_dir():
+        raise CommandError(f"--output: {args.output} is a folder, expected a file name")
+    if not args.output.parent.is_dir():
+        raise CommandError(f"--output: folder {args.output.parent} does not exist")
     fmt = args.format or FORMATS.get(args.output.suffix.lower(), "json")
     write_network(args.output, structure, format=fmt)
     print(f"wrote {args.output} ({fmt}: {structure.n_nodes} nodes, {structure.n_rods} rods, "
@@ -279,6 +293,7 @@ def _cmd_vtk(args: argparse.Namespace) -> int:
     from tensegrity.io import read_trajectory
     from tensegrity.vtk_export import write_vtk
 
+    _check_output_folder(args.output, "--output")
     written = write_vtk(args.output, read_trajectory(args.trajectory), every=args.every,
                         name=args.name)
     print(f"wrote {len(written) - 1} VTK files and {written[-1]} (open it in ParaView)")
@@ -289,6 +304,7 @@ def _cmd_matrices(args: argparse.Namespace) -> int:
     from tensegrity.matrices import undamped, write_matrices
     from tensegrity.simulate import simulate
 
+    _check_output_folder(args.out, "--out")
     structure = undamped(_structure(args))
     if args.at == "equilibrium":
         # Tight rest tolerances: with the damping removed, K_p q = q'' is then below ~1e-8.
@@ -324,6 +340,7 @@ def _cmd_analysis(args: argparse.Namespace) -> int:
     from tensegrity.analysis import commands
 
     run = getattr(commands, f"run_{args.command}")
+    _check_output_folder(args.out, "--out")
     structure = _structure(args)
     options = {name: getattr(args, name) for name in inspect.signature(run).parameters
                if name not in ("structure", "out_dir") and hasattr(args, name)}

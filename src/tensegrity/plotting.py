@@ -125,8 +125,8 @@ def draw_structure(
     Returns
     -------
     dict
-        The artists: ``"rods"``, ``"tendons"`` (taut or all), ``"slack"`` (None if no tendon is
-        slack), ``"nodes"`` (or None), and ``"mappable"``: a ``ScalarMappable`` of the tension
+        The artists: ``"rods"``, ``"tendons"`` (taut or all; None if there is none), ``"slack"``
+        (None if no tendon is slack), ``"nodes"`` (or None), and ``"mappable"``: a ``ScalarMappable`` of the tension
         colours, or None.
     """
     from mpl_toolkits.mplot3d.art3d import Line3DCollection
@@ -148,10 +148,12 @@ def draw_structure(
         tendon_colors = mappable.to_rgba(taut_tension)
     else:
         tendon_colors = TENDON_COLOR
-    tendons = Line3DCollection(
-        segments(taut_pairs), colors=tendon_colors, linewidths=TENDON_WIDTH, zorder=1
-    )
-    ax.add_collection3d(tendons)
+    tendons = None
+    if len(taut_pairs):  # matplotlib cannot add an empty 3-D collection
+        tendons = Line3DCollection(
+            segments(taut_pairs), colors=tendon_colors, linewidths=TENDON_WIDTH, zorder=1
+        )
+        ax.add_collection3d(tendons)
     slack_lines = None
     if slack.any():
         slack_lines = Line3DCollection(

@@ -162,8 +162,8 @@ class Structure:
         if bad.size:
             r = bad[0]
             raise ValueError(
-                f"rods[{r}].length: is {rod_length[r]!r} m but nodes {rod_nodes[r, 0]} and "
-                f"{rod_nodes[r, 1]} are {distance[r]!r} m apart (relative tolerance "
+                f"rods[{r}].length: is {float(rod_length[r])!r} m but nodes {rod_nodes[r, 0]} and "
+                f"{rod_nodes[r, 1]} are {float(distance[r])!r} m apart (relative tolerance "
                 f"{ROD_LENGTH_RTOL:g})"
             )
 
