@@ -26,7 +26,7 @@ T_END, SAMPLE_DT, DT = 0.02, 2e-3, 2e-4
 @pytest.fixture(scope="module")
 def cluster():
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
-                      dashboard_address=None) as local:
+                      dashboard_address=":0") as local:
         yield local
 
 
