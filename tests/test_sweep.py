@@ -262,3 +262,22 @@ def test_batch_rejects_what_it_cannot_do():
         simulate_batch([a], (0, 0.01005), dt=1e-4, sample_dt=1e-3)
     with pytest.raises(ValueError, match="^external_force"):
         simulate_batch([a], (0, 0.01), dt=1e-4, sample_dt=1e-3, external_force=[None, None])
+
+
+def test_plan_batches_small_shells_per_worker_and_large_ones_per_case():
+    from tensegrity.sweep import BATCH_MAX_RODS, plan
+
+    spec = SweepSpec({"n": [3, 25], "m": [1, 20], "stiffness": [50.0, 100.0, 150.0]})
+    cases = spec.cases()
+    tasks = plan(spec, cases, 2)
+    assert sorted(i for idx, _ in tasks for i in idx) == list(range(len(cases)))
+    by_size = {}
+    for idx, batched in tasks:
+        sizes = {(cases[i]["n"], cases[i]["m"]) for i in idx}
+        assert batched and len(sizes) == 1
+        by_size.setdefault(sizes.pop(), []).append(len(idx))
+    # (3,1), (3,20), (25,1): 6, 120, 50 rods, one batch per worker; (25,20): 1000 rods, per case
+    assert 2 * 25 * 20 == BATCH_MAX_RODS
+    assert by_size == {(3, 1): [2, 1], (3, 20): [2, 1], (25, 1): [2, 1], (25, 20): [1, 1, 1]}
+    adaptive = SweepSpec({"stiffness": [50.0, 100.0]}, method="DOP853")
+    assert plan(adaptive, adaptive.cases(), 2) == [([0], False), ([1], False)]

@@ -24,13 +24,16 @@ Each case starts from the initial layout at rest and runs ``simulate`` over ``(0
 
 How cases run
 -------------
-- ``method="rk4"`` (the default): cases of equal ``(n, m)`` go through the batched compiled path
-  (:func:`tensegrity.batch.simulate_batch`), split into one task per Dask worker thread (so every
-  worker is busy); a case that cannot be built is reported and left out of its batch.  Measured in
-  ``benchmarks/bench_sweep.py``: the batched path beats process parallelism of ``simulate`` by a
-  large factor at every size tried (see ``benchmarks/results.md``), hence the rule.  ``batch=False``
+- ``method="rk4"`` (the default): cases run through the compiled path
+  (:func:`tensegrity.batch.simulate_batch`).  Shells with fewer than :data:`BATCH_MAX_RODS` rods:
+  the cases of equal ``(n, m)`` form one batch per Dask worker thread (per-task overhead
+  amortized, every worker busy); larger shells: one case per task (a batch of one; the per-task
+  overhead is negligible there, and finer tasks balance the load).  A case that cannot be built is
+  reported and left out of its batch.  Measured in ``benchmarks/bench_sweep.py``
+  (``benchmarks/results-sweep.md``): the compiled path is 17-50x faster than process parallelism
+  of ``simulate``; batching adds ~1.2x at (3,1) and (10,10) and nothing at (30,30).  ``batch=False``
   runs every case on its own through ``simulate`` instead (bit-for-bit what a direct ``simulate``
-  call returns); batched results agree with ``simulate`` to round-off (~1e-13 relative).
+  call returns); compiled results agree with ``simulate`` to round-off (~1e-13 relative).
 - Adaptive methods (``"DOP853"``, ...): one task per case through ``simulate``.
 
 The dataset
@@ -73,6 +76,8 @@ DEFAULTS: dict[str, float] = {
     "n": 3, "m": 1, "stiffness": 100.0, "rest_scale": 0.9, "damping": 0.0, "load": 0.0,
 }
 INTEGER_PARAMETERS = ("n", "m")
+#: RK4 sweeps: shells with fewer rods than this are batched per worker, larger ones run one per task.
+BATCH_MAX_RODS = 1000
 #: ``status`` of a case that could not be built or raised while running.
 STATUS_ERROR = -2
 MODES = ("grid", "monte-carlo")
@@ -392,16 +397,18 @@ def read_sweep(path: PathLike):
 def plan(spec: SweepSpec, cases: Sequence[Mapping[str, float]], n_slots: int) -> list[tuple[list[int], bool]]:
     """The tasks: ``(case indices, batched)``.
 
-    RK4 with ``spec.batch``: the cases of each ``(n, m)`` in ``n_slots`` nearly equal batches (at
-    most one task per case).  Otherwise one task per case.
+    RK4 with ``spec.batch``: the cases of each ``(n, m)`` in ``n_slots`` nearly equal batches if
+    the shell has fewer than :data:`BATCH_MAX_RODS` rods (``2 n m``), else one compiled task per
+    case.  Otherwise one ``simulate`` task per case.
     """
     if spec.method in FIXED_STEP_METHODS and spec.batch:
         groups: dict[tuple[int, int], list[int]] = {}
         for i, case in enumerate(cases):
             groups.setdefault((int(case["n"]), int(case["m"])), []).append(i)
         tasks = []
-        for members in groups.values():
-            for part in np.array_split(np.array(members), min(n_slots, len(members))):
+        for (n, m), members in groups.items():
+            parts = min(n_slots, len(members)) if 2 * n * m < BATCH_MAX_RODS else len(members)
+            for part in np.array_split(np.array(members), parts):
                 tasks.append(([int(i) for i in part], True))
         return tasks
     return [([i], False) for i in range(len(cases))]
