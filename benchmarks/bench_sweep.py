@@ -36,7 +36,7 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from bench_rhs import machine_info, parse_size  # noqa: E402
+from bench_rhs import machine_info, parse_size, write_report  # noqa: E402
 
 
 def make_spec(n: int, m: int, cases: int, *, batch: bool = True):
@@ -136,11 +136,7 @@ def main(argv=None) -> int:
             f"{t['dask_simulate'] / t['run_sweep']:.1f}× | "
             f"{t['dask_compiled'] / t['dask_batched']:.2f}× | "
             f"{cases * steps / t['run_sweep']:,.0f} |")
-    text = "\n".join(lines) + "\n"
-    print(text)
-    if args.output != "-":
-        Path(args.output).write_text(text)
-        print(f"wrote {args.output}")
+    write_report("\n".join(lines) + "\n", args.output)
     return 0
 
 

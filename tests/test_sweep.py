@@ -188,9 +188,15 @@ def test_spec_files_and_saved_dataset(tmp_path, client):
 
 
 def test_scheduler_address(cluster):
-    spec = SweepSpec({"stiffness": [100.0]}, t_end=0.004, sample_dt=0.002, dt=DT)
-    result = run_sweep(spec, scheduler=cluster.scheduler_address)
-    assert result.success and result.dataset.sizes["case"] == 1
+    spec = SweepSpec({"stiffness": [100.0, 120.0, 140.0]}, t_end=0.004, sample_dt=0.002, dt=DT,
+                     method="RK45")
+    calls = []
+    result = run_sweep(spec, scheduler=cluster.scheduler_address,
+                       progress=lambda done, total: calls.append((done, total)))
+    assert result.success and result.dataset.sizes["case"] == 3
+    assert calls == [(1, 3), (2, 3), (3, 3)]  # one task per case for an adaptive method
+    with pytest.raises(ValueError, match="^scheduler"):
+        run_sweep(spec, scheduler=cluster.scheduler_address, client=object())
 
 
 def test_cli_sweep_reports_failures_and_writes(tmp_path, capsys):

@@ -20,6 +20,9 @@ The loops over rods and tendons run inside one compiled function writing into pr
 buffers, and :func:`rk4_steps` runs a whole fixed-step RK4 integration (with projection onto the
 rod constraints ``|q2| = L``, ``q2 . q2' = 0`` after every step, as ``simulate(method="rk4")``
 does) in compiled code, so that small structures are not dominated by Python call overhead.
+:func:`rk4_batch` does the same for many copies of one structure held in ``(B, ...)`` arrays,
+with ``simulate``'s blow-up checks (used by :mod:`tensegrity.batch`); :func:`energies` gives the
+kinetic, elastic and gravity energies for those checks.
 
 This module imports numba; import it lazily (``from tensegrity.kernel import FastKernel`` inside
 the function that needs it) so that ``import tensegrity`` stays fast.  Compiled code is cached on
@@ -235,32 +238,28 @@ def rk4_step(q, qdot, h, model, tension, elastic_tension, stage_work):  # pragma
     hh = h / 2
     h6 = h / 6
     # k1 = [v, a(q, v)]
-    d1, w1 = rhs(q, qdot, *model, accel, tension, elastic_tension)
+    d_sum, w_sum = rhs(q, qdot, *model, accel, tension, elastic_tension)
     for i in range(n):
         acc_q[i] = qdot[i]
         acc_v[i] = accel[i]
         q_stage[i] = q[i] + hh * qdot[i]
         v_stage[i] = qdot[i] + hh * accel[i]
-    # k2 at y + h/2 k1
-    d2, w2 = rhs(q_stage, v_stage, *model, accel, tension, elastic_tension)
-    for i in range(n):
-        acc_q[i] = acc_q[i] + 2.0 * v_stage[i]
-        acc_v[i] = acc_v[i] + 2.0 * accel[i]
-        q_stage[i] = q[i] + hh * v_stage[i]
-        v_stage[i] = qdot[i] + hh * accel[i]
-    # k3 at y + h/2 k2
-    d3, w3 = rhs(q_stage, v_stage, *model, accel, tension, elastic_tension)
-    for i in range(n):
-        acc_q[i] = acc_q[i] + 2.0 * v_stage[i]
-        acc_v[i] = acc_v[i] + 2.0 * accel[i]
-        q_stage[i] = q[i] + h * v_stage[i]
-        v_stage[i] = qdot[i] + h * accel[i]
+    # k2 at y + h/2 k1, then k3 at y + h/2 k2 (and the stage for k4, at y + h k3)
+    for step in (hh, h):
+        d, w = rhs(q_stage, v_stage, *model, accel, tension, elastic_tension)
+        d_sum = d_sum + 2.0 * d
+        w_sum = w_sum + 2.0 * w
+        for i in range(n):
+            acc_q[i] = acc_q[i] + 2.0 * v_stage[i]
+            acc_v[i] = acc_v[i] + 2.0 * accel[i]
+            q_stage[i] = q[i] + step * v_stage[i]
+            v_stage[i] = qdot[i] + step * accel[i]
     # k4 at y + h k3
-    d4, w4 = rhs(q_stage, v_stage, *model, accel, tension, elastic_tension)
+    d, w = rhs(q_stage, v_stage, *model, accel, tension, elastic_tension)
     for i in range(n):
         q[i] = q[i] + h6 * (acc_q[i] + v_stage[i])
         qdot[i] = qdot[i] + h6 * (acc_v[i] + accel[i])
-    return h6 * (d1 + 2.0 * d2 + 2.0 * d3 + d4), h6 * (w1 + 2.0 * w2 + 2.0 * w3 + w4)
+    return h6 * (d_sum + d), h6 * (w_sum + w)
 
 
 @njit(**_JIT)

@@ -30,8 +30,9 @@ How cases run
   amortized, every worker busy); larger shells: one case per task (a batch of one; the per-task
   overhead is negligible there, and finer tasks balance the load).  A case that cannot be built is
   reported and left out of its batch.  Measured in ``benchmarks/bench_sweep.py``
-  (``benchmarks/results-sweep.md``): the compiled path is 17-50x faster than process parallelism
-  of ``simulate``; batching adds ~1.2x at (3,1) and (10,10) and nothing at (30,30).  ``batch=False``
+  (``benchmarks/results-sweep.md``): the compiled path is 20-60x faster than process parallelism
+  of ``simulate``; batching adds 1.5x at (3,1), 1.1x at (10,10) and nothing at (30,30) over one
+  compiled task per case.  ``batch=False``
   runs every case on its own through ``simulate`` instead (bit-for-bit what a direct ``simulate``
   call returns); compiled results agree with ``simulate`` to round-off (~1e-13 relative).
 - Adaptive methods (``"DOP853"``, ...): one task per case through ``simulate``.
