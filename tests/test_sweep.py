@@ -287,3 +287,18 @@ def test_plan_batches_small_shells_per_worker_and_large_ones_per_case():
     assert by_size == {(3, 1): [2, 1], (3, 20): [2, 1], (25, 1): [2, 1], (25, 20): [1, 1, 1]}
     adaptive = SweepSpec({"stiffness": [50.0, 100.0]}, method="DOP853")
     assert plan(adaptive, adaptive.cases(), 2) == [([0], False), ([1], False)]
+
+
+def test_cli_sweep_from_a_spec_file(tmp_path, capsys):
+    spec = tmp_path / "spec.json"
+    spec.write_text(json.dumps({"parameters": {"damping": [0.0, 1.0]}, "t_end": 0.004,
+                                "sample_dt": 0.002, "dt": 0.0002}))
+    out = tmp_path / "s.nc"
+    assert main(["sweep", "--spec", str(spec), "--workers", "1", "-o", str(out)]) == 0
+    assert "2 of 2 cases reached t_end" in capsys.readouterr().out
+    ds = read_sweep(out)
+    assert ds["damping"].values.tolist() == [0.0, 1.0] and np.all(ds["status"].values == 0)
+    assert main(["sweep", "--spec", str(spec), "--t-end", "1", "-o", str(out)]) == 2
+    assert main(["sweep", "--spec", str(tmp_path / "missing.json"), "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 2 and "--spec: cannot be combined" in err[0] and "missing.json" in err[1]
