@@ -1,5 +1,5 @@
-"""Command-line interface: ``tensegrity simulate | info | export | matrices | equilibrium | modes
-| controllability | control``.
+"""Command-line interface: ``tensegrity simulate | info | export | vtk | matrices | equilibrium
+| modes | controllability | control | sweep``.
 
 A thin layer over the library.  Errors are one line on stderr with exit code 2 (bad input) or
 1 (the simulation failed); nothing is written unless the whole run succeeded, and every file is
@@ -436,6 +436,45 @@ def _add_analysis_parsers(sub) -> None:
                    help="targets reached within this [m, rad] (default 1e-6)")
 
 
+def _sweep_parameter(text: str) -> tuple[str, list[float]]:
+    name, sep, values = text.partition("=")
+    parts = values.split(":") if ":" in values else values.split(",")
+    try:
+        numbers = [float(v) for v in parts]
+    except ValueError:
+        numbers = []
+    if not sep or not numbers:
+        raise argparse.ArgumentTypeError(
+            f"expected NAME=V1,V2,... or NAME=LOW:HIGH, got {text!r}")
+    return name, numbers
+
+
+def _cmd_sweep(args: argparse.Namespace) -> int:
+    from tensegrity.sweep import SweepSpec, run_sweep
+
+    options = {name: getattr(args, name) for name in ("samples", "seed", "t_end", "sample_dt",
+                                                      "method", "dt") if getattr(args, name) is not None}
+    if args.no_batch:
+        options["batch"] = False
+    if args.spec is not None:
+        if args.param or options:
+            raise CommandError("--spec: cannot be combined with --param or run options")
+        spec = SweepSpec.from_file(args.spec)
+    elif not args.param:
+        raise CommandError("sweep: give --spec FILE or at least one --param NAME=VALUES")
+    else:
+        mode = "monte-carlo" if args.samples is not None else "grid"
+        spec = SweepSpec(dict(args.param), mode=mode, **options)
+    result = run_sweep(spec, scheduler=args.scheduler, n_workers=args.workers,
+                       progress=sys.stderr.isatty())
+    path = result.save(args.output)
+    n = result.dataset.sizes["case"]
+    print(f"{n - len(result.failed)} of {n} cases reached t_end in {result.wall_time:.1f} s; wrote {path}")
+    for i in result.failed:
+        print(f"{result.describe_case(i)}: {result.dataset['message'].values[i]}", file=sys.stderr)
+    return EXIT_FAILED if result.failed else 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="tensegrity", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
@@ -509,6 +548,28 @@ def build_parser() -> argparse.ArgumentParser:
                           help="output folder (default ./matrices)")
     matrices.set_defaults(run=_cmd_matrices)
     _add_analysis_parsers(sub)
+
+    sweep = sub.add_parser(
+        "sweep", help="simulate many shells (a grid or Monte Carlo sample of parameters) on Dask",
+        description="Run a parameter sweep on Dask and write one netCDF/HDF5 dataset; exit code 1 "
+                    "if some case failed (reported per case, the others are kept).")
+    sweep.add_argument("--spec", type=Path, metavar="FILE", help="sweep spec (.json or .yaml)")
+    sweep.add_argument("--param", type=_sweep_parameter, action="append", metavar="NAME=VALUES",
+                       help="vary NAME (n, m, stiffness, rest_scale, damping, load): V1,V2,... "
+                            "for a grid, LOW:HIGH with --samples; repeatable")
+    sweep.add_argument("--samples", type=int, help="Monte Carlo sample of this many cases")
+    sweep.add_argument("--seed", type=int, help="Monte Carlo seed (default 0)")
+    sweep.add_argument("--t-end", type=_positive, help="simulated time per case [s] (default 0.1)")
+    sweep.add_argument("--sample-dt", type=_positive, help="output spacing [s] (default 1e-3)")
+    sweep.add_argument("--method", help="rk4 (default) or an adaptive scipy method")
+    sweep.add_argument("--dt", type=_positive, help="rk4 step [s] (default 1e-4)")
+    sweep.add_argument("--no-batch", action="store_true",
+                       help="run rk4 cases one by one through simulate, not batched")
+    sweep.add_argument("--scheduler", metavar="ADDRESS",
+                       help="Dask scheduler address (default: a local cluster)")
+    sweep.add_argument("--workers", type=int, help="local cluster workers (default: CPU count)")
+    sweep.add_argument("-o", "--output", type=Path, required=True, help="output .nc file")
+    sweep.set_defaults(run=_cmd_sweep)
     return parser
 
 

@@ -20,6 +20,9 @@ The loops over rods and tendons run inside one compiled function writing into pr
 buffers, and :func:`rk4_steps` runs a whole fixed-step RK4 integration (with projection onto the
 rod constraints ``|q2| = L``, ``q2 . q2' = 0`` after every step, as ``simulate(method="rk4")``
 does) in compiled code, so that small structures are not dominated by Python call overhead.
+:func:`rk4_batch` does the same for many copies of one structure held in ``(B, ...)`` arrays,
+with ``simulate``'s blow-up checks (used by :mod:`tensegrity.batch`); :func:`energies` gives the
+kinetic, elastic and gravity energies for those checks.
 
 This module imports numba; import it lazily (``from tensegrity.kernel import FastKernel`` inside
 the function that needs it) so that ``import tensegrity`` stays fast.  Compiled code is cached on
@@ -46,7 +49,10 @@ from numba import njit
 
 from tensegrity.structure import Structure
 
-__all__ = ["FastKernel", "KernelEvaluation", "RK4Result", "pack", "project", "rhs", "rk4_steps"]
+__all__ = [
+    "FastKernel", "KernelEvaluation", "RK4Result", "energies", "pack", "project", "rhs",
+    "rk4_batch", "rk4_step", "rk4_steps",
+]
 
 _JIT = dict(cache=True, fastmath=False, nogil=True, boundscheck=False, error_model="numpy")
 
@@ -217,17 +223,55 @@ def project(q, qdot, rod_param):  # pragma: no cover - compiled
 
 
 @njit(**_JIT)
+def rk4_step(q, qdot, h, model, tension, elastic_tension, stage_work):  # pragma: no cover - compiled
+    """One classical RK4 step of ``h`` on ``y = [q, q']`` in place (no projection); ``model`` is
+    the tuple of :func:`rhs`'s model arguments.  The stage arithmetic is that of
+    :class:`tensegrity.integrators.RK4`: ``y + h/6 (k1 + 2 k2 + 2 k3 + k4)``.  ``stage_work`` is
+    (5, 6R) scratch.  Returns the step's increments of dissipated energy and external work,
+    ``h/6 (P1 + 2 P2 + 2 P3 + P4)``."""
+    n = q.shape[0]
+    q_stage = stage_work[0]
+    v_stage = stage_work[1]
+    accel = stage_work[2]
+    acc_q = stage_work[3]
+    acc_v = stage_work[4]
+    hh = h / 2
+    h6 = h / 6
+    # k1 = [v, a(q, v)]
+    d_sum, w_sum = rhs(q, qdot, *model, accel, tension, elastic_tension)
+    for i in range(n):
+        acc_q[i] = qdot[i]
+        acc_v[i] = accel[i]
+        q_stage[i] = q[i] + hh * qdot[i]
+        v_stage[i] = qdot[i] + hh * accel[i]
+    # k2 at y + h/2 k1, then k3 at y + h/2 k2 (and the stage for k4, at y + h k3)
+    for step in (hh, h):
+        d, w = rhs(q_stage, v_stage, *model, accel, tension, elastic_tension)
+        d_sum = d_sum + 2.0 * d
+        w_sum = w_sum + 2.0 * w
+        for i in range(n):
+            acc_q[i] = acc_q[i] + 2.0 * v_stage[i]
+            acc_v[i] = acc_v[i] + 2.0 * accel[i]
+            q_stage[i] = q[i] + step * v_stage[i]
+            v_stage[i] = qdot[i] + step * accel[i]
+    # k4 at y + h k3
+    d, w = rhs(q_stage, v_stage, *model, accel, tension, elastic_tension)
+    for i in range(n):
+        q[i] = q[i] + h6 * (acc_q[i] + v_stage[i])
+        qdot[i] = qdot[i] + h6 * (acc_v[i] + accel[i])
+    return h6 * (d_sum + d), h6 * (w_sum + w)
+
+
+@njit(**_JIT)
 def rk4_steps(
     q, qdot, dt, n_steps, max_rod_length_error,
     rod_nodes, rod_param, tendon_nodes, tendon_param, rest_length,
     has_external, external_force, has_gravity, gravity,
     node_work, tension, elastic_tension, stage_work,
 ):  # pragma: no cover - compiled
-    """Advance ``(q, qdot)`` in place by ``n_steps`` classical RK4 steps of ``dt``, projecting
-    onto the rod constraints after every step; inputs are constant over the call.
-
-    The stage arithmetic is that of :class:`tensegrity.integrators.RK4` on ``y = [q, q']``:
-    ``y + h/6 (k1 + 2 k2 + 2 k3 + k4)``.  ``stage_work`` is (5, 6R) scratch.
+    """Advance ``(q, qdot)`` in place by ``n_steps`` classical RK4 steps of ``dt``
+    (:func:`rk4_step`), projecting onto the rod constraints after every step; inputs are constant
+    over the call.  ``stage_work`` is (5, 6R) scratch.
 
     Stops early, after the step (already projected), if a step ends with a relative rod-length
     error above ``max_rod_length_error`` or a non-finite rod vector or rate (blow-up).
@@ -236,15 +280,6 @@ def rk4_steps(
     energies integrated over the steps with the RK4 weights, and the largest relative rod-length
     error seen at the end of a step before its projection (NaN if the state became non-finite).
     """
-    n = q.shape[0]
-    q_stage = stage_work[0]
-    v_stage = stage_work[1]
-    accel = stage_work[2]
-    acc_q = stage_work[3]
-    acc_v = stage_work[4]
-    h = dt
-    hh = h / 2
-    h6 = h / 6
     dissipated = 0.0
     external = 0.0
     worst = 0.0
@@ -252,34 +287,9 @@ def rk4_steps(
     model = (rod_nodes, rod_param, tendon_nodes, tendon_param, rest_length,
              has_external, external_force, has_gravity, gravity, node_work)
     while taken < n_steps:
-        # k1 = [v, a(q, v)]
-        d1, w1 = rhs(q, qdot, *model, accel, tension, elastic_tension)
-        for i in range(n):
-            acc_q[i] = qdot[i]
-            acc_v[i] = accel[i]
-            q_stage[i] = q[i] + hh * qdot[i]
-            v_stage[i] = qdot[i] + hh * accel[i]
-        # k2 at y + h/2 k1
-        d2, w2 = rhs(q_stage, v_stage, *model, accel, tension, elastic_tension)
-        for i in range(n):
-            acc_q[i] = acc_q[i] + 2.0 * v_stage[i]
-            acc_v[i] = acc_v[i] + 2.0 * accel[i]
-            q_stage[i] = q[i] + hh * v_stage[i]
-            v_stage[i] = qdot[i] + hh * accel[i]
-        # k3 at y + h/2 k2
-        d3, w3 = rhs(q_stage, v_stage, *model, accel, tension, elastic_tension)
-        for i in range(n):
-            acc_q[i] = acc_q[i] + 2.0 * v_stage[i]
-            acc_v[i] = acc_v[i] + 2.0 * accel[i]
-            q_stage[i] = q[i] + h * v_stage[i]
-            v_stage[i] = qdot[i] + h * accel[i]
-        # k4 at y + h k3
-        d4, w4 = rhs(q_stage, v_stage, *model, accel, tension, elastic_tension)
-        for i in range(n):
-            q[i] = q[i] + h6 * (acc_q[i] + v_stage[i])
-            qdot[i] = qdot[i] + h6 * (acc_v[i] + accel[i])
-        dissipated = dissipated + h6 * (d1 + 2.0 * d2 + 2.0 * d3 + d4)
-        external = external + h6 * (w1 + 2.0 * w2 + 2.0 * w3 + w4)
+        d, w = rk4_step(q, qdot, dt, model, tension, elastic_tension, stage_work)
+        dissipated = dissipated + d
+        external = external + w
         error = project(q, qdot, rod_param)
         taken += 1
         if not error <= worst:
@@ -287,6 +297,106 @@ def rk4_steps(
         if not error <= max_rod_length_error:
             break
     return taken, dissipated, external, worst
+
+
+@njit(**_JIT)
+def energies(
+    q, qdot, rod_nodes, rod_param, tendon_nodes, tendon_param, rest_length, has_gravity, gravity,
+    node_work,
+):  # pragma: no cover - compiled
+    """``(kinetic, elastic, gravity)`` energies [J], as ``dynamics.kinetic_energy``,
+    ``elastic_energy`` and ``gravity_energy``; ``node_work[0]`` receives the node positions."""
+    p = node_work[0]
+    kinetic = 0.0
+    potential = 0.0
+    for r in range(rod_nodes.shape[0]):
+        a = rod_nodes[r, 0]
+        b = rod_nodes[r, 1]
+        o = 6 * r
+        m = rod_param[r, ROD_MASS]
+        v1 = 0.0
+        v2 = 0.0
+        for i in range(3):
+            p[a, i] = 0.5 * (q[o + i] - q[o + 3 + i])
+            p[b, i] = 0.5 * (q[o + i] + q[o + 3 + i])
+            v1 += qdot[o + i] * qdot[o + i]
+            v2 += qdot[o + 3 + i] * qdot[o + 3 + i]
+            if has_gravity:
+                potential -= m * gravity[i] * 0.5 * q[o + i]
+        kinetic += m * (v1 / 8 + v2 / 24)
+    elastic = 0.0
+    for s in range(tendon_nodes.shape[0]):
+        tail = tendon_nodes[s, 0]
+        head = tendon_nodes[s, 1]
+        tx = p[head, 0] - p[tail, 0]
+        ty = p[head, 1] - p[tail, 1]
+        tz = p[head, 2] - p[tail, 2]
+        stretch = np.sqrt(tx * tx + ty * ty + tz * tz) - rest_length[s]
+        if stretch > 0.0:
+            elastic += tendon_param[s, 0] * stretch * stretch
+    return kinetic, 0.5 * elastic, potential
+
+
+#: :func:`rk4_batch` case status: still running, or stopped on a blow-up.
+BATCH_RUNNING, BATCH_FAILED = 0, 1
+
+
+@njit(**_JIT)
+def rk4_batch(
+    q, qdot, dt, n_steps, max_rod_length_error, max_energy_growth, energy0, scale0,
+    status, steps, work, worst, end_q, end_qdot,
+    rod_nodes, rod_param, tendon_nodes, tendon_param, rest_length,
+    has_external, external_force, has_gravity, gravity,
+    node_work, tension, elastic_tension, stage_work,
+):  # pragma: no cover - compiled
+    """``n_steps`` RK4 steps of ``dt`` for each of ``B`` copies of one structure (same rods and
+    tendons, per-copy parameters), with the blow-up checks of ``simulate``; in place.
+
+    Per copy ``b`` (rows of the (B, ...) arrays): ``q``, ``qdot`` (B, 6R); ``rod_param``
+    (B, R, 5); ``tendon_param`` (B, S, 2); ``rest_length`` (B, S); ``external_force`` (B, N, 3)
+    (read if ``has_external``); ``energy0``, ``scale0`` (B,) the energy balance at the start and
+    its scale [J] (``simulate``'s ``_Model.energy_balance``); ``status``, ``steps`` (B,) int64;
+    ``work`` (B, 2) dissipated energy and external work so far [J]; ``worst`` (B,) largest
+    relative rod-length error so far.  Copies whose status is not ``BATCH_RUNNING`` are skipped.
+
+    Every step ends as in ``simulate(method="rk4")``: if the state is not finite, a relative
+    rod-length error exceeds ``max_rod_length_error`` or the energy balance
+    ``E_kin + E_el + E_grav + E_d - W_w - E0`` exceeds ``max_energy_growth`` times its scale, the
+    copy's status becomes ``BATCH_FAILED`` and it stops; otherwise the state is projected onto
+    the rod constraints.  ``end_q``, ``end_qdot`` (B, 6R) receive each copy's state at the end of
+    its last step *before* projection (what ``simulate`` samples, and its failing state).
+    """
+    n = q.shape[1]
+    for b in range(q.shape[0]):
+        if status[b] != BATCH_RUNNING:
+            continue
+        qb = q[b]
+        vb = qdot[b]
+        w_b = external_force[b] if has_external else external_force[0]
+        model = (rod_nodes, rod_param[b], tendon_nodes, tendon_param[b], rest_length[b],
+                 has_external, w_b, has_gravity, gravity, node_work)
+        for j in range(n_steps):
+            d, w = rk4_step(qb, vb, dt, model, tension, elastic_tension, stage_work)
+            work[b, 0] = work[b, 0] + d
+            work[b, 1] = work[b, 1] + w
+            kinetic, elastic, potential = energies(
+                qb, vb, rod_nodes, rod_param[b], tendon_nodes, tendon_param[b], rest_length[b],
+                has_gravity, gravity, node_work)
+            total = kinetic + elastic + potential + work[b, 0] - work[b, 1]
+            scale = kinetic + elastic + abs(potential) + abs(work[b, 0]) + abs(work[b, 1])
+            finite = np.isfinite(total) and np.isfinite(scale)
+            for i in range(n):
+                finite = finite and np.isfinite(qb[i])
+            end_q[b, :] = qb  # the state before projection (cheap next to four evaluations)
+            end_qdot[b, :] = vb
+            error = project(qb, vb, rod_param[b])
+            steps[b] += 1
+            if not error <= worst[b]:
+                worst[b] = error
+            growth = total - energy0[b] > max_energy_growth * max(scale0[b], scale, 1e-300)
+            if not finite or not error <= max_rod_length_error or growth:
+                status[b] = BATCH_FAILED
+                break
 
 
 def pack(structure: Structure) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

@@ -304,12 +304,11 @@ def simulate(
     y = np.concatenate([q, qdot, np.zeros(3)])
     energy0, scale0 = model.energy_balance(t0, y)
 
-    settings = dict(
-        t_span=[t0, t_end], method=method, rtol=rtol, atol=atol, dt=dt, sample_dt=sample_dt,
+    settings = run_settings(
+        t0, t_end, method=method, rtol=rtol, atol=atol, dt=dt, sample_dt=sample_dt,
         locate_switches=locate_switches, steady_state=steady_state, velocity_tol=velocity_tol,
-        acceleration_tol=acceleration_tol, gravity=None if gravity is None else gravity.tolist(),
-        control="function" if callable(control) else control is not None,
-        external_force="function" if callable(external_force) else external_force is not None,
+        acceleration_tol=acceleration_tol, gravity=gravity, control=control,
+        external_force=external_force,
     )
     recorder = _Recorder(model)
     wall0 = time.perf_counter()
@@ -377,6 +376,21 @@ def simulate(
         recorder.add(integrator.t, integrator.y)  # the end, or the last state before failure
     return _result(structure, recorder, status, message, integrator, counts, max_length_error,
                    time.perf_counter() - wall0, settings)
+
+
+def run_settings(
+    t0: float, t_end: float, *, method, rtol, atol, dt, sample_dt, locate_switches, steady_state,
+    velocity_tol, acceleration_tol, gravity, control, external_force,
+) -> dict[str, Any]:
+    """``SimulationResult.settings``: the options of a run, JSON-friendly (arrays and functions
+    given for ``control`` and ``external_force`` are recorded as ``True`` / ``"function"``)."""
+    return dict(
+        t_span=[t0, t_end], method=method, rtol=rtol, atol=atol, dt=dt, sample_dt=sample_dt,
+        locate_switches=locate_switches, steady_state=steady_state, velocity_tol=velocity_tol,
+        acceleration_tol=acceleration_tol, gravity=None if gravity is None else gravity.tolist(),
+        control="function" if callable(control) else control is not None,
+        external_force="function" if callable(external_force) else external_force is not None,
+    )
 
 
 def _first_switch(model: _Model, integrator, candidates: np.ndarray, was_taut: np.ndarray) -> float:

@@ -1,0 +1,535 @@
+"""Parameter sweeps of class 1 shells on Dask: a grid or a Monte Carlo sample, one labeled dataset.
+
+A :class:`SweepSpec` names the parameters that vary and the run settings; :func:`run_sweep`
+builds every case, runs them in parallel on a Dask cluster (a ``distributed.LocalCluster`` by
+default, or any scheduler address) and gathers one :class:`xarray.Dataset`, with per-case status
+and message: a case that blows up or cannot be built is reported, the others are unaffected.
+
+Parameters of a case (SI units; defaults in :data:`DEFAULTS`)
+-------------------------------------------------------------
+``n``, ``m``
+    Shell size: elements around, stages up (:func:`tensegrity.shell.class1_shell`).
+``stiffness``
+    Tendon stiffness ``k`` [N/m], every tendon.
+``rest_scale``
+    Prestress: every tendon's rest length is ``rest_scale`` times its length in the initial layout
+    (``< 1``: all tendons start stretched by the same ratio).
+``damping``
+    Tendon damping ``c`` [N s/m], every tendon.
+``load``
+    Axial compression [N]: a total force ``load`` pushes the top ring's nodes down and the bottom
+    ring's nodes up, shared equally (a self-equilibrated load; no net force on the shell).
+
+Each case starts from the initial layout at rest and runs ``simulate`` over ``(0, t_end)``.
+
+How cases run
+-------------
+- ``method="rk4"`` (the default): cases run through the compiled path
+  (:func:`tensegrity.batch.simulate_batch`).  Shells with fewer than :data:`BATCH_MAX_RODS` rods:
+  the cases of equal ``(n, m)`` form one batch per Dask worker thread (per-task overhead
+  amortized, every worker busy); larger shells: one case per task (a batch of one; the per-task
+  overhead is negligible there, and finer tasks balance the load).  A case that cannot be built is
+  reported and left out of its batch.  Measured in ``benchmarks/bench_sweep.py``
+  (``benchmarks/results-sweep.md``): the compiled path is 20-60x faster than process parallelism
+  of ``simulate``; batching adds 1.5x at (3,1), 1.1x at (10,10) and nothing at (30,30) over one
+  compiled task per case.  ``batch=False``
+  runs every case on its own through ``simulate`` instead (bit-for-bit what a direct ``simulate``
+  call returns); compiled results agree with ``simulate`` to round-off (~1e-13 relative).
+- Adaptive methods (``"DOP853"``, ...): one task per case through ``simulate``.
+
+The dataset
+-----------
+Dimension ``case`` (coordinates: one per parameter, so ``ds.where(ds.stiffness == 100)`` works)
+and ``time`` (``0, sample_dt, ..., t_end`` [s]).  Per case: ``status`` (``0`` reached ``t_end``,
+``-1`` unstable, ``-2`` error: the case could not be built or run), ``message``, ``t_final`` [s],
+``nsteps``, ``nfev``, ``wall_time`` [s], ``max_rod_length_error`` (relative), ``batched`` (0/1).
+Per case and time (NaN after a run stopped): ``kinetic_energy``, ``elastic_energy``,
+``energy_error`` (energy balance minus its initial value) [J], ``max_tension`` [N],
+``slack_count``, ``max_displacement`` (largest node displacement from the initial layout) [m].
+Attribute ``spec``: the spec as JSON.  :meth:`SweepResult.save` writes it as netCDF-4/HDF5
+(``h5netcdf``) atomically; :func:`read_sweep` reads it back.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import json
+import math
+import os
+import time
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from tensegrity import dynamics
+from tensegrity.integrators import ADAPTIVE_METHODS, FIXED_STEP_METHODS
+from tensegrity.shell import class1_shell
+from tensegrity.simulate import SimulationResult, simulate
+from tensegrity.structure import Structure
+
+PathLike = str | os.PathLike
+
+#: Parameters a sweep can vary, with their values when not varied.
+DEFAULTS: dict[str, float] = {
+    "n": 3, "m": 1, "stiffness": 100.0, "rest_scale": 0.9, "damping": 0.0, "load": 0.0,
+}
+INTEGER_PARAMETERS = ("n", "m")
+#: RK4 sweeps: shells with fewer rods than this are batched per worker, larger ones run one per task.
+BATCH_MAX_RODS = 1000
+#: ``status`` of a case that could not be built or raised while running.
+STATUS_ERROR = -2
+MODES = ("grid", "monte-carlo")
+SERIES = ("kinetic_energy", "elastic_energy", "energy_error", "max_tension", "slack_count",
+          "max_displacement")
+SCALARS = ("status", "message", "t_final", "nsteps", "nfev", "wall_time", "max_rod_length_error",
+           "batched")
+
+
+# ------------------------------------------------------------------------------- the spec
+def _number(value: Any, field: str, *, integer: bool) -> float | int:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise ValueError(f"{field}: expected a number, got {value!r}")
+    if not math.isfinite(value):
+        raise ValueError(f"{field}: must be finite, got {value!r}")
+    if integer:
+        if value != int(value):
+            raise ValueError(f"{field}: expected an integer, got {value!r}")
+        return int(value)
+    return float(value)
+
+
+@dataclasses.dataclass(frozen=True)
+class SweepSpec:
+    """What to sweep and how to run each case (validated at construction).
+
+    Parameters
+    ----------
+    parameters : mapping of name to list of numbers
+        Names from :data:`DEFAULTS`.  ``mode="grid"``: the values of each parameter; the cases are
+        all combinations (in the order of the mapping, the last varying fastest).
+        ``mode="monte-carlo"``: ``[low, high]`` to draw uniformly (integers inclusive for ``n``,
+        ``m``), or ``[value]`` to fix it.
+    mode : ``"grid"`` or ``"monte-carlo"``.
+    samples : int
+        Monte Carlo: number of cases (>= 1).
+    seed : int
+        Monte Carlo: seed of ``numpy.random.default_rng``.
+    t_end : float
+        Simulated time per case [s], a whole multiple of ``sample_dt``.
+    sample_dt : float
+        Output spacing [s].
+    method : str
+        ``"rk4"`` (fixed step ``dt``) or an adaptive scipy method (``rtol``, ``atol``).
+    dt : float
+        RK4 step [s].
+    rtol, atol : float
+        Tolerances of adaptive methods.
+    batch : bool
+        ``method="rk4"`` only: run cases through the batched compiled path (default True).
+    """
+
+    parameters: Mapping[str, Sequence[float]]
+    mode: str = "grid"
+    samples: int = 0
+    seed: int = 0
+    t_end: float = 0.1
+    sample_dt: float = 1e-3
+    method: str = "rk4"
+    dt: float = 1e-4
+    rtol: float = 1e-9
+    atol: float = 1e-12
+    batch: bool = True
+
+    def __post_init__(self) -> None:
+        if self.mode not in MODES:
+            raise ValueError(f"mode: expected one of {', '.join(MODES)}, got {self.mode!r}")
+        if not isinstance(self.parameters, Mapping) or not self.parameters:
+            raise ValueError("parameters: expected a mapping of parameter names to value lists")
+        clean: dict[str, tuple] = {}
+        for name, values in self.parameters.items():
+            field = f"parameters.{name}"
+            if name not in DEFAULTS:
+                raise ValueError(f"{field}: unknown parameter; choose from {', '.join(DEFAULTS)}")
+            if isinstance(values, (str, bytes)) or not isinstance(values, Sequence) or not values:
+                raise ValueError(f"{field}: expected a non-empty list of numbers")
+            numbers = tuple(
+                _number(v, f"{field}[{i}]", integer=name in INTEGER_PARAMETERS)
+                for i, v in enumerate(values)
+            )
+            if self.mode == "monte-carlo" and not (
+                len(numbers) == 1 or (len(numbers) == 2 and numbers[0] <= numbers[1])
+            ):
+                raise ValueError(f"{field}: Monte Carlo needs [low, high] with low <= high, or [value]")
+            clean[name] = numbers
+        object.__setattr__(self, "parameters", clean)
+        for field in ("samples", "seed"):
+            object.__setattr__(self, field, _number(getattr(self, field), field, integer=True))
+        if self.mode == "monte-carlo" and self.samples < 1:
+            raise ValueError(f"samples: Monte Carlo needs samples >= 1, got {self.samples}")
+        for field in ("t_end", "sample_dt", "dt", "rtol", "atol"):
+            value = _number(getattr(self, field), field, integer=False)
+            if value <= 0:
+                raise ValueError(f"{field}: must be > 0, got {value!r}")
+            object.__setattr__(self, field, value)
+        if self.method not in (*ADAPTIVE_METHODS, *FIXED_STEP_METHODS):
+            raise ValueError(f"method: expected one of "
+                             f"{', '.join([*FIXED_STEP_METHODS, *ADAPTIVE_METHODS])}, got {self.method!r}")
+        intervals = round(self.t_end / self.sample_dt)
+        if intervals < 1 or abs(intervals * self.sample_dt - self.t_end) > 1e-9 * self.t_end:
+            raise ValueError(f"t_end: must be a whole multiple of sample_dt = {self.sample_dt:g} s, "
+                             f"got {self.t_end:g} s")
+        if not isinstance(self.batch, bool):
+            raise ValueError(f"batch: expected true or false, got {self.batch!r}")
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> SweepSpec:
+        """A spec from its JSON/YAML form (the field names of this class)."""
+        if not isinstance(data, Mapping):
+            raise ValueError("sweep spec: expected a mapping of fields")
+        unknown = sorted(set(data) - {f.name for f in dataclasses.fields(cls)})
+        if unknown:
+            raise ValueError(f"{unknown[0]}: unknown sweep spec field")
+        if "parameters" not in data:
+            raise ValueError("parameters: missing")
+        return cls(**data)
+
+    @classmethod
+    def from_file(cls, path: PathLike) -> SweepSpec:
+        """A spec from a ``.json`` or ``.yaml``/``.yml`` file."""
+        path = Path(path)
+        try:
+            text = path.read_text()
+        except OSError as exc:
+            raise ValueError(f"{path}: cannot read ({exc.strerror or exc})") from None
+        try:
+            if path.suffix.lower() in (".yaml", ".yml"):
+                import yaml
+
+                data = yaml.safe_load(text)
+            else:
+                data = json.loads(text)
+        except Exception as exc:  # json.JSONDecodeError, yaml.YAMLError
+            first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+            raise ValueError(f"{path}: not a valid sweep spec file ({first})") from None
+        return cls.from_dict(data)
+
+    def to_dict(self) -> dict[str, Any]:
+        data = dataclasses.asdict(self)
+        data["parameters"] = {k: list(v) for k, v in self.parameters.items()}
+        return data
+
+    @property
+    def times(self) -> np.ndarray:
+        """The sample times ``0, sample_dt, ..., t_end`` [s]."""
+        return np.arange(round(self.t_end / self.sample_dt) + 1) * self.sample_dt
+
+    def cases(self) -> list[dict[str, float | int]]:
+        """Every case: a dict with a value for each parameter of :data:`DEFAULTS`."""
+        names = list(self.parameters)
+        if self.mode == "grid":
+            combos = [dict(zip(names, values))
+                      for values in itertools.product(*self.parameters.values())]
+        else:
+            rng = np.random.default_rng(self.seed)
+            draws = {}
+            for name, values in self.parameters.items():
+                low, high = values[0], values[-1]
+                if name in INTEGER_PARAMETERS:
+                    draws[name] = [int(v) for v in rng.integers(low, high, self.samples, endpoint=True)]
+                else:
+                    draws[name] = [float(v) for v in rng.uniform(low, high, self.samples)]
+            combos = [{name: draws[name][i] for name in names} for i in range(self.samples)]
+        return [{**DEFAULTS, **combo} for combo in combos]
+
+
+# ------------------------------------------------------------------------------- one case
+def case_model(case: Mapping[str, float]) -> tuple[Structure, np.ndarray | None]:
+    """``(structure, external_force)`` of a case (see the module docstring); raises ValueError
+    naming the parameter if the case is not a valid shell."""
+    structure = class1_shell(int(case["n"]), int(case["m"]), stiffness=case["stiffness"],
+                             damping=case["damping"])
+    scale = case["rest_scale"]
+    if not scale >= 0:
+        raise ValueError(f"rest_scale: must be >= 0, got {scale!r}")
+    lengths = dynamics.tendon_lengths(structure, structure.node_position)
+    structure = structure.replace(tendon_rest_length=scale * lengths)
+    if case["load"] == 0:
+        return structure, None
+    z = structure.node_position[:, 2]
+    top, bottom = np.flatnonzero(z == z.max()), np.flatnonzero(z == z.min())
+    force = np.zeros((structure.n_nodes, 3))
+    force[top, 2] = -case["load"] / top.size
+    force[bottom, 2] = case["load"] / bottom.size
+    return structure, force
+
+
+def summarize(result: SimulationResult, times: np.ndarray) -> dict[str, Any]:
+    """The per-case variables of the sweep dataset from one simulation's samples.
+
+    Samples at the sweep's ``times`` fill the series (NaN where the run had stopped); a failing
+    run's last sample (off the sample grid) only sets ``t_final``.
+    """
+    sample_dt = times[1] - times[0]
+    index = np.rint(result.t / sample_dt).astype(int)
+    on_grid = (np.abs(result.t - index * sample_dt) <= 1e-9 * sample_dt) & (index < times.size)
+    rows, where = np.flatnonzero(on_grid), index[on_grid]
+    displacement = np.linalg.norm(
+        result.node_position - result.structure.node_position, axis=-1).max(axis=1)
+    values = {
+        "kinetic_energy": result.energy["kinetic"],
+        "elastic_energy": result.energy["elastic"],
+        "energy_error": result.total_energy - result.total_energy[0],
+        "max_tension": result.tendon_tension.max(axis=1),
+        "slack_count": result.slack_count.astype(float),
+        "max_displacement": displacement,
+    }
+    out: dict[str, Any] = {}
+    for name, value in values.items():
+        series = np.full(times.size, np.nan)
+        series[where] = value[rows]
+        out[name] = series
+    out.update(
+        status=int(result.status), message=result.message, t_final=float(result.t[-1]),
+        nsteps=int(result.nsteps), nfev=int(result.nfev), wall_time=float(result.wall_time),
+        max_rod_length_error=float(result.max_rod_length_error),
+        batched=int(bool(result.settings.get("batched", False))),
+    )
+    return out
+
+
+def _error_summary(exc: BaseException, times: np.ndarray) -> dict[str, Any]:
+    out: dict[str, Any] = {name: np.full(times.size, np.nan) for name in SERIES}
+    out.update(status=STATUS_ERROR, message=f"{type(exc).__name__}: {exc}", t_final=np.nan,
+               nsteps=0, nfev=0, wall_time=0.0, max_rod_length_error=np.nan, batched=0)
+    return out
+
+
+def run_cases(cases: Sequence[Mapping[str, float]], spec: SweepSpec, batched: bool) -> list[dict]:
+    """Run ``cases`` (one task's share) and return their :func:`summarize` dicts, in order.
+
+    ``batched``: all cases share ``(n, m)`` and go through :func:`tensegrity.batch.simulate_batch`
+    (cases that cannot be built are reported and left out).  Otherwise each case runs through
+    :func:`tensegrity.simulate.simulate`.  Any exception of a case becomes its ``STATUS_ERROR``.
+    """
+    times = spec.times
+    out: list[dict | None] = [None] * len(cases)
+    models = {}
+    for i, case in enumerate(cases):
+        try:
+            models[i] = case_model(case)
+        except Exception as exc:  # noqa: BLE001 - reported per case
+            out[i] = _error_summary(exc, times)
+    if batched and models:
+        from tensegrity.batch import simulate_batch
+
+        keys = list(models)
+        try:
+            results = simulate_batch(
+                [models[i][0] for i in keys], (0.0, spec.t_end), dt=spec.dt,
+                sample_dt=spec.sample_dt, external_force=[models[i][1] for i in keys],
+            )
+        except Exception as exc:  # noqa: BLE001 - reported for every case of the batch
+            for i in keys:
+                out[i] = _error_summary(exc, times)
+        else:
+            for i, result in zip(keys, results):
+                out[i] = summarize(result, times)
+        return out
+    for i, (structure, force) in models.items():
+        try:
+            result = simulate(structure, (0.0, spec.t_end), method=spec.method, dt=(
+                spec.dt if spec.method in FIXED_STEP_METHODS else None), rtol=spec.rtol,
+                atol=spec.atol, sample_dt=spec.sample_dt, external_force=force)
+            out[i] = summarize(result, times)
+        except Exception as exc:  # noqa: BLE001 - reported per case
+            out[i] = _error_summary(exc, times)
+    return out
+
+
+# ------------------------------------------------------------------------------- the sweep
+@dataclasses.dataclass(frozen=True, eq=False)
+class SweepResult:
+    """The gathered sweep: ``dataset`` (see the module docstring) and the ``spec``."""
+
+    dataset: Any  # xarray.Dataset
+    spec: SweepSpec
+    wall_time: float  #: [s], the whole sweep
+
+    @property
+    def failed(self) -> list[int]:
+        """Indices of the cases that did not reach ``t_end`` (unstable or error)."""
+        return [int(i) for i in np.flatnonzero(self.dataset["status"].values < 0)]
+
+    @property
+    def success(self) -> bool:
+        return not self.failed
+
+    def describe_case(self, index: int) -> str:
+        """``"case 3 (n=3, m=1, stiffness=100, ...)"``."""
+        ds = self.dataset
+        values = ", ".join(f"{name}={ds[name].values[index]:g}" for name in DEFAULTS)
+        return f"case {index} ({values})"
+
+    def save(self, path: PathLike) -> Path:
+        """Write the dataset to ``path`` (netCDF-4/HDF5 via h5netcdf), atomically."""
+        from tensegrity.io import atomic_path
+
+        with atomic_path(path) as tmp:
+            self.dataset.to_netcdf(tmp, engine="h5netcdf")
+        return Path(path)
+
+
+def read_sweep(path: PathLike):
+    """The :class:`xarray.Dataset` a :meth:`SweepResult.save` wrote."""
+    import xarray as xr
+
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"{path}: no such file")
+    try:
+        return xr.load_dataset(path, engine="h5netcdf")
+    except OSError as exc:
+        raise ValueError(f"{path}: not a sweep file ({exc})") from None
+
+
+def plan(spec: SweepSpec, cases: Sequence[Mapping[str, float]], n_slots: int) -> list[tuple[list[int], bool]]:
+    """The tasks: ``(case indices, batched)``.
+
+    RK4 with ``spec.batch``: the cases of each ``(n, m)`` in ``n_slots`` nearly equal batches if
+    the shell has fewer than :data:`BATCH_MAX_RODS` rods (``2 n m``), else one compiled task per
+    case.  Otherwise one ``simulate`` task per case.
+    """
+    if spec.method in FIXED_STEP_METHODS and spec.batch:
+        groups: dict[tuple[int, int], list[int]] = {}
+        for i, case in enumerate(cases):
+            groups.setdefault((int(case["n"]), int(case["m"])), []).append(i)
+        tasks = []
+        for (n, m), members in groups.items():
+            parts = min(n_slots, len(members)) if 2 * n * m < BATCH_MAX_RODS else len(members)
+            for part in np.array_split(np.array(members), parts):
+                tasks.append(([int(i) for i in part], True))
+        return tasks
+    return [([i], False) for i in range(len(cases))]
+
+
+def _dataset(spec: SweepSpec, cases: Sequence[Mapping[str, float]], rows: Sequence[dict]):
+    import xarray as xr
+
+    coords = {name: ("case", np.array([c[name] for c in cases])) for name in DEFAULTS}
+    coords["case"] = np.arange(len(cases))
+    coords["time"] = ("time", spec.times, {"units": "s"})
+    data = {name: (("case", "time"), np.array([r[name] for r in rows])) for name in SERIES}
+    for name in SCALARS:
+        values = [r[name] for r in rows]
+        data[name] = ("case", np.array(values, dtype=str if name == "message" else None))
+    units = dict(kinetic_energy="J", elastic_energy="J", energy_error="J", max_tension="N",
+                 max_displacement="m", t_final="s", wall_time="s", stiffness="N/m",
+                 damping="N s/m", load="N")
+    ds = xr.Dataset(data, coords=coords, attrs={"spec": json.dumps(spec.to_dict())})
+    for name, unit in units.items():
+        ds[name].attrs["units"] = unit
+    return ds
+
+
+class _Cluster:
+    """A Dask client: the given one, one connected to ``scheduler``, or a new LocalCluster."""
+
+    def __init__(self, client, scheduler, n_workers, processes):
+        self.client, self.scheduler = client, scheduler
+        self.n_workers, self.processes = n_workers, processes
+        self._own = []
+
+    def __enter__(self):
+        from distributed import Client, LocalCluster
+
+        if self.client is not None:
+            return self.client
+        if self.scheduler is not None:
+            self.client = Client(self.scheduler)
+        else:
+            cluster = LocalCluster(
+                n_workers=self.n_workers or os.cpu_count() or 1, threads_per_worker=1,
+                processes=self.processes, dashboard_address=":0",  # any free port
+            )
+            self._own.append(cluster)
+            self.client = Client(cluster)
+        self._own.insert(0, self.client)
+        return self.client
+
+    def __exit__(self, *exc):
+        for thing in self._own:
+            thing.close()
+
+
+def run_sweep(
+    spec: SweepSpec,
+    *,
+    client=None,
+    scheduler: str | None = None,
+    n_workers: int | None = None,
+    processes: bool = True,
+    progress: bool | Callable[[int, int], None] = False,
+) -> SweepResult:
+    """Run every case of ``spec`` on Dask and gather one dataset.
+
+    Parameters
+    ----------
+    spec : SweepSpec
+    client : distributed.Client, optional
+        Use this client (left open).
+    scheduler : str, optional
+        Address of a running Dask scheduler (``"tcp://host:8786"``) to connect to.
+    n_workers : int, optional
+        Workers of the default ``LocalCluster`` (default: the CPU count), one thread each.
+    processes : bool
+        LocalCluster workers as processes (default) or threads of this process.
+    progress : bool or callable
+        True: a ``tqdm`` bar over cases on stderr; a callable receives ``(cases_done, cases)``.
+
+    Returns
+    -------
+    SweepResult
+        Every case, failed or not; a task that dies (e.g. its worker process is killed) marks its
+        cases ``STATUS_ERROR`` with the exception as message.
+    """
+    from distributed import as_completed
+
+    if client is not None and scheduler is not None:
+        raise ValueError("scheduler: give a client or a scheduler address, not both")
+    if n_workers is not None and n_workers < 1:
+        raise ValueError(f"n_workers: must be >= 1, got {n_workers!r}")
+    cases = spec.cases()
+    rows: list[dict | None] = [None] * len(cases)
+    wall0 = time.perf_counter()
+    bar = None
+    if progress is True:
+        from tqdm import tqdm
+
+        bar = tqdm(total=len(cases), unit="case", desc="sweep")
+    with _Cluster(client, scheduler, n_workers, processes) as dask_client:
+        slots = max(1, sum(dask_client.nthreads().values()))
+        tasks = plan(spec, cases, slots)
+        futures = {
+            dask_client.submit(run_cases, [cases[i] for i in idx], spec, batched, pure=False): idx
+            for idx, batched in tasks
+        }
+        done = 0
+        for future in as_completed(futures):
+            idx = futures[future]
+            try:
+                summaries = future.result()
+            except Exception as exc:  # noqa: BLE001 - a lost task: report its cases
+                summaries = [_error_summary(exc, spec.times) for _ in idx]
+            for i, summary in zip(idx, summaries):
+                rows[i] = summary
+            done += len(idx)
+            if bar is not None:
+                bar.update(len(idx))
+            elif callable(progress):
+                progress(done, len(cases))
+    if bar is not None:
+        bar.close()
+    return SweepResult(_dataset(spec, cases, rows), spec, time.perf_counter() - wall0)

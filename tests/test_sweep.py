@@ -1,0 +1,304 @@
+"""Parameter sweeps on Dask (``tensegrity.sweep``) and the batched compiled path
+(``tensegrity.batch``): failures are reported per case without losing the others, and every
+case's results are those of a direct ``simulate`` call on a structure built here by hand."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+pytest.importorskip("distributed")
+pytest.importorskip("xarray")
+pytest.importorskip("numba")
+
+from distributed import Client, LocalCluster  # noqa: E402
+
+from tensegrity import State, class1_shell, dynamics, simulate  # noqa: E402
+from tensegrity.batch import simulate_batch  # noqa: E402
+from tensegrity.cli import main  # noqa: E402
+from tensegrity.sweep import STATUS_ERROR, SweepSpec, read_sweep, run_sweep  # noqa: E402
+
+T_END, SAMPLE_DT, DT = 0.02, 2e-3, 2e-4
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
+                      dashboard_address=":0") as local:
+        yield local
+
+
+@pytest.fixture(scope="module")
+def client(cluster):
+    with Client(cluster) as c:
+        yield c
+
+
+def hand_built(n, m, stiffness, rest_scale, damping, load):
+    """The case's structure and load, built here from the documented definitions."""
+    s = class1_shell(n, m, stiffness=stiffness, damping=damping)
+    p = s.node_position
+    lengths = np.linalg.norm(p[s.tendon_nodes[:, 1]] - p[s.tendon_nodes[:, 0]], axis=1)
+    s = s.replace(tendon_rest_length=rest_scale * lengths)
+    force = None
+    if load:
+        force = np.zeros((s.n_nodes, 3))
+        top = np.isclose(p[:, 2], p[:, 2].max(), rtol=0, atol=1e-12)
+        bottom = np.isclose(p[:, 2], p[:, 2].min(), rtol=0, atol=1e-12)
+        assert top.sum() == n and bottom.sum() == n
+        force[top, 2] = -load / n
+        force[bottom, 2] = load / n
+    return s, force
+
+
+def direct_series(result):
+    """The sweep's series computed here from a SimulationResult."""
+    p0 = result.structure.node_position
+    return {
+        "kinetic_energy": result.energy["kinetic"],
+        "elastic_energy": result.energy["elastic"],
+        "energy_error": result.total_energy - result.total_energy[0],
+        "max_tension": result.tendon_tension.max(axis=1),
+        "slack_count": np.sum(result.tendon_tension <= 0, axis=1),
+        "max_displacement": np.max(np.linalg.norm(result.node_position - p0, axis=2), axis=1),
+    }
+
+
+def case_parameters(ds, i):
+    return {name: ds[name].values[i].item()
+            for name in ("n", "m", "stiffness", "rest_scale", "damping", "load")}
+
+
+GRID = {"stiffness": [80.0, 3e7], "load": [0.0, 6.0], "n": [2, 3], "damping": [0.5]}
+
+
+@pytest.fixture(scope="module")
+def failing_sweep(client):
+    spec = SweepSpec(GRID, t_end=T_END, sample_dt=SAMPLE_DT, dt=DT, batch=False)
+    return run_sweep(spec, client=client)
+
+
+def test_failing_cases_are_reported_and_the_others_finish(failing_sweep):
+    ds = failing_sweep.dataset
+    assert ds.sizes["case"] == 8 and ds.sizes["time"] == round(T_END / SAMPLE_DT) + 1
+    status = ds["status"].values
+    n, k = ds["n"].values, ds["stiffness"].values
+    # n = 2 is not a shell: an error naming the parameter; k = 3e7 at this step blows up.
+    assert np.all(status[n == 2] == STATUS_ERROR)
+    assert all("n: a shell needs n >= 3" in m for m in ds["message"].values[n == 2])
+    unstable = (n == 3) & (k == 3e7)
+    assert np.all(status[unstable] == -1)
+    assert all(m.startswith("unstable") for m in ds["message"].values[unstable])
+    assert np.all(ds["t_final"].values[unstable] < T_END)
+    good = (n == 3) & (k == 80.0)
+    assert np.all(status[good] == 0)
+    assert np.all(ds["t_final"].values[good] == pytest.approx(T_END))
+    assert np.all(np.isfinite(ds["kinetic_energy"].values[good]))
+    assert sorted(failing_sweep.failed) == sorted(np.flatnonzero(~good).tolist())
+    assert "stiffness=3e+07" in failing_sweep.describe_case(int(np.flatnonzero(unstable)[0]))
+
+
+def test_sweep_cases_equal_direct_simulate_bitwise(failing_sweep):
+    ds = failing_sweep.dataset
+    checked = 0
+    for i in np.flatnonzero(ds["status"].values != STATUS_ERROR):
+        structure, force = hand_built(**case_parameters(ds, i))
+        result = simulate(structure, (0.0, T_END), method="rk4", dt=DT, sample_dt=SAMPLE_DT,
+                          external_force=force)
+        assert int(ds["status"].values[i]) == result.status
+        assert ds["message"].values[i] == result.message
+        assert ds["nsteps"].values[i] == result.nsteps
+        rows = np.isclose(result.t, np.rint(result.t / SAMPLE_DT) * SAMPLE_DT, rtol=0, atol=1e-15)
+        for name, series in direct_series(result).items():
+            got = ds[name].values[i]
+            np.testing.assert_array_equal(got[: rows.sum()], series[rows], err_msg=name)
+            assert np.all(np.isnan(got[rows.sum():])), name
+        checked += 1
+    assert checked == 4
+
+
+def test_batched_sweep_matches_direct_simulate(client):
+    spec = SweepSpec({"stiffness": [60.0, 150.0], "rest_scale": [0.85, 0.95], "load": [0.0, 4.0],
+                      "damping": [0.3]}, t_end=T_END, sample_dt=SAMPLE_DT, dt=DT)
+    result = run_sweep(spec, client=client)
+    ds = result.dataset
+    assert result.success and np.all(ds["batched"].values == 1)
+    for i in range(ds.sizes["case"]):
+        structure, force = hand_built(**case_parameters(ds, i))
+        ref = simulate(structure, (0.0, T_END), method="rk4", dt=DT, sample_dt=SAMPLE_DT,
+                       external_force=force)
+        expected = direct_series(ref)
+        energy_scale = np.max(expected["kinetic_energy"] + expected["elastic_energy"])
+        for name, series in expected.items():
+            got = ds[name].values[i]
+            # energy_error is a balance (a cancellation): compare it with the energies.
+            scale = energy_scale if name == "energy_error" else np.max(np.abs(series))
+            assert np.max(np.abs(got - series)) <= 1e-12 * scale, name
+
+
+def test_monte_carlo_cases_are_reproducible_and_in_range():
+    spec = SweepSpec({"stiffness": [50.0, 200.0], "n": [3, 5], "load": [2.0]},
+                     mode="monte-carlo", samples=40, seed=7)
+    cases = spec.cases()
+    assert cases == SweepSpec.from_dict(spec.to_dict()).cases()
+    assert len(cases) == 40
+    k = np.array([c["stiffness"] for c in cases])
+    n = np.array([c["n"] for c in cases])
+    assert np.all((50 <= k) & (k <= 200)) and np.unique(k).size == 40
+    assert set(n.tolist()) == {3, 4, 5}
+    assert all(c["load"] == 2.0 and c["m"] == 1 for c in cases)
+
+
+@pytest.mark.parametrize(
+    "changes, field",
+    [
+        (dict(parameters={"stifness": [1.0]}), "parameters.stifness"),
+        (dict(parameters={"n": [3.5]}), r"parameters.n\[0\]"),
+        (dict(parameters={"load": []}), "parameters.load"),
+        (dict(parameters={"load": [3, 1]}, mode="monte-carlo", samples=3), "parameters.load"),
+        (dict(mode="monte-carlo"), "samples"),
+        (dict(t_end=0.0105), "t_end"),
+        (dict(method="euler"), "method"),
+        (dict(mode="random"), "mode"),
+    ],
+)
+def test_bad_specs_name_the_field(changes, field):
+    base = dict(parameters={"stiffness": [100.0]})
+    with pytest.raises(ValueError, match=f"^{field}"):
+        SweepSpec(**{**base, **changes})
+
+
+def test_spec_files_and_saved_dataset(tmp_path, client):
+    (tmp_path / "spec.yaml").write_text(
+        "parameters:\n  stiffness: [90, 110]\nt_end: 0.004\nsample_dt: 0.002\ndt: 0.0002\n")
+    spec = SweepSpec.from_file(tmp_path / "spec.yaml")
+    (tmp_path / "spec.json").write_text(json.dumps(spec.to_dict()))
+    assert SweepSpec.from_file(tmp_path / "spec.json") == spec
+    (tmp_path / "bad.json").write_text('{"parameters": {"k": [1]}}')
+    with pytest.raises(ValueError, match="parameters.k"):
+        SweepSpec.from_file(tmp_path / "bad.json")
+    result = run_sweep(spec, client=client)
+    path = result.save(tmp_path / "sweep.nc")
+    back = read_sweep(path)
+    assert back.identical(result.dataset)
+    assert json.loads(back.attrs["spec"]) == spec.to_dict()
+    assert not list(tmp_path.glob("*.tmp"))
+
+
+def test_scheduler_address(cluster):
+    spec = SweepSpec({"stiffness": [100.0, 120.0, 140.0]}, t_end=0.004, sample_dt=0.002, dt=DT,
+                     method="RK45")
+    calls = []
+    result = run_sweep(spec, scheduler=cluster.scheduler_address,
+                       progress=lambda done, total: calls.append((done, total)))
+    assert result.success and result.dataset.sizes["case"] == 3
+    assert calls == [(1, 3), (2, 3), (3, 3)]  # one task per case for an adaptive method
+    with pytest.raises(ValueError, match="^scheduler"):
+        run_sweep(spec, scheduler=cluster.scheduler_address, client=object())
+
+
+def test_cli_sweep_reports_failures_and_writes(tmp_path, capsys):
+    out = tmp_path / "s.nc"
+    code = main(["sweep", "--param", "stiffness=100,3e7", "--t-end", "0.004", "--sample-dt",
+                 "0.002", "--dt", "0.0002", "--workers", "1", "-o", str(out)])
+    captured = capsys.readouterr()
+    assert code == 1
+    assert "1 of 2 cases reached t_end" in captured.out
+    assert captured.err.count("\n") == 1 and "stiffness=3e+07" in captured.err
+    assert read_sweep(out).sizes["case"] == 2
+    assert main(["sweep", "--param", "stiffness", "-o", str(out)]) == 2
+    assert main(["sweep", "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 2 and all(line.startswith("tensegrity: error:") for line in err)
+
+
+# ------------------------------------------------------------------------------ batched path
+def test_batch_matches_single_runs_and_isolates_a_blow_up():
+    """Copies with random masses, lengths, stiffnesses, rest lengths, tendon and rod damping,
+    loads, start states and gravity, one of them unstable: each equals its own simulate run."""
+    rng = np.random.default_rng(3)
+    base = class1_shell(4, 2)
+    structures, forces, starts = [], [], []
+    for b in range(4):
+        L = rng.uniform(0.8, 1.2)
+        s = class1_shell(4, 2, rod_length=L)
+        lengths = dynamics.tendon_lengths(s, s.node_position)
+        s = s.replace(
+            rod_mass=rng.uniform(0.5, 2.0, s.n_rods),
+            tendon_stiffness=rng.uniform(50, 300, s.n_tendons) * (1e6 if b == 2 else 1.0),
+            tendon_rest_length=rng.uniform(0.8, 1.0, s.n_tendons) * lengths,
+            tendon_damping=rng.uniform(0, 2, s.n_tendons),
+            rod_damping=rng.uniform(0, 1, s.n_rods),
+        )
+        structures.append(s)
+        forces.append(rng.normal(0, 2, (s.n_nodes, 3)) if b != 1 else None)
+        start = dynamics.initial_state(s)
+        starts.append(State(t=0.0, q=start.q, qdot=start.qdot + 0.1 * rng.standard_normal(start.q.size)))
+    assert all(np.array_equal(s.tendon_nodes, base.tendon_nodes) for s in structures)
+    g = np.array([0.0, 0.0, -9.81])
+    batch = simulate_batch(structures, (0.0, 0.03), dt=2e-4, sample_dt=2e-3, initial=starts,
+                           external_force=forces, gravity=g)
+    for b, (s, got) in enumerate(zip(structures, batch)):
+        ref = simulate(s, (0.0, 0.03), method="rk4", dt=2e-4, sample_dt=2e-3, initial=starts[b],
+                       external_force=forces[b], gravity=g)
+        assert got.status == ref.status and got.nsteps == ref.nsteps
+        np.testing.assert_array_equal(got.t, ref.t)
+        if b == 2:
+            assert got.status == -1 and got.message == ref.message
+            assert got.message.startswith("unstable")
+            continue
+        assert got.status == 0 and got.nfev == ref.nfev
+        for name in ("q", "qdot", "tendon_tension", "node_position"):
+            a, r = getattr(got, name), getattr(ref, name)
+            assert np.max(np.abs(a - r)) <= 1e-12 * np.max(np.abs(r)), name
+        for name, e in ref.energy.items():
+            scale = max(np.max(np.abs(e)), np.max(np.abs(ref.energy["kinetic"])))
+            assert np.max(np.abs(got.energy[name] - e)) <= 1e-12 * scale, name
+
+
+def test_batch_rejects_what_it_cannot_do():
+    a, b = class1_shell(3, 1), class1_shell(4, 1)
+    with pytest.raises(ValueError, match=r"^structures\[1\]"):
+        simulate_batch([a, b], (0, 0.01), dt=1e-4, sample_dt=1e-3)
+    with pytest.raises(ValueError, match="^sample_dt"):
+        simulate_batch([a], (0, 0.01), dt=1e-4, sample_dt=1.5e-4)
+    with pytest.raises(ValueError, match="^t_span"):
+        simulate_batch([a], (0, 0.01005), dt=1e-4, sample_dt=1e-3)
+    with pytest.raises(ValueError, match="^external_force"):
+        simulate_batch([a], (0, 0.01), dt=1e-4, sample_dt=1e-3, external_force=[None, None])
+
+
+def test_plan_batches_small_shells_per_worker_and_large_ones_per_case():
+    from tensegrity.sweep import BATCH_MAX_RODS, plan
+
+    spec = SweepSpec({"n": [3, 25], "m": [1, 20], "stiffness": [50.0, 100.0, 150.0]})
+    cases = spec.cases()
+    tasks = plan(spec, cases, 2)
+    assert sorted(i for idx, _ in tasks for i in idx) == list(range(len(cases)))
+    by_size = {}
+    for idx, batched in tasks:
+        sizes = {(cases[i]["n"], cases[i]["m"]) for i in idx}
+        assert batched and len(sizes) == 1
+        by_size.setdefault(sizes.pop(), []).append(len(idx))
+    # (3,1), (3,20), (25,1): 6, 120, 50 rods, one batch per worker; (25,20): 1000 rods, per case
+    assert 2 * 25 * 20 == BATCH_MAX_RODS
+    assert by_size == {(3, 1): [2, 1], (3, 20): [2, 1], (25, 1): [2, 1], (25, 20): [1, 1, 1]}
+    adaptive = SweepSpec({"stiffness": [50.0, 100.0]}, method="DOP853")
+    assert plan(adaptive, adaptive.cases(), 2) == [([0], False), ([1], False)]
+
+
+def test_cli_sweep_from_a_spec_file(tmp_path, capsys):
+    spec = tmp_path / "spec.json"
+    spec.write_text(json.dumps({"parameters": {"damping": [0.0, 1.0]}, "t_end": 0.004,
+                                "sample_dt": 0.002, "dt": 0.0002}))
+    out = tmp_path / "s.nc"
+    assert main(["sweep", "--spec", str(spec), "--workers", "1", "-o", str(out)]) == 0
+    assert "2 of 2 cases reached t_end" in capsys.readouterr().out
+    ds = read_sweep(out)
+    assert ds["damping"].values.tolist() == [0.0, 1.0] and np.all(ds["status"].values == 0)
+    assert main(["sweep", "--spec", str(spec), "--t-end", "1", "-o", str(out)]) == 2
+    assert main(["sweep", "--spec", str(tmp_path / "missing.json"), "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 2 and "--spec: cannot be combined" in err[0] and "missing.json" in err[1]
