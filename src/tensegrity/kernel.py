@@ -293,6 +293,7 @@ def pack(structure: Structure) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.n
     """``(rod_nodes, rod_param, tendon_nodes, tendon_param)``: the structure as the contiguous,
     writable arrays the compiled functions take (``2/m`` and ``6/(m L^2)`` computed as
     ``dynamics.evaluate`` computes them)."""
+    structure.require_free_class1("the compiled kernel")
     m, L = structure.rod_mass, structure.rod_length
     rod_param = np.empty((structure.n_rods, 5))
     rod_param[:, ROD_MASS] = m

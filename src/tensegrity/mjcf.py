@@ -198,6 +198,7 @@ def to_mjcf(
     """
     if not isinstance(structure, Structure):
         raise ValueError(f"structure: expected a Structure, got {type(structure).__name__}")
+    structure.require_free_class1("MJCF export")
     try:
         dt = float(timestep)
     except (TypeError, ValueError):
