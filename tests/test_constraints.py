@@ -87,13 +87,15 @@ def test_class2_shell_long_undamped_run_holds_joints_and_invariants():
     """Undamped free class 2 shell: joints held (measured from the node positions, not from
     ``A``) within 1e-9 m, energy conserved, linear and angular momentum stay zero."""
     s = class2_shell(3, 2)
-    r = simulate(s, (0.0, 1.0), sample_dt=0.01)
+    r = simulate(s, (0.0, 3.0), sample_dt=0.01)
     assert r.status == 0, r.message
     p = r.node_position
     gap = np.linalg.norm(p[:, s.joint_nodes[:, 0]] - p[:, s.joint_nodes[:, 1]], axis=-1)
     assert gap.max() <= 1e-9
     assert r.max_constraint_error <= 1e-9
-    assert np.max(np.abs(dynamics.rod_length_error(s, r.q))) < 1e-9
+    # rod lengths at the ends of steps (samples come from the dense output, which holds the
+    # joints, linear invariants, exactly but not the quadratic rod lengths)
+    assert r.max_rod_length_error < 1e-9
     energy = r.total_energy
     assert r.energy["kinetic"].max() > 10.0  # it moves a lot
     assert np.ptp(energy) < 1e-7 * r.energy["kinetic"].max()
@@ -110,15 +112,19 @@ def test_class2_shell_long_undamped_run_holds_joints_and_invariants():
     assert np.max(np.abs(angular)) < 1e-8 * scale
 
 
-def test_fixed_base_ring_does_not_move():
+@pytest.mark.parametrize("method", ["DOP853", "rk4"])
+def test_fixed_base_ring_does_not_move(method):
     s = class2_shell(3, 2, fixed_base=True)
     fixed = np.flatnonzero(s.node_fixed)
     assert fixed.size == 6
-    r = simulate(s, (0.0, 0.3), sample_dt=0.01, gravity=GRAVITY)
+    r = simulate(s, (0.0, 0.3), sample_dt=0.01, gravity=GRAVITY, method=method, dt=2e-4)
     assert r.status == 0, r.message
+    assert r.max_constraint_error < 1e-12
     assert np.max(np.abs(r.node_position[:, fixed] - s.node_position[fixed])) < 1e-12
     assert np.max(np.abs(r.node_velocity[:, fixed])) < 1e-10
-    assert np.ptp(r.total_energy) < 1e-7 * r.energy["kinetic"].max()
+    # fixed-step RK4 is about second order through the slack switches (0.11e-6 measured)
+    tolerance = 1e-7 if method == "DOP853" else 1e-6
+    assert np.ptp(r.total_energy) < tolerance * r.energy["kinetic"].max()
 
 
 ANCHOR_B, ANCHOR_C = np.array([1.5, 0.4, -1.5]), np.array([-0.8, 0.6, -0.5])

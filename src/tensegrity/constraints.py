@@ -163,7 +163,6 @@ class LinearConstraints:
         self.dense = self.matrix.shape[0] * d * s.n_nodes <= DENSE_LIMIT
         if self.dense:
             self._dense_node_matrix = self.node_matrix.toarray()
-            self._dense_matrix = self.matrix.toarray()
 
     # ------------------------------------------------------------------ construction
     @staticmethod
@@ -247,7 +246,9 @@ class LinearConstraints:
         from tensegrity.dynamics import force_response
 
         unit_forces = self._dense_node_matrix.reshape(-1, self.structure.n_nodes, self.structure.dim)
-        return self._dense_matrix @ force_response(self.structure, q, unit_forces).T
+        # sparse A times a dense array: single-threaded, unlike a BLAS product, which stalls
+        # when the machine is busy
+        return self.matrix @ force_response(self.structure, q, unit_forces).T
 
     def constraint_force(self, q: np.ndarray, qddot_free: np.ndarray) -> np.ndarray:
         """Nodal constraint forces ``f_c = A_n^T lambda`` [N], (N, d), that make ``A q'' = 0``

@@ -48,6 +48,8 @@ def rods_view(q: np.ndarray, dim: int = 3) -> np.ndarray:
 
 def rod_coordinates(structure: Structure, q: np.ndarray) -> np.ndarray:
     """The rods' part of ``q`` (..., n) as (..., R, 2, dim), a view (point masses left out)."""
+    if structure.is_free_class1:
+        return q.reshape(*q.shape[:-1], -1, 2, 3)
     d = structure.dim
     return rods_view(q[..., : 2 * d * structure.n_rods], d)
 
@@ -282,12 +284,12 @@ def evaluate(
     if gravity is not None:
         force += structure.node_mass[:, None] * gravity
 
-    qddot = _accelerations_under(structure, q, qdot, force)
+    rates = rod_coordinates(structure, qdot)
+    qddot = force_response(structure, q, force, rates=rates)
     reaction = None
     if structure.has_constraints:
         reaction = structure.constraints.constraint_force(q, qddot)
         qddot += force_response(structure, q, reaction)
-    rates = rod_coordinates(structure, qdot)
     alpha = structure.rod_damping[:, None, None]
     dissipated = float(
         np.sum((tendons.tension - tendons.elastic_tension) * tendons.length_rate)
@@ -296,27 +298,17 @@ def evaluate(
     return Evaluation(qddot, tendons, dissipated, external_power, reaction)
 
 
-def _accelerations_under(
-    structure: Structure, q: np.ndarray, qdot: np.ndarray, force: np.ndarray
+def force_response(
+    structure: Structure, q: np.ndarray, force: np.ndarray, *, rates: np.ndarray | None = None
 ) -> np.ndarray:
-    """``q''`` (n,) under the total nodal forces ``force`` (N, 3) [N] (eqs. 18.17, 18.20), with
-    rod damping ``-alpha q'``: :func:`force_response` plus the centripetal term
-    ``-(|q2'|^2 / L^2) q2`` and the damping."""
-    qddot = force_response(structure, q, force)
-    rods, rates = rod_coordinates(structure, q), rod_coordinates(structure, qdot)
-    v2 = rates[:, 1]
-    centripetal = np.sum(v2 * v2, axis=1, keepdims=True) / structure.rod_length[:, None] ** 2
-    rod_part = rod_coordinates(structure, qddot)
-    rod_part[:, 1] -= centripetal * rods[:, 1]
-    rod_part -= structure.rod_damping[:, None, None] * rates
-    return qddot
-
-
-def force_response(structure: Structure, q: np.ndarray, force: np.ndarray) -> np.ndarray:
-    """``G(q) f``: the part of ``q''`` (..., n) that the nodal forces ``force`` (..., N, 3) [N]
-    cause (Theorem 18.1; leading axes of ``force`` are batches)::
+    """``q''`` (..., n) under the nodal forces ``force`` (..., N, 3) [N] (Theorem 18.1, eqs.
+    18.17, 18.20; leading axes of ``force`` are batches)::
 
         q1'' = (2/m) (f_a + f_b),   q2'' = (6/(m L^2)) skew(q2)^2 (f_a - f_b),   x'' = f / m.
+
+    Without ``rates`` this is ``G(q) f``, linear in ``f``.  With the rods' rates (R, 2, 3) (see
+    :func:`rod_coordinates`) it is the full acceleration: plus the centripetal term
+    ``-(|q2'|^2 / L^2) q2`` and the rod damping ``-alpha q'``.
     """
     a, b = structure.rod_nodes[:, 0], structure.rod_nodes[:, 1]
     f_sum, f_diff = force[..., a, :] + force[..., b, :], force[..., a, :] - force[..., b, :]
@@ -324,8 +316,15 @@ def force_response(structure: Structure, q: np.ndarray, force: np.ndarray) -> np
     m, L2 = structure.rod_mass[:, None], structure.rod_length[:, None] ** 2
     # skew(q2)^2 f = q2 (q2 . f) - |q2|^2 f
     skew2_f = q2 * np.sum(q2 * f_diff, axis=-1, keepdims=True) - np.sum(q2 * q2, axis=-1, keepdims=True) * f_diff
-    rods = np.stack([(2.0 / m) * f_sum, (6.0 / (m * L2)) * skew2_f], axis=-2)  # (..., R, 2, dim)
-    qddot = rods.reshape(*rods.shape[:-3], -1)
+    qddot = np.empty((*f_sum.shape[:-1], 2, structure.dim))
+    qddot[..., 0, :] = (2.0 / m) * f_sum
+    if rates is None:
+        qddot[..., 1, :] = (6.0 / (m * L2)) * skew2_f
+    else:
+        v2 = rates[:, 1]
+        qddot[:, 1] = -(np.sum(v2 * v2, axis=1, keepdims=True) / L2) * q2 + (6.0 / (m * L2)) * skew2_f
+        qddot -= structure.rod_damping[:, None, None] * rates
+    qddot = qddot.reshape(*qddot.shape[:-3], -1)
     if structure.is_free_class1:
         return qddot
     masses = structure.point_mass_nodes

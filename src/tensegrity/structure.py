@@ -356,7 +356,7 @@ class Structure:
         """Number of tendons ``S``."""
         return self.tendon_nodes.shape[0]
 
-    @property
+    @cached_property
     def dim(self) -> int:
         """Space dimension: 3, or 2 for a planar structure (Appendix A's planar form)."""
         return self.node_position.shape[1]
