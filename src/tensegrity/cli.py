@@ -19,7 +19,8 @@ import numpy as np
 
 from tensegrity import dynamics
 from tensegrity.integrators import ADAPTIVE_METHODS, FIXED_STEP_METHODS
-from tensegrity.shell import class1_shell
+from tensegrity.planar import planar_rod, planar_two_rod
+from tensegrity.shell import class1_shell, class2_shell
 from tensegrity.structure import Structure
 
 EXIT_FAILED, EXIT_USAGE = 1, 2
@@ -78,40 +79,52 @@ def _add_structure_options(parser: argparse.ArgumentParser, *, allow_file: bool 
     if allow_file:
         group.add_argument("--structure", type=Path, metavar="FILE.json",
                            help="a structure file (JSON form) instead of a generated shell")
+    group.add_argument("--kind", choices=tuple(_GENERATORS), default="shell",
+                       help="the generated structure: the class 1 shell (default), the class 2 "
+                            "shell of Lemma 18.1, the planar two-rod tensegrity (Appendix A, "
+                            "Example 2) or a single planar rod (Example 1)")
     group.add_argument("--n", type=int, help="elements around the shell, >= 3 (default 3)")
-    group.add_argument("--m", type=int, help="stages up the shell, >= 1 (default 1)")
+    group.add_argument("--m", type=int,
+                       help="stages up the shell, >= 1 (default 1; class 2 shell: >= 2, default 2)")
+    group.add_argument("--fixed-base", action="store_true",
+                       help="class 2 shell: fix the base ring to ground")
     group.add_argument("--primal", action="store_true", help="primal shell: no t9, t10 tendons")
     group.add_argument("--stiffness", type=_positive, help="tendon stiffness k [N/m] (default 100)")
     group.add_argument("--rest-length", type=_non_negative,
                        help="tendon rest length L0 [m] (default: half the shortest initial tendon)")
 
 
-_SHELL_OPTIONS = ("n", "m", "primal", "stiffness", "rest_length")
+_SHELL_OPTIONS = ("n", "m", "primal", "stiffness", "rest_length", "fixed_base")
+#: ``--kind``: (generator, the options of _SHELL_OPTIONS it takes, default m)
+_GENERATORS: dict[str, tuple[Callable[..., Structure], tuple[str, ...], int]] = {
+    "shell": (class1_shell, ("n", "m", "primal", "stiffness", "rest_length"), 1),
+    "class2-shell": (class2_shell, _SHELL_OPTIONS, 2),
+    "planar": (planar_two_rod, ("stiffness", "rest_length"), 0),
+    "rod": (planar_rod, (), 0),
+}
 
 
 def _structure(args: argparse.Namespace) -> Structure:
     """The structure the options describe (a file, or a shell)."""
+    given = [name for name in _SHELL_OPTIONS
+             if getattr(args, name) is not None and getattr(args, name) is not False]
+    flags = " ".join(f"--{name.replace('_', '-')}" for name in given)
     if getattr(args, "structure", None) is not None:
-        given = [
-            f"--{name.replace('_', '-')}"
-            for name in _SHELL_OPTIONS
-            if getattr(args, name) not in (None, False)
-        ]
-        if given:
-            raise CommandError(f"{' '.join(given)}: shell options cannot be combined with --structure")
+        if given or args.kind != "shell":
+            raise CommandError(f"{flags or '--kind'}: generator options cannot be combined with "
+                               "--structure")
         from tensegrity.io import read_structure
 
         return read_structure(args.structure)
-    options = {
-        "n": 3 if args.n is None else args.n,
-        "m": 1 if args.m is None else args.m,
-        "primal": args.primal,
-    }
-    if args.stiffness is not None:
-        options["stiffness"] = args.stiffness
-    if args.rest_length is not None:
-        options["rest_length"] = args.rest_length
-    return class1_shell(**options)
+    generator, accepted, default_m = _GENERATORS[args.kind]
+    foreign = [f"--{name.replace('_', '-')}" for name in given if name not in accepted]
+    if foreign:
+        raise CommandError(f"{' '.join(foreign)}: not an option of --kind {args.kind}")
+    options = {name: getattr(args, name) for name in given}
+    if "n" in accepted:
+        options.setdefault("n", 3)
+        options.setdefault("m", default_m)
+    return generator(**options)
 
 
 def _apply_damping(structure: Structure, damping: str | float | None) -> Structure:
@@ -211,12 +224,14 @@ def _cmd_info(args: argparse.Namespace) -> int:
     lengths = dynamics.tendon_lengths(s, s.node_position)
     low, high = s.node_position.min(axis=0), s.node_position.max(axis=0)
     slack = int(np.sum(lengths <= s.tendon_rest_length))
+    masses = f", {s.dim} per point mass" if s.point_mass_nodes.size else ""
     rows = [
         ("nodes", s.n_nodes),
         ("rods", s.n_rods),
         ("tendons", s.n_tendons),
-        ("degrees of freedom", f"{s.n_dof} (5 per rod)"),
-        ("coordinates q", f"{s.n_coordinates} (6 per rod: q1 = p_a + p_b, q2 = p_b - p_a)"),
+        ("degrees of freedom", f"{s.n_dof} ({2 * s.dim - 1} per rod{masses})"),
+        ("coordinates q", f"{s.n_coordinates} ({2 * s.dim} per rod: q1 = p_a + p_b, q2 = p_b - p_a"
+                          f"{masses})"),
         ("total mass", f"{s.total_mass:.6g} kg"),
         ("rod length", _range(s.rod_length, "m")),
         ("tendon stiffness", _range(s.tendon_stiffness, "N/m")),
@@ -227,6 +242,10 @@ def _cmd_info(args: argparse.Namespace) -> int:
         ("bounding box", f"[{', '.join(f'{x:.4g}' for x in low)}] .. "
                          f"[{', '.join(f'{x:.4g}' for x in high)}] m"),
     ]
+    supports = (("ball joints (node pairs)", len(s.joint_nodes)), ("fixed nodes", int(s.node_fixed.sum())),
+                ("point masses", len(s.point_mass_nodes)), ("nodes on planes", len(s.plane_nodes)),
+                ("nodes on lines", len(s.line_nodes)))
+    rows += [(name, count) for name, count in supports if count]
     width = max(len(name) for name, _ in rows)
     for name, value in rows:
         print(f"{name:<{width}}  {value}")

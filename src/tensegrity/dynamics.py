@@ -223,9 +223,21 @@ def critical_damping(structure: Structure) -> Structure:
       damping of a rod of mean mass on a tendon of mean stiffness.  Tendon damping alone cannot
       remove the motion of a tensegrity's mechanisms (modes that change no tendon length to first
       order, stiffened only by prestress), so without this part a shell rocks for minutes.
+
+    An anchor (a fixed node of no rod) counts as infinitely heavy: a tendon to it gets the mass of
+    its other end.  A point mass is its own mass; point masses get no mass-proportional damping.
+
+    Raises
+    ------
+    ValueError
+        If the structure has no rod or no tendon (nothing to scale the damping with).
     """
+    if not (structure.n_rods and structure.n_tendons):
+        raise ValueError("structure: critical damping needs at least one rod and one tendon")
     m = structure.node_mass[structure.tendon_nodes]
-    reduced = m[:, 0] * m[:, 1] / (m[:, 0] + m[:, 1])
+    ma, mb = m[:, 0], m[:, 1]
+    both = np.divide(ma * mb, ma + mb, out=np.zeros_like(ma), where=(ma > 0) & (mb > 0))
+    reduced = np.where(ma == 0, mb, np.where(mb == 0, ma, both))
     rate = 2.0 * np.sqrt(structure.tendon_stiffness.mean() / structure.rod_mass.mean())
     return structure.replace(
         tendon_damping=2.0 * np.sqrt(structure.tendon_stiffness * reduced),

@@ -173,15 +173,26 @@ def class1_shell(
     position = shell_layout(
         n, m, rod_length=rod_length, radius=radius, stage_height=stage_height, twist=twist
     )
-    tendons = shell_tendons(n, m, primal=primal)
+    return _shell_structure(
+        position, shell_tendons(n, m, primal=primal), rod_mass=rod_mass, rod_length=rod_length,
+        stiffness=stiffness, rest_length=rest_length, damping=damping,
+    )
+
+
+def _shell_structure(
+    position: np.ndarray, tendons: list[tuple[str, int, int]], *, rod_mass: float,
+    rod_length: float, stiffness: float, rest_length: float | None, damping: float, **extra,
+) -> Structure:
+    """A shell's :class:`Structure`: rod ``r`` joins nodes ``2r, 2r+1``, uniform parameters, the
+    default rest length half the shortest initial tendon; ``extra`` fields passed on."""
     tendon_nodes = np.array([(tail, head) for _, tail, head in tendons])
     if rest_length is None:
         lengths = np.linalg.norm(position[tendon_nodes[:, 1]] - position[tendon_nodes[:, 0]], axis=1)
         rest_length = 0.5 * float(lengths.min())
-    n_rods, n_tendons = 2 * n * m, len(tendons)
+    n_rods, n_tendons = len(position) // 2, len(tendons)
     return Structure(
         node_position=position,
-        rod_nodes=np.arange(4 * n * m).reshape(n_rods, 2),
+        rod_nodes=np.arange(2 * n_rods).reshape(n_rods, 2),
         rod_mass=np.full(n_rods, float(rod_mass)),
         rod_length=np.full(n_rods, float(rod_length)),
         tendon_nodes=tendon_nodes,
@@ -189,6 +200,7 @@ def class1_shell(
         tendon_rest_length=np.full(n_tendons, float(rest_length)),
         tendon_damping=np.full(n_tendons, float(damping)),
         tendon_name=tuple(name for name, _, _ in tendons),
+        **extra,
     )
 
 
@@ -286,25 +298,11 @@ def class2_shell(
         if (where == "above_base" and j > 1) or (where == "below_top" and j < m):
             continue
         tendons.append((name, tail, head))
-    tendon_nodes = np.array([(tail, head) for _, tail, head in tendons])
-    if rest_length is None:
-        lengths = np.linalg.norm(position[tendon_nodes[:, 1]] - position[tendon_nodes[:, 0]], axis=1)
-        rest_length = 0.5 * float(lengths.min())
     fixed = np.zeros(4 * n * m, bool)
     if fixed_base:
         for i in range(1, n + 1):
             fixed[[shell_node_index(1, i, 1, n), shell_node_index(3, i, 1, n)]] = True
-    n_rods, n_tendons = 2 * n * m, len(tendons)
-    return Structure(
-        node_position=position,
-        rod_nodes=np.arange(4 * n * m).reshape(n_rods, 2),
-        rod_mass=np.full(n_rods, float(rod_mass)),
-        rod_length=np.full(n_rods, float(rod_length)),
-        tendon_nodes=tendon_nodes,
-        tendon_stiffness=np.full(n_tendons, float(stiffness)),
-        tendon_rest_length=np.full(n_tendons, float(rest_length)),
-        tendon_damping=np.full(n_tendons, float(damping)),
-        tendon_name=tuple(name for name, _, _ in tendons),
-        joint_nodes=class2_joints(n, m),
-        node_fixed=fixed,
+    return _shell_structure(
+        position, tendons, rod_mass=rod_mass, rod_length=rod_length, stiffness=stiffness,
+        rest_length=rest_length, damping=damping, joint_nodes=class2_joints(n, m), node_fixed=fixed,
     )
