@@ -414,12 +414,13 @@ def test_json_round_trip_keeps_supports_and_names_bad_keys():
 
 
 def test_free_class1_only_parts_reject_supported_structures():
+    from tensegrity.analysis.equilibrium import find_equilibrium
     from tensegrity.kernel import FastKernel
-    from tensegrity.mjcf import to_mjcf
+    from tensegrity.matrices import shell_size
 
     s = class2_shell(3, 2)
     assert not s.is_free_class1
-    with pytest.raises(ValueError, match="^the compiled kernel: supports only free 3-D class 1"):
-        FastKernel(s)
-    with pytest.raises(ValueError, match="^MJCF export: supports only free 3-D class 1"):
-        to_mjcf(s)
+    for what, call in (("the compiled kernel", FastKernel), ("the matrix model", shell_size),
+                       ("the analysis package", find_equilibrium)):
+        with pytest.raises(ValueError, match=f"^{what}: supports only free 3-D class 1"):
+            call(s)
