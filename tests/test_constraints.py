@@ -424,3 +424,20 @@ def test_free_class1_only_parts_reject_supported_structures():
                        ("the analysis package", find_equilibrium)):
         with pytest.raises(ValueError, match=f"^{what}: supports only free 3-D class 1"):
             call(s)
+
+
+def test_critical_damping_treats_anchors_as_infinitely_heavy():
+    """A tendon to an anchor is critically damped for the mass at its other end, ``2 sqrt(k m)``;
+    one between two rods' nodes for their reduced mass, as before."""
+    from tensegrity import critical_damping
+
+    s = hanging_chain(damped=False).replace(
+        tendon_nodes=[[3, 5], [1, 7], [0, 3]], tendon_stiffness=[60.0, 40.0, 10.0],
+        tendon_rest_length=[0.8, 0.6, 0.1], tendon_name=None, tendon_damping=None)
+    damped = critical_damping(s)
+    half = s.rod_mass / 2  # node 3 is rod 1's end (1.5 kg), nodes 1 and 0 rod 0's (1 kg)
+    np.testing.assert_allclose(damped.tendon_damping, [
+        2 * np.sqrt(60.0 * half[1]), 2 * np.sqrt(40.0 * half[0]),
+        2 * np.sqrt(10.0 * half[0] * half[1] / (half[0] + half[1]))])
+    with pytest.raises(ValueError, match="^structure: critical damping needs at least one rod and one tendon"):
+        critical_damping(pendulum(support="fixed"))

@@ -104,7 +104,6 @@ class LinearConstraints:
     matrix : (c, n) sparse ``A = A_n P``;  rhs : (c,) ``b`` [m].
     inverse_mass : (n,) the kinetic-energy metric's inverse: ``4/m`` on a rod's ``q1``,
         ``12/m`` on its ``q2``, ``1/m`` on a point mass [1/kg].
-    row_kind : (c,) str, what each row holds ("joint", "fixed", "plane", "line").
     """
 
     def __init__(self, structure) -> None:
@@ -112,23 +111,23 @@ class LinearConstraints:
         self.structure = s
         N, d = s.n_nodes, s.dim
         position = s.node_position
-        blocks: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, str]] = []
-        # (row node, row vectors (k, d), second node or -1, rhs (k,), kind) per constraint
+        blocks: list[tuple[int, np.ndarray, int, np.ndarray]] = []
+        # (row node, row vectors (k, d), second node or -1, rhs (k,)) per constraint
         eye = np.eye(d)
         for a, b in s.joint_nodes:
-            blocks.append((a, eye, b, np.zeros(d), "joint"))
+            blocks.append((a, eye, b, np.zeros(d)))
         in_rod = np.zeros(N, bool)
         in_rod[s.rod_nodes] = True
         for a in np.flatnonzero(s.node_fixed & in_rod):
-            blocks.append((a, eye, -1, position[a].copy(), "fixed"))
+            blocks.append((a, eye, -1, position[a].copy()))
         for a, normal in zip(s.plane_nodes, s.plane_normal):
-            blocks.append((a, normal[None], -1, np.array([normal @ position[a]]), "plane"))
+            blocks.append((a, normal[None], -1, np.array([normal @ position[a]])))
         for a, pair in zip(s.line_nodes, _normals(s.line_direction)):
-            blocks.append((a, pair, -1, pair @ position[a], "line"))
+            blocks.append((a, pair, -1, pair @ position[a]))
 
-        rows, cols, data, rhs, kind = [], [], [], [], []
+        rows, cols, data, rhs = [], [], [], []
         row = 0
-        for a, vectors, b, value, name in blocks:
+        for a, vectors, b, value in blocks:
             for vector, v in zip(vectors, value):
                 for node, sign in ((a, 1.0), (b, -1.0)):
                     if node >= 0:
@@ -136,23 +135,19 @@ class LinearConstraints:
                         cols += list(d * node + np.arange(d))
                         data += list(sign * vector)
                 rhs.append(v)
-                kind.append(name)
                 row += 1
         node_matrix = sp.csr_matrix((data, (rows, cols)), shape=(row, d * N))
         # p = P q + p_anchor
-        self.coordinate_map = self._coordinate_map(s)
         anchor = np.zeros((N, d))
         anchor[s.anchor_nodes] = position[s.anchor_nodes]
-        matrix = (node_matrix @ self.coordinate_map).tocsr()
+        matrix = (node_matrix @ self._coordinate_map(s)).tocsr()
         matrix.eliminate_zeros()
         rhs = np.array(rhs) - node_matrix @ anchor.ravel()
         keep = self._independent_rows(matrix)
         self.node_matrix = node_matrix[keep].tocsr()
         self.node_matrix_t = self.node_matrix.T.tocsr()
         self.matrix = matrix[keep].tocsr()
-        self.matrix_t = self.matrix.T.tocsr()
         self.rhs = rhs[keep]
-        self.row_kind = tuple(kind[k] for k in keep)
         mass = np.concatenate([
             np.repeat(np.stack([4 / s.rod_mass, 12 / s.rod_mass], axis=1), d, axis=1).ravel(),
             np.repeat(1 / s.node_point_mass[s.point_mass_nodes], d),
