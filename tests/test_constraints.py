@@ -301,7 +301,7 @@ def test_dense_and_sparse_solves_agree(monkeypatch):
     q, qdot = s.constraints.project(state.q + 1e-3 * rng.normal(size=state.q.size),
                                     rng.normal(size=state.q.size))
     dense = dynamics.evaluate(s, q, qdot, rest_length=s.tendon_rest_length, gravity=GRAVITY)
-    monkeypatch.setattr(constraints_module, "DENSE_LIMIT", 0)
+    monkeypatch.setattr(constraints_module, "DENSE_ROWS", 0)
     sparse_s = s.replace()
     assert s.constraints.dense and not sparse_s.constraints.dense
     sparse = dynamics.evaluate(sparse_s, q, qdot, rest_length=s.tendon_rest_length, gravity=GRAVITY)

@@ -45,9 +45,11 @@ import scipy.sparse as sp
 import scipy.sparse.csgraph
 import scipy.sparse.linalg
 
-#: Structures whose ``A_n`` (c x 3N) has at most this many entries solve for the constraint
-#: forces with dense arrays (much less overhead than sparse matrices at small sizes), others sparse.
-DENSE_LIMIT = 1_000_000
+#: Structures with at most this many independent constraint rows solve for the constraint forces
+#: with dense arrays (less overhead than sparse matrices), others with sparse ones.  Above it the
+#: dense inverse goes through threaded LAPACK/BLAS, which on a busy machine stalls (measured: 6 to
+#: 95 ms per evaluation of a (8,4) class 2 shell with 144-192 rows, against 1.2-1.4 ms sparse).
+DENSE_ROWS = 64
 #: Regularization of :func:`solve_psd`, relative to the largest diagonal entry.
 REGULARIZATION = 1e-12
 #: Rows whose QR pivot is below this (relative to the group's largest) depend on the others.
@@ -72,14 +74,18 @@ def solve_psd(matrix: sp.spmatrix | np.ndarray, rhs: np.ndarray, *, refinements:
         return np.zeros(0)
     delta = REGULARIZATION * max(float(matrix.diagonal().max()), np.finfo(float).tiny)
     if isinstance(matrix, np.ndarray):
+        # Products by einsum, not BLAS: a threaded BLAS call on a busy machine can stall for
+        # milliseconds, far longer than the product of these small matrices takes.
         inverse = np.linalg.inv(matrix + delta * np.eye(size))
-        solve = inverse.__matmul__
+        solve = lambda r: np.einsum("ij,j->i", inverse, r)  # noqa: E731
+        product = lambda x: np.einsum("ij,j->i", matrix, x)  # noqa: E731
     else:
         matrix = sp.csc_matrix(matrix)
         solve = sp.linalg.splu(matrix + delta * sp.identity(size, format="csc")).solve
+        product = matrix.__matmul__
     x = solve(rhs)
     for _ in range(refinements):
-        x += solve(rhs - matrix @ x)
+        x += solve(rhs - product(x))
     return x
 
 
@@ -155,7 +161,7 @@ class LinearConstraints:
         self.inverse_mass = mass
         self.length_scale = max(float(s.rod_length.max(initial=0.0)), 1.0)
         self._g_pattern = self._acceleration_pattern(s)
-        self.dense = self.matrix.shape[0] * d * s.n_nodes <= DENSE_LIMIT
+        self.dense = self.matrix.shape[0] <= DENSE_ROWS
         if self.dense:
             self._dense_node_matrix = self.node_matrix.toarray()
 
