@@ -198,3 +198,14 @@ def test_generator_option_errors_are_one_line(argv, message, capsys, tmp_path, m
     err = capsys.readouterr().err
     assert message in err and err.count("\n") == 1
     assert not list(tmp_path.iterdir())
+
+
+def test_simulate_class2_shell_reports_the_joint_error(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert main(["simulate", "--kind", "class2-shell", "--fixed-base", "--t-end", "0.05",
+                 "--no-steady-state", "--out", str(out)]) == 0
+    line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("largest joint"))
+    assert float(line.split()[-2]) < 1e-12
+    trajectory = read_trajectory(out / "trajectory.h5")
+    fixed = np.flatnonzero(trajectory.structure.node_fixed)
+    assert np.max(np.abs(trajectory.nodes[:, fixed] - trajectory.nodes[0, fixed])) < 1e-12

@@ -204,6 +204,8 @@ def _print_summary(result, files: Sequence[Path]) -> None:
         ("final residual acceleration", f"{result.residual_acceleration[-1]:.3e} m/s^2"),
         ("final largest node speed", f"{np.abs(result.node_velocity[-1]).max():.3e} m/s"),
         ("largest rod-length error", f"{result.max_rod_length_error:.3e} (relative)"),
+        *([("largest joint/support error", f"{result.max_constraint_error:.3e} m")]
+          if result.structure.has_constraints else []),
         ("energy dissipated", f"{e['dissipated'][-1]:.6g} J"),
         ("energy balance error", f"{np.abs(result.total_energy - result.total_energy[0]).max():.3e} J"),
         ("slack tendons at the end", f"{int(result.slack_count[-1])} of {result.structure.n_tendons}"),
