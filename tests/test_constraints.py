@@ -441,3 +441,45 @@ def test_critical_damping_treats_anchors_as_infinitely_heavy():
         2 * np.sqrt(10.0 * half[0] * half[1] / (half[0] + half[1]))])
     with pytest.raises(ValueError, match="^structure: critical damping needs at least one rod and one tendon"):
         critical_damping(pendulum(support="fixed"))
+
+
+def test_tripod_on_a_frictionless_floor_matches_its_closed_form():
+    """Three rods (m, L) joined at the apex (a class 3 joint: two pairs), feet held on the floor
+    z = 0 (plane constraints), the feet tied by three tendons (k, L0).  By symmetry the feet sit
+    on a circle of radius rho, the apex at h = sqrt(L^2 - rho^2), the tendons are sides
+    s = sqrt(3) rho.  The energy ``V = 3 m g h / 2 + 3 k (s - L0)^2 / 2`` is stationary when
+    ``(3 m g / 2) rho / h = 3 sqrt(3) k (s - L0)``, i.e. the tension is
+    ``T = m g rho / (2 sqrt(3) h)``; and the floor carries each foot's share of the weight,
+    ``m g`` (the apex joint passes no net vertical force by symmetry)."""
+    from scipy.optimize import brentq
+
+    from tensegrity import critical_damping
+
+    m, L, k, rest = 1.2, 1.0, 80.0, 0.9
+    rho0 = 0.5
+    angles = 2 * np.pi * np.arange(3) / 3
+    feet = rho0 * np.stack([np.cos(angles), np.sin(angles), np.zeros(3)], axis=1)
+    apex = np.array([0, 0, np.sqrt(L**2 - rho0**2)])
+    position = np.array([feet[0], apex, feet[1], apex, feet[2], apex])
+    s = critical_damping(Structure(
+        node_position=position, rod_nodes=[[0, 1], [2, 3], [4, 5]], rod_mass=[m] * 3,
+        rod_length=[L] * 3, joint_nodes=[[1, 3], [3, 5]], plane_nodes=[0, 2, 4],
+        plane_normal=[[0, 0, 1.0]] * 3, tendon_nodes=[[0, 2], [2, 4], [4, 0]],
+        tendon_stiffness=[k] * 3, tendon_rest_length=[rest] * 3))
+    r = simulate(s, (0.0, 30.0), gravity=GRAVITY, steady_state=True, velocity_tol=1e-8,
+                 acceleration_tol=1e-8)
+    assert r.status == 1, r.message
+    # the stable root: between slack tendons and the second (flat, unstable) root near rho = L
+    root = brentq(lambda rho: 1.5 * m * G * rho / np.sqrt(L**2 - rho**2)
+                  - 3 * np.sqrt(3) * k * (np.sqrt(3) * rho - rest), rest / np.sqrt(3), 0.8 * L)
+    assert abs(root - rho0) > 0.02  # the feet slid out to get there
+    p = r.node_position[-1]
+    centre = p[[0, 2, 4]].mean(axis=0)
+    np.testing.assert_allclose(np.linalg.norm(p[[0, 2, 4]] - centre, axis=1), root, atol=1e-7)
+    np.testing.assert_allclose(p[[1, 3, 5], 2], np.sqrt(L**2 - root**2), atol=1e-7)
+    expected_tension = m * G * root / (2 * np.sqrt(3) * np.sqrt(L**2 - root**2))
+    np.testing.assert_allclose(r.tendon_tension[-1], expected_tension, rtol=1e-6)
+    state = r.final_state
+    ev = dynamics.evaluate(s, state.q, np.zeros_like(state.qdot), rest_length=s.tendon_rest_length,
+                           gravity=GRAVITY)
+    np.testing.assert_allclose(ev.constraint_force[[0, 2, 4]], [[0, 0, m * G]] * 3, atol=1e-6)
