@@ -204,3 +204,53 @@ def test_matrices_command_writes_the_model_at_the_equilibrium(tmp_path, capsys):
     # (18.61) with u = 0, w = 0: the equilibrium satisfies K_p(q) q = 0.
     assert np.abs(K_p @ q).max() < 1e-6
     assert not list(out.glob("*.tmp")) and not list(out.glob(".staging-*"))
+
+
+def test_export_kinds_write_the_generators_structures(tmp_path):
+    from tensegrity.planar import planar_two_rod
+    from tensegrity.shell import class2_shell
+
+    path = tmp_path / "c2.json"
+    assert main(["export", "--kind", "class2-shell", "--n", "4", "--m", "3", "--fixed-base",
+                 "-o", str(path)]) == 0
+    assert read_structure(path).to_dict() == class2_shell(4, 3, fixed_base=True).to_dict()
+    path = tmp_path / "planar.json"
+    assert main(["export", "--kind", "planar", "--rest-length", "0.3", "-o", str(path)]) == 0
+    assert read_structure(path).to_dict() == planar_two_rod(rest_length=0.3).to_dict()
+
+
+def test_simulate_a_planar_structure_writes_its_files(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert main(["simulate", "--kind", "planar", "--rest-length", "0.3", "--damping", "critical",
+                 "--out", str(out)]) == 0
+    trajectory = read_trajectory(out / "trajectory.h5")
+    assert trajectory.nodes.shape[1:] == (4, 2)
+    assert (out / "equilibrium.png").read_bytes()[:8] == PNG_SIGNATURE
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["export", "--kind", "rod", "--n", "4", "-o", "x.json"], "--n: not an option of --kind rod"),
+    (["export", "--kind", "shell", "--fixed-base", "-o", "x.json"],
+     "--fixed-base: not an option of --kind shell"),
+    (["info", "--kind", "class2-shell", "--m", "1"], "m: a class 2 shell needs m >= 2"),
+    (["simulate", "--kind", "rod", "--damping", "critical"],
+     "critical damping needs at least one rod and one tendon"),
+    (["matrices", "--kind", "class2-shell"], "the matrix model: supports only free 3-D class 1"),
+])
+def test_generator_option_errors_are_one_line(argv, message, capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1
+    assert not list(tmp_path.iterdir())
+
+
+def test_simulate_class2_shell_reports_the_joint_error(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert main(["simulate", "--kind", "class2-shell", "--fixed-base", "--t-end", "0.05",
+                 "--no-steady-state", "--out", str(out)]) == 0
+    line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("largest joint"))
+    assert float(line.split()[-2]) < 1e-12
+    trajectory = read_trajectory(out / "trajectory.h5")
+    fixed = np.flatnonzero(trajectory.structure.node_fixed)
+    assert np.max(np.abs(trajectory.nodes[:, fixed] - trajectory.nodes[0, fixed])) < 1e-12

@@ -112,3 +112,18 @@ def test_force_table_for_another_structure_is_refused(tmp_path, capsys):
                  "--out", str(tmp_path / "out")]) == 2
     assert "has forces for 5 nodes, the structure has 6" in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("fmt", ["yaml", "toml", "connectivity"])
+def test_forms_without_supports_refuse_a_class2_shell(fmt, tmp_path, capsys):
+    """The readable and connectivity forms hold free class 1 structures only: a class 2 shell's
+    joints would be lost, so the export refuses it (one line, nothing written); JSON keeps them."""
+    path = tmp_path / f"s{FORMATS[fmt]}"
+    assert main(["export", "--kind", "class2-shell", "--fixed-base", "-o", str(path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "free 3-D class 1" in err and f"{fmt} form" in err
+    assert not path.exists() and not list(tmp_path.iterdir())
+    json_path = tmp_path / "s.json"
+    assert main(["export", "--kind", "class2-shell", "--fixed-base", "-o", str(json_path)]) == 0
+    assert read_network(json_path).to_dict() == generators.generate(
+        "class2-shell", fixed_base=True).to_dict()

@@ -302,7 +302,7 @@ def test_tendon_name_must_be_non_empty_string(bad):
 
 # ------------------------------------------------------------------- shapes
 SHAPE_CASES = [
-    ("node_position", [[0.0, 0.0]] * 6, "nodes"),
+    ("node_position", [[0.0, 0.0, 0.0, 0.0]] * 6, "nodes"),  # (2 columns would be planar)
     ("node_position", [0.0] * 18, "nodes"),
     ("node_position", np.zeros((6, 3, 1)), "nodes"),
     ("node_velocity", np.zeros((5, 3)), "velocit"),

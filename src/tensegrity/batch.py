@@ -193,7 +193,7 @@ def simulate_batch(
             y = np.concatenate([end_q[b], end_qdot[b], work[b], [0.0]])
             if status[b] != BATCH_RUNNING:
                 t_fail = t0 + int(steps[b]) * dt
-                messages[b] = (_check_blowup(models[b], t_fail, y, energy0[b], scale0[b],
+                messages[b] = (_check_blowup(models[b], t_fail, y, energy0[b], [scale0[b]],
                                              max_rod_length_error, max_energy_growth)
                                or f"unstable at t = {t_fail:.6g} s")
                 recorders[b].add(t_fail, y)
@@ -218,6 +218,6 @@ def simulate_batch(
         results.append(_result(
             structure, recorders[b], STATUS_FAILED if failed else STATUS_END, messages[b],
             SimpleNamespace(total_nfev=4 * int(steps[b]) + samples[b]), counts, float(worst[b]),
-            wall, settings,
+            0.0, wall, settings,
         ))
     return results

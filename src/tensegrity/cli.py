@@ -86,6 +86,8 @@ def _add_structure_options(parser: argparse.ArgumentParser, *, allow_file: bool 
     group.add_argument("--n", type=int, help="shell elements around (default 3), or bars of a "
                                              "prism or tower stage")
     group.add_argument("--m", type=int, help="shell or tower stages (default 1 for a shell)")
+    group.add_argument("--fixed-base", action="store_true",
+                       help="class 2 shell: fix the base ring to ground")
     group.add_argument("--primal", action="store_true", help="primal shell: no t9, t10 tendons")
     group.add_argument("--stiffness", type=_positive, help="tendon stiffness k [N/m] (default 100)")
     group.add_argument("--rest-length", type=_non_negative,
@@ -108,7 +110,7 @@ def _assignment(text: str) -> tuple[str, object]:
     return name, {"true": True, "false": False}.get(value.lower(), value)
 
 
-_SHELL_OPTIONS = ("n", "m", "primal", "stiffness", "rest_length")
+_SHELL_OPTIONS = ("n", "m", "primal", "stiffness", "rest_length", "fixed_base")
 
 
 def _structure(args: argparse.Namespace) -> Structure:
@@ -225,6 +227,8 @@ def _print_summary(result, files: Sequence[Path]) -> None:
         ("final residual acceleration", f"{result.residual_acceleration[-1]:.3e} m/s^2"),
         ("final largest node speed", f"{np.abs(result.node_velocity[-1]).max():.3e} m/s"),
         ("largest rod-length error", f"{result.max_rod_length_error:.3e} (relative)"),
+        *([("largest joint/support error", f"{result.max_constraint_error:.3e} m")]
+          if result.structure.has_constraints else []),
         ("energy dissipated", f"{e['dissipated'][-1]:.6g} J"),
         ("energy balance error", f"{np.abs(result.total_energy - result.total_energy[0]).max():.3e} J"),
         ("slack tendons at the end", f"{int(result.slack_count[-1])} of {result.structure.n_tendons}"),
@@ -245,12 +249,14 @@ def _cmd_info(args: argparse.Namespace) -> int:
     lengths = dynamics.tendon_lengths(s, s.node_position)
     low, high = s.node_position.min(axis=0), s.node_position.max(axis=0)
     slack = int(np.sum(lengths <= s.tendon_rest_length))
+    masses = f", {s.dim} per point mass" if s.point_mass_nodes.size else ""
     rows = [
         ("nodes", s.n_nodes),
         ("rods", s.n_rods),
         ("tendons", s.n_tendons),
-        ("degrees of freedom", f"{s.n_dof} (5 per rod)"),
-        ("coordinates q", f"{s.n_coordinates} (6 per rod: q1 = p_a + p_b, q2 = p_b - p_a)"),
+        ("degrees of freedom", f"{s.n_dof} ({2 * s.dim - 1} per rod{masses})"),
+        ("coordinates q", f"{s.n_coordinates} ({2 * s.dim} per rod: q1 = p_a + p_b, q2 = p_b - p_a"
+                          f"{masses})"),
         ("total mass", f"{s.total_mass:.6g} kg"),
         ("rod length", _range(s.rod_length, "m")),
         ("tendon stiffness", _range(s.tendon_stiffness, "N/m")),
@@ -261,6 +267,10 @@ def _cmd_info(args: argparse.Namespace) -> int:
         ("bounding box", f"[{', '.join(f'{x:.4g}' for x in low)}] .. "
                          f"[{', '.join(f'{x:.4g}' for x in high)}] m"),
     ]
+    supports = (("ball joints (node pairs)", len(s.joint_nodes)), ("fixed nodes", int(s.node_fixed.sum())),
+                ("point masses", len(s.point_mass_nodes)), ("nodes on planes", len(s.plane_nodes)),
+                ("nodes on lines", len(s.line_nodes)))
+    rows += [(name, count) for name, count in supports if count]
     width = max(len(name) for name, _ in rows)
     for name, value in rows:
         print(f"{name:<{width}}  {value}")

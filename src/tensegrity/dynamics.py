@@ -5,10 +5,15 @@ State per rod ``r`` with end nodes ``(a, b)`` (the paper's eq. 18.24)::
     q1 = p_a + p_b    (twice the mass centre)        q2 = p_b - p_a    (the rod vector, |q2| = L)
 
 stacked rod by rod as ``q = [q1_0, q2_0, q1_1, q2_1, ...]`` (length ``6R``; for a shell this is
-exactly the paper's ``q = [q_11, ..., q_n1, ..., q_nm]``).  Accelerations (eqs. 18.17, 18.20)::
+exactly the paper's ``q = [q_11, ..., q_n1, ..., q_nm]``), followed by the positions ``x`` of the
+point masses (``Structure.point_mass_nodes``, 3 each; none in a class 1 structure).  Anchors
+(fixed nodes of no rod) are not in ``q``.  Accelerations (eqs. 18.17, 18.20)::
 
     q1'' = (2/m) (f_a + f_b)
     q2'' = -(|q2'|^2 / L^2) q2 + (6 / (m L^2)) skew(q2)^2 (f_a - f_b)
+    x''  = f / m                                   (a point mass)
+
+plus, with joints and supports, the constraint forces of :mod:`tensegrity.constraints`.
 
 with ``f`` the total nodal forces: tendons (eqs. 18.39-18.40), external forces ``w`` and gravity.
 No mass matrix is formed and no linear system is solved.  Every function is pure and vectorized
@@ -35,41 +40,71 @@ class State:
 
 
 # --------------------------------------------------------------------------- coordinates
-def rods_view(q: np.ndarray) -> np.ndarray:
-    """View ``q`` (..., 6R) as (..., R, 2, 3): ``[..., r, 0]`` is ``q1``, ``[..., r, 1]`` is ``q2``."""
-    return q.reshape(*q.shape[:-1], -1, 2, 3)
+def rods_view(q: np.ndarray, dim: int = 3) -> np.ndarray:
+    """View ``q`` (..., 2 dim R) as (..., R, 2, dim): ``[..., r, 0]`` is ``q1``, ``[..., r, 1]``
+    is ``q2``."""
+    return q.reshape(*q.shape[:-1], -1, 2, dim)
+
+
+def rod_coordinates(structure: Structure, q: np.ndarray) -> np.ndarray:
+    """The rods' part of ``q`` (..., n) as (..., R, 2, dim), a view (point masses left out)."""
+    if structure.is_free_class1:
+        return q.reshape(*q.shape[:-1], -1, 2, 3)
+    d = structure.dim
+    return rods_view(q[..., : 2 * d * structure.n_rods], d)
+
+
+def point_mass_coordinates(structure: Structure, q: np.ndarray) -> np.ndarray:
+    """The point masses' part of ``q`` (..., n) as (..., M, dim), a view."""
+    d = structure.dim
+    return q[..., 2 * d * structure.n_rods :].reshape(*q.shape[:-1], -1, d)
 
 
 def coordinates_from_nodes(structure: Structure, node_value: np.ndarray) -> np.ndarray:
-    """``q`` (..., 6R) from node positions (..., N, 3): ``q1 = p_a + p_b``, ``q2 = p_b - p_a``.
+    """``q`` (..., n) from node positions (..., N, 3): ``q1 = p_a + p_b``, ``q2 = p_b - p_a``,
+    then the point masses' positions.
 
     Being linear, the same map takes node velocities to ``qdot``.
     """
     a, b = structure.rod_nodes[:, 0], structure.rod_nodes[:, 1]
     pa, pb = node_value[..., a, :], node_value[..., b, :]
-    q = np.stack([pa + pb, pb - pa], axis=-2)  # (..., R, 2, 3)
-    return q.reshape(*q.shape[:-3], 6 * structure.n_rods)
+    q = np.stack([pa + pb, pb - pa], axis=-2)  # (..., R, 2, dim)
+    q = q.reshape(*q.shape[:-3], 2 * structure.dim * structure.n_rods)
+    if structure.point_mass_nodes.size:
+        x = node_value[..., structure.point_mass_nodes, :]
+        q = np.concatenate([q, x.reshape(*x.shape[:-2], -1)], axis=-1)
+    return q
 
 
-def nodes_from_coordinates(structure: Structure, q: np.ndarray) -> np.ndarray:
-    """Node positions ``p = P q`` (eq. 18.26), shape (..., N, 3); also velocities from ``qdot``."""
-    rods = rods_view(q)
+def nodes_from_coordinates(structure: Structure, q: np.ndarray, *, rates: bool = False) -> np.ndarray:
+    """Node positions ``p = P q`` (eq. 18.26), shape (..., N, 3); anchors at their fixed
+    positions.  With ``rates=True``, node velocities from ``qdot`` (anchors at rest)."""
+    rods = rod_coordinates(structure, q)
     q1, q2 = rods[..., 0, :], rods[..., 1, :]
-    p = np.empty((*q.shape[:-1], structure.n_nodes, 3))
+    p = np.empty((*q.shape[:-1], structure.n_nodes, structure.dim))
     p[..., structure.rod_nodes[:, 0], :] = 0.5 * (q1 - q2)
     p[..., structure.rod_nodes[:, 1], :] = 0.5 * (q1 + q2)
+    if not structure.is_free_class1:
+        p[..., structure.point_mass_nodes, :] = point_mass_coordinates(structure, q)
+        anchors = structure.anchor_nodes
+        p[..., anchors, :] = 0.0 if rates else structure.node_position[anchors]
     return p
 
 
 def project_to_constraints(
     structure: Structure, q: np.ndarray, qdot: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Project onto the rod constraints: ``|q2| = L`` and ``q2 . q2' = 0`` for every rod.
+    """Project onto the rod constraints: ``|q2| = L`` and ``q2 . q2' = 0`` for every rod, and
+    onto the joints and supports (``A q = b``, ``A q' = 0``) if the structure has any.
 
-    Returns new arrays ``(q, qdot)``; ``q1`` and ``q1'`` are unchanged.
+    Returns new arrays ``(q, qdot)``.  Without joints and supports ``q1`` and ``q1'`` are
+    unchanged; with them the projection is mass-weighted
+    (:meth:`tensegrity.constraints.LinearConstraints.project`).
     """
+    if structure.has_constraints:
+        return structure.constraints.project(q, qdot)
     q, qdot = q.copy(), qdot.copy()
-    q2, v2 = rods_view(q)[..., 1, :], rods_view(qdot)[..., 1, :]
+    q2, v2 = rod_coordinates(structure, q)[..., 1, :], rod_coordinates(structure, qdot)[..., 1, :]
     norm = np.linalg.norm(q2, axis=-1, keepdims=True)
     q2 *= structure.rod_length[:, None] / norm
     v2 -= np.sum(q2 * v2, axis=-1, keepdims=True) / structure.rod_length[:, None] ** 2 * q2
@@ -78,7 +113,15 @@ def project_to_constraints(
 
 def rod_length_error(structure: Structure, q: np.ndarray) -> np.ndarray:
     """Relative rod-length error ``(|q2| - L) / L``, shape (..., R)."""
-    return np.linalg.norm(rods_view(q)[..., 1, :], axis=-1) / structure.rod_length - 1.0
+    q2 = rod_coordinates(structure, q)[..., 1, :]
+    return np.linalg.norm(q2, axis=-1) / structure.rod_length - 1.0
+
+
+def constraint_error(structure: Structure, q: np.ndarray) -> float:
+    """Largest violation ``max |A q - b|`` [m] of the joints and supports (0 without any)."""
+    if not structure.has_constraints:
+        return 0.0
+    return float(np.max(np.abs(structure.constraints.residual(q)), initial=0.0))
 
 
 def initial_state(structure: Structure, *, t: float = 0.0) -> State:
@@ -180,9 +223,21 @@ def critical_damping(structure: Structure) -> Structure:
       damping of a rod of mean mass on a tendon of mean stiffness.  Tendon damping alone cannot
       remove the motion of a tensegrity's mechanisms (modes that change no tendon length to first
       order, stiffened only by prestress), so without this part a shell rocks for minutes.
+
+    An anchor (a fixed node of no rod) counts as infinitely heavy: a tendon to it gets the mass of
+    its other end.  A point mass is its own mass; point masses get no mass-proportional damping.
+
+    Raises
+    ------
+    ValueError
+        If the structure has no rod or no tendon (nothing to scale the damping with).
     """
+    if not (structure.n_rods and structure.n_tendons):
+        raise ValueError("structure: critical damping needs at least one rod and one tendon")
     m = structure.node_mass[structure.tendon_nodes]
-    reduced = m[:, 0] * m[:, 1] / (m[:, 0] + m[:, 1])
+    ma, mb = m[:, 0], m[:, 1]
+    both = np.divide(ma * mb, ma + mb, out=np.zeros_like(ma), where=(ma > 0) & (mb > 0))
+    reduced = np.where(ma == 0, mb, np.where(mb == 0, ma, both))
     rate = 2.0 * np.sqrt(structure.tendon_stiffness.mean() / structure.rod_mass.mean())
     return structure.replace(
         tendon_damping=2.0 * np.sqrt(structure.tendon_stiffness * reduced),
@@ -203,6 +258,8 @@ class Evaluation(NamedTuple):
     tendons: TendonForces
     dissipated_power: float  #: power removed by tendon and rod damping [W], >= 0
     external_power: float  #: power delivered by the external nodal forces ``w`` [W]
+    #: forces of the joints and supports on the nodes (N, 3) [N] (reactions at anchors), or None
+    constraint_force: np.ndarray | None = None
 
 
 def evaluate(
@@ -228,7 +285,7 @@ def evaluate(
         Uniform gravitational acceleration [m/s^2]; each end node carries half the rod's weight.
     """
     p = nodes_from_coordinates(structure, q)
-    v = nodes_from_coordinates(structure, qdot)
+    v = nodes_from_coordinates(structure, qdot, rates=True)
     tendons = tendon_forces(structure, p, v, rest_length)
     # f = -C^T (T t_hat): the tail is pulled toward the head and the head toward the tail.
     force = -(structure.tendon_incidence_transpose @ (tendons.tension[:, None] * tendons.direction))
@@ -239,23 +296,52 @@ def evaluate(
     if gravity is not None:
         force += structure.node_mass[:, None] * gravity
 
-    a, b = structure.rod_nodes[:, 0], structure.rod_nodes[:, 1]
-    f_sum, f_diff = force[a] + force[b], force[a] - force[b]
-    rods, rates = rods_view(q), rods_view(qdot)
-    q2, v2 = rods[:, 1], rates[:, 1]
-    m, L2 = structure.rod_mass[:, None], structure.rod_length[:, None] ** 2
-    # skew(q2)^2 f = q2 (q2 . f) - |q2|^2 f
-    skew2_f = q2 * np.sum(q2 * f_diff, axis=1, keepdims=True) - np.sum(q2 * q2, axis=1, keepdims=True) * f_diff
-    qddot = np.empty((structure.n_rods, 2, 3))
-    qddot[:, 0] = (2.0 / m) * f_sum
-    qddot[:, 1] = -(np.sum(v2 * v2, axis=1, keepdims=True) / L2) * q2 + (6.0 / (m * L2)) * skew2_f
+    rates = rod_coordinates(structure, qdot)
+    qddot = force_response(structure, q, force, rates=rates)
+    reaction = None
+    if structure.has_constraints:
+        reaction = structure.constraints.constraint_force(q, qddot)
+        qddot += force_response(structure, q, reaction)
     alpha = structure.rod_damping[:, None, None]
-    qddot -= alpha * rates
     dissipated = float(
         np.sum((tendons.tension - tendons.elastic_tension) * tendons.length_rate)
         + np.sum(alpha * structure.rod_mass[:, None, None] * _INERTIA_WEIGHT * rates**2)
     )
-    return Evaluation(qddot.reshape(-1), tendons, dissipated, external_power)
+    return Evaluation(qddot, tendons, dissipated, external_power, reaction)
+
+
+def force_response(
+    structure: Structure, q: np.ndarray, force: np.ndarray, *, rates: np.ndarray | None = None
+) -> np.ndarray:
+    """``q''`` (..., n) under the nodal forces ``force`` (..., N, 3) [N] (Theorem 18.1, eqs.
+    18.17, 18.20; leading axes of ``force`` are batches)::
+
+        q1'' = (2/m) (f_a + f_b),   q2'' = (6/(m L^2)) skew(q2)^2 (f_a - f_b),   x'' = f / m.
+
+    Without ``rates`` this is ``G(q) f``, linear in ``f``.  With the rods' rates (R, 2, 3) (see
+    :func:`rod_coordinates`) it is the full acceleration: plus the centripetal term
+    ``-(|q2'|^2 / L^2) q2`` and the rod damping ``-alpha q'``.
+    """
+    a, b = structure.rod_nodes[:, 0], structure.rod_nodes[:, 1]
+    f_sum, f_diff = force[..., a, :] + force[..., b, :], force[..., a, :] - force[..., b, :]
+    q2 = rod_coordinates(structure, q)[:, 1]
+    m, L2 = structure.rod_mass[:, None], structure.rod_length[:, None] ** 2
+    # skew(q2)^2 f = q2 (q2 . f) - |q2|^2 f
+    skew2_f = q2 * np.sum(q2 * f_diff, axis=-1, keepdims=True) - np.sum(q2 * q2, axis=-1, keepdims=True) * f_diff
+    qddot = np.empty((*f_sum.shape[:-1], 2, structure.dim))
+    qddot[..., 0, :] = (2.0 / m) * f_sum
+    if rates is None:
+        qddot[..., 1, :] = (6.0 / (m * L2)) * skew2_f
+    else:
+        v2 = rates[:, 1]
+        qddot[:, 1] = -(np.sum(v2 * v2, axis=1, keepdims=True) / L2) * q2 + (6.0 / (m * L2)) * skew2_f
+        qddot -= structure.rod_damping[:, None, None] * rates
+    qddot = qddot.reshape(*qddot.shape[:-3], -1)
+    if structure.is_free_class1:
+        return qddot
+    masses = structure.point_mass_nodes
+    point = force[..., masses, :] / structure.node_point_mass[masses, None]
+    return np.concatenate([qddot, point.reshape(*point.shape[:-2], -1)], axis=-1)
 
 
 def accelerations(
@@ -284,12 +370,18 @@ def accelerations(
 # --------------------------------------------------------------------------- energy
 def kinetic_energy(structure: Structure, qdot: np.ndarray) -> np.ndarray:
     """Kinetic energy [J] with each rod's true inertia, shape (...,):
-    ``sum m/8 |q1'|^2 + m/24 |q2'|^2`` (translation of the centre plus rotation, ``I = m L^2/12``)."""
-    rates = rods_view(qdot)
+    ``sum m/8 |q1'|^2 + m/24 |q2'|^2`` (translation of the centre plus rotation, ``I = m L^2/12``),
+    plus ``m |x'|^2 / 2`` per point mass."""
+    rates = rod_coordinates(structure, qdot)
     per_rod = structure.rod_mass * (
         np.sum(rates[..., 0, :] ** 2, axis=-1) / 8 + np.sum(rates[..., 1, :] ** 2, axis=-1) / 24
     )
-    return per_rod.sum(axis=-1)
+    energy = per_rod.sum(axis=-1)
+    if structure.point_mass_nodes.size:
+        x_dot = point_mass_coordinates(structure, qdot)
+        mass = structure.node_point_mass[structure.point_mass_nodes]
+        energy = energy + 0.5 * np.sum(mass * np.sum(x_dot**2, axis=-1), axis=-1)
+    return energy
 
 
 def elastic_energy(
@@ -302,8 +394,14 @@ def elastic_energy(
 
 
 def gravity_energy(structure: Structure, q: np.ndarray, gravity: np.ndarray | None) -> np.ndarray:
-    """Gravitational potential ``-sum m g . (q1/2)`` [J], shape (...,); zero without gravity."""
+    """Gravitational potential ``-sum m g . (q1/2)`` (rods) ``- sum m g . x`` (point masses) [J],
+    shape (...,); zero without gravity."""
     if gravity is None:
         return np.zeros(q.shape[:-1])
-    centre = 0.5 * rods_view(q)[..., 0, :]
-    return -np.sum(structure.rod_mass * (centre @ np.asarray(gravity, dtype=float)), axis=-1)
+    g = np.asarray(gravity, dtype=float)
+    centre = 0.5 * rod_coordinates(structure, q)[..., 0, :]
+    energy = -np.sum(structure.rod_mass * (centre @ g), axis=-1)
+    if structure.point_mass_nodes.size:
+        x = point_mass_coordinates(structure, q)
+        energy = energy - np.sum(structure.node_point_mass[structure.point_mass_nodes] * (x @ g), axis=-1)
+    return energy

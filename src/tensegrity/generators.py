@@ -51,6 +51,9 @@ KINDS: dict[str, Kind] = {
     "prism": Kind("tensegrity.generators:prism", "regular n-bar prism (n = 3: simplex), equilibrium twist"),
     "octahedron": Kind("tensegrity.generators:octahedron", "6-bar expanded octahedron"),
     "tower": Kind("tensegrity.generators:tower", "m stacked interlaced n-bar prisms (Needle Tower)"),
+    "class2-shell": Kind("tensegrity.shell:class2_shell", "the class 2 shell of Lemma 18.1 (ball joints)"),
+    "planar": Kind("tensegrity.planar:planar_two_rod", "planar two-rod tensegrity (Appendix A, Example 2)"),
+    "rod": Kind("tensegrity.planar:planar_rod", "a single planar rod (Appendix A, Example 1)"),
 }
 
 

@@ -507,7 +507,8 @@ def _read_open_trajectory(f, path: PathLike) -> Trajectory:
     T, N, S, n = (arrays["time"].shape[0] if arrays["time"].ndim == 1 else -1,
                   structure.n_nodes, structure.n_tendons, structure.n_coordinates)
     expected = {
-        "time": (T,), "nodes": (T, N, 3), "velocities": (T, N, 3), "tendon_length": (T, S),
+        "time": (T,), "nodes": (T, N, structure.dim), "velocities": (T, N, structure.dim),
+        "tendon_length": (T, S),
         "tendon_tension": (T, S), "energy": (T, len(columns)), "q": (T, n), "qdot": (T, n),
         "residual_acceleration": (T,),
     }

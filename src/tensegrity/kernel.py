@@ -355,7 +355,8 @@ def rk4_batch(
     Per copy ``b`` (rows of the (B, ...) arrays): ``q``, ``qdot`` (B, 6R); ``rod_param``
     (B, R, 5); ``tendon_param`` (B, S, 2); ``rest_length`` (B, S); ``external_force`` (B, N, 3)
     (read if ``has_external``); ``energy0``, ``scale0`` (B,) the energy balance at the start and
-    its scale [J] (``simulate``'s ``_Model.energy_balance``); ``status``, ``steps`` (B,) int64;
+    its scale [J] (``simulate``'s ``_Model.energy_balance``; ``scale0`` is raised in place to the
+    largest scale seen, the measure the energy drift is judged against); ``status``, ``steps`` (B,) int64;
     ``work`` (B, 2) dissipated energy and external work so far [J]; ``worst`` (B,) largest
     relative rod-length error so far.  Copies whose status is not ``BATCH_RUNNING`` are skipped.
 
@@ -393,7 +394,9 @@ def rk4_batch(
             steps[b] += 1
             if not error <= worst[b]:
                 worst[b] = error
-            growth = total - energy0[b] > max_energy_growth * max(scale0[b], scale, 1e-300)
+            if scale > scale0[b]:  # the largest energy magnitude seen, as in ``simulate``
+                scale0[b] = scale
+            growth = total - energy0[b] > max_energy_growth * max(scale0[b], 1e-300)
             if not finite or not error <= max_rod_length_error or growth:
                 status[b] = BATCH_FAILED
                 break
@@ -403,6 +406,7 @@ def pack(structure: Structure) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.n
     """``(rod_nodes, rod_param, tendon_nodes, tendon_param)``: the structure as the contiguous,
     writable arrays the compiled functions take (``2/m`` and ``6/(m L^2)`` computed as
     ``dynamics.evaluate`` computes them)."""
+    structure.require_free_class1("the compiled kernel")
     m, L = structure.rod_mass, structure.rod_length
     rod_param = np.empty((structure.n_rods, 5))
     rod_param[:, ROD_MASS] = m

@@ -420,6 +420,7 @@ def shell_size(structure: Structure) -> tuple[int, int, bool]:
     joining nodes ``2r, 2r+1`` and every tendon named ``t{alpha}_{i}_{j}`` joining the nodes of
     the topology table (in any order).  Parameters (masses, stiffnesses, ...) may differ.
     """
+    structure.require_free_class1("the matrix model")
     try:
         parsed = [_parse(name) for name in structure.tendon_name]
     except ValueError as exc:

@@ -1,4 +1,4 @@
-"""Export a class 1 structure to MuJoCo's MJCF, to cross-check the dynamics against a peer.
+"""Export a structure to MuJoCo's MJCF, to cross-check the dynamics against a peer.
 
 The model written by :func:`to_mjcf` is the same mechanical system as Theorem 18.1:
 
@@ -12,6 +12,15 @@ The model written by :func:`to_mjcf` is the same mechanical system as Theorem 18
   ``node{head}`` with ``stiffness="k"``, ``springlength="0 Lbar"`` and ``damping="c"``.  The
   two-value spring length is a deadband: MuJoCo's spring force is ``k (l - Lbar)`` above ``Lbar``
   and exactly 0 between 0 and ``Lbar``, i.e. our ``T = k max(l - Lbar, 0)``.
+- **Joints and supports** (``docs/constraints.md``): a ball joint between nodes ``a`` and ``b`` is
+  an equality ``connect`` between sites ``node{a}`` and ``node{b}``; a fixed rod end ``a`` is a
+  ``connect`` to a world site ``ground{a}`` at its position.  They are soft in MuJoCo: time
+  constant ``2 timestep`` (critically damped, ``refsafe`` off) and impedance ``CONNECT_SOLIMP``
+  make them nearly hard (class 2 shells follow ours to ~5e-8 m over 0.3 s).  An anchor (fixed
+  node of no rod) is a world site ``node{k}``; a point mass is a body ``mass{k}`` with a free
+  joint, its mass, a negligible isotropic inertia and a site ``node{k}`` at its centre (after the
+  rods in ``qpos``/``qvel``).  Plane and line constraints and planar structures are refused.
+  Initial velocities are exported as given: give velocities that satisfy the constraints.
 - Contacts are disabled, gravity is ``gravity`` (zero by default), the integrator and time step are
   options; ``<size memory>`` is set explicitly (MuJoCo's own estimate explodes for large models).
   The energy flag is on, so ``data.energy`` holds (elastic + gravity, kinetic) energy [J].
@@ -77,8 +86,8 @@ _MUJOCO_MINVAL = 1e-15
 INTEGRATORS = ("Euler", "RK4", "implicit", "implicitfast")
 
 #: ``<size memory>`` is ``MEMORY_BASE + MEMORY_PER_ELEMENT * (6 R + S)`` bytes, rounded up to a
-#: mebibyte.  MuJoCo's arena holds the contact/constraint buffers (unused here: contacts are off and
-#: there are no equality constraints or limits) and the stack of temporaries, which grows linearly
+#: mebibyte.  MuJoCo's arena holds the contact/constraint buffers (contacts are off; the joints'
+#: equality rows are counted in :func:`mjcf_memory`) and the stack of temporaries, which grows linearly
 #: in the number of degrees of freedom plus tendons.  Peak use measured on class 1 shells from
 #: (3,1) to (30,30) with MuJoCo 4.0: about 50 bytes per (dof + tendon) with Euler/implicitfast, 120
 #: with RK4, 360 with implicit, so this leaves a margin of 5x (implicit) to 17x (RK4).  (MuJoCo's
@@ -87,6 +96,11 @@ MEMORY_BASE = 1 << 20
 MEMORY_PER_ELEMENT = 2 << 10
 
 _SITE_RADIUS_FRACTION = 0.02  # visual only: site and capsule radii relative to the rod length
+
+#: ``solimp`` of the ball joints and supports (``connect`` equality constraints): impedance
+#: 0.9999 whatever the violation, so the constraint is nearly hard; with ``solref`` time constant
+#: ``2 timestep`` (critically damped) a pinned rod follows our pendulum to 2e-9 m over 0.5 s.
+CONNECT_SOLIMP = "0.9999 0.9999 0.001"
 
 
 def _float(x: float) -> str:
@@ -149,8 +163,10 @@ def rod_frames(structure: Structure) -> tuple[np.ndarray, np.ndarray, np.ndarray
 
 
 def mjcf_memory(structure: Structure) -> int:
-    """The ``<size memory>`` [bytes] written by :func:`to_mjcf` (see ``MEMORY_PER_ELEMENT``)."""
-    elements = structure.n_coordinates + structure.n_tendons
+    """The ``<size memory>`` [bytes] written by :func:`to_mjcf` (see ``MEMORY_PER_ELEMENT``); a
+    point mass counts 6 elements (a free body), a joint or support 12 (3 constraint rows)."""
+    elements = (structure.n_coordinates + 3 * structure.point_mass_nodes.size + structure.n_tendons
+                + 12 * len(_connect_pairs(structure)))
     size = MEMORY_BASE + MEMORY_PER_ELEMENT * elements
     mebibyte = 1 << 20
     return -(-size // mebibyte) * mebibyte
@@ -198,6 +214,7 @@ def to_mjcf(
     """
     if not isinstance(structure, Structure):
         raise ValueError(f"structure: expected a Structure, got {type(structure).__name__}")
+    _check_exportable(structure)
     try:
         dt = float(timestep)
     except (TypeError, ValueError):
@@ -239,7 +256,10 @@ def to_mjcf(
     option = ET.SubElement(
         root, "option", timestep=_float(dt), integrator=integrator, gravity=_floats(g)
     )
-    ET.SubElement(option, "flag", contact="disable", energy="enable")
+    connects = _connect_pairs(structure)
+    # refsafe off: the joints' time constant 2 dt is below MuJoCo's "safe" minimum
+    flags = dict(contact="disable", energy="enable") | ({"refsafe": "disable"} if connects else {})
+    ET.SubElement(option, "flag", **flags)
     ET.SubElement(root, "size", memory=str(mjcf_memory(structure)))
 
     world = ET.SubElement(root, "worldbody")
@@ -260,6 +280,24 @@ def to_mjcf(
         )
         ET.SubElement(body, "site", name=f"node{a}", pos=_floats([0, 0, -L / 2]), size=radius)
         ET.SubElement(body, "site", name=f"node{b}", pos=_floats([0, 0, L / 2]), size=radius)
+    site_radius = _float(_SITE_RADIUS_FRACTION * float(length.max(initial=1.0)))
+    for k in structure.point_mass_nodes:
+        body = ET.SubElement(world, "body", name=f"mass{k}", pos=_floats(structure.node_position[k]))
+        ET.SubElement(body, "freejoint", name=f"mass{k}")
+        ET.SubElement(body, "inertial", pos="0 0 0", mass=_float(structure.node_point_mass[k]),
+                      diaginertia=_floats([SPIN_INERTIA_MIN] * 3))
+        ET.SubElement(body, "site", name=f"node{k}", pos="0 0 0", size=site_radius)
+    for k in structure.anchor_nodes:
+        ET.SubElement(world, "site", name=f"node{k}", pos=_floats(structure.node_position[k]),
+                      size=site_radius)
+    for site1, site2, where in connects:
+        if site2.startswith("ground"):
+            ET.SubElement(world, "site", name=site2, pos=_floats(where), size=site_radius)
+    if connects:
+        equality = ET.SubElement(root, "equality")
+        for site1, site2, _ in connects:
+            ET.SubElement(equality, "connect", site1=site1, site2=site2, solref=f"{_float(2 * dt)} 1",
+                          solimp=CONNECT_SOLIMP)
 
     if structure.n_tendons:
         tendons = ET.SubElement(root, "tendon")
@@ -274,14 +312,41 @@ def to_mjcf(
             ET.SubElement(spatial, "site", site=f"node{tail}")
             ET.SubElement(spatial, "site", site=f"node{head}")
 
+    masses = structure.point_mass_nodes
+    still = np.tile([1.0, 0.0, 0.0, 0.0], (masses.size, 1))
     keyframe = ET.SubElement(root, "keyframe")
     ET.SubElement(
         keyframe, "key", name="initial", time="0",
-        qpos=_floats(np.concatenate([centre, quat], axis=1)),
-        qvel=_floats(np.concatenate([velocity, omega_local], axis=1)),
+        qpos=_floats(np.concatenate([np.hstack([centre, quat]).ravel(),
+                                     np.hstack([structure.node_position[masses], still]).ravel()])),
+        qvel=_floats(np.concatenate([np.hstack([velocity, omega_local]).ravel(),
+                                     np.hstack([structure.node_velocity[masses], 0 * still[:, 1:]]).ravel()])),
     )
     ET.indent(root, space="  ")
     return ET.tostring(root, encoding="unicode") + "\n"
+
+
+def _check_exportable(structure: Structure) -> None:
+    """Raise ``ValueError`` for what the export cannot represent: planar structures, plane and
+    line constraints."""
+    if structure.dim != 3:
+        raise ValueError("MJCF export: a planar structure cannot be exported (MuJoCo is 3-D)")
+    for kind, nodes in (("plane_nodes", structure.plane_nodes), ("line_nodes", structure.line_nodes)):
+        if nodes.size:
+            raise ValueError(f"{kind}: MJCF export has no counterpart for plane or line constraints")
+
+
+def _connect_pairs(structure: Structure) -> list[tuple[str, str, np.ndarray | None]]:
+    """MuJoCo ``connect`` constraints ``(site1, site2, ground position)``: one per ball joint, and
+    one per fixed rod end to a world site ``ground{a}`` at its position."""
+    pairs: list[tuple[str, str, np.ndarray | None]] = [
+        (f"node{a}", f"node{b}", None) for a, b in structure.joint_nodes
+    ]
+    in_rod = np.zeros(structure.n_nodes, bool)
+    in_rod[structure.rod_nodes] = True
+    pairs += [(f"node{a}", f"ground{a}", structure.node_position[a])
+              for a in np.flatnonzero(structure.node_fixed & in_rod)]
+    return pairs
 
 
 def write_mjcf(path: str | os.PathLike, structure: Structure, **options: Any) -> Path:

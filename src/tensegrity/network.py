@@ -267,7 +267,12 @@ def incidence(pairs: np.ndarray, n_nodes: int) -> np.ndarray:
 
 
 def to_connectivity(structure: Structure) -> Connectivity:
-    """``N`` (3, n) [m], ``C_b`` (R, n) and ``C_s`` (S, n) of ``structure`` (dense integers)."""
+    """``N`` (3, n) [m], ``C_b`` (R, n) and ``C_s`` (S, n) of ``structure`` (dense integers).
+
+    Only a free 3-D class 1 structure is fully described by them: joints, supports, point masses
+    and planar structures raise ``ValueError`` (their JSON form keeps everything).
+    """
+    structure.require_free_class1("N, C_b, C_s")
     return Connectivity(
         structure.node_position.T.copy(),
         incidence(structure.rod_nodes, structure.n_nodes),
@@ -422,9 +427,9 @@ def _named_points(value: Any, where: str) -> tuple[list[Any], list[list[float]]]
             if isinstance(name, bool) or not isinstance(name, (str, int)) or name == "":
                 raise ValueError(f"{where}: node names must be non-empty strings (or integers), "
                                  f"got {name!r:.80}")
-        return names, [_vector(value[name], f"{where}.{name}") for name in names]
+        return names, [_vector(value[name], f"{where}.{name}", 3) for name in names]
     if isinstance(value, Sequence) and not isinstance(value, str):
-        return list(range(len(value))), [_vector(row, f"{where}[{k}]") for k, row in enumerate(value)]
+        return list(range(len(value))), [_vector(row, f"{where}[{k}]", 3) for k, row in enumerate(value)]
     raise ValueError(f"{where}: expected a mapping name -> [x, y, z] or a list, got {type(value).__name__}")
 
 
@@ -559,6 +564,7 @@ def write_network(path: PathLike, structure: Structure, *, format: str | None = 
         from tensegrity.mjcf import write_mjcf
 
         return write_mjcf(path, structure)
+    structure.require_free_class1(f"the {kind} form (use JSON)")
     with atomic_path(path) as tmp:
         if kind == "connectivity":
             with open(tmp, "wb") as f:

@@ -67,13 +67,14 @@ def _tension_colormap():
 
 
 def _positions(structure: Structure, node_position: Any) -> np.ndarray:
+    """Node positions (N, 3) to draw; a planar structure's (N, 2) are drawn in the plane z = 0."""
     p = np.asarray(node_position, dtype=float)
-    if p.shape != (structure.n_nodes, 3):
+    if p.shape != (structure.n_nodes, structure.dim):
         raise ValueError(
-            f"node_position: expected shape ({structure.n_nodes}, 3) for this structure, "
-            f"got {p.shape}"
+            f"node_position: expected shape ({structure.n_nodes}, {structure.dim}) for this "
+            f"structure, got {p.shape}"
         )
-    return p
+    return p if structure.dim == 3 else np.hstack([p, np.zeros((structure.n_nodes, 1))])
 
 
 def _tensions(structure: Structure, tension: Any) -> np.ndarray | None:

@@ -173,15 +173,26 @@ def class1_shell(
     position = shell_layout(
         n, m, rod_length=rod_length, radius=radius, stage_height=stage_height, twist=twist
     )
-    tendons = shell_tendons(n, m, primal=primal)
+    return _shell_structure(
+        position, shell_tendons(n, m, primal=primal), rod_mass=rod_mass, rod_length=rod_length,
+        stiffness=stiffness, rest_length=rest_length, damping=damping,
+    )
+
+
+def _shell_structure(
+    position: np.ndarray, tendons: list[tuple[str, int, int]], *, rod_mass: float,
+    rod_length: float, stiffness: float, rest_length: float | None, damping: float, **extra,
+) -> Structure:
+    """A shell's :class:`Structure`: rod ``r`` joins nodes ``2r, 2r+1``, uniform parameters, the
+    default rest length half the shortest initial tendon; ``extra`` fields passed on."""
     tendon_nodes = np.array([(tail, head) for _, tail, head in tendons])
     if rest_length is None:
         lengths = np.linalg.norm(position[tendon_nodes[:, 1]] - position[tendon_nodes[:, 0]], axis=1)
         rest_length = 0.5 * float(lengths.min())
-    n_rods, n_tendons = 2 * n * m, len(tendons)
+    n_rods, n_tendons = len(position) // 2, len(tendons)
     return Structure(
         node_position=position,
-        rod_nodes=np.arange(4 * n * m).reshape(n_rods, 2),
+        rod_nodes=np.arange(2 * n_rods).reshape(n_rods, 2),
         rod_mass=np.full(n_rods, float(rod_mass)),
         rod_length=np.full(n_rods, float(rod_length)),
         tendon_nodes=tendon_nodes,
@@ -189,4 +200,109 @@ def class1_shell(
         tendon_rest_length=np.full(n_tendons, float(rest_length)),
         tendon_damping=np.full(n_tendons, float(damping)),
         tendon_name=tuple(name for name, _, _ in tendons),
+        **extra,
+    )
+
+
+#: Tendons that Lemma 18.1's constraints (18.1) make duplicates, with where they do: ``t3 = -t2``
+#: and ``t4 = t1`` once ``p3(i-1,j) = p4(i,j-1)`` (``j > 1``); ``t6 = -t5`` and ``t8 = -t7`` once
+#: ``p2(i,j) = p1(i+1,j+1)`` (``j < m``).  The class 2 shell keeps t1, t2, t5, t7.
+_MERGED_TENDONS = {3: "above_base", 4: "above_base", 6: "below_top", 8: "below_top"}
+
+
+def class2_joints(n: int, m: int) -> np.ndarray:
+    """Lemma 18.1's ball joints as node pairs (J, 2): ``p2(i,j) = p1(i+1,j+1)`` for ``j < m``
+    and ``p3(i-1,j) = p4(i,j-1)`` for ``j > 1`` (``shared/spec/shell-topology.md``), ``2n(m-1)``
+    pairs."""
+    _check_size(n, m)
+    pairs = [
+        (shell_node_index(2, i, j, n), shell_node_index(1, i + 1, j + 1, n))
+        for j in range(1, m) for i in range(1, n + 1)
+    ] + [
+        (shell_node_index(3, i - 1, j, n), shell_node_index(4, i, j - 1, n))
+        for j in range(2, m + 1) for i in range(1, n + 1)
+    ]
+    return np.array(pairs, dtype=np.int64).reshape(-1, 2)
+
+
+def class2_layout(n: int, m: int, *, rod_length: float = 1.0, stage_height: float | None = None) -> np.ndarray:
+    """Node positions (4nm, 3) [m] of the class 2 shell on a cylinder about the z axis, in which
+    the nodes that Lemma 18.1 joins coincide.
+
+    Rings ``k = 0..m`` at heights ``k h``.  In stage ``j`` both rods rise from ring ``j-1`` to
+    ring ``j``: rod 1 from angle ``phi_i = 2 pi (i-1)/n`` to ``phi_i + 2 pi/n`` (so that
+    ``p2(i,j)`` meets ``p1(i+1,j+1)``), rod 2 from ``phi_i + pi/n`` to ``phi_i - pi/n`` (so that
+    ``p4(i,j-1)`` meets ``p3(i-1,j)``).  Equal rod lengths force this (the two rods must sweep
+    opposite angles ``+-2 pi/n``).  The radius follows from ``L^2 = (2 R sin(pi/n))^2 + h^2``.
+
+    Parameters
+    ----------
+    rod_length : float
+        ``L`` [m].
+    stage_height : float, optional
+        ``h`` [m], ``0 < h < L``.  Default ``L / 2``.
+    """
+    _check_size(n, m)
+    L = _real(rod_length, "rod_length")
+    if not (math.isfinite(L) and L > 0):
+        raise ValueError(f"rod_length: must be > 0, got {rod_length!r}")
+    h = L / 2 if stage_height is None else _real(stage_height, "stage_height")
+    if not (math.isfinite(h) and 0 < h < L):
+        raise ValueError(f"stage_height: must be in (0, rod_length) = (0, {L}), got {stage_height!r}")
+    R = math.sqrt(L**2 - h**2) / (2 * math.sin(math.pi / n))
+    phi = 2 * math.pi * np.arange(n) / n + np.zeros((m, 1))  # (m, n)
+    step = 2 * math.pi / n
+    angles = np.stack([phi, phi + step, phi + step / 2, phi - step / 2], axis=-1)  # (m, n, 4)
+    j = np.arange(m)[:, None, None]
+    heights = np.broadcast_to(np.concatenate([j, j + 1, j, j + 1], axis=-1) * h, angles.shape)
+    xyz = np.stack([R * np.cos(angles), R * np.sin(angles), heights], axis=-1)
+    return xyz.reshape(4 * n * m, 3)
+
+
+def class2_shell(
+    n: int = 3,
+    m: int = 2,
+    *,
+    primal: bool = False,
+    rod_mass: float = 1.0,
+    rod_length: float = 1.0,
+    stiffness: float = 100.0,
+    rest_length: float | None = None,
+    damping: float = 0.0,
+    stage_height: float | None = None,
+    fixed_base: bool = False,
+) -> Structure:
+    """The class 2 shell of Lemma 18.1: the class 1 shell with ``p2(i,j) = p1(i+1,j+1)`` and
+    ``p3(i-1,j) = p4(i,j-1)`` joined by ball joints (:func:`class2_joints`).
+
+    The rods keep their own end nodes (the class 1 numbering of this module); the joints are
+    ``Structure.joint_nodes``.  Of each pair of tendons that (18.1) makes identical (they join
+    the same two points), one is kept: ``t3``, ``t4`` are dropped for ``j > 1`` and ``t6``,
+    ``t8`` for ``j < m``, leaving ``n (6m + 2)`` tendons (``n (4m + 4)`` primal).  Nodes are
+    placed by :func:`class2_layout`; ``fixed_base`` fixes the base ring (``p1``, ``p3`` of
+    stage 1) to ground.  Other parameters as :func:`class1_shell`.
+
+    Raises
+    ------
+    ValueError
+        For ``m < 2`` (no node is joined) and as :func:`class1_shell`.
+    """
+    _check_size(n, m)
+    if m < 2:
+        raise ValueError(f"m: a class 2 shell needs m >= 2 stages (with m = 1 no nodes join), got {m!r}")
+    position = class2_layout(n, m, rod_length=rod_length, stage_height=stage_height)
+    tendons = []
+    for name, tail, head in shell_tendons(n, m, primal=primal):
+        alpha, _, j = (int(x) for x in name[1:].split("_"))
+        where = _MERGED_TENDONS.get(alpha)
+        if (where == "above_base" and j > 1) or (where == "below_top" and j < m):
+            continue
+        tendons.append((name, tail, head))
+    fixed = np.zeros(4 * n * m, bool)
+    if fixed_base:
+        for i in range(1, n + 1):
+            fixed[[shell_node_index(1, i, 1, n), shell_node_index(3, i, 1, n)]] = True
+    return _shell_structure(
+        position, tendons, rod_mass=rod_mass, rod_length=rod_length, stiffness=stiffness,
+        rest_length=rest_length, damping=damping, joint_nodes=class2_joints(n, m), node_fixed=fixed,
     )

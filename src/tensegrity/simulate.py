@@ -37,7 +37,8 @@ class SimulationResult:
     ----------
     t : (T,) sample times [s].
     q, qdot : (T, 6R) coordinates [m] and rates [m/s].
-    node_position, node_velocity : (T, N, 3) ``p = P q`` [m] and ``P q'`` [m/s] (eq. 18.60).
+    node_position, node_velocity : (T, N, 3) ``p = P q`` [m] and ``P q'`` [m/s] (eq. 18.60);
+        (T, N, 2) for a planar structure.
     tendon_length : (T, S) [m].  tendon_tension : (T, S) [N], damping included.
     energy : dict of (T,) arrays [J]: ``kinetic``, ``elastic``, ``gravity``, ``dissipated``,
         ``external_work``, ``control_work``.
@@ -46,6 +47,8 @@ class SimulationResult:
     nfev, nsteps, nswitches, nprojections : right-hand-side evaluations, steps, located slack/taut
         switches, projections onto the rod constraints.
     max_rod_length_error : largest relative rod-length error seen at the end of a step.
+    max_constraint_error : largest violation ``|A q - b|`` [m] of the joints and supports seen at
+        the end of a step (0 without any; see ``docs/constraints.md``).
     wall_time : [s].  settings : the options of the run.
     """
 
@@ -68,6 +71,7 @@ class SimulationResult:
     max_rod_length_error: float
     wall_time: float
     settings: dict[str, Any]
+    max_constraint_error: float = 0.0
 
     @property
     def success(self) -> bool:
@@ -154,7 +158,7 @@ class _Model:
         with ``d = l - Lbar``.  Its sign changes exactly at the kinks of the tension law."""
         s = self.structure
         p = dynamics.nodes_from_coordinates(s, y[: self.n])
-        v = dynamics.nodes_from_coordinates(s, y[self.n : 2 * self.n])
+        v = dynamics.nodes_from_coordinates(s, y[self.n : 2 * self.n], rates=True)
         tendons = dynamics.tendon_forces(s, p, v, self.rest_length(t))
         stretch = s.tendon_stiffness * (tendons.length - self.rest_length(t))
         return np.minimum(stretch, stretch + s.tendon_damping * tendons.length_rate)
@@ -196,12 +200,12 @@ class _Recorder:
         """Record a sample; return its largest node acceleration [m/s^2]."""
         m, s = self.model, self.model.structure
         ev = m.evaluate(t, y)
-        accel = float(np.max(np.abs(dynamics.nodes_from_coordinates(s, ev.qddot))))
+        accel = float(np.max(np.abs(dynamics.nodes_from_coordinates(s, ev.qddot, rates=True))))
         r = self.rows
         r["t"].append(t)
         r["y"].append(y)
         r["p"].append(dynamics.nodes_from_coordinates(s, y[: m.n]))
-        r["v"].append(dynamics.nodes_from_coordinates(s, y[m.n : 2 * m.n]))
+        r["v"].append(dynamics.nodes_from_coordinates(s, y[m.n : 2 * m.n], rates=True))
         r["length"].append(ev.tendons.length)
         r["tension"].append(ev.tendons.tension)
         r["energy"].append([*m.potential(t, y), *y[2 * m.n :]])
@@ -242,9 +246,9 @@ def simulate(
         Start state; default :func:`dynamics.initial_state` (the structure's nodes at ``t0``).
     control : (S,) array or callable ``u(t)``, optional
         Rest-length changes ``u`` [m]: ``Lbar = L0 - u`` must stay ``>= 0``.
-    external_force : (N, 3) array or callable ``w(t)``, optional
+    external_force : (N, 3) array or callable ``w(t)``, optional (``(N, 2)`` if planar)
         External nodal forces [N].
-    gravity : (3,) array, optional
+    gravity : (3,) array, optional (``(2,)`` if planar)
         Uniform gravity [m/s^2], e.g. ``(0, 0, -9.81)``.
     method : str
         An adaptive ``scipy.integrate`` method (``"DOP853"``, ``"RK45"``, ``"Radau"``, ...) with
@@ -261,7 +265,8 @@ def simulate(
         every node's acceleration below ``acceleration_tol`` [m/s^2].
     projection_tol : float
         Adaptive methods project onto the rod constraints (and restart) when a relative rod-length
-        error exceeds this; ``"rk4"`` projects after every step.
+        error, or a violation of the joints and supports in metres, exceeds this; ``"rk4"``
+        projects after every step.
     max_rod_length_error, max_energy_growth : float
         Blow-up detection: the run fails if, at the end of a step, the state is not finite, a
         relative rod-length error exceeds ``max_rod_length_error``, or the energy balance has grown
@@ -287,15 +292,15 @@ def simulate(
             raise ValueError(f"{field}: must be > 0, got {value!r}")
     if gravity is not None:
         gravity = np.asarray(gravity, dtype=float)
-        if gravity.shape != (3,) or not np.all(np.isfinite(gravity)):
-            raise ValueError(f"gravity: expected 3 finite numbers, got {gravity!r}")
+        if gravity.shape != (structure.dim,) or not np.all(np.isfinite(gravity)):
+            raise ValueError(f"gravity: expected {structure.dim} finite numbers, got {gravity!r}")
     integrator = make_integrator(method, rtol=rtol, atol=atol, dt=dt)
     S, N = structure.n_tendons, structure.n_nodes
     model = _Model(
         structure,
         _as_time_function(control, (S,), "control"),
         not callable(control),
-        _as_time_function(external_force, (N, 3), "external_force"),
+        _as_time_function(external_force, (N, structure.dim), "external_force"),
         gravity,
     )
     model.rest_length(t0)  # reject a control that makes a rest length negative, up front
@@ -303,6 +308,7 @@ def simulate(
     q, qdot = dynamics.project_to_constraints(structure, state.q, state.qdot)
     y = np.concatenate([q, qdot, np.zeros(3)])
     energy0, scale0 = model.energy_balance(t0, y)
+    energy_scale = [scale0]  # the largest energy magnitude seen so far
 
     settings = run_settings(
         t0, t_end, method=method, rtol=rtol, atol=atol, dt=dt, sample_dt=sample_dt,
@@ -314,7 +320,8 @@ def simulate(
     wall0 = time.perf_counter()
     bar = _progress_bar(t0, t_end) if progress else None
     counts = dict(nsteps=0, nswitches=0, nprojections=0)
-    max_length_error = float(np.max(np.abs(dynamics.rod_length_error(structure, q))))
+    max_length_error = float(np.max(np.abs(dynamics.rod_length_error(structure, q)), initial=0.0))
+    max_joint_error = dynamics.constraint_error(structure, q)
     status, message = STATUS_END, f"reached t_end = {t_end:g} s"
 
     recorder.add(t0, y)
@@ -341,13 +348,16 @@ def simulate(
                     continue
                 indicator = new_indicator
             failure = _check_blowup(
-                model, t_new, y_new, energy0, scale0, max_rod_length_error, max_energy_growth
+                model, t_new, y_new, energy0, energy_scale, max_rod_length_error, max_energy_growth
             )
             if failure:
                 status, message = STATUS_FAILED, failure
                 break
-            length_error = float(np.max(np.abs(dynamics.rod_length_error(structure, y_new[: model.n]))))
+            length_error = float(np.max(np.abs(dynamics.rod_length_error(structure, y_new[: model.n])),
+                                        initial=0.0))
             max_length_error = max(max_length_error, length_error)
+            joint_error = dynamics.constraint_error(structure, y_new[: model.n])
+            max_joint_error = max(max_joint_error, joint_error)
             # Samples up to t_new, from the step's interpolant.
             while (t_sample := t0 + next_sample * sample_dt) <= t_new * (1 + 1e-14):
                 accel = recorder.add(t_sample, integrator.interpolate(min(t_sample, t_new)))
@@ -359,7 +369,8 @@ def simulate(
             if status == STATUS_STEADY:
                 break
             at_switch = switch_time is not None and t_new >= switch_time
-            if not integrator.adaptive or at_switch or length_error > projection_tol:
+            drift = max(length_error, joint_error)
+            if not integrator.adaptive or at_switch or drift > projection_tol:
                 y_new = model.project(y_new)
                 counts["nprojections"] += 1
                 integrator.start(model, t_new, y_new, t_end)
@@ -375,7 +386,7 @@ def simulate(
     if status != STATUS_STEADY and recorder.rows["t"][-1] < integrator.t * (1 - 1e-14):
         recorder.add(integrator.t, integrator.y)  # the end, or the last state before failure
     return _result(structure, recorder, status, message, integrator, counts, max_length_error,
-                   time.perf_counter() - wall0, settings)
+                   max_joint_error, time.perf_counter() - wall0, settings)
 
 
 def run_settings(
@@ -411,20 +422,30 @@ def _first_switch(model: _Model, integrator, candidates: np.ndarray, was_taut: n
     return hi
 
 
-def _check_blowup(model, t, y, energy0, scale0, max_length_error, max_growth) -> str | None:
-    """A one-line reason if the state at ``t`` is unphysical, else None."""
+def _check_blowup(model, t, y, energy0, energy_scale, max_length_error, max_growth) -> str | None:
+    """A one-line reason if the state at ``t`` is unphysical, else None.
+
+    ``energy_scale`` is a one-element list holding the largest energy magnitude seen so far
+    (updated here): the energy balance's drift is judged against it, not against the magnitude
+    at this instant, which can pass through zero (a pendulum at rest at the height of the origin).
+    """
     n = model.n
     if not np.all(np.isfinite(y)):
         return f"unstable: the state is not finite at t = {t:.6g} s"
     error = np.abs(dynamics.rod_length_error(model.structure, y[:n]))
-    if error.max() > max_length_error:
+    if error.max(initial=0.0) > max_length_error:
         r = int(np.argmax(error))
         return (f"unstable: rods[{r}] length error {error[r]:.3g} (relative) exceeds "
                 f"{max_length_error:g} within one step at t = {t:.6g} s (step too large, or the "
                 "motion is unstable)")
+    joint_error = dynamics.constraint_error(model.structure, y[:n])
+    if joint_error > max_length_error * max(float(model.structure.rod_length.max(initial=0.0)), 1.0):
+        return (f"unstable: the joints and supports are violated by {joint_error:.3g} m within one "
+                f"step at t = {t:.6g} s (step too large, or the motion is unstable)")
     total, scale = model.energy_balance(t, y)
-    if total - energy0 > max_growth * max(scale0, scale, 1e-300):
-        return (f"unstable: energy grew by {total - energy0:.3g} J (scale {max(scale0, scale):.3g} J)"
+    energy_scale[0] = max(energy_scale[0], scale)
+    if total - energy0 > max_growth * max(energy_scale[0], 1e-300):
+        return (f"unstable: energy grew by {total - energy0:.3g} J (scale {energy_scale[0]:.3g} J)"
                 f" at t = {t:.6g} s")
     return None
 
@@ -437,7 +458,7 @@ def _progress_bar(t0: float, t_end: float):
 
 
 def _result(structure, recorder, status, message, integrator, counts, max_length_error,
-            wall_time, settings) -> SimulationResult:
+            max_joint_error, wall_time, settings) -> SimulationResult:
     r = recorder.rows
     n = structure.n_coordinates
     y = np.array(r["y"])
@@ -458,6 +479,7 @@ def _result(structure, recorder, status, message, integrator, counts, max_length
         message=message,
         nfev=integrator.total_nfev,
         max_rod_length_error=max_length_error,
+        max_constraint_error=max_joint_error,
         wall_time=wall_time,
         settings=settings,
         **counts,

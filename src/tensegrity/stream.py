@@ -362,7 +362,7 @@ def _chunk_rows(row_shape: tuple[int, ...], samples_per_segment: int) -> int:
 def _row_shapes(structure: Structure) -> dict[str, tuple[int, ...]]:
     N, S, n = structure.n_nodes, structure.n_tendons, structure.n_coordinates
     return {
-        "time": (), "nodes": (N, 3), "velocities": (N, 3), "tendon_length": (S,),
+        "time": (), "nodes": (N, structure.dim), "velocities": (N, structure.dim), "tendon_length": (S,),
         "tendon_tension": (S,), "energy": (len(tio.ENERGY_COLUMNS),), "q": (n,), "qdot": (n,),
         "residual_acceleration": (),
     }

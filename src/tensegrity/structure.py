@@ -12,6 +12,12 @@ Conventions (SI units throughout)
   ``r_1ij = p_2ij - p_1ij``).  In a class 1 structure every node belongs to exactly one rod.
 - Tendon ``s`` joins ``tendon_nodes[s] = (tail, head)``; its vector is ``t = p_head - p_tail``
   (the paper's tendon vector, head minus tail).  Its tension pulls both ends toward each other.
+- Supports and joints (``docs/constraints.md``): a node may be fixed to ground (``node_fixed``),
+  held on a plane (``plane_nodes``, ``plane_normal``) or a line (``line_nodes``,
+  ``line_direction``) through its initial position, or joined to another node by a ball joint
+  (``joint_nodes``: rods that share a node, class 2 and class k).  A node that belongs to no rod
+  is either fixed (an anchor, e.g. a tendon's attachment point in space) or a point mass
+  (``node_point_mass``).
 """
 
 from __future__ import annotations
@@ -26,6 +32,8 @@ import scipy.sparse as sp
 
 #: Relative tolerance on ``| |p_b - p_a| - L | / L`` accepted for the node positions of a rod.
 ROD_LENGTH_RTOL = 1e-6
+#: Tolerance on the distance between joined nodes, relative to the longest rod.
+JOINT_RTOL = 1e-6
 
 
 def _readonly(array: np.ndarray) -> np.ndarray:
@@ -106,6 +114,19 @@ class Structure:
         Mass-proportional ("artificial", to ground) damping rate ``alpha`` [1/s], >= 0: adds
         ``-alpha q'`` to the rod's accelerations, i.e. a force ``-alpha dm v`` on every mass
         element.  Default 0.
+    node_fixed : array_like of bool, shape (N,), optional
+        Nodes held at their ``node_position`` (supports; anchors of tendons).  Default none.
+    node_point_mass : array_like, shape (N,), optional
+        Mass [kg] of a point mass at each node that belongs to no rod and is not fixed (> 0
+        there, 0 elsewhere).  Default 0.
+    joint_nodes : array_like of int, shape (J, 2), optional
+        Pairs of nodes held together by a ball joint (they must coincide initially); a node
+        shared by ``k`` rods is ``k - 1`` pairs.  Default none.
+    plane_nodes : array_like of int, shape (P,), optional
+        Nodes held on the plane through their initial position with normal ``plane_normal``
+        (P, 3) (any length, not zero).
+    line_nodes : array_like of int, shape (Q,), optional
+        Nodes held on the line through their initial position along ``line_direction`` (Q, 3).
 
     Raises
     ------
@@ -124,17 +145,26 @@ class Structure:
     tendon_name: tuple[str, ...] | None = None
     node_velocity: np.ndarray | None = None
     rod_damping: np.ndarray | None = None
+    node_fixed: np.ndarray | None = None
+    node_point_mass: np.ndarray | None = None
+    joint_nodes: np.ndarray | None = None
+    plane_nodes: np.ndarray | None = None
+    plane_normal: np.ndarray | None = None
+    line_nodes: np.ndarray | None = None
+    line_direction: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         set_ = lambda name, value: object.__setattr__(self, name, value)  # noqa: E731
-        position = _float_array(self.node_position, "nodes", (None, 3))
+        shape = np.shape(self.node_position)
+        dim = shape[1] if len(shape) == 2 and shape[1] == 2 else 3  # 2: a planar structure
+        position = _float_array(self.node_position, "nodes", (None, dim))
         n_nodes = position.shape[0]
         if n_nodes == 0:
-            raise ValueError("nodes: a structure needs at least one rod (two nodes)")
+            raise ValueError("nodes: a structure needs at least one node")
         velocity = (
             np.zeros_like(position)
             if self.node_velocity is None
-            else _float_array(self.node_velocity, "velocities", (n_nodes, 3))
+            else _float_array(self.node_velocity, "velocities", (n_nodes, dim))
         )
         rod_nodes = _index_array(self.rod_nodes, "rods", n_nodes)
         n_rods = rod_nodes.shape[0]
@@ -156,7 +186,7 @@ class Structure:
                     f"rods[{bad[0]}].{field}: must be {'>' if strict else '>='} 0, "
                     f"got {values[bad[0]]}"
                 )
-        self._check_class1(rod_nodes, n_nodes)
+        fixed, point_mass = self._check_nodes(rod_nodes, n_nodes)
         distance = np.linalg.norm(position[rod_nodes[:, 1]] - position[rod_nodes[:, 0]], axis=1)
         bad = np.flatnonzero(np.abs(distance - rod_length) > ROD_LENGTH_RTOL * rod_length)
         if bad.size:
@@ -218,24 +248,97 @@ class Structure:
         set_("tendon_rest_length", _readonly(tendon_values["rest_length"][0]))
         set_("tendon_damping", _readonly(tendon_values["damping"][0]))
         set_("tendon_name", names)
+        set_("node_fixed", _readonly(fixed))
+        set_("node_point_mass", _readonly(point_mass))
+        self._set_constraints(position, set_)
 
-    @staticmethod
-    def _check_class1(rod_nodes: np.ndarray, n_nodes: int) -> None:
+    def _check_nodes(self, rod_nodes: np.ndarray, n_nodes: int) -> tuple[np.ndarray, np.ndarray]:
+        """Every node is the end of at most one rod (joints are explicit, ``joint_nodes``), and
+        a node of no rod is fixed or carries a point mass.  Returns ``(node_fixed,
+        node_point_mass)``."""
         owner = np.full(n_nodes, -1)
         for r, (a, b) in enumerate(rod_nodes):
             for node in (a, b):
                 if owner[node] >= 0:
                     raise ValueError(
                         f"rods[{r}].nodes: node {node} is already an end of rods[{owner[node]}] "
-                        "(class 1: every node belongs to one rod)"
+                        "(every node belongs to one rod; rods that share a node are joined "
+                        "nodes, joint_nodes)"
                     )
                 owner[node] = r
-        free = np.flatnonzero(owner < 0)
-        if free.size:
+        if self.node_fixed is None:
+            fixed = np.zeros(n_nodes, bool)
+        else:
+            fixed = np.array(self.node_fixed)
+            if fixed.shape != (n_nodes,) or fixed.dtype != bool:
+                raise ValueError(
+                    f"node_fixed: expected {n_nodes} booleans, got {fixed.dtype} of shape {fixed.shape}"
+                )
+        point_mass = _float_array(
+            np.zeros(n_nodes) if self.node_point_mass is None else self.node_point_mass,
+            "node_point_mass", (n_nodes,),
+        )
+        in_rod = owner >= 0
+        for rule, message in (
+            (point_mass < 0, "node_point_mass[{k}]: must be >= 0, got {m}"),
+            ((point_mass > 0) & in_rod,
+             "node_point_mass[{k}]: node {k} is an end of rods[{r}]; a payload on a rod goes on "
+             "its own node, joined to the rod's end (joint_nodes)"),
+            ((point_mass > 0) & fixed, "node_point_mass[{k}]: node {k} is fixed; it cannot carry a mass"),
+            (~in_rod & ~fixed & (point_mass == 0),
+             "nodes[{k}]: belongs to no rod; fix it (node_fixed) or give it a mass "
+             "(node_point_mass): a massless free node has no dynamics"),
+        ):
+            bad = np.flatnonzero(rule)
+            if bad.size:
+                k = bad[0]
+                raise ValueError(message.format(k=k, m=point_mass[k], r=owner[k]))
+        return fixed, point_mass
+
+    def _set_constraints(self, position: np.ndarray, set_: Any) -> None:
+        """Validate and store ``joint_nodes`` and the plane and line constraints."""
+        n_nodes, dim = position.shape
+        joints = _index_array(
+            np.zeros((0, 2), int) if self.joint_nodes is None else self.joint_nodes,
+            "joint_nodes", n_nodes,
+        )
+        gap = np.linalg.norm(position[joints[:, 1]] - position[joints[:, 0]], axis=1)
+        scale = max(float(self.rod_length.max(initial=0.0)), 1.0)
+        bad = np.flatnonzero(gap > JOINT_RTOL * scale)
+        if bad.size:
+            k = bad[0]
             raise ValueError(
-                f"nodes[{free[0]}]: belongs to no rod; every node must be the end of exactly "
-                "one rod (massless free nodes have no dynamics)"
+                f"joint_nodes[{k}]: nodes {joints[k, 0]} and {joints[k, 1]} are {float(gap[k])!r} m "
+                "apart; joined nodes must coincide"
             )
+        set_("joint_nodes", _readonly(joints))
+        for kind, vector in (("plane", "normal"), ("line", "direction")):
+            nodes_field, vector_field = f"{kind}_nodes", f"{kind}_{vector}"
+            nodes = np.array(
+                [] if getattr(self, nodes_field) is None else getattr(self, nodes_field)
+            )
+            if nodes.ndim != 1 or (nodes.size and not np.issubdtype(nodes.dtype, np.integer)):
+                raise ValueError(f"{nodes_field}: expected a list of node indices, got {nodes!r:.80}")
+            nodes = nodes.astype(np.int64)
+            bad = np.flatnonzero((nodes < 0) | (nodes >= n_nodes))
+            if bad.size:
+                raise ValueError(
+                    f"{nodes_field}[{bad[0]}]: node index {nodes[bad[0]]} out of range "
+                    f"[0, {n_nodes - 1}]"
+                )
+            if nodes.size and kind == "plane" and dim == 2:
+                raise ValueError(f"{nodes_field}: a planar structure has no plane constraints "
+                                 "(hold a node on a line with line_nodes)")
+            value = getattr(self, vector_field)
+            vectors = _float_array(
+                np.zeros((0, dim)) if value is None else value, vector_field, (nodes.size, dim)
+            )
+            norm = np.linalg.norm(vectors, axis=1)
+            bad = np.flatnonzero(norm == 0)
+            if bad.size:
+                raise ValueError(f"{vector_field}[{bad[0]}]: must not be zero")
+            set_(nodes_field, _readonly(nodes))
+            set_(vector_field, _readonly(vectors / norm[:, None]))
 
     # ------------------------------------------------------------------ sizes
     @property
@@ -253,15 +356,71 @@ class Structure:
         """Number of tendons ``S``."""
         return self.tendon_nodes.shape[0]
 
+    @cached_property
+    def dim(self) -> int:
+        """Space dimension: 3, or 2 for a planar structure (Appendix A's planar form)."""
+        return self.node_position.shape[1]
+
     @property
     def n_coordinates(self) -> int:
-        """Length of the generalized coordinate vector ``q`` (``6 R``; ``12 nm`` for a shell)."""
-        return 6 * self.n_rods
+        """Length of the generalized coordinate vector ``q``: ``6 R`` (``12 nm`` for a shell),
+        plus 3 per point mass (``4 R + 2 M`` in 2-D)."""
+        return self.dim * (2 * self.n_rods + self.point_mass_nodes.size)
 
     @property
     def n_dof(self) -> int:
-        """Degrees of freedom: 5 per rod (spin about a rod's own axis is not one)."""
-        return 5 * self.n_rods
+        """Degrees of freedom before constraints: 5 per rod (spin about a rod's own axis is not
+        one) and 3 per point mass; 3 and 2 in 2-D."""
+        return (2 * self.dim - 1) * self.n_rods + self.dim * self.point_mass_nodes.size
+
+    @cached_property
+    def point_mass_nodes(self) -> np.ndarray:
+        """Nodes that carry a point mass, ascending, shape (M,); their positions follow the
+        rods' coordinates in ``q``."""
+        return _readonly(np.flatnonzero(self.node_point_mass > 0))
+
+    @cached_property
+    def anchor_nodes(self) -> np.ndarray:
+        """Fixed nodes that belong to no rod (not in ``q``: they never move), shape (F,)."""
+        in_rod = np.zeros(self.n_nodes, bool)
+        in_rod[self.rod_nodes] = True
+        return _readonly(np.flatnonzero(self.node_fixed & ~in_rod))
+
+    @cached_property
+    def is_free_class1(self) -> bool:
+        """True for a 3-D class 1 structure without supports, joints or point masses: every
+        node the end of exactly one rod, ``q`` the rods' coordinates only."""
+        return self.dim == 3 and not (
+            self.node_fixed.any() or self.point_mass_nodes.size or self.joint_nodes.size
+            or self.plane_nodes.size or self.line_nodes.size
+        )
+
+    @cached_property
+    def has_constraints(self) -> bool:
+        """True if some node is fixed to a rod's end, joined, or held on a plane or line."""
+        return bool(
+            self.joint_nodes.size or self.plane_nodes.size or self.line_nodes.size
+            or np.any(self.node_fixed[self.rod_nodes])
+        )
+
+    def require_free_class1(self, what: str) -> None:
+        """Raise ``ValueError`` if this structure is not a free class 1 structure
+        (:attr:`is_free_class1`): for the parts of the library that support only those."""
+        if not self.is_free_class1:
+            raise ValueError(
+                f"{what}: supports only free 3-D class 1 structures (every node the end of one "
+                "rod; no fixed nodes, joints, plane or line constraints or point masses)"
+            )
+
+    @cached_property
+    def constraints(self) -> Any:
+        """The linear constraints ``A q = b`` on the coordinates (:class:`tensegrity.constraints.
+        LinearConstraints`), built on first use; ``None`` without constraints."""
+        if not self.has_constraints:
+            return None
+        from tensegrity.constraints import LinearConstraints
+
+        return LinearConstraints(self)
 
     # ------------------------------------------------------------ derived data
     @cached_property
@@ -280,16 +439,17 @@ class Structure:
 
     @cached_property
     def node_mass(self) -> np.ndarray:
-        """Half of the owning rod's mass at each node [kg], shape (N,)."""
-        mass = np.empty(self.n_nodes)
+        """Half of the owning rod's mass at each node, or its point mass (0 at an anchor) [kg],
+        shape (N,)."""
+        mass = self.node_point_mass.copy()
         mass[self.rod_nodes[:, 0]] = self.rod_mass / 2
         mass[self.rod_nodes[:, 1]] = self.rod_mass / 2
         return _readonly(mass)
 
     @property
     def total_mass(self) -> float:
-        """Sum of rod masses [kg]."""
-        return float(self.rod_mass.sum())
+        """Sum of rod masses and point masses [kg]."""
+        return float(self.rod_mass.sum() + self.node_point_mass.sum())
 
     def tendon_index(self, name: str) -> int:
         """Index of the tendon called ``name``."""
@@ -304,8 +464,26 @@ class Structure:
 
     # -------------------------------------------------------------- JSON form
     def to_dict(self) -> dict[str, Any]:
-        """The JSON form: ``{"nodes", "velocities", "rods", "tendons"}`` with 0-based indices."""
-        return {
+        """The JSON form: ``{"nodes", "velocities", "rods", "tendons"}`` with 0-based indices,
+        and, only when present, ``"fixed"`` (node indices), ``"point_masses"`` (``{"node",
+        "mass"}``), ``"joints"`` (node pairs), ``"planes"`` (``{"node", "normal"}``) and
+        ``"lines"`` (``{"node", "direction"}``)."""
+        extra: dict[str, Any] = {}
+        if self.node_fixed.any():
+            extra["fixed"] = np.flatnonzero(self.node_fixed).tolist()
+        if self.point_mass_nodes.size:
+            extra["point_masses"] = [
+                {"node": int(k), "mass": float(self.node_point_mass[k])} for k in self.point_mass_nodes
+            ]
+        if self.joint_nodes.size:
+            extra["joints"] = self.joint_nodes.tolist()
+        for key, nodes, vectors, name in (
+            ("planes", self.plane_nodes, self.plane_normal, "normal"),
+            ("lines", self.line_nodes, self.line_direction, "direction"),
+        ):
+            if nodes.size:
+                extra[key] = [{"node": int(k), name: v.tolist()} for k, v in zip(nodes, vectors)]
+        return extra | {
             "nodes": self.node_position.tolist(),
             "velocities": self.node_velocity.tolist(),
             "rods": [
@@ -330,7 +508,7 @@ class Structure:
                     self.tendon_damping,
                 )
             ],
-        }
+        } | extra
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> Structure:
@@ -346,8 +524,9 @@ class Structure:
         rows = {"nodes": nodes}
         if data.get("velocities") is not None:
             rows["velocities"] = _require(data, "velocities", "structure", Sequence)
+        dim = _dimension(nodes)
         points = {
-            key: [_vector(row, f"{key}[{k}]") for k, row in enumerate(value)]
+            key: [_vector(row, f"{key}[{k}]", dim) for k, row in enumerate(value)]
             for key, value in rows.items()
         }
         rod_items = [_require_item(rod, f"rods[{k}]") for k, rod in enumerate(rods)]
@@ -365,7 +544,51 @@ class Structure:
             tendon_rest_length=_numbers(tendon_items, "tendons", "rest_length"),
             tendon_damping=_numbers(tendon_items, "tendons", "damping", default=0.0),
             tendon_name=tuple(t.get("name", f"s{k}") for k, t in enumerate(tendon_items)),
+            **_supports_from_dict(data, len(points["nodes"]), dim),
         )
+
+
+def _supports_from_dict(data: Mapping[str, Any], n_nodes: int, dim: int) -> dict[str, Any]:
+    """The optional ``"fixed"``, ``"point_masses"``, ``"joints"``, ``"planes"``, ``"lines"``
+    keys of the JSON form as :class:`Structure` fields."""
+    fields: dict[str, Any] = {}
+    if data.get("fixed") is not None:
+        fixed = np.zeros(n_nodes, bool)
+        for k, node in enumerate(_require(data, "fixed", "structure", Sequence)):
+            fixed[_node_index(node, f"fixed[{k}]", n_nodes)] = True
+        fields["node_fixed"] = fixed
+    if data.get("point_masses") is not None:
+        mass = np.zeros(n_nodes)
+        items = [_require_item(item, f"point_masses[{k}]")
+                 for k, item in enumerate(_require(data, "point_masses", "structure", Sequence))]
+        for k, item in enumerate(items):
+            node = _node_index(_require(item, "node", f"point_masses[{k}]"), f"point_masses[{k}].node", n_nodes)
+            mass[node] = _number(_require(item, "mass", f"point_masses[{k}]"), f"point_masses[{k}].mass")
+        fields["node_point_mass"] = mass
+    if data.get("joints") is not None:
+        joints = _require(data, "joints", "structure", Sequence)
+        fields["joint_nodes"] = [_node_pair(pair, f"joints[{k}]") for k, pair in enumerate(joints)]
+    for key, vector, prefix in (("planes", "normal", "plane"), ("lines", "direction", "line")):
+        if data.get(key) is None:
+            continue
+        items = [_require_item(item, f"{key}[{k}]")
+                 for k, item in enumerate(_require(data, key, "structure", Sequence))]
+        fields[f"{prefix}_nodes"] = [
+            _node_index(_require(item, "node", f"{key}[{k}]"), f"{key}[{k}].node", n_nodes)
+            for k, item in enumerate(items)
+        ]
+        fields[f"{prefix}_{vector}"] = [
+            _vector(_require(item, vector, f"{key}[{k}]"), f"{key}[{k}].{vector}", dim)
+            for k, item in enumerate(items)
+        ] or None
+    return fields
+
+
+def _node_index(value: Any, where: str, n_nodes: int) -> int:
+    """A JSON integer node index in ``[0, n_nodes)``."""
+    if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value < n_nodes:
+        raise ValueError(f"{where}: expected a node index in [0, {n_nodes - 1}], got {value!r:.80}")
+    return value
 
 
 def _number(value: Any, where: str) -> float:
@@ -375,10 +598,17 @@ def _number(value: Any, where: str) -> float:
     return float(value)
 
 
-def _vector(value: Any, where: str) -> list[float]:
-    """A JSON list of three numbers."""
-    if not isinstance(value, Sequence) or isinstance(value, str) or len(value) != 3:
-        raise ValueError(f"{where}: expected a list of 3 numbers [x, y, z], got {value!r:.80}")
+def _dimension(nodes: Sequence[Any]) -> int:
+    """2 if the first node of a JSON node list has two coordinates (a planar structure), else 3."""
+    first = nodes[0] if len(nodes) else None
+    return 2 if isinstance(first, Sequence) and not isinstance(first, str) and len(first) == 2 else 3
+
+
+def _vector(value: Any, where: str, dim: int) -> list[float]:
+    """A JSON list of ``dim`` numbers (3, or 2 in a planar structure)."""
+    if not isinstance(value, Sequence) or isinstance(value, str) or len(value) != dim:
+        pretty = "[x, y, z]" if dim == 3 else "[x, y] (the structure is planar)"
+        raise ValueError(f"{where}: expected a list of {dim} numbers {pretty}, got {value!r:.80}")
     return [_number(x, f"{where}[{k}]") for k, x in enumerate(value)]
 
 

@@ -68,6 +68,7 @@ class Chart:
     @classmethod
     def at(cls, structure: Structure, q: np.ndarray) -> Chart:
         """The chart based at the configuration ``q`` (6R,) (``x = 0`` there)."""
+        structure.require_free_class1("the analysis package")
         rods = dynamics.rods_view(np.asarray(q, dtype=float))
         centre = 0.5 * rods[:, 0]
         direction = rods[:, 1] / np.linalg.norm(rods[:, 1], axis=1, keepdims=True)
