@@ -12,8 +12,10 @@ The physics is exactly that of :func:`tensegrity.dynamics.evaluate` (the readabl
 - the power removed by tendon and rod damping and the power of ``w``.
 
 Differences from the reference are round-off only (the summation order of the nodal forces, one
-reciprocal instead of three divisions per tendon); the kernel is compiled without ``fastmath`` so
-that the two agree to ~1e-15 relative.  As in the reference, rest lengths must be ``>= 0``
+reciprocal instead of three divisions per tendon, fused multiply-adds); the kernel is compiled
+with ``fastmath={"contract"}`` only (a * b + c may become one FMA instruction; no reassociation,
+no approximate square roots or reciprocals, NaN and infinity kept), so that the two agree to
+~1e-15 relative.  As in the reference, rest lengths must be ``>= 0``
 (``dynamics.rest_lengths`` checks them); they are not checked again here, for speed.
 
 The loops over rods and tendons run inside one compiled function writing into preallocated
@@ -44,6 +46,7 @@ A :class:`FastKernel` owns scratch buffers and is therefore not thread-safe: use
 
 from __future__ import annotations
 
+import os
 from typing import NamedTuple
 
 import numpy as np
@@ -56,7 +59,9 @@ __all__ = [
     "rk4_batch", "rk4_step", "rk4_steps",
 ]
 
-_JIT = dict(cache=True, fastmath=False, nogil=True, boundscheck=False, error_model="numpy")
+_JIT = dict(
+    cache=True, fastmath={"contract"}, nogil=True, boundscheck=False, error_model="numpy",
+)
 
 
 # --------------------------------------------------------------------------- compiled code
@@ -578,6 +583,13 @@ class FastKernel:
             raise ValueError(f"threads: must be an integer >= 1, got {threads!r}")
         self.structure = structure
         self.threads = int(threads)
+        if self.threads > 1:
+            # numba's OpenMP layer spins at its barriers by default; on a machine whose cores are
+            # busy with other work a spinning thread can hold a core the other block is waiting
+            # for (measured: ~8 ms per parallel section).  Waiting passively costs nothing
+            # measurable here.  Read when the OpenMP runtime loads (the first threaded call);
+            # a value set by the user wins.
+            os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
         self.n_rods, self.n_tendons, self.n_nodes = (
             structure.n_rods, structure.n_tendons, structure.n_nodes,
         )
