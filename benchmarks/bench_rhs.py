@@ -5,19 +5,22 @@ a mass-matrix formulation of the same physics, and MuJoCo, side by side on class
 Usage::
 
     python benchmarks/bench_rhs.py [--sizes 3x1,10x10,30x30,100x100] [--quick]
-                                   [--mujoco-max 30x30] [--output benchmarks/results.md]
+                                   [--mujoco-max 30x30] [--threads 2]
+                                   [--output benchmarks/results.md]
 
 Every (size, method) pair runs in its own subprocess, so that its peak memory (``ru_maxrss``) is
 its own and one method's caches or allocations do not slow another.  Timings are the best of
 three repeats of wall-clock time (the machine may be shared).
 
-Methods (all one thread, the same structure, the same state):
+Methods (all one thread, the same structure, the same state; the kernel also with
+``threads=T``):
 
 - ``numpy``: ``tensegrity.dynamics.evaluate`` (the readable reference), and a plain RK4 loop of it
   with projection onto the rod constraints after every step; also ``simulate(method="rk4")``,
   what a user gets today (with its switch indicators, blow-up checks and energy bookkeeping).
 - ``kernel``: ``tensegrity.kernel.FastKernel``: ``evaluate()`` called from Python, and the
-  compiled RK4 loop ``rk4()`` (its cost per step / 4 is the in-loop cost of one evaluation).
+  compiled RK4 loop ``rk4()`` (its cost per step / 4 is the in-loop cost of one evaluation);
+  the same with ``FastKernel(structure, threads=T)`` (``--threads``, default 2).
 - ``massmatrix``: end-point (node) coordinates with the consistent mass matrix of a uniform rod,
   ``(m/6) [[2I, I], [I, 2I]]``, and the rod lengths held by Lagrange multipliers: every evaluation
   assembles the sparse KKT system ``[[M, G^T], [G, 0]]`` and solves it with
@@ -36,7 +39,8 @@ random rod-consistent initial velocities (about 0.3 m/s), no gravity.
 The memory-traffic lower bound of one evaluation counts the bytes the kernel must read or write
 once (``q``, ``q'``, rod and tendon parameters and indices, rest lengths, ``q''``, tensions) and
 divides by the bandwidth of a NumPy copy, both of a large (DRAM) array and of an array the size of
-the data (a cache-resident copy, the relevant bound when the data fit in cache).
+the data (a cache-resident copy, the relevant bound when the data fit in cache); for the threaded
+kernel, by the bandwidth of T such copies of 1/T of the array each, run at once in T threads.
 """
 
 from __future__ import annotations
@@ -305,7 +309,7 @@ def mujoco_nodes(model, data, structure) -> np.ndarray:
 
 
 # =========================================================================== workers
-def worker(method: str, n: int, m: int, budget: float, cold: bool) -> dict:
+def worker(method: str, n: int, m: int, budget: float, cold: bool, threads: int = 2) -> dict:
     """Time one method on one size in this (fresh) process; returns a JSON-able dict."""
     import tensegrity  # noqa: F401  (import cost outside the measurement)
     from tensegrity import dynamics
@@ -373,6 +377,18 @@ def worker(method: str, n: int, m: int, budget: float, cold: bool) -> dict:
         ref = dynamics.evaluate(structure, q, qdot, rest_length=rest).qddot
         got = kernel.evaluate(q, qdot, rest).qddot
         out["max_rel_diff_vs_numpy"] = float(np.max(np.abs(got - ref)) / np.max(np.abs(ref)))
+        # The same on `threads` threads (blocks of rods and tendons, numba prange).
+        threaded = FastKernel(structure, threads=threads)
+        threaded.warm_up()
+        out["threads"] = threads
+        out["rhs_out_threaded_s"] = best_time(
+            lambda: threaded.evaluate(q, qdot, rest, out=(qddot, tension)), budget)
+        k = steps_for(budget, 4 * out["rhs_out_threaded_s"])
+        out["rk4_step_threaded_s"] = best_time(lambda: threaded.rk4(q, qdot, DT, k, rest),
+                                               budget) / k
+        got = threaded.evaluate(q, qdot, rest).qddot
+        out["max_rel_diff_threaded_vs_numpy"] = float(np.max(np.abs(got - ref))
+                                                      / np.max(np.abs(ref)))
 
     elif method == "massmatrix":
         model = MassMatrixModel(structure)
@@ -447,14 +463,15 @@ def worker(method: str, n: int, m: int, budget: float, cold: bool) -> dict:
 
 
 def run_worker(method: str, size: tuple[int, int], budget: float, cold: bool = False,
-               timeout: float | None = None) -> dict:
+               timeout: float | None = None, threads: int = 2) -> dict:
     env = dict(os.environ)
     tmp = None
     if cold:
         tmp = tempfile.TemporaryDirectory()
         env["NUMBA_CACHE_DIR"] = tmp.name
     cmd = [sys.executable, str(Path(__file__).resolve()), "--worker", method,
-           "--sizes", f"{size[0]}x{size[1]}", "--budget", str(budget)] + (["--cold"] if cold else [])
+           "--sizes", f"{size[0]}x{size[1]}", "--budget", str(budget),
+           "--threads", str(threads)] + (["--cold"] if cold else [])
     try:
         proc = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=timeout)
     except subprocess.TimeoutExpired:
@@ -469,12 +486,43 @@ def run_worker(method: str, size: tuple[int, int], budget: float, cold: bool = F
 
 
 # =========================================================================== machine facts
-def copy_bandwidth(nbytes: int, budget: float = 0.3) -> float:
-    """Bytes per second moved by ``np.copyto`` of an array of ``nbytes`` (read + write counted)."""
-    n = max(1, nbytes // 8)
+def copy_bandwidth(nbytes: int, budget: float = 0.3, threads: int = 1) -> float:
+    """Bytes per second moved by ``np.copyto`` of an array of ``nbytes`` (read + write counted);
+    with ``threads > 1``, that many threads copy one slice each at the same time (``copyto``
+    releases the GIL)."""
+    import threading
+
+    n = max(threads, nbytes // 8)
     src, dst = np.random.rand(n), np.empty(n)
     np.copyto(dst, src)  # fault the pages in first: not part of the bandwidth
-    t = best_time(lambda: np.copyto(dst, src), budget, repeats=5)
+    if threads == 1:
+        t = best_time(lambda: np.copyto(dst, src), budget, repeats=5)
+        return 2 * n * 8 / t
+    cuts = [k * n // threads for k in range(threads + 1)]
+    go, done = threading.Barrier(threads + 1), threading.Barrier(threads + 1)
+    rounds = max(1, int(budget / 5 / max(2 * n * 8 / 20e9, 1e-7)))
+    stop = False
+
+    def copier(k):
+        while True:
+            go.wait()
+            if stop:
+                return
+            for _ in range(rounds):
+                np.copyto(dst[cuts[k]:cuts[k + 1]], src[cuts[k]:cuts[k + 1]])
+            done.wait()
+
+    workers = [threading.Thread(target=copier, args=(k,), daemon=True) for k in range(threads)]
+    for w in workers:
+        w.start()
+
+    def once():
+        go.wait()
+        done.wait()
+
+    t = best_time(once, budget, repeats=5) / rounds
+    stop = True
+    go.wait()
     return 2 * n * 8 / t
 
 
@@ -555,6 +603,13 @@ def report(results: dict, sizes, info: dict, bw: dict, command: str, notes: list
         return None if r is None or "error" in r else r.get(key)
 
     label = lambda s: f"({s[0]},{s[1]})"  # noqa: E731
+
+    def measured_sizes():
+        """``(size, R, S)`` for the sizes some method measured."""
+        for s in sizes:
+            r = results.get((s, "kernel")) or results.get((s, "numpy")) or {}
+            if r.get("R"):
+                yield s, r["R"], r["S"]
     lines = []
     out = lines.append
     out("# RHS and RK4 benchmark: NumPy reference vs compiled kernel vs mass-matrix formulation vs MuJoCo\n")
@@ -567,63 +622,87 @@ def report(results: dict, sizes, info: dict, bw: dict, command: str, notes: list
     out(f"- Python {info['python']}, NumPy {info['numpy']}, SciPy {info['scipy']}, numba "
         f"{info['numba']}, MuJoCo {info['mujoco']}")
     out(f"- Copy bandwidth (NumPy `copyto`, read + write): {bw['dram'] / 1e9:.1f} GB/s for a "
-        f"{bw['dram_bytes'] / 2**20:.0f} MiB array (DRAM)")
+        f"{bw['dram_bytes'] / 2**20:.0f} MiB array (DRAM); with {bw['threads']} threads copying "
+        f"one slice each (or one thread if that is faster) {bw['dram_threads'] / 1e9:.1f} GB/s")
     out("- Structure: `class1_shell(n, m)` (rods 1 kg, 1 m; tendons 100 N/m, undamped), rest lengths "
         "0.95 × initial lengths, random rod-consistent velocities (~0.3 m/s), no gravity. "
-        "One thread everywhere. Rates are the best of 3 timed batches (wall clock).")
+        f"One thread everywhere, except the kernel's columns marked {bw['threads']} threads "
+        f"(`FastKernel(structure, threads={bw['threads']})`). "
+        "Rates are the best of 3 timed batches (wall clock).")
     out("")
     out("## Right-hand-side evaluations per second\n")
+    T = bw["threads"]
     out("| shell | rods R | tendons S | NumPy `dynamics.evaluate` | kernel `evaluate()` (Python call) "
+        f"| kernel `evaluate(out=)` | same, {T} threads "
         "| kernel, in the RK4 loop (step/4) | mass matrix + sparse KKT | MuJoCo `mj_forward` "
         "| kernel call / NumPy |")
-    out("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
+    out("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for s in sizes:
         r = results.get((s, "numpy"), {})
         k_loop = get(s, "kernel", "rk4_step_s")
         out(f"| {label(s)} | {r.get('R', '')} | {r.get('S', '')} | {fmt_rate(get(s, 'numpy', 'rhs_s'))} "
-            f"| {fmt_rate(get(s, 'kernel', 'rhs_s'))} | {fmt_rate(k_loop / 4 if k_loop else None)} "
+            f"| {fmt_rate(get(s, 'kernel', 'rhs_s'))} | {fmt_rate(get(s, 'kernel', 'rhs_out_s'))} "
+            f"| {fmt_rate(get(s, 'kernel', 'rhs_out_threaded_s'))} "
+            f"| {fmt_rate(k_loop / 4 if k_loop else None)} "
             f"| {fmt_rate(get(s, 'massmatrix', 'rhs_s'))} | {fmt_rate(get(s, 'mujoco', 'rhs_s'))} "
             f"| {fmt_ratio(get(s, 'kernel', 'rhs_s'), get(s, 'numpy', 'rhs_s'))} |")
     out("")
     out("## RK4 steps per second (dt = 1e-4, projection onto the rod constraints after each step)\n")
     out("| shell | NumPy loop | `simulate(method=\"rk4\")` | kernel `rk4()` (compiled loop) "
+        f"| same, {T} threads | {T} threads / 1 "
         "| mass matrix + KKT | MuJoCo `mj_step` | kernel / MuJoCo | kernel / NumPy loop "
         "| kernel / mass matrix | mass matrix / MuJoCo |")
-    out("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    out("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for s in sizes:
         k = get(s, "kernel", "rk4_step_s")
+        kt = get(s, "kernel", "rk4_step_threaded_s")
         mj = get(s, "mujoco", "rk4_step_s")
         mm = get(s, "massmatrix", "rk4_step_s")
         out(f"| {label(s)} | {fmt_rate(get(s, 'numpy', 'rk4_step_s'))} "
-            f"| {fmt_rate(get(s, 'numpy', 'simulate_step_s'))} | {fmt_rate(k)} | {fmt_rate(mm)} "
+            f"| {fmt_rate(get(s, 'numpy', 'simulate_step_s'))} | {fmt_rate(k)} | {fmt_rate(kt)} "
+            f"| {fmt_ratio(kt, k)} | {fmt_rate(mm)} "
             f"| {fmt_rate(mj)} | {fmt_ratio(k, mj)} | {fmt_ratio(k, get(s, 'numpy', 'rk4_step_s'))} "
             f"| {fmt_ratio(k, mm)} | {fmt_ratio(mm, mj)} |")
     out("")
-    out("## Cost per element and the memory-traffic bound\n")
-    out("Per-evaluation cost divided by (rods + tendons), in ns, for linearity; the bound is the "
-        "bytes one kernel evaluation must touch once, over the copy bandwidth of a DRAM-sized array "
-        "and of a copy of the same number of bytes (at least 1 MiB, so as not to time NumPy's call "
-        f"overhead; caches: {info.get('caches', '?')}).\n")
-    out("| shell | bytes / eval | bound, DRAM bw | bound, same-size copy bw | kernel in loop "
-        "| kernel / bound (same-size) | ns per (R+S): kernel | NumPy | mass matrix | MuJoCo step / 4 "
-        "| MuJoCo µs per (dof+tendon) per step |")
-    out("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
-    for s in sizes:
-        r = results.get((s, "kernel")) or results.get((s, "numpy")) or {}
-        R, S = r.get("R"), r.get("S")
-        if not R:
-            continue
+    out("## The memory-traffic bound\n")
+    out("The bound is the bytes one kernel evaluation must touch once (`kernel_bytes`: q, q', rod "
+        "and tendon indices and parameters, rest lengths, q'', tensions) over the bandwidth of a "
+        "NumPy copy: of a DRAM-sized array, and of a copy of the same number of bytes (at least "
+        "1 MiB, so as not to time NumPy's call overhead; caches: "
+        f"{info.get('caches', '?')}), on one thread and on {T} threads (one slice each; the "
+        "better of the two for the threaded bound). "
+        "Kernel times are one `evaluate(out=...)` call (Python call included).\n")
+    out("| shell | bytes / eval | bound: DRAM | bound: same-size copy | kernel | / DRAM bound "
+        f"| / same-size bound | bound, {T} threads: DRAM | same-size | kernel, {T} threads "
+        "| / DRAM bound | / same-size bound |")
+    out("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    for s, R, S in measured_sizes():
         nbytes = kernel_bytes(R, S)
-        b_dram = nbytes / bw["dram"]
-        b_cache = nbytes / bw["by_size"][f"{s[0]}x{s[1]}"]
-        k_loop = get(s, "kernel", "rk4_step_s")
-        k_eval = k_loop / 4 if k_loop else None
+        key = f"{s[0]}x{s[1]}"
+        bounds = (nbytes / bw["dram"], nbytes / bw["by_size"][key],
+                  nbytes / bw["dram_threads"], nbytes / bw["by_size_threads"][key])
+        k1, kt = get(s, "kernel", "rhs_out_s"), get(s, "kernel", "rhs_out_threaded_s")
+        x = lambda t, b: f"{t / b:.1f}×" if t else "—"  # noqa: E731
+        out(f"| {label(s)} | {nbytes / 1e6:.3f} MB | {fmt_time(bounds[0])} | {fmt_time(bounds[1])} "
+            f"| {fmt_time(k1)} | {x(k1, bounds[0])} | {x(k1, bounds[1])} "
+            f"| {fmt_time(bounds[2])} | {fmt_time(bounds[3])} | {fmt_time(kt)} "
+            f"| {x(kt, bounds[2])} | {x(kt, bounds[3])} |")
+    out("")
+    out("## Cost per element\n")
+    out("Per-evaluation cost divided by (rods + tendons), in ns, for linearity.\n")
+    out("| shell | kernel `evaluate(out=)` | kernel in the RK4 loop (step/4) "
+        f"| same, {T} threads | NumPy | mass matrix | MuJoCo step / 4 "
+        "| MuJoCo µs per (dof+tendon) per step |")
+    out("|---|---:|---:|---:|---:|---:|---:|---:|")
+    for s, R, S in measured_sizes():
         per = lambda t: "—" if not t else f"{t / (R + S) * 1e9:.1f}"  # noqa: E731
+        quarter = lambda t: t / 4 if t else None  # noqa: E731
         mj = get(s, "mujoco", "rk4_step_s")
-        out(f"| {label(s)} | {nbytes / 1e6:.3f} MB | {fmt_time(b_dram)} | {fmt_time(b_cache)} "
-            f"| {fmt_time(k_eval)} | {f'{k_eval / b_cache:.1f}×' if k_eval else '—'} "
-            f"| {per(k_eval)} | {per(get(s, 'numpy', 'rhs_s'))} | {per(get(s, 'massmatrix', 'rhs_s'))} "
-            f"| {per(mj / 4 if mj else None)} "
+        out(f"| {label(s)} | {per(get(s, 'kernel', 'rhs_out_s'))} "
+            f"| {per(quarter(get(s, 'kernel', 'rk4_step_s')))} "
+            f"| {per(quarter(get(s, 'kernel', 'rk4_step_threaded_s')))} "
+            f"| {per(get(s, 'numpy', 'rhs_s'))} | {per(get(s, 'massmatrix', 'rhs_s'))} "
+            f"| {per(quarter(mj))} "
             f"| {'—' if not mj else f'{mj / (6 * R + S) * 1e6:.2f}'} |")
     out("")
     out("## Peak memory and set-up cost\n")
@@ -654,6 +733,9 @@ def report(results: dict, sizes, info: dict, bw: dict, command: str, notes: list
         v = get(s, "kernel", "max_rel_diff_vs_numpy")
         if v is not None:
             parts.append(f"kernel vs NumPy accelerations {v:.1e} (relative)")
+        v = get(s, "kernel", "max_rel_diff_threaded_vs_numpy")
+        if v is not None:
+            parts.append(f"kernel on {T} threads vs NumPy {v:.1e}")
         v = get(s, "massmatrix", "max_rel_diff_vs_numpy")
         if v is not None:
             parts.append(f"mass matrix vs NumPy {v:.1e}")
@@ -687,6 +769,8 @@ def main(argv=None) -> int:
                              "compile time grows ~quadratically (6.5 min at 100x100) (default %(default)s)")
     parser.add_argument("--methods", default=",".join(METHODS),
                         help="comma-separated subset of " + ",".join(METHODS))
+    parser.add_argument("--threads", type=int, default=2,
+                        help="threads of the kernel's threaded columns (default %(default)s)")
     parser.add_argument("--output", default=str(HERE / "results.md"),
                         help="markdown report to write (default %(default)s); '-' for none")
     parser.add_argument("--budget", type=float, default=None, help=argparse.SUPPRESS)
@@ -697,7 +781,7 @@ def main(argv=None) -> int:
     sizes = [parse_size(x) for x in args.sizes.split(",") if x.strip()]
     budget = args.budget if args.budget is not None else (0.3 if args.quick else 1.5)
     if args.worker:
-        print(json.dumps(worker(args.worker, *sizes[0], budget, args.cold)))
+        print(json.dumps(worker(args.worker, *sizes[0], budget, args.cold, args.threads)))
         return 0
 
     methods = [x.strip() for x in args.methods.split(",") if x.strip()]
@@ -708,10 +792,16 @@ def main(argv=None) -> int:
         a if " " not in a else repr(a) for a in (argv if argv is not None else sys.argv[1:]))
 
     print(f"machine: {info['cpu']}, {info['cpus']} CPUs, load {info.get('load_before', '?')}", flush=True)
-    bw = {"dram_bytes": 512 * 2**20}
+    if args.threads < 1:
+        parser.error("--threads: must be >= 1")
+    bw = {"dram_bytes": 512 * 2**20, "threads": args.threads}
     bw["dram"] = copy_bandwidth(bw["dram_bytes"] // 2)
-    bw["by_size"] = {}
-    print(f"copy bandwidth (DRAM): {bw['dram'] / 1e9:.1f} GB/s", flush=True)
+    # (a bound on T threads may use one thread's bandwidth when T copies at once do worse)
+    bw["dram_threads"] = max(bw["dram"], copy_bandwidth(bw["dram_bytes"] // 2,
+                                                        threads=args.threads))
+    bw["by_size"], bw["by_size_threads"] = {}, {}
+    print(f"copy bandwidth (DRAM): {bw['dram'] / 1e9:.1f} GB/s, {args.threads} threads "
+          f"{bw['dram_threads'] / 1e9:.1f} GB/s", flush=True)
 
     results: dict = {}
     notes: list[str] = []
@@ -720,14 +810,17 @@ def main(argv=None) -> int:
         n, m = size
         R, S = 2 * n * m, n * (10 * m - 2)
         # (at least 1 MiB: smaller copies measure NumPy's call overhead, not the memory)
-        bw["by_size"][f"{n}x{m}"] = copy_bandwidth(max(kernel_bytes(R, S) // 2, 2**20 // 2))
+        same_size = max(kernel_bytes(R, S) // 2, 2**20 // 2)
+        bw["by_size"][f"{n}x{m}"] = copy_bandwidth(same_size)
+        bw["by_size_threads"][f"{n}x{m}"] = max(bw["by_size"][f"{n}x{m}"],
+                                                copy_bandwidth(same_size, threads=args.threads))
         for method in methods:
             if method == "mujoco" and (mujoco_max is None or 2 * n * m > 2 * mujoco_max[0] * mujoco_max[1]):
                 continue
             cold = method == "kernel" and not cold_done
             print(f"({n},{m}) {method} ...", end=" ", flush=True)
             t0 = time.perf_counter()
-            r = run_worker(method, size, budget, cold=cold)
+            r = run_worker(method, size, budget, cold=cold, threads=args.threads)
             cold_done |= cold and "error" not in r
             results[(size, method)] = r
             if "error" in r:

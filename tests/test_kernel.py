@@ -4,7 +4,9 @@ Random consistent states (every rod exactly ``L`` long, no rod-stretching veloci
 lengths with a third of the tendons slack and one at zero, random tendon and rod damping (so that
 some taut tendons have their tension clipped at zero), random external forces and gravity.  The
 compiled RK4 loop is compared with ``integrators.RK4`` driven by ``dynamics.evaluate`` and
-projected after every step, as ``simulate(method="rk4")`` does.
+projected after every step, as ``simulate(method="rk4")`` does.  The threaded evaluation
+(``FastKernel(..., threads=B)``) is held to the same tolerance, and its RK4 loop to the one-thread
+loop.
 """
 
 from __future__ import annotations
@@ -121,12 +123,13 @@ def _seed(case, *extra) -> int:
 # --------------------------------------------------------------------------- evaluate
 
 
+@pytest.mark.parametrize("threads", [1, 2, 3])
 @pytest.mark.parametrize("loads", ["none", "gravity", "external", "both"])
 @pytest.mark.parametrize("case", CASES)
-def test_evaluate_matches_numpy_reference(case, loads):
+def test_evaluate_matches_numpy_reference(case, loads, threads):
     rng = np.random.default_rng(_seed(case, loads))
     structure = _structure(case, rng)
-    kernel = FastKernel(structure)
+    kernel = FastKernel(structure, threads=threads)
     clipped_seen = 0
     for trial in range(4):
         q, qdot = random_consistent_state(structure, rng, speed=[0.5, 2.0, 5.0, 10.0][trial])
@@ -262,6 +265,41 @@ def test_rk4_loop_matches_python_rk4(case):
     assert np.array_equal(q_b, got.q) and np.array_equal(qdot_b, got.qdot)
 
 
+def _nodes_shared_between_blocks(structure, n_blocks) -> int:
+    """How many nodes get forces from tendons of more than one of the threaded path's blocks."""
+    S = structure.n_tendons
+    owners = [set() for _ in range(structure.n_nodes)]
+    for k in range(n_blocks):
+        for node in structure.tendon_nodes[k * S // n_blocks : (k + 1) * S // n_blocks].ravel():
+            owners[node].add(k)
+    return sum(len(o) > 1 for o in owners)
+
+
+@pytest.mark.parametrize("threads", [2, 3])
+@pytest.mark.parametrize("case", [CASES[2], CASES[5]])
+def test_threaded_rk4_matches_one_thread(case, threads):
+    """The threaded path (tendon forces summed per block, blocks summed in order) follows the
+    one-thread trajectory to round-off, and repeats itself bit for bit (no scheduling effect)."""
+    rng = np.random.default_rng(_seed(case, "threads"))
+    structure = _structure(case, rng)
+    assert _nodes_shared_between_blocks(structure, threads) > 0, "blocks do not overlap: no test"
+    q0, qdot0 = random_consistent_state(structure, rng, speed=3.0)
+    rest, _ = random_rest_lengths(structure, q0, rng)
+    w = 5.0 * rng.standard_normal((structure.n_nodes, 3))
+    g = np.array([0.2, -0.4, -9.81])
+    one = FastKernel(structure).rk4_with_work(q0, qdot0, 1e-4, 100, rest, w, g)
+    threaded = FastKernel(structure, threads=threads)
+    got = threaded.rk4_with_work(q0, qdot0, 1e-4, 100, rest, w, g)
+    again = threaded.rk4_with_work(q0, qdot0, 1e-4, 100, rest, w, g)
+
+    assert _rel(got.q, one.q) < TOL and _rel(got.qdot, one.qdot) < TOL
+    assert abs(got.dissipated_energy - one.dissipated_energy) < TOL * abs(one.dissipated_energy)
+    assert abs(got.external_work - one.external_work) < TOL * (abs(one.external_work) + 1e-3)
+    assert got.n_steps == one.n_steps == 100 and _rel(got.q, q0) > 1e-6
+    assert np.array_equal(again.q, got.q) and np.array_equal(again.qdot, got.qdot)
+    assert again.dissipated_energy == got.dissipated_energy
+
+
 def test_rk4_zero_steps_and_bad_arguments():
     structure = class1_shell(3, 1)
     kernel = FastKernel(structure)
@@ -273,6 +311,9 @@ def test_rk4_zero_steps_and_bad_arguments():
             kernel.rk4(state.q, state.qdot, dt, 1, structure.tendon_rest_length)
     with pytest.raises(ValueError, match="n_steps"):
         kernel.rk4(state.q, state.qdot, 1e-4, -1, structure.tendon_rest_length)
+    for threads in (0, 1.5, True):
+        with pytest.raises(ValueError, match="threads"):
+            FastKernel(structure, threads=threads)
 
 
 def test_rk4_stops_on_blow_up():
