@@ -138,3 +138,10 @@ def test_class_k_forms_carry_a_class2_shell_to_simulate(fmt, tmp_path, capsys):
     assert fixed.size and np.abs(nodes[:, fixed] - got.node_position[fixed]).max() < 1e-12
     gap = nodes[:, got.joint_nodes[:, 0]] - nodes[:, got.joint_nodes[:, 1]]
     assert np.abs(gap).max() < 1e-9 and np.abs(nodes[-1] - nodes[0]).max() > 1e-3
+
+
+def test_export_keep_joints_writes_the_structure_s_own_layout(tmp_path, capsys):
+    path = tmp_path / "s.yaml"
+    assert main(["export", "--kind", "class2-shell", "--fixed-base", "--keep-joints", "-o", str(path)]) == 0
+    assert read_network(path).to_dict() == generators.generate("class2-shell", fixed_base=True).to_dict()
+    assert "joints:" in path.read_text()

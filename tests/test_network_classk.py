@@ -212,3 +212,28 @@ def test_planar_connectivity_has_two_rows():
     again = from_connectivity(N, C_b, C_s, rod_mass=s.rod_mass, rod_length=s.rod_length,
                               tendon_rest_length=s.tendon_rest_length, tendon_name=s.tendon_name)
     assert again.to_dict() == s.to_dict()
+
+
+@pytest.mark.parametrize("suffix", SUFFIXES)
+@pytest.mark.parametrize("make", [lambda: class2_shell(3, 2, fixed_base=True), jointed_structure],
+                         ids=["class2-shell", "jointed"])
+def test_keep_joints_round_trips_jointed_structures_exactly(make, suffix, tmp_path):
+    """With keep_joints every rod keeps its end nodes and the joints are listed: identical."""
+    s = make()
+    path = tmp_path / f"s.{suffix}"
+    write_network(path, s, keep_joints=True)
+    assert read_network(path).to_dict() == s.to_dict()
+
+
+def test_joints_and_shared_nodes_combine():
+    """Explicit joint_nodes (pairs of N's nodes) join the first nodes of what they name."""
+    N, C_b, C_s = tripod_network()
+    N = np.hstack([N, N[:, [4]]])  # a second anchor on top of the first, joined to it
+    s = from_connectivity(N, np.hstack([C_b, np.zeros((3, 1))]), np.hstack([C_s, np.zeros((4, 1))]),
+                          tendon_rest_length=0.5, node_fixed=np.arange(6) >= 4, joint_nodes=[[5, 4]],
+                          ball_joints=True)
+    np.testing.assert_array_equal(s.joint_nodes, [[0, 1], [0, 2], [7, 6]])
+    with pytest.raises(ValueError, match=r"^joint_nodes\[1\]: node index 9 out of range \[0, 5\]"):
+        from_connectivity(N, np.hstack([C_b, np.zeros((3, 1))]), np.hstack([C_s, np.zeros((4, 1))]),
+                          tendon_rest_length=0.5, node_fixed=np.arange(6) >= 4, joint_nodes=[[5, 9]],
+                          ball_joints=True)

@@ -87,6 +87,7 @@ NPZ_ARRAYS = {
     "plane_normal": (False, "(P, 3) the planes' normals"),
     "line_nodes": (False, "(Q,) int, nodes held on a line through their position"),
     "line_direction": (False, "(Q, d) the lines' directions"),
+    "joint_nodes": (False, "(J, 2) int, pairs of nodes joined by a ball joint (besides shared nodes)"),
 }
 
 _ROD_KEYS = ("mass", "length", "damping")
@@ -204,6 +205,7 @@ def from_connectivity(
     plane_normal: Any = None,
     line_nodes: Any = None,
     line_direction: Any = None,
+    joint_nodes: Any = None,
     ball_joints: bool = False,
 ) -> Structure:
     """A :class:`Structure` from the node matrix and the connectivity matrices.
@@ -238,6 +240,9 @@ def from_connectivity(
         Nodes held on the plane through their position in ``N`` with the given normal.
     line_nodes, line_direction : (Q,) int and (Q, d), optional
         Nodes held on the line through their position in ``N`` along the given direction.
+    joint_nodes : (J, 2) int, optional
+        Pairs of (coinciding) nodes joined by a ball joint besides the shared nodes: rods that
+        keep their own end nodes (``Structure.joint_nodes``), as the JSON form has them.
     ball_joints : bool
         Take a class k network: a node shared by ``k`` bars becomes ``k`` rod-end nodes joined
         by a ball joint (``Structure.joint_nodes``), and a point mass on a bar's node its own
@@ -318,7 +323,7 @@ def from_connectivity(
         tendon_nodes=start[tendons],
         node_fixed=split_fixed,
         node_point_mass=split_mass,
-        joint_nodes=_star_joints(start, parts),
+        joint_nodes=np.vstack([_star_joints(start, parts), start[_node_pairs(joint_nodes, n_nodes)]]),
         plane_nodes=start[_node_list(plane_nodes, "plane_nodes", n_nodes)],
         plane_normal=plane_normal,
         line_nodes=start[_node_list(line_nodes, "line_nodes", n_nodes)],
@@ -331,6 +336,14 @@ def from_connectivity(
         tendon_damping=_per_member(tendon_damping, S, "tendon_damping"),
         tendon_name=None if tendon_name is None else tuple(tendon_name),
     )
+
+
+def _node_pairs(value: Any, n_nodes: int) -> np.ndarray:
+    """``joint_nodes`` of :func:`from_connectivity` as a (J, 2) array of node indices."""
+    pairs = np.asarray(np.zeros((0, 2)) if value is None else value)
+    if pairs.ndim != 2 or pairs.shape[1] != 2:
+        raise ValueError(f"joint_nodes: expected shape (J, 2) of node indices, got {pairs.shape}")
+    return _node_list(pairs.ravel(), "joint_nodes", n_nodes).reshape(-1, 2)
 
 
 def _split_rod_ends(rods: np.ndarray, first_end: np.ndarray) -> np.ndarray:
@@ -378,14 +391,17 @@ class MergedNodes(NamedTuple):
     plane_normal: np.ndarray
     line_nodes: np.ndarray
     line_direction: np.ndarray
+    joint_nodes: np.ndarray
 
 
-def merge_joints(structure: Structure) -> MergedNodes:
+def merge_joints(structure: Structure, *, keep_joints: bool = False) -> MergedNodes:
     """Merge every group of nodes joined by ball joints (``joint_nodes``) into one node.
 
     Merged nodes are numbered in the order of each group's lowest node and take that node's
     position and velocity; a group is fixed if any of its nodes is, its point mass is the sum of
     theirs.  The inverse of the split of :func:`from_connectivity` with ``ball_joints=True``.
+    With ``keep_joints`` nothing is merged (``node_map`` is the identity) and the joints stay
+    in ``joint_nodes``, as :func:`from_connectivity` takes them: the structure's own layout.
 
     Raises
     ------
@@ -399,7 +415,7 @@ def merge_joints(structure: Structure) -> MergedNodes:
     n = structure.n_nodes
     joints = structure.joint_nodes
     graph = coo_matrix((np.ones(joints.shape[0]), (joints[:, 0], joints[:, 1])), shape=(n, n))
-    _, label = connected_components(graph, directed=False)
+    label = np.arange(n) if keep_joints else connected_components(graph, directed=False)[1]
     lowest = np.full(label.max() + 1, n)
     np.minimum.at(lowest, label, np.arange(n))
     order = np.argsort(lowest)
@@ -432,6 +448,7 @@ def merge_joints(structure: Structure) -> MergedNodes:
         plane_normal=structure.plane_normal.copy(),
         line_nodes=node_map[structure.line_nodes],
         line_direction=structure.line_direction.copy(),
+        joint_nodes=(joints if keep_joints else np.zeros((0, 2), np.int64)).copy(),
     )
 
 
@@ -443,7 +460,10 @@ def to_connectivity(structure: Structure) -> Connectivity:
     ball_joints=True)`` gives back a structure with the same ``N, C_b, C_s``.  Supports, point
     masses and plane/line constraints are in :func:`merge_joints`.
     """
-    merged = merge_joints(structure)
+    return _connectivity(structure, merge_joints(structure))
+
+
+def _connectivity(structure: Structure, merged: MergedNodes) -> Connectivity:
     n = merged.N.shape[1]
     return Connectivity(
         merged.N,
@@ -454,11 +474,12 @@ def to_connectivity(structure: Structure) -> Connectivity:
 
 # -------------------------------------------------------------------- readable form
 #: Optional support keys of the readable form (as in :meth:`Structure.to_dict`): key -> the
-#: vector each item carries (``None``: a plain list of nodes; ``"mass"`` a number).
-_SUPPORT_KEYS = {"fixed": None, "point_masses": "mass", "planes": "normal", "lines": "direction"}
+#: value each ``{node, ...}`` item carries (``None``: a plain list of nodes, or of node pairs).
+_SUPPORT_KEYS = {"fixed": None, "point_masses": "mass", "planes": "normal", "lines": "direction",
+                 "joints": None}
 
 
-def network_to_dict(structure: Structure) -> dict[str, Any]:
+def network_to_dict(structure: Structure, *, keep_joints: bool = False) -> dict[str, Any]:
     """The readable form (for YAML and TOML): named nodes, shared parameters under ``defaults``.
 
     ``{"format": "tensegrity-network", "version": 1, "nodes": {"n0": [x, y, z], ...},
@@ -467,11 +488,12 @@ def network_to_dict(structure: Structure) -> dict[str, Any]:
     (these four only when present, as in :meth:`Structure.to_dict`), "defaults": {"rod": {...},
     "tendon": {...}}, "rods": [{"nodes": ["n0", "n1"], ...}], "tendons": [{"name", "nodes",
     ...}]}``.  Joined nodes are one node shared by their rods (the class k convention,
-    :func:`merge_joints`); a planar structure has ``[x, y]`` nodes.  A parameter shared by every
+    :func:`merge_joints`), or with ``keep_joints`` the structure's own nodes and ``"joints":
+    [["n1", "n2"], ...]``; a planar structure has ``[x, y]`` nodes.  A parameter shared by every
     rod (tendon) is written once under ``defaults``, the others per member.  Floats keep their
     shortest round-trip form, so reading it back is exact.
     """
-    merged = merge_joints(structure)
+    merged = merge_joints(structure, keep_joints=keep_joints)
     names = [f"n{i}" for i in range(merged.N.shape[1])]
     data: dict[str, Any] = {
         "format": NETWORK_FORMAT,
@@ -490,6 +512,8 @@ def network_to_dict(structure: Structure) -> dict[str, Any]:
     ):
         if nodes.size:
             data[key] = [{"node": names[i], _SUPPORT_KEYS[key]: v.tolist()} for i, v in zip(nodes, values)]
+    if merged.joint_nodes.size:
+        data["joints"] = [[names[a], names[b]] for a, b in merged.joint_nodes]
     rods, tendons = merged.node_map[structure.rod_nodes], merged.node_map[structure.tendon_nodes]
     defaults: dict[str, dict[str, float]] = {"rod": {}, "tendon": {}}
     members = {"rod": [{"nodes": [names[a], names[b]]} for a, b in rods],
@@ -623,6 +647,13 @@ def _supports(data: Mapping[str, Any], index: Mapping[Any, int], dim: int) -> di
         fixed = np.zeros(len(index), bool)
         fixed[[_node_ref(end, f"fixed[{k}]", index) for k, end in enumerate(nodes)]] = True
         out["node_fixed"] = fixed
+    if data.get("joints") is not None:
+        pairs = data["joints"]
+        if not isinstance(pairs, Sequence) or isinstance(pairs, str):
+            raise ValueError(f"joints: expected a list of node pairs, got {type(pairs).__name__}")
+        out["joint_nodes"] = np.array(
+            [[_node_ref(end, f"joints[{k}]", index) for end in _pair(pair, f"joints[{k}]")]
+             for k, pair in enumerate(pairs)], dtype=np.int64).reshape(-1, 2)
     for key, (nodes_field, value_field) in (("point_masses", ("node_point_mass", None)),
                                             ("planes", ("plane_nodes", "plane_normal")),
                                             ("lines", ("line_nodes", "line_direction"))):
@@ -700,14 +731,19 @@ def _members(value: Any, kind: str, keys: Sequence[str], index: Mapping[Any, int
         _only(item, keys, label)
         if "nodes" not in item:
             raise ValueError(f"{label}: missing key 'nodes'")
-        ends = item["nodes"]
-        if not isinstance(ends, Sequence) or isinstance(ends, str) or len(ends) != 2:
-            raise ValueError(f"{label}.nodes: expected two node references, got {ends!r:.80}")
+        ends = _pair(item["nodes"], f"{label}.nodes")
         pair = [_node_ref(end, f"{label}.nodes", index) for end in ends]
         if pair[0] == pair[1]:
             raise ValueError(f"{label}.nodes: joins node {ends[0]!r} to itself")
         out.append((tuple(pair), item))
     return out
+
+
+def _pair(ends: Any, where: str) -> Sequence[Any]:
+    """A list of two node references of the readable form."""
+    if not isinstance(ends, Sequence) or isinstance(ends, str) or len(ends) != 2:
+        raise ValueError(f"{where}: expected two node references, got {ends!r:.80}")
+    return ends
 
 
 def _node_ref(end: Any, where: str, index: Mapping[Any, int]) -> int:
@@ -798,12 +834,17 @@ def _from_npz(raw: bytes) -> Structure:
                              tuple(str(x) for x in names), ball_joints=True, **arrays)
 
 
-def write_network(path: PathLike, structure: Structure, *, format: str | None = None) -> Path:
+def write_network(path: PathLike, structure: Structure, *, format: str | None = None,
+                  keep_joints: bool = False) -> Path:
     """Write ``structure`` in any format (by suffix, or ``format``), atomically.
 
     ``json``: :meth:`Structure.to_dict`; ``yaml``/``toml``: :func:`network_to_dict`;
     ``connectivity``: ``.npz`` of :data:`NPZ_ARRAYS`; ``mjcf``: :func:`tensegrity.mjcf.to_mjcf`.
-    Every format but MJCF reads back to an identical structure.
+    The readable and connectivity forms merge joined nodes (class k), or with ``keep_joints``
+    keep every rod's end nodes and list the joints.  JSON, and every form with ``keep_joints``
+    or for a structure without joints, reads back to an identical structure; a jointed
+    structure written merged reads back with the same ``N, C_b, C_s``, supports and parameters
+    in the layout of :func:`from_connectivity` (see ``docs/networks.md``).
     """
     kind = _format(path, format)
     if kind == "json":
@@ -815,18 +856,19 @@ def write_network(path: PathLike, structure: Structure, *, format: str | None = 
     with atomic_path(path) as tmp:
         if kind == "connectivity":
             with open(tmp, "wb") as f:
-                np.savez(f, **_npz_arrays(structure))
+                np.savez(f, **_npz_arrays(structure, keep_joints))
         else:
-            tmp.write_text(_dump_text(structure, kind), encoding="utf-8")
+            tmp.write_text(_dump_text(structure, kind, keep_joints), encoding="utf-8")
     return Path(path)
 
 
-def _npz_arrays(structure: Structure) -> dict[str, np.ndarray]:
-    N, C_b, C_s = to_connectivity(structure)
-    merged = merge_joints(structure)
+def _npz_arrays(structure: Structure, keep_joints: bool) -> dict[str, np.ndarray]:
+    merged = merge_joints(structure, keep_joints=keep_joints)
+    N, C_b, C_s = _connectivity(structure, merged)
     supports = {"node_fixed": merged.node_fixed.any(), "node_point_mass": merged.node_point_mass.any(),
                 "plane_nodes": merged.plane_nodes.size, "plane_normal": merged.plane_nodes.size,
-                "line_nodes": merged.line_nodes.size, "line_direction": merged.line_nodes.size}
+                "line_nodes": merged.line_nodes.size, "line_direction": merged.line_nodes.size,
+                "joint_nodes": merged.joint_nodes.size}
     return {
         "N": N, "C_b": C_b, "C_s": C_s, "node_velocity": merged.node_velocity,
         "rod_mass": structure.rod_mass, "rod_length": structure.rod_length,
@@ -837,10 +879,10 @@ def _npz_arrays(structure: Structure) -> dict[str, np.ndarray]:
     } | {name: getattr(merged, name) for name, present in supports.items() if present}
 
 
-def _dump_text(structure: Structure, kind: str) -> str:
-    data = network_to_dict(structure)
+def _dump_text(structure: Structure, kind: str, keep_joints: bool) -> str:
+    data = network_to_dict(structure, keep_joints=keep_joints)
     joined = (f" (the structure's {structure.n_nodes}, joined nodes merged: a node of k rods is a "
-              "ball joint)" if structure.joint_nodes.size else "")
+              "ball joint)" if structure.joint_nodes.size and not keep_joints else "")
     header = (f"# {len(data['nodes'])} nodes{joined}, {structure.n_rods} rods (bars), "
               f"{structure.n_tendons} tendons (strings); SI units\n")
     if kind == "toml":
