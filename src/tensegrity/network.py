@@ -246,9 +246,10 @@ def from_connectivity(
     ball_joints : bool
         Take a class k network: a node shared by ``k`` bars becomes ``k`` rod-end nodes joined
         by a ball joint (``Structure.joint_nodes``), and a point mass on a bar's node its own
-        node joined to the bar's end.  Node ``i`` becomes consecutive nodes (the ends of its
-        bars in bar order, then its point mass); strings, support and plane/line constraints go
-        to the first, the end of the lowest-numbered bar.  A class 1 network keeps its node
+        node joined to the bar's end.  Node ``i`` becomes consecutive nodes (an anchor if it is
+        fixed and in no bar, the ends of its bars in bar order, then its point mass); strings,
+        support and plane/line constraints go to the first, the end of the lowest-numbered
+        bar if it has bars.  A class 1 network keeps its node
         numbering.  Default ``False``: a node in two bars is an error.
 
     Raises
