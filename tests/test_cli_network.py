@@ -115,15 +115,33 @@ def test_force_table_for_another_structure_is_refused(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("fmt", ["yaml", "toml", "connectivity"])
-def test_forms_without_supports_refuse_a_class2_shell(fmt, tmp_path, capsys):
-    """The readable and connectivity forms hold free class 1 structures only: a class 2 shell's
-    joints would be lost, so the export refuses it (one line, nothing written); JSON keeps them."""
+def test_class_k_forms_carry_a_class2_shell_to_simulate(fmt, tmp_path, capsys):
+    """The readable and connectivity forms write the fixed-base class 2 shell with shared nodes
+    (class k) and a fixed base; the file reads back to the same N, C_b, C_s and supports, and
+    simulate takes it (the base stays put, the joints hold)."""
+    from tensegrity.network import merge_joints, to_connectivity
+
     path = tmp_path / f"s{FORMATS[fmt]}"
-    assert main(["export", "--kind", "class2-shell", "--fixed-base", "-o", str(path)]) == 2
-    err = capsys.readouterr().err.strip()
-    assert "\n" not in err and "free 3-D class 1" in err and f"{fmt} form" in err
-    assert not path.exists() and not list(tmp_path.iterdir())
-    json_path = tmp_path / "s.json"
-    assert main(["export", "--kind", "class2-shell", "--fixed-base", "-o", str(json_path)]) == 0
-    assert read_network(json_path).to_dict() == generators.generate(
-        "class2-shell", fixed_base=True).to_dict()
+    assert main(["export", "--kind", "class2-shell", "--fixed-base", "-o", str(path)]) == 0
+    expected = generators.generate("class2-shell", fixed_base=True)
+    got = read_network(path)
+    for a, b in zip(to_connectivity(got), to_connectivity(expected)):
+        np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(merge_joints(got).node_fixed, merge_joints(expected).node_fixed)
+    out = tmp_path / "run"
+    capsys.readouterr()
+    assert main(["simulate", "--structure", str(path), "--t-end", "0.1", "--no-steady-state",
+                 "--sample-dt", "0.05", "--out", str(out)]) == 0
+    nodes = read_trajectory(out / "trajectory.h5").nodes
+    assert nodes.shape == (3, got.n_nodes, 3)
+    fixed = np.flatnonzero(got.node_fixed)
+    assert fixed.size and np.abs(nodes[:, fixed] - got.node_position[fixed]).max() < 1e-12
+    gap = nodes[:, got.joint_nodes[:, 0]] - nodes[:, got.joint_nodes[:, 1]]
+    assert np.abs(gap).max() < 1e-9 and np.abs(nodes[-1] - nodes[0]).max() > 1e-3
+
+
+def test_export_keep_joints_writes_the_structure_s_own_layout(tmp_path, capsys):
+    path = tmp_path / "s.yaml"
+    assert main(["export", "--kind", "class2-shell", "--fixed-base", "--keep-joints", "-o", str(path)]) == 0
+    assert read_network(path).to_dict() == generators.generate("class2-shell", fixed_base=True).to_dict()
+    assert "joints:" in path.read_text()

@@ -293,7 +293,7 @@ def _cmd_export(args: argparse.Namespace) -> int:
     if not args.output.parent.is_dir():
         raise CommandError(f"--output: folder {args.output.parent} does not exist")
     fmt = args.format or FORMATS.get(args.output.suffix.lower(), "json")
-    write_network(args.output, structure, format=fmt)
+    write_network(args.output, structure, format=fmt, keep_joints=args.keep_joints)
     print(f"wrote {args.output} ({fmt}: {structure.n_nodes} nodes, {structure.n_rods} rods, "
           f"{structure.n_tendons} tendons)")
     return 0
@@ -530,6 +530,10 @@ def build_parser() -> argparse.ArgumentParser:
     export.add_argument("--format", choices=("json", "yaml", "toml", "connectivity", "mjcf"),
                         help="file format (default: from the suffix .json .yaml .toml .npz .xml, "
                              "else json)")
+    export.add_argument("--keep-joints", action="store_true",
+                        help="yaml/toml/connectivity: keep every rod's end nodes and list the ball "
+                             "joints (reads back identical) instead of merging joined nodes into "
+                             "nodes shared by bars (class k, the default)")
     export.add_argument("-o", "--output", type=Path, required=True, help="output file")
     export.set_defaults(run=_cmd_export)
 

@@ -1,23 +1,30 @@
-"""Any class 1 network: the field's ``N, C_b, C_s`` convention, and readable YAML / TOML files.
+"""Any network (class 1 or class k): the field's ``N, C_b, C_s`` convention, readable YAML / TOML.
 
 Conventions (Skelton & de Oliveira, *Tensegrity Systems*, 2009, ch. 2)
 ---------------------------------------------------------------------
-- ``N`` is the **3 x n** node matrix: column ``i`` is node ``i``'s position [m].
+- ``N`` is the **3 x n** node matrix: column ``i`` is node ``i``'s position [m] (**2 x n**:
+  a planar structure).
 - ``C_b`` (bars x n) and ``C_s`` (strings x n) are connectivity matrices: row ``k`` has exactly
   one ``-1`` (the member's tail node) and one ``+1`` (its head node), zeros elsewhere, so the
   member vectors are the columns of ``B = N C_b^T`` and ``S = N C_s^T`` (head minus tail).
 - Bars are the library's rods (``Structure.rod_nodes[k] = (tail, head)``), strings its tendons
   (``Structure.tendon_nodes[k] = (tail, head)``): the same orientation as
   :class:`~tensegrity.structure.Structure`.  A class 1 structure has every node at the end of
-  exactly one bar; a node shared by two bars is a class 2 joint.
+  exactly one bar; a node shared by ``k`` bars is a class k ball joint, which the library holds
+  as joined rod ends (``Structure.joint_nodes``): :func:`from_connectivity` with
+  ``ball_joints=True`` splits such a node, :func:`to_connectivity` (:func:`merge_joints`) merges
+  joined nodes back into one.
 
 File formats (:func:`read_network`, :func:`write_network`, chosen by the file's suffix)
 --------------------------------------------------------------------------------------
 - ``.json``: the JSON form of :meth:`Structure.to_dict`.
 - ``.yaml`` / ``.yml`` and ``.toml``: the readable form of :func:`network_to_dict` (named nodes,
-  shared parameters under ``defaults``, rest length or prestrain per tendon).
-- ``.npz``: the connectivity form, arrays ``N``, ``C_b``, ``C_s`` and per-member parameters
-  (:data:`NPZ_ARRAYS`).
+  shared parameters under ``defaults``, rest length or prestrain per tendon, supports).
+- ``.npz``: the connectivity form, arrays ``N``, ``C_b``, ``C_s``, per-member parameters and
+  supports (:data:`NPZ_ARRAYS`).
+- The readable and connectivity forms are class k (joined nodes merged, supports on merged
+  nodes): a structure without joints reads back identical, a jointed one with the same
+  ``N, C_b, C_s``, supports and parameters in the layout of :func:`from_connectivity`.
 - ``.xml`` (write only): MuJoCo MJCF (:func:`tensegrity.mjcf.to_mjcf`).
 
 SI units throughout: m, kg, s, N.
@@ -43,7 +50,7 @@ from tensegrity.io import (
     read_structure,
     write_structure,
 )
-from tensegrity.structure import Structure, _number, _vector
+from tensegrity.structure import Structure, _dimension, _number, _vector
 
 #: Format name of each file suffix.
 FORMATS = {
@@ -62,7 +69,7 @@ DEFAULT_ROD_MASS = 1.0
 DEFAULT_STIFFNESS = 100.0
 #: Arrays of the connectivity file (``.npz``): name -> (required, meaning).
 NPZ_ARRAYS = {
-    "N": (True, "(3, n) node positions [m], one column per node"),
+    "N": (True, "(d, n) node positions [m], one column per node (d = 3, or 2: planar)"),
     "C_b": (True, "(R, n) bar connectivity, -1 at the tail and +1 at the head of each row"),
     "C_s": (True, "(S, n) string connectivity, same rule"),
     "rod_mass": (False, f"(R,) [kg], default {DEFAULT_ROD_MASS}"),
@@ -73,7 +80,14 @@ NPZ_ARRAYS = {
     "tendon_prestrain": (False, "(S,) strain (l - L0) / L0 in N"),
     "tendon_damping": (False, "(S,) [N s/m], default 0"),
     "tendon_name": (False, "(S,) unicode names"),
-    "node_velocity": (False, "(3, n) [m/s], default 0"),
+    "node_velocity": (False, "(d, n) [m/s], default 0"),
+    "node_fixed": (False, "(n,) bool, nodes held at their position (supports, anchors)"),
+    "node_point_mass": (False, "(n,) [kg], a point mass at a node (> 0), default 0"),
+    "plane_nodes": (False, "(P,) int, nodes held on a plane through their position"),
+    "plane_normal": (False, "(P, 3) the planes' normals"),
+    "line_nodes": (False, "(Q,) int, nodes held on a line through their position"),
+    "line_direction": (False, "(Q, d) the lines' directions"),
+    "joint_nodes": (False, "(J, 2) int, pairs of nodes joined by a ball joint (besides shared nodes)"),
 }
 
 _ROD_KEYS = ("mass", "length", "damping")
@@ -125,26 +139,18 @@ def member_nodes(C: Any, field: str, n_nodes: int) -> np.ndarray:
     return np.column_stack([tails.argmax(1), heads.argmax(1)]).astype(np.int64)
 
 
-def check_class1(rod_nodes: np.ndarray, n_nodes: int, *, member: str = "bars") -> None:
-    """Every node at the end of exactly one bar, or a ``ValueError`` that says what it is instead.
-
-    Checks ``rod_nodes`` (R, 2) before :class:`Structure` does, in the field's words: a node in
-    two bars is a class 2 joint, a node in none a massless string node.
-    """
+def check_class1(rod_nodes: np.ndarray, n_nodes: int) -> None:
+    """No node at the end of two bars, or a ``ValueError`` that says what it is instead (a
+    class 2 joint, which :func:`from_connectivity` takes with ``ball_joints=True``)."""
     count = np.bincount(rod_nodes.ravel(), minlength=n_nodes)
     shared = np.flatnonzero(count > 1)
     if shared.size:
         node = shared[0]
         bars = np.flatnonzero(np.any(rod_nodes == node, axis=1)).tolist()
         raise ValueError(
-            f"{member}: node {node} is an end of {member} {bars}; bars that share a node form a "
-            "class 2 joint, which needs the class 2 joint model, not a class 1 structure"
-        )
-    free = np.flatnonzero(count == 0)
-    if free.size:
-        raise ValueError(
-            f"nodes[{free[0]}]: belongs to no bar; in a class 1 structure every node is the end "
-            "of exactly one bar (a node of strings only would need a point mass)"
+            f"bars: node {node} is an end of bars {bars}; bars that share a node form a "
+            "class 2 joint, not a class 1 structure (pass ball_joints=True to join their ends "
+            "by a ball joint)"
         )
 
 
@@ -167,6 +173,18 @@ def rest_from_prestrain(length: np.ndarray, prestrain: Any, field: str = "tendon
     return length / (1.0 + eps)
 
 
+def _node_list(value: Any, field: str, n_nodes: int) -> np.ndarray:
+    """A 1-D array of node indices in ``[0, n_nodes)`` (``None``: empty)."""
+    array = np.asarray([] if value is None else value)
+    if array.ndim != 1 or (array.size and not np.all(np.mod(array, 1) == 0)):
+        raise ValueError(f"{field}: expected a list of node indices, got shape {array.shape}")
+    array = array.astype(np.int64)
+    bad = np.flatnonzero((array < 0) | (array >= n_nodes))
+    if bad.size:
+        raise ValueError(f"{field}[{bad[0]}]: node index {array[bad[0]]} out of range [0, {n_nodes - 1}]")
+    return array
+
+
 def from_connectivity(
     N: Any,
     C_b: Any,
@@ -181,14 +199,22 @@ def from_connectivity(
     tendon_damping: Any = 0.0,
     tendon_name: Sequence[str] | None = None,
     node_velocity: Any = None,
+    node_fixed: Any = None,
+    node_point_mass: Any = None,
+    plane_nodes: Any = None,
+    plane_normal: Any = None,
+    line_nodes: Any = None,
+    line_direction: Any = None,
+    joint_nodes: Any = None,
+    ball_joints: bool = False,
 ) -> Structure:
-    """A class 1 :class:`Structure` from the node matrix and the connectivity matrices.
+    """A :class:`Structure` from the node matrix and the connectivity matrices.
 
     Parameters
     ----------
-    N : array_like, shape (3, n)
+    N : array_like, shape (3, n) or (2, n)
         Node matrix [m], one column per node (Skelton & de Oliveira's convention; pass ``N.T``
-        for an (n, 3) array of positions).
+        for an (n, 3) array of positions).  Two rows: a planar structure.
     C_b : array_like, shape (R, n)
         Bar connectivity: row ``k`` has ``-1`` at the tail node, ``+1`` at the head node.
     C_s : array_like, shape (S, n)
@@ -204,25 +230,44 @@ def from_connectivity(
         configuration ``N`` (``eps > 0``: taut).
     tendon_name : sequence of str, optional
         Default ``"s0", "s1", ...``.
-    node_velocity : array_like, shape (3, n), optional
+    node_velocity : array_like, shape (d, n), optional
         Initial node velocities [m/s], one column per node.
+    node_fixed : array_like of bool, shape (n,), optional
+        Nodes held at their position in ``N`` (supports; a fixed node in no bar is an anchor).
+    node_point_mass : float or (n,), optional
+        Point masses [kg] at nodes (> 0), default 0.  A node in no bar must be fixed or carry one.
+    plane_nodes, plane_normal : (P,) int and (P, 3), optional
+        Nodes held on the plane through their position in ``N`` with the given normal.
+    line_nodes, line_direction : (Q,) int and (Q, d), optional
+        Nodes held on the line through their position in ``N`` along the given direction.
+    joint_nodes : (J, 2) int, optional
+        Pairs of (coinciding) nodes joined by a ball joint besides the shared nodes: rods that
+        keep their own end nodes (``Structure.joint_nodes``), as the JSON form has them.
+    ball_joints : bool
+        Take a class k network: a node shared by ``k`` bars becomes ``k`` rod-end nodes joined
+        by a ball joint (``Structure.joint_nodes``), and a point mass on a bar's node its own
+        node joined to the bar's end.  Node ``i`` becomes consecutive nodes (an anchor if it is
+        fixed and in no bar, the ends of its bars in bar order, then its point mass); strings,
+        support and plane/line constraints go to the first, the end of the lowest-numbered
+        bar if it has bars.  A class 1 network keeps its node
+        numbering.  Default ``False``: a node in two bars is an error.
 
     Raises
     ------
     ValueError
         Naming the field: ``N``, ``C_b[k]``, ``C_s``, ``bars`` (a node in two bars: a class 2
-        joint), ``C_b[k]: zero length``, ``nodes[i]`` (a node in no bar), the parameters.
+        joint, without ``ball_joints``), ``C_b[k]: zero length``, ``nodes[i]`` (a node in no
+        bar, neither fixed nor a point mass), the parameters.
     """
     N = np.asarray(N, dtype=float)
-    if N.ndim != 2 or N.shape[0] != 3:
-        hint = " (one column per node: pass N.T for positions in rows)" if N.ndim == 2 and N.shape[1] == 3 else ""
-        raise ValueError(f"N: expected shape (3, n), got {N.shape}{hint}")
+    if N.ndim != 2 or N.shape[0] not in (2, 3):
+        hint = " (one column per node: pass N.T for positions in rows)" if N.ndim == 2 and N.shape[1] in (2, 3) else ""
+        raise ValueError(f"N: expected shape (3, n) or (2, n), got {N.shape}{hint}")
     if not np.all(np.isfinite(N)):
         raise ValueError(f"N[:, {int(np.argwhere(~np.isfinite(N))[0, 1])}]: must be finite")
     n_nodes = N.shape[1]
     rods = member_nodes(C_b, "C_b", n_nodes)
     tendons = member_nodes(C_s, "C_s", n_nodes)
-    check_class1(rods, n_nodes)
     position = N.T
     length = np.linalg.norm(position[rods[:, 1]] - position[rods[:, 0]], axis=1)
     zero = np.flatnonzero(length == 0)
@@ -242,19 +287,82 @@ def from_connectivity(
         if velocity.shape != N.shape:
             raise ValueError(f"node_velocity: expected shape {N.shape} like N, got {velocity.shape}")
         velocity = velocity.T
+    fixed = np.zeros(n_nodes, bool) if node_fixed is None else np.asarray(node_fixed)
+    if fixed.shape != (n_nodes,) or fixed.dtype != bool:
+        raise ValueError(f"node_fixed: expected {n_nodes} booleans, got {fixed.dtype} of shape {fixed.shape}")
+    mass = _per_member(0.0 if node_point_mass is None else node_point_mass, n_nodes, "node_point_mass")
+    bad = np.flatnonzero(~np.isfinite(mass) | (mass < 0))
+    if bad.size:
+        raise ValueError(f"node_point_mass[{bad[0]}]: must be finite and >= 0, got {mass[bad[0]]}")
+    count = np.bincount(rods.ravel(), minlength=n_nodes)
+    if not ball_joints:
+        check_class1(rods, n_nodes)
+    free = np.flatnonzero((count == 0) & ~fixed & (mass == 0))
+    if free.size:
+        raise ValueError(f"nodes[{free[0]}]: belongs to no bar; fix it (node_fixed) or give it a mass "
+                         "(node_point_mass): a massless free node has no dynamics")
+    anchor = ((count == 0) & fixed).astype(np.int64)
+    has_mass = (mass > 0).astype(np.int64)
+    parts = anchor + count + has_mass
+    if not ball_joints:
+        both = np.flatnonzero(parts > 1)
+        if both.size:
+            i = both[0]
+            where = (f"an end of bars {np.flatnonzero(np.any(rods == i, axis=1)).tolist()}"
+                     if count[i] else "fixed")
+            raise ValueError(f"node_point_mass[{i}]: node {i} is {where}; a point mass there needs "
+                             "ball_joints=True (it becomes its own node, joined to that one)")
+    start = np.cumsum(parts) - parts  # the first node of each node of N
+    split_fixed = np.zeros(int(parts.sum()), bool)
+    split_fixed[start[fixed]] = True
+    split_mass = np.zeros(split_fixed.size)
+    split_mass[(start + anchor + count)[mass > 0]] = mass[mass > 0]
     return Structure(
-        node_position=position,
-        node_velocity=velocity,
-        rod_nodes=rods,
+        node_position=np.repeat(position, parts, axis=0),
+        node_velocity=None if velocity is None else np.repeat(velocity, parts, axis=0),
+        rod_nodes=_split_rod_ends(rods, start + anchor),
+        tendon_nodes=start[tendons],
+        node_fixed=split_fixed,
+        node_point_mass=split_mass,
+        joint_nodes=np.vstack([_star_joints(start, parts), start[_node_pairs(joint_nodes, n_nodes)]]),
+        plane_nodes=start[_node_list(plane_nodes, "plane_nodes", n_nodes)],
+        plane_normal=plane_normal,
+        line_nodes=start[_node_list(line_nodes, "line_nodes", n_nodes)],
+        line_direction=line_direction,
         rod_mass=_per_member(rod_mass, R, "rod_mass"),
         rod_length=length if rod_length is None else _per_member(rod_length, R, "rod_length"),
         rod_damping=_per_member(rod_damping, R, "rod_damping"),
-        tendon_nodes=tendons,
         tendon_stiffness=_per_member(tendon_stiffness, S, "tendon_stiffness"),
         tendon_rest_length=rest,
         tendon_damping=_per_member(tendon_damping, S, "tendon_damping"),
         tendon_name=None if tendon_name is None else tuple(tendon_name),
     )
+
+
+def _node_pairs(value: Any, n_nodes: int) -> np.ndarray:
+    """``joint_nodes`` of :func:`from_connectivity` as a (J, 2) array of node indices."""
+    pairs = np.asarray(np.zeros((0, 2)) if value is None else value)
+    if pairs.ndim != 2 or pairs.shape[1] != 2:
+        raise ValueError(f"joint_nodes: expected shape (J, 2) of node indices, got {pairs.shape}")
+    return _node_list(pairs.ravel(), "joint_nodes", n_nodes).reshape(-1, 2)
+
+
+def _split_rod_ends(rods: np.ndarray, first_end: np.ndarray) -> np.ndarray:
+    """Rod-end nodes (R, 2) after a split: the ends at node ``i`` are nodes ``first_end[i]``,
+    ``first_end[i] + 1``, ... in bar order (a bar's tail before its head)."""
+    ends = rods.ravel()  # bar 0 tail, bar 0 head, bar 1 tail, ...
+    order = np.argsort(ends, kind="stable")
+    rank = np.empty_like(ends)
+    rank[order] = np.arange(ends.size) - np.searchsorted(ends[order], ends[order])
+    return (first_end[ends] + rank).reshape(-1, 2)
+
+
+def _star_joints(start: np.ndarray, parts: np.ndarray) -> np.ndarray:
+    """Joint pairs (J, 2) from the first node ``start[i]`` of each group of ``parts[i]``
+    consecutive nodes to each of the others."""
+    extra = parts - 1
+    lead = np.repeat(start, extra)
+    return np.column_stack([lead, lead + 1 + np.arange(lead.size) - np.repeat(np.cumsum(extra) - extra, extra)])
 
 
 def incidence(pairs: np.ndarray, n_nodes: int) -> np.ndarray:
@@ -266,43 +374,152 @@ def incidence(pairs: np.ndarray, n_nodes: int) -> np.ndarray:
     return C
 
 
-def to_connectivity(structure: Structure) -> Connectivity:
-    """``N`` (3, n) [m], ``C_b`` (R, n) and ``C_s`` (S, n) of ``structure`` (dense integers).
+class MergedNodes(NamedTuple):
+    """A structure's nodes with each group of joined nodes merged into one (:func:`merge_joints`).
 
-    Only a free 3-D class 1 structure is fully described by them: joints, supports, point masses
-    and planar structures raise ``ValueError`` (their JSON form keeps everything).
+    ``node_map`` (N,) is the merged node of each of the structure's nodes; the other fields are
+    the keyword arguments of :func:`from_connectivity` for the merged nodes (``N`` and
+    ``node_velocity`` (d, n), ``node_fixed`` (n,), ``node_point_mass`` (n,) [kg], the plane and
+    line constraints on merged nodes).
     """
-    structure.require_free_class1("N, C_b, C_s")
+
+    node_map: np.ndarray
+    N: np.ndarray
+    node_velocity: np.ndarray
+    node_fixed: np.ndarray
+    node_point_mass: np.ndarray
+    plane_nodes: np.ndarray
+    plane_normal: np.ndarray
+    line_nodes: np.ndarray
+    line_direction: np.ndarray
+    joint_nodes: np.ndarray
+
+
+def merge_joints(structure: Structure, *, keep_joints: bool = False) -> MergedNodes:
+    """Merge every group of nodes joined by ball joints (``joint_nodes``) into one node.
+
+    Merged nodes are numbered in the order of each group's lowest node and take that node's
+    position and velocity; a group is fixed if any of its nodes is, its point mass is the sum of
+    theirs.  The inverse of the split of :func:`from_connectivity` with ``ball_joints=True``.
+    With ``keep_joints`` nothing is merged (``node_map`` is the identity) and the joints stay
+    in ``joint_nodes``, as :func:`from_connectivity` takes them: the structure's own layout.
+
+    Raises
+    ------
+    ValueError
+        ``tendons[k] ('name')`` for a tendon between two joined nodes (a string of zero length)
+        or between the same two merged nodes as another tendon: ``C_s`` cannot keep them apart.
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    n = structure.n_nodes
+    joints = structure.joint_nodes
+    graph = coo_matrix((np.ones(joints.shape[0]), (joints[:, 0], joints[:, 1])), shape=(n, n))
+    label = np.arange(n) if keep_joints else connected_components(graph, directed=False)[1]
+    lowest = np.full(label.max() + 1, n)
+    np.minimum.at(lowest, label, np.arange(n))
+    order = np.argsort(lowest)
+    rank = np.empty_like(order)
+    rank[order] = np.arange(order.size)
+    node_map = rank[label]
+    lead = lowest[order]
+    tendons = node_map[structure.tendon_nodes]
+    names = structure.tendon_name
+    seen: dict[tuple[int, int], int] = {}
+    for k, (a, b) in enumerate(tendons):
+        tail, head = structure.tendon_nodes[k]
+        if a == b:
+            raise ValueError(f"tendons[{k}] ({names[k]!r}): joins nodes {tail} and {head}, which are "
+                             "joined by a ball joint; C_s cannot hold a string of zero length")
+        key = (min(a, b), max(a, b))
+        if key in seen:
+            raise ValueError(f"tendons[{k}] ({names[k]!r}): joins the same joined nodes as "
+                             f"tendons[{seen[key]}] ({names[seen[key]]!r}); C_s cannot keep them apart")
+        seen[key] = k
+    fixed = np.zeros(lead.size, bool)
+    np.logical_or.at(fixed, node_map, structure.node_fixed)
+    return MergedNodes(
+        node_map=node_map,
+        N=structure.node_position[lead].T.copy(),
+        node_velocity=structure.node_velocity[lead].T.copy(),
+        node_fixed=fixed,
+        node_point_mass=np.bincount(node_map, weights=structure.node_point_mass, minlength=lead.size),
+        plane_nodes=node_map[structure.plane_nodes],
+        plane_normal=structure.plane_normal.copy(),
+        line_nodes=node_map[structure.line_nodes],
+        line_direction=structure.line_direction.copy(),
+        joint_nodes=(joints if keep_joints else np.zeros((0, 2), np.int64)).copy(),
+    )
+
+
+def to_connectivity(structure: Structure) -> Connectivity:
+    """``N`` (d, n) [m], ``C_b`` (R, n) and ``C_s`` (S, n) of ``structure`` (dense integers).
+
+    Each group of joined nodes (``joint_nodes``) is one node, shared by its bars (the class k
+    convention; :func:`merge_joints` gives the order), so ``from_connectivity(N, C_b, C_s,
+    ball_joints=True)`` gives back a structure with the same ``N, C_b, C_s``.  Supports, point
+    masses and plane/line constraints are in :func:`merge_joints`.
+    """
+    return _connectivity(structure, merge_joints(structure))
+
+
+def _connectivity(structure: Structure, merged: MergedNodes) -> Connectivity:
+    n = merged.N.shape[1]
     return Connectivity(
-        structure.node_position.T.copy(),
-        incidence(structure.rod_nodes, structure.n_nodes),
-        incidence(structure.tendon_nodes, structure.n_nodes),
+        merged.N,
+        incidence(merged.node_map[structure.rod_nodes], n),
+        incidence(merged.node_map[structure.tendon_nodes], n),
     )
 
 
 # -------------------------------------------------------------------- readable form
-def network_to_dict(structure: Structure) -> dict[str, Any]:
+#: Optional support keys of the readable form (as in :meth:`Structure.to_dict`): key -> the
+#: value each ``{node, ...}`` item carries (``None``: a plain list of nodes, or of node pairs).
+_SUPPORT_KEYS = {"fixed": None, "point_masses": "mass", "planes": "normal", "lines": "direction",
+                 "joints": None}
+
+
+def network_to_dict(structure: Structure, *, keep_joints: bool = False) -> dict[str, Any]:
     """The readable form (for YAML and TOML): named nodes, shared parameters under ``defaults``.
 
     ``{"format": "tensegrity-network", "version": 1, "nodes": {"n0": [x, y, z], ...},
-    "velocities": {...} (only if any is nonzero), "defaults": {"rod": {...}, "tendon": {...}},
-    "rods": [{"nodes": ["n0", "n1"], ...}], "tendons": [{"name", "nodes", ...}]}``.
-    A parameter shared by every rod (tendon) is written once under ``defaults``, the others per
-    member.  Floats keep their shortest round-trip form, so reading it back is exact.
+    "velocities": {...} (only if any is nonzero), "fixed": ["n4", ...], "point_masses":
+    [{"node", "mass"}], "planes": [{"node", "normal"}], "lines": [{"node", "direction"}]
+    (these four only when present, as in :meth:`Structure.to_dict`), "defaults": {"rod": {...},
+    "tendon": {...}}, "rods": [{"nodes": ["n0", "n1"], ...}], "tendons": [{"name", "nodes",
+    ...}]}``.  Joined nodes are one node shared by their rods (the class k convention,
+    :func:`merge_joints`), or with ``keep_joints`` the structure's own nodes and ``"joints":
+    [["n1", "n2"], ...]``; a planar structure has ``[x, y]`` nodes.  A parameter shared by every
+    rod (tendon) is written once under ``defaults``, the others per member.  Floats keep their
+    shortest round-trip form, so reading it back is exact.
     """
-    names = [f"n{i}" for i in range(structure.n_nodes)]
+    merged = merge_joints(structure, keep_joints=keep_joints)
+    names = [f"n{i}" for i in range(merged.N.shape[1])]
     data: dict[str, Any] = {
         "format": NETWORK_FORMAT,
         "version": NETWORK_VERSION,
         "units": "SI: m, kg, s, N",
-        "nodes": {name: p.tolist() for name, p in zip(names, structure.node_position)},
+        "nodes": {name: p.tolist() for name, p in zip(names, merged.N.T)},
     }
-    if np.any(structure.node_velocity != 0):
-        data["velocities"] = {name: v.tolist() for name, v in zip(names, structure.node_velocity)}
+    if np.any(merged.node_velocity != 0):
+        data["velocities"] = {name: v.tolist() for name, v in zip(names, merged.node_velocity.T)}
+    if merged.node_fixed.any():
+        data["fixed"] = [names[i] for i in np.flatnonzero(merged.node_fixed)]
+    for key, nodes, values in (
+        ("point_masses", np.flatnonzero(merged.node_point_mass), merged.node_point_mass[merged.node_point_mass > 0]),
+        ("planes", merged.plane_nodes, merged.plane_normal),
+        ("lines", merged.line_nodes, merged.line_direction),
+    ):
+        if nodes.size:
+            data[key] = [{"node": names[i], _SUPPORT_KEYS[key]: v.tolist()} for i, v in zip(nodes, values)]
+    if merged.joint_nodes.size:
+        data["joints"] = [[names[a], names[b]] for a, b in merged.joint_nodes]
+    rods, tendons = merged.node_map[structure.rod_nodes], merged.node_map[structure.tendon_nodes]
     defaults: dict[str, dict[str, float]] = {"rod": {}, "tendon": {}}
-    members = {"rod": [{"nodes": [names[a], names[b]]} for a, b in structure.rod_nodes],
+    members = {"rod": [{"nodes": [names[a], names[b]]} for a, b in rods],
                "tendon": [{"name": name, "nodes": [names[a], names[b]]}
-                          for name, (a, b) in zip(structure.tendon_name, structure.tendon_nodes)]}
+                          for name, (a, b) in zip(structure.tendon_name, tendons)]}
     columns = {
         "rod": {"mass": structure.rod_mass, "length": structure.rod_length,
                 "damping": structure.rod_damping},
@@ -327,10 +544,14 @@ def network_from_dict(data: Any) -> Structure:
     """Build a structure from the readable form of :func:`network_to_dict`.
 
     ``nodes`` is a mapping name -> ``[x, y, z]`` (members refer to nodes by name) or a list
-    (members refer to 0-based indices).  Per member, a key missing falls back to ``defaults``,
-    then to the library default (rod ``mass`` 1 kg, ``length`` the distance of its nodes,
-    ``damping`` 0; tendon ``stiffness`` 100 N/m, ``damping`` 0); a tendon needs ``rest_length``
-    [m] or ``prestrain`` ``(l - L0) / L0``.  Unknown keys are errors (a typo is not ignored).
+    (members refer to 0-based indices); ``[x, y]`` nodes make a planar structure.  A node shared
+    by rods is a ball joint (class k: :func:`from_connectivity` with ``ball_joints=True``).
+    Per member, a key missing falls back to ``defaults``, then to the library default (rod
+    ``mass`` 1 kg, ``length`` the distance of its nodes, ``damping`` 0; tendon ``stiffness``
+    100 N/m, ``damping`` 0); a tendon needs ``rest_length`` [m] or ``prestrain``
+    ``(l - L0) / L0``.  Optional ``fixed`` (nodes), ``point_masses`` (``{node, mass}``),
+    ``planes`` (``{node, normal}``), ``lines`` (``{node, direction}``).  Unknown keys are
+    errors (a typo is not ignored).
 
     Raises
     ------
@@ -340,8 +561,8 @@ def network_from_dict(data: Any) -> Structure:
     """
     if not isinstance(data, Mapping):
         raise ValueError(f"network: expected a mapping at the top level, got {type(data).__name__}")
-    _only(data, ("format", "version", "units", "nodes", "velocities", "defaults", "rods", "tendons"),
-          "network")
+    _only(data, ("format", "version", "units", "nodes", "velocities", *_SUPPORT_KEYS, "defaults",
+                 "rods", "tendons"), "network")
     if data.get("format", NETWORK_FORMAT) != NETWORK_FORMAT:
         raise ValueError(f"format: expected {NETWORK_FORMAT!r}, got {data['format']!r:.80}")
     version = data.get("version", NETWORK_VERSION)
@@ -349,16 +570,16 @@ def network_from_dict(data: Any) -> Structure:
         raise ValueError(f"version: this library reads version <= {NETWORK_VERSION}, got {version!r:.80}")
     if "nodes" not in data:
         raise ValueError("network: missing key 'nodes'")
-    names, position = _named_points(data["nodes"], "nodes")
+    names, position, dim = _named_points(data["nodes"], "nodes")
     for key in ("rods", "tendons"):
         if key not in data:
             raise ValueError(f"network: missing key {key!r}")
     velocity = None
     if data.get("velocities") is not None:
-        v_names, v = _named_points(data["velocities"], "velocities")
+        v_names, v, _ = _named_points(data["velocities"], "velocities", dim)
         if v_names != names:
             raise ValueError("velocities: must list the same nodes as nodes, in the same order")
-        velocity = v
+        velocity = np.array(v, dtype=float).reshape(-1, dim)
     defaults = data.get("defaults") or {}
     if not isinstance(defaults, Mapping):
         raise ValueError(f"defaults: expected a mapping, got {type(defaults).__name__}")
@@ -370,8 +591,7 @@ def network_from_dict(data: Any) -> Structure:
     tendons = _members(data["tendons"], "tendons", ("name", "nodes", *_TENDON_KEYS), index)
     rod_nodes = np.array([pair for pair, _ in rods], dtype=np.int64).reshape(-1, 2)
     tendon_nodes = np.array([pair for pair, _ in tendons], dtype=np.int64).reshape(-1, 2)
-    check_class1(rod_nodes, len(names), member="rods")
-    p = np.array(position, dtype=float).reshape(-1, 3)
+    p = np.array(position, dtype=float).reshape(-1, dim)
     rod_distance = np.linalg.norm(p[rod_nodes[:, 1]] - p[rod_nodes[:, 0]], axis=1)
     tendon_distance = np.linalg.norm(p[tendon_nodes[:, 1]] - p[tendon_nodes[:, 0]], axis=1)
 
@@ -396,15 +616,19 @@ def network_from_dict(data: Any) -> Structure:
         value = _number(value, f"{where}.{key}")
         rest.append(value if key == "rest_length"
                     else float(rest_from_prestrain(tendon_distance[k:k + 1], value, f"{where}.prestrain")[0]))
+    zero = np.flatnonzero(rod_distance == 0)
+    if zero.size:
+        k = zero[0]
+        raise ValueError(f"rods[{k}].nodes: {names[rod_nodes[k, 0]]!r} and {names[rod_nodes[k, 1]]!r} "
+                         "coincide (zero length)")
     zeros = np.zeros(len(rods)), np.zeros(len(tendons))
-    return Structure(
-        node_position=p,
-        node_velocity=velocity,
-        rod_nodes=rod_nodes,
+    n = len(names)
+    return from_connectivity(
+        p.T, incidence(rod_nodes, n), incidence(tendon_nodes, n), ball_joints=True,
+        node_velocity=None if velocity is None else velocity.T, **_supports(data, index, dim),
         rod_mass=column(rods, "rods", "mass", rod_default, np.full(len(rods), DEFAULT_ROD_MASS)),
         rod_length=column(rods, "rods", "length", rod_default, rod_distance),
         rod_damping=column(rods, "rods", "damping", rod_default, zeros[0]),
-        tendon_nodes=tendon_nodes,
         tendon_stiffness=column(tendons, "tendons", "stiffness", tendon_default,
                                 np.full(len(tendons), DEFAULT_STIFFNESS)),
         tendon_rest_length=np.array(rest, dtype=float),
@@ -413,24 +637,78 @@ def network_from_dict(data: Any) -> Structure:
     )
 
 
+def _supports(data: Mapping[str, Any], index: Mapping[Any, int], dim: int) -> dict[str, Any]:
+    """The optional ``fixed``, ``point_masses``, ``planes``, ``lines`` keys of the readable form
+    as keyword arguments of :func:`from_connectivity` (on the file's nodes)."""
+    out: dict[str, Any] = {}
+    if data.get("fixed") is not None:
+        nodes = data["fixed"]
+        if not isinstance(nodes, Sequence) or isinstance(nodes, str):
+            raise ValueError(f"fixed: expected a list of nodes, got {type(nodes).__name__}")
+        fixed = np.zeros(len(index), bool)
+        fixed[[_node_ref(end, f"fixed[{k}]", index) for k, end in enumerate(nodes)]] = True
+        out["node_fixed"] = fixed
+    if data.get("joints") is not None:
+        pairs = data["joints"]
+        if not isinstance(pairs, Sequence) or isinstance(pairs, str):
+            raise ValueError(f"joints: expected a list of node pairs, got {type(pairs).__name__}")
+        out["joint_nodes"] = np.array(
+            [[_node_ref(end, f"joints[{k}]", index) for end in _pair(pair, f"joints[{k}]")]
+             for k, pair in enumerate(pairs)], dtype=np.int64).reshape(-1, 2)
+    for key, (nodes_field, value_field) in (("point_masses", ("node_point_mass", None)),
+                                            ("planes", ("plane_nodes", "plane_normal")),
+                                            ("lines", ("line_nodes", "line_direction"))):
+        items = data.get(key)
+        if items is None:
+            continue
+        if not isinstance(items, Sequence) or isinstance(items, str):
+            raise ValueError(f"{key}: expected a list, got {type(items).__name__}")
+        name = _SUPPORT_KEYS[key]
+        nodes, values = [], []
+        for k, item in enumerate(items):
+            if not isinstance(item, Mapping):
+                raise ValueError(f"{key}[{k}]: expected a mapping, got {type(item).__name__}")
+            _only(item, ("node", name), f"{key}[{k}]")
+            for field in ("node", name):
+                if field not in item:
+                    raise ValueError(f"{key}[{k}]: missing key {field!r}")
+            nodes.append(_node_ref(item["node"], f"{key}[{k}].node", index))
+            values.append(_number(item[name], f"{key}[{k}].{name}") if value_field is None
+                          else _vector(item[name], f"{key}[{k}].{name}", 3 if key == "planes" else dim))
+        if value_field is None:
+            mass = np.zeros(len(index))
+            mass[nodes] = values
+            out[nodes_field] = mass
+        else:
+            out[nodes_field] = np.array(nodes, dtype=np.int64)
+            out[value_field] = np.array(values, dtype=float).reshape(-1, 3 if key == "planes" else dim)
+    return out
+
+
 def _only(data: Mapping[str, Any], allowed: Sequence[str], where: str) -> None:
     for key in data:
         if key not in allowed:
             raise ValueError(f"{where}: unknown key {key!r} (expected one of {', '.join(allowed)})")
 
 
-def _named_points(value: Any, where: str) -> tuple[list[Any], list[list[float]]]:
-    """Names and 3-vectors of a mapping name -> [x, y, z], or of a list (names 0, 1, ...)."""
+def _named_points(value: Any, where: str, dim: int | None = None) -> tuple[list[Any], list[list[float]], int]:
+    """Names, vectors and their dimension of a mapping name -> [x, y, z] (or [x, y]: planar),
+    or of a list (names 0, 1, ...); ``dim`` ``None``: that of the first vector."""
     if isinstance(value, Mapping):
         names = list(value)
         for name in names:
             if isinstance(name, bool) or not isinstance(name, (str, int)) or name == "":
                 raise ValueError(f"{where}: node names must be non-empty strings (or integers), "
                                  f"got {name!r:.80}")
-        return names, [_vector(value[name], f"{where}.{name}", 3) for name in names]
-    if isinstance(value, Sequence) and not isinstance(value, str):
-        return list(range(len(value))), [_vector(row, f"{where}[{k}]", 3) for k, row in enumerate(value)]
-    raise ValueError(f"{where}: expected a mapping name -> [x, y, z] or a list, got {type(value).__name__}")
+        rows, labels = [value[name] for name in names], [f"{where}.{name}" for name in names]
+    elif isinstance(value, Sequence) and not isinstance(value, str):
+        names = list(range(len(value)))
+        rows, labels = list(value), [f"{where}[{k}]" for k in names]
+    else:
+        raise ValueError(f"{where}: expected a mapping name -> [x, y, z] or a list, got {type(value).__name__}")
+    if dim is None:
+        dim = _dimension(rows)
+    return names, [_vector(row, label, dim) for row, label in zip(rows, labels)], dim
 
 
 def _defaults(value: Any, keys: Sequence[str], where: str) -> dict[str, Any]:
@@ -454,19 +732,26 @@ def _members(value: Any, kind: str, keys: Sequence[str], index: Mapping[Any, int
         _only(item, keys, label)
         if "nodes" not in item:
             raise ValueError(f"{label}: missing key 'nodes'")
-        ends = item["nodes"]
-        if not isinstance(ends, Sequence) or isinstance(ends, str) or len(ends) != 2:
-            raise ValueError(f"{label}.nodes: expected two node references, got {ends!r:.80}")
-        pair = []
-        for end in ends:
-            if isinstance(end, bool) or not isinstance(end, (str, int)) or end not in index:
-                raise ValueError(f"{label}.nodes: no node {'named ' if isinstance(end, str) else ''}"
-                                 f"{end!r:.80}")
-            pair.append(index[end])
+        ends = _pair(item["nodes"], f"{label}.nodes")
+        pair = [_node_ref(end, f"{label}.nodes", index) for end in ends]
         if pair[0] == pair[1]:
             raise ValueError(f"{label}.nodes: joins node {ends[0]!r} to itself")
         out.append((tuple(pair), item))
     return out
+
+
+def _pair(ends: Any, where: str) -> Sequence[Any]:
+    """A list of two node references of the readable form."""
+    if not isinstance(ends, Sequence) or isinstance(ends, str) or len(ends) != 2:
+        raise ValueError(f"{where}: expected two node references, got {ends!r:.80}")
+    return ends
+
+
+def _node_ref(end: Any, where: str, index: Mapping[Any, int]) -> int:
+    """The node index of a node name (or 0-based index) of the readable form."""
+    if isinstance(end, bool) or not isinstance(end, (str, int)) or end not in index:
+        raise ValueError(f"{where}: no node {'named ' if isinstance(end, str) else ''}{end!r:.80}")
+    return index[end]
 
 
 # ------------------------------------------------------------------------------- files
@@ -547,15 +832,20 @@ def _from_npz(raw: bytes) -> Structure:
     names = arrays.pop("tendon_name", None)
     N, C_b, C_s = arrays.pop("N"), arrays.pop("C_b"), arrays.pop("C_s")
     return from_connectivity(N, C_b, C_s, tendon_name=None if names is None else
-                             tuple(str(x) for x in names), **arrays)
+                             tuple(str(x) for x in names), ball_joints=True, **arrays)
 
 
-def write_network(path: PathLike, structure: Structure, *, format: str | None = None) -> Path:
+def write_network(path: PathLike, structure: Structure, *, format: str | None = None,
+                  keep_joints: bool = False) -> Path:
     """Write ``structure`` in any format (by suffix, or ``format``), atomically.
 
     ``json``: :meth:`Structure.to_dict`; ``yaml``/``toml``: :func:`network_to_dict`;
     ``connectivity``: ``.npz`` of :data:`NPZ_ARRAYS`; ``mjcf``: :func:`tensegrity.mjcf.to_mjcf`.
-    Every format but MJCF reads back to an identical structure.
+    The readable and connectivity forms merge joined nodes (class k), or with ``keep_joints``
+    keep every rod's end nodes and list the joints.  JSON, and every form with ``keep_joints``
+    or for a structure without joints, reads back to an identical structure; a jointed
+    structure written merged reads back with the same ``N, C_b, C_s``, supports and parameters
+    in the layout of :func:`from_connectivity` (see ``docs/networks.md``).
     """
     kind = _format(path, format)
     if kind == "json":
@@ -564,31 +854,37 @@ def write_network(path: PathLike, structure: Structure, *, format: str | None = 
         from tensegrity.mjcf import write_mjcf
 
         return write_mjcf(path, structure)
-    structure.require_free_class1(f"the {kind} form (use JSON)")
     with atomic_path(path) as tmp:
         if kind == "connectivity":
             with open(tmp, "wb") as f:
-                np.savez(f, **_npz_arrays(structure))
+                np.savez(f, **_npz_arrays(structure, keep_joints))
         else:
-            tmp.write_text(_dump_text(structure, kind), encoding="utf-8")
+            tmp.write_text(_dump_text(structure, kind, keep_joints), encoding="utf-8")
     return Path(path)
 
 
-def _npz_arrays(structure: Structure) -> dict[str, np.ndarray]:
-    N, C_b, C_s = to_connectivity(structure)
+def _npz_arrays(structure: Structure, keep_joints: bool) -> dict[str, np.ndarray]:
+    merged = merge_joints(structure, keep_joints=keep_joints)
+    N, C_b, C_s = _connectivity(structure, merged)
+    supports = {"node_fixed": merged.node_fixed.any(), "node_point_mass": merged.node_point_mass.any(),
+                "plane_nodes": merged.plane_nodes.size, "plane_normal": merged.plane_nodes.size,
+                "line_nodes": merged.line_nodes.size, "line_direction": merged.line_nodes.size,
+                "joint_nodes": merged.joint_nodes.size}
     return {
-        "N": N, "C_b": C_b, "C_s": C_s, "node_velocity": structure.node_velocity.T,
+        "N": N, "C_b": C_b, "C_s": C_s, "node_velocity": merged.node_velocity,
         "rod_mass": structure.rod_mass, "rod_length": structure.rod_length,
         "rod_damping": structure.rod_damping, "tendon_stiffness": structure.tendon_stiffness,
         "tendon_rest_length": structure.tendon_rest_length,
         "tendon_damping": structure.tendon_damping,
         "tendon_name": np.array(structure.tendon_name, dtype=str),
-    }
+    } | {name: getattr(merged, name) for name, present in supports.items() if present}
 
 
-def _dump_text(structure: Structure, kind: str) -> str:
-    data = network_to_dict(structure)
-    header = (f"# {structure.n_nodes} nodes, {structure.n_rods} rods (bars), "
+def _dump_text(structure: Structure, kind: str, keep_joints: bool) -> str:
+    data = network_to_dict(structure, keep_joints=keep_joints)
+    joined = (f" (the structure's {structure.n_nodes}, joined nodes merged: a node of k rods is a "
+              "ball joint)" if structure.joint_nodes.size and not keep_joints else "")
+    header = (f"# {len(data['nodes'])} nodes{joined}, {structure.n_rods} rods (bars), "
               f"{structure.n_tendons} tendons (strings); SI units\n")
     if kind == "toml":
         return header + dump_toml(data)
