@@ -526,11 +526,13 @@ def copy_bandwidth(nbytes: int, budget: float = 0.3, threads: int = 1) -> float:
     return 2 * n * 8 / t
 
 
-def kernel_bytes(R: int, S: int) -> int:
+def kernel_bytes(R: int, S: int, *, tendon_damping: bool) -> int:
     """Bytes one kernel evaluation must touch at least once: reads q, q' (6R each), rod nodes
-    (2R int64), rod m, L, alpha (3R); tendon nodes (2S int64), k, c, Lbar (3S); writes q'' (6R),
-    tension and elastic tension (2S)."""
-    return 8 * (6 * R + 6 * R + 2 * R + 3 * R + 6 * R) + 8 * (2 * S + 3 * S + 2 * S)
+    (2R int64), rod m, L, alpha (3R); tendon nodes (2S int64), k, Lbar and, if any tendon is
+    damped, c (2S or 3S); writes q'' (6R), tension and elastic tension (2S).  (Undamped tendons:
+    the kernel's specialization does not read c, so neither does the bound.)"""
+    tendon_param = 3 if tendon_damping else 2
+    return 8 * (6 * R + 6 * R + 2 * R + 3 * R + 6 * R) + 8 * (2 * S + tendon_param * S + 2 * S)
 
 
 def machine_info() -> dict:
@@ -666,7 +668,8 @@ def report(results: dict, sizes, info: dict, bw: dict, command: str, notes: list
     out("")
     out("## The memory-traffic bound\n")
     out("The bound is the bytes one kernel evaluation must touch once (`kernel_bytes`: q, q', rod "
-        "and tendon indices and parameters, rest lengths, q'', tensions) over the bandwidth of a "
+        "and tendon indices and parameters, rest lengths, q'', tensions; the tendons are undamped, "
+        "so neither the kernel nor the bound reads their damping) over the bandwidth of a "
         "NumPy copy: of a DRAM-sized array, and of a copy of the same number of bytes (at least "
         "1 MiB, so as not to time NumPy's call overhead; caches: "
         f"{info.get('caches', '?')}), on one thread and on {T} threads (one slice each; the "
@@ -677,7 +680,7 @@ def report(results: dict, sizes, info: dict, bw: dict, command: str, notes: list
         "| / DRAM bound | / same-size bound |")
     out("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for s, R, S in measured_sizes():
-        nbytes = kernel_bytes(R, S)
+        nbytes = kernel_bytes(R, S, tendon_damping=False)
         key = f"{s[0]}x{s[1]}"
         bounds = (nbytes / bw["dram"], nbytes / bw["by_size"][key],
                   nbytes / bw["dram_threads"], nbytes / bw["by_size_threads"][key])
@@ -810,7 +813,7 @@ def main(argv=None) -> int:
         n, m = size
         R, S = 2 * n * m, n * (10 * m - 2)
         # (at least 1 MiB: smaller copies measure NumPy's call overhead, not the memory)
-        same_size = max(kernel_bytes(R, S) // 2, 2**20 // 2)
+        same_size = max(kernel_bytes(R, S, tendon_damping=False) // 2, 2**20 // 2)
         bw["by_size"][f"{n}x{m}"] = copy_bandwidth(same_size)
         bw["by_size_threads"][f"{n}x{m}"] = max(bw["by_size"][f"{n}x{m}"],
                                                 copy_bandwidth(same_size, threads=args.threads))

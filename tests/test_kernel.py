@@ -159,6 +159,74 @@ def test_evaluate_matches_numpy_reference(case, loads, threads):
     assert clipped_seen > 0, "no taut tendon had its tension clipped: the test lost coverage"
 
 
+def _undamped(structure: Structure) -> Structure:
+    return structure.replace(tendon_damping=np.zeros(structure.n_tendons))
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+@pytest.mark.parametrize("loads", ["none", "both"])
+@pytest.mark.parametrize("case", CASES)
+def test_undamped_specialization_matches_reference_and_generic_path(case, loads, threads):
+    """All ``c = 0``: ``pack`` selects the specialization without node velocities and length
+    rates; it agrees with the reference (1e-12) and bit for bit with the generic (damped) path
+    run on explicit zero damping.  One damped tendon selects the generic path."""
+    from tensegrity.kernel import pack, rhs
+
+    rng = np.random.default_rng(_seed(case, loads, "undamped"))
+    structure = _undamped(_structure(case, rng))
+    kernel = FastKernel(structure, threads=threads)
+    assert kernel._tendon_damping is None and pack(structure)[4] is None
+    one_damped = structure.replace(tendon_damping=np.eye(1, structure.n_tendons, 3)[0])
+    assert np.array_equal(pack(one_damped)[4], one_damped.tendon_damping)
+    for trial in range(3):
+        q, qdot = random_consistent_state(structure, rng, speed=[0.5, 3.0, 10.0][trial])
+        rest, slack = random_rest_lengths(structure, q, rng)
+        w = 20.0 * rng.standard_normal((structure.n_nodes, 3)) if loads == "both" else None
+        g = np.array([0.3, -1.0, -9.81]) if loads == "both" else None
+        ref = dynamics.evaluate(structure, q, qdot, rest_length=rest, external_force=w, gravity=g)
+        got = kernel.evaluate(q, qdot, rest, external_force=w, gravity=g)
+        assert _rel(got.qddot, ref.qddot) < TOL, f"trial {trial}: qddot"
+        assert _rel(got.tension, ref.tendons.tension) < TOL, f"trial {trial}: tension"
+        assert np.all(got.tension[slack] == 0.0)
+        assert np.all(got.tension[np.setdiff1d(np.arange(structure.n_tendons), slack)] > 0.0)
+        scale = abs(ref.dissipated_power) + abs(ref.external_power) + 1.0
+        assert abs(got.dissipated_power - ref.dissipated_power) < TOL * scale  # rod damping
+        assert abs(got.external_power - ref.external_power) < TOL * scale
+
+        # The generic path on the same structure, forced with an explicit zero damping array.
+        qddot, tension, elastic = (np.empty_like(got.qddot), np.empty_like(got.tension),
+                                   np.empty_like(got.tension))
+        has_w = w is not None
+        generic = rhs(
+            q, qdot, kernel._rod_nodes, kernel._rod_param, kernel._tendon_nodes,
+            kernel._tendon_stiffness, np.zeros(structure.n_tendons), rest, has_w,
+            w if has_w else np.zeros((1, 3)), g is not None, np.zeros(3) if g is None else g,
+            np.zeros((3, structure.n_nodes, 3)), kernel._block_force, qddot, tension, elastic,
+        )
+        assert np.array_equal(qddot, got.qddot) and np.array_equal(tension, got.tension)
+        assert generic == (got.dissipated_power, got.external_power)
+
+
+def test_undamped_rk4_loop_matches_python_rk4():
+    rng = np.random.default_rng(_seed(None, "undamped rk4"))
+    structure = _undamped(_structure(dict(n=4, m=2), rng))  # rods still damped
+    kernel = FastKernel(structure)
+    q0, qdot0 = random_consistent_state(structure, rng, speed=3.0)
+    rest, _ = random_rest_lengths(structure, q0, rng)
+    w = 5.0 * rng.standard_normal((structure.n_nodes, 3))
+    g = np.array([0.2, -0.4, -9.81])
+    got = kernel.rk4_with_work(q0, qdot0, 1e-4, 100, rest, w, g)
+    q_ref, qdot_ref, dissipated_ref, work_ref, _ = python_rk4(
+        structure, q0, qdot0, 1e-4, 100, rest, w, g
+    )
+    assert kernel._tendon_damping is None
+    assert _rel(got.q, q_ref) < TOL and _rel(got.qdot, qdot_ref) < TOL
+    assert dissipated_ref > 0.0  # the rods' damping
+    assert abs(got.dissipated_energy - dissipated_ref) < TOL * abs(dissipated_ref)
+    assert abs(got.external_work - work_ref) < TOL * (abs(work_ref) + 1e-3)
+    assert _rel(got.q, q0) > 1e-6
+
+
 def test_evaluate_buffers_and_input_forms():
     """``out`` buffers are filled and returned; read-only, non-contiguous, list and float32
     inputs give the same answer as plain arrays; the elastic tension can be asked for."""
@@ -333,6 +401,16 @@ def test_rk4_stops_on_blow_up():
     bad[4] = np.nan
     nan = kernel.rk4_with_work(state.q, bad, 1e-4, 20, rest, max_rod_length_error=1e-3)
     assert nan.n_steps == 1 and np.isnan(nan.max_rod_length_error)
+    # NaN in the first rod only: a later rod's finite error must not hide it.
+    q_bad = state.q.copy()
+    q_bad[3] = np.nan
+    assert np.isnan(kernel.project(q_bad, state.qdot)[0][3])
+    from tensegrity.kernel import project
+
+    for k in (3, 0):  # in q2, in q2' (first rod)
+        q_, qdot_ = state.q.copy(), state.qdot.copy()
+        (q_ if k == 3 else qdot_)[3] = np.nan
+        assert np.isnan(project(q_, qdot_, kernel._rod_param))
 
 
 def test_project_matches_reference():

@@ -161,7 +161,9 @@ def simulate_batch(
     packed = [pack(s) for s in structures]
     rod_nodes, tendon_nodes = packed[0][0], packed[0][2]
     rod_param = np.stack([p[1] for p in packed])
-    tendon_param = np.stack([p[3] for p in packed])
+    tendon_stiffness = np.stack([p[3] for p in packed])
+    tendon_damping = (None if all(p[4] is None for p in packed)
+                      else np.stack([np.zeros(S) if p[4] is None else p[4] for p in packed]))
     rest = np.stack([dynamics.rest_lengths(s) for s in structures])
     has_w = any(f is not None for f in forces)
     w_all = (np.stack([np.zeros((N, 3)) if f is None else np.asarray(f, dtype=float) for f in forces])
@@ -185,7 +187,8 @@ def simulate_batch(
         rk4_batch(
             q, qdot, dt, chunk, float(max_rod_length_error), float(max_energy_growth),
             energy0, scale0, status, steps, work, worst, end_q, end_qdot,
-            rod_nodes, rod_param, tendon_nodes, tendon_param, rest, has_w, w_all, gravity is not None, g,
+            rod_nodes, rod_param, tendon_nodes, tendon_stiffness, tendon_damping, rest, has_w, w_all,
+            gravity is not None, g,
             *scratch,
         )
         done += chunk
