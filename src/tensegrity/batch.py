@@ -187,8 +187,8 @@ def simulate_batch(
         rk4_batch(
             q, qdot, dt, chunk, float(max_rod_length_error), float(max_energy_growth),
             energy0, scale0, status, steps, work, worst, end_q, end_qdot,
-            rod_nodes, rod_param, tendon_nodes, tendon_stiffness, tendon_damping, rest, has_w, w_all,
-            gravity is not None, g,
+            rod_nodes, rod_param, tendon_nodes, tendon_stiffness, tendon_damping, rest, has_w,
+            w_all, gravity is not None, g,
             *scratch,
         )
         done += chunk
