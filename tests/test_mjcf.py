@@ -43,7 +43,7 @@ SAMPLE_DT = 0.01
 def rod_consistent_velocity(structure, scale, seed):
     """Random node velocities with ``v_b - v_a`` perpendicular to ``p_b - p_a`` for every rod."""
     rng = np.random.default_rng(seed)
-    v = scale * rng.normal(size=(structure.n_nodes, 3))
+    v = scale * rng.normal(size=(structure.n_nodes, structure.dim))
     a, b = structure.rod_nodes.T
     u = structure.node_position[b] - structure.node_position[a]
     u /= np.linalg.norm(u, axis=1, keepdims=True)
@@ -71,12 +71,12 @@ def load(structure, **options):
     return model, data
 
 
-def run_mujoco(structure, t_end, dt):
-    """Node positions (T, N, 3) every SAMPLE_DT, and the set of tendons that were slack after
-    any step (length <= rest length)."""
-    model, data = load(structure, timestep=dt)
+def run_mujoco(structure, t_end, dt, **options):
+    """Node positions (T, N, d) every SAMPLE_DT, and the set of tendons that were slack after
+    any step (length <= rest length); ``options`` go to ``to_mjcf``."""
+    model, data = load(structure, timestep=dt, **options)
     steps_per_sample = round(SAMPLE_DT / dt)
-    positions = [mujoco_node_positions(model, data, structure.n_nodes)]
+    positions = [mujoco_node_positions(model, data, structure.n_nodes, dim=structure.dim)]
     went_slack = np.zeros(structure.n_tendons, dtype=bool)
     for _ in range(round(t_end / SAMPLE_DT)):
         for _ in range(steps_per_sample):
@@ -84,7 +84,7 @@ def run_mujoco(structure, t_end, dt):
             mujoco.mj_kinematics(model, data)  # the end of the step, not the last RK4 stage
             mujoco.mj_tendon(model, data)
             went_slack |= data.ten_length <= structure.tendon_rest_length
-        positions.append(mujoco_node_positions(model, data, structure.n_nodes))
+        positions.append(mujoco_node_positions(model, data, structure.n_nodes, dim=structure.dim))
     return np.array(positions), went_slack
 
 

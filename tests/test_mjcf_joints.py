@@ -10,7 +10,6 @@ import pytest
 
 from tensegrity import simulate
 from tensegrity.mjcf import mujoco_node_positions, to_mjcf
-from tensegrity.planar import planar_two_rod
 from tensegrity.shell import class2_shell
 from test_constraints import GRAVITY, hanging_chain
 
@@ -65,11 +64,3 @@ def test_model_has_the_constraints_and_bodies():
     pinned = class2_shell(3, 2, fixed_base=True)
     model = mujoco.MjModel.from_xml_string(to_mjcf(pinned))
     assert model.neq == len(pinned.joint_nodes) + int(pinned.node_fixed.sum())
-
-
-def test_unsupported_structures_are_refused():
-    with pytest.raises(ValueError, match="^MJCF export: a planar structure"):
-        to_mjcf(planar_two_rod())
-    s = hanging_chain(damped=False).replace(plane_nodes=[3], plane_normal=[[0, 1, 0]])
-    with pytest.raises(ValueError, match="^plane_nodes: MJCF export has no counterpart"):
-        to_mjcf(s)

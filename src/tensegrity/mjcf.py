@@ -19,8 +19,30 @@ The model written by :func:`to_mjcf` is the same mechanical system as Theorem 18
   make them nearly hard (class 2 shells follow ours to ~5e-8 m over 0.3 s).  An anchor (fixed
   node of no rod) is a world site ``node{k}``; a point mass is a body ``mass{k}`` with a free
   joint, its mass, a negligible isotropic inertia and a site ``node{k}`` at its centre (after the
-  rods in ``qpos``/``qvel``).  Plane and line constraints and planar structures are refused.
-  Initial velocities are exported as given: give velocities that satisfy the constraints.
+  rods in ``qpos``/``qvel``).  Initial velocities are exported as given: give velocities that
+  satisfy the constraints.
+- **Planar structures** (``Structure.dim == 2``, Appendix A) lie in the plane ``z = 0``.  A rod's
+  body (same frame, inertia and sites as above) has, instead of a free joint, two slide joints
+  ``rod{r}_0``, ``rod{r}_1`` along the world ``x`` and ``y`` axes and a hinge ``rod{r}_rz`` about
+  ``z`` at its centre, so its joint-space mass matrix is ``diag(m, m, m L^2/12)``: exactly the
+  planar rod's 3 degrees of freedom (``qpos`` 0 at the initial pose, ``qvel`` the centre
+  velocity and ``omega = (u x (v_b - v_a))_z / L``).  A point mass has two slides.  Tendons,
+  joints and fixed ends are as in 3-D (a ``connect``'s ``z`` row is identically satisfied);
+  ``gravity`` has 2 numbers.  Read nodes back with ``dim=2``.
+- **Nodes on a plane or a line** are held exactly, in reduced coordinates: the held node is the
+  root of its body's joints.  A point mass's body slides along an orthonormal basis of the
+  directions its constraints leave free (two slides on a plane, one on a line; several planes
+  and lines on one node intersect).  A rod with a held end ``a`` has slides ``rod{r}_0, ...``
+  along those directions through ``p_a``, then a ball joint ``rod{r}_ball`` at ``a`` (a hinge
+  ``rod{r}_rz`` about ``z`` if planar); its ``qpos`` starts at 0 and ``(1, 0, 0, 0)``, its
+  ``qvel`` is the velocity of ``p_a`` along the slides and the body-frame angular velocity.  No
+  auxiliary body, no added mass and no soft constraint are involved.  A rod with both ends held
+  is refused (``plane_nodes`` / ``line_nodes``): a tree of joints holds one end, and holding the
+  other one with a ``connect`` to a sliding auxiliary body is not exact: MuJoCo regularizes
+  all three rows of a ``connect`` by the bodies' summed inverse weights, so a light auxiliary
+  body softens the constraint across the plane as well (measured 1e-2 m of error over 0.5 s
+  with a mass ratio 1e-8), and a heavy one adds its mass along it.  A plane or line on a fixed
+  node is left out (the node does not move).
 - Contacts are disabled, gravity is ``gravity`` (zero by default), the integrator and time step are
   options; ``<size memory>`` is set explicitly (MuJoCo's own estimate explodes for large models).
   The energy flag is on, so ``data.energy`` holds (elastic + gravity, kinetic) energy [J].
@@ -134,8 +156,37 @@ def _rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     return v + 2.0 * np.cross(r, np.cross(r, v) + w * v)
 
 
+def _lifted(structure: Structure) -> tuple[np.ndarray, np.ndarray]:
+    """Node positions [m] and velocities [m/s] in 3-D, shape (N, 3) each (a planar structure in
+    the plane ``z = 0``)."""
+    pad = ((0, 0), (0, 3 - structure.dim))
+    return np.pad(structure.node_position, pad), np.pad(structure.node_velocity, pad)
+
+
+def _rod_motion(structure: Structure) -> tuple[np.ndarray, ...]:
+    """``(centre, quat, velocity, omega, axis)`` of every rod in 3-D, ``omega`` [rad/s] and the
+    unit ``axis`` ``(p_b - p_a) / |p_b - p_a|`` in the world frame."""
+    a, b = structure.rod_nodes[:, 0], structure.rod_nodes[:, 1]
+    p, v = _lifted(structure)
+    centre = 0.5 * (p[a] + p[b])
+    axis = p[b] - p[a]
+    axis = axis / np.linalg.norm(axis, axis=1, keepdims=True)
+    quat = np.array([_quat_z_to(u) for u in axis]).reshape(-1, 4)
+    velocity = 0.5 * (v[a] + v[b])
+    omega = np.cross(axis, v[b] - v[a]) / structure.rod_length[:, None]
+    return centre, quat, velocity, omega, axis
+
+
+def _to_body(quat: np.ndarray, vectors: np.ndarray) -> np.ndarray:
+    """World ``vectors`` (R, 3) in the body frames of orientations ``quat`` (R, 4)."""
+    conjugate = quat * np.array([1.0, -1.0, -1.0, -1.0])
+    return np.array([_rotate(qc, w) for qc, w in zip(conjugate, vectors)]).reshape(-1, 3)
+
+
 def rod_frames(structure: Structure) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Free-joint state of every rod: ``(centre, quat, velocity, omega_local)``.
+
+    A planar structure is taken in the plane ``z = 0``.
 
     Returns
     -------
@@ -149,17 +200,8 @@ def rod_frames(structure: Structure) -> tuple[np.ndarray, np.ndarray, np.ndarray
         Angular velocities [rad/s] in the body frame (MuJoCo's free-joint convention), the world
         value being ``u x (v_b - v_a) / L``: no spin, rod-stretching velocity dropped.
     """
-    a, b = structure.rod_nodes[:, 0], structure.rod_nodes[:, 1]
-    p, v = structure.node_position, structure.node_velocity
-    centre = 0.5 * (p[a] + p[b])
-    axis = p[b] - p[a]
-    axis = axis / np.linalg.norm(axis, axis=1, keepdims=True)
-    quat = np.array([_quat_z_to(u) for u in axis])
-    velocity = 0.5 * (v[a] + v[b])
-    omega = np.cross(axis, v[b] - v[a]) / structure.rod_length[:, None]
-    conjugate = quat * np.array([1.0, -1.0, -1.0, -1.0])
-    omega_local = np.array([_rotate(qc, w) for qc, w in zip(conjugate, omega)])
-    return centre, quat, velocity, omega_local
+    centre, quat, velocity, omega, _ = _rod_motion(structure)
+    return centre, quat, velocity, _to_body(quat, omega)
 
 
 def mjcf_memory(structure: Structure) -> int:
@@ -177,44 +219,49 @@ def to_mjcf(
     *,
     timestep: float = 1e-4,
     integrator: str = "RK4",
-    gravity: Any = (0.0, 0.0, 0.0),
+    gravity: Any = None,
     name: str = "tensegrity",
 ) -> str:
-    """MJCF XML of ``structure`` for MuJoCo: free rod bodies, spatial deadband-spring tendons.
+    """MJCF XML of ``structure`` for MuJoCo: rod bodies, spatial deadband-spring tendons.
 
     See the module docstring for the modelling choices (spin inertia, deadband spring, damping,
-    keyframe).  All numbers are written with 17 significant digits, so the model's parameters and
-    initial state are bit-identical to ``structure``'s (after the rod-constraint projection).
+    planar structures, plane and line constraints, keyframe).  All numbers are written with 17
+    significant digits, so the model's parameters and initial state are bit-identical to
+    ``structure``'s (after the rod-constraint projection).
 
     Parameters
     ----------
     structure : Structure
-        A class 1 structure without rod damping (``rod_damping`` must be all zero).
+        A structure without rod damping (``rod_damping`` must be all zero); 3-D or planar.
     timestep : float
         MuJoCo time step [s], > 0.
     integrator : str
         One of ``"Euler"``, ``"RK4"``, ``"implicit"``, ``"implicitfast"``.
-    gravity : array_like, shape (3,)
-        Gravitational acceleration [m/s^2].  Default zero (MuJoCo's default is ``0 0 -9.81``).
+    gravity : array_like, shape (d,), optional
+        Gravitational acceleration [m/s^2], ``d = structure.dim`` numbers (2 for a planar
+        structure, as :func:`tensegrity.simulate.simulate` takes it).  Default zero (MuJoCo's
+        default is ``0 0 -9.81``).
     name : str
         The model name.
 
     Returns
     -------
     str
-        The MJCF document.  Bodies ``rod{r}`` with free joints ``rod{r}``, sites ``node{i}``,
-        tendons named ``structure.tendon_name``, keyframe ``initial`` (index 0).
+        The MJCF document.  Bodies ``rod{r}`` (a free joint ``rod{r}``, or slides ``rod{r}_0``,
+        ... and a hinge ``rod{r}_rz`` (planar) or ball ``rod{r}_ball`` (an end held on a plane
+        or line)), ``mass{k}``, sites ``node{i}``, tendons named ``structure.tendon_name``,
+        keyframe ``initial`` (index 0).
 
     Raises
     ------
     ValueError
         Naming the field: ``timestep``, ``integrator``, ``gravity``, ``name``;
         ``rods[r].damping`` when a rod has damping MuJoCo cannot represent; ``rods[r].mass`` when
-        its mass or inertia ``m L^2 / 12`` is below MuJoCo's minimum ``1e-15``.
+        its mass or inertia ``m L^2 / 12`` is below MuJoCo's minimum ``1e-15``;
+        ``plane_nodes`` or ``line_nodes`` when both ends of a rod are held on planes or lines.
     """
     if not isinstance(structure, Structure):
         raise ValueError(f"structure: expected a Structure, got {type(structure).__name__}")
-    _check_exportable(structure)
     try:
         dt = float(timestep)
     except (TypeError, ValueError):
@@ -223,12 +270,13 @@ def to_mjcf(
         raise ValueError(f"timestep: must be > 0 and finite, got {timestep!r}")
     if integrator not in INTEGRATORS:
         raise ValueError(f"integrator: must be one of {', '.join(INTEGRATORS)}, got {integrator!r}")
+    d = structure.dim
     try:
-        g = np.array(gravity, dtype=float)
+        g = np.zeros(d) if gravity is None else np.array(gravity, dtype=float)
     except (TypeError, ValueError):
-        raise ValueError(f"gravity: expected 3 numbers, got {gravity!r}") from None
-    if g.shape != (3,) or not np.all(np.isfinite(g)):
-        raise ValueError(f"gravity: expected 3 finite numbers, got {gravity!r}")
+        raise ValueError(f"gravity: expected {d} numbers, got {gravity!r}") from None
+    if g.shape != (d,) or not np.all(np.isfinite(g)):
+        raise ValueError(f"gravity: expected {d} finite numbers, got {gravity!r}")
     if not isinstance(name, str) or not name:
         raise ValueError(f"name: must be a non-empty string, got {name!r}")
     damped = np.flatnonzero(structure.rod_damping != 0)
@@ -249,12 +297,15 @@ def to_mjcf(
             f"must both exceed MuJoCo's minimum {_MUJOCO_MINVAL:g} (choose other units)"
         )
     spin = np.minimum(transverse, np.maximum(SPIN_INERTIA_RATIO * transverse, SPIN_INERTIA_MIN))
-    centre, quat, velocity, omega_local = rod_frames(structure)
+    planar = d == 2
+    centre, quat, velocity, omega, axis = _rod_motion(structure)
+    omega_local = _to_body(quat, omega)
+    position, node_velocity = _lifted(structure)
 
     root = ET.Element("mujoco", model=name)
     ET.SubElement(root, "compiler", angle="radian", inertiafromgeom="false", autolimits="true")
     option = ET.SubElement(
-        root, "option", timestep=_float(dt), integrator=integrator, gravity=_floats(g)
+        root, "option", timestep=_float(dt), integrator=integrator, gravity=_floats(np.pad(g, (0, 3 - d)))
     )
     connects = _connect_pairs(structure)
     # refsafe off: the joints' time constant 2 dt is below MuJoCo's "safe" minimum
@@ -263,12 +314,37 @@ def to_mjcf(
     ET.SubElement(root, "size", memory=str(mjcf_memory(structure)))
 
     world = ET.SubElement(root, "worldbody")
+    qpos: list[Any] = []
+    qvel: list[Any] = []
+    held = _held_axes(structure)
+    rod_root = _rod_roots(structure, held)
     for r, (a, b) in enumerate(structure.rod_nodes):
         m, L = float(mass[r]), float(length[r])
         body = ET.SubElement(
             world, "body", name=f"rod{r}", pos=_floats(centre[r]), quat=_floats(quat[r])
         )
-        ET.SubElement(body, "freejoint", name=f"rod{r}")
+        if rod_root[r] < 0 and not planar:
+            ET.SubElement(body, "freejoint", name=f"rod{r}")
+            qpos.append(np.concatenate([centre[r], quat[r]]))
+            qvel.append(np.concatenate([velocity[r], omega_local[r]]))
+        else:
+            # slides along the root's free directions (world axes, given in the body frame), then
+            # a ball (3-D) or a hinge about z (planar) at the root: the rod's centre or held end
+            side = 0.0 if rod_root[r] < 0 else (-0.5 if rod_root[r] == a else 0.5)
+            arm = side * L * axis[r]
+            axes = held.get(int(rod_root[r]), np.eye(3)[:2])
+            rates = axes @ (velocity[r] + np.cross(omega[r], arm))
+            _slides(body, f"rod{r}", _to_body(np.tile(quat[r], (len(axes), 1)), axes), rates, qpos, qvel)
+            at = _floats([0, 0, side * L])
+            if planar:
+                ET.SubElement(body, "joint", name=f"rod{r}_rz", type="hinge", pos=at,
+                              axis=_floats(_to_body(quat[r : r + 1], np.eye(3)[2:])[0]))
+                qpos.append([0.0])
+                qvel.append([omega[r, 2]])
+            else:
+                ET.SubElement(body, "joint", name=f"rod{r}_ball", type="ball", pos=at)
+                qpos.append([1.0, 0.0, 0.0, 0.0])
+                qvel.append(omega_local[r])
         ET.SubElement(
             body, "inertial", pos="0 0 0", mass=_float(m),
             diaginertia=_floats([transverse[r], transverse[r], spin[r]]),
@@ -282,14 +358,19 @@ def to_mjcf(
         ET.SubElement(body, "site", name=f"node{b}", pos=_floats([0, 0, L / 2]), size=radius)
     site_radius = _float(_SITE_RADIUS_FRACTION * float(length.max(initial=1.0)))
     for k in structure.point_mass_nodes:
-        body = ET.SubElement(world, "body", name=f"mass{k}", pos=_floats(structure.node_position[k]))
-        ET.SubElement(body, "freejoint", name=f"mass{k}")
+        body = ET.SubElement(world, "body", name=f"mass{k}", pos=_floats(position[k]))
+        if planar or k in held:
+            axes = held.get(int(k), np.eye(3)[:2])
+            _slides(body, f"mass{k}", axes, axes @ node_velocity[k], qpos, qvel)
+        else:
+            ET.SubElement(body, "freejoint", name=f"mass{k}")
+            qpos.append(np.concatenate([position[k], [1.0, 0.0, 0.0, 0.0]]))
+            qvel.append(np.concatenate([node_velocity[k], np.zeros(3)]))
         ET.SubElement(body, "inertial", pos="0 0 0", mass=_float(structure.node_point_mass[k]),
                       diaginertia=_floats([SPIN_INERTIA_MIN] * 3))
         ET.SubElement(body, "site", name=f"node{k}", pos="0 0 0", size=site_radius)
     for k in structure.anchor_nodes:
-        ET.SubElement(world, "site", name=f"node{k}", pos=_floats(structure.node_position[k]),
-                      size=site_radius)
+        ET.SubElement(world, "site", name=f"node{k}", pos=_floats(position[k]), size=site_radius)
     for site1, site2, where in connects:
         if site2.startswith("ground"):
             ET.SubElement(world, "site", name=site2, pos=_floats(where), size=site_radius)
@@ -307,44 +388,74 @@ def to_mjcf(
                 stiffness=_float(structure.tendon_stiffness[s]),
                 springlength=f"0 {_float(structure.tendon_rest_length[s])}",
                 damping=_float(structure.tendon_damping[s]),
-                width=_float(0.5 * _SITE_RADIUS_FRACTION * float(length.min())),
+                width=_float(0.5 * _SITE_RADIUS_FRACTION * float(length.min(initial=1.0))),
             )
             ET.SubElement(spatial, "site", site=f"node{tail}")
             ET.SubElement(spatial, "site", site=f"node{head}")
 
-    masses = structure.point_mass_nodes
-    still = np.tile([1.0, 0.0, 0.0, 0.0], (masses.size, 1))
     keyframe = ET.SubElement(root, "keyframe")
-    ET.SubElement(
-        keyframe, "key", name="initial", time="0",
-        qpos=_floats(np.concatenate([np.hstack([centre, quat]).ravel(),
-                                     np.hstack([structure.node_position[masses], still]).ravel()])),
-        qvel=_floats(np.concatenate([np.hstack([velocity, omega_local]).ravel(),
-                                     np.hstack([structure.node_velocity[masses], 0 * still[:, 1:]]).ravel()])),
-    )
+    ET.SubElement(keyframe, "key", name="initial", time="0",
+                  qpos=_floats(np.concatenate(qpos or [[]])), qvel=_floats(np.concatenate(qvel or [[]])))
     ET.indent(root, space="  ")
     return ET.tostring(root, encoding="unicode") + "\n"
 
 
-def _check_exportable(structure: Structure) -> None:
-    """Raise ``ValueError`` for what the export cannot represent: planar structures, plane and
-    line constraints."""
-    if structure.dim != 3:
-        raise ValueError("MJCF export: a planar structure cannot be exported (MuJoCo is 3-D)")
-    for kind, nodes in (("plane_nodes", structure.plane_nodes), ("line_nodes", structure.line_nodes)):
-        if nodes.size:
-            raise ValueError(f"{kind}: MJCF export has no counterpart for plane or line constraints")
+def _slides(body: ET.Element, name: str, axes: np.ndarray, rates: np.ndarray,
+            qpos: list, qvel: list) -> None:
+    """Slide joints ``{name}_0, {name}_1, ...`` of ``body`` along ``axes`` (k, 3) in the body
+    frame, starting at 0 with the given ``rates`` (k,) [m/s]."""
+    for i, axis in enumerate(axes):
+        ET.SubElement(body, "joint", name=f"{name}_{i}", type="slide", axis=_floats(axis))
+    qpos.append(np.zeros(len(axes)))
+    qvel.append(rates)
+
+
+def _held_axes(structure: Structure) -> dict[int, np.ndarray]:
+    """The free directions of every node held on planes or lines (and not fixed): an orthonormal
+    basis (k, 3) of the directions its constraints allow (a planar structure's in ``z = 0``),
+    ``k = 0`` if they leave none."""
+    from scipy.linalg import null_space
+
+    from tensegrity.constraints import _normals
+
+    d = structure.dim
+    rows: dict[int, list[np.ndarray]] = {}
+    for k, normal in zip(structure.plane_nodes, structure.plane_normal):
+        rows.setdefault(int(k), []).append(normal[None])
+    if structure.line_nodes.size:
+        for k, normals in zip(structure.line_nodes, _normals(structure.line_direction)):
+            rows.setdefault(int(k), []).append(normals)
+    return {k: np.pad(null_space(np.vstack(r)).T, ((0, 0), (0, 3 - d)))
+            for k, r in rows.items() if not structure.node_fixed[k]}
+
+
+def _rod_roots(structure: Structure, held: dict[int, np.ndarray]) -> np.ndarray:
+    """The held end of every rod (the root of its body's joints), or -1 for a rod with none.
+
+    Raises ``ValueError`` naming ``plane_nodes`` or ``line_nodes`` for a rod with both ends
+    held: a rod body's tree of joints holds one end exactly (see the module docstring)."""
+    roots = np.full(structure.n_rods, -1)
+    for r, (a, b) in enumerate(structure.rod_nodes):
+        if a in held and b in held:
+            field = "plane_nodes" if b in structure.plane_nodes else "line_nodes"
+            raise ValueError(
+                f"{field}: both ends {a} and {b} of rods[{r}] are held on a plane or line; the "
+                "MJCF export holds at most one end of each rod (exactly, by its joints)"
+            )
+        roots[r] = a if a in held else (b if b in held else -1)
+    return roots
 
 
 def _connect_pairs(structure: Structure) -> list[tuple[str, str, np.ndarray | None]]:
     """MuJoCo ``connect`` constraints ``(site1, site2, ground position)``: one per ball joint, and
-    one per fixed rod end to a world site ``ground{a}`` at its position."""
+    one per fixed rod end to a world site ``ground{a}`` at its position (3-D)."""
     pairs: list[tuple[str, str, np.ndarray | None]] = [
         (f"node{a}", f"node{b}", None) for a, b in structure.joint_nodes
     ]
     in_rod = np.zeros(structure.n_nodes, bool)
     in_rod[structure.rod_nodes] = True
-    pairs += [(f"node{a}", f"ground{a}", structure.node_position[a])
+    position, _ = _lifted(structure)
+    pairs += [(f"node{a}", f"ground{a}", position[a])
               for a in np.flatnonzero(structure.node_fixed & in_rod)]
     return pairs
 
@@ -406,27 +517,36 @@ def node_site_ids(model: Any, n_nodes: int) -> np.ndarray:
     return ids
 
 
-def mujoco_node_positions(model: Any, data: Any, n_nodes: int) -> np.ndarray:
-    """Node positions [m], shape (N, 3), of a MuJoCo model built from :func:`to_mjcf`.
+def _check_dim(dim: Any) -> None:
+    if dim not in (2, 3) or isinstance(dim, bool):
+        raise ValueError(f"dim: must be 3, or 2 for a planar structure, got {dim!r}")
+
+
+def mujoco_node_positions(model: Any, data: Any, n_nodes: int, *, dim: int = 3) -> np.ndarray:
+    """Node positions [m], shape (N, dim), of a MuJoCo model built from :func:`to_mjcf`.
 
     Calls ``mujoco.mj_kinematics`` first (after ``mj_step`` with RK4, ``site_xpos`` holds the last
     Runge-Kutta stage, not the end of the step), then reads ``site_xpos`` in node order.
+    ``dim=2`` (a planar structure, in the plane ``z = 0``) returns the ``x, y`` columns.
     """
     import mujoco
 
+    _check_dim(dim)
     ids = node_site_ids(model, n_nodes)
     mujoco.mj_kinematics(model, data)
-    return data.site_xpos[ids].copy()
+    return data.site_xpos[ids, :dim].copy()
 
 
-def mujoco_node_velocities(model: Any, data: Any, n_nodes: int) -> np.ndarray:
-    """Node velocities [m/s], shape (N, 3), world frame, of a model built from :func:`to_mjcf`.
+def mujoco_node_velocities(model: Any, data: Any, n_nodes: int, *, dim: int = 3) -> np.ndarray:
+    """Node velocities [m/s], shape (N, dim), world frame, of a model built from :func:`to_mjcf`
+    (``dim=2``: the ``x, y`` columns of a planar structure's).
 
     Calls ``mujoco.mj_kinematics``, ``mujoco.mj_comPos`` and ``mujoco.mj_comVel`` (which
     ``mj_objectVelocity`` needs) first.
     """
     import mujoco
 
+    _check_dim(dim)
     ids = node_site_ids(model, n_nodes)
     mujoco.mj_kinematics(model, data)
     mujoco.mj_comPos(model, data)
@@ -436,4 +556,4 @@ def mujoco_node_velocities(model: Any, data: Any, n_nodes: int) -> np.ndarray:
     for k, site in enumerate(ids):
         mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_SITE, int(site), twist, 0)
         out[k] = twist[3:]
-    return out
+    return out[:, :dim]
