@@ -57,6 +57,10 @@ RANK_RTOL = 1e-10
 #: :meth:`LinearConstraints.project` stops when ``|A q - b|`` [m] and the rod-length errors [m]
 #: are below this times the structure's length scale (the longest rod, at least 1 m).
 PROJECTION_RTOL = 1e-14
+#: ... or, once Gauss-Newton stops converging (the error no longer halves: round-off in ``A q - b``
+#: and ``|q2|`` sets a floor that grows with the coordinates' magnitude and the number of coupled
+#: rows), when they are below this times the length scale.  Past it the projection has failed.
+PROJECTION_FLOOR_RTOL = 1e-12
 
 
 def solve_psd(matrix: sp.spmatrix | np.ndarray, rhs: np.ndarray, *, refinements: int = 2) -> np.ndarray:
@@ -282,7 +286,8 @@ class LinearConstraints:
 
         Positions: Gauss-Newton steps ``dq = -W^-1 J^T (J W^-1 J^T)^-1 c(q)`` on
         ``c = [A q - b; (|q2|^2 - L^2) / 2]`` until every error is below ``PROJECTION_RTOL``
-        times the length scale.  Raises ``FloatingPointError`` if that fails (the state is too
+        times the length scale, or below ``PROJECTION_FLOOR_RTOL`` times it once the steps stop
+        converging (the round-off floor).  Raises ``FloatingPointError`` if that fails (the state is too
         far off the constraints to be projected).
         """
         from tensegrity.dynamics import rod_coordinates
@@ -290,14 +295,17 @@ class LinearConstraints:
         s = self.structure
         L = s.rod_length
         tol = PROJECTION_RTOL * self.length_scale
+        floor = PROJECTION_FLOOR_RTOL * self.length_scale
         q = np.array(q, dtype=float)
+        previous = np.inf
         for _ in range(max_iter):
             q2 = rod_coordinates(s, q)[:, 1]
             length = np.linalg.norm(q2, axis=1)
             residual = self.residual(q)
             error = max(np.max(np.abs(residual), initial=0.0), np.max(np.abs(length - L), initial=0.0))
-            if error <= tol:
+            if error <= tol or (error <= floor and error > 0.5 * previous):
                 break
+            previous = error
             jacobian = self._jacobian(q)
             violation = np.concatenate([residual, 0.5 * (length**2 - L**2)])
             q = q - self._project_step(jacobian, violation)
