@@ -323,7 +323,6 @@ def worker(method: str, n: int, m: int, budget: float, cold: bool, threads: int 
     structure, q, qdot, rest = bench_problem(n, m)
     out: dict = dict(method=method, n=n, m=m, R=structure.n_rods, S=structure.n_tendons,
                      rss_after_import_mb=vm_hwm_mb())
-    R = structure.n_rods
 
     if method == "numpy":
         ev = lambda: dynamics.evaluate(structure, q, qdot, rest_length=rest)  # noqa: E731

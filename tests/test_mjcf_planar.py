@@ -91,7 +91,7 @@ def test_example1_rod_tumbling_under_gravity():
     """Example 1: a single planar rod thrown spinning: its centre falls as g t^2 / 2 and its
     angular velocity is constant, in MuJoCo as in ours (same steps)."""
     s = planar_rod(mass=0.7, length=1.3, angle=0.4)
-    centre, arm = s.node_position.mean(axis=0), s.node_position - s.node_position.mean(axis=0)
+    arm = s.node_position - s.node_position.mean(axis=0)
     spin = 3.0 * np.column_stack([-arm[:, 1], arm[:, 0]])  # 3 rad/s about the centre
     s = s.replace(node_velocity=np.array([0.4, 2.0]) + spin)
     difference, ours, _ = same_steps(s, gravity=PLANAR_GRAVITY)

@@ -88,7 +88,7 @@ import numpy as np
 from tensegrity import dynamics
 from tensegrity import io as tio
 from tensegrity.dynamics import State
-from tensegrity.simulate import STATUS_END, STATUS_FAILED, simulate
+from tensegrity.simulate import STATUS_END, simulate
 from tensegrity.structure import Structure
 
 PathLike = str | os.PathLike
