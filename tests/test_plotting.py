@@ -162,3 +162,21 @@ def test_figures_of_a_structure_without_taut_tendons(tmp_path, tendons):
     assert (artists["slack"] is not None) == bool(tendons)
     expected = ["rods (2)"] + [f"slack tendons ({tendons})"] * bool(tendons)
     assert legend_texts(ax) == expected
+
+
+def test_fixed_nodes_are_marked():
+    """Supports and anchors show as triangles at exactly the fixed nodes, with a legend entry;
+    a free structure has neither."""
+    from tensegrity.shell import class2_shell
+
+    s = class2_shell(4, 2, fixed_base=True)
+    figure = figure_structure(s, s.node_position)
+    ax = figure.axes[0]
+    fixed = np.flatnonzero(s.node_fixed)
+    assert fixed.size == 8 and f"fixed nodes ({fixed.size})" in legend_texts(ax)
+    marked = [c for c in ax.collections if c.get_offsets().shape[0] == fixed.size]
+    assert len(marked) == 1
+    xs, ys, _ = marked[0]._offsets3d
+    np.testing.assert_allclose(np.column_stack([xs, ys]), s.node_position[fixed, :2])
+    free = figure_structure(class2_shell(4, 2), class2_shell(4, 2).node_position)
+    assert not any(t.startswith("fixed") for t in legend_texts(free.axes[0]))

@@ -41,6 +41,7 @@ if TYPE_CHECKING:
 ROD_COLOR = "#26282b"
 TENDON_COLOR = "#2f6fb0"
 SLACK_COLOR = "#d62728"
+FIXED_COLOR = "#8c564b"
 #: Colour map of tendon tension; the yellow end is cut off so that every tendon shows on white.
 TENSION_CMAP = "viridis"
 _CMAP_RANGE = (0.0, 0.85)
@@ -119,15 +120,17 @@ def draw_structure(
     color_by_tension : bool
         Colour taut tendons by tension (default) rather than in one colour.
     show_nodes : bool
-        Mark the nodes (rod ends) with dots.
+        Mark the nodes (rod ends) with dots.  Fixed nodes (``structure.node_fixed``: supports
+        and anchors) are always marked, with triangles and a legend entry ``"fixed nodes (k)"``.
     legend : bool
-        Add a legend (rods, tendons, slack tendons if any).
+        Add a legend (rods, tendons, slack tendons and fixed nodes if any).
 
     Returns
     -------
     dict
         The artists: ``"rods"``, ``"tendons"`` (taut or all; None if there is none), ``"slack"``
-        (None if no tendon is slack), ``"nodes"`` (or None), and ``"mappable"``: a ``ScalarMappable`` of the tension
+        (None if no tendon is slack), ``"nodes"`` (or None), ``"fixed"`` (None if no node is
+        fixed), and ``"mappable"``: a ``ScalarMappable`` of the tension
         colours, or None.
     """
     from mpl_toolkits.mplot3d.art3d import Line3DCollection
@@ -170,6 +173,10 @@ def draw_structure(
     nodes = None
     if show_nodes:
         nodes = ax.scatter(*p.T, s=14, color=ROD_COLOR, depthshade=False, zorder=4)
+    fixed = None
+    if structure.node_fixed.any():
+        fixed = ax.scatter(*p[structure.node_fixed].T, s=60, marker="^", color=FIXED_COLOR,
+                           depthshade=False, zorder=5)
 
     _fit_axes(ax, p)
     if legend:
@@ -184,9 +191,12 @@ def draw_structure(
         if slack.any():
             handles.append(Line2D([], [], color=SLACK_COLOR, lw=TENDON_WIDTH + 0.5,
                                   ls=(0, (4, 2.5)), label=f"slack tendons ({int(slack.sum())})"))
+        if fixed is not None:
+            handles.append(Line2D([], [], color=FIXED_COLOR, marker="^", ls="", markersize=8,
+                                  label=f"fixed nodes ({int(structure.node_fixed.sum())})"))
         ax.legend(handles=handles, loc="upper left", fontsize="small", framealpha=0.85)
     return {"rods": rods, "tendons": tendons, "slack": slack_lines, "nodes": nodes,
-            "mappable": mappable}
+            "fixed": fixed, "mappable": mappable}
 
 
 def _uniform(values: np.ndarray) -> bool:
