@@ -21,6 +21,7 @@ pytest.importorskip("numba")
 from tensegrity import Structure, class1_shell, dynamics  # noqa: E402
 from tensegrity.integrators import RK4  # noqa: E402
 from tensegrity.kernel import FastKernel  # noqa: E402
+from test_dynamics import random_consistent_state as random_consistent_nodes  # noqa: E402
 
 TOL = 1e-12
 
@@ -65,22 +66,11 @@ def with_random_parameters(structure: Structure, rng: np.random.Generator) -> St
 
 
 def random_consistent_state(structure, rng, speed=2.0, jitter=0.15):
-    """``(q, qdot)`` near the layout with every ``|q2| = L`` and ``q2 . q2' = 0``."""
-    p = np.empty((structure.n_nodes, 3))
-    v = np.empty((structure.n_nodes, 3))
-    for r, (a, b) in enumerate(structure.rod_nodes):
-        L = structure.rod_length[r]
-        p0a, p0b = structure.node_position[a], structure.node_position[b]
-        centre = 0.5 * (p0a + p0b) + jitter * rng.standard_normal(3)
-        d = (p0b - p0a) / L + jitter * rng.standard_normal(3)
-        d *= L / np.linalg.norm(d)
-        p[a], p[b] = centre - d / 2, centre + d / 2
-        vc = speed * rng.standard_normal(3)
-        dv = np.cross(speed * rng.standard_normal(3), d)
-        v[a], v[b] = vc - dv / 2, vc + dv / 2
-    q = dynamics.coordinates_from_nodes(structure, p)
-    qdot = dynamics.coordinates_from_nodes(structure, v)
-    return q, qdot
+    """``(q, qdot)`` near the layout with every ``|q2| = L`` and ``q2 . q2' = 0`` (the node
+    positions and velocities of ``test_dynamics.random_consistent_state``)."""
+    p, v = random_consistent_nodes(structure, rng, speed=speed, jitter=jitter)
+    return (dynamics.coordinates_from_nodes(structure, p),
+            dynamics.coordinates_from_nodes(structure, v))
 
 
 def random_rest_lengths(structure, q, rng):
