@@ -21,6 +21,7 @@ pytest.importorskip("numba")
 from tensegrity import Structure, class1_shell, dynamics  # noqa: E402
 from tensegrity.integrators import RK4  # noqa: E402
 from tensegrity.kernel import FastKernel  # noqa: E402
+from test_dynamics import mixed_controls  # noqa: E402
 from test_dynamics import random_consistent_state as random_consistent_nodes  # noqa: E402
 
 TOL = 1e-12
@@ -74,15 +75,9 @@ def random_consistent_state(structure, rng, speed=2.0, jitter=0.15):
 
 
 def random_rest_lengths(structure, q, rng):
-    """A third of the tendons slack (``Lbar`` above the current length), one at ``Lbar = 0``,
-    the rest taut by a random amount."""
-    lengths = dynamics.tendon_lengths(structure, dynamics.nodes_from_coordinates(structure, q))
-    S = structure.n_tendons
-    rest = lengths * rng.uniform(0.3, 0.98, S)
-    slack = rng.permutation(S)[: S // 3]
-    rest[slack] = lengths[slack] * rng.uniform(1.02, 1.5, slack.size)
-    taut = np.setdiff1d(np.arange(S), slack)
-    rest[taut[0]] = 0.0
+    """A third of the tendons slack, one at ``Lbar = 0``, the rest taut by a random amount
+    (``test_dynamics.mixed_controls`` at the nodes of ``q``): ``(rest, slack)``."""
+    _, rest, slack = mixed_controls(structure, dynamics.nodes_from_coordinates(structure, q), rng)
     return rest, slack
 
 
