@@ -91,7 +91,14 @@ def _node_pass(
     if ``tendon_damping`` is not None (the tendon pass needs them only then), the node
     velocities into ``node_work[1]``; the nodal forces ``node_work[2]`` start at gravity (or
     zero)."""
-    for r in range(first, last):
+    # Every pass loops over slices, from 0 to their length: with ``range(first, last)`` the
+    # compiler cannot prove an index >= 0 when ``first`` is not known at compile time (the
+    # threaded blocks), and keeps numba's negative-index wrap-around on every access.
+    rod_nodes = rod_nodes[first:last]
+    rod_param = rod_param[first:last]
+    q = q[6 * first:6 * last]
+    qdot = qdot[6 * first:6 * last]
+    for r in range(rod_nodes.shape[0]):
         a = rod_nodes[r, 0]
         b = rod_nodes[r, 1]
         o = 6 * r
@@ -121,8 +128,13 @@ def _tendon_pass(
     removed by tendon damping.  With ``tendon_damping`` None (all ``c = 0``) the node velocities
     ``v`` are not read and the tension is the elastic tension: the same numbers as with zero
     damping, for finite velocities (0.70-0.78x the time of a whole evaluation at (100,100))."""
+    tendon_nodes = tendon_nodes[first:last]
+    tendon_stiffness = tendon_stiffness[first:last]
+    rest_length = rest_length[first:last]
+    tension = tension[first:last]
+    elastic_tension = elastic_tension[first:last]
     dissipation = 0.0
-    for s in range(first, last):
+    for s in range(tendon_nodes.shape[0]):
         tail = tendon_nodes[s, 0]
         head = tendon_nodes[s, 1]
         tx = p[head, 0] - p[tail, 0]
@@ -143,7 +155,7 @@ def _tendon_pass(
                     + ey * (v[head, 1] - v[tail, 1])
                     + ez * (v[head, 2] - v[tail, 2])
                 )
-                total = elastic + tendon_damping[s] * rate
+                total = elastic + tendon_damping[first + s] * rate
                 if total < 0.0:
                     total = 0.0
                 dissipation += (total - elastic) * rate
@@ -172,9 +184,14 @@ def _rod_pass(
     the nodal forces ``node_work[2]`` (to which ``w`` is added; its power uses ``p' = P q'``).
     Returns ``(rod_dissipation, external_power)``."""
     force = node_work[2]
+    rod_nodes = rod_nodes[first:last]
+    rod_param = rod_param[first:last]
+    q = q[6 * first:6 * last]
+    qdot = qdot[6 * first:6 * last]
+    qddot = qddot[6 * first:6 * last]
     external_power = 0.0
     rod_dissipation = 0.0
-    for r in range(first, last):
+    for r in range(rod_nodes.shape[0]):
         a = rod_nodes[r, 0]
         b = rod_nodes[r, 1]
         o = 6 * r
