@@ -294,3 +294,19 @@ def test_incomplete_trajectory_names_the_file_and_problem(tmp_path, result, edit
     with pytest.raises(ValueError) as exc_info:
         read_trajectory(path)
     assert_one_line_naming(exc_info, path, *words)
+
+
+def test_trajectory_keeps_the_joint_error_and_marks_older_files_unknown(tmp_path, result):
+    """``max_constraint_error`` (joints, supports) is stored; a file written before it was stored
+    reads NaN for a structure with constraints and 0 for one without."""
+    from tensegrity.shell import class2_shell
+
+    jointed = simulate(class2_shell(3, 2), (0.0, 0.05), sample_dt=0.025)
+    assert 0.0 < jointed.max_constraint_error < 1e-9
+    for run, older in ((jointed, np.nan), (result, 0.0)):
+        path = tmp_path / "run.h5"
+        write_trajectory(path, run)
+        assert read_trajectory(path).max_constraint_error == run.max_constraint_error
+        with h5py.File(path, "a") as f:
+            del f.attrs["max_constraint_error"]
+        np.testing.assert_equal(read_trajectory(path).max_constraint_error, older)

@@ -315,3 +315,29 @@ def test_invalid_arguments(tmp_path):
         simulate_to_file(SHELL, (0.0, 1.0), tmp_path / "missing" / "run.h5")
     assert list(tmp_path.iterdir()) == []
 
+
+
+def test_joint_error_is_kept_across_segments_and_a_resume(tmp_path, monkeypatch):
+    """The largest joint violation of a streamed run is the largest over all its segments,
+    including those run before an interruption (kept in the checkpoint)."""
+    from tensegrity.shell import class2_shell
+
+    structure = class2_shell(3, 2)
+    seen: list[float] = []
+    real_simulate = stream_module.simulate
+
+    def recording_simulate(*args, **kwargs):
+        result = real_simulate(*args, **kwargs)
+        seen.append(result.max_constraint_error)
+        return result
+
+    monkeypatch.setattr(stream_module, "simulate", recording_simulate)
+    path = tmp_path / "jointed.h5"
+    callback, _ = stop_after(2)
+    with pytest.raises(KeyboardInterrupt):
+        simulate_to_file(structure, (0.0, 0.1), path, segment=0.02, progress=callback, **FAST)
+    assert read_checkpoint(path).max_constraint_error == max(seen) > 0.0
+    summary = simulate_to_file(structure, (0.0, 0.1), path, segment=0.02, **FAST)
+    assert summary.segments_run == 3 and len(seen) == 5
+    assert summary.max_constraint_error == max(seen) < 1e-9
+    assert read_trajectory(path).max_constraint_error == max(seen)

@@ -29,7 +29,8 @@ dataset                    shape        content
 
 and the root attributes ``format``, ``version``, ``structure`` (JSON form of the structure),
 ``settings`` (JSON), ``status``, ``message``, ``nfev``, ``nsteps``, ``nswitches``,
-``nprojections``, ``max_rod_length_error``, ``wall_time`` [s] and ``tendon_names``.
+``nprojections``, ``max_rod_length_error``, ``max_constraint_error`` [m] (joints and supports;
+0 without them), ``wall_time`` [s] and ``tendon_names``.
 """
 
 from __future__ import annotations
@@ -325,6 +326,9 @@ class Trajectory:
         Largest relative rod-length error seen.
     wall_time : float
         Run time [s].
+    max_constraint_error : float
+        Largest violation of the joints and supports seen [m] (0 for a structure without them;
+        NaN when read from a file written before it was stored).
     """
 
     time: np.ndarray
@@ -346,6 +350,7 @@ class Trajectory:
     nprojections: int
     max_rod_length_error: float
     wall_time: float
+    max_constraint_error: float = 0.0
 
     @property
     def success(self) -> bool:
@@ -411,6 +416,7 @@ def write_trajectory(path: PathLike, result: SimulationResult) -> Path:
         "message": str(result.message),
         **{name: int(getattr(result, name)) for name in _COUNT_ATTRIBUTES},
         "max_rod_length_error": float(result.max_rod_length_error),
+        "max_constraint_error": float(result.max_constraint_error),
         "wall_time": float(result.wall_time),
         "tendon_names": np.array(structure.tendon_name, dtype=h5py.string_dtype()),
     }
@@ -520,6 +526,9 @@ def _read_open_trajectory(f, path: PathLike) -> Trajectory:
         counts = {name: int(attribute(name)) for name in _COUNT_ATTRIBUTES}
         status = int(attribute("status"))
         floats = {name: float(attribute(name)) for name in ("max_rod_length_error", "wall_time")}
+        # Absent from files written before it was stored: unknown there, unless nothing can err.
+        floats["max_constraint_error"] = float(f.attrs.get(
+            "max_constraint_error", np.nan if structure.has_constraints else 0.0))
     except (TypeError, ValueError) as exc:
         raise _file_error(path, f"invalid attribute: {exc}") from exc
     return Trajectory(

@@ -176,6 +176,8 @@ class Checkpoint:
     status : int
         ``1`` steady state, ``0`` end time reached or still running, ``-1`` failed.
     message : str
+    max_constraint_error : float
+        Largest violation of the joints and supports over the stored segments [m].
     """
 
     next_segment: int
@@ -190,6 +192,7 @@ class Checkpoint:
     ended: bool = False
     status: int = STATUS_END
     message: str = "running"
+    max_constraint_error: float = 0.0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -221,6 +224,8 @@ class StreamSummary:
     nfev, nsteps, nswitches, nprojections : int
         Summed over all segments.
     max_rod_length_error : float
+    max_constraint_error : float
+        Largest violation of the joints and supports [m] (0 without them).
     wall_time : float
         Over all sessions [s].
     settings_hash : str
@@ -242,6 +247,7 @@ class StreamSummary:
     nswitches: int
     nprojections: int
     max_rod_length_error: float
+    max_constraint_error: float
     wall_time: float
     settings_hash: str
 
@@ -389,6 +395,7 @@ def _create_partial(
             for name in _COUNTERS:
                 f.attrs[name] = 0
             f.attrs["max_rod_length_error"] = 0.0
+            f.attrs["max_constraint_error"] = 0.0
             f.attrs["wall_time"] = 0.0
             f.attrs["tendon_names"] = np.array(structure.tendon_name, dtype=h5py.string_dtype())
             for name, shape in _row_shapes(structure).items():
@@ -441,6 +448,7 @@ def _write_checkpoint(slot, checkpoint: Checkpoint) -> None:
     for name, value in checkpoint.counts.items():
         a[name] = int(value)
     a["max_rod_length_error"] = float(checkpoint.max_rod_length_error)
+    a["max_constraint_error"] = float(checkpoint.max_constraint_error)
     a["wall_time"] = float(checkpoint.wall_time)
     a["settings_hash"] = checkpoint.settings_hash
     a["ended"] = bool(checkpoint.ended)
@@ -473,6 +481,8 @@ def _read_checkpoint_open(f, path: PathLike) -> Checkpoint:
             ended=bool(a["ended"]),
             status=int(a["status"]),
             message=tio._text(a["message"]),
+            # absent from checkpoints written before it was kept: unknown
+            max_constraint_error=float(a.get("max_constraint_error", np.nan)),
         )
     except KeyError as exc:
         raise tio._file_error(path, f"checkpoint: missing attribute {exc}") from exc
@@ -556,6 +566,7 @@ def _summary(path: Path, f, checkpoint: Checkpoint, samples_per_segment: int, se
         samples_per_segment=samples_per_segment,
         **checkpoint.counts,
         max_rod_length_error=checkpoint.max_rod_length_error,
+        max_constraint_error=checkpoint.max_constraint_error,
         wall_time=checkpoint.wall_time,
         settings_hash=checkpoint.settings_hash,
     )
@@ -735,6 +746,8 @@ def simulate_to_file(
             counts = {name: checkpoint.counts[name] + int(getattr(result, name))
                       for name in _COUNTERS}
             max_error = max(checkpoint.max_rod_length_error, float(result.max_rod_length_error))
+            constraint_error = max(checkpoint.max_constraint_error,
+                                   float(result.max_constraint_error))
             del result
             with _open_h5(partial, "a") as f:
                 n_samples = _append(f, arrays, checkpoint.n_samples)
@@ -747,6 +760,7 @@ def simulate_to_file(
                     wall_time=checkpoint.wall_time + (time.perf_counter() - wall0),
                     settings_hash=settings_hash, ended=ended, status=status,
                     message=message if ended else f"running: {k + 1} of {n_segments} segments",
+                    max_constraint_error=constraint_error,
                 )
                 _store_checkpoint(f, checkpoint)
                 f.attrs["settings"] = json.dumps(run_settings, default=tio._json_default)
@@ -755,6 +769,7 @@ def simulate_to_file(
                 for name in _COUNTERS:
                     f.attrs[name] = counts[name]
                 f.attrs["max_rod_length_error"] = max_error
+                f.attrs["max_constraint_error"] = constraint_error
                 f.attrs["wall_time"] = checkpoint.wall_time
                 f.flush()
             _fsync(partial)
