@@ -308,3 +308,106 @@ def test_cli_sweep_from_a_spec_file(tmp_path, capsys):
     assert main(["sweep", "--spec", str(tmp_path / "missing.json"), "-o", str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 2 and "--spec: cannot be combined" in err[0] and "missing.json" in err[1]
+
+
+# ------------------------------------------------------------------------ structure-file sweeps
+def prism_on_ground():
+    """The 3-bar prism with its bottom triangle fixed (supports: not for the compiled kernel)."""
+    from tensegrity import generators
+
+    s = generators.prism(3)
+    z = s.node_position[:, 2]
+    return s.replace(node_fixed=np.isclose(z, z.min(), rtol=0, atol=1e-12))
+
+
+def structure_case(base, stiffness, load):
+    """A structure sweep's case built here by hand: every tendon's stiffness set, the file's rest
+    lengths and damping kept, the load split over the highest and the lowest nodes."""
+    s = base.replace(tendon_stiffness=np.full(base.n_tendons, stiffness))
+    if not load:
+        return s, None
+    z = s.node_position[:, 2]
+    top, bottom = np.isclose(z, z.max(), rtol=0, atol=1e-12), np.isclose(z, z.min(), rtol=0, atol=1e-12)
+    force = np.zeros((s.n_nodes, 3))
+    force[top, 2] = -load / top.sum()
+    force[bottom, 2] = load / bottom.sum()
+    return s, force
+
+
+@pytest.mark.parametrize("supported", [False, True], ids=["free prism", "prism on ground"])
+def test_structure_sweep_cases_equal_direct_simulate(client, supported):
+    from tensegrity import generators
+
+    base = prism_on_ground() if supported else generators.prism(4)
+    spec = SweepSpec({"stiffness": [60.0, 150.0], "load": [0.0, 4.0]}, t_end=T_END,
+                     sample_dt=SAMPLE_DT, dt=DT, structure=base)
+    result = run_sweep(spec, client=client)
+    ds = result.dataset
+    assert result.success and ds.sizes["case"] == 4
+    assert set(ds.coords) == {"case", "time", "stiffness", "load"}  # no n, m for a file
+    # the compiled (batched) path takes the free prism only; the supported one runs simulate
+    assert np.all(ds["batched"].values == (0 if supported else 1))
+    for i in range(4):
+        structure, force = structure_case(base, ds["stiffness"].values[i], ds["load"].values[i])
+        ref = simulate(structure, (0.0, T_END), method="rk4", dt=DT, sample_dt=SAMPLE_DT,
+                       external_force=force)
+        # The file's rest lengths are kept: unloaded, the prism stays at its equilibrium.
+        moved = np.max(np.abs(ref.node_position[-1] - base.node_position))
+        assert moved > 1e-6 if ds["load"].values[i] else moved < 1e-9
+        expected = direct_series(ref)
+        energy_scale = np.max(expected["kinetic_energy"] + expected["elastic_energy"])
+        for name, series in expected.items():
+            got = ds[name].values[i]
+            if supported:  # the same simulate call
+                np.testing.assert_array_equal(got, series, err_msg=name)
+            else:  # round-off: energies against the case's energy, lengths against a rod's
+                scale = {"kinetic_energy": energy_scale, "elastic_energy": energy_scale,
+                         "energy_error": energy_scale, "max_displacement": base.rod_length[0],
+                         }.get(name, np.max(np.abs(series)))
+                assert np.max(np.abs(got - series)) <= 1e-12 * scale, name
+    assert "stiffness=60" in result.describe_case(0) and "n=" not in result.describe_case(0)
+
+
+def test_structure_sweep_spec_forms_and_errors(tmp_path):
+    from tensegrity.io import write_structure
+
+    base = prism_on_ground()
+    with pytest.raises(ValueError, match=r"^parameters\.n: unknown parameter when sweeping a "
+                                         r"structure file; choose from stiffness"):
+        SweepSpec({"n": [3, 4]}, structure=base)
+    folder = tmp_path / "study"
+    folder.mkdir()
+    write_structure(folder / "prism.json", base)
+    (folder / "spec.json").write_text(json.dumps(
+        {"parameters": {"damping": [0.1, 0.2]}, "structure": "prism.json", "t_end": 0.01}))
+    spec = SweepSpec.from_file(folder / "spec.json")  # the path is relative to the spec file
+    assert spec.structure.to_dict() == base.to_dict()
+    assert spec.cases() == [{"damping": 0.1}, {"damping": 0.2}]
+    again = SweepSpec.from_dict(json.loads(json.dumps(spec.to_dict())))  # structure inline
+    assert again.structure.to_dict() == base.to_dict() and again.cases() == spec.cases()
+    (folder / "bad.json").write_text(json.dumps(
+        {"parameters": {"damping": [0.1]}, "structure": "missing.json"}))
+    with pytest.raises(ValueError, match="missing.json"):
+        SweepSpec.from_file(folder / "bad.json")
+
+
+def test_cli_sweep_of_a_structure_file(tmp_path, capsys):
+    from tensegrity.io import write_structure
+
+    path = tmp_path / "prism.json"
+    write_structure(path, prism_on_ground())
+    out = tmp_path / "s.nc"
+    code = main(["sweep", "--structure", str(path), "--param", "stiffness=50,100", "--t-end",
+                 "0.004", "--sample-dt", "0.002", "--dt", "0.0002", "--workers", "1", "-o", str(out)])
+    assert code == 0 and "2 of 2 cases reached t_end" in capsys.readouterr().out
+    ds = read_sweep(out)
+    assert list(ds["stiffness"].values) == [50.0, 100.0] and "n" not in ds.coords
+    assert json.loads(ds.attrs["spec"])["structure"]["nodes"] == prism_on_ground().to_dict()["nodes"]
+    for args in (["--structure", str(path), "--param", "n=3,4"],
+                 ["--structure", str(tmp_path / "missing.json"), "--param", "stiffness=50"],
+                 ["--structure", str(path), "--spec", str(path)]):
+        assert main(["sweep", *args, "-o", str(tmp_path / "x.nc")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 3 and all(line.startswith("tensegrity: error:") for line in err)
+    assert "parameters.n" in err[0] and "missing.json" in err[1] and "--spec" in err[2]
+    assert not (tmp_path / "x.nc").exists()

@@ -467,13 +467,17 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     if args.no_batch:
         options["batch"] = False
     if args.spec is not None:
-        if args.param or options:
-            raise CommandError("--spec: cannot be combined with --param or run options")
+        if args.param or options or args.structure is not None:
+            raise CommandError("--spec: cannot be combined with --param, --structure or run options")
         spec = SweepSpec.from_file(args.spec)
     elif not args.param:
         raise CommandError("sweep: give --spec FILE or at least one --param NAME=VALUES")
     else:
         mode = "monte-carlo" if args.samples is not None else "grid"
+        if args.structure is not None:
+            from tensegrity.network import read_network
+
+            options["structure"] = read_network(args.structure)
         spec = SweepSpec(dict(args.param), mode=mode, **options)
     result = run_sweep(spec, scheduler=args.scheduler, n_workers=args.workers,
                        progress=sys.stderr.isatty())
@@ -564,10 +568,14 @@ def build_parser() -> argparse.ArgumentParser:
     _add_analysis_parsers(sub)
 
     sweep = sub.add_parser(
-        "sweep", help="simulate many shells (a grid or Monte Carlo sample of parameters) on Dask",
+        "sweep", help="simulate many shells or copies of a structure file (a grid or Monte Carlo "
+                      "sample of parameters) on Dask",
         description="Run a parameter sweep on Dask and write one netCDF/HDF5 dataset; exit code 1 "
                     "if some case failed (reported per case, the others are kept).")
     sweep.add_argument("--spec", type=Path, metavar="FILE", help="sweep spec (.json or .yaml)")
+    sweep.add_argument("--structure", type=Path, metavar="FILE",
+                       help="sweep this structure file (any format) instead of the class 1 shell: "
+                            "then stiffness, rest_scale, damping and load can vary")
     sweep.add_argument("--param", type=_sweep_parameter, action="append", metavar="NAME=VALUES",
                        help="vary NAME (n, m, stiffness, rest_scale, damping, load): V1,V2,... "
                             "for a grid, LOW:HIGH with --samples; repeatable")

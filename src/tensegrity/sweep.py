@@ -1,4 +1,5 @@
-"""Parameter sweeps of class 1 shells on Dask: a grid or a Monte Carlo sample, one labeled dataset.
+"""Parameter sweeps on Dask, of class 1 shells or of any structure file: a grid or a Monte Carlo
+sample, one labeled dataset.
 
 A :class:`SweepSpec` names the parameters that vary and the run settings; :func:`run_sweep`
 builds every case, runs them in parallel on a Dask cluster (a ``distributed.LocalCluster`` by
@@ -22,6 +23,13 @@ Parameters of a case (SI units; defaults in :data:`DEFAULTS`)
 
 Each case starts from the initial layout at rest and runs ``simulate`` over ``(0, t_end)``.
 
+Any structure (``SweepSpec.structure``, ``tensegrity sweep --structure FILE``): the cases are
+that structure instead of a shell -- any network, with joints, supports, point masses or 2-D
+nodes -- with ``stiffness``, ``rest_scale``, ``damping`` and ``load`` as above (``n`` and ``m``
+cannot vary).  A parameter that is not varied keeps the file's values: its tendons' own
+stiffnesses, dampings and rest lengths, and no load.  ``load`` pushes the nodes of largest
+``z`` (``y`` for a 2-D structure) down and those of smallest up.
+
 How cases run
 -------------
 - ``method="rk4"`` (the default): cases run through the compiled path
@@ -35,18 +43,20 @@ How cases run
   compiled task per case.  ``batch=False``
   runs every case on its own through ``simulate`` instead (bit-for-bit what a direct ``simulate``
   call returns); compiled results agree with ``simulate`` to round-off (~1e-13 relative).
-- Adaptive methods (``"DOP853"``, ...): one task per case through ``simulate``.
+- Adaptive methods (``"DOP853"``, ...), and structures the compiled kernel does not take
+  (joints, supports, point masses, 2-D nodes): one task per case through ``simulate``.
 
 The dataset
 -----------
-Dimension ``case`` (coordinates: one per parameter, so ``ds.where(ds.stiffness == 100)`` works)
+Dimension ``case`` (coordinates: one per parameter -- for a structure file, one per varied
+parameter -- so ``ds.where(ds.stiffness == 100)`` works)
 and ``time`` (``0, sample_dt, ..., t_end`` [s]).  Per case: ``status`` (``0`` reached ``t_end``,
 ``-1`` unstable, ``-2`` error: the case could not be built or run), ``message``, ``t_final`` [s],
 ``nsteps``, ``nfev``, ``wall_time`` [s], ``max_rod_length_error`` (relative), ``batched`` (0/1).
 Per case and time (NaN after a run stopped): ``kinetic_energy``, ``elastic_energy``,
 ``energy_error`` (energy balance minus its initial value) [J], ``max_tension`` [N],
 ``slack_count``, ``max_displacement`` (largest node displacement from the initial layout) [m].
-Attribute ``spec``: the spec as JSON.  :meth:`SweepResult.save` writes it as netCDF-4/HDF5
+Attribute ``spec``: the spec as JSON (with the whole structure, for a structure sweep).  :meth:`SweepResult.save` writes it as netCDF-4/HDF5
 (``h5netcdf``) atomically; :func:`read_sweep` reads it back.
 """
 
@@ -77,6 +87,8 @@ DEFAULTS: dict[str, float] = {
     "n": 3, "m": 1, "stiffness": 100.0, "rest_scale": 0.9, "damping": 0.0, "load": 0.0,
 }
 INTEGER_PARAMETERS = ("n", "m")
+#: The parameters that can vary in a sweep of a given structure (its topology is fixed).
+STRUCTURE_PARAMETERS = ("stiffness", "rest_scale", "damping", "load")
 #: RK4 sweeps: shells with fewer rods than this are batched per worker, larger ones run one per task.
 BATCH_MAX_RODS = 1000
 #: ``status`` of a case that could not be built or raised while running.
@@ -128,7 +140,12 @@ class SweepSpec:
     rtol, atol : float
         Tolerances of adaptive methods.
     batch : bool
-        ``method="rk4"`` only: run cases through the batched compiled path (default True).
+        ``method="rk4"`` only: run cases through the batched compiled path (default True; free
+        3-D class 1 structures only, others run through ``simulate``).
+    structure : Structure, optional
+        Sweep this structure instead of the class 1 shell (then only
+        :data:`STRUCTURE_PARAMETERS` can vary; see the module docstring).  In the JSON/YAML form,
+        a path to a structure file (relative to the spec file) or the structure's JSON form.
     """
 
     parameters: Mapping[str, Sequence[float]]
@@ -142,6 +159,7 @@ class SweepSpec:
     rtol: float = 1e-9
     atol: float = 1e-12
     batch: bool = True
+    structure: Structure | None = None
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
@@ -151,8 +169,10 @@ class SweepSpec:
         clean: dict[str, tuple] = {}
         for name, values in self.parameters.items():
             field = f"parameters.{name}"
-            if name not in DEFAULTS:
-                raise ValueError(f"{field}: unknown parameter; choose from {', '.join(DEFAULTS)}")
+            allowed = DEFAULTS if self.structure is None else STRUCTURE_PARAMETERS
+            if name not in allowed:
+                why = "" if name not in DEFAULTS else " when sweeping a structure file"
+                raise ValueError(f"{field}: unknown parameter{why}; choose from {', '.join(allowed)}")
             if isinstance(values, (str, bytes)) or not isinstance(values, Sequence) or not values:
                 raise ValueError(f"{field}: expected a non-empty list of numbers")
             numbers = tuple(
@@ -183,10 +203,13 @@ class SweepSpec:
                              f"got {self.t_end:g} s")
         if not isinstance(self.batch, bool):
             raise ValueError(f"batch: expected true or false, got {self.batch!r}")
+        if self.structure is not None and not isinstance(self.structure, Structure):
+            raise ValueError(f"structure: expected a Structure, got {type(self.structure).__name__}")
 
     @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> SweepSpec:
-        """A spec from its JSON/YAML form (the field names of this class)."""
+    def from_dict(cls, data: Mapping[str, Any], *, folder: PathLike = ".") -> SweepSpec:
+        """A spec from its JSON/YAML form (the field names of this class); ``structure`` is a
+        structure file's path (relative to ``folder``) or a structure's JSON form."""
         if not isinstance(data, Mapping):
             raise ValueError("sweep spec: expected a mapping of fields")
         unknown = sorted(set(data) - {f.name for f in dataclasses.fields(cls)})
@@ -194,6 +217,19 @@ class SweepSpec:
             raise ValueError(f"{unknown[0]}: unknown sweep spec field")
         if "parameters" not in data:
             raise ValueError("parameters: missing")
+        data = dict(data)
+        structure = data.get("structure")
+        if isinstance(structure, str):
+            from tensegrity.io import read_structure
+
+            data["structure"] = read_structure(Path(folder) / structure)
+        elif isinstance(structure, Mapping):
+            try:
+                data["structure"] = Structure.from_dict(structure)
+            except ValueError as exc:
+                raise ValueError(f"structure.{exc}") from None
+        elif structure is not None:
+            raise ValueError("structure: expected a structure file path or a structure's JSON form")
         return cls(**data)
 
     @classmethod
@@ -214,11 +250,13 @@ class SweepSpec:
         except Exception as exc:  # json.JSONDecodeError, yaml.YAMLError
             first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
             raise ValueError(f"{path}: not a valid sweep spec file ({first})") from None
-        return cls.from_dict(data)
+        return cls.from_dict(data, folder=path.parent)
 
     def to_dict(self) -> dict[str, Any]:
-        data = dataclasses.asdict(self)
+        """The JSON form (the structure, if any, in its own JSON form)."""
+        data = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
         data["parameters"] = {k: list(v) for k, v in self.parameters.items()}
+        data["structure"] = None if self.structure is None else self.structure.to_dict()
         return data
 
     @property
@@ -227,7 +265,8 @@ class SweepSpec:
         return np.arange(round(self.t_end / self.sample_dt) + 1) * self.sample_dt
 
     def cases(self) -> list[dict[str, float | int]]:
-        """Every case: a dict with a value for each parameter of :data:`DEFAULTS`."""
+        """Every case: a dict with a value for each parameter of :data:`DEFAULTS` (for a
+        structure sweep, for each varied parameter only)."""
         names = list(self.parameters)
         if self.mode == "grid":
             combos = [dict(zip(names, values))
@@ -242,27 +281,42 @@ class SweepSpec:
                 else:
                     draws[name] = [float(v) for v in rng.uniform(low, high, self.samples)]
             combos = [{name: draws[name][i] for name in names} for i in range(self.samples)]
+        if self.structure is not None:
+            return combos
         return [{**DEFAULTS, **combo} for combo in combos]
 
 
 # ------------------------------------------------------------------------------- one case
-def case_model(case: Mapping[str, float]) -> tuple[Structure, np.ndarray | None]:
-    """``(structure, external_force)`` of a case (see the module docstring); raises ValueError
-    naming the parameter if the case is not a valid shell."""
-    structure = class1_shell(int(case["n"]), int(case["m"]), stiffness=case["stiffness"],
-                             damping=case["damping"])
-    scale = case["rest_scale"]
-    if not scale >= 0:
-        raise ValueError(f"rest_scale: must be >= 0, got {scale!r}")
-    lengths = dynamics.tendon_lengths(structure, structure.node_position)
-    structure = structure.replace(tendon_rest_length=scale * lengths)
-    if case["load"] == 0:
+def case_model(
+    case: Mapping[str, float], structure: Structure | None = None,
+) -> tuple[Structure, np.ndarray | None]:
+    """``(structure, external_force)`` of a case (see the module docstring): the class 1 shell of
+    the case, or ``structure`` with the case's parameters applied; raises ValueError naming the
+    parameter if the case is not a valid structure."""
+    if structure is None:
+        structure = class1_shell(int(case["n"]), int(case["m"]), stiffness=case["stiffness"],
+                                 damping=case["damping"])
+    else:
+        changes = {f"tendon_{name}": np.full(structure.n_tendons, float(case[name]))
+                   for name in ("stiffness", "damping") if name in case}
+        try:
+            structure = structure.replace(**changes)
+        except ValueError as exc:  # "tendon_stiffness[0]: must be > 0": name the parameter
+            raise ValueError(f"{', '.join(n for n in ('stiffness', 'damping') if n in case)}: "
+                             f"{exc}") from None
+    if "rest_scale" in case:
+        scale = case["rest_scale"]
+        if not scale >= 0:
+            raise ValueError(f"rest_scale: must be >= 0, got {scale!r}")
+        lengths = dynamics.tendon_lengths(structure, structure.node_position)
+        structure = structure.replace(tendon_rest_length=scale * lengths)
+    if case.get("load", 0.0) == 0:
         return structure, None
-    z = structure.node_position[:, 2]
-    top, bottom = np.flatnonzero(z == z.max()), np.flatnonzero(z == z.min())
-    force = np.zeros((structure.n_nodes, 3))
-    force[top, 2] = -case["load"] / top.size
-    force[bottom, 2] = case["load"] / bottom.size
+    up = structure.node_position[:, structure.dim - 1]
+    top, bottom = np.flatnonzero(up == up.max()), np.flatnonzero(up == up.min())
+    force = np.zeros((structure.n_nodes, structure.dim))
+    force[top, -1] = -case["load"] / top.size
+    force[bottom, -1] = case["load"] / bottom.size
     return structure, force
 
 
@@ -319,7 +373,7 @@ def run_cases(cases: Sequence[Mapping[str, float]], spec: SweepSpec, batched: bo
     models = {}
     for i, case in enumerate(cases):
         try:
-            models[i] = case_model(case)
+            models[i] = case_model(case, spec.structure)
         except Exception as exc:  # noqa: BLE001 - reported per case
             out[i] = _error_summary(exc, times)
     if batched and models:
@@ -370,7 +424,8 @@ class SweepResult:
     def describe_case(self, index: int) -> str:
         """``"case 3 (n=3, m=1, stiffness=100, ...)"``."""
         ds = self.dataset
-        values = ", ".join(f"{name}={ds[name].values[index]:g}" for name in DEFAULTS)
+        values = ", ".join(f"{name}={ds[name].values[index]:g}" for name in DEFAULTS
+                           if name in ds.coords)
         return f"case {index} ({values})"
 
     def save(self, path: PathLike) -> Path:
@@ -398,17 +453,22 @@ def read_sweep(path: PathLike):
 def plan(spec: SweepSpec, cases: Sequence[Mapping[str, float]], n_slots: int) -> list[tuple[list[int], bool]]:
     """The tasks: ``(case indices, batched)``.
 
-    RK4 with ``spec.batch``: the cases of each ``(n, m)`` in ``n_slots`` nearly equal batches if
-    the shell has fewer than :data:`BATCH_MAX_RODS` rods (``2 n m``), else one compiled task per
-    case.  Otherwise one ``simulate`` task per case.
+    RK4 with ``spec.batch``: the cases of each ``(n, m)`` (or all cases of a structure sweep) in
+    ``n_slots`` nearly equal batches if the structure has fewer than :data:`BATCH_MAX_RODS` rods,
+    else one compiled task per case.  Otherwise, and for structures the compiled kernel does not
+    take, one ``simulate`` task per case.
     """
-    if spec.method in FIXED_STEP_METHODS and spec.batch:
-        groups: dict[tuple[int, int], list[int]] = {}
+    base = spec.structure
+    if (spec.method in FIXED_STEP_METHODS and spec.batch
+            and (base is None or base.is_free_class1)):
+        groups: dict[int | tuple[int, int], list[int]] = {}
         for i, case in enumerate(cases):
-            groups.setdefault((int(case["n"]), int(case["m"])), []).append(i)
+            key = 0 if base is not None else (int(case["n"]), int(case["m"]))
+            groups.setdefault(key, []).append(i)
         tasks = []
-        for (n, m), members in groups.items():
-            parts = min(n_slots, len(members)) if 2 * n * m < BATCH_MAX_RODS else len(members)
+        for key, members in groups.items():
+            rods = base.n_rods if base is not None else 2 * key[0] * key[1]
+            parts = min(n_slots, len(members)) if rods < BATCH_MAX_RODS else len(members)
             for part in np.array_split(np.array(members), parts):
                 tasks.append(([int(i) for i in part], True))
         return tasks
@@ -418,7 +478,7 @@ def plan(spec: SweepSpec, cases: Sequence[Mapping[str, float]], n_slots: int) ->
 def _dataset(spec: SweepSpec, cases: Sequence[Mapping[str, float]], rows: Sequence[dict]):
     import xarray as xr
 
-    coords = {name: ("case", np.array([c[name] for c in cases])) for name in DEFAULTS}
+    coords = {name: ("case", np.array([c[name] for c in cases])) for name in cases[0]}
     coords["case"] = np.arange(len(cases))
     coords["time"] = ("time", spec.times, {"units": "s"})
     data = {name: (("case", "time"), np.array([r[name] for r in rows])) for name in SERIES}
@@ -430,7 +490,8 @@ def _dataset(spec: SweepSpec, cases: Sequence[Mapping[str, float]], rows: Sequen
                  damping="N s/m", load="N")
     ds = xr.Dataset(data, coords=coords, attrs={"spec": json.dumps(spec.to_dict())})
     for name, unit in units.items():
-        ds[name].attrs["units"] = unit
+        if name in ds.variables:
+            ds[name].attrs["units"] = unit
     return ds
 
 
