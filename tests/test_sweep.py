@@ -354,6 +354,8 @@ def test_structure_sweep_cases_equal_direct_simulate(client, supported):
         # The file's rest lengths are kept: unloaded, the prism stays at its equilibrium.
         moved = np.max(np.abs(ref.node_position[-1] - base.node_position))
         assert moved > 1e-6 if ds["load"].values[i] else moved < 1e-9
+        assert ds["max_constraint_error"].values[i] == ref.max_constraint_error
+        assert (ref.max_constraint_error > 0) == supported
         expected = direct_series(ref)
         energy_scale = np.max(expected["kinetic_energy"] + expected["elastic_energy"])
         for name, series in expected.items():

@@ -52,7 +52,8 @@ Dimension ``case`` (coordinates: one per parameter -- for a structure file, one 
 parameter -- so ``ds.where(ds.stiffness == 100)`` works)
 and ``time`` (``0, sample_dt, ..., t_end`` [s]).  Per case: ``status`` (``0`` reached ``t_end``,
 ``-1`` unstable, ``-2`` error: the case could not be built or run), ``message``, ``t_final`` [s],
-``nsteps``, ``nfev``, ``wall_time`` [s], ``max_rod_length_error`` (relative), ``batched`` (0/1).
+``nsteps``, ``nfev``, ``wall_time`` [s], ``max_rod_length_error`` (relative),
+``max_constraint_error`` [m] (joints and supports; 0 without them), ``batched`` (0/1).
 Per case and time (NaN after a run stopped): ``kinetic_energy``, ``elastic_energy``,
 ``energy_error`` (energy balance minus its initial value) [J], ``max_tension`` [N],
 ``slack_count``, ``max_displacement`` (largest node displacement from the initial layout) [m].
@@ -97,7 +98,7 @@ MODES = ("grid", "monte-carlo")
 SERIES = ("kinetic_energy", "elastic_energy", "energy_error", "max_tension", "slack_count",
           "max_displacement")
 SCALARS = ("status", "message", "t_final", "nsteps", "nfev", "wall_time", "max_rod_length_error",
-           "batched")
+           "max_constraint_error", "batched")
 
 
 # ------------------------------------------------------------------------------- the spec
@@ -349,6 +350,7 @@ def summarize(result: SimulationResult, times: np.ndarray) -> dict[str, Any]:
         status=int(result.status), message=result.message, t_final=float(result.t[-1]),
         nsteps=int(result.nsteps), nfev=int(result.nfev), wall_time=float(result.wall_time),
         max_rod_length_error=float(result.max_rod_length_error),
+        max_constraint_error=float(result.max_constraint_error),
         batched=int(bool(result.settings.get("batched", False))),
     )
     return out
@@ -357,7 +359,8 @@ def summarize(result: SimulationResult, times: np.ndarray) -> dict[str, Any]:
 def _error_summary(exc: BaseException, times: np.ndarray) -> dict[str, Any]:
     out: dict[str, Any] = {name: np.full(times.size, np.nan) for name in SERIES}
     out.update(status=STATUS_ERROR, message=f"{type(exc).__name__}: {exc}", t_final=np.nan,
-               nsteps=0, nfev=0, wall_time=0.0, max_rod_length_error=np.nan, batched=0)
+               nsteps=0, nfev=0, wall_time=0.0, max_rod_length_error=np.nan,
+               max_constraint_error=np.nan, batched=0)
     return out
 
 
@@ -486,7 +489,8 @@ def _dataset(spec: SweepSpec, cases: Sequence[Mapping[str, float]], rows: Sequen
         values = [r[name] for r in rows]
         data[name] = ("case", np.array(values, dtype=str if name == "message" else None))
     units = dict(kinetic_energy="J", elastic_energy="J", energy_error="J", max_tension="N",
-                 max_displacement="m", t_final="s", wall_time="s", stiffness="N/m",
+                 max_displacement="m", t_final="s", wall_time="s", max_constraint_error="m",
+                 stiffness="N/m",
                  damping="N s/m", load="N")
     ds = xr.Dataset(data, coords=coords, attrs={"spec": json.dumps(spec.to_dict())})
     for name, unit in units.items():
