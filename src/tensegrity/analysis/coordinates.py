@@ -293,19 +293,20 @@ def spatial_vector(structure: Structure, value: np.ndarray | None) -> np.ndarray
     return np.pad(value, [(0, 0)] * (value.ndim - 1) + [(0, 1)])
 
 
-def spatial_coordinates(structure: Structure, q: np.ndarray) -> np.ndarray:
-    """``q`` of :func:`spatial` ``(structure)`` from ``structure``'s ``q`` (leading axes allowed)."""
+def spatial_coordinates(structure: Structure, q: np.ndarray, *, rates: bool = False) -> np.ndarray:
+    """``q`` of :func:`spatial` ``(structure)`` from ``structure``'s ``q`` (leading axes allowed);
+    with ``rates``, of rates or accelerations (anchors at rest)."""
     if structure.dim == 3:
         return q
-    p = dynamics.nodes_from_coordinates(structure, np.asarray(q, dtype=float))
+    p = dynamics.nodes_from_coordinates(structure, np.asarray(q, dtype=float), rates=rates)
     return dynamics.coordinates_from_nodes(spatial(structure), spatial_vector(structure, p))
 
 
-def planar_coordinates(structure: Structure, q: np.ndarray) -> np.ndarray:
+def planar_coordinates(structure: Structure, q: np.ndarray, *, rates: bool = False) -> np.ndarray:
     """Inverse of :func:`spatial_coordinates`: a planar ``structure``'s ``q`` from its 3-D form's."""
     if structure.dim == 3:
         return q
-    p = dynamics.nodes_from_coordinates(spatial(structure), np.asarray(q, dtype=float))
+    p = dynamics.nodes_from_coordinates(spatial(structure), np.asarray(q, dtype=float), rates=rates)
     return dynamics.coordinates_from_nodes(structure, p[..., :2])
 
 
@@ -430,9 +431,11 @@ def kabsch(p: np.ndarray, reference: np.ndarray, weights: np.ndarray) -> tuple[n
     return (p - c) @ rotation + c_ref, rotation
 
 
-def deformation(p: np.ndarray, reference: np.ndarray, weights: np.ndarray) -> np.ndarray:
+def deformation(p: np.ndarray, reference: np.ndarray, weights: np.ndarray, *,
+                rigid: bool = True) -> np.ndarray:
     """RMS (weighted by ``weights``) node distance from ``reference`` after rigid alignment [m],
-    shape (...,): the size of a deformation, blind to rigid-body motion."""
-    aligned = align(p, reference, weights)
+    shape (...,): the size of a deformation, blind to rigid-body motion.  ``rigid=False``: no
+    alignment (a supported structure, whose rigid-body motion is a deformation too)."""
+    aligned = align(p, reference, weights) if rigid else p
     w = np.asarray(weights, dtype=float) / np.sum(weights)
     return np.sqrt(np.sum(w * np.sum((aligned - reference) ** 2, axis=-1), axis=-1))
