@@ -274,7 +274,7 @@ def linearize(
         rigid = Z.T @ (mass[:, None] * rigid)
         mass = np.einsum("ik,i,ik->k", Z, mass, Z)
         K, damping = Z.T @ K @ Z, Z.T @ damping @ Z
-        A_eq, J = Z.T @ A_eq, J @ Z
+        A_eq, J = _clean(Z.T @ A_eq), _clean(J @ Z)
         rigid = _unloaded(rigid, K, mass)
     k_eff = np.where(active, s.tendon_stiffness, 0.0)
     c_eff = np.where(active, s.tendon_damping, 0.0)
@@ -313,6 +313,13 @@ def linearize(
                            + [f"tension_{name}" for name in names]),
         rigid_basis=rigid, source=source, basis=Z, position_jacobian=J,
     )
+
+
+def _clean(matrix: np.ndarray, rtol: float = 1e-12) -> np.ndarray:
+    """``matrix`` with the entries below ``rtol`` times its largest set to 0: in ``J Z`` and
+    ``Z^T A_eq`` those are the round-off of ``G Z = 0`` (a fixed node's position, a tendon
+    between two fixed nodes), which would otherwise pass for a tiny, real authority."""
+    return np.where(np.abs(matrix) <= rtol * np.max(np.abs(matrix), initial=0.0), 0.0, matrix)
 
 
 def _unloaded(rigid: np.ndarray, K: np.ndarray, mass: np.ndarray, rtol: float = 1e-8) -> np.ndarray:

@@ -34,6 +34,9 @@ from tensegrity.analysis.statics import (
 )
 from tensegrity.structure import Structure
 
+#: What the refusal of structures with joints, supports, point masses or 2-D nodes names (the
+#: counts of Maxwell's rule and the rods' axial forces here assume a free class 1 structure).
+PRESTRESS = "prestress and form-finding"
 #: Singular values of the (column-scaled) equilibrium matrix below ``SVD_RTOL`` times the largest
 #: count as zero.
 SVD_RTOL = 1e-9
@@ -43,6 +46,7 @@ def _equilibrium_matrix(structure: Structure, q: Any):
     """``(q, chart, direction, A)`` at a configuration (node positions, ``q`` or None): tendon
     unit vectors (S, 3) and the equilibrium matrix ``A`` (5R, S) of
     :func:`~tensegrity.analysis.statics.equilibrium_matrix`."""
+    structure.require_free_class1(PRESTRESS)
     q = configuration(structure, q)
     chart = Chart.at(structure, q)
     p = dynamics.nodes_from_coordinates(structure, q)
@@ -227,6 +231,7 @@ def form_find(
     from tensegrity.analysis.linearize import linearize
     from tensegrity.analysis.modes import modal_analysis
 
+    structure.require_free_class1(PRESTRESS)
     current = structure
     history = []
     eq = find_equilibrium(current, start)

@@ -41,6 +41,10 @@ from tensegrity.analysis.equilibrium import EquilibriumResult, find_equilibrium
 from tensegrity.analysis.statics import equilibrium_matrix, force_jacobian, statics
 from tensegrity.structure import Structure
 
+#: What the refusal of structures with joints, supports, point masses or 2-D nodes names: the
+#: outputs, alignment and gauge of this module assume a free 3-D class 1 structure.
+SHAPE_CONTROL = "shape control"
+
 
 # ------------------------------------------------------------------------------ outputs
 @dataclasses.dataclass(frozen=True)
@@ -129,6 +133,7 @@ def sensitivities(
     from tensegrity.analysis.equilibrium import _Gauge
 
     s = eq.structure
+    s.require_free_class1(SHAPE_CONTROL)
     chart = Chart.at(s, eq.q)
     x0 = np.zeros(chart.size)
     st = statics(chart, x0, eq.rest_length)
@@ -228,6 +233,7 @@ def quasi_static(
     start : the initial equilibrium (default :func:`find_equilibrium` from the structure).
     tolerance : per output, for ``reached`` (default 1e-6 m / 1e-6 rad).
     """
+    structure.require_free_class1(SHAPE_CONTROL)
     s = structure
     eq = find_equilibrium(s) if start is None else start
     reference = eq.node_position
@@ -415,6 +421,7 @@ def closed_loop(
     (default the plan's; e.g. with damping).
     """
     s = plan.structure
+    s.require_free_class1(SHAPE_CONTROL)
     plant = s if plant is None else plant
     n_steps = len(plan.equilibria)
     phase = plan.phase
