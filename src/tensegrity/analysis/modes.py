@@ -154,6 +154,10 @@ def modal_analysis(lin: Linearization, *, zero_tol: float | None = None) -> Moda
                    f"stiffness (|omega^2| <= {zero_tol:.3g} 1/s^2) besides the "
                    f"{rigid.shape[1]} rigid-body modes; a small deformation along them meets no "
                    f"restoring force and does not return{slack_note}")
+    elif not n_el:
+        stable = True
+        verdict = (f"stable (Definition 18.1) trivially: no non-rigid mode, the {rigid.shape[1]} "
+                   f"degree(s) of freedom the supports leave are rigid-body motions{slack_note}")
     else:
         stable = True
         verdict = (f"stable (Definition 18.1): all {n_el} non-rigid modes have positive stiffness "
