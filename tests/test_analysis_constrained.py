@@ -261,3 +261,70 @@ def test_rigid_body_modes_are_the_ones_the_supports_admit():
     lin = linearize(fixed, find_equilibrium(fixed))
     assert modal_analysis(lin).n_rigid == 0
     assert lin.n_dof == 12 * 5 - 3 * (2 * 3 * 1) - 3 * 6  # 12 rods, 6 joints, 6 fixed nodes
+
+
+# ------------------------------------------------------------------------------ command line
+def _cli(argv, capsys):
+    from tensegrity.cli import main
+
+    code = main([str(a) for a in argv])
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+def test_cli_analysis_verbs_take_a_planar_structure_file(tmp_path, capsys):
+    """``export --kind planar`` then ``equilibrium`` (both routes, 2-D node positions, tensions
+    of the closed form) and ``modes`` (3 rigid motions of the plane, the library's frequencies);
+    ``control`` refuses it in one line and writes nothing."""
+    import json
+
+    path = tmp_path / "planar.json"
+    assert _cli(["export", "--kind", "planar", "-o", path], capsys)[0] == 0
+    code, _, err = _cli(["equilibrium", "--structure", path, "--out", tmp_path / "eq"], capsys)
+    assert code == 0, err
+    data = json.loads((tmp_path / "eq" / "equilibrium.json").read_text())
+    s = Structure.from_dict(json.loads(path.read_text()))
+    rest_a, rest_b = s.tendon_rest_length[1], s.tendon_rest_length[0]
+    ref = two_rod_equilibrium(tuple(s.rod_length), float(s.tendon_stiffness[0]), rest_a, rest_b)
+    for route in ("least_squares", "simulation"):
+        assert data[route]["converged"]
+        assert np.shape(data[route]["node_position_m"]) == (4, 2)
+        tension = [t["tension_N"] for t in data[route]["tendons"]]
+        np.testing.assert_allclose(tension, [ref["tension_b"], ref["tension_a"]] * 2, rtol=1e-5)
+    assert data["agreement"]["node_distance"] < 1e-5
+    code, _, err = _cli(["modes", "--structure", path, "--out", tmp_path / "modes"], capsys)
+    assert code == 0, err
+    modes = json.loads((tmp_path / "modes" / "modes.json").read_text())
+    expected = modal_analysis(linearize(s, find_equilibrium(s)))
+    assert modes["rigid_body_modes"] == 3 and modes["stable"]
+    np.testing.assert_allclose([m["frequency_hz"] for m in modes["modes"]], expected.frequency_hz,
+                               rtol=1e-9, atol=1e-9)
+    code, out, err = _cli(["control", "--structure", path, "--out", tmp_path / "control"], capsys)
+    assert code == 2 and not (tmp_path / "control").exists()
+    assert err.strip().count("\n") == 0 and "shape control: supports only free 3-D class 1" in err
+
+
+def test_cli_modes_and_controllability_of_a_fixed_base_class2_shell(tmp_path, capsys):
+    """A class 2 shell with its base fixed (joints and supports): no rigid-body mode, the
+    library's frequencies; a fixed node's position is observable from nothing, all node
+    positions see every mode."""
+    import json
+
+    path = tmp_path / "c2.json"
+    assert _cli(["export", "--kind", "class2-shell", "--m", "2", "--fixed-base", "-o", path], capsys)[0] == 0
+    s = Structure.from_dict(json.loads(path.read_text()))
+    code, _, err = _cli(["modes", "--structure", path, "--out", tmp_path / "modes"], capsys)
+    assert code == 0, err
+    modes = json.loads((tmp_path / "modes" / "modes.json").read_text())
+    expected = modal_analysis(linearize(s, find_equilibrium(s)))
+    assert modes["rigid_body_modes"] == 0 and len(modes["modes"]) == 24
+    np.testing.assert_allclose([m["frequency_hz"] for m in modes["modes"]], expected.frequency_hz,
+                               rtol=1e-9)
+    code, _, err = _cli(["controllability", "--structure", path, "--inputs", "all", "--outputs",
+                         "position", "p0_*", "--out", tmp_path / "ctrl"], capsys)
+    assert code == 0, err
+    data = json.loads((tmp_path / "ctrl" / "controllability.json").read_text())
+    assert data["states"] == 48
+    assert data["controllability"][0]["rank"] == 48
+    position, node0 = data["observability"]
+    assert s.node_fixed[0] and position["rank"] == 48 and node0["rank"] == 0
