@@ -89,6 +89,9 @@ def test_pinned_rod_swings_at_the_compound_pendulum_frequency(support):
     assert modes.kind == (ELASTIC, ELASTIC)
     np.testing.assert_allclose(modes.omega_squared, 3 * G / (2 * L), rtol=1e-12)
     assert max(finite_difference_check(lin).values()) < 1e-7
+    system = lin.statespace(outputs="position")  # a named control.StateSpace of the 2 swings
+    assert system.nstates == 4 and system.ninputs == 0
+    np.testing.assert_allclose(np.sort(np.abs(np.linalg.eigvals(system.A))), np.sqrt(3 * G / (2 * L)))
     # the nonlinear pendulum, small amplitude, by FFT
     check = measure_frequency(modes, 0, amplitude=1e-4, periods=30)
     assert check.relative_error < 1e-5, check.to_dict()
