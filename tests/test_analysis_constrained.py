@@ -15,7 +15,11 @@ from scipy.optimize import brentq
 from test_constraints import GRAVITY, G, hanging_chain, pendulum, static_equilibrium
 
 from tensegrity import Structure, critical_damping, simulate
-from tensegrity.analysis.coordinates import Chart, planar_coordinates, spatial_coordinates
+from tensegrity.analysis.coordinates import (
+    Chart,
+    planar_coordinates,
+    spatial_coordinates,
+)
 from tensegrity.analysis.equilibrium import (
     compare_equilibria,
     equilibrium_by_simulation,
@@ -302,7 +306,7 @@ def test_cli_analysis_verbs_take_a_planar_structure_file(tmp_path, capsys):
     assert modes["rigid_body_modes"] == 3 and modes["stable"]
     np.testing.assert_allclose([m["frequency_hz"] for m in modes["modes"]], expected.frequency_hz,
                                rtol=1e-9, atol=1e-9)
-    code, out, err = _cli(["control", "--structure", path, "--out", tmp_path / "control"], capsys)
+    code, _, err = _cli(["control", "--structure", path, "--out", tmp_path / "control"], capsys)
     assert code == 2 and not (tmp_path / "control").exists()
     assert err.strip().count("\n") == 0 and "shape control: supports only free 3-D class 1" in err
 

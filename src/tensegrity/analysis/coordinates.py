@@ -267,14 +267,15 @@ def spatial(structure: Structure) -> Structure:
     the two simulations against each other), and it is what the analysis package works on."""
     if structure.dim == 3:
         return structure
-    pad = lambda a: np.pad(np.asarray(a, dtype=float), ((0, 0), (0, 1)))  # noqa: E731
     held = ~structure.node_fixed
     held[structure.line_nodes] = False
     planes = np.flatnonzero(held)
     return structure.replace(
-        node_position=pad(structure.node_position), node_velocity=pad(structure.node_velocity),
+        node_position=spatial_vector(structure, structure.node_position),
+        node_velocity=spatial_vector(structure, structure.node_velocity),
         plane_nodes=planes, plane_normal=np.tile([0.0, 0.0, 1.0], (planes.size, 1)),
-        line_nodes=structure.line_nodes, line_direction=pad(structure.line_direction))
+        line_nodes=structure.line_nodes,
+        line_direction=spatial_vector(structure, structure.line_direction))
 
 
 def has_supports(structure: Structure) -> bool:
@@ -285,8 +286,8 @@ def has_supports(structure: Structure) -> bool:
 
 
 def spatial_vector(structure: Structure, value: np.ndarray | None) -> np.ndarray | None:
-    """Nodal forces (N, d) or a gravity vector (d,) of ``structure`` in 3-D (``z = 0`` added to
-    a planar structure's); None stays None."""
+    """Vectors (..., d) of ``structure`` -- nodal forces or positions (N, d), a gravity vector
+    (d,) -- in 3-D (``z = 0`` added to a planar structure's); None stays None."""
     if value is None or structure.dim == 3:
         return value
     value = np.asarray(value, dtype=float)
@@ -369,7 +370,7 @@ def rigid_body_basis(chart: Chart) -> np.ndarray:
         # coefficients of the motions that move no anchor and keep the constraints
         arm = s.node_position[anchors] - centre_of_mass
         at_anchors = np.concatenate([np.tile(np.eye(3), (anchors.size, 1)),
-                                     -_skew(arm).reshape(-1, 3)], axis=1)
+                                     -cross_matrix(arm).reshape(-1, 3)], axis=1)
         rows = np.vstack([chart.constraint_jacobian() @ rigid, at_anchors])
         scale = np.sqrt(np.sum(mass[:, None] * rigid**2, axis=0))  # each motion's size
         scale[scale == 0] = 1.0  # a rotation about the line of collinear rods moves nothing
@@ -379,7 +380,7 @@ def rigid_body_basis(chart: Chart) -> np.ndarray:
     return mass_orthonormal(rigid, mass)
 
 
-def _skew(a: np.ndarray) -> np.ndarray:
+def cross_matrix(a: np.ndarray) -> np.ndarray:
     """Cross-product matrices ``[a]_x`` (..., 3, 3) of vectors (..., 3): ``[a]_x b = a x b``."""
     out = np.zeros((*a.shape, 3))
     out[..., 0, 1], out[..., 0, 2] = -a[..., 2], a[..., 1]

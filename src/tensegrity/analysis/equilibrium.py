@@ -38,9 +38,9 @@ import scipy.optimize
 from tensegrity import dynamics
 from tensegrity.analysis.coordinates import (
     Chart,
-    _skew,
     align,
     configuration,
+    cross_matrix,
     has_supports,
     planar_coordinates,
     rigid_body_basis,
@@ -196,7 +196,7 @@ def planar_result(planar: Structure, result: EquilibriumResult, external_force: 
     return dataclasses.replace(
         result, structure=planar, q=planar_coordinates(planar, result.q),
         node_position=result.node_position[:, :2],
-        reaction_force=None if result.reaction_force is None else result.reaction_force[:, :2],
+        reaction_force=result.reaction_force[:, :2] if planar.has_constraints else None,
         external_force=None if external_force is None else np.asarray(external_force, float),
         gravity=None if gravity is None else np.asarray(gravity, float))
 
@@ -245,7 +245,7 @@ class _Gauge:
         if not self.rotations:
             full = self.scale * translation
         else:
-            rotation = np.einsum("i,ikl,ilc->kc", self.w, _skew(self.arm), Jn)
+            rotation = np.einsum("i,ikl,ilc->kc", self.w, cross_matrix(self.arm), Jn)
             full = np.vstack([self.scale * translation, self.rot_scale * rotation])
         return full if self.rows is None else self.rows @ full
 
