@@ -335,3 +335,72 @@ def test_cli_modes_and_controllability_of_a_fixed_base_class2_shell(tmp_path, ca
     assert data["controllability"][0]["rank"] == 48
     position, node0 = data["observability"]
     assert s.node_fixed[0] and position["rank"] == 48 and node0["rank"] == 0
+
+
+# ------------------------------------------------------------------------------ prestress
+def test_self_stress_and_prestress_with_supports():
+    """The 3-bar prism with its base fixed: the free prism's self-stress stays one; the three
+    base tendons (between fixed nodes) add one state each; Maxwell's rule with the admitted
+    motions (``s - m = S - k``, no rigid motion left).  The LP prestress, realized by rest
+    lengths, leaves Theorem 18.1 with its constraint forces at rest in the layout."""
+    from tensegrity import dynamics
+    from tensegrity.analysis.prestress import feasible_prestress, rest_lengths_for_tensions, self_stress
+
+    free, s = prism(3), fixed_base_prism()
+    states = self_stress(s)
+    k = states.matrix.shape[0]
+    assert k == 15 - 9 and states.n_states == 4 and states.n_states - states.n_mechanisms == 9 - k
+    T0 = dynamics.tendon_tensions(free, free.node_position)
+    np.testing.assert_allclose(states.states @ (states.states.T @ T0), T0, atol=1e-12)
+    prestress = feasible_prestress(s, mean_tension=5.0)
+    assert prestress.feasible and prestress.residual < 1e-10
+    rest, _ = rest_lengths_for_tensions(s, None, prestress.tension)
+    held = s.replace(tendon_rest_length=rest)
+    q = dynamics.coordinates_from_nodes(held, held.node_position)
+    assert np.max(np.abs(dynamics.accelerations(held, q, np.zeros_like(q)))) < 1e-9
+    # the best one: the base tendons (free to take anything) as tight as the top ring, i.e. the
+    # free prism's own self-stress, which needs no reaction: the rods carry what they carry free
+    np.testing.assert_allclose(prestress.tension, T0, rtol=1e-9)
+    np.testing.assert_allclose(prestress.rod_compression,
+                               feasible_prestress(free, mean_tension=5.0).rod_compression, rtol=1e-9)
+
+
+def test_planar_self_stress_is_the_closed_form_one():
+    """Example 2: one self-stress, with ``T_a / a = T_b / b`` (equal force densities)."""
+    from tensegrity.analysis.prestress import self_stress
+
+    s = planar_two_rod(rest_length=(0.4, 0.5, 0.4, 0.5))
+    eq = find_equilibrium(s)
+    states = self_stress(s, eq.q)
+    assert states.n_states == 1 and states.n_mechanisms == 0 and states.matrix.shape == (6, 4)
+    ref = two_rod_equilibrium((1.0, 0.8), 100.0, 0.5, 0.4)
+    expected = np.array([ref["b"], ref["a"], ref["b"], ref["a"]])
+    np.testing.assert_allclose(np.abs(states.states[:, 0]), expected / np.linalg.norm(expected), rtol=1e-10)
+
+
+def test_form_finding_keeps_the_supports():
+    """Form-finding of the fixed-base prism from loosened rest lengths: stable, every tendon
+    taut at the requested mean tension, the base where it was."""
+    from tensegrity.analysis.prestress import form_find
+
+    s = fixed_base_prism()
+    found = form_find(s.replace(tendon_rest_length=1.3 * s.tendon_rest_length), mean_tension=5.0)
+    assert found.stable, found.verdict
+    assert found.equilibrium.tension.mean() == pytest.approx(5.0, rel=1e-6)
+    np.testing.assert_allclose(found.equilibrium.node_position[s.node_fixed], s.node_position[s.node_fixed],
+                               atol=1e-14)
+
+
+def test_prestress_rod_force_includes_the_support_reaction():
+    """A rod pinned at its foot, a tendon from its top to an anchor straight above: the tendon's
+    pull along the rod is a self-stress (the pin takes it), and the rod is in tension ``T``
+    (compression ``-T``; without the pin's reaction it would read ``-T/2``)."""
+    from tensegrity.analysis.prestress import feasible_prestress, self_stress
+
+    s = Structure(node_position=[[0, 0, 0], [0, 0, 1.0], [0, 0, 2.0]], rod_nodes=[[0, 1]], rod_mass=[1.0],
+                  rod_length=[1.0], node_fixed=[True, False, True], tendon_nodes=[[1, 2]],
+                  tendon_stiffness=[10.0], tendon_rest_length=[0.5])
+    assert self_stress(s).n_states == 1
+    prestress = feasible_prestress(s, mean_tension=3.0, compressed_rods=False)
+    assert prestress.feasible and prestress.tension == pytest.approx([3.0])
+    np.testing.assert_allclose(prestress.rod_compression, [-3.0], rtol=1e-12)

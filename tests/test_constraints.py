@@ -432,16 +432,16 @@ def test_json_round_trip_keeps_supports_and_names_bad_keys():
 
 
 def test_free_class1_only_parts_reject_supported_structures():
-    from tensegrity.analysis.prestress import self_stress
+    from tensegrity.analysis.shape_control import quasi_static
     from tensegrity.kernel import FastKernel
     from tensegrity.matrices import shell_size
 
     s = class2_shell(3, 2)
     assert not s.is_free_class1
-    # (the analysis package's equilibria, linearization and modes take these structures now:
-    # tests/test_analysis_constrained.py; prestress and shape control still refuse them)
+    # (the rest of the analysis package takes these structures now:
+    # tests/test_analysis_constrained.py; shape control still refuses them)
     for what, call in (("the compiled kernel", FastKernel), ("the matrix model", shell_size),
-                       ("prestress and form-finding", self_stress)):
+                       ("shape control", lambda s: quasi_static(s, None, []))):
         with pytest.raises(ValueError, match=f"^{what}: supports only free 3-D class 1"):
             call(s)
 

@@ -380,6 +380,22 @@ def rigid_body_basis(chart: Chart) -> np.ndarray:
     return mass_orthonormal(rigid, mass)
 
 
+def admitted_rigid_motions(chart: Chart, basis: np.ndarray | None) -> np.ndarray:
+    """:func:`rigid_body_basis` in the coordinates ``eta`` of the admitted motions ``x = Z eta``
+    (``basis`` = ``Z``, ``M``-orthonormal: ``eta = Z^T M x``); unchanged for ``Z`` = None."""
+    rigid = rigid_body_basis(chart)
+    if basis is None:
+        return rigid
+    return basis.T @ (mass_matrix(chart.structure)[:, None] * rigid)
+
+
+def drop_roundoff(matrix: np.ndarray, rtol: float = 1e-12) -> np.ndarray:
+    """``matrix`` with the entries below ``rtol`` times its largest set to 0: in ``J Z`` and
+    ``Z^T A_eq`` those are the round-off of ``G Z = 0`` (a fixed node's position, a tendon
+    between two fixed nodes), which would otherwise pass for a tiny, real authority."""
+    return np.where(np.abs(matrix) <= rtol * np.max(np.abs(matrix), initial=0.0), 0.0, matrix)
+
+
 def cross_matrix(a: np.ndarray) -> np.ndarray:
     """Cross-product matrices ``[a]_x`` (..., 3, 3) of vectors (..., 3): ``[a]_x b = a x b``."""
     out = np.zeros((*a.shape, 3))

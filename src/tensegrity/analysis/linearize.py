@@ -40,11 +40,12 @@ import numpy as np
 from tensegrity import dynamics
 from tensegrity.analysis.coordinates import (
     Chart,
+    admitted_rigid_motions,
+    drop_roundoff,
     has_supports,
     mass_complement,
     mass_matrix,
     planar_coordinates,
-    rigid_body_basis,
     spatial,
     spatial_coordinates,
     spatial_vector,
@@ -268,13 +269,12 @@ def linearize(
     alpha = np.concatenate([np.repeat(s.rod_damping, 5), np.zeros(mass.size - 5 * s.n_rods)])
     damping = J.T @ C_node @ J + np.diag(alpha * mass)
     A_eq = equilibrium_matrix(chart, tendons.direction, x0)
-    rigid = rigid_body_basis(chart)
     Z = chart.admitted_motions()
+    rigid = admitted_rigid_motions(chart, Z)
     if Z is not None:  # restrict to the admitted motions x = Z eta (Z^T M Z = I)
-        rigid = Z.T @ (mass[:, None] * rigid)
         mass = np.einsum("ik,i,ik->k", Z, mass, Z)
         K, damping = Z.T @ K @ Z, Z.T @ damping @ Z
-        A_eq, J = _clean(Z.T @ A_eq), _clean(J @ Z)
+        A_eq, J = drop_roundoff(Z.T @ A_eq), drop_roundoff(J @ Z)
         rigid = _unloaded(rigid, K, mass)
     k_eff = np.where(active, s.tendon_stiffness, 0.0)
     c_eff = np.where(active, s.tendon_damping, 0.0)
@@ -313,13 +313,6 @@ def linearize(
                            + [f"tension_{name}" for name in names]),
         rigid_basis=rigid, source=source, basis=Z, position_jacobian=J,
     )
-
-
-def _clean(matrix: np.ndarray, rtol: float = 1e-12) -> np.ndarray:
-    """``matrix`` with the entries below ``rtol`` times its largest set to 0: in ``J Z`` and
-    ``Z^T A_eq`` those are the round-off of ``G Z = 0`` (a fixed node's position, a tendon
-    between two fixed nodes), which would otherwise pass for a tiny, real authority."""
-    return np.where(np.abs(matrix) <= rtol * np.max(np.abs(matrix), initial=0.0), 0.0, matrix)
 
 
 def _unloaded(rigid: np.ndarray, K: np.ndarray, mass: np.ndarray, rtol: float = 1e-8) -> np.ndarray:
