@@ -282,7 +282,7 @@ def _cli(argv, capsys):
 def test_cli_analysis_verbs_take_a_planar_structure_file(tmp_path, capsys):
     """``export --kind planar`` then ``equilibrium`` (both routes, 2-D node positions, tensions
     of the closed form) and ``modes`` (3 rigid motions of the plane, the library's frequencies);
-    ``control`` refuses it in one line and writes nothing."""
+    ``control`` (3-D outputs) refuses it in one line and writes nothing."""
     import json
 
     path = tmp_path / "planar.json"
@@ -308,7 +308,7 @@ def test_cli_analysis_verbs_take_a_planar_structure_file(tmp_path, capsys):
                                rtol=1e-9, atol=1e-9)
     code, _, err = _cli(["control", "--structure", path, "--out", tmp_path / "control"], capsys)
     assert code == 2 and not (tmp_path / "control").exists()
-    assert err.strip().count("\n") == 0 and "shape control: supports only free 3-D class 1" in err
+    assert err.strip().count("\n") == 0 and "shape control: supports only 3-D structures" in err
 
 
 def test_cli_modes_and_controllability_of_a_fixed_base_class2_shell(tmp_path, capsys):
@@ -404,3 +404,49 @@ def test_prestress_rod_force_includes_the_support_reaction():
     prestress = feasible_prestress(s, mean_tension=3.0, compressed_rods=False)
     assert prestress.feasible and prestress.tension == pytest.approx([3.0])
     np.testing.assert_allclose(prestress.rod_compression, [-3.0], rtol=1e-12)
+
+
+# ------------------------------------------------------------------------------ shape control
+def test_shape_sensitivities_with_supports_match_re_solved_equilibria():
+    """``dy/du`` and ``dT/du`` of the fixed-base class 2 shell against central differences of
+    equilibria solved again with the rest lengths changed."""
+    from tensegrity.analysis.commands import rings
+    from tensegrity.analysis.shape_control import height_twist, sensitivities
+
+    s = class2_shell(3, 2, fixed_base=True)
+    eq = find_equilibrium(s)
+    output = height_twist(eq.node_position, *rings(s, eq.node_position))
+    dydu, dTdu, _ = sensitivities(eq, output, eq.node_position)
+    h = 1e-6
+    for j in (0, 5, 17):
+        du = h * np.eye(s.n_tendons)[j]
+        plus, minus = (find_equilibrium(s, eq.q, control=sign * du, gauge_reference=eq.node_position)
+                       for sign in (1, -1))
+        dT = (plus.tension - minus.tension) / (2 * h)
+        dy = (output.value(plus.node_position) - output.value(minus.node_position)) / (2 * h)
+        np.testing.assert_allclose(dT, dTdu[:, j], atol=1e-6 * np.abs(dT).max())
+        np.testing.assert_allclose(dy, dydu[:, j], atol=1e-6 * np.abs(dy).max())
+
+
+def test_shape_control_of_a_shell_on_a_fixed_base():
+    """The (4,2) shell with its bottom ring fixed: shortened by 20% with the t1 tendons, twisted
+    back with all; the open loop reaches the targets, and so does the LQR closed loop on the
+    nonlinear model (constraint forces, projection), with the base where it was."""
+    from tensegrity import class1_shell
+    from tensegrity.analysis.shape_control import Bounds, closed_loop, height_twist, quasi_static, shell_rings
+
+    bottom, top = shell_rings(4, 2)
+    s = class1_shell(4, 2)
+    s = s.replace(node_fixed=np.isin(np.arange(s.n_nodes), bottom))
+    eq = find_equilibrium(s)
+    output = height_twist(eq.node_position, bottom, top)
+    h0 = output.value(eq.node_position)[0]
+    plan = quasi_static(s, output, [{"targets": (0.8 * h0, None), "actuators": "t1_*"}, (0.8 * h0, 0.0)],
+                        start=eq, steps=[4, 2], bounds=Bounds(), tolerance=[1e-6, 1e-6])
+    assert plan.reached, plan.message
+    run = closed_loop(plan, move_time=2.0, settle_time=3.0)
+    assert run.reached, run.message
+    np.testing.assert_allclose(run.node_position[:, bottom], np.broadcast_to(s.node_position[bottom],
+                               (run.t.size, len(bottom), 3)), atol=1e-12)
+    y = output.value(run.node_position[-1])  # measured from the simulated nodes themselves
+    np.testing.assert_allclose(y, [0.8 * h0, 0.0], atol=1e-6)

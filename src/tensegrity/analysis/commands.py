@@ -265,16 +265,11 @@ def run_control(
     with every tendon, by a quasi-static sequence of equilibria, then (``closed_loop``) play it
     with LQR feedback on the nonlinear model.  ``bottom``/``top``: node indices of the two rings
     (default: the nodes at the lowest and the highest z of the equilibrium)."""
-    from tensegrity.analysis.shape_control import (
-        SHAPE_CONTROL,
-        Bounds,
-        describe_plan,
-        height_twist,
-        quasi_static,
-    )
-    from tensegrity.analysis.shape_control import closed_loop as run_closed_loop
+    from tensegrity.analysis.shape_control import Bounds, closed_loop as run_closed_loop
+    from tensegrity.analysis.shape_control import describe_plan, height_twist, quasi_static
+    from tensegrity.analysis.shape_control import require_spatial
 
-    structure.require_free_class1(SHAPE_CONTROL)
+    require_spatial(structure)
     if not height > 0:
         raise ValueError(f"height: must be > 0 (a fraction of the equilibrium height), got {height}")
     if len(steps) != 2 or min(steps) < 1:

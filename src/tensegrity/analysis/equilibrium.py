@@ -52,6 +52,7 @@ from tensegrity.analysis.statics import (
     force_jacobian,
     rod_compression,
     statics,
+    with_reactions,
 )
 from tensegrity.structure import Structure
 
@@ -473,11 +474,7 @@ def _descend(structure, q, rest, external_force, gravity, eckart, max_iter=500):
         st = statics(chart, x0, rest, external_force, gravity)
         Z = chart.admitted_motions()
         grad = -st.generalized_force
-        if Z is None:
-            H = -force_jacobian(chart, x0, st)
-        else:
-            reaction, _ = chart.reaction(st.generalized_force)
-            H = -force_jacobian(chart, x0, st._replace(force=st.force + reaction))
+        H = -force_jacobian(chart, x0, with_reactions(chart, st))
         H = 0.5 * (H + H.T)
         energy = potential_energy(structure, st.p, st.q, rest, external_force, gravity)
         if eckart is not None:

@@ -56,6 +56,7 @@ from tensegrity.analysis.statics import (
     force_jacobian,
     node_stiffness,
     statics,
+    with_reactions,
 )
 from tensegrity.structure import Structure
 
@@ -253,8 +254,7 @@ def linearize(
     chart = Chart.at(s, eq.q)
     x0 = np.zeros(chart.size)
     st = statics(chart, x0, eq.rest_length, eq.external_force, eq.gravity)
-    if chart.n_constraints:  # the reactions' share of the rods' geometric stiffness
-        st = st._replace(force=st.force + chart.reaction(st.generalized_force)[0])
+    st = with_reactions(chart, st)  # the reactions' share of the rods' geometric stiffness
     tendons = st.tendons
     active = tendons.taut | (tendons.at_threshold & include_threshold)
     J = chart.jacobian_matrix(x0)
