@@ -68,7 +68,7 @@ class EquilibriumResult:
     Attributes
     ----------
     structure : Structure
-    q : (6R,) coordinates [m].  node_position : (N, 3) [m].
+    q : (6R,) coordinates [m] (n: point masses follow).  node_position : (N, 3) [m].
     control : (S,) rest-length changes ``u`` [m] (``Lbar = L0 - u``).
     rest_length : (S,) ``Lbar`` [m].  tendon_length : (S,) [m].
     tension : (S,) [N] (0 for slack tendons).  slack : (S,) bool, ``l <= Lbar``.
