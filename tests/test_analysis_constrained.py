@@ -450,3 +450,19 @@ def test_shape_control_of_a_shell_on_a_fixed_base():
                                (run.t.size, len(bottom), 3)), atol=1e-12)
     y = output.value(run.node_position[-1])  # measured from the simulated nodes themselves
     np.testing.assert_allclose(y, [0.8 * h0, 0.0], atol=1e-6)
+
+
+def test_cli_modes_of_point_masses_only(tmp_path, capsys):
+    """A structure without rods (a mass on two anchored tendons): ``modes`` prints and draws
+    the spring frequencies ``sqrt(k/m)`` (twice) and ``sqrt(2k/m)`` [rad/s]."""
+    import json
+
+    k, m = 50.0, 0.3
+    path = tmp_path / "mass.json"
+    path.write_text(json.dumps(anchored_mass(k, m).to_dict()))
+    code, _, err = _cli(["modes", "--structure", path, "--out", tmp_path / "modes"], capsys)
+    assert code == 0, err
+    data = json.loads((tmp_path / "modes" / "modes.json").read_text())
+    np.testing.assert_allclose([mode["frequency_hz"] for mode in data["modes"]],
+                               np.sqrt([k / m, k / m, 2 * k / m]) / (2 * np.pi), rtol=1e-12)
+    assert (tmp_path / "modes" / "mode_shapes.png").stat().st_size > 10_000

@@ -417,10 +417,14 @@ def find_equilibrium(
             v0 = start_of(chart)
             r = residual(chart, v0)
             nfev += 1
-            if unbalanced(chart) <= tol:
+            current = unbalanced(chart)
+            if current <= tol:
                 break
             step, *_ = np.linalg.lstsq(jacobian(chart, v0), -r, rcond=None)
-            q = chart.retract(step[: chart.size])
+            trial = chart.retract(step[: chart.size])
+            if unbalanced(Chart.at(structure, trial)) >= current:
+                break  # no progress (a near-singular Jacobian: zero-stiffness motions)
+            q = trial
         force_residual = unbalanced(Chart.at(structure, q))
         if force_residual <= tol:
             converged = True
