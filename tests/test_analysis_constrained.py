@@ -466,3 +466,16 @@ def test_cli_modes_of_point_masses_only(tmp_path, capsys):
     np.testing.assert_allclose([mode["frequency_hz"] for mode in data["modes"]],
                                np.sqrt([k / m, k / m, 2 * k / m]) / (2 * np.pi), rtol=1e-12)
     assert (tmp_path / "modes" / "mode_shapes.png").stat().st_size > 10_000
+
+
+def test_default_input_sets_for_tendon_names_without_families():
+    """Tendon names like the prism's ``b0, t0, s0`` (no ``_``) form the families ``b*``, ``t*``,
+    ``s*`` (before, ``b0_*`` matched nothing and the default table failed)."""
+    from tensegrity.analysis.controllability import controllability_table, default_input_sets
+
+    s = fixed_base_prism()
+    lin = linearize(critical_damping(s), find_equilibrium(s))
+    sets = default_input_sets(lin)
+    assert {name: len(v) for name, v in sets.items()} == {"all": 9, "b*": 3, "t*": 3, "s*": 3, "b0": 1}
+    reach, _ = controllability_table(lin, modal_analysis(lin))
+    assert reach[0].rank == 2 * lin.n_dof
