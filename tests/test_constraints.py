@@ -432,14 +432,13 @@ def test_json_round_trip_keeps_supports_and_names_bad_keys():
 
 
 def test_free_class1_only_parts_reject_supported_structures():
-    from tensegrity.analysis.equilibrium import find_equilibrium
     from tensegrity.kernel import FastKernel
     from tensegrity.matrices import shell_size
 
     s = class2_shell(3, 2)
     assert not s.is_free_class1
-    for what, call in (("the compiled kernel", FastKernel), ("the matrix model", shell_size),
-                       ("the analysis package", find_equilibrium)):
+    # (the analysis package takes these structures now: tests/test_analysis_constrained.py)
+    for what, call in (("the compiled kernel", FastKernel), ("the matrix model", shell_size)):
         with pytest.raises(ValueError, match=f"^{what}: supports only free 3-D class 1"):
             call(s)
 

@@ -165,14 +165,19 @@ def draw_structure(
             linestyles=(0, (4, 2.5)), zorder=2,
         )
         ax.add_collection3d(slack_lines)
-    rods = Line3DCollection(
-        segments(structure.rod_nodes), colors=ROD_COLOR, linewidths=ROD_WIDTH, zorder=3,
-        capstyle="round",
-    )
-    ax.add_collection3d(rods)
+    rods = None
+    if structure.n_rods:  # (a structure of point masses has none)
+        rods = Line3DCollection(
+            segments(structure.rod_nodes), colors=ROD_COLOR, linewidths=ROD_WIDTH, zorder=3,
+            capstyle="round",
+        )
+        ax.add_collection3d(rods)
     nodes = None
     if show_nodes:
         nodes = ax.scatter(*p.T, s=14, color=ROD_COLOR, depthshade=False, zorder=4)
+    elif structure.point_mass_nodes.size:  # point masses are bodies: always drawn
+        nodes = ax.scatter(*p[structure.point_mass_nodes].T, s=30, color=ROD_COLOR,
+                           depthshade=False, zorder=4)
     fixed = None
     if structure.node_fixed.any():
         fixed = ax.scatter(*p[structure.node_fixed].T, s=60, marker="^", color=FIXED_COLOR,

@@ -197,7 +197,7 @@ def run_controllability(
     input_sets = None if inputs is None else {p: p for p in inputs}
     output_sets = None if outputs is None else {p: p for p in outputs}
     ctrl, obs = controllability_table(lin, modes, input_sets, output_sets)
-    text = [f"{lin.A.shape[0]} states (5 per rod and their rates), of which "
+    text = [f"{lin.A.shape[0]} states ({lin.n_dof} coordinates and their rates), of which "
             f"{ctrl[0].elastic_states} non-rigid; rank = 2 x (modes reached), PBH per mode with "
             f"relative tolerance {ctrl[0].pbh_rtol:g}; Gramians with {damping} damping"]
 
@@ -267,7 +267,9 @@ def run_control(
     (default: the nodes at the lowest and the highest z of the equilibrium)."""
     from tensegrity.analysis.shape_control import Bounds, closed_loop as run_closed_loop
     from tensegrity.analysis.shape_control import describe_plan, height_twist, quasi_static
+    from tensegrity.analysis.shape_control import require_spatial
 
+    require_spatial(structure)
     if not height > 0:
         raise ValueError(f"height: must be > 0 (a fraction of the equilibrium height), got {height}")
     if len(steps) != 2 or min(steps) < 1:

@@ -163,14 +163,16 @@ def _parts(pattern: str | Sequence[str]) -> list[str]:
 
 
 def default_input_sets(lin: Linearization) -> dict[str, tuple[str, ...]]:
-    """``all``, each tendon family (``t1_*``, ... by the name before its first ``_``), and the
-    first tendon alone."""
+    """``all``, each tendon family (``t1_*``, ... by the name before its first ``_``; ``b*``, ...
+    by the name without its trailing digits if it has no ``_``), and the first tendon alone."""
     names = lin.structure.tendon_name
     sets = {"all": tuple(names)}
-    families = dict.fromkeys(n.split("_")[0] for n in names)
+    # t1_1_1 -> t1_* (shells); b0 -> b* (prisms: no '_')
+    families = dict.fromkeys(n.split("_")[0] + "_*" if "_" in n else n.rstrip("0123456789") + "*"
+                             for n in names)
     if len(families) > 1:
         for family in families:
-            sets[f"{family}_*"] = resolve_inputs(lin, f"{family}_*")
+            sets[family] = resolve_inputs(lin, family)
     sets[names[0]] = (names[0],)
     return sets
 

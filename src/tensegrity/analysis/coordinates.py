@@ -15,11 +15,19 @@ is not one).  Every configuration built from ``x`` satisfies ``|q2| = L`` exactl
 
 The kinetic energy in these coordinates at ``phi = 0`` is ``x'^T M x' / 2`` with
 ``M = diag(m, m, m, m L^2/12, m L^2/12)`` per rod: :func:`mass_matrix`.
+
+Point masses (nodes of no rod, ``Structure.point_mass_nodes``) follow the rods: 3 numbers each,
+their displacement from the base (``M = diag(m, m, m)``), so ``x`` has ``5R + 3M`` entries.
+Joints and supports are *not* eliminated from ``x``: they are the constraints
+``g(x) = A q(x) - b = 0`` of :mod:`tensegrity.constraints`, nonlinear in ``x`` through the rod
+angles, with tangent ``G = A_n J(x)`` (:meth:`Chart.constraint_jacobian`).  A planar structure is
+analysed as its 3-D form with every node held on the plane ``z = 0`` (:func:`spatial`).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
 from typing import Any
 
 import numpy as np
@@ -54,35 +62,55 @@ class Chart:
 
     Attributes
     ----------
-    structure : Structure
+    structure : Structure (3-D: a planar one is analysed as its :func:`spatial` form)
     centre : (R, 3) base rod centres ``c0`` [m].
     direction : (R, 3) base unit rod directions ``n0``.
     basis : (R, 3, 2) tangent bases ``E`` at ``n0``.
+    point_mass : (M, 3) base positions of the point masses [m].
     """
 
     structure: Structure
     centre: np.ndarray
     direction: np.ndarray
     basis: np.ndarray
+    point_mass: np.ndarray
 
     @classmethod
     def at(cls, structure: Structure, q: np.ndarray) -> Chart:
-        """The chart based at the configuration ``q`` (6R,) (``x = 0`` there)."""
-        structure.require_free_class1("the analysis package")
-        rods = dynamics.rods_view(np.asarray(q, dtype=float))
+        """The chart based at the configuration ``q`` (n,) (``x = 0`` there)."""
+        if structure.dim != 3:
+            raise ValueError("the analysis package: a planar structure is analysed in its 3-D form "
+                             "(tensegrity.analysis.coordinates.spatial)")
+        q = np.asarray(q, dtype=float)
+        rods = dynamics.rod_coordinates(structure, q)
         centre = 0.5 * rods[:, 0]
         direction = rods[:, 1] / np.linalg.norm(rods[:, 1], axis=1, keepdims=True)
-        return cls(structure, centre.copy(), direction, tangent_basis(direction))
+        point_mass = dynamics.point_mass_coordinates(structure, q)
+        return cls(structure, centre.copy(), direction, tangent_basis(direction), point_mass.copy())
+
+    @property
+    def n_rod_coordinates(self) -> int:
+        """``5 R``: the rods' part of ``x``."""
+        return 5 * self.structure.n_rods
 
     @property
     def size(self) -> int:
-        """``5 R``."""
-        return 5 * self.structure.n_rods
+        """``5 R + 3 M``."""
+        return self.n_rod_coordinates + self.point_mass.size
 
     def split(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``(dc (R, 3), phi (R, 2))`` views of ``x`` (5R,)."""
-        rods = np.asarray(x, dtype=float).reshape(-1, 5)
+        """``(dc (R, 3), phi (R, 2))`` views of the rods' part of ``x`` (5R + 3M,)."""
+        rods = np.asarray(x, dtype=float)[: self.n_rod_coordinates].reshape(-1, 5)
         return rods[:, :3], rods[:, 3:]
+
+    def _with_point_masses(self, rods: np.ndarray, point_mass: np.ndarray) -> np.ndarray:
+        """``rods`` (R, k) flattened, followed by ``point_mass`` (M, 3) if there are any."""
+        if not self.point_mass.size:
+            return rods.reshape(-1)
+        return np.concatenate([rods.reshape(-1), point_mass.reshape(-1)])
+
+    def _point_part(self, x: np.ndarray) -> np.ndarray:
+        return np.asarray(x, dtype=float)[self.n_rod_coordinates :].reshape(-1, 3)
 
     def directions(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(c (R, 3), n (R, 3), s (R,))`` with ``s = sqrt(1 + |phi|^2)``."""
@@ -92,10 +120,11 @@ class Chart:
         return self.centre + dc, n, s
 
     def q(self, x: np.ndarray) -> np.ndarray:
-        """Coordinates ``q`` (6R,) of ``x``: ``q1 = 2 c``, ``q2 = L n`` (rod lengths exact)."""
+        """Coordinates ``q`` (n,) of ``x``: ``q1 = 2 c``, ``q2 = L n`` (rod lengths exact), then
+        the point masses' positions."""
         c, n, _ = self.directions(x)
         q = np.stack([2.0 * c, self.structure.rod_length[:, None] * n], axis=1)
-        return q.reshape(-1)
+        return self._with_point_masses(q, self.point_mass + self._point_part(x))
 
     def nodes(self, x: np.ndarray) -> np.ndarray:
         """Node positions (N, 3) of ``x``."""
@@ -103,29 +132,37 @@ class Chart:
 
     def x(self, q: np.ndarray) -> np.ndarray:
         """Inverse of :meth:`q` (for rods within the open hemisphere about their base direction):
-        ``dc = q1/2 - c0``, ``phi = E^T n / (n . n0)``."""
-        rods = dynamics.rods_view(np.asarray(q, dtype=float))
+        ``dc = q1/2 - c0``, ``phi = E^T n / (n . n0)``; ``q`` may have leading (time) axes."""
+        q = np.asarray(q, dtype=float)
+        rods = dynamics.rod_coordinates(self.structure, q)
         n = rods[..., 1, :] / np.linalg.norm(rods[..., 1, :], axis=-1, keepdims=True)
         cos = np.sum(n * self.direction, axis=-1)
         if np.any(cos <= 0):
-            r = int(np.argmin(cos))
+            r = int(np.argmin(cos)) % max(self.structure.n_rods, 1)
             raise ValueError(f"rods[{r}] turned by more than 90 degrees from the chart's base")
         phi = np.einsum("rij,...ri->...rj", self.basis, n) / cos[..., None]
         dc = 0.5 * rods[..., 0, :] - self.centre
-        return np.concatenate([dc, phi], axis=-1).reshape(*np.shape(q)[:-1], self.size)
+        x = np.concatenate([dc, phi], axis=-1).reshape(*q.shape[:-1], self.n_rod_coordinates)
+        if not self.point_mass.size:
+            return x
+        moved = dynamics.point_mass_coordinates(self.structure, q) - self.point_mass
+        return np.concatenate([x, moved.reshape(*q.shape[:-1], -1)], axis=-1)
 
     def velocity_x(self, q: np.ndarray, qdot: np.ndarray) -> np.ndarray:
-        """Rates ``x'`` (5R,) at a configuration *on the base* (``q`` with ``phi = 0``):
-        ``dc' = q1'/2``, ``phi' = E^T q2' / L``.  Elsewhere, first order in ``phi``."""
-        rates = dynamics.rods_view(np.asarray(qdot, dtype=float))
+        """Rates ``x'`` (5R + 3M,) at a configuration *on the base* (``q`` with ``phi = 0``):
+        ``dc' = q1'/2``, ``phi' = E^T q2' / L``, point masses ``x'``.  Elsewhere, first order in
+        ``phi``."""
+        qdot = np.asarray(qdot, dtype=float)
+        rates = dynamics.rod_coordinates(self.structure, qdot)
         dphi = np.einsum("rij,ri->rj", self.basis, rates[:, 1]) / self.structure.rod_length[:, None]
-        return np.concatenate([0.5 * rates[:, 0], dphi], axis=1).reshape(-1)
+        return self._with_point_masses(np.concatenate([0.5 * rates[:, 0], dphi], axis=1),
+                                       dynamics.point_mass_coordinates(self.structure, qdot))
 
     def velocity_q(self, xdot: np.ndarray) -> np.ndarray:
-        """``q'`` (6R,) of rates ``x'`` at the base (``x = 0``): ``q1' = 2 dc'``, ``q2' = L E phi'``."""
+        """``q'`` (n,) of rates ``x'`` at the base (``x = 0``): ``q1' = 2 dc'``, ``q2' = L E phi'``."""
         dc, dphi = self.split(xdot)
         v2 = self.structure.rod_length[:, None] * np.einsum("rij,rj->ri", self.basis, dphi)
-        return np.stack([2.0 * dc, v2], axis=1).reshape(-1)
+        return self._with_point_masses(np.stack([2.0 * dc, v2], axis=1), self._point_part(xdot))
 
     def node_jacobian(self, x: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """``dp/dx`` per rod: ``(Jn (R, 3, 2), n (R, 3))`` with ``Jn = dn/dphi = (I - n n^T) E / s``.
@@ -138,71 +175,234 @@ class Chart:
         return proj @ self.basis / s[:, None, None], n
 
     def jacobian_matrix(self, x: np.ndarray | None = None) -> np.ndarray:
-        """Dense ``J = dp/dx`` (3N, 5R) with ``p`` flattened node by node."""
+        """Dense ``J = dp/dx`` (3N, 5R + 3M) with ``p`` flattened node by node (zero rows at
+        anchors)."""
         s = self.structure
         jn, _ = self.node_jacobian(x)
         half = 0.5 * s.rod_length[:, None, None] * jn
-        J = np.zeros((s.n_nodes, 3, s.n_rods, 5))
-        r = np.arange(s.n_rods)
+        R = s.n_rods
+        J = np.zeros((s.n_nodes, 3, R, 5))
+        r = np.arange(R)
         a, b = s.rod_nodes[:, 0], s.rod_nodes[:, 1]
         J[a, :, r, :3] = np.eye(3)
         J[b, :, r, :3] = np.eye(3)
         J[a, :, r, 3:] = -half
         J[b, :, r, 3:] = half
-        return J.reshape(3 * s.n_nodes, 5 * s.n_rods)
+        J = J.reshape(3 * s.n_nodes, 5 * R)
+        if not self.point_mass.size:
+            return J
+        masses = s.point_mass_nodes
+        P = np.zeros((s.n_nodes, 3, masses.size, 3))
+        P[masses, :, np.arange(masses.size), :] = np.eye(3)
+        return np.hstack([J, P.reshape(3 * s.n_nodes, 3 * masses.size)])
 
     def generalized_force(self, force: np.ndarray, x: np.ndarray | None = None) -> np.ndarray:
-        """``Q = J^T f`` (5R,) of nodal forces ``f`` (N, 3): ``[f_a + f_b, (L/2) Jn^T (f_b - f_a)]``."""
+        """``Q = J^T f`` (5R + 3M,) of nodal forces ``f`` (N, 3): per rod ``[f_a + f_b, (L/2)
+        Jn^T (f_b - f_a)]``, then the force on each point mass."""
         s = self.structure
         jn, _ = self.node_jacobian(x)
         fa, fb = force[s.rod_nodes[:, 0]], force[s.rod_nodes[:, 1]]
         torque = 0.5 * s.rod_length[:, None] * np.einsum("rij,ri->rj", jn, fb - fa)
-        return np.concatenate([fa + fb, torque], axis=1).reshape(-1)
+        return self._with_point_masses(np.concatenate([fa + fb, torque], axis=1),
+                                       force[s.point_mass_nodes])
+
+    # ------------------------------------------------------------------ joints and supports
+    @property
+    def n_constraints(self) -> int:
+        """Rows ``c`` of the joints and supports (0 without any)."""
+        c = self.structure.constraints
+        return 0 if c is None else c.matrix.shape[0]
+
+    def constraint_residual(self, x: np.ndarray) -> np.ndarray:
+        """``g(x) = A q(x) - b`` [m], shape (c,)."""
+        c = self.structure.constraints
+        return np.zeros(0) if c is None else c.residual(self.q(x))
+
+    def constraint_jacobian(self, x: np.ndarray | None = None) -> np.ndarray:
+        """``G = dg/dx = A_n J(x)`` (c, 5R + 3M), dense."""
+        c = self.structure.constraints
+        if c is None:
+            return np.zeros((0, self.size))
+        return np.asarray(c.node_matrix @ self.jacobian_matrix(x))
+
+    def reaction(self, generalized_force: np.ndarray, x: np.ndarray | None = None
+                 ) -> tuple[np.ndarray, np.ndarray]:
+        """``(f_c (N, 3), Q + G^T lambda)``: the nodal forces ``f_c = A_n^T lambda`` [N] of the
+        joints and supports that best balance the generalized forces ``Q`` (``lambda`` by least
+        squares, minimum norm where the rows are dependent), and what they leave unbalanced."""
+        s = self.structure
+        if self.n_constraints == 0:
+            return np.zeros((s.n_nodes, 3)), generalized_force
+        G = self.constraint_jacobian(x)
+        multiplier, *_ = np.linalg.lstsq(G.T, -generalized_force, rcond=None)
+        force = (s.constraints.node_matrix_t @ multiplier).reshape(-1, 3)
+        return force, generalized_force + G.T @ multiplier
+
+    def retract(self, x: np.ndarray) -> np.ndarray:
+        """``q`` (n,) of ``x`` moved onto the joints and supports (the closest configuration in
+        the kinetic-energy metric, :meth:`tensegrity.constraints.LinearConstraints.project`)."""
+        q = self.q(x)
+        if self.n_constraints == 0:
+            return q
+        return self.structure.constraints.project(q, np.zeros_like(q))[0]
+
+    def admitted_motions(self, x: np.ndarray | None = None, rtol: float = 1e-10) -> np.ndarray | None:
+        """``Z`` (5R + 3M, k): an ``M``-orthonormal basis (``Z^T M Z = I``) of the motions the
+        joints and supports admit, ``null(G)``; None without constraints (every motion)."""
+        if self.n_constraints == 0:
+            return None
+        root = np.sqrt(mass_matrix(self.structure))
+        G = self.constraint_jacobian(x) / root[None, :]
+        _, sigma, vt = np.linalg.svd(G)
+        rank = int(np.sum(sigma > rtol * (sigma[0] if sigma.size else 0.0)))
+        return vt[rank:].T / root[:, None]
+
+
+@functools.lru_cache(maxsize=32)
+def spatial(structure: Structure) -> Structure:
+    """The 3-D form of a structure: a 3-D structure itself; a planar one (nodes (N, 2)) with
+    ``z = 0`` added and every node that is neither fixed nor on a line held on the plane
+    ``z = 0`` (a node on a line keeps it, which holds ``z`` too).  Its motions are exactly the
+    planar structure's (Theorem 18.1 is the same in the plane; ``tests/test_planar.py`` checks
+    the two simulations against each other), and it is what the analysis package works on."""
+    if structure.dim == 3:
+        return structure
+    held = ~structure.node_fixed
+    held[structure.line_nodes] = False
+    planes = np.flatnonzero(held)
+    return structure.replace(
+        node_position=spatial_vector(structure, structure.node_position),
+        node_velocity=spatial_vector(structure, structure.node_velocity),
+        plane_nodes=planes, plane_normal=np.tile([0.0, 0.0, 1.0], (planes.size, 1)),
+        line_nodes=structure.line_nodes,
+        line_direction=spatial_vector(structure, structure.line_direction))
+
+
+def has_supports(structure: Structure) -> bool:
+    """True if some node is fixed or held on a plane or line: the supports then hold the
+    structure against (some) rigid-body motion, and configurations are compared as they are,
+    not after a rigid alignment."""
+    return bool(structure.node_fixed.any() or structure.plane_nodes.size or structure.line_nodes.size)
+
+
+def spatial_vector(structure: Structure, value: np.ndarray | None) -> np.ndarray | None:
+    """Vectors (..., d) of ``structure`` -- nodal forces or positions (N, d), a gravity vector
+    (d,) -- in 3-D (``z = 0`` added to a planar structure's); None stays None."""
+    if value is None or structure.dim == 3:
+        return value
+    value = np.asarray(value, dtype=float)
+    return np.pad(value, [(0, 0)] * (value.ndim - 1) + [(0, 1)])
+
+
+def spatial_coordinates(structure: Structure, q: np.ndarray, *, rates: bool = False) -> np.ndarray:
+    """``q`` of :func:`spatial` ``(structure)`` from ``structure``'s ``q`` (leading axes allowed);
+    with ``rates``, of rates or accelerations (anchors at rest)."""
+    if structure.dim == 3:
+        return q
+    p = dynamics.nodes_from_coordinates(structure, np.asarray(q, dtype=float), rates=rates)
+    return dynamics.coordinates_from_nodes(spatial(structure), spatial_vector(structure, p))
+
+
+def planar_coordinates(structure: Structure, q: np.ndarray, *, rates: bool = False) -> np.ndarray:
+    """Inverse of :func:`spatial_coordinates`: a planar ``structure``'s ``q`` from its 3-D form's."""
+    if structure.dim == 3:
+        return q
+    p = dynamics.nodes_from_coordinates(spatial(structure), np.asarray(q, dtype=float), rates=rates)
+    return dynamics.coordinates_from_nodes(structure, p[..., :2])
 
 
 def configuration(structure: Structure, value: Any = None, *, name: str = "q") -> np.ndarray:
-    """``q`` (6R,) of a configuration given as node positions (N, 3), as ``q`` (6R,), or None
+    """``q`` (n,) of a configuration given as node positions (N, d), as ``q`` (n,), or None
     (the structure's node positions); rods projected onto their lengths.  ``ValueError`` naming
     ``name`` for any other shape."""
     if value is None:
         return dynamics.coordinates_from_nodes(structure, structure.node_position)
     value = np.asarray(value, dtype=float)
-    if value.shape == (structure.n_nodes, 3):
+    if value.shape == (structure.n_nodes, structure.dim):
         value = dynamics.coordinates_from_nodes(structure, value)
     if value.shape != (structure.n_coordinates,):
-        raise ValueError(f"{name}: expected node positions ({structure.n_nodes}, 3) or q "
+        raise ValueError(f"{name}: expected node positions ({structure.n_nodes}, {structure.dim}) or q "
                          f"({structure.n_coordinates},), got shape {value.shape}")
     q, _ = dynamics.project_to_constraints(structure, value, np.zeros_like(value))
     return q
 
 
 def mass_matrix(structure: Structure) -> np.ndarray:
-    """Diagonal of ``M`` (5R,): ``m`` for the centre, ``m L^2 / 12`` for the two angles."""
+    """Diagonal of ``M`` (5R + 3M,): ``m`` for the centre, ``m L^2 / 12`` for the two angles,
+    then ``m`` (3 times) per point mass."""
     m, L = structure.rod_mass, structure.rod_length
-    return np.column_stack([m, m, m, m * L**2 / 12, m * L**2 / 12]).reshape(-1)
+    rods = np.column_stack([m, m, m, m * L**2 / 12, m * L**2 / 12]).reshape(-1)
+    if not structure.point_mass_nodes.size:
+        return rods
+    return np.concatenate([rods, np.repeat(structure.node_point_mass[structure.point_mass_nodes], 3)])
 
 
 def rigid_body_basis(chart: Chart) -> np.ndarray:
-    """The infinitesimal rigid-body motions at the chart's base as columns of ``x`` (5R, k).
+    """The infinitesimal rigid-body motions at the chart's base that the supports admit, as
+    columns of ``x`` (5R + 3M, k).
 
     Translations ``dc = e_k``; rotations ``delta = a x (.)`` about the mass centre: ``dc = a x
-    (c - c_m)``, ``phi = E^T (a x n)``.  ``k = 6`` unless the rods are all collinear; the columns
-    are made orthonormal in the mass metric (``B^T M B = I``).
+    (c - c_m)``, ``phi = E^T (a x n)`` (a point mass moves by ``a x (p - c_m)``).  ``k = 6`` for
+    a free structure unless its rods are all collinear; with supports only the combinations
+    that keep every anchor still and satisfy ``G dx = 0`` (none for a fixed base, the three
+    rotations about a single pinned node, the plane's three motions for a planar structure).
+    The columns are made orthonormal in the mass metric (``B^T M B = I``).
     """
     s = chart.structure
-    centre_of_mass = np.average(chart.centre, axis=0, weights=s.rod_mass)
+    mass = mass_matrix(s)
+    weights = np.concatenate([s.rod_mass, s.node_point_mass[s.point_mass_nodes]])
+    centre_of_mass = np.average(np.concatenate([chart.centre, chart.point_mass]), axis=0,
+                                weights=weights)
     columns = []
     for k in range(3):
         v = np.zeros((s.n_rods, 5))
         v[:, k] = 1.0
-        columns.append(v.reshape(-1))
+        columns.append(chart._with_point_masses(v, np.broadcast_to(np.eye(3)[k], chart.point_mass.shape)))
     for k in range(3):
         a = np.eye(3)[k]
         v = np.zeros((s.n_rods, 5))
         v[:, :3] = np.cross(a, chart.centre - centre_of_mass)
         v[:, 3:] = np.einsum("rij,ri->rj", chart.basis, np.cross(a, chart.direction))
-        columns.append(v.reshape(-1))
-    return mass_orthonormal(np.column_stack(columns), mass_matrix(s))
+        columns.append(chart._with_point_masses(v, np.cross(a, chart.point_mass - centre_of_mass)))
+    rigid = np.column_stack(columns)
+    anchors = s.anchor_nodes
+    if chart.n_constraints or anchors.size:
+        # coefficients of the motions that move no anchor and keep the constraints
+        arm = s.node_position[anchors] - centre_of_mass
+        at_anchors = np.concatenate([np.tile(np.eye(3), (anchors.size, 1)),
+                                     -cross_matrix(arm).reshape(-1, 3)], axis=1)
+        rows = np.vstack([chart.constraint_jacobian() @ rigid, at_anchors])
+        scale = np.sqrt(np.sum(mass[:, None] * rigid**2, axis=0))  # each motion's size
+        scale[scale == 0] = 1.0  # a rotation about the line of collinear rods moves nothing
+        _, sigma, vt = np.linalg.svd(rows / scale[None, :])
+        rank = int(np.sum(sigma > 1e-10 * max(sigma[0] if sigma.size else 0.0, 1.0)))
+        rigid = rigid @ (vt[rank:].T / scale[:, None])
+    return mass_orthonormal(rigid, mass)
+
+
+def admitted_rigid_motions(chart: Chart, basis: np.ndarray | None) -> np.ndarray:
+    """:func:`rigid_body_basis` in the coordinates ``eta`` of the admitted motions ``x = Z eta``
+    (``basis`` = ``Z``, ``M``-orthonormal: ``eta = Z^T M x``); unchanged for ``Z`` = None."""
+    rigid = rigid_body_basis(chart)
+    if basis is None:
+        return rigid
+    return basis.T @ (mass_matrix(chart.structure)[:, None] * rigid)
+
+
+def drop_roundoff(matrix: np.ndarray, rtol: float = 1e-12) -> np.ndarray:
+    """``matrix`` with the entries below ``rtol`` times its largest set to 0: in ``J Z`` and
+    ``Z^T A_eq`` those are the round-off of ``G Z = 0`` (a fixed node's position, a tendon
+    between two fixed nodes), which would otherwise pass for a tiny, real authority."""
+    return np.where(np.abs(matrix) <= rtol * np.max(np.abs(matrix), initial=0.0), 0.0, matrix)
+
+
+def cross_matrix(a: np.ndarray) -> np.ndarray:
+    """Cross-product matrices ``[a]_x`` (..., 3, 3) of vectors (..., 3): ``[a]_x b = a x b``."""
+    out = np.zeros((*a.shape, 3))
+    out[..., 0, 1], out[..., 0, 2] = -a[..., 2], a[..., 1]
+    out[..., 1, 0], out[..., 1, 2] = a[..., 2], -a[..., 0]
+    out[..., 2, 0], out[..., 2, 1] = -a[..., 1], a[..., 0]
+    return out
 
 
 def mass_orthonormal(vectors: np.ndarray, mass: np.ndarray, rtol: float = 1e-10) -> np.ndarray:
@@ -248,9 +448,11 @@ def kabsch(p: np.ndarray, reference: np.ndarray, weights: np.ndarray) -> tuple[n
     return (p - c) @ rotation + c_ref, rotation
 
 
-def deformation(p: np.ndarray, reference: np.ndarray, weights: np.ndarray) -> np.ndarray:
+def deformation(p: np.ndarray, reference: np.ndarray, weights: np.ndarray, *,
+                rigid: bool = True) -> np.ndarray:
     """RMS (weighted by ``weights``) node distance from ``reference`` after rigid alignment [m],
-    shape (...,): the size of a deformation, blind to rigid-body motion."""
-    aligned = align(p, reference, weights)
+    shape (...,): the size of a deformation, blind to rigid-body motion.  ``rigid=False``: no
+    alignment (a supported structure, whose rigid-body motion is a deformation too)."""
+    aligned = align(p, reference, weights) if rigid else p
     w = np.asarray(weights, dtype=float) / np.sum(weights)
     return np.sqrt(np.sum(w * np.sum((aligned - reference) ** 2, axis=-1), axis=-1))

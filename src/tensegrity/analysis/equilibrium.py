@@ -17,6 +17,14 @@ Two routes, which agree (``tests/test_analysis_equilibrium.py``):
   acceleration below ``acceleration_tol`` [m/s^2] at a sample (``simulate(steady_state=True)``).
 
 Both report an :class:`EquilibriumResult`: node positions, tensions, slack tendons and residuals.
+
+Joints and supports (``docs/constraints.md``) are the constraints ``g(x) = A q(x) - b = 0``
+(:class:`~tensegrity.analysis.coordinates.Chart`); the direct route then solves ``Q(x) + G(x)^T
+lambda = 0``, ``g(x) = 0`` for ``x`` and the multipliers ``lambda`` (the reactions are the nodal
+forces ``A_n^T lambda``), its descent moves in ``null(G)`` and goes back onto ``g = 0`` by the
+dynamics' projection, and the gauge covers only the rigid-body motions the supports admit.  A
+planar structure is solved in its 3-D form (:func:`~tensegrity.analysis.coordinates.spatial`)
+and reported in 2-D.
 """
 
 from __future__ import annotations
@@ -28,11 +36,23 @@ import numpy as np
 import scipy.optimize
 
 from tensegrity import dynamics
-from tensegrity.analysis.coordinates import Chart, align, configuration
+from tensegrity.analysis.coordinates import (
+    Chart,
+    align,
+    configuration,
+    cross_matrix,
+    has_supports,
+    planar_coordinates,
+    rigid_body_basis,
+    spatial,
+    spatial_coordinates,
+    spatial_vector,
+)
 from tensegrity.analysis.statics import (
     force_jacobian,
     rod_compression,
     statics,
+    with_reactions,
 )
 from tensegrity.structure import Structure
 
@@ -48,16 +68,20 @@ class EquilibriumResult:
     Attributes
     ----------
     structure : Structure
-    q : (6R,) coordinates [m].  node_position : (N, 3) [m].
+    q : (6R,) coordinates [m] (n: point masses follow).  node_position : (N, 3) [m].
     control : (S,) rest-length changes ``u`` [m] (``Lbar = L0 - u``).
     rest_length : (S,) ``Lbar`` [m].  tendon_length : (S,) [m].
     tension : (S,) [N] (0 for slack tendons).  slack : (S,) bool, ``l <= Lbar``.
     rod_compression : (R,) axial compression of each rod [N] (> 0 compressed).
-    residual_force : max ``|Q|``, the generalized forces (eq. 18.61 in reduced coordinates) [N].
+    residual_force : max ``|Q|``, the generalized forces (eq. 18.61 in reduced coordinates) [N];
+        with joints and supports, of ``Q + G^T lambda``, what the best reactions leave.
     residual_acceleration : max ``|q''|`` of Theorem 18.1 at rest (``q' = 0``) [m/s^2].
     converged : whether the method's convergence test passed.
     method : ``"least_squares"`` or ``"simulation"``.
     message : how it ended.  nfev : evaluations (residuals, or right-hand sides).
+    reaction_force : (N, 3) forces of the joints and supports on the nodes [N] (reactions at
+        anchors included), or None for a structure without any.
+    A planar structure's result is in 2-D: ``q`` (4R + 2M), ``node_position`` (N, 2).
     """
 
     structure: Structure
@@ -77,6 +101,7 @@ class EquilibriumResult:
     nfev: int
     external_force: np.ndarray | None = None
     gravity: np.ndarray | None = None
+    reaction_force: np.ndarray | None = None
 
     @property
     def slack_names(self) -> list[str]:
@@ -101,11 +126,19 @@ class EquilibriumResult:
             ],
             "rod_compression_N": self.rod_compression.tolist(),
             "slack_tendons": self.slack_names,
-        }
+        } | ({} if self.reaction_force is None else
+             {"reaction_force_N": self.reaction_force.tolist()})
 
 
-def _force_scale(structure: Structure) -> float:
-    return float(np.mean(structure.tendon_stiffness) * np.mean(structure.rod_length))
+def _scales(structure: Structure, gravity: np.ndarray | None = None) -> tuple[float, float]:
+    """``(stiffness [N/m], length [m])`` that scale forces and tolerances: the mean tendon
+    stiffness and the mean rod length; without tendons, the total weight over that length (1 N/m
+    without gravity either); without rods, 1 m."""
+    length = float(np.mean(structure.rod_length)) if structure.n_rods else 1.0
+    if structure.n_tendons:
+        return float(np.mean(structure.tendon_stiffness)), length
+    weight = structure.total_mass * (0.0 if gravity is None else float(np.linalg.norm(gravity)))
+    return (weight / length if weight > 0 else 1.0), length
 
 
 def make_result(
@@ -121,11 +154,18 @@ def make_result(
     nfev: int,
 ) -> EquilibriumResult:
     """An :class:`EquilibriumResult` at ``q`` (residuals evaluated there)."""
+    if structure.dim == 2:
+        result = make_result(spatial(structure), spatial_coordinates(structure, q), control,
+                             external_force=spatial_vector(structure, external_force),
+                             gravity=spatial_vector(structure, gravity), converged=converged,
+                             method=method, message=message, nfev=nfev)
+        return planar_result(structure, result, external_force, gravity)
     u = np.zeros(structure.n_tendons) if control is None else np.asarray(control, dtype=float)
     rest = dynamics.rest_lengths(structure, u)
     chart = Chart.at(structure, q)
     x0 = np.zeros(chart.size)
     st = statics(chart, x0, rest, external_force, gravity)
+    reaction, unbalanced = chart.reaction(st.generalized_force)
     qddot = dynamics.accelerations(structure, st.q, np.zeros_like(st.q), control=u,
                                    external_force=external_force, gravity=gravity)
     return EquilibriumResult(
@@ -137,51 +177,98 @@ def make_result(
         tendon_length=st.tendons.length,
         tension=st.tendons.tension,
         slack=st.tendons.length <= rest,
-        rod_compression=rod_compression(structure, st.force, chart.direction),
-        residual_force=float(np.max(np.abs(st.generalized_force))),
-        residual_acceleration=float(np.max(np.abs(qddot))),
+        rod_compression=rod_compression(structure, st.force + reaction, chart.direction),
+        residual_force=float(np.max(np.abs(unbalanced), initial=0.0)),
+        residual_acceleration=float(np.max(np.abs(qddot), initial=0.0)),
         converged=converged,
         method=method,
         message=message,
         nfev=nfev,
         external_force=None if external_force is None else np.asarray(external_force, float),
         gravity=None if gravity is None else np.asarray(gravity, float),
+        reaction_force=reaction if structure.has_constraints else None,
     )
+
+
+def planar_result(planar: Structure, result: EquilibriumResult, external_force: np.ndarray | None,
+                  gravity: np.ndarray | None) -> EquilibriumResult:
+    """A result of the 3-D form (:func:`~tensegrity.analysis.coordinates.spatial`) of the planar
+    structure ``planar``, in 2-D (the loads as ``planar``'s: 2 numbers per vector)."""
+    return dataclasses.replace(
+        result, structure=planar, q=planar_coordinates(planar, result.q),
+        node_position=result.node_position[:, :2],
+        reaction_force=result.reaction_force[:, :2] if planar.has_constraints else None,
+        external_force=None if external_force is None else np.asarray(external_force, float),
+        gravity=None if gravity is None else np.asarray(gravity, float))
 
 
 class _Gauge:
     """Eckart's conditions about a reference configuration ``p_ref``: 6 residuals [N], linear in
-    ``p``, scaled by the mean tendon stiffness so that they weigh like forces."""
+    ``p``, scaled by the mean tendon stiffness so that they weigh like forces.
 
-    def __init__(self, structure: Structure, p_ref: np.ndarray, rotations: bool = True) -> None:
+    With supports, only the combinations ``rows`` (k, 6) of them that fix the admitted
+    rigid-body motions (:meth:`restricted`)."""
+
+    def __init__(self, structure: Structure, p_ref: np.ndarray, rotations: bool = True,
+                 scale: float | None = None) -> None:
         self.rotations = rotations
         self.w = structure.node_mass / structure.node_mass.sum()
         self.p_ref = p_ref
         self.arm = p_ref - self.w @ p_ref
         radius = np.sqrt(self.w @ np.sum(self.arm**2, axis=1)) or 1.0
-        self.scale = float(np.mean(structure.tendon_stiffness))
+        self.scale = float(np.mean(structure.tendon_stiffness)) if scale is None else scale
         self.rot_scale = self.scale / radius
+        self.rows: np.ndarray | None = None
+
+    def restricted(self, moves: np.ndarray) -> _Gauge | None:
+        """The gauge on the rigid-body motions ``moves`` (the gauge's rows' changes along
+        them, (6, r)): an orthonormal basis of their range picks the conditions; None if the
+        supports admit no rigid-body motion."""
+        u, sigma, _ = np.linalg.svd(moves, full_matrices=False)
+        keep = sigma > 1e-10 * max(sigma[0] if sigma.size else 0.0, np.finfo(float).tiny)
+        if not keep.any():
+            return None
+        self.rows = u[:, keep].T
+        return self
 
     def residual(self, p: np.ndarray) -> np.ndarray:
         d = p - self.p_ref
         parts = [self.scale * (self.w @ d)]
         if self.rotations:
             parts.append(self.rot_scale * (self.w @ np.cross(self.arm, d)))
-        return np.concatenate(parts)
+        full = np.concatenate(parts)
+        return full if self.rows is None else self.rows @ full
 
     def jacobian(self, J: np.ndarray) -> np.ndarray:
-        """Rows (6, 5R) from ``J = dp/dx`` (3N, 5R)."""
+        """Rows (6, n) from ``J = dp/dx`` (3N, n)."""
         Jn = J.reshape(-1, 3, J.shape[1])
         translation = np.einsum("i,ikc->kc", self.w, Jn)
         if not self.rotations:
-            return self.scale * translation
-        skew = np.zeros((len(self.w), 3, 3))
-        a = self.arm
-        skew[:, 0, 1], skew[:, 0, 2] = -a[:, 2], a[:, 1]
-        skew[:, 1, 0], skew[:, 1, 2] = a[:, 2], -a[:, 0]
-        skew[:, 2, 0], skew[:, 2, 1] = -a[:, 1], a[:, 0]
-        rotation = np.einsum("i,ikl,ilc->kc", self.w, skew, Jn)
-        return np.vstack([self.scale * translation, self.rot_scale * rotation])
+            full = self.scale * translation
+        else:
+            rotation = np.einsum("i,ikl,ilc->kc", self.w, cross_matrix(self.arm), Jn)
+            full = np.vstack([self.scale * translation, self.rot_scale * rotation])
+        return full if self.rows is None else self.rows @ full
+
+
+def _gauge(structure: Structure, q: np.ndarray, p_ref: np.ndarray, rotations: bool,
+           scale: float) -> _Gauge | None:
+    """Eckart's conditions for the rigid-body motions the supports of ``structure`` admit at
+    ``q`` (all six for a free structure; None if there are none).  Without ``rotations`` (under
+    loads, which fix the orientation) only the admitted pure translations are gauged."""
+    scale = None if structure.n_tendons else scale
+    eckart = _Gauge(structure, p_ref, rotations, scale=scale)
+    if not (structure.has_constraints or structure.anchor_nodes.size):
+        return eckart
+    chart = Chart.at(structure, q)
+    full = _Gauge(structure, p_ref, True, scale=scale)
+    moves = full.jacobian(chart.jacobian_matrix()) @ rigid_body_basis(chart)  # (6, r)
+    if not rotations:
+        # pure translations: no change of the rotation conditions
+        _, sigma, vt = np.linalg.svd(moves[3:])
+        rank = int(np.sum(sigma > 1e-10 * max(np.max(np.abs(moves), initial=0.0), 1e-300)))
+        moves = moves[:3] @ vt[rank:].T
+    return eckart.restricted(moves)
 
 
 def find_equilibrium(
@@ -201,11 +288,16 @@ def find_equilibrium(
     """Solve ``K_p(q) q = B(q) u + D(q) w`` (eq. 18.61) with the rod-length constraints.
 
     Unknowns: the ``5R`` reduced coordinates of :class:`Chart` (rod centres and two angles per
-    rod), so the rod constraints hold exactly.  Residuals: the generalized forces ``Q`` [N, N m]
-    and, if ``gauge``, Eckart's 6 conditions with respect to ``start`` (fixing the rigid-body
-    motion).  ``scipy.optimize.least_squares`` (Levenberg-Marquardt) with the analytic Jacobian;
-    the chart is re-based at each round's solution (it is exact only within 90 degrees of its
-    base), and rounds end with Newton steps.
+    rod; 3 more per point mass), so the rod constraints hold exactly.  Residuals: the
+    generalized forces ``Q`` [N, N m] and, if ``gauge``, Eckart's 6 conditions with respect to
+    ``start`` (fixing the rigid-body motion).  ``scipy.optimize.least_squares``
+    (Levenberg-Marquardt) with the analytic Jacobian; the chart is re-based at each round's
+    solution (it is exact only within 90 degrees of its base), and rounds end with Newton steps.
+
+    Joints and supports add the multipliers ``lambda`` (c,) [N] to the unknowns and the
+    residuals ``Q + G^T lambda`` and ``k g(x)`` (``k`` the stiffness scale); the gauge then
+    covers only the admitted rigid-body motions.  A planar structure is solved in its 3-D form
+    and reported in 2-D (``start``, loads and ``gauge_reference`` in 2-D).
 
     Parameters
     ----------
@@ -225,7 +317,8 @@ def find_equilibrium(
         the nearest root, which may be a saddle (e.g. the (3,1) shell from its cylinder layout
         then lands on an equilibrium with 3 slack tendons).
     force_tol : float, optional
-        Convergence: ``max |Q| <= force_tol`` [N].  Default ``1e-12 * mean(k) * mean(L_rod)``.
+        Convergence: ``max |Q| <= force_tol`` [N].  Default ``1e-12 * mean(k) * mean(L_rod)``
+        (without tendons, the total weight times ``mean(L_rod)``).
 
     Returns
     -------
@@ -233,31 +326,71 @@ def find_equilibrium(
         ``converged`` False (with a message) if the tolerance was not met; the residual is
         reported either way.
     """
+    if structure.dim == 2:
+        q2 = configuration(structure, start, name="start")
+        result = find_equilibrium(
+            spatial(structure), spatial_coordinates(structure, q2), control=control,
+            external_force=spatial_vector(structure, external_force),
+            gravity=spatial_vector(structure, gravity), gauge=gauge,
+            gauge_reference=spatial_vector(structure, gauge_reference), descend=descend,
+            force_tol=force_tol, max_rounds=max_rounds, max_nfev=max_nfev)
+        return planar_result(structure, result, external_force, gravity)
     q = configuration(structure, start, name="start")
     u = np.zeros(structure.n_tendons) if control is None else np.asarray(control, dtype=float)
     rest = dynamics.rest_lengths(structure, u)
-    tol = FORCE_RTOL * _force_scale(structure) if force_tol is None else float(force_tol)
+    k_scale, length = _scales(structure, gravity)
+    tol = FORCE_RTOL * k_scale * length if force_tol is None else float(force_tol)
     p_ref = (dynamics.nodes_from_coordinates(structure, q) if gauge_reference is None
              else np.asarray(gauge_reference, dtype=float))
     # Loads that are not invariant under rotation (external forces, gravity) fix the orientation
     # themselves: then only the translation is gauged.
-    eckart = (_Gauge(structure, p_ref, rotations=external_force is None and gravity is None)
+    eckart = (_gauge(structure, q, p_ref, external_force is None and gravity is None, k_scale)
               if gauge else None)
     nfev = 0
 
-    def residual(chart: Chart, x: np.ndarray) -> np.ndarray:
+    def residual(chart: Chart, v: np.ndarray) -> np.ndarray:
+        """``[Q + G^T lambda; k g; gauge]`` at ``v = [x, lambda]``."""
+        x = v[: chart.size]
         st = statics(chart, x, rest, external_force, gravity)
         parts = [st.generalized_force]
+        if chart.n_constraints:
+            parts = [parts[0] + chart.constraint_jacobian(x).T @ v[chart.size :],
+                     k_scale * chart.constraint_residual(x)]
         if eckart is not None:
             parts.append(eckart.residual(st.p))
         return np.concatenate(parts)
 
-    def jacobian(chart: Chart, x: np.ndarray) -> np.ndarray:
+    def jacobian(chart: Chart, v: np.ndarray) -> np.ndarray:
+        x = v[: chart.size]
         st = statics(chart, x, rest, external_force, gravity)
-        rows = [force_jacobian(chart, x, st)]
+        if not chart.n_constraints:
+            rows = [force_jacobian(chart, x, st)]
+            if eckart is not None:
+                rows.append(eckart.jacobian(chart.jacobian_matrix(x)))
+            return np.vstack(rows)
+        c = chart.n_constraints
+        G = chart.constraint_jacobian(x)
+        reaction = (structure.constraints.node_matrix_t @ v[chart.size :]).reshape(-1, 3)
+        rows = [np.hstack([force_jacobian(chart, x, st._replace(force=st.force + reaction)), G.T]),
+                np.hstack([k_scale * G, np.zeros((c, c))])]
         if eckart is not None:
-            rows.append(eckart.jacobian(chart.jacobian_matrix(x)))
+            gauge_rows = eckart.jacobian(chart.jacobian_matrix(x))
+            rows.append(np.hstack([gauge_rows, np.zeros((gauge_rows.shape[0], c))]))
         return np.vstack(rows)
+
+    def start_of(chart: Chart) -> np.ndarray:
+        """``[x = 0, lambda]`` with the least-squares multipliers at the chart's base."""
+        x0 = np.zeros(chart.size)
+        if not chart.n_constraints:
+            return x0
+        Q = statics(chart, x0, rest, external_force, gravity).generalized_force
+        multiplier, *_ = np.linalg.lstsq(chart.constraint_jacobian().T, -Q, rcond=None)
+        return np.concatenate([x0, multiplier])
+
+    def unbalanced(chart: Chart) -> float:
+        """max ``|Q + G^T lambda|`` at the chart's base, ``lambda`` the best reactions."""
+        Q = statics(chart, np.zeros(chart.size), rest, external_force, gravity).generalized_force
+        return float(np.max(np.abs(chart.reaction(Q)[1]), initial=0.0))
 
     if descend:
         q, used = _descend(structure, q, rest, external_force, gravity, eckart)
@@ -266,31 +399,33 @@ def find_equilibrium(
     converged = False
     for _ in range(max_rounds):
         chart = Chart.at(structure, q)
-        x0 = np.zeros(chart.size)
+        v0 = start_of(chart)
         fit = scipy.optimize.least_squares(
-            lambda x: residual(chart, x), x0, jac=lambda x: jacobian(chart, x),
+            lambda v: residual(chart, v), v0, jac=lambda v: jacobian(chart, v),
             method="lm" if eckart is not None or chart.size <= structure.n_coordinates else "trf",
             xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=max_nfev,
         )
         nfev += fit.nfev
-        x = fit.x
-        if np.max(np.abs(chart.split(x)[1])) > 1.0:  # far out on the chart: re-base, go again
-            q = chart.q(x)
+        x = fit.x[: chart.size]
+        if np.max(np.abs(chart.split(x)[1]), initial=0.0) > 1.0:  # far out on the chart: re-base
+            q = chart.retract(x)
             continue
         # Newton polish on a chart based at the solution.
-        q = chart.q(x)
+        q = chart.retract(x)
         for _ in range(5):
             chart = Chart.at(structure, q)
-            x0 = np.zeros(chart.size)
-            r = residual(chart, x0)
+            v0 = start_of(chart)
+            r = residual(chart, v0)
             nfev += 1
-            if np.max(np.abs(r[: chart.size])) <= tol:
+            current = unbalanced(chart)
+            if current <= tol:
                 break
-            step, *_ = np.linalg.lstsq(jacobian(chart, x0), -r, rcond=None)
-            q = chart.q(step)
-        chart = Chart.at(structure, q)
-        r = residual(chart, np.zeros(chart.size))
-        force_residual = float(np.max(np.abs(r[: chart.size])))
+            step, *_ = np.linalg.lstsq(jacobian(chart, v0), -r, rcond=None)
+            trial = chart.retract(step[: chart.size])
+            if unbalanced(Chart.at(structure, trial)) >= current:
+                break  # no progress (a near-singular Jacobian: zero-stiffness motions)
+            q = trial
+        force_residual = unbalanced(Chart.at(structure, q))
         if force_residual <= tol:
             converged = True
             message = f"converged: max |Q| = {force_residual:.3g} N <= {tol:.3g} N"
@@ -321,16 +456,19 @@ def _descend(structure, q, rest, external_force, gravity, eckart, max_iter=500):
     the largest), so that every step goes down even where ``K`` is indefinite; the step is
     capped at 0.25 (rad, or rod lengths) and halved until the energy decreases (Armijo).  The
     chart is re-based at every iterate.  Near a minimum this is Newton's method.
+
+    With joints and supports the step is taken in the admitted motions ``x = Z eta``
+    (:meth:`Chart.admitted_motions`), with the Hessian of the Lagrangian (the reactions' part of
+    the rods' geometric term included), and each trial point is projected back onto them.
     """
-    k_mean = float(np.mean(structure.tendon_stiffness))
-    length = float(np.mean(structure.rod_length))
+    k_mean, length = _scales(structure, gravity)
     nfev = 0
 
-    def value(chart, x):
-        st = statics(chart, x, rest, external_force, gravity)
-        v = potential_energy(structure, st.p, st.q, rest, external_force, gravity)
+    def value(q):
+        p = dynamics.nodes_from_coordinates(structure, q)
+        v = potential_energy(structure, p, q, rest, external_force, gravity)
         if eckart is not None:
-            g = eckart.residual(st.p)
+            g = eckart.residual(p)
             v += 0.5 * float(g @ g) / k_mean
         return v
 
@@ -338,8 +476,9 @@ def _descend(structure, q, rest, external_force, gravity, eckart, max_iter=500):
         chart = Chart.at(structure, q)
         x0 = np.zeros(chart.size)
         st = statics(chart, x0, rest, external_force, gravity)
+        Z = chart.admitted_motions()
         grad = -st.generalized_force
-        H = -force_jacobian(chart, x0, st)
+        H = -force_jacobian(chart, x0, with_reactions(chart, st))
         H = 0.5 * (H + H.T)
         energy = potential_energy(structure, st.p, st.q, rest, external_force, gravity)
         if eckart is not None:
@@ -349,24 +488,32 @@ def _descend(structure, q, rest, external_force, gravity, eckart, max_iter=500):
             H = H + G.T @ G / k_mean
             energy += 0.5 * float(g @ g) / k_mean
         nfev += 1
-        if np.max(np.abs(grad)) <= 1e-9 * k_mean * length:
+        # what the reactions cannot balance (all of it without joints and supports)
+        if np.max(np.abs(chart.reaction(grad)[1]), initial=0.0) <= 1e-9 * k_mean * length:
             break
+        if Z is not None:
+            grad, H = Z.T @ grad, Z.T @ H @ Z
         lam, V = np.linalg.eigh(H)
-        floor = 1e-8 * max(np.max(np.abs(lam)), 1e-300)
-        step = -V @ ((V.T @ grad) / np.maximum(np.abs(lam), floor))
-        scale = np.concatenate([np.full(3, length), np.ones(2)] * structure.n_rods)
-        biggest = np.max(np.abs(step) / scale) / 0.25
+        floor = 1e-8 * max(np.max(np.abs(lam), initial=0.0), 1e-300)
+        reduced = -V @ ((V.T @ grad) / np.maximum(np.abs(lam), floor))
+        step = reduced if Z is None else Z @ reduced
+        scale = np.concatenate([np.full(3, length), np.ones(2)] * structure.n_rods
+                               + [np.full(3 * structure.point_mass_nodes.size, length)])
+        biggest = np.max(np.abs(step) / scale, initial=0.0) / 0.25
         if biggest > 1.0:
             step /= biggest
-        slope = float(grad @ step)
+            if Z is not None:
+                reduced = reduced / biggest
+        slope = float(grad @ reduced)
         for _ in range(40):
             nfev += 1
-            if value(chart, step) <= energy + 1e-4 * slope:
+            trial = chart.retract(step)
+            if value(trial) <= energy + 1e-4 * slope:
                 break
             step *= 0.5
         else:
             break  # no descent along a descent direction: at a minimum within round-off
-        q = chart.q(step)
+        q = trial
     return q, nfev
 
 
@@ -403,7 +550,9 @@ def equilibrium_by_simulation(
     converged = result.status == STATUS_STEADY
     message = (f"{result.message} (node speeds < {velocity_tol:g} m/s, accelerations < "
                f"{acceleration_tol:g} m/s^2)" if converged else f"not at rest: {result.message}")
-    return make_result(structure, result.q[-1], control, converged=converged,
+    loads = {key: simulate_options[key] for key in ("gravity", "external_force")
+             if isinstance(simulate_options.get(key), (list, tuple, np.ndarray))}
+    return make_result(structure, result.q[-1], control, **loads, converged=converged,
                        method="simulation", message=message, nfev=result.nfev)
 
 
@@ -420,12 +569,14 @@ def with_damping(structure: Structure, damping: str) -> Structure:
 def compare_equilibria(a: EquilibriumResult, b: EquilibriumResult) -> dict[str, float]:
     """How far apart two equilibria of the same structure are, blind to rigid-body motion.
 
-    Returns ``{"node_distance": max node distance after aligning b onto a [m],
+    Returns ``{"node_distance": max node distance after aligning b onto a (not aligned when
+    supports hold the structure: then rigid-body motion is a difference) [m],
     "tension_difference": max |T_a - T_b| [N]}``.
     """
     w = a.structure.node_mass
-    aligned = align(b.node_position, a.node_position, w)
+    pa, pb = (np.pad(p, ((0, 0), (0, 3 - p.shape[1]))) for p in (a.node_position, b.node_position))
+    aligned = pb if has_supports(a.structure) else align(pb, pa, w)
     return {
-        "node_distance": float(np.max(np.linalg.norm(aligned - a.node_position, axis=1))),
-        "tension_difference": float(np.max(np.abs(a.tension - b.tension))),
+        "node_distance": float(np.max(np.linalg.norm(aligned - pa, axis=1))),
+        "tension_difference": float(np.max(np.abs(a.tension - b.tension), initial=0.0)),
     }

@@ -15,6 +15,18 @@ mass-proportional ``alpha M``)::
 grows by ``k du``), ``w`` the nodal forces [N] (the paper's ``B(q)``, ``D(q)`` of eq. 18.59).
 Only taut tendons enter (a slack one has no stiffness, no damping and no control authority);
 tendons exactly at their rest length count as taut with zero tension (``include_threshold``).
+
+Point masses add their displacements (3 each) to ``x``.  With joints and supports
+(``g(x) = A q(x) - b = 0``, tangent ``G``, :class:`Chart`) the state is ``z = [eta, eta']`` in the
+admitted motions ``x = Z eta``, ``Z`` an ``M``-orthonormal basis of ``null(G)``
+(:meth:`Chart.admitted_motions`), and every matrix above is restricted to it (``Z^T K Z``,
+``Z^T C Z``, ``Z^T dQ/du``, ``Z^T J^T``, ``J Z``; ``M`` becomes ``I``).  ``K`` is then the
+Hessian of the Lagrangian: the reactions ``f_c = A_n^T lambda`` at the equilibrium enter the
+rods' geometric term as nodal forces do (that is the curvature of the constraint manifold; e.g.
+it gives a pinned rod its pendulum stiffness ``m g L / 2``).  The reactions' changes are normal
+to ``null(G)`` and drop out.  A planar structure is linearized as its 3-D form
+(:func:`~tensegrity.analysis.coordinates.spatial`): positions and forces in 3-D, motion in
+``z = 0``.
 """
 
 from __future__ import annotations
@@ -26,13 +38,25 @@ from typing import Any
 import numpy as np
 
 from tensegrity import dynamics
-from tensegrity.analysis.coordinates import Chart, mass_complement, mass_matrix, rigid_body_basis
+from tensegrity.analysis.coordinates import (
+    Chart,
+    admitted_rigid_motions,
+    drop_roundoff,
+    has_supports,
+    mass_complement,
+    mass_matrix,
+    planar_coordinates,
+    spatial,
+    spatial_coordinates,
+    spatial_vector,
+)
 from tensegrity.analysis.equilibrium import EquilibriumResult, make_result
 from tensegrity.analysis.statics import (
     equilibrium_matrix,
     force_jacobian,
     node_stiffness,
     statics,
+    with_reactions,
 )
 from tensegrity.structure import Structure
 
@@ -46,18 +70,28 @@ _ROD_COORDS = ("cx", "cy", "cz", "phi1", "phi2")
 class Linearization:
     """The linearized model about an equilibrium (see the module docstring).
 
+    Sizes below for a free class 1 structure (``k = 5R`` coordinates); in general ``k`` is
+    ``5R + 3M`` or, with joints and supports, the number of admitted motions ``dim null(G)``.
+
     Attributes
     ----------
-    structure, equilibrium : the structure and the :class:`EquilibriumResult` linearized about.
+    structure, equilibrium : the structure (3-D) and the :class:`EquilibriumResult` linearized
+        about.  source : the structure as given (planar if it was: ``structure`` is then its
+        3-D form).
     chart : the reduced coordinates, based at the equilibrium.
-    mass : (5R,) diagonal of ``M``.  stiffness : ``K`` (5R, 5R).  damping : ``C`` (5R, 5R).
-    force_input : ``dQ/du`` (5R, S) [N/m].  equilibrium_matrix : (5R, S), ``Q = A_eq T``.
-    A : (10R, 10R).  B : (10R, S).  D : (10R, 3N).  C : (3N + 2S, 10R).  F : (3N + 2S, S).
+    basis : ``Z`` (5R + 3M, k), ``M``-orthonormal basis of the admitted motions (``x = Z eta``),
+        or None without joints and supports (then ``eta = x``).
+    mass : (k,) diagonal of ``M`` (``Z^T M Z = I`` with joints and supports).
+    stiffness : ``K`` (k, k).  damping : ``C`` (k, k).
+    force_input : ``dQ/du`` (k, S) [N/m].  equilibrium_matrix : (k, S), ``Q = A_eq T``.
+    position_jacobian : ``dp/deta`` (3N, k).
+    A : (2k, 2k).  B : (2k, S).  D : (2k, 3N).  C : (3N + 2S, 2k).  F : (3N + 2S, S).
     taut : (S,) bool, tendons that act in the linearization.
-    state_names (``rod{r}_cx`` ... ``rod{r}_phi2``, then the same with ``_dot``), input_names
-    (the tendon names), disturbance_names (``w{i}_x``...), output_names (``p{i}_x``...,
-    ``length_{tendon}``, ``tension_{tendon}``).
-    rigid_basis : (5R, 6) rigid-body motions, ``M``-orthonormal.
+    state_names (``rod{r}_cx`` ... ``rod{r}_phi2``, ``mass{i}_x``..., then the same with ``_dot``;
+    ``eta{j}`` with joints and supports), input_names (the tendon names), disturbance_names
+    (``w{i}_x``...), output_names (``p{i}_x``..., ``length_{tendon}``, ``tension_{tendon}``).
+    rigid_basis : (k, r) the rigid-body motions the supports admit (6 for a free structure),
+        ``M``-orthonormal.
     """
 
     structure: Structure
@@ -79,11 +113,31 @@ class Linearization:
     disturbance_names: tuple[str, ...]
     output_names: tuple[str, ...]
     rigid_basis: np.ndarray
+    source: Structure
+    basis: np.ndarray | None
+    position_jacobian: np.ndarray
 
     @property
     def n_dof(self) -> int:
-        """``5 R``."""
+        """``k``: ``5 R`` for a free class 1 structure."""
         return self.mass.size
+
+    @property
+    def aligned(self) -> bool:
+        """True if the structure is free of supports: deformations are then measured after a
+        rigid alignment (:func:`~tensegrity.analysis.coordinates.deformation`)."""
+        return not has_supports(self.source)
+
+    def to_eta(self, x: np.ndarray) -> np.ndarray:
+        """Reduced coordinates ``eta = Z^T M x`` (..., k) of chart coordinates ``x`` (..., n)
+        (``x`` itself without joints and supports)."""
+        if self.basis is None:
+            return x
+        return (x * mass_matrix(self.structure)) @ self.basis
+
+    def to_x(self, eta: np.ndarray) -> np.ndarray:
+        """Chart coordinates ``x = Z eta`` (n,) of reduced ones."""
+        return eta if self.basis is None else self.basis @ eta
 
     def elastic_part(self) -> tuple[np.ndarray, np.ndarray]:
         """``(A_e, Z)``: the state matrix (2k, 2k) of the non-rigid part in coordinates
@@ -150,16 +204,17 @@ class Linearization:
     def state(self, q: np.ndarray, qdot: np.ndarray | None = None) -> np.ndarray:
         """The linear state ``z = [x, x']`` (10R,) of a nonlinear state ``(q, q')``: ``x`` exact
         (chart inverse), ``x'`` to first order."""
-        x = self.chart.x(q)
-        v = np.zeros_like(x) if qdot is None else self.chart.velocity_x(q, qdot)
+        x = self.to_eta(self.chart.x(q))
+        v = np.zeros_like(x) if qdot is None else self.to_eta(self.chart.velocity_x(q, qdot))
         return np.concatenate([x, v])
 
     def configuration(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``(q, q')`` of a linear state ``z``: ``q`` exact on the rod constraints, ``q'`` the
-        first-order map at the equilibrium (projected onto the velocity constraints)."""
+        """``(q, q')`` of a linear state ``z``: ``q`` exact on the rod constraints (and projected
+        onto the joints and supports), ``q'`` the first-order map at the equilibrium (projected
+        onto the velocity constraints)."""
         n = self.n_dof
-        q = self.chart.q(z[:n])
-        qdot = self.chart.velocity_q(z[n:])
+        q = self.chart.q(self.to_x(z[:n]))
+        qdot = self.chart.velocity_q(self.to_x(z[n:]))
         return dynamics.project_to_constraints(self.structure, q, qdot)
 
 
@@ -180,22 +235,26 @@ def linearize(
     ``control`` (with a bare ``q``) is the rest-length change ``u`` of the equilibrium.  The
     structure's own damping enters ``C``; pass ``critical_damping(structure)`` for a damped
     model.  External forces and gravity of an :class:`EquilibriumResult` are taken into account.
+    A planar structure is linearized as its 3-D form (``equilibrium`` in 2-D).
     """
     if isinstance(equilibrium, EquilibriumResult):
         eq = equilibrium
-        if eq.structure is not structure:
-            eq = make_result(structure, eq.q, eq.control, external_force=eq.external_force,
-                             gravity=eq.gravity, converged=eq.converged, method=eq.method,
-                             message=eq.message, nfev=eq.nfev)
+        if eq.structure is not structure or structure.dim == 2:
+            eq = make_result(spatial(structure), spatial_coordinates(structure, eq.q), eq.control,
+                             external_force=spatial_vector(structure, eq.external_force),
+                             gravity=spatial_vector(structure, eq.gravity),
+                             converged=eq.converged, method=eq.method, message=eq.message,
+                             nfev=eq.nfev)
     else:
         q = (dynamics.coordinates_from_nodes(structure, structure.node_position)
              if equilibrium is None else np.asarray(equilibrium, dtype=float))
-        eq = make_result(structure, q, control, converged=True, method="given",
-                         message="given configuration", nfev=0)
-    s = structure
+        eq = make_result(spatial(structure), spatial_coordinates(structure, q), control,
+                         converged=True, method="given", message="given configuration", nfev=0)
+    source, s = structure, eq.structure
     chart = Chart.at(s, eq.q)
     x0 = np.zeros(chart.size)
     st = statics(chart, x0, eq.rest_length, eq.external_force, eq.gravity)
+    st = with_reactions(chart, st)  # the reactions' share of the rods' geometric stiffness
     tendons = st.tendons
     active = tendons.taut | (tendons.at_threshold & include_threshold)
     J = chart.jacobian_matrix(x0)
@@ -207,13 +266,21 @@ def linearize(
     K = 0.5 * (K + K.T)
     mass = mass_matrix(s)
     C_node = node_stiffness(s, tendons._replace(taut=active), include_threshold=False, damping=True)
-    damping = J.T @ C_node @ J + np.diag(np.repeat(s.rod_damping, 5) * mass)
+    alpha = np.concatenate([np.repeat(s.rod_damping, 5), np.zeros(mass.size - 5 * s.n_rods)])
+    damping = J.T @ C_node @ J + np.diag(alpha * mass)
     A_eq = equilibrium_matrix(chart, tendons.direction, x0)
+    Z = chart.admitted_motions()
+    rigid = admitted_rigid_motions(chart, Z)
+    if Z is not None:  # restrict to the admitted motions x = Z eta (Z^T M Z = I)
+        mass = np.einsum("ik,i,ik->k", Z, mass, Z)
+        K, damping = Z.T @ K @ Z, Z.T @ damping @ Z
+        A_eq, J = drop_roundoff(Z.T @ A_eq), drop_roundoff(J @ Z)
+        rigid = _unloaded(rigid, K, mass)
     k_eff = np.where(active, s.tendon_stiffness, 0.0)
     c_eff = np.where(active, s.tendon_damping, 0.0)
     force_input = A_eq * k_eff
 
-    n = chart.size
+    n = mass.size
     inv_m = 1.0 / mass
     A = np.zeros((2 * n, 2 * n))
     A[:n, n:] = np.eye(n)
@@ -229,49 +296,80 @@ def linearize(
     ])
     F = np.vstack([np.zeros((3 * s.n_nodes, s.n_tendons)), np.zeros((s.n_tendons, s.n_tendons)),
                    np.diag(k_eff)])
-    rod_states = [f"rod{r}_{c}" for r in range(s.n_rods) for c in _ROD_COORDS]
+    if Z is None:
+        states = ([f"rod{r}_{c}" for r in range(s.n_rods) for c in _ROD_COORDS]
+                  + [f"mass{i}_{a}" for i in s.point_mass_nodes for a in _AXES])
+    else:
+        states = [f"eta{j}" for j in range(n)]
     names = s.tendon_name
     return Linearization(
         structure=s, equilibrium=eq, chart=chart, mass=mass, stiffness=K, damping=damping,
         force_input=force_input, equilibrium_matrix=A_eq, A=A, B=B, D=D, C=C, F=F, taut=active,
-        state_names=tuple(rod_states + [f"{name}_dot" for name in rod_states]),
+        state_names=tuple(states + [f"{name}_dot" for name in states]),
         input_names=tuple(names),
         disturbance_names=tuple(f"w{i}_{a}" for i in range(s.n_nodes) for a in _AXES),
         output_names=tuple([f"p{i}_{a}" for i in range(s.n_nodes) for a in _AXES]
                            + [f"length_{name}" for name in names]
                            + [f"tension_{name}" for name in names]),
-        rigid_basis=rigid_body_basis(chart),
+        rigid_basis=rigid, source=source, basis=Z, position_jacobian=J,
     )
+
+
+def _unloaded(rigid: np.ndarray, K: np.ndarray, mass: np.ndarray, rtol: float = 1e-8) -> np.ndarray:
+    """The admitted rigid-body motions (columns of ``rigid``, ``M``-orthonormal) that the loads
+    leave without stiffness (``omega^2`` below ``rtol`` times the largest of ``K``): a rod pinned
+    at one end turns freely about the pivot without gravity, but swings as a pendulum with it."""
+    if not rigid.size:
+        return rigid
+    root = np.sqrt(mass)
+    largest = float(np.max(np.abs(np.linalg.eigvalsh(K / root[:, None] / root[None, :])), initial=0.0))
+    value, vector = np.linalg.eigh(rigid.T @ K @ rigid)
+    return rigid @ vector[:, np.abs(value) <= rtol * largest]
 
 
 def finite_difference_check(lin: Linearization, h: float = 1e-6) -> dict[str, float]:
     """Largest relative differences between the analytic ``A``, ``B``, ``D``, ``C``, ``F`` blocks
     and central differences of the nonlinear model (Theorem 18.1 accelerations and the outputs),
     at the equilibrium: a check that the linearization is the derivative of the simulated
-    dynamics.  ``h`` is the step in every state, input [m] and nodal force [N]."""
-    s, eq = lin.structure, lin.equilibrium
+    dynamics.  ``h`` is the step in every state, input [m] and nodal force [N].
+
+    With joints and supports a perturbed state is put back onto them
+    (:meth:`Linearization.configuration`: mass-weighted projection, a second-order change) and
+    the accelerations are the dynamics' own constrained ones (constraint forces solved as in a
+    simulation); a planar structure's accelerations are those of the planar (2-D) model.
+    """
+    s, eq, source = lin.structure, lin.equilibrium, lin.source
     n = lin.n_dof
     w0 = np.zeros((s.n_nodes, 3)) if eq.external_force is None else eq.external_force
 
     def accel(z: np.ndarray, u: np.ndarray, dw: np.ndarray | None = None) -> np.ndarray:
         q, qdot = lin.configuration(z)
         w = w0 if dw is None else w0 + dw.reshape(w0.shape)
-        qddot = dynamics.accelerations(s, q, qdot, control=u, external_force=w,
-                                       gravity=eq.gravity)
+        if source.dim == 2:  # the planar model itself
+            qddot = dynamics.accelerations(
+                source, planar_coordinates(source, q), planar_coordinates(source, qdot, rates=True),
+                control=u, external_force=w[:, :2],
+                gravity=None if eq.gravity is None else eq.gravity[:2])
+            qddot = spatial_coordinates(source, qddot, rates=True)
+        else:
+            qddot = dynamics.accelerations(s, q, qdot, control=u, external_force=w,
+                                           gravity=eq.gravity)
         # x'' = (dc'', E^T q2''/L) at the base (the chart's second derivative vanishes at z = 0
         # for velocity-free perturbations, and is second order in the velocity otherwise)
-        return lin.chart.velocity_x(q, qddot)
+        return lin.to_eta(lin.chart.velocity_x(q, qddot))
 
     def outputs(z: np.ndarray, u: np.ndarray) -> np.ndarray:
         q, qdot = lin.configuration(z)
         p = dynamics.nodes_from_coordinates(s, q)
-        v = dynamics.nodes_from_coordinates(s, qdot)
+        v = dynamics.nodes_from_coordinates(s, qdot, rates=True)
         forces = dynamics.tendon_forces(s, p, v, dynamics.rest_lengths(s, u))
         return np.concatenate([(p - eq.node_position).ravel(), forces.length - eq.tendon_length,
                                forces.tension])
 
     def central(f, size: int) -> np.ndarray:
         """Columns ``(f(h e_j) - f(-h e_j)) / 2h`` for the unit vectors of length ``size``."""
+        if not size:
+            return np.zeros((f(np.zeros(0)).size, 0))
         return np.column_stack([(f(h * e) - f(-h * e)) / (2 * h) for e in np.eye(size)])
 
     z0, u0 = np.zeros(2 * n), eq.control
@@ -282,7 +380,7 @@ def finite_difference_check(lin: Linearization, h: float = 1e-6) -> dict[str, fl
     F_fd = central(lambda du: outputs(z0, u0 + du), s.n_tendons)
 
     def rel(a: np.ndarray, b: np.ndarray) -> float:
-        return float(np.max(np.abs(a - b)) / max(np.max(np.abs(b)), 1e-300))
+        return float(np.max(np.abs(a - b), initial=0.0) / max(np.max(np.abs(b), initial=0.0), 1e-300))
 
     return {"A": rel(lin.A[n:], A_fd), "B": rel(lin.B[n:], B_fd), "D": rel(lin.D[n:], D_fd),
             "C": rel(lin.C, C_fd), "F": rel(lin.F, F_fd)}

@@ -47,6 +47,8 @@ class ModalAnalysis:
 
     Attributes
     ----------
+    Sizes for a free class 1 structure; ``k`` (:attr:`Linearization.n_dof`) in general.
+
     omega_squared : (5R,) eigenvalues ``omega^2`` [1/s^2] (0 for rigid-body modes).
     frequency_hz : (5R,) ``sqrt(max(omega^2, 0)) / 2 pi`` [Hz].
     shapes : (5R, 5R) mode shapes as columns in the reduced coordinates, ``M``-orthonormal.
@@ -126,15 +128,16 @@ def modal_analysis(lin: Linearization, *, zero_tol: float | None = None) -> Moda
     scale_k = float(np.max(np.abs(K))) or 1.0
     rigid_residual = float(np.max(np.abs(K @ rigid)) / scale_k) if rigid.size else 0.0
     if zero_tol is None:
-        reference = float(np.mean(s.tendon_stiffness) / np.mean(s.rod_mass))
+        masses = np.concatenate([s.rod_mass, s.node_point_mass[s.point_mass_nodes]])
+        reference = (float(np.mean(s.tendon_stiffness) / np.mean(masses)) if s.n_tendons
+                     else 0.0)
         zero_tol = ZERO_RTOL * max(reference, float(np.max(np.abs(lam), initial=0.0)))
     kinds = [RIGID] * rigid.shape[1]
     for value in lam:
         kinds.append(ELASTIC if value > zero_tol else UNSTABLE if value < -zero_tol else MECHANISM)
     omega2 = np.concatenate([np.zeros(rigid.shape[1]), lam])
     shapes = np.hstack([rigid, V])
-    J = lin.chart.jacobian_matrix()
-    node_shapes = (J @ shapes).T.reshape(-1, s.n_nodes, 3)
+    node_shapes = (lin.position_jacobian @ shapes).T.reshape(-1, s.n_nodes, 3)
     n_mech = kinds.count(MECHANISM)
     n_unst = kinds.count(UNSTABLE)
     n_el = kinds.count(ELASTIC)
@@ -151,6 +154,10 @@ def modal_analysis(lin: Linearization, *, zero_tol: float | None = None) -> Moda
                    f"stiffness (|omega^2| <= {zero_tol:.3g} 1/s^2) besides the "
                    f"{rigid.shape[1]} rigid-body modes; a small deformation along them meets no "
                    f"restoring force and does not return{slack_note}")
+    elif not n_el:
+        stable = True
+        verdict = (f"stable (Definition 18.1) trivially: no non-rigid mode, the {rigid.shape[1]} "
+                   f"degree(s) of freedom the supports leave are rigid-body motions{slack_note}")
     else:
         stable = True
         verdict = (f"stable (Definition 18.1): all {n_el} non-rigid modes have positive stiffness "
@@ -163,12 +170,12 @@ def modal_analysis(lin: Linearization, *, zero_tol: float | None = None) -> Moda
 
 # ------------------------------------------------------------------ nonlinear checks
 def mode_initial_state(lin: Linearization, shape: np.ndarray, amplitude: float) -> State:
-    """A state at rest, displaced along ``shape`` (5R,) so that the largest node displacement is
-    ``amplitude`` [m] (to first order); rods keep their lengths exactly."""
-    J = lin.chart.jacobian_matrix()
-    largest = float(np.max(np.linalg.norm((J @ shape).reshape(-1, 3), axis=1)))
-    x = amplitude / largest * shape
-    q = lin.chart.q(x)
+    """A state at rest, displaced along ``shape`` (k,) so that the largest node displacement is
+    ``amplitude`` [m] (to first order); rods keep their lengths exactly (and the joints and
+    supports hold: :meth:`Linearization.configuration`)."""
+    largest = float(np.max(np.linalg.norm((lin.position_jacobian @ shape).reshape(-1, 3), axis=1)))
+    eta = amplitude / largest * shape
+    q, _ = lin.configuration(np.concatenate([eta, np.zeros_like(eta)]))
     return State(t=0.0, q=q, qdot=np.zeros_like(q))
 
 
@@ -241,8 +248,8 @@ def measure_frequency(
                       external_force=lin.equilibrium.external_force, gravity=lin.equilibrium.gravity)
     if not result.success:
         raise RuntimeError(f"simulation failed: {result.message}")
-    x = lin.chart.x(result.q)  # (T, 5R)
-    signal = x @ (lin.mass * shape)
+    eta = lin.to_eta(lin.chart.x(result.q))  # (T, k)
+    signal = eta @ (lin.mass * shape)
     measured = fft_peak(result.t, signal, near=f_lin)
     return FrequencyCheck(mode, f_lin, measured, abs(measured - f_lin) / f_lin, amplitude,
                           duration, result.t, signal)
@@ -312,7 +319,7 @@ def stability_by_simulation(
     initial = mode_initial_state(lin, shape, amplitude)
     w = s.node_mass
     p0 = eq.node_position
-    d0 = float(deformation(dynamics.nodes_from_coordinates(s, initial.q), p0, w))
+    d0 = float(deformation(dynamics.nodes_from_coordinates(s, initial.q), p0, w, rigid=lin.aligned))
     w2 = modes.omega_squared[idx]
     positive = w2[w2 > modes.zero_tol]
     if damped_time is None:
@@ -327,8 +334,8 @@ def stability_by_simulation(
     run_d = simulate(dynamics.critical_damping(s), (0.0, damped_time), **common)
     undamped = s.replace(tendon_damping=np.zeros(s.n_tendons), rod_damping=np.zeros(s.n_rods))
     run_u = simulate(undamped, (0.0, undamped_time), **common)
-    dd = deformation(run_d.node_position, p0, w)
-    du = deformation(run_u.node_position, p0, w)
+    dd = deformation(run_d.node_position, p0, w, rigid=lin.aligned)
+    du = deformation(run_u.node_position, p0, w, rigid=lin.aligned)
     if positive.size == idx.size and positive.size:
         bound = 1.1 * float(np.sqrt(positive.max() / positive.min())) * d0
     else:

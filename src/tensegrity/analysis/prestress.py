@@ -13,18 +13,31 @@ axial forces -- whatever they must be -- never appear): ``Q = A T + J^T w``.  Th
   it exists iff the optimum ``t* > 0``;
 - the *rest lengths that realize* tensions ``T`` with stiffnesses ``k`` are ``Lbar = l - T / k``;
 - *form-finding* (:func:`form_find`) goes from rough geometry to a stable equilibrium.
+
+With joints and supports, ``A`` is restricted to the motions they admit, ``Z^T A`` (``x = Z
+eta``, :meth:`~tensegrity.analysis.coordinates.Chart.admitted_motions`): a self-stress may then
+push on the supports, whose reactions balance it; Maxwell's rule reads ``s - m = S - (k - r)``
+with ``k`` the admitted motions and ``r`` the admitted rigid-body motions, and a rod's axial
+force includes the reactions at its ends.  A planar structure is treated in its 3-D form.
 """
 
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import scipy.optimize
 
 from tensegrity import dynamics
-from tensegrity.analysis.coordinates import Chart, configuration, rigid_body_basis
+from tensegrity.analysis.coordinates import (
+    Chart,
+    admitted_rigid_motions,
+    configuration,
+    drop_roundoff,
+    spatial,
+    spatial_coordinates,
+)
 from tensegrity.analysis.equilibrium import EquilibriumResult, find_equilibrium
 from tensegrity.analysis.statics import (
     equilibrium_matrix,
@@ -39,15 +52,29 @@ from tensegrity.structure import Structure
 SVD_RTOL = 1e-9
 
 
-def _equilibrium_matrix(structure: Structure, q: Any):
-    """``(q, chart, direction, A)`` at a configuration (node positions, ``q`` or None): tendon
-    unit vectors (S, 3) and the equilibrium matrix ``A`` (5R, S) of
-    :func:`~tensegrity.analysis.statics.equilibrium_matrix`."""
+class _Equilibrium(NamedTuple):
+    """The equilibrium matrix at a configuration (:func:`_equilibrium_matrix`)."""
+
+    q: np.ndarray  #: the configuration, as the structure's ``q``
+    chart: Chart  #: based there (of the 3-D form of a planar structure)
+    direction: np.ndarray  #: tendon unit vectors (S, 3)
+    matrix: np.ndarray  #: ``A`` (k, S) in the admitted motions (``Z^T A_x``; ``A_x`` if free)
+    full: np.ndarray  #: ``A_x`` (5R + 3M, S) in the chart's coordinates
+    basis: np.ndarray | None  #: ``Z`` of the admitted motions, None without joints and supports
+
+
+def _equilibrium_matrix(structure: Structure, q: Any) -> _Equilibrium:
+    """The equilibrium matrix :func:`~tensegrity.analysis.statics.equilibrium_matrix` at a
+    configuration (node positions, ``q`` or None), restricted to the motions the joints and
+    supports admit (:meth:`Chart.admitted_motions`): the reactions take up the rest."""
     q = configuration(structure, q)
-    chart = Chart.at(structure, q)
-    p = dynamics.nodes_from_coordinates(structure, q)
-    direction = tendon_state(structure, p, structure.tendon_rest_length).direction
-    return q, chart, direction, equilibrium_matrix(chart, direction)
+    s, q3 = spatial(structure), spatial_coordinates(structure, q)
+    chart = Chart.at(s, q3)
+    p = dynamics.nodes_from_coordinates(s, q3)
+    direction = tendon_state(s, p, s.tendon_rest_length).direction
+    full = equilibrium_matrix(chart, direction)
+    Z = chart.admitted_motions()
+    return _Equilibrium(q, chart, direction, full if Z is None else drop_roundoff(Z.T @ full), full, Z)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -56,11 +83,14 @@ class SelfStress:
 
     Attributes
     ----------
-    matrix : ``A`` (5R, S) [generalized force per N of tension].
+    matrix : ``A`` (k, S) [generalized force per N of tension]; ``k = 5R`` for a free class 1
+        structure, in general the admitted motions' count (``Z^T A_x``: with joints and
+        supports a self-stress may load them, the reactions balance it).
     singular_values : of ``A`` (descending).  rank : with ``SVD_RTOL``.
     states : (S, s) orthonormal basis of the self-stress states (tensions [N], any sign).
-    mechanisms : (5R, m) basis of the infinitesimal mechanisms (non-rigid, in the reduced
-        coordinates; Euclidean-orthonormal).
+    mechanisms : (k, m) basis of the infinitesimal mechanisms (non-rigid, in the reduced
+        coordinates, or in ``eta`` of the admitted motions; Euclidean-orthonormal).
+    Maxwell's rule: ``s - m = S - (k - r)``, ``r`` the admitted rigid-body motions.
     """
 
     structure: Structure
@@ -83,13 +113,13 @@ class SelfStress:
 
 def self_stress(structure: Structure, q: Any = None, *, rtol: float = SVD_RTOL) -> SelfStress:
     """Self-stress states and infinitesimal mechanisms at ``q`` (default: the structure's nodes)."""
-    q, chart, _, A = _equilibrium_matrix(structure, q)
+    q, chart, _, A, _, Z = _equilibrium_matrix(structure, q)
     u, sv, vt = np.linalg.svd(A)
     rank = int(np.sum(sv > rtol * (sv[0] if sv.size else 0.0)))
     states = vt[rank:].T
     # Mechanisms: motions dx with A^T dx = 0 (no tendon stretches), not rigid.
-    rigid = rigid_body_basis(chart)
-    left = u[:, rank:]  # null space of A^T (5R, 5R - rank), contains the rigid motions
+    rigid = admitted_rigid_motions(chart, Z)
+    left = u[:, rank:]  # null space of A^T (k, k - rank), contains the rigid motions
     if rigid.size:
         # remove the rigid part: orthonormal complement of span(rigid) within span(left)
         r, _ = np.linalg.qr(rigid)
@@ -132,7 +162,7 @@ def feasible_prestress(
     ``compressed_rods``, every rod in compression (``>= 0``).  Solved by ``linprog`` (HiGHS).
     The result is scaled so that the mean tension is ``mean_tension`` [N].
     """
-    q, chart, direction, A = _equilibrium_matrix(structure, q)
+    q, chart, direction, A, full, Z = _equilibrium_matrix(structure, q)
     S = structure.n_tendons
     # variables [T (S), t]; minimize -t
     cost = np.zeros(S + 1)
@@ -142,8 +172,12 @@ def feasible_prestress(
     b_eq = np.concatenate([np.zeros(A.shape[0]), [float(S)]])
     A_ub = [np.hstack([-np.eye(S), np.ones((S, 1))])]  # t - T_s <= 0
     b_ub = [np.zeros(S)]
-    unit = rod_compression(structure, unit_tension_forces(structure, direction),
-                           chart.direction)  # (R, S) per unit tension
+    s = chart.structure
+    forces = unit_tension_forces(s, direction)  # (N, 3, S) per unit tension
+    if Z is not None:  # plus the reactions that balance each tendon's pull
+        multiplier, *_ = np.linalg.lstsq(chart.constraint_jacobian().T, -full, rcond=None)
+        forces = forces + (s.constraints.node_matrix_t @ multiplier).reshape(forces.shape)
+    unit = rod_compression(s, forces, chart.direction)  # (R, S) per unit tension
     if compressed_rods:
         A_ub.append(np.hstack([-unit, np.zeros((structure.n_rods, 1))]))  # -compression <= 0
         b_ub.append(np.zeros(structure.n_rods))

@@ -36,10 +36,16 @@ import scipy.optimize
 
 from tensegrity import dynamics
 from tensegrity.analysis.controllability import match_tendons
-from tensegrity.analysis.coordinates import Chart, align, kabsch, mass_matrix
+from tensegrity.analysis.coordinates import Chart, align, has_supports, kabsch, mass_matrix
 from tensegrity.analysis.equilibrium import EquilibriumResult, find_equilibrium
-from tensegrity.analysis.statics import equilibrium_matrix, force_jacobian, statics
+from tensegrity.analysis.statics import equilibrium_matrix, force_jacobian, statics, with_reactions
 from tensegrity.structure import Structure
+
+def require_spatial(structure: Structure) -> None:
+    """``ValueError`` for a planar structure (the outputs, rings and alignment here are 3-D;
+    joints, supports and point masses are fine)."""
+    if structure.dim != 3:
+        raise ValueError("shape control: supports only 3-D structures (this one is planar)")
 
 
 # ------------------------------------------------------------------------------ outputs
@@ -124,27 +130,38 @@ def sensitivities(
     """``(dy/du, dT/du, dx/du)`` of the equilibrium with Eckart's gauge to ``reference``.
 
     From ``dQ/dx dx + dQ/du du = 0`` and the 6 linearized gauge conditions (solved in the least
-    squares sense; consistent, so exact), tensions ``T = k (l - L0 + u)``.
+    squares sense; consistent, so exact), tensions ``T = k (l - L0 + u)``.  With joints and
+    supports, in the admitted motions ``x = Z eta`` (``dQ/dx`` the Hessian of the Lagrangian, as
+    in :func:`~tensegrity.analysis.linearize.linearize`) and with the gauge of the rigid-body
+    motions they admit.
     """
-    from tensegrity.analysis.equilibrium import _Gauge
+    from tensegrity.analysis.equilibrium import _gauge, _scales
 
     s = eq.structure
+    require_spatial(s)
     chart = Chart.at(s, eq.q)
     x0 = np.zeros(chart.size)
     st = statics(chart, x0, eq.rest_length)
+    st = with_reactions(chart, st)  # the reactions' share of the rods' geometric stiffness
     dQdx = force_jacobian(chart, x0, st)
     A_eq = equilibrium_matrix(chart, st.tendons.direction)
     taut = st.tendons.length > eq.rest_length
     k = np.where(taut, s.tendon_stiffness, 0.0)
     dQdu = A_eq * k
     J = chart.jacobian_matrix(x0)
-    G = _Gauge(s, reference).jacobian(J)
+    gauge = _gauge(s, eq.q, reference, True, _scales(s)[0])
+    G = np.zeros((0, chart.size)) if gauge is None else gauge.jacobian(J)
+    Z = chart.admitted_motions()
+    if Z is not None:  # in the admitted motions x = Z eta
+        dQdx, dQdu, A_eq, J, G = Z.T @ dQdx @ Z, Z.T @ dQdu, Z.T @ A_eq, J @ Z, G @ Z
     lhs = np.vstack([dQdx, G])
     rhs = -np.vstack([dQdu, np.zeros((G.shape[0], s.n_tendons))])
     dxdu, *_ = np.linalg.lstsq(lhs, rhs, rcond=None)
     dydu = output.jacobian(eq.node_position) @ J @ dxdu
     dldu = -A_eq.T @ dxdu
     dTdu = k[:, None] * (dldu + np.eye(s.n_tendons))
+    if Z is not None:
+        dxdu = Z @ dxdu
     return dydu, dTdu, dxdu
 
 
@@ -228,6 +245,7 @@ def quasi_static(
     start : the initial equilibrium (default :func:`find_equilibrium` from the structure).
     tolerance : per output, for ``reached`` (default 1e-6 m / 1e-6 rad).
     """
+    require_spatial(structure)
     s = structure
     eq = find_equilibrium(s) if start is None else start
     reference = eq.node_position
@@ -334,14 +352,10 @@ class _Schedule:
     def __init__(self, plan: QuasiStatic, times: np.ndarray, gain_steps: Sequence[int], weights):
         self.plan, self.times = plan, times
         s = plan.structure
-        self.mass = mass_matrix(s)
         self.gain_steps = list(gain_steps)
         self.gains = {}
         for k in self.gain_steps:
-            K, Z = _lqr_gain(s, plan.equilibria[k], plan.output, plan.reference, weights)
-            n = Z.shape[1]
-            # du = -K [Z^T M dx; Z^T M dx'] = -Kx dx - Kv dx'
-            self.gains[k] = (K[:, :n] @ (Z.T * self.mass), K[:, n:] @ (Z.T * self.mass))
+            self.gains[k] = _lqr_gain(s, plan.equilibria[k], plan.output, plan.reference, weights)
         self.charts = {k: Chart.at(s, plan.equilibria[k].q) for k in range(len(plan.equilibria))}
         #: the next equilibrium in the chart of each step
         self.x_next = {k: self.charts[k].x(plan.equilibria[k + 1].q)
@@ -371,8 +385,9 @@ class _Schedule:
 
 
 def _lqr_gain(s: Structure, eq: EquilibriumResult, output: ShapeOutput, reference, weights):
-    """LQR gain on the non-rigid part at ``eq``: returns ``(K, Z)`` with ``du = -K [Z^T M dx;
-    Z^T M dx']``."""
+    """LQR gain on the non-rigid part at ``eq``, as ``(Kx, Kv)`` on the chart coordinates:
+    ``du = -K [Z^T M_eta deta; Z^T M_eta deta'] = -Kx dx - Kv dx'`` with ``deta = Z_c^T M dx``
+    for joints and supports (``Z_c`` their admitted motions), ``deta = dx`` otherwise."""
     import control
 
     from tensegrity.analysis.linearize import linearize
@@ -381,14 +396,18 @@ def _lqr_gain(s: Structure, eq: EquilibriumResult, output: ShapeOutput, referenc
     A, Z = lin.elastic_part()
     n = Z.shape[1]
     B = np.vstack([np.zeros((n, s.n_tendons)), Z.T @ lin.force_input])
-    Cy = output.jacobian(eq.node_position) @ lin.chart.jacobian_matrix() @ Z
+    Cy = output.jacobian(eq.node_position) @ lin.position_jacobian @ Z
     q_out, q_state, q_rate, r_u = weights
     Q = np.zeros((2 * n, 2 * n))
     Q[:n, :n] = q_out * Cy.T @ Cy + q_state * np.eye(n)
     Q[n:, n:] = q_rate * np.eye(n)
     Q = 0.5 * (Q + Q.T)
     K, _, _ = control.lqr(A, B, Q, r_u * np.eye(s.n_tendons), method="scipy")
-    return np.asarray(K), Z
+    K = np.asarray(K)
+    T = Z.T * lin.mass
+    if lin.basis is not None:
+        T = T @ (lin.basis.T * mass_matrix(s))
+    return K[:, :n] @ T, K[:, n:] @ T
 
 
 def closed_loop(
@@ -430,14 +449,18 @@ def closed_loop(
     weights_n = s.node_mass
     saturated = [False]
     nfev = [0]
+    supported = has_supports(s)
 
     def feedback(t: float, q: np.ndarray, qdot: np.ndarray) -> np.ndarray:
         u_ff, chart, x_ff, v_ff, (Kx, Kv) = schedule.feedforward(t)
-        p = dynamics.nodes_from_coordinates(s, q)
-        v = dynamics.nodes_from_coordinates(s, qdot)
-        pa, R = kabsch(p, reference, weights_n)
-        qa = dynamics.coordinates_from_nodes(s, pa)
-        va = dynamics.coordinates_from_nodes(s, v @ R)
+        if supported:  # the supports hold the frame
+            qa, va = q, qdot
+        else:
+            p = dynamics.nodes_from_coordinates(s, q)
+            v = dynamics.nodes_from_coordinates(s, qdot)
+            pa, R = kabsch(p, reference, weights_n)
+            qa = dynamics.coordinates_from_nodes(s, pa)
+            va = dynamics.coordinates_from_nodes(s, v @ R)
         u = u_ff - Kx @ (chart.x(qa) - x_ff) - Kv @ (chart.velocity_x(qa, va) - v_ff)
         clipped = np.clip(u, low, high)
         if np.any(clipped != u):
@@ -471,9 +494,9 @@ def closed_loop(
     t = samples[: len(rows_q)]
     Q, V = np.array(rows_q), np.array(rows_v)
     P = dynamics.nodes_from_coordinates(s, Q)
-    aligned = align(P, reference, weights_n)
+    aligned = P if supported else align(P, reference, weights_n)
     controls = np.array([feedback(tt, qq, vv) for tt, qq, vv in zip(t, Q, V)])
-    vel = dynamics.nodes_from_coordinates(s, V)
+    vel = dynamics.nodes_from_coordinates(s, V, rates=True)
     tension = np.array([dynamics.tendon_forces(plant, p, v, plant.tendon_rest_length - u).tension
                         for p, v, u in zip(P, vel, controls)])
     ys = np.array([plan.output.value(p) for p in aligned])

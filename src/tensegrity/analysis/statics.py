@@ -139,6 +139,16 @@ def statics(
     return Statics(q, p, tendons, force, chart.generalized_force(force, x))
 
 
+def with_reactions(chart: Chart, st: Statics) -> Statics:
+    """``st`` with the best reactions of the joints and supports (:meth:`Chart.reaction`) added to
+    its nodal forces (unchanged without any): then :func:`force_jacobian` is the Jacobian of
+    ``Q + G^T lambda`` at fixed ``lambda``, minus the Hessian of the Lagrangian -- the reactions
+    enter the rods' geometric term as external nodal forces do."""
+    if not chart.n_constraints:
+        return st
+    return st._replace(force=st.force + chart.reaction(st.generalized_force)[0])
+
+
 def force_jacobian(chart: Chart, x: np.ndarray, st: Statics) -> np.ndarray:
     """Analytic ``dQ/dx`` (5R, 5R) at ``x`` (``st = statics(chart, x, ...)``)."""
     s = chart.structure
