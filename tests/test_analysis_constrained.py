@@ -479,3 +479,46 @@ def test_default_input_sets_for_tendon_names_without_families():
     assert {name: len(v) for name, v in sets.items()} == {"all": 9, "b*": 3, "t*": 3, "s*": 3, "b0": 1}
     reach, _ = controllability_table(lin, modal_analysis(lin))
     assert reach[0].rank == 2 * lin.n_dof
+
+
+def test_cli_gravity_hangs_a_pinned_rod_and_swings_it_at_the_pendulum_frequency(tmp_path, capsys):
+    """``--gravity``: ``equilibrium`` hangs the pinned rod straight down (both routes),
+    ``modes`` gives the compound pendulum ``sqrt(3 g / (2 L)) / (2 pi)`` [Hz] twice, and
+    ``simulate`` lets it fall; a number and the vector ``0,0,-g`` mean the same."""
+    import json
+
+    m, L = 2.0, 1.5
+    path = tmp_path / "pendulum.json"
+    path.write_text(json.dumps(pendulum(m, L, support="fixed", angle=0.4).to_dict()))
+    for gravity in (str(G), f"0,0,{-G}"):
+        out = tmp_path / f"eq{len(gravity)}"
+        code, _, err = _cli(["equilibrium", "--structure", path, "--gravity", gravity,
+                             "--method", "least_squares", "--out", out], capsys)
+        assert code == 0, err
+        data = json.loads((out / "equilibrium.json").read_text())
+        np.testing.assert_allclose(data["least_squares"]["node_position_m"][1], [0, 0, -L],
+                                   atol=1e-12)
+        assert data["least_squares"]["gravity_m_s2"] == [0.0, 0.0, -G]
+    code, _, err = _cli(["modes", "--structure", path, "--gravity", str(G),
+                         "--out", tmp_path / "modes"], capsys)
+    assert code == 0, err
+    data = json.loads((tmp_path / "modes" / "modes.json").read_text())
+    np.testing.assert_allclose([mode["frequency_hz"] for mode in data["modes"]],
+                               [np.sqrt(3 * G / (2 * L)) / (2 * np.pi)] * 2, rtol=1e-12)
+    # without --gravity the same file has two rigid-body turns about the pivot instead
+    code, _, err = _cli(["modes", "--structure", path, "--out", tmp_path / "free"], capsys)
+    assert code == 0, err
+    free = json.loads((tmp_path / "free" / "modes.json").read_text())
+    assert [mode["kind"] for mode in free["modes"]] == ["rigid", "rigid"]
+    code, _, err = _cli(["simulate", "--structure", path, "--gravity", str(G), "--t-end", "0.2",
+                         "--no-steady-state", "--out", tmp_path / "sim"], capsys)
+    assert code == 0, err
+    from tensegrity.io import read_trajectory
+
+    tip = read_trajectory(tmp_path / "sim" / "trajectory.h5").nodes[:, 1, 2]
+    assert tip[-1] < tip[0] - 0.05 and np.all(np.diff(tip) <= 1e-12)  # falls from rest
+    for bad in ("down", "1,2"):
+        code, _, err = _cli(["modes", "--structure", path, "--gravity", bad,
+                             "--out", tmp_path / "bad"], capsys)
+        assert code == 2 and err.count("\n") == 1 and "gravity" in err, err
+    assert not (tmp_path / "bad").exists()

@@ -113,6 +113,21 @@ def _assignment(text: str) -> tuple[str, object]:
 _SHELL_OPTIONS = ("n", "m", "primal", "stiffness", "rest_length", "fixed_base")
 
 
+def _gravity(text: str) -> float | list[float]:
+    """``--gravity G`` (m/s^2 down the last axis) or ``--gravity GX,GY[,GZ]`` (the vector)."""
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected G or GX,GY,GZ in m/s^2, got {text!r}") from None
+    return values[0] if len(values) == 1 else values
+
+
+def _add_gravity_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--gravity", type=_gravity, metavar="G|GX,GY,GZ",
+                        help="uniform gravity [m/s^2]: G points down the last axis (-z; -y for a "
+                             "planar structure), or the vector's components (default none)")
+
+
 def _structure(args: argparse.Namespace) -> Structure:
     """The structure the options describe (a file, or a generated structure)."""
     given = {name: getattr(args, name) for name in _SHELL_OPTIONS
@@ -180,10 +195,16 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         if force.n_nodes != structure.n_nodes:
             raise CommandError(f"--force-table: {args.force_table} has forces for {force.n_nodes} "
                                f"nodes, the structure has {structure.n_nodes}")
+    gravity = None
+    if args.gravity is not None:
+        from tensegrity.loads import gravity_vector
+
+        gravity = gravity_vector(args.gravity, structure.dim)
     result = simulate(
         structure,
         (0.0, args.t_end),
         external_force=force,
+        gravity=gravity,
         method=args.method,
         rtol=args.rtol,
         atol=args.atol,
@@ -233,7 +254,8 @@ def _print_summary(result, files: Sequence[Path]) -> None:
         ("energy balance error", f"{np.abs(result.total_energy - result.total_energy[0]).max():.3e} J"),
         ("slack tendons at the end", f"{int(result.slack_count[-1])} of {result.structure.n_tendons}"),
         ("tension range at the end",
-         f"{result.tendon_tension[-1].min():.6g} .. {result.tendon_tension[-1].max():.6g} N"),
+         f"{result.tendon_tension[-1].min():.6g} .. {result.tendon_tension[-1].max():.6g} N"
+         if result.structure.n_tendons else "no tendons"),
         ("integration", f"{result.settings['method']}: {result.nsteps} steps, {result.nfev} "
                         f"evaluations, {result.nswitches} slack/taut switches located"),
         ("wall time", f"{result.wall_time:.2f} s"),
@@ -393,6 +415,8 @@ def _add_analysis_parsers(sub) -> None:
         p.add_argument("--out", type=Path, default=Path(verb),
                        help=f"output folder (default ./{verb})")
         p.set_defaults(run=_cmd_analysis)
+    for verb in ("equilibrium", "modes", "controllability"):  # shape control: without gravity
+        _add_gravity_option(parsers[verb])
     p = parsers["equilibrium"]
     p.add_argument("--method", choices=("both", "least_squares", "simulation"), default="both",
                    help="least squares (eq. 18.61, analytic Jacobian), damped simulation to rest, "
@@ -510,6 +534,7 @@ def build_parser() -> argparse.ArgumentParser:
                      help="external nodal forces [N] from a time table, linear in between, held "
                           "after its end (.npz: time (T,), force (T, N, 3); .csv: rows t, f0x, "
                           "f0y, f0z, f1x, ...)")
+    _add_gravity_option(sim)
     sim.add_argument("--vtk", action="store_true",
                      help="also write the run for ParaView: OUT/vtk/tensegrity.pvd + .vtp files")
     integration = sim.add_argument_group("integration")

@@ -1,4 +1,5 @@
-"""Tabulated nodal forces: a time table of forces as the callable ``simulate(external_force=...)``.
+"""Loads: tabulated nodal forces (a time table of forces as the callable
+``simulate(external_force=...)``) and uniform gravity given as a number or a vector.
 
 A table gives the external force on every node at increasing times ``t_k``; between them the
 force is interpolated linearly, and outside ``[t_0, t_last]`` it is held at the end values
@@ -10,11 +11,32 @@ and ``force`` (T, N, 3) [N], or ``.csv`` with one row per time, ``t, f0x, f0y, f
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
 from tensegrity.io import PathLike, _file_error, _os_problem
+
+
+def gravity_vector(value: float | Sequence[float], dim: int) -> np.ndarray:
+    """Uniform gravity [m/s^2] as a (dim,) vector.
+
+    A number ``g`` points down the last axis (``(0, 0, -g)`` in 3-D, ``(0, -g)`` for a planar
+    structure); a sequence of ``dim`` numbers is the vector itself.  ``ValueError`` naming
+    ``gravity`` otherwise.
+    """
+    problem = ValueError(f"gravity: expected a finite number or {dim} finite components, "
+                         f"got {value!r}")
+    try:
+        vector = np.array(value, dtype=float, ndmin=1)
+    except (TypeError, ValueError):
+        raise problem from None
+    if vector.shape == (1,):
+        vector = np.concatenate([np.zeros(dim - 1), -vector])
+    if vector.shape != (dim,) or not np.all(np.isfinite(vector)):
+        raise problem
+    return vector
 
 
 @dataclasses.dataclass(frozen=True, eq=False)

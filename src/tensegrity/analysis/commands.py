@@ -63,8 +63,15 @@ def _structure_summary(s: Structure) -> dict[str, Any]:
             "tendon_names": list(s.tendon_name)}
 
 
-def _equilibrium(structure: Structure) -> EquilibriumResult:
-    eq = find_equilibrium(structure)
+def _gravity(structure: Structure, gravity: float | Sequence[float] | None) -> np.ndarray | None:
+    """The verbs' ``gravity`` (a number: down the last axis, or a vector) as a (dim,) vector."""
+    from tensegrity.loads import gravity_vector
+
+    return None if gravity is None else gravity_vector(gravity, structure.dim)
+
+
+def _equilibrium(structure: Structure, gravity: np.ndarray | None) -> EquilibriumResult:
+    eq = find_equilibrium(structure, gravity=gravity)
     if not eq.converged:
         raise RuntimeError(f"no equilibrium found: {eq.message}")
     return eq
@@ -79,20 +86,24 @@ def run_equilibrium(
     t_end: float = 60.0,
     velocity_tol: float = 1e-6,
     acceleration_tol: float = 1e-6,
+    gravity: float | Sequence[float] | None = None,
 ) -> Output:
     """``tensegrity equilibrium``: the equilibrium by least squares, by damped simulation, or
-    both (``method``: ``"least_squares"``, ``"simulation"``, ``"both"``) and their agreement."""
+    both (``method``: ``"least_squares"``, ``"simulation"``, ``"both"``) and their agreement,
+    under ``gravity`` [m/s^2] (a number: down the last axis; or a vector), if given."""
     from tensegrity.plotting import figure_structure
 
     if method not in ("both", "least_squares", "simulation"):
         raise ValueError(f"method: expected 'both', 'least_squares' or 'simulation', got {method!r}")
+    g = _gravity(structure, gravity)
     out = _out(out_dir)
     results: dict[str, EquilibriumResult] = {}
     if method in ("both", "least_squares"):
-        results["least_squares"] = find_equilibrium(structure)
+        results["least_squares"] = find_equilibrium(structure, gravity=g)
     if method in ("both", "simulation"):
         results["simulation"] = equilibrium_by_simulation(
-            structure, t_end=t_end, velocity_tol=velocity_tol, acceleration_tol=acceleration_tol)
+            structure, t_end=t_end, velocity_tol=velocity_tol, acceleration_tol=acceleration_tol,
+            gravity=g)
     data: dict[str, Any] = {"structure": _structure_summary(structure)}
     data |= {name: r.to_dict() for name, r in results.items()}
     text = []
@@ -102,7 +113,8 @@ def run_equilibrium(
             ("converged", r.converged),
             ("residual force max |Q|", f"{r.residual_force:.3e} N"),
             ("residual acceleration max |q''|", f"{r.residual_acceleration:.3e} m/s^2"),
-            ("tension range", f"{r.tension.min():.6g} .. {r.tension.max():.6g} N"),
+            ("tension range", f"{r.tension.min():.6g} .. {r.tension.max():.6g} N"
+                              if r.tension.size else "no tendons"),
             ("slack tendons", ", ".join(r.slack_names) or "none"),
         ]))
     if len(results) == 2:
@@ -135,6 +147,7 @@ def run_modes(
     shapes: int = 6,
     check_fft: bool = False,
     check_simulation: bool = False,
+    gravity: float | Sequence[float] | None = None,
 ) -> Output:
     """``tensegrity modes``: natural frequencies [Hz], mode shapes, rigid-body modes, mechanisms
     and the stability verdict at the equilibrium (least squares); optionally the FFT check of
@@ -142,8 +155,8 @@ def run_modes(
     from tensegrity.analysis.linearize import linearize
     from tensegrity.analysis.modes import measure_frequency, modal_analysis, stability_by_simulation
 
+    eq = _equilibrium(structure, _gravity(structure, gravity))
     out = _out(out_dir)
-    eq = _equilibrium(structure)
     lin = linearize(structure, eq)
     modes = modal_analysis(lin)
     data: dict[str, Any] = {"structure": _structure_summary(structure),
@@ -180,6 +193,7 @@ def run_controllability(
     inputs: Sequence[str] | None = None,
     outputs: Sequence[str] | None = None,
     damping: str = "critical",
+    gravity: float | Sequence[float] | None = None,
 ) -> Output:
     """``tensegrity controllability``: ranks, PBH per mode and Gramians for each input set
     (tendon-name patterns; default all tendons, each family, one tendon) and observability for
@@ -190,8 +204,8 @@ def run_controllability(
     from tensegrity.analysis.modes import modal_analysis
 
     damped = with_damping(structure, damping)
+    eq = _equilibrium(structure, _gravity(structure, gravity))
     out = _out(out_dir)
-    eq = _equilibrium(structure)
     lin = linearize(damped, eq)
     modes = modal_analysis(lin)
     input_sets = None if inputs is None else {p: p for p in inputs}
@@ -279,7 +293,7 @@ def run_control(
         if bad:
             raise ValueError(f"{name}: node {bad[0]} out of range 0..{structure.n_nodes - 1}")
     out = _out(out_dir)
-    eq = _equilibrium(structure)
+    eq = _equilibrium(structure, None)  # shape control: no gravity
     if bottom is None or top is None:
         b, t = rings(structure, eq.node_position)
         bottom = b if bottom is None else bottom

@@ -127,7 +127,8 @@ class EquilibriumResult:
             "rod_compression_N": self.rod_compression.tolist(),
             "slack_tendons": self.slack_names,
         } | ({} if self.reaction_force is None else
-             {"reaction_force_N": self.reaction_force.tolist()})
+             {"reaction_force_N": self.reaction_force.tolist()}) | (
+            {} if self.gravity is None else {"gravity_m_s2": self.gravity.tolist()})
 
 
 def _scales(structure: Structure, gravity: np.ndarray | None = None) -> tuple[float, float]:
