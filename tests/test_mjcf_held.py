@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from tensegrity import Structure, dynamics, simulate
-from tensegrity.mjcf import mujoco_node_velocities
+from tensegrity.mjcf import mujoco_node_velocities, to_mjcf
 from tensegrity.planar import planar_two_rod
 from test_constraints import GRAVITY
 from test_mjcf import SAMPLE_DT, load, max_difference, run_mujoco
@@ -217,3 +217,10 @@ def test_cli_exports_a_structure_file_with_held_rods(tmp_path, capsys):
                  "-o", str(out)]) != 0
     assert "cannot be combined with --structure" in capsys.readouterr().err
 
+
+
+def test_a_tendon_named_like_a_closure_tendon_is_refused():
+    s = LOOPS["ladder against a wall"]()
+    with pytest.raises(ValueError, match=r"^tendons: the name 'hold0b' is taken by a closure tendon"):
+        to_mjcf(s.replace(tendon_name=["t0", "hold0b", "t2", "t3"]))
+    to_mjcf(EXACT["parallel planes"]().replace(tendon_name=["t0", "hold0b", "t2", "t3"]))  # no closure

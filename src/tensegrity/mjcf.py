@@ -288,7 +288,8 @@ def to_mjcf(
     ValueError
         Naming the field: ``timestep``, ``integrator``, ``gravity``, ``name``;
         ``rods[r].damping`` when a rod has damping MuJoCo cannot represent; ``rods[r].mass`` when
-        its mass or inertia ``m L^2 / 12`` is below MuJoCo's minimum ``1e-15``.
+        its mass or inertia ``m L^2 / 12`` is below MuJoCo's minimum ``1e-15``; ``tendons``
+        when a tendon is named like a closure tendon (``hold{j}a``, ``hold{j}b``).
     """
     if not isinstance(structure, Structure):
         raise ValueError(f"structure: expected a Structure, got {type(structure).__name__}")
@@ -341,6 +342,10 @@ def to_mjcf(
     held = _held_axes(structure)
     trees = _rod_trees(structure, held, axis)
     closures = [row for tree in trees for row in tree.closure]
+    taken = set(structure.tendon_name) & {f"hold{j}{end}" for j in range(len(closures)) for end in "ab"}
+    if taken:
+        raise ValueError(f"tendons: the name {sorted(taken)[0]!r} is taken by a closure tendon of the "
+                         "MJCF export (a rod with both ends held); rename that tendon")
     # refsafe off: the joints' and closures' time constant 2 dt is below MuJoCo's "safe" minimum
     soft = connects or closures
     flags = dict(contact="disable", energy="enable") | ({"refsafe": "disable"} if soft else {})
