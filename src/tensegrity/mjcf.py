@@ -58,8 +58,9 @@ The model written by :func:`to_mjcf` is the same mechanical system as Theorem 18
   sites mirrored across a plane are exactly that plane.  The row is weighted by the rod's own
   inertia (a ``connect`` to a light sliding body, tried first, was regularized by the light
   body's inverse mass and missed by 2e-2 m over 0.5 s).  It is soft like the joints (same
-  ``solref``, ``solimp``): MuJoCo drops the velocity-product term ``J' q'`` of a constraint's
-  acceleration, so the node lags its plane by about ``J' q' tc^2`` with ``tc = 2 timestep``
+  ``solref``, ``solimp``): the node lags off its plane by an amount that scales as ``tc^2``,
+  ``tc = 2 timestep`` (as ``J' q' tc^2`` would if MuJoCo's reference acceleration omits the
+  velocity-product term ``J' q'``), not with the impedance or the solver's tolerance
   (measured 1.7 .. 3.9 um over 0.5 s at ``timestep = 1e-4``, falling as ``timestep^2``; see
   ``docs/constraints.md``).  The tendons come after the structure's, which keep their indices.
 - Contacts are disabled, gravity is ``gravity`` (zero by default), the integrator and time step are
