@@ -83,7 +83,7 @@ def run_mujoco(structure, t_end, dt, **options):
             mujoco.mj_step(model, data)
             mujoco.mj_kinematics(model, data)  # the end of the step, not the last RK4 stage
             mujoco.mj_tendon(model, data)
-            went_slack |= data.ten_length <= structure.tendon_rest_length
+            went_slack |= data.ten_length[: structure.n_tendons] <= structure.tendon_rest_length
         positions.append(mujoco_node_positions(model, data, structure.n_nodes, dim=structure.dim))
     return np.array(positions), went_slack
 

@@ -206,10 +206,6 @@ def test_bead_on_a_line_payload_on_a_plane_and_a_block_sliding_down_a_plane():
     [
         (lambda: planar_rod(), {"gravity": (0, 0, -9.81)}, r"^gravity: expected 2 finite numbers"),
         (lambda: tripod(), {"gravity": (0, -9.81)}, r"^gravity: expected 3 finite numbers"),
-        (lambda: tripod().replace(plane_nodes=[0, 1], plane_normal=[[0, 0, 1.0]] * 2), {},
-         r"^plane_nodes: both ends 0 and 1 of rods\[0\] are held"),
-        (lambda: planar_rod().replace(line_nodes=[0, 1], line_direction=[[1.0, 0]] * 2), {},
-         r"^line_nodes: both ends 0 and 1 of rods\[0\] are held"),
     ],
 )
 def test_what_cannot_be_exported_is_refused(structure, options, message):

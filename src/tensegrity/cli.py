@@ -72,14 +72,13 @@ def _damping(text: str) -> str | float:
         ) from None
 
 
-def _add_structure_options(parser: argparse.ArgumentParser, *, allow_file: bool = True) -> None:
+def _add_structure_options(parser: argparse.ArgumentParser) -> None:
     from tensegrity.generators import KINDS
 
     group = parser.add_argument_group("structure (default: the paper's (3,1) class 1 shell)")
-    if allow_file:
-        group.add_argument("--structure", type=Path, metavar="FILE",
-                           help="a structure file (.json, .yaml, .toml or connectivity .npz) "
-                                "instead of a generated one")
+    group.add_argument("--structure", type=Path, metavar="FILE",
+                       help="a structure file (.json, .yaml, .toml or connectivity .npz) "
+                            "instead of a generated one")
     group.add_argument("--kind", choices=list(KINDS), metavar="|".join(KINDS),
                        help="generated structure (default shell): "
                             + "; ".join(f"{name}: {kind.summary}" for name, kind in KINDS.items()))
@@ -552,8 +551,9 @@ def build_parser() -> argparse.ArgumentParser:
     _add_structure_options(info)
     info.set_defaults(run=_cmd_info)
 
-    export = sub.add_parser("export", help="write a generated structure to a file (any format)")
-    _add_structure_options(export, allow_file=False)
+    export = sub.add_parser("export", help="write a generated structure or a structure file to a "
+                                           "file (any format)")
+    _add_structure_options(export)
     export.add_argument("--damping", type=_damping, metavar="none|critical|VALUE",
                         help="tendon damping to store (default none)")
     export.add_argument("--format", choices=("json", "yaml", "toml", "connectivity", "mjcf"),

@@ -36,13 +36,33 @@ The model written by :func:`to_mjcf` is the same mechanical system as Theorem 18
   along those directions through ``p_a``, then a ball joint ``rod{r}_ball`` at ``a`` (a hinge
   ``rod{r}_rz`` about ``z`` if planar); its ``qpos`` starts at 0 and ``(1, 0, 0, 0)``, its
   ``qvel`` is the velocity of ``p_a`` along the slides and the body-frame angular velocity.  No
-  auxiliary body, no added mass and no soft constraint are involved.  A rod with both ends held
-  is refused (``plane_nodes`` / ``line_nodes``): a tree of joints holds one end, and holding the
-  other one with a ``connect`` to a sliding auxiliary body is not exact: MuJoCo regularizes
-  all three rows of a ``connect`` by the bodies' summed inverse weights, so a light auxiliary
-  body softens the constraint across the plane as well (measured 1e-2 m of error over 0.5 s
-  with a mass ratio 1e-8), and a heavy one adds its mass along it.  A plane or line on a fixed
-  node is left out (the node does not move).
+  auxiliary body, no added mass and no soft constraint are involved.  A plane or line on a
+  fixed node is left out (the node does not move).
+- **Rods with both ends held.**  The root is the end ``r`` with fewer free directions ``F_r``
+  (``a`` on a tie), the other end is ``o``.  If ``F_r`` lies in ``F_o`` (both ends on one
+  plane or on parallel planes, on one line or parallel lines, ``r`` on a line parallel to
+  ``o``'s plane) the tree is exact: slides along ``F_r`` keep ``o`` on its planes, and so does
+  turning about the normal ``n`` of ``o``'s plane; the rod has slides, a hinge
+  ``rod{r}_turn`` about ``n`` at ``r`` and a hinge ``rod{r}_spin`` about its own axis ``u``
+  (started at ``-theta' (n . u)``, it cancels the spin the turn gives a rod not lying in the
+  plane, and stays cancelled: nothing exerts a torque about the axis), or slides only when
+  ``o`` is on a line (or the rod is normal to the plane).  These are our degrees of freedom
+  plus one spin, with no constraint: MuJoCo takes the same RK4 steps as ours.  Otherwise
+  (ends on non-parallel planes, a plane and a line not parallel to it, skew lines, a planar
+  rod on non-parallel lines) no tree of joints holds both ends: the rod gets slides and a
+  ball (a hinge about ``z`` if planar) at ``r``, and the loop is closed by one MuJoCo
+  equality per unit normal ``n`` of ``o``'s planes (1 on a plane, 2 on a line, 1 on a planar
+  line): ``tendon`` equality ``hold{j}`` makes the lengths of two zero-stiffness spatial
+  tendons ``hold{j}a``, ``hold{j}b`` from ``node{o}`` to world sites ``p_o(0) +- D n``
+  (``D = CLOSURE_ARM`` times the longest rod) equal, and the points equidistant from two
+  sites mirrored across a plane are exactly that plane.  The row is weighted by the rod's own
+  inertia (a ``connect`` to a light sliding body, tried first, was regularized by the light
+  body's inverse mass and missed by 2e-2 m over 0.5 s).  It is soft like the joints (same
+  ``solref``, ``solimp``): the node lags off its plane by an amount that scales as ``tc^2``,
+  ``tc = 2 timestep`` (as ``J' q' tc^2`` would if MuJoCo's reference acceleration omits the
+  velocity-product term ``J' q'``), not with the impedance or the solver's tolerance
+  (measured 1.7 .. 3.9 um over 0.5 s at ``timestep = 1e-4``, falling as ``timestep^2``; see
+  ``docs/constraints.md``).  The tendons come after the structure's, which keep their indices.
 - Contacts are disabled, gravity is ``gravity`` (zero by default), the integrator and time step are
   options; ``<size memory>`` is set explicitly (MuJoCo's own estimate explodes for large models).
   The energy flag is on, so ``data.energy`` holds (elastic + gravity, kinetic) energy [J].
@@ -90,7 +110,7 @@ import os
 import tempfile
 import xml.etree.ElementTree as ET
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -123,6 +143,14 @@ _SITE_RADIUS_FRACTION = 0.02  # visual only: site and capsule radii relative to 
 #: 0.9999 whatever the violation, so the constraint is nearly hard; with ``solref`` time constant
 #: ``2 timestep`` (critically damped) a pinned rod follows our pendulum to 2e-9 m over 0.5 s.
 CONNECT_SOLIMP = "0.9999 0.9999 0.001"
+
+#: The world sites of a closure row (a node held on a plane by a tendon equality) lie this many
+#: times the longest rod away from the node, on either side of the plane.
+CLOSURE_ARM = 10.0
+
+#: Two planes or lines are parallel (a rod with ends on them has an exact joint tree) when their
+#: unit normals and free directions are orthogonal to within this.
+_PARALLEL_TOL = 1e-12
 
 
 def _float(x: float) -> str:
@@ -206,9 +234,12 @@ def rod_frames(structure: Structure) -> tuple[np.ndarray, np.ndarray, np.ndarray
 
 def mjcf_memory(structure: Structure) -> int:
     """The ``<size memory>`` [bytes] written by :func:`to_mjcf` (see ``MEMORY_PER_ELEMENT``); a
-    point mass counts 6 elements (a free body), a joint or support 12 (3 constraint rows)."""
+    point mass counts 6 elements (a free body), a joint or support 12 (3 constraint rows), a
+    closure row 6 (its two tendons and a constraint row)."""
+    closures = sum(len(tree.closure) for tree in _rod_trees(structure, _held_axes(structure),
+                                                              _rod_motion(structure)[4]))
     elements = (structure.n_coordinates + 3 * structure.point_mass_nodes.size + structure.n_tendons
-                + 12 * len(_connect_pairs(structure)))
+                + 12 * len(_connect_pairs(structure)) + 6 * closures)
     size = MEMORY_BASE + MEMORY_PER_ELEMENT * elements
     mebibyte = 1 << 20
     return -(-size // mebibyte) * mebibyte
@@ -225,9 +256,9 @@ def to_mjcf(
     """MJCF XML of ``structure`` for MuJoCo: rod bodies, spatial deadband-spring tendons.
 
     See the module docstring for the modelling choices (spin inertia, deadband spring, damping,
-    planar structures, plane and line constraints, keyframe).  All numbers are written with 17
-    significant digits, so the model's parameters and initial state are bit-identical to
-    ``structure``'s (after the rod-constraint projection).
+    planar structures, plane and line constraints, rods with both ends held, keyframe).  All
+    numbers are written with 17 significant digits, so the model's parameters and initial state
+    are bit-identical to ``structure``'s (after the rod-constraint projection).
 
     Parameters
     ----------
@@ -248,17 +279,18 @@ def to_mjcf(
     -------
     str
         The MJCF document.  Bodies ``rod{r}`` (a free joint ``rod{r}``, or slides ``rod{r}_0``,
-        ... and a hinge ``rod{r}_rz`` (planar) or ball ``rod{r}_ball`` (an end held on a plane
-        or line)), ``mass{k}``, sites ``node{i}``, tendons named ``structure.tendon_name``,
-        keyframe ``initial`` (index 0).
+        ... and a hinge ``rod{r}_rz`` (planar), a ball ``rod{r}_ball`` (an end held on a plane
+        or line) or hinges ``rod{r}_turn``, ``rod{r}_spin`` (both ends held)), ``mass{k}``,
+        sites ``node{i}``, tendons named ``structure.tendon_name`` (then ``hold{j}a``,
+        ``hold{j}b`` of the closure equalities ``hold{j}``), keyframe ``initial`` (index 0).
 
     Raises
     ------
     ValueError
         Naming the field: ``timestep``, ``integrator``, ``gravity``, ``name``;
         ``rods[r].damping`` when a rod has damping MuJoCo cannot represent; ``rods[r].mass`` when
-        its mass or inertia ``m L^2 / 12`` is below MuJoCo's minimum ``1e-15``;
-        ``plane_nodes`` or ``line_nodes`` when both ends of a rod are held on planes or lines.
+        its mass or inertia ``m L^2 / 12`` is below MuJoCo's minimum ``1e-15``; ``tendons``
+        when a tendon is named like a closure tendon (``hold{j}a``, ``hold{j}b``).
     """
     if not isinstance(structure, Structure):
         raise ValueError(f"structure: expected a Structure, got {type(structure).__name__}")
@@ -308,43 +340,53 @@ def to_mjcf(
         root, "option", timestep=_float(dt), integrator=integrator, gravity=_floats(np.pad(g, (0, 3 - d)))
     )
     connects = _connect_pairs(structure)
-    # refsafe off: the joints' time constant 2 dt is below MuJoCo's "safe" minimum
-    flags = dict(contact="disable", energy="enable") | ({"refsafe": "disable"} if connects else {})
+    held = _held_axes(structure)
+    trees = _rod_trees(structure, held, axis)
+    closures = [row for tree in trees for row in tree.closure]
+    taken = set(structure.tendon_name) & {f"hold{j}{end}" for j in range(len(closures)) for end in "ab"}
+    if taken:
+        raise ValueError(f"tendons: the name {sorted(taken)[0]!r} is taken by a closure tendon of the "
+                         "MJCF export (a rod with both ends held); rename that tendon")
+    # refsafe off: the joints' and closures' time constant 2 dt is below MuJoCo's "safe" minimum
+    soft = connects or closures
+    flags = dict(contact="disable", energy="enable") | ({"refsafe": "disable"} if soft else {})
     ET.SubElement(option, "flag", **flags)
     ET.SubElement(root, "size", memory=str(mjcf_memory(structure)))
 
     world = ET.SubElement(root, "worldbody")
     qpos: list[Any] = []
     qvel: list[Any] = []
-    held = _held_axes(structure)
-    rod_root = _rod_roots(structure, held)
-    for r, (a, b) in enumerate(structure.rod_nodes):
+    for r, ((a, b), tree) in enumerate(zip(structure.rod_nodes, trees)):
         m, L = float(mass[r]), float(length[r])
         body = ET.SubElement(
             world, "body", name=f"rod{r}", pos=_floats(centre[r]), quat=_floats(quat[r])
         )
-        if rod_root[r] < 0 and not planar:
+        if tree.slides is None:
             ET.SubElement(body, "freejoint", name=f"rod{r}")
             qpos.append(np.concatenate([centre[r], quat[r]]))
             qvel.append(np.concatenate([velocity[r], omega_local[r]]))
         else:
             # slides along the root's free directions (world axes, given in the body frame), then
-            # a ball (3-D) or a hinge about z (planar) at the root: the rod's centre or held end
-            side = 0.0 if rod_root[r] < 0 else (-0.5 if rod_root[r] == a else 0.5)
+            # a ball, or hinges (world axes given in the body frame, each turning the next), at
+            # the root: the rod's centre or a held end
+            side = 0.0 if tree.root < 0 else (-0.5 if tree.root == a else 0.5)
             arm = side * L * axis[r]
-            axes = held.get(int(rod_root[r]), np.eye(3)[:2])
-            rates = axes @ (velocity[r] + np.cross(omega[r], arm))
-            _slides(body, f"rod{r}", _to_body(np.tile(quat[r], (len(axes), 1)), axes), rates, qpos, qvel)
+            rates = tree.slides @ (velocity[r] + np.cross(omega[r], arm))
+            frame = quat[r : r + 1]
+            _slides(body, f"rod{r}", _to_body(np.tile(frame, (len(tree.slides), 1)), tree.slides),
+                    rates, qpos, qvel)
             at = _floats([0, 0, side * L])
-            if planar:
-                ET.SubElement(body, "joint", name=f"rod{r}_rz", type="hinge", pos=at,
-                              axis=_floats(_to_body(quat[r : r + 1], np.eye(3)[2:])[0]))
-                qpos.append([0.0])
-                qvel.append([omega[r, 2]])
-            else:
+            if tree.hinges is None:
                 ET.SubElement(body, "joint", name=f"rod{r}_ball", type="ball", pos=at)
                 qpos.append([1.0, 0.0, 0.0, 0.0])
                 qvel.append(omega_local[r])
+            else:
+                names = ("rz",) if planar else ("turn", "spin")
+                for joint, hinge, rate in zip(names, tree.hinges, _hinge_rates(tree.hinges, omega[r])):
+                    ET.SubElement(body, "joint", name=f"rod{r}_{joint}", type="hinge", pos=at,
+                                  axis=_floats(_to_body(frame, hinge[None])[0]))
+                    qpos.append([0.0])
+                    qvel.append([rate])
         ET.SubElement(
             body, "inertial", pos="0 0 0", mass=_float(m),
             diaginertia=_floats([transverse[r], transverse[r], spin[r]]),
@@ -374,24 +416,40 @@ def to_mjcf(
     for site1, site2, where in connects:
         if site2.startswith("ground"):
             ET.SubElement(world, "site", name=site2, pos=_floats(where), size=site_radius)
-    if connects:
+    # a closure row holds node k on the plane through its position with unit normal n: the
+    # points equidistant from two world sites mirrored across that plane
+    arm = CLOSURE_ARM * float(length.max(initial=1.0))
+    for j, (k, n) in enumerate(closures):
+        for sign, end in ((1.0, "a"), (-1.0, "b")):
+            ET.SubElement(world, "site", name=f"hold{j}{end}", pos=_floats(position[k] + sign * arm * n),
+                          size=site_radius)
+    if soft:
         equality = ET.SubElement(root, "equality")
+        solref, solimp = f"{_float(2 * dt)} 1", CONNECT_SOLIMP
         for site1, site2, _ in connects:
-            ET.SubElement(equality, "connect", site1=site1, site2=site2, solref=f"{_float(2 * dt)} 1",
-                          solimp=CONNECT_SOLIMP)
+            ET.SubElement(equality, "connect", site1=site1, site2=site2, solref=solref, solimp=solimp)
+        for j, _ in enumerate(closures):
+            ET.SubElement(equality, "tendon", name=f"hold{j}", tendon1=f"hold{j}a", tendon2=f"hold{j}b",
+                          polycoef="0 1 0 0 0", solref=solref, solimp=solimp)
 
-    if structure.n_tendons:
+    if structure.n_tendons or closures:
         tendons = ET.SubElement(root, "tendon")
+        width = _float(0.5 * _SITE_RADIUS_FRACTION * float(length.min(initial=1.0)))
         for s, (tail, head) in enumerate(structure.tendon_nodes):
             spatial = ET.SubElement(
                 tendons, "spatial", name=structure.tendon_name[s],
                 stiffness=_float(structure.tendon_stiffness[s]),
                 springlength=f"0 {_float(structure.tendon_rest_length[s])}",
-                damping=_float(structure.tendon_damping[s]),
-                width=_float(0.5 * _SITE_RADIUS_FRACTION * float(length.min(initial=1.0))),
+                damping=_float(structure.tendon_damping[s]), width=width,
             )
             ET.SubElement(spatial, "site", site=f"node{tail}")
             ET.SubElement(spatial, "site", site=f"node{head}")
+        for j, (k, _) in enumerate(closures):
+            for end in "ab":
+                spatial = ET.SubElement(tendons, "spatial", name=f"hold{j}{end}", width=width,
+                                        rgba="0.5 0.5 0.5 0.2")
+                ET.SubElement(spatial, "site", site=f"node{k}")
+                ET.SubElement(spatial, "site", site=f"hold{j}{end}")
 
     keyframe = ET.SubElement(root, "keyframe")
     ET.SubElement(keyframe, "key", name="initial", time="0",
@@ -429,21 +487,65 @@ def _held_axes(structure: Structure) -> dict[int, np.ndarray]:
             for k, r in rows.items() if not structure.node_fixed[k]}
 
 
-def _rod_roots(structure: Structure, held: dict[int, np.ndarray]) -> np.ndarray:
-    """The held end of every rod (the root of its body's joints), or -1 for a rod with none.
+class _RodTree(NamedTuple):
+    """The joints of a rod's body (world frame): ``slides`` (k, 3) along unit axes, then
+    ``hinges`` (h, 3) at ``root`` (each turning the next), and the rows that close the loop."""
 
-    Raises ``ValueError`` naming ``plane_nodes`` or ``line_nodes`` for a rod with both ends
-    held: a rod body's tree of joints holds one end exactly (see the module docstring)."""
-    roots = np.full(structure.n_rods, -1)
+    root: int  # node at the slides' end and the hinges (a held end), or -1: the centre
+    slides: np.ndarray | None  # None: a free joint
+    hinges: np.ndarray | None  # None: a ball joint
+    closure: list[tuple[int, np.ndarray]]  # (node, unit normal): planes the node is held on
+
+
+def _rod_trees(structure: Structure, held: dict[int, np.ndarray], axis: np.ndarray) -> list[_RodTree]:
+    """The joint tree of every rod's body, ``axis`` (R, 3) the rods' unit axes, ``held`` from
+    :func:`_held_axes`.
+
+    No held end: a free joint (slides along ``x``, ``y`` and a hinge about ``z`` if planar); one
+    held end: slides along its free directions and a ball (a hinge about ``z``) there; both
+    held: see the module docstring ("Rods with both ends held").
+    """
+    from scipy.linalg import null_space
+
+    planar = structure.dim == 2
+    plane, z = np.eye(3)[:2], np.eye(3)[2:]
+    rotation = z if planar else None  # a hinge about z, or a ball
+    trees = []
     for r, (a, b) in enumerate(structure.rod_nodes):
-        if a in held and b in held:
-            field = "plane_nodes" if b in structure.plane_nodes else "line_nodes"
-            raise ValueError(
-                f"{field}: both ends {a} and {b} of rods[{r}] are held on a plane or line; the "
-                "MJCF export holds at most one end of each rod (exactly, by its joints)"
-            )
-        roots[r] = a if a in held else (b if b in held else -1)
-    return roots
+        a, b = int(a), int(b)
+        if a not in held and b not in held:
+            trees.append(_RodTree(-1, plane if planar else None, rotation, []))
+            continue
+        root, other = (a, b) if b not in held or (a in held and len(held[a]) <= len(held[b])) else (b, a)
+        slides = held[root]
+        if other not in held:
+            trees.append(_RodTree(root, slides, rotation, []))
+            continue
+        # unit normals of the other end's planes in 3-D (with z = 0 if planar)
+        normals = null_space(held[other]).T
+        if np.abs(normals @ slides.T).max(initial=0.0) > _PARALLEL_TOL:
+            kept = null_space(np.vstack([held[other], z])).T if planar else normals  # by the tree
+            trees.append(_RodTree(root, slides, rotation, [(other, n) for n in kept]))
+            continue
+        # exact: the root's slides keep the other end on its planes; so does a turn about the
+        # normal of a single plane (with a spin hinge cancelling the spin that turn gives a rod
+        # not lying in the plane), unless the rod is normal to it; on a line, no turn
+        turns = len(normals) == 1 and np.linalg.norm(np.cross(normals[0], axis[r])) > _PARALLEL_TOL
+        hinges = np.array([normals[0], axis[r]]) if turns else np.zeros((0, 3))
+        trees.append(_RodTree(root, slides, hinges, []))
+    return trees
+
+
+def _hinge_rates(hinges: np.ndarray, omega: np.ndarray) -> np.ndarray:
+    """Rates [rad/s] of ``hinges`` (h, 3): a turn about ``n`` and a spin about the rod's axis
+    ``u`` whose sum has the rod's angular velocity ``omega`` (normal to ``u``) and no spin:
+    ``theta' = omega . n / (1 - (n . u)^2)``, ``phi' = -theta' (n . u)``."""
+    if len(hinges) == 0:
+        return np.zeros(0)
+    n = hinges[0]
+    c = float(n @ hinges[1]) if len(hinges) > 1 else 0.0
+    turn = float(omega @ n) / (1.0 - c * c)
+    return np.array([turn, -turn * c][: len(hinges)])
 
 
 def _connect_pairs(structure: Structure) -> list[tuple[str, str, np.ndarray | None]]:
