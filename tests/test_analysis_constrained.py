@@ -522,3 +522,30 @@ def test_cli_gravity_hangs_a_pinned_rod_and_swings_it_at_the_pendulum_frequency(
                              "--out", tmp_path / "bad"], capsys)
         assert code == 2 and err.count("\n") == 1 and "gravity" in err, err
     assert not (tmp_path / "bad").exists()
+
+
+def test_info_counts_the_degrees_of_freedom_the_supports_leave(tmp_path, capsys):
+    """Counted by hand: a rod pinned at one end turns about it (2); with both ends fixed it
+    cannot move (0: six support rows, five degrees of freedom); a point mass between two
+    anchors moves freely in space (3); a class 2 shell (3, 2) has 12 rods (60) and 6 ball joints
+    (3 each): 42; the planar two-rod tensegrity, free, 3 per rod (6)."""
+    import json
+
+    from tensegrity.analysis.coordinates import admitted_dof
+
+    both_fixed = pendulum(support="fixed").replace(node_fixed=[True, True])
+    from tensegrity.shell import class2_shell
+
+    cases = {"pinned": (pendulum(support="fixed"), 2), "both ends fixed": (both_fixed, 0),
+             "point mass": (anchored_mass(), 3), "class 2 shell": (class2_shell(3, 2), 42),
+             "planar": (planar_two_rod(), 6)}
+    for name, (structure, expected) in cases.items():
+        assert admitted_dof(structure) == expected, name
+        path = tmp_path / f"{name.replace(' ', '_')}.json"
+        path.write_text(json.dumps(structure.to_dict()))
+        code, out, err = _cli(["info", "--structure", path], capsys)
+        assert code == 0, err
+        line = next(row for row in out.splitlines() if row.startswith("degrees of freedom"))
+        assert line.split()[3] == str(expected), (name, line)
+        if structure.has_constraints:
+            assert f"less {structure.n_dof - expected} held by the joints and supports" in line

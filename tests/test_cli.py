@@ -254,3 +254,14 @@ def test_simulate_class2_shell_reports_the_joint_error(tmp_path, capsys):
     trajectory = read_trajectory(out / "trajectory.h5")
     fixed = np.flatnonzero(trajectory.structure.node_fixed)
     assert np.max(np.abs(trajectory.nodes[:, fixed] - trajectory.nodes[0, fixed])) < 1e-12
+
+
+def test_a_reader_that_closes_the_pipe_early_stops_the_command_quietly():
+    """``tensegrity info | head -1``: the output pipe closes before the command writes; it
+    stops with exit code 141 (128 + SIGPIPE) and nothing on stderr (no traceback, no error)."""
+    child = subprocess.Popen(
+        [sys.executable, "-c", "import sys; from tensegrity.cli import main; sys.exit(main(['info']))"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    child.stdout.close()  # long before the child has imported anything
+    _, err = child.communicate(timeout=120)
+    assert child.returncode == 141 and err == b"", err.decode()

@@ -9,7 +9,9 @@ written atomically.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
+import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -22,6 +24,8 @@ from tensegrity.io import write_staged as _write_all
 from tensegrity.structure import Structure
 
 EXIT_FAILED, EXIT_USAGE = 1, 2
+#: Exit code when the reader of stdout closed it early (128 + SIGPIPE, as a shell reports it).
+EXIT_BROKEN_PIPE = 141
 
 
 class CommandError(Exception):
@@ -265,17 +269,32 @@ def _print_summary(result, files: Sequence[Path]) -> None:
     print("wrote " + ", ".join(str(f) for f in files))
 
 
+#: ``info`` counts the degrees of freedom the joints and supports leave (a dense SVD) up to this
+#: many degrees of freedom before them.
+_INFO_DOF_LIMIT = 3000
+
+
 def _cmd_info(args: argparse.Namespace) -> int:
     s = _structure(args)
     lengths = dynamics.tendon_lengths(s, s.node_position)
     low, high = s.node_position.min(axis=0), s.node_position.max(axis=0)
     slack = int(np.sum(lengths <= s.tendon_rest_length))
     masses = f", {s.dim} per point mass" if s.point_mass_nodes.size else ""
+    dof = f"{s.n_dof} ({2 * s.dim - 1} per rod{masses})"
+    if s.has_constraints:
+        if s.n_dof <= _INFO_DOF_LIMIT:
+            from tensegrity.analysis.coordinates import admitted_dof
+
+            held = s.n_dof - admitted_dof(s)
+            dof = f"{s.n_dof - held} ({2 * s.dim - 1} per rod{masses}, less {held} held by the " \
+                  "joints and supports in this layout)"
+        else:
+            dof += " before the joints and supports"
     rows = [
         ("nodes", s.n_nodes),
         ("rods", s.n_rods),
         ("tendons", s.n_tendons),
-        ("degrees of freedom", f"{s.n_dof} ({2 * s.dim - 1} per rod{masses})"),
+        ("degrees of freedom", dof),
         ("coordinates q", f"{s.n_coordinates} ({2 * s.dim} per rod: q1 = p_a + p_b, q2 = p_b - p_a"
                           f"{masses})"),
         ("total mass", f"{s.total_mass:.6g} kg"),
@@ -624,10 +643,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``tensegrity`` command; returns the exit code."""
     try:
         args = build_parser().parse_args(argv)
-        return args.run(args)
+        code = args.run(args)
+        sys.stdout.flush()  # a reader that went away shows here, not at the interpreter's exit
+        return code
     except CommandError as exc:
         print(f"tensegrity: error: {exc}", file=sys.stderr)
         return exc.code
+    except BrokenPipeError:
+        # The reader of the output went away (``tensegrity modes | head``): stop quietly, with
+        # stdout pointed at /dev/null so that Python's flush at exit does not fail again.
+        with contextlib.suppress(OSError, ValueError, AttributeError):
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return EXIT_BROKEN_PIPE
     except (ValueError, OSError, KeyError) as exc:
         print(f"tensegrity: error: {exc}", file=sys.stderr)
         return EXIT_USAGE

@@ -327,6 +327,17 @@ def configuration(structure: Structure, value: Any = None, *, name: str = "q") -
     return q
 
 
+def admitted_dof(structure: Structure, q: Any = None) -> int:
+    """Degrees of freedom left by the joints and supports at the configuration ``q`` (default:
+    the structure's layout): the dimension of the admitted motions ``null(G)``
+    (:meth:`Chart.admitted_motions`) of the :func:`spatial` form, so in-plane ones for a planar
+    structure.  ``Structure.n_dof`` without joints and supports.  Dense: for analysis sizes."""
+    s3 = spatial(structure)
+    chart = Chart.at(s3, spatial_coordinates(structure, configuration(structure, q)))
+    motions = chart.admitted_motions()
+    return chart.size if motions is None else motions.shape[1]
+
+
 def mass_matrix(structure: Structure) -> np.ndarray:
     """Diagonal of ``M`` (5R + 3M,): ``m`` for the centre, ``m L^2 / 12`` for the two angles,
     then ``m`` (3 times) per point mass."""
