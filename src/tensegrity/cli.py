@@ -286,8 +286,8 @@ def _cmd_info(args: argparse.Namespace) -> int:
             from tensegrity.analysis.coordinates import admitted_dof
 
             held = s.n_dof - admitted_dof(s)
-            dof = f"{s.n_dof - held} ({2 * s.dim - 1} per rod{masses}, less {held} held by the " \
-                  "joints and supports in this layout)"
+            dof = (f"{s.n_dof - held} ({2 * s.dim - 1} per rod{masses}, less {held} held by the "
+                   "joints and supports in this layout)")
         else:
             dof += " before the joints and supports"
     rows = [
