@@ -321,4 +321,7 @@ class LinearConstraints:
     def _project_step(self, jacobian: sp.csr_matrix, violation: np.ndarray) -> np.ndarray:
         """``W^-1 J^T (J W^-1 J^T)^-1 c``: the mass-weighted least-norm correction."""
         weighted = jacobian.multiply(self.inverse_mass[None, :]).tocsr()
-        return weighted.T @ solve_psd(weighted @ jacobian.T, violation)
+        normal = weighted @ jacobian.T
+        if normal.shape[0] <= DENSE_ROWS:  # small: an explicit inverse beats a sparse LU's set-up
+            normal = normal.toarray()
+        return weighted.T @ solve_psd(normal, violation)
