@@ -413,20 +413,19 @@ def find_equilibrium(
             continue
         # Newton polish on a chart based at the solution.
         q = chart.retract(x)
+        force_residual = unbalanced(Chart.at(structure, q))
         for _ in range(5):
+            if force_residual <= tol:
+                break
             chart = Chart.at(structure, q)
             v0 = start_of(chart)
-            r = residual(chart, v0)
             nfev += 1
-            current = unbalanced(chart)
-            if current <= tol:
-                break
-            step, *_ = np.linalg.lstsq(jacobian(chart, v0), -r, rcond=None)
+            step, *_ = np.linalg.lstsq(jacobian(chart, v0), -residual(chart, v0), rcond=None)
             trial = chart.retract(step[: chart.size])
-            if unbalanced(Chart.at(structure, trial)) >= current:
+            trial_residual = unbalanced(Chart.at(structure, trial))
+            if trial_residual >= force_residual:
                 break  # no progress (a near-singular Jacobian: zero-stiffness motions)
-            q = trial
-        force_residual = unbalanced(Chart.at(structure, q))
+            q, force_residual = trial, trial_residual
         if force_residual <= tol:
             converged = True
             message = f"converged: max |Q| = {force_residual:.3g} N <= {tol:.3g} N"
