@@ -82,15 +82,31 @@ _JIT = dict(
 #   block_force None or (B - 1, N, 3) float64   scratch of the threaded evaluation (B blocks)
 ROD_MASS, ROD_LENGTH, ROD_DAMPING, ROD_C1, ROD_C2 = range(5)
 
+# Inside the passes the node arrays are flat, (3N,) views of the (N, 3) buffers, and node ``i``'s
+# x, y, z sit at ``3 i``, ``3 i + 1``, ``3 i + 2`` (:func:`_offset`).  The offsets are unsigned:
+# numba wraps every signed index that the compiler cannot prove >= 0 (an index read from an
+# array) around the array's length, a compare and an add per access; with 2-D (N, 3) arrays
+# each access also multiplies by a stride held in a register, and the tendon pass ran out of
+# registers.  Flat arrays and unsigned offsets made the tendon pass ~10% faster (docs/
+# performance.md).  Unsigned arithmetic must stay unsigned: in numba ``uint64 + int64`` is a
+# float64, so the offsets are only ever combined with the uint64 constants below.
+_U1, _U2, _U3 = np.uint64(1), np.uint64(2), np.uint64(3)
+
+
+@njit(inline="always", **_JIT)
+def _offset(node):  # pragma: no cover - compiled
+    """Index of node ``node``'s x coordinate in a flat (3N,) node array, as a uint64."""
+    return _U3 * np.uint64(node)
+
 
 @njit(inline="always", **_JIT)
 def _node_pass(
-    q, qdot, rod_nodes, rod_param, has_gravity, gravity, tendon_damping, node_work, first, last,
+    q, qdot, rod_nodes, rod_param, has_gravity, gravity, tendon_damping, p, v, force, first,
+    last,
 ):  # pragma: no cover - compiled
-    """Rods ``first:last``: node positions ``p = P q`` (eq. 18.26) into ``node_work[0]`` and,
-    if ``tendon_damping`` is not None (the tendon pass needs them only then), the node
-    velocities into ``node_work[1]``; the nodal forces ``node_work[2]`` start at gravity (or
-    zero)."""
+    """Rods ``first:last``: node positions ``p = P q`` (eq. 18.26) into ``p`` (3N,) and, if
+    ``tendon_damping`` is not None (the tendon pass needs them only then), the node velocities
+    into ``v`` (3N,); the nodal forces ``force`` (3N,) start at gravity (or zero)."""
     # Every pass loops over slices, from 0 to their length: with ``range(first, last)`` the
     # compiler cannot prove an index >= 0 when ``first`` is not known at compile time (the
     # threaded blocks), and keeps numba's negative-index wrap-around on every access.
@@ -99,23 +115,24 @@ def _node_pass(
     q = q[6 * first:6 * last]
     qdot = qdot[6 * first:6 * last]
     for r in range(rod_nodes.shape[0]):
-        a = rod_nodes[r, 0]
-        b = rod_nodes[r, 1]
+        a = _offset(rod_nodes[r, 0])
+        b = _offset(rod_nodes[r, 1])
         o = 6 * r
         half_m = rod_param[r, ROD_MASS] / 2
         for i in range(3):
+            j = np.uint64(i)
             q1 = q[o + i]
             q2 = q[o + 3 + i]
-            node_work[0, a, i] = 0.5 * (q1 - q2)
-            node_work[0, b, i] = 0.5 * (q1 + q2)
+            p[a + j] = 0.5 * (q1 - q2)
+            p[b + j] = 0.5 * (q1 + q2)
             if tendon_damping is not None:
                 v1 = qdot[o + i]
                 v2 = qdot[o + 3 + i]
-                node_work[1, a, i] = 0.5 * (v1 - v2)
-                node_work[1, b, i] = 0.5 * (v1 + v2)
+                v[a + j] = 0.5 * (v1 - v2)
+                v[b + j] = 0.5 * (v1 + v2)
             weight = half_m * gravity[i] if has_gravity else 0.0
-            node_work[2, a, i] = weight
-            node_work[2, b, i] = weight
+            force[a + j] = weight
+            force[b + j] = weight
 
 
 @njit(inline="always", **_JIT)
@@ -124,10 +141,11 @@ def _tendon_pass(
     elastic_tension, first, last,
 ):  # pragma: no cover - compiled
     """Tendons ``first:last``: tension and elastic tension, nodal forces added to ``force``
-    (N, 3), the tail pulled toward the head and the head toward the tail.  Returns the power
+    (3N,), the tail pulled toward the head and the head toward the tail.  Returns the power
     removed by tendon damping.  With ``tendon_damping`` None (all ``c = 0``) the node velocities
-    ``v`` are not read and the tension is the elastic tension: the same numbers as with zero
-    damping, for finite velocities (0.70-0.78x the time of a whole evaluation at (100,100))."""
+    ``v`` (3N,) are not read and the tension is the elastic tension: the same numbers as with
+    zero damping, for finite velocities (0.70-0.78x the time of a whole evaluation at
+    (100,100))."""
     tendon_nodes = tendon_nodes[first:last]
     tendon_stiffness = tendon_stiffness[first:last]
     rest_length = rest_length[first:last]
@@ -135,11 +153,11 @@ def _tendon_pass(
     elastic_tension = elastic_tension[first:last]
     dissipation = 0.0
     for s in range(tendon_nodes.shape[0]):
-        tail = tendon_nodes[s, 0]
-        head = tendon_nodes[s, 1]
-        tx = p[head, 0] - p[tail, 0]
-        ty = p[head, 1] - p[tail, 1]
-        tz = p[head, 2] - p[tail, 2]
+        tail = _offset(tendon_nodes[s, 0])
+        head = _offset(tendon_nodes[s, 1])
+        tx = p[head] - p[tail]
+        ty = p[head + _U1] - p[tail + _U1]
+        tz = p[head + _U2] - p[tail + _U2]
         length = np.sqrt(tx * tx + ty * ty + tz * tz)
         stretch = length - rest_length[s]
         if stretch > 0.0:  # taut (then length > 0: rest lengths are >= 0)
@@ -151,9 +169,9 @@ def _tendon_pass(
             total = elastic
             if tendon_damping is not None:
                 rate = (
-                    ex * (v[head, 0] - v[tail, 0])
-                    + ey * (v[head, 1] - v[tail, 1])
-                    + ez * (v[head, 2] - v[tail, 2])
+                    ex * (v[head] - v[tail])
+                    + ey * (v[head + _U1] - v[tail + _U1])
+                    + ez * (v[head + _U2] - v[tail + _U2])
                 )
                 total = elastic + tendon_damping[first + s] * rate
                 if total < 0.0:
@@ -164,12 +182,12 @@ def _tendon_pass(
             fx = total * ex
             fy = total * ey
             fz = total * ez
-            force[tail, 0] += fx
-            force[tail, 1] += fy
-            force[tail, 2] += fz
-            force[head, 0] -= fx
-            force[head, 1] -= fy
-            force[head, 2] -= fz
+            force[tail] += fx
+            force[tail + _U1] += fy
+            force[tail + _U2] += fz
+            force[head] -= fx
+            force[head + _U1] -= fy
+            force[head + _U2] -= fz
         else:
             tension[s] = 0.0
             elastic_tension[s] = 0.0
@@ -178,12 +196,11 @@ def _tendon_pass(
 
 @njit(inline="always", **_JIT)
 def _rod_pass(
-    q, qdot, rod_nodes, rod_param, has_external, external_force, node_work, qddot, first, last,
+    q, qdot, rod_nodes, rod_param, has_external, external_force, force, qddot, first, last,
 ):  # pragma: no cover - compiled
     """Rods ``first:last``: eqs. 18.17, 18.20 and mass-proportional damping into ``qddot``, from
-    the nodal forces ``node_work[2]`` (to which ``w`` is added; its power uses ``p' = P q'``).
-    Returns ``(rod_dissipation, external_power)``."""
-    force = node_work[2]
+    the nodal forces ``force`` (3N,), to which ``w`` (``external_force``, 3N,) is added; its
+    power uses ``p' = P q'``.  Returns ``(rod_dissipation, external_power)``."""
     rod_nodes = rod_nodes[first:last]
     rod_param = rod_param[first:last]
     q = q[6 * first:6 * last]
@@ -192,28 +209,29 @@ def _rod_pass(
     external_power = 0.0
     rod_dissipation = 0.0
     for r in range(rod_nodes.shape[0]):
-        a = rod_nodes[r, 0]
-        b = rod_nodes[r, 1]
+        a = _offset(rod_nodes[r, 0])
+        b = _offset(rod_nodes[r, 1])
         o = 6 * r
         if has_external:
             for i in range(3):  # node velocities p' = P q' (eq. 18.26)
+                j = np.uint64(i)
                 v1 = qdot[o + i]
                 v2 = qdot[o + 3 + i]
-                external_power += (external_force[a, i] * (0.5 * (v1 - v2))
-                                   + external_force[b, i] * (0.5 * (v1 + v2)))
-                force[a, i] += external_force[a, i]
-                force[b, i] += external_force[b, i]
+                external_power += (external_force[a + j] * (0.5 * (v1 - v2))
+                                   + external_force[b + j] * (0.5 * (v1 + v2)))
+                force[a + j] += external_force[a + j]
+                force[b + j] += external_force[b + j]
         L = rod_param[r, ROD_LENGTH]
         L2 = L * L
         alpha = rod_param[r, ROD_DAMPING]
         c1 = rod_param[r, ROD_C1]
         c2 = rod_param[r, ROD_C2]
-        sx = force[a, 0] + force[b, 0]
-        sy = force[a, 1] + force[b, 1]
-        sz = force[a, 2] + force[b, 2]
-        dx = force[a, 0] - force[b, 0]
-        dy = force[a, 1] - force[b, 1]
-        dz = force[a, 2] - force[b, 2]
+        sx = force[a] + force[b]
+        sy = force[a + _U1] + force[b + _U1]
+        sz = force[a + _U2] + force[b + _U2]
+        dx = force[a] - force[b]
+        dy = force[a + _U1] - force[b + _U1]
+        dz = force[a + _U2] - force[b + _U2]
         x = q[o + 3]
         y = q[o + 4]
         z = q[o + 5]
@@ -240,6 +258,13 @@ def _rod_pass(
     return rod_dissipation, external_power
 
 
+@njit(inline="always", **_JIT)
+def _flat(node_work):  # pragma: no cover - compiled
+    """``(p, v, force)``: flat (3N,) views of the (3, N, 3) ``node_work``."""
+    flat = node_work.reshape((3, node_work.shape[1] * 3))
+    return flat[0], flat[1], flat[2]
+
+
 @njit(**_JIT)
 def _block(k, n_blocks, n):  # pragma: no cover - compiled
     """Bounds ``(first, last)`` of block ``k`` of ``n_blocks`` nearly equal blocks of ``range(n)``."""
@@ -260,30 +285,35 @@ def _rhs_threaded(
     n_blocks = block_force.shape[0] + 1
     n_rods = rod_nodes.shape[0]
     n_tendons = tendon_nodes.shape[0]
+    p, v, force0 = _flat(node_work)
+    extra_force = block_force.reshape((n_blocks - 1, block_force.shape[1] * 3))
+    w = external_force.reshape(external_force.size)
     for k in prange(n_blocks):
         first, last = _block(k, n_blocks, n_rods)
         _node_pass(q, qdot, rod_nodes, rod_param, has_gravity, gravity, tendon_damping,
-                   node_work, first, last)
+                   p, v, force0, first, last)
     tendon_power = np.empty(n_blocks)
     for k in prange(n_blocks):
-        force = node_work[2] if k == 0 else block_force[k - 1]
+        force = force0 if k == 0 else extra_force[k - 1]
         if k > 0:
             force[:] = 0.0
         first, last = _block(k, n_blocks, n_tendons)
-        tendon_power[k] = _tendon_pass(node_work[0], node_work[1], force, tendon_nodes,
-                                       tendon_stiffness, tendon_damping, rest_length, tension,
-                                       elastic_tension, first, last)
+        tendon_power[k] = _tendon_pass(p, v, force, tendon_nodes, tendon_stiffness,
+                                       tendon_damping, rest_length, tension, elastic_tension,
+                                       first, last)
     rod_power = np.empty((n_blocks, 2))
     for k in prange(n_blocks):
         first, last = _block(k, n_blocks, n_rods)
-        for r in range(first, last):  # the blocks' forces summed into node_work[2], in order
+        for r in range(first, last):  # the blocks' forces summed into force0, in order
+            a = _offset(rod_nodes[r, 0])
+            b = _offset(rod_nodes[r, 1])
             for j in range(n_blocks - 1):
                 for i in range(3):
-                    node_work[2, rod_nodes[r, 0], i] += block_force[j, rod_nodes[r, 0], i]
-                    node_work[2, rod_nodes[r, 1], i] += block_force[j, rod_nodes[r, 1], i]
+                    c = np.uint64(i)
+                    force0[a + c] += extra_force[j, a + c]
+                    force0[b + c] += extra_force[j, b + c]
         rod_power[k, 0], rod_power[k, 1] = _rod_pass(
-            q, qdot, rod_nodes, rod_param, has_external, external_force, node_work, qddot,
-            first, last)
+            q, qdot, rod_nodes, rod_param, has_external, w, force0, qddot, first, last)
     dissipated = 0.0
     external = 0.0
     for k in range(n_blocks):  # fixed order: deterministic
@@ -315,13 +345,15 @@ def rhs(
                              has_gravity, gravity, node_work, block_force, qddot, tension,
                              elastic_tension)
     n_rods = rod_nodes.shape[0]
-    _node_pass(q, qdot, rod_nodes, rod_param, has_gravity, gravity, tendon_damping, node_work,
+    p, v, force = _flat(node_work)
+    _node_pass(q, qdot, rod_nodes, rod_param, has_gravity, gravity, tendon_damping, p, v, force,
                0, n_rods)
-    tendon_dissipation = _tendon_pass(node_work[0], node_work[1], node_work[2], tendon_nodes,
-                                      tendon_stiffness, tendon_damping, rest_length, tension,
-                                      elastic_tension, 0, tendon_nodes.shape[0])
-    rod_dissipation, external_power = _rod_pass(q, qdot, rod_nodes, rod_param, has_external,
-                                                external_force, node_work, qddot, 0, n_rods)
+    tendon_dissipation = _tendon_pass(p, v, force, tendon_nodes, tendon_stiffness,
+                                      tendon_damping, rest_length, tension, elastic_tension, 0,
+                                      tendon_nodes.shape[0])
+    rod_dissipation, external_power = _rod_pass(
+        q, qdot, rod_nodes, rod_param, has_external, external_force.reshape(external_force.size),
+        force, qddot, 0, n_rods)
     return tendon_dissipation + rod_dissipation, external_power
 
 
