@@ -87,9 +87,10 @@ ROD_MASS, ROD_LENGTH, ROD_DAMPING, ROD_C1, ROD_C2 = range(5)
 # numba wraps every signed index that the compiler cannot prove >= 0 (an index read from an
 # array) around the array's length, a compare and an add per access; with 2-D (N, 3) arrays
 # each access also multiplies by a stride held in a register, and the tendon pass ran out of
-# registers.  Flat arrays and unsigned offsets made the tendon pass ~10% faster (docs/
-# performance.md).  Unsigned arithmetic must stay unsigned: in numba ``uint64 + int64`` is a
-# float64, so the offsets are only ever combined with the uint64 constants below.
+# registers.  With flat arrays and unsigned offsets an evaluation takes 0.94x the time with
+# damped tendons and 0.78-0.87x on 2 threads, bitwise the same (docs/performance.md).  Unsigned
+# arithmetic must stay unsigned: in numba ``uint64 + int64`` is a float64, so the offsets are
+# only ever combined with the uint64 constants below.
 _U1, _U2, _U3 = np.uint64(1), np.uint64(2), np.uint64(3)
 
 
