@@ -20,7 +20,8 @@ pytest.importorskip("numba")
 
 from tensegrity import Structure, class1_shell, dynamics  # noqa: E402
 from tensegrity.integrators import RK4  # noqa: E402
-from tensegrity.kernel import FastKernel  # noqa: E402
+from tensegrity import kernel as kernel_module  # noqa: E402
+from tensegrity.kernel import FastKernel, stencil_layout  # noqa: E402
 from test_dynamics import mixed_controls  # noqa: E402
 from test_dynamics import random_consistent_state as random_consistent_nodes  # noqa: E402
 
@@ -108,10 +109,21 @@ def _seed(case, *extra) -> int:
 # --------------------------------------------------------------------------- evaluate
 
 
+@pytest.fixture(params=[None, 2], ids=["default runs", "runs of 2"])
+def min_run(request, monkeypatch):
+    """The kernel's shortest run of tendons (``kernel.MIN_RUN``): its default, which leaves the
+    small test shells (but (10,10)) without runs, or 2, which puts most of their tendons into
+    runs, including runs whose tail and head force slices overlap (see
+    ``test_stencil_layout_invariants``)."""
+    if request.param is not None:
+        monkeypatch.setattr(kernel_module, "MIN_RUN", request.param)
+    return request.param
+
+
 @pytest.mark.parametrize("threads", [1, 2, 3])
 @pytest.mark.parametrize("loads", ["none", "gravity", "external", "both"])
 @pytest.mark.parametrize("case", CASES)
-def test_evaluate_matches_numpy_reference(case, loads, threads):
+def test_evaluate_matches_numpy_reference(case, loads, threads, min_run):
     rng = np.random.default_rng(_seed(case, loads))
     structure = _structure(case, rng)
     kernel = FastKernel(structure, threads=threads)
@@ -160,9 +172,10 @@ def test_undamped_specialization_matches_reference_and_generic_path(case, loads,
     rng = np.random.default_rng(_seed(case, loads, "undamped"))
     structure = _undamped(_structure(case, rng))
     kernel = FastKernel(structure, threads=threads)
-    assert kernel._tendon_damping is None and pack(structure)[4] is None
+    assert kernel._tendon_damping is None and pack(structure).tendon_damping is None
     one_damped = structure.replace(tendon_damping=np.eye(1, structure.n_tendons, 3)[0])
-    assert np.array_equal(pack(one_damped)[4], one_damped.tendon_damping)
+    packed = pack(one_damped)
+    assert np.array_equal(packed.tendon_damping, packed.to_kernel_order(one_damped.tendon_damping))
     for trial in range(3):
         q, qdot = random_consistent_state(structure, rng, speed=[0.5, 3.0, 10.0][trial])
         rest, slack = random_rest_lengths(structure, q, rng)
@@ -182,12 +195,15 @@ def test_undamped_specialization_matches_reference_and_generic_path(case, loads,
         qddot, tension, elastic = (np.empty_like(got.qddot), np.empty_like(got.tension),
                                    np.empty_like(got.tension))
         has_w = w is not None
+        p = pack(structure)
         generic = rhs(
-            q, qdot, kernel._rod_nodes, kernel._rod_param, kernel._tendon_nodes,
-            kernel._tendon_stiffness, np.zeros(structure.n_tendons), rest, has_w,
-            w if has_w else np.zeros((1, 3)), g is not None, np.zeros(3) if g is None else g,
-            np.zeros((3, structure.n_nodes, 3)), kernel._block_force, qddot, tension, elastic,
+            q, qdot, p.rod_slots, p.rod_param, p.tendon_slots, p.tendon_runs, p.tendon_stiffness,
+            np.zeros(structure.n_tendons), p.to_kernel_order(rest), has_w,
+            p.to_slots(w) if has_w else np.zeros((3, 1)), g is not None,
+            np.zeros(3) if g is None else g, np.zeros((3, 3, p.layout.n_slots)),
+            kernel._block_force, qddot, tension, elastic, np.empty(structure.n_tendons),
         )
+        tension = tension[np.argsort(p.layout.tendon_order)]  # kernel order -> tendon order
         assert np.array_equal(qddot, got.qddot) and np.array_equal(tension, got.tension)
         assert generic == (got.dissipated_power, got.external_power)
 
@@ -283,7 +299,7 @@ def python_rk4(structure, q, qdot, dt, n_steps, rest, w, g):
 @pytest.mark.parametrize(
     "case", [CASES[0], CASES[1], CASES[2], CASES[3], CASES[5]]
 )
-def test_rk4_loop_matches_python_rk4(case):
+def test_rk4_loop_matches_python_rk4(case, min_run):
     rng = np.random.default_rng(_seed(case, "rk4"))
     structure = _structure(case, rng)
     kernel = FastKernel(structure)
@@ -417,3 +433,70 @@ def test_import_tensegrity_does_not_import_numba():
     code = "import sys, tensegrity; print('numba' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
+
+
+# --------------------------------------------------------------------------- stencil layout
+LAYOUT_CASES = CASES[:3] + [
+    pytest.param(dict(n=40, m=3), id="shell(40,3)"),
+    pytest.param(dict(n=12, m=4, primal=True), id="primal(12,4)"),
+    pytest.param(None, id="general"),
+]
+
+
+@pytest.mark.parametrize("case", LAYOUT_CASES)
+def test_stencil_layout_invariants(case, min_run):
+    """Slots are distinct and in range, the kernel order is a permutation, the runs tile the
+    start of it and every run's tails and heads are at consecutive slots, as
+    ``_tendon_run`` assumes.  The shells' runs include ones whose tails and heads are in the
+    same class less than a run apart (overlapping force slices, which the compiled loop must not
+    vectorize): those structures are in ``test_evaluate_matches_numpy_reference``."""
+    rng = np.random.default_rng(_seed(case, "layout"))
+    structure = _structure(case, rng)
+    tendon_nodes = structure.tendon_nodes.reshape(-1, 2)
+    N, S = structure.n_nodes, structure.n_tendons
+    layout = stencil_layout(tendon_nodes, N)
+    slot = layout.node_slot
+    assert np.unique(slot).size == N and slot.min() >= 0 and slot.max() < layout.n_slots
+    assert layout.n_slots % layout.node_classes == 0
+    assert np.array_equal(np.sort(layout.tendon_order), np.arange(S))
+    position = 0
+    for start, length, tail, head in layout.tendon_runs:
+        assert start == position and length >= kernel_module.MIN_RUN
+        tendons = layout.tendon_order[start:start + length]
+        assert np.array_equal(slot[tendon_nodes[tendons, 0]], tail + np.arange(length))
+        assert np.array_equal(slot[tendon_nodes[tendons, 1]], head + np.arange(length))
+        position += length
+    cells = layout.n_slots // layout.node_classes
+    runs = layout.tendon_runs
+    overlapping = (runs[:, 2] // cells == runs[:, 3] // cells) & (
+        np.abs(runs[:, 3] - runs[:, 2]) < runs[:, 1])
+    if min_run == 2 and case is not None:
+        assert position >= 0.75 * S and overlapping.any()
+
+
+def test_large_shell_is_nearly_all_runs():
+    """The benchmark shell: four node classes (two rods per element) and 99.5% of the tendons in
+    runs (docs/performance.md)."""
+    structure = class1_shell(100, 100)
+    layout = stencil_layout(structure.tendon_nodes, structure.n_nodes)
+    assert layout.node_classes == 4
+    assert layout.tendon_runs[:, 1].sum() >= 0.99 * structure.n_tendons
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_long_runs_match_reference(threads):
+    """Runs longer than ``kernel.RUN_CHUNK`` are evaluated in chunks: the (100,50) shell (runs of
+    ~5,000 tendons), damped and undamped, against the reference."""
+    rng = np.random.default_rng(_seed(None, "long runs"))
+    structure = with_random_parameters(class1_shell(100, 50), rng)
+    layout = stencil_layout(structure.tendon_nodes, structure.n_nodes)
+    assert layout.tendon_runs[:, 1].max() > 4 * kernel_module.RUN_CHUNK
+    q, qdot = random_consistent_state(structure, rng, speed=2.0)
+    rest, _ = random_rest_lengths(structure, q, rng)
+    for s in (structure, _undamped(structure)):
+        ref = dynamics.evaluate(s, q, qdot, rest_length=rest)
+        got = FastKernel(s, threads=threads).evaluate(q, qdot, rest)
+        assert _rel(got.qddot, ref.qddot) < TOL
+        assert _rel(got.tension, ref.tendons.tension) < TOL
+        assert abs(got.dissipated_power - ref.dissipated_power) < TOL * (
+            abs(ref.dissipated_power) + 1.0)

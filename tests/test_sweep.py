@@ -215,11 +215,17 @@ def test_cli_sweep_reports_failures_and_writes(tmp_path, capsys):
 
 
 # ------------------------------------------------------------------------------ batched path
-def test_batch_matches_single_runs_and_isolates_a_blow_up():
+@pytest.mark.parametrize("min_run", [None, 2], ids=["default runs", "runs of 2"])
+def test_batch_matches_single_runs_and_isolates_a_blow_up(min_run, monkeypatch):
     """Copies with random masses, lengths, stiffnesses, rest lengths, tendon and rod damping,
     loads, start states and gravity, one of them unstable: each equals its own simulate run.  The
     copy with undamped tendons, run alone, takes the kernel's undamped specialization and gives
-    the same numbers as in the mixed batch (generic path, zero damping)."""
+    the same numbers as in the mixed batch (generic path, zero damping).  The (4,2) shell has no
+    run of the default length; with runs of 2 most of its tendons are in runs."""
+    if min_run is not None:
+        from tensegrity import kernel
+
+        monkeypatch.setattr(kernel, "MIN_RUN", min_run)
     rng = np.random.default_rng(3)
     base = class1_shell(4, 2)
     structures, forces, starts = [], [], []

@@ -158,23 +158,26 @@ def simulate_batch(
         models.append(model)
         recorders.append(recorder)
 
-    packed = [pack(s) for s in structures]
-    rod_nodes, tendon_nodes = packed[0][0], packed[0][2]
-    rod_param = np.stack([p[1] for p in packed])
-    tendon_stiffness = np.stack([p[3] for p in packed])
-    tendon_damping = (None if all(p[4] is None for p in packed)
-                      else np.stack([np.zeros(S) if p[4] is None else p[4] for p in packed]))
-    rest = np.stack([dynamics.rest_lengths(s) for s in structures])
+    packed = [pack(s) for s in structures]  # same topology: the same layout and tendon order
+    packed0 = packed[0]
+    rod_param = np.stack([p.rod_param for p in packed])
+    tendon_stiffness = np.stack([p.tendon_stiffness for p in packed])
+    tendon_damping = (None if all(p.tendon_damping is None for p in packed)
+                      else np.stack([np.zeros(S) if p.tendon_damping is None else p.tendon_damping
+                                     for p in packed]))
+    rest = packed0.to_kernel_order(np.stack([dynamics.rest_lengths(s) for s in structures]))
     has_w = any(f is not None for f in forces)
-    w_all = (np.stack([np.zeros((N, 3)) if f is None else np.asarray(f, dtype=float) for f in forces])
-             if has_w else np.zeros((1, N, 3)))
+    w_all = (packed0.to_slots(np.stack([np.zeros((N, 3)) if f is None else np.asarray(f, dtype=float)
+                                      for f in forces]))
+             if has_w else np.zeros((1, 3, 1)))
     g = np.zeros(3) if gravity is None else gravity
 
     status = np.full(B, BATCH_RUNNING, dtype=np.int64)
     steps = np.zeros(B, dtype=np.int64)
     work = np.zeros((B, 2))
     end_q, end_qdot = np.empty((B, n)), np.empty((B, n))
-    scratch = (np.zeros((3, N, 3)), np.empty(S), np.empty(S), np.empty((5, n)))
+    scratch = (np.zeros((3, 3, packed0.layout.n_slots)), np.empty(S), np.empty(S), np.empty(S),
+               np.empty((5, n)))
     messages = [f"reached t_end = {t1:g} s"] * B
     samples = [0] * B
     wall0 = time.perf_counter()
@@ -187,8 +190,8 @@ def simulate_batch(
         rk4_batch(
             q, qdot, dt, chunk, float(max_rod_length_error), float(max_energy_growth),
             energy0, scale0, status, steps, work, worst, end_q, end_qdot,
-            rod_nodes, rod_param, tendon_nodes, tendon_stiffness, tendon_damping, rest, has_w,
-            w_all, gravity is not None, g,
+            packed0.rod_slots, rod_param, packed0.tendon_slots, packed0.tendon_runs, tendon_stiffness,
+            tendon_damping, rest, has_w, w_all, gravity is not None, g,
             *scratch,
         )
         done += chunk

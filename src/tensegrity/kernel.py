@@ -69,170 +69,267 @@ _JIT = dict(
 
 
 # --------------------------------------------------------------------------- compiled code
-# Packed model arrays (built by :func:`pack`), few arguments being cheaper to pass from Python:
-#   rod_nodes (R, 2) int64        end nodes (a, b) of each rod
+# Packed model arrays (built by :func:`pack`), few arguments being cheaper to pass from Python.
+# The kernel keeps the nodes in a *slot* layout and the tendons in a *kernel order* of its own
+# (see :func:`pack` and docs/performance.md, "The stencil layout"):
+#   rod_slots (R, 2) uint64       slots of the end nodes (a, b) of each rod
 #   rod_param (R, 5) float64      m, L, alpha, 2/m, 6/(m L^2)
-#   tendon_nodes (S, 2) int64     (tail, head) of each tendon
-#   tendon_stiffness (S,) float64 k
-#   tendon_damping None or (S,) float64   c; None when every c is 0 (the common case): the
-#       tendon pass is then compiled without the node velocities and the length rates (a
-#       separate specialization of the same code, chosen at compile time like ``block_force``)
-#   node_work (3, N, 3) float64   scratch: node positions, velocities (written only when
-#       ``tendon_damping`` is not None), total nodal forces
-#   block_force None or (B - 1, N, 3) float64   scratch of the threaded evaluation (B blocks)
+#   tendon_slots (S, 2) uint64    slots of (tail, head), tendons in kernel order
+#   tendon_runs (G, 4) int64      runs of the kernel order: (first position, length, tail slot,
+#       head slot of the first tendon); along a run both slots step by one
+#   tendon_stiffness (S,) float64 k, kernel order
+#   tendon_damping None or (S,) float64   c, kernel order; None when every c is 0 (the common
+#       case): the tendon pass is then compiled without the node velocities and the length rates
+#       (a separate specialization of the same code, chosen at compile time like ``block_force``)
+#   rest_length, tension, elastic_tension (S,) float64   kernel order
+#   damping_power (S,) float64    kernel order: power removed by each tendon's damping [W]
+#       (written only when ``tendon_damping`` is not None; summed into the returned power)
+#   external_force (3, n_slots) float64   w by coordinate and slot (read only if has_external)
+#   node_work (3, 3, n_slots) float64   scratch: node positions, velocities (written only when
+#       ``tendon_damping`` is not None) and total nodal forces, each by coordinate and slot
+#   block_force None or (B - 1, 3, n_slots) float64   scratch of the threaded evaluation
+# Slots and node indices are unsigned: numba wraps every signed index that the compiler cannot
+# prove >= 0 (one read from an array) around the array's length, and it must stay unsigned: in
+# numba ``uint64 + int64`` is a float64.
 ROD_MASS, ROD_LENGTH, ROD_DAMPING, ROD_C1, ROD_C2 = range(5)
 
-# Inside the passes the node arrays are flat, (3N,) views of the (N, 3) buffers, and node ``i``'s
-# x, y, z sit at ``3 i``, ``3 i + 1``, ``3 i + 2`` (:func:`_offset`).  The offsets are unsigned:
-# numba wraps every signed index that the compiler cannot prove >= 0 (an index read from an
-# array) around the array's length, a compare and an add per access; with 2-D (N, 3) arrays
-# each access also multiplies by a stride held in a register, and the tendon pass ran out of
-# registers.  With flat arrays and unsigned offsets an evaluation takes 0.94x the time with
-# damped tendons and 0.78-0.87x on 2 threads, bitwise the same (docs/performance.md).  Unsigned
-# arithmetic must stay unsigned: in numba ``uint64 + int64`` is a float64, so the offsets are
-# only ever combined with the uint64 constants below.
-_U1, _U2, _U3 = np.uint64(1), np.uint64(2), np.uint64(3)
 
-
-@njit(inline="always", **_JIT)
-def _offset(node):  # pragma: no cover - compiled
-    """Index of node ``node``'s x coordinate in a flat (3N,) node array, as a uint64."""
-    return _U3 * np.uint64(node)
-
-
-@njit(inline="always", **_JIT)
+@njit(**_JIT)
 def _node_pass(
-    q, qdot, rod_nodes, rod_param, has_gravity, gravity, tendon_damping, p, v, force, first,
-    last,
+    q, qdot, rod_slots, rod_param, has_gravity, gravity, tendon_damping, p, v, force, first, last,
 ):  # pragma: no cover - compiled
-    """Rods ``first:last``: node positions ``p = P q`` (eq. 18.26) into ``p`` (3N,) and, if
-    ``tendon_damping`` is not None (the tendon pass needs them only then), the node velocities
-    into ``v`` (3N,); the nodal forces ``force`` (3N,) start at gravity (or zero)."""
+    """Rods ``first:last``: node positions ``p = P q`` (eq. 18.26) into ``p`` (3, n_slots) and,
+    if ``tendon_damping`` is not None (the tendon pass needs them only then), the node
+    velocities into ``v``; the nodal forces ``force`` start at gravity (or zero)."""
     # Every pass loops over slices, from 0 to their length: with ``range(first, last)`` the
     # compiler cannot prove an index >= 0 when ``first`` is not known at compile time (the
     # threaded blocks), and keeps numba's negative-index wrap-around on every access.
-    rod_nodes = rod_nodes[first:last]
+    rod_slots = rod_slots[first:last]
     rod_param = rod_param[first:last]
     q = q[6 * first:6 * last]
     qdot = qdot[6 * first:6 * last]
-    for r in range(rod_nodes.shape[0]):
-        a = _offset(rod_nodes[r, 0])
-        b = _offset(rod_nodes[r, 1])
+    for r in range(rod_slots.shape[0]):
+        a = rod_slots[r, 0]
+        b = rod_slots[r, 1]
         o = 6 * r
         half_m = rod_param[r, ROD_MASS] / 2
         for i in range(3):
-            j = np.uint64(i)
             q1 = q[o + i]
             q2 = q[o + 3 + i]
-            p[a + j] = 0.5 * (q1 - q2)
-            p[b + j] = 0.5 * (q1 + q2)
+            p[i, a] = 0.5 * (q1 - q2)
+            p[i, b] = 0.5 * (q1 + q2)
             if tendon_damping is not None:
                 v1 = qdot[o + i]
                 v2 = qdot[o + 3 + i]
-                v[a + j] = 0.5 * (v1 - v2)
-                v[b + j] = 0.5 * (v1 + v2)
+                v[i, a] = 0.5 * (v1 - v2)
+                v[i, b] = 0.5 * (v1 + v2)
             weight = half_m * gravity[i] if has_gravity else 0.0
-            force[a + j] = weight
-            force[b + j] = weight
+            force[i, a] = weight
+            force[i, b] = weight
 
 
 @njit(inline="always", **_JIT)
-def _tendon_pass(
-    p, v, force, tendon_nodes, tendon_stiffness, tendon_damping, rest_length, tension,
-    elastic_tension, first, last,
+def _tendon_force(tx, ty, tz, length, rest, stiffness, c, t_dot_dv):  # pragma: no cover
+    """One tendon from its vector ``t = p_head - p_tail`` and ``length = |t|``: returns
+    ``(tension, elastic_tension, fx, fy, fz, dissipated_power)``, with ``f = T t / l`` the force
+    on the tail (the head gets ``-f``).  ``c`` is None (undamped; ``t_dot_dv`` unused) or the
+    damping coefficient, and ``t_dot_dv = t . (p'_head - p'_tail)``, so that the length rate is
+    ``t_dot_dv / l``.  A slack tendon (``l <= Lbar``) gives zeros, without branches (so that runs
+    of tendons vectorize); its ``1/l`` is not formed."""
+    stretch = length - rest
+    taut = stretch > 0.0  # then length > 0: rest lengths are >= 0
+    inv = 1.0 / (length if taut else 1.0)  # one division instead of three (an ulp at most)
+    ex = tx * inv
+    ey = ty * inv
+    ez = tz * inv
+    elastic = stiffness * stretch if taut else 0.0
+    total = elastic
+    dissipated = 0.0
+    if c is not None:
+        rate = t_dot_dv * inv
+        total = elastic + c * rate if taut else 0.0
+        if total < 0.0:
+            total = 0.0
+        dissipated = (total - elastic) * rate
+    return total, elastic, total * ex, total * ey, total * ez, dissipated
+
+
+@njit(**_JIT)
+def _tendon_rates(pxa, pya, pza, pxb, pyb, pzb, vxa, vya, vza, vxb, vyb, vzb, out):  # pragma: no cover
+    """``out = t . (v_b - v_a)`` along a run of tendons (slices as in :func:`_tendon_run`), in
+    a loop of its own: with the velocities in it, :func:`_tendon_run` would touch more arrays
+    than the compiler checks for overlap at run time, and stay scalar."""
+    for e in range(out.shape[0]):
+        out[e] = ((pxb[e] - pxa[e]) * (vxb[e] - vxa[e]) + (pyb[e] - pya[e]) * (vyb[e] - vya[e])
+                  + (pzb[e] - pza[e]) * (vzb[e] - vza[e]))
+
+
+@njit(**_JIT)
+def _tendon_run(
+    pxa, pya, pza, pxb, pyb, pzb, fxa, fya, fza, fxb, fyb, fzb,
+    stiffness, damping, rest, tension, elastic_tension, damping_power,
 ):  # pragma: no cover - compiled
-    """Tendons ``first:last``: tension and elastic tension, nodal forces added to ``force``
-    (3N,), the tail pulled toward the head and the head toward the tail.  Returns the power
-    removed by tendon damping.  With ``tendon_damping`` None (all ``c = 0``) the node velocities
-    ``v`` (3N,) are not read and the tension is the elastic tension: the same numbers as with
-    zero damping, for finite velocities (0.70-0.78x the time of a whole evaluation at
-    (100,100))."""
-    tendon_nodes = tendon_nodes[first:last]
-    tendon_stiffness = tendon_stiffness[first:last]
-    rest_length = rest_length[first:last]
-    tension = tension[first:last]
-    elastic_tension = elastic_tension[first:last]
-    dissipation = 0.0
-    for s in range(tendon_nodes.shape[0]):
-        tail = _offset(tendon_nodes[s, 0])
-        head = _offset(tendon_nodes[s, 1])
-        tx = p[head] - p[tail]
-        ty = p[head + _U1] - p[tail + _U1]
-        tz = p[head + _U2] - p[tail + _U2]
+    """A run of tendons whose tails and heads sit at consecutive slots: every argument is a 1-D
+    slice along the run (positions ``p`` and forces ``f`` of the tails ``a`` and heads ``b`` by
+    coordinate; the tendons' parameters and outputs).  There is no indirection, so the loop
+    compiles to 4-wide vector code; the compiler checks at run time that the force slices do
+    not overlap (they may, when tails and heads share a node class) and otherwise runs the
+    scalar loop.  With damping, ``damping_power`` holds ``t . (v_b - v_a)`` on entry
+    (:func:`_tendon_rates`) and each tendon's dissipated power on return (a sum here would keep
+    the loop scalar: the compiler may not reorder it)."""
+    for e in range(rest.shape[0]):
+        tx = pxb[e] - pxa[e]
+        ty = pyb[e] - pya[e]
+        tz = pzb[e] - pza[e]
         length = np.sqrt(tx * tx + ty * ty + tz * tz)
-        stretch = length - rest_length[s]
-        if stretch > 0.0:  # taut (then length > 0: rest lengths are >= 0)
-            inv = 1.0 / length  # one division instead of three (differs by an ulp at most)
-            ex = tx * inv
-            ey = ty * inv
-            ez = tz * inv
-            elastic = tendon_stiffness[s] * stretch
-            total = elastic
-            if tendon_damping is not None:
-                rate = (
-                    ex * (v[head] - v[tail])
-                    + ey * (v[head + _U1] - v[tail + _U1])
-                    + ez * (v[head + _U2] - v[tail + _U2])
-                )
-                total = elastic + tendon_damping[first + s] * rate
-                if total < 0.0:
-                    total = 0.0
-                dissipation += (total - elastic) * rate
-            tension[s] = total
-            elastic_tension[s] = elastic
-            fx = total * ex
-            fy = total * ey
-            fz = total * ez
-            force[tail] += fx
-            force[tail + _U1] += fy
-            force[tail + _U2] += fz
-            force[head] -= fx
-            force[head + _U1] -= fy
-            force[head + _U2] -= fz
+        if damping is None:
+            total, elastic, fx, fy, fz, _ = _tendon_force(
+                tx, ty, tz, length, rest[e], stiffness[e], None, 0.0)
         else:
+            total, elastic, fx, fy, fz, power = _tendon_force(
+                tx, ty, tz, length, rest[e], stiffness[e], damping[e], damping_power[e])
+            damping_power[e] = power
+        tension[e] = total
+        elastic_tension[e] = elastic
+        fxa[e] += fx
+        fya[e] += fy
+        fza[e] += fz
+        fxb[e] -= fx
+        fyb[e] -= fy
+        fzb[e] -= fz
+
+
+@njit(inline="always", **_JIT)
+def _sum(values):  # pragma: no cover - compiled
+    """``sum(values)`` in four interleaved partial sums (a fixed order: deterministic), four
+    times faster than one chain of dependent additions."""
+    partial = np.zeros(4)
+    n = values.shape[0]
+    for i in range(0, n - n % 4, 4):
+        for j in range(4):
+            partial[j] += values[i + j]
+    for i in range(n - n % 4, n):
+        partial[0] += values[i]
+    return (partial[0] + partial[1]) + (partial[2] + partial[3])
+
+
+@njit(**_JIT)
+def _tendon_pass(
+    p, v, force, tendon_slots, tendon_runs, tendon_stiffness, tendon_damping, rest_length,
+    tension, elastic_tension, damping_power, first, last,
+):  # pragma: no cover - compiled
+    """Tendons at kernel positions ``first:last``: tension and elastic tension, nodal forces
+    added to ``force`` (3, n_slots), the tail pulled toward the head and the head toward the
+    tail.  The runs (:func:`_tendon_run`) first, clipped to ``first:last``, then the tendons
+    outside runs, one by one through ``tendon_slots``.  Returns the power removed by tendon
+    damping.  With ``tendon_damping`` None (all ``c = 0``) the node velocities ``v`` are not
+    read and the tension is the elastic tension: the same numbers as with zero damping, for
+    finite velocities."""
+    dissipation = 0.0
+    in_runs = 0
+    for g in range(tendon_runs.shape[0]):
+        start = tendon_runs[g, 0]
+        length = tendon_runs[g, 1]
+        in_runs = start + length
+        lo = max(first, start)
+        hi = min(last, in_runs)
+        if hi <= lo:
+            continue
+        for c0 in range(lo, hi, RUN_CHUNK):
+            c1 = min(c0 + RUN_CHUNK, hi)
+            a = tendon_runs[g, 2] + (c0 - start)
+            b = tendon_runs[g, 3] + (c0 - start)
+            n = c1 - c0
+            pa = (p[0, a:a + n], p[1, a:a + n], p[2, a:a + n])
+            pb = (p[0, b:b + n], p[1, b:b + n], p[2, b:b + n])
+            fa = (force[0, a:a + n], force[1, a:a + n], force[2, a:a + n])
+            fb = (force[0, b:b + n], force[1, b:b + n], force[2, b:b + n])
+            if tendon_damping is None:
+                _tendon_run(*pa, *pb, *fa, *fb, tendon_stiffness[c0:c1], None,
+                            rest_length[c0:c1], tension[c0:c1], elastic_tension[c0:c1], None)
+            else:
+                power = damping_power[c0:c1]
+                _tendon_rates(*pa, *pb, v[0, a:a + n], v[1, a:a + n], v[2, a:a + n],
+                              v[0, b:b + n], v[1, b:b + n], v[2, b:b + n], power)
+                _tendon_run(*pa, *pb, *fa, *fb, tendon_stiffness[c0:c1], tendon_damping[c0:c1],
+                            rest_length[c0:c1], tension[c0:c1], elastic_tension[c0:c1], power)
+                dissipation += _sum(power)
+    # The tendons outside runs (kernel positions in_runs:S), one by one.
+    lo = max(first, in_runs)
+    tendon_slots = tendon_slots[lo:last]
+    tendon_stiffness = tendon_stiffness[lo:last]
+    rest_length = rest_length[lo:last]
+    tension = tension[lo:last]
+    elastic_tension = elastic_tension[lo:last]
+    for s in range(tendon_slots.shape[0]):
+        tail = tendon_slots[s, 0]
+        head = tendon_slots[s, 1]
+        tx = p[0, head] - p[0, tail]
+        ty = p[1, head] - p[1, tail]
+        tz = p[2, head] - p[2, tail]
+        length = np.sqrt(tx * tx + ty * ty + tz * tz)
+        if not length > rest_length[s]:  # slack: skip the work (one by one, a branch is cheap)
             tension[s] = 0.0
             elastic_tension[s] = 0.0
+            continue
+        if tendon_damping is None:
+            total, elastic, fx, fy, fz, _ = _tendon_force(
+                tx, ty, tz, length, rest_length[s], tendon_stiffness[s], None, 0.0)
+        else:
+            t_dot_dv = (tx * (v[0, head] - v[0, tail]) + ty * (v[1, head] - v[1, tail])
+                        + tz * (v[2, head] - v[2, tail]))
+            total, elastic, fx, fy, fz, d = _tendon_force(
+                tx, ty, tz, length, rest_length[s], tendon_stiffness[s], tendon_damping[lo + s],
+                t_dot_dv)
+            dissipation += d
+        tension[s] = total
+        elastic_tension[s] = elastic
+        force[0, tail] += fx
+        force[1, tail] += fy
+        force[2, tail] += fz
+        force[0, head] -= fx
+        force[1, head] -= fy
+        force[2, head] -= fz
     return dissipation
 
 
-@njit(inline="always", **_JIT)
+@njit(**_JIT)
 def _rod_pass(
-    q, qdot, rod_nodes, rod_param, has_external, external_force, force, qddot, first, last,
+    q, qdot, rod_slots, rod_param, has_external, external_force, force, qddot, first, last,
 ):  # pragma: no cover - compiled
     """Rods ``first:last``: eqs. 18.17, 18.20 and mass-proportional damping into ``qddot``, from
-    the nodal forces ``force`` (3N,), to which ``w`` (``external_force``, 3N,) is added; its
-    power uses ``p' = P q'``.  Returns ``(rod_dissipation, external_power)``."""
-    rod_nodes = rod_nodes[first:last]
+    the nodal forces ``force`` (3, n_slots), to which ``w`` (``external_force``, same layout) is
+    added; its power uses ``p' = P q'``.  Returns ``(rod_dissipation, external_power)``."""
+    rod_slots = rod_slots[first:last]
     rod_param = rod_param[first:last]
     q = q[6 * first:6 * last]
     qdot = qdot[6 * first:6 * last]
     qddot = qddot[6 * first:6 * last]
     external_power = 0.0
     rod_dissipation = 0.0
-    for r in range(rod_nodes.shape[0]):
-        a = _offset(rod_nodes[r, 0])
-        b = _offset(rod_nodes[r, 1])
+    for r in range(rod_slots.shape[0]):
+        a = rod_slots[r, 0]
+        b = rod_slots[r, 1]
         o = 6 * r
         if has_external:
             for i in range(3):  # node velocities p' = P q' (eq. 18.26)
-                j = np.uint64(i)
                 v1 = qdot[o + i]
                 v2 = qdot[o + 3 + i]
-                external_power += (external_force[a + j] * (0.5 * (v1 - v2))
-                                   + external_force[b + j] * (0.5 * (v1 + v2)))
-                force[a + j] += external_force[a + j]
-                force[b + j] += external_force[b + j]
+                external_power += (external_force[i, a] * (0.5 * (v1 - v2))
+                                   + external_force[i, b] * (0.5 * (v1 + v2)))
+                force[i, a] += external_force[i, a]
+                force[i, b] += external_force[i, b]
         L = rod_param[r, ROD_LENGTH]
         L2 = L * L
         alpha = rod_param[r, ROD_DAMPING]
         c1 = rod_param[r, ROD_C1]
         c2 = rod_param[r, ROD_C2]
-        sx = force[a] + force[b]
-        sy = force[a + _U1] + force[b + _U1]
-        sz = force[a + _U2] + force[b + _U2]
-        dx = force[a] - force[b]
-        dy = force[a + _U1] - force[b + _U1]
-        dz = force[a + _U2] - force[b + _U2]
+        sx = force[0, a] + force[0, b]
+        sy = force[1, a] + force[1, b]
+        sz = force[2, a] + force[2, b]
+        dx = force[0, a] - force[0, b]
+        dy = force[1, a] - force[1, b]
+        dz = force[2, a] - force[2, b]
         x = q[o + 3]
         y = q[o + 4]
         z = q[o + 5]
@@ -259,13 +356,6 @@ def _rod_pass(
     return rod_dissipation, external_power
 
 
-@njit(inline="always", **_JIT)
-def _flat(node_work):  # pragma: no cover - compiled
-    """``(p, v, force)``: flat (3N,) views of the (3, N, 3) ``node_work``."""
-    flat = node_work.reshape((3, node_work.shape[1] * 3))
-    return flat[0], flat[1], flat[2]
-
-
 @njit(**_JIT)
 def _block(k, n_blocks, n):  # pragma: no cover - compiled
     """Bounds ``(first, last)`` of block ``k`` of ``n_blocks`` nearly equal blocks of ``range(n)``."""
@@ -274,9 +364,9 @@ def _block(k, n_blocks, n):  # pragma: no cover - compiled
 
 @njit(parallel=True, **_JIT)
 def _rhs_threaded(
-    q, qdot, rod_nodes, rod_param, tendon_nodes, tendon_stiffness, tendon_damping, rest_length,
-    has_external, external_force, has_gravity, gravity,
-    node_work, block_force, qddot, tension, elastic_tension,
+    q, qdot, rod_slots, rod_param, tendon_slots, tendon_runs, tendon_stiffness, tendon_damping,
+    rest_length, has_external, external_force, has_gravity, gravity,
+    node_work, block_force, qddot, tension, elastic_tension, damping_power,
 ):  # pragma: no cover - compiled
     """:func:`rhs` on ``B = block_force.shape[0] + 1`` threads: each pass is cut into B blocks run
     in parallel (``prange``).  Tendon block 0 adds its forces to ``node_work[2]`` (the weights),
@@ -284,37 +374,35 @@ def _rhs_threaded(
     the rod pass sums the blocks in order, so the result does not depend on the scheduling; it
     differs from the one-block sum by round-off."""
     n_blocks = block_force.shape[0] + 1
-    n_rods = rod_nodes.shape[0]
-    n_tendons = tendon_nodes.shape[0]
-    p, v, force0 = _flat(node_work)
-    extra_force = block_force.reshape((n_blocks - 1, block_force.shape[1] * 3))
-    w = external_force.reshape(external_force.size)
+    n_rods = rod_slots.shape[0]
+    n_tendons = tendon_slots.shape[0]
+    p, v, force0 = node_work[0], node_work[1], node_work[2]
     for k in prange(n_blocks):
         first, last = _block(k, n_blocks, n_rods)
-        _node_pass(q, qdot, rod_nodes, rod_param, has_gravity, gravity, tendon_damping,
-                   p, v, force0, first, last)
+        _node_pass(q, qdot, rod_slots, rod_param, has_gravity, gravity, tendon_damping, p, v,
+                   force0, first, last)
     tendon_power = np.empty(n_blocks)
     for k in prange(n_blocks):
-        force = force0 if k == 0 else extra_force[k - 1]
+        force = force0 if k == 0 else block_force[k - 1]
         if k > 0:
             force[:] = 0.0
         first, last = _block(k, n_blocks, n_tendons)
-        tendon_power[k] = _tendon_pass(p, v, force, tendon_nodes, tendon_stiffness,
+        tendon_power[k] = _tendon_pass(p, v, force, tendon_slots, tendon_runs, tendon_stiffness,
                                        tendon_damping, rest_length, tension, elastic_tension,
-                                       first, last)
+                                       damping_power, first, last)
     rod_power = np.empty((n_blocks, 2))
     for k in prange(n_blocks):
         first, last = _block(k, n_blocks, n_rods)
         for r in range(first, last):  # the blocks' forces summed into force0, in order
-            a = _offset(rod_nodes[r, 0])
-            b = _offset(rod_nodes[r, 1])
+            a = rod_slots[r, 0]
+            b = rod_slots[r, 1]
             for j in range(n_blocks - 1):
                 for i in range(3):
-                    c = np.uint64(i)
-                    force0[a + c] += extra_force[j, a + c]
-                    force0[b + c] += extra_force[j, b + c]
+                    force0[i, a] += block_force[j, i, a]
+                    force0[i, b] += block_force[j, i, b]
         rod_power[k, 0], rod_power[k, 1] = _rod_pass(
-            q, qdot, rod_nodes, rod_param, has_external, w, force0, qddot, first, last)
+            q, qdot, rod_slots, rod_param, has_external, external_force, force0, qddot, first,
+            last)
     dissipated = 0.0
     external = 0.0
     for k in range(n_blocks):  # fixed order: deterministic
@@ -327,34 +415,34 @@ def _rhs_threaded(
 
 @njit(**_JIT)
 def rhs(
-    q, qdot, rod_nodes, rod_param, tendon_nodes, tendon_stiffness, tendon_damping, rest_length,
-    has_external, external_force, has_gravity, gravity,
-    node_work, block_force, qddot, tension, elastic_tension,
+    q, qdot, rod_slots, rod_param, tendon_slots, tendon_runs, tendon_stiffness, tendon_damping,
+    rest_length, has_external, external_force, has_gravity, gravity,
+    node_work, block_force, qddot, tension, elastic_tension, damping_power,
 ):  # pragma: no cover - compiled
-    """Theorem 18.1 for all rods: fills ``qddot`` (6R,), ``tension`` and ``elastic_tension`` (S,).
+    """Theorem 18.1 for all rods: fills ``qddot`` (6R,), ``tension`` and ``elastic_tension``
+    (S,, kernel order) and, with tendon damping, ``damping_power`` (S,, kernel order).
 
-    ``tendon_stiffness`` (S,); ``tendon_damping`` (S,) or None (all zero: the undamped
-    specialization, see :func:`_tendon_pass`).  ``external_force`` (N, 3) is read only if
-    ``has_external``, ``gravity`` (3,) only if ``has_gravity``.  ``node_work`` (3, N, 3) is
-    scratch.  ``block_force`` is None (one thread) or (B - 1, N, 3) scratch: the evaluation runs
-    on B threads (:func:`_rhs_threaded`; the choice is made at compile time).  Returns
-    ``(dissipated_power, external_power)``.
+    The model arrays are :func:`pack`'s (see the comment above :func:`_node_pass` for their
+    shapes and layouts); ``tendon_damping`` is None when every ``c`` is 0 (the undamped
+    specialization).  ``external_force`` is read only if ``has_external``, ``gravity`` (3,)
+    only if ``has_gravity``.  ``node_work`` is scratch.  ``block_force`` is None (one thread) or
+    (B - 1, 3, n_slots) scratch: the evaluation runs on B threads (:func:`_rhs_threaded`; the
+    choice is made at compile time).  Returns ``(dissipated_power, external_power)``.
     """
     if block_force is not None:
-        return _rhs_threaded(q, qdot, rod_nodes, rod_param, tendon_nodes, tendon_stiffness,
-                             tendon_damping, rest_length, has_external, external_force,
-                             has_gravity, gravity, node_work, block_force, qddot, tension,
-                             elastic_tension)
-    n_rods = rod_nodes.shape[0]
-    p, v, force = _flat(node_work)
-    _node_pass(q, qdot, rod_nodes, rod_param, has_gravity, gravity, tendon_damping, p, v, force,
+        return _rhs_threaded(q, qdot, rod_slots, rod_param, tendon_slots, tendon_runs,
+                             tendon_stiffness, tendon_damping, rest_length, has_external,
+                             external_force, has_gravity, gravity, node_work, block_force, qddot,
+                             tension, elastic_tension, damping_power)
+    n_rods = rod_slots.shape[0]
+    p, v, force = node_work[0], node_work[1], node_work[2]
+    _node_pass(q, qdot, rod_slots, rod_param, has_gravity, gravity, tendon_damping, p, v, force,
                0, n_rods)
-    tendon_dissipation = _tendon_pass(p, v, force, tendon_nodes, tendon_stiffness,
-                                      tendon_damping, rest_length, tension, elastic_tension, 0,
-                                      tendon_nodes.shape[0])
-    rod_dissipation, external_power = _rod_pass(
-        q, qdot, rod_nodes, rod_param, has_external, external_force.reshape(external_force.size),
-        force, qddot, 0, n_rods)
+    tendon_dissipation = _tendon_pass(p, v, force, tendon_slots, tendon_runs, tendon_stiffness,
+                                      tendon_damping, rest_length, tension, elastic_tension,
+                                      damping_power, 0, tendon_slots.shape[0])
+    rod_dissipation, external_power = _rod_pass(q, qdot, rod_slots, rod_param, has_external,
+                                                external_force, force, qddot, 0, n_rods)
     return tendon_dissipation + rod_dissipation, external_power
 
 
@@ -386,7 +474,9 @@ def project(q, qdot, rod_param):  # pragma: no cover - compiled
 
 
 @njit(**_JIT)
-def rk4_step(q, qdot, h, model, tension, elastic_tension, stage_work):  # pragma: no cover - compiled
+def rk4_step(
+    q, qdot, h, model, tension, elastic_tension, damping_power, stage_work,
+):  # pragma: no cover - compiled
     """One classical RK4 step of ``h`` on ``y = [q, q']`` in place (no projection); ``model`` is
     the tuple of :func:`rhs`'s model arguments.  The stage arithmetic is that of
     :class:`tensegrity.integrators.RK4`: ``y + h/6 (k1 + 2 k2 + 2 k3 + k4)``.  ``stage_work`` is
@@ -401,7 +491,7 @@ def rk4_step(q, qdot, h, model, tension, elastic_tension, stage_work):  # pragma
     hh = h / 2
     h6 = h / 6
     # k1 = [v, a(q, v)]
-    d_sum, w_sum = rhs(q, qdot, *model, accel, tension, elastic_tension)
+    d_sum, w_sum = rhs(q, qdot, *model, accel, tension, elastic_tension, damping_power)
     for i in range(n):
         acc_q[i] = qdot[i]
         acc_v[i] = accel[i]
@@ -409,7 +499,7 @@ def rk4_step(q, qdot, h, model, tension, elastic_tension, stage_work):  # pragma
         v_stage[i] = qdot[i] + hh * accel[i]
     # k2 at y + h/2 k1, then k3 at y + h/2 k2 (and the stage for k4, at y + h k3)
     for step in (hh, h):
-        d, w = rhs(q_stage, v_stage, *model, accel, tension, elastic_tension)
+        d, w = rhs(q_stage, v_stage, *model, accel, tension, elastic_tension, damping_power)
         d_sum = d_sum + 2.0 * d
         w_sum = w_sum + 2.0 * w
         for i in range(n):
@@ -418,7 +508,7 @@ def rk4_step(q, qdot, h, model, tension, elastic_tension, stage_work):  # pragma
             q_stage[i] = q[i] + step * v_stage[i]
             v_stage[i] = qdot[i] + step * accel[i]
     # k4 at y + h k3
-    d, w = rhs(q_stage, v_stage, *model, accel, tension, elastic_tension)
+    d, w = rhs(q_stage, v_stage, *model, accel, tension, elastic_tension, damping_power)
     for i in range(n):
         q[i] = q[i] + h6 * (acc_q[i] + v_stage[i])
         qdot[i] = qdot[i] + h6 * (acc_v[i] + accel[i])
@@ -428,9 +518,9 @@ def rk4_step(q, qdot, h, model, tension, elastic_tension, stage_work):  # pragma
 @njit(**_JIT)
 def rk4_steps(
     q, qdot, dt, n_steps, max_rod_length_error,
-    rod_nodes, rod_param, tendon_nodes, tendon_stiffness, tendon_damping, rest_length,
-    has_external, external_force, has_gravity, gravity,
-    node_work, block_force, tension, elastic_tension, stage_work,
+    rod_slots, rod_param, tendon_slots, tendon_runs, tendon_stiffness, tendon_damping,
+    rest_length, has_external, external_force, has_gravity, gravity,
+    node_work, block_force, tension, elastic_tension, damping_power, stage_work,
 ):  # pragma: no cover - compiled
     """Advance ``(q, qdot)`` in place by ``n_steps`` classical RK4 steps of ``dt``
     (:func:`rk4_step`), projecting onto the rod constraints after every step; inputs are constant
@@ -447,10 +537,12 @@ def rk4_steps(
     external = 0.0
     worst = 0.0
     taken = 0
-    model = (rod_nodes, rod_param, tendon_nodes, tendon_stiffness, tendon_damping, rest_length,
-             has_external, external_force, has_gravity, gravity, node_work, block_force)
+    model = (rod_slots, rod_param, tendon_slots, tendon_runs, tendon_stiffness, tendon_damping,
+             rest_length, has_external, external_force, has_gravity, gravity, node_work,
+             block_force)
     while taken < n_steps:
-        d, w = rk4_step(q, qdot, dt, model, tension, elastic_tension, stage_work)
+        d, w = rk4_step(q, qdot, dt, model, tension, elastic_tension, damping_power,
+                        stage_work)
         dissipated = dissipated + d
         external = external + w
         error = project(q, qdot, rod_param)
@@ -464,36 +556,37 @@ def rk4_steps(
 
 @njit(**_JIT)
 def energies(
-    q, qdot, rod_nodes, rod_param, tendon_nodes, tendon_stiffness, rest_length, has_gravity,
+    q, qdot, rod_slots, rod_param, tendon_slots, tendon_stiffness, rest_length, has_gravity,
     gravity, node_work,
 ):  # pragma: no cover - compiled
     """``(kinetic, elastic, gravity)`` energies [J], as ``dynamics.kinetic_energy``,
-    ``elastic_energy`` and ``gravity_energy``; ``node_work[0]`` receives the node positions."""
+    ``elastic_energy`` and ``gravity_energy``; ``node_work[0]`` receives the node positions
+    (by coordinate and slot; tendons in kernel order, see :func:`pack`)."""
     p = node_work[0]
     kinetic = 0.0
     potential = 0.0
-    for r in range(rod_nodes.shape[0]):
-        a = rod_nodes[r, 0]
-        b = rod_nodes[r, 1]
+    for r in range(rod_slots.shape[0]):
+        a = rod_slots[r, 0]
+        b = rod_slots[r, 1]
         o = 6 * r
         m = rod_param[r, ROD_MASS]
         v1 = 0.0
         v2 = 0.0
         for i in range(3):
-            p[a, i] = 0.5 * (q[o + i] - q[o + 3 + i])
-            p[b, i] = 0.5 * (q[o + i] + q[o + 3 + i])
+            p[i, a] = 0.5 * (q[o + i] - q[o + 3 + i])
+            p[i, b] = 0.5 * (q[o + i] + q[o + 3 + i])
             v1 += qdot[o + i] * qdot[o + i]
             v2 += qdot[o + 3 + i] * qdot[o + 3 + i]
             if has_gravity:
                 potential -= m * gravity[i] * 0.5 * q[o + i]
         kinetic += m * (v1 / 8 + v2 / 24)
     elastic = 0.0
-    for s in range(tendon_nodes.shape[0]):
-        tail = tendon_nodes[s, 0]
-        head = tendon_nodes[s, 1]
-        tx = p[head, 0] - p[tail, 0]
-        ty = p[head, 1] - p[tail, 1]
-        tz = p[head, 2] - p[tail, 2]
+    for s in range(tendon_slots.shape[0]):
+        tail = tendon_slots[s, 0]
+        head = tendon_slots[s, 1]
+        tx = p[0, head] - p[0, tail]
+        ty = p[1, head] - p[1, tail]
+        tz = p[2, head] - p[2, tail]
         stretch = np.sqrt(tx * tx + ty * ty + tz * tz) - rest_length[s]
         if stretch > 0.0:
             elastic += tendon_stiffness[s] * stretch * stretch
@@ -516,17 +609,17 @@ BATCH_RUNNING, BATCH_FAILED = 0, 1
 def rk4_batch(
     q, qdot, dt, n_steps, max_rod_length_error, max_energy_growth, energy0, scale0,
     status, steps, work, worst, end_q, end_qdot,
-    rod_nodes, rod_param, tendon_nodes, tendon_stiffness, tendon_damping, rest_length,
-    has_external, external_force, has_gravity, gravity,
-    node_work, tension, elastic_tension, stage_work,
+    rod_slots, rod_param, tendon_slots, tendon_runs, tendon_stiffness, tendon_damping,
+    rest_length, has_external, external_force, has_gravity, gravity,
+    node_work, tension, elastic_tension, damping_power, stage_work,
 ):  # pragma: no cover - compiled
     """``n_steps`` RK4 steps of ``dt`` for each of ``B`` copies of one structure (same rods and
     tendons, per-copy parameters), with the blow-up checks of ``simulate``; in place.
 
     Per copy ``b`` (rows of the (B, ...) arrays): ``q``, ``qdot`` (B, 6R); ``rod_param``
     (B, R, 5); ``tendon_stiffness`` (B, S); ``tendon_damping`` (B, S), or None if
-    every copy's is zero; ``rest_length`` (B, S); ``external_force`` (B, N, 3)
-    (read if ``has_external``); ``energy0``, ``scale0`` (B,) the energy balance at the start and
+    every copy's is zero; ``rest_length`` (B, S) (tendons in kernel order, see :func:`pack`);
+    ``external_force`` (B, 3, n_slots) (read if ``has_external``); ``energy0``, ``scale0`` (B,) the energy balance at the start and
     its scale [J] (``simulate``'s ``_Model.energy_balance``; ``scale0`` is raised in place to the
     largest scale seen, the measure the energy drift is judged against); ``status``, ``steps`` (B,) int64;
     ``work`` (B, 2) dissipated energy and external work so far [J]; ``worst`` (B,) largest
@@ -546,15 +639,16 @@ def rk4_batch(
         qb = q[b]
         vb = qdot[b]
         w_b = external_force[b] if has_external else external_force[0]
-        model = (rod_nodes, rod_param[b], tendon_nodes, tendon_stiffness[b],
+        model = (rod_slots, rod_param[b], tendon_slots, tendon_runs, tendon_stiffness[b],
                  _row(tendon_damping, b), rest_length[b],
                  has_external, w_b, has_gravity, gravity, node_work, None)
         for j in range(n_steps):
-            d, w = rk4_step(qb, vb, dt, model, tension, elastic_tension, stage_work)
+            d, w = rk4_step(qb, vb, dt, model, tension, elastic_tension, damping_power,
+                            stage_work)
             work[b, 0] = work[b, 0] + d
             work[b, 1] = work[b, 1] + w
             kinetic, elastic, potential = energies(
-                qb, vb, rod_nodes, rod_param[b], tendon_nodes, tendon_stiffness[b], rest_length[b],
+                qb, vb, rod_slots, rod_param[b], tendon_slots, tendon_stiffness[b], rest_length[b],
                 has_gravity, gravity, node_work)
             total = kinetic + elastic + potential + work[b, 0] - work[b, 1]
             scale = kinetic + elastic + abs(potential) + abs(work[b, 0]) + abs(work[b, 1])
@@ -575,13 +669,120 @@ def rk4_batch(
                 break
 
 
-def pack(structure: Structure) -> tuple[
-    np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray | None
-]:
-    """``(rod_nodes, rod_param, tendon_nodes, tendon_stiffness, tendon_damping)``: the structure
-    as the contiguous, writable arrays the compiled functions take (``2/m`` and ``6/(m L^2)``
-    computed as ``dynamics.evaluate`` computes them); ``tendon_damping`` is None when every
-    tendon's damping is zero (the compiled code then skips the length rates)."""
+@njit(**_JIT)
+def _reorder(values, position, out, to_kernel_order):  # pragma: no cover - compiled
+    """Per-tendon values between the structure's order and kernel order, into ``out``:
+    ``out[position[s]] = values[s]`` (``to_kernel_order``) or ``out[s] = values[position[s]]``
+    (back), ``position[s]`` being tendon ``s``'s kernel position.  Both walk ``position`` in
+    order, so the kernel-order side is touched along the runs, a few sequential streams (3x
+    faster than walking the kernel order: measured 0.05 against 0.15 ms at (100,100))."""
+    if to_kernel_order:
+        for s in range(position.shape[0]):
+            out[position[s]] = values[s]
+    else:
+        for s in range(position.shape[0]):
+            out[s] = values[position[s]]
+
+
+#: Tendons of a run evaluated per call (:func:`_tendon_pass`): small enough that a damped chunk's
+#: rates, forces and powers stay in the L1/L2 cache between their loops.
+RUN_CHUNK = 1024
+#: Shortest run of tendons (:func:`_tendon_run`) worth a call of its own; shorter ones are
+#: evaluated one by one with the tendons outside runs.
+MIN_RUN = 32
+#: Node classes tried by :func:`stencil_layout` (nodes per cell; 4 for the class 1 shell).
+MAX_NODE_CLASSES = 8
+
+
+class StencilLayout(NamedTuple):
+    """How the kernel stores nodes and orders tendons (:func:`stencil_layout`)."""
+
+    node_slot: np.ndarray  #: (N,) int64: slot of node i, ``(i % K) n_cells + i // K``
+    node_classes: int  #: K
+    n_slots: int  #: ``K n_cells``, the length of a node array
+    tendon_order: np.ndarray  #: (S,) int64: the tendon at each kernel position
+    tendon_runs: np.ndarray  #: (G, 4) int64: first position, length, tail and head slot
+
+
+def stencil_layout(tendon_nodes: np.ndarray, n_nodes: int) -> StencilLayout:
+    """The node slots and the tendon order that let most tendons be evaluated in runs.
+
+    Nodes are split into ``K`` classes by ``i % K`` and numbered within a class by their cell
+    ``i // K``; a node array holds the classes one after the other.  Tendons that join class
+    ``c_a`` to class ``c_b`` at a fixed cell offset, for consecutive cells, then have tails and
+    heads at consecutive slots: a *run*, evaluated without indirection (:func:`_tendon_run`).
+    For each ``K`` from 1 to :data:`MAX_NODE_CLASSES` the tendons are sorted by
+    ``(c_a, c_b, offset, cell)`` and cut into runs of at least :data:`MIN_RUN`; the ``K`` that
+    puts the most tendons into runs wins (the smallest on a tie).  Kernel order: the runs by their
+    first tail slot, then the other tendons in their own order.  Any network gets a valid layout;
+    one without such regularity gets no runs (and its own tendon order).  For the class 1 shell,
+    ``K = 4`` (two rods per element), and 99.5% of the (100,100) shell's tendons are in runs.
+    """
+    tendon_nodes = np.asarray(tendon_nodes, dtype=np.int64).reshape(-1, 2)
+    S = tendon_nodes.shape[0]
+    best = (0, 1, np.zeros((0, 3), dtype=np.int64), np.arange(S))
+    for K in range(1, MAX_NODE_CLASSES + 1):
+        node_class, cell = tendon_nodes % K, tendon_nodes // K
+        key = np.stack([node_class[:, 0], node_class[:, 1], cell[:, 1] - cell[:, 0]])
+        order = np.lexsort((cell[:, 0], *key[::-1]))
+        same_key = np.all(key[:, order[1:]] == key[:, order[:-1]], axis=0)
+        next_cell = np.diff(cell[order, 0]) == 1
+        cuts = np.flatnonzero(~(same_key & next_cell)) + 1
+        starts = np.r_[0, cuts] if S else np.zeros(0, dtype=np.int64)
+        lengths = np.diff(np.r_[starts, S])
+        keep = lengths >= MIN_RUN
+        if lengths[keep].sum() > best[0]:
+            best = (int(lengths[keep].sum()), K,
+                    np.stack([starts[keep], lengths[keep]], axis=1), order)
+    _, K, runs, order = best
+    n_cells = -(-n_nodes // K)
+    nodes = np.arange(n_nodes)
+    node_slot = (nodes % K) * n_cells + nodes // K
+    run_tendons = [order[start:start + length] for start, length in runs]
+    first_tail = np.array([node_slot[tendon_nodes[t[0], 0]] for t in run_tendons], dtype=np.int64)
+    run_tendons = [run_tendons[g] for g in np.argsort(first_tail, kind="stable")]
+    in_runs = np.zeros(S, dtype=bool)
+    for tendons in run_tendons:
+        in_runs[tendons] = True
+    tendon_order = np.concatenate(run_tendons + [np.flatnonzero(~in_runs)]).astype(np.int64)
+    tendon_runs = np.zeros((len(run_tendons), 4), dtype=np.int64)
+    position = 0
+    for g, tendons in enumerate(run_tendons):
+        tail, head = node_slot[tendon_nodes[tendons[0]]]
+        tendon_runs[g] = position, len(tendons), tail, head
+        position += len(tendons)
+    return StencilLayout(node_slot.astype(np.int64), K, K * n_cells, tendon_order, tendon_runs)
+
+
+class PackedStructure(NamedTuple):
+    """A structure as the contiguous, writable arrays the compiled functions take (:func:`pack`);
+    tendon arrays in kernel order, node arrays by slot (see :class:`StencilLayout`)."""
+
+    rod_slots: np.ndarray  #: (R, 2) uint64
+    rod_param: np.ndarray  #: (R, 5) float64: m, L, alpha, 2/m, 6/(m L^2)
+    tendon_slots: np.ndarray  #: (S, 2) uint64, kernel order
+    tendon_runs: np.ndarray  #: (G, 4) int64
+    tendon_stiffness: np.ndarray  #: (S,) float64, kernel order
+    tendon_damping: np.ndarray | None  #: (S,) float64, kernel order; None if every c is 0
+    layout: StencilLayout
+
+    def to_kernel_order(self, values: np.ndarray) -> np.ndarray:
+        """Per-tendon ``values`` (..., S) in kernel order (a new array)."""
+        return np.ascontiguousarray(np.take(values, self.layout.tendon_order, axis=-1))
+
+    def to_slots(self, node_values: np.ndarray) -> np.ndarray:
+        """Per-node vectors (..., N, 3) as (..., 3, n_slots), by coordinate and slot (zero in
+        slots that hold no node)."""
+        node_values = np.asarray(node_values, dtype=np.float64)
+        out = np.zeros(node_values.shape[:-2] + (3, self.layout.n_slots))
+        out[..., self.layout.node_slot] = np.swapaxes(node_values, -1, -2)
+        return out
+
+
+def pack(structure: Structure) -> PackedStructure:
+    """The structure as the compiled functions take it (``2/m`` and ``6/(m L^2)`` computed as
+    ``dynamics.evaluate`` computes them); ``tendon_damping`` is None when every tendon's damping
+    is zero (the compiled code then skips the length rates)."""
     structure.require_free_class1("the compiled kernel")
     m, L = structure.rod_mass, structure.rod_length
     rod_param = np.empty((structure.n_rods, 5))
@@ -590,13 +791,19 @@ def pack(structure: Structure) -> tuple[
     rod_param[:, ROD_DAMPING] = structure.rod_damping
     rod_param[:, ROD_C1] = 2.0 / m
     rod_param[:, ROD_C2] = 6.0 / (m * L**2)
+    tendon_nodes = structure.tendon_nodes.reshape(-1, 2)
+    layout = stencil_layout(tendon_nodes, structure.n_nodes)
+    order = layout.tendon_order
     damping = structure.tendon_damping
-    return (
-        np.array(structure.rod_nodes, dtype=np.int64, order="C"),
-        rod_param,
-        np.array(structure.tendon_nodes.reshape(-1, 2), dtype=np.int64, order="C"),
-        np.array(structure.tendon_stiffness, dtype=np.float64, order="C"),
-        np.array(damping, dtype=np.float64, order="C") if np.any(damping != 0) else None,
+    return PackedStructure(
+        rod_slots=np.ascontiguousarray(layout.node_slot[structure.rod_nodes], dtype=np.uint64),
+        rod_param=rod_param,
+        tendon_slots=np.ascontiguousarray(layout.node_slot[tendon_nodes[order]], dtype=np.uint64),
+        tendon_runs=layout.tendon_runs,
+        tendon_stiffness=np.ascontiguousarray(structure.tendon_stiffness[order], dtype=np.float64),
+        tendon_damping=(np.ascontiguousarray(damping[order], dtype=np.float64)
+                        if np.any(damping != 0) else None),
+        layout=layout,
     )
 
 
@@ -685,27 +892,42 @@ class FastKernel:
             structure.n_rods, structure.n_tendons, structure.n_nodes,
         )
         self.n_coordinates = 6 * self.n_rods
-        (self._rod_nodes, self._rod_param, self._tendon_nodes, self._tendon_stiffness,
-         self._tendon_damping) = pack(structure)
-        self._node_work = np.zeros((3, self.n_nodes, 3))
+        packed = pack(structure)
+        self._packed = packed
+        self._rod_param, self._tendon_damping = packed.rod_param, packed.tendon_damping
+        # Tendon values cross the boundary in the structure's order; inside they are in kernel
+        # order: position[s] is tendon s's kernel position.
+        self._position = np.argsort(packed.layout.tendon_order).astype(np.uint64)
+        n_slots = packed.layout.n_slots
+        self._node_work = np.zeros((3, 3, n_slots))
         self._block_force = (
-            None if self.threads == 1 else np.zeros((self.threads - 1, self.n_nodes, 3))
+            None if self.threads == 1 else np.zeros((self.threads - 1, 3, n_slots))
         )
-        self._elastic = np.zeros(self.n_tendons)
-        self._no_external = np.zeros((1, 3))
+        self._tension = np.zeros(self.n_tendons)  # kernel order
+        self._elastic = np.zeros(self.n_tendons)  # kernel order
+        self._damping_power = np.zeros(self.n_tendons)  # kernel order
+        self._no_external = np.zeros((3, 1))
         self._no_gravity = np.zeros(3)
         self._last_rest_source = None
         self._last_rest = None
 
+    def _model(self, rest: np.ndarray) -> tuple:
+        """:func:`rhs`'s model arguments up to ``rest_length`` (kernel order)."""
+        p = self._packed
+        return (p.rod_slots, p.rod_param, p.tendon_slots, p.tendon_runs, p.tendon_stiffness,
+                p.tendon_damping, rest)
+
     # ------------------------------------------------------------------ inputs
     def _rest(self, rest_length) -> np.ndarray:
+        """``rest_length`` (S,), checked, in kernel order."""
         # The common case passes the same read-only array (structure.tendon_rest_length) again and
-        # again: keep one writable copy of it instead of copying on every call.
+        # again: keep its reordered copy instead of reordering on every call.
         if rest_length is self._last_rest_source and not rest_length.flags.writeable:
             return self._last_rest
-        rest = _float_input(rest_length, (self.n_tendons,), "rest_length")
-        if (rest is not rest_length and type(rest_length) is np.ndarray
-                and not rest_length.flags.writeable):
+        rest = np.empty(self.n_tendons)
+        _reorder(_float_input(rest_length, (self.n_tendons,), "rest_length"), self._position, rest,
+                 True)
+        if type(rest_length) is np.ndarray and not rest_length.flags.writeable:
             self._last_rest_source, self._last_rest = rest_length, rest
         return rest
 
@@ -713,7 +935,8 @@ class FastKernel:
         if external_force is None:
             has_w, w = False, self._no_external
         else:
-            has_w, w = True, _float_input(external_force, (self.n_nodes, 3), "external_force")
+            has_w, w = True, self._packed.to_slots(
+                _float_input(external_force, (self.n_nodes, 3), "external_force"))
         if gravity is None:
             has_g, g = False, self._no_gravity
         else:
@@ -754,16 +977,15 @@ class FastKernel:
             qddot, tension = out
             _check_buffer(qddot, (n,), "out[0]")
             _check_buffer(tension, (self.n_tendons,), "out[1]")
-        if elastic_tension_out is None:
-            elastic = self._elastic
-        else:
-            elastic = elastic_tension_out
-            _check_buffer(elastic, (self.n_tendons,), "elastic_tension_out")
+        if elastic_tension_out is not None:
+            _check_buffer(elastic_tension_out, (self.n_tendons,), "elastic_tension_out")
         dissipated, external = rhs(
-            q, qdot, self._rod_nodes, self._rod_param, self._tendon_nodes, self._tendon_stiffness,
-            self._tendon_damping, rest, has_w, w, has_g, g, self._node_work, self._block_force,
-            qddot, tension, elastic,
+            q, qdot, *self._model(rest), has_w, w, has_g, g, self._node_work, self._block_force,
+            qddot, self._tension, self._elastic, self._damping_power,
         )
+        _reorder(self._tension, self._position, tension, False)
+        if elastic_tension_out is not None:
+            _reorder(self._elastic, self._position, elastic_tension_out, False)
         return KernelEvaluation(qddot, tension, dissipated, external)
 
     def rk4_with_work(
@@ -801,12 +1023,9 @@ class FastKernel:
         rest = self._rest(rest_length)
         has_w, w, has_g, g = self._loads(external_force, gravity)
         taken, dissipated, external, worst = rk4_steps(
-            q, qdot, dt, int(n_steps), float(max_rod_length_error),
-            self._rod_nodes, self._rod_param, self._tendon_nodes, self._tendon_stiffness,
-            self._tendon_damping, rest,
-            has_w, w, has_g, g, self._node_work, self._block_force, np.empty(self.n_tendons),
-            self._elastic,
-            np.empty((5, n)),
+            q, qdot, dt, int(n_steps), float(max_rod_length_error), *self._model(rest),
+            has_w, w, has_g, g, self._node_work, self._block_force, self._tension, self._elastic,
+            self._damping_power, np.empty((5, n)),
         )
         return RK4Result(q, qdot, dissipated, external, taken, worst)
 
