@@ -697,8 +697,9 @@ def _reorder(values, position, out, to_kernel_order):  # pragma: no cover - comp
 RUN_CHUNK = 1024
 #: Shortest run of tendons (:func:`_tendon_run`) worth a call of its own; shorter ones are
 #: evaluated one by one with the tendons outside runs.  (With 32, the (10,10) shell's runs of
-#: 32-100 tendons made an RK4 step 1.2-1.4x slower: each call slices 12-18 arrays.)
-MIN_RUN = 128
+#: 32-100 tendons made an RK4 step 1.2-1.4x slower, each call slicing 12-18 arrays; with 96 or
+#: 128 it is within 3% of the one-by-one loop.  96 keeps the (100,100) shell's runs of 99.)
+MIN_RUN = 96
 #: Node classes tried by :func:`stencil_layout` (nodes per cell; 4 for the class 1 shell).
 MAX_NODE_CLASSES = 8
 
