@@ -445,9 +445,9 @@ LAYOUT_CASES = CASES[:3] + [
 
 @pytest.mark.parametrize("case", LAYOUT_CASES)
 def test_stencil_layout_invariants(case, min_run):
-    """Slots are distinct and in range, the kernel order is a permutation, the runs tile the
-    start of it and every run's tails and heads are at consecutive slots, as
-    ``_tendon_run`` assumes.  The shells' runs include ones whose tails and heads are in the
+    """Slots are distinct and in range, the kernel order is a permutation, the runs (pieces of
+    at most ``RUN_CHUNK``) tile the start of it and every run's tails and heads are at
+    consecutive slots, as ``_tendon_run`` assumes.  The shells' runs include ones whose tails and heads are in the
     same class less than a run apart (overlapping force slices, which the compiled loop must not
     vectorize): those structures are in ``test_evaluate_matches_numpy_reference``."""
     rng = np.random.default_rng(_seed(case, "layout"))
@@ -461,7 +461,7 @@ def test_stencil_layout_invariants(case, min_run):
     assert np.array_equal(np.sort(layout.tendon_order), np.arange(S))
     position = 0
     for start, length, tail, head in layout.tendon_runs:
-        assert start == position and length >= kernel_module.MIN_RUN
+        assert start == position and 1 <= length <= kernel_module.RUN_CHUNK
         tendons = layout.tendon_order[start:start + length]
         assert np.array_equal(slot[tendon_nodes[tendons, 0]], tail + np.arange(length))
         assert np.array_equal(slot[tendon_nodes[tendons, 1]], head + np.arange(length))
@@ -485,12 +485,16 @@ def test_large_shell_is_nearly_all_runs():
 
 @pytest.mark.parametrize("threads", [1, 2])
 def test_long_runs_match_reference(threads):
-    """Runs longer than ``kernel.RUN_CHUNK`` are evaluated in chunks: the (100,50) shell (runs of
-    ~5,000 tendons), damped and undamped, against the reference."""
+    """Runs longer than ``kernel.RUN_CHUNK`` are cut into pieces, ordered by cell: the (100,50)
+    shell (runs of ~5,000 tendons), damped and undamped, against the reference."""
     rng = np.random.default_rng(_seed(None, "long runs"))
     structure = with_random_parameters(class1_shell(100, 50), rng)
     layout = stencil_layout(structure.tendon_nodes, structure.n_nodes)
-    assert layout.tendon_runs[:, 1].max() > 4 * kernel_module.RUN_CHUNK
+    runs = layout.tendon_runs
+    assert np.sum(runs[:, 1] == kernel_module.RUN_CHUNK) > 8  # full pieces of long runs
+    tail_cell = runs[:, 2] % (layout.n_slots // layout.node_classes)
+    assert np.all(np.diff(tail_cell) >= 0) and np.unique(runs[:, 2] // (
+        layout.n_slots // layout.node_classes)).size > 1  # pieces interleaved by cell
     q, qdot = random_consistent_state(structure, rng, speed=2.0)
     rest, _ = random_rest_lengths(structure, q, rng)
     for s in (structure, _undamped(structure)):

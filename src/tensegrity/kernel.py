@@ -103,34 +103,41 @@ ROD_MASS, ROD_LENGTH, ROD_DAMPING, ROD_C1, ROD_C2 = range(5)
 
 
 @njit(inline="always", **_JIT)
+def _end_values(x, rod_slots, out):  # pragma: no cover - compiled
+    """``out[:, slot of a] = (x1 - x2) / 2``, ``out[:, slot of b] = (x1 + x2) / 2`` for every rod
+    (``x`` = ``q`` or ``q'``, 6 per rod): the end positions or velocities ``P x`` (eq. 18.26)."""
+    for r in range(rod_slots.shape[0]):
+        a = rod_slots[r, 0]
+        b = rod_slots[r, 1]
+        o = 6 * r
+        for i in range(3):
+            out[i, a] = 0.5 * (x[o + i] - x[o + 3 + i])
+            out[i, b] = 0.5 * (x[o + i] + x[o + 3 + i])
+
+
+@njit(inline="always", **_JIT)
 def _node_pass(
     q, qdot, rod_slots, rod_param, has_gravity, gravity, tendon_damping, p, v, force, first, last,
 ):  # pragma: no cover - compiled
     """Rods ``first:last``: node positions ``p = P q`` (eq. 18.26) into ``p`` (3, n_slots) and,
     if ``tendon_damping`` is not None (the tendon pass needs them only then), the node
-    velocities into ``v``; the nodal forces ``force`` start at gravity (or zero)."""
+    velocities into ``v``; the nodal forces ``force`` start at gravity (or zero).  One loop per
+    array: a rod's ends are in two classes, so a loop writing all three arrays would write 36
+    streams of slots at once, and beyond the L3 cache that took twice the time (measured at
+    (300,300))."""
     # Every pass loops over slices, from 0 to their length: with ``range(first, last)`` the
     # compiler cannot prove an index >= 0 when ``first`` is not known at compile time (the
     # threaded blocks), and keeps numba's negative-index wrap-around on every access.
     rod_slots = rod_slots[first:last]
     rod_param = rod_param[first:last]
-    q = q[6 * first:6 * last]
-    qdot = qdot[6 * first:6 * last]
+    _end_values(q[6 * first:6 * last], rod_slots, p)
+    if tendon_damping is not None:
+        _end_values(qdot[6 * first:6 * last], rod_slots, v)
     for r in range(rod_slots.shape[0]):
         a = rod_slots[r, 0]
         b = rod_slots[r, 1]
-        o = 6 * r
         half_m = rod_param[r, ROD_MASS] / 2
         for i in range(3):
-            q1 = q[o + i]
-            q2 = q[o + 3 + i]
-            p[i, a] = 0.5 * (q1 - q2)
-            p[i, b] = 0.5 * (q1 + q2)
-            if tendon_damping is not None:
-                v1 = qdot[o + i]
-                v2 = qdot[o + 3 + i]
-                v[i, a] = 0.5 * (v1 - v2)
-                v[i, b] = 0.5 * (v1 + v2)
             weight = half_m * gravity[i] if has_gravity else 0.0
             force[i, a] = weight
             force[i, b] = weight
@@ -243,25 +250,23 @@ def _tendon_pass(
         hi = min(last, in_runs)
         if hi <= lo:
             continue
-        for c0 in range(lo, hi, RUN_CHUNK):
-            c1 = min(c0 + RUN_CHUNK, hi)
-            a = tendon_runs[g, 2] + (c0 - start)
-            b = tendon_runs[g, 3] + (c0 - start)
-            n = c1 - c0
-            pa = (p[0, a:a + n], p[1, a:a + n], p[2, a:a + n])
-            pb = (p[0, b:b + n], p[1, b:b + n], p[2, b:b + n])
-            fa = (force[0, a:a + n], force[1, a:a + n], force[2, a:a + n])
-            fb = (force[0, b:b + n], force[1, b:b + n], force[2, b:b + n])
-            if tendon_damping is None:
-                _tendon_run(*pa, *pb, *fa, *fb, tendon_stiffness[c0:c1], None,
-                            rest_length[c0:c1], tension[c0:c1], elastic_tension[c0:c1], None)
-            else:
-                power = damping_power[c0:c1]
-                _tendon_rates(*pa, *pb, v[0, a:a + n], v[1, a:a + n], v[2, a:a + n],
-                              v[0, b:b + n], v[1, b:b + n], v[2, b:b + n], power)
-                _tendon_run(*pa, *pb, *fa, *fb, tendon_stiffness[c0:c1], tendon_damping[c0:c1],
-                            rest_length[c0:c1], tension[c0:c1], elastic_tension[c0:c1], power)
-                dissipation += _sum(power)
+        a = tendon_runs[g, 2] + (lo - start)
+        b = tendon_runs[g, 3] + (lo - start)
+        n = hi - lo
+        pa = (p[0, a:a + n], p[1, a:a + n], p[2, a:a + n])
+        pb = (p[0, b:b + n], p[1, b:b + n], p[2, b:b + n])
+        fa = (force[0, a:a + n], force[1, a:a + n], force[2, a:a + n])
+        fb = (force[0, b:b + n], force[1, b:b + n], force[2, b:b + n])
+        if tendon_damping is None:
+            _tendon_run(*pa, *pb, *fa, *fb, tendon_stiffness[lo:hi], None, rest_length[lo:hi],
+                        tension[lo:hi], elastic_tension[lo:hi], None)
+        else:
+            power = damping_power[lo:hi]
+            _tendon_rates(*pa, *pb, v[0, a:a + n], v[1, a:a + n], v[2, a:a + n],
+                          v[0, b:b + n], v[1, b:b + n], v[2, b:b + n], power)
+            _tendon_run(*pa, *pb, *fa, *fb, tendon_stiffness[lo:hi], tendon_damping[lo:hi],
+                        rest_length[lo:hi], tension[lo:hi], elastic_tension[lo:hi], power)
+            dissipation += _sum(power)
     # The tendons outside runs (kernel positions in_runs:S), one by one.
     lo = max(first, in_runs)
     tendon_slots = tendon_slots[lo:last]
@@ -692,8 +697,8 @@ def _reorder(values, position, out, to_kernel_order):  # pragma: no cover - comp
             out[s] = values[position[s]]
 
 
-#: Tendons of a run evaluated per call (:func:`_tendon_pass`): small enough that a damped chunk's
-#: rates, forces and powers stay in the L1/L2 cache between their loops.
+#: Longest piece of a run (:func:`stencil_layout`), evaluated in one call: small enough that a
+#: damped piece's rates, forces and powers stay in the L1/L2 cache between their loops.
 RUN_CHUNK = 1024
 #: Shortest run of tendons (:func:`_tendon_run`) worth a call of its own; shorter ones are
 #: evaluated one by one with the tendons outside runs.  (With 32, the (10,10) shell's runs of
@@ -748,9 +753,13 @@ def stencil_layout(tendon_nodes: np.ndarray, n_nodes: int) -> StencilLayout:
     n_cells = -(-n_nodes // K)
     nodes = np.arange(n_nodes)
     node_slot = (nodes % K) * n_cells + nodes // K
-    run_tendons = [order[start:start + length] for start, length in runs]
-    first_tail = np.array([node_slot[tendon_nodes[t[0], 0]] for t in run_tendons], dtype=np.int64)
-    run_tendons = [run_tendons[g] for g in np.argsort(first_tail, kind="stable")]
+    # Runs cut into pieces of at most RUN_CHUNK tendons, ordered by the cell of their first tail:
+    # consecutive pieces then work on the same cells, whose node data stay in cache (beyond the
+    # L3 cache, whole runs one after the other re-read the node arrays from memory once a run).
+    run_tendons = [order[piece:min(piece + RUN_CHUNK, start + length)]
+                   for start, length in runs for piece in range(start, start + length, RUN_CHUNK)]
+    first_cell = np.array([tendon_nodes[t[0], 0] // K for t in run_tendons], dtype=np.int64)
+    run_tendons = [run_tendons[g] for g in np.argsort(first_cell, kind="stable")]
     in_runs = np.zeros(S, dtype=bool)
     for tendons in run_tendons:
         in_runs[tendons] = True
