@@ -112,11 +112,12 @@ def _seed(case, *extra) -> int:
 @pytest.fixture(params=[None, 2], ids=["default runs", "runs of 2"])
 def min_run(request, monkeypatch):
     """The kernel's shortest run of tendons (``kernel.MIN_RUN``): its default, which leaves the
-    small test shells without runs, or 2, which puts most of their tendons into
-    runs, including runs whose tail and head force slices overlap (see
-    ``test_stencil_layout_invariants``)."""
+    small test shells without runs, or 2 (and no least total, ``MIN_TENDONS_IN_RUNS``), which
+    puts most of their tendons into runs, including runs whose tail and head force slices
+    overlap (see ``test_stencil_layout_invariants``)."""
     if request.param is not None:
         monkeypatch.setattr(kernel_module, "MIN_RUN", request.param)
+        monkeypatch.setattr(kernel_module, "MIN_TENDONS_IN_RUNS", 0)
     return request.param
 
 

@@ -226,6 +226,7 @@ def test_batch_matches_single_runs_and_isolates_a_blow_up(min_run, monkeypatch):
         from tensegrity import kernel
 
         monkeypatch.setattr(kernel, "MIN_RUN", min_run)
+        monkeypatch.setattr(kernel, "MIN_TENDONS_IN_RUNS", 0)
     rng = np.random.default_rng(3)
     base = class1_shell(4, 2)
     structures, forces, starts = [], [], []

@@ -705,6 +705,10 @@ RUN_CHUNK = 1024
 #: 32-100 tendons made an RK4 step 1.2-1.4x slower, each call slicing 12-18 arrays; with 96 or
 #: 128 it is within 3% of the one-by-one loop.  96 keeps the (100,100) shell's runs of 99.)
 MIN_RUN = 96
+#: Fewest tendons in runs worth the layout: below it :func:`stencil_layout` makes no runs, so that
+#: the tendons keep the structure's order and ``FastKernel.evaluate`` does not reorder (~1 us
+#: per call each way, more than runs save on a (10,10) shell).
+MIN_TENDONS_IN_RUNS = 2048
 #: Node classes tried by :func:`stencil_layout` (nodes per cell; 4 for the class 1 shell).
 MAX_NODE_CLASSES = 8
 
@@ -732,10 +736,12 @@ def stencil_layout(tendon_nodes: np.ndarray, n_nodes: int) -> StencilLayout:
     first tail slot, then the other tendons in their own order.  Any network gets a valid layout;
     one without such regularity gets no runs (and its own tendon order).  For the class 1 shell,
     ``K = 4`` (two rods per element), and 99.5% of the (100,100) shell's tendons are in runs.
+    Fewer than :data:`MIN_TENDONS_IN_RUNS` tendons in runs: no runs, ``K = 1``, and the
+    structure's own order.
     """
     tendon_nodes = np.asarray(tendon_nodes, dtype=np.int64).reshape(-1, 2)
     S = tendon_nodes.shape[0]
-    best = (0, 1, np.zeros((0, 3), dtype=np.int64), np.arange(S))
+    best = (0, 1, np.zeros((0, 2), dtype=np.int64), np.arange(S))
     for K in range(1, MAX_NODE_CLASSES + 1):
         node_class, cell = tendon_nodes % K, tendon_nodes // K
         key = np.stack([node_class[:, 0], node_class[:, 1], cell[:, 1] - cell[:, 0]])
@@ -749,6 +755,8 @@ def stencil_layout(tendon_nodes: np.ndarray, n_nodes: int) -> StencilLayout:
         if lengths[keep].sum() > best[0]:
             best = (int(lengths[keep].sum()), K,
                     np.stack([starts[keep], lengths[keep]], axis=1), order)
+    if best[0] < MIN_TENDONS_IN_RUNS:
+        best = (0, 1, np.zeros((0, 2), dtype=np.int64), np.arange(S))
     _, K, runs, order = best
     n_cells = -(-n_nodes // K)
     nodes = np.arange(n_nodes)
@@ -916,7 +924,9 @@ class FastKernel:
         self._rod_param, self._tendon_damping = packed.rod_param, packed.tendon_damping
         # Tendon values cross the boundary in the structure's order; inside they are in kernel
         # order: position[s] is tendon s's kernel position.
-        self._position = np.argsort(packed.layout.tendon_order).astype(np.uint64)
+        order = packed.layout.tendon_order
+        self._position = (None if np.array_equal(order, np.arange(self.n_tendons))
+                          else np.argsort(order).astype(np.uint64))
         n_slots = packed.layout.n_slots
         self._node_work = np.zeros((3, 3, n_slots))
         self._block_force = (
@@ -943,10 +953,12 @@ class FastKernel:
         # again: keep its reordered copy instead of reordering on every call.
         if rest_length is self._last_rest_source and not rest_length.flags.writeable:
             return self._last_rest
-        rest = np.empty(self.n_tendons)
-        _reorder(_float_input(rest_length, (self.n_tendons,), "rest_length"), self._position, rest,
-                 True)
-        if type(rest_length) is np.ndarray and not rest_length.flags.writeable:
+        rest = _float_input(rest_length, (self.n_tendons,), "rest_length")
+        if self._position is not None:
+            rest, checked = np.empty(self.n_tendons), rest
+            _reorder(checked, self._position, rest, True)
+        if (rest is not rest_length and type(rest_length) is np.ndarray
+                and not rest_length.flags.writeable):
             self._last_rest_source, self._last_rest = rest_length, rest
         return rest
 
@@ -998,13 +1010,18 @@ class FastKernel:
             _check_buffer(tension, (self.n_tendons,), "out[1]")
         if elastic_tension_out is not None:
             _check_buffer(elastic_tension_out, (self.n_tendons,), "elastic_tension_out")
+        # Without runs the kernel order is the structure's (small structures): no reordering.
+        reorder = self._position is not None
         dissipated, external = rhs(
             q, qdot, *self._model(rest), has_w, w, has_g, g, self._node_work, self._block_force,
-            qddot, self._tension, self._elastic, self._damping_power,
+            qddot, self._tension if reorder else tension,
+            self._elastic if reorder or elastic_tension_out is None else elastic_tension_out,
+            self._damping_power,
         )
-        _reorder(self._tension, self._position, tension, False)
-        if elastic_tension_out is not None:
-            _reorder(self._elastic, self._position, elastic_tension_out, False)
+        if reorder:
+            _reorder(self._tension, self._position, tension, False)
+            if elastic_tension_out is not None:
+                _reorder(self._elastic, self._position, elastic_tension_out, False)
         return KernelEvaluation(qddot, tension, dissipated, external)
 
     def rk4_with_work(
