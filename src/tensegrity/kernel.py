@@ -116,6 +116,15 @@ def _end_values(x, rod_slots, out):  # pragma: no cover - compiled
 
 
 @njit(inline="always", **_JIT)
+def _tendon_vector(p, tendon_slots, s):  # pragma: no cover - compiled
+    """``(tail, head, tx, ty, tz)``: tendon ``s``'s slots and ``t = p_head - p_tail``."""
+    tail = tendon_slots[s, 0]
+    head = tendon_slots[s, 1]
+    return (tail, head, p[0, head] - p[0, tail], p[1, head] - p[1, tail],
+            p[2, head] - p[2, tail])
+
+
+@njit(inline="always", **_JIT)
 def _node_pass(
     q, qdot, rod_slots, rod_param, has_gravity, gravity, tendon_damping, p, v, force, first, last,
 ):  # pragma: no cover - compiled
@@ -275,11 +284,7 @@ def _tendon_pass(
     tension = tension[lo:last]
     elastic_tension = elastic_tension[lo:last]
     for s in range(tendon_slots.shape[0]):
-        tail = tendon_slots[s, 0]
-        head = tendon_slots[s, 1]
-        tx = p[0, head] - p[0, tail]
-        ty = p[1, head] - p[1, tail]
-        tz = p[2, head] - p[2, tail]
+        tail, head, tx, ty, tz = _tendon_vector(p, tendon_slots, s)
         length = np.sqrt(tx * tx + ty * ty + tz * tz)
         if not length > rest_length[s]:  # slack: skip the work (one by one, a branch is cheap)
             tension[s] = 0.0
@@ -576,18 +581,15 @@ def energies(
     ``elastic_energy`` and ``gravity_energy``; ``node_work[0]`` receives the node positions
     (by coordinate and slot; tendons in kernel order, see :func:`pack`)."""
     p = node_work[0]
+    _end_values(q, rod_slots, p)
     kinetic = 0.0
     potential = 0.0
     for r in range(rod_slots.shape[0]):
-        a = rod_slots[r, 0]
-        b = rod_slots[r, 1]
         o = 6 * r
         m = rod_param[r, ROD_MASS]
         v1 = 0.0
         v2 = 0.0
         for i in range(3):
-            p[i, a] = 0.5 * (q[o + i] - q[o + 3 + i])
-            p[i, b] = 0.5 * (q[o + i] + q[o + 3 + i])
             v1 += qdot[o + i] * qdot[o + i]
             v2 += qdot[o + 3 + i] * qdot[o + 3 + i]
             if has_gravity:
@@ -595,11 +597,7 @@ def energies(
         kinetic += m * (v1 / 8 + v2 / 24)
     elastic = 0.0
     for s in range(tendon_slots.shape[0]):
-        tail = tendon_slots[s, 0]
-        head = tendon_slots[s, 1]
-        tx = p[0, head] - p[0, tail]
-        ty = p[1, head] - p[1, tail]
-        tz = p[2, head] - p[2, tail]
+        _, _, tx, ty, tz = _tendon_vector(p, tendon_slots, s)
         stretch = np.sqrt(tx * tx + ty * ty + tz * tz) - rest_length[s]
         if stretch > 0.0:
             elastic += tendon_stiffness[s] * stretch * stretch
