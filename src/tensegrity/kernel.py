@@ -887,8 +887,8 @@ def _check_buffer(array: np.ndarray, shape: tuple[int, ...], field: str) -> None
 class FastKernel:
     """The compiled equations of motion of one :class:`Structure`.
 
-    ``__init__`` packs the structure's data into contiguous, writable int64/float64 arrays (see
-    :func:`pack`) and allocates scratch buffers; compilation happens (or the disk cache is loaded)
+    ``__init__`` packs the structure's data into contiguous, writable arrays in the kernel's
+    layout (see :func:`pack`) and allocates scratch buffers; compilation happens (or the disk cache is loaded)
     on first use, or at :meth:`warm_up`.
 
     ``threads`` (keyword-only, default 1): split every evaluation into that many blocks of rods
