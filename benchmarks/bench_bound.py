@@ -11,9 +11,10 @@ generic path), and on ``--threads`` threads; each against the bytes its path mus
 order and the tensions back into the structure's (``kernel.stencil_layout``); the RK4 loop does
 not, so every path is also timed inside the compiled RK4 loop (``FastKernel.rk4``, 10 steps per
 call, divided by their 40 evaluations; the stage sums and projections are counted with them, so
-this is an upper bound on an evaluation inside the loop).  Prints one line per round and the median and range of each ratio.
+this is an upper bound on an evaluation inside the loop).  Prints one line per round and the
+median and range of each ratio.
 
-    python benchmarks/bench_bound.py --size 100x100 --rounds 6 --threads 2
+    python benchmarks/bench_bound.py --size 100x100 --rounds 10 --threads 2
 """
 
 from __future__ import annotations

@@ -448,9 +448,10 @@ LAYOUT_CASES = CASES[:3] + [
 def test_stencil_layout_invariants(case, min_run):
     """Slots are distinct and in range, the kernel order is a permutation, the runs (pieces of
     at most ``RUN_CHUNK``) tile the start of it and every run's tails and heads are at
-    consecutive slots, as ``_tendon_run`` assumes.  The shells' runs include ones whose tails and heads are in the
-    same class less than a run apart (overlapping force slices, which the compiled loop must not
-    vectorize): those structures are in ``test_evaluate_matches_numpy_reference``."""
+    consecutive slots, as ``_tendon_run`` assumes.  The shells' runs include ones whose tails
+    and heads are in the same class less than a run apart (overlapping force slices, which the
+    compiled loop must not vectorize): those structures are in
+    ``test_evaluate_matches_numpy_reference``."""
     rng = np.random.default_rng(_seed(case, "layout"))
     structure = _structure(case, rng)
     tendon_nodes = structure.tendon_nodes.reshape(-1, 2)

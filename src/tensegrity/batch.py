@@ -167,8 +167,8 @@ def simulate_batch(
                                      for p in packed]))
     rest = packed0.to_kernel_order(np.stack([dynamics.rest_lengths(s) for s in structures]))
     has_w = any(f is not None for f in forces)
-    w_all = (packed0.to_slots(np.stack([np.zeros((N, 3)) if f is None else np.asarray(f, dtype=float)
-                                      for f in forces]))
+    w_all = (packed0.to_slots(np.stack([np.zeros((N, 3)) if f is None else np.asarray(f, float)
+                                        for f in forces]))
              if has_w else np.zeros((1, 3, 1)))
     g = np.zeros(3) if gravity is None else gravity
 
@@ -190,8 +190,8 @@ def simulate_batch(
         rk4_batch(
             q, qdot, dt, chunk, float(max_rod_length_error), float(max_energy_growth),
             energy0, scale0, status, steps, work, worst, end_q, end_qdot,
-            packed0.rod_slots, rod_param, packed0.tendon_slots, packed0.tendon_runs, tendon_stiffness,
-            tendon_damping, rest, has_w, w_all, gravity is not None, g,
+            packed0.rod_slots, rod_param, packed0.tendon_slots, packed0.tendon_runs,
+            tendon_stiffness, tendon_damping, rest, has_w, w_all, gravity is not None, g,
             *scratch,
         )
         done += chunk

@@ -15,12 +15,12 @@ Differences from the reference are round-off only (the summation order of the no
 reciprocal instead of three divisions per tendon, the length rate as ``t . (p'_b - p'_a) / l``,
 fused multiply-adds); the kernel is compiled with ``fastmath={"contract"}`` only (a * b + c may
 become one FMA instruction; no reassociation, no approximate square roots or reciprocals, NaN and
-infinity kept), so that the two agree to ~1e-15 relative.  When no tendon is damped (all ``c = 0``, :func:`pack` then gives
-``tendon_damping=None``) the same functions are compiled without the node velocities and the
-length rates (numba specializes on None, as for ``block_force``): the same numbers as with zero
-damping, a quarter less time per evaluation on large shells.  As in the reference, rest lengths
-must be ``>= 0`` (``dynamics.rest_lengths`` checks them); they are not checked again here, for
-speed.
+infinity kept), so that the two agree to ~1e-15 relative.  When no tendon is damped (all
+``c = 0``, :func:`pack` then gives ``tendon_damping=None``) the same functions are compiled
+without the node velocities and the length rates (numba specializes on None, as for
+``block_force``): the same numbers as with zero damping, a quarter less time per evaluation on
+large shells.  As in the reference, rest lengths must be ``>= 0`` (``dynamics.rest_lengths``
+checks them); they are not checked again here, for speed.
 
 The kernel keeps its own layout (:func:`stencil_layout`, :func:`pack`): nodes in *slots*, grouped
 by class (node index modulo K) and stored by coordinate, and tendons in a *kernel order* whose
@@ -179,7 +179,9 @@ def _tendon_force(tx, ty, tz, length, rest, stiffness, c, t_dot_dv):  # pragma: 
 
 
 @njit(**_JIT)
-def _tendon_rates(pxa, pya, pza, pxb, pyb, pzb, vxa, vya, vza, vxb, vyb, vzb, out):  # pragma: no cover
+def _tendon_rates(
+    pxa, pya, pza, pxb, pyb, pzb, vxa, vya, vza, vxb, vyb, vzb, out,
+):  # pragma: no cover - compiled
     """``out = t . (v_b - v_a)`` along a run of tendons (slices as in :func:`_tendon_run`), in
     a loop of its own: with the velocities in it, :func:`_tendon_run` would touch more arrays
     than the compiler checks for overlap at run time, and stay scalar."""
@@ -440,7 +442,7 @@ def rhs(
     node_work, block_force, qddot, tension, elastic_tension, damping_power,
 ):  # pragma: no cover - compiled
     """Theorem 18.1 for all rods: fills ``qddot`` (6R,), ``tension`` and ``elastic_tension``
-    (S,, kernel order) and, with tendon damping, ``damping_power`` (S,, kernel order).
+    (S,), and with tendon damping ``damping_power`` (S,), all in kernel order.
 
     The model arrays are :func:`pack`'s (see the comment above :func:`_node_pass` for their
     shapes and layouts); ``tendon_damping`` is None when every ``c`` is 0 (the undamped
@@ -632,9 +634,10 @@ def rk4_batch(
     Per copy ``b`` (rows of the (B, ...) arrays): ``q``, ``qdot`` (B, 6R); ``rod_param``
     (B, R, 5); ``tendon_stiffness`` (B, S); ``tendon_damping`` (B, S), or None if
     every copy's is zero; ``rest_length`` (B, S) (tendons in kernel order, see :func:`pack`);
-    ``external_force`` (B, 3, n_slots) (read if ``has_external``); ``energy0``, ``scale0`` (B,) the energy balance at the start and
-    its scale [J] (``simulate``'s ``_Model.energy_balance``; ``scale0`` is raised in place to the
-    largest scale seen, the measure the energy drift is judged against); ``status``, ``steps`` (B,) int64;
+    ``external_force`` (B, 3, n_slots) (read if ``has_external``); ``energy0``, ``scale0`` (B,)
+    the energy balance at the start and its scale [J] (``simulate``'s
+    ``_Model.energy_balance``; ``scale0`` is raised in place to the largest scale seen, the
+    measure the energy drift is judged against); ``status``, ``steps`` (B,) int64;
     ``work`` (B, 2) dissipated energy and external work so far [J]; ``worst`` (B,) largest
     relative rod-length error so far.  Copies whose status is not ``BATCH_RUNNING`` are skipped.
 
@@ -732,8 +735,9 @@ def stencil_layout(tendon_nodes: np.ndarray, n_nodes: int) -> StencilLayout:
     heads at consecutive slots: a *run*, evaluated without indirection (:func:`_tendon_run`).
     For each ``K`` from 1 to :data:`MAX_NODE_CLASSES` the tendons are sorted by
     ``(c_a, c_b, offset, cell)`` and cut into runs of at least :data:`MIN_RUN`; the ``K`` that
-    puts the most tendons into runs wins (the smallest on a tie).  Kernel order: the runs by their
-    first tail slot, then the other tendons in their own order.  Any network gets a valid layout;
+    puts the most tendons into runs wins (the smallest on a tie).  Kernel order: the runs, cut into
+    pieces of at most :data:`RUN_CHUNK` and ordered by the cell of their first tail, then the
+    other tendons in their own order.  Any network gets a valid layout;
     one without such regularity gets no runs (and its own tendon order).  For the class 1 shell,
     ``K = 4`` (two rods per element), and 99.5% of the (100,100) shell's tendons are in runs.
     Fewer than :data:`MIN_TENDONS_IN_RUNS` tendons in runs: no runs, ``K = 1``, and the
@@ -769,8 +773,7 @@ def stencil_layout(tendon_nodes: np.ndarray, n_nodes: int) -> StencilLayout:
     first_cell = np.array([tendon_nodes[t[0], 0] // K for t in run_tendons], dtype=np.int64)
     run_tendons = [run_tendons[g] for g in np.argsort(first_cell, kind="stable")]
     in_runs = np.zeros(S, dtype=bool)
-    for tendons in run_tendons:
-        in_runs[tendons] = True
+    in_runs[np.concatenate(run_tendons + [np.zeros(0, dtype=np.int64)])] = True
     tendon_order = np.concatenate(run_tendons + [np.flatnonzero(~in_runs)]).astype(np.int64)
     tendon_runs = np.zeros((len(run_tendons), 4), dtype=np.int64)
     position = 0
@@ -778,7 +781,7 @@ def stencil_layout(tendon_nodes: np.ndarray, n_nodes: int) -> StencilLayout:
         tail, head = node_slot[tendon_nodes[tendons[0]]]
         tendon_runs[g] = position, len(tendons), tail, head
         position += len(tendons)
-    return StencilLayout(node_slot.astype(np.int64), K, K * n_cells, tendon_order, tendon_runs)
+    return StencilLayout(node_slot, K, K * n_cells, tendon_order, tendon_runs)
 
 
 class PackedStructure(NamedTuple):
@@ -890,8 +893,8 @@ class FastKernel:
     """The compiled equations of motion of one :class:`Structure`.
 
     ``__init__`` packs the structure's data into contiguous, writable arrays in the kernel's
-    layout (see :func:`pack`) and allocates scratch buffers; compilation happens (or the disk cache is loaded)
-    on first use, or at :meth:`warm_up`.
+    layout (see :func:`pack`) and allocates scratch buffers; compilation happens (or the disk
+    cache is loaded) on first use, or at :meth:`warm_up`.
 
     ``threads`` (keyword-only, default 1): split every evaluation into that many blocks of rods
     and of tendons run in parallel (numba ``prange``, on up to ``NUMBA_NUM_THREADS`` threads),
