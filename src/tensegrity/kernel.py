@@ -179,50 +179,57 @@ def _tendon_force(tx, ty, tz, length, rest, stiffness, c, t_dot_dv):  # pragma: 
 
 
 @njit(**_JIT)
-def _tendon_rates(
-    pxa, pya, pza, pxb, pyb, pzb, vxa, vya, vza, vxb, vyb, vzb, out,
-):  # pragma: no cover - compiled
-    """``out = t . (v_b - v_a)`` along a run of tendons (slices as in :func:`_tendon_run`), in
-    a loop of its own: with the velocities in it, :func:`_tendon_run` would touch more arrays
-    than the compiler checks for overlap at run time, and stay scalar."""
-    for e in range(out.shape[0]):
-        out[e] = ((pxb[e] - pxa[e]) * (vxb[e] - vxa[e]) + (pyb[e] - pya[e]) * (vyb[e] - vya[e])
-                  + (pzb[e] - pza[e]) * (vzb[e] - vza[e]))
+def _tendon_rates(p, v, a, b, first, n, out):  # pragma: no cover - compiled
+    """``out[first + e] = t . (v_b - v_a)`` along a run of ``n`` tendons (offsets as in
+    :func:`_tendon_run`), in a loop of its own: with the velocities in it, :func:`_tendon_run`
+    would touch more memory ranges than the compiler checks for overlap at run time, and stay
+    scalar."""
+    for e in range(n):
+        ia = a + e
+        ib = b + e
+        out[first + e] = ((p[0, ib] - p[0, ia]) * (v[0, ib] - v[0, ia])
+                          + (p[1, ib] - p[1, ia]) * (v[1, ib] - v[1, ia])
+                          + (p[2, ib] - p[2, ia]) * (v[2, ib] - v[2, ia]))
 
 
 @njit(**_JIT)
 def _tendon_run(
-    pxa, pya, pza, pxb, pyb, pzb, fxa, fya, fza, fxb, fyb, fzb,
-    stiffness, damping, rest, tension, elastic_tension, damping_power,
+    p, force, a, b, first, n, stiffness, damping, rest, tension, elastic_tension, damping_power,
 ):  # pragma: no cover - compiled
-    """A run of tendons whose tails and heads sit at consecutive slots: every argument is a 1-D
-    slice along the run (positions ``p`` and forces ``f`` of the tails ``a`` and heads ``b`` by
-    coordinate; the tendons' parameters and outputs).  There is no indirection, so the loop
-    compiles to 4-wide vector code; the compiler checks at run time that the force slices do
-    not overlap (they may, when tails and heads share a node class) and otherwise runs the
-    scalar loop.  With damping, ``damping_power`` holds ``t . (v_b - v_a)`` on entry
-    (:func:`_tendon_rates`) and each tendon's dissipated power on return (a sum here would keep
-    the loop scalar: the compiler may not reorder it)."""
-    for e in range(rest.shape[0]):
-        tx = pxb[e] - pxa[e]
-        ty = pyb[e] - pya[e]
-        tz = pzb[e] - pza[e]
+    """A run of ``n`` tendons whose tails and heads sit at consecutive slots: tendon ``e`` of the
+    run is at kernel position ``first + e``, its tail at slot ``a + e`` and its head at
+    ``b + e`` of the node arrays ``p`` (positions) and ``force`` (3, n_slots).  The offsets
+    are unsigned (uint64), so that every index is a base plus the loop counter, without
+    numba's negative-index wrap-around: the loop compiles to 4-wide vector code.  (Slices of
+    the arrays would do the same, but each slice takes and releases a reference count, ~100 ns
+    a run: measured 16% of the tendon pass on the (100,100) shell.)  The compiler checks at run
+    time that the force ranges do not overlap (they may, when tails and heads share a node
+    class) and otherwise runs the scalar loop.  With damping, ``damping_power`` holds
+    ``t . (v_b - v_a)`` on entry (:func:`_tendon_rates`) and each tendon's dissipated power on
+    return (a sum here would keep the loop scalar: the compiler may not reorder it)."""
+    for e in range(n):
+        ia = a + e
+        ib = b + e
+        s = first + e
+        tx = p[0, ib] - p[0, ia]
+        ty = p[1, ib] - p[1, ia]
+        tz = p[2, ib] - p[2, ia]
         length = np.sqrt(tx * tx + ty * ty + tz * tz)
         if damping is None:
             total, elastic, fx, fy, fz, _ = _tendon_force(
-                tx, ty, tz, length, rest[e], stiffness[e], None, 0.0)
+                tx, ty, tz, length, rest[s], stiffness[s], None, 0.0)
         else:
             total, elastic, fx, fy, fz, power = _tendon_force(
-                tx, ty, tz, length, rest[e], stiffness[e], damping[e], damping_power[e])
-            damping_power[e] = power
-        tension[e] = total
-        elastic_tension[e] = elastic
-        fxa[e] += fx
-        fya[e] += fy
-        fza[e] += fz
-        fxb[e] -= fx
-        fyb[e] -= fy
-        fzb[e] -= fz
+                tx, ty, tz, length, rest[s], stiffness[s], damping[s], damping_power[s])
+            damping_power[s] = power
+        tension[s] = total
+        elastic_tension[s] = elastic
+        force[0, ia] += fx
+        force[1, ia] += fy
+        force[2, ia] += fz
+        force[0, ib] -= fx
+        force[1, ib] -= fy
+        force[2, ib] -= fz
 
 
 @njit(inline="always", **_JIT)
@@ -263,23 +270,18 @@ def _tendon_pass(
         hi = min(last, in_runs)
         if hi <= lo:
             continue
-        a = tendon_runs[g, 2] + (lo - start)
-        b = tendon_runs[g, 3] + (lo - start)
-        n = hi - lo
-        pa = (p[0, a:a + n], p[1, a:a + n], p[2, a:a + n])
-        pb = (p[0, b:b + n], p[1, b:b + n], p[2, b:b + n])
-        fa = (force[0, a:a + n], force[1, a:a + n], force[2, a:a + n])
-        fb = (force[0, b:b + n], force[1, b:b + n], force[2, b:b + n])
+        a = np.uint64(tendon_runs[g, 2] + (lo - start))
+        b = np.uint64(tendon_runs[g, 3] + (lo - start))
+        first_run = np.uint64(lo)
+        n = np.uint64(hi - lo)
         if tendon_damping is None:
-            _tendon_run(*pa, *pb, *fa, *fb, tendon_stiffness[lo:hi], None, rest_length[lo:hi],
-                        tension[lo:hi], elastic_tension[lo:hi], None)
+            _tendon_run(p, force, a, b, first_run, n, tendon_stiffness, None, rest_length, tension,
+                        elastic_tension, None)
         else:
-            power = damping_power[lo:hi]
-            _tendon_rates(*pa, *pb, v[0, a:a + n], v[1, a:a + n], v[2, a:a + n],
-                          v[0, b:b + n], v[1, b:b + n], v[2, b:b + n], power)
-            _tendon_run(*pa, *pb, *fa, *fb, tendon_stiffness[lo:hi], tendon_damping[lo:hi],
-                        rest_length[lo:hi], tension[lo:hi], elastic_tension[lo:hi], power)
-            dissipation += _sum(power)
+            _tendon_rates(p, v, a, b, first_run, n, damping_power)
+            _tendon_run(p, force, a, b, first_run, n, tendon_stiffness, tendon_damping,
+                        rest_length, tension, elastic_tension, damping_power)
+            dissipation += _sum(damping_power[lo:hi])
     # The tendons outside runs (kernel positions in_runs:S), one by one.
     lo = max(first, in_runs)
     tendon_slots = tendon_slots[lo:last]
