@@ -154,6 +154,9 @@ def test_evaluate_matches_numpy_reference(case, loads, threads, min_run):
         # Taut tendons whose damping term made the tension negative (clipped to zero).
         taut = np.setdiff1d(np.arange(structure.n_tendons), slack)
         clipped_seen += int(np.sum(got.tension[taut] == 0.0))
+        # The force scratch is left zero for the next trial's tendon pass (no pass clears it).
+        assert not np.any(kernel._node_work[2])
+        assert kernel._block_force is None or not np.any(kernel._block_force)
     assert clipped_seen > 0, "no taut tendon had its tension clipped: the test lost coverage"
 
 

@@ -94,8 +94,10 @@ _JIT = dict(
 #       (written only when ``tendon_damping`` is not None; summed into the returned power)
 #   external_force (3, n_slots) float64   w by coordinate and slot (read only if has_external)
 #   node_work (3, 3, n_slots) float64   scratch: node positions, velocities (written only when
-#       ``tendon_damping`` is not None) and total nodal forces, each by coordinate and slot
-#   block_force None or (B - 1, 3, n_slots) float64   scratch of the threaded evaluation
+#       ``tendon_damping`` is not None) and tendon forces, each by coordinate and slot; the
+#       forces (node_work[2]) must be zero on entry, and are left zero (allocate with np.zeros)
+#   block_force None or (B - 1, 3, n_slots) float64   scratch of the threaded evaluation, zero
+#       on entry and left zero like node_work[2]
 # Slots are unsigned (uint64): numba wraps every signed index that the compiler cannot prove
 # >= 0 (one read from an array) around the array's length.  Never add a signed integer to a
 # slot: in numba ``uint64 + int64`` is a float64.
@@ -125,31 +127,21 @@ def _tendon_vector(p, tendon_slots, s):  # pragma: no cover - compiled
 
 
 @njit(inline="always", **_JIT)
-def _node_pass(
-    q, qdot, rod_slots, rod_param, has_gravity, gravity, tendon_damping, p, v, force, first, last,
-):  # pragma: no cover - compiled
+def _node_pass(q, qdot, rod_slots, tendon_damping, p, v, first, last):  # pragma: no cover
     """Rods ``first:last``: node positions ``p = P q`` (eq. 18.26) into ``p`` (3, n_slots) and,
     if ``tendon_damping`` is not None (the tendon pass needs them only then), the node
-    velocities into ``v``; the nodal forces ``force`` start at gravity (or zero).  One loop per
-    array: a rod's ends are in two classes, so a loop writing all three arrays would write 36
-    streams of slots at once, and beyond the L3 cache that took twice the time (measured at
-    (300,300))."""
+    velocities into ``v``.  One loop per array: a rod's ends are in two classes, so a loop
+    writing both arrays would write 24 streams of slots at once (with the forces, which
+    this pass set before, 36 streams took twice the time beyond the L3 cache, measured at
+    (300,300)).  The nodal forces need no start: the rod pass leaves them zero
+    (:func:`_take_force`)."""
     # Every pass loops over slices, from 0 to their length: with ``range(first, last)`` the
     # compiler cannot prove an index >= 0 when ``first`` is not known at compile time (the
     # threaded blocks), and keeps numba's negative-index wrap-around on every access.
     rod_slots = rod_slots[first:last]
-    rod_param = rod_param[first:last]
     _end_values(q[6 * first:6 * last], rod_slots, p)
     if tendon_damping is not None:
         _end_values(qdot[6 * first:6 * last], rod_slots, v)
-    for r in range(rod_slots.shape[0]):
-        a = rod_slots[r, 0]
-        b = rod_slots[r, 1]
-        half_m = rod_param[r, ROD_MASS] / 2
-        for i in range(3):
-            weight = half_m * gravity[i] if has_gravity else 0.0
-            force[i, a] = weight
-            force[i, b] = weight
 
 
 @njit(inline="always", **_JIT)
@@ -318,12 +310,27 @@ def _tendon_pass(
 
 
 @njit(inline="always", **_JIT)
+def _take_force(force, slot):  # pragma: no cover - compiled
+    """``(fx, fy, fz)``, the tendon forces summed at ``slot`` of ``force`` (3, n_slots), leaving
+    zeros there: the next evaluation's tendon pass adds to zero, without a pass that sets the
+    forces to zero first (one stream of writes less)."""
+    fx, fy, fz = force[0, slot], force[1, slot], force[2, slot]
+    force[0, slot] = 0.0
+    force[1, slot] = 0.0
+    force[2, slot] = 0.0
+    return fx, fy, fz
+
+
+@njit(inline="always", **_JIT)
 def _rod_pass(
-    q, qdot, rod_slots, rod_param, has_external, external_force, force, qddot, first, last,
+    q, qdot, rod_slots, rod_param, has_external, external_force, has_gravity, gravity, force,
+    qddot, first, last,
 ):  # pragma: no cover - compiled
     """Rods ``first:last``: eqs. 18.17, 18.20 and mass-proportional damping into ``qddot``, from
-    the nodal forces ``force`` (3, n_slots), to which ``w`` (``external_force``, same layout) is
-    added; its power uses ``p' = P q'``.  Returns ``(rod_dissipation, external_power)``."""
+    the tendon forces ``force`` (3, n_slots; left zero, :func:`_take_force`), half the rod's
+    weight at each end if ``has_gravity``, and ``w`` (``external_force``, same layout) if
+    ``has_external``; the power of ``w`` uses ``p' = P q'``.  Returns ``(rod_dissipation,
+    external_power)``."""
     rod_slots = rod_slots[first:last]
     rod_param = rod_param[first:last]
     q = q[6 * first:6 * last]
@@ -335,25 +342,39 @@ def _rod_pass(
         a = rod_slots[r, 0]
         b = rod_slots[r, 1]
         o = 6 * r
+        fax, fay, faz = _take_force(force, a)
+        fbx, fby, fbz = _take_force(force, b)
+        if has_gravity:
+            half_m = rod_param[r, ROD_MASS] / 2
+            fax += half_m * gravity[0]
+            fay += half_m * gravity[1]
+            faz += half_m * gravity[2]
+            fbx += half_m * gravity[0]
+            fby += half_m * gravity[1]
+            fbz += half_m * gravity[2]
         if has_external:
             for i in range(3):  # node velocities p' = P q' (eq. 18.26)
                 v1 = qdot[o + i]
                 v2 = qdot[o + 3 + i]
                 external_power += (external_force[i, a] * (0.5 * (v1 - v2))
                                    + external_force[i, b] * (0.5 * (v1 + v2)))
-                force[i, a] += external_force[i, a]
-                force[i, b] += external_force[i, b]
+            fax += external_force[0, a]
+            fay += external_force[1, a]
+            faz += external_force[2, a]
+            fbx += external_force[0, b]
+            fby += external_force[1, b]
+            fbz += external_force[2, b]
         L = rod_param[r, ROD_LENGTH]
         L2 = L * L
         alpha = rod_param[r, ROD_DAMPING]
         c1 = rod_param[r, ROD_C1]
         c2 = rod_param[r, ROD_C2]
-        sx = force[0, a] + force[0, b]
-        sy = force[1, a] + force[1, b]
-        sz = force[2, a] + force[2, b]
-        dx = force[0, a] - force[0, b]
-        dy = force[1, a] - force[1, b]
-        dz = force[2, a] - force[2, b]
+        sx = fax + fbx
+        sy = fay + fby
+        sz = faz + fbz
+        dx = fax - fbx
+        dy = fay - fby
+        dz = faz - fbz
         x = q[o + 3]
         y = q[o + 4]
         z = q[o + 5]
@@ -393,23 +414,20 @@ def _rhs_threaded(
     node_work, block_force, qddot, tension, elastic_tension, damping_power,
 ):  # pragma: no cover - compiled
     """:func:`rhs` on ``B = block_force.shape[0] + 1`` threads: each pass is cut into B blocks run
-    in parallel (``prange``).  Tendon block 0 adds its forces to ``node_work[2]`` (the weights),
-    block ``k > 0`` to its own ``block_force[k - 1]`` (no two threads write the same memory), and
-    the rod pass sums the blocks in order, so the result does not depend on the scheduling; it
-    differs from the one-block sum by round-off."""
+    in parallel (``prange``).  Tendon block 0 adds its forces to ``node_work[2]``, block
+    ``k > 0`` to its own ``block_force[k - 1]`` (no two threads write the same memory), and the
+    rod pass sums the blocks in order (leaving them zero), so the result does not depend on the
+    scheduling; it differs from the one-block sum by round-off."""
     n_blocks = block_force.shape[0] + 1
     n_rods = rod_slots.shape[0]
     n_tendons = tendon_slots.shape[0]
     p, v, force0 = node_work[0], node_work[1], node_work[2]
     for k in prange(n_blocks):
         first, last = _block(k, n_blocks, n_rods)
-        _node_pass(q, qdot, rod_slots, rod_param, has_gravity, gravity, tendon_damping, p, v,
-                   force0, first, last)
+        _node_pass(q, qdot, rod_slots, tendon_damping, p, v, first, last)
     tendon_power = np.empty(n_blocks)
     for k in prange(n_blocks):
         force = force0 if k == 0 else block_force[k - 1]
-        if k > 0:
-            force[:] = 0.0
         first, last = _block(k, n_blocks, n_tendons)
         tendon_power[k] = _tendon_pass(p, v, force, tendon_slots, tendon_runs, tendon_stiffness,
                                        tendon_damping, rest_length, tension, elastic_tension,
@@ -421,12 +439,17 @@ def _rhs_threaded(
             a = rod_slots[r, 0]
             b = rod_slots[r, 1]
             for j in range(n_blocks - 1):
-                for i in range(3):
-                    force0[i, a] += block_force[j, i, a]
-                    force0[i, b] += block_force[j, i, b]
+                fax, fay, faz = _take_force(block_force[j], a)
+                fbx, fby, fbz = _take_force(block_force[j], b)
+                force0[0, a] += fax
+                force0[1, a] += fay
+                force0[2, a] += faz
+                force0[0, b] += fbx
+                force0[1, b] += fby
+                force0[2, b] += fbz
         rod_power[k, 0], rod_power[k, 1] = _rod_pass(
-            q, qdot, rod_slots, rod_param, has_external, external_force, force0, qddot, first,
-            last)
+            q, qdot, rod_slots, rod_param, has_external, external_force, has_gravity, gravity,
+            force0, qddot, first, last)
     dissipated = 0.0
     external = 0.0
     for k in range(n_blocks):  # fixed order: deterministic
@@ -449,9 +472,10 @@ def rhs(
     The model arrays are :func:`pack`'s (see the comment above :func:`_node_pass` for their
     shapes and layouts); ``tendon_damping`` is None when every ``c`` is 0 (the undamped
     specialization).  ``external_force`` is read only if ``has_external``, ``gravity`` (3,)
-    only if ``has_gravity``.  ``node_work`` is scratch.  ``block_force`` is None (one thread) or
-    (B - 1, 3, n_slots) scratch: the evaluation runs on B threads (:func:`_rhs_threaded`; the
-    choice is made at compile time).  Returns ``(dissipated_power, external_power)``.
+    only if ``has_gravity``.  ``node_work`` is scratch whose forces ``node_work[2]`` are zero on
+    entry and left zero.  ``block_force`` is None (one thread) or (B - 1, 3, n_slots) zeros,
+    left zero: the evaluation runs on B threads (:func:`_rhs_threaded`; the choice is made at
+    compile time).  Returns ``(dissipated_power, external_power)``.
     """
     if block_force is not None:
         return _rhs_threaded(q, qdot, rod_slots, rod_param, tendon_slots, tendon_runs,
@@ -460,13 +484,13 @@ def rhs(
                              tension, elastic_tension, damping_power)
     n_rods = rod_slots.shape[0]
     p, v, force = node_work[0], node_work[1], node_work[2]
-    _node_pass(q, qdot, rod_slots, rod_param, has_gravity, gravity, tendon_damping, p, v, force,
-               0, n_rods)
+    _node_pass(q, qdot, rod_slots, tendon_damping, p, v, 0, n_rods)
     tendon_dissipation = _tendon_pass(p, v, force, tendon_slots, tendon_runs, tendon_stiffness,
                                       tendon_damping, rest_length, tension, elastic_tension,
                                       damping_power, 0, tendon_slots.shape[0])
     rod_dissipation, external_power = _rod_pass(q, qdot, rod_slots, rod_param, has_external,
-                                                external_force, force, qddot, 0, n_rods)
+                                                external_force, has_gravity, gravity, force,
+                                                qddot, 0, n_rods)
     return tendon_dissipation + rod_dissipation, external_power
 
 
