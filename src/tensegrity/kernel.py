@@ -952,15 +952,16 @@ class FastKernel:
         self._packed = packed
         self._rod_param, self._tendon_damping = packed.rod_param, packed.tendon_damping
         # Tendon values cross the boundary in the structure's order; inside they are in kernel
-        # order: position[s] is tendon s's kernel position.
+        # order: position[s] is tendon s's kernel position (uint32: half the bytes to read).
         order = packed.layout.tendon_order
         self._position = (None if np.array_equal(order, np.arange(self.n_tendons))
-                          else np.argsort(order).astype(np.uint64))
+                          else np.argsort(order).astype(np.uint32))
         n_slots = packed.layout.n_slots
         self._node_work = np.zeros((3, 3, n_slots))
         self._block_force = (
             None if self.threads == 1 else np.zeros((self.threads - 1, 3, n_slots))
         )
+        self._rest_length = np.zeros(self.n_tendons)  # kernel order
         self._tension = np.zeros(self.n_tendons)  # kernel order
         self._elastic = np.zeros(self.n_tendons)  # kernel order
         self._damping_power = np.zeros(self.n_tendons)  # kernel order
@@ -983,11 +984,13 @@ class FastKernel:
         if rest_length is self._last_rest_source and not rest_length.flags.writeable:
             return self._last_rest
         rest = _float_input(rest_length, (self.n_tendons,), "rest_length")
+        read_only = type(rest_length) is np.ndarray and not rest_length.flags.writeable
         if self._position is not None:
-            rest, checked = np.empty(self.n_tendons), rest
+            # Into the kernel's own buffer (a new 7 MB array per call at (300,300) cost 0.2 ms
+            # in page faults), or a new array to keep.
+            rest, checked = (np.empty(self.n_tendons) if read_only else self._rest_length), rest
             _reorder(checked, self._position, rest, True)
-        if (rest is not rest_length and type(rest_length) is np.ndarray
-                and not rest_length.flags.writeable):
+        if rest is not rest_length and read_only:
             self._last_rest_source, self._last_rest = rest_length, rest
         return rest
 
