@@ -170,6 +170,22 @@ def _tendon_force(tx, ty, tz, length, rest, stiffness, c, t_dot_dv):  # pragma: 
     return total, elastic, total * ex, total * ey, total * ez, dissipated
 
 
+@njit(inline="always", **_JIT)
+def _store_tendon(
+    tension, elastic_tension, force, s, tail, head, total, elastic, fx, fy, fz,
+):  # pragma: no cover - compiled
+    """Tendon ``s``'s tension and elastic tension, and its force ``f`` added at the tail slot
+    and ``-f`` at the head slot of ``force`` (3, n_slots)."""
+    tension[s] = total
+    elastic_tension[s] = elastic
+    force[0, tail] += fx
+    force[1, tail] += fy
+    force[2, tail] += fz
+    force[0, head] -= fx
+    force[1, head] -= fy
+    force[2, head] -= fz
+
+
 @njit(**_JIT)
 def _tendon_rates(p, v, a, b, first, n, out):  # pragma: no cover - compiled
     """``out[first + e] = t . (v_b - v_a)`` along a run of ``n`` tendons (offsets as in
@@ -214,14 +230,7 @@ def _tendon_run(
             total, elastic, fx, fy, fz, power = _tendon_force(
                 tx, ty, tz, length, rest[s], stiffness[s], damping[s], damping_power[s])
             damping_power[s] = power
-        tension[s] = total
-        elastic_tension[s] = elastic
-        force[0, ia] += fx
-        force[1, ia] += fy
-        force[2, ia] += fz
-        force[0, ib] -= fx
-        force[1, ib] -= fy
-        force[2, ib] -= fz
+        _store_tendon(tension, elastic_tension, force, s, ia, ib, total, elastic, fx, fy, fz)
 
 
 @njit(inline="always", **_JIT)
@@ -298,14 +307,7 @@ def _tendon_pass(
                 tx, ty, tz, length, rest_length[s], tendon_stiffness[s], tendon_damping[lo + s],
                 t_dot_dv)
             dissipation += d
-        tension[s] = total
-        elastic_tension[s] = elastic
-        force[0, tail] += fx
-        force[1, tail] += fy
-        force[2, tail] += fz
-        force[0, head] -= fx
-        force[1, head] -= fy
-        force[2, head] -= fz
+        _store_tendon(tension, elastic_tension, force, s, tail, head, total, elastic, fx, fy, fz)
     return dissipation
 
 
