@@ -39,8 +39,86 @@ def gravity_vector(value: float | Sequence[float], dim: int) -> np.ndarray:
     return vector
 
 
+class _Table:
+    """Values at strictly increasing times, linear in between; outside ``[time[0], time[-1]]``
+    held at the end rows (``outside="hold"``) or zero (``"zero"``).  Subclasses name their
+    values (:attr:`values`, (T, ...)) and call :meth:`_validate` from ``__post_init__``."""
+
+    time: np.ndarray
+    outside: str
+    _values_field = "values"
+
+    @property
+    def values(self) -> np.ndarray:
+        """The table's rows (T, ...)."""
+        return getattr(self, self._values_field)
+
+    def _validate(self, row_shape: str, row_ndim: int) -> None:
+        time = np.array(self.time, dtype=float)
+        values = np.array(self.values, dtype=float)
+        name = self._values_field
+        if time.ndim != 1 or time.size == 0:
+            raise ValueError(f"time: expected a non-empty 1-D array, got shape {time.shape}")
+        if values.ndim != 1 + row_ndim or values.shape[0] != time.size or (
+                row_ndim == 2 and values.shape[2] != 3):
+            raise ValueError(f"{name}: expected shape (T, {row_shape}) with T = {time.size} rows "
+                             f"like time, got {values.shape}")
+        for field, array in (("time", time), (name, values)):
+            bad = np.argwhere(~np.isfinite(array))
+            if bad.size:
+                raise ValueError(f"{field}[{', '.join(map(str, bad[0]))}]: must be finite")
+        step = np.flatnonzero(np.diff(time) <= 0)
+        if step.size:
+            k = step[0] + 1
+            raise ValueError(f"time: must increase strictly, but time[{k}] = {float(time[k])!r} <= "
+                             f"time[{k - 1}] = {float(time[k - 1])!r}")
+        if self.outside not in ("hold", "zero"):
+            raise ValueError(f"outside: expected 'hold' or 'zero', got {self.outside!r}")
+        time.setflags(write=False)
+        values.setflags(write=False)
+        object.__setattr__(self, "time", time)
+        object.__setattr__(self, name, values)
+
+    def _segments(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per time: the row before, the fraction of the way to the next row, and whether the
+        time is outside the table."""
+        time = self.time
+        t = np.atleast_1d(np.asarray(times, dtype=float))
+        k = np.clip(np.searchsorted(time, t, side="right"), 1, max(time.size - 1, 1))
+        lo = k - 1
+        span = time[k] - time[lo] if time.size > 1 else np.ones_like(t)
+        fraction = np.clip((t - time[lo]) / span, 0.0, 1.0) if time.size > 1 else np.zeros_like(t)
+        return lo, fraction, (t < time[0]) | (t > time[-1])
+
+    def at(self, times: np.ndarray) -> np.ndarray:
+        """The rows (K, ...) at ``times`` (K,) [s]."""
+        values = self.values
+        lo, fraction, outside = self._segments(times)
+        hi = np.minimum(lo + 1, values.shape[0] - 1)
+        w = fraction.reshape(-1, *[1] * (values.ndim - 1))
+        out = (1.0 - w) * values[lo] + w * values[hi]
+        if self.outside == "zero":
+            out[outside] = 0.0
+        return out
+
+    def slope(self, times: np.ndarray) -> np.ndarray:
+        """The time derivative of the rows (K, ...) at ``times`` (zero outside the table)."""
+        values, time = self.values, self.time
+        lo, _, outside = self._segments(times)
+        if time.size == 1:
+            return np.zeros((lo.size, *values.shape[1:]))
+        hi = lo + 1
+        out = (values[hi] - values[lo]) / (time[hi] - time[lo]).reshape(-1, *[1] * (values.ndim - 1))
+        out[outside] = 0.0
+        return out
+
+    def __call__(self, t: float) -> np.ndarray:
+        """The row at time ``t`` [s]."""
+        return self.at(np.array([t]))[0]
+
+
 @dataclasses.dataclass(frozen=True, eq=False)
-class ForceTable:
+class ForceTable(_Table):
     """External nodal forces from a time table, linear in between; call it as ``w(t)``.
 
     Parameters
@@ -62,48 +140,39 @@ class ForceTable:
     time: np.ndarray
     force: np.ndarray
     outside: str = "hold"
+    _values_field = "force"
 
     def __post_init__(self) -> None:
-        time = np.array(self.time, dtype=float)
-        force = np.array(self.force, dtype=float)
-        if time.ndim != 1 or time.size == 0:
-            raise ValueError(f"time: expected a non-empty 1-D array, got shape {time.shape}")
-        if force.ndim != 3 or force.shape[0] != time.size or force.shape[2] != 3:
-            raise ValueError(f"force: expected shape (T, N, 3) with T = {time.size} rows like time, "
-                             f"got {force.shape}")
-        for name, array in (("time", time), ("force", force)):
-            bad = np.argwhere(~np.isfinite(array))
-            if bad.size:
-                raise ValueError(f"{name}[{', '.join(map(str, bad[0]))}]: must be finite")
-        step = np.flatnonzero(np.diff(time) <= 0)
-        if step.size:
-            k = step[0] + 1
-            raise ValueError(f"time: must increase strictly, but time[{k}] = {float(time[k])!r} <= "
-                             f"time[{k - 1}] = {float(time[k - 1])!r}")
-        if self.outside not in ("hold", "zero"):
-            raise ValueError(f"outside: expected 'hold' or 'zero', got {self.outside!r}")
-        time.setflags(write=False)
-        force.setflags(write=False)
-        object.__setattr__(self, "time", time)
-        object.__setattr__(self, "force", force)
+        self._validate("N, 3", 2)
 
     @property
     def n_nodes(self) -> int:
         """Number of nodes ``N`` the table is for."""
         return self.force.shape[1]
 
-    def __call__(self, t: float) -> np.ndarray:
-        """The nodal forces (N, 3) [N] at time ``t`` [s]."""
-        time = self.time
-        if t < time[0] or t > time[-1]:
-            if self.outside == "zero":
-                return np.zeros(self.force.shape[1:])
-            return self.force[0] if t < time[0] else self.force[-1]
-        k = min(int(np.searchsorted(time, t, side="right")), time.size - 1)
-        if k == 0:
-            return self.force[0]
-        w = (t - time[k - 1]) / (time[k] - time[k - 1])
-        return (1.0 - w) * self.force[k - 1] + w * self.force[k]
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class ControlTable(_Table):
+    """Controls ``u`` (rest-length changes, ``Lbar = L0 - u``) from a time table, linear in
+    between; call it as ``u(t)``.  The engine uses its slopes for the work of the control.
+
+    Parameters
+    ----------
+    time : array_like, shape (T,)
+        Strictly increasing, finite times [s].
+    control : array_like, shape (T, S)
+        Rest-length changes [m] of each tendon at each time.
+    outside : ``"hold"`` or ``"zero"``
+        The control before ``time[0]`` and after ``time[-1]``.
+    """
+
+    time: np.ndarray
+    control: np.ndarray
+    outside: str = "hold"
+    _values_field = "control"
+
+    def __post_init__(self) -> None:
+        self._validate("S", 1)
 
 
 def read_force_table(path: PathLike, *, outside: str = "hold") -> ForceTable:

@@ -1,0 +1,331 @@
+"""The engine's compiled (numba) half: the ODE right-hand side on ``y = [q, q', E_d, W_w, W_u]``,
+the steps of the integrators (DOP853 with its error estimate and dense output, classical RK4),
+the checks made after every step, and the outputs of a sample.
+
+Every function here evaluates the physics through :mod:`tensegrity.kernel_system`
+(``system_rhs``, ``system_project``, ...), so that one code path serves every structure
+``simulate`` accepts.  The arguments come in a few tuples, built once per run by
+:class:`tensegrity.engine.system.CompiledSystem`:
+
+``system`` = ``(arrays, extras)``
+    :func:`kernel_system.pack_system`'s model arrays (a tuple of six) and constraint data (None
+    for a free class 1 structure).
+``inputs`` = ``(rest, rate, has_rate, has_external, force, has_gravity, gravity)``
+    Per-stage inputs: ``rest`` (K, S) rest lengths ``Lbar = L0 - u`` [m] and ``rate`` (K, S)
+    the control rates ``du/dt`` [m/s] (read if ``has_rate``), in kernel order, ``force`` (K, 3, n_slots) external nodal forces [N] in
+    the kernel's node layout, ``gravity`` (3,) [m/s^2].  Stage ``s`` of a step reads row ``s``
+    when K > 1 and row 0 when K = 1 (inputs constant over the step).
+``work`` = ``(node_work, block_force, tension, elastic_tension, damping_power)``
+    Scratch buffers of the kernel (see :func:`tensegrity.kernel.rhs`); after an evaluation
+    ``tension`` and ``elastic_tension`` hold that state's values, in kernel order.
+
+The DOP853 coefficients, step-size law and error norm are those of ``scipy.integrate.DOP853``
+(Hairer, Norsett and Wanner, *Solving Ordinary Differential Equations I*, II.10), so that the
+engine follows the trajectories of the adaptive path it replaces.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+from scipy.integrate._ivp import dop853_coefficients as _dop853
+
+from tensegrity.kernel_system import (
+    system_energies,
+    system_errors,
+    system_nodes,
+    system_project,
+    system_rhs,
+)
+
+_JIT = dict(cache=True, fastmath={"contract"}, nogil=True, boundscheck=False, error_model="numpy")
+
+#: DOP853 tableau (scipy's): 12 stages, the 13th is f at the new point (first same as last),
+#: then 3 extra stages for the dense output.
+DOP853_STAGES = _dop853.N_STAGES
+DOP853_A = np.ascontiguousarray(_dop853.A)  # (16, 16)
+DOP853_B = np.ascontiguousarray(_dop853.B)  # (12,)
+DOP853_C = np.ascontiguousarray(_dop853.C)  # (16,)
+DOP853_E3 = np.ascontiguousarray(_dop853.E3)  # (13,)
+DOP853_E5 = np.ascontiguousarray(_dop853.E5)  # (13,)
+DOP853_D = np.ascontiguousarray(_dop853.D)  # (4, 16)
+#: Rows of the dense-output polynomial.
+DOP853_DENSE_ROWS = _dop853.INTERPOLATOR_POWER
+#: Stage times of one RK4 step, as fractions of the step.
+RK4_C = np.array([0.0, 0.5, 0.5, 1.0])
+
+#: Codes of :func:`check_state` (0: the state is sound).
+CHECK_OK, CHECK_NOT_FINITE, CHECK_ROD_LENGTH, CHECK_CONSTRAINT, CHECK_ENERGY, CHECK_PROJECTION = range(6)
+
+
+# --------------------------------------------------------------------------- right-hand side
+@njit(inline="always", **_JIT)
+def _row(values, s):  # pragma: no cover - compiled
+    """Row ``s`` of per-stage inputs, or row 0 when they are constant (one row)."""
+    return values[s] if values.shape[0] > 1 else values[0]
+
+
+@njit(**_JIT)
+def ode_rhs(y, dy, s, system, inputs, work):  # pragma: no cover - compiled
+    """``dy = f(t_s, y)`` for ``y = [q, q', E_d, W_w, W_u]`` (length ``2n + 3``): ``q'``, the
+    accelerations of Theorem 18.1 (eqs. 18.17, 18.20, constraint forces included), the power
+    dissipated by damping, the power of the external forces and the power of the control,
+    ``sum_i T_el,i du_i/dt`` [W] (``Lbar = L0 - u``); ``s`` selects the stage's row of the
+    inputs."""
+    arrays, extras = system
+    rest, rate, has_rate, has_external, force, has_gravity, gravity = inputs
+    node_work, block_force, tension, elastic, damping_power = work
+    n = (y.shape[0] - 3) // 2
+    q = y[:n]
+    qdot = y[n:2 * n]
+    dissipated, external = system_rhs(
+        q, qdot, arrays, extras, _row(rest, s), has_external, _row(force, s), has_gravity,
+        gravity, node_work, block_force, dy[n:2 * n], tension, elastic, damping_power)
+    dy[:n] = qdot
+    dy[2 * n] = dissipated
+    dy[2 * n + 1] = external
+    control = 0.0
+    if has_rate:
+        rate_s = _row(rate, s)
+        for i in range(elastic.shape[0]):
+            control += elastic[i] * rate_s[i]
+    dy[2 * n + 2] = control
+
+
+# --------------------------------------------------------------------------- DOP853
+@njit(**_JIT)
+def _combine(y, K, row, stages, h, out):  # pragma: no cover - compiled
+    """``out = y + h sum_j row[j] K[j]`` over ``j < stages``."""
+    out[:] = y
+    for j in range(stages):
+        a = h * row[j]
+        if a != 0.0:
+            kj = K[j]
+            for i in range(y.shape[0]):
+                out[i] += a * kj[i]
+
+
+@njit(**_JIT)
+def dop853_attempt(y, h, K, y_new, stage, rtol, atol, system, inputs, work):  # pragma: no cover
+    """One DOP853 step of ``h`` [s] from ``y`` with ``K[0] = f(y)`` given; fills ``K[1:13]``
+    (``K[12] = f(y_new)``, after which ``work`` holds the tensions at ``y_new``) and ``y_new``.
+    ``stage`` (len(y),) is scratch.  Returns the error norm of ``scipy.integrate.DOP853``
+    (accept the step when < 1)."""
+    for s in range(1, DOP853_STAGES):
+        _combine(y, K, DOP853_A[s], s, h, stage)
+        ode_rhs(stage, K[s], s, system, inputs, work)
+    _combine(y, K, DOP853_B, DOP853_STAGES, h, y_new)
+    ode_rhs(y_new, K[DOP853_STAGES], DOP853_STAGES, system, inputs, work)
+    err5 = 0.0
+    err3 = 0.0
+    m = y.shape[0]
+    for i in range(m):
+        e5 = 0.0
+        e3 = 0.0
+        for j in range(DOP853_STAGES + 1):
+            e5 += DOP853_E5[j] * K[j, i]
+            e3 += DOP853_E3[j] * K[j, i]
+        scale = atol + max(abs(y[i]), abs(y_new[i])) * rtol
+        err5 += (e5 / scale) ** 2
+        err3 += (e3 / scale) ** 2
+    if err5 == 0.0 and err3 == 0.0:
+        return 0.0
+    if not (np.isfinite(err5) and np.isfinite(err3)):
+        return np.inf
+    return abs(h) * err5 / np.sqrt((err5 + 0.01 * err3) * m)
+
+
+@njit(**_JIT)
+def dop853_dense(y_old, y, h, K, F, stage, system, inputs, work):  # pragma: no cover - compiled
+    """The step's dense-output polynomial into ``F`` (7, len(y)), as ``scipy``'s DOP853: three
+    more stages (rows 13-15 of ``K`` and of the inputs).  ``K[0]`` and ``K[12]`` are f at the
+    step's two ends."""
+    for s in range(DOP853_STAGES + 1, DOP853_A.shape[0]):
+        _combine(y_old, K, DOP853_A[s], s, h, stage)
+        ode_rhs(stage, K[s], s, system, inputs, work)
+    for i in range(y.shape[0]):
+        delta = y[i] - y_old[i]
+        F[0, i] = delta
+        F[1, i] = h * K[0, i] - delta
+        F[2, i] = 2.0 * delta - h * (K[DOP853_STAGES, i] + K[0, i])
+        for r in range(DOP853_D.shape[0]):
+            acc = 0.0
+            for j in range(DOP853_D.shape[1]):
+                acc += DOP853_D[r, j] * K[j, i]
+            F[3 + r, i] = h * acc
+
+
+@njit(**_JIT)
+def dop853_interpolate(F, y_old, x, out):  # pragma: no cover - compiled
+    """``y`` at the fraction ``x`` (0..1) of the step from its dense polynomial ``F``."""
+    for i in range(y_old.shape[0]):
+        acc = 0.0
+        for k in range(F.shape[0] - 1, -1, -1):
+            acc += F[k, i]
+            acc *= x if (F.shape[0] - 1 - k) % 2 == 0 else 1.0 - x
+        out[i] = acc + y_old[i]
+
+
+# --------------------------------------------------------------------------- RK4
+@njit(**_JIT)
+def rk4_step(y, h, K, stage, system, inputs, work):  # pragma: no cover - compiled
+    """One classical RK4 step of ``h`` [s] on ``y`` in place; ``K`` (4, len(y)) and ``stage``
+    scratch.  Stage rows of the inputs: 0, 1, 2, 3 at ``t, t + h/2, t + h/2, t + h``."""
+    ode_rhs(y, K[0], 0, system, inputs, work)
+    for s in range(1, 4):
+        c = h * RK4_C[s]
+        for i in range(y.shape[0]):
+            stage[i] = y[i] + c * K[s - 1, i]
+        ode_rhs(stage, K[s], s, system, inputs, work)
+    h6 = h / 6.0
+    for i in range(y.shape[0]):
+        y[i] += h6 * (K[0, i] + 2.0 * K[1, i] + 2.0 * K[2, i] + K[3, i])
+
+
+@njit(**_JIT)
+def rk4_segment(y, h, n_steps, K, stage, y_end, system, inputs, work, limits, monitor):  # pragma: no cover
+    """Up to ``n_steps`` RK4 steps of ``h`` with constant inputs, each followed by
+    :func:`check_state` and the projection onto the rod and joint constraints (as
+    ``simulate(method="rk4")``; the energy check reads the inputs' last row, the step's end).
+    ``y_end`` receives the state at the end of the last step
+    before its projection (what a sample records, and the failing state).  Returns
+    ``(steps_taken, check_code, check_value)``; the loop stops at the first failed check."""
+    n = (y.shape[0] - 3) // 2
+    for k in range(n_steps):
+        rk4_step(y, h, K, stage, system, inputs, work)
+        y_end[:] = y
+        code, value = check_state(y, inputs[0].shape[0] - 1, system, inputs, work, limits,
+                                  monitor)
+        if code != CHECK_OK:
+            return k + 1, code, value
+        _, _, ok = system_project(y[:n], y[n:2 * n], system[0][1], system[1])
+        if not ok:
+            return k + 1, CHECK_PROJECTION, np.nan
+    return n_steps, CHECK_OK, 0.0
+
+
+# --------------------------------------------------------------------------- checks and outputs
+@njit(**_JIT)
+def energy_balance(y, s, system, inputs, work):  # pragma: no cover - compiled
+    """``(kinetic, elastic, gravity, total, scale)`` [J] at ``y`` with the inputs' row ``s``:
+    ``total = E_kin + E_el + E_grav + E_d - W_w - W_u`` (constant up to integration error) and a
+    magnitude to judge its drift by."""
+    arrays, extras = system
+    rest, _, _, _, _, has_gravity, gravity = inputs
+    n = (y.shape[0] - 3) // 2
+    kinetic, elastic, potential = system_energies(
+        y[:n], y[n:2 * n], arrays, extras, _row(rest, s), has_gravity, gravity, work[0])
+    d, w, u = y[2 * n], y[2 * n + 1], y[2 * n + 2]
+    total = kinetic + elastic + potential + d - w - u
+    scale = kinetic + elastic + abs(potential) + abs(d) + abs(w) + abs(u)
+    return kinetic, elastic, potential, total, scale
+
+
+@njit(**_JIT)
+def check_state(y, s, system, inputs, work, limits, monitor):  # pragma: no cover - compiled
+    """The blow-up checks after a step ending at ``y`` (inputs' row ``s``): ``(code, value)``
+    with ``code`` one of ``CHECK_*``; ``value`` the offending number, or on success the larger
+    of the rod-length error (relative) and the constraint error [m].
+
+    ``limits`` = ``(max_rod_length_error, max_constraint_error [m], max_energy_growth)``;
+    ``monitor`` (4,) float64 is updated in place: ``[energy0, largest scale seen, largest rod
+    error, largest constraint error]``.  The energy balance may not grow by more than
+    ``max_energy_growth`` times the largest energy magnitude seen so far."""
+    n = (y.shape[0] - 3) // 2
+    for i in range(y.shape[0]):
+        if not np.isfinite(y[i]):
+            return CHECK_NOT_FINITE, np.nan
+    rod_error, constraint_error = system_errors(y[:n], system[0][1], system[1])
+    monitor[2] = max(monitor[2], rod_error)
+    monitor[3] = max(monitor[3], constraint_error)
+    if not rod_error <= limits[0]:
+        return CHECK_ROD_LENGTH, rod_error
+    if not constraint_error <= limits[1]:
+        return CHECK_CONSTRAINT, constraint_error
+    _, _, _, total, scale = energy_balance(y, s, system, inputs, work)
+    monitor[1] = max(monitor[1], scale)
+    growth = total - monitor[0]
+    if not growth <= limits[2] * max(monitor[1], 1e-300):
+        return CHECK_ENERGY, growth
+    return CHECK_OK, max(rod_error, constraint_error)
+
+
+@njit(**_JIT)
+def tendon_lengths(p, tendon_slots, out):  # pragma: no cover - compiled
+    """``|p_head - p_tail|`` [m] per tendon (kernel order) from node positions ``p`` (3, n_slots)."""
+    for s in range(tendon_slots.shape[0]):
+        a = tendon_slots[s, 0]
+        b = tendon_slots[s, 1]
+        x = p[0, b] - p[0, a]
+        yy = p[1, b] - p[1, a]
+        z = p[2, b] - p[2, a]
+        out[s] = np.sqrt(x * x + yy * yy + z * z)
+
+
+@njit(**_JIT)
+def switch_indicator(y, system, rest, work, p, v, out):  # pragma: no cover - compiled
+    """Per tendon (kernel order), positive while it pulls and <= 0 while it does not:
+    ``min(k d, k d + c l')`` with ``d = l - Lbar``; its sign changes exactly at the kinks of the
+    tension law (eqs. 18.39-18.40).  ``p``, ``v`` (3, n_slots) are scratch."""
+    arrays, extras = system
+    rod_slots, _, tendon_slots, _, stiffness, damping = arrays
+    n = (y.shape[0] - 3) // 2
+    system_nodes(y[:n], y[n:2 * n], rod_slots, extras, p, v, damping is not None)
+    _indicator(p, v, tendon_slots, stiffness, damping, rest, out)
+
+
+@njit(**_JIT)
+def _indicator(p, v, tendon_slots, stiffness, damping, rest, out):  # pragma: no cover
+    """:func:`switch_indicator` from the node positions ``p`` and velocities ``v``; ``damping``
+    None: undamped tendons (decided at compile time)."""
+    for s in range(tendon_slots.shape[0]):
+        a = tendon_slots[s, 0]
+        b = tendon_slots[s, 1]
+        tx = p[0, b] - p[0, a]
+        ty = p[1, b] - p[1, a]
+        tz = p[2, b] - p[2, a]
+        length = np.sqrt(tx * tx + ty * ty + tz * tz)
+        stretch = stiffness[s] * (length - rest[s])
+        if damping is None:
+            out[s] = stretch
+        else:
+            rate = (tx * (v[0, b] - v[0, a]) + ty * (v[1, b] - v[1, a])
+                    + tz * (v[2, b] - v[2, a])) / length
+            out[s] = min(stretch, stretch + damping[s] * rate)
+
+
+@njit(**_JIT)
+def sample_outputs(y, dy, system, inputs, work, moving, p, v, accel, lengths):  # pragma: no cover
+    """Everything a sample records, from one evaluation at ``y`` (the inputs' row 0): ``dy``,
+    node positions ``p`` and velocities ``v`` (3, n_slots), tendon lengths (kernel order; the
+    tensions are left in ``work``) and node accelerations ``accel`` (3, n_slots).  Returns
+    ``(kinetic, elastic, gravity, largest node acceleration [m/s^2], largest node speed [m/s])``
+    over the slots ``moving`` (rod ends and point masses).
+    """
+    arrays, extras = system
+    rod_slots = arrays[0]
+    n = (y.shape[0] - 3) // 2
+    ode_rhs(y, dy, 0, system, inputs, work)
+    kinetic, elastic, potential, _, _ = energy_balance(y, 0, system, inputs, work)
+    system_nodes(y[:n], y[n:2 * n], rod_slots, extras, p, v, True)
+    tendon_lengths(p, arrays[2], lengths)
+    system_nodes(dy[n:2 * n], dy[n:2 * n], rod_slots, extras, accel, accel, False)
+    return kinetic, elastic, potential, _largest_at(accel, moving), _largest_at(v, moving)
+
+
+@njit(**_JIT)
+def _largest_at(x, slots):  # pragma: no cover - compiled
+    """``max |x[:, slots]|``."""
+    worst = 0.0
+    for k in range(slots.shape[0]):
+        for i in range(3):
+            worst = max(worst, abs(x[i, slots[k]]))
+    return worst
+
+
+__all__ = [
+    "CHECK_CONSTRAINT", "CHECK_ENERGY", "CHECK_NOT_FINITE", "CHECK_OK", "CHECK_PROJECTION",
+    "CHECK_ROD_LENGTH", "DOP853_C", "DOP853_DENSE_ROWS", "DOP853_STAGES", "RK4_C",
+    "check_state", "dop853_attempt", "dop853_dense", "dop853_interpolate", "energy_balance",
+    "ode_rhs", "rk4_segment", "rk4_step", "sample_outputs", "switch_indicator", "tendon_lengths",
+]

@@ -1,0 +1,120 @@
+"""The inputs of a run: control ``u`` (rest-length changes, ``Lbar = L0 - u``), external nodal
+forces ``w`` and gravity, evaluated at the stage times of a step.
+
+Each of ``u`` and ``w`` is None, a constant array, a table (:class:`tensegrity.loads.ForceTable`,
+:class:`tensegrity.loads.ControlTable`: linear between rows, evaluated for all stages of a step
+at once) or a Python callable of time, called once per stage.  The control's rate ``du/dt``
+(for the work of the control) is the table's slope, or for a callable a central difference
+(two more calls per stage).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from tensegrity.loads import ControlTable, ForceTable
+from tensegrity.structure import Structure
+
+TimeFunction = Callable[[float], np.ndarray]
+
+
+def _check(value: np.ndarray, shape: tuple[int, ...], field: str, t: float | None = None) -> np.ndarray:
+    at = "" if t is None else f" at t = {t}"
+    if value.shape != shape:
+        raise ValueError(f"{field}: expected shape {shape}{at}, got {value.shape}")
+    if not np.all(np.isfinite(value)):
+        raise ValueError(f"{field}: must be finite{at}")
+    return value
+
+
+class _Signal:
+    """One input, ``None``, a constant, a table or a callable, evaluated at many times."""
+
+    def __init__(self, value: Any, shape: tuple[int, ...], field: str) -> None:
+        self.shape, self.field, self.value = shape, field, value
+        if value is None or isinstance(value, (ForceTable, ControlTable)):
+            self.kind = "none" if value is None else "table"
+            if value is not None:
+                _check(np.asarray(value.values[0]), shape, field)
+        elif callable(value):
+            self.kind = "function"
+        else:
+            self.kind = "constant"
+            self.value = _check(np.array(value, dtype=float), shape, field)
+            self.value.setflags(write=False)
+
+    @property
+    def constant(self) -> bool:
+        return self.kind in ("none", "constant")
+
+    def at(self, times: np.ndarray) -> np.ndarray | None:
+        """Values (K, *shape) at ``times`` (K,), or None."""
+        if self.kind == "none":
+            return None
+        if self.kind == "constant":
+            return self.value[None]
+        if self.kind == "table":
+            return self.value.at(times)
+        return np.stack([_check(np.asarray(self.value(float(t)), dtype=float), self.shape,
+                                self.field, float(t)) for t in times])
+
+    def rate(self, times: np.ndarray) -> np.ndarray | None:
+        """Time derivatives (K, *shape) at ``times``, or None if constant."""
+        if self.constant:
+            return None
+        if self.kind == "table":
+            return self.value.slope(times)
+        h = 1e-6 * np.maximum(1.0, np.abs(times))
+        return (self.at(times + h) - self.at(times - h)) / (2 * h)[:, None]
+
+    def setting(self) -> Any:
+        """How the run's settings record this input."""
+        return "function" if self.kind == "function" else (
+            "table" if self.kind == "table" else self.kind == "constant")
+
+
+class Inputs:
+    """Control, external force and gravity of a run on ``structure``, validated.
+
+    Attributes ``constant`` (all inputs constant in time) and ``gravity`` ((dim,) or None).
+    """
+
+    def __init__(
+        self, structure: Structure, *, control: Any = None, external_force: Any = None,
+        gravity: Any = None,
+    ) -> None:
+        self.structure = structure
+        self.control = _Signal(control, (structure.n_tendons,), "control")
+        self.external_force = _Signal(
+            external_force, (structure.n_nodes, structure.dim), "external_force")
+        if gravity is not None:
+            gravity = np.array(gravity, dtype=float)
+            if gravity.shape != (structure.dim,) or not np.all(np.isfinite(gravity)):
+                raise ValueError(
+                    f"gravity: expected {structure.dim} finite numbers, got {gravity!r}")
+        self.gravity = gravity
+        self.constant = self.control.constant and self.external_force.constant
+
+    def rest_length(self, times: np.ndarray) -> np.ndarray:
+        """``Lbar = L0 - u`` (K, S) [m] at ``times``; raises ``ValueError`` naming the first
+        tendon whose rest length would be negative."""
+        u = self.control.at(times)
+        rest = self.structure.tendon_rest_length[None] if u is None else (
+            self.structure.tendon_rest_length - u)
+        if u is not None and np.any(rest < 0):
+            k, s = np.argwhere(rest < 0)[0]
+            raise ValueError(
+                f"control[{s}]: rest length {self.structure.tendon_rest_length[s]:g} - "
+                f"{u[k, s]:g} is negative at t = {times[min(k, len(times) - 1)]:g} s")
+        return rest
+
+    def settings(self) -> dict[str, Any]:
+        """``control``, ``external_force`` (False, True, ``"table"``, ``"function"``) and
+        ``gravity`` (a list or None), for a run's settings record."""
+        return dict(
+            gravity=None if self.gravity is None else self.gravity.tolist(),
+            control=self.control.setting(), external_force=self.external_force.setting(),
+        )

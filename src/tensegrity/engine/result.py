@@ -1,0 +1,124 @@
+"""The result of a run held in memory (:class:`SimulationResult`), and the sink that builds it
+(:class:`MemorySink`)."""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+
+from tensegrity.dynamics import State
+from tensegrity.engine.loop import STATUS_END, STATUS_FAILED, STATUS_STEADY, RunSummary
+from tensegrity.engine.system import Sample
+from tensegrity.structure import Structure
+
+__all__ = ["ENERGY_NAMES", "MemorySink", "SimulationResult", "STATUS_END", "STATUS_FAILED",
+           "STATUS_STEADY"]
+
+#: Names of the energy components of a sample, in order [J].
+ENERGY_NAMES = ("kinetic", "elastic", "gravity", "dissipated", "external_work", "control_work")
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class SimulationResult:
+    """Samples of a simulation and how it ended.
+
+    Sampled arrays have ``T`` rows, one per output time.
+
+    Attributes
+    ----------
+    t : (T,) sample times [s].
+    q, qdot : (T, 6R) coordinates [m] and rates [m/s].
+    node_position, node_velocity : (T, N, 3) ``p = P q`` [m] and ``P q'`` [m/s] (eq. 18.60);
+        (T, N, 2) for a planar structure.
+    tendon_length : (T, S) [m].  tendon_tension : (T, S) [N], damping included.
+    energy : dict of (T,) arrays [J]: ``kinetic``, ``elastic``, ``gravity``, ``dissipated``,
+        ``external_work``, ``control_work``.
+    residual_acceleration : (T,) largest node acceleration [m/s^2].
+    status : ``1`` steady state reached, ``0`` end time reached, ``-1`` failed (see ``message``).
+    nfev, nsteps, nswitches, nprojections : right-hand-side evaluations, steps, located slack/taut
+        switches, projections onto the rod constraints.
+    max_rod_length_error : largest relative rod-length error seen at the end of a step.
+    max_constraint_error : largest violation ``|A q - b|`` [m] of the joints and supports seen at
+        the end of a step (0 without any; see ``docs/constraints.md``).
+    wall_time : [s].  settings : the options of the run.
+    """
+
+    structure: Structure
+    t: np.ndarray
+    q: np.ndarray
+    qdot: np.ndarray
+    node_position: np.ndarray
+    node_velocity: np.ndarray
+    tendon_length: np.ndarray
+    tendon_tension: np.ndarray
+    energy: dict[str, np.ndarray]
+    residual_acceleration: np.ndarray
+    status: int
+    message: str
+    nfev: int
+    nsteps: int
+    nswitches: int
+    nprojections: int
+    max_rod_length_error: float
+    wall_time: float
+    settings: dict[str, Any]
+    max_constraint_error: float = 0.0
+
+    @property
+    def success(self) -> bool:
+        """True unless the run failed."""
+        return self.status >= 0
+
+    @property
+    def final_state(self) -> State:
+        """The state at the last sample."""
+        return State(t=float(self.t[-1]), q=self.q[-1], qdot=self.qdot[-1])
+
+    @property
+    def total_energy(self) -> np.ndarray:
+        """``E_kin + E_el + E_grav + E_d - W_w - W_u`` [J], (T,): constant up to integration error."""
+        e = self.energy
+        return (
+            e["kinetic"] + e["elastic"] + e["gravity"] + e["dissipated"]
+            - e["external_work"] - e["control_work"]
+        )
+
+    @property
+    def slack_count(self) -> np.ndarray:
+        """Number of slack (zero-tension) tendons at each sample, (T,)."""
+        return np.sum(self.tendon_tension <= 0, axis=1)
+
+
+
+class MemorySink:
+    """Keeps every sample; :meth:`result` assembles the :class:`SimulationResult`."""
+
+    def __init__(self) -> None:
+        self.samples: list[Sample] = []
+
+    def add(self, sample: Sample) -> None:
+        self.samples.append(sample)
+
+    def result(self, structure: Structure, summary: RunSummary) -> SimulationResult:
+        """The samples and ``summary`` as one result."""
+        rows = self.samples
+
+        def stack(field: str) -> np.ndarray:
+            return np.array([getattr(row, field) for row in rows])
+
+        energy = stack("energy")
+        return SimulationResult(
+            structure=structure, t=stack("t"), q=stack("q"), qdot=stack("qdot"),
+            node_position=stack("node_position"), node_velocity=stack("node_velocity"),
+            tendon_length=stack("tendon_length"), tendon_tension=stack("tendon_tension"),
+            energy={name: energy[:, k] for k, name in enumerate(ENERGY_NAMES)},
+            residual_acceleration=stack("residual_acceleration"),
+            status=summary.status, message=summary.message, nfev=summary.nfev,
+            nsteps=summary.nsteps, nswitches=summary.nswitches,
+            nprojections=summary.nprojections,
+            max_rod_length_error=summary.max_rod_length_error,
+            max_constraint_error=summary.max_constraint_error,
+            wall_time=summary.wall_time, settings=summary.settings,
+        )

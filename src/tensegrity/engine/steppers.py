@@ -1,0 +1,267 @@
+"""Integrators behind one small protocol, as the run loop drives them (:class:`Stepper`):
+``step(bound)`` takes one accepted step not past ``bound``, ``dense()`` interpolates inside it,
+``retreat()`` discards it, ``restart(y)`` continues from a changed state (after a projection).
+
+- :class:`DOP853` — the default: ``scipy.integrate.DOP853``'s method, coefficients, error norm
+  and step-size law, its stages evaluated in compiled code (:mod:`tensegrity.engine.compiled`).
+  The step size carries over a projection or a located switch (no restart from an initial
+  guess).
+- :class:`ScipyMethod` — any other ``scipy.integrate`` method (``Radau``, ``BDF``, ...) with the
+  compiled right-hand side.
+- :class:`RK4` — classical fixed-step RK4; :meth:`RK4.advance` runs many steps in one compiled
+  call (projection and blow-up checks included) when the inputs are constant.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Protocol
+
+import numpy as np
+from scipy import integrate
+
+from tensegrity.engine import compiled
+from tensegrity.engine.system import CompiledSystem
+
+
+class IntegrationError(RuntimeError):
+    """The integrator could not take a step (e.g. the step size fell below its minimum)."""
+
+
+class Stepper(Protocol):
+    """What the run loop needs of an integrator; ``t``, ``y`` the current time and state,
+    ``t_old`` the start of the last step, ``nfev`` right-hand-side evaluations so far."""
+
+    adaptive: bool
+    t: float
+    t_old: float
+    y: np.ndarray
+    nfev: int
+
+    def step(self, bound: float) -> None:
+        """One accepted step, ending at or before ``bound``."""
+
+    def dense(self) -> Callable[[float], np.ndarray]:
+        """``y(t)`` inside the last step."""
+
+    def retreat(self) -> None:
+        """Discard the last step: back to ``(t_old, y_old)``."""
+
+    def restart(self, y: np.ndarray) -> None:
+        """Continue from ``y`` at the current time (after a projection)."""
+
+    def tensions(self) -> np.ndarray:
+        """Tensions (S,) [N] at the current state, kernel order (a view of the work buffer)."""
+
+
+def _rms(x: np.ndarray) -> float:
+    return float(np.linalg.norm(x) / np.sqrt(x.size))
+
+
+class DOP853:
+    """Explicit Runge-Kutta of order 8(5,3), adaptive (``rtol``, ``atol``)."""
+
+    adaptive = True
+    SAFETY, MIN_FACTOR, MAX_FACTOR, EXPONENT = 0.9, 0.2, 10.0, -1.0 / 8.0
+
+    def __init__(self, system: CompiledSystem, t0: float, y0: np.ndarray, *, rtol: float,
+                 atol: float, t_end: float) -> None:
+        self.system, self.rtol, self.atol = system, rtol, atol
+        m = system.m
+        self.K = np.zeros((compiled.DOP853_C.size, m))
+        self._stage, self._F = np.empty(m), np.empty((compiled.DOP853_DENSE_ROWS, m))
+        self.t = self.t_old = float(t0)
+        self.y = np.array(y0, dtype=float)
+        self.y_old = self.y.copy()
+        self.nfev = 0
+        self._dense_ready = False
+        self._evaluate_first_stage()
+        self.h = self._initial_step(t_end)
+
+    def _inputs(self, t: float, h: float) -> tuple:
+        return self.system.stage_inputs(t + compiled.DOP853_C * h)
+
+    def _evaluate_first_stage(self) -> None:
+        compiled.ode_rhs(self.y, self.K[0], 0, self.system.system, self._inputs(self.t, 0.0),
+                         self.system.work)
+        self.nfev += 1
+
+    def _initial_step(self, t_end: float) -> float:
+        """Hairer, Norsett and Wanner's initial step (II.4), as ``scipy``'s."""
+        y0, f0 = self.y, self.K[0].copy()
+        scale = self.atol + np.abs(y0) * self.rtol
+        d0, d1 = _rms(y0 / scale), _rms(f0 / scale)
+        h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
+        h0 = min(h0, t_end - self.t)
+        f1 = np.empty_like(y0)
+        compiled.ode_rhs(y0 + h0 * f0, f1, 0, self.system.system,
+                         self.system.stage_inputs(np.array([self.t + h0])), self.system.work)
+        self.nfev += 1
+        compiled.ode_rhs(y0, self.K[0], 0, self.system.system, self._inputs(self.t, 0.0),
+                         self.system.work)  # leave the work buffers at the current state
+        self.nfev += 1
+        d2 = _rms((f1 - f0) / scale) / h0
+        h1 = (max(1e-6, h0 * 1e-3) if d1 <= 1e-15 and d2 <= 1e-15
+              else (0.01 / max(d1, d2)) ** (1 / 8))
+        return min(100 * h0, h1, t_end - self.t)
+
+    def step(self, bound: float) -> None:
+        t, h = self.t, self.h
+        min_step = 10 * abs(np.nextafter(t, np.inf) - t)
+        rejected = False
+        y_new = np.empty_like(self.y)
+        while True:
+            h = max(min(h, bound - t), min_step)
+            if t + h > bound or bound - (t + h) < min_step:
+                h = bound - t
+            error = compiled.dop853_attempt(self.y, h, self.K, y_new, self._stage, self.rtol,
+                                            self.atol, self.system.system, self._inputs(t, h),
+                                            self.system.work)
+            self.nfev += compiled.DOP853_STAGES
+            if error < 1:
+                break
+            if not np.isfinite(error):
+                factor = self.MIN_FACTOR
+            else:
+                factor = max(self.MIN_FACTOR, self.SAFETY * error ** self.EXPONENT)
+            h *= factor
+            rejected = True
+            if h < min_step:
+                raise IntegrationError(f"DOP853 failed at t = {t:.9g} s: required step size is "
+                                       "less than spacing between numbers")
+        factor = self.MAX_FACTOR if error == 0 else min(
+            self.MAX_FACTOR, self.SAFETY * error ** self.EXPONENT)
+        self.h = h * (min(1.0, factor) if rejected else factor)
+        self.t_old, self.y_old, self.y_new = t, self.y, y_new
+        self.t = bound if h == bound - t else t + h
+        self.y = y_new
+        self._dense_ready = False
+
+    def accept(self) -> None:
+        """Make the last step's end the first stage of the next (first same as last)."""
+        self.K[0] = self.K[compiled.DOP853_STAGES]
+
+    def dense(self) -> Callable[[float], np.ndarray]:
+        if not self._dense_ready:
+            h = self.t - self.t_old
+            compiled.dop853_dense(self.y_old, self.y, h, self.K, self._F, self._stage,
+                                  self.system.system, self._inputs(self.t_old, h),
+                                  self.system.work)
+            self.nfev += 3
+            self._dense_ready = True
+        F, y_old, t_old, h = self._F, self.y_old, self.t_old, self.t - self.t_old
+
+        def at(t: float) -> np.ndarray:
+            out = np.empty_like(y_old)
+            compiled.dop853_interpolate(F, y_old, (t - t_old) / h, out)
+            return out
+        return at
+
+    def retreat(self) -> None:
+        self.t, self.y = self.t_old, self.y_old
+        self._dense_ready = False
+
+    def restart(self, y: np.ndarray) -> None:
+        self.y = y
+        self._evaluate_first_stage()
+
+    def tensions(self) -> np.ndarray:
+        return self.system.work[2]
+
+
+class ScipyMethod:
+    """A ``scipy.integrate`` ``OdeSolver`` (``RK45``, ``Radau``, ``BDF``, ...) on the compiled
+    right-hand side; restarted (a new initial step) after a projection or at a switch."""
+
+    adaptive = True
+
+    def __init__(self, system: CompiledSystem, t0: float, y0: np.ndarray, *, method: str,
+                 rtol: float, atol: float, t_end: float) -> None:
+        self.system, self.rtol, self.atol, self.t_end = system, rtol, atol, t_end
+        self.solver_class = getattr(integrate, method)
+        self.name, self.nfev = method, 0
+        self._start(t0, y0, t_end)
+
+    def _rhs(self, t: float, y: np.ndarray) -> np.ndarray:
+        dy = np.empty_like(y)
+        compiled.ode_rhs(np.ascontiguousarray(y), dy, 0, self.system.system,
+                         self.system.stage_inputs(np.array([t])), self.system.work)
+        return dy
+
+    def _start(self, t0: float, y0: np.ndarray, bound: float) -> None:
+        if getattr(self, "_solver", None) is not None:
+            self.nfev += self._solver.nfev
+        self._solver = self.solver_class(self._rhs, t0, y0, bound, rtol=self.rtol, atol=self.atol)
+        self._bound = bound
+        self.t = self.t_old = float(t0)
+        self.y = np.array(y0, dtype=float)
+        self.y_old = self.y
+        self._dense = None
+
+    def step(self, bound: float) -> None:
+        if bound != self._bound:
+            self._start(self.t, self.y, bound)
+        self.t_old, self.y_old = self.t, self.y
+        message = self._solver.step()
+        if self._solver.status == "failed":
+            raise IntegrationError(f"{self.name} failed at t = {self._solver.t:.9g} s: {message}")
+        self.t, self.y, self._dense = self._solver.t, self._solver.y, None
+
+    def accept(self) -> None:
+        self._rhs(self.t, self.y)  # leave the work buffers (tensions) at the current state
+
+    def dense(self) -> Callable[[float], np.ndarray]:
+        if self._dense is None:
+            self._dense = self._solver.dense_output()
+        return self._dense
+
+    def retreat(self) -> None:
+        self._start(self.t_old, self.y_old, self._bound)
+
+    def restart(self, y: np.ndarray) -> None:
+        self._start(self.t, y, self._bound)
+
+    def tensions(self) -> np.ndarray:
+        self._rhs(self.t, self.y)
+        return self.system.work[2]
+
+    @property
+    def total_nfev(self) -> int:
+        return self.nfev + self._solver.nfev
+
+
+class RK4:
+    """Classical fixed-step RK4 with step ``dt`` [s]; the state is projected after every step."""
+
+    adaptive = False
+
+    def __init__(self, system: CompiledSystem, t0: float, y0: np.ndarray, *, dt: float) -> None:
+        self.system, self.dt = system, float(dt)
+        m = system.m
+        self.K, self._stage, self.y_end = np.zeros((4, m)), np.empty(m), np.empty(m)
+        self.t = self.t_old = float(t0)
+        self.y = np.array(y0, dtype=float)
+        self.nfev = 0
+
+    def advance(self, n_steps: int, limits: tuple, monitor: np.ndarray) -> tuple[int, int, float]:
+        """Up to ``n_steps`` steps, each checked (:func:`compiled.check_state`) and projected.
+        Returns ``(steps, check code, check value)``; ``self.y_end`` is the last step's end
+        before projection.  Inputs constant: one compiled call; otherwise one per step."""
+        system = self.system
+        if system.inputs.constant:
+            steps, code, value = compiled.rk4_segment(
+                self.y, self.dt, n_steps, self.K, self._stage, self.y_end, system.system,
+                system.stage_inputs(np.zeros(1)), system.work, limits, monitor)
+        else:
+            steps, code, value = 0, compiled.CHECK_OK, 0.0
+            while steps < n_steps and code == compiled.CHECK_OK:
+                t = self.t + steps * self.dt
+                one, code, value = compiled.rk4_segment(
+                    self.y, self.dt, 1, self.K, self._stage, self.y_end, system.system,
+                    system.stage_inputs(t + compiled.RK4_C * self.dt), system.work, limits,
+                    monitor)
+                steps += one
+        self.nfev += 4 * steps
+        self.t_old = self.t + (steps - 1) * self.dt
+        self.t = self.t + steps * self.dt
+        return steps, code, value

@@ -1,0 +1,147 @@
+"""A structure and its inputs as the compiled engine takes them (:class:`CompiledSystem`): the
+packed arrays, the scratch buffers, and the maps between the structure's order (tendons, nodes,
+2-D coordinates of a planar structure) and the kernel's (tendons in kernel order, nodes by slot,
+always 3-D: a planar structure is simulated embedded at ``z = 0``, where it stays exactly)."""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from tensegrity import dynamics
+from tensegrity.engine import compiled
+from tensegrity.engine.inputs import Inputs
+from tensegrity.kernel_system import (
+    drop_coordinates,
+    embed_planar,
+    lift_coordinates,
+    pack_system,
+    system_nodes,
+    system_project,
+)
+from tensegrity.structure import Structure
+
+
+class Sample(NamedTuple):
+    """One output sample, in the structure's order and dimension (SI units)."""
+
+    t: float  #: [s]
+    q: np.ndarray  #: (n,) [m]
+    qdot: np.ndarray  #: (n,) [m/s]
+    node_position: np.ndarray  #: (N, dim) [m]
+    node_velocity: np.ndarray  #: (N, dim) [m/s]
+    tendon_length: np.ndarray  #: (S,) [m]
+    tendon_tension: np.ndarray  #: (S,) [N]
+    energy: np.ndarray  #: (6,) [J]: kinetic, elastic, gravity, dissipated, external, control work
+    residual_acceleration: float  #: largest node acceleration [m/s^2]
+    largest_speed: float  #: largest node speed [m/s]
+
+
+class CompiledSystem:
+    """``structure`` with ``inputs``, packed for :mod:`tensegrity.engine.compiled`.
+
+    ``y`` vectors are the engine's ODE state ``[q, q', E_d, W_w, W_u]`` in 3-D coordinates
+    (length ``m = 2n + 3``).
+    """
+
+    def __init__(self, structure: Structure, inputs: Inputs) -> None:
+        self.structure, self.inputs = structure, inputs
+        self.planar = structure.dim == 2
+        self.model = embed_planar(structure) if self.planar else structure
+        packed_system = pack_system(self.model)
+        packed = self.packed = packed_system.packed
+        self.system = (tuple(packed[:6]), packed_system.extras)
+        self.n = packed_system.n_coordinates
+        self.m = 2 * self.n + 3
+        S, n_slots = structure.n_tendons, packed.layout.n_slots
+        self.work = (np.zeros((3, 3, n_slots)), None, np.zeros(S), np.zeros(S), np.zeros(S))
+        self.tendon_position = np.argsort(packed.layout.tendon_order)
+        slot = packed.layout.node_slot
+        self.moving_slots = np.ascontiguousarray(np.concatenate(
+            [slot[self.model.rod_nodes.ravel()], slot[self.model.point_mass_nodes]]
+        ).astype(np.uint64))
+        self.node_slot = slot
+        #: scratch node arrays (3, n_slots): positions, velocities, accelerations
+        self.scratch_p, self.scratch_v, self._a = (np.zeros((3, n_slots)) for _ in range(3))
+        self._lengths = np.zeros(S)
+        self._constant: tuple | None = None
+        if inputs.constant:
+            self._constant = self.stage_inputs(np.zeros(1))
+
+    # ------------------------------------------------------------------ inputs
+    def stage_inputs(self, times: np.ndarray) -> tuple:
+        """The compiled inputs tuple at the stage ``times`` (K,) [s] (one row if constant)."""
+        if self._constant is not None:
+            return self._constant
+        inputs, packed = self.inputs, self.packed
+        rest = packed.to_kernel_order(inputs.rest_length(times))
+        rate = inputs.control.rate(times)
+        has_rate = rate is not None
+        rate = packed.to_kernel_order(rate) if has_rate else np.zeros((1, 1))
+        force = inputs.external_force.at(times)
+        has_external = force is not None
+        if has_external:
+            force = packed.to_slots(self._spatial(force))
+        else:
+            force = np.zeros((1, 3, 1))
+        gravity = inputs.gravity
+        has_gravity = gravity is not None
+        gravity = self._spatial(gravity) if has_gravity else np.zeros(3)
+        return (np.ascontiguousarray(rest), np.ascontiguousarray(rate), has_rate, has_external,
+                np.ascontiguousarray(force), has_gravity, np.ascontiguousarray(gravity))
+
+    def _spatial(self, x: np.ndarray) -> np.ndarray:
+        """Vectors (..., dim) as (..., 3)."""
+        if not self.planar:
+            return np.asarray(x, dtype=float)
+        return np.concatenate([x, np.zeros((*x.shape[:-1], 1))], axis=-1)
+
+    def rest_row(self, t: float) -> np.ndarray:
+        """Rest lengths (S,) at ``t`` in kernel order."""
+        return self.stage_inputs(np.array([t]))[0][0]
+
+    # ------------------------------------------------------------------ states
+    def state_vector(self, state: dynamics.State) -> np.ndarray:
+        """The ODE state ``y`` of ``state`` (energy integrals zero), projected onto the rod,
+        joint and support constraints."""
+        q, qdot = dynamics.project_to_constraints(self.structure, state.q, state.qdot)
+        if self.planar:
+            q, qdot = lift_coordinates(self.structure, q), lift_coordinates(self.structure, qdot)
+        return np.concatenate([q, qdot, np.zeros(3)])
+
+    def project(self, y: np.ndarray) -> bool:
+        """Project ``y`` in place onto the constraints; False if that failed."""
+        n = self.n
+        return bool(system_project(y[:n], y[n:2 * n], self.system[0][1], self.system[1])[2])
+
+    def coordinates(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(q, qdot)`` of ``y`` in the structure's coordinates (new arrays)."""
+        q, qdot = y[:self.n].copy(), y[self.n:2 * self.n].copy()
+        if self.planar:
+            q, qdot = drop_coordinates(self.structure, q), drop_coordinates(self.structure, qdot)
+        return q, qdot
+
+    def nodes(self, y: np.ndarray) -> np.ndarray:
+        """Node positions (N, dim) [m] at ``y``."""
+        system_nodes(y[:self.n], y[self.n:2 * self.n], self.system[0][0], self.system[1],
+                     self.scratch_p, self.scratch_v, False)
+        return self.scratch_p[: self.structure.dim, self.node_slot].T.copy()
+
+    def sample(self, t: float, y: np.ndarray, inputs: tuple) -> Sample:
+        """The sample at ``(t, y)`` with the inputs at ``t`` (one row), from one evaluation."""
+        dy = np.empty(self.m)
+        kinetic, elastic, gravity, accel, speed = compiled.sample_outputs(
+            y, dy, self.system, inputs, self.work, self.moving_slots, self.scratch_p, self.scratch_v, self._a,
+            self._lengths)
+        d = self.structure.dim
+        q, qdot = self.coordinates(y)
+        position = self.tendon_position
+        energy = np.array([kinetic, elastic, gravity, y[-3], y[-2], y[-1]])
+        return Sample(
+            t=t, q=q, qdot=qdot,
+            node_position=self.scratch_p[:d, self.node_slot].T.copy(),
+            node_velocity=self.scratch_v[:d, self.node_slot].T.copy(),
+            tendon_length=self._lengths[position], tendon_tension=self.work[2][position],
+            energy=energy, residual_acceleration=accel, largest_speed=speed,
+        )
