@@ -834,11 +834,21 @@ class PackedStructure(NamedTuple):
         return out
 
 
-def pack(structure: Structure) -> PackedStructure:
+def pack(structure: Structure, *, general: bool = False) -> PackedStructure:
     """The structure as the compiled functions take it (``2/m`` and ``6/(m L^2)`` computed as
     ``dynamics.evaluate`` computes them); ``tendon_damping`` is None when every tendon's damping
-    is zero (the compiled code then skips the length rates)."""
-    structure.require_free_class1("the compiled kernel")
+    is zero (the compiled code then skips the length rates).
+
+    By default only free 3-D class 1 structures are accepted (what :func:`rhs` alone simulates).
+    ``general=True`` accepts any 3-D structure (point masses, anchors, joints, supports): the
+    arrays then describe its rods and tendons, every node having a slot, and
+    :mod:`tensegrity.kernel_system` adds the rest.
+    """
+    if not general:
+        structure.require_free_class1("the compiled kernel")
+    elif structure.dim != 3:
+        raise ValueError("structure: the compiled kernel takes 3-D structures only (embed a "
+                         "planar one with tensegrity.kernel_system.embed_planar)")
     m, L = structure.rod_mass, structure.rod_length
     rod_param = np.empty((structure.n_rods, 5))
     rod_param[:, ROD_MASS] = m

@@ -1,0 +1,805 @@
+"""Compiled (numba) physics for every structure ``simulate`` accepts.
+
+:mod:`tensegrity.kernel` compiles Theorem 18.1 for free 3-D class 1 structures.  This module adds,
+around the same compiled passes, what the NumPy reference :func:`tensegrity.dynamics.evaluate`
+does for the others:
+
+- *point masses* (nodes of no rod, not fixed): ``x'' = (f + w) / m + g``, their positions
+  ``x`` following the rods' coordinates in ``q`` (``q`` has ``6R + 3M`` entries);
+- *anchors* (fixed nodes of no rod): tendon ends that never move;
+- *joints and supports* (:mod:`tensegrity.constraints`, ``docs/constraints.md``): the linear
+  constraints ``A q = b`` (``A = A_n P``, each row touching at most two nodes) add the forces
+  ``A_n^T lambda`` with ``K lambda = -A q''_free``, ``K = A G(q) A_n^T``, ``G(q)`` the
+  accelerations per unit nodal force (eqs. 18.17, 18.20), and the mass-weighted Gauss-Newton
+  projection of :meth:`LinearConstraints.project` keeps the state on them;
+- *planar structures* (``dim == 2``, Appendix A): :func:`embed_planar` gives the 3-D structure
+  with ``z = 0``, whose forces have no ``z`` component, so that ``z`` stays exactly 0.
+
+``K`` and the projection's normal matrix ``J W^-1 J^T`` are assembled in compiled code from
+their sparsity (two rows couple only through a rod or point mass that both touch) into *envelope*
+(skyline) storage, rows in reverse Cuthill-McKee order, and solved by an envelope Cholesky
+factorization of ``K + delta I`` with two refinements against ``K``, as
+:func:`tensegrity.constraints.solve_psd` does.
+
+A free class 1 structure has ``extras = None``; every function here then compiles to exactly the
+existing kernel code (:func:`kernel.rhs`, :func:`kernel.project`, :func:`kernel.energies`): the
+same numbers bit for bit.  Otherwise ``extras`` is a :class:`SystemExtras`, which holds scratch
+buffers: one ``extras`` per thread.
+
+Usage::
+
+    from tensegrity.kernel_system import pack_system, system_rhs
+
+    system = pack_system(structure)          # 3-D; planar: pack_system(embed_planar(structure))
+    packed = system.packed
+    arrays = (packed.rod_slots, packed.rod_param, packed.tendon_slots, packed.tendon_runs,
+              packed.tendon_stiffness, packed.tendon_damping)
+    node_work = np.zeros((3, 3, packed.layout.n_slots))
+    system_rhs(q, qdot, arrays, system.extras, packed.to_kernel_order(rest), False,
+               np.zeros((3, 1)), True, gravity, node_work, None, qddot, tension, elastic,
+               damping_power)
+
+Like :mod:`tensegrity.kernel`, import this module lazily (it imports numba).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+import scipy.sparse as sp
+from numba import njit
+from scipy.sparse.csgraph import reverse_cuthill_mckee
+
+from tensegrity.constraints import PROJECTION_FLOOR_RTOL, PROJECTION_RTOL, REGULARIZATION
+from tensegrity.kernel import (
+    _JIT, ROD_C1, ROD_C2, ROD_LENGTH, ROD_MASS, PackedStructure, _end_values, energies, pack,
+    project, rhs,
+)
+from tensegrity.structure import Structure
+
+__all__ = [
+    "MAX_ITER", "SystemArrays", "SystemExtras", "drop_coordinates", "embed_planar",
+    "lift_coordinates", "pack_system", "system_energies", "system_errors", "system_nodes",
+    "system_project", "system_rhs",
+]
+
+#: Gauss-Newton iterations of :func:`system_project` (``LinearConstraints.project``'s max_iter).
+MAX_ITER = 50
+
+
+# --------------------------------------------------------------------------- planar structures
+def embed_planar(structure: Structure) -> Structure:
+    """A 3-D copy of a planar (``dim == 2``) structure in the plane ``z = 0``.
+
+    Node positions and velocities (N, 2) and line directions (Q, 2) get a zero ``z``; everything
+    else is unchanged.  A node fixed, joined or held on a line is then also held in ``z``, where
+    no force acts: the 3-D dynamics keep ``z = 0`` exactly and agree with the 2-D ones.
+    """
+    if structure.dim != 2:
+        raise ValueError(f"structure: expected a planar (dim 2) structure, got dim {structure.dim}")
+
+    def pad(values: np.ndarray) -> np.ndarray:
+        return np.concatenate([values, np.zeros((values.shape[0], 1))], axis=1)
+
+    return structure.replace(
+        node_position=pad(structure.node_position), node_velocity=pad(structure.node_velocity),
+        plane_normal=pad(structure.plane_normal), line_direction=pad(structure.line_direction),
+    )
+
+
+def _coordinate_count(structure2d: Structure, x: np.ndarray, per_vector: int, name: str) -> int:
+    """Number of 2-vectors in ``x``'s last axis (rods' ``q1``, ``q2``, then point masses)."""
+    if structure2d.dim != 2:
+        raise ValueError("structure2d: expected a planar (dim 2) structure, got dim "
+                         f"{structure2d.dim}")
+    count = 2 * structure2d.n_rods + structure2d.point_mass_nodes.size
+    if x.ndim == 0 or x.shape[-1] != per_vector * count:
+        raise ValueError(f"{name}: expected a last axis of {per_vector * count}, got shape "
+                         f"{x.shape}")
+    return count
+
+
+def lift_coordinates(structure2d: Structure, x: np.ndarray) -> np.ndarray:
+    """``q`` or ``q'`` (..., 4R + 2M) of a planar structure as the (..., 6R + 3M) of
+    :func:`embed_planar`'s structure, with zeros in ``z`` (a new array)."""
+    x = np.asarray(x, dtype=np.float64)
+    count = _coordinate_count(structure2d, x, 2, "x")
+    out = np.zeros(x.shape[:-1] + (count, 3))
+    out[..., :2] = x.reshape(x.shape[:-1] + (count, 2))
+    return out.reshape(x.shape[:-1] + (3 * count,))
+
+
+def drop_coordinates(structure2d: Structure, x: np.ndarray) -> np.ndarray:
+    """The inverse of :func:`lift_coordinates`: (..., 6R + 3M) to (..., 4R + 2M), dropping
+    ``z`` (a new array)."""
+    x = np.asarray(x, dtype=np.float64)
+    count = _coordinate_count(structure2d, x, 3, "x")
+    return np.ascontiguousarray(x.reshape(x.shape[:-1] + (count, 3))[..., :2]).reshape(
+        x.shape[:-1] + (2 * count,))
+
+
+# --------------------------------------------------------------------------- packing
+class SystemExtras(NamedTuple):
+    """What a structure has beyond free rods and tendons, as compiled code takes it.
+
+    Bodies are the rods ``0..R-1`` then the point masses ``R..R+M-1``.  A constraint row's
+    *entries* are its nodes on bodies (anchors are in ``constraint_rhs``), grouped by body.
+    Rows are numbered in the reverse Cuthill-McKee order of the projection rows (constraint rows
+    and one rod-length row per rod), which keeps the envelopes of ``K`` and ``J W^-1 J^T`` narrow.
+    The last six fields are scratch (written by every call): one ``SystemExtras`` per thread.
+    """
+
+    mass_slots: np.ndarray  #: (M,) uint64: slots of the point masses (kernel layout)
+    point_mass: np.ndarray  #: (M,) float64: their masses [kg]
+    anchor_slots: np.ndarray  #: (F,) uint64: slots of the anchors
+    anchor_position: np.ndarray  #: (3, F) float64: anchor positions [m]
+    body_start: np.ndarray  #: (R + M + 1,) int64: entries of body k are body_start[k]:[k + 1]
+    entry_row: np.ndarray  #: (E,) int64: constraint row of each entry (0..c-1)
+    entry_sign: np.ndarray  #: (E,) float64: -1 at a rod's end a, +1 at end b, 0 (point mass)
+    entry_coef: np.ndarray  #: (E, 3) float64: the row's coefficients ``A_n`` at that node
+    constraint_rhs: np.ndarray  #: (c,) float64: ``b`` [m] (anchor terms included)
+    constraint_prow: np.ndarray  #: (c,) int64: projection row of each constraint row
+    rod_prow: np.ndarray  #: (R,) int64: projection row of each rod's length (if c > 0)
+    k_first: np.ndarray  #: (c,) int64: first column of each row's envelope in K
+    k_offset: np.ndarray  #: (c + 1,) int64: start of each row's envelope in k_values
+    n_first: np.ndarray  #: (P,) int64: the same for ``J W^-1 J^T`` (P = c + R, or 0 if c = 0)
+    n_offset: np.ndarray  #: (P + 1,) int64
+    k_values: np.ndarray  #: scratch: K's lower envelope
+    k_factor: np.ndarray  #: scratch: its Cholesky factor
+    n_values: np.ndarray  #: scratch: ``J W^-1 J^T``'s lower envelope
+    n_factor: np.ndarray  #: scratch: its Cholesky factor
+    work: np.ndarray  #: scratch: (4, max(P, 1)) vectors
+
+
+class SystemArrays(NamedTuple):
+    """:func:`pack_system`'s result."""
+
+    packed: PackedStructure  #: ``kernel.pack(structure, general=True)``
+    extras: SystemExtras | None  #: None for a free class 1 structure
+    n_coordinates: int  #: ``6R + 3M``
+
+
+def _envelope(pattern: sp.csr_matrix) -> tuple[np.ndarray, np.ndarray]:
+    """``(first, offset)`` of the lower envelope of a symmetric pattern with its diagonal."""
+    pattern = sp.csr_matrix(pattern)
+    pattern.sort_indices()
+    n = pattern.shape[0]
+    first = (pattern.indices[pattern.indptr[:-1]] if n else np.zeros(0)).astype(np.int64)
+    offset = np.concatenate([[0], np.cumsum(np.arange(n) - first + 1)]).astype(np.int64)
+    return first, offset
+
+
+def _entries(structure: Structure) -> tuple[np.ndarray, ...]:
+    """The constraint rows' nodes off anchors: ``(row, body, sign, coef)`` per entry, and ``b``."""
+    constraints = structure.constraints
+    node_matrix = constraints.node_matrix.tocoo()
+    R = structure.n_rods
+    body = np.full(structure.n_nodes, -1)
+    sign = np.zeros(structure.n_nodes)
+    body[structure.rod_nodes[:, 0]], sign[structure.rod_nodes[:, 0]] = np.arange(R), -1.0
+    body[structure.rod_nodes[:, 1]], sign[structure.rod_nodes[:, 1]] = np.arange(R), 1.0
+    body[structure.point_mass_nodes] = R + np.arange(structure.point_mass_nodes.size)
+    node = node_matrix.col // 3
+    keys, where = np.unique(np.stack([node_matrix.row, node]), axis=1, return_inverse=True)
+    coef = np.zeros((keys.shape[1], 3))
+    np.add.at(coef, (where.ravel(), node_matrix.col % 3), node_matrix.data)
+    keep = body[keys[1]] >= 0  # anchors: constant, in b
+    row, nodes, coef = keys[0][keep], keys[1][keep], coef[keep]
+    return row, body[nodes], sign[nodes], coef, np.array(constraints.rhs, dtype=np.float64)
+
+
+def _row_order(row, body, c, R, n_bodies):
+    """Reverse Cuthill-McKee order of the projection rows (c constraint rows, then R rod rows)
+    on the graph of rows sharing a body: ``(constraint_prow, rod_prow, k_rank, pattern)``."""
+    incidence = sp.csr_matrix(
+        (np.ones(row.size + R), (np.concatenate([row, c + np.arange(R)]),
+                                 np.concatenate([body, np.arange(R)]))), shape=(c + R, n_bodies))
+    pattern = (incidence @ incidence.T + sp.identity(c + R)).tocsr()
+    order = reverse_cuthill_mckee(pattern, symmetric_mode=True).astype(np.int64)
+    position = np.empty(c + R, dtype=np.int64)
+    position[order] = np.arange(c + R)
+    k_rank = np.empty(c, dtype=np.int64)
+    k_rank[np.argsort(position[:c], kind="stable")] = np.arange(c)
+    return position[:c], position[c:], k_rank, pattern
+
+
+def _constraint_rows(structure: Structure) -> dict[str, np.ndarray]:
+    """The :class:`SystemExtras` fields of the joints and supports: the independent rows of
+    ``structure.constraints`` renumbered in the order of :func:`_row_order`, entries grouped by
+    body, and the envelopes of ``K`` and ``J W^-1 J^T``."""
+    R, M = structure.n_rods, structure.point_mass_nodes.size
+    row, body, sign, coef = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0),
+                             np.zeros((0, 3)))
+    rhs_b = np.zeros(0)
+    if structure.has_constraints:
+        row, body, sign, coef, rhs_b = _entries(structure)
+    c = rhs_b.size
+    fields = dict(rod_prow=np.zeros(R, dtype=np.int64), constraint_prow=np.zeros(0, np.int64),
+                  k_first=np.zeros(0, np.int64), k_offset=np.zeros(1, np.int64),
+                  n_first=np.zeros(0, np.int64), n_offset=np.zeros(1, np.int64))
+    if c:
+        constraint_prow, rod_prow, k_rank, pattern = _row_order(row, body, c, R, R + M)
+        row = k_rank[row]
+        k_order = np.argsort(k_rank)  # old row at each K position
+        rhs_b, constraint_prow = rhs_b[k_order], constraint_prow[k_order]
+        old = np.empty(c + R, dtype=np.int64)  # old row at each projection position
+        old[np.concatenate([constraint_prow, rod_prow])] = np.concatenate(
+            [k_order, c + np.arange(R)])
+        fields.update(rod_prow=rod_prow, constraint_prow=constraint_prow)
+        fields["n_first"], fields["n_offset"] = _envelope(pattern[old][:, old])
+        fields["k_first"], fields["k_offset"] = _envelope(pattern[k_order][:, k_order])
+    by_body = np.lexsort((row, body))
+    return fields | dict(
+        body_start=np.searchsorted(body[by_body], np.arange(R + M + 1)).astype(np.int64),
+        entry_row=np.array(row[by_body], dtype=np.int64),
+        entry_sign=np.array(sign[by_body], dtype=np.float64),
+        entry_coef=np.array(coef[by_body], dtype=np.float64, order="C"),
+        constraint_rhs=np.array(rhs_b, dtype=np.float64),
+    )
+
+
+def pack_system(structure: Structure) -> SystemArrays:
+    """The arrays of :func:`system_rhs` and the other compiled functions for a 3-D structure:
+    ``kernel.pack(structure, general=True)``, and the :class:`SystemExtras` (None for a free
+    class 1 structure, which the existing kernel simulates alone).
+
+    Raises
+    ------
+    ValueError
+        If ``structure`` is planar (``dim == 2``: pack ``embed_planar(structure)``).
+    """
+    if structure.dim != 3:
+        raise ValueError("structure: pack_system takes 3-D structures; embed a planar one with "
+                         "embed_planar(structure) first")
+    packed = pack(structure, general=True)
+    n_coordinates = 6 * structure.n_rods + 3 * structure.point_mass_nodes.size
+    if structure.is_free_class1:
+        return SystemArrays(packed, None, n_coordinates)
+    slot = packed.layout.node_slot
+    masses, anchors = structure.point_mass_nodes, structure.anchor_nodes
+    rows = _constraint_rows(structure)
+    k_size, n_size = rows["k_offset"][-1], rows["n_offset"][-1]
+    extras = SystemExtras(
+        mass_slots=np.array(slot[masses], dtype=np.uint64),
+        point_mass=np.array(structure.node_point_mass[masses], dtype=np.float64),
+        anchor_slots=np.array(slot[anchors], dtype=np.uint64),
+        anchor_position=np.array(structure.node_position[anchors].T, dtype=np.float64, order="C"),
+        k_values=np.zeros(k_size), k_factor=np.zeros(k_size),
+        n_values=np.zeros(n_size), n_factor=np.zeros(n_size),
+        work=np.zeros((4, max(rows["n_first"].size, 1))),
+        **rows,
+    )
+    return SystemArrays(packed, extras, n_coordinates)
+
+
+# --------------------------------------------------------------------------- compiled: nodes
+@njit(**_JIT)
+def _extra_nodes(q, qdot, n_rods, extras, p, v, with_velocity):  # pragma: no cover - compiled
+    """Point-mass positions ``x`` (from ``q`` after the rods' ``6R``) and anchor positions into
+    ``p`` (3, n_slots) [m]; with ``with_velocity`` the point-mass velocities and zero (anchors)
+    into ``v`` [m/s]."""
+    mass_slots = extras.mass_slots
+    for k in range(mass_slots.shape[0]):
+        s = mass_slots[k]
+        o = 6 * n_rods + 3 * k
+        for i in range(3):
+            p[i, s] = q[o + i]
+            if with_velocity:
+                v[i, s] = qdot[o + i]
+    anchor_slots = extras.anchor_slots
+    for k in range(anchor_slots.shape[0]):
+        s = anchor_slots[k]
+        for i in range(3):
+            p[i, s] = extras.anchor_position[i, k]
+            if with_velocity:
+                v[i, s] = 0.0
+
+
+@njit(**_JIT)
+def system_nodes(q, qdot, rod_slots, extras, p, v, with_velocity):  # pragma: no cover - compiled
+    """Node positions ``p = P q`` (eq. 18.26) of every slot holding a node (rod ends, point
+    masses, anchors) into ``p`` (3, n_slots) [m], and with ``with_velocity`` the node
+    velocities into ``v`` (anchors at rest) [m/s], as ``dynamics.nodes_from_coordinates``.
+    Slots that hold no node are not written."""
+    _end_values(q, rod_slots, p)
+    if with_velocity:
+        _end_values(qdot, rod_slots, v)
+    if extras is not None:
+        _extra_nodes(q, qdot, rod_slots.shape[0], extras, p, v, with_velocity)
+
+
+# --------------------------------------------------------------------------- compiled: rows
+@njit(inline="always", **_JIT)
+def _entry_value(x, n_rods, body, sign, i):  # pragma: no cover - compiled
+    """Coordinate ``i`` of the position (or rate) of an entry's node from ``x``: ``(x1 + sign
+    x2) / 2`` on a rod (eq. 18.26), ``x`` itself on a point mass."""
+    if body < n_rods:
+        o = 6 * body
+        return 0.5 * (x[o + i] + sign * x[o + 3 + i])
+    return x[6 * n_rods + 3 * (body - n_rods) + i]
+
+
+@njit(**_JIT)
+def _rows_times(x, n_rods, extras, out):  # pragma: no cover - compiled
+    """``out = A x`` (c,) for ``x`` = ``q``, ``q'`` or ``q''`` (``A = A_n P``), row by entry."""
+    out[:] = 0.0
+    start, rows = extras.body_start, extras.entry_row
+    sign, coef = extras.entry_sign, extras.entry_coef
+    for body in range(start.shape[0] - 1):
+        for e in range(start[body], start[body + 1]):
+            total = 0.0
+            for i in range(3):
+                total += coef[e, i] * _entry_value(x, n_rods, body, sign[e], i)
+            out[rows[e]] += total
+
+
+@njit(**_JIT)
+def _add_response(q, multiplier, rod_param, extras, qddot):  # pragma: no cover - compiled
+    """``qddot += G(q) A_n^T multiplier``: the constraint forces ``A_n^T lambda`` [N] applied by
+    Theorem 18.1 (eqs. 18.17, 18.20: ``q1'' = (2/m)(f_a + f_b)``, ``q2'' = (6/(m L^2))
+    skew(q2)^2 (f_a - f_b)``; ``x'' = f / m``); forces on anchors move nothing."""
+    start, rows = extras.body_start, extras.entry_row
+    sign, coef = extras.entry_sign, extras.entry_coef
+    n_rods = rod_param.shape[0]
+    fa = np.zeros(3)
+    fb = np.zeros(3)
+    for body in range(start.shape[0] - 1):
+        fa[:] = 0.0
+        fb[:] = 0.0
+        for e in range(start[body], start[body + 1]):
+            lam = multiplier[rows[e]]
+            for i in range(3):
+                if sign[e] > 0.0:
+                    fb[i] += coef[e, i] * lam
+                else:
+                    fa[i] += coef[e, i] * lam
+        if body < n_rods:
+            o = 6 * body
+            c1 = rod_param[body, ROD_C1]
+            c2 = rod_param[body, ROD_C2]
+            q2_dot_d = 0.0
+            q2_sq = 0.0
+            for i in range(3):
+                q2_dot_d += q[o + 3 + i] * (fa[i] - fb[i])
+                q2_sq += q[o + 3 + i] * q[o + 3 + i]
+            for i in range(3):  # skew(q2)^2 d = q2 (q2 . d) - |q2|^2 d
+                qddot[o + i] += c1 * (fa[i] + fb[i])
+                qddot[o + 3 + i] += c2 * (q[o + 3 + i] * q2_dot_d - q2_sq * (fa[i] - fb[i]))
+        else:
+            o = 6 * n_rods + 3 * (body - n_rods)
+            for i in range(3):
+                qddot[o + i] += fa[i] / extras.point_mass[body - n_rods]
+
+
+# --------------------------------------------------------------------------- compiled: envelope
+@njit(inline="always", **_JIT)
+def _env_add(values, first, offset, i, j, value):  # pragma: no cover - compiled
+    """``M[max(i, j), min(i, j)] += value`` in lower envelope storage."""
+    if i < j:
+        i, j = j, i
+    values[offset[i] + j - first[i]] += value
+
+
+@njit(**_JIT)
+def _env_cholesky(values, factor, first, offset, delta):  # pragma: no cover - compiled
+    """``L`` with ``L L^T = M + delta I`` into ``factor`` (envelope storage; fill-in stays in
+    the envelope), each diagonal entry stored as its reciprocal ``1 / L_ii`` (multiplications
+    instead of divisions, here and in :func:`_env_substitute`).  A non-positive pivot
+    (round-off on an indefinite matrix) gives NaN."""
+    for i in range(first.shape[0]):
+        fi = first[i]
+        oi = offset[i] - fi
+        for j in range(fi, i + 1):
+            fj = first[j]
+            oj = offset[j] - fj
+            s = values[oi + j]
+            for k in range(max(fi, fj), j):
+                s -= factor[oi + k] * factor[oj + k]
+            if j < i:
+                factor[oi + j] = s * factor[oj + j]
+            else:
+                s += delta
+                factor[oi + i] = 1.0 / np.sqrt(s) if s > 0.0 else np.nan
+
+
+@njit(**_JIT)
+def _env_substitute(factor, first, offset, x):  # pragma: no cover - compiled
+    """``x = (L L^T)^-1 x`` in place (forward then back substitution; ``factor`` from
+    :func:`_env_cholesky`, reciprocal diagonal)."""
+    n = first.shape[0]
+    for i in range(n):
+        oi = offset[i] - first[i]
+        s = x[i]
+        for k in range(first[i], i):
+            s -= factor[oi + k] * x[k]
+        x[i] = s * factor[oi + i]
+    for i in range(n - 1, -1, -1):
+        oi = offset[i] - first[i]
+        x[i] = x[i] * factor[oi + i]
+        for k in range(first[i], i):
+            x[k] -= factor[oi + k] * x[i]
+
+
+@njit(**_JIT)
+def _env_residual(values, first, offset, x, rhs, out):  # pragma: no cover - compiled
+    """``out = rhs - M x`` for the symmetric ``M`` stored as its lower envelope."""
+    n = first.shape[0]
+    out[:n] = rhs[:n]
+    for i in range(n):
+        oi = offset[i] - first[i]
+        s = values[oi + i] * x[i]
+        for k in range(first[i], i):
+            s += values[oi + k] * x[k]
+            out[k] -= values[oi + k] * x[i]
+        out[i] -= s
+
+
+@njit(**_JIT)
+def _solve_psd(values, factor, first, offset, rhs, x, scratch):  # pragma: no cover - compiled
+    """``x = M^-1 rhs`` for a symmetric positive semi-definite ``M`` (envelope storage), as
+    :func:`tensegrity.constraints.solve_psd`: factorize ``M + delta I`` (``delta =
+    REGULARIZATION max(diag M)``) and refine twice against ``M``."""
+    n = first.shape[0]
+    largest = np.finfo(np.float64).tiny
+    for i in range(n):
+        d = values[offset[i + 1] - 1]
+        if d > largest:
+            largest = d
+    _env_cholesky(values, factor, first, offset, REGULARIZATION * largest)
+    x[:n] = rhs[:n]
+    _env_substitute(factor, first, offset, x)
+    for _ in range(2):
+        _env_residual(values, first, offset, x, rhs, scratch)
+        _env_substitute(factor, first, offset, scratch)
+        for i in range(n):
+            x[i] += scratch[i]
+
+
+# --------------------------------------------------------------------------- compiled: dynamics
+@njit(**_JIT)
+def _assemble_coupling(q, rod_param, extras):  # pragma: no cover - compiled
+    """``K = A G(q) A_n^T`` (c, c) into ``extras.k_values``: rows ``i``, ``j`` couple through
+    each body both touch, by the node accelerations per unit node force (eqs. 18.17, 18.20,
+    18.26): ``(1/m) I - (sigma_i sigma_j / 2) (6/(m L^2)) skew(q2)^2`` on a rod (``sigma`` = -1
+    at end a, +1 at end b), ``I / m`` on a point mass."""
+    start, rows = extras.body_start, extras.entry_row
+    sign, coef = extras.entry_sign, extras.entry_coef
+    values, first, offset = extras.k_values, extras.k_first, extras.k_offset
+    values[:] = 0.0
+    n_rods = rod_param.shape[0]
+    for body in range(start.shape[0] - 1):
+        x = y = z = q2_sq = half_c2 = 0.0
+        if body < n_rods:
+            o = 6 * body + 3
+            x, y, z = q[o], q[o + 1], q[o + 2]
+            q2_sq = x * x + y * y + z * z
+            inv_m = 0.5 * rod_param[body, ROD_C1]
+            half_c2 = 0.5 * rod_param[body, ROD_C2]
+        else:
+            inv_m = 1.0 / extras.point_mass[body - n_rods]
+        for e1 in range(start[body], start[body + 1]):
+            c1q = coef[e1, 0] * x + coef[e1, 1] * y + coef[e1, 2] * z
+            for e2 in range(e1, start[body + 1]):
+                dot = (coef[e1, 0] * coef[e2, 0] + coef[e1, 1] * coef[e2, 1]
+                       + coef[e1, 2] * coef[e2, 2])
+                c2q = coef[e2, 0] * x + coef[e2, 1] * y + coef[e2, 2] * z
+                value = dot * inv_m - sign[e1] * sign[e2] * half_c2 * (c1q * c2q - q2_sq * dot)
+                if e1 != e2 and rows[e1] == rows[e2]:
+                    value *= 2.0  # (e1, e2) and (e2, e1) on the diagonal
+                _env_add(values, first, offset, rows[e1], rows[e2], value)
+
+
+@njit(**_JIT)
+def _point_mass_pass(qdot, n_rods, extras, has_external, external_force, has_gravity, gravity,
+                     force, qddot):  # pragma: no cover - compiled
+    """``x'' = (f + w) / m + g`` for every point mass from the tendon forces ``force``
+    (3, n_slots), which it leaves zero, as it leaves the anchors' (kernel.rhs's contract).
+    Returns the power of ``w`` on the point masses [W]."""
+    power = 0.0
+    for k in range(extras.mass_slots.shape[0]):
+        s = extras.mass_slots[k]
+        o = 6 * n_rods + 3 * k
+        m = extras.point_mass[k]
+        for i in range(3):
+            f = force[i, s]
+            force[i, s] = 0.0
+            if has_external:
+                f += external_force[i, s]
+                power += external_force[i, s] * qdot[o + i]
+            qddot[o + i] = f / m
+            if has_gravity:
+                qddot[o + i] += gravity[i]
+    for k in range(extras.anchor_slots.shape[0]):
+        for i in range(3):
+            force[i, extras.anchor_slots[k]] = 0.0
+    return power
+
+
+@njit(**_JIT)
+def _constraint_pass(q, rod_param, extras, qddot):  # pragma: no cover - compiled
+    """``qddot += G(q) A_n^T lambda`` with ``K lambda = -A qddot`` (``K = A G(q) A_n^T``): the
+    joint and support forces that make ``A q'' = 0``, as ``LinearConstraints.constraint_force``."""
+    c = extras.constraint_rhs.shape[0]
+    work = extras.work
+    rhs_, multiplier, scratch = work[0, :c], work[1, :c], work[2, :c]
+    _rows_times(qddot, rod_param.shape[0], extras, rhs_)
+    for i in range(c):
+        rhs_[i] = -rhs_[i]
+    _assemble_coupling(q, rod_param, extras)
+    _solve_psd(extras.k_values, extras.k_factor, extras.k_first, extras.k_offset, rhs_,
+               multiplier, scratch)
+    _add_response(q, multiplier, rod_param, extras, qddot)
+
+
+@njit(**_JIT)
+def system_rhs(
+    q, qdot, arrays, extras, rest_length, has_external, external_force, has_gravity, gravity,
+    node_work, block_force, qddot, tension, elastic_tension, damping_power,
+):  # pragma: no cover - compiled
+    """Theorem 18.1 for any 3-D structure: fills ``qddot`` (6R + 3M,) [m/s^2], ``tension`` and
+    ``elastic_tension`` (S,) [N] and, with tendon damping, ``damping_power`` (S,) [W] (tendons in
+    kernel order); returns ``(dissipated_power, external_power)`` [W], as
+    ``dynamics.evaluate``.
+
+    ``arrays`` is ``(rod_slots, rod_param, tendon_slots, tendon_runs, tendon_stiffness,
+    tendon_damping)`` (:func:`kernel.pack`); the other arguments as :func:`kernel.rhs`
+    (``external_force`` (3, n_slots) [N], ``gravity`` (3,) [m/s^2], ``node_work`` (3, 3,
+    n_slots) with ``node_work[2]`` zero on entry and on return).  With ``extras`` None this is
+    :func:`kernel.rhs`.  Otherwise (``block_force`` None): point masses and anchors join the
+    tendon pass, point masses accelerate as ``x'' = (f + w) / m + g``, and the joint and support
+    forces are added (:func:`_constraint_pass`).
+    """
+    if extras is None:
+        return rhs(q, qdot, *arrays, rest_length, has_external, external_force, has_gravity,
+                   gravity, node_work, block_force, qddot, tension, elastic_tension, damping_power)
+    n_rods = arrays[0].shape[0]
+    _extra_nodes(q, qdot, n_rods, extras, node_work[0], node_work[1], arrays[5] is not None)
+    dissipated, external = rhs(q, qdot, *arrays, rest_length, has_external, external_force,
+                               has_gravity, gravity, node_work, None, qddot, tension,
+                               elastic_tension, damping_power)
+    external += _point_mass_pass(qdot, n_rods, extras, has_external, external_force, has_gravity,
+                                 gravity, node_work[2], qddot)
+    if extras.constraint_rhs.shape[0]:
+        _constraint_pass(q, arrays[1], extras, qddot)
+    return dissipated, external
+
+
+# --------------------------------------------------------------------------- compiled: drift
+@njit(**_JIT)
+def _rod_error(q, rod_param):  # pragma: no cover - compiled
+    """Largest ``| |q2| / L - 1 |`` over the rods; NaN if some ``q2`` is not finite."""
+    worst = 0.0
+    for r in range(rod_param.shape[0]):
+        o = 6 * r + 3
+        norm = np.sqrt(q[o] * q[o] + q[o + 1] * q[o + 1] + q[o + 2] * q[o + 2])
+        error = abs(norm / rod_param[r, ROD_LENGTH] - 1.0)
+        if not np.isfinite(error):
+            return np.nan
+        worst = max(worst, error)
+    return worst
+
+
+@njit(**_JIT)
+def _constraint_error(q, n_rods, extras, residual):  # pragma: no cover - compiled
+    """``residual = A q - b`` (c,) [m]; returns ``max |A q - b|`` (NaN if not finite)."""
+    _rows_times(q, n_rods, extras, residual)
+    worst = 0.0
+    for i in range(residual.shape[0]):
+        residual[i] -= extras.constraint_rhs[i]
+        error = abs(residual[i])
+        if not np.isfinite(error):
+            return np.nan
+        worst = max(worst, error)
+    return worst
+
+
+@njit(**_JIT)
+def system_errors(q, rod_param, extras):  # pragma: no cover - compiled
+    """``(rod_error, constraint_error)``: the largest relative rod-length error ``| |q2|/L - 1 |``
+    (NaN if not finite) and ``max |A q - b|`` [m] (0 without joints and supports), as
+    ``dynamics.rod_length_error`` and ``dynamics.constraint_error``."""
+    rod_error = _rod_error(q, rod_param)
+    if extras is None or extras.constraint_rhs.shape[0] == 0:
+        return rod_error, 0.0
+    c = extras.constraint_rhs.shape[0]
+    return rod_error, _constraint_error(q, rod_param.shape[0], extras, extras.work[0, :c])
+
+
+@njit(**_JIT)
+def _all_finite(x):  # pragma: no cover - compiled
+    for i in range(x.shape[0]):
+        if not np.isfinite(x[i]):
+            return False
+    return True
+
+
+@njit(**_JIT)
+def _violation(q, rod_param, extras, out):  # pragma: no cover - compiled
+    """``out`` (P,) = ``[A q - b; (|q2|^2 - L^2) / 2]`` in projection rows; returns the largest
+    of ``|A q - b|`` and ``| |q2| - L |`` [m] (NaN if not finite)."""
+    c = extras.constraint_rhs.shape[0]
+    residual = extras.work[3, :c]
+    error = _constraint_error(q, rod_param.shape[0], extras, residual)
+    for i in range(c):
+        out[extras.constraint_prow[i]] = residual[i]
+    for r in range(rod_param.shape[0]):
+        o = 6 * r + 3
+        L = rod_param[r, ROD_LENGTH]
+        q2_sq = q[o] * q[o] + q[o + 1] * q[o + 1] + q[o + 2] * q[o + 2]
+        out[extras.rod_prow[r]] = 0.5 * (q2_sq - L * L)
+        gap = abs(np.sqrt(q2_sq) - L)
+        error = max(error, gap) if np.isfinite(gap) else np.nan
+    return error
+
+
+@njit(**_JIT)
+def _assemble_normal(q, rod_param, extras):  # pragma: no cover - compiled
+    """``J W^-1 J^T`` (P, P) into ``extras.n_values``, ``J = [A; q2^T per rod]`` (the gradient
+    of ``|q2|^2 / 2``), ``W^-1`` = ``4/m`` on ``q1``, ``12/m`` on ``q2``, ``1/m`` on a point
+    mass.  Two entries on a rod give ``(1 + 3 sigma_i sigma_j) (c_i . c_j) / m``, an entry and
+    the rod's length row ``6 sigma (c . q2) / m``, the length row itself ``12 |q2|^2 / m``."""
+    start, rows = extras.body_start, extras.entry_row
+    sign, coef = extras.entry_sign, extras.entry_coef
+    prow = extras.constraint_prow
+    values, first, offset = extras.n_values, extras.n_first, extras.n_offset
+    values[:] = 0.0
+    n_rods = rod_param.shape[0]
+    for body in range(start.shape[0] - 1):
+        x = y = z = 0.0
+        own = 0
+        if body < n_rods:
+            o = 6 * body + 3
+            x, y, z = q[o], q[o + 1], q[o + 2]
+            inv_m = 1.0 / rod_param[body, ROD_MASS]
+            own = extras.rod_prow[body]
+            _env_add(values, first, offset, own, own, 12.0 * inv_m * (x * x + y * y + z * z))
+        else:
+            inv_m = 1.0 / extras.point_mass[body - n_rods]
+        for e1 in range(start[body], start[body + 1]):
+            if body < n_rods:
+                c1q = coef[e1, 0] * x + coef[e1, 1] * y + coef[e1, 2] * z
+                _env_add(values, first, offset, prow[rows[e1]], own, 6.0 * sign[e1] * c1q * inv_m)
+            for e2 in range(e1, start[body + 1]):
+                dot = (coef[e1, 0] * coef[e2, 0] + coef[e1, 1] * coef[e2, 1]
+                       + coef[e1, 2] * coef[e2, 2])
+                value = (1.0 + 3.0 * sign[e1] * sign[e2]) * dot * inv_m
+                if e1 != e2 and rows[e1] == rows[e2]:
+                    value *= 2.0
+                _env_add(values, first, offset, prow[rows[e1]], prow[rows[e2]], value)
+
+
+@njit(**_JIT)
+def _subtract_step(target, q, y, rod_param, extras):  # pragma: no cover - compiled
+    """``target -= W^-1 J(q)^T y`` (``y`` in projection rows): per rod ``q1 -= (2/m) sum c
+    y``, ``q2 -= (6/m) sum sigma c y + (12/m) q2 y_length``; per point mass ``x -= sum c y / m``.
+    ``target`` may be ``q`` itself (each rod's ``q2`` is read before it is written)."""
+    start, rows = extras.body_start, extras.entry_row
+    sign, coef = extras.entry_sign, extras.entry_coef
+    prow = extras.constraint_prow
+    n_rods = rod_param.shape[0]
+    d1 = np.zeros(3)
+    d2 = np.zeros(3)
+    for body in range(start.shape[0] - 1):
+        d1[:] = 0.0
+        d2[:] = 0.0
+        for e in range(start[body], start[body + 1]):
+            lam = y[prow[rows[e]]]
+            for i in range(3):
+                d1[i] += coef[e, i] * lam
+                d2[i] += sign[e] * coef[e, i] * lam
+        if body < n_rods:
+            o = 6 * body
+            m = rod_param[body, ROD_MASS]
+            length_y = y[extras.rod_prow[body]]
+            for i in range(3):
+                step2 = (6.0 / m) * d2[i] + (12.0 / m) * q[o + 3 + i] * length_y
+                target[o + i] -= (2.0 / m) * d1[i]
+                target[o + 3 + i] -= step2
+        else:
+            o = 6 * n_rods + 3 * (body - n_rods)
+            for i in range(3):
+                target[o + i] -= d1[i] / extras.point_mass[body - n_rods]
+
+
+@njit(**_JIT)
+def _normal_solve(q, rod_param, extras, violation, y):  # pragma: no cover - compiled
+    """``y = (J W^-1 J^T)^-1 violation`` at ``q``."""
+    _assemble_normal(q, rod_param, extras)
+    _solve_psd(extras.n_values, extras.n_factor, extras.n_first, extras.n_offset, violation, y,
+               extras.work[2])
+
+
+@njit(**_JIT)
+def _project_constrained(q, qdot, rod_param, extras):  # pragma: no cover - compiled
+    """``LinearConstraints.project`` in place: Gauss-Newton steps ``q -= W^-1 J^T (J W^-1
+    J^T)^-1 c(q)`` until every error is below ``PROJECTION_RTOL`` times the length scale, or below
+    ``PROJECTION_FLOOR_RTOL`` times it once the error stops halving; then ``q' -= W^-1 J^T
+    (J W^-1 J^T)^-1 J q'``.  Returns False if it does not converge in :data:`MAX_ITER` steps."""
+    n_rods = rod_param.shape[0]
+    scale = 1.0
+    for r in range(n_rods):
+        scale = max(scale, rod_param[r, ROD_LENGTH])
+    tol = PROJECTION_RTOL * scale
+    floor = PROJECTION_FLOOR_RTOL * scale
+    n = extras.n_first.shape[0]
+    violation, y = extras.work[0, :n], extras.work[1, :n]
+    previous = np.inf
+    converged = False
+    for _ in range(MAX_ITER):
+        error = _violation(q, rod_param, extras, violation)
+        if not np.isfinite(error):
+            return False
+        if error <= tol or (error <= floor and error > 0.5 * previous):
+            converged = True
+            break
+        previous = error
+        _normal_solve(q, rod_param, extras, violation, y)
+        _subtract_step(q, q, y, rod_param, extras)
+    if not converged:
+        return False
+    c = extras.constraint_rhs.shape[0]
+    rates = extras.work[3, :c]
+    _rows_times(qdot, n_rods, extras, rates)
+    for i in range(c):
+        violation[extras.constraint_prow[i]] = rates[i]
+    for r in range(n_rods):
+        o = 6 * r + 3
+        violation[extras.rod_prow[r]] = (q[o] * qdot[o] + q[o + 1] * qdot[o + 1]
+                                         + q[o + 2] * qdot[o + 2])
+    _normal_solve(q, rod_param, extras, violation, y)
+    _subtract_step(qdot, q, y, rod_param, extras)
+    return _all_finite(q) and _all_finite(qdot)
+
+
+@njit(**_JIT)
+def system_project(q, qdot, rod_param, extras):  # pragma: no cover - compiled
+    """Project ``(q, q')`` in place onto the rod constraints ``|q2| = L``, ``q2 . q2' = 0`` and
+    the joints and supports ``A q = b``, ``A q' = 0``, as ``dynamics.project_to_constraints``.
+
+    Without joints and supports this is :func:`kernel.project` (point masses unchanged); with
+    them the mass-weighted Gauss-Newton projection of ``LinearConstraints.project``
+    (:func:`_project_constrained`).  Returns ``(rod_error, constraint_error, ok)`` before the
+    projection: the largest relative rod-length error (NaN if the state is not finite), ``max
+    |A q - b|`` [m], and False if the state is not finite or the projection did not converge (then
+    ``q``, ``q'`` hold whatever the last step left).
+    """
+    if extras is None:
+        error = project(q, qdot, rod_param)
+        return error, 0.0, _all_finite(q) and _all_finite(qdot)
+    finite = _all_finite(q) and _all_finite(qdot)
+    if extras.constraint_rhs.shape[0] == 0:
+        error = project(q, qdot, rod_param)
+        return (error if finite else np.nan), 0.0, finite
+    rod_error, constraint_error = system_errors(q, rod_param, extras)
+    if not finite:
+        return np.nan, constraint_error, False
+    return rod_error, constraint_error, _project_constrained(q, qdot, rod_param, extras)
+
+
+# --------------------------------------------------------------------------- compiled: energy
+@njit(**_JIT)
+def system_energies(
+    q, qdot, arrays, extras, rest_length, has_gravity, gravity, node_work,
+):  # pragma: no cover - compiled
+    """``(kinetic, elastic, gravity)`` energies [J], as ``dynamics.kinetic_energy``,
+    ``elastic_energy`` and ``gravity_energy``: :func:`kernel.energies` (which it is, with
+    ``extras`` None) plus ``m |x'|^2 / 2`` and ``-m g . x`` per point mass, anchors and point
+    masses taking part in the tendons' energy.  ``node_work[0]`` receives the node positions."""
+    rod_slots, rod_param, tendon_slots, _, tendon_stiffness, _ = arrays
+    if extras is None:
+        return energies(q, qdot, rod_slots, rod_param, tendon_slots, tendon_stiffness,
+                        rest_length, has_gravity, gravity, node_work)
+    n_rods = rod_slots.shape[0]
+    _extra_nodes(q, qdot, n_rods, extras, node_work[0], node_work[1], False)
+    kinetic, elastic, potential = energies(q, qdot, rod_slots, rod_param, tendon_slots,
+                                           tendon_stiffness, rest_length, has_gravity, gravity,
+                                           node_work)
+    for k in range(extras.point_mass.shape[0]):
+        o = 6 * n_rods + 3 * k
+        m = extras.point_mass[k]
+        speed_sq = qdot[o] * qdot[o] + qdot[o + 1] * qdot[o + 1] + qdot[o + 2] * qdot[o + 2]
+        kinetic += 0.5 * m * speed_sq
+        if has_gravity:
+            potential -= m * (q[o] * gravity[0] + q[o + 1] * gravity[1] + q[o + 2] * gravity[2])
+    return kinetic, elastic, potential
