@@ -2,8 +2,12 @@
 | modes | controllability | control | sweep``.
 
 A thin layer over the library.  Errors are one line on stderr with exit code 2 (bad input) or
-1 (the simulation failed); nothing is written unless the whole run succeeded, and every file is
-written atomically.
+1 (the simulation failed); nothing is written under a final name unless the whole run succeeded,
+and every file is written atomically.  ``simulate`` streams its samples, with checkpoints, to
+``OUT/.trajectory.h5.partial`` as it goes (:func:`tensegrity.stream.simulate_to_file`); an
+interrupted run (Ctrl-C, SIGTERM, a killed process) leaves only that file, and ``--resume``
+continues it.  The final names (``trajectory.h5``, ``structure.json``, the figures) appear
+together when the run has ended.
 """
 
 from __future__ import annotations
@@ -175,10 +179,60 @@ def _apply_damping(structure: Structure, damping: str | float | None) -> Structu
 
 
 # ------------------------------------------------------------------------------ commands
+#: Name of the file a ``simulate`` run streams its samples into, inside ``--out`` (the run's data
+#: are in this name + ``.partial`` until it ends); not a final name: the finished file becomes
+#: ``trajectory.h5`` only together with the other outputs.
+WORK_FILE = ".trajectory.h5"
+#: ``simulate`` checkpoints a run at least this many times (segments of at most this fraction of
+#: it), and at least every 1000 samples (or about 64 MiB of samples: the default of
+#: :func:`tensegrity.stream.simulate_to_file`).
+MIN_SEGMENTS = 10
+
+
+class _Interrupted(KeyboardInterrupt):
+    """A termination signal (SIGTERM) turned into an exception, so that clean-ups run."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signum)
+        self.signum = signum
+
+
+@contextlib.contextmanager
+def _terminate_as_interrupt():
+    """Within the block, SIGTERM raises :class:`_Interrupted` (as Ctrl-C raises KeyboardInterrupt)."""
+    import signal
+
+    def handler(signum, frame):
+        raise _Interrupted(signum)
+
+    try:
+        previous = signal.signal(signal.SIGTERM, handler)
+    except ValueError:  # not the main thread: leave signals alone
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _segment(structure: Structure, t_end: float, sample_dt: float) -> float:
+    """Segment duration [s] of a ``simulate`` run: at most a tenth of it, rounded to samples.
+
+    Depends only on the structure and the options, so that a resumed run has the segment grid of
+    the interrupted one.
+    """
+    from tensegrity.stream import _samples_per_segment
+
+    default = _samples_per_segment(structure, None, sample_dt)
+    tenth = max(1, math.ceil(t_end / sample_dt / MIN_SEGMENTS - 1e-9))
+    return min(default, tenth) * sample_dt
+
+
 def _cmd_simulate(args: argparse.Namespace) -> int:
-    from tensegrity.io import write_structure, write_trajectory
+    from tensegrity.io import read_trajectory, write_structure
     from tensegrity.plotting import save_figures
-    from tensegrity.simulate import simulate
+    from tensegrity.stream import PARTIAL_SUFFIX, read_checkpoint, simulate_to_file
 
     _check_output_folder(args.out, "--out")
     structure = _structure(args)
@@ -203,29 +257,103 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         from tensegrity.loads import gravity_vector
 
         gravity = gravity_vector(args.gravity, structure.dim)
-    result = simulate(
-        structure,
-        (0.0, args.t_end),
-        external_force=force,
-        gravity=gravity,
-        method=args.method,
-        rtol=args.rtol,
-        atol=args.atol,
-        dt=args.dt,
-        sample_dt=args.sample_dt,
-        steady_state=not args.no_steady_state,
-        progress=sys.stderr.isatty(),
-    )
-    if not result.success:
-        raise CommandError(f"simulation failed: {result.message} (nothing written)", EXIT_FAILED)
-    written = _write_all(args.out, lambda staging: [
-        write_trajectory(staging / "trajectory.h5", result),
-        write_structure(staging / "structure.json", structure),
-        *save_figures(result, staging),
-        *(_vtk_files(staging / "vtk", result) if args.vtk else []),
-    ])
-    _print_summary(result, [f for f in written if f.parent == args.out or f.suffix == ".pvd"])
+
+    out: Path = args.out
+    work = out / WORK_FILE
+    partial = Path(str(work) + PARTIAL_SUFFIX)
+    created = [folder for folder in (out, *out.parents) if not folder.exists()]
+    out.mkdir(parents=True, exist_ok=True)
+    fresh = not args.resume or not partial.exists()  # this call starts a new partial file
+
+    def discard() -> None:
+        """Remove what this call made that holds nothing: an empty fresh partial, new folders."""
+        if fresh and partial.exists():
+            try:
+                empty = read_checkpoint(partial).next_segment == 0
+            except ValueError:
+                empty = True
+            if empty:
+                partial.unlink(missing_ok=True)
+        _remove_empty(created)
+
+    try:
+        with _terminate_as_interrupt():
+            try:
+                summary = simulate_to_file(
+                    structure,
+                    (0.0, args.t_end),
+                    work,
+                    segment=_segment(structure, args.t_end, args.sample_dt),
+                    resume=args.resume,
+                    progress=sys.stderr.isatty(),
+                    external_force=force,
+                    gravity=gravity,
+                    method=args.method,
+                    rtol=args.rtol,
+                    atol=args.atol,
+                    dt=args.dt,
+                    sample_dt=args.sample_dt,
+                    steady_state=not args.no_steady_state,
+                )
+            except KeyboardInterrupt:
+                raise
+            except ValueError as exc:
+                discard()
+                message = " ".join(str(exc).split()).replace(  # one line, in the CLI's words
+                    "pass resume=False to start again", "run without --resume to start again")
+                raise CommandError(message.replace("start again with resume=False",
+                                                   "run without --resume to start again")) from None
+            except BaseException:
+                discard()
+                raise
+            if not summary.success:
+                work.unlink(missing_ok=True)
+                _remove_empty(created)
+                raise CommandError(f"simulation failed: {summary.message} (nothing written)",
+                                   EXIT_FAILED)
+            trajectory = read_trajectory(work)
+
+            def write(staging: Path) -> list[Path]:
+                files = [
+                    write_structure(staging / "structure.json", structure),
+                    *save_figures(trajectory, staging),
+                    *(_vtk_files(staging / "vtk", trajectory) if args.vtk else []),
+                ]
+                # Last, so that the finished run stays in ``work`` if anything before fails.
+                target = staging / "trajectory.h5"
+                _link_or_move(work, target)
+                return [target, *files]
+
+            written = _write_all(out, write)
+            work.unlink(missing_ok=True)  # a second name of trajectory.h5, if linked
+    except KeyboardInterrupt as exc:
+        code = 128 + exc.signum if isinstance(exc, _Interrupted) else 130
+        kept = next((p for p in (partial, work) if p.exists()), None)
+        if kept is None:
+            _remove_empty(created)
+            print("tensegrity: interrupted (nothing written)", file=sys.stderr)
+        else:
+            print(f"tensegrity: interrupted; the run so far is in {kept}: continue it with the "
+                  "same options and --resume", file=sys.stderr)
+        return code
+    _print_summary(trajectory, summary, args.resume,
+                   [f for f in written if f.parent == out or f.suffix == ".pvd"])
     return 0
+
+
+def _link_or_move(source: Path, target: Path) -> None:
+    """Give ``source`` the name ``target`` too (a hard link), or move it if links are refused."""
+    try:
+        os.link(source, target)
+    except OSError:
+        os.replace(source, target)
+
+
+def _remove_empty(folders: Sequence[Path]) -> None:
+    """Remove those of ``folders`` that are empty, deepest first."""
+    for folder in sorted(folders, key=lambda f: len(f.parts), reverse=True):
+        with contextlib.suppress(OSError):
+            folder.rmdir()
 
 
 def _check_output_folder(folder: Path, option: str) -> None:
@@ -243,30 +371,48 @@ def _vtk_files(folder: Path, result) -> list[Path]:
     return write_vtk(folder, result)  # the .vtp files, then the .pvd collection
 
 
-def _print_summary(result, files: Sequence[Path]) -> None:
-    e = result.energy
+def _print_summary(trajectory, summary, resume: bool, files: Sequence[Path]) -> None:
+    """The summary of a run read back from its file (a :class:`tensegrity.io.Trajectory`) and
+    the :class:`tensegrity.stream.StreamSummary` of the streamed run."""
+    structure = trajectory.structure
+    e = trajectory.energy
+    total = (e["kinetic"] + e["elastic"] + e["gravity"] + e["dissipated"] - e["external_work"]
+             - e["control_work"])
+    tension = trajectory.tendon_tension[-1]
     rows = [
-        ("status", result.message),
-        ("samples", f"{result.t.size} from t = {result.t[0]:g} to {result.t[-1]:.6g} s"),
-        ("final residual acceleration", f"{result.residual_acceleration[-1]:.3e} m/s^2"),
-        ("final largest node speed", f"{np.abs(result.node_velocity[-1]).max():.3e} m/s"),
-        ("largest rod-length error", f"{result.max_rod_length_error:.3e} (relative)"),
-        *([("largest joint/support error", f"{result.max_constraint_error:.3e} m")]
-          if result.structure.has_constraints else []),
+        ("status", trajectory.message),
+        ("samples", f"{trajectory.time.size} from t = {trajectory.time[0]:g} to "
+                    f"{trajectory.time[-1]:.6g} s"),
+        ("final residual acceleration", f"{trajectory.residual_acceleration[-1]:.3e} m/s^2"),
+        ("final largest node speed", f"{np.abs(trajectory.velocities[-1]).max():.3e} m/s"),
+        ("largest rod-length error", f"{summary.max_rod_length_error:.3e} (relative)"),
+        *([("largest joint/support error", f"{summary.max_constraint_error:.3e} m")]
+          if structure.has_constraints else []),
         ("energy dissipated", f"{e['dissipated'][-1]:.6g} J"),
-        ("energy balance error", f"{np.abs(result.total_energy - result.total_energy[0]).max():.3e} J"),
-        ("slack tendons at the end", f"{int(result.slack_count[-1])} of {result.structure.n_tendons}"),
+        ("energy balance error", f"{np.abs(total - total[0]).max():.3e} J"),
+        ("slack tendons at the end", f"{int(np.sum(tension <= 0))} of {structure.n_tendons}"),
         ("tension range at the end",
-         f"{result.tendon_tension[-1].min():.6g} .. {result.tendon_tension[-1].max():.6g} N"
-         if result.structure.n_tendons else "no tendons"),
-        ("integration", f"{result.settings['method']}: {result.nsteps} steps, {result.nfev} "
-                        f"evaluations, {result.nswitches} slack/taut switches located"),
-        ("wall time", f"{result.wall_time:.2f} s"),
+         f"{tension.min():.6g} .. {tension.max():.6g} N" if structure.n_tendons else "no tendons"),
+        ("integration", f"{trajectory.settings['method']}: {summary.nsteps} steps, {summary.nfev} "
+                        f"evaluations, {summary.nswitches} slack/taut switches located"),
+        ("checkpoints", f"{summary.segments_stored} segments of {summary.samples_per_segment} "
+                        "samples"),
+        *([("resumed", _resumed(summary))] if resume else []),
+        ("wall time", f"{summary.wall_time:.2f} s"),
     ]
     width = max(len(name) for name, _ in rows)
     for name, value in rows:
         print(f"{name:<{width}}  {value}")
     print("wrote " + ", ".join(str(f) for f in files))
+
+
+def _resumed(summary) -> str:
+    if summary.resumed_from is not None:
+        return (f"from segment {summary.resumed_from + 1} of {summary.n_segments} "
+                f"({summary.segments_run} run now)")
+    if summary.segments_run == 0:
+        return "the run had ended already; its files written now"
+    return "nothing to resume: started afresh"
 
 
 #: ``info`` counts the degrees of freedom the joints and supports leave (a dense SVD) up to this
@@ -538,7 +684,9 @@ def build_parser() -> argparse.ArgumentParser:
     sim = sub.add_parser(
         "simulate",
         help="simulate a structure (default: the paper's damped (3,1) shell, until steady state)",
-        description="Simulate a structure and write trajectory.h5, structure.json and figures.",
+        description="Simulate a structure and write trajectory.h5, structure.json and figures. "
+                    "Samples are streamed to OUT/.trajectory.h5.partial as the run goes, with "
+                    "checkpoints; an interrupted run continues with --resume.",
     )
     _add_structure_options(sim)
     sim.add_argument("--damping", type=_damping, metavar="none|critical|VALUE",
@@ -548,6 +696,9 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--no-steady-state", action="store_true",
                      help="run to --t-end even after the structure has come to rest")
     sim.add_argument("--out", type=Path, default=Path("results"), help="output folder (default ./results)")
+    sim.add_argument("--resume", action="store_true",
+                     help="continue an interrupted run in --out from its last checkpoint (same "
+                          "structure and options; without it a run starts afresh)")
     sim.add_argument("--force-table", type=Path, metavar="FILE.npz|FILE.csv",
                      help="external nodal forces [N] from a time table, linear in between, held "
                           "after its end (.npz: time (T,), force (T, N, 3); .csv: rows t, f0x, "
