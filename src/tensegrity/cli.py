@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from tensegrity import dynamics
-from tensegrity.integrators import ADAPTIVE_METHODS, FIXED_STEP_METHODS
+from tensegrity.engine.options import ADAPTIVE_METHODS, FIXED_STEP_METHODS
 from tensegrity.io import write_staged as _write_all
 from tensegrity.structure import Structure
 

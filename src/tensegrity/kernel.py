@@ -34,9 +34,8 @@ The loops over rods and tendons run inside one compiled function writing into pr
 buffers, and :func:`rk4_steps` runs a whole fixed-step RK4 integration (with projection onto the
 rod constraints ``|q2| = L``, ``q2 . q2' = 0`` after every step, as ``simulate(method="rk4")``
 does) in compiled code, so that small structures are not dominated by Python call overhead.
-:func:`rk4_batch` does the same for many copies of one structure held in ``(B, ...)`` arrays,
-with ``simulate``'s blow-up checks (used by :mod:`tensegrity.batch`); :func:`energies` gives the
-kinetic, elastic and gravity energies for those checks.
+:func:`energies` gives the kinetic, elastic and gravity energies (the engine's blow-up
+checks, through :mod:`tensegrity.kernel_system`).
 
 This module imports numba; import it lazily (``from tensegrity.kernel import FastKernel`` inside
 the function that needs it) so that ``import tensegrity`` stays fast.  Compiled code is cached on
@@ -68,7 +67,7 @@ from tensegrity.structure import Structure
 
 __all__ = [
     "FastKernel", "KernelEvaluation", "PackedStructure", "RK4Result", "StencilLayout", "energies",
-    "pack", "project", "rhs", "rk4_batch", "rk4_step", "rk4_steps", "stencil_layout",
+    "pack", "project", "rhs", "rk4_step", "rk4_steps", "stencil_layout",
 ]
 
 _JIT = dict(
@@ -631,83 +630,6 @@ def energies(
         if stretch > 0.0:
             elastic += tendon_stiffness[s] * stretch * stretch
     return kinetic, 0.5 * elastic, potential
-
-
-@njit(inline="always", **_JIT)
-def _row(array, b):  # pragma: no cover - compiled
-    """``array[b]``, or None if ``array`` is None (decided at compile time)."""
-    if array is None:
-        return None
-    return array[b]
-
-
-#: :func:`rk4_batch` case status: still running, or stopped on a blow-up.
-BATCH_RUNNING, BATCH_FAILED = 0, 1
-
-
-@njit(**_JIT)
-def rk4_batch(
-    q, qdot, dt, n_steps, max_rod_length_error, max_energy_growth, energy0, scale0,
-    status, steps, work, worst, end_q, end_qdot,
-    rod_slots, rod_param, tendon_slots, tendon_runs, tendon_stiffness, tendon_damping,
-    rest_length, has_external, external_force, has_gravity, gravity,
-    node_work, tension, elastic_tension, damping_power, stage_work,
-):  # pragma: no cover - compiled
-    """``n_steps`` RK4 steps of ``dt`` for each of ``B`` copies of one structure (same rods and
-    tendons, per-copy parameters), with the blow-up checks of ``simulate``; in place.
-
-    Per copy ``b`` (rows of the (B, ...) arrays): ``q``, ``qdot`` (B, 6R); ``rod_param``
-    (B, R, 5); ``tendon_stiffness`` (B, S); ``tendon_damping`` (B, S), or None if
-    every copy's is zero; ``rest_length`` (B, S) (tendons in kernel order, see :func:`pack`);
-    ``external_force`` (B, 3, n_slots) (read if ``has_external``); ``energy0``, ``scale0`` (B,)
-    the energy balance at the start and its scale [J] (``simulate``'s
-    ``_Model.energy_balance``; ``scale0`` is raised in place to the largest scale seen, the
-    measure the energy drift is judged against); ``status``, ``steps`` (B,) int64;
-    ``work`` (B, 2) dissipated energy and external work so far [J]; ``worst`` (B,) largest
-    relative rod-length error so far.  Copies whose status is not ``BATCH_RUNNING`` are skipped.
-
-    Every step ends as in ``simulate(method="rk4")``: if the state is not finite, a relative
-    rod-length error exceeds ``max_rod_length_error`` or the energy balance
-    ``E_kin + E_el + E_grav + E_d - W_w - E0`` exceeds ``max_energy_growth`` times its scale, the
-    copy's status becomes ``BATCH_FAILED`` and it stops; otherwise the state is projected onto
-    the rod constraints.  ``end_q``, ``end_qdot`` (B, 6R) receive each copy's state at the end of
-    its last step *before* projection (what ``simulate`` samples, and its failing state).
-    """
-    n = q.shape[1]
-    for b in range(q.shape[0]):
-        if status[b] != BATCH_RUNNING:
-            continue
-        qb = q[b]
-        vb = qdot[b]
-        w_b = external_force[b] if has_external else external_force[0]
-        model = (rod_slots, rod_param[b], tendon_slots, tendon_runs, tendon_stiffness[b],
-                 _row(tendon_damping, b), rest_length[b],
-                 has_external, w_b, has_gravity, gravity, node_work, None)
-        for j in range(n_steps):
-            d, w = rk4_step(qb, vb, dt, model, tension, elastic_tension, damping_power,
-                            stage_work)
-            work[b, 0] = work[b, 0] + d
-            work[b, 1] = work[b, 1] + w
-            kinetic, elastic, potential = energies(
-                qb, vb, rod_slots, rod_param[b], tendon_slots, tendon_stiffness[b], rest_length[b],
-                has_gravity, gravity, node_work)
-            total = kinetic + elastic + potential + work[b, 0] - work[b, 1]
-            scale = kinetic + elastic + abs(potential) + abs(work[b, 0]) + abs(work[b, 1])
-            finite = np.isfinite(total) and np.isfinite(scale)
-            for i in range(n):
-                finite = finite and np.isfinite(qb[i])
-            end_q[b, :] = qb  # the state before projection (cheap next to four evaluations)
-            end_qdot[b, :] = vb
-            error = project(qb, vb, rod_param[b])
-            steps[b] += 1
-            if not error <= worst[b]:
-                worst[b] = error
-            if scale > scale0[b]:  # the largest energy magnitude seen, as in ``simulate``
-                scale0[b] = scale
-            growth = total - energy0[b] > max_energy_growth * max(scale0[b], 1e-300)
-            if not finite or not error <= max_rod_length_error or growth:
-                status[b] = BATCH_FAILED
-                break
 
 
 @njit(**_JIT)

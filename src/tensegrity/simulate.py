@@ -17,7 +17,6 @@ import numpy as np
 
 from tensegrity.dynamics import State
 from tensegrity.engine.inputs import Inputs
-from tensegrity.engine.loop import run
 from tensegrity.engine.options import Options
 from tensegrity.engine.result import (
     STATUS_END,
@@ -101,6 +100,8 @@ def simulate(
         max_rod_length_error=max_rod_length_error, max_energy_growth=max_energy_growth,
     )
     inputs = Inputs(structure, control=control, external_force=external_force, gravity=gravity)
+    from tensegrity.engine.loop import run  # compiled code: numba loads on first use
+
     sink = MemorySink()
     bar = _ProgressBar(*t_span) if progress else None
     try:

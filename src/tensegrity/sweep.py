@@ -76,7 +76,7 @@ from typing import Any
 import numpy as np
 
 from tensegrity import dynamics
-from tensegrity.integrators import ADAPTIVE_METHODS, FIXED_STEP_METHODS
+from tensegrity.engine.options import ADAPTIVE_METHODS, FIXED_STEP_METHODS
 from tensegrity.shell import class1_shell
 from tensegrity.simulate import SimulationResult, simulate
 from tensegrity.structure import Structure

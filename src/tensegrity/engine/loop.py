@@ -25,11 +25,16 @@ from tensegrity.engine import compiled
 from tensegrity.engine.inputs import Inputs
 from tensegrity.engine.options import Options
 from tensegrity.engine.steppers import DOP853, RK4, IntegrationError, ScipyMethod
-from tensegrity.engine.system import CompiledSystem, Sample
+from tensegrity.engine.result import (
+    STATUS_END,
+    STATUS_FAILED,
+    STATUS_STEADY,
+    RunSummary,
+    Sample,
+)
+from tensegrity.engine.system import CompiledSystem
 from tensegrity.structure import Structure
 
-#: ``status`` values: failed, end time reached, steady state reached.
-STATUS_FAILED, STATUS_END, STATUS_STEADY = -1, 0, 1
 #: Relative width of the final bracket of a located switch.
 SWITCH_RTOL = 1e-13
 
@@ -39,28 +44,6 @@ class Sink(Protocol):
 
     def add(self, sample: Sample) -> None:
         """Keep one sample."""
-
-
-@dataclasses.dataclass(frozen=True)
-class RunSummary:
-    """How a run ended, and what it cost."""
-
-    status: int  #: ``STATUS_*``
-    message: str
-    t_final: float  #: time of the last sample [s]
-    nfev: int  #: right-hand-side evaluations
-    nsteps: int  #: accepted steps
-    nswitches: int  #: located slack/taut switches
-    nprojections: int  #: projections onto the constraints
-    max_rod_length_error: float  #: largest relative rod-length error at a step's end
-    max_constraint_error: float  #: largest joint/support violation at a step's end [m]
-    wall_time: float  #: [s]
-    settings: dict[str, Any]
-
-    @property
-    def evaluations_per_step(self) -> float:
-        """Right-hand-side evaluations per accepted step."""
-        return self.nfev / max(self.nsteps, 1)
 
 
 _FAILURES = {
@@ -99,6 +82,7 @@ class _Run:
                              (np.inf, np.inf, np.inf), self.monitor)
         self.counts = dict(nsteps=0, nswitches=0, nprojections=0)
         self.progress: Any = None
+        self.switch_times: list[float] = []
         self.status, self.message = STATUS_END, f"reached t_end = {t_end:g} s"
         self.last_sample_t = -np.inf
 
@@ -187,13 +171,14 @@ class _Landing:
     tendons: np.ndarray
     taut_after: np.ndarray
     step: float | None
+    exact: bool  #: located on an accepted step's dense output (else on a rejected attempt's)
 
 
 def _taut(stepper: Any, landed: _Landing | None) -> np.ndarray:
     """Taut flags at the stepper's state; tendons that have just switched keep the side they
     switched to (the state retaken up to a switch may sit a round-off short of it)."""
     taut = stepper.tensions() > 0
-    if landed is not None:
+    if landed is not None and landed.exact:
         taut[landed.tendons] = landed.taut_after
     return taut
 
@@ -204,14 +189,24 @@ def _adaptive(run: _Run, stepper: Any) -> None:
     locate = o.locate_switches
     taut = _taut(stepper, None) if locate else None
     landing: _Landing | None = None
+    just_landed_roughly = False
     while stepper.t < run.t_end:
-        stepper.step(run.t_end if landing is None else landing.time)
-        if locate and landing is None:
+        detect = locate and (landing is None or not landing.exact)
+        # A switch located on a rejected attempt is approximate: the step after it may find the
+        # same switch just ahead; it then shrinks as usual instead of locating again.
+        provisional_ok = detect and not (landing is not None and not landing.exact)
+        stepper.step(run.t_end if landing is None else landing.time,
+                     taut if provisional_ok and not just_landed_roughly else None)
+        just_landed_roughly = False
+        if detect:
             changed = np.flatnonzero((stepper.tensions() > 0) != taut)
             if changed.size:
                 t_switch, tendons = _first_switch(run, stepper, changed, taut)
-                run.counts["nswitches"] += 1
-                landing = _Landing(t_switch, tendons, ~taut[tendons], getattr(stepper, "h", None))
+                if not stepper.provisional:
+                    run.counts["nswitches"] += 1
+                    run.switch_times.append(t_switch)
+                landing = _Landing(t_switch, tendons, ~taut[tendons], getattr(stepper, "h", None),
+                                   not stepper.provisional)
                 stepper.retreat()
                 if landing.step is not None:
                     stepper.h = t_switch - stepper.t
@@ -236,6 +231,7 @@ def _adaptive(run: _Run, stepper: Any) -> None:
         if landed is not None:
             if landed.step is not None:
                 stepper.h = max(stepper.h, landed.step)
+            just_landed_roughly = not landed.exact
             landing = None
         if drift > o.projection_tol:
             if not system.project(stepper.y):
@@ -350,5 +346,6 @@ def run(
         status=r.status, message=r.message, t_final=r.last_sample_t, nfev=nfev,
         max_rod_length_error=float(r.monitor[2]), max_constraint_error=float(r.monitor[3]),
         wall_time=time.perf_counter() - wall0,
-        settings=options.settings(t0, t_end, **inputs.settings()), **r.counts,
+        settings=options.settings(t0, t_end, **inputs.settings()),
+        switch_times=tuple(r.switch_times), **r.counts,
     )

@@ -4,20 +4,59 @@
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from tensegrity.dynamics import State
-from tensegrity.engine.loop import STATUS_END, STATUS_FAILED, STATUS_STEADY, RunSummary
-from tensegrity.engine.system import Sample
 from tensegrity.structure import Structure
 
-__all__ = ["ENERGY_NAMES", "MemorySink", "SimulationResult", "STATUS_END", "STATUS_FAILED",
-           "STATUS_STEADY"]
+__all__ = ["ENERGY_NAMES", "MemorySink", "RunSummary", "STATUS_END", "STATUS_FAILED",
+           "STATUS_STEADY", "Sample", "SimulationResult"]
+
+#: ``status`` values: failed, end time reached, steady state reached.
+STATUS_FAILED, STATUS_END, STATUS_STEADY = -1, 0, 1
 
 #: Names of the energy components of a sample, in order [J].
 ENERGY_NAMES = ("kinetic", "elastic", "gravity", "dissipated", "external_work", "control_work")
+
+
+class Sample(NamedTuple):
+    """One output sample, in the structure's order and dimension (SI units)."""
+
+    t: float  #: [s]
+    q: np.ndarray  #: (n,) [m]
+    qdot: np.ndarray  #: (n,) [m/s]
+    node_position: np.ndarray  #: (N, dim) [m]
+    node_velocity: np.ndarray  #: (N, dim) [m/s]
+    tendon_length: np.ndarray  #: (S,) [m]
+    tendon_tension: np.ndarray  #: (S,) [N]
+    energy: np.ndarray  #: (6,) [J]: kinetic, elastic, gravity, dissipated, external, control work
+    residual_acceleration: float  #: largest node acceleration [m/s^2]
+    largest_speed: float  #: largest node speed [m/s]
+
+
+@dataclasses.dataclass(frozen=True)
+class RunSummary:
+    """How a run ended, and what it cost."""
+
+    status: int  #: ``STATUS_*``
+    message: str
+    t_final: float  #: time of the last sample [s]
+    nfev: int  #: right-hand-side evaluations
+    nsteps: int  #: accepted steps
+    nswitches: int  #: located slack/taut switches
+    nprojections: int  #: projections onto the constraints
+    max_rod_length_error: float  #: largest relative rod-length error at a step's end
+    max_constraint_error: float  #: largest joint/support violation at a step's end [m]
+    wall_time: float  #: [s]
+    settings: dict[str, Any]
+    switch_times: tuple[float, ...] = ()  #: times of the located switches [s]
+
+    @property
+    def evaluations_per_step(self) -> float:
+        """Right-hand-side evaluations per accepted step."""
+        return self.nfev / max(self.nsteps, 1)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -43,6 +82,7 @@ class SimulationResult:
     max_constraint_error : largest violation ``|A q - b|`` [m] of the joints and supports seen at
         the end of a step (0 without any; see ``docs/constraints.md``).
     wall_time : [s].  settings : the options of the run.
+    switch_times : (nswitches,) times of the located slack/taut switches [s].
     """
 
     structure: Structure
@@ -65,11 +105,18 @@ class SimulationResult:
     wall_time: float
     settings: dict[str, Any]
     max_constraint_error: float = 0.0
+    switch_times: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
 
     @property
     def success(self) -> bool:
         """True unless the run failed."""
         return self.status >= 0
+
+    @property
+    def evaluations_per_step(self) -> float:
+        """Right-hand-side evaluations per accepted step (12 for DOP853 without rejected steps,
+        dense outputs or located switches; 4 for RK4)."""
+        return self.nfev / max(self.nsteps, 1)
 
     @property
     def final_state(self) -> State:
@@ -121,4 +168,5 @@ class MemorySink:
             max_rod_length_error=summary.max_rod_length_error,
             max_constraint_error=summary.max_constraint_error,
             wall_time=summary.wall_time, settings=summary.settings,
+            switch_times=np.array(summary.switch_times),
         )

@@ -38,8 +38,10 @@ class Stepper(Protocol):
     y: np.ndarray
     nfev: int
 
-    def step(self, bound: float) -> None:
-        """One accepted step, ending at or before ``bound``."""
+    provisional: bool  #: the last step is a rejected attempt, kept to locate a switch in it
+
+    def step(self, bound: float, taut: np.ndarray | None = None) -> None:
+        """One accepted step, ending at or before ``bound`` (see :meth:`DOP853.step`)."""
 
     def dense(self) -> Callable[[float], np.ndarray]:
         """``y(t)`` inside the last step."""
@@ -105,8 +107,13 @@ class DOP853:
               else (0.01 / max(d1, d2)) ** (1 / 8))
         return min(100 * h0, h1, t_end - self.t)
 
-    def step(self, bound: float) -> None:
+    def step(self, bound: float, taut: np.ndarray | None = None) -> None:
+        """One step not past ``bound``; with ``taut`` (kernel order), a rejected attempt whose
+        end shows a tendon switched is returned as the step (:attr:`provisional` True): the loop
+        then locates the switch on its dense output and retakes the step up to it, instead of
+        shrinking the step until the kink falls out of it."""
         t, h = self.t, self.h
+        self.provisional = False
         min_step = 10 * abs(np.nextafter(t, np.inf) - t)
         rejected = False
         y_new = np.empty_like(self.y)
@@ -120,6 +127,10 @@ class DOP853:
             self.nfev += compiled.DOP853_STAGES
             if error < 1:
                 break
+            if taut is not None and np.isfinite(error) and np.any(
+                    (self.system.work[2] > 0) != taut):
+                self.provisional = True
+                break
             if not np.isfinite(error):
                 factor = self.MIN_FACTOR
             else:
@@ -129,9 +140,10 @@ class DOP853:
             if h < min_step:
                 raise IntegrationError(f"DOP853 failed at t = {t:.9g} s: required step size is "
                                        "less than spacing between numbers")
-        factor = self.MAX_FACTOR if error == 0 else min(
-            self.MAX_FACTOR, self.SAFETY * error ** self.EXPONENT)
-        self.h = h * (min(1.0, factor) if rejected else factor)
+        if not self.provisional:
+            factor = self.MAX_FACTOR if error == 0 else min(
+                self.MAX_FACTOR, self.SAFETY * error ** self.EXPONENT)
+            self.h = h * (min(1.0, factor) if rejected else factor)
         self.t_old, self.y_old, self.y_new = t, self.y, y_new
         self.t = bound if h == bound - t else t + h
         self.y = y_new
@@ -198,7 +210,8 @@ class ScipyMethod:
         self.y_old = self.y
         self._dense = None
 
-    def step(self, bound: float) -> None:
+    def step(self, bound: float, taut: np.ndarray | None = None) -> None:
+        self.provisional = False
         if bound != self._bound:
             self._start(self.t, self.y, bound)
         self.t_old, self.y_old = self.t, self.y

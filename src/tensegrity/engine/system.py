@@ -5,13 +5,12 @@ always 3-D: a planar structure is simulated embedded at ``z = 0``, where it stay
 
 from __future__ import annotations
 
-from typing import NamedTuple
-
 import numpy as np
 
 from tensegrity import dynamics
 from tensegrity.engine import compiled
 from tensegrity.engine.inputs import Inputs
+from tensegrity.engine.result import Sample
 from tensegrity.kernel_system import (
     drop_coordinates,
     embed_planar,
@@ -21,21 +20,6 @@ from tensegrity.kernel_system import (
     system_project,
 )
 from tensegrity.structure import Structure
-
-
-class Sample(NamedTuple):
-    """One output sample, in the structure's order and dimension (SI units)."""
-
-    t: float  #: [s]
-    q: np.ndarray  #: (n,) [m]
-    qdot: np.ndarray  #: (n,) [m/s]
-    node_position: np.ndarray  #: (N, dim) [m]
-    node_velocity: np.ndarray  #: (N, dim) [m/s]
-    tendon_length: np.ndarray  #: (S,) [m]
-    tendon_tension: np.ndarray  #: (S,) [N]
-    energy: np.ndarray  #: (6,) [J]: kinetic, elastic, gravity, dissipated, external, control work
-    residual_acceleration: float  #: largest node acceleration [m/s^2]
-    largest_speed: float  #: largest node speed [m/s]
 
 
 class CompiledSystem:
