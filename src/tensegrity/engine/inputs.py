@@ -10,15 +10,12 @@ at once) or a Python callable of time, called once per stage.  The control's rat
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
 from tensegrity.loads import ControlTable, ForceTable
 from tensegrity.structure import Structure
-
-TimeFunction = Callable[[float], np.ndarray]
 
 
 def _check(value: np.ndarray, shape: tuple[int, ...], field: str, t: float | None = None) -> np.ndarray:
