@@ -40,7 +40,7 @@ SWITCH_RTOL = 1e-13
 
 
 class Sink(Protocol):
-    """Where samples go: memory (:class:`tensegrity.engine.sinks.MemorySink`) or a file."""
+    """Where samples go (:class:`tensegrity.engine.result.MemorySink` keeps them in memory)."""
 
     def add(self, sample: Sample) -> None:
         """Keep one sample."""
@@ -130,7 +130,7 @@ class _Run:
 def _stepper(run: _Run, y: np.ndarray) -> Any:
     o = run.options
     if o.method == "rk4":
-        return RK4(run.system, run.t0, y, dt=o.dt)
+        return RK4(run.system, run.t0, y)
     if o.method == "DOP853":
         return DOP853(run.system, run.t0, y, rtol=o.rtol, atol=o.atol, t_end=run.t_end)
     return ScipyMethod(run.system, run.t0, y, method=o.method, rtol=o.rtol, atol=o.atol,
@@ -164,14 +164,14 @@ def _first_switch(run: _Run, stepper: Any, candidates: np.ndarray,
 
 @dataclasses.dataclass
 class _Landing:
-    """A located switch the stepper is heading for: its time, the tendons that switch there
-    and their flags after it, and the step size to resume with."""
+    """A located switch the stepper is heading for: its time, the tendons that switch there,
+    their flags after it, and whether it was located on an accepted step's dense output (exact)
+    or on a rejected attempt's (approximate: the steps up to it keep looking for switches)."""
 
     time: float
     tendons: np.ndarray
     taut_after: np.ndarray
-    step: float | None
-    exact: bool  #: located on an accepted step's dense output (else on a rejected attempt's)
+    exact: bool
 
 
 def _taut(stepper: Any, landed: _Landing | None) -> np.ndarray:
@@ -189,15 +189,15 @@ def _adaptive(run: _Run, stepper: Any) -> None:
     locate = o.locate_switches
     taut = _taut(stepper, None) if locate else None
     landing: _Landing | None = None
-    just_landed_roughly = False
+    # A rejected attempt may stand for a step only when no switch is being landed on and the
+    # last one was not located approximately (the step after it may find the same switch just
+    # ahead: it shrinks as usual instead of locating it again, which could repeat forever).
+    allow_provisional = locate
     while stepper.t < run.t_end:
         detect = locate and (landing is None or not landing.exact)
-        # A switch located on a rejected attempt is approximate: the step after it may find the
-        # same switch just ahead; it then shrinks as usual instead of locating again.
-        provisional_ok = detect and not (landing is not None and not landing.exact)
         stepper.step(run.t_end if landing is None else landing.time,
-                     taut if provisional_ok and not just_landed_roughly else None)
-        just_landed_roughly = False
+                     taut if allow_provisional and landing is None else None)
+        allow_provisional = locate
         if detect:
             changed = np.flatnonzero((stepper.tensions() > 0) != taut)
             if changed.size:
@@ -205,11 +205,8 @@ def _adaptive(run: _Run, stepper: Any) -> None:
                 if not stepper.provisional:
                     run.counts["nswitches"] += 1
                     run.switch_times.append(t_switch)
-                landing = _Landing(t_switch, tendons, ~taut[tendons], getattr(stepper, "h", None),
-                                   not stepper.provisional)
-                stepper.retreat()
-                if landing.step is not None:
-                    stepper.h = t_switch - stepper.t
+                landing = _Landing(t_switch, tendons, ~taut[tendons], not stepper.provisional)
+                stepper.retreat(t_switch)
                 continue
         run.counts["nsteps"] += 1
         landed = landing if landing is not None and stepper.t >= landing.time else None
@@ -229,9 +226,8 @@ def _adaptive(run: _Run, stepper: Any) -> None:
         if run.progress is not None:
             run.progress(stepper.t)
         if landed is not None:
-            if landed.step is not None:
-                stepper.h = max(stepper.h, landed.step)
-            just_landed_roughly = not landed.exact
+            stepper.resume()
+            allow_provisional = landed.exact
             landing = None
         if drift > o.projection_tol:
             if not system.project(stepper.y):
@@ -254,9 +250,10 @@ def _hermite(t: float, t0: float, y0: np.ndarray, f0: np.ndarray, t1: float, y1:
 
 
 def _fixed_step(run: _Run, stepper: RK4) -> None:
-    """The loop of ``"rk4"``: compiled stretches of steps up to each sample; a sample inside a
-    step is interpolated (cubic Hermite), one on a step's end is that end before projection."""
-    t0, dt = run.t0, stepper.dt
+    """The loop of ``"rk4"``: compiled stretches of steps up to each sample (the last step
+    shorter, to land on ``t_end``); a sample inside a step is interpolated (cubic Hermite), one
+    on a step's end is that end before projection."""
+    t0, dt = run.t0, run.options.dt
     n_full = int(np.floor((run.t_end - t0) / dt + 1e-9))
     last = run.t_end - (t0 + n_full * dt)
     n_steps = n_full + (1 if last > 1e-9 * dt else 0)
@@ -264,38 +261,34 @@ def _fixed_step(run: _Run, stepper: RK4) -> None:
     while done < n_steps:
         target = t0 + run.next_sample * run.sample_dt
         reach = min(int(np.ceil((target - t0) / dt - 1e-9)), n_steps)
-        if reach - done > 1:  # the whole steps before the one that reaches the sample
-            if not _rk4_steps(run, stepper, reach - done - 1):
-                return
-            done = reach - 1
-        y_old = stepper.y.copy()
-        f_old = None
-        if done == n_full:  # the last, shorter step onto t_end
-            stepper.dt = last
-        if not _rk4_steps(run, stepper, 1):
+        if reach - done > 1 and not _rk4_steps(run, stepper, reach - done - 1, dt):
+            return  # (the whole steps before the one that reaches the sample)
+        done = max(done, reach - 1)
+        h = last if done == n_full else dt
+        t_old, y_old = stepper.t, stepper.y.copy()
+        if not _rk4_steps(run, stepper, 1, h):
             return
-        stepper.dt = dt
         done += 1
         stepper.t = run.t_end if done == n_steps else t0 + done * dt
-        t_old = stepper.t - (last if done > n_full else dt)
         if run.progress is not None:
             run.progress(stepper.t)
         for t in run.sample_times(stepper.t):
-            if abs(t - stepper.t) <= 1e-9 * dt:
-                y = stepper.y_end
-            else:
-                f_old = stepper.K[0].copy() if f_old is None else f_old
+            y = stepper.y_end
+            if abs(t - stepper.t) > 1e-9 * dt:
                 f_new = np.empty_like(y_old)
                 compiled.ode_rhs(stepper.y_end, f_new, 0, run.system.system,
                                  run.system.stage_inputs(np.array([stepper.t])), run.system.work)
-                y = _hermite(t, t_old, y_old, f_old, stepper.t, stepper.y_end, f_new)
+                stepper.nfev += 1
+                y = _hermite(t, t_old, y_old, stepper.K[0], stepper.t, stepper.y_end, f_new)
             if run.steady(run.record(t, y)):
                 return
 
 
-def _rk4_steps(run: _Run, stepper: RK4, n: int) -> bool:
-    """``n`` checked, projected RK4 steps; False (and the run failed) on a blow-up."""
-    steps, code, value = stepper.advance(n, run.limits, run.monitor)
+def _rk4_steps(run: _Run, stepper: RK4, n: int, h: float) -> bool:
+    """``n`` checked, projected RK4 steps of ``h``, the stepper's time moved on; False (and the
+    run failed) on a blow-up."""
+    steps, code, value = stepper.advance(n, h, run.limits, run.monitor)
+    stepper.t += steps * h
     run.counts["nsteps"] += steps
     run.counts["nprojections"] += steps - (code != compiled.CHECK_OK)
     if code != compiled.CHECK_OK:
@@ -341,9 +334,8 @@ def run(
         r.status, r.message = STATUS_FAILED, str(exc)
     if r.status != STATUS_STEADY and r.last_sample_t < stepper.t * (1 - 1e-14):
         r.record(stepper.t, stepper.y)  # the end, or the last state before a failure
-    nfev = stepper.total_nfev if hasattr(stepper, "total_nfev") else stepper.nfev
     return RunSummary(
-        status=r.status, message=r.message, t_final=r.last_sample_t, nfev=nfev,
+        status=r.status, message=r.message, t_final=r.last_sample_t, nfev=stepper.nfev,
         max_rod_length_error=float(r.monitor[2]), max_constraint_error=float(r.monitor[3]),
         wall_time=time.perf_counter() - wall0,
         settings=options.settings(t0, t_end, **inputs.settings()),

@@ -1,6 +1,8 @@
 """Integrators behind one small protocol, as the run loop drives them (:class:`Stepper`):
 ``step(bound)`` takes one accepted step not past ``bound``, ``dense()`` interpolates inside it,
-``retreat()`` discards it, ``restart(y)`` continues from a changed state (after a projection).
+``retreat(to)`` discards it to head for a located switch at ``to``, ``resume()`` goes on at the
+step size of before once there, ``restart(y)`` continues from a changed state (after a
+projection).
 
 - :class:`DOP853` — the default: ``scipy.integrate.DOP853``'s method, coefficients, error norm
   and step-size law, its stages evaluated in compiled code (:mod:`tensegrity.engine.compiled`).
@@ -29,16 +31,15 @@ class IntegrationError(RuntimeError):
 
 
 class Stepper(Protocol):
-    """What the run loop needs of an integrator; ``t``, ``y`` the current time and state,
-    ``t_old`` the start of the last step, ``nfev`` right-hand-side evaluations so far."""
+    """What the run loop needs of an adaptive integrator; ``t``, ``y`` the current time and
+    state, ``t_old`` the start of the last step, ``nfev`` right-hand-side evaluations so far,
+    ``provisional`` whether the last step is a rejected attempt kept to locate a switch in it."""
 
-    adaptive: bool
     t: float
     t_old: float
     y: np.ndarray
     nfev: int
-
-    provisional: bool  #: the last step is a rejected attempt, kept to locate a switch in it
+    provisional: bool
 
     def step(self, bound: float, taut: np.ndarray | None = None) -> None:
         """One accepted step, ending at or before ``bound`` (see :meth:`DOP853.step`)."""
@@ -46,8 +47,14 @@ class Stepper(Protocol):
     def dense(self) -> Callable[[float], np.ndarray]:
         """``y(t)`` inside the last step."""
 
-    def retreat(self) -> None:
-        """Discard the last step: back to ``(t_old, y_old)``."""
+    def retreat(self, to: float) -> None:
+        """Discard the last step (back to ``(t_old, y_old)``) and head for ``to``."""
+
+    def resume(self) -> None:
+        """Arrived at the time given to :meth:`retreat`: go on with the step size of before."""
+
+    def accept(self) -> None:
+        """The last step is kept: the next starts at its end."""
 
     def restart(self, y: np.ndarray) -> None:
         """Continue from ``y`` at the current time (after a projection)."""
@@ -63,7 +70,6 @@ def _rms(x: np.ndarray) -> float:
 class DOP853:
     """Explicit Runge-Kutta of order 8(5,3), adaptive (``rtol``, ``atol``)."""
 
-    adaptive = True
     SAFETY, MIN_FACTOR, MAX_FACTOR, EXPONENT = 0.9, 0.2, 10.0, -1.0 / 8.0
 
     def __init__(self, system: CompiledSystem, t0: float, y0: np.ndarray, *, rtol: float,
@@ -76,7 +82,9 @@ class DOP853:
         self.y = np.array(y0, dtype=float)
         self.y_old = self.y.copy()
         self.nfev = 0
+        self.provisional = False
         self._dense_ready = False
+        self._h_before = 0.0
         self._evaluate_first_stage()
         self.h = self._initial_step(t_end)
 
@@ -144,7 +152,7 @@ class DOP853:
             factor = self.MAX_FACTOR if error == 0 else min(
                 self.MAX_FACTOR, self.SAFETY * error ** self.EXPONENT)
             self.h = h * (min(1.0, factor) if rejected else factor)
-        self.t_old, self.y_old, self.y_new = t, self.y, y_new
+        self.t_old, self.y_old = t, self.y
         self.t = bound if h == bound - t else t + h
         self.y = y_new
         self._dense_ready = False
@@ -169,9 +177,13 @@ class DOP853:
             return out
         return at
 
-    def retreat(self) -> None:
+    def retreat(self, to: float) -> None:
         self.t, self.y = self.t_old, self.y_old
         self._dense_ready = False
+        self._h_before, self.h = self.h, to - self.t
+
+    def resume(self) -> None:
+        self.h = max(self.h, self._h_before)
 
     def restart(self, y: np.ndarray) -> None:
         self.y = y
@@ -185,13 +197,14 @@ class ScipyMethod:
     """A ``scipy.integrate`` ``OdeSolver`` (``RK45``, ``Radau``, ``BDF``, ...) on the compiled
     right-hand side; restarted (a new initial step) after a projection or at a switch."""
 
-    adaptive = True
-
     def __init__(self, system: CompiledSystem, t0: float, y0: np.ndarray, *, method: str,
                  rtol: float, atol: float, t_end: float) -> None:
-        self.system, self.rtol, self.atol, self.t_end = system, rtol, atol, t_end
+        self.system, self.rtol, self.atol = system, rtol, atol
         self.solver_class = getattr(integrate, method)
-        self.name, self.nfev = method, 0
+        self.name = method
+        self.provisional = False
+        self._nfev_before = 0  # of earlier solvers and of tension evaluations
+        self._solver: integrate.OdeSolver | None = None
         self._start(t0, y0, t_end)
 
     def _rhs(self, t: float, y: np.ndarray) -> np.ndarray:
@@ -201,17 +214,21 @@ class ScipyMethod:
         return dy
 
     def _start(self, t0: float, y0: np.ndarray, bound: float) -> None:
-        if getattr(self, "_solver", None) is not None:
-            self.nfev += self._solver.nfev
+        if self._solver is not None:
+            self._nfev_before += self._solver.nfev
         self._solver = self.solver_class(self._rhs, t0, y0, bound, rtol=self.rtol, atol=self.atol)
         self._bound = bound
         self.t = self.t_old = float(t0)
         self.y = np.array(y0, dtype=float)
         self.y_old = self.y
         self._dense = None
+        self._tensions_here = False
+
+    @property
+    def nfev(self) -> int:
+        return self._nfev_before + self._solver.nfev
 
     def step(self, bound: float, taut: np.ndarray | None = None) -> None:
-        self.provisional = False
         if bound != self._bound:
             self._start(self.t, self.y, bound)
         self.t_old, self.y_old = self.t, self.y
@@ -219,62 +236,63 @@ class ScipyMethod:
         if self._solver.status == "failed":
             raise IntegrationError(f"{self.name} failed at t = {self._solver.t:.9g} s: {message}")
         self.t, self.y, self._dense = self._solver.t, self._solver.y, None
+        self._tensions_here = False
 
     def accept(self) -> None:
-        self._rhs(self.t, self.y)  # leave the work buffers (tensions) at the current state
+        pass
 
     def dense(self) -> Callable[[float], np.ndarray]:
         if self._dense is None:
             self._dense = self._solver.dense_output()
         return self._dense
 
-    def retreat(self) -> None:
+    def retreat(self, to: float) -> None:
         self._start(self.t_old, self.y_old, self._bound)
+
+    def resume(self) -> None:
+        pass
 
     def restart(self, y: np.ndarray) -> None:
         self._start(self.t, y, self._bound)
 
     def tensions(self) -> np.ndarray:
-        self._rhs(self.t, self.y)
+        if not self._tensions_here:  # the solver's last evaluation need not be at its state
+            self._rhs(self.t, self.y)
+            self._nfev_before += 1
+            self._tensions_here = True
         return self.system.work[2]
-
-    @property
-    def total_nfev(self) -> int:
-        return self.nfev + self._solver.nfev
 
 
 class RK4:
-    """Classical fixed-step RK4 with step ``dt`` [s]; the state is projected after every step."""
+    """Classical fixed-step RK4; the state is projected after every step.  The run loop keeps
+    the time (``t``, set after each :meth:`advance`)."""
 
-    adaptive = False
-
-    def __init__(self, system: CompiledSystem, t0: float, y0: np.ndarray, *, dt: float) -> None:
-        self.system, self.dt = system, float(dt)
+    def __init__(self, system: CompiledSystem, t0: float, y0: np.ndarray) -> None:
+        self.system = system
         m = system.m
         self.K, self._stage, self.y_end = np.zeros((4, m)), np.empty(m), np.empty(m)
-        self.t = self.t_old = float(t0)
+        self.t = float(t0)
         self.y = np.array(y0, dtype=float)
         self.nfev = 0
 
-    def advance(self, n_steps: int, limits: tuple, monitor: np.ndarray) -> tuple[int, int, float]:
-        """Up to ``n_steps`` steps, each checked (:func:`compiled.check_state`) and projected.
-        Returns ``(steps, check code, check value)``; ``self.y_end`` is the last step's end
-        before projection.  Inputs constant: one compiled call; otherwise one per step."""
+    def advance(self, n_steps: int, h: float, limits: tuple,
+                monitor: np.ndarray) -> tuple[int, int, float]:
+        """Up to ``n_steps`` steps of ``h`` [s] from ``t``, each checked
+        (:func:`compiled.check_state`) and projected.  Returns ``(steps, check code, check
+        value)``; ``self.y_end`` is the last step's end before projection.  Inputs constant: one
+        compiled call; otherwise one per step, with the inputs at its stage times."""
         system = self.system
         if system.inputs.constant:
             steps, code, value = compiled.rk4_segment(
-                self.y, self.dt, n_steps, self.K, self._stage, self.y_end, system.system,
+                self.y, h, n_steps, self.K, self._stage, self.y_end, system.system,
                 system.stage_inputs(np.zeros(1)), system.work, limits, monitor)
         else:
             steps, code, value = 0, compiled.CHECK_OK, 0.0
             while steps < n_steps and code == compiled.CHECK_OK:
-                t = self.t + steps * self.dt
                 one, code, value = compiled.rk4_segment(
-                    self.y, self.dt, 1, self.K, self._stage, self.y_end, system.system,
-                    system.stage_inputs(t + compiled.RK4_C * self.dt), system.work, limits,
-                    monitor)
+                    self.y, h, 1, self.K, self._stage, self.y_end, system.system,
+                    system.stage_inputs(self.t + steps * h + compiled.RK4_C * h), system.work,
+                    limits, monitor)
                 steps += one
         self.nfev += 4 * steps
-        self.t_old = self.t + (steps - 1) * self.dt
-        self.t = self.t + steps * self.dt
         return steps, code, value
