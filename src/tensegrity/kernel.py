@@ -525,7 +525,7 @@ def rk4_step(
 ):  # pragma: no cover - compiled
     """One classical RK4 step of ``h`` on ``y = [q, q']`` in place (no projection); ``model`` is
     the tuple of :func:`rhs`'s model arguments.  The stage arithmetic is that of
-    :class:`tensegrity.integrators.RK4`: ``y + h/6 (k1 + 2 k2 + 2 k3 + k4)``.  ``stage_work`` is
+    :func:`tensegrity.engine.compiled.rk4_step`: ``y + h/6 (k1 + 2 k2 + 2 k3 + k4)``.  ``stage_work`` is
     (5, 6R) scratch.  Returns the step's increments of dissipated energy and external work,
     ``h/6 (P1 + 2 P2 + 2 P3 + P4)``."""
     n = q.shape[0]
