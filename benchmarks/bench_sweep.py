@@ -1,5 +1,6 @@
 #!/usr/bin/env python
-"""Sweeps: the batched compiled path against process parallelism on Dask, for the same cases.
+"""Sweeps: cases grouped into tasks in different ways on Dask, for the same cases (every way runs
+the engine; before it, ``simulate`` ran NumPy and the batched path a compiled loop of its own).
 
 Usage::
 
@@ -10,10 +11,9 @@ For each shell size, ``--cases`` cases (a grid over stiffness and rest-length sc
 dt = 1e-4 over 0.05 s, samples every 5 ms: 500 steps, 11 samples per case) run four ways:
 
 - ``dask: simulate per case``: one Dask task per case on a LocalCluster of ``--workers``
-  single-threaded processes, each running ``simulate(method="rk4")`` (the NumPy path);
+  single-threaded processes, each running ``simulate(method="rk4")``;
   ``run_sweep(spec with batch=False)``.
-- ``dask: compiled per case``: one task per case, each a batch of one through the compiled path
-  (the compiled kernel, without batching);
+- ``dask: compiled per case``: one task per case, each a batch of one (``simulate_batch``);
 - ``dask: batched``: the cases in one batch per worker;
 - ``run_sweep``: what the sweep does for RK4 (its rule, ``sweep.plan``: one batch per worker below
   ``sweep.BATCH_MAX_RODS`` rods, else one compiled case per task), dataset included;

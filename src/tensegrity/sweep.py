@@ -32,17 +32,14 @@ stiffnesses, dampings and rest lengths, and no load.  ``load`` pushes the nodes 
 
 How cases run
 -------------
-- ``method="rk4"`` (the default): cases run through the compiled path
-  (:func:`tensegrity.batch.simulate_batch`).  Shells with fewer than :data:`BATCH_MAX_RODS` rods:
-  the cases of equal ``(n, m)`` form one batch per Dask worker thread (per-task overhead
-  amortized, every worker busy); larger shells: one case per task (a batch of one; the per-task
-  overhead is negligible there, and finer tasks balance the load).  A case that cannot be built is
-  reported and left out of its batch.  Measured in ``benchmarks/bench_sweep.py``
-  (``benchmarks/results-sweep.md``): the compiled path is 20-60x faster than process parallelism
-  of ``simulate``; batching adds 1.5x at (3,1), 1.1x at (10,10) and nothing at (30,30) over one
-  compiled task per case.  ``batch=False``
-  runs every case on its own through ``simulate`` instead (bit-for-bit what a direct ``simulate``
-  call returns); compiled results agree with ``simulate`` to round-off (~1e-13 relative).
+- ``method="rk4"`` (the default): cases run through :func:`tensegrity.batch.simulate_batch`
+  (one engine run per case, as ``simulate``).  Shells with fewer than :data:`BATCH_MAX_RODS`
+  rods: the cases of equal ``(n, m)`` form one batch per Dask worker thread; larger shells: one
+  case per task (finer tasks balance the load).  A case that cannot be built is reported and
+  left out of its batch.  Measured in ``benchmarks/bench_sweep.py``
+  (``benchmarks/results-sweep.md``, run of 2026-11-25): since every path runs the same engine,
+  grouping gains 0.96-1.06x.  ``batch=False`` runs every case on its own through ``simulate``
+  (bit-for-bit what a direct ``simulate`` call returns).
 - Adaptive methods (``"DOP853"``, ...), and structures the compiled kernel does not take
   (joints, supports, point masses, 2-D nodes): one task per case through ``simulate``.
 
