@@ -16,8 +16,11 @@ Methods (all one thread, the same structure, the same state; the kernel also wit
 ``threads=T``):
 
 - ``numpy``: ``tensegrity.dynamics.evaluate`` (the readable reference), and a plain RK4 loop of it
-  with projection onto the rod constraints after every step; also ``simulate(method="rk4")``,
-  what a user gets today (with its switch indicators, blow-up checks and energy bookkeeping).
+  with projection onto the rod constraints after every step.
+- ``simulate``: the user's path, ``simulate()`` through the engine (blow-up checks, energy
+  bookkeeping and samples included): ``method="rk4"`` with one sample per 100 steps, and the
+  default DOP853 over ``SPAN`` = 0.02 s (steps, evaluations per step, time), each with its
+  largest node deviation at 0.02 s from a DOP853 run at rtol 1e-12.
 - ``kernel``: ``tensegrity.kernel.FastKernel``: ``evaluate()`` called from Python, and the
   compiled RK4 loop ``rk4()`` (its cost per step / 4 is the in-loop cost of one evaluation);
   the same with ``FastKernel(structure, threads=T)`` (``--threads``, default 2).
@@ -63,7 +66,9 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 DT = 1e-4
 SEED = 20240611
-METHODS = ("numpy", "kernel", "massmatrix", "mujoco")
+METHODS = ("numpy", "simulate", "kernel", "massmatrix", "mujoco")
+#: Simulated time of the time-to-result comparison [s] (MuJoCo's trajectory check's span).
+SPAN = 0.02
 
 
 # =========================================================================== the benchmark state
@@ -309,12 +314,48 @@ def mujoco_nodes(model, data, structure) -> np.ndarray:
 
 
 # =========================================================================== workers
+def time_simulate(structure, q, qdot, rest, budget: float) -> dict:
+    """The user's path: ``simulate(method="rk4")`` steps per second with one sample per 100
+    steps, and the default DOP853 over ``SPAN``, each with its deviation from a tight run."""
+    from tensegrity import simulate
+    from tensegrity.dynamics import State
+
+    s_r = structure.replace(tendon_rest_length=rest)
+    initial = State(0.0, q, qdot)
+    out: dict = {}
+
+    def rk4(n_steps: int):
+        r = simulate(s_r, (0.0, n_steps * DT), initial=initial, method="rk4", dt=DT,
+                     sample_dt=100 * DT)
+        assert r.success and r.nsteps == n_steps, r.message
+        return r
+
+    rk4(100)  # the compiled code's disk cache loaded outside the timings
+    t0 = time.perf_counter()
+    rk4(100)
+    k = 100 * max(1, steps_for(budget, (time.perf_counter() - t0) / 100) // 100)
+    out["rk4_step_s"] = best_time(lambda: rk4(k), budget) / k
+
+    def dop853(**tolerances):
+        return simulate(s_r, (0.0, SPAN), initial=initial, sample_dt=SPAN / 10, **tolerances)
+
+    run = dop853()
+    out["dop853_s"] = best_time(dop853, budget)
+    out["dop853_steps"], out["dop853_nfev"] = run.nsteps, run.nfev
+    reference = dop853(rtol=1e-12, atol=1e-14).node_position[-1]
+    out["dop853_deviation_m"] = float(np.max(np.abs(run.node_position[-1] - reference)))
+    n_span = round(SPAN / DT)
+    out["rk4_deviation_m"] = float(np.max(np.abs(rk4(n_span).node_position[-1] - reference)))
+    out["rk4_span_s"] = best_time(lambda: rk4(n_span), budget)
+    return out
+
+
 def worker(method: str, n: int, m: int, budget: float, cold: bool, threads: int = 2) -> dict:
     """Time one method on one size in this (fresh) process; returns a JSON-able dict."""
     import tensegrity  # noqa: F401  (import cost outside the measurement)
     from tensegrity import dynamics
 
-    if method == "kernel":
+    if method in ("kernel", "simulate"):
         import numba  # noqa: F401
     if method == "mujoco":
         import mujoco  # noqa: F401
@@ -342,21 +383,9 @@ def worker(method: str, n: int, m: int, budget: float, cold: bool, threads: int 
             )
 
         out["rk4_step_s"] = best_time(lambda: rk4_step(q, qdot), budget)
-        # simulate(method="rk4"), what the library does today, over a few steps.
-        from tensegrity import simulate
-        from tensegrity.dynamics import State
 
-        k = steps_for(budget, 1.5 * out["rk4_step_s"])
-        structure_r = structure.replace(tendon_rest_length=rest)
-        initial = State(0.0, q, qdot)
-
-        def run():
-            r = simulate(structure_r, (0.0, k * DT), initial=initial, method="rk4", dt=DT,
-                         sample_dt=k * DT, steady_state=False)
-            assert r.success and r.nsteps == k, r.message
-            return r
-
-        out["simulate_step_s"] = best_time(run, budget) / k
+    elif method == "simulate":
+        out.update(time_simulate(structure, q, qdot, rest, budget))
 
     elif method == "kernel":
         from tensegrity.kernel import FastKernel
@@ -372,7 +401,7 @@ def worker(method: str, n: int, m: int, budget: float, cold: bool, threads: int 
                                      budget)
         k = steps_for(budget, 4 * out["rhs_out_s"])
         out["rk4_step_s"] = best_time(lambda: kernel.rk4(q, qdot, DT, k, rest), budget) / k
-        out["rk4_batch"] = k
+        out["rk4_steps_per_call"] = k
         ref = dynamics.evaluate(structure, q, qdot, rest_length=rest).qddot
         got = kernel.evaluate(q, qdot, rest).qddot
         out["max_rel_diff_vs_numpy"] = float(np.max(np.abs(got - ref)) / np.max(np.abs(ref)))
@@ -649,21 +678,45 @@ def report(results: dict, sizes, info: dict, bw: dict, command: str, notes: list
             f"| {fmt_ratio(get(s, 'kernel', 'rhs_s'), get(s, 'numpy', 'rhs_s'))} |")
     out("")
     out("## RK4 steps per second (dt = 1e-4, projection onto the rod constraints after each step)\n")
-    out("| shell | NumPy loop | `simulate(method=\"rk4\")` | kernel `rk4()` (compiled loop) "
+    out("| shell | NumPy loop | `simulate(method=\"rk4\")` (a sample per 100 steps) "
+        "| kernel `rk4()` (compiled loop) "
         f"| same, {T} threads | {T} threads / 1 "
         "| mass matrix + KKT | MuJoCo `mj_step` | kernel / MuJoCo | kernel / NumPy loop "
-        "| kernel / mass matrix | mass matrix / MuJoCo |")
-    out("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+        "| kernel / mass matrix | mass matrix / MuJoCo | `simulate` / kernel | `simulate` / MuJoCo |")
+    out("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for s in sizes:
         k = get(s, "kernel", "rk4_step_s")
         kt = get(s, "kernel", "rk4_step_threaded_s")
         mj = get(s, "mujoco", "rk4_step_s")
         mm = get(s, "massmatrix", "rk4_step_s")
         out(f"| {label(s)} | {fmt_rate(get(s, 'numpy', 'rk4_step_s'))} "
-            f"| {fmt_rate(get(s, 'numpy', 'simulate_step_s'))} | {fmt_rate(k)} | {fmt_rate(kt)} "
+            f"| {fmt_rate(get(s, 'simulate', 'rk4_step_s'))} | {fmt_rate(k)} | {fmt_rate(kt)} "
             f"| {fmt_ratio(kt, k)} | {fmt_rate(mm)} "
             f"| {fmt_rate(mj)} | {fmt_ratio(k, mj)} | {fmt_ratio(k, get(s, 'numpy', 'rk4_step_s'))} "
-            f"| {fmt_ratio(k, mm)} | {fmt_ratio(mm, mj)} |")
+            f"| {fmt_ratio(k, mm)} | {fmt_ratio(mm, mj)} "
+            f"| {fmt_ratio(get(s, 'simulate', 'rk4_step_s'), k)} "
+            f"| {fmt_ratio(get(s, 'simulate', 'rk4_step_s'), mj)} |")
+    out("")
+    out(f"## Time to result: {SPAN:g} s of simulated time\n")
+    out("Wall time for the same motion through the user's path (`simulate`, samples, checks and "
+        "energy bookkeeping included), the kernel's compiled RK4 loop and MuJoCo (RK4 steps at "
+        f"dt = {DT:g} s), and the largest node deviation at the end from `simulate` at rtol "
+        "1e-12 (MuJoCo's: from the kernel's RK4, see Checks).\n")
+    out("| shell | `simulate` DOP853 | its steps, evaluations / step | deviation "
+        "| `simulate` rk4 | deviation | kernel `rk4()` | MuJoCo | speed, DOP853 / MuJoCo |")
+    out("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
+    n_span = round(SPAN / DT)
+    for s in sizes:
+        steps = get(s, "simulate", "dop853_steps")
+        per = (f"{steps}, {get(s, 'simulate', 'dop853_nfev') / steps:.1f}" if steps else "—")
+        dev = lambda key: (f"{get(s, 'simulate', key):.1e} m"  # noqa: E731
+                           if get(s, "simulate", key) is not None else "—")
+        k, mj = get(s, "kernel", "rk4_step_s"), get(s, "mujoco", "rk4_step_s")
+        out(f"| {label(s)} | {fmt_time(get(s, 'simulate', 'dop853_s'))} | {per} "
+            f"| {dev('dop853_deviation_m')} | {fmt_time(get(s, 'simulate', 'rk4_span_s'))} "
+            f"| {dev('rk4_deviation_m')} | {fmt_time(k * n_span if k else None)} "
+            f"| {fmt_time(mj * n_span if mj else None)} "
+            f"| {fmt_ratio(get(s, 'simulate', 'dop853_s'), mj * n_span if mj else None)} |")
     out("")
     out("## The memory-traffic bound\n")
     out("The bound is the bytes one kernel evaluation must touch once (`kernel_bytes`: q, q', rod "
