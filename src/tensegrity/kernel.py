@@ -67,7 +67,7 @@ from tensegrity.structure import Structure
 
 __all__ = [
     "FastKernel", "KernelEvaluation", "PackedStructure", "RK4Result", "StencilLayout", "energies",
-    "pack", "project", "rhs", "rk4_step", "rk4_steps", "stencil_layout",
+    "pack", "project", "rhs", "rk4_step", "rk4_steps", "stencil_layout", "tendon_vector",
 ]
 
 _JIT = dict(
@@ -117,7 +117,7 @@ def _end_values(x, rod_slots, out):  # pragma: no cover - compiled
 
 
 @njit(inline="always", **_JIT)
-def _tendon_vector(p, tendon_slots, s):  # pragma: no cover - compiled
+def tendon_vector(p, tendon_slots, s):  # pragma: no cover - compiled
     """``(tail, head, tx, ty, tz)``: tendon ``s``'s slots and ``t = p_head - p_tail``."""
     tail = tendon_slots[s, 0]
     head = tendon_slots[s, 1]
@@ -290,7 +290,7 @@ def _tendon_pass(
     tension = tension[lo:last]
     elastic_tension = elastic_tension[lo:last]
     for s in range(tendon_slots.shape[0]):
-        tail, head, tx, ty, tz = _tendon_vector(p, tendon_slots, s)
+        tail, head, tx, ty, tz = tendon_vector(p, tendon_slots, s)
         length = np.sqrt(tx * tx + ty * ty + tz * tz)
         if not length > rest_length[s]:  # slack: skip the work (one by one, a branch is cheap)
             tension[s] = 0.0
@@ -625,7 +625,7 @@ def energies(
         kinetic += m * (v1 / 8 + v2 / 24)
     elastic = 0.0
     for s in range(tendon_slots.shape[0]):
-        _, _, tx, ty, tz = _tendon_vector(p, tendon_slots, s)
+        _, _, tx, ty, tz = tendon_vector(p, tendon_slots, s)
         stretch = np.sqrt(tx * tx + ty * ty + tz * tz) - rest_length[s]
         if stretch > 0.0:
             elastic += tendon_stiffness[s] * stretch * stretch

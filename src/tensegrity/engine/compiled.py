@@ -30,6 +30,7 @@ import numpy as np
 from numba import njit
 from scipy.integrate._ivp import dop853_coefficients as _dop853
 
+from tensegrity.kernel import tendon_vector
 from tensegrity.kernel_system import (
     system_energies,
     system_errors,
@@ -254,12 +255,8 @@ def check_state(y, s, system, inputs, work, limits, monitor):  # pragma: no cove
 def tendon_lengths(p, tendon_slots, out):  # pragma: no cover - compiled
     """``|p_head - p_tail|`` [m] per tendon (kernel order) from node positions ``p`` (3, n_slots)."""
     for s in range(tendon_slots.shape[0]):
-        a = tendon_slots[s, 0]
-        b = tendon_slots[s, 1]
-        x = p[0, b] - p[0, a]
-        yy = p[1, b] - p[1, a]
-        z = p[2, b] - p[2, a]
-        out[s] = np.sqrt(x * x + yy * yy + z * z)
+        _, _, tx, ty, tz = tendon_vector(p, tendon_slots, s)
+        out[s] = np.sqrt(tx * tx + ty * ty + tz * tz)
 
 
 @njit(**_JIT)
@@ -279,11 +276,7 @@ def _indicator(p, v, tendon_slots, stiffness, damping, rest, out):  # pragma: no
     """:func:`switch_indicator` from the node positions ``p`` and velocities ``v``; ``damping``
     None: undamped tendons (decided at compile time)."""
     for s in range(tendon_slots.shape[0]):
-        a = tendon_slots[s, 0]
-        b = tendon_slots[s, 1]
-        tx = p[0, b] - p[0, a]
-        ty = p[1, b] - p[1, a]
-        tz = p[2, b] - p[2, a]
+        a, b, tx, ty, tz = tendon_vector(p, tendon_slots, s)
         length = np.sqrt(tx * tx + ty * ty + tz * tz)
         stretch = stiffness[s] * (length - rest[s])
         if damping is None:
