@@ -32,7 +32,7 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=6)
     parser.add_argument("--threads", type=int, default=2, help="threaded kernel (1: skip it)")
     args = parser.parse_args()
-    from tensegrity.kernel import FastKernel
+    from tensegrity.physics.kernel import FastKernel
 
     structure, q, qdot, rest = bench_problem(*parse_size(args.size))
     R, S = structure.n_rods, structure.n_tendons

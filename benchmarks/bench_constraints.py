@@ -19,8 +19,9 @@ import time
 
 import numpy as np
 
-from tensegrity import dynamics
-from tensegrity.shell import class1_shell, class2_shell
+from tensegrity.physics.constraints import constraints_of
+from tensegrity.physics import dynamics
+from tensegrity.model.shell import class1_shell, class2_shell
 
 
 def best_time(call, repeats: int, budget: float = 0.5) -> float:
@@ -46,7 +47,7 @@ def measure(structure, repeats: int) -> dict[str, float | str]:
     qdot = dynamics.project_to_constraints(structure, q, 0.1 * rng.normal(size=q.size))[1]
     rest = structure.tendon_rest_length
     perturbed = q + 1e-9 * rng.normal(size=q.size)
-    constraints = structure.constraints
+    constraints = constraints_of(structure)
     return {
         "rows": 0 if constraints is None else constraints.matrix.shape[0],
         "path": "-" if constraints is None else ("dense" if constraints.dense else "sparse"),

@@ -15,13 +15,13 @@ three repeats of wall-clock time (the machine may be shared).
 Methods (all one thread, the same structure, the same state; the kernel also with
 ``threads=T``):
 
-- ``numpy``: ``tensegrity.dynamics.evaluate`` (the readable reference), and a plain RK4 loop of it
+- ``numpy``: ``tensegrity.physics.dynamics.evaluate`` (the readable reference), and a plain RK4 loop of it
   with projection onto the rod constraints after every step.
 - ``simulate``: the user's path, ``simulate()`` through the engine (blow-up checks, energy
   bookkeeping and samples included): ``method="rk4"`` with one sample per 100 steps, and the
   default DOP853 over ``SPAN`` = 0.02 s (steps, evaluations per step, time), each with its
   largest node deviation at 0.02 s from a DOP853 run at rtol 1e-12.
-- ``kernel``: ``tensegrity.kernel.FastKernel``: ``evaluate()`` called from Python, and the
+- ``kernel``: ``tensegrity.physics.kernel.FastKernel``: ``evaluate()`` called from Python, and the
   compiled RK4 loop ``rk4()`` (its cost per step / 4 is the in-loop cost of one evaluation);
   the same with ``FastKernel(structure, threads=T)`` (``--threads``, default 2).
 - ``massmatrix``: end-point (node) coordinates with the consistent mass matrix of a uniform rod,
@@ -80,7 +80,8 @@ def parse_size(text: str) -> tuple[int, int]:
 def bench_problem(n: int, m: int):
     """``(structure, q, qdot, rest_length)``: the shell, its layout with rod-consistent random
     velocities, and rest lengths 0.95 x the initial tendon lengths."""
-    from tensegrity import class1_shell, dynamics
+    from tensegrity import class1_shell
+    from tensegrity.physics import dynamics
 
     structure = class1_shell(n, m)
     p = structure.node_position
@@ -177,7 +178,7 @@ class MassMatrixModel:
     def accelerations(self, x, v, rest, external_force=None, gravity=None):
         from scipy.sparse.linalg import spsolve
 
-        from tensegrity import dynamics
+        from tensegrity.physics import dynamics
 
         s, n = self.s, self.n
         p, vv = x.reshape(-1, 3), v.reshape(-1, 3)
@@ -287,7 +288,7 @@ def mjcf(structure, rest: np.ndarray, p: np.ndarray, dt: float = DT) -> str:
 def mujoco_set_state(model, data, structure, q, qdot) -> None:
     """Free-joint ``qpos``/``qvel`` from ``(q, qdot)``: body origin at the rod centre, body z
     along ``q2``; ``qvel`` holds the centre velocity (world) and angular velocity (body frame)."""
-    from tensegrity import dynamics
+    from tensegrity.physics import dynamics
 
     rods, rates = dynamics.rods_view(q), dynamics.rods_view(qdot)
     for r in range(structure.n_rods):
@@ -318,7 +319,7 @@ def time_simulate(structure, q, qdot, rest, budget: float) -> dict:
     """The user's path: ``simulate(method="rk4")`` steps per second with one sample per 100
     steps, and the default DOP853 over ``SPAN``, each with its deviation from a tight run."""
     from tensegrity import simulate
-    from tensegrity.dynamics import State
+    from tensegrity.physics.dynamics import State
 
     s_r = structure.replace(tendon_rest_length=rest)
     initial = State(0.0, q, qdot)
@@ -353,7 +354,7 @@ def time_simulate(structure, q, qdot, rest, budget: float) -> dict:
 def worker(method: str, n: int, m: int, budget: float, cold: bool, threads: int = 2) -> dict:
     """Time one method on one size in this (fresh) process; returns a JSON-able dict."""
     import tensegrity  # noqa: F401  (import cost outside the measurement)
-    from tensegrity import dynamics
+    from tensegrity.physics import dynamics
 
     if method in ("kernel", "simulate"):
         import numba  # noqa: F401
@@ -388,7 +389,7 @@ def worker(method: str, n: int, m: int, budget: float, cold: bool, threads: int 
         out.update(time_simulate(structure, q, qdot, rest, budget))
 
     elif method == "kernel":
-        from tensegrity.kernel import FastKernel
+        from tensegrity.physics.kernel import FastKernel
 
         t0 = time.perf_counter()
         kernel = FastKernel(structure)
@@ -475,7 +476,7 @@ def worker(method: str, n: int, m: int, budget: float, cold: bool, threads: int 
         mujoco.mj_step(model, data, nstep=steps_check)
         p_mj = mujoco_nodes(model, data, structure)
         try:
-            from tensegrity.kernel import FastKernel
+            from tensegrity.physics.kernel import FastKernel
 
             qk, _ = FastKernel(structure).rk4(q, qdot, DT, steps_check, rest)
             p_k = dynamics.nodes_from_coordinates(structure, qk)

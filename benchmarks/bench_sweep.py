@@ -40,7 +40,7 @@ from bench_rhs import machine_info, parse_size, write_report  # noqa: E402
 
 
 def make_spec(n: int, m: int, cases: int, *, batch: bool = True):
-    from tensegrity.sweep import SweepSpec
+    from tensegrity.sweep.run import SweepSpec
 
     k = max(1, cases // 2)
     stiffness = [60.0 + 140.0 * i / max(1, k - 1) for i in range(k)]
@@ -54,7 +54,7 @@ def time_dask_tasks(client, spec, parts: int) -> float:
     import numpy as np
     from distributed import wait
 
-    from tensegrity.sweep import run_cases
+    from tensegrity.sweep.run import run_cases
 
     cases = spec.cases()
     t0 = time.perf_counter()
@@ -76,7 +76,7 @@ def main(argv=None) -> int:
 
     from distributed import Client, LocalCluster
 
-    from tensegrity.sweep import run_cases, run_sweep
+    from tensegrity.sweep.run import run_cases, run_sweep
 
     info = machine_info()
     date = datetime.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M %Z")

@@ -50,7 +50,7 @@ def main() -> None:
     parser.add_argument("--threads", type=int, default=1)
     parser.add_argument("--rounds", type=int, default=8)
     args = parser.parse_args()
-    from tensegrity import kernel as new
+    from tensegrity.physics import kernel as new
 
     structure, q, qdot, rest = bench_problem(*parse_size(args.size))
     if args.damped:

@@ -1,7 +1,7 @@
 """How tightly MuJoCo holds the MJCF export's closed loops, against the constraint settings.
 
 A rod with both ends on non-parallel planes or lines has no exact joint tree; ``to_mjcf`` closes
-the loop with tendon equalities (``tensegrity.mjcf``, "Rods with both ends held").  For the
+the loop with tendon equalities (``tensegrity.io.mjcf``, "Rods with both ends held").  For the
 closed-loop structures of ``tests/test_mjcf_held.py`` (a ladder against a wall, a plane and a
 skew line, two skew lines, a planar trammel), under gravity, this runs our RK4 once per time
 step and MuJoCo's RK4 with the exported model, the closure rows' ``solref`` / ``solimp`` /
@@ -25,8 +25,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from test_constraints import GRAVITY  # noqa: E402
 from test_mjcf_held import LOOPS, off_constraints  # noqa: E402
 
-from tensegrity import simulate  # noqa: E402
-from tensegrity.mjcf import mujoco_node_positions, to_mjcf  # noqa: E402
+from tensegrity import simulate# noqa: E402
+from tensegrity.io.mjcf import mujoco_node_positions, to_mjcf# noqa: E402
 
 #: (label, closure solref, closure solimp, extra <option> attributes); None keeps the export's.
 SETTINGS = [

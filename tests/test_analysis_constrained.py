@@ -14,12 +14,9 @@ import pytest
 from scipy.optimize import brentq
 from test_constraints import GRAVITY, G, hanging_chain, pendulum, static_equilibrium
 
+from tensegrity.physics.constraints import constraints_of
 from tensegrity import Structure, critical_damping, simulate
-from tensegrity.analysis.coordinates import (
-    Chart,
-    planar_coordinates,
-    spatial_coordinates,
-)
+from tensegrity.analysis.coordinates import Chart, planar_coordinates, spatial_coordinates
 from tensegrity.analysis.equilibrium import (
     compare_equilibria,
     equilibrium_by_simulation,
@@ -34,10 +31,10 @@ from tensegrity.analysis.modes import (
     modal_analysis,
     mode_initial_state,
 )
-from tensegrity.dynamics import State
-from tensegrity.generators import prism
-from tensegrity.planar import planar_two_rod, two_rod_equilibrium
-from tensegrity.shell import class2_shell
+from tensegrity.physics.dynamics import State
+from tensegrity.design.catalogue import prism
+from tensegrity.model.planar import planar_two_rod, two_rod_equilibrium
+from tensegrity.model.shell import class2_shell
 
 
 def fixed_base_prism(**options) -> Structure:
@@ -176,7 +173,7 @@ def test_constrained_equilibria_by_least_squares_and_by_simulation_agree(case):
     agreement = compare_equilibria(eq, sim)
     assert agreement["node_distance"] < 1e-7 and agreement["tension_difference"] < 1e-5, agreement
     # the supports and joints hold
-    assert np.max(np.abs(s.constraints.residual(eq.q))) < 1e-12
+    assert np.max(np.abs(constraints_of(s).residual(eq.q))) < 1e-12
     if "fixed" in case:
         np.testing.assert_allclose(eq.node_position[s.node_fixed], s.node_position[s.node_fixed],
                                    atol=1e-14)
@@ -272,7 +269,7 @@ def test_rigid_body_modes_are_the_ones_the_supports_admit():
 
 # ------------------------------------------------------------------------------ command line
 def _cli(argv, capsys):
-    from tensegrity.cli import main
+    from tensegrity.cli.main import main
 
     code = main([str(a) for a in argv])
     captured = capsys.readouterr()
@@ -343,8 +340,12 @@ def test_self_stress_and_prestress_with_supports():
     base tendons (between fixed nodes) add one state each; Maxwell's rule with the admitted
     motions (``s - m = S - k``, no rigid motion left).  The LP prestress, realized by rest
     lengths, leaves Theorem 18.1 with its constraint forces at rest in the layout."""
-    from tensegrity import dynamics
-    from tensegrity.analysis.prestress import feasible_prestress, rest_lengths_for_tensions, self_stress
+    from tensegrity.physics import dynamics
+    from tensegrity.analysis.prestress import (
+        feasible_prestress,
+        rest_lengths_for_tensions,
+        self_stress,
+    )
 
     free, s = prism(3), fixed_base_prism()
     states = self_stress(s)
@@ -410,7 +411,7 @@ def test_prestress_rod_force_includes_the_support_reaction():
 def test_shape_sensitivities_with_supports_match_re_solved_equilibria():
     """``dy/du`` and ``dT/du`` of the fixed-base class 2 shell against central differences of
     equilibria solved again with the rest lengths changed."""
-    from tensegrity.analysis.commands import rings
+    from tensegrity.cli.analysis import rings
     from tensegrity.analysis.shape_control import height_twist, sensitivities
 
     s = class2_shell(3, 2, fixed_base=True)
@@ -433,7 +434,13 @@ def test_shape_control_of_a_shell_on_a_fixed_base():
     back with all; the open loop reaches the targets, and so does the LQR closed loop on the
     nonlinear model (constraint forces, projection), with the base where it was."""
     from tensegrity import class1_shell
-    from tensegrity.analysis.shape_control import Bounds, closed_loop, height_twist, quasi_static, shell_rings
+    from tensegrity.analysis.shape_control import (
+        Bounds,
+        closed_loop,
+        height_twist,
+        quasi_static,
+        shell_rings,
+    )
 
     bottom, top = shell_rings(4, 2)
     s = class1_shell(4, 2)
@@ -513,7 +520,7 @@ def test_cli_gravity_hangs_a_pinned_rod_and_swings_it_at_the_pendulum_frequency(
     code, _, err = _cli(["simulate", "--structure", path, "--gravity", str(G), "--t-end", "0.2",
                          "--no-steady-state", "--out", tmp_path / "sim"], capsys)
     assert code == 0, err
-    from tensegrity.io import read_trajectory
+    from tensegrity.io.trajectory import read_trajectory
 
     tip = read_trajectory(tmp_path / "sim" / "trajectory.h5").nodes[:, 1, 2]
     assert tip[-1] < tip[0] - 0.05 and np.all(np.diff(tip) <= 1e-12)  # falls from rest
@@ -534,7 +541,7 @@ def test_info_counts_the_degrees_of_freedom_the_supports_leave(tmp_path, capsys)
     from tensegrity.analysis.coordinates import admitted_dof
 
     both_fixed = pendulum(support="fixed").replace(node_fixed=[True, True])
-    from tensegrity.shell import class2_shell
+    from tensegrity.model.shell import class2_shell
 
     cases = {"pinned": (pendulum(support="fixed"), 2), "both ends fixed": (both_fixed, 0),
              "point mass": (anchored_mass(), 3), "class 2 shell": (class2_shell(3, 2), 42),

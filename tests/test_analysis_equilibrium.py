@@ -1,7 +1,7 @@
 """Equilibria (issue 4, step 1): coordinates, analytic Jacobians, and the two routes agreeing.
 
 References independent of the code under test: central finite differences, the potential energy
-of :mod:`tensegrity.dynamics`, and Theorem 18.1's accelerations (``dynamics.accelerations``).
+of :mod:`tensegrity.physics.dynamics`, and Theorem 18.1's accelerations (``dynamics.accelerations``).
 """
 
 from __future__ import annotations
@@ -9,7 +9,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tensegrity import class1_shell, dynamics
+from tensegrity import class1_shell
+from tensegrity.physics import dynamics
 from tensegrity.analysis.coordinates import Chart, align, deformation, mass_matrix
 from tensegrity.analysis.equilibrium import (
     compare_equilibria,

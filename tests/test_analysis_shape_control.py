@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tensegrity import class1_shell, dynamics
+from tensegrity import class1_shell
+from tensegrity.physics import dynamics
 from tensegrity.analysis.equilibrium import find_equilibrium
 from tensegrity.analysis.shape_control import (
     Bounds,

@@ -9,8 +9,9 @@ import sys
 import numpy as np
 import pytest
 
-from tensegrity.cli import main
-from tensegrity.io import read_structure, read_trajectory
+from tensegrity.cli.main import main
+from tensegrity.io.formats import read_structure
+from tensegrity.io.trajectory import read_trajectory
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
@@ -142,7 +143,7 @@ def test_unusable_output_path_fails_before_any_work(argv, words, tmp_path, capsy
     line naming the option, and the file in the way is left as it was."""
     import importlib
 
-    module = importlib.import_module("tensegrity.simulate")  # the package exports the function
+    module = importlib.import_module("tensegrity.engine.simulate")  # the package exports the function
 
     def no_simulation(*args, **kwargs):
         raise AssertionError("simulated although the output path is unusable")
@@ -207,8 +208,8 @@ def test_matrices_command_writes_the_model_at_the_equilibrium(tmp_path, capsys):
 
 
 def test_export_kinds_write_the_generators_structures(tmp_path):
-    from tensegrity.planar import planar_two_rod
-    from tensegrity.shell import class2_shell
+    from tensegrity.model.planar import planar_two_rod
+    from tensegrity.model.shell import class2_shell
 
     path = tmp_path / "c2.json"
     assert main(["export", "--kind", "class2-shell", "--n", "4", "--m", "3", "--fixed-base",
@@ -260,7 +261,7 @@ def test_a_reader_that_closes_the_pipe_early_stops_the_command_quietly():
     """``tensegrity info | head -1``: the output pipe closes before the command writes; it
     stops with exit code 141 (128 + SIGPIPE) and nothing on stderr (no traceback, no error)."""
     child = subprocess.Popen(
-        [sys.executable, "-c", "import sys; from tensegrity.cli import main; sys.exit(main(['info']))"],
+        [sys.executable, "-c", "import sys; from tensegrity.cli.main import main; sys.exit(main(['info']))"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     child.stdout.close()  # long before the child has imported anything
     _, err = child.communicate(timeout=120)

@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 
 from tensegrity import class1_shell
-from tensegrity.analysis.commands import rings
+from tensegrity.cli.analysis import rings
 from tensegrity.analysis.equilibrium import find_equilibrium
 from tensegrity.analysis.shape_control import shell_rings
-from tensegrity.cli import main
+from tensegrity.cli.main import main
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 

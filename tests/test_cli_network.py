@@ -6,10 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tensegrity import generators
-from tensegrity.cli import main
-from tensegrity.io import read_trajectory
-from tensegrity.network import read_network
+from tensegrity.design import catalogue as generators
+from tensegrity.cli.main import main
+from tensegrity.io.trajectory import read_trajectory
+from tensegrity.io.formats import read_network
 
 FORMATS = {"json": ".json", "yaml": ".yaml", "toml": ".toml", "connectivity": ".npz", "mjcf": ".xml"}
 KIND_OPTIONS = {"shell": ["--n", "4", "--m", "2"], "prism": ["--n", "4", "--set", "tension=8"],
@@ -119,7 +119,7 @@ def test_class_k_forms_carry_a_class2_shell_to_simulate(fmt, tmp_path, capsys):
     """The readable and connectivity forms write the fixed-base class 2 shell with shared nodes
     (class k) and a fixed base; the file reads back to the same N, C_b, C_s and supports, and
     simulate takes it (the base stays put, the joints hold)."""
-    from tensegrity.network import merge_joints, to_connectivity
+    from tensegrity.model.connectivity import merge_joints, to_connectivity
 
     path = tmp_path / f"s{FORMATS[fmt]}"
     assert main(["export", "--kind", "class2-shell", "--fixed-base", "-o", str(path)]) == 0

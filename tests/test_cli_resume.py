@@ -13,12 +13,11 @@ import time
 from pathlib import Path
 
 import h5py
-import numpy as np
 import pytest
 
-from tensegrity.cli import main
-from tensegrity.io import read_trajectory
-from tensegrity.stream import read_checkpoint
+from tensegrity.cli.main import main
+from tensegrity.io.trajectory import read_trajectory
+from tensegrity.io.stream import read_checkpoint
 
 RUN = ["simulate", "--n", "3", "--m", "1", "--t-end", "2", "--no-steady-state",
        "--sample-dt", "0.01"]
@@ -143,11 +142,11 @@ def test_terminated_run_leaves_only_its_partial_file(tmp_path):
 
 
 def test_resume_with_other_options_is_refused_in_one_line(tmp_path, capsys, monkeypatch):
-    import tensegrity.stream
+    import tensegrity.io.stream
 
     out = tmp_path / "out"
     calls = []
-    simulate = tensegrity.stream.simulate
+    simulate = tensegrity.io.stream.simulate
 
     def interrupt_in_the_second_segment(*args, **kwargs):
         calls.append(1)
@@ -155,9 +154,9 @@ def test_resume_with_other_options_is_refused_in_one_line(tmp_path, capsys, monk
             raise KeyboardInterrupt
         return simulate(*args, **kwargs)
 
-    monkeypatch.setattr(tensegrity.stream, "simulate", interrupt_in_the_second_segment)
+    monkeypatch.setattr(tensegrity.io.stream, "simulate", interrupt_in_the_second_segment)
     assert main([*RUN, "--out", str(out)]) == 130
-    monkeypatch.setattr(tensegrity.stream, "simulate", simulate)
+    monkeypatch.setattr(tensegrity.io.stream, "simulate", simulate)
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--resume" in err, err
     assert [p.name for p in out.iterdir()] == [PARTIAL]

@@ -8,9 +8,11 @@ import pytest
 from scipy import optimize
 from scipy.special import ellipk
 
-from tensegrity import Structure, dynamics, simulate
-from tensegrity import constraints as constraints_module
-from tensegrity.shell import class2_joints, class2_shell, shell_node_index, shell_tendons
+from tensegrity.physics.constraints import constraints_of
+from tensegrity import Structure, simulate
+from tensegrity.physics import dynamics
+from tensegrity.physics import constraints as constraints_module
+from tensegrity.model.shell import class2_joints, class2_shell, shell_node_index, shell_tendons
 
 G = 9.81
 GRAVITY = np.array([0.0, 0.0, -G])
@@ -284,26 +286,26 @@ def test_redundant_constraints_are_handled():
                   node_fixed=[False] * 6 + [True] * 3)
     chain = Structure(joint_nodes=[[3, 4], [4, 5]], **common)
     cycle = Structure(joint_nodes=[[3, 4], [4, 5], [5, 3]], **common)
-    assert cycle.constraints.matrix.shape[0] == chain.constraints.matrix.shape[0] == 6
+    assert constraints_of(cycle).matrix.shape[0] == constraints_of(chain).matrix.shape[0] == 6
     rng = np.random.default_rng(1)
     state = dynamics.initial_state(chain)
-    qdot = chain.constraints.project(state.q, rng.normal(size=state.q.size))[1]
+    qdot = constraints_of(chain).project(state.q, rng.normal(size=state.q.size))[1]
     results = [dynamics.evaluate(s, state.q, qdot, rest_length=s.tendon_rest_length, gravity=GRAVITY)
                for s in (chain, cycle)]
     np.testing.assert_allclose(results[0].qddot, results[1].qddot, atol=1e-10)
-    assert np.max(np.abs(chain.constraints.matrix @ results[0].qddot)) < 1e-10
+    assert np.max(np.abs(constraints_of(chain).matrix @ results[0].qddot)) < 1e-10
 
 
 def test_dense_and_sparse_solves_agree(monkeypatch):
     s = class2_shell(3, 3, fixed_base=True)
     rng = np.random.default_rng(0)
     state = dynamics.initial_state(s)
-    q, qdot = s.constraints.project(state.q + 1e-3 * rng.normal(size=state.q.size),
+    q, qdot = constraints_of(s).project(state.q + 1e-3 * rng.normal(size=state.q.size),
                                     rng.normal(size=state.q.size))
     dense = dynamics.evaluate(s, q, qdot, rest_length=s.tendon_rest_length, gravity=GRAVITY)
     monkeypatch.setattr(constraints_module, "DENSE_ROWS", 0)
     sparse_s = s.replace()
-    assert s.constraints.dense and not sparse_s.constraints.dense
+    assert constraints_of(s).dense and not constraints_of(sparse_s).dense
     sparse = dynamics.evaluate(sparse_s, q, qdot, rest_length=s.tendon_rest_length, gravity=GRAVITY)
     np.testing.assert_allclose(sparse.qddot, dense.qddot, rtol=1e-10, atol=1e-10)
 
@@ -312,15 +314,15 @@ def test_projection_restores_constraints_and_rod_lengths():
     s = class2_shell(4, 3, fixed_base=True)
     rng = np.random.default_rng(2)
     state = dynamics.initial_state(s)
-    q, qdot = s.constraints.project(state.q + 1e-4 * rng.normal(size=state.q.size),
+    q, qdot = constraints_of(s).project(state.q + 1e-4 * rng.normal(size=state.q.size),
                                     rng.normal(size=state.q.size))
-    assert np.max(np.abs(s.constraints.residual(q))) < 1e-13
+    assert np.max(np.abs(constraints_of(s).residual(q))) < 1e-13
     assert np.max(np.abs(dynamics.rod_length_error(s, q))) < 1e-13
-    assert np.max(np.abs(s.constraints.matrix @ qdot)) < 1e-12
+    assert np.max(np.abs(constraints_of(s).matrix @ qdot)) < 1e-12
     q2, v2 = dynamics.rods_view(q)[:, 1], dynamics.rods_view(qdot)[:, 1]
     assert np.max(np.abs(np.sum(q2 * v2, axis=1))) < 1e-12
     # a state on the constraints is a fixed point
-    q_again, qdot_again = s.constraints.project(q, qdot)
+    q_again, qdot_again = constraints_of(s).project(q, qdot)
     np.testing.assert_allclose(q_again, q, atol=1e-15)
     np.testing.assert_allclose(qdot_again, qdot, atol=1e-12)
 
@@ -333,14 +335,14 @@ def test_projection_accepts_the_round_off_floor_but_not_a_real_violation():
     chain = hanging_chain(damped=False).replace(line_nodes=[6], line_direction=[[1.0, 0, 0]])
     result = simulate(chain, (0.0, 0.05), method="rk4", dt=1e-4, gravity=GRAVITY)
     assert result.success, result.message
-    floor = constraints_module.PROJECTION_FLOOR_RTOL * chain.constraints.length_scale
+    floor = constraints_module.PROJECTION_FLOOR_RTOL * constraints_of(chain).length_scale
     assert result.max_constraint_error < 1e-9
     q = result.q[-1]
-    assert np.max(np.abs(chain.constraints.residual(q))) <= floor
+    assert np.max(np.abs(constraints_of(chain).residual(q))) <= floor
     assert np.max(np.abs(dynamics.rod_length_error(chain, q))) <= floor
     state = dynamics.initial_state(chain)
     with pytest.raises(FloatingPointError, match="could not project"):
-        chain.constraints.project(state.q + 0.3, state.qdot, max_iter=2)
+        constraints_of(chain).project(state.q + 0.3, state.qdot, max_iter=2)
 
 
 # ------------------------------------------------------------------ the class 2 shell
@@ -432,8 +434,8 @@ def test_json_round_trip_keeps_supports_and_names_bad_keys():
 
 
 def test_free_class1_only_parts_reject_supported_structures():
-    from tensegrity.kernel import FastKernel
-    from tensegrity.matrices import shell_size
+    from tensegrity.physics.kernel import FastKernel
+    from tensegrity.physics.matrix_form import shell_size
 
     s = class2_shell(3, 2)
     assert not s.is_free_class1

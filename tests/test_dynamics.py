@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from tensegrity import Structure, accelerations, class1_shell, critical_damping
-from tensegrity.dynamics import (
+from tensegrity.physics.dynamics import (
     elastic_energy,
     kinetic_energy,
     nodes_from_coordinates,

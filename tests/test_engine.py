@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from tensegrity import class1_shell, dynamics, simulate
-from tensegrity.dynamics import State
+from tensegrity import class1_shell, simulate
+from tensegrity.physics import dynamics
+from tensegrity.physics.dynamics import State
 
 
 def _perturbed(structure, seed: int, jitter: float, speed: float) -> State:
@@ -94,7 +95,7 @@ def test_cost_per_step_is_reported_and_near_the_method_s():
 
 # --------------------------------------------------------------------------- control tables
 def _control_table(shell):
-    from tensegrity.loads import ControlTable
+    from tensegrity.model.loads import ControlTable
 
     times = np.array([0.0, 0.1, 0.2, 0.3])
     u = np.zeros((4, shell.n_tendons))
@@ -127,7 +128,7 @@ def test_control_table_drives_as_the_same_function_and_its_work_balances_the_ene
 
 
 def test_control_table_bad_input_names_the_field():
-    from tensegrity.loads import ControlTable
+    from tensegrity.model.loads import ControlTable
 
     shell = class1_shell(3, 1)
     with pytest.raises(ValueError, match=r"^time: must increase strictly"):

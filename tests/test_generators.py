@@ -38,12 +38,13 @@ import math
 import numpy as np
 import pytest
 
-from tensegrity import dynamics, generators
+from tensegrity.physics import dynamics
+from tensegrity.design import catalogue as generators
 from tensegrity.analysis.equilibrium import equilibrium_by_simulation, find_equilibrium
 from tensegrity.analysis.linearize import linearize
 from tensegrity.analysis.modes import modal_analysis
 from tensegrity.analysis.prestress import feasible_prestress, self_stress
-from tensegrity.generators import (
+from tensegrity.design.catalogue import (
     octahedron,
     prism,
     prism_layout,
@@ -51,8 +52,8 @@ from tensegrity.generators import (
     prism_twist,
     tower,
 )
-from tensegrity.network import from_connectivity, incidence
-from tensegrity.structure import Structure
+from tensegrity.model.connectivity import from_connectivity, incidence
+from tensegrity.model.structure import Structure
 
 
 def polygon_twist(p: np.ndarray, n: int) -> np.ndarray:
@@ -219,7 +220,7 @@ def test_registry_generates_every_kind_and_names_bad_options():
         generators.generate("prism", m=2)
     with pytest.raises(ValueError, match=r"^kind: unknown 'cube' \(expected one of shell, prism"):
         generators.generate("cube")
-    generators.register("my-simplex", "tensegrity.generators:prism", "a test registration")
+    generators.register("my-simplex", "tensegrity.design.catalogue:prism", "a test registration")
     try:
         assert generators.generate("my-simplex").n_rods == 3
     finally:

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from tensegrity import simulate
-from tensegrity.generators import octahedron, prism, tower
+from tensegrity.design.catalogue import octahedron, prism, tower
 
 pytest.importorskip("mujoco")
 from test_mjcf import SAMPLE_DT, max_difference, rod_consistent_velocity, run_mujoco  # noqa: E402

@@ -11,15 +11,9 @@ import numpy as np
 import pytest
 
 from tensegrity import class1_shell, critical_damping, simulate
-from tensegrity.io import (
-    ENERGY_COLUMNS,
-    Trajectory,
-    atomic_path,
-    read_structure,
-    read_trajectory,
-    write_structure,
-    write_trajectory,
-)
+from tensegrity.io.trajectory import ENERGY_COLUMNS, Trajectory, read_trajectory, write_trajectory
+from tensegrity.io.files import atomic_path
+from tensegrity.io.formats import read_structure, write_structure
 
 
 @pytest.fixture(scope="module")
@@ -299,7 +293,7 @@ def test_incomplete_trajectory_names_the_file_and_problem(tmp_path, result, edit
 def test_trajectory_keeps_the_joint_error_and_marks_older_files_unknown(tmp_path, result):
     """``max_constraint_error`` (joints, supports) is stored; a file written before it was stored
     reads NaN for a structure with constraints and 0 for one without."""
-    from tensegrity.shell import class2_shell
+    from tensegrity.model.shell import class2_shell
 
     jointed = simulate(class2_shell(3, 2), (0.0, 0.05), sample_dt=0.025)
     assert 0.0 < jointed.max_constraint_error < 1e-9

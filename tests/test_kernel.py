@@ -1,4 +1,4 @@
-"""The compiled kernel (``tensegrity.kernel``) against the NumPy reference ``dynamics.evaluate``.
+"""The compiled kernel (``tensegrity.physics.kernel``) against the NumPy reference ``dynamics.evaluate``.
 
 Random consistent states (every rod exactly ``L`` long, no rod-stretching velocity), random rest
 lengths with a third of the tendons slack and one at zero, random tendon and rod damping (so that
@@ -18,9 +18,10 @@ import pytest
 
 pytest.importorskip("numba")
 
-from tensegrity import Structure, class1_shell, dynamics  # noqa: E402
-from tensegrity import kernel as kernel_module  # noqa: E402
-from tensegrity.kernel import FastKernel, stencil_layout  # noqa: E402
+from tensegrity import Structure, class1_shell# noqa: E402
+from tensegrity.physics import dynamics
+from tensegrity.physics import kernel as kernel_module# noqa: E402
+from tensegrity.physics.kernel import FastKernel, stencil_layout# noqa: E402
 from test_dynamics import mixed_controls  # noqa: E402
 from test_dynamics import random_consistent_state as random_consistent_nodes  # noqa: E402
 
@@ -170,7 +171,7 @@ def test_undamped_specialization_matches_reference_and_generic_path(case, loads,
     """All ``c = 0``: ``pack`` selects the specialization without node velocities and length
     rates; it agrees with the reference (1e-12) and bit for bit with the generic (damped) path
     run on explicit zero damping.  One damped tendon selects the generic path."""
-    from tensegrity.kernel import pack, rhs
+    from tensegrity.physics.kernel import pack, rhs
 
     rng = np.random.default_rng(_seed(case, loads, "undamped"))
     structure = _undamped(_structure(case, rng))
@@ -411,7 +412,7 @@ def test_rk4_stops_on_blow_up():
     q_bad = state.q.copy()
     q_bad[3] = np.nan
     assert np.isnan(kernel.project(q_bad, state.qdot)[0][3])
-    from tensegrity.kernel import project
+    from tensegrity.physics.kernel import project
 
     for k in (3, 0):  # in q2, in q2' (first rod)
         q_, qdot_ = state.q.copy(), state.qdot.copy()

@@ -1,4 +1,4 @@
-"""The compiled physics of every structure (``tensegrity.kernel_system``) against the NumPy
+"""The compiled physics of every structure (``tensegrity.physics.kernel_system``) against the NumPy
 reference (``dynamics.evaluate``, ``project_to_constraints``, the energies), which shares no code
 with it.
 
@@ -20,15 +20,24 @@ import pytest
 
 pytest.importorskip("numba")
 
-from tensegrity import Structure, class1_shell, dynamics  # noqa: E402
-from tensegrity import kernel  # noqa: E402
-from tensegrity.constraints import PROJECTION_FLOOR_RTOL  # noqa: E402
-from tensegrity.kernel_system import (  # noqa: E402
-    drop_coordinates, embed_planar, lift_coordinates, pack_system, system_energies, system_errors,
-    system_nodes, system_project, system_rhs,
+from tensegrity.physics.constraints import constraints_of
+from tensegrity import Structure, class1_shell# noqa: E402
+from tensegrity.physics import dynamics
+from tensegrity.physics import kernel# noqa: E402
+from tensegrity.physics.constraints import PROJECTION_FLOOR_RTOL# noqa: E402
+from tensegrity.physics.kernel_system import (
+    drop_coordinates,
+    embed_planar,
+    lift_coordinates,
+    pack_system,
+    system_energies,
+    system_errors,
+    system_nodes,
+    system_project,
+    system_rhs,
 )
-from tensegrity.planar import planar_two_rod  # noqa: E402
-from tensegrity.shell import class2_shell  # noqa: E402
+from tensegrity.model.planar import planar_two_rod# noqa: E402
+from tensegrity.model.shell import class2_shell# noqa: E402
 from test_constraints import hanging_chain, pendulum  # noqa: E402
 
 TOL = 1e-12
@@ -255,7 +264,7 @@ def test_rhs_matches_numpy_reference(name, loads, damped):
         assert not np.any(compiled.node_work[2])
         if s.has_constraints:  # the constraint forces are really there
             accel = np.max(np.abs(ref.qddot))
-            assert np.max(np.abs(s.constraints.matrix @ ref.qddot)) < 1e-9 * accel
+            assert np.max(np.abs(constraints_of(s).matrix @ ref.qddot)) < 1e-9 * accel
             free = ref.qddot - dynamics.force_response(s, q, ref.constraint_force)
             assert _rel(compiled.drop(qddot), free) > 1e-6
 
@@ -331,7 +340,7 @@ def test_projection_matches_reference(name):
                           dynamics.rod_coordinates(s, qdot_2d)[:, 1])
         assert np.max(np.abs(np.sum(rods_q * rods_v, axis=-1)), initial=0.0) < TOL * v_scale
         if s.has_constraints:
-            assert np.max(np.abs(s.constraints.matrix @ qdot_2d)) < TOL * v_scale
+            assert np.max(np.abs(constraints_of(s).matrix @ qdot_2d)) < TOL * v_scale
         # a state on the constraints is (nearly) a fixed point
         again_q, again_qdot = got_q.copy(), got_qdot.copy()
         assert system_project(again_q, again_qdot, rod_param, extras)[2]
@@ -453,8 +462,8 @@ def test_constraint_rows_are_the_references():
         s = STRUCTURES[name]()
         s3 = embed_planar(s) if s.dim == 2 else s
         extras = pack_system(s3).extras
-        c = s3.constraints.matrix.shape[0]
+        c = constraints_of(s3).matrix.shape[0]
         assert extras.constraint_rhs.shape == (c,)
         assert np.bincount(extras.entry_row, minlength=c).max() <= 2
-        assert sorted(extras.constraint_rhs) == pytest.approx(sorted(s3.constraints.rhs), abs=1e-15)
+        assert sorted(extras.constraint_rhs) == pytest.approx(sorted(constraints_of(s3).rhs), abs=1e-15)
     assert pack_system(held_and_free()).extras.constraint_rhs.size == 6

@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 from tensegrity import simulate
-from tensegrity.generators import prism
-from tensegrity.loads import ForceTable, read_force_table
+from tensegrity.design.catalogue import prism
+from tensegrity.model.loads import ForceTable
+from tensegrity.io.tables import read_force_table
 
 
 def table(n_nodes=6):

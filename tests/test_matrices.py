@@ -1,6 +1,6 @@
 """The matrix model (18.59) against the fast kernel, the node positions and the printed forms.
 
-The matrices are built from the topology (``tensegrity.matrices``); here they are checked
+The matrices are built from the topology (``tensegrity.physics.matrix_form``); here they are checked
 
 - against :func:`dynamics.accelerations` (q'' to 1e-10 relative, slack tendons included),
 - against tendon vectors computed directly from node positions (q = Q l, l^d = R q),
@@ -20,16 +20,16 @@ import scipy.io
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
-from tensegrity import dynamics
-from tensegrity.matrices import (
+from tensegrity.physics import dynamics
+from tensegrity.physics.matrix_form import (
     ShellMatrixModel,
     control_names,
     shell_size,
     shell_topology,
     undamped,
-    write_matrices,
 )
-from tensegrity.shell import class1_shell, shell_node_index
+from tensegrity.io.matrices import write_matrices
+from tensegrity.model.shell import class1_shell, shell_node_index
 
 #: (n, m, primal): the issue's sizes and their primal variants.
 SIZES = [

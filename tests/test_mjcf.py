@@ -23,8 +23,9 @@ import os
 import numpy as np
 import pytest
 
-from tensegrity import class1_shell, critical_damping, dynamics, simulate
-from tensegrity.mjcf import (
+from tensegrity import class1_shell, critical_damping, simulate
+from tensegrity.physics import dynamics
+from tensegrity.io.mjcf import (
     SPIN_INERTIA_MIN,
     SPIN_INERTIA_RATIO,
     mjcf_memory,

@@ -17,9 +17,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tensegrity import Structure, dynamics, simulate
-from tensegrity.mjcf import mujoco_node_velocities, to_mjcf
-from tensegrity.planar import planar_two_rod
+from tensegrity.physics.constraints import constraints_of
+from tensegrity import Structure, simulate
+from tensegrity.physics import dynamics
+from tensegrity.io.mjcf import mujoco_node_velocities, to_mjcf
+from tensegrity.model.planar import planar_two_rod
 from test_constraints import GRAVITY
 from test_mjcf import SAMPLE_DT, load, max_difference, run_mujoco
 
@@ -120,7 +122,7 @@ def spins(model):
 def our_dof(structure):
     """Degrees of freedom of our constrained model: 5 per rod (3 if planar) less the independent
     constraint rows."""
-    return structure.n_dof - structure.constraints.matrix.shape[0]
+    return structure.n_dof - constraints_of(structure).matrix.shape[0]
 
 
 # ------------------------------------------------------------------------------ exact trees
@@ -194,8 +196,8 @@ def test_closed_loop_model():
 
 # --------------------------------------------------------------------------------- the CLI
 def test_cli_exports_a_structure_file_with_held_rods(tmp_path, capsys):
-    from tensegrity.cli import main
-    from tensegrity.network import write_network
+    from tensegrity.cli.main import main
+    from tensegrity.io.formats import write_network
 
     s = LOOPS["skew lines"]()
     write_network(tmp_path / "skew.json", s)

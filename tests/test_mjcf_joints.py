@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from tensegrity import simulate
-from tensegrity.mjcf import mujoco_node_positions, to_mjcf
-from tensegrity.shell import class2_shell
+from tensegrity.io.mjcf import mujoco_node_positions, to_mjcf
+from tensegrity.model.shell import class2_shell
 from test_constraints import GRAVITY, hanging_chain
 
 mujoco = pytest.importorskip("mujoco")

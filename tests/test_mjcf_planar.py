@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 from tensegrity import Structure, simulate
-from tensegrity.mjcf import mujoco_node_positions, mujoco_node_velocities, to_mjcf
-from tensegrity.planar import planar_rod, planar_two_rod
+from tensegrity.io.mjcf import mujoco_node_positions, mujoco_node_velocities, to_mjcf
+from tensegrity.model.planar import planar_rod, planar_two_rod
 from test_constraints import GRAVITY, NO_TENDONS, hanging_chain
 from test_mjcf import SAMPLE_DT, load, max_difference, rod_consistent_velocity, run_mujoco
 
@@ -222,8 +222,8 @@ def test_read_back_dimension_is_checked():
 
 @pytest.mark.parametrize("kind", ["planar", "rod"])
 def test_cli_exports_planar_kinds_to_mjcf(kind, tmp_path, capsys):
-    from tensegrity import generators
-    from tensegrity.cli import main
+    from tensegrity.design import catalogue as generators
+    from tensegrity.cli.main import main
 
     path = tmp_path / "p.xml"
     assert main(["export", "--kind", kind, "--format", "mjcf", "-o", str(path)]) == 0

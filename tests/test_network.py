@@ -8,15 +8,10 @@ import numpy as np
 import pytest
 import yaml
 
-from tensegrity import class1_shell, critical_damping, dynamics
-from tensegrity.network import (
-    from_connectivity,
-    network_from_dict,
-    network_to_dict,
-    read_network,
-    to_connectivity,
-    write_network,
-)
+from tensegrity import class1_shell, critical_damping
+from tensegrity.physics import dynamics
+from tensegrity.model.connectivity import from_connectivity, to_connectivity
+from tensegrity.io.formats import network_from_dict, network_to_dict, read_network, write_network
 
 
 def varied_shell():
@@ -265,7 +260,7 @@ def test_the_documented_yaml_and_toml_examples_describe_one_structure():
 
 def test_io_read_structure_reads_every_format(tmp_path):
     """Callers of io.read_structure (the analysis commands) take every structure file too."""
-    from tensegrity.io import read_structure
+    from tensegrity.io.formats import read_structure
 
     s = varied_shell()
     for suffix in ("yaml", "toml", "npz"):

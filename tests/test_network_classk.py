@@ -7,16 +7,11 @@ import numpy as np
 import pytest
 
 from tensegrity import simulate
-from tensegrity.network import (
-    from_connectivity,
-    merge_joints,
-    read_network,
-    to_connectivity,
-    write_network,
-)
-from tensegrity.planar import planar_two_rod
-from tensegrity.shell import class2_shell
-from tensegrity.structure import Structure
+from tensegrity.model.connectivity import from_connectivity, merge_joints, to_connectivity
+from tensegrity.io.formats import read_network, write_network
+from tensegrity.model.planar import planar_two_rod
+from tensegrity.model.shell import class2_shell
+from tensegrity.model.structure import Structure
 
 SUFFIXES = ["json", "yaml", "toml", "npz"]
 

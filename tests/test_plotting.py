@@ -11,8 +11,8 @@ import pytest
 from matplotlib.figure import Figure
 
 from tensegrity import class1_shell, critical_damping, simulate
-from tensegrity.io import read_trajectory, write_trajectory
-from tensegrity.plotting import (
+from tensegrity.io.trajectory import read_trajectory, write_trajectory
+from tensegrity.plots.figures import (
     draw_structure,
     figure_structure,
     figure_tendon_lengths,
@@ -167,7 +167,7 @@ def test_figures_of_a_structure_without_taut_tendons(tmp_path, tendons):
 def test_fixed_nodes_are_marked():
     """Supports and anchors show as triangles at exactly the fixed nodes, with a legend entry;
     a free structure has neither."""
-    from tensegrity.shell import class2_shell
+    from tensegrity.model.shell import class2_shell
 
     s = class2_shell(4, 2, fixed_base=True)
     figure = figure_structure(s, s.node_position)

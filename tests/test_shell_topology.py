@@ -12,8 +12,8 @@ import math
 import numpy as np
 import pytest
 
-from tensegrity.shell import class1_shell, shell_node_index, shell_tendons
-from tensegrity.structure import Structure
+from tensegrity.model.shell import class1_shell, shell_node_index, shell_tendons
+from tensegrity.model.structure import Structure
 
 SIZES = [(n, m) for n in range(3, 9) for m in range(1, 6)]
 

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from tensegrity import Structure, class1_shell, critical_damping, simulate
-from tensegrity.dynamics import State
+from tensegrity.physics.dynamics import State
 
 # --------------------------------------------------------------------------- helpers
 

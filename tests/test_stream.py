@@ -1,4 +1,4 @@
-"""Streamed, resumable simulations (tensegrity.stream): an interrupted and resumed run stores
+"""Streamed, resumable simulations (tensegrity.io.stream): an interrupted and resumed run stores
 exactly the samples of an uninterrupted one, no sample is lost or repeated, memory does not grow
 with the length of the run, the finished file is an ordinary trajectory, and a checkpoint made
 with other settings is refused."""
@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 from tensegrity import class1_shell, critical_damping, simulate
-from tensegrity import stream as stream_module
-from tensegrity.io import ENERGY_COLUMNS, read_trajectory
-from tensegrity.stream import (
+from tensegrity.io import stream as stream_module
+from tensegrity.io.trajectory import ENERGY_COLUMNS, read_trajectory
+from tensegrity.io.stream import (
     PARTIAL_SUFFIX,
     StreamProgress,
     read_checkpoint,
@@ -320,7 +320,7 @@ def test_invalid_arguments(tmp_path):
 def test_joint_error_is_kept_across_segments_and_a_resume(tmp_path, monkeypatch):
     """The largest joint violation of a streamed run is the largest over all its segments,
     including those run before an interruption (kept in the checkpoint)."""
-    from tensegrity.shell import class2_shell
+    from tensegrity.model.shell import class2_shell
 
     structure = class2_shell(3, 2)
     seen: list[float] = []

@@ -1,4 +1,4 @@
-"""Validation and JSON form of :class:`tensegrity.structure.Structure`.
+"""Validation and JSON form of :class:`tensegrity.model.structure.Structure`.
 
 Every promised error must be a ``ValueError`` whose message names the field and the element
 (e.g. ``tendons[3] ('t5_1_1').stiffness: must be > 0``).  The messages are matched loosely:
@@ -15,7 +15,7 @@ import re
 import numpy as np
 import pytest
 
-from tensegrity.structure import ROD_LENGTH_RTOL, Structure
+from tensegrity.model.structure import ROD_LENGTH_RTOL, Structure
 
 
 def names(*parts: str) -> str:

@@ -1,5 +1,5 @@
-"""Parameter sweeps on Dask (``tensegrity.sweep``) and the batched compiled path
-(``tensegrity.batch``): failures are reported per case without losing the others, and every
+"""Parameter sweeps on Dask (``tensegrity.sweep.run``) and the batched compiled path
+(``tensegrity.engine.batch``): failures are reported per case without losing the others, and every
 case's results are those of a direct ``simulate`` call on a structure built here by hand."""
 
 from __future__ import annotations
@@ -15,10 +15,11 @@ pytest.importorskip("numba")
 
 from distributed import Client, LocalCluster  # noqa: E402
 
-from tensegrity import State, class1_shell, dynamics, simulate  # noqa: E402
-from tensegrity.batch import simulate_batch  # noqa: E402
-from tensegrity.cli import main  # noqa: E402
-from tensegrity.sweep import STATUS_ERROR, SweepSpec, read_sweep, run_sweep  # noqa: E402
+from tensegrity import State, class1_shell, simulate# noqa: E402
+from tensegrity.physics import dynamics
+from tensegrity.engine.batch import simulate_batch# noqa: E402
+from tensegrity.cli.main import main# noqa: E402
+from tensegrity.sweep.run import STATUS_ERROR, SweepSpec, read_sweep, run_sweep# noqa: E402
 
 T_END, SAMPLE_DT, DT = 0.02, 2e-3, 2e-4
 
@@ -223,7 +224,7 @@ def test_batch_matches_single_runs_and_isolates_a_blow_up(min_run, monkeypatch):
     the same numbers as in the mixed batch (generic path, zero damping).  The (4,2) shell has no
     run of the default length; with runs of 2 most of its tendons are in runs."""
     if min_run is not None:
-        from tensegrity import kernel
+        from tensegrity.physics import kernel
 
         monkeypatch.setattr(kernel, "MIN_RUN", min_run)
         monkeypatch.setattr(kernel, "MIN_TENDONS_IN_RUNS", 0)
@@ -284,7 +285,7 @@ def test_batch_rejects_what_it_cannot_do():
 
 
 def test_plan_batches_small_shells_per_worker_and_large_ones_per_case():
-    from tensegrity.sweep import BATCH_MAX_RODS, plan
+    from tensegrity.sweep.run import BATCH_MAX_RODS, plan
 
     spec = SweepSpec({"n": [3, 25], "m": [1, 20], "stiffness": [50.0, 100.0, 150.0]})
     cases = spec.cases()
@@ -320,7 +321,7 @@ def test_cli_sweep_from_a_spec_file(tmp_path, capsys):
 # ------------------------------------------------------------------------ structure-file sweeps
 def prism_on_ground():
     """The 3-bar prism with its bottom triangle fixed (supports: not for the compiled kernel)."""
-    from tensegrity import generators
+    from tensegrity.design import catalogue as generators
 
     s = generators.prism(3)
     z = s.node_position[:, 2]
@@ -343,7 +344,7 @@ def structure_case(base, stiffness, load):
 
 @pytest.mark.parametrize("supported", [False, True], ids=["free prism", "prism on ground"])
 def test_structure_sweep_cases_equal_direct_simulate(client, supported):
-    from tensegrity import generators
+    from tensegrity.design import catalogue as generators
 
     base = prism_on_ground() if supported else generators.prism(4)
     spec = SweepSpec({"stiffness": [60.0, 150.0], "load": [0.0, 4.0]}, t_end=T_END,
@@ -378,7 +379,7 @@ def test_structure_sweep_cases_equal_direct_simulate(client, supported):
 
 
 def test_structure_sweep_spec_forms_and_errors(tmp_path):
-    from tensegrity.io import write_structure
+    from tensegrity.io.formats import write_structure
 
     base = prism_on_ground()
     with pytest.raises(ValueError, match=r"^parameters\.n: unknown parameter when sweeping a "
@@ -401,7 +402,7 @@ def test_structure_sweep_spec_forms_and_errors(tmp_path):
 
 
 def test_cli_sweep_of_a_structure_file(tmp_path, capsys):
-    from tensegrity.io import write_structure
+    from tensegrity.io.formats import write_structure
 
     path = tmp_path / "prism.json"
     write_structure(path, prism_on_ground())

@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 from tensegrity import critical_damping, simulate
-from tensegrity.cli import main
-from tensegrity.generators import prism
-from tensegrity.io import read_trajectory, write_trajectory
-from tensegrity import vtk_export
-from tensegrity.vtk_export import polydata, write_vtk
+from tensegrity.cli.main import main
+from tensegrity.design.catalogue import prism
+from tensegrity.io.trajectory import read_trajectory, write_trajectory
+from tensegrity.io import vtk as vtk_export
+from tensegrity.io.vtk import polydata, write_vtk
 
 
 def read_pvd(path):
@@ -148,7 +148,7 @@ def test_cli_vtk_verb_and_simulate_vtk(run, tmp_path, capsys):
 
 
 def test_write_staged_keeps_subfolders_and_cleans_up(tmp_path):
-    from tensegrity.io import write_staged
+    from tensegrity.io.files import write_staged
 
     def write(staging):
         (staging / "sub").mkdir()

@@ -4,7 +4,7 @@ Rigid rods and elastic tendons, modelled with the explicit end-point formulation
 Pinaud and Mingori ("The Dynamics of the Class 1 Shell Tensegrity Structure", Theorem 18.1).
 """
 
-from tensegrity.dynamics import (
+from tensegrity.physics.dynamics import (
     State,
     accelerations,
     critical_damping,
@@ -15,9 +15,9 @@ from tensegrity.dynamics import (
     tendon_lengths,
     tendon_tensions,
 )
-from tensegrity.shell import class1_shell
-from tensegrity.simulate import SimulationResult, simulate
-from tensegrity.structure import Structure
+from tensegrity.model.shell import class1_shell
+from tensegrity.engine.simulate import SimulationResult, simulate
+from tensegrity.model.structure import Structure
 
 __all__ = [
     "State",

@@ -37,7 +37,7 @@ import numpy as np
 
 from tensegrity.analysis.linearize import OUTPUT_GROUPS, Linearization
 from tensegrity.analysis.modes import RIGID, ModalAnalysis
-from tensegrity.structure import Structure
+from tensegrity.model.structure import Structure
 
 #: :func:`krylov_rank` drops Krylov directions with singular value below ``RANK_RTOL * ||A||``.
 RANK_RTOL = 1e-6

@@ -2,7 +2,7 @@
 
 Every rod ``r`` (end nodes ``a``, ``b``, length ``L``) is described by its centre ``c`` (3) and
 its unit direction ``n`` (``p_a = c - (L/2) n``, ``p_b = c + (L/2) n``, so ``q1 = 2 c`` and
-``q2 = L n`` of :mod:`tensegrity.dynamics`).  About a *base* configuration ``(c0, n0)`` we use,
+``q2 = L n`` of :mod:`tensegrity.physics.dynamics`).  About a *base* configuration ``(c0, n0)`` we use,
 per rod, the 5 numbers
 
     x_r = [dc (3), phi (2)],   c = c0 + dc,   n = (n0 + E phi) / sqrt(1 + |phi|^2)
@@ -19,7 +19,7 @@ The kinetic energy in these coordinates at ``phi = 0`` is ``x'^T M x' / 2`` with
 Point masses (nodes of no rod, ``Structure.point_mass_nodes``) follow the rods: 3 numbers each,
 their displacement from the base (``M = diag(m, m, m)``), so ``x`` has ``5R + 3M`` entries.
 Joints and supports are *not* eliminated from ``x``: they are the constraints
-``g(x) = A q(x) - b = 0`` of :mod:`tensegrity.constraints`, nonlinear in ``x`` through the rod
+``g(x) = A q(x) - b = 0`` of :mod:`tensegrity.physics.constraints`, nonlinear in ``x`` through the rod
 angles, with tangent ``G = A_n J(x)`` (:meth:`Chart.constraint_jacobian`).  A planar structure is
 analysed as its 3-D form with every node held on the plane ``z = 0`` (:func:`spatial`).
 """
@@ -32,8 +32,9 @@ from typing import Any
 
 import numpy as np
 
-from tensegrity import dynamics
-from tensegrity.structure import Structure
+from tensegrity.physics.constraints import constraints_of
+from tensegrity.physics import dynamics
+from tensegrity.model.structure import Structure
 
 #: Rigid-body motions of a free structure in 3-D: 3 translations and 3 rotations.
 N_RIGID = 6
@@ -210,17 +211,17 @@ class Chart:
     @property
     def n_constraints(self) -> int:
         """Rows ``c`` of the joints and supports (0 without any)."""
-        c = self.structure.constraints
+        c = constraints_of(self.structure)
         return 0 if c is None else c.matrix.shape[0]
 
     def constraint_residual(self, x: np.ndarray) -> np.ndarray:
         """``g(x) = A q(x) - b`` [m], shape (c,)."""
-        c = self.structure.constraints
+        c = constraints_of(self.structure)
         return np.zeros(0) if c is None else c.residual(self.q(x))
 
     def constraint_jacobian(self, x: np.ndarray | None = None) -> np.ndarray:
         """``G = dg/dx = A_n J(x)`` (c, 5R + 3M), dense."""
-        c = self.structure.constraints
+        c = constraints_of(self.structure)
         if c is None:
             return np.zeros((0, self.size))
         return np.asarray(c.node_matrix @ self.jacobian_matrix(x))
@@ -235,16 +236,16 @@ class Chart:
             return np.zeros((s.n_nodes, 3)), generalized_force
         G = self.constraint_jacobian(x)
         multiplier, *_ = np.linalg.lstsq(G.T, -generalized_force, rcond=None)
-        force = (s.constraints.node_matrix_t @ multiplier).reshape(-1, 3)
+        force = (constraints_of(s).node_matrix_t @ multiplier).reshape(-1, 3)
         return force, generalized_force + G.T @ multiplier
 
     def retract(self, x: np.ndarray) -> np.ndarray:
         """``q`` (n,) of ``x`` moved onto the joints and supports (the closest configuration in
-        the kinetic-energy metric, :meth:`tensegrity.constraints.LinearConstraints.project`)."""
+        the kinetic-energy metric, :meth:`tensegrity.physics.constraints.LinearConstraints.project`)."""
         q = self.q(x)
         if self.n_constraints == 0:
             return q
-        return self.structure.constraints.project(q, np.zeros_like(q))[0]
+        return constraints_of(self.structure).project(q, np.zeros_like(q))[0]
 
     def admitted_motions(self, x: np.ndarray | None = None, rtol: float = 1e-10) -> np.ndarray | None:
         """``Z`` (5R + 3M, k): an ``M``-orthonormal basis (``Z^T M Z = I``) of the motions the

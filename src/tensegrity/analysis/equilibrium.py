@@ -12,7 +12,7 @@ Two routes, which agree (``tests/test_analysis_equilibrium.py``):
   forces or gravity fix the orientation themselves; then only the mass centre is gauged (and a
   free structure under a net force has no equilibrium: the solver reports its residual).
 - :func:`equilibrium_by_simulation` runs the paper's route: the structure with artificial
-  critical damping (:func:`tensegrity.dynamics.critical_damping`) is simulated until it is at
+  critical damping (:func:`tensegrity.physics.dynamics.critical_damping`) is simulated until it is at
   rest.  Convergence test: every node speed below ``velocity_tol`` [m/s] *and* every node
   acceleration below ``acceleration_tol`` [m/s^2] at a sample (``simulate(steady_state=True)``).
 
@@ -35,7 +35,8 @@ from typing import Any
 import numpy as np
 import scipy.optimize
 
-from tensegrity import dynamics
+from tensegrity.physics.constraints import constraints_of
+from tensegrity.physics import dynamics
 from tensegrity.analysis.coordinates import (
     Chart,
     align,
@@ -48,13 +49,8 @@ from tensegrity.analysis.coordinates import (
     spatial_coordinates,
     spatial_vector,
 )
-from tensegrity.analysis.statics import (
-    force_jacobian,
-    rod_compression,
-    statics,
-    with_reactions,
-)
-from tensegrity.structure import Structure
+from tensegrity.analysis.statics import force_jacobian, rod_compression, statics, with_reactions
+from tensegrity.model.structure import Structure
 
 #: Default force tolerance, relative to ``mean(k) * mean(rod length)`` (100 N for the default
 #: shell: 1e-10 N there).
@@ -131,7 +127,7 @@ class EquilibriumResult:
             {} if self.gravity is None else {"gravity_m_s2": self.gravity.tolist()})
 
 
-def _scales(structure: Structure, gravity: np.ndarray | None = None) -> tuple[float, float]:
+def force_scales(structure: Structure, gravity: np.ndarray | None = None) -> tuple[float, float]:
     """``(stiffness [N/m], length [m])`` that scale forces and tolerances: the mean tendon
     stiffness and the mean rod length; without tendons, the total weight over that length (1 N/m
     without gravity either); without rods, 1 m."""
@@ -203,7 +199,7 @@ def planar_result(planar: Structure, result: EquilibriumResult, external_force: 
         gravity=None if gravity is None else np.asarray(gravity, float))
 
 
-class _Gauge:
+class EckartGauge:
     """Eckart's conditions about a reference configuration ``p_ref``: 6 residuals [N], linear in
     ``p``, scaled by the mean tendon stiffness so that they weigh like forces.
 
@@ -221,7 +217,7 @@ class _Gauge:
         self.rot_scale = self.scale / radius
         self.rows: np.ndarray | None = None
 
-    def restricted(self, moves: np.ndarray) -> _Gauge | None:
+    def restricted(self, moves: np.ndarray) -> EckartGauge | None:
         """The gauge on the rigid-body motions ``moves`` (the gauge's rows' changes along
         them, (6, r)): an orthonormal basis of their range picks the conditions; None if the
         supports admit no rigid-body motion."""
@@ -252,17 +248,17 @@ class _Gauge:
         return full if self.rows is None else self.rows @ full
 
 
-def _gauge(structure: Structure, q: np.ndarray, p_ref: np.ndarray, rotations: bool,
-           scale: float) -> _Gauge | None:
+def eckart_gauge(structure: Structure, q: np.ndarray, p_ref: np.ndarray, rotations: bool,
+                 scale: float) -> EckartGauge | None:
     """Eckart's conditions for the rigid-body motions the supports of ``structure`` admit at
     ``q`` (all six for a free structure; None if there are none).  Without ``rotations`` (under
     loads, which fix the orientation) only the admitted pure translations are gauged."""
     scale = None if structure.n_tendons else scale
-    eckart = _Gauge(structure, p_ref, rotations, scale=scale)
+    eckart = EckartGauge(structure, p_ref, rotations, scale=scale)
     if not (structure.has_constraints or structure.anchor_nodes.size):
         return eckart
     chart = Chart.at(structure, q)
-    full = _Gauge(structure, p_ref, True, scale=scale)
+    full = EckartGauge(structure, p_ref, True, scale=scale)
     moves = full.jacobian(chart.jacobian_matrix()) @ rigid_body_basis(chart)  # (6, r)
     if not rotations:
         # pure translations: no change of the rotation conditions
@@ -339,13 +335,13 @@ def find_equilibrium(
     q = configuration(structure, start, name="start")
     u = np.zeros(structure.n_tendons) if control is None else np.asarray(control, dtype=float)
     rest = dynamics.rest_lengths(structure, u)
-    k_scale, length = _scales(structure, gravity)
+    k_scale, length = force_scales(structure, gravity)
     tol = FORCE_RTOL * k_scale * length if force_tol is None else float(force_tol)
     p_ref = (dynamics.nodes_from_coordinates(structure, q) if gauge_reference is None
              else np.asarray(gauge_reference, dtype=float))
     # Loads that are not invariant under rotation (external forces, gravity) fix the orientation
     # themselves: then only the translation is gauged.
-    eckart = (_gauge(structure, q, p_ref, external_force is None and gravity is None, k_scale)
+    eckart = (eckart_gauge(structure, q, p_ref, external_force is None and gravity is None, k_scale)
               if gauge else None)
     nfev = 0
 
@@ -371,7 +367,7 @@ def find_equilibrium(
             return np.vstack(rows)
         c = chart.n_constraints
         G = chart.constraint_jacobian(x)
-        reaction = (structure.constraints.node_matrix_t @ v[chart.size :]).reshape(-1, 3)
+        reaction = (constraints_of(structure).node_matrix_t @ v[chart.size :]).reshape(-1, 3)
         rows = [np.hstack([force_jacobian(chart, x, st._replace(force=st.force + reaction)), G.T]),
                 np.hstack([k_scale * G, np.zeros((c, c))])]
         if eckart is not None:
@@ -461,7 +457,7 @@ def _descend(structure, q, rest, external_force, gravity, eckart, max_iter=500):
     (:meth:`Chart.admitted_motions`), with the Hessian of the Lagrangian (the reactions' part of
     the rods' geometric term included), and each trial point is projected back onto them.
     """
-    k_mean, length = _scales(structure, gravity)
+    k_mean, length = force_scales(structure, gravity)
     nfev = 0
 
     def value(q):
@@ -537,10 +533,10 @@ def equilibrium_by_simulation(
 
     Parameters
     ----------
-    damping : ``"critical"`` (default: :func:`tensegrity.dynamics.critical_damping`, the paper's
+    damping : ``"critical"`` (default: :func:`tensegrity.physics.dynamics.critical_damping`, the paper's
         "artificial critical damping") or ``"as-is"`` (the structure's own damping).
     """
-    from tensegrity.simulate import STATUS_STEADY, simulate
+    from tensegrity.engine.simulate import STATUS_STEADY, simulate
 
     result = simulate(
         with_damping(structure, damping), (0.0, float(t_end)), initial=initial, control=control, steady_state=True,
@@ -557,7 +553,7 @@ def equilibrium_by_simulation(
 
 
 def with_damping(structure: Structure, damping: str) -> Structure:
-    """``"critical"``: :func:`tensegrity.dynamics.critical_damping` (the paper's artificial
+    """``"critical"``: :func:`tensegrity.physics.dynamics.critical_damping` (the paper's artificial
     critical damping); ``"as-is"``: the structure's own damping."""
     if damping == "critical":
         return dynamics.critical_damping(structure)

@@ -37,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from tensegrity import dynamics
+from tensegrity.physics import dynamics
 from tensegrity.analysis.coordinates import (
     Chart,
     admitted_rigid_motions,
@@ -58,7 +58,7 @@ from tensegrity.analysis.statics import (
     statics,
     with_reactions,
 )
-from tensegrity.structure import Structure
+from tensegrity.model.structure import Structure
 
 #: Output groups of :class:`Linearization`, in the order of ``C``'s rows.
 OUTPUT_GROUPS = ("position", "length", "tension")

@@ -31,10 +31,10 @@ from typing import Any
 import numpy as np
 import scipy.linalg
 
-from tensegrity import dynamics
+from tensegrity.physics import dynamics
 from tensegrity.analysis.coordinates import deformation, mass_complement
 from tensegrity.analysis.linearize import Linearization, linearize
-from tensegrity.dynamics import State
+from tensegrity.physics.dynamics import State
 
 RIGID, MECHANISM, ELASTIC, UNSTABLE = "rigid", "mechanism", "elastic", "unstable"
 #: Relative tolerance defining ``zero_tol`` (see the module docstring).
@@ -231,7 +231,7 @@ def measure_frequency(
 
     ``mode``: default :meth:`ModalAnalysis.best_separated`.
     """
-    from tensegrity.simulate import simulate
+    from tensegrity.engine.simulate import simulate
 
     lin = modes.linearization
     mode = modes.best_separated() if mode is None else int(mode)
@@ -309,7 +309,7 @@ def stability_by_simulation(
     bound, and the undamped check fails).  ``shape`` (5R,): deform along it instead (e.g. a
     mechanism's mode shape, ``modes.shapes[:, i]``).  ``simulate_options`` go to ``simulate``.
     """
-    from tensegrity.simulate import simulate
+    from tensegrity.engine.simulate import simulate
 
     lin = modes.linearization
     s, eq = lin.structure, lin.equilibrium

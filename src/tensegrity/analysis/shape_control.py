@@ -34,12 +34,12 @@ import numpy as np
 import scipy.integrate
 import scipy.optimize
 
-from tensegrity import dynamics
+from tensegrity.physics import dynamics
 from tensegrity.analysis.controllability import match_tendons
 from tensegrity.analysis.coordinates import Chart, align, has_supports, kabsch, mass_matrix
 from tensegrity.analysis.equilibrium import EquilibriumResult, find_equilibrium
 from tensegrity.analysis.statics import equilibrium_matrix, force_jacobian, statics, with_reactions
-from tensegrity.structure import Structure
+from tensegrity.model.structure import Structure
 
 def require_spatial(structure: Structure) -> None:
     """``ValueError`` for a planar structure (the outputs, rings and alignment here are 3-D;
@@ -70,7 +70,7 @@ def node_outputs(structure: Structure, nodes: Sequence[int], axes: str = "xyz") 
 
 def shell_rings(n: int, m: int) -> tuple[list[int], list[int]]:
     """Node indices of a shell's bottom ring (``p1`` of stage 1) and top ring (``p4`` of stage m)."""
-    from tensegrity.shell import shell_node_index
+    from tensegrity.model.shell import shell_node_index
 
     return ([shell_node_index(1, i, 1, n) for i in range(1, n + 1)],
             [shell_node_index(4, i, m, n) for i in range(1, n + 1)])
@@ -135,7 +135,7 @@ def sensitivities(
     in :func:`~tensegrity.analysis.linearize.linearize`) and with the gauge of the rigid-body
     motions they admit.
     """
-    from tensegrity.analysis.equilibrium import _gauge, _scales
+    from tensegrity.analysis.equilibrium import eckart_gauge, force_scales
 
     s = eq.structure
     require_spatial(s)
@@ -149,7 +149,7 @@ def sensitivities(
     k = np.where(taut, s.tendon_stiffness, 0.0)
     dQdu = A_eq * k
     J = chart.jacobian_matrix(x0)
-    gauge = _gauge(s, eq.q, reference, True, _scales(s)[0])
+    gauge = eckart_gauge(s, eq.q, reference, True, force_scales(s)[0])
     G = np.zeros((0, chart.size)) if gauge is None else gauge.jacobian(J)
     Z = chart.admitted_motions()
     if Z is not None:  # in the admitted motions x = Z eta

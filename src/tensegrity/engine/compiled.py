@@ -2,7 +2,7 @@
 the steps of the integrators (DOP853 with its error estimate and dense output, classical RK4),
 the checks made after every step, and the outputs of a sample.
 
-Every function here evaluates the physics through :mod:`tensegrity.kernel_system`
+Every function here evaluates the physics through :mod:`tensegrity.physics.kernel_system`
 (``system_rhs``, ``system_project``, ...), so that one code path serves every structure
 ``simulate`` accepts.  The arguments come in a few tuples, built once per run by
 :class:`tensegrity.engine.system.CompiledSystem`:
@@ -16,7 +16,7 @@ Every function here evaluates the physics through :mod:`tensegrity.kernel_system
     the kernel's node layout, ``gravity`` (3,) [m/s^2].  Stage ``s`` of a step reads row ``s``
     when K > 1 and row 0 when K = 1 (inputs constant over the step).
 ``work`` = ``(node_work, block_force, tension, elastic_tension, damping_power)``
-    Scratch buffers of the kernel (see :func:`tensegrity.kernel.rhs`); after an evaluation
+    Scratch buffers of the kernel (see :func:`tensegrity.physics.kernel.rhs`); after an evaluation
     ``tension`` and ``elastic_tension`` hold that state's values, in kernel order.
 
 The DOP853 coefficients, step-size law and error norm are those of ``scipy.integrate.DOP853``
@@ -30,8 +30,8 @@ import numpy as np
 from numba import njit
 from scipy.integrate._ivp import dop853_coefficients as _dop853
 
-from tensegrity.kernel import tendon_vector
-from tensegrity.kernel_system import (
+from tensegrity.physics.kernel import JIT_OPTIONS, tendon_vector
+from tensegrity.physics.kernel_system import (
     system_energies,
     system_errors,
     system_nodes,
@@ -39,7 +39,6 @@ from tensegrity.kernel_system import (
     system_rhs,
 )
 
-_JIT = dict(cache=True, fastmath={"contract"}, nogil=True, boundscheck=False, error_model="numpy")
 
 #: DOP853 tableau (scipy's): 12 stages, the 13th is f at the new point (first same as last),
 #: then 3 extra stages for the dense output.
@@ -60,13 +59,13 @@ CHECK_OK, CHECK_NOT_FINITE, CHECK_ROD_LENGTH, CHECK_CONSTRAINT, CHECK_ENERGY, CH
 
 
 # --------------------------------------------------------------------------- right-hand side
-@njit(inline="always", **_JIT)
+@njit(inline="always", **JIT_OPTIONS)
 def _row(values, s):  # pragma: no cover - compiled
     """Row ``s`` of per-stage inputs, or row 0 when they are constant (one row)."""
     return values[s] if values.shape[0] > 1 else values[0]
 
 
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def ode_rhs(y, dy, s, system, inputs, work):  # pragma: no cover - compiled
     """``dy = f(t_s, y)`` for ``y = [q, q', E_d, W_w, W_u]`` (length ``2n + 3``): ``q'``, the
     accelerations of Theorem 18.1 (eqs. 18.17, 18.20, constraint forces included), the power
@@ -94,7 +93,7 @@ def ode_rhs(y, dy, s, system, inputs, work):  # pragma: no cover - compiled
 
 
 # --------------------------------------------------------------------------- DOP853
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def _combine(y, K, row, stages, h, out):  # pragma: no cover - compiled
     """``out = y + h sum_j row[j] K[j]`` over ``j < stages``."""
     out[:] = y
@@ -106,7 +105,7 @@ def _combine(y, K, row, stages, h, out):  # pragma: no cover - compiled
                 out[i] += a * kj[i]
 
 
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def dop853_attempt(y, h, K, y_new, stage, rtol, atol, system, inputs, work):  # pragma: no cover
     """One DOP853 step of ``h`` [s] from ``y`` with ``K[0] = f(y)`` given; fills ``K[1:13]``
     (``K[12] = f(y_new)``, after which ``work`` holds the tensions at ``y_new``) and ``y_new``.
@@ -136,7 +135,7 @@ def dop853_attempt(y, h, K, y_new, stage, rtol, atol, system, inputs, work):  # 
     return abs(h) * err5 / np.sqrt((err5 + 0.01 * err3) * m)
 
 
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def dop853_dense(y_old, y, h, K, F, stage, system, inputs, work):  # pragma: no cover - compiled
     """The step's dense-output polynomial into ``F`` (7, len(y)), as ``scipy``'s DOP853: three
     more stages (rows 13-15 of ``K`` and of the inputs).  ``K[0]`` and ``K[12]`` are f at the
@@ -156,7 +155,7 @@ def dop853_dense(y_old, y, h, K, F, stage, system, inputs, work):  # pragma: no 
             F[3 + r, i] = h * acc
 
 
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def dop853_interpolate(F, y_old, x, out):  # pragma: no cover - compiled
     """``y`` at the fraction ``x`` (0..1) of the step from its dense polynomial ``F``."""
     for i in range(y_old.shape[0]):
@@ -168,7 +167,7 @@ def dop853_interpolate(F, y_old, x, out):  # pragma: no cover - compiled
 
 
 # --------------------------------------------------------------------------- RK4
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def rk4_step(y, h, K, stage, system, inputs, work):  # pragma: no cover - compiled
     """One classical RK4 step of ``h`` [s] on ``y`` in place; ``K`` (4, len(y)) and ``stage``
     scratch.  Stage rows of the inputs: 0, 1, 2, 3 at ``t, t + h/2, t + h/2, t + h``."""
@@ -183,7 +182,7 @@ def rk4_step(y, h, K, stage, system, inputs, work):  # pragma: no cover - compil
         y[i] += h6 * (K[0, i] + 2.0 * K[1, i] + 2.0 * K[2, i] + K[3, i])
 
 
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def rk4_segment(y, h, n_steps, K, stage, y_end, system, inputs, work, limits, monitor):  # pragma: no cover
     """Up to ``n_steps`` RK4 steps of ``h`` with constant inputs, each followed by
     :func:`check_state` and the projection onto the rod and joint constraints (as
@@ -206,7 +205,7 @@ def rk4_segment(y, h, n_steps, K, stage, y_end, system, inputs, work, limits, mo
 
 
 # --------------------------------------------------------------------------- checks and outputs
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def energy_balance(y, s, system, inputs, work):  # pragma: no cover - compiled
     """``(kinetic, elastic, gravity, total, scale)`` [J] at ``y`` with the inputs' row ``s``:
     ``total = E_kin + E_el + E_grav + E_d - W_w - W_u`` (constant up to integration error) and a
@@ -222,7 +221,7 @@ def energy_balance(y, s, system, inputs, work):  # pragma: no cover - compiled
     return kinetic, elastic, potential, total, scale
 
 
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def check_state(y, s, system, inputs, work, limits, monitor):  # pragma: no cover - compiled
     """The blow-up checks after a step ending at ``y`` (inputs' row ``s``): ``(code, value)``
     with ``code`` one of ``CHECK_*``; ``value`` the offending number, or on success the larger
@@ -251,7 +250,7 @@ def check_state(y, s, system, inputs, work, limits, monitor):  # pragma: no cove
     return CHECK_OK, max(rod_error, constraint_error)
 
 
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def tendon_lengths(p, tendon_slots, out):  # pragma: no cover - compiled
     """``|p_head - p_tail|`` [m] per tendon (kernel order) from node positions ``p`` (3, n_slots)."""
     for s in range(tendon_slots.shape[0]):
@@ -259,7 +258,7 @@ def tendon_lengths(p, tendon_slots, out):  # pragma: no cover - compiled
         out[s] = np.sqrt(tx * tx + ty * ty + tz * tz)
 
 
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def switch_indicator(y, system, rest, work, p, v, out):  # pragma: no cover - compiled
     """Per tendon (kernel order), positive while it pulls and <= 0 while it does not:
     ``min(k d, k d + c l')`` with ``d = l - Lbar``; its sign changes exactly at the kinks of the
@@ -271,7 +270,7 @@ def switch_indicator(y, system, rest, work, p, v, out):  # pragma: no cover - co
     _indicator(p, v, tendon_slots, stiffness, damping, rest, out)
 
 
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def _indicator(p, v, tendon_slots, stiffness, damping, rest, out):  # pragma: no cover
     """:func:`switch_indicator` from the node positions ``p`` and velocities ``v``; ``damping``
     None: undamped tendons (decided at compile time)."""
@@ -287,7 +286,7 @@ def _indicator(p, v, tendon_slots, stiffness, damping, rest, out):  # pragma: no
             out[s] = min(stretch, stretch + damping[s] * rate)
 
 
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def sample_outputs(y, dy, system, inputs, work, moving, p, v, accel, lengths):  # pragma: no cover
     """Everything a sample records, from one evaluation at ``y`` (the inputs' row 0): ``dy``,
     node positions ``p`` and velocities ``v`` (3, n_slots), tendon lengths (kernel order; the
@@ -306,7 +305,7 @@ def sample_outputs(y, dy, system, inputs, work, moving, p, v, accel, lengths):  
     return kinetic, elastic, potential, _largest_at(accel, moving), _largest_at(v, moving)
 
 
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def _largest_at(x, slots):  # pragma: no cover - compiled
     """``max |x[:, slots]|``."""
     worst = 0.0

@@ -1,8 +1,8 @@
 """The inputs of a run: control ``u`` (rest-length changes, ``Lbar = L0 - u``), external nodal
 forces ``w`` and gravity, evaluated at the stage times of a step.
 
-Each of ``u`` and ``w`` is None, a constant array, a table (:class:`tensegrity.loads.ForceTable`,
-:class:`tensegrity.loads.ControlTable`: linear between rows, evaluated for all stages of a step
+Each of ``u`` and ``w`` is None, a constant array, a table (:class:`tensegrity.model.loads.ForceTable`,
+:class:`tensegrity.model.loads.ControlTable`: linear between rows, evaluated for all stages of a step
 at once) or a Python callable of time, called once per stage.  The control's rate ``du/dt``
 (for the work of the control) is the table's slope, or for a callable a central difference
 (two more calls per stage).
@@ -14,8 +14,8 @@ from typing import Any
 
 import numpy as np
 
-from tensegrity.loads import ControlTable, ForceTable
-from tensegrity.structure import Structure
+from tensegrity.model.loads import ControlTable, ForceTable
+from tensegrity.model.structure import Structure
 
 
 def _check(value: np.ndarray, shape: tuple[int, ...], field: str, t: float | None = None) -> np.ndarray:

@@ -20,20 +20,14 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from tensegrity import dynamics
+from tensegrity.physics import dynamics
 from tensegrity.engine import compiled
 from tensegrity.engine.inputs import Inputs
 from tensegrity.engine.options import Options
 from tensegrity.engine.steppers import DOP853, RK4, IntegrationError, ScipyMethod
-from tensegrity.engine.result import (
-    STATUS_END,
-    STATUS_FAILED,
-    STATUS_STEADY,
-    RunSummary,
-    Sample,
-)
+from tensegrity.engine.result import STATUS_END, STATUS_FAILED, STATUS_STEADY, RunSummary, Sample
 from tensegrity.engine.system import CompiledSystem
-from tensegrity.structure import Structure
+from tensegrity.model.structure import Structure
 
 #: Relative width of the final bracket of a located switch.
 SWITCH_RTOL = 1e-13

@@ -8,8 +8,8 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from tensegrity.dynamics import State
-from tensegrity.structure import Structure
+from tensegrity.physics.dynamics import State
+from tensegrity.model.structure import Structure
 
 __all__ = ["ENERGY_NAMES", "MemorySink", "RunSummary", "STATUS_END", "STATUS_FAILED",
            "STATUS_STEADY", "Sample", "SimulationResult"]

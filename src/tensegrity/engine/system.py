@@ -7,11 +7,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from tensegrity import dynamics
+from tensegrity.physics import dynamics
 from tensegrity.engine import compiled
 from tensegrity.engine.inputs import Inputs
 from tensegrity.engine.result import Sample
-from tensegrity.kernel_system import (
+from tensegrity.physics.kernel_system import (
     drop_coordinates,
     embed_planar,
     lift_coordinates,
@@ -19,7 +19,7 @@ from tensegrity.kernel_system import (
     system_nodes,
     system_project,
 )
-from tensegrity.structure import Structure
+from tensegrity.model.structure import Structure
 
 
 class CompiledSystem:

@@ -3,7 +3,7 @@
 A :class:`Structure` plays the part of MuJoCo's ``MjModel``: it holds everything that does not
 change during a simulation (node layout at rest, rods, tendons and their parameters) as flat,
 read-only NumPy arrays named ``<object>_<property>``.  The time-varying state lives in
-:class:`tensegrity.dynamics.State`.
+:class:`tensegrity.physics.dynamics.State`.
 
 Conventions (SI units throughout)
 ---------------------------------
@@ -412,16 +412,6 @@ class Structure:
                 "rod; no fixed nodes, joints, plane or line constraints or point masses)"
             )
 
-    @cached_property
-    def constraints(self) -> Any:
-        """The linear constraints ``A q = b`` on the coordinates (:class:`tensegrity.constraints.
-        LinearConstraints`), built on first use; ``None`` without constraints."""
-        if not self.has_constraints:
-            return None
-        from tensegrity.constraints import LinearConstraints
-
-        return LinearConstraints(self)
-
     # ------------------------------------------------------------ derived data
     @cached_property
     def tendon_incidence(self) -> sp.csr_matrix:
@@ -524,9 +514,9 @@ class Structure:
         rows = {"nodes": nodes}
         if data.get("velocities") is not None:
             rows["velocities"] = _require(data, "velocities", "structure", Sequence)
-        dim = _dimension(nodes)
+        dim = node_dimension(nodes)
         points = {
-            key: [_vector(row, f"{key}[{k}]", dim) for k, row in enumerate(value)]
+            key: [parse_vector(row, f"{key}[{k}]", dim) for k, row in enumerate(value)]
             for key, value in rows.items()
         }
         rod_items = [_require_item(rod, f"rods[{k}]") for k, rod in enumerate(rods)]
@@ -563,7 +553,7 @@ def _supports_from_dict(data: Mapping[str, Any], n_nodes: int, dim: int) -> dict
                  for k, item in enumerate(_require(data, "point_masses", "structure", Sequence))]
         for k, item in enumerate(items):
             node = _node_index(_require(item, "node", f"point_masses[{k}]"), f"point_masses[{k}].node", n_nodes)
-            mass[node] = _number(_require(item, "mass", f"point_masses[{k}]"), f"point_masses[{k}].mass")
+            mass[node] = parse_number(_require(item, "mass", f"point_masses[{k}]"), f"point_masses[{k}].mass")
         fields["node_point_mass"] = mass
     if data.get("joints") is not None:
         joints = _require(data, "joints", "structure", Sequence)
@@ -578,7 +568,7 @@ def _supports_from_dict(data: Mapping[str, Any], n_nodes: int, dim: int) -> dict
             for k, item in enumerate(items)
         ]
         fields[f"{prefix}_{vector}"] = [
-            _vector(_require(item, vector, f"{key}[{k}]"), f"{key}[{k}].{vector}", dim)
+            parse_vector(_require(item, vector, f"{key}[{k}]"), f"{key}[{k}].{vector}", dim)
             for k, item in enumerate(items)
         ] or None
     return fields
@@ -591,25 +581,25 @@ def _node_index(value: Any, where: str, n_nodes: int) -> int:
     return value
 
 
-def _number(value: Any, where: str) -> float:
+def parse_number(value: Any, where: str) -> float:
     """A JSON number (not a string, a bool or a list)."""
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise ValueError(f"{where}: expected a number, got {value!r:.80}")
     return float(value)
 
 
-def _dimension(nodes: Sequence[Any]) -> int:
+def node_dimension(nodes: Sequence[Any]) -> int:
     """2 if the first node of a JSON node list has two coordinates (a planar structure), else 3."""
     first = nodes[0] if len(nodes) else None
     return 2 if isinstance(first, Sequence) and not isinstance(first, str) and len(first) == 2 else 3
 
 
-def _vector(value: Any, where: str, dim: int) -> list[float]:
+def parse_vector(value: Any, where: str, dim: int) -> list[float]:
     """A JSON list of ``dim`` numbers (3, or 2 in a planar structure)."""
     if not isinstance(value, Sequence) or isinstance(value, str) or len(value) != dim:
         pretty = "[x, y, z]" if dim == 3 else "[x, y] (the structure is planar)"
         raise ValueError(f"{where}: expected a list of {dim} numbers {pretty}, got {value!r:.80}")
-    return [_number(x, f"{where}[{k}]") for k, x in enumerate(value)]
+    return [parse_number(x, f"{where}[{k}]") for k, x in enumerate(value)]
 
 
 def _numbers(
@@ -620,7 +610,7 @@ def _numbers(
     for k, item in enumerate(items):
         if key not in item and default is None:
             raise ValueError(f"{kind}[{k}]: missing key {key!r}")
-        values.append(_number(item.get(key, default), f"{kind}[{k}].{key}"))
+        values.append(parse_number(item.get(key, default), f"{kind}[{k}].{key}"))
     return values
 
 

@@ -1,7 +1,7 @@
 """Tables, figures and JSON files of the analyses (written atomically, figures on Agg).
 
 Figures are :class:`matplotlib.figure.Figure` objects with an Agg canvas (no pyplot), as in
-:mod:`tensegrity.plotting`.
+:mod:`tensegrity.plots.figures`.
 """
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from matplotlib.figure import Figure
 
-from tensegrity.io import atomic_path
-from tensegrity.plotting import _family, _natural_key, _new_figure, draw_structure
+from tensegrity.io.files import atomic_path
+from tensegrity.plots.figures import tendon_family, natural_key, new_figure, draw_structure
 
 if TYPE_CHECKING:
     from tensegrity.analysis.controllability import ReachResult
@@ -60,7 +60,7 @@ def key_values(rows: Sequence[tuple[str, Any]]) -> str:
     return "\n".join(f"{name:<{width}}  {_cell(value)}" for name, value in rows)
 
 
-def _json_default(value: Any) -> Any:
+def json_default(value: Any) -> Any:
     if isinstance(value, np.ndarray):
         return value.tolist()
     if isinstance(value, (np.integer,)):
@@ -85,7 +85,7 @@ def _finite(value: Any) -> Any:
 
 def write_json(path: str | Path, data: dict[str, Any]) -> Path:
     """Write ``data`` as indented JSON, atomically; non-finite numbers become ``null``."""
-    text = json.dumps(_finite(json.loads(json.dumps(data, default=_json_default))), indent=2,
+    text = json.dumps(_finite(json.loads(json.dumps(data, default=json_default))), indent=2,
                       allow_nan=False) + "\n"
     with atomic_path(path) as tmp:
         tmp.write_text(text, encoding="utf-8")
@@ -102,7 +102,7 @@ def save_figure(figure: Figure, path: str | Path, *, dpi: int = 130) -> Path:
 # ------------------------------------------------------------------------------ modes
 def figure_frequencies(modes: ModalAnalysis, *, title: str = "Natural frequencies") -> Figure:
     """Frequencies [Hz] against mode number, coloured by kind (rigid, mechanism, elastic)."""
-    fig = _new_figure((11.0, 4.6))
+    fig = new_figure((11.0, 4.6))
     ax, ax_table = fig.subplots(1, 2, width_ratios=[2.2, 1])
     index = np.arange(len(modes.kind))
     for kind, color in KIND_COLORS.items():
@@ -151,7 +151,7 @@ def figure_mode_shapes(modes: ModalAnalysis, indices: Sequence[int], *, amplitud
     size = float(np.ptp(p0, axis=0).max()) or 1.0
     amplitude = 0.15 * size if amplitude is None else amplitude
     rows = max(1, math.ceil(len(indices) / columns))
-    fig = _new_figure((4.0 * min(columns, len(indices)), 3.8 * rows))
+    fig = new_figure((4.0 * min(columns, len(indices)), 3.8 * rows))
     for k, i in enumerate(indices):
         ax = fig.add_subplot(rows, min(columns, len(indices)), k + 1, projection="3d")
         shape = modes.node_shapes[i]
@@ -171,7 +171,7 @@ def figure_reach(results: Sequence[ReachResult], modes: ModalAnalysis) -> Figure
     """Which mode clusters each input (output) set reaches (sees): a PBH map."""
     clusters = [t for t in results[0].mode_tests]
     data = np.array([[t.rank / t.multiplicity for t in r.mode_tests] for r in results])
-    fig = _new_figure((max(6.0, 0.22 * len(clusters) + 3), 0.35 * len(results) + 2.2))
+    fig = new_figure((max(6.0, 0.22 * len(clusters) + 3), 0.35 * len(results) + 2.2))
     ax = fig.add_subplot()
     image = ax.imshow(data, aspect="auto", cmap="RdYlGn", vmin=0, vmax=1, interpolation="nearest")
     ax.set_yticks(range(len(results)), [f"{r.name} ({r.rank}/{r.n_states})" for r in results],
@@ -191,7 +191,7 @@ def figure_reach(results: Sequence[ReachResult], modes: ModalAnalysis) -> Figure
 def figure_shape_motion(plan: QuasiStatic, closed: ClosedLoop | None = None) -> Figure:
     """Outputs against time (closed loop) or step (open loop), with their targets."""
     names, units = plan.output.names, plan.output.units
-    fig = _new_figure((8.0, 2.6 * len(names)))
+    fig = new_figure((8.0, 2.6 * len(names)))
     axes = fig.subplots(len(names), 1, sharex=True, squeeze=False)[:, 0]
     for j, ax in enumerate(axes):
         if closed is not None:
@@ -215,7 +215,7 @@ def figure_shape_motion(plan: QuasiStatic, closed: ClosedLoop | None = None) -> 
 
 def figure_shape_controls(plan: QuasiStatic, closed: ClosedLoop | None = None) -> Figure:
     """Rest-length changes ``u`` of every tendon and the smallest tension."""
-    fig = _new_figure((8.0, 6.0))
+    fig = new_figure((8.0, 6.0))
     ax_u, ax_t = fig.subplots(2, 1, sharex=True)
     if closed is not None:
         x, u, tmin, xlabel = closed.t, closed.control, closed.tension.min(axis=1), "time [s]"
@@ -223,10 +223,10 @@ def figure_shape_controls(plan: QuasiStatic, closed: ClosedLoop | None = None) -
         x = np.arange(len(plan.equilibria))
         u, tmin, xlabel = plan.control, plan.min_tension, "step"
     names = plan.structure.tendon_name
-    families = sorted(set(map(_family, names)), key=_natural_key)
+    families = sorted(set(map(tendon_family, names)), key=natural_key)
     colors = {f: f"C{k % 10}" for k, f in enumerate(families)}
     labelled: set[str] = set()
-    for j, family in enumerate(_family(n) for n in names):
+    for j, family in enumerate(tendon_family(n) for n in names):
         label = family if family not in labelled and len(families) <= 12 else None
         labelled.add(family)
         ax_u.plot(x, u[:, j], lw=0.9, color=colors[family], label=label)
@@ -248,7 +248,7 @@ def figure_shape_controls(plan: QuasiStatic, closed: ClosedLoop | None = None) -
 
 def figure_shape_structures(plan: QuasiStatic) -> Figure:
     """The structure before and after, tendons coloured by tension."""
-    fig = _new_figure((11.0, 5.0))
+    fig = new_figure((11.0, 5.0))
     first, last = plan.equilibria[0], plan.equilibria[-1]
     for k, (eq, title) in enumerate([(first, "initial equilibrium"), (last, "final equilibrium")]):
         ax = fig.add_subplot(1, 2, k + 1, projection="3d")

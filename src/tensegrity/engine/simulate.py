@@ -15,7 +15,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from tensegrity.dynamics import State
+from tensegrity.physics.dynamics import State
 from tensegrity.engine.inputs import Inputs
 from tensegrity.engine.options import Options
 from tensegrity.engine.result import (
@@ -25,7 +25,7 @@ from tensegrity.engine.result import (
     MemorySink,
     SimulationResult,
 )
-from tensegrity.structure import Structure
+from tensegrity.model.structure import Structure
 
 __all__ = ["STATUS_END", "STATUS_FAILED", "STATUS_STEADY", "SimulationResult", "simulate"]
 
@@ -100,7 +100,7 @@ def simulate(
         max_rod_length_error=max_rod_length_error, max_energy_growth=max_energy_growth,
     )
     inputs = Inputs(structure, control=control, external_force=external_force, gravity=gravity)
-    from tensegrity.engine.loop import run  # compiled code: numba loads on first use
+    from tensegrity.engine.loop import run# compiled code: numba loads on first use
 
     sink = MemorySink()
     bar = _ProgressBar(*t_span) if progress else None

@@ -13,7 +13,7 @@ point masses (``Structure.point_mass_nodes``, 3 each; none in a class 1 structur
     q2'' = -(|q2'|^2 / L^2) q2 + (6 / (m L^2)) skew(q2)^2 (f_a - f_b)
     x''  = f / m                                   (a point mass)
 
-plus, with joints and supports, the constraint forces of :mod:`tensegrity.constraints`.
+plus, with joints and supports, the constraint forces of :mod:`tensegrity.physics.constraints`.
 
 with ``f`` the total nodal forces: tendons (eqs. 18.39-18.40), external forces ``w`` and gravity.
 No mass matrix is formed and no linear system is solved.  Every function is pure and vectorized
@@ -27,7 +27,16 @@ from typing import NamedTuple
 
 import numpy as np
 
-from tensegrity.structure import Structure
+from tensegrity.physics.constraints import constraints_of
+from tensegrity.physics.coordinates import (  # the coordinates are part of this reference's API
+    coordinates_from_nodes,
+    force_response,
+    nodes_from_coordinates,
+    point_mass_coordinates as point_mass_coordinates,
+    rod_coordinates,
+    rods_view as rods_view,
+)
+from tensegrity.model.structure import Structure
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -39,56 +48,14 @@ class State:
     qdot: np.ndarray
 
 
-# --------------------------------------------------------------------------- coordinates
-def rods_view(q: np.ndarray, dim: int = 3) -> np.ndarray:
-    """View ``q`` (..., 2 dim R) as (..., R, 2, dim): ``[..., r, 0]`` is ``q1``, ``[..., r, 1]``
-    is ``q2``."""
-    return q.reshape(*q.shape[:-1], -1, 2, dim)
 
 
-def rod_coordinates(structure: Structure, q: np.ndarray) -> np.ndarray:
-    """The rods' part of ``q`` (..., n) as (..., R, 2, dim), a view (point masses left out)."""
-    if structure.is_free_class1:
-        return q.reshape(*q.shape[:-1], -1, 2, 3)
-    d = structure.dim
-    return rods_view(q[..., : 2 * d * structure.n_rods], d)
 
 
-def point_mass_coordinates(structure: Structure, q: np.ndarray) -> np.ndarray:
-    """The point masses' part of ``q`` (..., n) as (..., M, dim), a view."""
-    d = structure.dim
-    return q[..., 2 * d * structure.n_rods :].reshape(*q.shape[:-1], -1, d)
 
 
-def coordinates_from_nodes(structure: Structure, node_value: np.ndarray) -> np.ndarray:
-    """``q`` (..., n) from node positions (..., N, 3): ``q1 = p_a + p_b``, ``q2 = p_b - p_a``,
-    then the point masses' positions.
-
-    Being linear, the same map takes node velocities to ``qdot``.
-    """
-    a, b = structure.rod_nodes[:, 0], structure.rod_nodes[:, 1]
-    pa, pb = node_value[..., a, :], node_value[..., b, :]
-    q = np.stack([pa + pb, pb - pa], axis=-2)  # (..., R, 2, dim)
-    q = q.reshape(*q.shape[:-3], 2 * structure.dim * structure.n_rods)
-    if structure.point_mass_nodes.size:
-        x = node_value[..., structure.point_mass_nodes, :]
-        q = np.concatenate([q, x.reshape(*x.shape[:-2], -1)], axis=-1)
-    return q
 
 
-def nodes_from_coordinates(structure: Structure, q: np.ndarray, *, rates: bool = False) -> np.ndarray:
-    """Node positions ``p = P q`` (eq. 18.26), shape (..., N, 3); anchors at their fixed
-    positions.  With ``rates=True``, node velocities from ``qdot`` (anchors at rest)."""
-    rods = rod_coordinates(structure, q)
-    q1, q2 = rods[..., 0, :], rods[..., 1, :]
-    p = np.empty((*q.shape[:-1], structure.n_nodes, structure.dim))
-    p[..., structure.rod_nodes[:, 0], :] = 0.5 * (q1 - q2)
-    p[..., structure.rod_nodes[:, 1], :] = 0.5 * (q1 + q2)
-    if not structure.is_free_class1:
-        p[..., structure.point_mass_nodes, :] = point_mass_coordinates(structure, q)
-        anchors = structure.anchor_nodes
-        p[..., anchors, :] = 0.0 if rates else structure.node_position[anchors]
-    return p
 
 
 def project_to_constraints(
@@ -99,10 +66,10 @@ def project_to_constraints(
 
     Returns new arrays ``(q, qdot)``.  Without joints and supports ``q1`` and ``q1'`` are
     unchanged; with them the projection is mass-weighted
-    (:meth:`tensegrity.constraints.LinearConstraints.project`).
+    (:meth:`tensegrity.physics.constraints.LinearConstraints.project`).
     """
     if structure.has_constraints:
-        return structure.constraints.project(q, qdot)
+        return constraints_of(structure).project(q, qdot)
     q, qdot = q.copy(), qdot.copy()
     q2, v2 = rod_coordinates(structure, q)[..., 1, :], rod_coordinates(structure, qdot)[..., 1, :]
     norm = np.linalg.norm(q2, axis=-1, keepdims=True)
@@ -121,7 +88,7 @@ def constraint_error(structure: Structure, q: np.ndarray) -> float:
     """Largest violation ``max |A q - b|`` [m] of the joints and supports (0 without any)."""
     if not structure.has_constraints:
         return 0.0
-    return float(np.max(np.abs(structure.constraints.residual(q)), initial=0.0))
+    return float(np.max(np.abs(constraints_of(structure).residual(q)), initial=0.0))
 
 
 def initial_state(structure: Structure, *, t: float = 0.0) -> State:
@@ -300,7 +267,7 @@ def evaluate(
     qddot = force_response(structure, q, force, rates=rates)
     reaction = None
     if structure.has_constraints:
-        reaction = structure.constraints.constraint_force(q, qddot)
+        reaction = constraints_of(structure).constraint_force(q, qddot)
         qddot += force_response(structure, q, reaction)
     alpha = structure.rod_damping[:, None, None]
     dissipated = float(
@@ -310,38 +277,6 @@ def evaluate(
     return Evaluation(qddot, tendons, dissipated, external_power, reaction)
 
 
-def force_response(
-    structure: Structure, q: np.ndarray, force: np.ndarray, *, rates: np.ndarray | None = None
-) -> np.ndarray:
-    """``q''`` (..., n) under the nodal forces ``force`` (..., N, 3) [N] (Theorem 18.1, eqs.
-    18.17, 18.20; leading axes of ``force`` are batches)::
-
-        q1'' = (2/m) (f_a + f_b),   q2'' = (6/(m L^2)) skew(q2)^2 (f_a - f_b),   x'' = f / m.
-
-    Without ``rates`` this is ``G(q) f``, linear in ``f``.  With the rods' rates (R, 2, 3) (see
-    :func:`rod_coordinates`) it is the full acceleration: plus the centripetal term
-    ``-(|q2'|^2 / L^2) q2`` and the rod damping ``-alpha q'``.
-    """
-    a, b = structure.rod_nodes[:, 0], structure.rod_nodes[:, 1]
-    f_sum, f_diff = force[..., a, :] + force[..., b, :], force[..., a, :] - force[..., b, :]
-    q2 = rod_coordinates(structure, q)[:, 1]
-    m, L2 = structure.rod_mass[:, None], structure.rod_length[:, None] ** 2
-    # skew(q2)^2 f = q2 (q2 . f) - |q2|^2 f
-    skew2_f = q2 * np.sum(q2 * f_diff, axis=-1, keepdims=True) - np.sum(q2 * q2, axis=-1, keepdims=True) * f_diff
-    qddot = np.empty((*f_sum.shape[:-1], 2, structure.dim))
-    qddot[..., 0, :] = (2.0 / m) * f_sum
-    if rates is None:
-        qddot[..., 1, :] = (6.0 / (m * L2)) * skew2_f
-    else:
-        v2 = rates[:, 1]
-        qddot[:, 1] = -(np.sum(v2 * v2, axis=1, keepdims=True) / L2) * q2 + (6.0 / (m * L2)) * skew2_f
-        qddot -= structure.rod_damping[:, None, None] * rates
-    qddot = qddot.reshape(*qddot.shape[:-3], -1)
-    if structure.is_free_class1:
-        return qddot
-    masses = structure.point_mass_nodes
-    point = force[..., masses, :] / structure.node_point_mass[masses, None]
-    return np.concatenate([qddot, point.reshape(*point.shape[:-2], -1)], axis=-1)
 
 
 def accelerations(

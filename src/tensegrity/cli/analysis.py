@@ -1,11 +1,11 @@
 """One function per CLI verb: compute, write JSON and figures into ``out_dir``, return the tables.
 
 ``run_equilibrium``, ``run_modes``, ``run_controllability`` and ``run_control`` each take a
-:class:`~tensegrity.structure.Structure` and an output folder (created if missing), write every
-file atomically (:func:`tensegrity.io.atomic_path`) and return an :class:`Output`: the readable
+:class:`~tensegrity.model.structure.Structure` and an output folder (created if missing), write every
+file atomically (:func:`tensegrity.io.trajectory.atomic_path`) and return an :class:`Output`: the readable
 tables, the files written and, if the analysis did not succeed (no equilibrium, targets missed),
 a one-line problem.  The ``tensegrity`` command runs them in a staging folder and moves all
-files into place together (:mod:`tensegrity.cli`).  Files:
+files into place together (:mod:`tensegrity.cli.main`).  Files:
 
 ==========================  ================================================================
 verb                        files
@@ -33,7 +33,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from tensegrity.analysis import report
+from tensegrity.plots import report
 from tensegrity.analysis.equilibrium import (
     EquilibriumResult,
     compare_equilibria,
@@ -41,7 +41,7 @@ from tensegrity.analysis.equilibrium import (
     find_equilibrium,
     with_damping,
 )
-from tensegrity.structure import Structure
+from tensegrity.model.structure import Structure
 
 
 class Output(NamedTuple):
@@ -65,7 +65,7 @@ def _structure_summary(s: Structure) -> dict[str, Any]:
 
 def _gravity(structure: Structure, gravity: float | Sequence[float] | None) -> np.ndarray | None:
     """The verbs' ``gravity`` (a number: down the last axis, or a vector) as a (dim,) vector."""
-    from tensegrity.loads import gravity_vector
+    from tensegrity.model.loads import gravity_vector
 
     return None if gravity is None else gravity_vector(gravity, structure.dim)
 
@@ -91,7 +91,7 @@ def run_equilibrium(
     """``tensegrity equilibrium``: the equilibrium by least squares, by damped simulation, or
     both (``method``: ``"least_squares"``, ``"simulation"``, ``"both"``) and their agreement,
     under ``gravity`` [m/s^2] (a number: down the last axis; or a vector), if given."""
-    from tensegrity.plotting import figure_structure
+    from tensegrity.plots.figures import figure_structure
 
     if method not in ("both", "least_squares", "simulation"):
         raise ValueError(f"method: expected 'both', 'least_squares' or 'simulation', got {method!r}")

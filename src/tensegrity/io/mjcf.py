@@ -70,7 +70,7 @@ The model written by :func:`to_mjcf` is the same mechanical system as Theorem 18
   (``qpos0``) is already the initial configuration, but the initial *velocities* are only in the
   keyframe: call ``mujoco.mj_resetDataKeyframe(model, data, 0)`` after creating ``MjData``.
 
-Differences from :mod:`tensegrity.dynamics` that matter when comparing
+Differences from :mod:`tensegrity.physics.dynamics` that matter when comparing
 ----------------------------------------------------------------------
 - **Tendon damping.**  MuJoCo's tendon damping ``-c l'`` acts whether the tendon is taut or slack,
   and the total force may push; ours acts only while taut and a tendon never pushes
@@ -90,7 +90,7 @@ Differences from :mod:`tensegrity.dynamics` that matter when comparing
   inertias above ``mjMINVAL = 1e-15``, so ``eps`` must stay above that for very light rods.)
 - **Rod lengths.**  The sites are exactly ``rod_length`` apart, centred on the midpoint of the
   structure's two nodes and along the line joining them: the same projection onto the rod
-  constraint that :func:`tensegrity.dynamics.initial_state` makes (equal to ``node_position`` up
+  constraint that :func:`tensegrity.physics.dynamics.initial_state` makes (equal to ``node_position`` up
   to round-off when the nodes are exactly ``L`` apart).  Likewise the initial angular velocity is
   ``u x (v_b - v_a) / L`` with zero spin, which drops any rod-stretching velocity component just
   as ``initial_state`` does.
@@ -114,7 +114,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from tensegrity.structure import Structure
+from tensegrity.model.structure import Structure
 
 #: Inertia about a rod's own axis, as a fraction of its transverse inertia ``m L^2 / 12`` ...
 SPIN_INERTIA_RATIO = 1e-6
@@ -270,7 +270,7 @@ def to_mjcf(
         One of ``"Euler"``, ``"RK4"``, ``"implicit"``, ``"implicitfast"``.
     gravity : array_like, shape (d,), optional
         Gravitational acceleration [m/s^2], ``d = structure.dim`` numbers (2 for a planar
-        structure, as :func:`tensegrity.simulate.simulate` takes it).  Default zero (MuJoCo's
+        structure, as :func:`tensegrity.engine.simulate.simulate` takes it).  Default zero (MuJoCo's
         default is ``0 0 -9.81``).
     name : str
         The model name.
@@ -474,14 +474,14 @@ def _held_axes(structure: Structure) -> dict[int, np.ndarray]:
     ``k = 0`` if they leave none."""
     from scipy.linalg import null_space
 
-    from tensegrity.constraints import _normals
+    from tensegrity.physics.constraints import normals
 
     d = structure.dim
     rows: dict[int, list[np.ndarray]] = {}
     for k, normal in zip(structure.plane_nodes, structure.plane_normal):
         rows.setdefault(int(k), []).append(normal[None])
     if structure.line_nodes.size:
-        for k, normals in zip(structure.line_nodes, _normals(structure.line_direction)):
+        for k, normals in zip(structure.line_nodes, normals(structure.line_direction)):
             rows.setdefault(int(k), []).append(normals)
     return {k: np.pad(null_space(np.vstack(r)).T, ((0, 0), (0, 3 - d)))
             for k, r in rows.items() if not structure.node_fixed[k]}

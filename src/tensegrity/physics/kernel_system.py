@@ -1,13 +1,13 @@
 """Compiled (numba) physics for every structure ``simulate`` accepts.
 
-:mod:`tensegrity.kernel` compiles Theorem 18.1 for free 3-D class 1 structures.  This module adds,
-around the same compiled passes, what the NumPy reference :func:`tensegrity.dynamics.evaluate`
+:mod:`tensegrity.physics.kernel` compiles Theorem 18.1 for free 3-D class 1 structures.  This module adds,
+around the same compiled passes, what the NumPy reference :func:`tensegrity.physics.dynamics.evaluate`
 does for the others:
 
 - *point masses* (nodes of no rod, not fixed): ``x'' = (f + w) / m + g``, their positions
   ``x`` following the rods' coordinates in ``q`` (``q`` has ``6R + 3M`` entries);
 - *anchors* (fixed nodes of no rod): tendon ends that never move;
-- *joints and supports* (:mod:`tensegrity.constraints`, ``docs/constraints.md``): the linear
+- *joints and supports* (:mod:`tensegrity.physics.constraints`, ``docs/constraints.md``): the linear
   constraints ``A q = b`` (``A = A_n P``, each row touching at most two nodes) add the forces
   ``A_n^T lambda`` with ``K lambda = -A q''_free``, ``K = A G(q) A_n^T``, ``G(q)`` the
   accelerations per unit nodal force (eqs. 18.17, 18.20), and the mass-weighted Gauss-Newton
@@ -19,7 +19,7 @@ does for the others:
 their sparsity (two rows couple only through a rod or point mass that both touch) into *envelope*
 (skyline) storage, rows in reverse Cuthill-McKee order, and solved by an envelope Cholesky
 factorization of ``K + delta I`` with two refinements against ``K``, as
-:func:`tensegrity.constraints.solve_psd` does.
+:func:`tensegrity.physics.constraints.solve_psd` does.
 
 A free class 1 structure has ``extras = None``; every function here then compiles to exactly the
 existing kernel code (:func:`kernel.rhs`, :func:`kernel.project`, :func:`kernel.energies`): the
@@ -28,7 +28,7 @@ buffers: one ``extras`` per thread.
 
 Usage::
 
-    from tensegrity.kernel_system import pack_system, system_rhs
+    from tensegrity.physics.kernel_system import pack_system, system_rhs
 
     system = pack_system(structure)          # 3-D; planar: pack_system(embed_planar(structure))
     packed = system.packed
@@ -39,7 +39,7 @@ Usage::
                np.zeros((3, 1)), True, gravity, node_work, None, qddot, tension, elastic,
                damping_power)
 
-Like :mod:`tensegrity.kernel`, import this module lazily (it imports numba).
+Like :mod:`tensegrity.physics.kernel`, import this module lazily (it imports numba).
 """
 
 from __future__ import annotations
@@ -51,12 +51,22 @@ import scipy.sparse as sp
 from numba import njit
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
-from tensegrity.constraints import PROJECTION_FLOOR_RTOL, PROJECTION_RTOL, REGULARIZATION
-from tensegrity.kernel import (
-    _JIT, ROD_C1, ROD_C2, ROD_LENGTH, ROD_MASS, PackedStructure, _end_values, energies, pack,
-    project, rhs,
+from tensegrity.physics.constraints import constraints_of
+from tensegrity.physics.constraints import PROJECTION_FLOOR_RTOL, PROJECTION_RTOL, REGULARIZATION
+from tensegrity.physics.kernel import (
+    JIT_OPTIONS,
+    ROD_C1,
+    ROD_C2,
+    ROD_LENGTH,
+    ROD_MASS,
+    PackedStructure,
+    end_values,
+    energies,
+    pack,
+    project,
+    rhs,
 )
-from tensegrity.structure import Structure
+from tensegrity.model.structure import Structure
 
 __all__ = [
     "MAX_ITER", "SystemArrays", "SystemExtras", "drop_coordinates", "embed_planar",
@@ -172,7 +182,7 @@ def _envelope(pattern: sp.csr_matrix) -> tuple[np.ndarray, np.ndarray]:
 
 def _entries(structure: Structure) -> tuple[np.ndarray, ...]:
     """The constraint rows' nodes off anchors: ``(row, body, sign, coef)`` per entry, and ``b``."""
-    constraints = structure.constraints
+    constraints = constraints_of(structure)
     node_matrix = constraints.node_matrix.tocoo()
     R = structure.n_rods
     body = np.full(structure.n_nodes, -1)
@@ -206,7 +216,7 @@ def _row_order(row, body, c, R, n_bodies):
 
 def _constraint_rows(structure: Structure) -> dict[str, np.ndarray]:
     """The :class:`SystemExtras` fields of the joints and supports: the independent rows of
-    ``structure.constraints`` renumbered in the order of :func:`_row_order`, entries grouped by
+    ``constraints_of(structure)`` renumbered in the order of :func:`_row_order`, entries grouped by
     body, and the envelopes of ``K`` and ``J W^-1 J^T``."""
     R, M = structure.n_rods, structure.point_mass_nodes.size
     row, body, sign, coef = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0),
@@ -274,7 +284,7 @@ def pack_system(structure: Structure) -> SystemArrays:
 
 
 # --------------------------------------------------------------------------- compiled: nodes
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def _extra_nodes(q, qdot, n_rods, extras, p, v, with_velocity):  # pragma: no cover - compiled
     """Point-mass positions ``x`` (from ``q`` after the rods' ``6R``) and anchor positions into
     ``p`` (3, n_slots) [m]; with ``with_velocity`` the point-mass velocities and zero (anchors)
@@ -296,21 +306,21 @@ def _extra_nodes(q, qdot, n_rods, extras, p, v, with_velocity):  # pragma: no co
                 v[i, s] = 0.0
 
 
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def system_nodes(q, qdot, rod_slots, extras, p, v, with_velocity):  # pragma: no cover - compiled
     """Node positions ``p = P q`` (eq. 18.26) of every slot holding a node (rod ends, point
     masses, anchors) into ``p`` (3, n_slots) [m], and with ``with_velocity`` the node
     velocities into ``v`` (anchors at rest) [m/s], as ``dynamics.nodes_from_coordinates``.
     Slots that hold no node are not written."""
-    _end_values(q, rod_slots, p)
+    end_values(q, rod_slots, p)
     if with_velocity:
-        _end_values(qdot, rod_slots, v)
+        end_values(qdot, rod_slots, v)
     if extras is not None:
         _extra_nodes(q, qdot, rod_slots.shape[0], extras, p, v, with_velocity)
 
 
 # --------------------------------------------------------------------------- compiled: rows
-@njit(inline="always", **_JIT)
+@njit(inline="always", **JIT_OPTIONS)
 def _entry_value(x, n_rods, body, sign, i):  # pragma: no cover - compiled
     """Coordinate ``i`` of the position (or rate) of an entry's node from ``x``: ``(x1 + sign
     x2) / 2`` on a rod (eq. 18.26), ``x`` itself on a point mass."""
@@ -320,7 +330,7 @@ def _entry_value(x, n_rods, body, sign, i):  # pragma: no cover - compiled
     return x[6 * n_rods + 3 * (body - n_rods) + i]
 
 
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def _rows_times(x, n_rods, extras, out):  # pragma: no cover - compiled
     """``out = A x`` (c,) for ``x`` = ``q``, ``q'`` or ``q''`` (``A = A_n P``), row by entry."""
     out[:] = 0.0
@@ -334,7 +344,7 @@ def _rows_times(x, n_rods, extras, out):  # pragma: no cover - compiled
             out[rows[e]] += total
 
 
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def _add_response(q, multiplier, rod_param, extras, qddot):  # pragma: no cover - compiled
     """``qddot += G(q) A_n^T multiplier``: the constraint forces ``A_n^T lambda`` [N] applied by
     Theorem 18.1 (eqs. 18.17, 18.20: ``q1'' = (2/m)(f_a + f_b)``, ``q2'' = (6/(m L^2))
@@ -373,7 +383,7 @@ def _add_response(q, multiplier, rod_param, extras, qddot):  # pragma: no cover 
 
 
 # --------------------------------------------------------------------------- compiled: envelope
-@njit(inline="always", **_JIT)
+@njit(inline="always", **JIT_OPTIONS)
 def _env_add(values, first, offset, i, j, value):  # pragma: no cover - compiled
     """``M[max(i, j), min(i, j)] += value`` in lower envelope storage."""
     if i < j:
@@ -381,7 +391,7 @@ def _env_add(values, first, offset, i, j, value):  # pragma: no cover - compiled
     values[offset[i] + j - first[i]] += value
 
 
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def _env_cholesky(values, factor, first, offset, delta):  # pragma: no cover - compiled
     """``L`` with ``L L^T = M + delta I`` into ``factor`` (envelope storage; fill-in stays in
     the envelope), each diagonal entry stored as its reciprocal ``1 / L_ii`` (multiplications
@@ -403,7 +413,7 @@ def _env_cholesky(values, factor, first, offset, delta):  # pragma: no cover - c
                 factor[oi + i] = 1.0 / np.sqrt(s) if s > 0.0 else np.nan
 
 
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def _env_substitute(factor, first, offset, x):  # pragma: no cover - compiled
     """``x = (L L^T)^-1 x`` in place (forward then back substitution; ``factor`` from
     :func:`_env_cholesky`, reciprocal diagonal)."""
@@ -421,7 +431,7 @@ def _env_substitute(factor, first, offset, x):  # pragma: no cover - compiled
             x[k] -= factor[oi + k] * x[i]
 
 
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def _env_residual(values, first, offset, x, rhs, out):  # pragma: no cover - compiled
     """``out = rhs - M x`` for the symmetric ``M`` stored as its lower envelope."""
     n = first.shape[0]
@@ -435,10 +445,10 @@ def _env_residual(values, first, offset, x, rhs, out):  # pragma: no cover - com
         out[i] -= s
 
 
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def _solve_psd(values, factor, first, offset, rhs, x, scratch):  # pragma: no cover - compiled
     """``x = M^-1 rhs`` for a symmetric positive semi-definite ``M`` (envelope storage), as
-    :func:`tensegrity.constraints.solve_psd`: factorize ``M + delta I`` (``delta =
+    :func:`tensegrity.physics.constraints.solve_psd`: factorize ``M + delta I`` (``delta =
     REGULARIZATION max(diag M)``) and refine twice against ``M``."""
     n = first.shape[0]
     largest = np.finfo(np.float64).tiny
@@ -457,7 +467,7 @@ def _solve_psd(values, factor, first, offset, rhs, x, scratch):  # pragma: no co
 
 
 # --------------------------------------------------------------------------- compiled: dynamics
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def _assemble_coupling(q, rod_param, extras):  # pragma: no cover - compiled
     """``K = A G(q) A_n^T`` (c, c) into ``extras.k_values``: rows ``i``, ``j`` couple through
     each body both touch, by the node accelerations per unit node force (eqs. 18.17, 18.20,
@@ -490,7 +500,7 @@ def _assemble_coupling(q, rod_param, extras):  # pragma: no cover - compiled
                 _env_add(values, first, offset, rows[e1], rows[e2], value)
 
 
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def _point_mass_pass(qdot, n_rods, extras, has_external, external_force, has_gravity, gravity,
                      force, qddot):  # pragma: no cover - compiled
     """``x'' = (f + w) / m + g`` for every point mass from the tendon forces ``force``
@@ -516,7 +526,7 @@ def _point_mass_pass(qdot, n_rods, extras, has_external, external_force, has_gra
     return power
 
 
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def _constraint_pass(q, rod_param, extras, qddot):  # pragma: no cover - compiled
     """``qddot += G(q) A_n^T lambda`` with ``K lambda = -A qddot`` (``K = A G(q) A_n^T``): the
     joint and support forces that make ``A q'' = 0``, as ``LinearConstraints.constraint_force``."""
@@ -532,7 +542,7 @@ def _constraint_pass(q, rod_param, extras, qddot):  # pragma: no cover - compile
     _add_response(q, multiplier, rod_param, extras, qddot)
 
 
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def system_rhs(
     q, qdot, arrays, extras, rest_length, has_external, external_force, has_gravity, gravity,
     node_work, block_force, qddot, tension, elastic_tension, damping_power,
@@ -566,7 +576,7 @@ def system_rhs(
 
 
 # --------------------------------------------------------------------------- compiled: drift
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def _rod_error(q, rod_param):  # pragma: no cover - compiled
     """Largest ``| |q2| / L - 1 |`` over the rods; NaN if some ``q2`` is not finite."""
     worst = 0.0
@@ -580,7 +590,7 @@ def _rod_error(q, rod_param):  # pragma: no cover - compiled
     return worst
 
 
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def _constraint_error(q, n_rods, extras, residual):  # pragma: no cover - compiled
     """``residual = A q - b`` (c,) [m]; returns ``max |A q - b|`` (NaN if not finite)."""
     _rows_times(q, n_rods, extras, residual)
@@ -594,7 +604,7 @@ def _constraint_error(q, n_rods, extras, residual):  # pragma: no cover - compil
     return worst
 
 
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def system_errors(q, rod_param, extras):  # pragma: no cover - compiled
     """``(rod_error, constraint_error)``: the largest relative rod-length error ``| |q2|/L - 1 |``
     (NaN if not finite) and ``max |A q - b|`` [m] (0 without joints and supports), as
@@ -606,7 +616,7 @@ def system_errors(q, rod_param, extras):  # pragma: no cover - compiled
     return rod_error, _constraint_error(q, rod_param.shape[0], extras, extras.work[0, :c])
 
 
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def _all_finite(x):  # pragma: no cover - compiled
     for i in range(x.shape[0]):
         if not np.isfinite(x[i]):
@@ -614,7 +624,7 @@ def _all_finite(x):  # pragma: no cover - compiled
     return True
 
 
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def _violation(q, rod_param, extras, out):  # pragma: no cover - compiled
     """``out`` (P,) = ``[A q - b; (|q2|^2 - L^2) / 2]`` in projection rows; returns the largest
     of ``|A q - b|`` and ``| |q2| - L |`` [m] (NaN if not finite)."""
@@ -633,7 +643,7 @@ def _violation(q, rod_param, extras, out):  # pragma: no cover - compiled
     return error
 
 
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def _assemble_normal(q, rod_param, extras):  # pragma: no cover - compiled
     """``J W^-1 J^T`` (P, P) into ``extras.n_values``, ``J = [A; q2^T per rod]`` (the gradient
     of ``|q2|^2 / 2``), ``W^-1`` = ``4/m`` on ``q1``, ``12/m`` on ``q2``, ``1/m`` on a point
@@ -669,7 +679,7 @@ def _assemble_normal(q, rod_param, extras):  # pragma: no cover - compiled
                 _env_add(values, first, offset, prow[rows[e1]], prow[rows[e2]], value)
 
 
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def _subtract_step(target, q, y, rod_param, extras):  # pragma: no cover - compiled
     """``target -= W^-1 J(q)^T y`` (``y`` in projection rows): per rod ``q1 -= (2/m) sum c
     y``, ``q2 -= (6/m) sum sigma c y + (12/m) q2 y_length``; per point mass ``x -= sum c y / m``.
@@ -702,7 +712,7 @@ def _subtract_step(target, q, y, rod_param, extras):  # pragma: no cover - compi
                 target[o + i] -= d1[i] / extras.point_mass[body - n_rods]
 
 
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def _normal_solve(q, rod_param, extras, violation, y):  # pragma: no cover - compiled
     """``y = (J W^-1 J^T)^-1 violation`` at ``q``."""
     _assemble_normal(q, rod_param, extras)
@@ -710,7 +720,7 @@ def _normal_solve(q, rod_param, extras, violation, y):  # pragma: no cover - com
                extras.work[2])
 
 
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def _project_constrained(q, qdot, rod_param, extras):  # pragma: no cover - compiled
     """``LinearConstraints.project`` in place: Gauss-Newton steps ``q -= W^-1 J^T (J W^-1
     J^T)^-1 c(q)`` until every error is below ``PROJECTION_RTOL`` times the length scale, or below
@@ -752,7 +762,7 @@ def _project_constrained(q, qdot, rod_param, extras):  # pragma: no cover - comp
     return _all_finite(q) and _all_finite(qdot)
 
 
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def system_project(q, qdot, rod_param, extras):  # pragma: no cover - compiled
     """Project ``(q, q')`` in place onto the rod constraints ``|q2| = L``, ``q2 . q2' = 0`` and
     the joints and supports ``A q = b``, ``A q' = 0``, as ``dynamics.project_to_constraints``.
@@ -778,7 +788,7 @@ def system_project(q, qdot, rod_param, extras):  # pragma: no cover - compiled
 
 
 # --------------------------------------------------------------------------- compiled: energy
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def system_energies(
     q, qdot, arrays, extras, rest_length, has_gravity, gravity, node_work,
 ):  # pragma: no cover - compiled

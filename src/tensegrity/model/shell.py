@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-from tensegrity.structure import Structure
+from tensegrity.model.structure import Structure
 
 #: Tendon ``alpha`` of element ``(i, j)`` as ``(boundary, at_boundary, elsewhere)``.  Each end pair
 #: ``(head, tail)`` names node ``p_k`` of element ``(i + di, j + dj)`` as ``(k, di, dj)``; the

@@ -5,9 +5,9 @@
 - :func:`octahedron`: the 6-bar expanded octahedron;
 - :func:`tower`: a tower of stacked, interlaced ``n``-bar prisms (Snelson's Needle Tower,
   the paper's Figure 18.3);
-- the class 1 shell :func:`tensegrity.shell.class1_shell` (kind ``shell``).
+- the class 1 shell :func:`tensegrity.model.shell.class1_shell` (kind ``shell``).
 
-Every generator returns a validated :class:`~tensegrity.structure.Structure` with rods of
+Every generator returns a validated :class:`~tensegrity.model.structure.Structure` with rods of
 ``rod_length`` (default 1 m) and ``rod_mass`` (default 1 kg), tendons of ``stiffness`` (default
 100 N/m), all taut and prestressed: the rest lengths realize a self-stress of the generated
 geometry with mean tendon tension ``tension`` [N] (found by the linear program of
@@ -15,10 +15,8 @@ geometry with mean tendon tension ``tension`` [N] (found by the linear program o
 equilibrium of the free structure (its stability is checked in the tests by modal analysis and
 damped simulation).
 
-Registry: :data:`KINDS` maps a kind name to ``"module:function"`` and a one-line summary;
-:func:`generate` imports the function lazily, so any module (the class 2 joints, planar
-structures, ...) registers its generator with one line in :data:`KINDS` or one call to
-:func:`register`.
+Registry: :data:`KINDS` maps a kind name to its generator function and a one-line summary;
+another generator is added with one line in :data:`KINDS` or one call to :func:`register`.
 
 Node numbering of the prisms: bottom nodes ``0..n-1``, top nodes ``n..2n-1``; bar ``i`` joins
 bottom node ``i`` (tail) to top node ``n + i`` (head).
@@ -34,57 +32,10 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from tensegrity.network import from_connectivity, incidence
-from tensegrity.structure import Structure
-
-
-class Kind(NamedTuple):
-    """A registered generator: ``target`` is ``"module:function"``; ``summary`` one line."""
-
-    target: str
-    summary: str
-
-
-#: Generator kinds of ``tensegrity export --kind``: name -> Kind (imported on first use).
-KINDS: dict[str, Kind] = {
-    "shell": Kind("tensegrity.shell:class1_shell", "the paper's class 1 shell of n x m two-rod elements"),
-    "prism": Kind("tensegrity.generators:prism", "regular n-bar prism (n = 3: simplex), equilibrium twist"),
-    "octahedron": Kind("tensegrity.generators:octahedron", "6-bar expanded octahedron"),
-    "tower": Kind("tensegrity.generators:tower", "m stacked interlaced n-bar prisms (Needle Tower)"),
-    "class2-shell": Kind("tensegrity.shell:class2_shell", "the class 2 shell of Lemma 18.1 (ball joints)"),
-    "planar": Kind("tensegrity.planar:planar_two_rod", "planar two-rod tensegrity (Appendix A, Example 2)"),
-    "rod": Kind("tensegrity.planar:planar_rod", "a single planar rod (Appendix A, Example 1)"),
-}
-
-
-def register(kind: str, target: str, summary: str) -> None:
-    """Register generator ``target`` (``"module:function"``) under ``kind``."""
-    if not kind or not isinstance(kind, str):
-        raise ValueError(f"kind: must be a non-empty string, got {kind!r}")
-    KINDS[kind] = Kind(target, summary)
-
-
-def generator(kind: str) -> Callable[..., Any]:
-    """The function registered under ``kind`` (``ValueError`` listing the kinds if unknown)."""
-    if kind not in KINDS:
-        raise ValueError(f"kind: unknown {kind!r} (expected one of {', '.join(KINDS)})")
-    module, _, name = KINDS[kind].target.partition(":")
-    return getattr(importlib.import_module(module), name)
-
-
-def options(kind: str) -> tuple[str, ...]:
-    """The keyword options the generator of ``kind`` accepts."""
-    parameters = inspect.signature(generator(kind)).parameters.values()
-    return tuple(p.name for p in parameters if p.kind in (p.KEYWORD_ONLY, p.POSITIONAL_OR_KEYWORD))
-
-
-def generate(kind: str, **kwargs: Any) -> Any:
-    """Call the generator of ``kind`` with ``kwargs``; an unknown option names the valid ones."""
-    valid = options(kind)
-    for name in kwargs:
-        if name not in valid:
-            raise ValueError(f"{name}: not an option of kind {kind!r} (its options: {', '.join(valid)})")
-    return generator(kind)(**kwargs)
+from tensegrity.model.connectivity import from_connectivity, incidence
+from tensegrity.model.planar import planar_rod, planar_two_rod
+from tensegrity.model.shell import class1_shell, class2_shell
+from tensegrity.model.structure import Structure
 
 
 # ----------------------------------------------------------------------------- helpers
@@ -108,7 +59,7 @@ def _draft(
     position: np.ndarray, rods: np.ndarray, tendons: np.ndarray, names: tuple[str, ...], *,
     rod_mass: Any, stiffness: Any, damping: Any, rest_fraction: float = 1.0,
 ) -> Structure:
-    """The structure of a layout (via :func:`~tensegrity.network.from_connectivity`), with every
+    """The structure of a layout (via :func:`~tensegrity.io.formats.from_connectivity`), with every
     rest length ``rest_fraction`` times the tendon's length in the layout."""
     n = position.shape[0]
     return from_connectivity(
@@ -349,3 +300,57 @@ def tower(
     if not found.stable:
         raise ValueError(f"tower: form-finding found no stable all-taut equilibrium ({found.verdict})")
     return found.structure
+
+
+# ------------------------------------------------------------------------------ registry
+class Kind(NamedTuple):
+    """A registered generator: the function that builds the structure and a one-line summary."""
+
+    function: Callable[..., Any]
+    summary: str
+
+
+#: Generator kinds of ``tensegrity export --kind``: name -> Kind.
+KINDS: dict[str, Kind] = {
+    "shell": Kind(class1_shell, "the paper's class 1 shell of n x m two-rod elements"),
+    "prism": Kind(prism, "regular n-bar prism (n = 3: simplex), equilibrium twist"),
+    "octahedron": Kind(octahedron, "6-bar expanded octahedron"),
+    "tower": Kind(tower, "m stacked interlaced n-bar prisms (Needle Tower)"),
+    "class2-shell": Kind(class2_shell, "the class 2 shell of Lemma 18.1 (ball joints)"),
+    "planar": Kind(planar_two_rod, "planar two-rod tensegrity (Appendix A, Example 2)"),
+    "rod": Kind(planar_rod, "a single planar rod (Appendix A, Example 1)"),
+}
+
+
+def register(kind: str, function: Callable[..., Any] | str, summary: str) -> None:
+    """Register ``function`` (a callable, or ``"module:function"``, imported now) under ``kind``."""
+    if not kind or not isinstance(kind, str):
+        raise ValueError(f"kind: must be a non-empty string, got {kind!r}")
+    if isinstance(function, str):
+        module, _, name = function.partition(":")
+        function = getattr(importlib.import_module(module), name)
+    if not callable(function):
+        raise TypeError(f"function: expected a callable or 'module:function', got {function!r}")
+    KINDS[kind] = Kind(function, summary)
+
+
+def generator(kind: str) -> Callable[..., Any]:
+    """The function registered under ``kind`` (``ValueError`` listing the kinds if unknown)."""
+    if kind not in KINDS:
+        raise ValueError(f"kind: unknown {kind!r} (expected one of {', '.join(KINDS)})")
+    return KINDS[kind].function
+
+
+def options(kind: str) -> tuple[str, ...]:
+    """The keyword options the generator of ``kind`` accepts."""
+    parameters = inspect.signature(generator(kind)).parameters.values()
+    return tuple(p.name for p in parameters if p.kind in (p.KEYWORD_ONLY, p.POSITIONAL_OR_KEYWORD))
+
+
+def generate(kind: str, **kwargs: Any) -> Any:
+    """Call the generator of ``kind`` with ``kwargs``; an unknown option names the valid ones."""
+    valid = options(kind)
+    for name in kwargs:
+        if name not in valid:
+            raise ValueError(f"{name}: not an option of kind {kind!r} (its options: {', '.join(valid)})")
+    return generator(kind)(**kwargs)

@@ -9,7 +9,7 @@ the structure's order), with
 - point data ``velocity`` [m/s] when the velocities are known.
 
 ``<name>.pvd`` lists the files with their times [s]; open it in ParaView to play the motion.
-The files are written into a staging folder and moved into place (:func:`tensegrity.io.write_staged`),
+The files are written into a staging folder and moved into place (:func:`tensegrity.io.trajectory.write_staged`),
 the collection last, so a reader never sees a collection that points at missing files.
 """
 
@@ -22,8 +22,8 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-from tensegrity.io import PathLike, write_staged
-from tensegrity.structure import Structure
+from tensegrity.io.files import PathLike, write_staged
+from tensegrity.model.structure import Structure
 
 
 def _ascii(values: np.ndarray) -> str:
@@ -85,8 +85,8 @@ def write_vtk(out: PathLike, source: Any, *, name: str = "tensegrity", every: in
     out : path
         Output folder (created if missing).  Existing files of the same names are replaced.
     source : SimulationResult or Trajectory
-        A result of :func:`tensegrity.simulate.simulate` or one read by
-        :func:`tensegrity.io.read_trajectory`.
+        A result of :func:`tensegrity.engine.simulate.simulate` or one read by
+        :func:`tensegrity.io.trajectory.read_trajectory`.
     every : int
         Keep one sample in ``every`` (the last sample is always kept).
 

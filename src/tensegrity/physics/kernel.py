@@ -1,6 +1,6 @@
 """A compiled (numba) right-hand side and fixed-step RK4 loop for Theorem 18.1.
 
-The physics is exactly that of :func:`tensegrity.dynamics.evaluate` (the readable NumPy reference):
+The physics is exactly that of :func:`tensegrity.physics.dynamics.evaluate` (the readable NumPy reference):
 
 - tendon tension ``T = max(k (l - Lbar) + c l', 0)`` while taut (``l > Lbar``), else 0;
 - nodal forces from tendons, external forces ``w`` and gravity (half a rod's weight per end);
@@ -35,16 +35,16 @@ buffers, and :func:`rk4_steps` runs a whole fixed-step RK4 integration (with pro
 rod constraints ``|q2| = L``, ``q2 . q2' = 0`` after every step, as ``simulate(method="rk4")``
 does) in compiled code, so that small structures are not dominated by Python call overhead.
 :func:`energies` gives the kinetic, elastic and gravity energies (the engine's blow-up
-checks, through :mod:`tensegrity.kernel_system`).
+checks, through :mod:`tensegrity.physics.kernel_system`).
 
-This module imports numba; import it lazily (``from tensegrity.kernel import FastKernel`` inside
+This module imports numba; import it lazily (``from tensegrity.physics.kernel import FastKernel`` inside
 the function that needs it) so that ``import tensegrity`` stays fast.  Compiled code is cached on
 disk (``cache=True``): the first use on a machine compiles for a few seconds, later processes load
 the cache in well under a second.
 
 Usage::
 
-    from tensegrity.kernel import FastKernel
+    from tensegrity.physics.kernel import FastKernel
 
     kernel = FastKernel(structure)
     qddot, tension, dissipated, external = kernel.evaluate(q, qdot, rest_length)
@@ -63,14 +63,14 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
-from tensegrity.structure import Structure
+from tensegrity.model.structure import Structure
 
 __all__ = [
     "FastKernel", "KernelEvaluation", "PackedStructure", "RK4Result", "StencilLayout", "energies",
     "pack", "project", "rhs", "rk4_step", "rk4_steps", "stencil_layout", "tendon_vector",
 ]
 
-_JIT = dict(
+JIT_OPTIONS = dict(
     cache=True, fastmath={"contract"}, nogil=True, boundscheck=False, error_model="numpy",
 )
 
@@ -103,8 +103,8 @@ _JIT = dict(
 ROD_MASS, ROD_LENGTH, ROD_DAMPING, ROD_C1, ROD_C2 = range(5)
 
 
-@njit(inline="always", **_JIT)
-def _end_values(x, rod_slots, out):  # pragma: no cover - compiled
+@njit(inline="always", **JIT_OPTIONS)
+def end_values(x, rod_slots, out):  # pragma: no cover - compiled
     """``out[:, slot of a] = (x1 - x2) / 2``, ``out[:, slot of b] = (x1 + x2) / 2`` for every rod
     (``x`` = ``q`` or ``q'``, 6 per rod): the end positions or velocities ``P x`` (eq. 18.26)."""
     for r in range(rod_slots.shape[0]):
@@ -116,7 +116,7 @@ def _end_values(x, rod_slots, out):  # pragma: no cover - compiled
             out[i, b] = 0.5 * (x[o + i] + x[o + 3 + i])
 
 
-@njit(inline="always", **_JIT)
+@njit(inline="always", **JIT_OPTIONS)
 def tendon_vector(p, tendon_slots, s):  # pragma: no cover - compiled
     """``(tail, head, tx, ty, tz)``: tendon ``s``'s slots and ``t = p_head - p_tail``."""
     tail = tendon_slots[s, 0]
@@ -125,7 +125,7 @@ def tendon_vector(p, tendon_slots, s):  # pragma: no cover - compiled
             p[2, head] - p[2, tail])
 
 
-@njit(inline="always", **_JIT)
+@njit(inline="always", **JIT_OPTIONS)
 def _node_pass(q, qdot, rod_slots, tendon_damping, p, v, first, last):  # pragma: no cover
     """Rods ``first:last``: node positions ``p = P q`` (eq. 18.26) into ``p`` (3, n_slots) and,
     if ``tendon_damping`` is not None (the tendon pass needs them only then), the node
@@ -138,12 +138,12 @@ def _node_pass(q, qdot, rod_slots, tendon_damping, p, v, first, last):  # pragma
     # compiler cannot prove an index >= 0 when ``first`` is not known at compile time (the
     # threaded blocks), and keeps numba's negative-index wrap-around on every access.
     rod_slots = rod_slots[first:last]
-    _end_values(q[6 * first:6 * last], rod_slots, p)
+    end_values(q[6 * first:6 * last], rod_slots, p)
     if tendon_damping is not None:
-        _end_values(qdot[6 * first:6 * last], rod_slots, v)
+        end_values(qdot[6 * first:6 * last], rod_slots, v)
 
 
-@njit(inline="always", **_JIT)
+@njit(inline="always", **JIT_OPTIONS)
 def _tendon_force(tx, ty, tz, length, rest, stiffness, c, t_dot_dv):  # pragma: no cover
     """One tendon from its vector ``t = p_head - p_tail`` and ``length = |t|``: returns
     ``(tension, elastic_tension, fx, fy, fz, dissipated_power)``, with ``f = T t / l`` the force
@@ -169,7 +169,7 @@ def _tendon_force(tx, ty, tz, length, rest, stiffness, c, t_dot_dv):  # pragma: 
     return total, elastic, total * ex, total * ey, total * ez, dissipated
 
 
-@njit(inline="always", **_JIT)
+@njit(inline="always", **JIT_OPTIONS)
 def _store_tendon(
     tension, elastic_tension, force, s, tail, head, total, elastic, fx, fy, fz,
 ):  # pragma: no cover - compiled
@@ -185,7 +185,7 @@ def _store_tendon(
     force[2, head] -= fz
 
 
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def _tendon_rates(p, v, a, b, first, n, out):  # pragma: no cover - compiled
     """``out[first + e] = t . (v_b - v_a)`` along a run of ``n`` tendons (offsets as in
     :func:`_tendon_run`), in a loop of its own: with the velocities in it, :func:`_tendon_run`
@@ -199,7 +199,7 @@ def _tendon_rates(p, v, a, b, first, n, out):  # pragma: no cover - compiled
                           + (p[2, ib] - p[2, ia]) * (v[2, ib] - v[2, ia]))
 
 
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def _tendon_run(
     p, force, a, b, first, n, stiffness, damping, rest, tension, elastic_tension, damping_power,
 ):  # pragma: no cover - compiled
@@ -232,7 +232,7 @@ def _tendon_run(
         _store_tendon(tension, elastic_tension, force, s, ia, ib, total, elastic, fx, fy, fz)
 
 
-@njit(inline="always", **_JIT)
+@njit(inline="always", **JIT_OPTIONS)
 def _sum(values):  # pragma: no cover - compiled
     """``sum(values)`` in four interleaved partial sums: four independent chains of additions
     instead of one, in a fixed order (deterministic)."""
@@ -248,7 +248,7 @@ def _sum(values):  # pragma: no cover - compiled
     return (s0 + s1) + (s2 + s3)
 
 
-@njit(inline="always", **_JIT)
+@njit(inline="always", **JIT_OPTIONS)
 def _tendon_pass(
     p, v, force, tendon_slots, tendon_runs, tendon_stiffness, tendon_damping, rest_length,
     tension, elastic_tension, damping_power, first, last,
@@ -310,7 +310,7 @@ def _tendon_pass(
     return dissipation
 
 
-@njit(inline="always", **_JIT)
+@njit(inline="always", **JIT_OPTIONS)
 def _take_force(force, slot):  # pragma: no cover - compiled
     """``(fx, fy, fz)``, the tendon forces summed at ``slot`` of ``force`` (3, n_slots), leaving
     zeros there: the next evaluation's tendon pass adds to zero, without a pass that sets the
@@ -322,7 +322,7 @@ def _take_force(force, slot):  # pragma: no cover - compiled
     return fx, fy, fz
 
 
-@njit(inline="always", **_JIT)
+@njit(inline="always", **JIT_OPTIONS)
 def _rod_pass(
     q, qdot, rod_slots, rod_param, has_external, external_force, has_gravity, gravity, force,
     qddot, first, last,
@@ -402,13 +402,13 @@ def _rod_pass(
     return rod_dissipation, external_power
 
 
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def _block(k, n_blocks, n):  # pragma: no cover - compiled
     """Bounds ``(first, last)`` of block ``k`` of ``n_blocks`` nearly equal blocks of ``range(n)``."""
     return k * n // n_blocks, (k + 1) * n // n_blocks
 
 
-@njit(parallel=True, **_JIT)
+@njit(parallel=True, **JIT_OPTIONS)
 def _rhs_threaded(
     q, qdot, rod_slots, rod_param, tendon_slots, tendon_runs, tendon_stiffness, tendon_damping,
     rest_length, has_external, external_force, has_gravity, gravity,
@@ -458,7 +458,7 @@ def _rhs_threaded(
     return dissipated, external
 
 
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def rhs(
     q, qdot, rod_slots, rod_param, tendon_slots, tendon_runs, tendon_stiffness, tendon_damping,
     rest_length, has_external, external_force, has_gravity, gravity,
@@ -492,7 +492,7 @@ def rhs(
     return tendon_dissipation + rod_dissipation, external_power
 
 
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def project(q, qdot, rod_param):  # pragma: no cover - compiled
     """In place: ``q2 *= L / |q2|``, then ``q2' -= (q2 . q2' / L^2) q2`` for every rod.
 
@@ -519,7 +519,7 @@ def project(q, qdot, rod_param):  # pragma: no cover - compiled
     return worst if finite else np.nan
 
 
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def rk4_step(
     q, qdot, h, model, tension, elastic_tension, damping_power, stage_work,
 ):  # pragma: no cover - compiled
@@ -561,7 +561,7 @@ def rk4_step(
     return h6 * (d_sum + d), h6 * (w_sum + w)
 
 
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def rk4_steps(
     q, qdot, dt, n_steps, max_rod_length_error,
     rod_slots, rod_param, tendon_slots, tendon_runs, tendon_stiffness, tendon_damping,
@@ -600,7 +600,7 @@ def rk4_steps(
     return taken, dissipated, external, worst
 
 
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def energies(
     q, qdot, rod_slots, rod_param, tendon_slots, tendon_stiffness, rest_length, has_gravity,
     gravity, node_work,
@@ -609,7 +609,7 @@ def energies(
     ``elastic_energy`` and ``gravity_energy``; ``node_work[0]`` receives the node positions
     (by coordinate and slot; tendons in kernel order, see :func:`pack`)."""
     p = node_work[0]
-    _end_values(q, rod_slots, p)
+    end_values(q, rod_slots, p)
     kinetic = 0.0
     potential = 0.0
     for r in range(rod_slots.shape[0]):
@@ -632,7 +632,7 @@ def energies(
     return kinetic, 0.5 * elastic, potential
 
 
-@njit(**_JIT)
+@njit(**JIT_OPTIONS)
 def _reorder(values, position, out, to_kernel_order):  # pragma: no cover - compiled
     """Per-tendon values between the structure's order and kernel order, into ``out``:
     ``out[position[s]] = values[s]`` (``to_kernel_order``) or ``out[s] = values[position[s]]``
@@ -764,13 +764,13 @@ def pack(structure: Structure, *, general: bool = False) -> PackedStructure:
     By default only free 3-D class 1 structures are accepted (what :func:`rhs` alone simulates).
     ``general=True`` accepts any 3-D structure (point masses, anchors, joints, supports): the
     arrays then describe its rods and tendons, every node having a slot, and
-    :mod:`tensegrity.kernel_system` adds the rest.
+    :mod:`tensegrity.physics.kernel_system` adds the rest.
     """
     if not general:
         structure.require_free_class1("the compiled kernel")
     elif structure.dim != 3:
         raise ValueError("structure: the compiled kernel takes 3-D structures only (embed a "
-                         "planar one with tensegrity.kernel_system.embed_planar)")
+                         "planar one with tensegrity.physics.kernel_system.embed_planar)")
     m, L = structure.rod_mass, structure.rod_length
     rod_param = np.empty((structure.n_rods, 5))
     rod_param[:, ROD_MASS] = m

@@ -29,14 +29,14 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.ticker import MaxNLocator
 
-from tensegrity.io import atomic_path
-from tensegrity.structure import Structure
+from tensegrity.io.files import atomic_path
+from tensegrity.model.structure import Structure
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
 
-    from tensegrity.io import Trajectory
-    from tensegrity.simulate import SimulationResult
+    from tensegrity.io.trajectory import Trajectory
+    from tensegrity.engine.simulate import SimulationResult
 
 ROD_COLOR = "#26282b"
 TENDON_COLOR = "#2f6fb0"
@@ -53,7 +53,7 @@ MAX_LEGEND_TENDONS = 12
 MAX_TENDON_LINES = 500
 
 
-def _new_figure(figsize: tuple[float, float]) -> Figure:
+def new_figure(figsize: tuple[float, float]) -> Figure:
     figure = Figure(figsize=figsize, layout="constrained")
     FigureCanvasAgg(figure)
     return figure
@@ -264,7 +264,7 @@ def figure_structure(
     matplotlib.figure.Figure
         With an Agg canvas; save it with ``figure.savefig(path)``.
     """
-    figure = _new_figure(figsize)
+    figure = new_figure(figsize)
     ax = figure.add_subplot(projection="3d")
     artists = draw_structure(ax, structure, node_position, tension)
     ax.view_init(elev=elev, azim=azim)
@@ -299,12 +299,12 @@ def _titles(figure: Figure, title: str | None, subtitle: str | None) -> None:
                         fontweight="bold" if title else "normal")
 
 
-def _family(name: str) -> str:
+def tendon_family(name: str) -> str:
     """``"t3_2_1"`` -> ``"t3"``: the name without trailing ``_<number>`` indices."""
     return re.sub(r"(_\d+)+$", "", name) or name
 
 
-def _natural_key(text: str) -> list:
+def natural_key(text: str) -> list:
     """Sort key with numbers compared as numbers: ``t9`` before ``t10``."""
     return [(0, int(part), "") if part.isdigit() else (1, 0, part)
             for part in re.split(r"(\d+)", text) if part]
@@ -354,7 +354,7 @@ def figure_tendon_lengths(
             f"tendon_length: expected shape (T, S) = ({t.size}, {len(names)}) for {t.size} "
             f"times and {len(names)} names, got {lengths.shape}"
         )
-    figure = _new_figure(figsize)
+    figure = new_figure(figsize)
     ax = figure.add_subplot()
     S = len(names)
     note = None
@@ -372,13 +372,13 @@ def figure_tendon_lengths(
             ax.plot(t, lengths[:, k], lw=1.4, marker=marker, label=name)
         ax.legend(fontsize="small", loc="best", ncols=2 if S > 6 else 1)
     else:
-        families = sorted(dict.fromkeys(_family(name) for name in names), key=_natural_key)
+        families = sorted(dict.fromkeys(tendon_family(name) for name in names), key=natural_key)
         if len(families) <= 10:
             colors = {f: f"C{k}" for k, f in enumerate(families)}
             for k, name in enumerate(names):
-                ax.plot(t, lengths[:, k], lw=1.3, color=colors[_family(name)], alpha=0.9,
+                ax.plot(t, lengths[:, k], lw=1.3, color=colors[tendon_family(name)], alpha=0.9,
                         marker=marker)
-            counts = {f: sum(_family(n) == f for n in names) for f in families}
+            counts = {f: sum(tendon_family(n) == f for n in names) for f in families}
             handles = [Line2D([], [], color=colors[f], lw=2, label=f"{f} ({counts[f]})")
                        for f in families]
             ax.legend(handles=handles, fontsize="small", loc="best", title="tendon family",
@@ -430,8 +430,8 @@ def save_figures(
     Parameters
     ----------
     result : SimulationResult or Trajectory
-        A run from :func:`tensegrity.simulate.simulate`, or one read back with
-        :func:`tensegrity.io.read_trajectory`.
+        A run from :func:`tensegrity.engine.simulate.simulate`, or one read back with
+        :func:`tensegrity.io.trajectory.read_trajectory`.
     out_dir : str or pathlib.Path
         Output folder, created if missing.
     dpi : int

@@ -1,7 +1,7 @@
 """Planar structures of the paper's Appendix A: a single rod (Example 1) and the two crossed rods
 held by four tendons (Example 2, eqs. 18.A.20-18.A.22).
 
-A planar structure is a :class:`~tensegrity.structure.Structure` whose nodes have two coordinates
+A planar structure is a :class:`~tensegrity.model.structure.Structure` whose nodes have two coordinates
 (``node_position`` of shape (N, 2)): ``q`` has ``4R`` entries (``q1 = p_a + p_b``, ``q2 = p_b -
 p_a`` in the plane) and Theorem 18.1 holds with the same formulas, ``skew(q2)^2`` being the 2x2
 matrix ``q2 q2^T - |q2|^2 I`` printed in Example 1.  Each rod has 3 degrees of freedom.
@@ -22,7 +22,7 @@ import math
 
 import numpy as np
 
-from tensegrity.structure import Structure
+from tensegrity.model.structure import Structure
 
 #: Example 2's tendons as (name, tail, head), 0-based nodes (``p_k`` is node ``k - 1``).
 EXAMPLE2_TENDONS = (("t1", 2, 1), ("t2", 2, 0), ("t3", 0, 3), ("t5", 1, 3))

@@ -1,6 +1,6 @@
 """Linear constraints on the nodes: ball joints, fixed nodes, nodes on planes and lines.
 
-Every support and joint of a :class:`~tensegrity.structure.Structure` is linear in the node
+Every support and joint of a :class:`~tensegrity.model.structure.Structure` is linear in the node
 positions, and the node positions are linear in the coordinates (eq. 18.26: ``p_a = (q1 - q2)/2``,
 ``p_b = (q1 + q2)/2`` for a rod; a point mass's position is its own coordinate; an anchor is a
 constant), so all of them together read
@@ -39,11 +39,16 @@ metric (the closest point in mass-weighted distance), and the rates onto ``A q' 
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 import scipy.linalg
 import scipy.sparse as sp
 import scipy.sparse.csgraph
 import scipy.sparse.linalg
+
+from tensegrity.model.structure import Structure
+from tensegrity.physics.coordinates import force_response, rod_coordinates
 
 #: Structures with at most this many independent constraint rows solve for the constraint forces
 #: with dense arrays (less overhead than sparse matrices), others with sparse ones.  Above it the
@@ -93,7 +98,7 @@ def solve_psd(matrix: sp.spmatrix | np.ndarray, rhs: np.ndarray, *, refinements:
     return x
 
 
-def _normals(direction: np.ndarray) -> np.ndarray:
+def normals(direction: np.ndarray) -> np.ndarray:
     """Unit vectors normal to each unit ``direction`` (Q, d) and to each other: (Q, d - 1, d)."""
     if direction.shape[1] == 2:
         return np.stack([-direction[:, 1], direction[:, 0]], axis=1)[:, None, :]
@@ -108,7 +113,7 @@ def _normals(direction: np.ndarray) -> np.ndarray:
 class LinearConstraints:
     """The constraints ``A q = b`` of a structure, with their forces and projection.
 
-    Built by :attr:`Structure.constraints` (once per structure).  Attributes, all constant:
+    Built by :func:`constraints_of` (once per structure).  Attributes, all constant:
 
     node_matrix : (c, dN) sparse ``A_n`` (independent rows only; ``d`` = ``Structure.dim``).
     matrix : (c, n) sparse ``A = A_n P``;  rhs : (c,) ``b`` [m].
@@ -132,7 +137,7 @@ class LinearConstraints:
             blocks.append((a, eye, -1, position[a].copy()))
         for a, normal in zip(s.plane_nodes, s.plane_normal):
             blocks.append((a, normal[None], -1, np.array([normal @ position[a]])))
-        for a, pair in zip(s.line_nodes, _normals(s.line_direction)):
+        for a, pair in zip(s.line_nodes, normals(s.line_direction)):
             blocks.append((a, pair, -1, pair @ position[a]))
 
         rows, cols, data, rhs = [], [], [], []
@@ -226,8 +231,7 @@ class LinearConstraints:
     # ------------------------------------------------------------------ dynamics
     def acceleration_matrix(self, q: np.ndarray) -> sp.csr_matrix:
         """``G(q)`` (n, dN) sparse: ``q''`` per unit nodal force (Theorem 18.1, eqs. 18.17,
-        18.20; :func:`tensegrity.dynamics.force_response` applies it without forming it)."""
-        from tensegrity.dynamics import rod_coordinates
+        18.20; :func:`tensegrity.physics.dynamics.force_response` applies it without forming it)."""
 
         s = self.structure
         eye = np.eye(s.dim)
@@ -248,7 +252,6 @@ class LinearConstraints:
         of nodal forces and return a dense array; large ones multiply sparse matrices."""
         if not self.dense:
             return self.matrix @ (self.acceleration_matrix(q) @ self.node_matrix_t)
-        from tensegrity.dynamics import force_response
 
         unit_forces = self._dense_node_matrix.reshape(-1, self.structure.n_nodes, self.structure.dim)
         # sparse A times a dense array: single-threaded, unlike a BLAS product, which stalls
@@ -269,7 +272,6 @@ class LinearConstraints:
 
     def _jacobian(self, q: np.ndarray) -> sp.csr_matrix:
         """Rows of ``A`` and, per rod, ``q2^T`` on its ``q2`` (the gradient of ``|q2|^2 / 2``)."""
-        from tensegrity.dynamics import rod_coordinates
 
         s = self.structure
         d, R = s.dim, s.n_rods
@@ -290,7 +292,6 @@ class LinearConstraints:
         converging (the round-off floor).  Raises ``FloatingPointError`` if that fails (the state is too
         far off the constraints to be projected).
         """
-        from tensegrity.dynamics import rod_coordinates
 
         s = self.structure
         L = s.rod_length
@@ -325,3 +326,17 @@ class LinearConstraints:
         if normal.shape[0] <= DENSE_ROWS:  # small: an explicit inverse beats a sparse LU's set-up
             normal = normal.toarray()
         return weighted.T @ solve_psd(normal, violation)
+
+
+_SOLVERS: weakref.WeakKeyDictionary[Structure, LinearConstraints] = weakref.WeakKeyDictionary()
+
+
+def constraints_of(structure: Structure) -> LinearConstraints | None:
+    """The linear constraints ``A q = b`` of ``structure`` (:class:`LinearConstraints`), built on
+    first use and kept while the structure lives; ``None`` without joints or supports."""
+    if not structure.has_constraints:
+        return None
+    solver = _SOLVERS.get(structure)
+    if solver is None:
+        solver = _SOLVERS[structure] = LinearConstraints(structure)
+    return solver

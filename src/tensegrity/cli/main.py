@@ -4,7 +4,7 @@
 A thin layer over the library.  Errors are one line on stderr with exit code 2 (bad input) or
 1 (the simulation failed); nothing is written under a final name unless the whole run succeeded,
 and every file is written atomically.  ``simulate`` streams its samples, with checkpoints, to
-``OUT/.trajectory.h5.partial`` as it goes (:func:`tensegrity.stream.simulate_to_file`); an
+``OUT/.trajectory.h5.partial`` as it goes (:func:`tensegrity.io.stream.simulate_to_file`); an
 interrupted run (Ctrl-C, SIGTERM, a killed process) leaves only that file, and ``--resume``
 continues it.  The final names (``trajectory.h5``, ``structure.json``, the figures) appear
 together when the run has ended.
@@ -22,10 +22,10 @@ from pathlib import Path
 
 import numpy as np
 
-from tensegrity import dynamics
+from tensegrity.physics import dynamics
 from tensegrity.engine.options import ADAPTIVE_METHODS, FIXED_STEP_METHODS
-from tensegrity.io import write_staged as _write_all
-from tensegrity.structure import Structure
+from tensegrity.io.files import write_staged as _write_all
+from tensegrity.model.structure import Structure
 
 EXIT_FAILED, EXIT_USAGE = 1, 2
 #: Exit code when the reader of stdout closed it early (128 + SIGPIPE, as a shell reports it).
@@ -81,7 +81,7 @@ def _damping(text: str) -> str | float:
 
 
 def _add_structure_options(parser: argparse.ArgumentParser) -> None:
-    from tensegrity.generators import KINDS
+    from tensegrity.design.catalogue import KINDS
 
     group = parser.add_argument_group("structure (default: the paper's (3,1) class 1 shell)")
     group.add_argument("--structure", type=Path, metavar="FILE",
@@ -145,10 +145,10 @@ def _structure(args: argparse.Namespace) -> Structure:
         if flags:
             raise CommandError(f"{' '.join(flags)}: generator options cannot be combined with "
                                "--structure")
-        from tensegrity.network import read_network
+        from tensegrity.io.formats import read_network
 
         return read_network(args.structure)
-    from tensegrity import generators
+    from tensegrity.design import catalogue as generators
 
     kind = args.kind or "shell"
     valid = generators.options(kind)
@@ -185,7 +185,7 @@ def _apply_damping(structure: Structure, damping: str | float | None) -> Structu
 WORK_FILE = ".trajectory.h5"
 #: ``simulate`` checkpoints a run at least this many times (segments of at most this fraction of
 #: it), and at least every 1000 samples (or about 64 MiB of samples: the default of
-#: :func:`tensegrity.stream.simulate_to_file`).
+#: :func:`tensegrity.io.stream.simulate_to_file`).
 MIN_SEGMENTS = 10
 
 
@@ -222,17 +222,18 @@ def _segment(structure: Structure, t_end: float, sample_dt: float) -> float:
     Depends only on the structure and the options, so that a resumed run has the segment grid of
     the interrupted one.
     """
-    from tensegrity.stream import _samples_per_segment
+    from tensegrity.io.stream import samples_per_segment
 
-    default = _samples_per_segment(structure, None, sample_dt)
+    default = samples_per_segment(structure, None, sample_dt)
     tenth = max(1, math.ceil(t_end / sample_dt / MIN_SEGMENTS - 1e-9))
     return min(default, tenth) * sample_dt
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
-    from tensegrity.io import read_trajectory, write_structure
-    from tensegrity.plotting import save_figures
-    from tensegrity.stream import PARTIAL_SUFFIX, read_checkpoint, simulate_to_file
+    from tensegrity.io.trajectory import read_trajectory
+    from tensegrity.io.formats import write_structure
+    from tensegrity.plots.figures import save_figures
+    from tensegrity.io.stream import PARTIAL_SUFFIX, read_checkpoint, simulate_to_file
 
     _check_output_folder(args.out, "--out")
     structure = _structure(args)
@@ -246,7 +247,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         raise CommandError(f"--dt: only for fixed-step methods ({', '.join(FIXED_STEP_METHODS)})")
     force = None
     if args.force_table is not None:
-        from tensegrity.loads import read_force_table
+        from tensegrity.io.tables import read_force_table
 
         force = read_force_table(args.force_table)
         if force.n_nodes != structure.n_nodes:
@@ -254,7 +255,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
                                f"nodes, the structure has {structure.n_nodes}")
     gravity = None
     if args.gravity is not None:
-        from tensegrity.loads import gravity_vector
+        from tensegrity.model.loads import gravity_vector
 
         gravity = gravity_vector(args.gravity, structure.dim)
 
@@ -366,14 +367,14 @@ def _check_output_folder(folder: Path, option: str) -> None:
 
 
 def _vtk_files(folder: Path, result) -> list[Path]:
-    from tensegrity.vtk_export import write_vtk
+    from tensegrity.io.vtk import write_vtk
 
     return write_vtk(folder, result)  # the .vtp files, then the .pvd collection
 
 
 def _print_summary(trajectory, summary, resume: bool, files: Sequence[Path]) -> None:
-    """The summary of a run read back from its file (a :class:`tensegrity.io.Trajectory`) and
-    the :class:`tensegrity.stream.StreamSummary` of the streamed run."""
+    """The summary of a run read back from its file (a :class:`tensegrity.io.trajectory.Trajectory`) and
+    the :class:`tensegrity.io.stream.StreamSummary` of the streamed run."""
     structure = trajectory.structure
     e = trajectory.energy
     total = (e["kinetic"] + e["elastic"] + e["gravity"] + e["dissipated"] - e["external_work"]
@@ -471,7 +472,7 @@ def _range(values: np.ndarray, unit: str) -> str:
 
 
 def _cmd_export(args: argparse.Namespace) -> int:
-    from tensegrity.network import FORMATS, write_network
+    from tensegrity.io.formats import FORMATS, write_network
 
     structure = _apply_damping(_structure(args), args.damping)
     if args.output.is_dir():
@@ -486,8 +487,8 @@ def _cmd_export(args: argparse.Namespace) -> int:
 
 
 def _cmd_vtk(args: argparse.Namespace) -> int:
-    from tensegrity.io import read_trajectory
-    from tensegrity.vtk_export import write_vtk
+    from tensegrity.io.trajectory import read_trajectory
+    from tensegrity.io.vtk import write_vtk
 
     _check_output_folder(args.output, "--output")
     written = write_vtk(args.output, read_trajectory(args.trajectory), every=args.every,
@@ -497,8 +498,9 @@ def _cmd_vtk(args: argparse.Namespace) -> int:
 
 
 def _cmd_matrices(args: argparse.Namespace) -> int:
-    from tensegrity.matrices import undamped, write_matrices
-    from tensegrity.simulate import simulate
+    from tensegrity.physics.matrix_form import undamped
+    from tensegrity.io.matrices import write_matrices
+    from tensegrity.engine.simulate import simulate
 
     _check_output_folder(args.out, "--out")
     structure = undamped(_structure(args))
@@ -530,10 +532,10 @@ def _cmd_matrices(args: argparse.Namespace) -> int:
 
 
 def _cmd_analysis(args: argparse.Namespace) -> int:
-    """``equilibrium | modes | controllability | control``: :mod:`tensegrity.analysis.commands`."""
+    """``equilibrium | modes | controllability | control``: :mod:`tensegrity.cli.analysis`."""
     import inspect
 
-    from tensegrity.analysis import commands
+    from tensegrity.cli import analysis as commands
 
     run = getattr(commands, f"run_{args.command}")
     _check_output_folder(args.out, "--out")
@@ -648,7 +650,7 @@ def _sweep_parameter(text: str) -> tuple[str, list[float]]:
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
-    from tensegrity.sweep import SweepSpec, run_sweep
+    from tensegrity.sweep.run import SweepSpec, run_sweep
 
     options = {name: getattr(args, name) for name in ("samples", "seed", "t_end", "sample_dt",
                                                       "method", "dt") if getattr(args, name) is not None}
@@ -663,7 +665,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     else:
         mode = "monte-carlo" if args.samples is not None else "grid"
         if args.structure is not None:
-            from tensegrity.network import read_network
+            from tensegrity.io.formats import read_network
 
             options["structure"] = read_network(args.structure)
         spec = SweepSpec(dict(args.param), mode=mode, **options)
@@ -813,6 +815,3 @@ def main(argv: Sequence[str] | None = None) -> int:
         print("tensegrity: interrupted (nothing written)", file=sys.stderr)
         return 130
 
-
-if __name__ == "__main__":
-    sys.exit(main())

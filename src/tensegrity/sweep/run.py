@@ -9,7 +9,7 @@ and message: a case that blows up or cannot be built is reported, the others are
 Parameters of a case (SI units; defaults in :data:`DEFAULTS`)
 -------------------------------------------------------------
 ``n``, ``m``
-    Shell size: elements around, stages up (:func:`tensegrity.shell.class1_shell`).
+    Shell size: elements around, stages up (:func:`tensegrity.model.shell.class1_shell`).
 ``stiffness``
     Tendon stiffness ``k`` [N/m], every tendon.
 ``rest_scale``
@@ -32,7 +32,7 @@ stiffnesses, dampings and rest lengths, and no load.  ``load`` pushes the nodes 
 
 How cases run
 -------------
-- ``method="rk4"`` (the default): cases run through :func:`tensegrity.batch.simulate_batch`
+- ``method="rk4"`` (the default): cases run through :func:`tensegrity.engine.batch.simulate_batch`
   (one engine run per case, as ``simulate``).  Shells with fewer than :data:`BATCH_MAX_RODS`
   rods: the cases of equal ``(n, m)`` form one batch per Dask worker thread; larger shells: one
   case per task (finer tasks balance the load).  A case that cannot be built is reported and
@@ -72,11 +72,11 @@ from typing import Any
 
 import numpy as np
 
-from tensegrity import dynamics
+from tensegrity.physics import dynamics
 from tensegrity.engine.options import ADAPTIVE_METHODS, FIXED_STEP_METHODS
-from tensegrity.shell import class1_shell
-from tensegrity.simulate import SimulationResult, simulate
-from tensegrity.structure import Structure
+from tensegrity.model.shell import class1_shell
+from tensegrity.engine.simulate import SimulationResult, simulate
+from tensegrity.model.structure import Structure
 
 PathLike = str | os.PathLike
 
@@ -218,7 +218,7 @@ class SweepSpec:
         data = dict(data)
         structure = data.get("structure")
         if isinstance(structure, str):
-            from tensegrity.io import read_structure
+            from tensegrity.io.formats import read_structure
 
             data["structure"] = read_structure(Path(folder) / structure)
         elif isinstance(structure, Mapping):
@@ -364,9 +364,9 @@ def _error_summary(exc: BaseException, times: np.ndarray) -> dict[str, Any]:
 def run_cases(cases: Sequence[Mapping[str, float]], spec: SweepSpec, batched: bool) -> list[dict]:
     """Run ``cases`` (one task's share) and return their :func:`summarize` dicts, in order.
 
-    ``batched``: all cases share ``(n, m)`` and go through :func:`tensegrity.batch.simulate_batch`
+    ``batched``: all cases share ``(n, m)`` and go through :func:`tensegrity.engine.batch.simulate_batch`
     (cases that cannot be built are reported and left out).  Otherwise each case runs through
-    :func:`tensegrity.simulate.simulate`.  Any exception of a case becomes its ``STATUS_ERROR``.
+    :func:`tensegrity.engine.simulate.simulate`.  Any exception of a case becomes its ``STATUS_ERROR``.
     """
     times = spec.times
     out: list[dict | None] = [None] * len(cases)
@@ -377,7 +377,7 @@ def run_cases(cases: Sequence[Mapping[str, float]], spec: SweepSpec, batched: bo
         except Exception as exc:  # noqa: BLE001 - reported per case
             out[i] = _error_summary(exc, times)
     if batched and models:
-        from tensegrity.batch import simulate_batch
+        from tensegrity.engine.batch import simulate_batch
 
         keys = list(models)
         try:
@@ -430,7 +430,7 @@ class SweepResult:
 
     def save(self, path: PathLike) -> Path:
         """Write the dataset to ``path`` (netCDF-4/HDF5 via h5netcdf), atomically."""
-        from tensegrity.io import atomic_path
+        from tensegrity.io.files import atomic_path
 
         with atomic_path(path) as tmp:
             self.dataset.to_netcdf(tmp, engine="h5netcdf")

@@ -3,7 +3,7 @@ structures that share their rods and tendons (the same ``rod_nodes`` and ``tendo
 their parameters (masses, lengths, stiffnesses, rest lengths, damping, loads), each through the
 engine (:func:`tensegrity.engine.loop.run`: whole stretches of RK4 steps in one compiled call per
 sample interval, with ``simulate``'s projection after every step and its blow-up checks), and
-returns one :class:`~tensegrity.simulate.SimulationResult` per copy, exactly what
+returns one :class:`~tensegrity.engine.simulate.SimulationResult` per copy, exactly what
 ``simulate(structure, t_span, method="rk4", dt=dt, sample_dt=sample_dt, ...)`` returns, plus
 ``settings["batched"] = True``.  ``sample_dt`` and ``t_end - t0`` must be whole multiples of
 ``dt`` (samples on the step grid); loads constant in time; no steady-state stop.
@@ -16,9 +16,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from tensegrity.dynamics import State
-from tensegrity.simulate import SimulationResult, simulate
-from tensegrity.structure import Structure
+from tensegrity.physics.dynamics import State
+from tensegrity.engine.simulate import SimulationResult, simulate
+from tensegrity.model.structure import Structure
 
 #: Largest relative misfit of ``sample_dt / dt`` and ``(t_end - t0) / dt`` to whole numbers.
 GRID_RTOL = 1e-9
@@ -70,13 +70,13 @@ def simulate_batch(
     sample_dt : float
         Output spacing [s], a whole multiple of ``dt``.
     initial : sequence of B State or None, optional
-        Start states (default: each structure's :func:`~tensegrity.dynamics.initial_state`).
+        Start states (default: each structure's :func:`~tensegrity.physics.dynamics.initial_state`).
     external_force : sequence of B (N, 3) arrays or None, optional
         Constant external nodal forces [N] per copy.
     gravity : (3,) array, optional
         Uniform gravity [m/s^2], shared.
     max_rod_length_error, max_energy_growth : float
-        Blow-up thresholds, as in :func:`~tensegrity.simulate.simulate`.
+        Blow-up thresholds, as in :func:`~tensegrity.engine.simulate.simulate`.
 
     Returns
     -------

@@ -1,7 +1,7 @@
 """Long simulations streamed to an HDF5 trajectory file in segments, resumable after interruption.
 
 :func:`simulate_to_file` cuts ``t_span`` into segments on a fixed grid of boundaries and runs
-:func:`tensegrity.simulate.simulate` once per segment, each starting from the last state of the one
+:func:`tensegrity.engine.simulate.simulate` once per segment, each starting from the last state of the one
 before.  After every segment its samples are appended to resizable, chunked datasets and a
 checkpoint is stored in the same file, so that
 
@@ -31,13 +31,13 @@ The file and how an incomplete one shows
 ----------------------------------------
 While the run goes on, the data live in ``path + ".partial"`` (:data:`PARTIAL_SUFFIX`), whose
 ``format`` attribute is ``"tensegrity-trajectory-partial"`` (:data:`PARTIAL_FORMAT`) and whose
-``complete`` attribute is false; :func:`tensegrity.io.read_trajectory` refuses it ("not a
+``complete`` attribute is false; :func:`tensegrity.io.trajectory.read_trajectory` refuses it ("not a
 tensegrity trajectory file").  When the run ends (end time reached, steady state, or a failed,
 unstable segment) the attributes are set to those of a finished trajectory (``format =
 "tensegrity-trajectory"``, ``complete = True``, ``status``, ``message``), the file is flushed to
 disk and renamed onto ``path`` (an atomic :func:`os.replace`).  So a file under ``path`` is always
-complete, and :func:`tensegrity.io.read_trajectory` reads it: the datasets have the names and
-layout of :func:`tensegrity.io.write_trajectory` (module docstring of :mod:`tensegrity.io`), stored
+complete, and :func:`tensegrity.io.trajectory.read_trajectory` reads it: the datasets have the names and
+layout of :func:`tensegrity.io.trajectory.write_trajectory` (module docstring of :mod:`tensegrity.io.trajectory`), stored
 exactly (float64, uncompressed: trajectories of moving structures shrink by ~10% under gzip,
 which cost 60 times the write time, measured on a (10,10) segment) in chunks of about 1 MiB.  Extra root attributes:
 ``complete``, ``stream_settings`` (JSON) and ``stream_settings_hash``; an extra group
@@ -65,7 +65,7 @@ the structure and every setting (``t_span``, ``sample_dt``, the segment grid and
 ``external_force`` only through its module and qualified name, so a changed function body under
 the same name is not detected.  If ``path`` already holds a finished streamed run with the same
 settings, nothing is run and its summary is returned.  A finished file with other settings is
-replaced (atomically, at the end of the new run), as every writer of :mod:`tensegrity.io` does.
+replaced (atomically, at the end of the new run), as every writer of :mod:`tensegrity.io.trajectory` does.
 ``resume=False`` discards a partial file and starts again.
 
 SI units throughout: m, kg, s, N, J.
@@ -86,17 +86,17 @@ from typing import Any
 
 import numpy as np
 
-from tensegrity import dynamics
-from tensegrity import io as tio
-from tensegrity.dynamics import State
-from tensegrity.simulate import STATUS_END, simulate
-from tensegrity.structure import Structure
+from tensegrity.physics import dynamics
+from tensegrity.io import trajectory as tio
+from tensegrity.io.files import PathLike, atomic_path, file_error, fsync_directory, new_file_mode
+from tensegrity.physics.dynamics import State
+from tensegrity.engine.simulate import STATUS_END, simulate
+from tensegrity.model.structure import Structure
 
-PathLike = str | os.PathLike
 
 #: Suffix of the file a run writes into until it ends.
 PARTIAL_SUFFIX = ".partial"
-#: ``format`` attribute of an unfinished streamed file (:func:`tensegrity.io.read_trajectory`
+#: ``format`` attribute of an unfinished streamed file (:func:`tensegrity.io.trajectory.read_trajectory`
 #: refuses it).
 PARTIAL_FORMAT = "tensegrity-trajectory-partial"
 #: Version of the checkpoint layout and of the settings hash.
@@ -203,7 +203,7 @@ class StreamSummary:
     Attributes
     ----------
     path : pathlib.Path
-        The finished trajectory file (readable with :func:`tensegrity.io.read_trajectory`).
+        The finished trajectory file (readable with :func:`tensegrity.io.trajectory.read_trajectory`).
     status : int
         ``1`` steady state reached, ``0`` end time reached, ``-1`` a segment failed (unstable);
         the samples up to the failure are stored.
@@ -348,7 +348,7 @@ def segment_grid(
     return bounds
 
 
-def _samples_per_segment(structure: Structure, segment: float | None, sample_dt: float) -> int:
+def samples_per_segment(structure: Structure, segment: float | None, sample_dt: float) -> int:
     if segment is None:
         n, s = structure.n_coordinates, structure.n_tendons
         row_bytes = 8 * (2 * n + 6 * structure.n_nodes + 2 * s + 8)
@@ -382,7 +382,7 @@ def _create_partial(
     """Create the partial file (atomically: it appears only once it holds its empty layout)."""
     import h5py
 
-    with tio.atomic_path(partial) as tmp:
+    with atomic_path(partial) as tmp:
         with h5py.File(tmp, "w", libver=("v108", "v108")) as f:
             f.attrs["format"] = PARTIAL_FORMAT
             f.attrs["version"] = tio.TRAJECTORY_VERSION
@@ -459,10 +459,10 @@ def _write_checkpoint(slot, checkpoint: Checkpoint) -> None:
 def _read_checkpoint_open(f, path: PathLike) -> Checkpoint:
     group = f.get("checkpoint")
     if group is None or group.attrs.get("current") not in (0, 1):
-        raise tio._file_error(path, "no checkpoint (not written by tensegrity.stream)")
+        raise file_error(path, "no checkpoint (not written by tensegrity.io.stream)")
     version = int(group.attrs.get("version", 0))
     if version > STREAM_VERSION:
-        raise tio._file_error(path, f"checkpoint version {version} is newer than this library "
+        raise file_error(path, f"checkpoint version {version} is newer than this library "
                                     f"reads ({STREAM_VERSION}); upgrade tensegrity")
     slot = group[_SLOTS[int(group.attrs["current"])]]
     a = slot.attrs
@@ -477,15 +477,15 @@ def _read_checkpoint_open(f, path: PathLike) -> Checkpoint:
             counts={name: int(a[name]) for name in _COUNTERS},
             max_rod_length_error=float(a["max_rod_length_error"]),
             wall_time=float(a["wall_time"]),
-            settings_hash=tio._text(a["settings_hash"]),
+            settings_hash=tio.text_attribute(a["settings_hash"]),
             ended=bool(a["ended"]),
             status=int(a["status"]),
-            message=tio._text(a["message"]),
+            message=tio.text_attribute(a["message"]),
             # absent from checkpoints written before it was kept: unknown
             max_constraint_error=float(a.get("max_constraint_error", np.nan)),
         )
     except KeyError as exc:
-        raise tio._file_error(path, f"checkpoint: missing attribute {exc}") from exc
+        raise file_error(path, f"checkpoint: missing attribute {exc}") from exc
 
 
 def _open_h5(path: Path, mode: str):
@@ -494,7 +494,7 @@ def _open_h5(path: Path, mode: str):
     try:
         return h5py.File(path, mode, libver=("v108", "v108"))
     except OSError as exc:
-        raise tio._file_error(
+        raise file_error(
             path, f"cannot open as HDF5 ({exc}); if the run was killed while writing, start "
                   "again with resume=False"
         ) from exc
@@ -512,7 +512,7 @@ def read_checkpoint(path: PathLike) -> Checkpoint:
     path = Path(path)
     target = path if path.exists() else Path(str(path) + PARTIAL_SUFFIX)
     if not target.exists():
-        raise tio._file_error(path, f"no such file (nor {target.name})")
+        raise file_error(path, f"no such file (nor {target.name})")
     with _open_h5(target, "r") as f:
         return _read_checkpoint_open(f, target)
 
@@ -529,12 +529,12 @@ def _append(f, arrays: Mapping[str, np.ndarray], start: int) -> int:
 
 
 def _truncate(f, n_samples: int, path: Path) -> None:
-    for name in tio._ARRAY_DATASETS:
+    for name in tio.ARRAY_DATASETS:
         if name not in f:
-            raise tio._file_error(path, f"missing dataset {name!r}")
+            raise file_error(path, f"missing dataset {name!r}")
         rows = f[name].shape[0]
         if rows < n_samples:
-            raise tio._file_error(path, f"dataset {name!r} has {rows} rows, fewer than the "
+            raise file_error(path, f"dataset {name!r} has {rows} rows, fewer than the "
                                         f"{n_samples} of its checkpoint")
         if rows > n_samples:
             f[name].resize(n_samples, axis=0)
@@ -555,7 +555,7 @@ def _summary(path: Path, f, checkpoint: Checkpoint, samples_per_segment: int, se
     return StreamSummary(
         path=path,
         status=int(f.attrs["status"]),
-        message=tio._text(f.attrs["message"]),
+        message=tio.text_attribute(f.attrs["message"]),
         n_samples=n,
         t_first=float(time_[0]) if n else math.nan,
         t_last=float(time_[n - 1]) if n else math.nan,
@@ -582,8 +582,8 @@ def _finished_summary(path: Path, settings_hash: str, samples_per_segment: int) 
         return None
     with f:
         a = f.attrs
-        if (tio._text(a.get("format")) != tio.TRAJECTORY_FORMAT or not bool(a.get("complete", False))
-                or tio._text(a.get("stream_settings_hash")) != settings_hash):
+        if (tio.text_attribute(a.get("format")) != tio.TRAJECTORY_FORMAT or not bool(a.get("complete", False))
+                or tio.text_attribute(a.get("stream_settings_hash")) != settings_hash):
             return None
         checkpoint = _read_checkpoint_open(f, path)
         return _summary(path, f, checkpoint, samples_per_segment, 0, None)
@@ -626,7 +626,7 @@ def simulate_to_file(
         :class:`StreamProgress` after each stored segment (once its checkpoint is on disk); an
         exception it raises (``KeyboardInterrupt`` included) stops the run, which can be resumed.
     **simulate_options
-        Passed to :func:`tensegrity.simulate.simulate` for every segment: ``sample_dt`` [s]
+        Passed to :func:`tensegrity.engine.simulate.simulate` for every segment: ``sample_dt`` [s]
         (default ``(t_end - t0) / 1000``), ``initial`` (used by the first segment), ``control``,
         ``external_force``, ``gravity``, ``method``, ``rtol``, ``atol``, ``dt``,
         ``locate_switches``, ``steady_state``, ``velocity_tol``, ``acceleration_tol``,
@@ -662,7 +662,7 @@ def simulate_to_file(
     if not (math.isfinite(sample_dt) and sample_dt > 0):
         raise ValueError(f"sample_dt: must be > 0, got {sample_dt!r}")
     initial = options.pop("initial", None)
-    K = _samples_per_segment(structure, segment, sample_dt)
+    K = samples_per_segment(structure, segment, sample_dt)
     bounds = segment_grid((t0, t1), sample_dt, K)
     n_segments = len(bounds) - 1
     settings = _stream_settings(structure, t0, t1, sample_dt, K, {**options, "initial": initial})
@@ -671,7 +671,7 @@ def simulate_to_file(
     final = Path(path)
     partial = Path(str(final) + PARTIAL_SUFFIX)
     if not final.parent.is_dir():
-        raise tio._file_error(final, "its directory does not exist")
+        raise file_error(final, "its directory does not exist")
     if resume and final.exists() and not partial.exists():
         done = _finished_summary(final, settings_hash, K)
         if done is not None:
@@ -682,17 +682,17 @@ def simulate_to_file(
     resumed_from: int | None = None
     if partial.exists():
         with _open_h5(partial, "a") as f:
-            fmt = tio._text(f.attrs.get("format"))
+            fmt = tio.text_attribute(f.attrs.get("format"))
             if fmt != PARTIAL_FORMAT:
-                raise tio._file_error(partial, f"not a partial streamed trajectory (format {fmt!r})")
+                raise file_error(partial, f"not a partial streamed trajectory (format {fmt!r})")
             checkpoint = _read_checkpoint_open(f, partial)
             if checkpoint.settings_hash != settings_hash:
                 try:
-                    stored = json.loads(tio._text(f.attrs["stream_settings"]))
+                    stored = json.loads(tio.text_attribute(f.attrs["stream_settings"]))
                 except (KeyError, TypeError, json.JSONDecodeError):
                     stored = {}
                 diff = _differences(stored, settings) or ["settings hash"]
-                raise tio._file_error(
+                raise file_error(
                     partial, "cannot resume: the checkpoint was made with other settings ("
                              + "; ".join(diff) + "); pass resume=False to start again")
             _truncate(f, checkpoint.n_samples, partial)
@@ -763,7 +763,7 @@ def simulate_to_file(
                     max_constraint_error=constraint_error,
                 )
                 _store_checkpoint(f, checkpoint)
-                f.attrs["settings"] = json.dumps(run_settings, default=tio._json_default)
+                f.attrs["settings"] = json.dumps(run_settings, default=tio.json_default)
                 f.attrs["message"] = checkpoint.message
                 f.attrs["status"] = int(status)
                 for name in _COUNTERS:
@@ -799,9 +799,9 @@ def simulate_to_file(
         f.flush()
         summary = _summary(final, f, checkpoint, K, segments_run, resumed_from)
     _fsync(partial)
-    os.chmod(partial, tio._new_file_mode(final))
+    os.chmod(partial, new_file_mode(final))
     os.replace(partial, final)
-    tio._fsync_directory(final.parent)
+    fsync_directory(final.parent)
     return summary
 
 
