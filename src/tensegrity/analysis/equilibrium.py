@@ -49,7 +49,13 @@ from tensegrity.analysis.coordinates import (
     spatial_coordinates,
     spatial_vector,
 )
-from tensegrity.analysis.statics import force_jacobian, rod_compression, statics, with_reactions
+from tensegrity.analysis.statics import (
+    Statics,
+    force_jacobian,
+    rod_compression,
+    statics,
+    with_reactions,
+)
 from tensegrity.model.structure import Structure
 
 #: Default force tolerance, relative to ``mean(k) * mean(rod length)`` (100 N for the default
@@ -324,115 +330,203 @@ def find_equilibrium(
         reported either way.
     """
     if structure.dim == 2:
-        q2 = configuration(structure, start, name="start")
-        result = find_equilibrium(
-            spatial(structure), spatial_coordinates(structure, q2), control=control,
-            external_force=spatial_vector(structure, external_force),
-            gravity=spatial_vector(structure, gravity), gauge=gauge,
-            gauge_reference=spatial_vector(structure, gauge_reference), descend=descend,
-            force_tol=force_tol, max_rounds=max_rounds, max_nfev=max_nfev)
-        return planar_result(structure, result, external_force, gravity)
+        return _find_planar_equilibrium(
+            structure, start, control=control, external_force=external_force, gravity=gravity,
+            gauge=gauge, gauge_reference=gauge_reference, descend=descend, force_tol=force_tol,
+            max_rounds=max_rounds, max_nfev=max_nfev)
     q = configuration(structure, start, name="start")
-    u = np.zeros(structure.n_tendons) if control is None else np.asarray(control, dtype=float)
-    rest = dynamics.rest_lengths(structure, u)
-    k_scale, length = force_scales(structure, gravity)
-    tol = FORCE_RTOL * k_scale * length if force_tol is None else float(force_tol)
-    p_ref = (dynamics.nodes_from_coordinates(structure, q) if gauge_reference is None
-             else np.asarray(gauge_reference, dtype=float))
-    # Loads that are not invariant under rotation (external forces, gravity) fix the orientation
-    # themselves: then only the translation is gauged.
-    eckart = (eckart_gauge(structure, q, p_ref, external_force is None and gravity is None, k_scale)
-              if gauge else None)
+    problem = _EquilibriumProblem.build(
+        structure, q, control=control, external_force=external_force, gravity=gravity,
+        gauge=gauge, gauge_reference=gauge_reference, force_tol=force_tol)
     nfev = 0
+    if descend:
+        q, nfev = _descend(structure, q, problem.rest, external_force, gravity, problem.eckart)
+    q, converged, message, used = problem.solve(q, max_rounds=max_rounds, max_nfev=max_nfev)
+    return make_result(structure, q, problem.control, external_force=external_force,
+                       gravity=gravity, converged=converged, method="least_squares",
+                       message=message, nfev=nfev + used)
 
-    def residual(chart: Chart, v: np.ndarray) -> np.ndarray:
+
+def _find_planar_equilibrium(structure: Structure, start: Any, *, gravity: np.ndarray | None,
+                             external_force: np.ndarray | None,
+                             gauge_reference: np.ndarray | None,
+                             **options: Any) -> EquilibriumResult:
+    """:func:`find_equilibrium` of a planar structure: solved in its 3-D form
+    (:func:`~tensegrity.analysis.coordinates.spatial`), reported in 2-D.
+
+    ``start``, ``external_force`` (N, 2) [N], ``gravity`` (2,) [m/s^2] and ``gauge_reference``
+    (N, 2) [m] are in 2-D; ``options`` are :func:`find_equilibrium`'s others.
+    """
+    q2 = configuration(structure, start, name="start")
+    result = find_equilibrium(
+        spatial(structure), spatial_coordinates(structure, q2),
+        external_force=spatial_vector(structure, external_force),
+        gravity=spatial_vector(structure, gravity),
+        gauge_reference=spatial_vector(structure, gauge_reference), **options)
+    return planar_result(structure, result, external_force, gravity)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class _EquilibriumProblem:
+    """The equations :func:`find_equilibrium` solves on a chart, and how it solves them.
+
+    The unknowns are ``v = [x, lambda]``: ``x`` (n,) the chart's coordinates, ``lambda`` (c,)
+    the multipliers of the joints and supports [N] (none without).  The residuals are
+    ``[Q + G^T lambda; k g; gauge]``: the generalized forces [N, N m], the constraints ``g``
+    [m] weighted by the stiffness scale ``k`` [N/m], and Eckart's conditions [N].
+
+    Attributes
+    ----------
+    structure : Structure
+    control : (S,) rest-length changes ``u`` [m].  rest : (S,) rest lengths ``Lbar`` [m].
+    external_force : (N, 3) [N] or None.  gravity : (3,) [m/s^2] or None.
+    k_scale : stiffness scale [N/m] (:func:`force_scales`).
+    force_tol : convergence tolerance on ``max |Q + G^T lambda|`` [N].
+    eckart : the gauge (:func:`eckart_gauge`), or None.
+    """
+
+    structure: Structure
+    control: np.ndarray
+    rest: np.ndarray
+    external_force: np.ndarray | None
+    gravity: np.ndarray | None
+    k_scale: float
+    force_tol: float
+    eckart: EckartGauge | None
+
+    @classmethod
+    def build(cls, structure: Structure, q: np.ndarray, *, control: np.ndarray | None,
+              external_force: np.ndarray | None, gravity: np.ndarray | None, gauge: bool,
+              gauge_reference: np.ndarray | None,
+              force_tol: float | None) -> _EquilibriumProblem:
+        """The problem of :func:`find_equilibrium`'s arguments, gauged about ``gauge_reference``
+        (N, 3) [m] (default the nodes at ``q``, the (6R,) start) if ``gauge``."""
+        u = np.zeros(structure.n_tendons) if control is None else np.asarray(control, dtype=float)
+        rest = dynamics.rest_lengths(structure, u)
+        k_scale, length = force_scales(structure, gravity)
+        tol = FORCE_RTOL * k_scale * length if force_tol is None else float(force_tol)
+        p_ref = (dynamics.nodes_from_coordinates(structure, q) if gauge_reference is None
+                 else np.asarray(gauge_reference, dtype=float))
+        # Loads that are not invariant under rotation (external forces, gravity) fix the
+        # orientation themselves: then only the translation is gauged.
+        eckart = (eckart_gauge(structure, q, p_ref, external_force is None and gravity is None,
+                               k_scale) if gauge else None)
+        return cls(structure, u, rest, external_force, gravity, k_scale, tol, eckart)
+
+    def statics(self, chart: Chart, x: np.ndarray) -> Statics:
+        """:func:`~tensegrity.analysis.statics.statics` at ``x`` (n,) under the problem's loads."""
+        return statics(chart, x, self.rest, self.external_force, self.gravity)
+
+    def residual(self, chart: Chart, v: np.ndarray) -> np.ndarray:
         """``[Q + G^T lambda; k g; gauge]`` at ``v = [x, lambda]``."""
         x = v[: chart.size]
-        st = statics(chart, x, rest, external_force, gravity)
+        st = self.statics(chart, x)
         parts = [st.generalized_force]
         if chart.n_constraints:
             parts = [parts[0] + chart.constraint_jacobian(x).T @ v[chart.size :],
-                     k_scale * chart.constraint_residual(x)]
-        if eckart is not None:
-            parts.append(eckart.residual(st.p))
+                     self.k_scale * chart.constraint_residual(x)]
+        if self.eckart is not None:
+            parts.append(self.eckart.residual(st.p))
         return np.concatenate(parts)
 
-    def jacobian(chart: Chart, v: np.ndarray) -> np.ndarray:
+    def jacobian(self, chart: Chart, v: np.ndarray) -> np.ndarray:
+        """The residual's derivative with respect to ``v = [x, lambda]``, (rows, n + c)."""
         x = v[: chart.size]
-        st = statics(chart, x, rest, external_force, gravity)
+        st = self.statics(chart, x)
         if not chart.n_constraints:
             rows = [force_jacobian(chart, x, st)]
-            if eckart is not None:
-                rows.append(eckart.jacobian(chart.jacobian_matrix(x)))
+            if self.eckart is not None:
+                rows.append(self.eckart.jacobian(chart.jacobian_matrix(x)))
             return np.vstack(rows)
         c = chart.n_constraints
         G = chart.constraint_jacobian(x)
-        reaction = (constraints_of(structure).node_matrix_t @ v[chart.size :]).reshape(-1, 3)
+        reaction = (constraints_of(self.structure).node_matrix_t @ v[chart.size :]).reshape(-1, 3)
         rows = [np.hstack([force_jacobian(chart, x, st._replace(force=st.force + reaction)), G.T]),
-                np.hstack([k_scale * G, np.zeros((c, c))])]
-        if eckart is not None:
-            gauge_rows = eckart.jacobian(chart.jacobian_matrix(x))
+                np.hstack([self.k_scale * G, np.zeros((c, c))])]
+        if self.eckart is not None:
+            gauge_rows = self.eckart.jacobian(chart.jacobian_matrix(x))
             rows.append(np.hstack([gauge_rows, np.zeros((gauge_rows.shape[0], c))]))
         return np.vstack(rows)
 
-    def start_of(chart: Chart) -> np.ndarray:
+    def start(self, chart: Chart) -> np.ndarray:
         """``[x = 0, lambda]`` with the least-squares multipliers at the chart's base."""
         x0 = np.zeros(chart.size)
         if not chart.n_constraints:
             return x0
-        Q = statics(chart, x0, rest, external_force, gravity).generalized_force
+        Q = self.statics(chart, x0).generalized_force
         multiplier, *_ = np.linalg.lstsq(chart.constraint_jacobian().T, -Q, rcond=None)
         return np.concatenate([x0, multiplier])
 
-    def unbalanced(chart: Chart) -> float:
-        """max ``|Q + G^T lambda|`` at the chart's base, ``lambda`` the best reactions."""
-        Q = statics(chart, np.zeros(chart.size), rest, external_force, gravity).generalized_force
+    def unbalanced(self, q: np.ndarray) -> float:
+        """max ``|Q + G^T lambda|`` [N] at ``q``, ``lambda`` the best reactions."""
+        chart = Chart.at(self.structure, q)
+        Q = self.statics(chart, np.zeros(chart.size)).generalized_force
         return float(np.max(np.abs(chart.reaction(Q)[1]), initial=0.0))
 
-    if descend:
-        q, used = _descend(structure, q, rest, external_force, gravity, eckart)
-        nfev += used
-    message = "did not converge"
-    converged = False
-    for _ in range(max_rounds):
-        chart = Chart.at(structure, q)
-        v0 = start_of(chart)
-        fit = scipy.optimize.least_squares(
-            lambda v: residual(chart, v), v0, jac=lambda v: jacobian(chart, v),
-            method="lm" if eckart is not None or chart.size <= structure.n_coordinates else "trf",
+    def solve(self, q: np.ndarray, *, max_rounds: int,
+              max_nfev: int) -> tuple[np.ndarray, bool, str, int]:
+        """Rounds of least squares from ``q`` (6R,), each on a chart based at the last round's
+        solution and ended by Newton steps, until ``max |Q| <= force_tol``.
+
+        Returns
+        -------
+        (q, converged, message, nfev)
+        """
+        message = "did not converge"
+        nfev = 0
+        for _ in range(max_rounds):
+            chart = Chart.at(self.structure, q)
+            fit = self.least_squares(chart, max_nfev=max_nfev)
+            nfev += fit.nfev
+            x = fit.x[: chart.size]
+            q = chart.retract(x)
+            if np.max(np.abs(chart.split(x)[1]), initial=0.0) > 1.0:
+                continue  # far out on the chart: re-base
+            q, force_residual, used = self.polish(q)
+            nfev += used
+            tol = self.force_tol
+            if force_residual <= tol:
+                return q, True, f"converged: max |Q| = {force_residual:.3g} N <= {tol:.3g} N", nfev
+            message = (f"did not converge: max |Q| = {force_residual:.3g} N > {tol:.3g} N "
+                       f"({fit.message})")
+            if fit.status > 0 and force_residual > 1e3 * tol:
+                break  # a least-squares minimum that is no equilibrium: going on will not help
+        return q, False, message, nfev
+
+    def least_squares(self, chart: Chart, *, max_nfev: int) -> scipy.optimize.OptimizeResult:
+        """``scipy.optimize.least_squares`` on ``chart`` from :meth:`start`, with the analytic
+        Jacobian (Levenberg-Marquardt unless the system is underdetermined)."""
+        lm = self.eckart is not None or chart.size <= self.structure.n_coordinates
+        return scipy.optimize.least_squares(
+            lambda v: self.residual(chart, v), self.start(chart),
+            jac=lambda v: self.jacobian(chart, v), method="lm" if lm else "trf",
             xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=max_nfev,
         )
-        nfev += fit.nfev
-        x = fit.x[: chart.size]
-        if np.max(np.abs(chart.split(x)[1]), initial=0.0) > 1.0:  # far out on the chart: re-base
-            q = chart.retract(x)
-            continue
-        # Newton polish on a chart based at the solution.
-        q = chart.retract(x)
-        force_residual = unbalanced(Chart.at(structure, q))
-        for _ in range(5):
-            if force_residual <= tol:
+
+    def polish(self, q: np.ndarray, steps: int = 5) -> tuple[np.ndarray, float, int]:
+        """Up to ``steps`` Newton steps from ``q`` (6R,) on charts based at each iterate, while
+        they reduce ``max |Q + G^T lambda|``.
+
+        Returns
+        -------
+        (q, that residual there [N], the number of steps taken)
+        """
+        force_residual = self.unbalanced(q)
+        nfev = 0
+        for _ in range(steps):
+            if force_residual <= self.force_tol:
                 break
-            chart = Chart.at(structure, q)
-            v0 = start_of(chart)
+            chart = Chart.at(self.structure, q)
+            v0 = self.start(chart)
             nfev += 1
-            step, *_ = np.linalg.lstsq(jacobian(chart, v0), -residual(chart, v0), rcond=None)
+            step, *_ = np.linalg.lstsq(self.jacobian(chart, v0), -self.residual(chart, v0),
+                                       rcond=None)
             trial = chart.retract(step[: chart.size])
-            trial_residual = unbalanced(Chart.at(structure, trial))
+            trial_residual = self.unbalanced(trial)
             if trial_residual >= force_residual:
                 break  # no progress (a near-singular Jacobian: zero-stiffness motions)
             q, force_residual = trial, trial_residual
-        if force_residual <= tol:
-            converged = True
-            message = f"converged: max |Q| = {force_residual:.3g} N <= {tol:.3g} N"
-            break
-        message = (f"did not converge: max |Q| = {force_residual:.3g} N > {tol:.3g} N "
-                   f"({fit.message})")
-        if fit.status > 0 and force_residual > 1e3 * tol:
-            break  # a least-squares minimum that is no equilibrium: going on will not help
-    return make_result(structure, q, u, external_force=external_force, gravity=gravity,
-                       converged=converged, method="least_squares", message=message, nfev=nfev)
-
+        return q, force_residual, nfev
 
 def potential_energy(structure, p, q, rest, external_force, gravity) -> float:
     """Elastic energy minus the work of constant external forces and gravity [J]."""
