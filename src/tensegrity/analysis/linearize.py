@@ -52,6 +52,8 @@ from tensegrity.analysis.coordinates import (
 )
 from tensegrity.analysis.equilibrium import EquilibriumResult, make_result
 from tensegrity.analysis.statics import (
+    Statics,
+    TendonState,
     equilibrium_matrix,
     force_jacobian,
     node_stiffness,
@@ -237,20 +239,8 @@ def linearize(
     model.  External forces and gravity of an :class:`EquilibriumResult` are taken into account.
     A planar structure is linearized as its 3-D form (``equilibrium`` in 2-D).
     """
-    if isinstance(equilibrium, EquilibriumResult):
-        eq = equilibrium
-        if eq.structure is not structure or structure.dim == 2:
-            eq = make_result(spatial(structure), spatial_coordinates(structure, eq.q), eq.control,
-                             external_force=spatial_vector(structure, eq.external_force),
-                             gravity=spatial_vector(structure, eq.gravity),
-                             converged=eq.converged, method=eq.method, message=eq.message,
-                             nfev=eq.nfev)
-    else:
-        q = (dynamics.coordinates_from_nodes(structure, structure.node_position)
-             if equilibrium is None else np.asarray(equilibrium, dtype=float))
-        eq = make_result(spatial(structure), spatial_coordinates(structure, q), control,
-                         converged=True, method="given", message="given configuration", nfev=0)
-    source, s = structure, eq.structure
+    eq = _spatial_equilibrium(structure, equilibrium, control)
+    s = eq.structure
     chart = Chart.at(s, eq.q)
     x0 = np.zeros(chart.size)
     st = statics(chart, x0, eq.rest_length, eq.external_force, eq.gravity)
@@ -258,16 +248,9 @@ def linearize(
     tendons = st.tendons
     active = tendons.taut | (tendons.at_threshold & include_threshold)
     J = chart.jacobian_matrix(x0)
-    K = -force_jacobian(chart, x0, st)
-    if include_threshold and np.any(tendons.at_threshold):
-        K_thr = node_stiffness(s, tendons._replace(taut=np.zeros_like(tendons.taut)),
-                               include_threshold=True)
-        K = K + J.T @ K_thr @ J
-    K = 0.5 * (K + K.T)
+    K = _tangent_stiffness(chart, st, J, include_threshold)
     mass = mass_matrix(s)
-    C_node = node_stiffness(s, tendons._replace(taut=active), include_threshold=False, damping=True)
-    alpha = np.concatenate([np.repeat(s.rod_damping, 5), np.zeros(mass.size - 5 * s.n_rods)])
-    damping = J.T @ C_node @ J + np.diag(alpha * mass)
+    damping = _damping_matrix(s, tendons._replace(taut=active), J, mass)
     A_eq = equilibrium_matrix(chart, tendons.direction, x0)
     Z = chart.admitted_motions()
     rigid = admitted_rigid_motions(chart, Z)
@@ -279,41 +262,119 @@ def linearize(
     k_eff = np.where(active, s.tendon_stiffness, 0.0)
     c_eff = np.where(active, s.tendon_damping, 0.0)
     force_input = A_eq * k_eff
+    A, B, D = _state_equation(mass, K, damping, force_input, J)
+    C, F = _output_equation(J, A_eq, k_eff, c_eff)
+    return Linearization(
+        structure=s, equilibrium=eq, chart=chart, mass=mass, stiffness=K, damping=damping,
+        force_input=force_input, equilibrium_matrix=A_eq, A=A, B=B, D=D, C=C, F=F, taut=active,
+        state_names=_state_names(s, mass.size, restricted=Z is not None),
+        input_names=tuple(s.tendon_name),
+        disturbance_names=tuple(f"w{i}_{a}" for i in range(s.n_nodes) for a in _AXES),
+        output_names=_output_names(s), rigid_basis=rigid, source=structure, basis=Z,
+        position_jacobian=J,
+    )
 
+
+def _spatial_equilibrium(structure: Structure, equilibrium: EquilibriumResult | np.ndarray | None,
+                         control: np.ndarray | None) -> EquilibriumResult:
+    """The equilibrium :func:`linearize` is given, as a result of the 3-D form of ``structure``
+    (:func:`~tensegrity.analysis.coordinates.spatial`; the structure itself if not planar).
+
+    ``equilibrium`` is a result (of ``structure``, or of another structure with the same
+    coordinates), its ``q`` (default the structure's node positions) with the rest-length
+    change ``control`` (S,) [m], or None.
+    """
+    if isinstance(equilibrium, EquilibriumResult):
+        eq = equilibrium
+        if eq.structure is not structure or structure.dim == 2:
+            eq = make_result(spatial(structure), spatial_coordinates(structure, eq.q), eq.control,
+                             external_force=spatial_vector(structure, eq.external_force),
+                             gravity=spatial_vector(structure, eq.gravity),
+                             converged=eq.converged, method=eq.method, message=eq.message,
+                             nfev=eq.nfev)
+        return eq
+    q = (dynamics.coordinates_from_nodes(structure, structure.node_position)
+         if equilibrium is None else np.asarray(equilibrium, dtype=float))
+    return make_result(spatial(structure), spatial_coordinates(structure, q), control,
+                       converged=True, method="given", message="given configuration", nfev=0)
+
+
+def _tangent_stiffness(chart: Chart, st: Statics, J: np.ndarray,
+                       include_threshold: bool) -> np.ndarray:
+    """``K = -dQ/dx`` (n, n), symmetrized, at the chart's base (``st`` its statics, reactions
+    included; ``J = dp/dx`` (3N, n)); with ``include_threshold``, tendons exactly at their rest
+    length add their material stiffness."""
+    x0 = np.zeros(chart.size)
+    K = -force_jacobian(chart, x0, st)
+    tendons = st.tendons
+    if include_threshold and np.any(tendons.at_threshold):
+        K_thr = node_stiffness(chart.structure, tendons._replace(taut=np.zeros_like(tendons.taut)),
+                               include_threshold=True)
+        K = K + J.T @ K_thr @ J
+    return 0.5 * (K + K.T)
+
+
+def _damping_matrix(structure: Structure, tendons: TendonState, J: np.ndarray,
+                    mass: np.ndarray) -> np.ndarray:
+    """``C`` (n, n): the damping of the tendons flagged taut in ``tendons`` (``c t t^T`` through
+    ``J = dp/dx`` (3N, n)) plus the rods' mass-proportional ``alpha M`` (``mass`` (n,))."""
+    s = structure
+    C_node = node_stiffness(s, tendons, include_threshold=False, damping=True)
+    alpha = np.concatenate([np.repeat(s.rod_damping, 5), np.zeros(mass.size - 5 * s.n_rods)])
+    return J.T @ C_node @ J + np.diag(alpha * mass)
+
+
+def _state_equation(mass: np.ndarray, K: np.ndarray, damping: np.ndarray,
+                    force_input: np.ndarray,
+                    J: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(A, B, D)`` of ``z' = A z + B du + D dw``: (2k, 2k), (2k, S), (2k, 3N), from the mass
+    diagonal (k,), ``K`` and ``C`` (k, k), ``dQ/du`` (k, S) and ``J = dp/deta`` (3N, k)."""
     n = mass.size
     inv_m = 1.0 / mass
     A = np.zeros((2 * n, 2 * n))
     A[:n, n:] = np.eye(n)
     A[n:, :n] = -inv_m[:, None] * K
     A[n:, n:] = -inv_m[:, None] * damping
-    B = np.vstack([np.zeros((n, s.n_tendons)), inv_m[:, None] * force_input])
-    D = np.vstack([np.zeros((n, 3 * s.n_nodes)), inv_m[:, None] * J.T])
-    zeros = np.zeros((s.n_tendons, n))
+    B = np.vstack([np.zeros((n, force_input.shape[1])), inv_m[:, None] * force_input])
+    D = np.vstack([np.zeros((n, J.shape[0])), inv_m[:, None] * J.T])
+    return A, B, D
+
+
+def _output_equation(J: np.ndarray, A_eq: np.ndarray, k_eff: np.ndarray,
+                     c_eff: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(C, F)`` of ``y = C z + F du`` (node positions, tendon lengths, tensions): (3N + 2S, 2k)
+    and (3N + 2S, S), from ``J = dp/deta`` (3N, k), ``A_eq`` (k, S) and the taut tendons'
+    stiffness and damping (S,) [N/m, N s/m] (0 for slack ones)."""
+    n_tendons, n = k_eff.size, J.shape[1]
+    zeros = np.zeros((n_tendons, n))
     C = np.vstack([
         np.hstack([J, np.zeros_like(J)]),
         np.hstack([-A_eq.T, zeros]),
         np.hstack([-(k_eff[:, None] * A_eq.T), -(c_eff[:, None] * A_eq.T)]),
     ])
-    F = np.vstack([np.zeros((3 * s.n_nodes, s.n_tendons)), np.zeros((s.n_tendons, s.n_tendons)),
+    F = np.vstack([np.zeros((J.shape[0], n_tendons)), np.zeros((n_tendons, n_tendons)),
                    np.diag(k_eff)])
-    if Z is None:
+    return C, F
+
+
+def _state_names(structure: Structure, n_dof: int, *, restricted: bool) -> tuple[str, ...]:
+    """``rod{r}_cx`` ... ``rod{r}_phi2``, ``mass{i}_x``... (``eta{j}`` if ``restricted`` to the
+    admitted motions), then the same with ``_dot``."""
+    s = structure
+    if restricted:
+        states = [f"eta{j}" for j in range(n_dof)]
+    else:
         states = ([f"rod{r}_{c}" for r in range(s.n_rods) for c in _ROD_COORDS]
                   + [f"mass{i}_{a}" for i in s.point_mass_nodes for a in _AXES])
-    else:
-        states = [f"eta{j}" for j in range(n)]
-    names = s.tendon_name
-    return Linearization(
-        structure=s, equilibrium=eq, chart=chart, mass=mass, stiffness=K, damping=damping,
-        force_input=force_input, equilibrium_matrix=A_eq, A=A, B=B, D=D, C=C, F=F, taut=active,
-        state_names=tuple(states + [f"{name}_dot" for name in states]),
-        input_names=tuple(names),
-        disturbance_names=tuple(f"w{i}_{a}" for i in range(s.n_nodes) for a in _AXES),
-        output_names=tuple([f"p{i}_{a}" for i in range(s.n_nodes) for a in _AXES]
-                           + [f"length_{name}" for name in names]
-                           + [f"tension_{name}" for name in names]),
-        rigid_basis=rigid, source=source, basis=Z, position_jacobian=J,
-    )
+    return tuple(states + [f"{name}_dot" for name in states])
 
+
+def _output_names(structure: Structure) -> tuple[str, ...]:
+    """``p{i}_x``..., ``length_{tendon}``..., ``tension_{tendon}``..."""
+    names = structure.tendon_name
+    return tuple([f"p{i}_{a}" for i in range(structure.n_nodes) for a in _AXES]
+                 + [f"length_{name}" for name in names]
+                 + [f"tension_{name}" for name in names])
 
 def _unloaded(rigid: np.ndarray, K: np.ndarray, mass: np.ndarray, rtol: float = 1e-8) -> np.ndarray:
     """The admitted rigid-body motions (columns of ``rigid``, ``M``-orthonormal) that the loads
