@@ -146,17 +146,17 @@ def test_resume_with_other_options_is_refused_in_one_line(tmp_path, capsys, monk
 
     out = tmp_path / "out"
     calls = []
-    simulate = tensegrity.io.stream.simulate
+    add = tensegrity.io.stream.FileSink.add
 
-    def interrupt_in_the_second_segment(*args, **kwargs):
+    def interrupt_in_the_second_segment(sink, sample):
         calls.append(1)
-        if len(calls) == 2:
+        if len(calls) == 25:  # samples 0..20 are the first segment (20 samples each)
             raise KeyboardInterrupt
-        return simulate(*args, **kwargs)
+        add(sink, sample)
 
-    monkeypatch.setattr(tensegrity.io.stream, "simulate", interrupt_in_the_second_segment)
+    monkeypatch.setattr(tensegrity.io.stream.FileSink, "add", interrupt_in_the_second_segment)
     assert main([*RUN, "--out", str(out)]) == 130
-    monkeypatch.setattr(tensegrity.io.stream, "simulate", simulate)
+    monkeypatch.setattr(tensegrity.io.stream.FileSink, "add", add)
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--resume" in err, err
     assert [p.name for p in out.iterdir()] == [PARTIAL]

@@ -54,6 +54,8 @@ DOP853_DENSE_ROWS = _dop853.INTERPOLATOR_POWER
 #: Stage times of one RK4 step, as fractions of the step.
 RK4_C = np.array([0.0, 0.5, 0.5, 1.0])
 
+#: ``"rk4"`` checks the energy balance after every this many steps (and after each stretch).
+ENERGY_CHECK_EVERY = 8
 #: Codes of :func:`check_state` (0: the state is sound).
 CHECK_OK, CHECK_NOT_FINITE, CHECK_ROD_LENGTH, CHECK_CONSTRAINT, CHECK_ENERGY, CHECK_PROJECTION = range(6)
 
@@ -186,16 +188,19 @@ def rk4_step(y, h, K, stage, system, inputs, work):  # pragma: no cover - compil
 def rk4_segment(y, h, n_steps, K, stage, y_end, system, inputs, work, limits, monitor):  # pragma: no cover
     """Up to ``n_steps`` RK4 steps of ``h`` with constant inputs, each followed by
     :func:`check_state` and the projection onto the rod and joint constraints (as
-    ``simulate(method="rk4")``; the energy check reads the inputs' last row, the step's end).
-    ``y_end`` receives the state at the end of the last step
-    before its projection (what a sample records, and the failing state).  Returns
-    ``(steps_taken, check_code, check_value)``; the loop stops at the first failed check."""
+    ``simulate(method="rk4")``).  The energy balance is checked every :data:`ENERGY_CHECK_EVERY`
+    steps and after the last one (it costs about one evaluation; the other checks are cheap);
+    it reads the inputs' last row, the step's end.  ``y_end`` receives the state at the end of
+    the last step before its projection (what a sample records, and the failing state).
+    Returns ``(steps_taken, check_code, check_value)``; the loop stops at the first failed
+    check."""
     n = (y.shape[0] - 3) // 2
     for k in range(n_steps):
         rk4_step(y, h, K, stage, system, inputs, work)
         y_end[:] = y
+        with_energy = k == n_steps - 1 or (k + 1) % ENERGY_CHECK_EVERY == 0
         code, value = check_state(y, inputs[0].shape[0] - 1, system, inputs, work, limits,
-                                  monitor)
+                                  monitor, with_energy)
         if code != CHECK_OK:
             return k + 1, code, value
         _, _, ok = system_project(y[:n], y[n:2 * n], system[0][1], system[1])
@@ -222,10 +227,11 @@ def energy_balance(y, s, system, inputs, work):  # pragma: no cover - compiled
 
 
 @njit(**JIT_OPTIONS)
-def check_state(y, s, system, inputs, work, limits, monitor):  # pragma: no cover - compiled
+def check_state(y, s, system, inputs, work, limits, monitor, with_energy):  # pragma: no cover
     """The blow-up checks after a step ending at ``y`` (inputs' row ``s``): ``(code, value)``
     with ``code`` one of ``CHECK_*``; ``value`` the offending number, or on success the larger
-    of the rod-length error (relative) and the constraint error [m].
+    of the rod-length error (relative) and the constraint error [m].  The energy balance is
+    checked only ``with_energy``.
 
     ``limits`` = ``(max_rod_length_error, max_constraint_error [m], max_energy_growth)``;
     ``monitor`` (4,) float64 is updated in place: ``[energy0, largest scale seen, largest rod
@@ -242,6 +248,8 @@ def check_state(y, s, system, inputs, work, limits, monitor):  # pragma: no cove
         return CHECK_ROD_LENGTH, rod_error
     if not constraint_error <= limits[1]:
         return CHECK_CONSTRAINT, constraint_error
+    if not with_energy:
+        return CHECK_OK, max(rod_error, constraint_error)
     _, _, _, total, scale = energy_balance(y, s, system, inputs, work)
     monitor[1] = max(monitor[1], scale)
     growth = total - monitor[0]
@@ -268,6 +276,22 @@ def switch_indicator(y, system, rest, work, p, v, out):  # pragma: no cover - co
     n = (y.shape[0] - 3) // 2
     system_nodes(y[:n], y[n:2 * n], rod_slots, extras, p, v, damping is not None)
     _indicator(p, v, tendon_slots, stiffness, damping, rest, out)
+
+
+@njit(**JIT_OPTIONS)
+def switch_mask(F, y_old, x, y, system, rest, work, p, v, indicator, candidates, was_taut,
+                mask):  # pragma: no cover - compiled
+    """Which of the tendons ``candidates`` (kernel positions) have changed taut/slack state at the
+    fraction ``x`` of a DOP853 step (its dense polynomial ``F`` from ``y_old``): ``mask[k]`` for
+    ``candidates[k]``, compared with ``was_taut``; returns how many.  ``y`` (len(y_old),) and
+    ``indicator`` (S,) are scratch (see :func:`switch_indicator`)."""
+    dop853_interpolate(F, y_old, x, y)
+    switch_indicator(y, system, rest, work, p, v, indicator)
+    count = 0
+    for k in range(candidates.shape[0]):
+        mask[k] = (indicator[candidates[k]] > 0) != was_taut[candidates[k]]
+        count += mask[k]
+    return count
 
 
 @njit(**JIT_OPTIONS)
@@ -317,7 +341,7 @@ def _largest_at(x, slots):  # pragma: no cover - compiled
 
 __all__ = [
     "CHECK_CONSTRAINT", "CHECK_ENERGY", "CHECK_NOT_FINITE", "CHECK_OK", "CHECK_PROJECTION",
-    "CHECK_ROD_LENGTH", "DOP853_C", "DOP853_DENSE_ROWS", "DOP853_STAGES", "RK4_C",
+    "CHECK_ROD_LENGTH", "DOP853_C", "DOP853_DENSE_ROWS", "DOP853_STAGES", "ENERGY_CHECK_EVERY", "RK4_C",
     "check_state", "dop853_attempt", "dop853_dense", "dop853_interpolate", "energy_balance",
-    "ode_rhs", "rk4_segment", "rk4_step", "sample_outputs", "switch_indicator", "tendon_lengths",
+    "ode_rhs", "rk4_segment", "rk4_step", "sample_outputs", "switch_indicator", "switch_mask", "tendon_lengths",
 ]

@@ -104,9 +104,18 @@ class Inputs:
         if u is not None and np.any(rest < 0):
             k, s = np.argwhere(rest < 0)[0]
             raise ValueError(
-                f"control[{s}]: rest length {self.structure.tendon_rest_length[s]:g} - "
+                f"{self.control.field}[{s}]: rest length {self.structure.tendon_rest_length[s]:g} - "
                 f"{u[k, s]:g} is negative at t = {times[min(k, len(times) - 1)]:g} s")
         return rest
+
+    def hold_control(self, u: Any, t: float) -> None:
+        """Hold the control at ``u`` (S,) [m] from time ``t`` [s] on (a controller's update):
+        ``ValueError`` naming the controller if ``u`` has the wrong shape, is not finite or makes
+        a rest length negative."""
+        signal = _Signal(np.array(u, dtype=float), (self.structure.n_tendons,), "controller")
+        self.control = signal
+        self.constant = self.external_force.constant
+        self.rest_length(np.array([t]))
 
     def settings(self) -> dict[str, Any]:
         """``control``, ``external_force`` (False, True, ``"table"``, ``"function"``) and

@@ -1,6 +1,6 @@
 """The one integration loop (:func:`run`): stepping, sampling, slack/taut switch location,
-projection onto the constraints, blow-up checks and the steady-state stop, for every method
-and every structure, samples handed to a sink as they are made.
+projection onto the constraints, blow-up checks, the steady-state stop, a controller's updates
+and checkpoints, for every method and every structure, samples handed to a sink as they are made.
 
 Per accepted step of an adaptive method: the tensions at the step's end (known from its last
 stage) are compared with those at its start; if a tendon went slack or taut, the earliest switch
@@ -10,24 +10,44 @@ same switch is not found again a round-off later.  The step size carries over.  
 checks run (compiled), samples inside the step are interpolated, and the state is projected when
 its drift exceeds ``projection_tol``.  ``"rk4"`` runs whole stretches of steps between samples in
 one compiled call.
+
+Boundaries: steps end exactly at the times of a controller's updates (zero-order hold, every
+``controller.period`` from ``t0``) and of checkpoints (every ``checkpoint.every`` samples).  At
+a checkpoint the loop hands its whole state (:class:`LoopState`) to ``checkpoint.save``; a run
+started with ``resume=`` that state continues bit for bit as the run that saved it.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 import time
+from collections.abc import Callable
 from typing import Any, Protocol
 
 import numpy as np
 
-from tensegrity.physics import dynamics
 from tensegrity.engine import compiled
 from tensegrity.engine.inputs import Inputs
 from tensegrity.engine.options import Options
-from tensegrity.engine.steppers import DOP853, RK4, IntegrationError, ScipyMethod
-from tensegrity.engine.result import STATUS_END, STATUS_FAILED, STATUS_STEADY, RunSummary, Sample
+from tensegrity.engine.result import (
+    STATUS_END,
+    STATUS_FAILED,
+    STATUS_STEADY,
+    RunSummary,
+    Sample,
+)
+from tensegrity.engine.steppers import (
+    DOP853,
+    RK4,
+    IntegrationError,
+    ScipyMethod,
+    Stepper,
+    StepperMemory,
+)
 from tensegrity.engine.system import CompiledSystem
 from tensegrity.model.structure import Structure
+from tensegrity.physics import dynamics
 
 #: Relative width of the final bracket of a located switch.
 SWITCH_RTOL = 1e-13
@@ -39,6 +59,111 @@ class Sink(Protocol):
     def add(self, sample: Sample) -> None:
         """Keep one sample."""
 
+
+class Controller(Protocol):
+    """State feedback with zero-order hold: called at ``t0`` and every ``period`` [s] after it
+    with ``(t, q, qdot)`` (the structure's coordinates [m], [m/s]); returns the control ``u``
+    (S,) [m] (rest lengths ``L0 - u``) held until the next call."""
+
+    period: float
+
+    def __call__(self, t: float, q: np.ndarray, qdot: np.ndarray) -> np.ndarray: ...
+
+
+@dataclasses.dataclass(frozen=True)
+class Feedback:
+    """A :class:`Controller` made of a function ``u = law(t, q, qdot)`` and its ``period`` [s]."""
+
+    law: Callable[[float, np.ndarray, np.ndarray], np.ndarray]
+    period: float
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.period, (int, float)) and math.isfinite(self.period)
+                and self.period > 0):
+            raise ValueError(f"period: must be a finite number > 0, got {self.period!r}")
+
+    def __call__(self, t: float, q: np.ndarray, qdot: np.ndarray) -> np.ndarray:
+        return self.law(t, q, qdot)
+
+
+@dataclasses.dataclass(frozen=True)
+class Checkpointing:
+    """Checkpoints of a run: after every ``every`` samples, ``save`` gets the :class:`LoopState`
+    (once the samples up to it were handed to the sink)."""
+
+    every: int
+    save: Callable[[LoopState], None]
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class LoopState:
+    """Everything the loop needs to continue a run exactly where it stood (a checkpoint).
+
+    ``y`` is the ODE state ``[q, q', E_d, W_w, W_u]`` in the engine's coordinates (m,) at time
+    ``t`` [s]; ``memory`` the stepper's (:class:`~tensegrity.engine.steppers.StepperMemory`);
+    ``steps_done`` the steps taken from ``t0`` (``"rk4"``); ``next_sample`` the index of the
+    next sample; ``monitor`` the blow-up monitor (4,) (energy at the start, largest energy
+    scale, largest rod and constraint errors); ``taut`` the tendons' taut flags (S,) in kernel
+    order; ``landing`` a located switch being headed for (``(time, tendons, taut_after,
+    exact)``) or None; ``counts`` ``nsteps``, ``nswitches``, ``nprojections``, ``nfev``;
+    ``control`` the controller's last output (S,) [m] (empty without a controller).
+    """
+
+    t: float
+    y: np.ndarray
+    memory: StepperMemory
+    steps_done: int
+    next_sample: int
+    monitor: np.ndarray
+    taut: np.ndarray
+    landing: tuple[float, np.ndarray, np.ndarray, bool] | None
+    allow_provisional: bool
+    counts: dict[str, int]
+    switch_times: tuple[float, ...]
+    control: np.ndarray
+    last_sample_t: float
+    wall_time: float
+
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        """The state as named arrays (for a file); :meth:`from_arrays` reads them back."""
+        landing = self.landing or (math.nan, np.zeros(0, np.int64), np.zeros(0, bool), False)
+        return {
+            "t": np.float64(self.t), "y": self.y, "first_stage": self.memory.first_stage,
+            "step": np.float64(self.memory.step),
+            "step_before": np.float64(self.memory.step_before),
+            "steps_done": np.int64(self.steps_done), "next_sample": np.int64(self.next_sample),
+            "monitor": self.monitor, "taut": self.taut,
+            "landing_time": np.float64(landing[0]), "landing_tendons": landing[1],
+            "landing_taut_after": landing[2], "landing_exact": np.bool_(landing[3]),
+            "allow_provisional": np.bool_(self.allow_provisional),
+            **{name: np.int64(value) for name, value in self.counts.items()},
+            "switch_times": np.array(self.switch_times, dtype=float), "control": self.control,
+            "last_sample_t": np.float64(self.last_sample_t),
+            "wall_time": np.float64(self.wall_time),
+        }
+
+    @classmethod
+    def from_arrays(cls, a: dict[str, np.ndarray]) -> LoopState:
+        """The state written by :meth:`to_arrays` (``KeyError`` names a missing array)."""
+        landing_time = float(a["landing_time"])
+        landing = None if math.isnan(landing_time) else (
+            landing_time, np.asarray(a["landing_tendons"], dtype=np.int64),
+            np.asarray(a["landing_taut_after"], dtype=bool), bool(a["landing_exact"]))
+        return cls(
+            t=float(a["t"]), y=np.asarray(a["y"], dtype=float),
+            memory=StepperMemory(np.asarray(a["first_stage"], dtype=float), float(a["step"]),
+                                 float(a["step_before"])),
+            steps_done=int(a["steps_done"]), next_sample=int(a["next_sample"]),
+            monitor=np.asarray(a["monitor"], dtype=float), taut=np.asarray(a["taut"], dtype=bool),
+            landing=landing, allow_provisional=bool(a["allow_provisional"]),
+            counts={name: int(a[name]) for name in _COUNTS},
+            switch_times=tuple(float(x) for x in np.asarray(a["switch_times"])),
+            control=np.asarray(a["control"], dtype=float),
+            last_sample_t=float(a["last_sample_t"]), wall_time=float(a["wall_time"]),
+        )
+
+
+_COUNTS = ("nsteps", "nswitches", "nprojections", "nfev")
 
 _FAILURES = {
     compiled.CHECK_NOT_FINITE: "unstable: the state is not finite at t = {t:.6g} s",
@@ -53,32 +178,53 @@ _FAILURES = {
 }
 
 
-class _Run:
-    """The state of one run: the system, the stepper, the monitor and the counters."""
+@dataclasses.dataclass
+class _Landing:
+    """A located switch the stepper is heading for: its time, the tendons that switch there,
+    their flags after it, and whether it was located on an accepted step's dense output (exact)
+    or on a rejected attempt's (approximate: the steps up to it keep looking for switches)."""
 
-    def __init__(self, structure: Structure, t0: float, t_end: float, y0: dynamics.State,
-                 inputs: Inputs, options: Options, sink: Sink) -> None:
+    time: float
+    tendons: np.ndarray
+    taut_after: np.ndarray
+    exact: bool
+
+
+class _Run:
+    """The state of one run: the system, the monitor, the counters, the boundaries."""
+
+    def __init__(self, structure: Structure, t0: float, t_end: float, inputs: Inputs,
+                 options: Options, sink: Sink, controller: Controller | None,
+                 checkpoint: Checkpointing | None) -> None:
         self.structure, self.options, self.sink = structure, options, sink
+        self.controller, self.checkpointing = controller, checkpoint
         self.t0, self.t_end = t0, t_end
-        self.system = system = CompiledSystem(structure, inputs)
-        self.y0 = system.state_vector(y0)
+        self.system = CompiledSystem(structure, inputs)
         self.sample_dt = options.sample_spacing(t0, t_end)
         self.next_sample = 1
         length_scale = max(float(structure.rod_length.max(initial=0.0)), 1.0)
         self.limits = (options.max_rod_length_error, options.max_rod_length_error * length_scale,
                        options.max_energy_growth)
-        # monitor: energy balance at the start, largest energy scale, largest errors
-        inputs0 = system.stage_inputs(np.array([t0]))
-        _, _, _, total, scale = compiled.energy_balance(self.y0, 0, system.system, inputs0,
-                                                        system.work)
-        self.monitor = np.array([total, scale, 0.0, 0.0])
-        compiled.check_state(self.y0, 0, system.system, inputs0, system.work,
-                             (np.inf, np.inf, np.inf), self.monitor)
+        self.monitor = np.zeros(4)
         self.counts = dict(nsteps=0, nswitches=0, nprojections=0)
+        self.nfev_before = 0  # of the runs before a resume
         self.progress: Any = None
         self.switch_times: list[float] = []
         self.status, self.message = STATUS_END, f"reached t_end = {t_end:g} s"
         self.last_sample_t = -np.inf
+        self.control = np.zeros(0)
+        self.wall_before = 0.0
+        self.steps_done = 0  # "rk4"
+        self.saved_at = 0  # index of the sample of the last checkpoint
+
+    def start(self, y: np.ndarray) -> None:
+        """The monitor at the first state (energy balance, largest errors)."""
+        system = self.system
+        inputs0 = system.stage_inputs(np.array([self.t0]))
+        _, _, _, total, scale = compiled.energy_balance(y, 0, system.system, inputs0, system.work)
+        self.monitor[:] = (total, scale, 0.0, 0.0)
+        compiled.check_state(y, 0, system.system, inputs0, system.work,
+                             (np.inf, np.inf, np.inf), self.monitor, True)
 
     # ------------------------------------------------------------------ samples
     def record(self, t: float, y: np.ndarray) -> Sample:
@@ -87,10 +233,14 @@ class _Run:
         self.last_sample_t = t
         return sample
 
+    def sample_time(self, index: int) -> float:
+        """Time of sample ``index`` [s] (the one formula for every sample and boundary)."""
+        return self.t0 + index * self.sample_dt
+
     def sample_times(self, t_new: float) -> list[float]:
         """The sample times not yet recorded up to ``t_new``."""
         times = []
-        while (t := self.t0 + self.next_sample * self.sample_dt) <= t_new * (1 + 1e-14):
+        while (t := self.sample_time(self.next_sample)) <= t_new * (1 + 1e-14):
             times.append(min(t, t_new))
             self.next_sample += 1
         return times
@@ -114,61 +264,105 @@ class _Run:
         system = self.system
         inputs = system.stage_inputs(np.array([t]))
         code, value = compiled.check_state(y, 0, system.system, inputs, system.work, self.limits,
-                                           self.monitor)
+                                           self.monitor, True)
         if code != compiled.CHECK_OK:
             self.fail(code, value, t)
             return None
         return value
 
+    # ------------------------------------------------------------------ boundaries
+    def next_boundary(self, t: float) -> float:
+        """The first controller update or checkpoint time after ``t``, or ``t_end``."""
+        times = [self.t_end]
+        if self.controller is not None:
+            times.append(self.control_time(t))
+        if self.checkpointing is not None:
+            every = self.checkpointing.every
+            index = (math.floor((t - self.t0) / (every * self.sample_dt) + 1e-9) + 1) * every
+            times.append(self.sample_time(index))
+        return min(times)
 
-def _stepper(run: _Run, y: np.ndarray) -> Any:
+    def control_time(self, t: float) -> float:
+        """The first controller update after ``t`` [s]."""
+        period = self.controller.period
+        return self.t0 + (math.floor((t - self.t0) / period + 1e-9) + 1) * period
+
+    def at_control_time(self, t: float) -> bool:
+        period = self.controller.period if self.controller is not None else math.inf
+        k = round((t - self.t0) / period) if math.isfinite(period) else -1
+        return k >= 0 and abs(self.t0 + k * period - t) <= 1e-9 * period
+
+    def update_control(self, t: float, y: np.ndarray) -> None:
+        """Call the controller at ``(t, y)`` and hold its output (the system's inputs change)."""
+        q, qdot = self.system.coordinates(y)
+        u = np.array(self.controller(t, q, qdot), dtype=float)
+        self.system.hold_control(u, t, y)
+        self.control = u
+
+    def checkpoint_due(self) -> bool:
+        """True once per checkpoint: its sample (every ``every``-th) was just recorded."""
+        c, index = self.checkpointing, self.next_sample - 1
+        return (c is not None and index % c.every == 0 and index > self.saved_at
+                and self.last_sample_t == self.sample_time(index))
+
+    def save(self, t: float, y: np.ndarray, stepper: Stepper | RK4, taut: np.ndarray | None,
+             landing: _Landing | None, allow_provisional: bool, wall0: float) -> None:
+        self.saved_at = self.next_sample - 1
+        memory = (stepper.memory() if not isinstance(stepper, RK4)
+                  else StepperMemory(np.zeros(0), 0.0, 0.0))
+        self.checkpointing.save(LoopState(
+            t=t, y=y.copy(), memory=memory, steps_done=self.steps_done,
+            next_sample=self.next_sample, monitor=self.monitor.copy(),
+            taut=np.zeros(0, bool) if taut is None else taut.copy(),
+            landing=None if landing is None else (landing.time, landing.tendons,
+                                                  landing.taut_after, landing.exact),
+            allow_provisional=allow_provisional,
+            counts=dict(self.counts, nfev=self.nfev_before + stepper.nfev),
+            switch_times=tuple(self.switch_times), control=self.control.copy(),
+            last_sample_t=self.last_sample_t,
+            wall_time=self.wall_before + time.perf_counter() - wall0,
+        ))
+
+    def restore(self, state: LoopState) -> None:
+        self.next_sample, self.monitor = state.next_sample, state.monitor.copy()
+        self.counts = {name: state.counts[name] for name in ("nsteps", "nswitches", "nprojections")}
+        self.nfev_before = state.counts["nfev"]
+        self.switch_times = list(state.switch_times)
+        self.last_sample_t, self.wall_before = state.last_sample_t, state.wall_time
+        self.steps_done = state.steps_done
+        self.saved_at = state.next_sample - 1
+        if self.controller is not None and state.control.size:
+            self.system.hold_control(state.control, state.t, state.y.copy())
+            self.control = state.control.copy()
+
+
+def _stepper(run: _Run, t: float, y: np.ndarray, memory: StepperMemory | None) -> Stepper | RK4:
     o = run.options
     if o.method == "rk4":
-        return RK4(run.system, run.t0, y)
+        return RK4(run.system, t, y)
     if o.method == "DOP853":
-        return DOP853(run.system, run.t0, y, rtol=o.rtol, atol=o.atol, t_end=run.t_end)
-    return ScipyMethod(run.system, run.t0, y, method=o.method, rtol=o.rtol, atol=o.atol,
+        return DOP853(run.system, t, y, rtol=o.rtol, atol=o.atol, t_end=run.t_end, memory=memory)
+    return ScipyMethod(run.system, t, y, method=o.method, rtol=o.rtol, atol=o.atol,
                        t_end=run.t_end)
 
 
-def _first_switch(run: _Run, stepper: Any, candidates: np.ndarray,
+def _first_switch(stepper: Stepper, candidates: np.ndarray,
                   was_taut: np.ndarray) -> tuple[float, np.ndarray]:
     """Earliest time in the last step at which one of ``candidates`` (kernel positions) changes
     taut/slack state, by bisection on the dense output, and the tendons that have switched by
     then.  Returns the right end of the final bracket: just past the switch."""
-    system = run.system
-    y_at = stepper.dense()
-    indicator = np.empty(system.structure.n_tendons)
-
-    def switched(t: float) -> np.ndarray:
-        compiled.switch_indicator(y_at(t), system.system, system.rest_row(t), system.work,
-                                  system.scratch_p, system.scratch_v, indicator)
-        return (indicator[candidates] > 0) != was_taut[candidates]
-
     lo, hi = stepper.t_old, stepper.t
     tol = SWITCH_RTOL * max(1.0, abs(hi))
     while hi - lo > tol:
         mid = 0.5 * (lo + hi)
-        if np.any(switched(mid)):
+        if np.any(stepper.switched(mid, candidates, was_taut)):
             hi = mid
         else:
             lo = mid
-    return hi, candidates[switched(hi)]
+    return hi, candidates[stepper.switched(hi, candidates, was_taut)]
 
 
-@dataclasses.dataclass
-class _Landing:
-    """A located switch the stepper is heading for: its time, the tendons that switch there,
-    their flags after it, and whether it was located on an accepted step's dense output (exact)
-    or on a rejected attempt's (approximate: the steps up to it keep looking for switches)."""
-
-    time: float
-    tendons: np.ndarray
-    taut_after: np.ndarray
-    exact: bool
-
-
-def _taut(stepper: Any, landed: _Landing | None) -> np.ndarray:
+def _taut(stepper: Stepper, landed: _Landing | None) -> np.ndarray:
     """Taut flags at the stepper's state; tendons that have just switched keep the side they
     switched to (the state retaken up to a switch may sit a round-off short of it)."""
     taut = stepper.tensions() > 0
@@ -177,25 +371,30 @@ def _taut(stepper: Any, landed: _Landing | None) -> np.ndarray:
     return taut
 
 
-def _adaptive(run: _Run, stepper: Any) -> None:
+def _adaptive(run: _Run, stepper: Stepper, resume: LoopState | None, wall0: float) -> None:
     """The loop of an adaptive method."""
     o, system = run.options, run.system
     locate = o.locate_switches
-    taut = _taut(stepper, None) if locate else None
+    taut: np.ndarray | None = _taut(stepper, None) if locate else None
     landing: _Landing | None = None
     # A rejected attempt may stand for a step only when no switch is being landed on and the
     # last one was not located approximately (the step after it may find the same switch just
     # ahead: it shrinks as usual instead of locating it again, which could repeat forever).
     allow_provisional = locate
+    if resume is not None:
+        taut = resume.taut.copy() if locate else None
+        landing = None if resume.landing is None else _Landing(*resume.landing)
+        allow_provisional = resume.allow_provisional
     while stepper.t < run.t_end:
         detect = locate and (landing is None or not landing.exact)
-        stepper.step(run.t_end if landing is None else landing.time,
+        boundary = run.next_boundary(stepper.t)
+        stepper.step(boundary if landing is None else min(boundary, landing.time),
                      taut if allow_provisional and landing is None else None)
         allow_provisional = locate
         if detect:
             changed = np.flatnonzero((stepper.tensions() > 0) != taut)
             if changed.size:
-                t_switch, tendons = _first_switch(run, stepper, changed, taut)
+                t_switch, tendons = _first_switch(stepper, changed, taut)
                 if not stepper.provisional:
                     run.counts["nswitches"] += 1
                     run.switch_times.append(t_switch)
@@ -223,14 +422,22 @@ def _adaptive(run: _Run, stepper: Any) -> None:
             stepper.resume()
             allow_provisional = landed.exact
             landing = None
+        restart = False
         if drift > o.projection_tol:
             if not system.project(stepper.y):
                 run.fail(compiled.CHECK_PROJECTION, np.nan, stepper.t)
                 return
             run.counts["nprojections"] += 1
+            restart = True
+        if stepper.t < run.t_end and run.at_control_time(stepper.t):
+            run.update_control(stepper.t, stepper.y)
+            landing, restart = None, True
+        if restart:
             stepper.restart(stepper.y)
             if locate:
                 taut = _taut(stepper, landed)
+        if stepper.t < run.t_end and run.checkpoint_due():
+            run.save(stepper.t, stepper.y, stepper, taut, landing, allow_provisional, wall0)
 
 
 def _hermite(t: float, t0: float, y0: np.ndarray, f0: np.ndarray, t1: float, y1: np.ndarray,
@@ -243,27 +450,31 @@ def _hermite(t: float, t0: float, y0: np.ndarray, f0: np.ndarray, t1: float, y1:
             + (s3 - s2) * h * f1)
 
 
-def _fixed_step(run: _Run, stepper: RK4) -> None:
-    """The loop of ``"rk4"``: compiled stretches of steps up to each sample (the last step
-    shorter, to land on ``t_end``); a sample inside a step is interpolated (cubic Hermite), one
-    on a step's end is that end before projection."""
+def _fixed_step(run: _Run, stepper: RK4, resume: LoopState | None, wall0: float) -> None:
+    """The loop of ``"rk4"``: compiled stretches of steps up to each sample or controller update
+    (the last step shorter, to land on ``t_end``); a sample inside a step is interpolated (cubic
+    Hermite), one on a step's end is that end before projection.  A controller is called at the
+    end of the first step at or after each of its update times."""
     t0, dt = run.t0, run.options.dt
     n_full = int(np.floor((run.t_end - t0) / dt + 1e-9))
     last = run.t_end - (t0 + n_full * dt)
     n_steps = n_full + (1 if last > 1e-9 * dt else 0)
-    done = 0
-    while done < n_steps:
-        target = t0 + run.next_sample * run.sample_dt
-        reach = min(int(np.ceil((target - t0) / dt - 1e-9)), n_steps)
+
+    def step_reaching(t: float) -> int:
+        return min(int(np.ceil((t - t0) / dt - 1e-9)), n_steps)
+
+    while run.steps_done < n_steps:
+        done = run.steps_done
+        reach = step_reaching(run.sample_time(run.next_sample))
+        if run.controller is not None:
+            reach = min(reach, max(step_reaching(run.control_time(t0 + done * dt)), done + 1))
         if reach - done > 1 and not _rk4_steps(run, stepper, reach - done - 1, dt):
             return  # (the whole steps before the one that reaches the sample)
-        done = max(done, reach - 1)
-        h = last if done == n_full else dt
+        h = last if run.steps_done == n_full else dt
         t_old, y_old = stepper.t, stepper.y.copy()
         if not _rk4_steps(run, stepper, 1, h):
             return
-        done += 1
-        stepper.t = run.t_end if done == n_steps else t0 + done * dt
+        stepper.t = run.t_end if run.steps_done == n_steps else t0 + run.steps_done * dt
         if run.progress is not None:
             run.progress(stepper.t)
         for t in run.sample_times(stepper.t):
@@ -276,6 +487,12 @@ def _fixed_step(run: _Run, stepper: RK4) -> None:
                 y = _hermite(t, t_old, y_old, stepper.K[0], stepper.t, stepper.y_end, f_new)
             if run.steady(run.record(t, y)):
                 return
+        if run.controller is not None and run.steps_done < n_steps and (
+                step_reaching(run.control_time(t0 + (run.steps_done - 1) * dt))
+                <= run.steps_done):
+            run.update_control(stepper.t, stepper.y)
+        if run.steps_done < n_steps and run.checkpoint_due():
+            run.save(stepper.t, stepper.y, stepper, None, None, False, wall0)
 
 
 def _rk4_steps(run: _Run, stepper: RK4, n: int, h: float) -> bool:
@@ -283,6 +500,7 @@ def _rk4_steps(run: _Run, stepper: RK4, n: int, h: float) -> bool:
     run failed) on a blow-up."""
     steps, code, value = stepper.advance(n, h, run.limits, run.monitor)
     stepper.t += steps * h
+    run.steps_done += steps
     run.counts["nsteps"] += steps
     run.counts["nprojections"] += steps - (code != compiled.CHECK_OK)
     if code != compiled.CHECK_OK:
@@ -300,38 +518,61 @@ def run(
     inputs: Inputs | None = None,
     options: Options = Options(),
     sink: Sink,
-    progress: Any = None,
+    progress: Callable[[float], None] | None = None,
+    controller: Controller | None = None,
+    checkpoint: Checkpointing | None = None,
+    resume: LoopState | None = None,
 ) -> RunSummary:
     """Integrate ``structure`` over ``t_span = (t0, t_end)`` [s], handing samples to ``sink``
     (Theorem 18.1 with eqs. 18.39-18.60; the loop of the module docstring).
 
     ``initial`` defaults to the structure's node positions and velocities at ``t0``;
     ``inputs`` (:class:`Inputs`) to no control, load or gravity.  ``progress``, if given, is
-    called with the time reached after each stretch of steps.  Returns a :class:`RunSummary`;
-    the samples went to ``sink``, the last one at the end time, the steady state or the failing
-    state.
+    called with the time reached after each stretch of steps.  ``controller``
+    (:class:`Controller`) sets the control at ``t0`` and every ``controller.period`` after (the
+    inputs may then have no control of their own).  ``checkpoint`` saves the loop's state every
+    ``checkpoint.every`` samples; ``resume`` continues from such a state (the same structure,
+    inputs, options and controller, and no ``initial``; the samples up to it are not handed to
+    ``sink`` again).  Returns a :class:`RunSummary`; the samples went to ``sink``, the last one
+    at the end time, the steady state or the failing state.
     """
     t0, t_end = (float(x) for x in t_span)
     if not (np.isfinite(t0) and np.isfinite(t_end) and t_end > t0):
         raise ValueError(f"t_span: need finite t0 < t_end, got {t_span!r}")
     inputs = Inputs(structure) if inputs is None else inputs
+    if controller is not None and inputs.control.kind != "none":
+        raise ValueError("control: give a control or a controller, not both")
+    if checkpoint is not None and not (isinstance(checkpoint.every, int) and checkpoint.every > 0):
+        raise ValueError(f"checkpoint.every: must be a whole number > 0, got {checkpoint.every!r}")
     inputs.rest_length(np.array([t0]))  # a control making a rest length negative fails here
-    state = dynamics.initial_state(structure, t=t0) if initial is None else initial
     wall0 = time.perf_counter()
-    r = _Run(structure, t0, t_end, state, inputs, options, sink)
+    r = _Run(structure, t0, t_end, inputs, options, sink, controller, checkpoint)
     r.progress = progress
-    stepper = _stepper(r, r.y0.copy())
-    r.record(t0, r.y0)
+    if resume is None:
+        state = dynamics.initial_state(structure, t=t0) if initial is None else initial
+        y0 = r.system.state_vector(state)
+        if controller is not None:
+            r.update_control(t0, y0)
+        r.start(y0)
+        stepper = _stepper(r, t0, y0.copy(), None)
+        r.record(t0, y0)
+    else:
+        r.restore(resume)
+        stepper = _stepper(r, resume.t, resume.y.copy(), resume.memory)
     try:
-        (_fixed_step if options.fixed_step else _adaptive)(r, stepper)
+        if options.fixed_step:
+            _fixed_step(r, stepper, resume, wall0)
+        else:
+            _adaptive(r, stepper, resume, wall0)
     except (IntegrationError, ValueError, FloatingPointError) as exc:
         r.status, r.message = STATUS_FAILED, str(exc)
     if r.status != STATUS_STEADY and r.last_sample_t < stepper.t * (1 - 1e-14):
         r.record(stepper.t, stepper.y)  # the end, or the last state before a failure
     return RunSummary(
-        status=r.status, message=r.message, t_final=r.last_sample_t, nfev=stepper.nfev,
+        status=r.status, message=r.message, t_final=r.last_sample_t,
+        nfev=r.nfev_before + stepper.nfev,
         max_rod_length_error=float(r.monitor[2]), max_constraint_error=float(r.monitor[3]),
-        wall_time=time.perf_counter() - wall0,
+        wall_time=r.wall_before + time.perf_counter() - wall0,
         settings=options.settings(t0, t_end, **inputs.settings()),
         switch_times=tuple(r.switch_times), **r.counts,
     )

@@ -11,7 +11,9 @@ dissipated by damping, the work of the external forces ``w`` and the work of the
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -27,7 +29,11 @@ from tensegrity.engine.result import (
 )
 from tensegrity.model.structure import Structure
 
-__all__ = ["STATUS_END", "STATUS_FAILED", "STATUS_STEADY", "SimulationResult", "simulate"]
+if TYPE_CHECKING:
+    from tensegrity.engine.loop import Controller
+
+__all__ = ["STATUS_END", "STATUS_FAILED", "STATUS_STEADY", "SimulationResult", "options_and_inputs",
+           "simulate"]
 
 TimeFunction = Callable[[float], np.ndarray]
 
@@ -40,6 +46,7 @@ def simulate(
     control: np.ndarray | TimeFunction | None = None,
     external_force: np.ndarray | TimeFunction | None = None,
     gravity: np.ndarray | None = None,
+    controller: Controller | None = None,
     method: str = "DOP853",
     rtol: float = 1e-9,
     atol: float = 1e-12,
@@ -66,6 +73,10 @@ def simulate(
         External nodal forces [N].
     gravity : (3,) array, optional (``(2,)`` if planar)
         Uniform gravity [m/s^2], e.g. ``(0, 0, -9.81)``.
+    controller : Controller, optional
+        State feedback ``u = controller(t, q, qdot)`` held for ``controller.period`` [s] from
+        ``t0`` on (zero-order hold; :class:`tensegrity.engine.loop.Feedback` makes one of a
+        function); instead of ``control``.  Steps end at its update times.
     method : str
         An adaptive ``scipy.integrate`` method (``"DOP853"``, ``"RK45"``, ``"Radau"``, ...) with
         ``rtol``, ``atol``; or ``"rk4"``, fixed step ``dt`` [s].
@@ -93,27 +104,40 @@ def simulate(
     SimulationResult
         With ``status`` and ``message``.  A failed run keeps its samples up to the failure.
     """
-    options = Options(
+    options, inputs = options_and_inputs(
+        structure, control=control, external_force=external_force, gravity=gravity,
         method=method, rtol=rtol, atol=atol, dt=dt, sample_dt=sample_dt,
         locate_switches=locate_switches, steady_state=steady_state, velocity_tol=velocity_tol,
         acceleration_tol=acceleration_tol, projection_tol=projection_tol,
         max_rod_length_error=max_rod_length_error, max_energy_growth=max_energy_growth,
     )
-    inputs = Inputs(structure, control=control, external_force=external_force, gravity=gravity)
-    from tensegrity.engine.loop import run# compiled code: numba loads on first use
+    from tensegrity.engine.loop import run  # compiled code: numba loads on first use
 
     sink = MemorySink()
-    bar = _ProgressBar(*t_span) if progress else None
+    bar = ProgressBar(*t_span) if progress else None
     try:
         summary = run(structure, t_span, initial=initial, inputs=inputs, options=options,
-                      sink=sink, progress=bar)
+                      sink=sink, progress=bar, controller=controller)
     finally:
         if bar is not None:
             bar.close()
     return sink.result(structure, summary)
 
 
-class _ProgressBar:
+def options_and_inputs(
+    structure: Structure, *, control: Any = None, external_force: Any = None,
+    gravity: Any = None, **options: Any,
+) -> tuple[Options, Inputs]:
+    """:func:`simulate`'s keyword options as the engine takes them: the :class:`Options` of the
+    run and its :class:`Inputs` (``TypeError`` names an unknown option)."""
+    unknown = sorted(set(options) - {f.name for f in dataclasses.fields(Options)})
+    if unknown:
+        raise TypeError(f"unknown option {unknown[0]!r}")
+    return Options(**options), Inputs(structure, control=control,
+                                      external_force=external_force, gravity=gravity)
+
+
+class ProgressBar:
     """A ``tqdm`` bar over simulated time, called with the time reached."""
 
     def __init__(self, t0: float, t_end: float) -> None:

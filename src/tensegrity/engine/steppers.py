@@ -2,7 +2,9 @@
 ``step(bound)`` takes one accepted step not past ``bound``, ``dense()`` interpolates inside it,
 ``retreat(to)`` discards it to head for a located switch at ``to``, ``resume()`` goes on at the
 step size of before once there, ``restart(y)`` continues from a changed state (after a
-projection).
+projection or a controller's update), ``switched(t, ...)`` tells which tendons have changed
+taut/slack state at a time inside the last step, and ``memory()`` is what a checkpoint must keep
+to continue exactly (:class:`StepperMemory`).
 
 - :class:`DOP853` — the default: ``scipy.integrate.DOP853``'s method, coefficients, error norm
   and step-size law, its stages evaluated in compiled code (:mod:`tensegrity.engine.compiled`).
@@ -17,7 +19,7 @@ projection).
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Protocol
+from typing import NamedTuple, Protocol
 
 import numpy as np
 from scipy import integrate
@@ -28,6 +30,15 @@ from tensegrity.engine.system import CompiledSystem
 
 class IntegrationError(RuntimeError):
     """The integrator could not take a step (e.g. the step size fell below its minimum)."""
+
+
+class StepperMemory(NamedTuple):
+    """What an adaptive stepper carries from one step to the next besides ``(t, y)``: the first
+    stage ``f(t, y)`` (m,) and the step sizes [s] (empty and zeros where a stepper keeps none)."""
+
+    first_stage: np.ndarray
+    step: float
+    step_before: float
 
 
 class Stepper(Protocol):
@@ -62,6 +73,13 @@ class Stepper(Protocol):
     def tensions(self) -> np.ndarray:
         """Tensions (S,) [N] at the current state, kernel order (a view of the work buffer)."""
 
+    def switched(self, t: float, candidates: np.ndarray, was_taut: np.ndarray) -> np.ndarray:
+        """Which ``candidates`` (kernel positions) are no longer ``was_taut`` at ``t`` inside the
+        last step (bool mask, one per candidate)."""
+
+    def memory(self) -> StepperMemory:
+        """What a checkpoint keeps to continue from the current state exactly."""
+
 
 def _rms(x: np.ndarray) -> float:
     return float(np.linalg.norm(x) / np.sqrt(x.size))
@@ -73,20 +91,27 @@ class DOP853:
     SAFETY, MIN_FACTOR, MAX_FACTOR, EXPONENT = 0.9, 0.2, 10.0, -1.0 / 8.0
 
     def __init__(self, system: CompiledSystem, t0: float, y0: np.ndarray, *, rtol: float,
-                 atol: float, t_end: float) -> None:
+                 atol: float, t_end: float, memory: StepperMemory | None = None) -> None:
+        """Start at ``(t0, y0)`` with Hairer's initial step, or continue with ``memory`` (of a
+        checkpoint) exactly as the stepper that made it would have."""
         self.system, self.rtol, self.atol = system, rtol, atol
         m = system.m
         self.K = np.zeros((compiled.DOP853_C.size, m))
         self._stage, self._F = np.empty(m), np.empty((compiled.DOP853_DENSE_ROWS, m))
+        self._scratch = (np.empty(m), np.empty(system.structure.n_tendons))
         self.t = self.t_old = float(t0)
         self.y = np.array(y0, dtype=float)
         self.y_old = self.y.copy()
         self.nfev = 0
         self.provisional = False
         self._dense_ready = False
-        self._h_before = 0.0
-        self._evaluate_first_stage()
-        self.h = self._initial_step(t_end)
+        if memory is None:
+            self._h_before = 0.0
+            self._evaluate_first_stage()
+            self.h = self._initial_step(t_end)
+        else:
+            self.K[0] = memory.first_stage
+            self.h, self._h_before = memory.step, memory.step_before
 
     def _inputs(self, t: float, h: float) -> tuple:
         return self.system.stage_inputs(t + compiled.DOP853_C * h)
@@ -192,6 +217,18 @@ class DOP853:
     def tensions(self) -> np.ndarray:
         return self.system.work[2]
 
+    def switched(self, t: float, candidates: np.ndarray, was_taut: np.ndarray) -> np.ndarray:
+        self.dense()
+        system, (y, indicator) = self.system, self._scratch
+        mask = np.empty(candidates.size, dtype=np.bool_)
+        compiled.switch_mask(self._F, self.y_old, (t - self.t_old) / (self.t - self.t_old), y,
+                             system.system, system.rest_row(t), system.work, system.scratch_p,
+                             system.scratch_v, indicator, candidates, was_taut, mask)
+        return mask
+
+    def memory(self) -> StepperMemory:
+        return StepperMemory(self.K[0].copy(), self.h, self._h_before)
+
 
 class ScipyMethod:
     """A ``scipy.integrate`` ``OdeSolver`` (``RK45``, ``Radau``, ``BDF``, ...) on the compiled
@@ -254,6 +291,19 @@ class ScipyMethod:
 
     def restart(self, y: np.ndarray) -> None:
         self._start(self.t, y, self._bound)
+
+    def switched(self, t: float, candidates: np.ndarray, was_taut: np.ndarray) -> np.ndarray:
+        system = self.system
+        indicator = np.empty(system.structure.n_tendons)
+        compiled.switch_indicator(np.ascontiguousarray(self.dense()(t)), system.system,
+                                  system.rest_row(t), system.work, system.scratch_p,
+                                  system.scratch_v, indicator)
+        return (indicator[candidates] > 0) != was_taut[candidates]
+
+    def memory(self) -> StepperMemory:
+        """Nothing: a ``scipy`` solver restarts at every boundary of a run (checkpoints,
+        controller updates) in any case, so ``(t, y)`` is all it needs."""
+        return StepperMemory(np.zeros(0), 0.0, 0.0)
 
     def tensions(self) -> np.ndarray:
         if not self._tensions_here:  # the solver's last evaluation need not be at its state

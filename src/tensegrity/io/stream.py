@@ -79,18 +79,18 @@ import inspect
 import json
 import math
 import os
-import time
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from tensegrity.physics import dynamics
 from tensegrity.io import trajectory as tio
 from tensegrity.io.files import PathLike, atomic_path, file_error, fsync_directory, new_file_mode
 from tensegrity.physics.dynamics import State
-from tensegrity.engine.simulate import STATUS_END, simulate
+from tensegrity.engine.loop import Checkpointing, LoopState, run
+from tensegrity.engine.result import RunSummary, Sample
+from tensegrity.engine.simulate import STATUS_END, options_and_inputs, simulate
 from tensegrity.model.structure import Structure
 
 
@@ -116,7 +116,6 @@ _SIMULATE_PARAMETERS = {
 #: ``simulate`` options handled here rather than passed through.
 _OWN_OPTIONS = ("sample_dt", "progress")
 _COUNTERS = ("nfev", "nsteps", "nswitches", "nprojections")
-_WORK_COLUMNS = ("dissipated", "external_work", "control_work")
 
 
 # ----------------------------------------------------------------------------- results
@@ -150,8 +149,9 @@ class Checkpoint:
     """The resumable state stored in an (unfinished or finished) streamed file.
 
     Stored in the file as the current slot (``checkpoint/a`` or ``checkpoint/b``, named by the
-    attribute ``current`` of the group ``checkpoint``): datasets ``q``, ``qdot`` (6R,) and the
-    other fields as attributes.
+    attribute ``current`` of the group ``checkpoint``): datasets ``q``, ``qdot`` (6R,), a group
+    ``loop`` with the arrays of :meth:`LoopState.to_arrays`, and the other fields as
+    attributes.
 
     Attributes
     ----------
@@ -162,11 +162,13 @@ class Checkpoint:
         Rows of every dataset that belong to the run; rows past them (an interrupted write) are
         dropped on resume.
     state : State
-        State at the end of the last stored segment (``t`` [s], ``q`` [m], ``qdot`` [m/s]).
-    energy_offset : dict of str to float
-        ``dissipated``, ``external_work``, ``control_work`` [J] at ``state.t``.
+        The last stored sample (``t`` [s], ``q`` [m], ``qdot`` [m/s]): the end of the last
+        stored segment.
+    loop : LoopState or None
+        The engine's state there, from which the run continues exactly
+        (:class:`tensegrity.engine.loop.LoopState`); None before the first segment.
     counts : dict of str to int
-        ``nfev``, ``nsteps``, ``nswitches``, ``nprojections`` summed over the stored segments.
+        ``nfev``, ``nsteps``, ``nswitches``, ``nprojections`` up to there.
     max_rod_length_error : float
     wall_time : float
         Wall time of the stored segments, all sessions [s].
@@ -185,7 +187,7 @@ class Checkpoint:
     n_segments: int
     n_samples: int
     state: State
-    energy_offset: dict[str, float]
+    loop: LoopState | None
     counts: dict[str, int]
     max_rod_length_error: float
     wall_time: float
@@ -377,7 +379,7 @@ def _row_shapes(structure: Structure) -> dict[str, tuple[int, ...]]:
 
 def _create_partial(
     partial: Path, structure: Structure, settings: dict[str, Any], settings_hash: str,
-    samples_per_segment: int, n_segments: int, state: State,
+    samples_per_segment: int, n_segments: int,
 ) -> None:
     """Create the partial file (atomically: it appears only once it holds its empty layout)."""
     import h5py
@@ -409,13 +411,13 @@ def _create_partial(
             group = f.create_group("checkpoint")
             group.attrs["version"] = STREAM_VERSION
             for slot in _SLOTS:
-                sub = group.create_group(slot)
-                sub.create_dataset("q", data=np.asarray(state.q, dtype=float))
-                sub.create_dataset("qdot", data=np.asarray(state.qdot, dtype=float))
+                group.create_group(slot)
+            n = structure.n_coordinates
             _write_checkpoint(group["a"], Checkpoint(
-                next_segment=0, n_segments=n_segments, n_samples=0, state=state,
-                energy_offset=dict.fromkeys(_WORK_COLUMNS, 0.0), counts=dict.fromkeys(_COUNTERS, 0),
-                max_rod_length_error=0.0, wall_time=0.0, settings_hash=settings_hash,
+                next_segment=0, n_segments=n_segments, n_samples=0,
+                state=State(t=math.nan, q=np.zeros(n), qdot=np.zeros(n)), loop=None,
+                counts=dict.fromkeys(_COUNTERS, 0), max_rod_length_error=0.0, wall_time=0.0,
+                settings_hash=settings_hash,
             ))
             group.attrs["current"] = np.int64(0)
 
@@ -435,16 +437,20 @@ def _store_checkpoint(f, checkpoint: Checkpoint) -> None:
 
 
 def _write_checkpoint(slot, checkpoint: Checkpoint) -> None:
-    """Fill one checkpoint slot (a group with datasets ``q``, ``qdot``)."""
-    slot["q"][...] = checkpoint.state.q
-    slot["qdot"][...] = checkpoint.state.qdot
+    """Fill one checkpoint slot (a group, emptied first)."""
+    for name in list(slot):
+        del slot[name]
+    slot.create_dataset("q", data=np.asarray(checkpoint.state.q, dtype=float))
+    slot.create_dataset("qdot", data=np.asarray(checkpoint.state.qdot, dtype=float))
+    if checkpoint.loop is not None:
+        loop = slot.create_group("loop")
+        for name, value in checkpoint.loop.to_arrays().items():
+            loop.create_dataset(name, data=value)
     a = slot.attrs
     a["next_segment"] = checkpoint.next_segment
     a["n_segments"] = checkpoint.n_segments
     a["n_samples"] = checkpoint.n_samples
     a["t"] = float(checkpoint.state.t)
-    for name, value in checkpoint.energy_offset.items():
-        a[f"offset_{name}"] = float(value)
     for name, value in checkpoint.counts.items():
         a[name] = int(value)
     a["max_rod_length_error"] = float(checkpoint.max_rod_length_error)
@@ -473,7 +479,8 @@ def _read_checkpoint_open(f, path: PathLike) -> Checkpoint:
             n_samples=int(a["n_samples"]),
             state=State(t=float(a["t"]), q=np.asarray(slot["q"][()]),
                         qdot=np.asarray(slot["qdot"][()])),
-            energy_offset={name: float(a[f"offset_{name}"]) for name in _WORK_COLUMNS},
+            loop=(LoopState.from_arrays({name: slot["loop"][name][()] for name in slot["loop"]})
+                  if "loop" in slot else None),
             counts={name: int(a[name]) for name in _COUNTERS},
             max_rod_length_error=float(a["max_rod_length_error"]),
             wall_time=float(a["wall_time"]),
@@ -485,7 +492,7 @@ def _read_checkpoint_open(f, path: PathLike) -> Checkpoint:
             max_constraint_error=float(a.get("max_constraint_error", np.nan)),
         )
     except KeyError as exc:
-        raise file_error(path, f"checkpoint: missing attribute {exc}") from exc
+        raise file_error(path, f"checkpoint: missing attribute or dataset {exc}") from exc
 
 
 def _open_h5(path: Path, mode: str):
@@ -589,6 +596,92 @@ def _finished_summary(path: Path, settings_hash: str, samples_per_segment: int) 
         return _summary(path, f, checkpoint, samples_per_segment, 0, None)
 
 
+# ----------------------------------------------------------------------------- the sink
+class FileSink:
+    """The engine's sink for a streamed run: samples are kept in memory for one segment, then
+    appended to the partial file together with the checkpoint the engine hands over
+    (:meth:`save`, a :class:`tensegrity.engine.loop.Checkpointing` callback); :meth:`finish`
+    stores the rest and gives the file its final name."""
+
+    def __init__(self, partial: Path, checkpoint: Checkpoint, *, samples_per_segment: int,
+                 progress: Callable[[StreamProgress], None] | None) -> None:
+        self.partial, self.checkpoint = partial, checkpoint
+        self.K, self.progress = samples_per_segment, progress
+        self.rows: list[Sample] = []
+        self.segments_run = 0
+
+    def add(self, sample: Sample) -> None:
+        self.rows.append(sample)
+
+    def save(self, loop: LoopState) -> None:
+        """Store the segment's samples and ``loop`` as the new checkpoint (then fsync)."""
+        summary = dict(status=STATUS_END, message="running", ended=False, wall_time=loop.wall_time,
+                       max_rod_length_error=float(loop.monitor[2]),
+                       max_constraint_error=float(loop.monitor[3]), counts=loop.counts)
+        self._store(loop, summary)
+        if self.progress is not None:
+            c = self.checkpoint
+            self.progress(StreamProgress(segment=c.next_segment, n_segments=c.n_segments,
+                                         t=c.state.t, n_samples=c.n_samples,
+                                         wall_time=c.wall_time))
+
+    def finish(self, run: RunSummary) -> None:
+        """Store the last samples and the run's end as the (ended) checkpoint."""
+        self._store(self.checkpoint.loop, dict(
+            status=run.status, message=run.message, ended=True, wall_time=run.wall_time,
+            max_rod_length_error=run.max_rod_length_error,
+            max_constraint_error=run.max_constraint_error,
+            counts={name: getattr(run, name) for name in _COUNTERS}),
+            settings=dict(run.settings, stream=dict(
+                segment=self.K * run.settings["sample_dt"], samples_per_segment=self.K,
+                n_segments=self.checkpoint.n_segments)))
+
+    def _store(self, loop: LoopState | None, end: dict[str, Any],
+               settings: dict[str, Any] | None = None) -> None:
+        rows, c = self.rows, self.checkpoint
+        n_samples = c.n_samples + len(rows)
+        state = c.state if not rows else State(t=rows[-1].t, q=rows[-1].q, qdot=rows[-1].qdot)
+        checkpoint = Checkpoint(
+            next_segment=(n_samples - 1) // self.K if not end["ended"] else
+            max(c.next_segment + 1, math.ceil((n_samples - 1) / self.K)),
+            n_segments=c.n_segments, n_samples=n_samples, state=state, loop=loop,
+            counts=dict(end["counts"]), max_rod_length_error=end["max_rod_length_error"],
+            wall_time=end["wall_time"], settings_hash=c.settings_hash, ended=end["ended"],
+            status=end["status"],
+            message=end["message"] if end["ended"] else
+            f"running: {(n_samples - 1) // self.K} of {c.n_segments} segments",
+            max_constraint_error=end["max_constraint_error"],
+        )
+        with _open_h5(self.partial, "a") as f:
+            _append(f, _columns(rows), c.n_samples)
+            _store_checkpoint(f, checkpoint)
+            f.attrs["message"] = checkpoint.message
+            f.attrs["status"] = int(checkpoint.status)
+            for name in _COUNTERS:
+                f.attrs[name] = checkpoint.counts[name]
+            f.attrs["max_rod_length_error"] = checkpoint.max_rod_length_error
+            f.attrs["max_constraint_error"] = checkpoint.max_constraint_error
+            f.attrs["wall_time"] = checkpoint.wall_time
+            if settings is not None:
+                f.attrs["settings"] = json.dumps(settings, default=tio.json_default)
+            f.flush()
+        _fsync(self.partial)
+        self.rows, self.checkpoint = [], checkpoint
+        self.segments_run += 1
+
+
+def _columns(rows: list[Sample]) -> dict[str, np.ndarray]:
+    """The samples as the file's datasets (rows of :data:`tensegrity.io.trajectory` layout)."""
+    def stack(field: str) -> np.ndarray:
+        return np.array([getattr(row, field) for row in rows])
+
+    return {"time": stack("t"), "nodes": stack("node_position"),
+            "velocities": stack("node_velocity"), "tendon_length": stack("tendon_length"),
+            "tendon_tension": stack("tendon_tension"), "energy": stack("energy"),
+            "q": stack("q"), "qdot": stack("qdot"),
+            "residual_acceleration": stack("residual_acceleration")}
+
+
 # ----------------------------------------------------------------------------- the run
 def simulate_to_file(
     structure: Structure,
@@ -602,7 +695,8 @@ def simulate_to_file(
 ) -> StreamSummary:
     """Simulate ``structure`` over ``t_span = (t0, t_end)`` [s], streaming samples to ``path``.
 
-    See the module docstring for the segment grid, the file and resuming.
+    One run of the engine (:func:`tensegrity.engine.loop.run`) with this module's sink: see the
+    module docstring for the segments, the file and resuming.
 
     Parameters
     ----------
@@ -613,10 +707,10 @@ def simulate_to_file(
         The finished trajectory file (conventionally ``*.h5``); its directory must exist.  Until
         the run ends the data are in ``path + ".partial"``.
     segment : float, optional
-        Segment duration [s], rounded to a whole number ``K >= 1`` of sample intervals.  Default:
-        at most 1000 samples, and few enough that one segment's samples take about 64 MiB (one
-        sample of a (100, 100) shell takes about 5 MB).  Memory use is about twice one segment's
-        samples, independent of the length of the run.
+        Time between checkpoints [s], rounded to a whole number ``K >= 1`` of sample intervals.
+        Default: at most 1000 samples, and few enough that one segment's samples take about 64
+        MiB (one sample of a (100, 100) shell takes about 5 MB).  Memory use is about twice one
+        segment's samples, independent of the length of the run.
     resume : bool
         Continue ``path + ".partial"`` from its checkpoint if it exists (default), after checking
         that it was started with the same structure and settings; return at once if ``path`` is
@@ -626,20 +720,19 @@ def simulate_to_file(
         :class:`StreamProgress` after each stored segment (once its checkpoint is on disk); an
         exception it raises (``KeyboardInterrupt`` included) stops the run, which can be resumed.
     **simulate_options
-        Passed to :func:`tensegrity.engine.simulate.simulate` for every segment: ``sample_dt`` [s]
-        (default ``(t_end - t0) / 1000``), ``initial`` (used by the first segment), ``control``,
-        ``external_force``, ``gravity``, ``method``, ``rtol``, ``atol``, ``dt``,
-        ``locate_switches``, ``steady_state``, ``velocity_tol``, ``acceleration_tol``,
-        ``projection_tol``, ``max_rod_length_error``, ``max_energy_growth``.  Controls and forces
-        given as functions receive the absolute time.  (``progress`` is this function's: it
-        reports segments, not the integration within one.)
+        The options of :func:`tensegrity.engine.simulate.simulate`: ``sample_dt`` [s] (default
+        ``(t_end - t0) / 1000``), ``initial``, ``control``, ``external_force``, ``gravity``,
+        ``method``, ``rtol``, ``atol``, ``dt``, ``locate_switches``, ``steady_state``,
+        ``velocity_tol``, ``acceleration_tol``, ``projection_tol``, ``max_rod_length_error``,
+        ``max_energy_growth``.  Controls and forces given as functions receive the absolute
+        time.  (``progress`` is this function's: it reports segments.)
 
     Returns
     -------
     StreamSummary
         ``status`` ``1`` (steady state: the run stops at the first steady sample), ``0`` (end time
-        reached) or ``-1`` (a segment went unstable: its samples up to the failure are stored,
-        ``message`` says why, and the run ends; the file is finished all the same).
+        reached) or ``-1`` (the run went unstable: its samples up to the failure are stored,
+        ``message`` says why; the file is finished all the same).
 
     Raises
     ------
@@ -663,10 +756,10 @@ def simulate_to_file(
         raise ValueError(f"sample_dt: must be > 0, got {sample_dt!r}")
     initial = options.pop("initial", None)
     K = samples_per_segment(structure, segment, sample_dt)
-    bounds = segment_grid((t0, t1), sample_dt, K)
-    n_segments = len(bounds) - 1
+    n_segments = len(segment_grid((t0, t1), sample_dt, K)) - 1
     settings = _stream_settings(structure, t0, t1, sample_dt, K, {**options, "initial": initial})
     settings_hash = _digest(_settings_json(settings).encode())
+    run_options, inputs = options_and_inputs(structure, sample_dt=sample_dt, **options)
 
     final = Path(path)
     partial = Path(str(final) + PARTIAL_SUFFIX)
@@ -678,31 +771,14 @@ def simulate_to_file(
             return done
     if not resume and partial.exists():
         partial.unlink()
-
-    resumed_from: int | None = None
     if partial.exists():
-        with _open_h5(partial, "a") as f:
-            fmt = tio.text_attribute(f.attrs.get("format"))
-            if fmt != PARTIAL_FORMAT:
-                raise file_error(partial, f"not a partial streamed trajectory (format {fmt!r})")
-            checkpoint = _read_checkpoint_open(f, partial)
-            if checkpoint.settings_hash != settings_hash:
-                try:
-                    stored = json.loads(tio.text_attribute(f.attrs["stream_settings"]))
-                except (KeyError, TypeError, json.JSONDecodeError):
-                    stored = {}
-                diff = _differences(stored, settings) or ["settings hash"]
-                raise file_error(
-                    partial, "cannot resume: the checkpoint was made with other settings ("
-                             + "; ".join(diff) + "); pass resume=False to start again")
-            _truncate(f, checkpoint.n_samples, partial)
-        resumed_from = checkpoint.next_segment
+        checkpoint = _resumable_checkpoint(partial, settings, settings_hash)
+        resumed_from: int | None = checkpoint.next_segment
     else:
-        start = dynamics.initial_state(structure, t=t0) if initial is None else State(
-            t=t0, q=np.asarray(initial.q, dtype=float), qdot=np.asarray(initial.qdot, dtype=float))
-        _create_partial(partial, structure, settings, settings_hash, K, n_segments, start)
+        _create_partial(partial, structure, settings, settings_hash, K, n_segments)
         with _open_h5(partial, "r") as f:
             checkpoint = _read_checkpoint_open(f, partial)
+        resumed_from = None
 
     bar = None
     if progress is True:
@@ -711,92 +787,60 @@ def simulate_to_file(
         bar = tqdm(total=n_segments, initial=checkpoint.next_segment, unit="segment",
                    desc="simulating", leave=False)
     callback = progress if callable(progress) else None
-    status, message = STATUS_END, f"reached t_end = {t1:g} s"
-    if checkpoint.ended:  # interrupted between the last segment and the rename
-        status, message = checkpoint.status, checkpoint.message
-    segments_run = 0
+
+    def report(info: StreamProgress) -> None:
+        if bar is not None:
+            bar.update(info.segment - bar.n)
+        if callback is not None:
+            callback(info)
+
+    sink = FileSink(partial, checkpoint, samples_per_segment=K, progress=report)
     try:
-        for k in range(checkpoint.next_segment, n_segments if not checkpoint.ended else 0):
-            wall0 = time.perf_counter()
-            start_state = (initial if k == 0 else
-                           State(t=float(bounds[k]), q=checkpoint.state.q, qdot=checkpoint.state.qdot))
-            result = simulate(structure, (float(bounds[k]), float(bounds[k + 1])),
-                              initial=start_state, sample_dt=sample_dt, progress=False, **options)
-            keep = slice(0 if k == 0 else 1, None)
-            offset = checkpoint.energy_offset
-            energy = np.column_stack([
-                result.energy[name][keep] + offset.get(name, 0.0) for name in tio.ENERGY_COLUMNS
-            ])
-            arrays = {
-                "time": result.t[keep], "nodes": result.node_position[keep],
-                "velocities": result.node_velocity[keep], "tendon_length": result.tendon_length[keep],
-                "tendon_tension": result.tendon_tension[keep], "energy": energy,
-                "q": result.q[keep], "qdot": result.qdot[keep],
-                "residual_acceleration": result.residual_acceleration[keep],
-            }
-            if energy.shape[0]:
-                offset = {name: float(energy[-1, tio.ENERGY_COLUMNS.index(name)])
-                          for name in _WORK_COLUMNS}
-            last = result.final_state
-            run_settings = dict(result.settings, t_span=[t0, t1], stream=dict(
-                segment=K * sample_dt, samples_per_segment=K, n_segments=n_segments))
-            ended = result.status != STATUS_END or k == n_segments - 1
-            if result.status != STATUS_END:
-                status, message = result.status, result.message
-            counts = {name: checkpoint.counts[name] + int(getattr(result, name))
-                      for name in _COUNTERS}
-            max_error = max(checkpoint.max_rod_length_error, float(result.max_rod_length_error))
-            constraint_error = max(checkpoint.max_constraint_error,
-                                   float(result.max_constraint_error))
-            del result
-            with _open_h5(partial, "a") as f:
-                n_samples = _append(f, arrays, checkpoint.n_samples)
-                checkpoint = Checkpoint(
-                    next_segment=k + 1, n_segments=n_segments, n_samples=n_samples,
-                    state=State(t=float(bounds[k + 1]) if not ended else float(last.t),
-                                q=np.asarray(last.q, dtype=float),
-                                qdot=np.asarray(last.qdot, dtype=float)),
-                    energy_offset=offset, counts=counts, max_rod_length_error=max_error,
-                    wall_time=checkpoint.wall_time + (time.perf_counter() - wall0),
-                    settings_hash=settings_hash, ended=ended, status=status,
-                    message=message if ended else f"running: {k + 1} of {n_segments} segments",
-                    max_constraint_error=constraint_error,
-                )
-                _store_checkpoint(f, checkpoint)
-                f.attrs["settings"] = json.dumps(run_settings, default=tio.json_default)
-                f.attrs["message"] = checkpoint.message
-                f.attrs["status"] = int(status)
-                for name in _COUNTERS:
-                    f.attrs[name] = counts[name]
-                f.attrs["max_rod_length_error"] = max_error
-                f.attrs["max_constraint_error"] = constraint_error
-                f.attrs["wall_time"] = checkpoint.wall_time
-                f.flush()
-            _fsync(partial)
-            del arrays
-            segments_run += 1
-            if bar is not None:
-                bar.update(1)
-            if callback is not None:
-                callback(StreamProgress(
-                    segment=k + 1, n_segments=n_segments, t=checkpoint.state.t,
-                    n_samples=checkpoint.n_samples, wall_time=checkpoint.wall_time,
-                ))
-            if ended:
-                break
+        if not checkpoint.ended:  # (ended: interrupted between the end and the rename)
+            summary = run(structure, (t0, t1), initial=initial, inputs=inputs,
+                          options=run_options, sink=sink,
+                          checkpoint=Checkpointing(every=K, save=sink.save),
+                          resume=checkpoint.loop)
+            sink.finish(summary)
     finally:
         if bar is not None:
             bar.close()
+    return _rename_finished(final, partial, sink.segments_run, resumed_from)
 
-    # Finish: the attributes of a complete trajectory, then the atomic rename onto ``path``.
+
+def _resumable_checkpoint(partial: Path, settings: dict[str, Any], settings_hash: str) -> Checkpoint:
+    """The checkpoint of ``partial`` if it was made with these settings (rows past it dropped);
+    ``ValueError`` naming the differing settings otherwise."""
     with _open_h5(partial, "a") as f:
-        if not checkpoint.ended:  # pragma: no cover - the loop ends only on an ended segment
-            raise RuntimeError("stream: finishing a run that has not ended")
-        f.attrs["status"] = int(status)
-        f.attrs["message"] = message
+        fmt = tio.text_attribute(f.attrs.get("format"))
+        if fmt != PARTIAL_FORMAT:
+            raise file_error(partial, f"not a partial streamed trajectory (format {fmt!r})")
+        checkpoint = _read_checkpoint_open(f, partial)
+        if checkpoint.settings_hash != settings_hash:
+            try:
+                stored = json.loads(tio.text_attribute(f.attrs["stream_settings"]))
+            except (KeyError, TypeError, json.JSONDecodeError):
+                stored = {}
+            diff = _differences(stored, settings) or ["settings hash"]
+            raise file_error(
+                partial, "cannot resume: the checkpoint was made with other settings ("
+                         + "; ".join(diff) + "); pass resume=False to start again")
+        _truncate(f, checkpoint.n_samples, partial)
+    return checkpoint
+
+
+def _rename_finished(final: Path, partial: Path, segments_run: int,
+                     resumed_from: int | None) -> StreamSummary:
+    """Give the ended partial file the attributes of a complete trajectory, then its final name
+    (an atomic rename)."""
+    with _open_h5(partial, "a") as f:
+        checkpoint = _read_checkpoint_open(f, partial)
+        f.attrs["status"] = int(checkpoint.status)
+        f.attrs["message"] = checkpoint.message
         f.attrs["complete"] = True
         f.attrs["format"] = tio.TRAJECTORY_FORMAT
         f.flush()
+        K = json.loads(tio.text_attribute(f.attrs["stream_settings"]))["samples_per_segment"]
         summary = _summary(final, f, checkpoint, K, segments_run, resumed_from)
     _fsync(partial)
     os.chmod(partial, new_file_mode(final))
@@ -806,6 +850,6 @@ def simulate_to_file(
 
 
 __all__ = [
-    "Checkpoint", "PARTIAL_FORMAT", "PARTIAL_SUFFIX", "StreamProgress", "StreamSummary",
+    "Checkpoint", "FileSink", "PARTIAL_FORMAT", "PARTIAL_SUFFIX", "StreamProgress", "StreamSummary",
     "read_checkpoint", "segment_grid", "simulate_to_file",
 ]
