@@ -43,7 +43,7 @@ import functools
 import re
 from collections import deque
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
@@ -180,94 +180,41 @@ def shell_topology(n: int, m: int, primal: bool = False) -> ShellTopology:
     return _build_topology(int(n), int(m), bool(primal) and m > 1)
 
 
+class _Slot(NamedTuple):
+    """A slot of ``l^d``/``f^d``/``f^o``: a tendon vector ``p_head - p_tail`` the paper carries."""
+
+    ends: tuple[int, int]  #: (tail, head) node indices of the slot vector
+    tendon: str | None  #: the tendon whose force it carries (None: no tendon, primal t9/t10)
+    sign: int  #: +1 if the slot vector is its tendon's vector (head - tail), -1 if its negative
+    counted: bool  #: whether the slot's column of ``B^d``/``B^o`` is non-zero
+
+
 @functools.lru_cache(maxsize=32)
 def _build_topology(n: int, m: int, primal: bool) -> ShellTopology:
+    """The :class:`ShellTopology` of :func:`shell_topology` (``primal`` already normalized)."""
     full = {name: (tail, head) for name, tail, head in shell_tendons(n, m)}  # validates n, m
     present = {name for name, _, _ in shell_tendons(n, m, primal=primal)}
     n_nodes = 4 * n * m
     elements = [(i, j) for j in range(1, m + 1) for i in range(1, n + 1)]
-
-    def node(k: int, i: int, j: int) -> int:
-        return shell_node_index(k, i, j, n)
-
-    # ---- l and Q (18.27-18.28): node positions from the independent vectors along a tree.
-    l_vectors: list[tuple[str, int | None, int]] = []
-    for i, j in elements:
-        r1 = (f"r1_{i}_{j}", node(1, i, j), node(2, i, j))
-        r2 = (f"r2_{i}_{j}", node(3, i, j), node(4, i, j))
-        t5 = (f"t5_{i}_{j}", *full[f"t5_{i}_{j}"])
-        if j == 1:
-            first = (
-                ("rho_1_1", None, node(1, 1, 1)) if i == 1 else (f"t1_{i-1}_1", *full[f"t1_{i-1}_1"])
-            )
-            l_vectors += [first, r1, r2, t5]
-        else:
-            l_vectors += [r1, r2, t5, (f"t1_{i}_{j}", *full[f"t1_{i}_{j}"])]
+    # l and Q (18.27-18.28): node positions from the independent vectors along a tree.
+    l_vectors = _independent_vectors(n, elements, full)
     G = _positions_along_tree(n_nodes, l_vectors)  # p = G l (scalar pattern)
-    rods = np.arange(n_nodes).reshape(-1, 2)  # rod r joins nodes (2r, 2r+1), as class1_shell
-    M = np.zeros((n_nodes, n_nodes))  # q = M p: q1 = p_a + p_b, q2 = p_b - p_a
-    P = np.zeros((n_nodes, n_nodes))  # p = P q (18.26)
-    for r, (a, b) in enumerate(rods):
-        M[2 * r, [a, b]] = 1.0
-        M[2 * r + 1, [a, b]] = (-1.0, 1.0)
-        P[a, [2 * r, 2 * r + 1]] = (0.5, -0.5)
-        P[b, [2 * r, 2 * r + 1]] = (0.5, 0.5)
+    M, P = _rod_coordinate_maps(n_nodes)
     Q = _frozen_csr(_kron3(M @ G))
     Q_inv = _frozen_csr(_appendix_b_inverse(Q, n, m))
-    l_index = {label: k for k, (label, _, _) in enumerate(l_vectors)}
-
-    # ---- slots of l^d / f^d (18.31-18.37) and f^o (18.16)
-    def slot(name: str) -> tuple[tuple[int, int], str | None, int, bool]:
-        """(tail, head) of the slot vector, its tendon, sign, and whether B counts it."""
-        if name in full:
-            return full[name], (name if name in present else None), 1, True
-        alpha, i, j = _parse(name)
-        if alpha == 9 and j == 1:  # (18.2): t9_i1 = -t1_i1
-            partner = f"t1_{i}_1"
-        elif alpha == 10 and j == m:  # (18.7): t10_im = -t7_im
-            partner = f"t7_{i}_{m}"
-        else:  # pragma: no cover - the table has no other gaps
-            raise AssertionError(f"no geometry for slot {name}")
-        tail, head = full[partner]
-        return (head, tail), partner, -1, False
-
+    # slots of l^d / f^d (18.31-18.37) and f^o (18.16)
     d_slots = [f"t1_{n}_1"] + [f"t{a}_{i}_{j}" for i, j in elements for a in D_ALPHAS]
     o_slots = [f"t{a}_{i}_{j}" for i, j in elements for a in O_ALPHAS]
-    d_info = [slot(name) for name in d_slots]
-    o_info = [slot(name) for name in o_slots]
-    o_info[o_slots.index(f"t1_{n}_1")] = (*o_info[o_slots.index(f"t1_{n}_1")][:3], False)
-
-    R_scalar = np.array([P[head] - P[tail] for (tail, head), *_ in d_info])
-    R = _frozen_csr(_kron3(R_scalar))
-    # R_o: rows of Q^-1 for t5_ij, t1_ij; R_0 for t1_n1 (not in l).
-    blocks = []
-    for name in o_slots:
-        rows = R[0:3] if name == f"t1_{n}_1" else Q_inv[3 * l_index[name] : 3 * l_index[name] + 3]
-        blocks.append(rows)
-    R_o = _frozen_csr(sp.vstack(blocks))
-
-    # ---- u and T (18.54-18.58)
+    d_info = [_slot(name, full, present, m) for name in d_slots]
+    o_info = [_slot(name, full, present, m) for name in o_slots]
+    last = o_slots.index(f"t1_{n}_1")  # t1_n1 acts once, through f^d
+    o_info[last] = o_info[last]._replace(counted=False)
+    R = _frozen_csr(_kron3(np.array([P[head] - P[tail] for (tail, head), *_ in d_info])))
+    R_o = _o_slot_vectors(o_slots, [label for label, _, _ in l_vectors], R, Q_inv, n)
+    # u (18.54-18.58)
     u_names = [name for name in d_slots[1:] if name in present]
     u_names += o_slots
-    u_column = {name: k for k, name in enumerate(u_names)}
-    tendons = [info[1] for info in d_info + o_info]
-    rows = [r for r, t in enumerate(tendons) if t is not None]
-    T = _frozen_csr(
-        sp.csr_matrix(
-            (np.ones(len(rows)), (rows, [u_column[tendons[r]] for r in rows])),
-            shape=(len(tendons), len(u_names)),
-        )
-    )
-
-    # ---- B^d, B^o, W^o (18.15): a tendon pulls its tail toward its head (+f) and vice versa.
-    def incidence(info: list) -> np.ndarray:
-        N = np.zeros((n_nodes, len(info)))
-        for s, ((tail, head), _, _, counted) in enumerate(info):
-            if counted:
-                N[tail, s] += 1.0
-                N[head, s] -= 1.0
-        return N
-
+    # B^d, B^o, W^o (18.15)
     W = np.kron(np.eye(n * m), _W_ELEMENT)
     return ShellTopology(
         n=n,
@@ -277,23 +224,121 @@ def _build_topology(n: int, m: int, primal: bool) -> ShellTopology:
         Q_inv=Q_inv,
         R=R,
         R_o=R_o,
-        T=T,
+        T=_control_spread(d_info + o_info, u_names),
         W_o=_frozen_csr(_kron3(W)),
-        B_d=_frozen_csr(_kron3(W @ incidence(d_info))),
-        B_o=_frozen_csr(_kron3(W @ incidence(o_info))),
+        B_d=_frozen_csr(_kron3(W @ _incidence(d_info, n_nodes))),
+        B_o=_frozen_csr(_kron3(W @ _incidence(o_info, n_nodes))),
         P=_frozen_csr(_kron3(P)),
         l_labels=tuple(label for label, _, _ in l_vectors),
         d_slots=tuple(d_slots),
-        d_tendon=tuple(info[1] for info in d_info),
-        d_sign=_readonly(np.array([info[2] for info in d_info], dtype=float)),
-        d_counted=_readonly(np.array([info[3] for info in d_info])),
+        d_tendon=tuple(info.tendon for info in d_info),
+        d_sign=_readonly(np.array([info.sign for info in d_info], dtype=float)),
+        d_counted=_readonly(np.array([info.counted for info in d_info])),
         o_slots=tuple(o_slots),
-        o_tendon=tuple(info[1] for info in o_info),
-        o_sign=_readonly(np.array([info[2] for info in o_info], dtype=float)),
-        o_counted=_readonly(np.array([info[3] for info in o_info])),
+        o_tendon=tuple(info.tendon for info in o_info),
+        o_sign=_readonly(np.array([info.sign for info in o_info], dtype=float)),
+        o_counted=_readonly(np.array([info.counted for info in o_info])),
         u_names=tuple(u_names),
     )
 
+
+def _independent_vectors(
+    n: int, elements: Sequence[tuple[int, int]], full: dict[str, tuple[int, int]]
+) -> list[tuple[str, int | None, int]]:
+    """The vectors of ``l`` (18.27-18.28), ``(label, tail, head)`` node indices, element by
+    element: ``[rho_11, r1, r2, t5]`` for (1,1) (``rho_11`` the position of node 1: no tail),
+    ``[t1_(i-1)1, r1, r2, t5]`` for (i,1), ``[r1, r2, t5, t1]`` for j > 1.
+
+    ``full`` maps every tendon name of the full shell to its ``(tail, head)``.
+    """
+
+    def node(k: int, i: int, j: int) -> int:
+        return shell_node_index(k, i, j, n)
+
+    l_vectors: list[tuple[str, int | None, int]] = []
+    for i, j in elements:
+        r1 = (f"r1_{i}_{j}", node(1, i, j), node(2, i, j))
+        r2 = (f"r2_{i}_{j}", node(3, i, j), node(4, i, j))
+        t5 = (f"t5_{i}_{j}", *full[f"t5_{i}_{j}"])
+        if j == 1:
+            first = (("rho_1_1", None, node(1, 1, 1)) if i == 1
+                     else (f"t1_{i-1}_1", *full[f"t1_{i-1}_1"]))
+            l_vectors += [first, r1, r2, t5]
+        else:
+            l_vectors += [r1, r2, t5, (f"t1_{i}_{j}", *full[f"t1_{i}_{j}"])]
+    return l_vectors
+
+
+def _rod_coordinate_maps(n_nodes: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(M, P)``, scalar patterns (n_nodes, n_nodes) of ``q = M p`` (per rod ``q1 = p_a + p_b``,
+    ``q2 = p_b - p_a``) and its inverse ``p = P q`` (18.26); rod ``r`` joins nodes
+    ``(2r, 2r+1)``, as in ``class1_shell``."""
+    rods = np.arange(n_nodes).reshape(-1, 2)
+    M = np.zeros((n_nodes, n_nodes))
+    P = np.zeros((n_nodes, n_nodes))
+    for r, (a, b) in enumerate(rods):
+        M[2 * r, [a, b]] = 1.0
+        M[2 * r + 1, [a, b]] = (-1.0, 1.0)
+        P[a, [2 * r, 2 * r + 1]] = (0.5, -0.5)
+        P[b, [2 * r, 2 * r + 1]] = (0.5, 0.5)
+    return M, P
+
+
+def _slot(name: str, full: dict[str, tuple[int, int]], present: set[str], m: int) -> _Slot:
+    """The slot ``name`` (``t{alpha}_{i}_{j}``) of an ``(n, m)`` shell whose tendons are
+    ``full`` (name -> (tail, head)), ``present`` of them in this (possibly primal) shell.
+
+    A tendon of the full shell is its own slot, counted (with no tendon if the primal shell
+    leaves it out); ``t9_i1`` and ``t10_im`` are closure copies of ``-t1_i1`` and ``-t7_im``.
+    """
+    if name in full:
+        return _Slot(full[name], (name if name in present else None), 1, True)
+    alpha, i, j = _parse(name)
+    if alpha == 9 and j == 1:  # (18.2): t9_i1 = -t1_i1
+        partner = f"t1_{i}_1"
+    elif alpha == 10 and j == m:  # (18.7): t10_im = -t7_im
+        partner = f"t7_{i}_{m}"
+    else:  # pragma: no cover - the table has no other gaps
+        raise AssertionError(f"no geometry for slot {name}")
+    tail, head = full[partner]
+    return _Slot((head, tail), partner, -1, False)
+
+
+def _o_slot_vectors(o_slots: Sequence[str], l_labels: Sequence[str], R: sp.csr_matrix,
+                    Q_inv: sp.csr_matrix, n: int) -> sp.csr_matrix:
+    """``R_o`` (6nm, 12nm): the rows of ``Q^-1`` for ``t5_ij`` and ``t1_ij`` (labels of ``l``:
+    ``l_labels``), and ``R_0`` (the first three rows of ``R``) for ``t1_n1``, not in ``l``."""
+    l_index = {label: k for k, label in enumerate(l_labels)}
+    blocks = []
+    for name in o_slots:
+        rows = R[0:3] if name == f"t1_{n}_1" else Q_inv[3 * l_index[name] : 3 * l_index[name] + 3]
+        blocks.append(rows)
+    return _frozen_csr(sp.vstack(blocks))
+
+
+def _control_spread(slots: Sequence[_Slot], u_names: Sequence[str]) -> sp.csr_matrix:
+    """``T`` (slots, controls) of ``u~ = T u`` (18.55): every slot gets the rest-length change
+    of its tendon (``u_names`` names the tendon of each entry of ``u``)."""
+    u_column = {name: k for k, name in enumerate(u_names)}
+    tendons = [info.tendon for info in slots]
+    rows = [r for r, t in enumerate(tendons) if t is not None]
+    return _frozen_csr(
+        sp.csr_matrix(
+            (np.ones(len(rows)), (rows, [u_column[tendons[r]] for r in rows])),
+            shape=(len(tendons), len(u_names)),
+        )
+    )
+
+
+def _incidence(slots: Sequence[_Slot], n_nodes: int) -> np.ndarray:
+    """(n_nodes, slots): a counted slot's tendon pulls its tail toward its head (+f) and vice
+    versa (18.15)."""
+    N = np.zeros((n_nodes, len(slots)))
+    for s, ((tail, head), _, _, counted) in enumerate(slots):
+        if counted:
+            N[tail, s] += 1.0
+            N[head, s] -= 1.0
+    return N
 
 def _readonly(array: np.ndarray) -> np.ndarray:
     array.setflags(write=False)
