@@ -31,7 +31,6 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
-import scipy.integrate
 import scipy.optimize
 
 from tensegrity.physics import dynamics
@@ -39,6 +38,8 @@ from tensegrity.analysis.controllability import match_tendons
 from tensegrity.analysis.coordinates import Chart, align, has_supports, kabsch, mass_matrix
 from tensegrity.analysis.equilibrium import EquilibriumResult, find_equilibrium
 from tensegrity.analysis.statics import equilibrium_matrix, force_jacobian, statics, with_reactions
+from tensegrity.engine.loop import Feedback
+from tensegrity.engine.simulate import STATUS_END, simulate
 from tensegrity.model.structure import Structure
 
 def require_spatial(structure: Structure) -> None:
@@ -418,101 +419,108 @@ def closed_loop(
     gain_every: int | None = None,
     weights: tuple[float, float, float, float] = (1e3, 0.0, 0.1, 10.0),
     sample_dt: float = 0.02,
+    control_dt: float = 0.005,
     rtol: float = 1e-8,
     plant: Structure | None = None,
 ) -> ClosedLoop:
     """Play the quasi-static plan in time with LQR feedback, on the nonlinear model.
 
-    Each step of the plan takes ``move_time / steps-per-phase`` ... precisely: the K - 1 steps
-    share ``move_time`` per phase equally; then ``settle_time`` at the final target.
-    ``u(t) = u_ff(t) - K_k [Z^T M (x - x_ff(t)); Z^T M (x' - x'_ff(t))]`` with ``x`` the
-    reduced coordinates of the (aligned) state in the chart of the current step, and ``K_k``
-    the LQR gain (weights ``(q_out, q_state, q_rate, r_u)``: outputs, elastic coordinates and
-    rates, controls) at the nearest of every ``gain_every``-th equilibrium (default: one gain,
-    designed at the final equilibrium; ``control.lqr`` costs about 4 s for a (4,2) shell).  ``u`` is clipped to
-    the bounds (``saturated`` tells if it ever was).  ``plant``: the structure simulated
-    (default the plan's; e.g. with damping).
+    The K - 1 steps of the plan share ``move_time`` [s] per phase equally; then ``settle_time``
+    [s] at the final target.  ``u = u_ff(t) - K_k [Z^T M (x - x_ff(t)); Z^T M (x' - x'_ff(t))]``
+    with ``x`` the reduced coordinates of the (aligned) state in the chart of the current step,
+    and ``K_k`` the LQR gain (weights ``(q_out, q_state, q_rate, r_u)``: outputs, elastic
+    coordinates and rates, controls) at the nearest of every ``gain_every``-th equilibrium
+    (default: one gain, designed at the final equilibrium; ``control.lqr`` costs about 4 s for
+    a (4,2) shell).  The controller runs every ``control_dt`` [s] with zero-order hold, through
+    the engine's controller hook (:func:`tensegrity.engine.simulate.simulate` with
+    ``controller=``; DOP853 at ``rtol``, steps ending at the updates).  ``u`` is clipped to the
+    bounds (``saturated`` tells if it ever was).  ``plant``: the structure simulated (default
+    the plan's; e.g. with damping).
     """
     s = plan.structure
     plant = s if plant is None else plant
-    n_steps = len(plan.equilibria)
+    times = _plan_times(plan, move_time)
+    t_end = times[-1] + settle_time
+    gain_steps = sorted(({len(plan.equilibria) - 1} if gain_every is None
+                         else set(range(0, len(plan.equilibria), gain_every))
+                         | {len(plan.equilibria) - 1}))
+    law = _FeedbackLaw(plan, _Schedule(plan, times, gain_steps, weights))
+    q0 = plan.equilibria[0].q
+    run = simulate(plant, (0.0, t_end), initial=dynamics.State(0.0, q0, np.zeros_like(q0)),
+                   controller=Feedback(law, control_dt), sample_dt=sample_dt, rtol=rtol,
+                   atol=1e-10)
+    return _closed_loop_result(plan, plant, run, law, times, len(gain_steps))
+
+
+def _plan_times(plan: QuasiStatic, move_time: float) -> np.ndarray:
+    """When the plan reaches each of its equilibria [s]: ``move_time`` per phase, shared
+    equally by the phase's steps."""
     phase = plan.phase
     per_phase = {k: int(np.sum(phase[1:] == k)) for k in np.unique(phase[1:])}
-    durations = [move_time / per_phase[phase[k]] for k in range(1, n_steps)]
-    times = np.concatenate([[0.0], np.cumsum(durations)])
-    t_end = times[-1] + settle_time
-    gain_steps = sorted(({n_steps - 1} if gain_every is None
-                         else set(range(0, n_steps, gain_every)) | {n_steps - 1}))
-    schedule = _Schedule(plan, times, gain_steps, weights)
-    low, high = plan.bounds.u_limits(s)
-    reference = plan.reference
-    weights_n = s.node_mass
-    saturated = [False]
-    nfev = [0]
-    supported = has_supports(s)
+    durations = [move_time / per_phase[phase[k]] for k in range(1, len(plan.equilibria))]
+    return np.concatenate([[0.0], np.cumsum(durations)])
 
-    def feedback(t: float, q: np.ndarray, qdot: np.ndarray) -> np.ndarray:
-        u_ff, chart, x_ff, v_ff, (Kx, Kv) = schedule.feedforward(t)
-        if supported:  # the supports hold the frame
+
+class _FeedbackLaw:
+    """The LQR law along the plan, clipped to the bounds; keeps every update ``(t, u)``."""
+
+    def __init__(self, plan: QuasiStatic, schedule: _Schedule) -> None:
+        s = plan.structure
+        self.plan, self.schedule = plan, schedule
+        self.low, self.high = plan.bounds.u_limits(s)
+        self.supported = has_supports(s)
+        self.saturated = False
+        self.times: list[float] = []
+        self.controls: list[np.ndarray] = []
+
+    def __call__(self, t: float, q: np.ndarray, qdot: np.ndarray) -> np.ndarray:
+        s = self.plan.structure
+        u_ff, chart, x_ff, v_ff, (Kx, Kv) = self.schedule.feedforward(t)
+        if self.supported:  # the supports hold the frame
             qa, va = q, qdot
         else:
             p = dynamics.nodes_from_coordinates(s, q)
             v = dynamics.nodes_from_coordinates(s, qdot)
-            pa, R = kabsch(p, reference, weights_n)
+            pa, R = kabsch(p, self.plan.reference, s.node_mass)
             qa = dynamics.coordinates_from_nodes(s, pa)
             va = dynamics.coordinates_from_nodes(s, v @ R)
         u = u_ff - Kx @ (chart.x(qa) - x_ff) - Kv @ (chart.velocity_x(qa, va) - v_ff)
-        clipped = np.clip(u, low, high)
-        if np.any(clipped != u):
-            saturated[0] = True
+        clipped = np.clip(u, self.low, self.high)
+        self.saturated = self.saturated or bool(np.any(clipped != u))
+        self.times.append(t)
+        self.controls.append(clipped)
         return clipped
 
-    def rhs(t: float, y: np.ndarray) -> np.ndarray:
-        n = s.n_coordinates
-        q, qdot = y[:n], y[n:]
-        u = feedback(t, q, qdot)
-        nfev[0] += 1
-        ev = dynamics.evaluate(plant, q, qdot, rest_length=plant.tendon_rest_length - u)
-        return np.concatenate([qdot, ev.qddot])
+    def held_at(self, t: np.ndarray) -> np.ndarray:
+        """The control in effect at the sample times ``t`` (T,): the last update before each
+        (a sample at an update time is recorded before the update)."""
+        index = np.searchsorted(np.array(self.times), t, side="left") - 1
+        return np.array(self.controls)[np.clip(index, 0, len(self.times) - 1)]
 
-    n = s.n_coordinates
-    state = np.concatenate([plan.equilibria[0].q, np.zeros(n)])
-    samples = np.arange(0.0, t_end + 0.5 * sample_dt, sample_dt)
-    rows_q, rows_v = [state[:n]], [state[n:]]
-    max_err = 0.0
-    for t0, t1 in zip(samples[:-1], samples[1:]):
-        sol = scipy.integrate.solve_ivp(rhs, (t0, t1), state, method="DOP853", rtol=rtol,
-                                        atol=1e-10)
-        if not sol.success:
-            break
-        end = sol.y[:, -1]
-        max_err = max(max_err, float(np.max(np.abs(dynamics.rod_length_error(s, end[:n])))))
-        q, qdot = dynamics.project_to_constraints(s, end[:n], end[n:])
-        state = np.concatenate([q, qdot])
-        rows_q.append(q)
-        rows_v.append(qdot)
-    t = samples[: len(rows_q)]
-    Q, V = np.array(rows_q), np.array(rows_v)
-    P = dynamics.nodes_from_coordinates(s, Q)
-    aligned = P if supported else align(P, reference, weights_n)
-    controls = np.array([feedback(tt, qq, vv) for tt, qq, vv in zip(t, Q, V)])
-    vel = dynamics.nodes_from_coordinates(s, V, rates=True)
-    tension = np.array([dynamics.tendon_forces(plant, p, v, plant.tendon_rest_length - u).tension
-                        for p, v, u in zip(P, vel, controls)])
+
+def _closed_loop_result(plan: QuasiStatic, plant: Structure, run: Any, law: _FeedbackLaw,
+                        times: np.ndarray, gains: int) -> ClosedLoop:
+    """The :class:`ClosedLoop` of an engine run: outputs, errors, bounds and the verdict."""
+    s = plan.structure
+    P = run.node_position
+    aligned = P if law.supported else align(P, plan.reference, s.node_mass)
+    controls = law.held_at(run.t)
     ys = np.array([plan.output.value(p) for p in aligned])
-    ref_ys = np.array([_interp_outputs(plan, times, tt) for tt in t])
+    ref_ys = np.array([_interp_outputs(plan, times, tt) for tt in run.t])
     final_target = plan.targets[-1]
     err = np.where(np.isnan(final_target), 0.0, ys[-1] - final_target)
     rest = plant.tendon_rest_length - controls
-    complete = len(rows_q) == samples.size
+    tension = run.tendon_tension
+    complete = run.status == STATUS_END
     reached = bool(complete and np.all(np.abs(err) <= plan.tolerance) and tension.min() > 0
                    and rest.min() >= plan.bounds.min_rest_length - 1e-12)
     message = (f"{'reached' if reached else 'missed'}: final error {np.abs(err).tolist()} "
                f"(tolerance {plan.tolerance.tolist()}), min tension {tension.min():.4g} N, "
-               f"min rest length {rest.min():.4g} m" + ("" if complete else "; integration failed"))
-    return ClosedLoop(s, t, Q, V, aligned, controls, tension, ys, ref_ys, err, plan.tolerance,
-                      float(tension.min()), float(rest.min()), max_err, saturated[0], reached,
-                      message, len(gain_steps), nfev[0])
+               f"min rest length {rest.min():.4g} m"
+               + ("" if complete else f"; integration failed: {run.message}"))
+    return ClosedLoop(s, run.t, run.q, run.qdot, aligned, controls, tension, ys, ref_ys, err,
+                      plan.tolerance, float(tension.min()), float(rest.min()),
+                      run.max_rod_length_error, law.saturated, reached, message, gains, run.nfev)
 
 
 def _interp_outputs(plan: QuasiStatic, times: np.ndarray, t: float) -> np.ndarray:
