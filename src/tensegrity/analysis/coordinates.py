@@ -39,6 +39,9 @@ from tensegrity.model.structure import Structure
 #: Rigid-body motions of a free structure in 3-D: 3 translations and 3 rotations.
 N_RIGID = 6
 
+#: Relative size below which a rigid-body motion counts as none (:func:`rigid_body_basis`).
+RTOL_RIGID = 1e-10
+
 
 def tangent_basis(direction: np.ndarray) -> np.ndarray:
     """Orthonormal ``E = [e1, e2]`` (..., 3, 2) perpendicular to unit vectors ``direction`` (..., 3).
@@ -359,6 +362,15 @@ def rigid_body_basis(chart: Chart) -> np.ndarray:
     that keep every anchor still and satisfy ``G dx = 0`` (none for a fixed base, the three
     rotations about a single pinned node, the plane's three motions for a planar structure).
     The columns are made orthonormal in the mass metric (``B^T M B = I``).
+
+    Whether a motion moves anything is decided against the structure's size, never against
+    exact zero or the other candidates alone: a rotation that moves the mass by no more than
+    round-off (about a line through the point masses and collinear rods: its size is
+    ``sqrt(I)`` with ``I`` the moment of inertia about that line, at most round-off times
+    ``sqrt(m_total) l``, ``l`` the largest node distance from the mass centre) is no motion,
+    and a combination of unit-size motions that moves the mass by round-off is none either
+    (a point mass pinned on the line of two anchors: the turn about that line the anchors
+    admit moves nothing, so no rigid-body motion is left).
     """
     s = chart.structure
     mass = mass_matrix(s)
@@ -377,6 +389,15 @@ def rigid_body_basis(chart: Chart) -> np.ndarray:
         v[:, 3:] = np.einsum("rij,ri->rj", chart.basis, np.cross(a, chart.direction))
         columns.append(chart._with_point_masses(v, np.cross(a, chart.point_mass - centre_of_mass)))
     rigid = np.column_stack(columns)
+    scale = np.sqrt(np.sum(mass[:, None] * rigid**2, axis=0))  # each motion's size
+    # A unit rotation about an axis through every mass (a point mass at the mass centre, rods
+    # along the axis) moves nothing, but its column may hold the round-off of c - c_m and
+    # p - c_m (of the equilibrium solver's last bits, or of c_m's): it is exactly no motion.
+    # Translations have size sqrt(m_total), rotations at most sqrt(m_total) l.
+    span = np.max(np.linalg.norm(chart.nodes(np.zeros(chart.size)) - centre_of_mass, axis=1),
+                  initial=0.0)
+    still = scale <= RTOL_RIGID * np.sqrt(np.sum(weights)) * np.repeat([1.0, span], 3)
+    rigid[:, still] = 0.0
     anchors = s.anchor_nodes
     if chart.n_constraints or anchors.size:
         # coefficients of the motions that move no anchor and keep the constraints
@@ -384,12 +405,15 @@ def rigid_body_basis(chart: Chart) -> np.ndarray:
         at_anchors = np.concatenate([np.tile(np.eye(3), (anchors.size, 1)),
                                      -cross_matrix(arm).reshape(-1, 3)], axis=1)
         rows = np.vstack([chart.constraint_jacobian() @ rigid, at_anchors])
-        scale = np.sqrt(np.sum(mass[:, None] * rigid**2, axis=0))  # each motion's size
-        scale[scale == 0] = 1.0  # a rotation about the line of collinear rods moves nothing
+        scale[still] = 1.0  # motions that move nothing (above): only their anchors count
         _, sigma, vt = np.linalg.svd(rows / scale[None, :])
-        rank = int(np.sum(sigma > 1e-10 * max(sigma[0] if sigma.size else 0.0, 1.0)))
+        rank = int(np.sum(sigma > RTOL_RIGID * max(sigma[0] if sigma.size else 0.0, 1.0)))
+        # combinations (unit coefficients) of motions of unit size: a genuine admitted motion
+        # has a size of order 1, one that moves the mass by round-off only is no motion (the
+        # anchors' null space holds round-off in its translation part)
         rigid = rigid @ (vt[rank:].T / scale[:, None])
-    return mass_orthonormal(rigid, mass)
+        return mass_orthonormal(rigid, mass, RTOL_RIGID, reference=1.0)
+    return mass_orthonormal(rigid, mass, RTOL_RIGID)
 
 
 def admitted_rigid_motions(chart: Chart, basis: np.ndarray | None) -> np.ndarray:
@@ -417,11 +441,16 @@ def cross_matrix(a: np.ndarray) -> np.ndarray:
     return out
 
 
-def mass_orthonormal(vectors: np.ndarray, mass: np.ndarray, rtol: float = 1e-10) -> np.ndarray:
-    """An ``M``-orthonormal basis (``V^T diag(mass) V = I``) of the span of ``vectors``' columns."""
+def mass_orthonormal(vectors: np.ndarray, mass: np.ndarray, rtol: float = 1e-10, *,
+                     reference: float = 0.0) -> np.ndarray:
+    """An ``M``-orthonormal basis (``V^T diag(mass) V = I``) of the span of ``vectors``' columns.
+
+    Directions whose mass-metric size is at most ``rtol`` times the largest of the columns'
+    singular values and ``reference`` (the size a genuine column has) are dropped: without a
+    ``reference``, columns that are all round-off would pass for a basis of their own."""
     root = np.sqrt(mass)
     u, sigma, _ = np.linalg.svd(root[:, None] * vectors, full_matrices=False)
-    keep = sigma > rtol * (sigma[0] if sigma.size else 0.0)
+    keep = sigma > rtol * max(sigma[0] if sigma.size else 0.0, reference)
     return u[:, keep] / root[:, None]
 
 
