@@ -191,9 +191,18 @@ def _lifted(structure: Structure) -> tuple[np.ndarray, np.ndarray]:
     return np.pad(structure.node_position, pad), np.pad(structure.node_velocity, pad)
 
 
-def _rod_motion(structure: Structure) -> tuple[np.ndarray, ...]:
-    """``(centre, quat, velocity, omega, axis)`` of every rod in 3-D, ``omega`` [rad/s] and the
-    unit ``axis`` ``(p_b - p_a) / |p_b - p_a|`` in the world frame."""
+class _RodMotion(NamedTuple):
+    """Position and motion of every rod in 3-D, world frame."""
+
+    centre: np.ndarray  #: (R, 3) [m]
+    quat: np.ndarray  #: (R, 4) orientations ``(w, x, y, z)`` taking the body ``z`` to ``axis``
+    velocity: np.ndarray  #: (R, 3) centre velocities [m/s]
+    omega: np.ndarray  #: (R, 3) angular velocities [rad/s], no spin
+    axis: np.ndarray  #: (R, 3) unit axes ``(p_b - p_a) / |p_b - p_a|``
+
+
+def _rod_motion(structure: Structure) -> _RodMotion:
+    """The :class:`_RodMotion` of every rod (a planar structure in the plane ``z = 0``)."""
     a, b = structure.rod_nodes[:, 0], structure.rod_nodes[:, 1]
     p, v = _lifted(structure)
     centre = 0.5 * (p[a] + p[b])
@@ -202,7 +211,7 @@ def _rod_motion(structure: Structure) -> tuple[np.ndarray, ...]:
     quat = np.array([_quat_z_to(u) for u in axis]).reshape(-1, 4)
     velocity = 0.5 * (v[a] + v[b])
     omega = np.cross(axis, v[b] - v[a]) / structure.rod_length[:, None]
-    return centre, quat, velocity, omega, axis
+    return _RodMotion(centre, quat, velocity, omega, axis)
 
 
 def _to_body(quat: np.ndarray, vectors: np.ndarray) -> np.ndarray:
@@ -237,7 +246,7 @@ def mjcf_memory(structure: Structure) -> int:
     point mass counts 6 elements (a free body), a joint or support 12 (3 constraint rows), a
     closure row 6 (its two tendons and a constraint row)."""
     closures = sum(len(tree.closure) for tree in _rod_trees(structure, _held_axes(structure),
-                                                              _rod_motion(structure)[4]))
+                                                              _rod_motion(structure).axis))
     elements = (structure.n_coordinates + 3 * structure.point_mass_nodes.size + structure.n_tendons
                 + 12 * len(_connect_pairs(structure)) + 6 * closures)
     size = MEMORY_BASE + MEMORY_PER_ELEMENT * elements
@@ -292,6 +301,41 @@ def to_mjcf(
         its mass or inertia ``m L^2 / 12`` is below MuJoCo's minimum ``1e-15``; ``tendons``
         when a tendon is named like a closure tendon (``hold{j}a``, ``hold{j}b``).
     """
+    dt, g = _checked_options(structure, timestep=timestep, integrator=integrator,
+                             gravity=gravity, name=name)
+    transverse, spin = _checked_rod_inertias(structure)
+    motion = _rod_motion(structure)
+    connects = _connect_pairs(structure)
+    held = _held_axes(structure)
+    trees = _rod_trees(structure, held, motion.axis)
+    closures = [row for tree in trees for row in tree.closure]
+    _check_closure_names(structure, len(closures))
+    # refsafe off: the joints' and closures' time constant 2 dt is below MuJoCo's "safe" minimum
+    soft = bool(connects or closures)
+    root = _header(structure, name=name, timestep=dt, integrator=integrator, gravity=g, soft=soft)
+    world = ET.SubElement(root, "worldbody")
+    keyframe = _Keyframe()
+    _rod_bodies(world, structure, trees, motion, keyframe, transverse=transverse, spin=spin)
+    _point_mass_bodies(world, structure, held, keyframe)
+    _world_sites(world, structure, connects, closures)
+    if soft:
+        _equalities(root, connects, len(closures), timestep=dt)
+    if structure.n_tendons or closures:
+        _tendons(root, structure, closures)
+    keyframe.write(root)
+    ET.indent(root, space="  ")
+    return ET.tostring(root, encoding="unicode") + "\n"
+
+
+def _checked_options(structure: Structure, *, timestep: Any, integrator: str, gravity: Any,
+                     name: Any) -> tuple[float, np.ndarray]:
+    """:func:`to_mjcf`'s options, checked: ``(timestep [s], gravity (d,) [m/s^2])``.
+
+    Raises
+    ------
+    ValueError
+        Naming the field: ``structure``, ``timestep``, ``integrator``, ``gravity``, ``name``.
+    """
     if not isinstance(structure, Structure):
         raise ValueError(f"structure: expected a Structure, got {type(structure).__name__}")
     try:
@@ -311,6 +355,19 @@ def to_mjcf(
         raise ValueError(f"gravity: expected {d} finite numbers, got {gravity!r}")
     if not isinstance(name, str) or not name:
         raise ValueError(f"name: must be a non-empty string, got {name!r}")
+    return dt, g
+
+
+def _checked_rod_inertias(structure: Structure) -> tuple[np.ndarray, np.ndarray]:
+    """``(transverse, spin)`` (R,) [kg m^2]: each rod's inertia ``m L^2 / 12`` about a transverse
+    axis, and about its own (see ``SPIN_INERTIA_RATIO``).
+
+    Raises
+    ------
+    ValueError
+        ``rods[r].damping`` if a rod has damping (MuJoCo has no counterpart); ``rods[r].mass`` if
+        its mass or transverse inertia is below MuJoCo's minimum.
+    """
     damped = np.flatnonzero(structure.rod_damping != 0)
     if damped.size:
         r = damped[0]
@@ -318,7 +375,6 @@ def to_mjcf(
             f"rods[{r}].damping: is {structure.rod_damping[r]!r} 1/s; mass-proportional rod "
             "damping has no MuJoCo counterpart, export the structure with rod_damping = 0"
         )
-
     mass, length = structure.rod_mass, structure.rod_length
     transverse = mass * length**2 / 12.0
     light = np.flatnonzero((mass <= _MUJOCO_MINVAL) | (transverse <= _MUJOCO_MINVAL))
@@ -329,66 +385,72 @@ def to_mjcf(
             f"must both exceed MuJoCo's minimum {_MUJOCO_MINVAL:g} (choose other units)"
         )
     spin = np.minimum(transverse, np.maximum(SPIN_INERTIA_RATIO * transverse, SPIN_INERTIA_MIN))
-    planar = d == 2
-    centre, quat, velocity, omega, axis = _rod_motion(structure)
-    omega_local = _to_body(quat, omega)
-    position, node_velocity = _lifted(structure)
+    return transverse, spin
 
+
+def _check_closure_names(structure: Structure, n_closures: int) -> None:
+    """Raise if a tendon is named like a closure tendon ``hold{j}a``, ``hold{j}b``."""
+    closure_names = {f"hold{j}{end}" for j in range(n_closures) for end in "ab"}
+    taken = set(structure.tendon_name) & closure_names
+    if taken:
+        raise ValueError(f"tendons: the name {sorted(taken)[0]!r} is taken by a closure tendon of "
+                         "the MJCF export (a rod with both ends held); rename that tendon")
+
+def _header(structure: Structure, *, name: str, timestep: float, integrator: str,
+            gravity: np.ndarray, soft: bool) -> ET.Element:
+    """The ``<mujoco>`` root with its compiler, option (``gravity`` (d,) [m/s^2] in 3-D;
+    contacts off, energy on, ``refsafe`` off if there are ``soft`` equalities) and size."""
     root = ET.Element("mujoco", model=name)
     ET.SubElement(root, "compiler", angle="radian", inertiafromgeom="false", autolimits="true")
     option = ET.SubElement(
-        root, "option", timestep=_float(dt), integrator=integrator, gravity=_floats(np.pad(g, (0, 3 - d)))
+        root, "option", timestep=_float(timestep), integrator=integrator,
+        gravity=_floats(np.pad(gravity, (0, 3 - structure.dim))),
     )
-    connects = _connect_pairs(structure)
-    held = _held_axes(structure)
-    trees = _rod_trees(structure, held, axis)
-    closures = [row for tree in trees for row in tree.closure]
-    taken = set(structure.tendon_name) & {f"hold{j}{end}" for j in range(len(closures)) for end in "ab"}
-    if taken:
-        raise ValueError(f"tendons: the name {sorted(taken)[0]!r} is taken by a closure tendon of the "
-                         "MJCF export (a rod with both ends held); rename that tendon")
-    # refsafe off: the joints' and closures' time constant 2 dt is below MuJoCo's "safe" minimum
-    soft = connects or closures
     flags = dict(contact="disable", energy="enable") | ({"refsafe": "disable"} if soft else {})
     ET.SubElement(option, "flag", **flags)
     ET.SubElement(root, "size", memory=str(mjcf_memory(structure)))
+    return root
 
-    world = ET.SubElement(root, "worldbody")
-    qpos: list[Any] = []
-    qvel: list[Any] = []
+
+class _Keyframe:
+    """The initial ``qpos`` and ``qvel`` of the joints, in the order they are written."""
+
+    def __init__(self) -> None:
+        self.qpos: list[Any] = []
+        self.qvel: list[Any] = []
+
+    def add(self, qpos: Any, qvel: Any) -> None:
+        """Append one joint's (or several joints') positions and velocities."""
+        self.qpos.append(qpos)
+        self.qvel.append(qvel)
+
+    def write(self, root: ET.Element) -> None:
+        """The ``<keyframe>`` with the key ``initial`` at time 0."""
+        keyframe = ET.SubElement(root, "keyframe")
+        ET.SubElement(keyframe, "key", name="initial", time="0",
+                      qpos=_floats(np.concatenate(self.qpos or [[]])),
+                      qvel=_floats(np.concatenate(self.qvel or [[]])))
+
+
+def _rod_bodies(world: ET.Element, structure: Structure, trees: list[_RodTree],
+                motion: _RodMotion, keyframe: _Keyframe, *, transverse: np.ndarray,
+                spin: np.ndarray) -> None:
+    """Bodies ``rod{r}`` at the rods' centres and orientations: the joints of their ``trees``,
+    the inertias ``diag(transverse, transverse, spin)`` (R,) [kg m^2], a capsule geom without
+    contacts and the sites of the end nodes."""
+    omega_local = _to_body(motion.quat, motion.omega)
     for r, ((a, b), tree) in enumerate(zip(structure.rod_nodes, trees)):
-        m, L = float(mass[r]), float(length[r])
-        body = ET.SubElement(
-            world, "body", name=f"rod{r}", pos=_floats(centre[r]), quat=_floats(quat[r])
-        )
+        L = float(structure.rod_length[r])
+        body = ET.SubElement(world, "body", name=f"rod{r}", pos=_floats(motion.centre[r]),
+                             quat=_floats(motion.quat[r]))
         if tree.slides is None:
             ET.SubElement(body, "freejoint", name=f"rod{r}")
-            qpos.append(np.concatenate([centre[r], quat[r]]))
-            qvel.append(np.concatenate([velocity[r], omega_local[r]]))
+            keyframe.add(np.concatenate([motion.centre[r], motion.quat[r]]),
+                         np.concatenate([motion.velocity[r], omega_local[r]]))
         else:
-            # slides along the root's free directions (world axes, given in the body frame), then
-            # a ball, or hinges (world axes given in the body frame, each turning the next), at
-            # the root: the rod's centre or a held end
-            side = 0.0 if tree.root < 0 else (-0.5 if tree.root == a else 0.5)
-            arm = side * L * axis[r]
-            rates = tree.slides @ (velocity[r] + np.cross(omega[r], arm))
-            frame = quat[r : r + 1]
-            _slides(body, f"rod{r}", _to_body(np.tile(frame, (len(tree.slides), 1)), tree.slides),
-                    rates, qpos, qvel)
-            at = _floats([0, 0, side * L])
-            if tree.hinges is None:
-                ET.SubElement(body, "joint", name=f"rod{r}_ball", type="ball", pos=at)
-                qpos.append([1.0, 0.0, 0.0, 0.0])
-                qvel.append(omega_local[r])
-            else:
-                names = ("rz",) if planar else ("turn", "spin")
-                for joint, hinge, rate in zip(names, tree.hinges, _hinge_rates(tree.hinges, omega[r])):
-                    ET.SubElement(body, "joint", name=f"rod{r}_{joint}", type="hinge", pos=at,
-                                  axis=_floats(_to_body(frame, hinge[None])[0]))
-                    qpos.append([0.0])
-                    qvel.append([rate])
+            _rod_tree_joints(body, structure, r, tree, motion, omega_local[r], keyframe)
         ET.SubElement(
-            body, "inertial", pos="0 0 0", mass=_float(m),
+            body, "inertial", pos="0 0 0", mass=_float(structure.rod_mass[r]),
             diaginertia=_floats([transverse[r], transverse[r], spin[r]]),
         )
         radius = _float(_SITE_RADIUS_FRACTION * L)
@@ -398,75 +460,123 @@ def to_mjcf(
         )
         ET.SubElement(body, "site", name=f"node{a}", pos=_floats([0, 0, -L / 2]), size=radius)
         ET.SubElement(body, "site", name=f"node{b}", pos=_floats([0, 0, L / 2]), size=radius)
-    site_radius = _float(_SITE_RADIUS_FRACTION * float(length.max(initial=1.0)))
+
+
+def _rod_tree_joints(body: ET.Element, structure: Structure, r: int, tree: _RodTree,
+                     motion: _RodMotion, omega_local: np.ndarray, keyframe: _Keyframe) -> None:
+    """The joints of rod ``r``'s ``tree`` (not a free joint): slides along the root's free
+    directions (world axes, given in the body frame), then a ball, or hinges (each turning the
+    next), at the root: the rod's centre or a held end.  ``omega_local`` (3,) [rad/s] is the
+    rod's angular velocity in its body frame."""
+    a = structure.rod_nodes[r, 0]
+    L = float(structure.rod_length[r])
+    side = 0.0 if tree.root < 0 else (-0.5 if tree.root == a else 0.5)
+    arm = side * L * motion.axis[r]
+    rates = tree.slides @ (motion.velocity[r] + np.cross(motion.omega[r], arm))
+    frame = motion.quat[r : r + 1]
+    _slides(body, f"rod{r}", _to_body(np.tile(frame, (len(tree.slides), 1)), tree.slides),
+            rates, keyframe)
+    at = _floats([0, 0, side * L])
+    if tree.hinges is None:
+        ET.SubElement(body, "joint", name=f"rod{r}_ball", type="ball", pos=at)
+        keyframe.add([1.0, 0.0, 0.0, 0.0], omega_local)
+        return
+    names = ("rz",) if structure.dim == 2 else ("turn", "spin")
+    for joint, hinge, rate in zip(names, tree.hinges, _hinge_rates(tree.hinges, motion.omega[r])):
+        ET.SubElement(body, "joint", name=f"rod{r}_{joint}", type="hinge", pos=at,
+                      axis=_floats(_to_body(frame, hinge[None])[0]))
+        keyframe.add([0.0], [rate])
+
+
+def _site_radius(structure: Structure) -> str:
+    """The radius [m] of the sites that are not on a rod (point masses, world sites)."""
+    return _float(_SITE_RADIUS_FRACTION * float(structure.rod_length.max(initial=1.0)))
+
+
+def _point_mass_bodies(world: ET.Element, structure: Structure, held: dict[int, np.ndarray],
+                       keyframe: _Keyframe) -> None:
+    """Bodies ``mass{k}``: a free joint, or slides (planar, or along the free directions
+    ``held[k]`` of a node held on planes or lines), a negligible inertia and a site ``node{k}``."""
+    position, node_velocity = _lifted(structure)
+    site_radius = _site_radius(structure)
     for k in structure.point_mass_nodes:
         body = ET.SubElement(world, "body", name=f"mass{k}", pos=_floats(position[k]))
-        if planar or k in held:
+        if structure.dim == 2 or k in held:
             axes = held.get(int(k), np.eye(3)[:2])
-            _slides(body, f"mass{k}", axes, axes @ node_velocity[k], qpos, qvel)
+            _slides(body, f"mass{k}", axes, axes @ node_velocity[k], keyframe)
         else:
             ET.SubElement(body, "freejoint", name=f"mass{k}")
-            qpos.append(np.concatenate([position[k], [1.0, 0.0, 0.0, 0.0]]))
-            qvel.append(np.concatenate([node_velocity[k], np.zeros(3)]))
+            keyframe.add(np.concatenate([position[k], [1.0, 0.0, 0.0, 0.0]]),
+                         np.concatenate([node_velocity[k], np.zeros(3)]))
         ET.SubElement(body, "inertial", pos="0 0 0", mass=_float(structure.node_point_mass[k]),
                       diaginertia=_floats([SPIN_INERTIA_MIN] * 3))
         ET.SubElement(body, "site", name=f"node{k}", pos="0 0 0", size=site_radius)
+
+
+def _world_sites(world: ET.Element, structure: Structure,
+                 connects: list[tuple[str, str, np.ndarray | None]],
+                 closures: list[tuple[int, np.ndarray]]) -> None:
+    """Sites fixed in the world: anchors ``node{k}``, fixed rod ends ``ground{a}`` (of
+    ``connects``) and the two sites ``hold{j}a``, ``hold{j}b`` of each closure row."""
+    position, _ = _lifted(structure)
+    site_radius = _site_radius(structure)
     for k in structure.anchor_nodes:
         ET.SubElement(world, "site", name=f"node{k}", pos=_floats(position[k]), size=site_radius)
-    for site1, site2, where in connects:
+    for _, site2, where in connects:
         if site2.startswith("ground"):
             ET.SubElement(world, "site", name=site2, pos=_floats(where), size=site_radius)
     # a closure row holds node k on the plane through its position with unit normal n: the
     # points equidistant from two world sites mirrored across that plane
-    arm = CLOSURE_ARM * float(length.max(initial=1.0))
+    arm = CLOSURE_ARM * float(structure.rod_length.max(initial=1.0))
     for j, (k, n) in enumerate(closures):
         for sign, end in ((1.0, "a"), (-1.0, "b")):
-            ET.SubElement(world, "site", name=f"hold{j}{end}", pos=_floats(position[k] + sign * arm * n),
-                          size=site_radius)
-    if soft:
-        equality = ET.SubElement(root, "equality")
-        solref, solimp = f"{_float(2 * dt)} 1", CONNECT_SOLIMP
-        for site1, site2, _ in connects:
-            ET.SubElement(equality, "connect", site1=site1, site2=site2, solref=solref, solimp=solimp)
-        for j, _ in enumerate(closures):
-            ET.SubElement(equality, "tendon", name=f"hold{j}", tendon1=f"hold{j}a", tendon2=f"hold{j}b",
-                          polycoef="0 1 0 0 0", solref=solref, solimp=solimp)
+            ET.SubElement(world, "site", name=f"hold{j}{end}",
+                          pos=_floats(position[k] + sign * arm * n), size=site_radius)
 
-    if structure.n_tendons or closures:
-        tendons = ET.SubElement(root, "tendon")
-        width = _float(0.5 * _SITE_RADIUS_FRACTION * float(length.min(initial=1.0)))
-        for s, (tail, head) in enumerate(structure.tendon_nodes):
-            spatial = ET.SubElement(
-                tendons, "spatial", name=structure.tendon_name[s],
-                stiffness=_float(structure.tendon_stiffness[s]),
-                springlength=f"0 {_float(structure.tendon_rest_length[s])}",
-                damping=_float(structure.tendon_damping[s]), width=width,
-            )
-            ET.SubElement(spatial, "site", site=f"node{tail}")
-            ET.SubElement(spatial, "site", site=f"node{head}")
-        for j, (k, _) in enumerate(closures):
-            for end in "ab":
-                spatial = ET.SubElement(tendons, "spatial", name=f"hold{j}{end}", width=width,
-                                        rgba="0.5 0.5 0.5 0.2")
-                ET.SubElement(spatial, "site", site=f"node{k}")
-                ET.SubElement(spatial, "site", site=f"hold{j}{end}")
 
-    keyframe = ET.SubElement(root, "keyframe")
-    ET.SubElement(keyframe, "key", name="initial", time="0",
-                  qpos=_floats(np.concatenate(qpos or [[]])), qvel=_floats(np.concatenate(qvel or [[]])))
-    ET.indent(root, space="  ")
-    return ET.tostring(root, encoding="unicode") + "\n"
+def _equalities(root: ET.Element, connects: list[tuple[str, str, np.ndarray | None]],
+                n_closures: int, *, timestep: float) -> None:
+    """The soft equalities: a ``connect`` per joint or fixed rod end, a ``tendon`` equality
+    ``hold{j}`` per closure row (time constant ``2 timestep`` [s], impedance ``CONNECT_SOLIMP``)."""
+    equality = ET.SubElement(root, "equality")
+    solref, solimp = f"{_float(2 * timestep)} 1", CONNECT_SOLIMP
+    for site1, site2, _ in connects:
+        ET.SubElement(equality, "connect", site1=site1, site2=site2, solref=solref, solimp=solimp)
+    for j in range(n_closures):
+        ET.SubElement(equality, "tendon", name=f"hold{j}", tendon1=f"hold{j}a", tendon2=f"hold{j}b",
+                      polycoef="0 1 0 0 0", solref=solref, solimp=solimp)
+
+
+def _tendons(root: ET.Element, structure: Structure,
+             closures: list[tuple[int, np.ndarray]]) -> None:
+    """The spatial tendons: the structure's (deadband springs between node sites), then the two
+    zero-stiffness tendons ``hold{j}a``, ``hold{j}b`` of each closure row."""
+    tendons = ET.SubElement(root, "tendon")
+    width = _float(0.5 * _SITE_RADIUS_FRACTION * float(structure.rod_length.min(initial=1.0)))
+    for s, (tail, head) in enumerate(structure.tendon_nodes):
+        spatial = ET.SubElement(
+            tendons, "spatial", name=structure.tendon_name[s],
+            stiffness=_float(structure.tendon_stiffness[s]),
+            springlength=f"0 {_float(structure.tendon_rest_length[s])}",
+            damping=_float(structure.tendon_damping[s]), width=width,
+        )
+        ET.SubElement(spatial, "site", site=f"node{tail}")
+        ET.SubElement(spatial, "site", site=f"node{head}")
+    for j, (k, _) in enumerate(closures):
+        for end in "ab":
+            spatial = ET.SubElement(tendons, "spatial", name=f"hold{j}{end}", width=width,
+                                    rgba="0.5 0.5 0.5 0.2")
+            ET.SubElement(spatial, "site", site=f"node{k}")
+            ET.SubElement(spatial, "site", site=f"hold{j}{end}")
 
 
 def _slides(body: ET.Element, name: str, axes: np.ndarray, rates: np.ndarray,
-            qpos: list, qvel: list) -> None:
+            keyframe: _Keyframe) -> None:
     """Slide joints ``{name}_0, {name}_1, ...`` of ``body`` along ``axes`` (k, 3) in the body
     frame, starting at 0 with the given ``rates`` (k,) [m/s]."""
     for i, axis in enumerate(axes):
         ET.SubElement(body, "joint", name=f"{name}_{i}", type="slide", axis=_floats(axis))
-    qpos.append(np.zeros(len(axes)))
-    qvel.append(rates)
-
+    keyframe.add(np.zeros(len(axes)), rates)
 
 def _held_axes(structure: Structure) -> dict[int, np.ndarray]:
     """The free directions of every node held on planes or lines (and not fixed): an orthonormal
