@@ -111,27 +111,15 @@ def _node_list(value: Any, field: str, n_nodes: int) -> np.ndarray:
 
 
 def from_connectivity(
-    N: Any,
-    C_b: Any,
-    C_s: Any,
-    *,
-    rod_mass: Any = DEFAULT_ROD_MASS,
-    rod_length: Any = None,
-    rod_damping: Any = 0.0,
-    tendon_stiffness: Any = DEFAULT_STIFFNESS,
-    tendon_rest_length: Any = None,
-    tendon_prestrain: Any = None,
-    tendon_damping: Any = 0.0,
+    N: Any, C_b: Any, C_s: Any, *,
+    rod_mass: Any = DEFAULT_ROD_MASS, rod_length: Any = None, rod_damping: Any = 0.0,
+    tendon_stiffness: Any = DEFAULT_STIFFNESS, tendon_rest_length: Any = None,
+    tendon_prestrain: Any = None, tendon_damping: Any = 0.0,
     tendon_name: Sequence[str] | None = None,
-    node_velocity: Any = None,
-    node_fixed: Any = None,
-    node_point_mass: Any = None,
-    plane_nodes: Any = None,
-    plane_normal: Any = None,
-    line_nodes: Any = None,
-    line_direction: Any = None,
-    joint_nodes: Any = None,
-    ball_joints: bool = False,
+    node_velocity: Any = None, node_fixed: Any = None, node_point_mass: Any = None,
+    plane_nodes: Any = None, plane_normal: Any = None,
+    line_nodes: Any = None, line_direction: Any = None,
+    joint_nodes: Any = None, ball_joints: bool = False,
 ) -> Structure:
     """A :class:`Structure` from the node matrix and the connectivity matrices.
 
@@ -184,9 +172,37 @@ def from_connectivity(
         joint, without ``ball_joints``), ``C_b[k]: zero length``, ``nodes[i]`` (a node in no
         bar, neither fixed nor a point mass), the parameters.
     """
+    network = _network(N, C_b, C_s)
+    rest = _tendon_rest_lengths(network, tendon_rest_length, tendon_prestrain)
+    velocity = _node_velocities(network, node_velocity)
+    split = _split_nodes(network, node_fixed, node_point_mass, ball_joints=ball_joints)
+    return Structure(
+        **_node_fields(network, split, velocity, joint_nodes=joint_nodes, plane_nodes=plane_nodes,
+                       plane_normal=plane_normal, line_nodes=line_nodes,
+                       line_direction=line_direction),
+        **_member_fields(network, rest, rod_mass=rod_mass, rod_length=rod_length,
+                         rod_damping=rod_damping, tendon_stiffness=tendon_stiffness,
+                         tendon_damping=tendon_damping, tendon_name=tendon_name),
+    )
+
+
+class _Network(NamedTuple):
+    """A network as read from ``N``, ``C_b``, ``C_s``."""
+
+    position: np.ndarray  #: (n, d) node positions [m]: ``N.T``
+    rods: np.ndarray  #: (R, 2) bars' (tail, head) nodes
+    tendons: np.ndarray  #: (S, 2) strings' (tail, head) nodes
+    length: np.ndarray  #: (R,) bar lengths [m] in ``N``
+
+
+def _network(N: Any, C_b: Any, C_s: Any) -> _Network:
+    """The nodes and members of :func:`from_connectivity`'s ``N`` (d, n), ``C_b`` (R, n) and
+    ``C_s`` (S, n), checked (finite positions, one tail and one head per member, no bar of
+    zero length)."""
     N = np.asarray(N, dtype=float)
     if N.ndim != 2 or N.shape[0] not in (2, 3):
-        hint = " (one column per node: pass N.T for positions in rows)" if N.ndim == 2 and N.shape[1] in (2, 3) else ""
+        rows = N.ndim == 2 and N.shape[1] in (2, 3)
+        hint = " (one column per node: pass N.T for positions in rows)" if rows else ""
         raise ValueError(f"N: expected shape (3, n) or (2, n), got {N.shape}{hint}")
     if not np.all(np.isfinite(N)):
         raise ValueError(f"N[:, {int(np.argwhere(~np.isfinite(N))[0, 1])}]: must be finite")
@@ -200,32 +216,58 @@ def from_connectivity(
         k = zero[0]
         raise ValueError(f"C_b[{k}]: bar joins nodes {rods[k, 0]} and {rods[k, 1]}, which coincide "
                          "(zero length)")
-    R, S = rods.shape[0], tendons.shape[0]
-    if (tendon_rest_length is None) == (tendon_prestrain is None):
+    return _Network(position, rods, tendons, length)
+
+
+def _tendon_rest_lengths(network: _Network, rest_length: Any, prestrain: Any) -> np.ndarray:
+    """Rest lengths (S,) [m]: ``rest_length`` (a number or S), or from the ``prestrain`` of the
+    strings in ``N`` (exactly one of them given)."""
+    if (rest_length is None) == (prestrain is None):
         raise ValueError("tendon_rest_length, tendon_prestrain: give exactly one of them")
+    position, tendons = network.position, network.tendons
     string_length = np.linalg.norm(position[tendons[:, 1]] - position[tendons[:, 0]], axis=1)
-    rest = (rest_from_prestrain(string_length, tendon_prestrain) if tendon_rest_length is None
-            else _per_member(tendon_rest_length, S, "tendon_rest_length"))
-    velocity = None
-    if node_velocity is not None:
-        velocity = np.asarray(node_velocity, dtype=float)
-        if velocity.shape != N.shape:
-            raise ValueError(f"node_velocity: expected shape {N.shape} like N, got {velocity.shape}")
-        velocity = velocity.T
-    fixed = np.zeros(n_nodes, bool) if node_fixed is None else np.asarray(node_fixed)
-    if fixed.shape != (n_nodes,) or fixed.dtype != bool:
-        raise ValueError(f"node_fixed: expected {n_nodes} booleans, got {fixed.dtype} of shape {fixed.shape}")
-    mass = _per_member(0.0 if node_point_mass is None else node_point_mass, n_nodes, "node_point_mass")
-    bad = np.flatnonzero(~np.isfinite(mass) | (mass < 0))
-    if bad.size:
-        raise ValueError(f"node_point_mass[{bad[0]}]: must be finite and >= 0, got {mass[bad[0]]}")
+    return (rest_from_prestrain(string_length, prestrain) if rest_length is None
+            else _per_member(rest_length, tendons.shape[0], "tendon_rest_length"))
+
+
+def _node_velocities(network: _Network, node_velocity: Any) -> np.ndarray | None:
+    """``node_velocity`` (d, n) [m/s], one column per node like ``N``, as rows (n, d)."""
+    if node_velocity is None:
+        return None
+    velocity = np.asarray(node_velocity, dtype=float)
+    shape = network.position.T.shape
+    if velocity.shape != shape:
+        raise ValueError(f"node_velocity: expected shape {shape} like N, got {velocity.shape}")
+    return velocity.T
+
+
+class _SplitNodes(NamedTuple):
+    """How each node ``i`` of ``N`` becomes ``parts[i]`` consecutive nodes of the structure from
+    ``start[i]`` (an anchor if fixed and in no bar, its bar ends from ``first_end[i]``, then its
+    point mass; one node in a class 1 network)."""
+
+    start: np.ndarray  #: (n,) int
+    parts: np.ndarray  #: (n,) int
+    first_end: np.ndarray  #: (n,) int
+    fixed: np.ndarray  #: (n',) bool: supports of the structure's nodes
+    mass: np.ndarray  #: (n',) point masses [kg] of the structure's nodes
+
+
+def _split_nodes(network: _Network, node_fixed: Any, node_point_mass: Any, *,
+                 ball_joints: bool) -> _SplitNodes:
+    """The :class:`_SplitNodes` of a network with supports ``node_fixed`` (n,) bool and point
+    masses ``node_point_mass`` (a number or n) [kg].  Without ``ball_joints``, a node in two
+    bars, or a point mass on a bar's end or a support, is an error; a node in no bar must be
+    fixed or carry a point mass."""
+    rods, n_nodes = network.rods, network.position.shape[0]
+    fixed, mass = _supports_and_point_masses(node_fixed, node_point_mass, n_nodes)
     count = np.bincount(rods.ravel(), minlength=n_nodes)
     if not ball_joints:
         check_class1(rods, n_nodes)
     free = np.flatnonzero((count == 0) & ~fixed & (mass == 0))
     if free.size:
-        raise ValueError(f"nodes[{free[0]}]: belongs to no bar; fix it (node_fixed) or give it a mass "
-                         "(node_point_mass): a massless free node has no dynamics")
+        raise ValueError(f"nodes[{free[0]}]: belongs to no bar; fix it (node_fixed) or give it a "
+                         "mass (node_point_mass): a massless free node has no dynamics")
     anchor = ((count == 0) & fixed).astype(np.int64)
     has_mass = (mass > 0).astype(np.int64)
     parts = anchor + count + has_mass
@@ -242,27 +284,63 @@ def from_connectivity(
     split_fixed[start[fixed]] = True
     split_mass = np.zeros(split_fixed.size)
     split_mass[(start + anchor + count)[mass > 0]] = mass[mass > 0]
-    return Structure(
-        node_position=np.repeat(position, parts, axis=0),
+    return _SplitNodes(start, parts, start + anchor, split_fixed, split_mass)
+
+
+def _supports_and_point_masses(node_fixed: Any, node_point_mass: Any,
+                               n_nodes: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(fixed (n,) bool, point mass (n,) [kg])`` of :func:`from_connectivity`'s arguments,
+    checked (booleans; finite masses >= 0)."""
+    fixed = np.zeros(n_nodes, bool) if node_fixed is None else np.asarray(node_fixed)
+    if fixed.shape != (n_nodes,) or fixed.dtype != bool:
+        raise ValueError(f"node_fixed: expected {n_nodes} booleans, got {fixed.dtype} of shape "
+                         f"{fixed.shape}")
+    mass = _per_member(0.0 if node_point_mass is None else node_point_mass, n_nodes,
+                       "node_point_mass")
+    bad = np.flatnonzero(~np.isfinite(mass) | (mass < 0))
+    if bad.size:
+        raise ValueError(f"node_point_mass[{bad[0]}]: must be finite and >= 0, got {mass[bad[0]]}")
+    return fixed, mass
+
+
+def _node_fields(network: _Network, split: _SplitNodes, velocity: np.ndarray | None, *,
+                 joint_nodes: Any, plane_nodes: Any, plane_normal: Any, line_nodes: Any,
+                 line_direction: Any) -> dict[str, Any]:
+    """The :class:`Structure` fields of the split nodes (positions, velocities (n, d) [m/s] or
+    None, supports, point masses, joints, planes and lines) and of the members' end nodes."""
+    start, parts, n_nodes = split.start, split.parts, network.position.shape[0]
+    return dict(
+        node_position=np.repeat(network.position, parts, axis=0),
         node_velocity=None if velocity is None else np.repeat(velocity, parts, axis=0),
-        rod_nodes=_split_rod_ends(rods, start + anchor),
-        tendon_nodes=start[tendons],
-        node_fixed=split_fixed,
-        node_point_mass=split_mass,
-        joint_nodes=np.vstack([_star_joints(start, parts), start[_node_pairs(joint_nodes, n_nodes)]]),
+        rod_nodes=_split_rod_ends(network.rods, split.first_end),
+        tendon_nodes=start[network.tendons],
+        node_fixed=split.fixed,
+        node_point_mass=split.mass,
+        joint_nodes=np.vstack([_star_joints(start, parts),
+                               start[_node_pairs(joint_nodes, n_nodes)]]),
         plane_nodes=start[_node_list(plane_nodes, "plane_nodes", n_nodes)],
         plane_normal=plane_normal,
         line_nodes=start[_node_list(line_nodes, "line_nodes", n_nodes)],
         line_direction=line_direction,
+    )
+
+
+def _member_fields(network: _Network, rest: np.ndarray, *, rod_mass: Any, rod_length: Any,
+                   rod_damping: Any, tendon_stiffness: Any, tendon_damping: Any,
+                   tendon_name: Sequence[str] | None) -> dict[str, Any]:
+    """The :class:`Structure` fields of the bars and strings: each parameter a number or one
+    value per member; ``rod_length`` [m] defaults to the lengths in ``N``, ``rest`` (S,) [m]."""
+    R, S = network.rods.shape[0], network.tendons.shape[0]
+    return dict(
         rod_mass=_per_member(rod_mass, R, "rod_mass"),
-        rod_length=length if rod_length is None else _per_member(rod_length, R, "rod_length"),
+        rod_length=(network.length if rod_length is None
+                    else _per_member(rod_length, R, "rod_length")),
         rod_damping=_per_member(rod_damping, R, "rod_damping"),
         tendon_stiffness=_per_member(tendon_stiffness, S, "tendon_stiffness"),
         tendon_rest_length=rest,
         tendon_damping=_per_member(tendon_damping, S, "tendon_damping"),
         tendon_name=None if tendon_name is None else tuple(tendon_name),
     )
-
 
 def _node_pairs(value: Any, n_nodes: int) -> np.ndarray:
     """``joint_nodes`` of :func:`from_connectivity` as a (J, 2) array of node indices."""
