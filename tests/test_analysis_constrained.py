@@ -522,7 +522,7 @@ def test_cli_gravity_hangs_a_pinned_rod_and_swings_it_at_the_pendulum_frequency(
     assert code == 0, err
     from tensegrity.io.trajectory import read_trajectory
 
-    tip = read_trajectory(tmp_path / "sim" / "trajectory.h5").nodes[:, 1, 2]
+    tip = read_trajectory(tmp_path / "sim" / "trajectory.h5").node_position[:, 1, 2]
     assert tip[-1] < tip[0] - 0.05 and np.all(np.diff(tip) <= 1e-12)  # falls from rest
     for bad in ("down", "1,2"):
         code, _, err = _cli(["modes", "--structure", path, "--gravity", bad,

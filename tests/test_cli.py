@@ -46,12 +46,12 @@ def test_default_example_reaches_a_taut_steady_state(default_run):
     assert np.all(structure.tendon_damping > 0)
     assert trajectory.status == 1, trajectory.message
     assert trajectory.residual_acceleration[-1] < 1e-6
-    assert np.abs(trajectory.velocities[-1]).max() < 1e-6
+    assert np.abs(trajectory.node_velocity[-1]).max() < 1e-6
     assert np.all(trajectory.tendon_tension[-1] > 0), "a tendon is slack at equilibrium"
     # It moved: the equilibrium is not the initial layout.
-    assert np.abs(trajectory.nodes[-1] - trajectory.nodes[0]).max() > 0.05
+    assert np.abs(trajectory.node_position[-1] - trajectory.node_position[0]).max() > 0.05
     # Rod lengths held, energy accounted for.
-    p = trajectory.nodes
+    p = trajectory.node_position
     rods = structure.rod_nodes
     lengths = np.linalg.norm(p[:, rods[:, 1]] - p[:, rods[:, 0]], axis=-1)
     assert np.abs(lengths - 1.0).max() < 1e-9
@@ -94,8 +94,8 @@ def test_export_then_simulate_and_info_a_structure_file(tmp_path, capsys):
                  "--method", "rk4", "--dt", "1e-3", "--sample-dt", "0.05", "--out", str(out)])
     assert code == 0
     trajectory = read_trajectory(out / "trajectory.h5")
-    assert trajectory.nodes.shape == (5, 32, 3)
-    assert trajectory.time[-1] == pytest.approx(0.2)
+    assert trajectory.node_position.shape == (5, 32, 3)
+    assert trajectory.t[-1] == pytest.approx(0.2)
 
 
 @pytest.mark.parametrize(
@@ -225,7 +225,7 @@ def test_simulate_a_planar_structure_writes_its_files(tmp_path, capsys):
     assert main(["simulate", "--kind", "planar", "--rest-length", "0.3", "--damping", "critical",
                  "--out", str(out)]) == 0
     trajectory = read_trajectory(out / "trajectory.h5")
-    assert trajectory.nodes.shape[1:] == (4, 2)
+    assert trajectory.node_position.shape[1:] == (4, 2)
     assert (out / "equilibrium.png").read_bytes()[:8] == PNG_SIGNATURE
 
 
@@ -254,7 +254,7 @@ def test_simulate_class2_shell_reports_the_joint_error(tmp_path, capsys):
     assert float(line.split()[-2]) < 1e-12
     trajectory = read_trajectory(out / "trajectory.h5")
     fixed = np.flatnonzero(trajectory.structure.node_fixed)
-    assert np.max(np.abs(trajectory.nodes[:, fixed] - trajectory.nodes[0, fixed])) < 1e-12
+    assert np.max(np.abs(trajectory.node_position[:, fixed] - trajectory.node_position[0, fixed])) < 1e-12
 
 
 def test_a_reader_that_closes_the_pipe_early_stops_the_command_quietly():

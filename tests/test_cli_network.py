@@ -57,9 +57,9 @@ def test_simulate_and_info_take_every_format(suffix, tmp_path, capsys):
     assert main(["simulate", "--structure", str(path), "--t-end", "0.1", "--no-steady-state",
                  "--sample-dt", "0.05", "--out", str(out)]) == 0
     trajectory = read_trajectory(out / "trajectory.h5")
-    assert trajectory.nodes.shape == (3, 6, 3)
+    assert trajectory.node_position.shape == (3, 6, 3)
     # at its equilibrium, the prism does not move
-    assert np.abs(trajectory.nodes[-1] - trajectory.nodes[0]).max() < 1e-9
+    assert np.abs(trajectory.node_position[-1] - trajectory.node_position[0]).max() < 1e-9
 
 
 def test_simulate_with_a_force_table(tmp_path):
@@ -74,8 +74,8 @@ def test_simulate_with_a_force_table(tmp_path):
                  "--no-steady-state", "--sample-dt", "0.1", "--force-table", str(tmp_path / "f.csv"),
                  "--out", str(out)]) == 0
     trajectory = read_trajectory(out / "trajectory.h5")
-    centre = trajectory.nodes.mean(axis=1)  # equal node masses
-    np.testing.assert_allclose(centre[:, 0] - centre[0, 0], 0.5 * 1.0 * trajectory.time**2, atol=1e-9)
+    centre = trajectory.node_position.mean(axis=1)  # equal node masses
+    np.testing.assert_allclose(centre[:, 0] - centre[0, 0], 0.5 * 1.0 * trajectory.t**2, atol=1e-9)
     np.testing.assert_allclose(trajectory.energy["external_work"][-1], 6 * 0.5 * 1.0 * 0.4**2,
                                rtol=1e-6)
 
@@ -132,7 +132,7 @@ def test_class_k_forms_carry_a_class2_shell_to_simulate(fmt, tmp_path, capsys):
     capsys.readouterr()
     assert main(["simulate", "--structure", str(path), "--t-end", "0.1", "--no-steady-state",
                  "--sample-dt", "0.05", "--out", str(out)]) == 0
-    nodes = read_trajectory(out / "trajectory.h5").nodes
+    nodes = read_trajectory(out / "trajectory.h5").node_position
     assert nodes.shape == (3, got.n_nodes, 3)
     fixed = np.flatnonzero(got.node_fixed)
     assert fixed.size and np.abs(nodes[:, fixed] - got.node_position[fixed]).max() < 1e-12

@@ -101,7 +101,7 @@ def test_killed_run_resumes_to_the_uninterrupted_trajectory_bit_for_bit(tmp_path
     done = cli(*RUN, "--out", str(whole), cwd=tmp_path)
     assert done.returncode == 0, done.stderr
     assert {p.name for p in whole.iterdir()} == FINAL_NAMES
-    assert read_trajectory(whole / "trajectory.h5").time.size == 201
+    assert read_trajectory(whole / "trajectory.h5").t.size == 201
 
     # The run has 10 checkpointed segments; the first one (compiling the kernels) is the slow
     # one, the others take milliseconds each, so the kill may come too late: then try again.
@@ -176,7 +176,7 @@ def test_resume_with_other_options_is_refused_in_one_line(tmp_path, capsys, monk
     # Without --resume the other options start afresh.
     assert main([*RUN, "--out", str(out), "--t-end", "0.5"]) == 0
     assert {p.name for p in out.iterdir()} == FINAL_NAMES
-    assert read_trajectory(out / "trajectory.h5").time[-1] == pytest.approx(0.5)
+    assert read_trajectory(out / "trajectory.h5").t[-1] == pytest.approx(0.5)
 
 
 @pytest.mark.parametrize("existing", [False, True])

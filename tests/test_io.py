@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from tensegrity import class1_shell, critical_damping, simulate
-from tensegrity.io.trajectory import ENERGY_COLUMNS, Trajectory, read_trajectory, write_trajectory
+from tensegrity.engine.result import SimulationResult
+from tensegrity.io.trajectory import ENERGY_COLUMNS, read_trajectory, write_trajectory
 from tensegrity.io.files import atomic_path
 from tensegrity.io.formats import read_structure, write_structure
 
@@ -160,9 +161,9 @@ def test_trajectory_round_trip_is_exact(tmp_path, result):
     assert write_trajectory(path, result) == path
     assert leftovers(tmp_path) == []
     tr = read_trajectory(path)
-    assert isinstance(tr, Trajectory)
+    assert isinstance(tr, SimulationResult)  # the type of the result in memory
     pairs = {
-        "time": result.t, "nodes": result.node_position, "velocities": result.node_velocity,
+        "t": result.t, "node_position": result.node_position, "node_velocity": result.node_velocity,
         "tendon_length": result.tendon_length, "tendon_tension": result.tendon_tension,
         "q": result.q, "qdot": result.qdot,
         "residual_acceleration": result.residual_acceleration,
@@ -208,7 +209,7 @@ def test_large_structure_attributes_fit(tmp_path):
     path = tmp_path / "big.h5"
     write_trajectory(path, run)
     tr = read_trajectory(path)
-    assert tr.structure.to_dict() == structure.to_dict() and tr.nodes.shape == (2, 1600, 3)
+    assert tr.structure.to_dict() == structure.to_dict() and tr.node_position.shape == (2, 1600, 3)
 
 
 def _fail_on(monkeypatch, dataset):
@@ -241,7 +242,7 @@ def test_failed_trajectory_write_keeps_the_older_file(tmp_path, result, monkeypa
     assert path.read_bytes() == before
     assert leftovers(tmp_path) == []
     monkeypatch.undo()
-    assert np.array_equal(read_trajectory(path).nodes, older.node_position)
+    assert np.array_equal(read_trajectory(path).node_position, older.node_position)
 
 
 def test_bad_trajectory_files_name_the_file(tmp_path, result):
@@ -304,3 +305,24 @@ def test_trajectory_keeps_the_joint_error_and_marks_older_files_unknown(tmp_path
         with h5py.File(path, "a") as f:
             del f.attrs["max_constraint_error"]
         np.testing.assert_equal(read_trajectory(path).max_constraint_error, older)
+
+
+def test_trajectory_read_back_is_the_result_written(tmp_path):
+    """One type in memory and on disk: every array field of the result read back equals the one
+    written (same names, shapes and values); ``every`` reads every k-th sample and the last."""
+    result = simulate(critical_damping(class1_shell(3, 1)), (0.0, 0.3), sample_dt=0.01)
+    path = write_trajectory(tmp_path / "run.h5", result)
+    back = read_trajectory(path)
+    for name in ("t", "q", "qdot", "node_position", "node_velocity", "tendon_length",
+                 "tendon_tension", "residual_acceleration"):
+        assert np.array_equal(getattr(back, name), getattr(result, name)), name
+    assert back.energy.keys() == result.energy.keys()
+    for name in result.energy:
+        assert np.array_equal(back.energy[name], result.energy[name]), name
+    some = read_trajectory(path, every=7)
+    rows = [*range(0, result.t.size, 7), result.t.size - 1]
+    assert np.array_equal(some.t, result.t[rows])
+    assert np.array_equal(some.node_position, result.node_position[rows])
+    assert np.array_equal(some.energy["elastic"], result.energy["elastic"][rows])
+    with pytest.raises(ValueError, match="every"):
+        read_trajectory(path, every=0)

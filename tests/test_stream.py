@@ -79,7 +79,7 @@ def test_uninterrupted_run_is_a_complete_trajectory(reference):
     assert trajectory.nfev == summary.nfev > 0
     assert list(trajectory.energy) == list(ENERGY_COLUMNS)
     # No sample missing or repeated: 51 samples, one every sample_dt, t0 and t_end included.
-    t = trajectory.time
+    t = trajectory.t
     assert t.size == summary.n_samples == 51
     assert t[0] == 0.0 and t[-1] == 0.5
     assert np.allclose(np.diff(t), 0.01, rtol=1e-9, atol=0)
@@ -93,9 +93,9 @@ def test_segments_agree_with_one_simulate_call_and_energy_is_continuous(referenc
     path, _ = reference
     trajectory = read_trajectory(path)
     whole = simulate(SHELL, (0.0, 0.5), **FAST)
-    assert np.array_equal(whole.t.size, trajectory.time.size)
-    assert np.allclose(trajectory.time, whole.t, rtol=0, atol=1e-12)
-    assert np.max(np.abs(trajectory.nodes - whole.node_position)) < 1e-4  # rtol 1e-6, 0.5 s
+    assert np.array_equal(whole.t.size, trajectory.t.size)
+    assert np.allclose(trajectory.t, whole.t, rtol=0, atol=1e-12)
+    assert np.max(np.abs(trajectory.node_position - whole.node_position)) < 1e-4  # rtol 1e-6, 0.5 s
     dissipated = trajectory.energy["dissipated"]
     assert np.all(np.diff(dissipated) >= 0) and dissipated[-1] > 1.0
     assert abs(dissipated[-1] - whole.energy["dissipated"][-1]) < 1e-4 * dissipated[-1]
@@ -108,7 +108,7 @@ def test_segments_agree_with_one_simulate_call_and_energy_is_continuous(referenc
 def test_times_with_a_shorter_last_segment_and_t0_not_zero(tmp_path):
     path = tmp_path / "run.h5"
     summary = simulate_to_file(SHELL, (1.0, 1.25), path, segment=0.1, **FAST)
-    t = read_trajectory(path).time
+    t = read_trajectory(path).t
     assert summary.n_segments == 3 and t.size == 26
     assert t[0] == 1.0 and t[-1] == 1.25
     assert np.allclose(np.diff(t), 0.01, rtol=1e-9, atol=0)
@@ -223,7 +223,7 @@ def test_resume_with_other_settings_is_refused(tmp_path, change, words):
     # resume=False starts again with the new settings.
     summary = simulate_to_file(structure, t_span, path, resume=False, **arguments)
     assert summary.resumed_from is None and summary.status == 0
-    assert read_trajectory(path).time[-1] == t_span[1]
+    assert read_trajectory(path).t[-1] == t_span[1]
 
 
 def test_explicit_default_options_match_omitted_ones(tmp_path):
@@ -246,8 +246,8 @@ def test_unstable_segment_stops_the_run_and_records_the_failure(tmp_path):
     assert summary.segments_stored < summary.n_segments
     trajectory = read_trajectory(path)
     assert trajectory.status == -1 and trajectory.message == summary.message
-    assert trajectory.time.size == summary.n_samples >= 1
-    assert np.all(np.diff(trajectory.time) > 0)
+    assert trajectory.t.size == summary.n_samples >= 1
+    assert np.all(np.diff(trajectory.t) > 0)
 
 
 def test_steady_state_stops_the_run(tmp_path):
@@ -259,8 +259,8 @@ def test_steady_state_stops_the_run(tmp_path):
     assert summary.status == 1 and summary.message.startswith("steady state")
     assert summary.segments_stored < summary.n_segments
     trajectory = read_trajectory(path)
-    assert trajectory.status == 1 and trajectory.time[-1] == summary.t_last < 20.0
-    assert np.abs(trajectory.velocities[-1]).max() < 1e-3
+    assert trajectory.status == 1 and trajectory.t[-1] == summary.t_last < 20.0
+    assert np.abs(trajectory.node_velocity[-1]).max() < 1e-3
 
 
 # ----------------------------------------------------------------------------- memory
@@ -284,8 +284,8 @@ def test_memory_does_not_grow_with_the_length_of_the_run(tmp_path):
                          **options)
 
     short, long = peak(0.16, streamed), peak(0.32, streamed)
-    extra_samples = read_trajectory(tmp_path / "run0.32.h5").time.size - read_trajectory(
-        tmp_path / "run0.16.h5").time.size
+    extra_samples = read_trajectory(tmp_path / "run0.32.h5").t.size - read_trajectory(
+        tmp_path / "run0.16.h5").t.size
     with h5py.File(tmp_path / "run0.32.h5", "r") as f:
         row_bytes = sum(f[name].dtype.itemsize * int(np.prod(f[name].shape[1:])) for name in DATASETS)
     extra_bytes = extra_samples * row_bytes

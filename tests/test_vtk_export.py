@@ -96,8 +96,8 @@ def test_every_keeps_the_last_sample_and_bad_options(run, tmp_path):
 def test_a_failed_write_leaves_nothing(run, tmp_path, monkeypatch):
     """Inconsistent arrays are refused up front; an error half way (the third file) writes no file
     at all, and the folder created for them is gone."""
-    broken = type("Broken", (), {"structure": run.structure, "time": run.t, "nodes": run.node_position,
-                                 "velocities": None,
+    broken = type("Broken", (), {"structure": run.structure, "t": run.t,
+                                 "node_position": run.node_position, "node_velocity": None,
                                  "tendon_tension": run.tendon_tension[:, :-1]})()
     with pytest.raises(ValueError, match=r"^tendon_tension: expected shape \(11, 9\) for 11 samples"):
         write_vtk(tmp_path / "out", broken)
@@ -128,7 +128,7 @@ def test_cli_vtk_verb_and_simulate_vtk(run, tmp_path, capsys):
     trajectory = read_trajectory(tmp_path / "run.h5")
     entries = read_pvd(tmp_path / "v" / "tensegrity.pvd")
     points, _, cells, _ = read_vtp(tmp_path / "v" / entries[1][1])
-    np.testing.assert_array_equal(points, trajectory.nodes[5])
+    np.testing.assert_array_equal(points, trajectory.node_position[5])
     np.testing.assert_array_equal(cells["tension"][3:], trajectory.tendon_tension[5])
 
     out = tmp_path / "sim"

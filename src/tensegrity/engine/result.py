@@ -133,6 +133,11 @@ class SimulationResult:
         )
 
     @property
+    def tendon_names(self) -> tuple[str, ...]:
+        """Tendon names (S,), as in the trajectory file's ``tendon_names`` attribute."""
+        return self.structure.tendon_name
+
+    @property
     def slack_count(self) -> np.ndarray:
         """Number of slack (zero-tension) tendons at each sample, (T,)."""
         return np.sum(self.tendon_tension <= 0, axis=1)

@@ -14,9 +14,9 @@ The names below are the common entry points.
 
 from tensegrity.io.files import PathLike, atomic_path, file_error, write_staged
 from tensegrity.io.formats import read_network, read_structure, write_network, write_structure
-from tensegrity.io.trajectory import Trajectory, read_trajectory, write_trajectory
+from tensegrity.io.trajectory import read_trajectory, write_trajectory
 
 __all__ = [
-    "PathLike", "Trajectory", "atomic_path", "file_error", "read_network", "read_structure",
+    "PathLike", "atomic_path", "file_error", "read_network", "read_structure",
     "read_trajectory", "write_network", "write_staged", "write_structure", "write_trajectory",
 ]

@@ -1,33 +1,36 @@
-"""Files: structures as JSON, simulation results as HDF5, and atomic writes.
+"""The trajectory file: a :class:`~tensegrity.engine.result.SimulationResult` as HDF5
+(:func:`write_trajectory`, atomic) and back (:func:`read_trajectory`, the same type with the
+same names, shapes and units).  The layout below is defined here once; the streamed writer
+(:mod:`tensegrity.io.stream`) writes the same datasets.
 
-A thin layer over :meth:`Structure.to_dict` / :meth:`Structure.from_dict` and ``h5py``.
-
-- Every writer is atomic (:func:`atomic_path`): the data go to a temporary file in the target's
-  directory that replaces the target only once it is complete, so a crash or an error never
-  leaves a partial file under the final name, and an older file there stays intact.
-- Every reader raises ``ValueError`` with a one-line message that starts with the file name and
-  names the problem (missing file, invalid JSON with its line and column, the invalid element of
-  the structure, a missing dataset, ...).
+Every reader raises ``ValueError`` with a one-line message that starts with the file name and
+names the problem (missing file, not HDF5, not a trajectory, a missing dataset, a shape that
+does not fit the structure, ...).
 
 SI units throughout: m, kg, s, N, J.
 
 The trajectory file (``format = "tensegrity-trajectory"``, ``version = 1``) holds, for ``T``
 samples, ``N`` nodes, ``R`` rods and ``S`` tendons:
 
-=========================  ===========  ===================================================
-dataset                    shape        content
-=========================  ===========  ===================================================
-``time``                   (T,)         sample times [s]
-``nodes``                  (T, N, 3)    node positions [m]
-``velocities``             (T, N, 3)    node velocities [m/s]
-``tendon_length``          (T, S)       tendon lengths [m]
-``tendon_tension``         (T, S)       tendon tensions [N] (damping included; 0 when slack)
-``energy``                 (T, 6)       energies and works [J]; attribute ``columns`` names them
-``q``, ``qdot``            (T, 6R)      generalized coordinates [m] and rates [m/s]
-``residual_acceleration``  (T,)         largest node acceleration [m/s^2]
-=========================  ===========  ===================================================
+=========================  ===========  ============================  ========================
+dataset                    shape        content                       ``SimulationResult``
+=========================  ===========  ============================  ========================
+``time``                   (T,)         sample times [s]              ``t``
+``nodes``                  (T, N, 3)    node positions [m]            ``node_position``
+``velocities``             (T, N, 3)    node velocities [m/s]         ``node_velocity``
+``tendon_length``          (T, S)       tendon lengths [m]            ``tendon_length``
+``tendon_tension``         (T, S)       tensions [N] (damping         ``tendon_tension``
+                                        included; 0 when slack)
+``energy``                 (T, 6)       energies and works [J];       ``energy`` (a dict by
+                                        attribute ``columns`` names   column name)
+                                        the columns
+``q``, ``qdot``            (T, 6R)      coordinates [m], rates [m/s]  ``q``, ``qdot``
+``residual_acceleration``  (T,)         largest node acceleration     ``residual_acceleration``
+                                        [m/s^2]
+=========================  ===========  ============================  ========================
 
-and the root attributes ``format``, ``version``, ``structure`` (JSON form of the structure),
+(``(T, N, 2)`` node arrays for a planar structure; point masses add 3 coordinates each to
+``q``.) and the root attributes ``format``, ``version``, ``structure`` (JSON form of the structure),
 ``settings`` (JSON), ``status``, ``message``, ``nfev``, ``nsteps``, ``nswitches``,
 ``nprojections``, ``max_rod_length_error``, ``max_constraint_error`` [m] (joints and supports;
 0 without them), ``wall_time`` [s] and ``tendon_names``.
@@ -35,18 +38,16 @@ and the root attributes ``format``, ``version``, ``structure`` (JSON form of the
 
 from __future__ import annotations
 
-import dataclasses
 import json
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
+from tensegrity.engine.result import SimulationResult
 from tensegrity.io.files import PathLike, atomic_path, file_error
 from tensegrity.model.structure import Structure
 
-if TYPE_CHECKING:
-    from tensegrity.engine.simulate import SimulationResult
 
 
 #: ``format`` attribute of a trajectory file.
@@ -84,79 +85,6 @@ _COUNT_ATTRIBUTES = ("nfev", "nsteps", "nswitches", "nprojections")
 
 
 # --------------------------------------------------------------------------- trajectories
-@dataclasses.dataclass(frozen=True, eq=False)
-class Trajectory:
-    """A simulation read back from a trajectory file (:func:`read_trajectory`).
-
-    ``T`` samples, ``N`` nodes, ``R`` rods, ``S`` tendons.
-
-    Attributes
-    ----------
-    time : ndarray, shape (T,)
-        Sample times [s].
-    nodes, velocities : ndarray, shape (T, N, 3)
-        Node positions [m] and velocities [m/s].
-    tendon_length : ndarray, shape (T, S)
-        Tendon lengths [m].
-    tendon_tension : ndarray, shape (T, S)
-        Tendon tensions [N]; ``<= 0`` means slack.
-    energy : dict of str to ndarray, shape (T,)
-        ``kinetic``, ``elastic``, ``gravity``, ``dissipated``, ``external_work``,
-        ``control_work`` [J], in the file's column order.
-    q, qdot : ndarray, shape (T, 6R)
-        Generalized coordinates [m] and rates [m/s].
-    residual_acceleration : ndarray, shape (T,)
-        Largest node acceleration [m/s^2].
-    structure : Structure
-        The simulated structure.
-    settings : dict
-        The options of the run (as recorded by :func:`tensegrity.engine.simulate.simulate`).
-    status : int
-        ``1`` steady state, ``0`` end time reached, ``-1`` failed.
-    message : str
-    nfev, nsteps, nswitches, nprojections : int
-        Right-hand-side evaluations, steps, located slack/taut switches, projections.
-    max_rod_length_error : float
-        Largest relative rod-length error seen.
-    wall_time : float
-        Run time [s].
-    max_constraint_error : float
-        Largest violation of the joints and supports seen [m] (0 for a structure without them;
-        NaN when read from a file written before it was stored).
-    """
-
-    time: np.ndarray
-    nodes: np.ndarray
-    velocities: np.ndarray
-    tendon_length: np.ndarray
-    tendon_tension: np.ndarray
-    energy: dict[str, np.ndarray]
-    q: np.ndarray
-    qdot: np.ndarray
-    residual_acceleration: np.ndarray
-    structure: Structure
-    settings: dict[str, Any]
-    status: int
-    message: str
-    nfev: int
-    nsteps: int
-    nswitches: int
-    nprojections: int
-    max_rod_length_error: float
-    wall_time: float
-    max_constraint_error: float = 0.0
-
-    @property
-    def success(self) -> bool:
-        """True unless the run failed."""
-        return self.status >= 0
-
-    @property
-    def tendon_names(self) -> tuple[str, ...]:
-        """Tendon names, shape (S,)."""
-        return self.structure.tendon_name
-
-
 def json_default(value: Any) -> Any:
     """JSON for NumPy scalars and arrays in ``settings``; ``str`` for anything else."""
     if isinstance(value, (np.generic, np.ndarray)):
@@ -228,16 +156,21 @@ def write_trajectory(path: PathLike, result: SimulationResult) -> Path:
     return Path(path)
 
 
-def read_trajectory(path: PathLike) -> Trajectory:
+def read_trajectory(path: PathLike, *, every: int = 1) -> SimulationResult:
     """Read a trajectory file written by :func:`write_trajectory`.
 
     Parameters
     ----------
     path : str or os.PathLike
+    every : int
+        Read one sample in ``every`` (the first, every ``every``-th, and always the last): a
+        long run's overview without its whole size in memory.
 
     Returns
     -------
-    Trajectory
+    SimulationResult
+        The same type, names, shapes and units as the result in memory that was written
+        (``switch_times``, not stored, is empty).
 
     Raises
     ------
@@ -260,11 +193,13 @@ def read_trajectory(path: PathLike) -> Trajectory:
         if not Path(path).exists():
             raise file_error(path, "no such file") from exc
         raise file_error(path, "not an HDF5 file (a tensegrity trajectory is HDF5)") from exc
+    if isinstance(every, bool) or not isinstance(every, int) or every < 1:
+        raise ValueError(f"every: must be an integer >= 1, got {every!r}")
     with handle as f:
-        return _read_open_trajectory(f, path)
+        return _read_open_trajectory(f, path, every)
 
 
-def _read_open_trajectory(f, path: PathLike) -> Trajectory:
+def _read_open_trajectory(f, path: PathLike, every: int = 1) -> SimulationResult:
     attrs = f.attrs
     fmt = text_attribute(attrs.get("format"))
     if fmt != TRAJECTORY_FORMAT:
@@ -294,7 +229,7 @@ def _read_open_trajectory(f, path: PathLike) -> Trajectory:
     if missing:
         raise file_error(path, f"missing dataset {missing[0]!r} (not a complete tensegrity "
                                 "trajectory)")
-    arrays = {name: np.asarray(f[name][()]) for name in ARRAY_DATASETS}
+    arrays = {name: _rows(f[name], every) for name in ARRAY_DATASETS}
     columns = [text_attribute(c) for c in f["energy"].attrs.get("columns", ENERGY_COLUMNS)]
 
     structure_data = json_attribute("structure")
@@ -325,10 +260,10 @@ def _read_open_trajectory(f, path: PathLike) -> Trajectory:
             "max_constraint_error", np.nan if structure.has_constraints else 0.0))
     except (TypeError, ValueError) as exc:
         raise file_error(path, f"invalid attribute: {exc}") from exc
-    return Trajectory(
-        time=arrays["time"],
-        nodes=arrays["nodes"],
-        velocities=arrays["velocities"],
+    return SimulationResult(
+        t=arrays["time"],
+        node_position=arrays["nodes"],
+        node_velocity=arrays["velocities"],
         tendon_length=arrays["tendon_length"],
         tendon_tension=arrays["tendon_tension"],
         energy={name: arrays["energy"][:, k] for k, name in enumerate(columns)},
@@ -342,6 +277,16 @@ def _read_open_trajectory(f, path: PathLike) -> Trajectory:
         **counts,
         **floats,
     )
+
+
+def _rows(dataset: Any, every: int) -> np.ndarray:
+    """Every ``every``-th row of ``dataset`` and its last row (all of it for ``every`` 1)."""
+    if every == 1 or dataset.ndim == 0 or dataset.shape[0] <= 1:
+        return np.asarray(dataset[()])
+    rows = dataset[::every]
+    if (dataset.shape[0] - 1) % every:
+        rows = np.concatenate([rows, dataset[-1:]])
+    return np.asarray(rows)
 
 
 def _h5py_dataset() -> type:

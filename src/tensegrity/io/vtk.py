@@ -17,11 +17,11 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import Any
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
+from tensegrity.engine.result import SimulationResult
 from tensegrity.io.files import PathLike, write_staged
 from tensegrity.model.structure import Structure
 
@@ -70,21 +70,15 @@ def polydata(structure: Structure, nodes: np.ndarray, tension: np.ndarray,
     return "\n".join(lines)
 
 
-def _series(source: Any) -> tuple[Structure, np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
-    """(structure, times, nodes, tensions, velocities) of a SimulationResult or a Trajectory."""
-    if hasattr(source, "node_position"):  # SimulationResult
-        return source.structure, source.t, source.node_position, source.tendon_tension, source.node_velocity
-    return source.structure, source.time, source.nodes, source.tendon_tension, source.velocities
-
-
-def write_vtk(out: PathLike, source: Any, *, name: str = "tensegrity", every: int = 1) -> list[Path]:
+def write_vtk(out: PathLike, source: SimulationResult, *, name: str = "tensegrity",
+              every: int = 1) -> list[Path]:
     """Write every ``every``-th sample of a simulation as ``out/<name>_<k>.vtp`` + ``out/<name>.pvd``.
 
     Parameters
     ----------
     out : path
         Output folder (created if missing).  Existing files of the same names are replaced.
-    source : SimulationResult or Trajectory
+    source : SimulationResult
         A result of :func:`tensegrity.engine.simulate.simulate` or one read by
         :func:`tensegrity.io.trajectory.read_trajectory`.
     every : int
@@ -99,7 +93,8 @@ def write_vtk(out: PathLike, source: Any, *, name: str = "tensegrity", every: in
         raise ValueError(f"every: must be an integer >= 1, got {every!r}")
     if not name or os.sep in name or (os.altsep and os.altsep in name):
         raise ValueError(f"name: must be a plain file name stem, got {name!r}")
-    structure, times, nodes, tension, velocity = _series(source)
+    structure, times = source.structure, source.t
+    nodes, tension, velocity = source.node_position, source.tendon_tension, source.node_velocity
     T, N, S = np.shape(times)[0], structure.n_nodes, structure.n_tendons
     for field, array, shape in (("nodes", nodes, (T, N, 3)), ("tendon_tension", tension, (T, S)),
                                 ("velocities", velocity, (T, N, 3))):

@@ -35,8 +35,7 @@ from tensegrity.model.structure import Structure
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
 
-    from tensegrity.io.trajectory import Trajectory
-    from tensegrity.engine.simulate import SimulationResult
+    from tensegrity.engine.result import SimulationResult
 
 ROD_COLOR = "#26282b"
 TENDON_COLOR = "#2f6fb0"
@@ -407,19 +406,7 @@ def figure_tendon_lengths(
     return figure
 
 
-def _run_data(result: SimulationResult | Trajectory) -> dict[str, Any]:
-    """The arrays the figures need, from a ``SimulationResult`` or a ``Trajectory``."""
-    time = result.t if hasattr(result, "t") else result.time
-    nodes = result.node_position if hasattr(result, "node_position") else result.nodes
-    return dict(time=np.asarray(time), nodes=np.asarray(nodes), structure=result.structure,
-                tension=np.asarray(result.tendon_tension),
-                length=np.asarray(result.tendon_length), status=result.status,
-                message=result.message, settings=getattr(result, "settings", {}) or {})
-
-
-def save_figures(
-    result: SimulationResult | Trajectory, out_dir: str | Path, *, dpi: int = 150
-) -> list[Path]:
+def save_figures(result: SimulationResult, out_dir: str | Path, *, dpi: int = 150) -> list[Path]:
     """Write the figures of a simulation as PNG files in ``out_dir``, each atomically.
 
     - ``initial.png``: the structure at the first sample (Figure 18.10);
@@ -429,9 +416,10 @@ def save_figures(
 
     Parameters
     ----------
-    result : SimulationResult or Trajectory
+    result : SimulationResult
         A run from :func:`tensegrity.engine.simulate.simulate`, or one read back with
-        :func:`tensegrity.io.trajectory.read_trajectory`.
+        :func:`tensegrity.io.trajectory.read_trajectory` (e.g. one sample in ten of a long run:
+        ``every=10``).
     out_dir : str or pathlib.Path
         Output folder, created if missing.
     dpi : int
@@ -442,25 +430,25 @@ def save_figures(
     list of pathlib.Path
         The three files, in the order above.
     """
-    data = _run_data(result)
-    structure, time, nodes, tension = data["structure"], data["time"], data["nodes"], data["tension"]
+    structure, time = result.structure, result.t
+    nodes, tension = result.node_position, result.tendon_tension
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    if data["status"] == 1:
+    if result.status == 1:
         final_title = f"Steady-state equilibrium (t = {time[-1]:.4g} s)"
-    elif data["status"] < 0:
+    elif result.status < 0:
         final_title = f"Last state before failure (t = {time[-1]:.4g} s)"
     else:
         final_title = f"Final configuration (t = {time[-1]:.4g} s)"
-    rest = None if data["settings"].get("control") else structure.tendon_rest_length
+    rest = None if (result.settings or {}).get("control") else structure.tendon_rest_length
     figures = {
         "initial.png": figure_structure(
             structure, nodes[0], tension[0], title=f"Initial configuration (t = {time[0]:.4g} s)"
         ),
         "equilibrium.png": figure_structure(structure, nodes[-1], tension[-1], title=final_title),
         "tendon_lengths.png": figure_tendon_lengths(
-            time, data["length"], structure.tendon_name, rest_length=rest,
-            title="Tendon lengths", subtitle=_first_upper(data["message"]),
+            time, result.tendon_length, structure.tendon_name, rest_length=rest,
+            title="Tendon lengths", subtitle=_first_upper(result.message),
         ),
     }
     paths = []
