@@ -4,6 +4,9 @@ Rigid rods and elastic tendons, modelled with the explicit end-point formulation
 Pinaud and Mingori ("The Dynamics of the Class 1 Shell Tensegrity Structure", Theorem 18.1).
 """
 
+from tensegrity.engine.simulate import SimulationResult, simulate
+from tensegrity.model.shell import class1_shell
+from tensegrity.model.structure import Structure
 from tensegrity.physics.dynamics import (
     State,
     accelerations,
@@ -15,13 +18,10 @@ from tensegrity.physics.dynamics import (
     tendon_lengths,
     tendon_tensions,
 )
-from tensegrity.model.shell import class1_shell
-from tensegrity.engine.simulate import SimulationResult, simulate
-from tensegrity.model.structure import Structure
 
 __all__ = [
-    "State",
     "SimulationResult",
+    "State",
     "Structure",
     "accelerations",
     "class1_shell",

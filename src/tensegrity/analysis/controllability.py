@@ -28,9 +28,10 @@ Tests, each with its tolerance stated in the result:
 
 from __future__ import annotations
 
+import builtins
 import dataclasses
 import fnmatch
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -85,11 +86,13 @@ class ReachResult:
     gramian_eigenvalues: np.ndarray | None  #: of the non-rigid part (damped systems only)
     gramian_note: str
 
-    @property
+    # ``builtins.property``: the field ``property`` above shadows the builtin in this class body
+    # for a type checker (at run time an annotation without a value binds no name).
+    @builtins.property
     def full_rank(self) -> bool:
         return self.rank == self.n_states
 
-    @property
+    @builtins.property
     def elastic_full_rank(self) -> bool:
         return self.elastic_rank == self.elastic_states
 
@@ -122,7 +125,8 @@ class ReachResult:
 
 # ---------------------------------------------------------------------------- sets
 def resolve_inputs(lin: Linearization, pattern: str | Sequence[str]) -> tuple[str, ...]:
-    """Tendon names matching ``pattern`` (``"all"``, comma-separated fnmatch patterns, or a list)."""
+    """Tendon names matching ``pattern`` (``"all"``, comma-separated fnmatch patterns, or a
+    list)."""
     return match_tendons(lin.structure, pattern)
 
 
@@ -230,7 +234,12 @@ def _clusters(modes: ModalAnalysis) -> list[list[int]]:
     return out
 
 
-def _mode_tests(modes: ModalAnalysis, matrix_of, scale: float, rtol: float) -> tuple[ModeTest, ...]:
+def _mode_tests(
+    modes: ModalAnalysis,
+    matrix_of: Callable[[np.ndarray, float], np.ndarray],
+    scale: float,
+    rtol: float,
+) -> tuple[ModeTest, ...]:
     tests = []
     for cluster in _clusters(modes):
         w = float(np.sqrt(max(modes.omega_squared[cluster[0]], 0.0)))

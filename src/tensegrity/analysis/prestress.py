@@ -29,8 +29,6 @@ from typing import Any, NamedTuple
 import numpy as np
 import scipy.optimize
 
-from tensegrity.physics.constraints import constraints_of
-from tensegrity.physics import dynamics
 from tensegrity.analysis.coordinates import (
     Chart,
     admitted_rigid_motions,
@@ -47,6 +45,8 @@ from tensegrity.analysis.statics import (
     unit_tension_forces,
 )
 from tensegrity.model.structure import Structure
+from tensegrity.physics import dynamics
+from tensegrity.physics.constraints import constraints_of
 
 #: Singular values of the (column-scaled) equilibrium matrix below ``SVD_RTOL`` times the largest
 #: count as zero.
@@ -176,8 +176,10 @@ def feasible_prestress(
     s = chart.structure
     forces = unit_tension_forces(s, direction)  # (N, 3, S) per unit tension
     if Z is not None:  # plus the reactions that balance each tendon's pull
+        constraints = constraints_of(s)
+        assert constraints is not None  # Z (the admitted motions) is None without constraints
         multiplier, *_ = np.linalg.lstsq(chart.constraint_jacobian().T, -full, rcond=None)
-        forces = forces + (constraints_of(s).node_matrix_t @ multiplier).reshape(forces.shape)
+        forces = forces + (constraints.node_matrix_t @ multiplier).reshape(forces.shape)
     unit = rod_compression(s, forces, chart.direction)  # (R, S) per unit tension
     if compressed_rods:
         A_ub.append(np.hstack([-unit, np.zeros((structure.n_rods, 1))]))  # -compression <= 0

@@ -11,8 +11,8 @@ For a configuration ``x`` of a :class:`~tensegrity.analysis.coordinates.Chart`:
   tendon, ``t`` its unit vector); ``G`` is the geometric term of the rods' rotation (it makes a
   compressed rod destabilizing, ``-P L / 2`` per angle at ``phi = 0``).
 
-Tendon law as in :mod:`tensegrity.physics.dynamics` (elastic part only: velocities are zero in statics):
-``T = k (l - Lbar)`` while ``l > Lbar``, else 0.
+Tendon law as in :mod:`tensegrity.physics.dynamics` (elastic part only: velocities are zero in
+statics): ``T = k (l - Lbar)`` while ``l > Lbar``, else 0.
 """
 
 from __future__ import annotations
@@ -21,9 +21,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from tensegrity.physics import dynamics
 from tensegrity.analysis.coordinates import Chart
 from tensegrity.model.structure import Structure
+from tensegrity.physics import dynamics
 
 #: A tendon whose stretch ``|l - Lbar|`` is at most this times ``Lbar`` (or ``l``) is "at the
 #: threshold": no tension, but it stiffens as soon as it is stretched.

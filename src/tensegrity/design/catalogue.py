@@ -91,7 +91,8 @@ def _pairs(tails: np.ndarray, heads: np.ndarray) -> np.ndarray:
 
 # --------------------------------------------------------------------------------- prism
 def prism_twist(n: int) -> float:
-    """Equilibrium twist ``pi/2 - pi/n`` [rad] of the regular ``n``-bar prism (see :func:`prism`)."""
+    """Equilibrium twist ``pi/2 - pi/n`` [rad] of the regular ``n``-bar prism (see
+    :func:`prism`)."""
     return math.pi / 2 - math.pi / _count(n, "n", 3)
 
 
@@ -160,9 +161,9 @@ def prism(
 
     ``n`` bars between a bottom and a top ``n``-gon of ring strings, ``n`` side strings
     (:func:`prism_members`), laid out by :func:`prism_layout` with the twist ``pi/2 - pi/n``
-    (30 degrees for ``n = 3``, 45 for ``n = 4``), the only twist at which the prism has a self-stress
-    with all strings in tension (derivation and source: ``docs/networks.md``).  Rest lengths
-    realize that self-stress with mean tendon tension ``tension`` [N].
+    (30 degrees for ``n = 3``, 45 for ``n = 4``), the only twist at which the prism has a
+    self-stress with all strings in tension (derivation and source: ``docs/networks.md``).  Rest
+    lengths realize that self-stress with mean tendon tension ``tension`` [N].
 
     Parameters
     ----------
@@ -233,7 +234,9 @@ def tower_members(n: int, m: int) -> tuple[np.ndarray, np.ndarray, tuple[str, ..
     pull the stages apart until they merely touch (no overlap).
     """
     i = np.arange(n)
-    rods, tendons, names = [], [], []
+    rods: list[np.ndarray] = []
+    tendons: list[np.ndarray] = []
+    names: list[str] = []
 
     def add(pairs: np.ndarray, label: str) -> None:
         tendons.append(pairs)

@@ -11,8 +11,6 @@ import tempfile
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
-
-
 #: A file name: ``str`` or ``os.PathLike``.
 PathLike = str | os.PathLike
 

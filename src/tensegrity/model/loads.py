@@ -16,7 +16,6 @@ from collections.abc import Sequence
 import numpy as np
 
 
-
 def gravity_vector(value: float | Sequence[float], dim: int) -> np.ndarray:
     """Uniform gravity [m/s^2] as a (dim,) vector.
 

@@ -1,10 +1,11 @@
 """Planar structures of the paper's Appendix A: a single rod (Example 1) and the two crossed rods
 held by four tendons (Example 2, eqs. 18.A.20-18.A.22).
 
-A planar structure is a :class:`~tensegrity.model.structure.Structure` whose nodes have two coordinates
-(``node_position`` of shape (N, 2)): ``q`` has ``4R`` entries (``q1 = p_a + p_b``, ``q2 = p_b -
-p_a`` in the plane) and Theorem 18.1 holds with the same formulas, ``skew(q2)^2`` being the 2x2
-matrix ``q2 q2^T - |q2|^2 I`` printed in Example 1.  Each rod has 3 degrees of freedom.
+A planar structure is a :class:`~tensegrity.model.structure.Structure` whose nodes have two
+coordinates (``node_position`` of shape (N, 2)): ``q`` has ``4R`` entries (``q1 = p_a + p_b``,
+``q2 = p_b - p_a`` in the plane) and Theorem 18.1 holds with the same formulas, ``skew(q2)^2``
+being the 2x2 matrix ``q2 q2^T - |q2|^2 I`` printed in Example 1.  Each rod has 3 degrees of
+freedom.
 
 Example 2's nodes and tendons, read off (18.A.20)-(18.A.22) (``p1 = rho``, ``p2 = rho + r1``,
 ``p3 = rho_hat``, ``p4 = rho_hat + r2``; tendon vector head minus tail)::
@@ -31,9 +32,9 @@ EXAMPLE2_TENDONS = (("t1", 2, 1), ("t2", 2, 0), ("t3", 0, 3), ("t5", 1, 3))
 def planar_rod(*, mass: float = 1.0, length: float = 1.0, angle: float = 0.0) -> Structure:
     """Example 1: one free planar rod [kg, m] from the origin at ``angle`` [rad] to the x axis."""
     tip = length * np.array([math.cos(angle), math.sin(angle)])
-    return Structure(node_position=[[0.0, 0.0], tip], rod_nodes=[[0, 1]], rod_mass=[mass],
-                     rod_length=[length], tendon_nodes=np.zeros((0, 2), int), tendon_stiffness=[],
-                     tendon_rest_length=[])
+    return Structure(node_position=np.array([[0.0, 0.0], tip]), rod_nodes=[[0, 1]],
+                     rod_mass=[mass], rod_length=[length], tendon_nodes=np.zeros((0, 2), int),
+                     tendon_stiffness=[], tendon_rest_length=[])
 
 
 def planar_two_rod(

@@ -14,6 +14,7 @@ Numbering (0-based, the paper's stacking order of ``q``, eq. 18.24):
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -72,7 +73,7 @@ def _check_size(n: int, m: int) -> None:
         raise ValueError(f"m: a shell needs m >= 1 stages, got {m!r}")
 
 
-def _real(value: object, name: str) -> float:
+def _real(value: Any, name: str) -> float:
     try:
         return float(value)
     except (TypeError, ValueError):
@@ -181,7 +182,7 @@ def class1_shell(
 
 def _shell_structure(
     position: np.ndarray, tendons: list[tuple[str, int, int]], *, rod_mass: float,
-    rod_length: float, stiffness: float, rest_length: float | None, damping: float, **extra,
+    rod_length: float, stiffness: float, rest_length: float | None, damping: float, **extra: Any,
 ) -> Structure:
     """A shell's :class:`Structure`: rod ``r`` joins nodes ``2r, 2r+1``, uniform parameters, the
     default rest length half the shortest initial tendon; ``extra`` fields passed on."""

@@ -121,12 +121,12 @@ class LinearConstraints:
         ``12/m`` on its ``q2``, ``1/m`` on a point mass [1/kg].
     """
 
-    def __init__(self, structure) -> None:
+    def __init__(self, structure: Structure) -> None:
         s = structure
         self.structure = s
         N, d = s.n_nodes, s.dim
         position = s.node_position
-        blocks: list[tuple[int, np.ndarray, int, np.ndarray]] = []
+        blocks: list[tuple[int | np.integer, np.ndarray, int | np.integer, np.ndarray]] = []
         # (row node, row vectors (k, d), second node or -1, rhs (k,)) per constraint
         eye = np.eye(d)
         for a, b in s.joint_nodes:
@@ -135,15 +135,15 @@ class LinearConstraints:
         in_rod[s.rod_nodes] = True
         for a in np.flatnonzero(s.node_fixed & in_rod):
             blocks.append((a, eye, -1, position[a].copy()))
-        for a, normal in zip(s.plane_nodes, s.plane_normal):
+        for a, normal in zip(s.plane_nodes, s.plane_normal, strict=True):
             blocks.append((a, normal[None], -1, np.array([normal @ position[a]])))
-        for a, pair in zip(s.line_nodes, normals(s.line_direction)):
+        for a, pair in zip(s.line_nodes, normals(s.line_direction), strict=True):
             blocks.append((a, pair, -1, pair @ position[a]))
 
         rows, cols, data, rhs = [], [], [], []
         row = 0
         for a, vectors, b, value in blocks:
-            for vector, v in zip(vectors, value):
+            for vector, v in zip(vectors, value, strict=True):
                 for node, sign in ((a, 1.0), (b, -1.0)):
                     if node >= 0:
                         rows += [row] * d
@@ -176,7 +176,7 @@ class LinearConstraints:
 
     # ------------------------------------------------------------------ construction
     @staticmethod
-    def _coordinate_map(s) -> sp.csr_matrix:
+    def _coordinate_map(s: Structure) -> sp.csr_matrix:
         """``P`` (dN, n): stacked node positions from ``q`` (zero rows at anchors; eq. 18.26)."""
         d, R, M = s.dim, s.n_rods, s.point_mass_nodes.size
         axes = np.arange(d)
@@ -216,7 +216,7 @@ class LinearConstraints:
         return np.sort(np.array(keep, dtype=int))
 
     @staticmethod
-    def _acceleration_pattern(s) -> tuple[np.ndarray, np.ndarray]:
+    def _acceleration_pattern(s: Structure) -> tuple[np.ndarray, np.ndarray]:
         """Row and column indices of ``G`` (n, dN) as d x d blocks: per rod ``(q1, a), (q1, b),
         (q2, a), (q2, b)``, then one block per point mass."""
         d, R = s.dim, s.n_rods
@@ -289,8 +289,8 @@ class LinearConstraints:
         Positions: Gauss-Newton steps ``dq = -W^-1 J^T (J W^-1 J^T)^-1 c(q)`` on
         ``c = [A q - b; (|q2|^2 - L^2) / 2]`` until every error is below ``PROJECTION_RTOL``
         times the length scale, or below ``PROJECTION_FLOOR_RTOL`` times it once the steps stop
-        converging (the round-off floor).  Raises ``FloatingPointError`` if that fails (the state is too
-        far off the constraints to be projected).
+        converging (the round-off floor).  Raises ``FloatingPointError`` if that fails (the state
+        is too far off the constraints to be projected).
         """
 
         s = self.structure

@@ -9,7 +9,6 @@ stacked rod by rod, then the point masses' positions.  :func:`force_response` is
 
 from __future__ import annotations
 
-
 import numpy as np
 
 from tensegrity.model.structure import Structure

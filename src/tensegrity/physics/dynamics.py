@@ -27,6 +27,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from tensegrity.model.structure import Structure
 from tensegrity.physics.constraints import constraints_of
 from tensegrity.physics.coordinates import (  # the coordinates are part of this reference's API
     coordinates_from_nodes,
@@ -36,7 +37,6 @@ from tensegrity.physics.coordinates import (  # the coordinates are part of this
     rod_coordinates,
     rods_view as rods_view,
 )
-from tensegrity.model.structure import Structure
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -68,8 +68,9 @@ def project_to_constraints(
     unchanged; with them the projection is mass-weighted
     (:meth:`tensegrity.physics.constraints.LinearConstraints.project`).
     """
-    if structure.has_constraints:
-        return constraints_of(structure).project(q, qdot)
+    constraints = constraints_of(structure)  # None without joints and supports
+    if constraints is not None:
+        return constraints.project(q, qdot)
     q, qdot = q.copy(), qdot.copy()
     q2, v2 = rod_coordinates(structure, q)[..., 1, :], rod_coordinates(structure, qdot)[..., 1, :]
     norm = np.linalg.norm(q2, axis=-1, keepdims=True)
@@ -86,9 +87,10 @@ def rod_length_error(structure: Structure, q: np.ndarray) -> np.ndarray:
 
 def constraint_error(structure: Structure, q: np.ndarray) -> float:
     """Largest violation ``max |A q - b|`` [m] of the joints and supports (0 without any)."""
-    if not structure.has_constraints:
+    constraints = constraints_of(structure)  # None without joints and supports
+    if constraints is None:
         return 0.0
-    return float(np.max(np.abs(constraints_of(structure).residual(q)), initial=0.0))
+    return float(np.max(np.abs(constraints.residual(q)), initial=0.0))
 
 
 def initial_state(structure: Structure, *, t: float = 0.0) -> State:
@@ -266,8 +268,9 @@ def evaluate(
     rates = rod_coordinates(structure, qdot)
     qddot = force_response(structure, q, force, rates=rates)
     reaction = None
-    if structure.has_constraints:
-        reaction = constraints_of(structure).constraint_force(q, qddot)
+    constraints = constraints_of(structure)  # None without joints and supports
+    if constraints is not None:
+        reaction = constraints.constraint_force(q, qddot)
         qddot += force_response(structure, q, reaction)
     alpha = structure.rod_damping[:, None, None]
     dissipated = float(

@@ -1,6 +1,7 @@
 """A compiled (numba) right-hand side and fixed-step RK4 loop for Theorem 18.1.
 
-The physics is exactly that of :func:`tensegrity.physics.dynamics.evaluate` (the readable NumPy reference):
+The physics is exactly that of :func:`tensegrity.physics.dynamics.evaluate` (the readable NumPy
+reference):
 
 - tendon tension ``T = max(k (l - Lbar) + c l', 0)`` while taut (``l > Lbar``), else 0;
 - nodal forces from tendons, external forces ``w`` and gravity (half a rod's weight per end);
@@ -37,10 +38,10 @@ does) in compiled code, so that small structures are not dominated by Python cal
 :func:`energies` gives the kinetic, elastic and gravity energies (the engine's blow-up
 checks, through :mod:`tensegrity.physics.kernel_system`).
 
-This module imports numba; import it lazily (``from tensegrity.physics.kernel import FastKernel`` inside
-the function that needs it) so that ``import tensegrity`` stays fast.  Compiled code is cached on
-disk (``cache=True``): the first use on a machine compiles for a few seconds, later processes load
-the cache in well under a second.
+This module imports numba; import it lazily (``from tensegrity.physics.kernel import
+FastKernel`` inside the function that needs it) so that ``import tensegrity`` stays fast.
+Compiled code is cached on disk (``cache=True``): the first use on a machine compiles for a few
+seconds, later processes load the cache in well under a second.
 
 Usage::
 
@@ -58,9 +59,10 @@ A :class:`FastKernel` owns scratch buffers and is therefore not thread-safe: use
 from __future__ import annotations
 
 import os
-from typing import NamedTuple
+from typing import Literal, NamedTuple, TypedDict
 
 import numpy as np
+import numpy.typing as npt
 from numba import njit, prange
 
 from tensegrity.model.structure import Structure
@@ -70,9 +72,22 @@ __all__ = [
     "pack", "project", "rhs", "rk4_step", "rk4_steps", "stencil_layout", "tendon_vector",
 ]
 
-JIT_OPTIONS = dict(
-    cache=True, fastmath={"contract"}, nogil=True, boundscheck=False, error_model="numpy",
-)
+
+class JitOptions(TypedDict):
+    """The keyword arguments of ``numba.njit`` used for all the compiled code (typed, so that
+    ``njit(**JIT_OPTIONS)`` is checked against numba's signature)."""
+
+    cache: bool
+    fastmath: set[str]
+    nogil: bool
+    boundscheck: bool
+    error_model: Literal["python", "numpy"]
+
+
+JIT_OPTIONS: JitOptions = {
+    "cache": True, "fastmath": {"contract"}, "nogil": True, "boundscheck": False,
+    "error_model": "numpy",
+}
 
 
 # --------------------------------------------------------------------------- compiled code
@@ -404,7 +419,8 @@ def _rod_pass(
 
 @njit(**JIT_OPTIONS)
 def _block(k, n_blocks, n):  # pragma: no cover - compiled
-    """Bounds ``(first, last)`` of block ``k`` of ``n_blocks`` nearly equal blocks of ``range(n)``."""
+    """Bounds ``(first, last)`` of block ``k`` of ``n_blocks`` nearly equal blocks of
+    ``range(n)``."""
     return k * n // n_blocks, (k + 1) * n // n_blocks
 
 
@@ -525,9 +541,9 @@ def rk4_step(
 ):  # pragma: no cover - compiled
     """One classical RK4 step of ``h`` on ``y = [q, q']`` in place (no projection); ``model`` is
     the tuple of :func:`rhs`'s model arguments.  The stage arithmetic is that of
-    :func:`tensegrity.engine.compiled.rk4_step`: ``y + h/6 (k1 + 2 k2 + 2 k3 + k4)``.  ``stage_work`` is
-    (5, 6R) scratch.  Returns the step's increments of dissipated energy and external work,
-    ``h/6 (P1 + 2 P2 + 2 P3 + P4)``."""
+    :func:`tensegrity.engine.compiled.rk4_step`: ``y + h/6 (k1 + 2 k2 + 2 k3 + k4)``.
+    ``stage_work`` is (5, 6R) scratch.  Returns the step's increments of dissipated energy and
+    external work, ``h/6 (P1 + 2 P2 + 2 P3 + P4)``."""
     n = q.shape[0]
     q_stage = stage_work[0]
     v_stage = stage_work[1]
@@ -720,8 +736,8 @@ def stencil_layout(tendon_nodes: np.ndarray, n_nodes: int) -> StencilLayout:
     first_cell = np.array([tendon_nodes[t[0], 0] // K for t in run_tendons], dtype=np.int64)
     run_tendons = [run_tendons[g] for g in np.argsort(first_cell, kind="stable")]
     in_runs = np.zeros(S, dtype=bool)
-    in_runs[np.concatenate(run_tendons + [np.zeros(0, dtype=np.int64)])] = True
-    tendon_order = np.concatenate(run_tendons + [np.flatnonzero(~in_runs)]).astype(np.int64)
+    in_runs[np.concatenate([*run_tendons, np.zeros(0, dtype=np.int64)])] = True
+    tendon_order = np.concatenate([*run_tendons, np.flatnonzero(~in_runs)]).astype(np.int64)
     tendon_runs = np.zeros((len(run_tendons), 4), dtype=np.int64)
     position = 0
     for g, tendons in enumerate(run_tendons):
@@ -751,7 +767,7 @@ class PackedStructure(NamedTuple):
         """Per-node vectors (..., N, 3) as (..., 3, n_slots), by coordinate and slot (zero in
         slots that hold no node)."""
         node_values = np.asarray(node_values, dtype=np.float64)
-        out = np.zeros(node_values.shape[:-2] + (3, self.layout.n_slots))
+        out = np.zeros((*node_values.shape[:-2], 3, self.layout.n_slots))
         out[..., self.layout.node_slot] = np.swapaxes(node_values, -1, -2)
         return out
 
@@ -819,8 +835,13 @@ class RK4Result(NamedTuple):
 
 _F64 = np.dtype(np.float64)
 
+#: :func:`rhs`'s model arguments, ``rod_slots`` to ``rest_length`` (:meth:`FastKernel._model`).
+ModelArrays = tuple[
+    np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray | None, np.ndarray
+]
 
-def _float_input(value, shape: tuple[int, ...], field: str) -> np.ndarray:
+
+def _float_input(value: npt.ArrayLike, shape: tuple[int, ...], field: str) -> np.ndarray:
     """``value`` as a writable C-contiguous float64 array of ``shape``, copied only if needed.
 
     (Writable, because numba compiles a separate specialization for read-only arrays.)
@@ -898,22 +919,23 @@ class FastKernel:
         self._damping_power = np.zeros(self.n_tendons)  # kernel order
         self._no_external = np.zeros((3, 1))
         self._no_gravity = np.zeros(3)
-        self._last_rest_source = None
-        self._last_rest = None
+        # (source, its copy in kernel order) of the last read-only rest lengths (see _rest)
+        self._last_rest: tuple[np.ndarray, np.ndarray] | None = None
 
-    def _model(self, rest: np.ndarray) -> tuple:
+    def _model(self, rest: np.ndarray) -> ModelArrays:
         """:func:`rhs`'s model arguments up to ``rest_length`` (kernel order)."""
         p = self._packed
         return (p.rod_slots, p.rod_param, p.tendon_slots, p.tendon_runs, p.tendon_stiffness,
                 p.tendon_damping, rest)
 
     # ------------------------------------------------------------------ inputs
-    def _rest(self, rest_length) -> np.ndarray:
+    def _rest(self, rest_length: np.ndarray) -> np.ndarray:
         """``rest_length`` (S,), checked, in kernel order."""
         # The common case passes the same read-only array (structure.tendon_rest_length) again and
         # again: keep its reordered copy instead of reordering on every call.
-        if rest_length is self._last_rest_source and not rest_length.flags.writeable:
-            return self._last_rest
+        last = self._last_rest
+        if last is not None and rest_length is last[0] and not rest_length.flags.writeable:
+            return last[1]
         rest = _float_input(rest_length, (self.n_tendons,), "rest_length")
         read_only = type(rest_length) is np.ndarray and not rest_length.flags.writeable
         if self._position is not None:
@@ -922,10 +944,13 @@ class FastKernel:
             rest, checked = (np.empty(self.n_tendons) if read_only else self._rest_length), rest
             _reorder(checked, self._position, rest, True)
         if rest is not rest_length and read_only:
-            self._last_rest_source, self._last_rest = rest_length, rest
+            self._last_rest = (rest_length, rest)
         return rest
 
-    def _loads(self, external_force, gravity):
+    def _loads(
+        self, external_force: np.ndarray | None, gravity: np.ndarray | None
+    ) -> tuple[bool, np.ndarray, bool, np.ndarray]:
+        """``(has_w, w, has_g, g)`` as :func:`rhs` takes them (``w`` by slot)."""
         if external_force is None:
             has_w, w = False, self._no_external
         else:

@@ -1,8 +1,8 @@
 """Compiled (numba) physics for every structure ``simulate`` accepts.
 
-:mod:`tensegrity.physics.kernel` compiles Theorem 18.1 for free 3-D class 1 structures.  This module adds,
-around the same compiled passes, what the NumPy reference :func:`tensegrity.physics.dynamics.evaluate`
-does for the others:
+:mod:`tensegrity.physics.kernel` compiles Theorem 18.1 for free 3-D class 1 structures.  This
+module adds, around the same compiled passes, what the NumPy reference
+:func:`tensegrity.physics.dynamics.evaluate` does for the others:
 
 - *point masses* (nodes of no rod, not fixed): ``x'' = (f + w) / m + g``, their positions
   ``x`` following the rods' coordinates in ``q`` (``q`` has ``6R + 3M`` entries);
@@ -51,8 +51,14 @@ import scipy.sparse as sp
 from numba import njit
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
-from tensegrity.physics.constraints import constraints_of
-from tensegrity.physics.constraints import PROJECTION_FLOOR_RTOL, PROJECTION_RTOL, REGULARIZATION
+from tensegrity.model.structure import Structure
+from tensegrity.physics.constraints import (
+    PROJECTION_FLOOR_RTOL,
+    PROJECTION_RTOL,
+    REGULARIZATION,
+    LinearConstraints,
+    constraints_of,
+)
 from tensegrity.physics.kernel import (
     JIT_OPTIONS,
     ROD_C1,
@@ -66,7 +72,6 @@ from tensegrity.physics.kernel import (
     project,
     rhs,
 )
-from tensegrity.model.structure import Structure
 
 __all__ = [
     "MAX_ITER", "SystemArrays", "SystemExtras", "drop_coordinates", "embed_planar",
@@ -115,9 +120,9 @@ def lift_coordinates(structure2d: Structure, x: np.ndarray) -> np.ndarray:
     :func:`embed_planar`'s structure, with zeros in ``z`` (a new array)."""
     x = np.asarray(x, dtype=np.float64)
     count = _coordinate_count(structure2d, x, 2, "x")
-    out = np.zeros(x.shape[:-1] + (count, 3))
-    out[..., :2] = x.reshape(x.shape[:-1] + (count, 2))
-    return out.reshape(x.shape[:-1] + (3 * count,))
+    out = np.zeros((*x.shape[:-1], count, 3))
+    out[..., :2] = x.reshape((*x.shape[:-1], count, 2))
+    return out.reshape((*x.shape[:-1], 3 * count))
 
 
 def drop_coordinates(structure2d: Structure, x: np.ndarray) -> np.ndarray:
@@ -125,8 +130,8 @@ def drop_coordinates(structure2d: Structure, x: np.ndarray) -> np.ndarray:
     ``z`` (a new array)."""
     x = np.asarray(x, dtype=np.float64)
     count = _coordinate_count(structure2d, x, 3, "x")
-    return np.ascontiguousarray(x.reshape(x.shape[:-1] + (count, 3))[..., :2]).reshape(
-        x.shape[:-1] + (2 * count,))
+    return np.ascontiguousarray(x.reshape((*x.shape[:-1], count, 3))[..., :2]).reshape(
+        (*x.shape[:-1], 2 * count))
 
 
 # --------------------------------------------------------------------------- packing
@@ -180,9 +185,9 @@ def _envelope(pattern: sp.csr_matrix) -> tuple[np.ndarray, np.ndarray]:
     return first, offset
 
 
-def _entries(structure: Structure) -> tuple[np.ndarray, ...]:
-    """The constraint rows' nodes off anchors: ``(row, body, sign, coef)`` per entry, and ``b``."""
-    constraints = constraints_of(structure)
+def _entries(structure: Structure, constraints: LinearConstraints) -> tuple[np.ndarray, ...]:
+    """The constraint rows' nodes off anchors: ``(row, body, sign, coef)`` per entry, and ``b``
+    (``constraints``: ``constraints_of(structure)``)."""
     node_matrix = constraints.node_matrix.tocoo()
     R = structure.n_rods
     body = np.full(structure.n_nodes, -1)
@@ -199,7 +204,9 @@ def _entries(structure: Structure) -> tuple[np.ndarray, ...]:
     return row, body[nodes], sign[nodes], coef, np.array(constraints.rhs, dtype=np.float64)
 
 
-def _row_order(row, body, c, R, n_bodies):
+def _row_order(
+    row: np.ndarray, body: np.ndarray, c: int, R: int, n_bodies: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, sp.csr_matrix]:
     """Reverse Cuthill-McKee order of the projection rows (c constraint rows, then R rod rows)
     on the graph of rows sharing a body: ``(constraint_prow, rod_prow, k_rank, pattern)``."""
     incidence = sp.csr_matrix(
@@ -222,8 +229,9 @@ def _constraint_rows(structure: Structure) -> dict[str, np.ndarray]:
     row, body, sign, coef = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0),
                              np.zeros((0, 3)))
     rhs_b = np.zeros(0)
-    if structure.has_constraints:
-        row, body, sign, coef, rhs_b = _entries(structure)
+    constraints = constraints_of(structure)  # None without joints and supports
+    if constraints is not None:
+        row, body, sign, coef, rhs_b = _entries(structure, constraints)
     c = rhs_b.size
     fields = dict(rod_prow=np.zeros(R, dtype=np.int64), constraint_prow=np.zeros(0, np.int64),
                   k_first=np.zeros(0, np.int64), k_offset=np.zeros(1, np.int64),
@@ -618,7 +626,7 @@ def system_errors(q, rod_param, extras):  # pragma: no cover - compiled
 
 @njit(**JIT_OPTIONS)
 def _all_finite(x):  # pragma: no cover - compiled
-    for i in range(x.shape[0]):
+    for i in range(x.shape[0]):  # noqa: SIM110 - compiled code: a loop, not all() of a generator
         if not np.isfinite(x[i]):
             return False
     return True

@@ -16,9 +16,11 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from tensegrity.io.files import atomic_path
-from tensegrity.plots.figures import tendon_family, natural_key, new_figure, draw_structure
+from tensegrity.plots.figures import draw_structure, natural_key, new_figure, tendon_family
 
 if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+
     from tensegrity.analysis.controllability import ReachResult
     from tensegrity.analysis.modes import ModalAnalysis
     from tensegrity.analysis.shape_control import ClosedLoop, QuasiStatic
@@ -37,7 +39,7 @@ def table(headers: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
 
     def line(values: Sequence[str]) -> str:
         return "  ".join(v.rjust(w) if num else v.ljust(w)
-                         for v, w, num in zip(values, widths, numeric)).rstrip()
+                         for v, w, num in zip(values, widths, numeric, strict=True)).rstrip()
 
     out = [line(headers), line(["-" * w for w in widths])]
     out.extend(line(r) for r in cells)
@@ -120,10 +122,10 @@ def figure_frequencies(modes: ModalAnalysis, *, title: str = "Natural frequencie
     return fig
 
 
-def _frequency_table(ax, modes: ModalAnalysis, max_rows: int = 18) -> None:
+def _frequency_table(ax: Axes, modes: ModalAnalysis, max_rows: int = 18) -> None:
     """Distinct frequencies (to 1e-6 relative) with their modes, multiplicity and kind."""
     rows: list[list[str]] = []
-    for i, (f, kind) in enumerate(zip(modes.frequency_hz, modes.kind)):
+    for i, (f, kind) in enumerate(zip(modes.frequency_hz, modes.kind, strict=True)):
         if rows and rows[-1][3] == kind and abs(f - rows[-1][4]) <= 1e-6 * max(f, 1e-300):
             rows[-1][0] = rows[-1][0].split("-")[0] + f"-{i}"
             rows[-1][2] = str(int(rows[-1][2]) + 1)
@@ -169,7 +171,7 @@ def figure_mode_shapes(modes: ModalAnalysis, indices: Sequence[int], *, amplitud
 # ------------------------------------------------------------------------------ controllability
 def figure_reach(results: Sequence[ReachResult], modes: ModalAnalysis) -> Figure:
     """Which mode clusters each input (output) set reaches (sees): a PBH map."""
-    clusters = [t for t in results[0].mode_tests]
+    clusters = list(results[0].mode_tests)
     data = np.array([[t.rank / t.multiplicity for t in r.mode_tests] for r in results])
     fig = new_figure((max(6.0, 0.22 * len(clusters) + 3), 0.35 * len(results) + 2.2))
     ax = fig.add_subplot()
@@ -258,6 +260,7 @@ def figure_shape_structures(plan: QuasiStatic) -> Figure:
                          label="tendon tension [N]")
         y = plan.output.value(eq.node_position)
         ax.set_title(title + ": " + ", ".join(f"{n} {v:.4g} {u}" for n, v, u in
-                                             zip(plan.output.names, y, plan.output.units)),
+                                             zip(plan.output.names, y, plan.output.units,
+                                                 strict=True)),
                      fontsize="small")
     return fig

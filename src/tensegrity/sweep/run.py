@@ -54,8 +54,9 @@ and ``time`` (``0, sample_dt, ..., t_end`` [s]).  Per case: ``status`` (``0`` re
 Per case and time (NaN after a run stopped): ``kinetic_energy``, ``elastic_energy``,
 ``energy_error`` (energy balance minus its initial value) [J], ``max_tension`` [N],
 ``slack_count``, ``max_displacement`` (largest node displacement from the initial layout) [m].
-Attribute ``spec``: the spec as JSON (with the whole structure, for a structure sweep).  :meth:`SweepResult.save` writes it as netCDF-4/HDF5
-(``h5netcdf``) atomically; :func:`read_sweep` reads it back.
+Attribute ``spec``: the spec as JSON (with the whole structure, for a structure sweep).
+:meth:`SweepResult.save` writes it as netCDF-4/HDF5 (``h5netcdf``) atomically; :func:`read_sweep`
+reads it back.
 """
 
 from __future__ import annotations
@@ -68,15 +69,19 @@ import os
 import time
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from tensegrity.physics import dynamics
 from tensegrity.engine.options import ADAPTIVE_METHODS, FIXED_STEP_METHODS
-from tensegrity.model.shell import class1_shell
 from tensegrity.engine.simulate import SimulationResult, simulate
+from tensegrity.model.shell import class1_shell
 from tensegrity.model.structure import Structure
+from tensegrity.physics import dynamics
+
+if TYPE_CHECKING:
+    import xarray as xr
+    from distributed import Client, LocalCluster
 
 PathLike = str | os.PathLike
 
@@ -87,7 +92,8 @@ DEFAULTS: dict[str, float] = {
 INTEGER_PARAMETERS = ("n", "m")
 #: The parameters that can vary in a sweep of a given structure (its topology is fixed).
 STRUCTURE_PARAMETERS = ("stiffness", "rest_scale", "damping", "load")
-#: RK4 sweeps: shells with fewer rods than this are batched per worker, larger ones run one per task.
+#: RK4 sweeps: shells with fewer rods than this are batched per worker, larger ones run one per
+#: task.
 BATCH_MAX_RODS = 1000
 #: ``status`` of a case that could not be built or raised while running.
 STATUS_ERROR = -2
@@ -245,7 +251,7 @@ class SweepSpec:
                 data = yaml.safe_load(text)
             else:
                 data = json.loads(text)
-        except Exception as exc:  # json.JSONDecodeError, yaml.YAMLError
+        except Exception as exc:  # noqa: BLE001 - any parser error (JSONDecodeError, YAMLError)
             first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
             raise ValueError(f"{path}: not a valid sweep spec file ({first})") from None
         return cls.from_dict(data, folder=path.parent)
@@ -267,15 +273,16 @@ class SweepSpec:
         structure sweep, for each varied parameter only)."""
         names = list(self.parameters)
         if self.mode == "grid":
-            combos = [dict(zip(names, values))
+            combos = [dict(zip(names, values, strict=True))
                       for values in itertools.product(*self.parameters.values())]
         else:
             rng = np.random.default_rng(self.seed)
-            draws = {}
+            draws: dict[str, list[float | int]] = {}
             for name, values in self.parameters.items():
                 low, high = values[0], values[-1]
-                if name in INTEGER_PARAMETERS:
-                    draws[name] = [int(v) for v in rng.integers(low, high, self.samples, endpoint=True)]
+                if name in INTEGER_PARAMETERS:  # integers (__post_init__)
+                    draws[name] = [int(v) for v in rng.integers(int(low), int(high), self.samples,
+                                                                endpoint=True)]
                 else:
                     draws[name] = [float(v) for v in rng.uniform(low, high, self.samples)]
             combos = [{name: draws[name][i] for name in names} for i in range(self.samples)]
@@ -364,12 +371,13 @@ def _error_summary(exc: BaseException, times: np.ndarray) -> dict[str, Any]:
 def run_cases(cases: Sequence[Mapping[str, float]], spec: SweepSpec, batched: bool) -> list[dict]:
     """Run ``cases`` (one task's share) and return their :func:`summarize` dicts, in order.
 
-    ``batched``: all cases share ``(n, m)`` and go through :func:`tensegrity.engine.batch.simulate_batch`
-    (cases that cannot be built are reported and left out).  Otherwise each case runs through
-    :func:`tensegrity.engine.simulate.simulate`.  Any exception of a case becomes its ``STATUS_ERROR``.
+    ``batched``: all cases share ``(n, m)`` and go through
+    :func:`tensegrity.engine.batch.simulate_batch` (cases that cannot be built are reported and
+    left out).  Otherwise each case runs through :func:`tensegrity.engine.simulate.simulate`.  Any
+    exception of a case becomes its ``STATUS_ERROR``.
     """
     times = spec.times
-    out: list[dict | None] = [None] * len(cases)
+    out: dict[int, dict] = {}  # case index: summary (every case gets one)
     models = {}
     for i, case in enumerate(cases):
         try:
@@ -389,9 +397,9 @@ def run_cases(cases: Sequence[Mapping[str, float]], spec: SweepSpec, batched: bo
             for i in keys:
                 out[i] = _error_summary(exc, times)
         else:
-            for i, result in zip(keys, results):
+            for i, result in zip(keys, results, strict=True):
                 out[i] = summarize(result, times)
-        return out
+        return [out[i] for i in range(len(cases))]
     for i, (structure, force) in models.items():
         try:
             result = simulate(structure, (0.0, spec.t_end), method=spec.method, dt=(
@@ -400,7 +408,7 @@ def run_cases(cases: Sequence[Mapping[str, float]], spec: SweepSpec, batched: bo
             out[i] = summarize(result, times)
         except Exception as exc:  # noqa: BLE001 - reported per case
             out[i] = _error_summary(exc, times)
-    return out
+    return [out[i] for i in range(len(cases))]
 
 
 # ------------------------------------------------------------------------------- the sweep
@@ -408,7 +416,7 @@ def run_cases(cases: Sequence[Mapping[str, float]], spec: SweepSpec, batched: bo
 class SweepResult:
     """The gathered sweep: ``dataset`` (see the module docstring) and the ``spec``."""
 
-    dataset: Any  # xarray.Dataset
+    dataset: xr.Dataset
     spec: SweepSpec
     wall_time: float  #: [s], the whole sweep
 
@@ -437,7 +445,7 @@ class SweepResult:
         return Path(path)
 
 
-def read_sweep(path: PathLike):
+def read_sweep(path: PathLike) -> xr.Dataset:
     """The :class:`xarray.Dataset` a :meth:`SweepResult.save` wrote."""
     import xarray as xr
 
@@ -461,9 +469,9 @@ def plan(spec: SweepSpec, cases: Sequence[Mapping[str, float]], n_slots: int) ->
     base = spec.structure
     if (spec.method in FIXED_STEP_METHODS and spec.batch
             and (base is None or base.is_free_class1)):
-        groups: dict[int | tuple[int, int], list[int]] = {}
+        groups: dict[tuple[int, int], list[int]] = {}
         for i, case in enumerate(cases):
-            key = 0 if base is not None else (int(case["n"]), int(case["m"]))
+            key = (0, 0) if base is not None else (int(case["n"]), int(case["m"]))
             groups.setdefault(key, []).append(i)
         tasks = []
         for key, members in groups.items():
@@ -475,13 +483,19 @@ def plan(spec: SweepSpec, cases: Sequence[Mapping[str, float]], n_slots: int) ->
     return [([i], False) for i in range(len(cases))]
 
 
-def _dataset(spec: SweepSpec, cases: Sequence[Mapping[str, float]], rows: Sequence[dict]):
+def _dataset(
+    spec: SweepSpec, cases: Sequence[Mapping[str, float]], rows: Sequence[dict]
+) -> xr.Dataset:
     import xarray as xr
 
-    coords = {name: ("case", np.array([c[name] for c in cases])) for name in cases[0]}
+    coords: dict[str, np.ndarray | tuple[Any, ...]] = {
+        name: ("case", np.array([c[name] for c in cases])) for name in cases[0]
+    }
     coords["case"] = np.arange(len(cases))
     coords["time"] = ("time", spec.times, {"units": "s"})
-    data = {name: (("case", "time"), np.array([r[name] for r in rows])) for name in SERIES}
+    data: dict[str, tuple[str | tuple[str, ...], np.ndarray]] = {
+        name: (("case", "time"), np.array([r[name] for r in rows])) for name in SERIES
+    }
     for name in SCALARS:
         values = [r[name] for r in rows]
         data[name] = ("case", np.array(values, dtype=str if name == "message" else None))
@@ -499,12 +513,15 @@ def _dataset(spec: SweepSpec, cases: Sequence[Mapping[str, float]], rows: Sequen
 class _Cluster:
     """A Dask client: the given one, one connected to ``scheduler``, or a new LocalCluster."""
 
-    def __init__(self, client, scheduler, n_workers, processes):
+    def __init__(
+        self, client: Client | None, scheduler: str | None, n_workers: int | None,
+        processes: bool,
+    ) -> None:
         self.client, self.scheduler = client, scheduler
         self.n_workers, self.processes = n_workers, processes
-        self._own = []
+        self._own: list[Client | LocalCluster] = []  # closed on exit, in this order
 
-    def __enter__(self):
+    def __enter__(self) -> Client:
         from distributed import Client, LocalCluster
 
         if self.client is not None:
@@ -521,7 +538,7 @@ class _Cluster:
         self._own.insert(0, self.client)
         return self.client
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: object) -> None:
         for thing in self._own:
             thing.close()
 
@@ -529,7 +546,7 @@ class _Cluster:
 def run_sweep(
     spec: SweepSpec,
     *,
-    client=None,
+    client: Client | None = None,
     scheduler: str | None = None,
     n_workers: int | None = None,
     processes: bool = True,
@@ -564,7 +581,7 @@ def run_sweep(
     if n_workers is not None and n_workers < 1:
         raise ValueError(f"n_workers: must be >= 1, got {n_workers!r}")
     cases = spec.cases()
-    rows: list[dict | None] = [None] * len(cases)
+    rows: dict[int, dict] = {}  # case index: summary (every case is in one task)
     wall0 = time.perf_counter()
     bar = None
     if progress is True:
@@ -585,7 +602,7 @@ def run_sweep(
                 summaries = future.result()
             except Exception as exc:  # noqa: BLE001 - a lost task: report its cases
                 summaries = [_error_summary(exc, spec.times) for _ in idx]
-            for i, summary in zip(idx, summaries):
+            for i, summary in zip(idx, summaries, strict=True):
                 rows[i] = summary
             done += len(idx)
             if bar is not None:
@@ -594,4 +611,5 @@ def run_sweep(
                 progress(done, len(cases))
     if bar is not None:
         bar.close()
-    return SweepResult(_dataset(spec, cases, rows), spec, time.perf_counter() - wall0)
+    rows_in_order = [rows[i] for i in range(len(cases))]
+    return SweepResult(_dataset(spec, cases, rows_in_order), spec, time.perf_counter() - wall0)
