@@ -210,6 +210,44 @@ def network_from_dict(data: Any) -> Structure:
         Naming the key: ``tendons[3] ('s3').nodes: no node named 'x7'``,
         ``rods[0]: unknown key 'mas' (expected one of nodes, mass, length, damping)``, ...
     """
+    _check_header(data)
+    names, position, dim = _named_points(data["nodes"], "nodes")
+    for key in ("rods", "tendons"):
+        if key not in data:
+            raise ValueError(f"network: missing key {key!r}")
+    velocity = _velocities(data.get("velocities"), names, dim)
+    rod_default, tendon_default = _member_defaults(data.get("defaults") or {})
+    index = {name: i for i, name in enumerate(names)}
+    rods = _members(data["rods"], "rods", ("nodes", *_ROD_KEYS), index)
+    tendons = _members(data["tendons"], "tendons", ("name", "nodes", *_TENDON_KEYS), index)
+    rod_nodes, tendon_nodes = _member_nodes(rods), _member_nodes(tendons)
+    p = np.array(position, dtype=float).reshape(-1, dim)
+    rod_distance, tendon_distance = _distances(p, rod_nodes), _distances(p, tendon_nodes)
+    rest = _tendon_rest_lengths(tendons, tendon_default, tendon_distance)
+    zero = np.flatnonzero(rod_distance == 0)
+    if zero.size:
+        k = zero[0]
+        raise ValueError(f"rods[{k}].nodes: {names[rod_nodes[k, 0]]!r} and "
+                         f"{names[rod_nodes[k, 1]]!r} coincide (zero length)")
+    zeros = np.zeros(len(rods)), np.zeros(len(tendons))
+    n = len(names)
+    return from_connectivity(
+        p.T, incidence(rod_nodes, n), incidence(tendon_nodes, n), ball_joints=True,
+        node_velocity=None if velocity is None else velocity.T, **_supports(data, index, dim),
+        rod_mass=_column(rods, "rods", "mass", rod_default, np.full(len(rods), DEFAULT_ROD_MASS)),
+        rod_length=_column(rods, "rods", "length", rod_default, rod_distance),
+        rod_damping=_column(rods, "rods", "damping", rod_default, zeros[0]),
+        tendon_stiffness=_column(tendons, "tendons", "stiffness", tendon_default,
+                                 np.full(len(tendons), DEFAULT_STIFFNESS)),
+        tendon_rest_length=rest,
+        tendon_damping=_column(tendons, "tendons", "damping", tendon_default, zeros[1]),
+        tendon_name=tuple(item.get("name", f"s{k}") for k, (_, item) in enumerate(tendons)),
+    )
+
+
+def _check_header(data: Any) -> None:
+    """The top level of the readable form: a mapping of known keys, its ``format`` and
+    ``version`` (if given) this library's, with ``nodes``."""
     if not isinstance(data, Mapping):
         raise ValueError(f"network: expected a mapping at the top level, got {type(data).__name__}")
     _only(data, ("format", "version", "units", "nodes", "velocities", *_SUPPORT_KEYS, "defaults",
@@ -218,41 +256,57 @@ def network_from_dict(data: Any) -> Structure:
         raise ValueError(f"format: expected {NETWORK_FORMAT!r}, got {data['format']!r:.80}")
     version = data.get("version", NETWORK_VERSION)
     if not isinstance(version, int) or isinstance(version, bool) or version > NETWORK_VERSION:
-        raise ValueError(f"version: this library reads version <= {NETWORK_VERSION}, got {version!r:.80}")
+        raise ValueError(f"version: this library reads version <= {NETWORK_VERSION}, "
+                         f"got {version!r:.80}")
     if "nodes" not in data:
         raise ValueError("network: missing key 'nodes'")
-    names, position, dim = _named_points(data["nodes"], "nodes")
-    for key in ("rods", "tendons"):
-        if key not in data:
-            raise ValueError(f"network: missing key {key!r}")
-    velocity = None
-    if data.get("velocities") is not None:
-        v_names, v, _ = _named_points(data["velocities"], "velocities", dim)
-        if v_names != names:
-            raise ValueError("velocities: must list the same nodes as nodes, in the same order")
-        velocity = np.array(v, dtype=float).reshape(-1, dim)
-    defaults = data.get("defaults") or {}
+
+
+def _velocities(value: Any, names: list[Any], dim: int) -> np.ndarray | None:
+    """The ``velocities`` key (n, dim) [m/s], which lists the nodes ``names`` in their order;
+    None without it."""
+    if value is None:
+        return None
+    v_names, v, _ = _named_points(value, "velocities", dim)
+    if v_names != names:
+        raise ValueError("velocities: must list the same nodes as nodes, in the same order")
+    return np.array(v, dtype=float).reshape(-1, dim)
+
+
+def _member_defaults(defaults: Any) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The rod and tendon parameters under ``defaults`` (``{}`` for a kind without)."""
     if not isinstance(defaults, Mapping):
         raise ValueError(f"defaults: expected a mapping, got {type(defaults).__name__}")
     _only(defaults, ("rod", "tendon"), "defaults")
-    rod_default = _defaults(defaults.get("rod"), _ROD_KEYS, "defaults.rod")
-    tendon_default = _defaults(defaults.get("tendon"), _TENDON_KEYS, "defaults.tendon")
-    index = {name: i for i, name in enumerate(names)}
-    rods = _members(data["rods"], "rods", ("nodes", *_ROD_KEYS), index)
-    tendons = _members(data["tendons"], "tendons", ("name", "nodes", *_TENDON_KEYS), index)
-    rod_nodes = np.array([pair for pair, _ in rods], dtype=np.int64).reshape(-1, 2)
-    tendon_nodes = np.array([pair for pair, _ in tendons], dtype=np.int64).reshape(-1, 2)
-    p = np.array(position, dtype=float).reshape(-1, dim)
-    rod_distance = np.linalg.norm(p[rod_nodes[:, 1]] - p[rod_nodes[:, 0]], axis=1)
-    tendon_distance = np.linalg.norm(p[tendon_nodes[:, 1]] - p[tendon_nodes[:, 0]], axis=1)
+    return (_defaults(defaults.get("rod"), _ROD_KEYS, "defaults.rod"),
+            _defaults(defaults.get("tendon"), _TENDON_KEYS, "defaults.tendon"))
 
-    def column(items, kind, key, default, fallback):
-        out = []
-        for k, (_, item) in enumerate(items):
-            value = item.get(key, default.get(key))
-            out.append(fallback[k] if value is None else parse_number(value, f"{kind}[{k}].{key}"))
-        return np.array(out, dtype=float)
 
+def _member_nodes(members: list) -> np.ndarray:
+    """The ``(tail, head)`` node indices (k, 2) of :func:`_members`' output."""
+    return np.array([pair for pair, _ in members], dtype=np.int64).reshape(-1, 2)
+
+
+def _distances(p: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+    """Distances (k,) [m] between the nodes of each pair (k, 2), ``p`` (n, d) the positions."""
+    return np.linalg.norm(p[pairs[:, 1]] - p[pairs[:, 0]], axis=1)
+
+
+def _column(items: list, kind: str, key: str, default: Mapping[str, Any],
+            fallback: np.ndarray) -> np.ndarray:
+    """Parameter ``key`` (k,) of each member of :func:`_members`' ``items``: its own, else the
+    ``default`` of its kind, else ``fallback[k]``."""
+    out = []
+    for k, (_, item) in enumerate(items):
+        value = item.get(key, default.get(key))
+        out.append(fallback[k] if value is None else parse_number(value, f"{kind}[{k}].{key}"))
+    return np.array(out, dtype=float)
+
+
+def _tendon_rest_lengths(tendons: list, tendon_default: Mapping[str, Any],
+                         distance: np.ndarray) -> np.ndarray:
+    """Rest lengths (S,) [m]: each tendon's ``rest_length`` or ``prestrain`` (of its length
+    ``distance`` (S,) [m] in the file), exactly one of them, its own or else the default's."""
     rest = []
     for k, (_, item) in enumerate(tendons):
         where = f"tendons[{k}]"
@@ -265,28 +319,9 @@ def network_from_dict(data: Any) -> Structure:
                              f"(here or under defaults.tendon), got {sorted(given) or 'neither'}")
         (key, value), = given.items()
         value = parse_number(value, f"{where}.{key}")
-        rest.append(value if key == "rest_length"
-                    else float(rest_from_prestrain(tendon_distance[k:k + 1], value, f"{where}.prestrain")[0]))
-    zero = np.flatnonzero(rod_distance == 0)
-    if zero.size:
-        k = zero[0]
-        raise ValueError(f"rods[{k}].nodes: {names[rod_nodes[k, 0]]!r} and {names[rod_nodes[k, 1]]!r} "
-                         "coincide (zero length)")
-    zeros = np.zeros(len(rods)), np.zeros(len(tendons))
-    n = len(names)
-    return from_connectivity(
-        p.T, incidence(rod_nodes, n), incidence(tendon_nodes, n), ball_joints=True,
-        node_velocity=None if velocity is None else velocity.T, **_supports(data, index, dim),
-        rod_mass=column(rods, "rods", "mass", rod_default, np.full(len(rods), DEFAULT_ROD_MASS)),
-        rod_length=column(rods, "rods", "length", rod_default, rod_distance),
-        rod_damping=column(rods, "rods", "damping", rod_default, zeros[0]),
-        tendon_stiffness=column(tendons, "tendons", "stiffness", tendon_default,
-                                np.full(len(tendons), DEFAULT_STIFFNESS)),
-        tendon_rest_length=np.array(rest, dtype=float),
-        tendon_damping=column(tendons, "tendons", "damping", tendon_default, zeros[1]),
-        tendon_name=tuple(item.get("name", f"s{k}") for k, (_, item) in enumerate(tendons)),
-    )
-
+        rest.append(value if key == "rest_length" else float(
+            rest_from_prestrain(distance[k:k + 1], value, f"{where}.prestrain")[0]))
+    return np.array(rest, dtype=float)
 
 def _supports(data: Mapping[str, Any], index: Mapping[Any, int], dim: int) -> dict[str, Any]:
     """The optional ``fixed``, ``point_masses``, ``planes``, ``lines`` keys of the readable form
