@@ -1,13 +1,18 @@
-"""The simulation engine: one integration loop (:func:`run`) over a compiled right-hand side,
-for every structure and every method; samples go to a sink (memory or an HDF5 file).
+"""The simulation engine: one integration loop (:func:`tensegrity.engine.loop.run`) over a
+compiled right-hand side, for every structure and every method; samples go to a sink (memory,
+or the HDF5 file of :mod:`tensegrity.io.stream`).
 
 - :mod:`~tensegrity.engine.options` — :class:`Options`, the options of a run, defined once;
 - :mod:`~tensegrity.engine.inputs` — controls, loads and gravity at the stage times;
 - :mod:`~tensegrity.engine.system` — a structure packed for the compiled code;
 - :mod:`~tensegrity.engine.compiled` — the compiled stages, steps, checks and outputs;
-- :mod:`~tensegrity.engine.steppers` — DOP853, other ``scipy`` methods, RK4;
-- :mod:`~tensegrity.engine.loop` — :func:`run` and :class:`RunSummary`;
-- :mod:`~tensegrity.engine.result` — :class:`SimulationResult` and :class:`MemorySink`.
+- :mod:`~tensegrity.engine.steppers` — DOP853, other ``scipy`` methods, RK4, one protocol;
+- :mod:`~tensegrity.engine.loop` — :func:`run`, the controller hook (:class:`Controller`,
+  :class:`Feedback`) and exact checkpoints (:class:`Checkpointing`, :class:`LoopState`);
+- :mod:`~tensegrity.engine.result` — :class:`SimulationResult`, :class:`MemorySink`;
+- :mod:`~tensegrity.engine.simulate` — :func:`simulate`, the engine with a memory sink;
+- :mod:`~tensegrity.engine.batch` — :func:`simulate_batch`, many copies of one structure;
+- :mod:`~tensegrity.engine.step` — :func:`step`, one step at a time for a loop of your own.
 
-The compiled modules import numba; this package imports them on first use of :func:`run`.
+The compiled modules import numba; ``import tensegrity`` does not load them.
 """
