@@ -23,7 +23,7 @@ Conventions (SI units throughout)
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from functools import cached_property
 from typing import Any
 
@@ -83,6 +83,44 @@ def _index_array(value: Any, field: str, n_nodes: int) -> np.ndarray:
             raise ValueError(f"{field}[{k}]: joins node {a} to itself")
     return array
 
+
+def _check_sign(label: Callable[[int], str], field: str, values: np.ndarray, *,
+                strict: bool) -> None:
+    """Raise ``{label(k)}.{field}: must be > 0`` (``>= 0`` unless ``strict``) for the first
+    element ``k`` of ``values`` that is not."""
+    bad = np.flatnonzero(values <= 0 if strict else values < 0)
+    if bad.size:
+        k = bad[0]
+        raise ValueError(
+            f"{label(k)}.{field}: must be {'>' if strict else '>='} 0, got {values[k]}"
+        )
+
+
+def _check_rod_lengths(position: np.ndarray, rod_nodes: np.ndarray, rod_length: np.ndarray) -> None:
+    """Raise unless the nodes (N, d) [m] of each rod (R, 2) are its length (R,) [m] apart, to
+    within ``ROD_LENGTH_RTOL``."""
+    distance = np.linalg.norm(position[rod_nodes[:, 1]] - position[rod_nodes[:, 0]], axis=1)
+    bad = np.flatnonzero(np.abs(distance - rod_length) > ROD_LENGTH_RTOL * rod_length)
+    if bad.size:
+        r = bad[0]
+        raise ValueError(
+            f"rods[{r}].length: is {float(rod_length[r])!r} m but nodes {rod_nodes[r, 0]} and "
+            f"{rod_nodes[r, 1]} are {float(distance[r])!r} m apart (relative tolerance "
+            f"{ROD_LENGTH_RTOL:g})"
+        )
+
+
+def _check_tendon_pairs(tendon_nodes: np.ndarray, names: Sequence[str]) -> None:
+    """Raise if two tendons (S, 2) join the same two nodes (either way round)."""
+    pairs: dict[tuple[int, int], int] = {}
+    for k, (a, b) in enumerate(tendon_nodes):
+        key = (min(a, b), max(a, b))
+        if key in pairs:
+            raise ValueError(
+                f"tendons[{k}] ({names[k]!r}).nodes: joins nodes {a} and {b}, as does "
+                f"tendons[{pairs[key]}] ({names[pairs[key]]!r})"
+            )
+        pairs[key] = k
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class Structure:
@@ -154,7 +192,31 @@ class Structure:
     line_direction: np.ndarray | None = None
 
     def __post_init__(self) -> None:
+        position, velocity = self._checked_positions()
+        n_nodes = position.shape[0]
+        rod_nodes, rod_mass, rod_length, rod_damping = self._checked_rods(n_nodes)
+        fixed, point_mass = self._check_nodes(rod_nodes, n_nodes)
+        _check_rod_lengths(position, rod_nodes, rod_length)
+        tendon_nodes = _index_array(self.tendon_nodes, "tendons", n_nodes)
+        names = self._checked_tendon_names(tendon_nodes.shape[0])
+        _check_tendon_pairs(tendon_nodes, names)
+        stiffness, rest_length, damping = self._checked_tendon_parameters(names)
+
         set_ = lambda name, value: object.__setattr__(self, name, value)  # noqa: E731
+        for name, value in (
+            ("node_position", position), ("node_velocity", velocity), ("rod_nodes", rod_nodes),
+            ("rod_mass", rod_mass), ("rod_length", rod_length), ("rod_damping", rod_damping),
+            ("tendon_nodes", tendon_nodes), ("tendon_stiffness", stiffness),
+            ("tendon_rest_length", rest_length), ("tendon_damping", damping),
+            ("node_fixed", fixed), ("node_point_mass", point_mass),
+        ):
+            set_(name, _readonly(value))
+        set_("tendon_name", names)
+        self._set_constraints(position, set_)
+
+    def _checked_positions(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(node_position, node_velocity)``, (N, 3) [m] and [m/s] ((N, 2) if planar), checked:
+        at least one node, finite numbers; velocities default to zero."""
         shape = np.shape(self.node_position)
         dim = shape[1] if len(shape) == 2 and shape[1] == 2 else 3  # 2: a planar structure
         position = _float_array(self.node_position, "nodes", (None, dim))
@@ -166,6 +228,11 @@ class Structure:
             if self.node_velocity is None
             else _float_array(self.node_velocity, "velocities", (n_nodes, dim))
         )
+        return position, velocity
+
+    def _checked_rods(self, n_nodes: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(rod_nodes (R, 2), rod_mass [kg], rod_length [m], rod_damping [1/s])``, checked:
+        nodes in range, masses and lengths > 0, damping >= 0 (default 0)."""
         rod_nodes = _index_array(self.rod_nodes, "rods", n_nodes)
         n_rods = rod_nodes.shape[0]
         rod_mass = _float_array(self.rod_mass, "rods.mass", (n_rods,))
@@ -180,25 +247,12 @@ class Structure:
             ("length", rod_length, True),
             ("damping", rod_damping, False),
         ):
-            bad = np.flatnonzero(values <= 0 if strict else values < 0)
-            if bad.size:
-                raise ValueError(
-                    f"rods[{bad[0]}].{field}: must be {'>' if strict else '>='} 0, "
-                    f"got {values[bad[0]]}"
-                )
-        fixed, point_mass = self._check_nodes(rod_nodes, n_nodes)
-        distance = np.linalg.norm(position[rod_nodes[:, 1]] - position[rod_nodes[:, 0]], axis=1)
-        bad = np.flatnonzero(np.abs(distance - rod_length) > ROD_LENGTH_RTOL * rod_length)
-        if bad.size:
-            r = bad[0]
-            raise ValueError(
-                f"rods[{r}].length: is {float(rod_length[r])!r} m but nodes {rod_nodes[r, 0]} and "
-                f"{rod_nodes[r, 1]} are {float(distance[r])!r} m apart (relative tolerance "
-                f"{ROD_LENGTH_RTOL:g})"
-            )
+            _check_sign(lambda r: f"rods[{r}]", field, values, strict=strict)
+        return rod_nodes, rod_mass, rod_length, rod_damping
 
-        tendon_nodes = _index_array(self.tendon_nodes, "tendons", n_nodes)
-        n_tendons = tendon_nodes.shape[0]
+    def _checked_tendon_names(self, n_tendons: int) -> tuple[str, ...]:
+        """The tendon names (default ``s0``, ``s1``, ...), checked: one non-empty string per
+        tendon, no two alike."""
         names = (
             tuple(f"s{k}" for k in range(n_tendons))
             if self.tendon_name is None
@@ -211,46 +265,32 @@ class Structure:
             if not isinstance(name, str) or not name:
                 raise ValueError(f"tendons[{k}].name: must be a non-empty string, got {name!r}")
             if name in seen:
-                raise ValueError(f"tendons[{k}].name: {name!r} is also the name of tendons[{seen[name]}]")
+                raise ValueError(
+                    f"tendons[{k}].name: {name!r} is also the name of tendons[{seen[name]}]"
+                )
             seen[name] = k
-        pairs: dict[tuple[int, int], int] = {}
-        for k, (a, b) in enumerate(tendon_nodes):
-            key = (min(a, b), max(a, b))
-            if key in pairs:
-                raise ValueError(
-                    f"tendons[{k}] ({names[k]!r}).nodes: joins nodes {a} and {b}, as does "
-                    f"tendons[{pairs[key]}] ({names[pairs[key]]!r})"
-                )
-            pairs[key] = k
-        damping = np.zeros(n_tendons) if self.tendon_damping is None else self.tendon_damping
-        tendon_values = {
-            "stiffness": (_float_array(self.tendon_stiffness, "tendons.stiffness", (n_tendons,)), True),
-            "rest_length": (_float_array(self.tendon_rest_length, "tendons.rest_length", (n_tendons,)), False),
-            "damping": (_float_array(damping, "tendons.damping", (n_tendons,)), False),
-        }
-        for field, (values, strict) in tendon_values.items():
-            bad = np.flatnonzero(values <= 0 if strict else values < 0)
-            if bad.size:
-                k = bad[0]
-                raise ValueError(
-                    f"tendons[{k}] ({names[k]!r}).{field}: must be {'>' if strict else '>='} 0, "
-                    f"got {values[k]}"
-                )
+        return names
 
-        set_("node_position", _readonly(position))
-        set_("node_velocity", _readonly(velocity))
-        set_("rod_nodes", _readonly(rod_nodes))
-        set_("rod_mass", _readonly(rod_mass))
-        set_("rod_length", _readonly(rod_length))
-        set_("rod_damping", _readonly(rod_damping))
-        set_("tendon_nodes", _readonly(tendon_nodes))
-        set_("tendon_stiffness", _readonly(tendon_values["stiffness"][0]))
-        set_("tendon_rest_length", _readonly(tendon_values["rest_length"][0]))
-        set_("tendon_damping", _readonly(tendon_values["damping"][0]))
-        set_("tendon_name", names)
-        set_("node_fixed", _readonly(fixed))
-        set_("node_point_mass", _readonly(point_mass))
-        self._set_constraints(position, set_)
+    def _checked_tendon_parameters(
+        self, names: tuple[str, ...]
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(stiffness [N/m], rest_length [m], damping [N s/m])`` of the tendons ``names``,
+        checked: stiffness > 0, rest length and damping >= 0 (damping default 0)."""
+        n_tendons = len(names)
+        stiffness = _float_array(self.tendon_stiffness, "tendons.stiffness", (n_tendons,))
+        rest_length = _float_array(self.tendon_rest_length, "tendons.rest_length", (n_tendons,))
+        damping = _float_array(
+            np.zeros(n_tendons) if self.tendon_damping is None else self.tendon_damping,
+            "tendons.damping",
+            (n_tendons,),
+        )
+        for field, values, strict in (
+            ("stiffness", stiffness, True),
+            ("rest_length", rest_length, False),
+            ("damping", damping, False),
+        ):
+            _check_sign(lambda k: f"tendons[{k}] ({names[k]!r})", field, values, strict=strict)
+        return stiffness, rest_length, damping
 
     def _check_nodes(self, rod_nodes: np.ndarray, n_nodes: int) -> tuple[np.ndarray, np.ndarray]:
         """Every node is the end of at most one rod (joints are explicit, ``joint_nodes``), and
