@@ -29,7 +29,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
@@ -42,6 +42,9 @@ from tensegrity.analysis.equilibrium import (
     with_damping,
 )
 from tensegrity.model.structure import Structure
+
+if TYPE_CHECKING:
+    from tensegrity.analysis.shape_control import Bounds, ClosedLoop, QuasiStatic
 
 
 class Output(NamedTuple):
@@ -279,27 +282,80 @@ def run_control(
     with every tendon, by a quasi-static sequence of equilibria, then (``closed_loop``) play it
     with LQR feedback on the nonlinear model.  ``bottom``/``top``: node indices of the two rings
     (default: the nodes at the lowest and the highest z of the equilibrium)."""
-    from tensegrity.analysis.shape_control import Bounds, closed_loop as run_closed_loop
-    from tensegrity.analysis.shape_control import describe_plan, height_twist, quasi_static
+    from tensegrity.analysis.shape_control import (
+        Bounds,
+        closed_loop as run_closed_loop,
+        describe_plan,
+    )
+
+    _check_control_options(structure, height=height, steps=steps, bottom=bottom, top=top)
+    out = _out(out_dir)
+    eq = _equilibrium(structure, None)  # shape control: no gravity
+    bottom, top = _control_rings(structure, eq.node_position, bottom, top)
+    bounds = Bounds(min_rest_length=min_rest_length, max_change=max_change,
+                    min_tension=min_tension)
+    plan = _open_loop_plan(structure, eq, bottom, top, height=height, twist_back=twist_back,
+                           actuators=actuators, steps=steps, bounds=bounds, tolerance=tolerance)
+    data: dict[str, Any] = {"structure": _structure_summary(structure), "bottom": list(bottom),
+                            "top": list(top), "bounds": dataclasses.asdict(bounds),
+                            "open_loop": describe_plan(plan)}
+    text = [f"open loop (quasi-static, {len(plan.equilibria) - 1} steps): {plan.message}",
+            _plan_table(plan)]
+    closed = None
+    if closed_loop:
+        closed = run_closed_loop(plan, move_time=move_time, settle_time=settle_time)
+        data["closed_loop"] = _closed_loop_summary(closed)
+        text.append(f"closed loop (LQR, nonlinear model, {closed.t[-1]:.3g} s): {closed.message}")
+    written = [report.write_json(out / "control.json", data),
+               report.save_figure(report.figure_shape_motion(plan, closed),
+                                  out / "control_motion.png"),
+               report.save_figure(report.figure_shape_controls(plan, closed),
+                                  out / "control_inputs.png"),
+               report.save_figure(report.figure_shape_structures(plan), out / "control_shapes.png")]
+    missed = [f"{name}: {r.message}" for name, r in (("open loop", plan), ("closed loop", closed))
+              if r is not None and not r.reached]
+    return Output("\n\n".join(text), written, "; ".join(missed) or None)
+
+
+def _check_control_options(structure: Structure, *, height: float, steps: tuple[int, int],
+                           bottom: Sequence[int] | None, top: Sequence[int] | None) -> None:
+    """Raise unless ``structure`` is spatial, ``height`` > 0, ``steps`` two counts >= 1 and the
+    ``bottom`` and ``top`` rings (if given) node indices of ``structure``."""
     from tensegrity.analysis.shape_control import require_spatial
 
     require_spatial(structure)
     if not height > 0:
-        raise ValueError(f"height: must be > 0 (a fraction of the equilibrium height), got {height}")
+        raise ValueError(
+            f"height: must be > 0 (a fraction of the equilibrium height), got {height}")
     if len(steps) != 2 or min(steps) < 1:
         raise ValueError(f"steps: expected two step counts >= 1, got {list(steps)}")
     for name, nodes in (("bottom", bottom), ("top", top)):
         bad = [i for i in nodes or () if not 0 <= i < structure.n_nodes]
         if bad:
             raise ValueError(f"{name}: node {bad[0]} out of range 0..{structure.n_nodes - 1}")
-    out = _out(out_dir)
-    eq = _equilibrium(structure, None)  # shape control: no gravity
+
+
+def _control_rings(structure: Structure, p: np.ndarray, bottom: Sequence[int] | None,
+                   top: Sequence[int] | None) -> tuple[Sequence[int], Sequence[int]]:
+    """``(bottom, top)``: each as given, or else :func:`rings` of the equilibrium's node
+    positions ``p`` (N, 3) [m]; they must not share nodes."""
     if bottom is None or top is None:
-        b, t = rings(structure, eq.node_position)
+        b, t = rings(structure, p)
         bottom = b if bottom is None else bottom
         top = t if top is None else top
     if set(bottom) & set(top):
         raise ValueError(f"bottom, top: the rings share nodes {sorted(set(bottom) & set(top))}")
+    return bottom, top
+
+
+def _open_loop_plan(structure: Structure, eq: EquilibriumResult, bottom: Sequence[int],
+                    top: Sequence[int], *, height: float, twist_back: bool, actuators: str,
+                    steps: tuple[int, int], bounds: Bounds, tolerance: float) -> QuasiStatic:
+    """The quasi-static plan of ``run_control``: from ``eq``, shorten to ``height`` times its
+    height with the ``actuators`` (twist free) in ``steps[0]`` steps, then (``twist_back``)
+    restore the twist with every tendon in ``steps[1]``, within ``bounds``."""
+    from tensegrity.analysis.shape_control import height_twist, quasi_static
+
     output = height_twist(eq.node_position, bottom, top)
     y0 = output.value(eq.node_position)
     phases: list[Any] = [{"targets": (height * y0[0], None), "actuators": actuators}]
@@ -307,36 +363,28 @@ def run_control(
     if twist_back:
         phases.append((height * y0[0], 0.0))
         n_steps.append(steps[1])
-    bounds = Bounds(min_rest_length=min_rest_length, max_change=max_change,
-                    min_tension=min_tension)
-    plan = quasi_static(structure, output, phases, start=eq, steps=n_steps, bounds=bounds,
+    return quasi_static(structure, output, phases, start=eq, steps=n_steps, bounds=bounds,
                         tolerance=[tolerance, tolerance])
-    data: dict[str, Any] = {"structure": _structure_summary(structure), "bottom": list(bottom),
-                            "top": list(top), "bounds": dataclasses.asdict(bounds),
-                            "open_loop": describe_plan(plan)}
-    text = [f"open loop (quasi-static, {len(plan.equilibria) - 1} steps): {plan.message}",
-            report.table(["step", "phase", *[f"{n} [{u}]" for n, u in zip(output.names, output.units)],
-                          "min tension [N]", "max |u| [m]"],
-                         [(k, int(plan.phase[k]), *plan.outputs[k], plan.min_tension[k],
-                           float(np.abs(plan.control[k]).max()))
-                          for k in range(len(plan.equilibria))])]
-    closed = None
-    if closed_loop:
-        closed = run_closed_loop(plan, move_time=move_time, settle_time=settle_time)
-        data["closed_loop"] = {
-            "reached": closed.reached, "message": closed.message,
-            "final_outputs": closed.outputs[-1].tolist(), "final_error": closed.final_error.tolist(),
-            "tolerance": closed.tolerance.tolist(), "min_tension_N": closed.min_tension,
-            "min_rest_length_m": closed.min_rest_length, "saturated": closed.saturated,
-            "max_rod_length_error": closed.max_rod_length_error,
-            "duration_s": float(closed.t[-1]), "gains": closed.gains,
-        }
-        text.append(f"closed loop (LQR, nonlinear model, {closed.t[-1]:.3g} s): {closed.message}")
-    written = [report.write_json(out / "control.json", data),
-               report.save_figure(report.figure_shape_motion(plan, closed), out / "control_motion.png"),
-               report.save_figure(report.figure_shape_controls(plan, closed),
-                                  out / "control_inputs.png"),
-               report.save_figure(report.figure_shape_structures(plan), out / "control_shapes.png")]
-    missed = [f"{name}: {r.message}" for name, r in (("open loop", plan), ("closed loop", closed))
-              if r is not None and not r.reached]
-    return Output("\n\n".join(text), written, "; ".join(missed) or None)
+
+
+def _plan_table(plan: QuasiStatic) -> str:
+    """The plan's steps: phase, outputs, smallest tension [N] and largest ``|u|`` [m]."""
+    output = plan.output
+    return report.table(
+        ["step", "phase", *[f"{n} [{u}]" for n, u in zip(output.names, output.units)],
+         "min tension [N]", "max |u| [m]"],
+        [(k, int(plan.phase[k]), *plan.outputs[k], plan.min_tension[k],
+          float(np.abs(plan.control[k]).max()))
+         for k in range(len(plan.equilibria))])
+
+
+def _closed_loop_summary(closed: ClosedLoop) -> dict[str, Any]:
+    """``control.json``'s ``closed_loop``: verdict, final outputs and errors, extremes, gains."""
+    return {
+        "reached": closed.reached, "message": closed.message,
+        "final_outputs": closed.outputs[-1].tolist(), "final_error": closed.final_error.tolist(),
+        "tolerance": closed.tolerance.tolist(), "min_tension_N": closed.min_tension,
+        "min_rest_length_m": closed.min_rest_length, "saturated": closed.saturated,
+        "max_rod_length_error": closed.max_rod_length_error,
+        "duration_s": float(closed.t[-1]), "gains": closed.gains,
+    }
