@@ -279,19 +279,22 @@ def switch_indicator(y, system, rest, work, p, v, out):  # pragma: no cover - co
 
 
 @njit(**JIT_OPTIONS)
-def switch_mask(F, y_old, x, y, system, rest, work, p, v, indicator, candidates, was_taut,
-                mask):  # pragma: no cover - compiled
-    """Which of the tendons ``candidates`` (kernel positions) have changed taut/slack state at the
-    fraction ``x`` of a DOP853 step (its dense polynomial ``F`` from ``y_old``): ``mask[k]`` for
-    ``candidates[k]``, compared with ``was_taut``; returns how many.  ``y`` (len(y_old),) and
-    ``indicator`` (S,) are scratch (see :func:`switch_indicator`)."""
+def switch_distance(F, y_old, x, y, system, rest, work, p, v, indicator, candidates, was_taut,
+                    out):  # pragma: no cover - compiled
+    """How far each of the tendons ``candidates`` (kernel positions) is from leaving its state
+    ``was_taut`` at the fraction ``x`` of a DOP853 step (its dense polynomial ``F`` from
+    ``y_old``): ``out[k]`` is :func:`switch_indicator` of ``candidates[k]``, negated for a
+    tendon that was slack, so ``out[k] <= 0`` once it has switched.  Returns ``min(out)``: the
+    earliest switch in the step is the first root of this continuous function.  ``y``
+    (len(y_old),) and ``indicator`` (S,) are scratch."""
     dop853_interpolate(F, y_old, x, y)
     switch_indicator(y, system, rest, work, p, v, indicator)
-    count = 0
+    least = np.inf
     for k in range(candidates.shape[0]):
-        mask[k] = (indicator[candidates[k]] > 0) != was_taut[candidates[k]]
-        count += mask[k]
-    return count
+        value = indicator[candidates[k]]
+        out[k] = value if was_taut[candidates[k]] else -value
+        least = min(least, out[k])
+    return least
 
 
 @njit(**JIT_OPTIONS)
@@ -343,5 +346,5 @@ __all__ = [
     "CHECK_CONSTRAINT", "CHECK_ENERGY", "CHECK_NOT_FINITE", "CHECK_OK", "CHECK_PROJECTION",
     "CHECK_ROD_LENGTH", "DOP853_C", "DOP853_DENSE_ROWS", "DOP853_STAGES", "ENERGY_CHECK_EVERY", "RK4_C",
     "check_state", "dop853_attempt", "dop853_dense", "dop853_interpolate", "energy_balance",
-    "ode_rhs", "rk4_segment", "rk4_step", "sample_outputs", "switch_indicator", "switch_mask", "tendon_lengths",
+    "ode_rhs", "rk4_segment", "rk4_step", "sample_outputs", "switch_distance", "switch_indicator", "tendon_lengths",
 ]

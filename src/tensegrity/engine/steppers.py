@@ -2,8 +2,8 @@
 ``step(bound)`` takes one accepted step not past ``bound``, ``dense()`` interpolates inside it,
 ``retreat(to)`` discards it to head for a located switch at ``to``, ``resume()`` goes on at the
 step size of before once there, ``restart(y)`` continues from a changed state (after a
-projection or a controller's update), ``switched(t, ...)`` tells which tendons have changed
-taut/slack state at a time inside the last step, and ``memory()`` is what a checkpoint must keep
+projection or a controller's update), ``switch_distance(t, ...)`` tells how far tendons are
+from changing taut/slack state at a time inside the last step, and ``memory()`` is what a checkpoint must keep
 to continue exactly (:class:`StepperMemory`).
 
 - :class:`DOP853` — the default: ``scipy.integrate.DOP853``'s method, coefficients, error norm
@@ -73,9 +73,11 @@ class Stepper(Protocol):
     def tensions(self) -> np.ndarray:
         """Tensions (S,) [N] at the current state, kernel order (a view of the work buffer)."""
 
-    def switched(self, t: float, candidates: np.ndarray, was_taut: np.ndarray) -> np.ndarray:
-        """Which ``candidates`` (kernel positions) are no longer ``was_taut`` at ``t`` inside the
-        last step (bool mask, one per candidate)."""
+    def switch_distance(self, t: float, candidates: np.ndarray,
+                        was_taut: np.ndarray) -> np.ndarray:
+        """How far each of ``candidates`` (kernel positions) is from leaving its state
+        ``was_taut`` at ``t`` inside the last step (:func:`compiled.switch_distance`; ``<= 0``:
+        it has switched)."""
 
     def memory(self) -> StepperMemory:
         """What a checkpoint keeps to continue from the current state exactly."""
@@ -217,14 +219,16 @@ class DOP853:
     def tensions(self) -> np.ndarray:
         return self.system.work[2]
 
-    def switched(self, t: float, candidates: np.ndarray, was_taut: np.ndarray) -> np.ndarray:
+    def switch_distance(self, t: float, candidates: np.ndarray,
+                        was_taut: np.ndarray) -> np.ndarray:
         self.dense()
         system, (y, indicator) = self.system, self._scratch
-        mask = np.empty(candidates.size, dtype=np.bool_)
-        compiled.switch_mask(self._F, self.y_old, (t - self.t_old) / (self.t - self.t_old), y,
-                             system.system, system.rest_row(t), system.work, system.scratch_p,
-                             system.scratch_v, indicator, candidates, was_taut, mask)
-        return mask
+        out = np.empty(candidates.size)
+        compiled.switch_distance(self._F, self.y_old, (t - self.t_old) / (self.t - self.t_old),
+                                 y, system.system, system.rest_row(t), system.work,
+                                 system.scratch_p, system.scratch_v, indicator, candidates,
+                                 was_taut, out)
+        return out
 
     def memory(self) -> StepperMemory:
         return StepperMemory(self.K[0].copy(), self.h, self._h_before)
@@ -292,13 +296,14 @@ class ScipyMethod:
     def restart(self, y: np.ndarray) -> None:
         self._start(self.t, y, self._bound)
 
-    def switched(self, t: float, candidates: np.ndarray, was_taut: np.ndarray) -> np.ndarray:
+    def switch_distance(self, t: float, candidates: np.ndarray,
+                        was_taut: np.ndarray) -> np.ndarray:
         system = self.system
         indicator = np.empty(system.structure.n_tendons)
         compiled.switch_indicator(np.ascontiguousarray(self.dense()(t)), system.system,
                                   system.rest_row(t), system.work, system.scratch_p,
                                   system.scratch_v, indicator)
-        return (indicator[candidates] > 0) != was_taut[candidates]
+        return np.where(was_taut[candidates], indicator[candidates], -indicator[candidates])
 
     def memory(self) -> StepperMemory:
         """Nothing: a ``scipy`` solver restarts at every boundary of a run (checkpoints,
