@@ -443,12 +443,7 @@ def _rod_bodies(world: ET.Element, structure: Structure, trees: list[_RodTree],
         L = float(structure.rod_length[r])
         body = ET.SubElement(world, "body", name=f"rod{r}", pos=_floats(motion.centre[r]),
                              quat=_floats(motion.quat[r]))
-        if tree.slides is None:
-            ET.SubElement(body, "freejoint", name=f"rod{r}")
-            keyframe.add(np.concatenate([motion.centre[r], motion.quat[r]]),
-                         np.concatenate([motion.velocity[r], omega_local[r]]))
-        else:
-            _rod_tree_joints(body, structure, r, tree, motion, omega_local[r], keyframe)
+        _rod_joints(body, structure, r, tree, motion, omega_local[r], keyframe)
         ET.SubElement(
             body, "inertial", pos="0 0 0", mass=_float(structure.rod_mass[r]),
             diaginertia=_floats([transverse[r], transverse[r], spin[r]]),
@@ -462,12 +457,17 @@ def _rod_bodies(world: ET.Element, structure: Structure, trees: list[_RodTree],
         ET.SubElement(body, "site", name=f"node{b}", pos=_floats([0, 0, L / 2]), size=radius)
 
 
-def _rod_tree_joints(body: ET.Element, structure: Structure, r: int, tree: _RodTree,
-                     motion: _RodMotion, omega_local: np.ndarray, keyframe: _Keyframe) -> None:
-    """The joints of rod ``r``'s ``tree`` (not a free joint): slides along the root's free
+def _rod_joints(body: ET.Element, structure: Structure, r: int, tree: _RodTree,
+                motion: _RodMotion, omega_local: np.ndarray, keyframe: _Keyframe) -> None:
+    """The joints of rod ``r``'s ``tree``: a free joint, or slides along the root's free
     directions (world axes, given in the body frame), then a ball, or hinges (each turning the
     next), at the root: the rod's centre or a held end.  ``omega_local`` (3,) [rad/s] is the
     rod's angular velocity in its body frame."""
+    if tree.slides is None:
+        ET.SubElement(body, "freejoint", name=f"rod{r}")
+        keyframe.add(np.concatenate([motion.centre[r], motion.quat[r]]),
+                     np.concatenate([motion.velocity[r], omega_local]))
+        return
     a = structure.rod_nodes[r, 0]
     L = float(structure.rod_length[r])
     side = 0.0 if tree.root < 0 else (-0.5 if tree.root == a else 0.5)

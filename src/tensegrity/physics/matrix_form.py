@@ -320,13 +320,10 @@ def _control_spread(slots: Sequence[_Slot], u_names: Sequence[str]) -> sp.csr_ma
     """``T`` (slots, controls) of ``u~ = T u`` (18.55): every slot gets the rest-length change
     of its tendon (``u_names`` names the tendon of each entry of ``u``)."""
     u_column = {name: k for k, name in enumerate(u_names)}
-    tendons = [info.tendon for info in slots]
-    rows = [r for r, t in enumerate(tendons) if t is not None]
+    entries = [(r, u_column[info.tendon]) for r, info in enumerate(slots) if info.tendon is not None]
+    rows, columns = [r for r, _ in entries], [c for _, c in entries]
     return _frozen_csr(
-        sp.csr_matrix(
-            (np.ones(len(rows)), (rows, [u_column[tendons[r]] for r in rows])),
-            shape=(len(tendons), len(u_names)),
-        )
+        sp.csr_matrix((np.ones(len(rows)), (rows, columns)), shape=(len(slots), len(u_names)))
     )
 
 
