@@ -413,14 +413,14 @@ class _EquilibriumProblem:
                                k_scale) if gauge else None)
         return cls(structure, u, rest, external_force, gravity, k_scale, tol, eckart)
 
-    def statics(self, chart: Chart, x: np.ndarray) -> Statics:
+    def statics_at(self, chart: Chart, x: np.ndarray) -> Statics:
         """:func:`~tensegrity.analysis.statics.statics` at ``x`` (n,) under the problem's loads."""
         return statics(chart, x, self.rest, self.external_force, self.gravity)
 
     def residual(self, chart: Chart, v: np.ndarray) -> np.ndarray:
         """``[Q + G^T lambda; k g; gauge]`` at ``v = [x, lambda]``."""
         x = v[: chart.size]
-        st = self.statics(chart, x)
+        st = self.statics_at(chart, x)
         parts = [st.generalized_force]
         if chart.n_constraints:
             parts = [parts[0] + chart.constraint_jacobian(x).T @ v[chart.size :],
@@ -432,7 +432,7 @@ class _EquilibriumProblem:
     def jacobian(self, chart: Chart, v: np.ndarray) -> np.ndarray:
         """The residual's derivative with respect to ``v = [x, lambda]``, (rows, n + c)."""
         x = v[: chart.size]
-        st = self.statics(chart, x)
+        st = self.statics_at(chart, x)
         if not chart.n_constraints:
             rows = [force_jacobian(chart, x, st)]
             if self.eckart is not None:
@@ -453,14 +453,14 @@ class _EquilibriumProblem:
         x0 = np.zeros(chart.size)
         if not chart.n_constraints:
             return x0
-        Q = self.statics(chart, x0).generalized_force
+        Q = self.statics_at(chart, x0).generalized_force
         multiplier, *_ = np.linalg.lstsq(chart.constraint_jacobian().T, -Q, rcond=None)
         return np.concatenate([x0, multiplier])
 
     def unbalanced(self, q: np.ndarray) -> float:
         """max ``|Q + G^T lambda|`` [N] at ``q``, ``lambda`` the best reactions."""
         chart = Chart.at(self.structure, q)
-        Q = self.statics(chart, np.zeros(chart.size)).generalized_force
+        Q = self.statics_at(chart, np.zeros(chart.size)).generalized_force
         return float(np.max(np.abs(chart.reaction(Q)[1]), initial=0.0))
 
     def solve(self, q: np.ndarray, *, max_rounds: int,
