@@ -81,14 +81,16 @@ import math
 import os
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from tensegrity.io import trajectory as tio
 from tensegrity.io.files import PathLike, atomic_path, file_error, fsync_directory, new_file_mode
 from tensegrity.physics.dynamics import State
+from tensegrity.engine.inputs import Inputs
 from tensegrity.engine.loop import Checkpointing, LoopState, run
+from tensegrity.engine.options import Options
 from tensegrity.engine.result import RunSummary, Sample
 from tensegrity.engine.simulate import STATUS_END, options_and_inputs, simulate
 from tensegrity.model.structure import Structure
@@ -743,6 +745,56 @@ def simulate_to_file(
         Whatever interrupts the run propagates; the partial file keeps every finished segment
         and the run resumes from there.
     """
+    plan = _plan(structure, t_span, segment, simulate_options)
+    final = Path(path)
+    partial = Path(str(final) + PARTIAL_SUFFIX)
+    if not final.parent.is_dir():
+        raise file_error(final, "its directory does not exist")
+    if resume and final.exists() and not partial.exists():
+        done = _finished_summary(final, plan.settings_hash, plan.K)
+        if done is not None:
+            return done
+    if not resume and partial.exists():
+        partial.unlink()
+    resumed_from = None
+    if partial.exists():
+        checkpoint = _resumable_checkpoint(partial, plan.settings, plan.settings_hash)
+        resumed_from = checkpoint.next_segment
+    else:
+        _create_partial(partial, structure, plan.settings, plan.settings_hash, plan.K,
+                        plan.n_segments)
+        with _open_h5(partial, "r") as f:
+            checkpoint = _read_checkpoint_open(f, partial)
+    report, close = _reporter(progress, plan.n_segments, checkpoint.next_segment)
+    sink = FileSink(partial, checkpoint, samples_per_segment=plan.K, progress=report)
+    try:
+        if not checkpoint.ended:  # (ended: interrupted between the end and the rename)
+            summary = run(structure, plan.t_span, initial=plan.initial, inputs=plan.inputs,
+                          options=plan.options, sink=sink,
+                          checkpoint=Checkpointing(every=plan.K, save=sink.save),
+                          resume=checkpoint.loop)
+            sink.finish(summary)
+    finally:
+        close()
+    return _rename_finished(final, partial, sink.segments_run, resumed_from)
+
+
+class _Plan(NamedTuple):
+    """A streamed run's arguments, checked: the engine's options and inputs, the segment grid
+    (``K`` samples per segment) and the settings a checkpoint must match."""
+
+    t_span: tuple[float, float]
+    initial: State | None
+    options: Options
+    inputs: Inputs
+    K: int
+    n_segments: int
+    settings: dict[str, Any]
+    settings_hash: str
+
+
+def _plan(structure: Structure, t_span: tuple[float, float], segment: float | None,
+          simulate_options: dict[str, Any]) -> _Plan:
     t0, t1 = (float(x) for x in t_span)
     if not (math.isfinite(t0) and math.isfinite(t1) and t1 > t0):
         raise ValueError(f"t_span: need finite t0 < t_end, got {t_span!r}")
@@ -756,36 +808,22 @@ def simulate_to_file(
         raise ValueError(f"sample_dt: must be > 0, got {sample_dt!r}")
     initial = options.pop("initial", None)
     K = samples_per_segment(structure, segment, sample_dt)
-    n_segments = len(segment_grid((t0, t1), sample_dt, K)) - 1
     settings = _stream_settings(structure, t0, t1, sample_dt, K, {**options, "initial": initial})
-    settings_hash = _digest(_settings_json(settings).encode())
     run_options, inputs = options_and_inputs(structure, sample_dt=sample_dt, **options)
+    return _Plan((t0, t1), initial, run_options, inputs, K,
+                 len(segment_grid((t0, t1), sample_dt, K)) - 1, settings,
+                 _digest(_settings_json(settings).encode()))
 
-    final = Path(path)
-    partial = Path(str(final) + PARTIAL_SUFFIX)
-    if not final.parent.is_dir():
-        raise file_error(final, "its directory does not exist")
-    if resume and final.exists() and not partial.exists():
-        done = _finished_summary(final, settings_hash, K)
-        if done is not None:
-            return done
-    if not resume and partial.exists():
-        partial.unlink()
-    if partial.exists():
-        checkpoint = _resumable_checkpoint(partial, settings, settings_hash)
-        resumed_from: int | None = checkpoint.next_segment
-    else:
-        _create_partial(partial, structure, settings, settings_hash, K, n_segments)
-        with _open_h5(partial, "r") as f:
-            checkpoint = _read_checkpoint_open(f, partial)
-        resumed_from = None
 
+def _reporter(progress: bool | Callable[[StreamProgress], None], n_segments: int,
+              done: int) -> tuple[Callable[[StreamProgress], None], Callable[[], None]]:
+    """The sink's progress callback (a ``tqdm`` bar for ``progress=True``, the user's callable
+    otherwise) and what closes it."""
     bar = None
     if progress is True:
         from tqdm import tqdm
 
-        bar = tqdm(total=n_segments, initial=checkpoint.next_segment, unit="segment",
-                   desc="simulating", leave=False)
+        bar = tqdm(total=n_segments, initial=done, unit="segment", desc="simulating", leave=False)
     callback = progress if callable(progress) else None
 
     def report(info: StreamProgress) -> None:
@@ -794,18 +832,7 @@ def simulate_to_file(
         if callback is not None:
             callback(info)
 
-    sink = FileSink(partial, checkpoint, samples_per_segment=K, progress=report)
-    try:
-        if not checkpoint.ended:  # (ended: interrupted between the end and the rename)
-            summary = run(structure, (t0, t1), initial=initial, inputs=inputs,
-                          options=run_options, sink=sink,
-                          checkpoint=Checkpointing(every=K, save=sink.save),
-                          resume=checkpoint.loop)
-            sink.finish(summary)
-    finally:
-        if bar is not None:
-            bar.close()
-    return _rename_finished(final, partial, sink.segments_run, resumed_from)
+    return report, (bar.close if bar is not None else lambda: None)
 
 
 def _resumable_checkpoint(partial: Path, settings: dict[str, Any], settings_hash: str) -> Checkpoint:
