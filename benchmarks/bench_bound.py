@@ -22,7 +22,6 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
-
 from bench_rhs import bench_problem, best_time, copy_bandwidth, kernel_bytes, parse_size
 
 
@@ -43,20 +42,24 @@ def main() -> None:
     kernels["damped"] = (FastKernel(damped), kernel_bytes(R, S, tendon_damping=True), 1)
     if args.threads > 1:
         kernels[f"undamped, {args.threads} threads"] = (
-            FastKernel(structure, threads=args.threads), kernel_bytes(R, S, tendon_damping=False),
-            args.threads)
+            FastKernel(structure, threads=args.threads),
+            kernel_bytes(R, S, tendon_damping=False),
+            args.threads,
+        )
     out = (np.empty(6 * R), np.empty(S))
     for kernel, _, _ in kernels.values():
         kernel.evaluate(q, qdot, rest, out=out)  # compile or load the cache outside the rounds
         kernel.rk4(q, qdot, 1e-4, 1, rest)
     ratios: dict[str, list[float]] = {
-        f"{name}{suffix}": [] for name in kernels for suffix in ("", ", in RK4")}
+        f"{name}{suffix}": [] for name in kernels for suffix in ("", ", in RK4")
+    }
     dram = 2**29
     for k in range(args.rounds):
         bandwidth = {1: copy_bandwidth(dram, budget=0.5)}
         if args.threads > 1:
-            bandwidth[args.threads] = max(bandwidth[1], copy_bandwidth(dram, budget=0.5,
-                                                                       threads=args.threads))
+            bandwidth[args.threads] = max(
+                bandwidth[1], copy_bandwidth(dram, budget=0.5, threads=args.threads)
+            )
         parts = [f"round {k}: DRAM copy {bandwidth[1] / 1e9:.1f} GB/s"]
         for name, (kernel, nbytes, threads) in kernels.items():
             bound = nbytes / bandwidth[threads]
@@ -64,12 +67,16 @@ def main() -> None:
             step = best_time(lambda: kernel.rk4(q, qdot, 1e-4, 10, rest), 0.4, repeats=3) / 40
             ratios[name].append(t / bound)
             ratios[f"{name}, in RK4"].append(step / bound)
-            parts.append(f"{name} {t * 1e3:.3f} ms = {t / bound:.2f}x, in RK4 {step * 1e3:.3f} ms"
-                         f" = {step / bound:.2f}x ({bound * 1e6:.0f} us)")
+            parts.append(
+                f"{name} {t * 1e3:.3f} ms = {t / bound:.2f}x, in RK4 {step * 1e3:.3f} ms"
+                f" = {step / bound:.2f}x ({bound * 1e6:.0f} us)"
+            )
         print("; ".join(parts), flush=True)
     for name, values in ratios.items():
-        print(f"{name}: kernel / bound median {np.median(values):.2f}x "
-              f"(range {min(values):.2f}-{max(values):.2f}x over {len(values)} rounds)")
+        print(
+            f"{name}: kernel / bound median {np.median(values):.2f}x "
+            f"(range {min(values):.2f}-{max(values):.2f}x over {len(values)} rounds)"
+        )
 
 
 if __name__ == "__main__":

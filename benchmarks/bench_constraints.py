@@ -19,9 +19,9 @@ import time
 
 import numpy as np
 
-from tensegrity.physics.constraints import constraints_of
-from tensegrity.physics import dynamics
 from tensegrity.model.shell import class1_shell, class2_shell
+from tensegrity.physics import dynamics
+from tensegrity.physics.constraints import constraints_of
 
 
 def best_time(call, repeats: int, budget: float = 0.5) -> float:
@@ -51,8 +51,12 @@ def measure(structure, repeats: int) -> dict[str, float | str]:
     return {
         "rows": 0 if constraints is None else constraints.matrix.shape[0],
         "path": "-" if constraints is None else ("dense" if constraints.dense else "sparse"),
-        "evaluate": best_time(lambda: dynamics.evaluate(structure, q, qdot, rest_length=rest), repeats),
-        "project": best_time(lambda: dynamics.project_to_constraints(structure, perturbed, qdot), repeats),
+        "evaluate": best_time(
+            lambda: dynamics.evaluate(structure, q, qdot, rest_length=rest), repeats
+        ),
+        "project": best_time(
+            lambda: dynamics.project_to_constraints(structure, perturbed, qdot), repeats
+        ),
     }
 
 
@@ -71,8 +75,11 @@ def main() -> None:
             ("class 2, fixed base", class2_shell(n, m, fixed_base=True)),
         ):
             r = measure(structure, args.repeats)
-            print(f"| {name} | {n} x {m} | {structure.n_rods} | {r['rows']} | {r['path']} | "
-                  f"{1e3 * r['evaluate']:.3f} | {1e3 * r['project']:.3f} |", flush=True)
+            print(
+                f"| {name} | {n} x {m} | {structure.n_rods} | {r['rows']} | {r['path']} | "
+                f"{1e3 * r['evaluate']:.3f} | {1e3 * r['project']:.3f} |",
+                flush=True,
+            )
 
 
 if __name__ == "__main__":

@@ -167,8 +167,9 @@ class MassMatrixModel:
         self.n_m = m_data.size
         self.data = np.concatenate([m_data, np.zeros(g_rows.size)])
         # CSC with a fixed pattern: find where each COO entry lands, to update values in place.
-        probe = sp.csc_matrix((np.arange(1, rows.size + 1, dtype=float), (rows, cols)),
-                              shape=(n + R, n + R))
+        probe = sp.csc_matrix(
+            (np.arange(1, rows.size + 1, dtype=float), (rows, cols)), shape=(n + R, n + R)
+        )
         probe.sort_indices()
         self.perm = probe.data.astype(np.int64) - 1
         self.K = probe
@@ -238,11 +239,13 @@ def _quat_z_to(d: np.ndarray) -> np.ndarray:
 
 def _quat_matrix(qt: np.ndarray) -> np.ndarray:
     w, x, y, z = qt
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-    ])
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
 
 
 def mujoco_memory_mb(structure) -> int:
@@ -326,8 +329,9 @@ def time_simulate(structure, q, qdot, rest, budget: float) -> dict:
     out: dict = {}
 
     def rk4(n_steps: int):
-        r = simulate(s_r, (0.0, n_steps * DT), initial=initial, method="rk4", dt=DT,
-                     sample_dt=100 * DT)
+        r = simulate(
+            s_r, (0.0, n_steps * DT), initial=initial, method="rk4", dt=DT, sample_dt=100 * DT
+        )
         assert r.success and r.nsteps == n_steps, r.message
         return r
 
@@ -359,12 +363,18 @@ def worker(method: str, n: int, m: int, budget: float, cold: bool, threads: int 
     if method in ("kernel", "simulate"):
         import numba  # noqa: F401
     if method == "mujoco":
-        import mujoco  # noqa: F401
+        import mujoco
     import scipy.sparse.linalg  # noqa: F401
 
     structure, q, qdot, rest = bench_problem(n, m)
-    out: dict = dict(method=method, n=n, m=m, R=structure.n_rods, S=structure.n_tendons,
-                     rss_after_import_mb=vm_hwm_mb())
+    out: dict = dict(
+        method=method,
+        n=n,
+        m=m,
+        R=structure.n_rods,
+        S=structure.n_tendons,
+        rss_after_import_mb=vm_hwm_mb(),
+    )
 
     if method == "numpy":
         ev = lambda: dynamics.evaluate(structure, q, qdot, rest_length=rest)  # noqa: E731
@@ -379,7 +389,8 @@ def worker(method: str, n: int, m: int, budget: float, cold: bool, threads: int 
             q4, v4 = qq + h * v3, vv + h * a3
             a4 = dynamics.evaluate(structure, q4, v4, rest_length=rest).qddot
             return dynamics.project_to_constraints(
-                structure, qq + h / 6 * (vv + 2 * v2 + 2 * v3 + v4),
+                structure,
+                qq + h / 6 * (vv + 2 * v2 + 2 * v3 + v4),
                 vv + h / 6 * (a1 + 2 * a2 + 2 * a3 + a4),
             )
 
@@ -398,8 +409,9 @@ def worker(method: str, n: int, m: int, budget: float, cold: bool, threads: int 
         out["first_call_kind"] = "cold compile" if cold else "disk cache"
         out["rhs_s"] = best_time(lambda: kernel.evaluate(q, qdot, rest), budget)
         qddot, tension = np.empty(q.size), np.empty(structure.n_tendons)
-        out["rhs_out_s"] = best_time(lambda: kernel.evaluate(q, qdot, rest, out=(qddot, tension)),
-                                     budget)
+        out["rhs_out_s"] = best_time(
+            lambda: kernel.evaluate(q, qdot, rest, out=(qddot, tension)), budget
+        )
         k = steps_for(budget, 4 * out["rhs_out_s"])
         out["rk4_step_s"] = best_time(lambda: kernel.rk4(q, qdot, DT, k, rest), budget) / k
         out["rk4_steps_per_call"] = k
@@ -411,13 +423,16 @@ def worker(method: str, n: int, m: int, budget: float, cold: bool, threads: int 
         threaded.warm_up()
         out["threads"] = threads
         out["rhs_out_threaded_s"] = best_time(
-            lambda: threaded.evaluate(q, qdot, rest, out=(qddot, tension)), budget)
+            lambda: threaded.evaluate(q, qdot, rest, out=(qddot, tension)), budget
+        )
         k = steps_for(budget, 4 * out["rhs_out_threaded_s"])
-        out["rk4_step_threaded_s"] = best_time(lambda: threaded.rk4(q, qdot, DT, k, rest),
-                                               budget) / k
+        out["rk4_step_threaded_s"] = (
+            best_time(lambda: threaded.rk4(q, qdot, DT, k, rest), budget) / k
+        )
         got = threaded.evaluate(q, qdot, rest).qddot
-        out["max_rel_diff_threaded_vs_numpy"] = float(np.max(np.abs(got - ref))
-                                                      / np.max(np.abs(ref)))
+        out["max_rel_diff_threaded_vs_numpy"] = float(
+            np.max(np.abs(got - ref)) / np.max(np.abs(ref))
+        )
 
     elif method == "massmatrix":
         model = MassMatrixModel(structure)
@@ -426,7 +441,8 @@ def worker(method: str, n: int, m: int, budget: float, cold: bool, threads: int 
         out["rhs_s"] = best_time(lambda: model.accelerations(x, v, rest), budget)
         out["rk4_step_s"] = best_time(lambda: model.rk4_step(x, v, DT, rest), budget)
         ref = dynamics.nodes_from_coordinates(
-            structure, dynamics.evaluate(structure, q, qdot, rest_length=rest).qddot).ravel()
+            structure, dynamics.evaluate(structure, q, qdot, rest_length=rest).qddot
+        ).ravel()
         got = model.accelerations(x, v, rest)
         out["max_rel_diff_vs_numpy"] = float(np.max(np.abs(got - ref)) / np.max(np.abs(ref)))
 
@@ -452,11 +468,14 @@ def worker(method: str, n: int, m: int, budget: float, cold: bool, threads: int 
         node_v = dynamics.nodes_from_coordinates(structure, qdot)
         err_v = 0.0
         for k in range(structure.n_nodes):
-            mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_SITE,
-                                     model.site(f"n{k}").id, vel, 0)
+            mujoco.mj_objectVelocity(
+                model, data, mujoco.mjtObj.mjOBJ_SITE, model.site(f"n{k}").id, vel, 0
+            )
             err_v = max(err_v, float(np.max(np.abs(vel[3:] - node_v[k]))))
         p0 = dynamics.nodes_from_coordinates(structure, q)
-        out["initial_position_error"] = float(np.max(np.abs(mujoco_nodes(model, data, structure) - p0)))
+        out["initial_position_error"] = float(
+            np.max(np.abs(mujoco_nodes(model, data, structure) - p0))
+        )
         out["initial_velocity_error"] = err_v
         reset()
         out["rhs_s"] = best_time(lambda: mujoco.mj_forward(model, data), budget)
@@ -491,16 +510,31 @@ def worker(method: str, n: int, m: int, budget: float, cold: bool, threads: int 
     return out
 
 
-def run_worker(method: str, size: tuple[int, int], budget: float, cold: bool = False,
-               timeout: float | None = None, threads: int = 2) -> dict:
+def run_worker(
+    method: str,
+    size: tuple[int, int],
+    budget: float,
+    cold: bool = False,
+    timeout: float | None = None,
+    threads: int = 2,
+) -> dict:
     env = dict(os.environ)
     tmp = None
     if cold:
         tmp = tempfile.TemporaryDirectory()
         env["NUMBA_CACHE_DIR"] = tmp.name
-    cmd = [sys.executable, str(Path(__file__).resolve()), "--worker", method,
-           "--sizes", f"{size[0]}x{size[1]}", "--budget", str(budget),
-           "--threads", str(threads)] + (["--cold"] if cold else [])
+    cmd = [
+        sys.executable,
+        str(Path(__file__).resolve()),
+        "--worker",
+        method,
+        "--sizes",
+        f"{size[0]}x{size[1]}",
+        "--budget",
+        str(budget),
+        "--threads",
+        str(threads),
+    ] + (["--cold"] if cold else [])
     try:
         proc = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=timeout)
     except subprocess.TimeoutExpired:
@@ -509,8 +543,12 @@ def run_worker(method: str, size: tuple[int, int], budget: float, cold: bool = F
         if tmp is not None:
             tmp.cleanup()
     if proc.returncode != 0:
-        return dict(method=method, n=size[0], m=size[1],
-                    error=(proc.stderr.strip().splitlines() or ["?"])[-1])
+        return dict(
+            method=method,
+            n=size[0],
+            m=size[1],
+            error=(proc.stderr.strip().splitlines() or ["?"])[-1],
+        )
     return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
@@ -538,7 +576,7 @@ def copy_bandwidth(nbytes: int, budget: float = 0.3, threads: int = 1) -> float:
             if stop:
                 return
             for _ in range(rounds):
-                np.copyto(dst[cuts[k]:cuts[k + 1]], src[cuts[k]:cuts[k + 1]])
+                np.copyto(dst[cuts[k] : cuts[k + 1]], src[cuts[k] : cuts[k + 1]])
             done.wait()
 
     workers = [threading.Thread(target=copier, args=(k,), daemon=True) for k in range(threads)]
@@ -567,10 +605,18 @@ def kernel_bytes(R: int, S: int, *, tendon_damping: bool) -> int:
 def machine_info() -> dict:
     import numpy
 
-    info = dict(python=platform.python_version(), numpy=numpy.__version__,
-                platform=platform.platform(), cpus=os.cpu_count())
+    info = dict(
+        python=platform.python_version(),
+        numpy=numpy.__version__,
+        platform=platform.platform(),
+        cpus=os.cpu_count(),
+    )
     try:
-        cpu = [ln for ln in Path("/proc/cpuinfo").read_text().splitlines() if ln.startswith("model name")]
+        cpu = [
+            ln
+            for ln in Path("/proc/cpuinfo").read_text().splitlines()
+            if ln.startswith("model name")
+        ]
         info["cpu"] = cpu[0].split(":", 1)[1].strip() if cpu else platform.processor()
     except OSError:
         info["cpu"] = platform.processor()
@@ -641,133 +687,180 @@ def report(results: dict, sizes, info: dict, bw: dict, command: str, notes: list
             r = results.get((s, "kernel")) or results.get((s, "numpy")) or {}
             if r.get("R"):
                 yield s, r["R"], r["S"]
+
     lines = []
     out = lines.append
-    out("# RHS and RK4 benchmark: NumPy reference vs compiled kernel vs mass-matrix formulation vs MuJoCo\n")
+    out(
+        "# RHS and RK4 benchmark: NumPy reference vs compiled kernel vs mass-matrix formulation vs MuJoCo\n"
+    )
     out(f"- Command: `{command}`")
     out(f"- Date: {info['date']}")
-    out(f"- Machine: {info['cpu']}, {info['cpus']} CPUs ({info.get('caches', '?')}), "
+    out(
+        f"- Machine: {info['cpu']}, {info['cpus']} CPUs ({info.get('caches', '?')}), "
         f"{info['platform']}; load average before "
         f"the run {info.get('load_before', '?')}, after {info.get('load_after', '?')} "
-        "(a shared machine: other jobs may have been running)")
-    out(f"- Python {info['python']}, NumPy {info['numpy']}, SciPy {info['scipy']}, numba "
-        f"{info['numba']}, MuJoCo {info['mujoco']}")
-    out(f"- Copy bandwidth (NumPy `copyto`, read + write): {bw['dram'] / 1e9:.1f} GB/s for a "
+        "(a shared machine: other jobs may have been running)"
+    )
+    out(
+        f"- Python {info['python']}, NumPy {info['numpy']}, SciPy {info['scipy']}, numba "
+        f"{info['numba']}, MuJoCo {info['mujoco']}"
+    )
+    out(
+        f"- Copy bandwidth (NumPy `copyto`, read + write): {bw['dram'] / 1e9:.1f} GB/s for a "
         f"{bw['dram_bytes'] / 2**20:.0f} MiB array (DRAM); with {bw['threads']} threads copying "
-        f"one slice each (or one thread if that is faster) {bw['dram_threads'] / 1e9:.1f} GB/s")
-    out("- Structure: `class1_shell(n, m)` (rods 1 kg, 1 m; tendons 100 N/m, undamped), rest lengths "
+        f"one slice each (or one thread if that is faster) {bw['dram_threads'] / 1e9:.1f} GB/s"
+    )
+    out(
+        "- Structure: `class1_shell(n, m)` (rods 1 kg, 1 m; tendons 100 N/m, undamped), rest lengths "
         "0.95 × initial lengths, random rod-consistent velocities (~0.3 m/s), no gravity. "
         f"One thread everywhere, except the kernel's columns marked {bw['threads']} threads "
         f"(`FastKernel(structure, threads={bw['threads']})`). "
-        "Rates are the best of 3 timed batches (wall clock).")
+        "Rates are the best of 3 timed batches (wall clock)."
+    )
     out("")
     out("## Right-hand-side evaluations per second\n")
     T = bw["threads"]
-    out("| shell | rods R | tendons S | NumPy `dynamics.evaluate` | kernel `evaluate()` (Python call) "
+    out(
+        "| shell | rods R | tendons S | NumPy `dynamics.evaluate` | kernel `evaluate()` (Python call) "
         f"| kernel `evaluate(out=)` | same, {T} threads "
         "| kernel, in the RK4 loop (step/4) | mass matrix + sparse KKT | MuJoCo `mj_forward` "
-        "| kernel call / NumPy |")
+        "| kernel call / NumPy |"
+    )
     out("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for s in sizes:
         r = results.get((s, "numpy"), {})
         k_loop = get(s, "kernel", "rk4_step_s")
-        out(f"| {label(s)} | {r.get('R', '')} | {r.get('S', '')} | {fmt_rate(get(s, 'numpy', 'rhs_s'))} "
+        out(
+            f"| {label(s)} | {r.get('R', '')} | {r.get('S', '')} | {fmt_rate(get(s, 'numpy', 'rhs_s'))} "
             f"| {fmt_rate(get(s, 'kernel', 'rhs_s'))} | {fmt_rate(get(s, 'kernel', 'rhs_out_s'))} "
             f"| {fmt_rate(get(s, 'kernel', 'rhs_out_threaded_s'))} "
             f"| {fmt_rate(k_loop / 4 if k_loop else None)} "
             f"| {fmt_rate(get(s, 'massmatrix', 'rhs_s'))} | {fmt_rate(get(s, 'mujoco', 'rhs_s'))} "
-            f"| {fmt_ratio(get(s, 'kernel', 'rhs_s'), get(s, 'numpy', 'rhs_s'))} |")
+            f"| {fmt_ratio(get(s, 'kernel', 'rhs_s'), get(s, 'numpy', 'rhs_s'))} |"
+        )
     out("")
-    out("## RK4 steps per second (dt = 1e-4, projection onto the rod constraints after each step)\n")
-    out("| shell | NumPy loop | `simulate(method=\"rk4\")` (a sample per 100 steps) "
+    out(
+        "## RK4 steps per second (dt = 1e-4, projection onto the rod constraints after each step)\n"
+    )
+    out(
+        '| shell | NumPy loop | `simulate(method="rk4")` (a sample per 100 steps) '
         "| kernel `rk4()` (compiled loop) "
         f"| same, {T} threads | {T} threads / 1 "
         "| mass matrix + KKT | MuJoCo `mj_step` | kernel / MuJoCo | kernel / NumPy loop "
-        "| kernel / mass matrix | mass matrix / MuJoCo | `simulate` / kernel | `simulate` / MuJoCo |")
+        "| kernel / mass matrix | mass matrix / MuJoCo | `simulate` / kernel | `simulate` / MuJoCo |"
+    )
     out("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for s in sizes:
         k = get(s, "kernel", "rk4_step_s")
         kt = get(s, "kernel", "rk4_step_threaded_s")
         mj = get(s, "mujoco", "rk4_step_s")
         mm = get(s, "massmatrix", "rk4_step_s")
-        out(f"| {label(s)} | {fmt_rate(get(s, 'numpy', 'rk4_step_s'))} "
+        out(
+            f"| {label(s)} | {fmt_rate(get(s, 'numpy', 'rk4_step_s'))} "
             f"| {fmt_rate(get(s, 'simulate', 'rk4_step_s'))} | {fmt_rate(k)} | {fmt_rate(kt)} "
             f"| {fmt_ratio(kt, k)} | {fmt_rate(mm)} "
             f"| {fmt_rate(mj)} | {fmt_ratio(k, mj)} | {fmt_ratio(k, get(s, 'numpy', 'rk4_step_s'))} "
             f"| {fmt_ratio(k, mm)} | {fmt_ratio(mm, mj)} "
             f"| {fmt_ratio(get(s, 'simulate', 'rk4_step_s'), k)} "
-            f"| {fmt_ratio(get(s, 'simulate', 'rk4_step_s'), mj)} |")
+            f"| {fmt_ratio(get(s, 'simulate', 'rk4_step_s'), mj)} |"
+        )
     out("")
     out(f"## Time to result: {SPAN:g} s of simulated time\n")
-    out("Wall time for the same motion through the user's path (`simulate`, samples, checks and "
+    out(
+        "Wall time for the same motion through the user's path (`simulate`, samples, checks and "
         "energy bookkeeping included), the kernel's compiled RK4 loop and MuJoCo (RK4 steps at "
         f"dt = {DT:g} s), and the largest node deviation at the end from `simulate` at rtol "
-        "1e-12 (MuJoCo's: from the kernel's RK4, see Checks).\n")
-    out("| shell | `simulate` DOP853 | its steps, evaluations / step | deviation "
-        "| `simulate` rk4 | deviation | kernel `rk4()` | MuJoCo | speed, DOP853 / MuJoCo |")
+        "1e-12 (MuJoCo's: from the kernel's RK4, see Checks).\n"
+    )
+    out(
+        "| shell | `simulate` DOP853 | its steps, evaluations / step | deviation "
+        "| `simulate` rk4 | deviation | kernel `rk4()` | MuJoCo | speed, DOP853 / MuJoCo |"
+    )
     out("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
     n_span = round(SPAN / DT)
     for s in sizes:
         steps = get(s, "simulate", "dop853_steps")
-        per = (f"{steps}, {get(s, 'simulate', 'dop853_nfev') / steps:.1f}" if steps else "—")
-        dev = lambda key: (f"{get(s, 'simulate', key):.1e} m"  # noqa: E731
-                           if get(s, "simulate", key) is not None else "—")
+        per = f"{steps}, {get(s, 'simulate', 'dop853_nfev') / steps:.1f}" if steps else "—"
+        dev = lambda key: (
+            f"{get(s, 'simulate', key):.1e} m" if get(s, "simulate", key) is not None else "—"
+        )
         k, mj = get(s, "kernel", "rk4_step_s"), get(s, "mujoco", "rk4_step_s")
-        out(f"| {label(s)} | {fmt_time(get(s, 'simulate', 'dop853_s'))} | {per} "
+        out(
+            f"| {label(s)} | {fmt_time(get(s, 'simulate', 'dop853_s'))} | {per} "
             f"| {dev('dop853_deviation_m')} | {fmt_time(get(s, 'simulate', 'rk4_span_s'))} "
             f"| {dev('rk4_deviation_m')} | {fmt_time(k * n_span if k else None)} "
             f"| {fmt_time(mj * n_span if mj else None)} "
-            f"| {fmt_ratio(get(s, 'simulate', 'dop853_s'), mj * n_span if mj else None)} |")
+            f"| {fmt_ratio(get(s, 'simulate', 'dop853_s'), mj * n_span if mj else None)} |"
+        )
     out("")
     out("## The memory-traffic bound\n")
-    out("The bound is the bytes one kernel evaluation must touch once (`kernel_bytes`: q, q', rod "
+    out(
+        "The bound is the bytes one kernel evaluation must touch once (`kernel_bytes`: q, q', rod "
         "and tendon indices and parameters, rest lengths, q'', tensions; the tendons are undamped, "
         "so neither the kernel nor the bound reads their damping) over the bandwidth of a "
         "NumPy copy: of a DRAM-sized array, and of a copy of the same number of bytes (at least "
         "1 MiB, so as not to time NumPy's call overhead; caches: "
         f"{info.get('caches', '?')}), on one thread and on {T} threads (one slice each; the "
         "better of the two for the threaded bound). "
-        "Kernel times are one `evaluate(out=...)` call (Python call included).\n")
-    out("| shell | bytes / eval | bound: DRAM | bound: same-size copy | kernel | / DRAM bound "
+        "Kernel times are one `evaluate(out=...)` call (Python call included).\n"
+    )
+    out(
+        "| shell | bytes / eval | bound: DRAM | bound: same-size copy | kernel | / DRAM bound "
         f"| / same-size bound | bound, {T} threads: DRAM | same-size | kernel, {T} threads "
-        "| / DRAM bound | / same-size bound |")
+        "| / DRAM bound | / same-size bound |"
+    )
     out("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for s, R, S in measured_sizes():
         nbytes = kernel_bytes(R, S, tendon_damping=False)
         key = f"{s[0]}x{s[1]}"
-        bounds = (nbytes / bw["dram"], nbytes / bw["by_size"][key],
-                  nbytes / bw["dram_threads"], nbytes / bw["by_size_threads"][key])
+        bounds = (
+            nbytes / bw["dram"],
+            nbytes / bw["by_size"][key],
+            nbytes / bw["dram_threads"],
+            nbytes / bw["by_size_threads"][key],
+        )
         k1, kt = get(s, "kernel", "rhs_out_s"), get(s, "kernel", "rhs_out_threaded_s")
         x = lambda t, b: f"{t / b:.1f}×" if t else "—"  # noqa: E731
-        out(f"| {label(s)} | {nbytes / 1e6:.3f} MB | {fmt_time(bounds[0])} | {fmt_time(bounds[1])} "
+        out(
+            f"| {label(s)} | {nbytes / 1e6:.3f} MB | {fmt_time(bounds[0])} | {fmt_time(bounds[1])} "
             f"| {fmt_time(k1)} | {x(k1, bounds[0])} | {x(k1, bounds[1])} "
             f"| {fmt_time(bounds[2])} | {fmt_time(bounds[3])} | {fmt_time(kt)} "
-            f"| {x(kt, bounds[2])} | {x(kt, bounds[3])} |")
+            f"| {x(kt, bounds[2])} | {x(kt, bounds[3])} |"
+        )
     out("")
     out("## Cost per element\n")
     out("Per-evaluation cost divided by (rods + tendons), in ns, for linearity.\n")
-    out("| shell | kernel `evaluate(out=)` | kernel in the RK4 loop (step/4) "
+    out(
+        "| shell | kernel `evaluate(out=)` | kernel in the RK4 loop (step/4) "
         f"| same, {T} threads | NumPy | mass matrix | MuJoCo step / 4 "
-        "| MuJoCo µs per (dof+tendon) per step |")
+        "| MuJoCo µs per (dof+tendon) per step |"
+    )
     out("|---|---:|---:|---:|---:|---:|---:|---:|")
     for s, R, S in measured_sizes():
         per = lambda t: "—" if not t else f"{t / (R + S) * 1e9:.1f}"  # noqa: E731
         quarter = lambda t: t / 4 if t else None  # noqa: E731
         mj = get(s, "mujoco", "rk4_step_s")
-        out(f"| {label(s)} | {per(get(s, 'kernel', 'rhs_out_s'))} "
+        out(
+            f"| {label(s)} | {per(get(s, 'kernel', 'rhs_out_s'))} "
             f"| {per(quarter(get(s, 'kernel', 'rk4_step_s')))} "
             f"| {per(quarter(get(s, 'kernel', 'rk4_step_threaded_s')))} "
             f"| {per(get(s, 'numpy', 'rhs_s'))} | {per(get(s, 'massmatrix', 'rhs_s'))} "
             f"| {per(quarter(mj))} "
-            f"| {'—' if not mj else f'{mj / (6 * R + S) * 1e6:.2f}'} |")
+            f"| {'—' if not mj else f'{mj / (6 * R + S) * 1e6:.2f}'} |"
+        )
     out("")
     out("## Peak memory and set-up cost\n")
-    out("Peak resident memory of the process that ran the method (VmHWM), and its growth over the "
-        "peak right after the imports (the model, its buffers and the solve).\n")
-    out("| shell | NumPy peak (Δ) | kernel peak (Δ) | mass matrix peak (Δ) | MuJoCo peak (Δ) "
-        "| MuJoCo compile | MuJoCo arena set / used | kernel first call |")
+    out(
+        "Peak resident memory of the process that ran the method (VmHWM), and its growth over the "
+        "peak right after the imports (the model, its buffers and the solve).\n"
+    )
+    out(
+        "| shell | NumPy peak (Δ) | kernel peak (Δ) | mass matrix peak (Δ) | MuJoCo peak (Δ) "
+        "| MuJoCo compile | MuJoCo arena set / used | kernel first call |"
+    )
     out("|---|---:|---:|---:|---:|---:|---:|---:|")
     for s in sizes:
+
         def mem(method):
             r = results.get((s, method))
             if r is None:
@@ -775,13 +868,21 @@ def report(results: dict, sizes, info: dict, bw: dict, command: str, notes: list
             if "error" in r:
                 return "error"
             return f"{r['peak_rss_mb']:.0f} MB (+{r['peak_rss_mb'] - r['rss_after_import_mb']:.0f})"
+
         mjr = results.get((s, "mujoco"), {})
         kr = results.get((s, "kernel"), {})
-        arena = (f"{mjr['memory_mb']} MB / {mjr['arena_used_mb']:.1f} MB"
-                 if "arena_used_mb" in mjr else "—")
-        first = (f"{kr['first_call_s']:.2f} s ({kr['first_call_kind']})" if "first_call_s" in kr else "—")
-        out(f"| {label(s)} | {mem('numpy')} | {mem('kernel')} | {mem('massmatrix')} | {mem('mujoco')} "
-            f"| {fmt_time(mjr.get('compile_s'))} | {arena} | {first} |")
+        arena = (
+            f"{mjr['memory_mb']} MB / {mjr['arena_used_mb']:.1f} MB"
+            if "arena_used_mb" in mjr
+            else "—"
+        )
+        first = (
+            f"{kr['first_call_s']:.2f} s ({kr['first_call_kind']})" if "first_call_s" in kr else "—"
+        )
+        out(
+            f"| {label(s)} | {mem('numpy')} | {mem('kernel')} | {mem('massmatrix')} | {mem('mujoco')} "
+            f"| {fmt_time(mjr.get('compile_s'))} | {arena} | {first} |"
+        )
     out("")
     out("## Checks\n")
     for s in sizes:
@@ -801,7 +902,8 @@ def report(results: dict, sizes, info: dict, bw: dict, command: str, notes: list
                 f"MuJoCo vs kernel node positions after 200 steps (0.02 s): "
                 f"{mjr['trajectory_diff_0.02s']:.1e} m (nodes moved up to "
                 f"{mjr['trajectory_moved_0.02s']:.1e} m; initial state mismatch "
-                f"{mjr['initial_position_error']:.0e} m, {mjr['initial_velocity_error']:.0e} m/s)")
+                f"{mjr['initial_position_error']:.0e} m, {mjr['initial_velocity_error']:.0e} m/s)"
+            )
         for method in METHODS:
             r = results.get((s, method))
             if r is not None and "error" in r:
@@ -816,19 +918,38 @@ def report(results: dict, sizes, info: dict, bw: dict, command: str, notes: list
 # =========================================================================== main
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--sizes", default="3x1,10x10,30x30,100x100",
-                        help="comma-separated shell sizes n x m (default %(default)s)")
-    parser.add_argument("--quick", action="store_true",
-                        help="shorter timings (about 0.3 s per measurement instead of 1.5 s)")
-    parser.add_argument("--mujoco-max", default="30x30",
-                        help="largest shell (by rod count) to build in MuJoCo, or 'none'; MuJoCo's "
-                             "compile time grows ~quadratically (6.5 min at 100x100) (default %(default)s)")
-    parser.add_argument("--methods", default=",".join(METHODS),
-                        help="comma-separated subset of " + ",".join(METHODS))
-    parser.add_argument("--threads", type=int, default=2,
-                        help="threads of the kernel's threaded columns (default %(default)s)")
-    parser.add_argument("--output", default=str(HERE / "results.md"),
-                        help="markdown report to write (default %(default)s); '-' for none")
+    parser.add_argument(
+        "--sizes",
+        default="3x1,10x10,30x30,100x100",
+        help="comma-separated shell sizes n x m (default %(default)s)",
+    )
+    parser.add_argument(
+        "--quick",
+        action="store_true",
+        help="shorter timings (about 0.3 s per measurement instead of 1.5 s)",
+    )
+    parser.add_argument(
+        "--mujoco-max",
+        default="30x30",
+        help="largest shell (by rod count) to build in MuJoCo, or 'none'; MuJoCo's "
+        "compile time grows ~quadratically (6.5 min at 100x100) (default %(default)s)",
+    )
+    parser.add_argument(
+        "--methods",
+        default=",".join(METHODS),
+        help="comma-separated subset of " + ",".join(METHODS),
+    )
+    parser.add_argument(
+        "--threads",
+        type=int,
+        default=2,
+        help="threads of the kernel's threaded columns (default %(default)s)",
+    )
+    parser.add_argument(
+        "--output",
+        default=str(HERE / "results.md"),
+        help="markdown report to write (default %(default)s); '-' for none",
+    )
     parser.add_argument("--budget", type=float, default=None, help=argparse.SUPPRESS)
     parser.add_argument("--worker", default=None, help=argparse.SUPPRESS)
     parser.add_argument("--cold", action="store_true", help=argparse.SUPPRESS)
@@ -845,19 +966,27 @@ def main(argv=None) -> int:
     info = machine_info()
     info["date"] = datetime.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M %Z")
     command = "python benchmarks/bench_rhs.py " + " ".join(
-        a if " " not in a else repr(a) for a in (argv if argv is not None else sys.argv[1:]))
+        a if " " not in a else repr(a) for a in (argv if argv is not None else sys.argv[1:])
+    )
 
-    print(f"machine: {info['cpu']}, {info['cpus']} CPUs, load {info.get('load_before', '?')}", flush=True)
+    print(
+        f"machine: {info['cpu']}, {info['cpus']} CPUs, load {info.get('load_before', '?')}",
+        flush=True,
+    )
     if args.threads < 1:
         parser.error("--threads: must be >= 1")
     bw = {"dram_bytes": 512 * 2**20, "threads": args.threads}
     bw["dram"] = copy_bandwidth(bw["dram_bytes"] // 2)
     # (a bound on T threads may use one thread's bandwidth when T copies at once do worse)
-    bw["dram_threads"] = max(bw["dram"], copy_bandwidth(bw["dram_bytes"] // 2,
-                                                        threads=args.threads))
+    bw["dram_threads"] = max(
+        bw["dram"], copy_bandwidth(bw["dram_bytes"] // 2, threads=args.threads)
+    )
     bw["by_size"], bw["by_size_threads"] = {}, {}
-    print(f"copy bandwidth (DRAM): {bw['dram'] / 1e9:.1f} GB/s, {args.threads} threads "
-          f"{bw['dram_threads'] / 1e9:.1f} GB/s", flush=True)
+    print(
+        f"copy bandwidth (DRAM): {bw['dram'] / 1e9:.1f} GB/s, {args.threads} threads "
+        f"{bw['dram_threads'] / 1e9:.1f} GB/s",
+        flush=True,
+    )
 
     results: dict = {}
     notes: list[str] = []
@@ -868,10 +997,13 @@ def main(argv=None) -> int:
         # (at least 1 MiB: smaller copies measure NumPy's call overhead, not the memory)
         same_size = max(kernel_bytes(R, S, tendon_damping=False) // 2, 2**20 // 2)
         bw["by_size"][f"{n}x{m}"] = copy_bandwidth(same_size)
-        bw["by_size_threads"][f"{n}x{m}"] = max(bw["by_size"][f"{n}x{m}"],
-                                                copy_bandwidth(same_size, threads=args.threads))
+        bw["by_size_threads"][f"{n}x{m}"] = max(
+            bw["by_size"][f"{n}x{m}"], copy_bandwidth(same_size, threads=args.threads)
+        )
         for method in methods:
-            if method == "mujoco" and (mujoco_max is None or 2 * n * m > 2 * mujoco_max[0] * mujoco_max[1]):
+            if method == "mujoco" and (
+                mujoco_max is None or 2 * n * m > 2 * mujoco_max[0] * mujoco_max[1]
+            ):
                 continue
             cold = method == "kernel" and not cold_done
             print(f"({n},{m}) {method} ...", end=" ", flush=True)
@@ -882,12 +1014,17 @@ def main(argv=None) -> int:
             if "error" in r:
                 print(f"ERROR {r['error']}", flush=True)
             else:
-                print(f"rhs {fmt_rate(r.get('rhs_s'))}/s, rk4 {fmt_rate(r.get('rk4_step_s'))} steps/s "
-                      f"({time.perf_counter() - t0:.1f} s)", flush=True)
+                print(
+                    f"rhs {fmt_rate(r.get('rhs_s'))}/s, rk4 {fmt_rate(r.get('rk4_step_s'))} steps/s "
+                    f"({time.perf_counter() - t0:.1f} s)",
+                    flush=True,
+                )
         skipped = mujoco_max is None or 2 * n * m > 2 * mujoco_max[0] * mujoco_max[1]
         if "mujoco" in methods and skipped:
-            notes.append(f"({n},{m}): MuJoCo not run (--mujoco-max {args.mujoco_max}); the cross-check "
-                         "notes measured ~5 steps/s and a 6.5 min compile at (100,100)")
+            notes.append(
+                f"({n},{m}): MuJoCo not run (--mujoco-max {args.mujoco_max}); the cross-check "
+                "notes measured ~5 steps/s and a 6.5 min compile at (100,100)"
+            )
     try:
         info["load_after"] = " ".join(f"{x:.2f}" for x in os.getloadavg())
     except OSError:

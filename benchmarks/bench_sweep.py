@@ -45,8 +45,13 @@ def make_spec(n: int, m: int, cases: int, *, batch: bool = True):
     k = max(1, cases // 2)
     stiffness = [60.0 + 140.0 * i / max(1, k - 1) for i in range(k)]
     scales = [0.85, 0.95][: max(1, cases // k)]
-    return SweepSpec({"n": [n], "m": [m], "stiffness": stiffness, "rest_scale": scales},
-                     t_end=0.05, sample_dt=5e-3, dt=1e-4, batch=batch)
+    return SweepSpec(
+        {"n": [n], "m": [m], "stiffness": stiffness, "rest_scale": scales},
+        t_end=0.05,
+        sample_dt=5e-3,
+        dt=1e-4,
+        batch=batch,
+    )
 
 
 def time_dask_tasks(client, spec, parts: int) -> float:
@@ -58,8 +63,10 @@ def time_dask_tasks(client, spec, parts: int) -> float:
 
     cases = spec.cases()
     t0 = time.perf_counter()
-    futures = [client.submit(run_cases, [cases[i] for i in chunk], spec, True, pure=False)
-               for chunk in np.array_split(np.arange(len(cases)), parts)]
+    futures = [
+        client.submit(run_cases, [cases[i] for i in chunk], spec, True, pure=False)
+        for chunk in np.array_split(np.arange(len(cases)), parts)
+    ]
     wait(futures)
     elapsed = time.perf_counter() - t0
     assert all(r["status"] == 0 for rows in client.gather(futures) for r in rows)
@@ -82,8 +89,12 @@ def main(argv=None) -> int:
     date = datetime.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M %Z")
     print(f"load average before: {info.get('load_before', '?')}", flush=True)
     rows = []
-    with LocalCluster(n_workers=args.workers, threads_per_worker=1, processes=True,
-                      dashboard_address=":0") as cluster, Client(cluster) as client:
+    with (
+        LocalCluster(
+            n_workers=args.workers, threads_per_worker=1, processes=True, dashboard_address=":0"
+        ) as cluster,
+        Client(cluster) as client,
+    ):
         warm = make_spec(3, 1, 2)
         client.run(lambda: run_cases(warm.cases()[:1], warm, True))  # numba cache in every worker
         run_cases(warm.cases()[:1], warm, True)
@@ -107,8 +118,11 @@ def main(argv=None) -> int:
             times["local_batched"] = time.perf_counter() - t0
             assert all(r["status"] == 0 for r in rows_local)
             rows.append(((n, m), cases, times))
-            print(f"({n},{m}) {cases} cases: " + ", ".join(f"{k} {v:.2f} s" for k, v in times.items()),
-                  flush=True)
+            print(
+                f"({n},{m}) {cases} cases: "
+                + ", ".join(f"{k} {v:.2f} s" for k, v in times.items()),
+                flush=True,
+            )
     load_after = " ".join(f"{x:.2f}" for x in os.getloadavg())
 
     steps = 500
@@ -135,7 +149,8 @@ def main(argv=None) -> int:
             f"{t['dask_batched']:.2f} s | {t['local_batched']:.2f} s | {t['run_sweep']:.2f} s | "
             f"{t['dask_simulate'] / t['run_sweep']:.1f}× | "
             f"{t['dask_compiled'] / t['dask_batched']:.2f}× | "
-            f"{cases * steps / t['run_sweep']:,.0f} |")
+            f"{cases * steps / t['run_sweep']:,.0f} |"
+        )
     write_report("\n".join(lines) + "\n", args.output)
     return 0
 

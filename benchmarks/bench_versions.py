@@ -22,7 +22,6 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-
 from bench_rhs import bench_problem, best_time, parse_size
 
 REPO = Path(__file__).resolve().parents[1]
@@ -30,8 +29,9 @@ REPO = Path(__file__).resolve().parents[1]
 
 def kernel_at(rev: str):
     """The module ``tensegrity/kernel.py`` as it was at commit ``rev``."""
-    source = subprocess.run(["git", "show", f"{rev}:src/tensegrity/kernel.py"], cwd=REPO,
-                            capture_output=True, text=True)
+    source = subprocess.run(
+        ["git", "show", f"{rev}:src/tensegrity/kernel.py"], cwd=REPO, capture_output=True, text=True
+    )
     if source.returncode != 0:
         sys.exit(f"--rev: {source.stderr.strip()}")
     path = Path(tempfile.mkdtemp()) / "kernel_at_rev.py"
@@ -55,8 +55,10 @@ def main() -> None:
     structure, q, qdot, rest = bench_problem(*parse_size(args.size))
     if args.damped:
         structure = structure.replace(tendon_damping=np.full(structure.n_tendons, 1e-9))
-    kernels = {"old": kernel_at(args.rev).FastKernel(structure, threads=args.threads),
-               "new": new.FastKernel(structure, threads=args.threads)}
+    kernels = {
+        "old": kernel_at(args.rev).FastKernel(structure, threads=args.threads),
+        "new": new.FastKernel(structure, threads=args.threads),
+    }
     out = (np.empty(q.size), np.empty(structure.n_tendons))
     steps = 10 if structure.n_rods >= 20_000 else 100
     for kernel in kernels.values():  # compile or load the cache outside the rounds
@@ -67,16 +69,20 @@ def main() -> None:
     for _ in range(args.rounds):
         for name, kernel in kernels.items():
             times[name, "evaluate"].append(
-                best_time(lambda: kernel.evaluate(q, qdot, rest, out=out), 0.3))
+                best_time(lambda: kernel.evaluate(q, qdot, rest, out=out), 0.3)
+            )
             times[name, "RK4 step"].append(
-                best_time(lambda: kernel.rk4(q, qdot, 1e-4, steps, rest), 0.3) / steps)
+                best_time(lambda: kernel.rk4(q, qdot, 1e-4, steps, rest), 0.3) / steps
+            )
     case = f"{args.size}, {'damped' if args.damped else 'undamped'}, {args.threads} thread(s)"
     for what in ("evaluate", "RK4 step"):
         old, new_ = np.array(times["old", what]), np.array(times["new", what])
         ratio = new_ / old
-        print(f"{case}, {what}: old {np.median(old) * 1e3:.4f} ms, new {np.median(new_) * 1e3:.4f}"
-              f" ms; new / old median {np.median(ratio):.3f} (range {ratio.min():.3f}-"
-              f"{ratio.max():.3f}, {args.rounds} rounds)")
+        print(
+            f"{case}, {what}: old {np.median(old) * 1e3:.4f} ms, new {np.median(new_) * 1e3:.4f}"
+            f" ms; new / old median {np.median(ratio):.3f} (range {ratio.min():.3f}-"
+            f"{ratio.max():.3f}, {args.rounds} rounds)"
+        )
 
 
 if __name__ == "__main__":

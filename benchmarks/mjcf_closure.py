@@ -22,11 +22,10 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-from test_constraints import GRAVITY  # noqa: E402
-from test_mjcf_held import LOOPS, off_constraints  # noqa: E402
-
-from tensegrity import simulate# noqa: E402
-from tensegrity.io.mjcf import mujoco_node_positions, to_mjcf# noqa: E402
+from tensegrity import simulate
+from tensegrity.io.mjcf import mujoco_node_positions, to_mjcf
+from test_constraints import GRAVITY
+from test_mjcf_held import LOOPS, off_constraints
 
 #: (label, closure solref, closure solimp, extra <option> attributes); None keeps the export's.
 SETTINGS = [
@@ -43,6 +42,7 @@ SETTINGS = [
 
 def edited(xml: str, solref: str | None, solimp: str | None, option: str, dt: float) -> str:
     """``xml`` with the closure equalities' ``solref`` / ``solimp`` and ``<option>`` edited."""
+
     def edit(match: re.Match) -> str:
         text = match.group(0)
         if solref:
@@ -78,8 +78,13 @@ def mujoco_positions(xml: str, structure, t_end: float, dt: float, sample_dt: fl
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--t-end", type=float, default=0.5, help="horizon [s] (default 0.5)")
-    parser.add_argument("--dt", type=float, nargs="+", default=[1e-4, 5e-5],
-                        help="time steps [s]: all settings at the first, the export's at the others")
+    parser.add_argument(
+        "--dt",
+        type=float,
+        nargs="+",
+        default=[1e-4, 5e-5],
+        help="time steps [s]: all settings at the first, the export's at the others",
+    )
     args = parser.parse_args()
     sample_dt = 0.01
     print("| structure | dt [s] | setting | node difference [m] | off its plane/line [m] |")
@@ -88,18 +93,24 @@ def main() -> None:
         s = build()
         g = GRAVITY if s.dim == 3 else GRAVITY[[0, 2]]
         for k, dt in enumerate(args.dt):
-            ours = simulate(s, (0.0, args.t_end), method="rk4", dt=dt, sample_dt=sample_dt, gravity=g)
+            ours = simulate(
+                s, (0.0, args.t_end), method="rk4", dt=dt, sample_dt=sample_dt, gravity=g
+            )
             assert ours.success, ours.message
             xml = to_mjcf(s, timestep=dt, gravity=g)
             for label, solref, solimp, option in SETTINGS if k == 0 else SETTINGS[:1]:
-                theirs = mujoco_positions(edited(xml, solref, solimp, option, dt), s, args.t_end, dt,
-                                          sample_dt)
+                theirs = mujoco_positions(
+                    edited(xml, solref, solimp, option, dt), s, args.t_end, dt, sample_dt
+                )
                 if np.isnan(theirs).any():
                     print(f"| {name} | {dt:g} | {label} | unstable | - |", flush=True)
                     continue
                 difference = np.abs(theirs - ours.node_position).max()
-                print(f"| {name} | {dt:g} | {label} | {difference:.1e} | "
-                      f"{off_constraints(s, theirs):.1e} |", flush=True)
+                print(
+                    f"| {name} | {dt:g} | {label} | {difference:.1e} | "
+                    f"{off_constraints(s, theirs):.1e} |",
+                    flush=True,
+                )
 
 
 if __name__ == "__main__":

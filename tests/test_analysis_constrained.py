@@ -12,9 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from scipy.optimize import brentq
-from test_constraints import GRAVITY, G, hanging_chain, pendulum, static_equilibrium
 
-from tensegrity.physics.constraints import constraints_of
 from tensegrity import Structure, critical_damping, simulate
 from tensegrity.analysis.coordinates import Chart, planar_coordinates, spatial_coordinates
 from tensegrity.analysis.equilibrium import (
@@ -31,10 +29,12 @@ from tensegrity.analysis.modes import (
     modal_analysis,
     mode_initial_state,
 )
-from tensegrity.physics.dynamics import State
 from tensegrity.design.catalogue import prism
 from tensegrity.model.planar import planar_two_rod, two_rod_equilibrium
 from tensegrity.model.shell import class2_shell
+from tensegrity.physics.constraints import constraints_of
+from tensegrity.physics.dynamics import State
+from test_constraints import GRAVITY, G, hanging_chain, pendulum, static_equilibrium
 
 
 def fixed_base_prism(**options) -> Structure:
@@ -47,10 +47,17 @@ def fixed_base_prism(**options) -> Structure:
 def anchored_mass(k: float = 50.0, m: float = 0.3) -> Structure:
     """A point mass (node 2) on two collinear tendons from anchors at x = -2 and x = 2, rest
     length 1: tension ``k``, axial stiffness ``2k``, transverse ``2 T / l = k``."""
-    return Structure(node_position=[[-2, 0, 0], [2, 0, 0], [0, 0, 0]], rod_nodes=np.zeros((0, 2), int),
-                     rod_mass=[], rod_length=[], node_fixed=[True, True, False],
-                     node_point_mass=[0, 0, m], tendon_nodes=[[0, 2], [2, 1]],
-                     tendon_stiffness=[k, k], tendon_rest_length=[1.0, 1.0])
+    return Structure(
+        node_position=[[-2, 0, 0], [2, 0, 0], [0, 0, 0]],
+        rod_nodes=np.zeros((0, 2), int),
+        rod_mass=[],
+        rod_length=[],
+        node_fixed=[True, True, False],
+        node_point_mass=[0, 0, m],
+        tendon_nodes=[[0, 2], [2, 1]],
+        tendon_stiffness=[k, k],
+        tendon_rest_length=[1.0, 1.0],
+    )
 
 
 # ------------------------------------------------------------------------------ chart
@@ -61,10 +68,18 @@ def test_constraint_jacobian_and_point_mass_coordinates_match_finite_differences
     chart = Chart.at(s, np.asarray(find_equilibrium(s, gravity=GRAVITY).q))
     x = np.random.default_rng(1).normal(scale=0.1, size=chart.size)
     h = 1e-6
-    G_fd = np.column_stack([(chart.constraint_residual(x + h * e) - chart.constraint_residual(x - h * e))
-                            / (2 * h) for e in np.eye(chart.size)])
-    J_fd = np.column_stack([(chart.nodes(x + h * e) - chart.nodes(x - h * e)).ravel() / (2 * h)
-                            for e in np.eye(chart.size)])
+    G_fd = np.column_stack(
+        [
+            (chart.constraint_residual(x + h * e) - chart.constraint_residual(x - h * e)) / (2 * h)
+            for e in np.eye(chart.size)
+        ]
+    )
+    J_fd = np.column_stack(
+        [
+            (chart.nodes(x + h * e) - chart.nodes(x - h * e)).ravel() / (2 * h)
+            for e in np.eye(chart.size)
+        ]
+    )
     np.testing.assert_allclose(chart.constraint_jacobian(x), G_fd, atol=1e-8)
     np.testing.assert_allclose(chart.jacobian_matrix(x), J_fd, atol=1e-8)
     np.testing.assert_allclose(chart.x(chart.q(x)), x, atol=1e-12)
@@ -92,7 +107,9 @@ def test_pinned_rod_swings_at_the_compound_pendulum_frequency(support):
     assert max(finite_difference_check(lin).values()) < 1e-7
     system = lin.statespace(outputs="position")  # a named control.StateSpace of the 2 swings
     assert system.nstates == 4 and system.ninputs == 0
-    np.testing.assert_allclose(np.sort(np.abs(np.linalg.eigvals(system.A))), np.sqrt(3 * G / (2 * L)))
+    np.testing.assert_allclose(
+        np.sort(np.abs(np.linalg.eigvals(system.A))), np.sqrt(3 * G / (2 * L))
+    )
     # the nonlinear pendulum, small amplitude, by FFT
     check = measure_frequency(modes, 0, amplitude=1e-4, periods=30)
     assert check.relative_error < 1e-5, check.to_dict()
@@ -114,7 +131,9 @@ def test_point_mass_between_anchors_has_the_spring_frequencies():
     assert modes.n_rigid == 0
     np.testing.assert_allclose(modes.omega_squared, [k / m, k / m, 2 * k / m], rtol=1e-12)
     axial = int(np.argmax(modes.omega_squared))
-    np.testing.assert_allclose(np.abs(modes.node_shapes[axial, 2]), [1 / np.sqrt(m), 0, 0], atol=1e-12)
+    np.testing.assert_allclose(
+        np.abs(modes.node_shapes[axial, 2]), [1 / np.sqrt(m), 0, 0], atol=1e-12
+    )
     assert max(finite_difference_check(lin).values()) < 1e-7
 
 
@@ -128,17 +147,31 @@ def test_tripod_equilibrium_matches_its_closed_form():
     apex = np.array([0, 0, np.sqrt(L**2 - 0.25)])
     s = Structure(
         node_position=np.array([feet[0], apex, feet[1], apex, feet[2], apex]),
-        rod_nodes=[[0, 1], [2, 3], [4, 5]], rod_mass=[m] * 3, rod_length=[L] * 3,
-        joint_nodes=[[1, 3], [3, 5]], plane_nodes=[0, 2, 4], plane_normal=[[0, 0, 1.0]] * 3,
-        tendon_nodes=[[0, 2], [2, 4], [4, 0]], tendon_stiffness=[k] * 3, tendon_rest_length=[rest] * 3)
+        rod_nodes=[[0, 1], [2, 3], [4, 5]],
+        rod_mass=[m] * 3,
+        rod_length=[L] * 3,
+        joint_nodes=[[1, 3], [3, 5]],
+        plane_nodes=[0, 2, 4],
+        plane_normal=[[0, 0, 1.0]] * 3,
+        tendon_nodes=[[0, 2], [2, 4], [4, 0]],
+        tendon_stiffness=[k] * 3,
+        tendon_rest_length=[rest] * 3,
+    )
     eq = find_equilibrium(s, gravity=GRAVITY)
     assert eq.converged, eq.message
-    root = brentq(lambda rho: 1.5 * m * G * rho / np.sqrt(L**2 - rho**2)
-                  - 3 * np.sqrt(3) * k * (np.sqrt(3) * rho - rest), rest / np.sqrt(3), 0.8 * L)
+    root = brentq(
+        lambda rho: (
+            1.5 * m * G * rho / np.sqrt(L**2 - rho**2)
+            - 3 * np.sqrt(3) * k * (np.sqrt(3) * rho - rest)
+        ),
+        rest / np.sqrt(3),
+        0.8 * L,
+    )
     h = np.sqrt(L**2 - root**2)
     p = eq.node_position
-    np.testing.assert_allclose(np.linalg.norm(p[[0, 2, 4]] - p[[0, 2, 4]].mean(axis=0), axis=1), root,
-                               atol=1e-10)
+    np.testing.assert_allclose(
+        np.linalg.norm(p[[0, 2, 4]] - p[[0, 2, 4]].mean(axis=0), axis=1), root, atol=1e-10
+    )
     np.testing.assert_allclose(eq.tension, m * G * root / (2 * np.sqrt(3) * h), rtol=1e-9)
     np.testing.assert_allclose(eq.reaction_force[[0, 2, 4]], [[0, 0, m * G]] * 3, atol=1e-9)
     # the floor admits turning about the vertical and sliding: 3 rigid-body modes
@@ -151,8 +184,15 @@ def test_hanging_chain_equilibrium_matches_the_energy_minimum_and_the_simulation
     eq = find_equilibrium(s, gravity=GRAVITY)
     assert eq.converged, eq.message
     np.testing.assert_allclose(eq.node_position, static_equilibrium(s), atol=1e-6)
-    sim = equilibrium_by_simulation(s, damping="as-is", gravity=GRAVITY, velocity_tol=1e-8,
-                                    acceleration_tol=1e-8, rtol=1e-9, atol=1e-12)
+    sim = equilibrium_by_simulation(
+        s,
+        damping="as-is",
+        gravity=GRAVITY,
+        velocity_tol=1e-8,
+        acceleration_tol=1e-8,
+        rtol=1e-9,
+        atol=1e-12,
+    )
     assert sim.converged, sim.message
     agreement = compare_equilibria(eq, sim)
     assert agreement["node_distance"] < 1e-7 and agreement["tension_difference"] < 1e-5, agreement
@@ -167,16 +207,18 @@ def test_constrained_equilibria_by_least_squares_and_by_simulation_agree(case):
     eq = find_equilibrium(s, **loads)
     assert eq.converged, eq.message
     assert eq.residual_acceleration < 1e-9
-    sim = equilibrium_by_simulation(s, **loads, velocity_tol=1e-9, acceleration_tol=1e-9,
-                                    rtol=1e-10, atol=1e-12)
+    sim = equilibrium_by_simulation(
+        s, **loads, velocity_tol=1e-9, acceleration_tol=1e-9, rtol=1e-10, atol=1e-12
+    )
     assert sim.converged, sim.message
     agreement = compare_equilibria(eq, sim)
     assert agreement["node_distance"] < 1e-7 and agreement["tension_difference"] < 1e-5, agreement
     # the supports and joints hold
     assert np.max(np.abs(constraints_of(s).residual(eq.q))) < 1e-12
     if "fixed" in case:
-        np.testing.assert_allclose(eq.node_position[s.node_fixed], s.node_position[s.node_fixed],
-                                   atol=1e-14)
+        np.testing.assert_allclose(
+            eq.node_position[s.node_fixed], s.node_position[s.node_fixed], atol=1e-14
+        )
 
 
 # ------------------------------------------------------------------------------ planar
@@ -191,10 +233,13 @@ def test_planar_example2_equilibrium_matches_the_closed_form(rest_a, rest_b):
     assert eq.converged, eq.message
     assert eq.node_position.shape == (4, 2) and eq.q.shape == (8,)
     ref = two_rod_equilibrium(lengths, 100.0, rest_a, rest_b)
-    np.testing.assert_allclose(eq.tendon_length, [ref["b"], ref["a"], ref["b"], ref["a"]], rtol=1e-10)
+    np.testing.assert_allclose(
+        eq.tendon_length, [ref["b"], ref["a"], ref["b"], ref["a"]], rtol=1e-10
+    )
     np.testing.assert_allclose(eq.tension, [ref["tension_b"], ref["tension_a"]] * 2, rtol=1e-10)
-    np.testing.assert_allclose(eq.rod_compression, [ref["compression_1"], ref["compression_2"]],
-                               rtol=1e-10)
+    np.testing.assert_allclose(
+        eq.rod_compression, [ref["compression_1"], ref["compression_2"]], rtol=1e-10
+    )
     r1 = eq.node_position[1] - eq.node_position[0]
     r2 = eq.node_position[3] - eq.node_position[2]
     assert r1 @ r2 / (lengths[0] * lengths[1]) == pytest.approx(ref["cos_phi"], abs=1e-10)
@@ -212,8 +257,14 @@ def test_planar_example2_frequency_against_the_fft_of_the_planar_simulation():
     shape = modes.shapes[:, mode]
     start = mode_initial_state(lin, shape, 1e-4)
     f_lin = float(modes.frequency_hz[mode])
-    run = simulate(s, (0.0, 40 / f_lin), initial=State(0.0, planar_coordinates(s, start.q), np.zeros(8)),
-                   sample_dt=1 / (16 * f_lin), rtol=1e-10, atol=1e-14)
+    run = simulate(
+        s,
+        (0.0, 40 / f_lin),
+        initial=State(0.0, planar_coordinates(s, start.q), np.zeros(8)),
+        sample_dt=1 / (16 * f_lin),
+        rtol=1e-10,
+        atol=1e-14,
+    )
     assert run.success, run.message
     eta = lin.to_eta(lin.chart.x(spatial_coordinates(s, run.q)))
     measured = fft_peak(run.t, eta @ (lin.mass * shape), near=f_lin)
@@ -221,7 +272,9 @@ def test_planar_example2_frequency_against_the_fft_of_the_planar_simulation():
 
 
 # ------------------------------------------------------------------------------ linearization
-@pytest.mark.parametrize("case", ["joints", "fixed base", "point mass", "planar", "planar supported"])
+@pytest.mark.parametrize(
+    "case", ["joints", "fixed base", "point mass", "planar", "planar supported"]
+)
 def test_linearization_is_the_derivative_of_the_constrained_dynamics(case):
     """A, B, D, C, F against central differences of the dynamics' constrained accelerations
     (perturbations projected back onto the constraints), damped."""
@@ -236,7 +289,8 @@ def test_linearization_is_the_derivative_of_the_constrained_dynamics(case):
         s = planar_two_rod(rest_length=(0.4, 0.5, 0.4, 0.5))
     else:  # a planar structure with a fixed node and a node on a line
         s = planar_two_rod(rest_length=(0.4, 0.5, 0.4, 0.5)).replace(
-            node_fixed=[True, False, False, False], line_nodes=[2], line_direction=[[0.0, 1.0]])
+            node_fixed=[True, False, False, False], line_nodes=[2], line_direction=[[0.0, 1.0]]
+        )
         loads = {"gravity": np.array([0.0, -G])}
     eq = find_equilibrium(s, **loads)
     assert eq.converged, eq.message
@@ -301,8 +355,9 @@ def test_cli_analysis_verbs_take_a_planar_structure_file(tmp_path, capsys):
     modes = json.loads((tmp_path / "modes" / "modes.json").read_text())
     expected = modal_analysis(linearize(s, find_equilibrium(s)))
     assert modes["rigid_body_modes"] == 3 and modes["stable"]
-    np.testing.assert_allclose([m["frequency_hz"] for m in modes["modes"]], expected.frequency_hz,
-                               rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(
+        [m["frequency_hz"] for m in modes["modes"]], expected.frequency_hz, rtol=1e-9, atol=1e-9
+    )
     code, _, err = _cli(["control", "--structure", path, "--out", tmp_path / "control"], capsys)
     assert code == 2 and not (tmp_path / "control").exists()
     assert err.strip().count("\n") == 0 and "shape control: supports only 3-D structures" in err
@@ -315,17 +370,36 @@ def test_cli_modes_and_controllability_of_a_fixed_base_class2_shell(tmp_path, ca
     import json
 
     path = tmp_path / "c2.json"
-    assert _cli(["export", "--kind", "class2-shell", "--m", "2", "--fixed-base", "-o", path], capsys)[0] == 0
+    assert (
+        _cli(["export", "--kind", "class2-shell", "--m", "2", "--fixed-base", "-o", path], capsys)[
+            0
+        ]
+        == 0
+    )
     s = Structure.from_dict(json.loads(path.read_text()))
     code, _, err = _cli(["modes", "--structure", path, "--out", tmp_path / "modes"], capsys)
     assert code == 0, err
     modes = json.loads((tmp_path / "modes" / "modes.json").read_text())
     expected = modal_analysis(linearize(s, find_equilibrium(s)))
     assert modes["rigid_body_modes"] == 0 and len(modes["modes"]) == 24
-    np.testing.assert_allclose([m["frequency_hz"] for m in modes["modes"]], expected.frequency_hz,
-                               rtol=1e-9)
-    code, _, err = _cli(["controllability", "--structure", path, "--inputs", "all", "--outputs",
-                         "position", "p0_*", "--out", tmp_path / "ctrl"], capsys)
+    np.testing.assert_allclose(
+        [m["frequency_hz"] for m in modes["modes"]], expected.frequency_hz, rtol=1e-9
+    )
+    code, _, err = _cli(
+        [
+            "controllability",
+            "--structure",
+            path,
+            "--inputs",
+            "all",
+            "--outputs",
+            "position",
+            "p0_*",
+            "--out",
+            tmp_path / "ctrl",
+        ],
+        capsys,
+    )
     assert code == 0, err
     data = json.loads((tmp_path / "ctrl" / "controllability.json").read_text())
     assert data["states"] == 48
@@ -340,12 +414,12 @@ def test_self_stress_and_prestress_with_supports():
     base tendons (between fixed nodes) add one state each; Maxwell's rule with the admitted
     motions (``s - m = S - k``, no rigid motion left).  The LP prestress, realized by rest
     lengths, leaves Theorem 18.1 with its constraint forces at rest in the layout."""
-    from tensegrity.physics import dynamics
     from tensegrity.analysis.prestress import (
         feasible_prestress,
         rest_lengths_for_tensions,
         self_stress,
     )
+    from tensegrity.physics import dynamics
 
     free, s = prism(3), fixed_base_prism()
     states = self_stress(s)
@@ -362,8 +436,11 @@ def test_self_stress_and_prestress_with_supports():
     # the best one: the base tendons (free to take anything) as tight as the top ring, i.e. the
     # free prism's own self-stress, which needs no reaction: the rods carry what they carry free
     np.testing.assert_allclose(prestress.tension, T0, rtol=1e-9)
-    np.testing.assert_allclose(prestress.rod_compression,
-                               feasible_prestress(free, mean_tension=5.0).rod_compression, rtol=1e-9)
+    np.testing.assert_allclose(
+        prestress.rod_compression,
+        feasible_prestress(free, mean_tension=5.0).rod_compression,
+        rtol=1e-9,
+    )
 
 
 def test_planar_self_stress_is_the_closed_form_one():
@@ -376,7 +453,9 @@ def test_planar_self_stress_is_the_closed_form_one():
     assert states.n_states == 1 and states.n_mechanisms == 0 and states.matrix.shape == (6, 4)
     ref = two_rod_equilibrium((1.0, 0.8), 100.0, 0.5, 0.4)
     expected = np.array([ref["b"], ref["a"], ref["b"], ref["a"]])
-    np.testing.assert_allclose(np.abs(states.states[:, 0]), expected / np.linalg.norm(expected), rtol=1e-10)
+    np.testing.assert_allclose(
+        np.abs(states.states[:, 0]), expected / np.linalg.norm(expected), rtol=1e-10
+    )
 
 
 def test_form_finding_keeps_the_supports():
@@ -388,8 +467,9 @@ def test_form_finding_keeps_the_supports():
     found = form_find(s.replace(tendon_rest_length=1.3 * s.tendon_rest_length), mean_tension=5.0)
     assert found.stable, found.verdict
     assert found.equilibrium.tension.mean() == pytest.approx(5.0, rel=1e-6)
-    np.testing.assert_allclose(found.equilibrium.node_position[s.node_fixed], s.node_position[s.node_fixed],
-                               atol=1e-14)
+    np.testing.assert_allclose(
+        found.equilibrium.node_position[s.node_fixed], s.node_position[s.node_fixed], atol=1e-14
+    )
 
 
 def test_prestress_rod_force_includes_the_support_reaction():
@@ -398,9 +478,16 @@ def test_prestress_rod_force_includes_the_support_reaction():
     (compression ``-T``; without the pin's reaction it would read ``-T/2``)."""
     from tensegrity.analysis.prestress import feasible_prestress, self_stress
 
-    s = Structure(node_position=[[0, 0, 0], [0, 0, 1.0], [0, 0, 2.0]], rod_nodes=[[0, 1]], rod_mass=[1.0],
-                  rod_length=[1.0], node_fixed=[True, False, True], tendon_nodes=[[1, 2]],
-                  tendon_stiffness=[10.0], tendon_rest_length=[0.5])
+    s = Structure(
+        node_position=[[0, 0, 0], [0, 0, 1.0], [0, 0, 2.0]],
+        rod_nodes=[[0, 1]],
+        rod_mass=[1.0],
+        rod_length=[1.0],
+        node_fixed=[True, False, True],
+        tendon_nodes=[[1, 2]],
+        tendon_stiffness=[10.0],
+        tendon_rest_length=[0.5],
+    )
     assert self_stress(s).n_states == 1
     prestress = feasible_prestress(s, mean_tension=3.0, compressed_rods=False)
     assert prestress.feasible and prestress.tension == pytest.approx([3.0])
@@ -411,8 +498,8 @@ def test_prestress_rod_force_includes_the_support_reaction():
 def test_shape_sensitivities_with_supports_match_re_solved_equilibria():
     """``dy/du`` and ``dT/du`` of the fixed-base class 2 shell against central differences of
     equilibria solved again with the rest lengths changed."""
-    from tensegrity.cli.analysis import rings
     from tensegrity.analysis.shape_control import height_twist, sensitivities
+    from tensegrity.cli.analysis import rings
 
     s = class2_shell(3, 2, fixed_base=True)
     eq = find_equilibrium(s)
@@ -421,8 +508,10 @@ def test_shape_sensitivities_with_supports_match_re_solved_equilibria():
     h = 1e-6
     for j in (0, 5, 17):
         du = h * np.eye(s.n_tendons)[j]
-        plus, minus = (find_equilibrium(s, eq.q, control=sign * du, gauge_reference=eq.node_position)
-                       for sign in (1, -1))
+        plus, minus = (
+            find_equilibrium(s, eq.q, control=sign * du, gauge_reference=eq.node_position)
+            for sign in (1, -1)
+        )
         dT = (plus.tension - minus.tension) / (2 * h)
         dy = (output.value(plus.node_position) - output.value(minus.node_position)) / (2 * h)
         np.testing.assert_allclose(dT, dTdu[:, j], atol=1e-6 * np.abs(dT).max())
@@ -448,13 +537,23 @@ def test_shape_control_of_a_shell_on_a_fixed_base():
     eq = find_equilibrium(s)
     output = height_twist(eq.node_position, bottom, top)
     h0 = output.value(eq.node_position)[0]
-    plan = quasi_static(s, output, [{"targets": (0.8 * h0, None), "actuators": "t1_*"}, (0.8 * h0, 0.0)],
-                        start=eq, steps=[4, 2], bounds=Bounds(), tolerance=[1e-6, 1e-6])
+    plan = quasi_static(
+        s,
+        output,
+        [{"targets": (0.8 * h0, None), "actuators": "t1_*"}, (0.8 * h0, 0.0)],
+        start=eq,
+        steps=[4, 2],
+        bounds=Bounds(),
+        tolerance=[1e-6, 1e-6],
+    )
     assert plan.reached, plan.message
     run = closed_loop(plan, move_time=2.0, settle_time=3.0)
     assert run.reached, run.message
-    np.testing.assert_allclose(run.node_position[:, bottom], np.broadcast_to(s.node_position[bottom],
-                               (run.t.size, len(bottom), 3)), atol=1e-12)
+    np.testing.assert_allclose(
+        run.node_position[:, bottom],
+        np.broadcast_to(s.node_position[bottom], (run.t.size, len(bottom), 3)),
+        atol=1e-12,
+    )
     y = output.value(run.node_position[-1])  # measured from the simulated nodes themselves
     np.testing.assert_allclose(y, [0.8 * h0, 0.0], atol=1e-6)
 
@@ -470,8 +569,11 @@ def test_cli_modes_of_point_masses_only(tmp_path, capsys):
     code, _, err = _cli(["modes", "--structure", path, "--out", tmp_path / "modes"], capsys)
     assert code == 0, err
     data = json.loads((tmp_path / "modes" / "modes.json").read_text())
-    np.testing.assert_allclose([mode["frequency_hz"] for mode in data["modes"]],
-                               np.sqrt([k / m, k / m, 2 * k / m]) / (2 * np.pi), rtol=1e-12)
+    np.testing.assert_allclose(
+        [mode["frequency_hz"] for mode in data["modes"]],
+        np.sqrt([k / m, k / m, 2 * k / m]) / (2 * np.pi),
+        rtol=1e-12,
+    )
     assert (tmp_path / "modes" / "mode_shapes.png").stat().st_size > 10_000
 
 
@@ -483,7 +585,13 @@ def test_default_input_sets_for_tendon_names_without_families():
     s = fixed_base_prism()
     lin = linearize(critical_damping(s), find_equilibrium(s))
     sets = default_input_sets(lin)
-    assert {name: len(v) for name, v in sets.items()} == {"all": 9, "b*": 3, "t*": 3, "s*": 3, "b0": 1}
+    assert {name: len(v) for name, v in sets.items()} == {
+        "all": 9,
+        "b*": 3,
+        "t*": 3,
+        "s*": 3,
+        "b0": 1,
+    }
     reach, _ = controllability_table(lin, modal_analysis(lin))
     assert reach[0].rank == 2 * lin.n_dof
 
@@ -499,34 +607,65 @@ def test_cli_gravity_hangs_a_pinned_rod_and_swings_it_at_the_pendulum_frequency(
     path.write_text(json.dumps(pendulum(m, L, support="fixed", angle=0.4).to_dict()))
     for gravity in (str(G), f"0,0,{-G}"):
         out = tmp_path / f"eq{len(gravity)}"
-        code, _, err = _cli(["equilibrium", "--structure", path, "--gravity", gravity,
-                             "--method", "least_squares", "--out", out], capsys)
+        code, _, err = _cli(
+            [
+                "equilibrium",
+                "--structure",
+                path,
+                "--gravity",
+                gravity,
+                "--method",
+                "least_squares",
+                "--out",
+                out,
+            ],
+            capsys,
+        )
         assert code == 0, err
         data = json.loads((out / "equilibrium.json").read_text())
-        np.testing.assert_allclose(data["least_squares"]["node_position_m"][1], [0, 0, -L],
-                                   atol=1e-12)
+        np.testing.assert_allclose(
+            data["least_squares"]["node_position_m"][1], [0, 0, -L], atol=1e-12
+        )
         assert data["least_squares"]["gravity_m_s2"] == [0.0, 0.0, -G]
-    code, _, err = _cli(["modes", "--structure", path, "--gravity", str(G),
-                         "--out", tmp_path / "modes"], capsys)
+    code, _, err = _cli(
+        ["modes", "--structure", path, "--gravity", str(G), "--out", tmp_path / "modes"], capsys
+    )
     assert code == 0, err
     data = json.loads((tmp_path / "modes" / "modes.json").read_text())
-    np.testing.assert_allclose([mode["frequency_hz"] for mode in data["modes"]],
-                               [np.sqrt(3 * G / (2 * L)) / (2 * np.pi)] * 2, rtol=1e-12)
+    np.testing.assert_allclose(
+        [mode["frequency_hz"] for mode in data["modes"]],
+        [np.sqrt(3 * G / (2 * L)) / (2 * np.pi)] * 2,
+        rtol=1e-12,
+    )
     # without --gravity the same file has two rigid-body turns about the pivot instead
     code, _, err = _cli(["modes", "--structure", path, "--out", tmp_path / "free"], capsys)
     assert code == 0, err
     free = json.loads((tmp_path / "free" / "modes.json").read_text())
     assert [mode["kind"] for mode in free["modes"]] == ["rigid", "rigid"]
-    code, _, err = _cli(["simulate", "--structure", path, "--gravity", str(G), "--t-end", "0.2",
-                         "--no-steady-state", "--out", tmp_path / "sim"], capsys)
+    code, _, err = _cli(
+        [
+            "simulate",
+            "--structure",
+            path,
+            "--gravity",
+            str(G),
+            "--t-end",
+            "0.2",
+            "--no-steady-state",
+            "--out",
+            tmp_path / "sim",
+        ],
+        capsys,
+    )
     assert code == 0, err
     from tensegrity.io.trajectory import read_trajectory
 
     tip = read_trajectory(tmp_path / "sim" / "trajectory.h5").node_position[:, 1, 2]
     assert tip[-1] < tip[0] - 0.05 and np.all(np.diff(tip) <= 1e-12)  # falls from rest
     for bad in ("down", "1,2"):
-        code, _, err = _cli(["modes", "--structure", path, "--gravity", bad,
-                             "--out", tmp_path / "bad"], capsys)
+        code, _, err = _cli(
+            ["modes", "--structure", path, "--gravity", bad, "--out", tmp_path / "bad"], capsys
+        )
         assert code == 2 and err.count("\n") == 1 and "gravity" in err, err
     assert not (tmp_path / "bad").exists()
 
@@ -543,9 +682,13 @@ def test_info_counts_the_degrees_of_freedom_the_supports_leave(tmp_path, capsys)
     both_fixed = pendulum(support="fixed").replace(node_fixed=[True, True])
     from tensegrity.model.shell import class2_shell
 
-    cases = {"pinned": (pendulum(support="fixed"), 2), "both ends fixed": (both_fixed, 0),
-             "point mass": (anchored_mass(), 3), "class 2 shell": (class2_shell(3, 2), 42),
-             "planar": (planar_two_rod(), 6)}
+    cases = {
+        "pinned": (pendulum(support="fixed"), 2),
+        "both ends fixed": (both_fixed, 0),
+        "point mass": (anchored_mass(), 3),
+        "class 2 shell": (class2_shell(3, 2), 42),
+        "planar": (planar_two_rod(), 6),
+    }
     for name, (structure, expected) in cases.items():
         assert admitted_dof(structure) == expected, name
         path = tmp_path / f"{name.replace(' ', '_')}.json"

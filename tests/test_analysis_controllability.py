@@ -105,7 +105,10 @@ def test_paper_example_facts(undamped, shell, equilibrium):
     assert cos > 1 - 1e-9
     assert modes.frequency_hz[9] == pytest.approx(3.2356, abs=1e-3)
     by_name = {r.name: r for r in obs}
-    assert by_name["position"].rank == 60 and by_name["position"].missed_modes(include_rigid=True) == []
+    assert (
+        by_name["position"].rank == 60
+        and by_name["position"].missed_modes(include_rigid=True) == []
+    )
     assert by_name["length"].missed_modes() == [9] and by_name["tension"].missed_modes() == [9]
     # one input cannot reach more than one mode of each repeated frequency
     single = {r.name: r for r in ctrl}["t1_1_1"]

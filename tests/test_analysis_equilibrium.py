@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 
 from tensegrity import class1_shell
-from tensegrity.physics import dynamics
 from tensegrity.analysis.coordinates import Chart, align, deformation, mass_matrix
 from tensegrity.analysis.equilibrium import (
     compare_equilibria,
@@ -18,6 +17,7 @@ from tensegrity.analysis.equilibrium import (
     find_equilibrium,
 )
 from tensegrity.analysis.statics import force_jacobian, statics
+from tensegrity.physics import dynamics
 
 GRAVITY = np.array([0.0, 0.0, -9.81])
 
@@ -46,8 +46,12 @@ def test_reduced_coordinates_keep_rod_lengths_and_invert(shell, chart):
 def test_node_jacobian_matches_finite_differences(chart):
     x = _random_x(chart)
     h = 1e-6
-    fd = np.column_stack([(chart.nodes(x + h * e) - chart.nodes(x - h * e)).ravel() / (2 * h)
-                          for e in np.eye(chart.size)])
+    fd = np.column_stack(
+        [
+            (chart.nodes(x + h * e) - chart.nodes(x - h * e)).ravel() / (2 * h)
+            for e in np.eye(chart.size)
+        ]
+    )
     assert np.max(np.abs(chart.jacobian_matrix(x) - fd)) < 1e-8
 
 
@@ -59,8 +63,11 @@ def test_generalized_forces_are_minus_the_energy_gradient(shell, chart):
 
     def energy(x):
         p = chart.nodes(x)
-        return (dynamics.elastic_energy(shell, p, rest) - np.sum(w * p)
-                + dynamics.gravity_energy(shell, chart.q(x), GRAVITY))
+        return (
+            dynamics.elastic_energy(shell, p, rest)
+            - np.sum(w * p)
+            + dynamics.gravity_energy(shell, chart.q(x), GRAVITY)
+        )
 
     h = 1e-6
     grad = np.array([(energy(x + h * e) - energy(x - h * e)) / (2 * h) for e in np.eye(chart.size)])
@@ -78,9 +85,16 @@ def test_force_jacobian_matches_finite_differences_with_slack_tendons(shell, cha
     st = statics(chart, x, rest)
     assert st.tendons.taut.sum() == shell.n_tendons - 6
     h = 1e-6
-    fd = np.column_stack([(statics(chart, x + h * e, rest).generalized_force
-                           - statics(chart, x - h * e, rest).generalized_force) / (2 * h)
-                          for e in np.eye(chart.size)])
+    fd = np.column_stack(
+        [
+            (
+                statics(chart, x + h * e, rest).generalized_force
+                - statics(chart, x - h * e, rest).generalized_force
+            )
+            / (2 * h)
+            for e in np.eye(chart.size)
+        ]
+    )
     analytic = force_jacobian(chart, x, st)
     assert np.max(np.abs(analytic - fd)) < 1e-7 * np.max(np.abs(fd))
 
@@ -126,7 +140,9 @@ def test_newton_alone_returns_from_a_moved_and_deformed_start(shell, both_routes
     direct, _ = both_routes
     rng = np.random.default_rng(4)
     angle = 0.3
-    rot = np.array([[np.cos(angle), -np.sin(angle), 0], [np.sin(angle), np.cos(angle), 0], [0, 0, 1]])
+    rot = np.array(
+        [[np.cos(angle), -np.sin(angle), 0], [np.sin(angle), np.cos(angle), 0], [0, 0, 1]]
+    )
     moved = direct.node_position @ rot.T + np.array([0.2, -0.1, 0.5])
     chart = Chart.at(shell, dynamics.coordinates_from_nodes(shell, moved))
     start = chart.nodes(rng.normal(scale=0.02, size=chart.size))
@@ -134,8 +150,9 @@ def test_newton_alone_returns_from_a_moved_and_deformed_start(shell, both_routes
     assert again.converged and again.residual_force < 1e-10
     np.testing.assert_allclose(again.tension, direct.tension, atol=1e-9)
     # Eckart: the result is its own best rigid fit to the start
-    np.testing.assert_allclose(align(again.node_position, start, shell.node_mass),
-                               again.node_position, atol=1e-9)
+    np.testing.assert_allclose(
+        align(again.node_position, start, shell.node_mass), again.node_position, atol=1e-9
+    )
     assert deformation(again.node_position, direct.node_position, shell.node_mass) < 1e-9
 
 

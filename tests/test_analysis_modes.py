@@ -122,8 +122,9 @@ def test_no_prestress_shows_its_mechanism(shell, equilibrium):
     material stiffness, so what is left is the infinitesimal mechanism of the geometry -- one,
     as the null space of the equilibrium matrix says (Maxwell: 24 tendons, 24 non-rigid dof,
     1 self-stress) -- and the verdict says the equilibrium is not stable."""
-    unstressed = shell.replace(node_position=equilibrium.node_position,
-                               tendon_rest_length=equilibrium.tendon_length)
+    unstressed = shell.replace(
+        node_position=equilibrium.node_position, tendon_rest_length=equilibrium.tendon_length
+    )
     m = modal_analysis(linearize(unstressed, equilibrium.q))
     assert m.n_rigid == 6 and m.n_unstable == 0
     assert m.n_mechanisms == self_stress(unstressed, equilibrium.q).n_mechanisms == 1
@@ -135,8 +136,9 @@ def test_no_prestress_shows_its_mechanism(shell, equilibrium):
 
 
 def test_slack_network_has_only_mechanisms_and_does_not_return(shell, equilibrium):
-    slack = shell.replace(node_position=equilibrium.node_position,
-                          tendon_rest_length=1.2 * equilibrium.tendon_length)
+    slack = shell.replace(
+        node_position=equilibrium.node_position, tendon_rest_length=1.2 * equilibrium.tendon_length
+    )
     m = modal_analysis(linearize(slack, equilibrium.q))
     assert m.n_rigid == 6 and m.n_mechanisms == 24 and not m.stable
     assert "24 slack tendon(s)" in m.verdict

@@ -78,7 +78,9 @@ def test_form_finding_from_rough_geometry():
     """From a cylinder layout with every node moved by ~5 cm at random (rods projected back to
     their lengths) to a stable equilibrium with every tendon taut at a mean of 20 N."""
     s = class1_shell(3, 1)
-    rough = s.node_position + np.random.default_rng(0).normal(scale=0.05, size=s.node_position.shape)
+    rough = s.node_position + np.random.default_rng(0).normal(
+        scale=0.05, size=s.node_position.shape
+    )
     result = form_find(s, rough, mean_tension=20.0)
     eq = result.equilibrium
     assert result.stable, result.verdict

@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 
 from tensegrity import class1_shell
-from tensegrity.physics import dynamics
 from tensegrity.analysis.equilibrium import find_equilibrium
 from tensegrity.analysis.shape_control import (
     Bounds,
@@ -17,6 +16,7 @@ from tensegrity.analysis.shape_control import (
     sensitivities,
     shell_rings,
 )
+from tensegrity.physics import dynamics
 
 BOUNDS = Bounds(min_rest_length=0.05, max_change=0.25, min_tension=1.0)
 
@@ -34,10 +34,17 @@ def plan(setup):
     s, eq, output = setup
     h0 = output.value(eq.node_position)[0]
     return quasi_static(
-        s, output,
-        [{"targets": (0.8 * h0, None), "actuators": "t1_*"},  # shorten with t1 only: it twists
-         (0.8 * h0, 0.0)],                                     # twist back with every tendon
-        start=eq, steps=[4, 2], bounds=BOUNDS, tolerance=[1e-6, 1e-6])
+        s,
+        output,
+        [
+            {"targets": (0.8 * h0, None), "actuators": "t1_*"},  # shorten with t1 only: it twists
+            (0.8 * h0, 0.0),
+        ],  # twist back with every tendon
+        start=eq,
+        steps=[4, 2],
+        bounds=BOUNDS,
+        tolerance=[1e-6, 1e-6],
+    )
 
 
 def test_output_jacobians_match_finite_differences(setup):
@@ -45,9 +52,13 @@ def test_output_jacobians_match_finite_differences(setup):
     p = eq.node_position + np.random.default_rng(0).normal(scale=0.01, size=eq.node_position.shape)
     h = 1e-6
     for out in (output, node_outputs(s, [3, 7], "xz")):
-        fd = np.column_stack([(out.value(p + h * e.reshape(p.shape))
-                               - out.value(p - h * e.reshape(p.shape))) / (2 * h)
-                              for e in np.eye(p.size)])
+        fd = np.column_stack(
+            [
+                (out.value(p + h * e.reshape(p.shape)) - out.value(p - h * e.reshape(p.shape)))
+                / (2 * h)
+                for e in np.eye(p.size)
+            ]
+        )
         assert np.max(np.abs(out.jacobian(p) - fd)) < 1e-8
 
 

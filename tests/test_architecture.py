@@ -49,7 +49,11 @@ def _imports(path: Path) -> list[tuple[str, list[str], int]]:
     """``(module, imported names, line)`` of every import of the package in ``path``."""
     found = []
     for node in ast.walk(ast.parse(path.read_text(), str(path))):
-        if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("tensegrity"):
+        if (
+            isinstance(node, ast.ImportFrom)
+            and node.module
+            and node.module.startswith("tensegrity")
+        ):
             found.append((node.module, [a.name for a in node.names], node.lineno))
         elif isinstance(node, ast.Import):
             for alias in node.names:
@@ -102,7 +106,7 @@ def test_no_import_circles():
         state[node] = 1
         for nxt in sorted(graph.get(node, ())):
             if state.get(nxt) == 1:
-                circles.append(" -> ".join(path[path.index(nxt):] + [node, nxt]))
+                circles.append(" -> ".join(path[path.index(nxt) :] + [node, nxt]))
             elif nxt not in state:
                 visit(nxt, path + [node])
         state[node] = 2
@@ -118,7 +122,11 @@ def _module_aliases(tree: ast.AST, modules: dict[str, str | Path]) -> dict[str, 
     tio``, ``import tensegrity.physics.dynamics as d``) -> that module."""
     aliases = {}
     for node in ast.walk(tree):
-        if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("tensegrity"):
+        if (
+            isinstance(node, ast.ImportFrom)
+            and node.module
+            and node.module.startswith("tensegrity")
+        ):
             for a in node.names:
                 if f"{node.module}.{a.name}" in modules:
                     aliases[a.asname or a.name] = f"{node.module}.{a.name}"
@@ -141,21 +149,34 @@ def test_no_private_names_across_modules():
         tree = ast.parse(path.read_text())
         aliases = _module_aliases(tree, modules)
         for node in ast.walk(tree):
-            if (isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name)
-                    and node.value.id in aliases and node.attr.startswith("_")
-                    and not node.attr.startswith("__")):
+            if (
+                isinstance(node, ast.Attribute)
+                and isinstance(node.value, ast.Name)
+                and node.value.id in aliases
+                and node.attr.startswith("_")
+                and not node.attr.startswith("__")
+            ):
                 wrong.append(f"{source}:{node.lineno} uses {aliases[node.value.id]}.{node.attr}")
     assert not wrong, "\n".join(wrong)
 
 
-@pytest.mark.parametrize("where, line, check", [
-    ("model/a.py", "from tensegrity.cli.main import main", test_imports_follow_the_layers),
-    ("engine/a.py", "import tensegrity.engine.b", test_no_import_circles),
-    ("model/a.py", "from tensegrity.model.structure import _readonly",
-     test_no_private_names_across_modules),
-    ("model/a.py", "from tensegrity.model import structure as s\ns._readonly",
-     test_no_private_names_across_modules),
-])
+@pytest.mark.parametrize(
+    "where, line, check",
+    [
+        ("model/a.py", "from tensegrity.cli.main import main", test_imports_follow_the_layers),
+        ("engine/a.py", "import tensegrity.engine.b", test_no_import_circles),
+        (
+            "model/a.py",
+            "from tensegrity.model.structure import _readonly",
+            test_no_private_names_across_modules,
+        ),
+        (
+            "model/a.py",
+            "from tensegrity.model import structure as s\ns._readonly",
+            test_no_private_names_across_modules,
+        ),
+    ],
+)
 def test_the_checks_catch_what_they_look_for(tmp_path, monkeypatch, where, line, check):
     """Each check fails on a copy of the package with one such import added (the circle:
     ``engine/a.py`` and ``engine/b.py`` importing each other)."""

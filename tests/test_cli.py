@@ -27,8 +27,13 @@ def default_run(tmp_path_factory):
 def test_default_example_writes_every_promised_file(default_run):
     code, out = default_run
     assert code == 0
-    for name in ("trajectory.h5", "structure.json", "initial.png", "equilibrium.png",
-                 "tendon_lengths.png"):
+    for name in (
+        "trajectory.h5",
+        "structure.json",
+        "initial.png",
+        "equilibrium.png",
+        "tendon_lengths.png",
+    ):
         path = out / name
         assert path.is_file() and path.stat().st_size > 0, name
         if name.endswith(".png"):
@@ -70,14 +75,21 @@ def test_default_example_settles_into_the_expanded_octahedron(default_run):
     assert np.all(np.bincount(structure.tendon_nodes.ravel()) == 4)
     lengths = trajectory.tendon_length[-1]
     assert np.abs(lengths / structure.rod_length[0] - np.sqrt(6) / 4).max() < 1e-6
-    assert np.abs(trajectory.tendon_length[0] / structure.rod_length[0] - np.sqrt(6) / 4).max() > 0.1
+    assert (
+        np.abs(trajectory.tendon_length[0] / structure.rod_length[0] - np.sqrt(6) / 4).max() > 0.1
+    )
 
 
 def test_default_example_prints_a_summary(tmp_path, capsys):
     assert main(["simulate", "--out", str(tmp_path), "--t-end", "0.5", "--sample-dt", "0.05"]) == 0
     printed = capsys.readouterr().out
-    for words in ("final residual acceleration", "largest rod-length error", "energy dissipated",
-                  "slack tendons", "wall time"):
+    for words in (
+        "final residual acceleration",
+        "largest rod-length error",
+        "energy dissipated",
+        "slack tendons",
+        "wall time",
+    ):
         assert words in printed
 
 
@@ -90,8 +102,24 @@ def test_export_then_simulate_and_info_a_structure_file(tmp_path, capsys):
     printed = capsys.readouterr().out
     assert "tendons" in printed and "72" in printed and "80 (5 per rod)" in printed
     out = tmp_path / "run"
-    code = main(["simulate", "--structure", str(path), "--t-end", "0.2", "--no-steady-state",
-                 "--method", "rk4", "--dt", "1e-3", "--sample-dt", "0.05", "--out", str(out)])
+    code = main(
+        [
+            "simulate",
+            "--structure",
+            str(path),
+            "--t-end",
+            "0.2",
+            "--no-steady-state",
+            "--method",
+            "rk4",
+            "--dt",
+            "1e-3",
+            "--sample-dt",
+            "0.05",
+            "--out",
+            str(out),
+        ]
+    )
     assert code == 0
     trajectory = read_trajectory(out / "trajectory.h5")
     assert trajectory.node_position.shape == (5, 32, 3)
@@ -116,8 +144,9 @@ def test_export_then_simulate_and_info_a_structure_file(tmp_path, capsys):
         (["bogus"], "bogus"),
     ],
 )
-def test_bad_input_is_one_line_exit_2_and_writes_nothing(argv, words, tmp_path, capsys,
-                                                           monkeypatch):
+def test_bad_input_is_one_line_exit_2_and_writes_nothing(
+    argv, words, tmp_path, capsys, monkeypatch
+):
     monkeypatch.chdir(tmp_path)
     assert main(argv) == 2
     err = capsys.readouterr().err
@@ -143,7 +172,9 @@ def test_unusable_output_path_fails_before_any_work(argv, words, tmp_path, capsy
     line naming the option, and the file in the way is left as it was."""
     import importlib
 
-    module = importlib.import_module("tensegrity.engine.simulate")  # the package exports the function
+    module = importlib.import_module(
+        "tensegrity.engine.simulate"
+    )  # the package exports the function
 
     def no_simulation(*args, **kwargs):
         raise AssertionError("simulated although the output path is unusable")
@@ -174,8 +205,9 @@ def test_bad_structure_file_names_the_element(tmp_path, capsys):
 
 def test_unstable_run_fails_with_exit_1_and_writes_nothing(tmp_path, capsys):
     out = tmp_path / "out"
-    code = main(["simulate", "--method", "rk4", "--dt", "0.05", "--damping", "none",
-                 "--out", str(out)])
+    code = main(
+        ["simulate", "--method", "rk4", "--dt", "0.05", "--damping", "none", "--out", str(out)]
+    )
     assert code == 1
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "unstable" in err
@@ -185,7 +217,9 @@ def test_unstable_run_fails_with_exit_1_and_writes_nothing(tmp_path, capsys):
 def test_console_script_errors_without_traceback(tmp_path):
     completed = subprocess.run(
         [sys.executable, "-m", "tensegrity.cli", "simulate", "--n", "1"],
-        capture_output=True, text=True, cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
     )
     assert completed.returncode == 2
     assert completed.stderr.count("\n") == 1 and "Traceback" not in completed.stderr
@@ -212,8 +246,23 @@ def test_export_kinds_write_the_generators_structures(tmp_path):
     from tensegrity.model.shell import class2_shell
 
     path = tmp_path / "c2.json"
-    assert main(["export", "--kind", "class2-shell", "--n", "4", "--m", "3", "--fixed-base",
-                 "-o", str(path)]) == 0
+    assert (
+        main(
+            [
+                "export",
+                "--kind",
+                "class2-shell",
+                "--n",
+                "4",
+                "--m",
+                "3",
+                "--fixed-base",
+                "-o",
+                str(path),
+            ]
+        )
+        == 0
+    )
     assert read_structure(path).to_dict() == class2_shell(4, 3, fixed_base=True).to_dict()
     path = tmp_path / "planar.json"
     assert main(["export", "--kind", "planar", "--rest-length", "0.3", "-o", str(path)]) == 0
@@ -222,22 +271,49 @@ def test_export_kinds_write_the_generators_structures(tmp_path):
 
 def test_simulate_a_planar_structure_writes_its_files(tmp_path, capsys):
     out = tmp_path / "run"
-    assert main(["simulate", "--kind", "planar", "--rest-length", "0.3", "--damping", "critical",
-                 "--out", str(out)]) == 0
+    assert (
+        main(
+            [
+                "simulate",
+                "--kind",
+                "planar",
+                "--rest-length",
+                "0.3",
+                "--damping",
+                "critical",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     trajectory = read_trajectory(out / "trajectory.h5")
     assert trajectory.node_position.shape[1:] == (4, 2)
     assert (out / "equilibrium.png").read_bytes()[:8] == PNG_SIGNATURE
 
 
-@pytest.mark.parametrize("argv, message", [
-    (["export", "--kind", "rod", "--n", "4", "-o", "x.json"], "--n: not an option of --kind rod"),
-    (["export", "--kind", "shell", "--fixed-base", "-o", "x.json"],
-     "--fixed-base: not an option of --kind shell"),
-    (["info", "--kind", "class2-shell", "--m", "1"], "m: a class 2 shell needs m >= 2"),
-    (["simulate", "--kind", "rod", "--damping", "critical"],
-     "critical damping needs at least one rod and one tendon"),
-    (["matrices", "--kind", "class2-shell"], "the matrix model: supports only free 3-D class 1"),
-])
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (
+            ["export", "--kind", "rod", "--n", "4", "-o", "x.json"],
+            "--n: not an option of --kind rod",
+        ),
+        (
+            ["export", "--kind", "shell", "--fixed-base", "-o", "x.json"],
+            "--fixed-base: not an option of --kind shell",
+        ),
+        (["info", "--kind", "class2-shell", "--m", "1"], "m: a class 2 shell needs m >= 2"),
+        (
+            ["simulate", "--kind", "rod", "--damping", "critical"],
+            "critical damping needs at least one rod and one tendon",
+        ),
+        (
+            ["matrices", "--kind", "class2-shell"],
+            "the matrix model: supports only free 3-D class 1",
+        ),
+    ],
+)
 def test_generator_option_errors_are_one_line(argv, message, capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     assert main(argv) == 2
@@ -248,21 +324,44 @@ def test_generator_option_errors_are_one_line(argv, message, capsys, tmp_path, m
 
 def test_simulate_class2_shell_reports_the_joint_error(tmp_path, capsys):
     out = tmp_path / "run"
-    assert main(["simulate", "--kind", "class2-shell", "--fixed-base", "--t-end", "0.05",
-                 "--no-steady-state", "--out", str(out)]) == 0
+    assert (
+        main(
+            [
+                "simulate",
+                "--kind",
+                "class2-shell",
+                "--fixed-base",
+                "--t-end",
+                "0.05",
+                "--no-steady-state",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("largest joint"))
     assert float(line.split()[-2]) < 1e-12
     trajectory = read_trajectory(out / "trajectory.h5")
     fixed = np.flatnonzero(trajectory.structure.node_fixed)
-    assert np.max(np.abs(trajectory.node_position[:, fixed] - trajectory.node_position[0, fixed])) < 1e-12
+    assert (
+        np.max(np.abs(trajectory.node_position[:, fixed] - trajectory.node_position[0, fixed]))
+        < 1e-12
+    )
 
 
 def test_a_reader_that_closes_the_pipe_early_stops_the_command_quietly():
     """``tensegrity info | head -1``: the output pipe closes before the command writes; it
     stops with exit code 141 (128 + SIGPIPE) and nothing on stderr (no traceback, no error)."""
     child = subprocess.Popen(
-        [sys.executable, "-c", "import sys; from tensegrity.cli.main import main; sys.exit(main(['info']))"],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        [
+            sys.executable,
+            "-c",
+            "import sys; from tensegrity.cli.main import main; sys.exit(main(['info']))",
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
     child.stdout.close()  # long before the child has imported anything
     _, err = child.communicate(timeout=120)
     assert child.returncode == 141 and err == b"", err.decode()

@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 
 from tensegrity import class1_shell
-from tensegrity.cli.analysis import rings
 from tensegrity.analysis.equilibrium import find_equilibrium
 from tensegrity.analysis.shape_control import shell_rings
+from tensegrity.cli.analysis import rings
 from tensegrity.cli.main import main
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -56,8 +56,9 @@ def test_equilibrium_writes_positions_tensions_and_residuals(tmp_path, capsys):
     assert p.shape == (12, 3)
     # rods keep their 1 m length; every tendon at the paper-example tension, none slack
     rods = class1_shell(3, 1).rod_nodes
-    np.testing.assert_allclose(np.linalg.norm(p[rods[:, 1]] - p[rods[:, 0]], axis=1), 1.0,
-                               atol=1e-12)
+    np.testing.assert_allclose(
+        np.linalg.norm(p[rods[:, 1]] - p[rods[:, 0]], axis=1), 1.0, atol=1e-12
+    )
     tensions = [t["tension_N"] for t in direct["tendons"]]
     assert len(tensions) == 24 and np.allclose(tensions, 31.64, atol=0.005)
     assert data["least_squares"]["slack_tendons"] == [] and direct["residual_force_N"] < 1e-9
@@ -69,20 +70,42 @@ def test_equilibrium_writes_positions_tensions_and_residuals(tmp_path, capsys):
 
 def test_equilibrium_of_a_structure_file_matches_the_shell_options(tmp_path, capsys, shell_file):
     out = tmp_path / "eq"
-    code, _, err = _run(["equilibrium", "--structure", str(shell_file), "--method",
-                         "least_squares", "--out", str(out)], capsys)
+    code, _, err = _run(
+        [
+            "equilibrium",
+            "--structure",
+            str(shell_file),
+            "--method",
+            "least_squares",
+            "--out",
+            str(out),
+        ],
+        capsys,
+    )
     assert code == 0, err
     data = json.loads((out / "equilibrium.json").read_text())
     assert "simulation" not in data and "agreement" not in data
     reference = find_equilibrium(class1_shell(3, 1))
-    np.testing.assert_allclose([t["tension_N"] for t in data["least_squares"]["tendons"]],
-                               reference.tension, rtol=1e-9)
+    np.testing.assert_allclose(
+        [t["tension_N"] for t in data["least_squares"]["tendons"]], reference.tension, rtol=1e-9
+    )
 
 
 def test_modes_writes_frequencies_in_hz_with_mode_shapes(tmp_path, capsys, shell_file):
     out = tmp_path / "modes"
-    code, text, err = _run(["modes", "--structure", str(shell_file), "--shapes", "4",
-                            "--check-fft", "--out", str(out)], capsys)
+    code, text, err = _run(
+        [
+            "modes",
+            "--structure",
+            str(shell_file),
+            "--shapes",
+            "4",
+            "--check-fft",
+            "--out",
+            str(out),
+        ],
+        capsys,
+    )
     assert code == 0, err
     data = _check_files(out, ["modes.json", "frequencies.png", "mode_shapes.png"])["modes.json"]
     modes = data["modes"]
@@ -101,19 +124,36 @@ def test_modes_writes_frequencies_in_hz_with_mode_shapes(tmp_path, capsys, shell
 
 def test_controllability_ranks_per_input_set(tmp_path, capsys):
     out = tmp_path / "ctrl"
-    code, text, err = _run(["controllability", "--inputs", "all", "t1_1_1", "t1_*,t5_*",
-                            "--outputs", "position", "tension", "--out", str(out)], capsys)
+    code, text, err = _run(
+        [
+            "controllability",
+            "--inputs",
+            "all",
+            "t1_1_1",
+            "t1_*,t5_*",
+            "--outputs",
+            "position",
+            "tension",
+            "--out",
+            str(out),
+        ],
+        capsys,
+    )
     assert code == 0, err
     files = ["controllability.json", "controllability.png", "observability.png"]
     data = _check_files(out, files)["controllability.json"]
-    ranks = {r["name"]: (r["rank"], r["states"], len(r["signals"])) for r in data["controllability"]}
+    ranks = {
+        r["name"]: (r["rank"], r["states"], len(r["signals"])) for r in data["controllability"]
+    }
     # the (3,1) shell: every tendon set misses one mode (the prestress-stiffened mechanism,
     # 3.24 Hz); a single tendon reaches one mode of each repeated frequency only
     assert ranks == {"all": (46, 60, 24), "t1_1_1": (18, 60, 1), "t1_*,t5_*": (46, 60, 6)}
     missed = data["controllability"][0]["missed_modes"]
     # tendon forces are internal: the rigid-body modes are never reached either
-    assert [(m["modes"], m["kind"]) for m in missed] == [([0, 1, 2, 3, 4, 5], "rigid"),
-                                                          ([9], "elastic")]
+    assert [(m["modes"], m["kind"]) for m in missed] == [
+        ([0, 1, 2, 3, 4, 5], "rigid"),
+        ([9], "elastic"),
+    ]
     assert missed[1]["frequency_hz"] == pytest.approx(3.2356, abs=1e-3)
     obs = {r["name"]: r["rank"] for r in data["observability"]}
     assert obs == {"position": 60, "tension": 46}
@@ -144,8 +184,21 @@ def test_control_that_misses_its_targets_exits_1_with_the_results(tmp_path, caps
     """Rest-length changes of at most 1 cm cannot shorten the shell by 20%: the plan says so,
     the files are written, and the exit code is 1 with a one-line reason."""
     out = tmp_path / "control"
-    code, _, err = _run(["control", "--max-change", "0.01", "--no-twist-back", "--steps", "1",
-                         "1", "--no-closed-loop", "--out", str(out)], capsys)
+    code, _, err = _run(
+        [
+            "control",
+            "--max-change",
+            "0.01",
+            "--no-twist-back",
+            "--steps",
+            "1",
+            "1",
+            "--no-closed-loop",
+            "--out",
+            str(out),
+        ],
+        capsys,
+    )
     assert code == 1
     assert err.count("\n") == 1 and "missed" in err and "results written" in err
     data = json.loads((out / "control.json").read_text())
@@ -178,8 +231,9 @@ def test_default_rings_of_a_shell_are_its_bottom_and_top_rings(n_m):
         (["modes", "--n", "2"], "n"),
     ],
 )
-def test_bad_input_is_one_line_exit_2_and_writes_nothing(argv, words, tmp_path, capsys,
-                                                           monkeypatch):
+def test_bad_input_is_one_line_exit_2_and_writes_nothing(
+    argv, words, tmp_path, capsys, monkeypatch
+):
     monkeypatch.chdir(tmp_path)
     code, _, err = _run(argv, capsys)
     assert code == 2

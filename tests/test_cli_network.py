@@ -6,21 +6,34 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tensegrity.design import catalogue as generators
 from tensegrity.cli.main import main
-from tensegrity.io.trajectory import read_trajectory
+from tensegrity.design import catalogue as generators
 from tensegrity.io.formats import read_network
+from tensegrity.io.trajectory import read_trajectory
 
-FORMATS = {"json": ".json", "yaml": ".yaml", "toml": ".toml", "connectivity": ".npz", "mjcf": ".xml"}
-KIND_OPTIONS = {"shell": ["--n", "4", "--m", "2"], "prism": ["--n", "4", "--set", "tension=8"],
-                "octahedron": [], "tower": ["--n", "3", "--m", "2", "--set", "overlap=0.2"]}
+FORMATS = {
+    "json": ".json",
+    "yaml": ".yaml",
+    "toml": ".toml",
+    "connectivity": ".npz",
+    "mjcf": ".xml",
+}
+KIND_OPTIONS = {
+    "shell": ["--n", "4", "--m", "2"],
+    "prism": ["--n", "4", "--set", "tension=8"],
+    "octahedron": [],
+    "tower": ["--n", "3", "--m", "2", "--set", "overlap=0.2"],
+}
 
 
 @pytest.mark.parametrize("kind", list(KIND_OPTIONS))
 def test_export_every_kind_in_every_format(kind, tmp_path, capsys):
     """Each file reads back to the structure the generator makes (MJCF: loads in MuJoCo)."""
-    options = {"prism": {"n": 4, "tension": 8}, "shell": {"n": 4, "m": 2},
-               "tower": {"n": 3, "m": 2, "overlap": 0.2}}.get(kind, {})
+    options = {
+        "prism": {"n": 4, "tension": 8},
+        "shell": {"n": 4, "m": 2},
+        "tower": {"n": 3, "m": 2, "overlap": 0.2},
+    }.get(kind, {})
     expected = generators.generate(kind, **options)
     for fmt, suffix in FORMATS.items():
         path = tmp_path / f"{kind}{suffix}"
@@ -34,14 +47,36 @@ def test_export_every_kind_in_every_format(kind, tmp_path, capsys):
         assert read_network(path).to_dict() == expected.to_dict()
     # --format overrides the suffix
     path = tmp_path / "model.txt"
-    assert main(["export", "--kind", kind, *KIND_OPTIONS[kind], "--format", "yaml", "-o", str(path)]) == 0
+    assert (
+        main(["export", "--kind", kind, *KIND_OPTIONS[kind], "--format", "yaml", "-o", str(path)])
+        == 0
+    )
     assert read_network(path, format="yaml").to_dict() == expected.to_dict()
 
 
 def test_existing_export_options_still_work(tmp_path):
     path = tmp_path / "s.json"
-    assert main(["export", "--n", "4", "--m", "2", "--primal", "--stiffness", "50",
-                 "--rest-length", "0.2", "--damping", "critical", "-o", str(path)]) == 0
+    assert (
+        main(
+            [
+                "export",
+                "--n",
+                "4",
+                "--m",
+                "2",
+                "--primal",
+                "--stiffness",
+                "50",
+                "--rest-length",
+                "0.2",
+                "--damping",
+                "critical",
+                "-o",
+                str(path),
+            ]
+        )
+        == 0
+    )
     s = read_network(path)
     assert (s.n_rods, s.n_tendons) == (16, 64) and np.all(s.tendon_stiffness == 50)
     assert np.all(s.tendon_rest_length == 0.2) and np.all(s.rod_damping > 0)
@@ -54,8 +89,23 @@ def test_simulate_and_info_take_every_format(suffix, tmp_path, capsys):
     assert main(["info", "--structure", str(path)]) == 0
     assert "initially slack tendons  0" in capsys.readouterr().out
     out = tmp_path / "run"
-    assert main(["simulate", "--structure", str(path), "--t-end", "0.1", "--no-steady-state",
-                 "--sample-dt", "0.05", "--out", str(out)]) == 0
+    assert (
+        main(
+            [
+                "simulate",
+                "--structure",
+                str(path),
+                "--t-end",
+                "0.1",
+                "--no-steady-state",
+                "--sample-dt",
+                "0.05",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     trajectory = read_trajectory(out / "trajectory.h5")
     assert trajectory.node_position.shape == (3, 6, 3)
     # at its equilibrium, the prism does not move
@@ -70,25 +120,56 @@ def test_simulate_with_a_force_table(tmp_path):
     rows = np.column_stack([[0.0, 1.0], force.reshape(2, -1)])
     np.savetxt(tmp_path / "f.csv", rows, delimiter=",", header="t, f0x, f0y, f0z, ...")
     out = tmp_path / "run"
-    assert main(["simulate", "--kind", "octahedron", "--damping", "none", "--t-end", "0.4",
-                 "--no-steady-state", "--sample-dt", "0.1", "--force-table", str(tmp_path / "f.csv"),
-                 "--out", str(out)]) == 0
+    assert (
+        main(
+            [
+                "simulate",
+                "--kind",
+                "octahedron",
+                "--damping",
+                "none",
+                "--t-end",
+                "0.4",
+                "--no-steady-state",
+                "--sample-dt",
+                "0.1",
+                "--force-table",
+                str(tmp_path / "f.csv"),
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     trajectory = read_trajectory(out / "trajectory.h5")
     centre = trajectory.node_position.mean(axis=1)  # equal node masses
     np.testing.assert_allclose(centre[:, 0] - centre[0, 0], 0.5 * 1.0 * trajectory.t**2, atol=1e-9)
-    np.testing.assert_allclose(trajectory.energy["external_work"][-1], 6 * 0.5 * 1.0 * 0.4**2,
-                               rtol=1e-6)
+    np.testing.assert_allclose(
+        trajectory.energy["external_work"][-1], 6 * 0.5 * 1.0 * 0.4**2, rtol=1e-6
+    )
 
 
 @pytest.mark.parametrize(
     "argv, words",
     [
-        (["export", "--kind", "prism", "--m", "2", "-o", "x.json"], "--m: not an option of --kind prism"),
-        (["export", "--kind", "prism", "--set", "colour=red", "-o", "x.json"], "--set colour: not an option"),
-        (["export", "--kind", "prism", "--set", "n=two", "-o", "x.json"], "n: must be an integer >= 3"),
+        (
+            ["export", "--kind", "prism", "--m", "2", "-o", "x.json"],
+            "--m: not an option of --kind prism",
+        ),
+        (
+            ["export", "--kind", "prism", "--set", "colour=red", "-o", "x.json"],
+            "--set colour: not an option",
+        ),
+        (
+            ["export", "--kind", "prism", "--set", "n=two", "-o", "x.json"],
+            "n: must be an integer >= 3",
+        ),
         (["export", "--kind", "cube", "-o", "x.json"], "--kind: invalid choice: 'cube'"),
         (["export", "--kind", "prism", "--set", "oops", "-o", "x.json"], "expected NAME=VALUE"),
-        (["export", "--kind", "prism", "--format", "vtk", "-o", "x.json"], "--format: invalid choice"),
+        (
+            ["export", "--kind", "prism", "--format", "vtk", "-o", "x.json"],
+            "--format: invalid choice",
+        ),
         (["export", "--damping", "critical", "-o", "x.xml"], "rods[0].damping"),
         (["info", "--structure", "x.yaml", "--kind", "prism"], "--kind: generator options cannot"),
         (["info", "--structure", "missing.toml"], "missing.toml: no such file"),
@@ -96,7 +177,9 @@ def test_simulate_with_a_force_table(tmp_path):
         (["simulate", "--kind", "prism", "--force-table", "f.npz"], "f.npz: no such file"),
     ],
 )
-def test_bad_input_is_one_line_exit_2_and_writes_nothing(argv, words, tmp_path, capsys, monkeypatch):
+def test_bad_input_is_one_line_exit_2_and_writes_nothing(
+    argv, words, tmp_path, capsys, monkeypatch
+):
     monkeypatch.chdir(tmp_path)
     (tmp_path / "s.txt").write_text("")
     assert main(argv) == 2
@@ -108,8 +191,20 @@ def test_bad_input_is_one_line_exit_2_and_writes_nothing(argv, words, tmp_path, 
 
 def test_force_table_for_another_structure_is_refused(tmp_path, capsys):
     np.savez(tmp_path / "f.npz", time=[0.0], force=np.zeros((1, 5, 3)))
-    assert main(["simulate", "--kind", "prism", "--force-table", str(tmp_path / "f.npz"),
-                 "--out", str(tmp_path / "out")]) == 2
+    assert (
+        main(
+            [
+                "simulate",
+                "--kind",
+                "prism",
+                "--force-table",
+                str(tmp_path / "f.npz"),
+                "--out",
+                str(tmp_path / "out"),
+            ]
+        )
+        == 2
+    )
     assert "has forces for 5 nodes, the structure has 6" in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
 
@@ -130,8 +225,23 @@ def test_class_k_forms_carry_a_class2_shell_to_simulate(fmt, tmp_path, capsys):
     np.testing.assert_array_equal(merge_joints(got).node_fixed, merge_joints(expected).node_fixed)
     out = tmp_path / "run"
     capsys.readouterr()
-    assert main(["simulate", "--structure", str(path), "--t-end", "0.1", "--no-steady-state",
-                 "--sample-dt", "0.05", "--out", str(out)]) == 0
+    assert (
+        main(
+            [
+                "simulate",
+                "--structure",
+                str(path),
+                "--t-end",
+                "0.1",
+                "--no-steady-state",
+                "--sample-dt",
+                "0.05",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     nodes = read_trajectory(out / "trajectory.h5").node_position
     assert nodes.shape == (3, got.n_nodes, 3)
     fixed = np.flatnonzero(got.node_fixed)
@@ -142,6 +252,12 @@ def test_class_k_forms_carry_a_class2_shell_to_simulate(fmt, tmp_path, capsys):
 
 def test_export_keep_joints_writes_the_structure_s_own_layout(tmp_path, capsys):
     path = tmp_path / "s.yaml"
-    assert main(["export", "--kind", "class2-shell", "--fixed-base", "--keep-joints", "-o", str(path)]) == 0
-    assert read_network(path).to_dict() == generators.generate("class2-shell", fixed_base=True).to_dict()
+    assert (
+        main(["export", "--kind", "class2-shell", "--fixed-base", "--keep-joints", "-o", str(path)])
+        == 0
+    )
+    assert (
+        read_network(path).to_dict()
+        == generators.generate("class2-shell", fixed_base=True).to_dict()
+    )
     assert "joints:" in path.read_text()

@@ -16,23 +16,52 @@ import h5py
 import pytest
 
 from tensegrity.cli.main import main
-from tensegrity.io.trajectory import read_trajectory
 from tensegrity.io.stream import read_checkpoint
+from tensegrity.io.trajectory import read_trajectory
 
-RUN = ["simulate", "--n", "3", "--m", "1", "--t-end", "2", "--no-steady-state",
-       "--sample-dt", "0.01"]
-FINAL_NAMES = {"trajectory.h5", "structure.json", "initial.png", "equilibrium.png",
-               "tendon_lengths.png"}
+RUN = [
+    "simulate",
+    "--n",
+    "3",
+    "--m",
+    "1",
+    "--t-end",
+    "2",
+    "--no-steady-state",
+    "--sample-dt",
+    "0.01",
+]
+FINAL_NAMES = {
+    "trajectory.h5",
+    "structure.json",
+    "initial.png",
+    "equilibrium.png",
+    "tendon_lengths.png",
+}
 PARTIAL = ".trajectory.h5.partial"
-DATASETS = ("time", "nodes", "velocities", "tendon_length", "tendon_tension", "energy", "q",
-            "qdot", "residual_acceleration")
+DATASETS = (
+    "time",
+    "nodes",
+    "velocities",
+    "tendon_length",
+    "tendon_tension",
+    "energy",
+    "q",
+    "qdot",
+    "residual_acceleration",
+)
 
 pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
 
 
 def cli(*argv: str, cwd: Path) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "tensegrity.cli", *argv], cwd=cwd,
-                          capture_output=True, text=True, timeout=300)
+    return subprocess.run(
+        [sys.executable, "-m", "tensegrity.cli", *argv],
+        cwd=cwd,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
 
 
 def stored_segments(partial: Path, probe: Path) -> int:
@@ -64,8 +93,11 @@ def kill_after_a_checkpoint(out: Path, probe: Path) -> int | None:
     """Start ``RUN`` writing to ``out``, SIGKILL it once a checkpoint after a finished segment is
     on disk and the file is closed; return that segment count, or None if the run ended first."""
     partial = out / PARTIAL
-    process = subprocess.Popen([sys.executable, "-m", "tensegrity.cli", *RUN, "--out", str(out)],
-                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    process = subprocess.Popen(
+        [sys.executable, "-m", "tensegrity.cli", *RUN, "--out", str(out)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     try:
         deadline = time.monotonic() + 240
         while process.poll() is None and time.monotonic() < deadline:
@@ -117,8 +149,17 @@ def test_killed_run_resumes_to_the_uninterrupted_trajectory_bit_for_bit(tmp_path
     resumed = cli(*RUN, "--out", str(out), "--resume", cwd=tmp_path)
     assert resumed.returncode == 0, resumed.stderr
     assert f"resumed                      from segment {stored + 1} of 10" in resumed.stdout
-    for words in ("status", "samples", "final residual acceleration", "energy balance error",
-                  "slack tendons at the end", "integration", "steps", "evaluations", "wall time"):
+    for words in (
+        "status",
+        "samples",
+        "final residual acceleration",
+        "energy balance error",
+        "slack tendons at the end",
+        "integration",
+        "steps",
+        "evaluations",
+        "wall time",
+    ):
         assert words in resumed.stdout
     assert {p.name for p in out.iterdir()} == FINAL_NAMES
     assert_same_trajectory(whole / "trajectory.h5", out / "trajectory.h5")
@@ -126,8 +167,12 @@ def test_killed_run_resumes_to_the_uninterrupted_trajectory_bit_for_bit(tmp_path
 
 def test_terminated_run_leaves_only_its_partial_file(tmp_path):
     out = tmp_path / "out"
-    process = subprocess.Popen([sys.executable, "-m", "tensegrity.cli", *RUN, "--out", str(out)],
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    process = subprocess.Popen(
+        [sys.executable, "-m", "tensegrity.cli", *RUN, "--out", str(out)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     deadline = time.monotonic() + 240
     while stored_segments(out / PARTIAL, tmp_path / "probe.h5") < 0:
         assert process.poll() is None and time.monotonic() < deadline, "the run did not start"
@@ -162,8 +207,11 @@ def test_resume_with_other_options_is_refused_in_one_line(tmp_path, capsys, monk
     assert [p.name for p in out.iterdir()] == [PARTIAL]
     assert read_checkpoint(out / PARTIAL).next_segment == 1
 
-    for change, words in ((["--t-end", "3"], "t_span"), (["--rtol", "1e-8"], "rtol"),
-                          (["--damping", "none"], "structure")):
+    for change, words in (
+        (["--t-end", "3"], "t_span"),
+        (["--rtol", "1e-8"], "rtol"),
+        (["--damping", "none"], "structure"),
+    ):
         argv = [*RUN, "--out", str(out), "--resume", *change]
         assert main(argv) == 2
         err = capsys.readouterr().err
@@ -184,8 +232,25 @@ def test_unstable_run_leaves_no_trajectory(tmp_path, capsys, existing):
     out = tmp_path / "out"
     if existing:
         out.mkdir()
-    code = main(["simulate", "--n", "3", "--m", "1", "--method", "rk4", "--dt", "0.05",
-                 "--damping", "none", "--t-end", "5", "--out", str(out)])
+    code = main(
+        [
+            "simulate",
+            "--n",
+            "3",
+            "--m",
+            "1",
+            "--method",
+            "rk4",
+            "--dt",
+            "0.05",
+            "--damping",
+            "none",
+            "--t-end",
+            "5",
+            "--out",
+            str(out),
+        ]
+    )
     assert code == 1
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "unstable" in err and "nothing written" in err, err

@@ -8,11 +8,10 @@ import pytest
 from scipy import optimize
 from scipy.special import ellipk
 
-from tensegrity.physics.constraints import constraints_of
 from tensegrity import Structure, simulate
-from tensegrity.physics import dynamics
-from tensegrity.physics import constraints as constraints_module
 from tensegrity.model.shell import class2_joints, class2_shell, shell_node_index, shell_tendons
+from tensegrity.physics import constraints as constraints_module, dynamics
+from tensegrity.physics.constraints import constraints_of
 
 G = 9.81
 GRAVITY = np.array([0.0, 0.0, -G])
@@ -26,11 +25,23 @@ def pendulum(m: float = 2.0, L: float = 1.5, *, support: str, angle: float = 0.0
     """
     tip = L * np.array([np.cos(angle), 0.0, -np.sin(angle)])
     if support == "fixed":
-        return Structure(node_position=[[0, 0, 0], tip], rod_nodes=[[0, 1]], rod_mass=[m],
-                         rod_length=[L], node_fixed=[True, False], **NO_TENDONS)
-    return Structure(node_position=[[0, 0, 0], tip, [0, 0, 0]], rod_nodes=[[0, 1]], rod_mass=[m],
-                     rod_length=[L], node_fixed=[False, False, True], joint_nodes=[[0, 2]],
-                     **NO_TENDONS)
+        return Structure(
+            node_position=[[0, 0, 0], tip],
+            rod_nodes=[[0, 1]],
+            rod_mass=[m],
+            rod_length=[L],
+            node_fixed=[True, False],
+            **NO_TENDONS,
+        )
+    return Structure(
+        node_position=[[0, 0, 0], tip, [0, 0, 0]],
+        rod_nodes=[[0, 1]],
+        rod_mass=[m],
+        rod_length=[L],
+        node_fixed=[False, False, True],
+        joint_nodes=[[0, 2]],
+        **NO_TENDONS,
+    )
 
 
 @pytest.mark.parametrize("support", ["fixed", "anchor"])
@@ -46,7 +57,9 @@ def test_pinned_rod_reactions_match_the_physical_pendulum(support):
     m, L = 2.0, 1.5
     s = pendulum(m, L, support=support)
     state = dynamics.initial_state(s)
-    ev = dynamics.evaluate(s, state.q, state.qdot, rest_length=s.tendon_rest_length, gravity=GRAVITY)
+    ev = dynamics.evaluate(
+        s, state.q, state.qdot, rest_length=s.tendon_rest_length, gravity=GRAVITY
+    )
     pivot = 2 if support == "anchor" else 0
     # The support's force on the rod: on node 0 itself, or passed through the joint from the anchor.
     on_rod = ev.constraint_force[0]
@@ -107,8 +120,10 @@ def test_class2_shell_long_undamped_run_holds_joints_and_invariants():
     a, b = s.rod_nodes[:, 0], s.rod_nodes[:, 1]
     centre, centre_v = (p[:, a] + p[:, b]) / 2, (v[:, a] + v[:, b]) / 2
     momentum = np.sum(m * centre_v, axis=1)
-    angular = np.sum(m * np.cross(centre, centre_v)
-                     + m / 12 * np.cross(p[:, b] - p[:, a], v[:, b] - v[:, a]), axis=1)
+    angular = np.sum(
+        m * np.cross(centre, centre_v) + m / 12 * np.cross(p[:, b] - p[:, a], v[:, b] - v[:, a]),
+        axis=1,
+    )
     scale = s.total_mass * np.max(np.abs(v))
     assert np.max(np.abs(momentum)) < 1e-9 * scale
     assert np.max(np.abs(angular)) < 1e-8 * scale
@@ -138,10 +153,23 @@ def hanging_chain(damped: bool) -> Structure:
     """Two jointed rods (class 2 at node 1 = node 2) hanging from an anchor (node 4, joined to
     node 0), pulled sideways by tendons from rod 2's free end (node 3) to anchor B (node 5) and
     from the joint to anchor C (node 7); a payload (point mass, node 6) is joined to node 3."""
-    p = np.array([[0, 0, 0], [0, 0, -1.0], [0, 0, -1.0], [0, 0, -2.2], [0, 0, 0], ANCHOR_B,
-                  [0, 0, -2.2], ANCHOR_C])
+    p = np.array(
+        [
+            [0, 0, 0],
+            [0, 0, -1.0],
+            [0, 0, -1.0],
+            [0, 0, -2.2],
+            [0, 0, 0],
+            ANCHOR_B,
+            [0, 0, -2.2],
+            ANCHOR_C,
+        ]
+    )
     return Structure(
-        node_position=p, rod_nodes=[[0, 1], [2, 3]], rod_mass=[1.0, 1.5], rod_length=[1.0, 1.2],
+        node_position=p,
+        rod_nodes=[[0, 1], [2, 3]],
+        rod_mass=[1.0, 1.5],
+        rod_length=[1.0, 1.2],
         rod_damping=[4.0, 4.0] if damped else None,
         node_fixed=[False, False, False, False, True, True, False, True],
         node_point_mass=[0, 0, 0, 0, 0, 0, 0.7, 0],
@@ -176,22 +204,32 @@ def static_equilibrium(s: Structure) -> np.ndarray:
 
     def equalities(x):
         p = nodes(x)
-        return np.concatenate([
-            [np.sum((p[1] - p[0]) ** 2) - 1.0, np.sum((p[3] - p[2]) ** 2) - 1.2**2],
-            p[0] - p[4], p[1] - p[2], p[3] - p[6],
-        ])
+        return np.concatenate(
+            [
+                [np.sum((p[1] - p[0]) ** 2) - 1.0, np.sum((p[3] - p[2]) ** 2) - 1.2**2],
+                p[0] - p[4],
+                p[1] - p[2],
+                p[3] - p[6],
+            ]
+        )
 
     x0 = s.node_position[free].ravel() + 0.01
-    solution = optimize.minimize(energy, x0, method="SLSQP", constraints={"type": "eq", "fun": equalities},
-                                 options={"ftol": 1e-15, "maxiter": 2000})
+    solution = optimize.minimize(
+        energy,
+        x0,
+        method="SLSQP",
+        constraints={"type": "eq", "fun": equalities},
+        options={"ftol": 1e-15, "maxiter": 2000},
+    )
     assert solution.success, solution.message
     return nodes(solution.x)
 
 
 def test_hanging_chain_settles_at_the_static_equilibrium():
     s = hanging_chain(damped=True)
-    r = simulate(s, (0.0, 60.0), gravity=GRAVITY, steady_state=True, sample_dt=0.05,
-                 rtol=1e-7, atol=1e-10)
+    r = simulate(
+        s, (0.0, 60.0), gravity=GRAVITY, steady_state=True, sample_dt=0.05, rtol=1e-7, atol=1e-10
+    )
     assert r.status == 1, r.message
     expected = static_equilibrium(s)
     np.testing.assert_allclose(r.node_position[-1], expected, atol=1e-5)
@@ -210,25 +248,41 @@ def test_hanging_chain_undamped_conserves_energy():
 def test_point_mass_between_two_anchors_oscillates_at_sqrt_2k_over_m():
     """A mass on two collinear taut tendons: ``x(t) = x0 cos(sqrt(2k/m) t)``."""
     k, m, x0 = 50.0, 0.3, 0.1
-    s = Structure(node_position=[[-2, 0, 0], [2, 0, 0], [x0, 0, 0]], rod_nodes=np.zeros((0, 2), int),
-                  rod_mass=[], rod_length=[], node_fixed=[True, True, False],
-                  node_point_mass=[0, 0, m], tendon_nodes=[[0, 2], [2, 1]],
-                  tendon_stiffness=[k, k], tendon_rest_length=[1.0, 1.0])
+    s = Structure(
+        node_position=[[-2, 0, 0], [2, 0, 0], [x0, 0, 0]],
+        rod_nodes=np.zeros((0, 2), int),
+        rod_mass=[],
+        rod_length=[],
+        node_fixed=[True, True, False],
+        node_point_mass=[0, 0, m],
+        tendon_nodes=[[0, 2], [2, 1]],
+        tendon_stiffness=[k, k],
+        tendon_rest_length=[1.0, 1.0],
+    )
     assert s.n_coordinates == 3 and not s.has_constraints
     r = simulate(s, (0.0, 3.0), sample_dt=0.01)
     assert r.status == 0, r.message
     omega = np.sqrt(2 * k / m)
     np.testing.assert_allclose(r.node_position[:, 2, 0], x0 * np.cos(omega * r.t), atol=1e-9)
-    np.testing.assert_allclose(r.node_position[:, :2], np.broadcast_to(s.node_position[:2], (r.t.size, 2, 3)))
+    np.testing.assert_allclose(
+        r.node_position[:, :2], np.broadcast_to(s.node_position[:2], (r.t.size, 2, 3))
+    )
 
 
 def test_point_mass_on_an_inclined_plane_slides_with_g_sin_theta():
     """Frictionless plane with unit normal ``n``: the mass accelerates with ``g - (g . n) n``."""
     theta = 0.3
     normal = np.array([np.sin(theta), 0, np.cos(theta)])
-    s = Structure(node_position=[[0.0, 0, 0]], rod_nodes=np.zeros((0, 2), int), rod_mass=[],
-                  rod_length=[], node_point_mass=[2.0], plane_nodes=[0], plane_normal=[normal * 3],
-                  **NO_TENDONS)
+    s = Structure(
+        node_position=[[0.0, 0, 0]],
+        rod_nodes=np.zeros((0, 2), int),
+        rod_mass=[],
+        rod_length=[],
+        node_point_mass=[2.0],
+        plane_nodes=[0],
+        plane_normal=[normal * 3],
+        **NO_TENDONS,
+    )
     r = simulate(s, (0.0, 1.0), gravity=GRAVITY, sample_dt=0.1)
     along = GRAVITY - (GRAVITY @ normal) * normal
     assert np.isclose(np.linalg.norm(along), G * np.sin(theta))
@@ -238,8 +292,15 @@ def test_point_mass_on_an_inclined_plane_slides_with_g_sin_theta():
 def test_pendulum_on_a_sliding_pivot_conserves_momentum_along_the_line():
     """A rod whose end slides freely along the x axis (a line constraint): no force acts along x,
     so the x-momentum stays zero; energy is conserved."""
-    s = Structure(node_position=[[0, 0, 0], [0.6, 0.0, -0.8]], rod_nodes=[[0, 1]], rod_mass=[1.0],
-                  rod_length=[1.0], line_nodes=[0], line_direction=[[2.0, 0, 0]], **NO_TENDONS)
+    s = Structure(
+        node_position=[[0, 0, 0], [0.6, 0.0, -0.8]],
+        rod_nodes=[[0, 1]],
+        rod_mass=[1.0],
+        rod_length=[1.0],
+        line_nodes=[0],
+        line_direction=[[2.0, 0, 0]],
+        **NO_TENDONS,
+    )
     r = simulate(s, (0.0, 3.0), gravity=GRAVITY, sample_dt=0.01)
     assert r.status == 0, r.message
     assert np.max(np.abs(r.node_position[:, 0, 1:])) < 1e-12  # the pivot stays on the line
@@ -254,9 +315,16 @@ def test_payload_pendulum_small_oscillation_frequency():
     at ``omega^2 = g (m L/2 + M L) / (m L^2/3 + M L^2)``."""
     m, M, L, amplitude = 1.0, 0.5, 0.8, 1e-3
     tip = L * np.array([np.sin(amplitude), 0, -np.cos(amplitude)])
-    s = Structure(node_position=[[0, 0, 0], tip, tip], rod_nodes=[[0, 1]], rod_mass=[m], rod_length=[L],
-                  node_fixed=[True, False, False], node_point_mass=[0, 0, M], joint_nodes=[[1, 2]],
-                  **NO_TENDONS)
+    s = Structure(
+        node_position=[[0, 0, 0], tip, tip],
+        rod_nodes=[[0, 1]],
+        rod_mass=[m],
+        rod_length=[L],
+        node_fixed=[True, False, False],
+        node_point_mass=[0, 0, M],
+        joint_nodes=[[1, 2]],
+        **NO_TENDONS,
+    )
     omega = np.sqrt(G * (m * L / 2 + M * L) / (m * L**2 / 3 + M * L**2))
     r = simulate(s, (0.0, 4 * 2 * np.pi / omega), gravity=GRAVITY, sample_dt=0.002)
     x = r.node_position[:, 2, 0]
@@ -270,9 +338,16 @@ def test_payload_pendulum_small_oscillation_frequency():
 def test_redundant_constraints_are_handled():
     """A rod with both ends fixed, and three rods meeting at one node joined by a cycle of pairs
     (a redundant row) rather than a chain: both behave as the non-redundant form."""
-    held = Structure(node_position=[[0, 0, 0], [1, 0, 0]], rod_nodes=[[0, 1]], rod_mass=[1.0],
-                     rod_length=[1.0], node_fixed=[True, True], plane_nodes=[1],
-                     plane_normal=[[0, 0, 1]], **NO_TENDONS)
+    held = Structure(
+        node_position=[[0, 0, 0], [1, 0, 0]],
+        rod_nodes=[[0, 1]],
+        rod_mass=[1.0],
+        rod_length=[1.0],
+        node_fixed=[True, True],
+        plane_nodes=[1],
+        plane_normal=[[0, 0, 1]],
+        **NO_TENDONS,
+    )
     r = simulate(held, (0.0, 1.0), gravity=GRAVITY)
     assert r.status == 0 and np.max(np.abs(r.node_position - held.node_position)) < 1e-13
 
@@ -280,18 +355,26 @@ def test_redundant_constraints_are_handled():
     feet = np.array([[1, 0, 0], [-0.5, 0.8, 0], [-0.5, -0.8, 0]])
     lengths = np.linalg.norm(feet - top, axis=1)
     p = np.concatenate([feet, [top] * 3, feet + [[0, 0, 0]]])
-    common = dict(node_position=p, rod_nodes=[[0, 3], [1, 4], [2, 5]], rod_mass=[1, 2, 3],
-                  rod_length=lengths, tendon_nodes=[[0, 6], [1, 7], [2, 8]],
-                  tendon_stiffness=[30, 40, 50], tendon_rest_length=[0.0, 0.0, 0.0],
-                  node_fixed=[False] * 6 + [True] * 3)
+    common = dict(
+        node_position=p,
+        rod_nodes=[[0, 3], [1, 4], [2, 5]],
+        rod_mass=[1, 2, 3],
+        rod_length=lengths,
+        tendon_nodes=[[0, 6], [1, 7], [2, 8]],
+        tendon_stiffness=[30, 40, 50],
+        tendon_rest_length=[0.0, 0.0, 0.0],
+        node_fixed=[False] * 6 + [True] * 3,
+    )
     chain = Structure(joint_nodes=[[3, 4], [4, 5]], **common)
     cycle = Structure(joint_nodes=[[3, 4], [4, 5], [5, 3]], **common)
     assert constraints_of(cycle).matrix.shape[0] == constraints_of(chain).matrix.shape[0] == 6
     rng = np.random.default_rng(1)
     state = dynamics.initial_state(chain)
     qdot = constraints_of(chain).project(state.q, rng.normal(size=state.q.size))[1]
-    results = [dynamics.evaluate(s, state.q, qdot, rest_length=s.tendon_rest_length, gravity=GRAVITY)
-               for s in (chain, cycle)]
+    results = [
+        dynamics.evaluate(s, state.q, qdot, rest_length=s.tendon_rest_length, gravity=GRAVITY)
+        for s in (chain, cycle)
+    ]
     np.testing.assert_allclose(results[0].qddot, results[1].qddot, atol=1e-10)
     assert np.max(np.abs(constraints_of(chain).matrix @ results[0].qddot)) < 1e-10
 
@@ -300,8 +383,9 @@ def test_dense_and_sparse_solves_agree(monkeypatch):
     s = class2_shell(3, 3, fixed_base=True)
     rng = np.random.default_rng(0)
     state = dynamics.initial_state(s)
-    q, qdot = constraints_of(s).project(state.q + 1e-3 * rng.normal(size=state.q.size),
-                                    rng.normal(size=state.q.size))
+    q, qdot = constraints_of(s).project(
+        state.q + 1e-3 * rng.normal(size=state.q.size), rng.normal(size=state.q.size)
+    )
     dense = dynamics.evaluate(s, q, qdot, rest_length=s.tendon_rest_length, gravity=GRAVITY)
     monkeypatch.setattr(constraints_module, "DENSE_ROWS", 0)
     sparse_s = s.replace()
@@ -314,8 +398,9 @@ def test_projection_restores_constraints_and_rod_lengths():
     s = class2_shell(4, 3, fixed_base=True)
     rng = np.random.default_rng(2)
     state = dynamics.initial_state(s)
-    q, qdot = constraints_of(s).project(state.q + 1e-4 * rng.normal(size=state.q.size),
-                                    rng.normal(size=state.q.size))
+    q, qdot = constraints_of(s).project(
+        state.q + 1e-4 * rng.normal(size=state.q.size), rng.normal(size=state.q.size)
+    )
     assert np.max(np.abs(constraints_of(s).residual(q))) < 1e-13
     assert np.max(np.abs(dynamics.rod_length_error(s, q))) < 1e-13
     assert np.max(np.abs(constraints_of(s).matrix @ qdot)) < 1e-12
@@ -384,45 +469,75 @@ def test_class2_shell_rejects_bad_sizes():
 
 # ------------------------------------------------------------------ validation and the JSON form
 def _rod(**extra):
-    base = dict(node_position=[[0, 0, 0], [1, 0, 0], [1, 0, 0]], rod_nodes=[[0, 1]], rod_mass=[1.0],
-                rod_length=[1.0], node_point_mass=[0, 0, 0.5], **NO_TENDONS)
+    base = dict(
+        node_position=[[0, 0, 0], [1, 0, 0], [1, 0, 0]],
+        rod_nodes=[[0, 1]],
+        rod_mass=[1.0],
+        rod_length=[1.0],
+        node_point_mass=[0, 0, 0.5],
+        **NO_TENDONS,
+    )
     return Structure(**(base | extra))
 
 
-@pytest.mark.parametrize("extra, message", [
-    (dict(joint_nodes=[[0, 2]]), r"^joint_nodes\[0\]: nodes 0 and 2 are 1\.0 m apart"),
-    (dict(joint_nodes=[[1, 5]]), r"^joint_nodes\[0\]: node index 5 out of range"),
-    (dict(joint_nodes=[[1, 1]]), r"^joint_nodes\[0\]: joins node 1 to itself"),
-    (dict(node_point_mass=[0, 0.3, 0.5]), r"^node_point_mass\[1\]: node 1 is an end of rods\[0\]"),
-    (dict(node_point_mass=[0, 0, -1.0]), r"^node_point_mass\[2\]: must be >= 0"),
-    (dict(node_point_mass=[0, 0, 0]), r"^nodes\[2\]: belongs to no rod"),
-    (dict(node_fixed=[False, False, True]), r"^node_point_mass\[2\]: node 2 is fixed"),
-    (dict(node_fixed=[0, 1, 0]), r"^node_fixed: expected 3 booleans"),
-    (dict(plane_nodes=[1], plane_normal=[[0, 0, 0]]), r"^plane_normal\[0\]: must not be zero"),
-    (dict(plane_nodes=[1], plane_normal=[[0, 0]]), r"^plane_normal: expected shape \(1, 3\)"),
-    (dict(line_nodes=[3], line_direction=[[1, 0, 0]]), r"^line_nodes\[0\]: node index 3 out of range"),
-    (dict(line_nodes=[1.5], line_direction=[[1, 0, 0]]), r"^line_nodes: expected a list of node indices"),
-])
+@pytest.mark.parametrize(
+    "extra, message",
+    [
+        (dict(joint_nodes=[[0, 2]]), r"^joint_nodes\[0\]: nodes 0 and 2 are 1\.0 m apart"),
+        (dict(joint_nodes=[[1, 5]]), r"^joint_nodes\[0\]: node index 5 out of range"),
+        (dict(joint_nodes=[[1, 1]]), r"^joint_nodes\[0\]: joins node 1 to itself"),
+        (
+            dict(node_point_mass=[0, 0.3, 0.5]),
+            r"^node_point_mass\[1\]: node 1 is an end of rods\[0\]",
+        ),
+        (dict(node_point_mass=[0, 0, -1.0]), r"^node_point_mass\[2\]: must be >= 0"),
+        (dict(node_point_mass=[0, 0, 0]), r"^nodes\[2\]: belongs to no rod"),
+        (dict(node_fixed=[False, False, True]), r"^node_point_mass\[2\]: node 2 is fixed"),
+        (dict(node_fixed=[0, 1, 0]), r"^node_fixed: expected 3 booleans"),
+        (dict(plane_nodes=[1], plane_normal=[[0, 0, 0]]), r"^plane_normal\[0\]: must not be zero"),
+        (dict(plane_nodes=[1], plane_normal=[[0, 0]]), r"^plane_normal: expected shape \(1, 3\)"),
+        (
+            dict(line_nodes=[3], line_direction=[[1, 0, 0]]),
+            r"^line_nodes\[0\]: node index 3 out of range",
+        ),
+        (
+            dict(line_nodes=[1.5], line_direction=[[1, 0, 0]]),
+            r"^line_nodes: expected a list of node indices",
+        ),
+    ],
+)
 def test_validation_names_the_field(extra, message):
     with pytest.raises(ValueError, match=message):
         _rod(**extra)
 
 
 def test_json_round_trip_keeps_supports_and_names_bad_keys():
-    s = hanging_chain(damped=True).replace(plane_nodes=[3], plane_normal=[[0, 1, 0]],
-                                           line_nodes=[6], line_direction=[[0, 0, 1]])
+    s = hanging_chain(damped=True).replace(
+        plane_nodes=[3], plane_normal=[[0, 1, 0]], line_nodes=[6], line_direction=[[0, 0, 1]]
+    )
     data = s.to_dict()
     assert data["fixed"] == [4, 5, 7] and data["joints"] == [[0, 4], [1, 2], [3, 6]]
     assert data["point_masses"] == [{"node": 6, "mass": 0.7}]
     back = Structure.from_dict(data)
     assert back.to_dict() == data
-    for field in ("node_fixed", "node_point_mass", "joint_nodes", "plane_nodes", "plane_normal",
-                  "line_nodes", "line_direction"):
+    for field in (
+        "node_fixed",
+        "node_point_mass",
+        "joint_nodes",
+        "plane_nodes",
+        "plane_normal",
+        "line_nodes",
+        "line_direction",
+    ):
         np.testing.assert_array_equal(getattr(back, field), getattr(s, field))
     # a free class 1 structure's JSON form has none of the new keys
     assert set(class2_shell(3, 2).replace(joint_nodes=None, node_fixed=None).to_dict()) >= {"nodes"}
     for key, value, message in (
-        ("point_masses", [{"node": 6, "mass": "x"}], r"^point_masses\[0\]\.mass: expected a number"),
+        (
+            "point_masses",
+            [{"node": 6, "mass": "x"}],
+            r"^point_masses\[0\]\.mass: expected a number",
+        ),
         ("point_masses", [{"mass": 1.0}], r"^point_masses\[0\]: missing key 'node'"),
         ("fixed", [4, 99], r"^fixed\[1\]: expected a node index in \[0, 7\]"),
         ("joints", [[0, 4, 5]], r"^joints\[0\]: expected two integer node indices"),
@@ -451,14 +566,25 @@ def test_critical_damping_treats_anchors_as_infinitely_heavy():
     from tensegrity import critical_damping
 
     s = hanging_chain(damped=False).replace(
-        tendon_nodes=[[3, 5], [1, 7], [0, 3]], tendon_stiffness=[60.0, 40.0, 10.0],
-        tendon_rest_length=[0.8, 0.6, 0.1], tendon_name=None, tendon_damping=None)
+        tendon_nodes=[[3, 5], [1, 7], [0, 3]],
+        tendon_stiffness=[60.0, 40.0, 10.0],
+        tendon_rest_length=[0.8, 0.6, 0.1],
+        tendon_name=None,
+        tendon_damping=None,
+    )
     damped = critical_damping(s)
     half = s.rod_mass / 2  # node 3 is rod 1's end (1.5 kg), nodes 1 and 0 rod 0's (1 kg)
-    np.testing.assert_allclose(damped.tendon_damping, [
-        2 * np.sqrt(60.0 * half[1]), 2 * np.sqrt(40.0 * half[0]),
-        2 * np.sqrt(10.0 * half[0] * half[1] / (half[0] + half[1]))])
-    with pytest.raises(ValueError, match="^structure: critical damping needs at least one rod and one tendon"):
+    np.testing.assert_allclose(
+        damped.tendon_damping,
+        [
+            2 * np.sqrt(60.0 * half[1]),
+            2 * np.sqrt(40.0 * half[0]),
+            2 * np.sqrt(10.0 * half[0] * half[1] / (half[0] + half[1])),
+        ],
+    )
+    with pytest.raises(
+        ValueError, match="^structure: critical damping needs at least one rod and one tendon"
+    ):
         critical_damping(pendulum(support="fixed"))
 
 
@@ -480,17 +606,33 @@ def test_tripod_on_a_frictionless_floor_matches_its_closed_form():
     feet = rho0 * np.stack([np.cos(angles), np.sin(angles), np.zeros(3)], axis=1)
     apex = np.array([0, 0, np.sqrt(L**2 - rho0**2)])
     position = np.array([feet[0], apex, feet[1], apex, feet[2], apex])
-    s = critical_damping(Structure(
-        node_position=position, rod_nodes=[[0, 1], [2, 3], [4, 5]], rod_mass=[m] * 3,
-        rod_length=[L] * 3, joint_nodes=[[1, 3], [3, 5]], plane_nodes=[0, 2, 4],
-        plane_normal=[[0, 0, 1.0]] * 3, tendon_nodes=[[0, 2], [2, 4], [4, 0]],
-        tendon_stiffness=[k] * 3, tendon_rest_length=[rest] * 3))
-    r = simulate(s, (0.0, 30.0), gravity=GRAVITY, steady_state=True, velocity_tol=1e-8,
-                 acceleration_tol=1e-8)
+    s = critical_damping(
+        Structure(
+            node_position=position,
+            rod_nodes=[[0, 1], [2, 3], [4, 5]],
+            rod_mass=[m] * 3,
+            rod_length=[L] * 3,
+            joint_nodes=[[1, 3], [3, 5]],
+            plane_nodes=[0, 2, 4],
+            plane_normal=[[0, 0, 1.0]] * 3,
+            tendon_nodes=[[0, 2], [2, 4], [4, 0]],
+            tendon_stiffness=[k] * 3,
+            tendon_rest_length=[rest] * 3,
+        )
+    )
+    r = simulate(
+        s, (0.0, 30.0), gravity=GRAVITY, steady_state=True, velocity_tol=1e-8, acceleration_tol=1e-8
+    )
     assert r.status == 1, r.message
     # the stable root: between slack tendons and the second (flat, unstable) root near rho = L
-    root = brentq(lambda rho: 1.5 * m * G * rho / np.sqrt(L**2 - rho**2)
-                  - 3 * np.sqrt(3) * k * (np.sqrt(3) * rho - rest), rest / np.sqrt(3), 0.8 * L)
+    root = brentq(
+        lambda rho: (
+            1.5 * m * G * rho / np.sqrt(L**2 - rho**2)
+            - 3 * np.sqrt(3) * k * (np.sqrt(3) * rho - rest)
+        ),
+        rest / np.sqrt(3),
+        0.8 * L,
+    )
     assert abs(root - rho0) > 0.02  # the feet slid out to get there
     p = r.node_position[-1]
     centre = p[[0, 2, 4]].mean(axis=0)
@@ -499,6 +641,7 @@ def test_tripod_on_a_frictionless_floor_matches_its_closed_form():
     expected_tension = m * G * root / (2 * np.sqrt(3) * np.sqrt(L**2 - root**2))
     np.testing.assert_allclose(r.tendon_tension[-1], expected_tension, rtol=1e-6)
     state = r.final_state
-    ev = dynamics.evaluate(s, state.q, np.zeros_like(state.qdot), rest_length=s.tendon_rest_length,
-                           gravity=GRAVITY)
+    ev = dynamics.evaluate(
+        s, state.q, np.zeros_like(state.qdot), rest_length=s.tendon_rest_length, gravity=GRAVITY
+    )
     np.testing.assert_allclose(ev.constraint_force[[0, 2, 4]], [[0, 0, m * G]] * 3, atol=1e-6)

@@ -172,13 +172,19 @@ def test_accelerations_match_constrained_lagrangian(shell, with_gravity):
         w = 20.0 * rng.standard_normal((structure.n_nodes, 3))
         expected = reference_node_accelerations(structure, p, v, rest, w, gravity)
         qddot = accelerations(
-            structure, to_coordinates(structure, p), to_coordinates(structure, v),
-            control=u, external_force=w, gravity=gravity,
+            structure,
+            to_coordinates(structure, p),
+            to_coordinates(structure, v),
+            control=u,
+            external_force=w,
+            gravity=gravity,
         )
         got = nodes_from_coordinates(structure, qddot)
         # The state really has slack tendons (zero tension) and taut ones.
         tension = tendon_tensions(structure, p, v, control=u)
-        assert np.all(tension[slack] == 0) and np.all(tension[np.setdiff1d(range(len(u)), slack)] > 0)
+        assert np.all(tension[slack] == 0) and np.all(
+            tension[np.setdiff1d(range(len(u)), slack)] > 0
+        )
         assert _relative_error(got, expected) < 1e-9, f"trial {trial}"
 
 
@@ -199,7 +205,9 @@ def test_accelerations_with_tendon_and_rod_damping_match_lagrangian(shell):
         expected = reference_node_accelerations(structure, p, v, rest)
         got = nodes_from_coordinates(
             structure,
-            accelerations(structure, to_coordinates(structure, p), to_coordinates(structure, v), control=u),
+            accelerations(
+                structure, to_coordinates(structure, p), to_coordinates(structure, v), control=u
+            ),
         )
         assert _relative_error(got, expected) < 1e-9
 
@@ -238,8 +246,12 @@ def test_accelerations_of_random_general_structure_match_lagrangian():
     expected = reference_node_accelerations(structure, p, v, rest, gravity=[0, 0, -9.81])
     got = nodes_from_coordinates(
         structure,
-        accelerations(structure, to_coordinates(structure, p), to_coordinates(structure, v),
-                      gravity=np.array([0, 0, -9.81])),
+        accelerations(
+            structure,
+            to_coordinates(structure, p),
+            to_coordinates(structure, v),
+            gravity=np.array([0, 0, -9.81]),
+        ),
     )
     assert _relative_error(got, expected) < 1e-9
 
@@ -252,12 +264,16 @@ def test_accelerations_keep_rods_rigid_to_second_order():
     u, _, _ = mixed_controls(structure, p, rng)
     acc = nodes_from_coordinates(
         structure,
-        accelerations(structure, to_coordinates(structure, p), to_coordinates(structure, v), control=u),
+        accelerations(
+            structure, to_coordinates(structure, p), to_coordinates(structure, v), control=u
+        ),
     )
     a, b = structure.rod_nodes.T
     d, dv, da = p[b] - p[a], v[b] - v[a], acc[b] - acc[a]
     second = np.sum(d * da, axis=1) + np.sum(dv * dv, axis=1)
-    assert np.max(np.abs(second)) < 1e-10 * np.max(np.sum(dv * dv, axis=1) + np.abs(np.sum(d * da, axis=1)))
+    assert np.max(np.abs(second)) < 1e-10 * np.max(
+        np.sum(dv * dv, axis=1) + np.abs(np.sum(d * da, axis=1))
+    )
 
 
 def test_free_rod_with_forces_obeys_newton_euler():
@@ -270,16 +286,22 @@ def test_free_rod_with_forces_obeys_newton_euler():
     c = np.array([0.1, 0.2, 0.3])
     p = np.array([c - d / 2, c + d / 2])
     structure = Structure(
-        node_position=p, rod_nodes=[[0, 1]], rod_mass=[m], rod_length=[L],
-        tendon_nodes=np.zeros((0, 2), int), tendon_stiffness=[], tendon_rest_length=[],
+        node_position=p,
+        rod_nodes=[[0, 1]],
+        rod_mass=[m],
+        rod_length=[L],
+        tendon_nodes=np.zeros((0, 2), int),
+        tendon_stiffness=[],
+        tendon_rest_length=[],
     )
     omega = np.array([1.0, 2.0, -0.5])
     omega -= (omega @ d) / L**2 * d  # spin about the axis is not a degree of freedom
     vc = np.array([0.4, 0.0, -0.2])
     v = np.array([vc - np.cross(omega, d) / 2, vc + np.cross(omega, d) / 2])
     f = np.array([[1.0, -3.0, 2.0], [0.5, 4.0, -1.0]])
-    qddot = accelerations(structure, to_coordinates(structure, p), to_coordinates(structure, v),
-                          external_force=f)
+    qddot = accelerations(
+        structure, to_coordinates(structure, p), to_coordinates(structure, v), external_force=f
+    )
     acc = nodes_from_coordinates(structure, qddot)
     F = f.sum(axis=0)
     tau = np.cross(-d / 2, f[0]) + np.cross(d / 2, f[1])
@@ -299,8 +321,13 @@ def _two_rod_tendon(k=80.0, c=0.0, rest=1.0):
     """Two parallel unit rods along x, 2 m apart in y; one tendon from node 0 (tail) to node 2."""
     p = np.array([[0, 0, 0], [1, 0, 0], [0, 2.0, 0], [1, 2.0, 0]])
     return Structure(
-        node_position=p, rod_nodes=[[0, 1], [2, 3]], rod_mass=[1.0, 1.0], rod_length=[1.0, 1.0],
-        tendon_nodes=[[0, 2]], tendon_stiffness=[k], tendon_rest_length=[rest],
+        node_position=p,
+        rod_nodes=[[0, 1], [2, 3]],
+        rod_mass=[1.0, 1.0],
+        rod_length=[1.0, 1.0],
+        tendon_nodes=[[0, 2]],
+        tendon_stiffness=[k],
+        tendon_rest_length=[rest],
         tendon_damping=[c],
     )
 
@@ -322,13 +349,13 @@ def test_tendon_tension_closed_form_without_damping(gap):
 @pytest.mark.parametrize(
     "gap, rate, expected",
     [
-        (2.5, 0.0, 80 * 0.5),               # taut, at rest: elastic only
-        (2.5, 3.0, 80 * 0.5 + 6 * 3.0),     # taut, lengthening: damping adds
-        (2.5, -3.0, 80 * 0.5 - 6 * 3.0),    # taut, shortening: damping subtracts
-        (2.5, -100.0, 0.0),                 # taut, shortening fast: would push, clipped to 0
-        (1.5, 50.0, 0.0),                   # slack and lengthening: no damping while slack
-        (1.5, -50.0, 0.0),                  # slack and shortening
-        (2.0, 10.0, 0.0),                   # exactly at rest length: slack (l > Lbar is taut)
+        (2.5, 0.0, 80 * 0.5),  # taut, at rest: elastic only
+        (2.5, 3.0, 80 * 0.5 + 6 * 3.0),  # taut, lengthening: damping adds
+        (2.5, -3.0, 80 * 0.5 - 6 * 3.0),  # taut, shortening: damping subtracts
+        (2.5, -100.0, 0.0),  # taut, shortening fast: would push, clipped to 0
+        (1.5, 50.0, 0.0),  # slack and lengthening: no damping while slack
+        (1.5, -50.0, 0.0),  # slack and shortening
+        (2.0, 10.0, 0.0),  # exactly at rest length: slack (l > Lbar is taut)
     ],
 )
 def test_tendon_tension_damping_only_while_taut_and_never_negative(gap, rate, expected):
@@ -388,7 +415,9 @@ def test_energies_match_independent_formulas():
     u, rest, slack = mixed_controls(structure, p, rng)
     M = reference_mass_matrix(structure)
     ke = 0.5 * v.reshape(-1) @ M @ v.reshape(-1)
-    assert float(kinetic_energy(structure, to_coordinates(structure, v))) == pytest.approx(ke, rel=1e-13)
+    assert float(kinetic_energy(structure, to_coordinates(structure, v))) == pytest.approx(
+        ke, rel=1e-13
+    )
     el = 0.0
     for s, (t, h) in enumerate(structure.tendon_nodes):
         stretch = np.linalg.norm(p[h] - p[t]) - rest[s]
@@ -406,12 +435,19 @@ def test_accelerations_are_the_gradient_flow_of_the_energy():
     w = 5.0 * rng.standard_normal(p.shape)
     acc = nodes_from_coordinates(
         structure,
-        accelerations(structure, to_coordinates(structure, p), to_coordinates(structure, v),
-                      control=u, external_force=w),
+        accelerations(
+            structure,
+            to_coordinates(structure, p),
+            to_coordinates(structure, v),
+            control=u,
+            external_force=w,
+        ),
     )
     M = reference_mass_matrix(structure)
     dke = v.reshape(-1) @ M @ acc.reshape(-1)
     h = 1e-6
-    del_ = (float(elastic_energy(structure, p + h * v, rest))
-            - float(elastic_energy(structure, p - h * v, rest))) / (2 * h)
+    del_ = (
+        float(elastic_energy(structure, p + h * v, rest))
+        - float(elastic_energy(structure, p - h * v, rest))
+    ) / (2 * h)
     assert dke + del_ == pytest.approx(float(np.sum(w * v)), rel=1e-6, abs=1e-6)

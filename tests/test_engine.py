@@ -17,8 +17,10 @@ def _perturbed(structure, seed: int, jitter: float, speed: float) -> State:
     rng = np.random.default_rng(seed)
     start = dynamics.initial_state(structure)
     q, qdot = dynamics.project_to_constraints(
-        structure, start.q + jitter * rng.standard_normal(start.q.size),
-        speed * rng.standard_normal(start.q.size))
+        structure,
+        start.q + jitter * rng.standard_normal(start.q.size),
+        speed * rng.standard_normal(start.q.size),
+    )
     return State(0.0, q, qdot)
 
 
@@ -31,8 +33,15 @@ def _reference(structure, initial: State, t_end: float, times: np.ndarray) -> np
         ev = dynamics.evaluate(structure, y[:n], y[n:], rest_length=structure.tendon_rest_length)
         return np.concatenate([y[n:], ev.qddot])
 
-    sol = solve_ivp(rhs, (0.0, t_end), np.concatenate([initial.q, initial.qdot]),
-                    method="DOP853", rtol=1e-12, atol=1e-14, t_eval=times)
+    sol = solve_ivp(
+        rhs,
+        (0.0, t_end),
+        np.concatenate([initial.q, initial.qdot]),
+        method="DOP853",
+        rtol=1e-12,
+        atol=1e-14,
+        t_eval=times,
+    )
     assert sol.success
     return dynamics.nodes_from_coordinates(structure, sol.y[:n].T)
 
@@ -53,15 +62,27 @@ def test_dop853_follows_an_independent_integration_through_switches():
 def test_engine_accelerations_in_the_samples_equal_the_reference(method):
     """Each sample's tensions and lengths equal the NumPy reference at the sample's state."""
     shell = dynamics.critical_damping(class1_shell(3, 2))
-    result = simulate(shell, (0.0, 0.2), initial=_perturbed(shell, 2, 0.01, 0.3),
-                      method=method, dt=1e-4 if method == "rk4" else None, sample_dt=0.02,
-                      gravity=[0, 0, -9.81])
+    result = simulate(
+        shell,
+        (0.0, 0.2),
+        initial=_perturbed(shell, 2, 0.01, 0.3),
+        method=method,
+        dt=1e-4 if method == "rk4" else None,
+        sample_dt=0.02,
+        gravity=[0, 0, -9.81],
+    )
     for k in range(result.t.size):
-        ev = dynamics.evaluate(shell, result.q[k], result.qdot[k],
-                               rest_length=shell.tendon_rest_length, gravity=np.array([0, 0, -9.81]))
+        ev = dynamics.evaluate(
+            shell,
+            result.q[k],
+            result.qdot[k],
+            rest_length=shell.tendon_rest_length,
+            gravity=np.array([0, 0, -9.81]),
+        )
         scale = np.max(np.abs(ev.tendons.tension))
-        np.testing.assert_allclose(result.tendon_tension[k], ev.tendons.tension, rtol=0,
-                                   atol=1e-12 * scale)
+        np.testing.assert_allclose(
+            result.tendon_tension[k], ev.tendons.tension, rtol=0, atol=1e-12 * scale
+        )
         np.testing.assert_allclose(result.tendon_length[k], ev.tendons.length, rtol=1e-13)
 
 
@@ -117,8 +138,9 @@ def test_control_table_drives_as_the_same_function_and_its_work_balances_the_ene
     with_function = simulate(shell, (0.0, 0.3), control=lambda t: table(t), **kwargs)
     assert with_table.status == with_function.status == 0
     assert with_table.settings["control"] == "table"
-    np.testing.assert_allclose(with_table.node_position, with_function.node_position, rtol=0,
-                               atol=1e-10)
+    np.testing.assert_allclose(
+        with_table.node_position, with_function.node_position, rtol=0, atol=1e-10
+    )
     work = with_table.energy["control_work"]
     drift = np.abs(with_table.total_energy - with_table.total_energy[0]).max()
     assert np.abs(work).max() > 1e-2  # the control does work ...
@@ -137,7 +159,8 @@ def test_control_table_bad_input_names_the_field():
         ControlTable([0.0, 1.0], np.zeros((3, shell.n_tendons)))
     with pytest.raises(ValueError, match=r"^control: expected shape \(24,\)"):
         simulate(shell, (0.0, 0.1), control=ControlTable([0.0], np.zeros((1, 5))))
-    too_short = ControlTable([0.0, 0.1], np.stack([np.zeros(shell.n_tendons),
-                                                    np.full(shell.n_tendons, 10.0)]))
+    too_short = ControlTable(
+        [0.0, 0.1], np.stack([np.zeros(shell.n_tendons), np.full(shell.n_tendons, 10.0)])
+    )
     result = simulate(shell, (0.0, 0.1), control=too_short)
     assert result.status == -1 and "control[" in result.message and "negative" in result.message

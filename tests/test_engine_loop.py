@@ -23,8 +23,10 @@ def _perturbed(structure, seed: int = 3, jitter: float = 0.02, speed: float = 0.
     rng = np.random.default_rng(seed)
     start = dynamics.initial_state(structure)
     q, qdot = dynamics.project_to_constraints(
-        structure, start.q + jitter * rng.standard_normal(start.q.size),
-        speed * rng.standard_normal(start.q.size))
+        structure,
+        start.q + jitter * rng.standard_normal(start.q.size),
+        speed * rng.standard_normal(start.q.size),
+    )
     return State(0.0, q, qdot)
 
 
@@ -51,15 +53,20 @@ def test_controller_is_called_at_its_update_times_and_held():
     expected = shell.tendon_stiffness * (result.tendon_length[k] - shell.tendon_rest_length + held)
     np.testing.assert_allclose(result.tendon_tension[k][taut], expected[taut], rtol=1e-12)
     with pytest.raises(ValueError, match="give a control or a controller"):
-        simulate(SHELL, (0.0, 0.1), control=np.zeros(SHELL.n_tendons),
-                 controller=Feedback(law, 0.05))
+        simulate(
+            SHELL, (0.0, 0.1), control=np.zeros(SHELL.n_tendons), controller=Feedback(law, 0.05)
+        )
 
 
 @pytest.mark.parametrize("method", ["DOP853", "rk4"])
 def test_constant_controller_is_the_constant_control(method):
     u = np.linspace(0.0, 0.03, SHELL.n_tendons)
-    options = dict(method=method, dt=1e-3 if method == "rk4" else None, sample_dt=0.01,
-                   initial=_perturbed(SHELL))
+    options = dict(
+        method=method,
+        dt=1e-3 if method == "rk4" else None,
+        sample_dt=0.01,
+        initial=_perturbed(SHELL),
+    )
     held = simulate(SHELL, (0.0, 0.3), controller=Feedback(lambda t, q, qd: u, 0.02), **options)
     fixed = simulate(SHELL, (0.0, 0.3), control=u, **options)
     assert held.status == fixed.status == 0
@@ -77,8 +84,9 @@ def test_energy_balance_holds_across_the_controllers_jumps():
     def law(t, q, qdot):
         return 0.02 * rng.random(shell.n_tendons)
 
-    result = simulate(shell, (0.0, 0.5), controller=Feedback(law, 0.05), sample_dt=0.005,
-                      rtol=1e-11, atol=1e-13)
+    result = simulate(
+        shell, (0.0, 0.5), controller=Feedback(law, 0.05), sample_dt=0.005, rtol=1e-11, atol=1e-13
+    )
     assert result.status == 0, result.message
     control_work = result.energy["control_work"]
     assert np.ptp(control_work) > 1e-3  # the jumps did work
@@ -89,8 +97,11 @@ def test_a_bad_controller_output_names_the_controller():
     with pytest.raises(ValueError, match="controller"):
         simulate(SHELL, (0.0, 0.1), controller=Feedback(lambda t, q, qd: np.zeros(3), 0.05))
     with pytest.raises(ValueError, match=r"controller\[0\]: rest length"):
-        simulate(SHELL, (0.0, 0.1),
-                 controller=Feedback(lambda t, q, qd: np.full(SHELL.n_tendons, 10.0), 0.05))
+        simulate(
+            SHELL,
+            (0.0, 0.1),
+            controller=Feedback(lambda t, q, qd: np.full(SHELL.n_tendons, 10.0), 0.05),
+        )
     with pytest.raises(ValueError, match="period"):
         Feedback(lambda t, q, qd: np.zeros(SHELL.n_tendons), 0.0)
 
@@ -98,17 +109,28 @@ def test_a_bad_controller_output_names_the_controller():
 # ----------------------------------------------------------------------------- checkpoints
 def _run(structure, t_end, options, *, controller=None, resume=None, every=10, initial=None):
     sink, saved = MemorySink(), []
-    summary = run(structure, (0.0, t_end), initial=initial, inputs=Inputs(structure),
-                  options=options, sink=sink, controller=controller,
-                  checkpoint=Checkpointing(every=every, save=saved.append), resume=resume)
+    summary = run(
+        structure,
+        (0.0, t_end),
+        initial=initial,
+        inputs=Inputs(structure),
+        options=options,
+        sink=sink,
+        controller=controller,
+        checkpoint=Checkpointing(every=every, save=saved.append),
+        resume=resume,
+    )
     return sink.samples, summary, saved
 
 
 CASES = {
     "DOP853 with switches": (class1_shell(4, 2), Options(sample_dt=0.01), None),
     "rk4": (SHELL, Options(method="rk4", dt=2e-3, sample_dt=0.01), None),
-    "controller": (SHELL, Options(sample_dt=0.01),
-                   Feedback(lambda t, q, qd: 0.02 * np.tanh(qd[: SHELL.n_tendons]), 0.015)),
+    "controller": (
+        SHELL,
+        Options(sample_dt=0.01),
+        Feedback(lambda t, q, qd: 0.02 * np.tanh(qd[: SHELL.n_tendons]), 0.015),
+    ),
     "joints": (class2_shell(3, 2), Options(sample_dt=0.01, rtol=1e-7), None),
 }
 
@@ -117,8 +139,7 @@ CASES = {
 def test_resumed_run_is_bitwise_the_uninterrupted_one(case):
     structure, options, controller = CASES[case]
     initial = _perturbed(structure)
-    samples, summary, saved = _run(structure, 0.3, options, controller=controller,
-                                   initial=initial)
+    samples, summary, saved = _run(structure, 0.3, options, controller=controller, initial=initial)
     assert summary.status == 0, summary.message
     assert len(saved) == 2  # at samples 10 and 20
     if case == "DOP853 with switches":
@@ -134,15 +155,20 @@ def test_resumed_run_is_bitwise_the_uninterrupted_one(case):
             for field in ("q", "qdot", "tendon_tension", "energy"):
                 assert np.array_equal(getattr(got, field), getattr(want, field)), (field, got.t)
         assert (again.nfev, again.nsteps, again.nswitches, again.nprojections) == (
-            summary.nfev, summary.nsteps, summary.nswitches, summary.nprojections)
+            summary.nfev,
+            summary.nsteps,
+            summary.nswitches,
+            summary.nprojections,
+        )
         assert again.switch_times == summary.switch_times
         assert again.max_rod_length_error == summary.max_rod_length_error
 
 
 def test_loop_state_round_trips_through_arrays():
     structure, options, controller = CASES["controller"]
-    _, _, saved = _run(structure, 0.3, options, controller=controller,
-                       initial=_perturbed(structure))
+    _, _, saved = _run(
+        structure, 0.3, options, controller=controller, initial=_perturbed(structure)
+    )
     from tensegrity.engine.loop import LoopState
 
     state = saved[0]

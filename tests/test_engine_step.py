@@ -13,8 +13,11 @@ from tensegrity.model.shell import class2_shell
 from tensegrity.physics import dynamics
 
 
-@pytest.mark.parametrize("structure", [class1_shell(3, 1, damping=0.2), class2_shell(3, 2)],
-                         ids=["class 1", "class 2 (joints)"])
+@pytest.mark.parametrize(
+    "structure",
+    [class1_shell(3, 1, damping=0.2), class2_shell(3, 2)],
+    ids=["class 1", "class 2 (joints)"],
+)
 def test_a_loop_of_steps_follows_simulate_rk4(structure):
     gravity = [0.0, 0.0, -9.81]
     model = make_model(structure, gravity=gravity)
@@ -22,8 +25,7 @@ def test_a_loop_of_steps_follows_simulate_rk4(structure):
     dt, n = 1e-3, 200
     for _ in range(n):
         state = step(model, state, dt)
-    run = simulate(structure, (0.0, n * dt), method="rk4", dt=dt, sample_dt=n * dt,
-                   gravity=gravity)
+    run = simulate(structure, (0.0, n * dt), method="rk4", dt=dt, sample_dt=n * dt, gravity=gravity)
     assert run.status == 0 and state.t == pytest.approx(n * dt)
     # simulate's last sample is the last step's end before its projection: equal to round-off
     np.testing.assert_allclose(state.q, run.q[-1], atol=1e-12)
@@ -36,12 +38,16 @@ def test_steps_conserve_energy_without_damping():
     model = make_model(shell)
     rng = np.random.default_rng(1)
     start = dynamics.initial_state(shell)
-    q, qdot = dynamics.project_to_constraints(shell, start.q, 0.3 * rng.standard_normal(start.q.size))
+    q, qdot = dynamics.project_to_constraints(
+        shell, start.q, 0.3 * rng.standard_normal(start.q.size)
+    )
     state = dynamics.State(0.0, q, qdot)
 
     def energy(s):
-        return (dynamics.kinetic_energy(shell, s.qdot).sum()
-                + dynamics.elastic_energy(shell, dynamics.nodes_from_coordinates(shell, s.q)).sum())
+        return (
+            dynamics.kinetic_energy(shell, s.qdot).sum()
+            + dynamics.elastic_energy(shell, dynamics.nodes_from_coordinates(shell, s.q)).sum()
+        )
 
     e0 = energy(state)
     for _ in range(500):

@@ -38,12 +38,11 @@ import math
 import numpy as np
 import pytest
 
-from tensegrity.physics import dynamics
-from tensegrity.design import catalogue as generators
 from tensegrity.analysis.equilibrium import equilibrium_by_simulation, find_equilibrium
 from tensegrity.analysis.linearize import linearize
 from tensegrity.analysis.modes import modal_analysis
 from tensegrity.analysis.prestress import feasible_prestress, self_stress
+from tensegrity.design import catalogue as generators
 from tensegrity.design.catalogue import (
     octahedron,
     prism,
@@ -54,12 +53,13 @@ from tensegrity.design.catalogue import (
 )
 from tensegrity.model.connectivity import from_connectivity, incidence
 from tensegrity.model.structure import Structure
+from tensegrity.physics import dynamics
 
 
 def polygon_twist(p: np.ndarray, n: int) -> np.ndarray:
     """Angles (n,) [rad] from bottom node i to top node i-1 about the axis through the polygons'
     centres, signed by the right-hand rule about the bottom-to-top axis; blind to rigid motion."""
-    bottom, top = p[:n], p[n:2 * n]
+    bottom, top = p[:n], p[n : 2 * n]
     cb, ct = bottom.mean(axis=0), top.mean(axis=0)
     e = (ct - cb) / np.linalg.norm(ct - cb)
     u = bottom - cb
@@ -79,18 +79,25 @@ def test_prism_twist_found_by_damped_simulation_and_by_the_solver(n):
     start = prism_layout(n, twist=prism_twist(n) - math.radians(12))
     rods, tendons, names = prism_members(n)
     length = np.linalg.norm(start[tendons[:, 1]] - start[tendons[:, 0]], axis=1)
-    s = from_connectivity(start.T, incidence(rods, 2 * n), incidence(tendons, 2 * n),
-                          tendon_rest_length=0.7 * length, tendon_name=names)
+    s = from_connectivity(
+        start.T,
+        incidence(rods, 2 * n),
+        incidence(tendons, 2 * n),
+        tendon_rest_length=0.7 * length,
+        tendon_name=names,
+    )
     assert np.all(np.abs(polygon_twist(start, n) - (math.pi / 2 - math.pi / n)) > math.radians(11))
-    by_simulation = equilibrium_by_simulation(s, t_end=60.0, velocity_tol=1e-9,
-                                              acceleration_tol=1e-9)
+    by_simulation = equilibrium_by_simulation(
+        s, t_end=60.0, velocity_tol=1e-9, acceleration_tol=1e-9
+    )
     assert by_simulation.converged, by_simulation.message
     assert not by_simulation.slack.any()
     by_solver = find_equilibrium(s)
     assert by_solver.converged and not by_solver.slack.any()
     for eq, tol in ((by_simulation, 1e-9), (by_solver, 1e-12)):
-        np.testing.assert_allclose(polygon_twist(eq.node_position, n), math.pi / 2 - math.pi / n,
-                                   rtol=0, atol=tol)
+        np.testing.assert_allclose(
+            polygon_twist(eq.node_position, n), math.pi / 2 - math.pi / n, rtol=0, atol=tol
+        )
     assert prism_twist(3) == pytest.approx(math.radians(30), abs=1e-15)
     assert prism_twist(4) == pytest.approx(math.radians(45), abs=1e-15)
 
@@ -108,8 +115,9 @@ def test_prism_self_stress_is_the_analytic_one(n):
     l_b = float(s.rod_length[0])
     analytic = np.concatenate([np.full(2 * n, r), np.full(n, l_s)])  # names b*, t*, s*
     T = states.states[:, 0] * np.sign(states.states[-1, 0])
-    np.testing.assert_allclose(T / np.linalg.norm(T), analytic / np.linalg.norm(analytic),
-                               rtol=0, atol=1e-12)
+    np.testing.assert_allclose(
+        T / np.linalg.norm(T), analytic / np.linalg.norm(analytic), rtol=0, atol=1e-12
+    )
     # The generator's prestress (the LP's): the same ratios, bars compressed l_b / l_s x side.
     tension = dynamics.tendon_tensions(s, p)
     np.testing.assert_allclose(tension / tension[-1], analytic / l_s, rtol=1e-10)
@@ -124,7 +132,9 @@ def test_prism_self_stress_is_the_analytic_one(n):
 def test_prism_height_is_a_free_parameter_of_the_equilibrium():
     for height in (0.3, 0.5, 0.9):
         s = prism(3, height=height)
-        assert np.ptp(s.node_position[3:, 2]) == 0 and s.node_position[3, 2] == pytest.approx(height)
+        assert np.ptp(s.node_position[3:, 2]) == 0 and s.node_position[3, 2] == pytest.approx(
+            height
+        )
         np.testing.assert_allclose(polygon_twist(s.node_position, 3), math.pi / 6, atol=1e-14)
         assert self_stress(s).n_states == 1
     with pytest.raises(ValueError, match="^height: must be < rod_length"):
@@ -174,8 +184,9 @@ def test_generated_layout_is_a_stable_taut_equilibrium(generated):
     assert isinstance(s, Structure)
     np.testing.assert_allclose(s.rod_length, 1.0, rtol=1e-14)
     a, b = s.rod_nodes.T
-    np.testing.assert_allclose(np.linalg.norm(s.node_position[b] - s.node_position[a], axis=1), 1.0,
-                               rtol=1e-12)
+    np.testing.assert_allclose(
+        np.linalg.norm(s.node_position[b] - s.node_position[a], axis=1), 1.0, rtol=1e-12
+    )
     state = dynamics.initial_state(s)
     acceleration = dynamics.accelerations(s, state.q, state.qdot)
     assert np.abs(acceleration).max() < 1e-9, name

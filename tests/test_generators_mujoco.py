@@ -16,7 +16,7 @@ from tensegrity import simulate
 from tensegrity.design.catalogue import octahedron, prism, tower
 
 pytest.importorskip("mujoco")
-from test_mjcf import SAMPLE_DT, max_difference, rod_consistent_velocity, run_mujoco  # noqa: E402
+from test_mjcf import SAMPLE_DT, max_difference, rod_consistent_velocity, run_mujoco
 
 CASES = {
     "simplex": lambda: prism(3),

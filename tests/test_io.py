@@ -12,9 +12,9 @@ import pytest
 
 from tensegrity import class1_shell, critical_damping, simulate
 from tensegrity.engine.result import SimulationResult
-from tensegrity.io.trajectory import ENERGY_COLUMNS, read_trajectory, write_trajectory
 from tensegrity.io.files import atomic_path
 from tensegrity.io.formats import read_structure, write_structure
+from tensegrity.io.trajectory import ENERGY_COLUMNS, read_trajectory, write_trajectory
 
 
 @pytest.fixture(scope="module")
@@ -44,9 +44,18 @@ def test_structure_json_round_trip_is_exact(tmp_path):
     assert text == json.dumps(structure.to_dict(), indent=2) + "\n"
     again = read_structure(path)
     assert again.to_dict() == structure.to_dict()
-    for field in ("node_position", "node_velocity", "rod_nodes", "rod_mass", "rod_length",
-                  "rod_damping", "tendon_nodes", "tendon_stiffness", "tendon_rest_length",
-                  "tendon_damping"):
+    for field in (
+        "node_position",
+        "node_velocity",
+        "rod_nodes",
+        "rod_mass",
+        "rod_length",
+        "rod_damping",
+        "tendon_nodes",
+        "tendon_stiffness",
+        "tendon_rest_length",
+        "tendon_damping",
+    ):
         assert np.array_equal(getattr(again, field), getattr(structure, field)), field
     assert again.tendon_name == structure.tendon_name
     assert leftovers(tmp_path) == []
@@ -125,19 +134,17 @@ def test_atomic_path_failure_leaves_nothing_or_the_old_file(tmp_path, existing):
     path = tmp_path / "f.txt"
     if existing:
         path.write_text("old")
-    with pytest.raises(RuntimeError, match="boom"):
-        with atomic_path(path) as tmp:
-            tmp.write_text("partial")
-            raise RuntimeError("boom")
+    with pytest.raises(RuntimeError, match="boom"), atomic_path(path) as tmp:
+        tmp.write_text("partial")
+        raise RuntimeError("boom")
     assert leftovers(tmp_path) == []
     assert path.read_text() == "old" if existing else not path.exists()
 
 
 def test_atomic_path_cleans_up_on_keyboard_interrupt(tmp_path):
-    with pytest.raises(KeyboardInterrupt):
-        with atomic_path(tmp_path / "f.txt") as tmp:
-            tmp.write_text("partial")
-            raise KeyboardInterrupt
+    with pytest.raises(KeyboardInterrupt), atomic_path(tmp_path / "f.txt") as tmp:
+        tmp.write_text("partial")
+        raise KeyboardInterrupt
     assert list(tmp_path.iterdir()) == []
 
 
@@ -163,9 +170,13 @@ def test_trajectory_round_trip_is_exact(tmp_path, result):
     tr = read_trajectory(path)
     assert isinstance(tr, SimulationResult)  # the type of the result in memory
     pairs = {
-        "t": result.t, "node_position": result.node_position, "node_velocity": result.node_velocity,
-        "tendon_length": result.tendon_length, "tendon_tension": result.tendon_tension,
-        "q": result.q, "qdot": result.qdot,
+        "t": result.t,
+        "node_position": result.node_position,
+        "node_velocity": result.node_velocity,
+        "tendon_length": result.tendon_length,
+        "tendon_tension": result.tendon_tension,
+        "q": result.q,
+        "qdot": result.qdot,
         "residual_acceleration": result.residual_acceleration,
     }
     for name, expected in pairs.items():
@@ -176,8 +187,16 @@ def test_trajectory_round_trip_is_exact(tmp_path, result):
         assert np.array_equal(tr.energy[name], result.energy[name]), name
     assert tr.structure.to_dict() == result.structure.to_dict()
     assert tr.settings == result.settings
-    for name in ("status", "message", "nfev", "nsteps", "nswitches", "nprojections",
-                 "max_rod_length_error", "wall_time"):
+    for name in (
+        "status",
+        "message",
+        "nfev",
+        "nsteps",
+        "nswitches",
+        "nprojections",
+        "max_rod_length_error",
+        "wall_time",
+    ):
         assert getattr(tr, name) == getattr(result, name), name
     assert tr.success and tr.tendon_names == result.structure.tendon_name
 
@@ -192,9 +211,17 @@ def test_trajectory_file_layout(tmp_path, result):
         assert json.loads(f.attrs["settings"]) == result.settings
         assert list(f.attrs["tendon_names"]) == list(result.structure.tendon_name)
         assert list(f["energy"].attrs["columns"]) == list(ENERGY_COLUMNS)
-        shapes = {"time": (T,), "nodes": (T, N, 3), "velocities": (T, N, 3),
-                  "tendon_length": (T, S), "tendon_tension": (T, S), "energy": (T, 6),
-                  "q": (T, 6 * R), "qdot": (T, 6 * R), "residual_acceleration": (T,)}
+        shapes = {
+            "time": (T,),
+            "nodes": (T, N, 3),
+            "velocities": (T, N, 3),
+            "tendon_length": (T, S),
+            "tendon_tension": (T, S),
+            "energy": (T, 6),
+            "q": (T, 6 * R),
+            "qdot": (T, 6 * R),
+            "residual_acceleration": (T,),
+        }
         for name, shape in shapes.items():
             assert f[name].shape == shape, name
         for name in ("nodes", "velocities", "q", "qdot", "tendon_length", "tendon_tension"):
@@ -280,8 +307,10 @@ def _edited_copy(tmp_path, result, edit):
         (lambda f: f.attrs.__setitem__("version", 2), ["version 2", "newer"]),
         (lambda f: f.attrs.__delitem__("settings"), ["missing attribute 'settings'"]),
         (lambda f: f.attrs.__setitem__("structure", "{oops"), ["'structure'", "invalid JSON"]),
-        (lambda f: (f.__delitem__("nodes"), f.create_dataset("nodes", data=np.zeros((2, 3)))),
-         ["'nodes'", "shape"]),
+        (
+            lambda f: (f.__delitem__("nodes"), f.create_dataset("nodes", data=np.zeros((2, 3)))),
+            ["'nodes'", "shape"],
+        ),
     ],
 )
 def test_incomplete_trajectory_names_the_file_and_problem(tmp_path, result, edit, words):
@@ -313,8 +342,16 @@ def test_trajectory_read_back_is_the_result_written(tmp_path):
     result = simulate(critical_damping(class1_shell(3, 1)), (0.0, 0.3), sample_dt=0.01)
     path = write_trajectory(tmp_path / "run.h5", result)
     back = read_trajectory(path)
-    for name in ("t", "q", "qdot", "node_position", "node_velocity", "tendon_length",
-                 "tendon_tension", "residual_acceleration"):
+    for name in (
+        "t",
+        "q",
+        "qdot",
+        "node_position",
+        "node_velocity",
+        "tendon_length",
+        "tendon_tension",
+        "residual_acceleration",
+    ):
         assert np.array_equal(getattr(back, name), getattr(result, name)), name
     assert back.energy.keys() == result.energy.keys()
     for name in result.energy:

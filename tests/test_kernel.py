@@ -18,12 +18,16 @@ import pytest
 
 pytest.importorskip("numba")
 
-from tensegrity import Structure, class1_shell# noqa: E402
-from tensegrity.physics import dynamics
-from tensegrity.physics import kernel as kernel_module# noqa: E402
-from tensegrity.physics.kernel import FastKernel, stencil_layout# noqa: E402
-from test_dynamics import mixed_controls  # noqa: E402
-from test_dynamics import random_consistent_state as random_consistent_nodes  # noqa: E402
+from tensegrity import Structure, class1_shell
+from tensegrity.physics import (
+    dynamics,
+    kernel as kernel_module,
+)
+from tensegrity.physics.kernel import FastKernel, stencil_layout
+from test_dynamics import (
+    mixed_controls,
+    random_consistent_state as random_consistent_nodes,
+)
 
 TOL = 1e-12
 
@@ -71,8 +75,10 @@ def random_consistent_state(structure, rng, speed=2.0, jitter=0.15):
     """``(q, qdot)`` near the layout with every ``|q2| = L`` and ``q2 . q2' = 0`` (the node
     positions and velocities of ``test_dynamics.random_consistent_state``)."""
     p, v = random_consistent_nodes(structure, rng, speed=speed, jitter=jitter)
-    return (dynamics.coordinates_from_nodes(structure, p),
-            dynamics.coordinates_from_nodes(structure, v))
+    return (
+        dynamics.coordinates_from_nodes(structure, p),
+        dynamics.coordinates_from_nodes(structure, v),
+    )
 
 
 def random_rest_lengths(structure, q, rng):
@@ -196,16 +202,33 @@ def test_undamped_specialization_matches_reference_and_generic_path(case, loads,
         assert abs(got.external_power - ref.external_power) < TOL * scale
 
         # The generic path on the same structure, forced with an explicit zero damping array.
-        qddot, tension, elastic = (np.empty_like(got.qddot), np.empty_like(got.tension),
-                                   np.empty_like(got.tension))
+        qddot, tension, elastic = (
+            np.empty_like(got.qddot),
+            np.empty_like(got.tension),
+            np.empty_like(got.tension),
+        )
         has_w = w is not None
         p = pack(structure)
         generic = rhs(
-            q, qdot, p.rod_slots, p.rod_param, p.tendon_slots, p.tendon_runs, p.tendon_stiffness,
-            np.zeros(structure.n_tendons), p.to_kernel_order(rest), has_w,
-            p.to_slots(w) if has_w else np.zeros((3, 1)), g is not None,
-            np.zeros(3) if g is None else g, np.zeros((3, 3, p.layout.n_slots)),
-            kernel._block_force, qddot, tension, elastic, np.empty(structure.n_tendons),
+            q,
+            qdot,
+            p.rod_slots,
+            p.rod_param,
+            p.tendon_slots,
+            p.tendon_runs,
+            p.tendon_stiffness,
+            np.zeros(structure.n_tendons),
+            p.to_kernel_order(rest),
+            has_w,
+            p.to_slots(w) if has_w else np.zeros((3, 1)),
+            g is not None,
+            np.zeros(3) if g is None else g,
+            np.zeros((3, 3, p.layout.n_slots)),
+            kernel._block_force,
+            qddot,
+            tension,
+            elastic,
+            np.empty(structure.n_tendons),
         )
         tension = tension[np.argsort(p.layout.tendon_order)]  # kernel order -> tendon order
         assert np.array_equal(qddot, got.qddot) and np.array_equal(tension, got.tension)
@@ -244,9 +267,11 @@ def test_evaluate_buffers_and_input_forms():
     w = rng.standard_normal((structure.n_nodes, 3))
     ref = dynamics.evaluate(structure, q, qdot, rest_length=rest, external_force=w, gravity=g)
 
-    qddot, tension, elastic = (np.full(structure.n_coordinates, np.nan),
-                               np.full(structure.n_tendons, np.nan),
-                               np.full(structure.n_tendons, np.nan))
+    qddot, tension, elastic = (
+        np.full(structure.n_coordinates, np.nan),
+        np.full(structure.n_tendons, np.nan),
+        np.full(structure.n_tendons, np.nan),
+    )
     got = kernel.evaluate(q, qdot, rest, w, g, out=(qddot, tension), elastic_tension_out=elastic)
     assert got.qddot is qddot and got.tension is tension
     assert _rel(qddot, ref.qddot) < TOL
@@ -284,8 +309,9 @@ def python_rk4(structure, q, qdot, dt, n_steps, rest, w, g):
     n = structure.n_coordinates
 
     def fun(t, y):
-        ev = dynamics.evaluate(structure, y[:n], y[n : 2 * n], rest_length=rest,
-                               external_force=w, gravity=g)
+        ev = dynamics.evaluate(
+            structure, y[:n], y[n : 2 * n], rest_length=rest, external_force=w, gravity=g
+        )
         return np.concatenate([y[n : 2 * n], ev.qddot, [ev.dissipated_power, ev.external_power]])
 
     y = np.concatenate([q, qdot, [0.0, 0.0]])
@@ -302,9 +328,7 @@ def python_rk4(structure, q, qdot, dt, n_steps, rest, w, g):
     return y[:n], y[n : 2 * n], y[2 * n], y[2 * n + 1], worst
 
 
-@pytest.mark.parametrize(
-    "case", [CASES[0], CASES[1], CASES[2], CASES[3], CASES[5]]
-)
+@pytest.mark.parametrize("case", [CASES[0], CASES[1], CASES[2], CASES[3], CASES[5]])
 def test_rk4_loop_matches_python_rk4(case, min_run):
     rng = np.random.default_rng(_seed(case, "rk4"))
     structure = _structure(case, rng)
@@ -469,14 +493,15 @@ def test_stencil_layout_invariants(case, min_run):
     position = 0
     for start, length, tail, head in layout.tendon_runs:
         assert start == position and 1 <= length <= kernel_module.RUN_CHUNK
-        tendons = layout.tendon_order[start:start + length]
+        tendons = layout.tendon_order[start : start + length]
         assert np.array_equal(slot[tendon_nodes[tendons, 0]], tail + np.arange(length))
         assert np.array_equal(slot[tendon_nodes[tendons, 1]], head + np.arange(length))
         position += length
     cells = layout.n_slots // layout.node_classes
     runs = layout.tendon_runs
     overlapping = (runs[:, 2] // cells == runs[:, 3] // cells) & (
-        np.abs(runs[:, 3] - runs[:, 2]) < runs[:, 1])
+        np.abs(runs[:, 3] - runs[:, 2]) < runs[:, 1]
+    )
     if min_run == 2 and case is not None:
         assert position >= 0.75 * S and overlapping.any()
 
@@ -500,8 +525,10 @@ def test_long_runs_match_reference(threads):
     runs = layout.tendon_runs
     assert np.sum(runs[:, 1] == kernel_module.RUN_CHUNK) > 8  # full pieces of long runs
     tail_cell = runs[:, 2] % (layout.n_slots // layout.node_classes)
-    assert np.all(np.diff(tail_cell) >= 0) and np.unique(runs[:, 2] // (
-        layout.n_slots // layout.node_classes)).size > 1  # pieces interleaved by cell
+    assert (
+        np.all(np.diff(tail_cell) >= 0)
+        and np.unique(runs[:, 2] // (layout.n_slots // layout.node_classes)).size > 1
+    )  # pieces interleaved by cell
     q, qdot = random_consistent_state(structure, rng, speed=2.0)
     rest, _ = random_rest_lengths(structure, q, rng)
     for s in (structure, _undamped(structure)):
@@ -510,4 +537,5 @@ def test_long_runs_match_reference(threads):
         assert _rel(got.qddot, ref.qddot) < TOL
         assert _rel(got.tension, ref.tendons.tension) < TOL
         assert abs(got.dissipated_power - ref.dissipated_power) < TOL * (
-            abs(ref.dissipated_power) + 1.0)
+            abs(ref.dissipated_power) + 1.0
+        )

@@ -20,11 +20,17 @@ import pytest
 
 pytest.importorskip("numba")
 
-from tensegrity.physics.constraints import constraints_of
-from tensegrity import Structure, class1_shell# noqa: E402
-from tensegrity.physics import dynamics
-from tensegrity.physics import kernel# noqa: E402
-from tensegrity.physics.constraints import PROJECTION_FLOOR_RTOL# noqa: E402
+from tensegrity import Structure, class1_shell
+from tensegrity.model.planar import planar_two_rod
+from tensegrity.model.shell import class2_shell
+from tensegrity.physics import (
+    dynamics,
+    kernel,
+)
+from tensegrity.physics.constraints import (
+    PROJECTION_FLOOR_RTOL,
+    constraints_of,
+)
 from tensegrity.physics.kernel_system import (
     drop_coordinates,
     embed_planar,
@@ -36,9 +42,7 @@ from tensegrity.physics.kernel_system import (
     system_project,
     system_rhs,
 )
-from tensegrity.model.planar import planar_two_rod# noqa: E402
-from tensegrity.model.shell import class2_shell# noqa: E402
-from test_constraints import hanging_chain, pendulum  # noqa: E402
+from test_constraints import hanging_chain, pendulum
 
 TOL = 1e-12
 NO_TENDONS = dict(tendon_nodes=np.zeros((0, 2), int), tendon_stiffness=[], tendon_rest_length=[])
@@ -46,21 +50,34 @@ NO_TENDONS = dict(tendon_nodes=np.zeros((0, 2), int), tendon_stiffness=[], tendo
 
 # --------------------------------------------------------------------------- structures
 def point_mass_between_anchors() -> Structure:
-    return Structure(node_position=[[-2, 0, 0], [2, 0, 0], [0.1, 0.2, -0.1]],
-                     rod_nodes=np.zeros((0, 2), int), rod_mass=[], rod_length=[],
-                     node_fixed=[True, True, False], node_point_mass=[0, 0, 0.3],
-                     tendon_nodes=[[0, 2], [2, 1]], tendon_stiffness=[50.0, 70.0],
-                     tendon_rest_length=[1.0, 1.0])
+    return Structure(
+        node_position=[[-2, 0, 0], [2, 0, 0], [0.1, 0.2, -0.1]],
+        rod_nodes=np.zeros((0, 2), int),
+        rod_mass=[],
+        rod_length=[],
+        node_fixed=[True, True, False],
+        node_point_mass=[0, 0, 0.3],
+        tendon_nodes=[[0, 2], [2, 1]],
+        tendon_stiffness=[50.0, 70.0],
+        tendon_rest_length=[1.0, 1.0],
+    )
 
 
 def crane() -> Structure:
     """The README's example: a rod pinned at node 0, a tendon to an anchor (node 2), a payload
     (node 3) joined to the rod's tip."""
-    return Structure(node_position=[[0, 0, 0], [1, 0, 0], [0, 0, 1], [1, 0, 0]],
-                     rod_nodes=[[0, 1]], rod_mass=[1], rod_length=[1],
-                     tendon_nodes=[[1, 2]], tendon_stiffness=[500], tendon_rest_length=[1.2],
-                     node_fixed=[True, False, True, False], node_point_mass=[0, 0, 0, 0.5],
-                     joint_nodes=[[1, 3]])
+    return Structure(
+        node_position=[[0, 0, 0], [1, 0, 0], [0, 0, 1], [1, 0, 0]],
+        rod_nodes=[[0, 1]],
+        rod_mass=[1],
+        rod_length=[1],
+        tendon_nodes=[[1, 2]],
+        tendon_stiffness=[500],
+        tendon_rest_length=[1.2],
+        node_fixed=[True, False, True, False],
+        node_point_mass=[0, 0, 0, 0.5],
+        joint_nodes=[[1, 3]],
+    )
 
 
 def tripod_on_planes() -> Structure:
@@ -71,11 +88,16 @@ def tripod_on_planes() -> Structure:
     apex = np.array([0, 0, np.sqrt(1 - 0.25)])
     return Structure(
         node_position=[feet[0], apex, feet[1], apex, feet[2], apex],
-        rod_nodes=[[0, 1], [2, 3], [4, 5]], rod_mass=[1.2, 1.0, 0.8], rod_length=[1.0] * 3,
-        joint_nodes=[[1, 3], [3, 5]], plane_nodes=[0, 2, 4],
+        rod_nodes=[[0, 1], [2, 3], [4, 5]],
+        rod_mass=[1.2, 1.0, 0.8],
+        rod_length=[1.0] * 3,
+        joint_nodes=[[1, 3], [3, 5]],
+        plane_nodes=[0, 2, 4],
         plane_normal=[[0, 0, 1.0], [0.2, -0.1, 1.0], [0, 0, 2.0]],
-        tendon_nodes=[[0, 2], [2, 4], [4, 0]], tendon_stiffness=[80.0] * 3,
-        tendon_rest_length=[0.7] * 3)
+        tendon_nodes=[[0, 2], [2, 4], [4, 0]],
+        tendon_stiffness=[80.0] * 3,
+        tendon_rest_length=[0.7] * 3,
+    )
 
 
 def on_lines() -> Structure:
@@ -83,11 +105,17 @@ def on_lines() -> Structure:
     a skew line tied to the tip and the anchor."""
     return Structure(
         node_position=[[0, 0, 0], [0.6, 0.0, -0.8], [1.0, 1.0, -1.0], [0.3, -0.5, -0.9]],
-        rod_nodes=[[0, 1]], rod_mass=[1.0], rod_length=[1.0],
-        node_fixed=[False, False, True, False], node_point_mass=[0, 0, 0, 0.4],
-        line_nodes=[0, 3], line_direction=[[2.0, 0, 0], [1.0, 1.0, 1.0]],
-        tendon_nodes=[[1, 2], [3, 1], [2, 3]], tendon_stiffness=[40.0, 60.0, 30.0],
-        tendon_rest_length=[0.5, 0.3, 0.4])
+        rod_nodes=[[0, 1]],
+        rod_mass=[1.0],
+        rod_length=[1.0],
+        node_fixed=[False, False, True, False],
+        node_point_mass=[0, 0, 0, 0.4],
+        line_nodes=[0, 3],
+        line_direction=[[2.0, 0, 0], [1.0, 1.0, 1.0]],
+        tendon_nodes=[[1, 2], [3, 1], [2, 3]],
+        tendon_stiffness=[40.0, 60.0, 30.0],
+        tendon_rest_length=[0.5, 0.3, 0.4],
+    )
 
 
 def held_and_free() -> Structure:
@@ -95,11 +123,16 @@ def held_and_free() -> Structure:
     no effect: ``K`` is singular), tied by four tendons to a free rod."""
     return Structure(
         node_position=[[0, 0, 0], [1, 0, 0], [0.1, 0.5, 0.3], [0.9, 0.6, 0.2]],
-        rod_nodes=[[0, 1], [2, 3]], rod_mass=[1.0, 0.7],
+        rod_nodes=[[0, 1], [2, 3]],
+        rod_mass=[1.0, 0.7],
         rod_length=[1.0, float(np.linalg.norm([0.8, 0.1, -0.1]))],
-        node_fixed=[True, True, False, False], plane_nodes=[1], plane_normal=[[0, 0, 1.0]],
-        tendon_nodes=[[0, 2], [1, 3], [0, 3], [1, 2]], tendon_stiffness=[50.0, 60.0, 70.0, 80.0],
-        tendon_rest_length=[0.3] * 4)
+        node_fixed=[True, True, False, False],
+        plane_nodes=[1],
+        plane_normal=[[0, 0, 1.0]],
+        tendon_nodes=[[0, 2], [1, 3], [0, 3], [1, 2]],
+        tendon_stiffness=[50.0, 60.0, 70.0, 80.0],
+        tendon_rest_length=[0.3] * 4,
+    )
 
 
 def planar_supported() -> Structure:
@@ -107,13 +140,18 @@ def planar_supported() -> Structure:
     base = planar_two_rod(angle=1.2)
     position = np.concatenate([base.node_position, [[1.0, 1.0], [0.8, -0.6]]])
     return Structure(
-        node_position=position, rod_nodes=base.rod_nodes, rod_mass=base.rod_mass,
+        node_position=position,
+        rod_nodes=base.rod_nodes,
+        rod_mass=base.rod_mass,
         rod_length=base.rod_length,
         tendon_nodes=np.concatenate([base.tendon_nodes, [[1, 5], [5, 4]]]),
         tendon_stiffness=np.concatenate([base.tendon_stiffness, [40.0, 30.0]]),
         tendon_rest_length=np.concatenate([base.tendon_rest_length, [0.2, 0.3]]),
         node_fixed=[True, False, False, False, True, False],
-        node_point_mass=[0, 0, 0, 0, 0, 0.6], line_nodes=[2], line_direction=[[1.0, 0.3]])
+        node_point_mass=[0, 0, 0, 0, 0, 0.6],
+        line_nodes=[2],
+        line_direction=[[1.0, 0.3]],
+    )
 
 
 STRUCTURES = {
@@ -195,8 +233,14 @@ class Compiled:
         self.planar = structure.dim == 2
         self.system = pack_system(embed_planar(structure) if self.planar else structure)
         p = self.packed = self.system.packed
-        self.arrays = (p.rod_slots, p.rod_param, p.tendon_slots, p.tendon_runs,
-                       p.tendon_stiffness, p.tendon_damping)
+        self.arrays = (
+            p.rod_slots,
+            p.rod_param,
+            p.tendon_slots,
+            p.tendon_runs,
+            p.tendon_stiffness,
+            p.tendon_damping,
+        )
         self.node_work = np.zeros((3, 3, p.layout.n_slots))
         S = structure.n_tendons
         self.tension, self.elastic, self.power = np.empty(S), np.empty(S), np.empty(S)
@@ -223,11 +267,24 @@ class Compiled:
         w = self.packed.to_slots(self.nodes3(w)) if has_w else np.full((3, 1), np.nan)
         g = np.pad(np.asarray(g, float), (0, 3 - len(g))) if has_g else np.full(3, np.nan)
         qddot = np.full(self.system.n_coordinates, np.nan)
-        d, e = system_rhs(self.lift(q), self.lift(qdot), self.arrays, self.system.extras,
-                          self.packed.to_kernel_order(rest), has_w, w, has_g, g, self.node_work,
-                          None, qddot, self.tension, self.elastic, self.power)
-        return (qddot, self.structure_order(self.tension), self.structure_order(self.elastic),
-                d, e)
+        d, e = system_rhs(
+            self.lift(q),
+            self.lift(qdot),
+            self.arrays,
+            self.system.extras,
+            self.packed.to_kernel_order(rest),
+            has_w,
+            w,
+            has_g,
+            g,
+            self.node_work,
+            None,
+            qddot,
+            self.tension,
+            self.elastic,
+            self.power,
+        )
+        return (qddot, self.structure_order(self.tension), self.structure_order(self.elastic), d, e)
 
 
 # --------------------------------------------------------------------------- rhs
@@ -242,8 +299,9 @@ def test_rhs_matches_numpy_reference(name, loads, damped):
     assert (compiled.system.extras is None) == free
     assert (compiled.packed.tendon_damping is None) == (not damped or s.n_tendons == 0)
     for trial in range(3):
-        q, qdot = perturbed_state(s, rng, speed=[0.5, 2.0, 6.0][trial],
-                                  on_constraints=name in SINGULAR)
+        q, qdot = perturbed_state(
+            s, rng, speed=[0.5, 2.0, 6.0][trial], on_constraints=name in SINGULAR
+        )
         rest = random_rest(s, q, rng)
         w = 20.0 * rng.standard_normal((s.n_nodes, s.dim)) if loads == "both" else None
         g = rng.standard_normal(s.dim) * 5 if loads == "both" else None
@@ -284,18 +342,30 @@ def test_free_class1_is_the_existing_kernel_bit_for_bit():
         S, n = s.n_tendons, s.n_coordinates
         outs = [[np.empty(n), np.empty(S), np.empty(S), np.zeros(S)] for _ in range(2)]
         work = [np.zeros((3, 3, p.layout.n_slots)) for _ in range(2)]
-        got = system_rhs(q, qdot, compiled.arrays, None, rest, True, w, True, g, work[0], None,
-                         *outs[0])
-        expected = kernel.rhs(q, qdot, *compiled.arrays, rest, True, w, True, g, work[1], None,
-                              *outs[1])
+        got = system_rhs(
+            q, qdot, compiled.arrays, None, rest, True, w, True, g, work[0], None, *outs[0]
+        )
+        expected = kernel.rhs(
+            q, qdot, *compiled.arrays, rest, True, w, True, g, work[1], None, *outs[1]
+        )
         assert got == expected
         for a, b in zip(*outs):
             assert np.array_equal(a, b)
         assert not np.any(work[0][2])
 
         energy = system_energies(q, qdot, compiled.arrays, None, rest, True, g, work[0])
-        assert energy == kernel.energies(q, qdot, p.rod_slots, p.rod_param, p.tendon_slots,
-                                         p.tendon_stiffness, rest, True, g, work[1])
+        assert energy == kernel.energies(
+            q,
+            qdot,
+            p.rod_slots,
+            p.rod_param,
+            p.tendon_slots,
+            p.tendon_stiffness,
+            rest,
+            True,
+            g,
+            work[1],
+        )
         states = [(q.copy(), qdot.copy()) for _ in range(2)]
         rod_error, constraint_error, ok = system_project(*states[0], p.rod_param, None)
         assert rod_error == kernel.project(*states[1], p.rod_param) and ok
@@ -336,8 +406,10 @@ def test_projection_matches_reference(name):
         assert rods_after <= floor and constraints_after <= floor
         assert dynamics.constraint_error(s, q_2d) <= floor
         v_scale = np.max(np.abs(qdot))
-        rods_q, rods_v = (dynamics.rod_coordinates(s, q_2d)[:, 1],
-                          dynamics.rod_coordinates(s, qdot_2d)[:, 1])
+        rods_q, rods_v = (
+            dynamics.rod_coordinates(s, q_2d)[:, 1],
+            dynamics.rod_coordinates(s, qdot_2d)[:, 1],
+        )
         assert np.max(np.abs(np.sum(rods_q * rods_v, axis=-1)), initial=0.0) < TOL * v_scale
         if s.has_constraints:
             assert np.max(np.abs(constraints_of(s).matrix @ qdot_2d)) < TOL * v_scale
@@ -355,8 +427,9 @@ def test_projection_reports_a_non_finite_state(name):
     for where, value in ((0, np.nan), (1, np.inf)):
         q, qdot = state.q.copy(), state.qdot.copy()
         (q if where == 0 else qdot)[-1] = value
-        rod_error, _, ok = system_project(q, qdot, compiled.packed.rod_param,
-                                          compiled.system.extras)
+        rod_error, _, ok = system_project(
+            q, qdot, compiled.packed.rod_param, compiled.system.extras
+        )
         assert not ok
         if s.n_rods and where == 0 and s.is_free_class1:
             assert np.isnan(rod_error)
@@ -382,33 +455,58 @@ def test_energies_errors_and_nodes_match_reference(name):
         rest = random_rest(s, q, rng)
         g = rng.standard_normal(s.dim) * 5
         kinetic, elastic, potential = system_energies(
-            compiled.lift(q), compiled.lift(qdot), compiled.arrays, compiled.system.extras,
-            p.to_kernel_order(rest), with_gravity, np.pad(g, (0, 3 - s.dim)), compiled.node_work)
+            compiled.lift(q),
+            compiled.lift(qdot),
+            compiled.arrays,
+            compiled.system.extras,
+            p.to_kernel_order(rest),
+            with_gravity,
+            np.pad(g, (0, 3 - s.dim)),
+            compiled.node_work,
+        )
         nodes = dynamics.nodes_from_coordinates(s, q)
-        expected = (dynamics.kinetic_energy(s, qdot), dynamics.elastic_energy(s, nodes, rest),
-                    dynamics.gravity_energy(s, q, g if with_gravity else None))
+        expected = (
+            dynamics.kinetic_energy(s, qdot),
+            dynamics.elastic_energy(s, nodes, rest),
+            dynamics.gravity_energy(s, q, g if with_gravity else None),
+        )
         scale = sum(abs(x) for x in expected) + 1e-300
         for got, want in zip((kinetic, elastic, potential), expected):
             assert abs(got - want) < TOL * scale
         assert not np.any(compiled.node_work[2])
 
-        rod_error, constraint_error = system_errors(compiled.lift(q), p.rod_param,
-                                                    compiled.system.extras)
+        rod_error, constraint_error = system_errors(
+            compiled.lift(q), p.rod_param, compiled.system.extras
+        )
         assert abs(rod_error - np.max(np.abs(dynamics.rod_length_error(s, q)), initial=0.0)) < 1e-15
         assert abs(constraint_error - dynamics.constraint_error(s, q)) < 1e-14
         if s.has_constraints:
             assert constraint_error > 1e-4  # the perturbation is seen
 
         positions, velocities = (np.full((3, p.layout.n_slots), np.nan) for _ in range(2))
-        system_nodes(compiled.lift(q), compiled.lift(qdot), p.rod_slots, compiled.system.extras,
-                     positions, velocities, True)
+        system_nodes(
+            compiled.lift(q),
+            compiled.lift(qdot),
+            p.rod_slots,
+            compiled.system.extras,
+            positions,
+            velocities,
+            True,
+        )
         slot = p.layout.node_slot
         assert np.array_equal(positions[:, slot].T, compiled.nodes3(nodes))
         rates = compiled.nodes3(dynamics.nodes_from_coordinates(s, qdot, rates=True))
         assert np.array_equal(velocities[:, slot].T, rates)
         untouched = np.full((3, p.layout.n_slots), 7.0)
-        system_nodes(compiled.lift(q), compiled.lift(qdot), p.rod_slots, compiled.system.extras,
-                     positions, untouched, False)
+        system_nodes(
+            compiled.lift(q),
+            compiled.lift(qdot),
+            p.rod_slots,
+            compiled.system.extras,
+            positions,
+            untouched,
+            False,
+        )
         assert np.all(untouched == 7.0)
 
 
@@ -430,13 +528,19 @@ def test_planar_embedding_and_coordinates():
     # the lifted coordinates are the embedded structure's: same nodes
     np.testing.assert_array_equal(
         dynamics.nodes_from_coordinates(lifted, up[0])[:, :2],
-        dynamics.nodes_from_coordinates(s, x[0]))
+        dynamics.nodes_from_coordinates(s, x[0]),
+    )
     # the reference itself agrees between the two forms (what the kernel tests rely on)
     q, qdot = perturbed_state(s, rng)
     rest = random_rest(s, q, rng)
     flat = dynamics.evaluate(s, q, qdot, rest_length=rest, gravity=np.array([0.5, -9.81]))
-    deep = dynamics.evaluate(lifted, lift_coordinates(s, q), lift_coordinates(s, qdot),
-                             rest_length=rest, gravity=np.array([0.5, -9.81, 0.0]))
+    deep = dynamics.evaluate(
+        lifted,
+        lift_coordinates(s, q),
+        lift_coordinates(s, qdot),
+        rest_length=rest,
+        gravity=np.array([0.5, -9.81, 0.0]),
+    )
     assert _rel(drop_coordinates(s, deep.qddot), flat.qddot) < 1e-10
 
 
@@ -465,5 +569,7 @@ def test_constraint_rows_are_the_references():
         c = constraints_of(s3).matrix.shape[0]
         assert extras.constraint_rhs.shape == (c,)
         assert np.bincount(extras.entry_row, minlength=c).max() <= 2
-        assert sorted(extras.constraint_rhs) == pytest.approx(sorted(constraints_of(s3).rhs), abs=1e-15)
+        assert sorted(extras.constraint_rhs) == pytest.approx(
+            sorted(constraints_of(s3).rhs), abs=1e-15
+        )
     assert pack_system(held_and_free()).extras.constraint_rhs.size == 6

@@ -23,14 +23,22 @@ def test_old_trajectory_reads_with_the_values_it_was_written_with():
     assert trajectory.status == 0 and trajectory.t.size == 11
     for name in ("t", "node_position", "tendon_tension", "q"):
         assert np.array_equal(getattr(trajectory, name), expected[name]), name
-    assert set(trajectory.energy) == {"kinetic", "elastic", "gravity", "dissipated",
-                                      "external_work", "control_work"}
+    assert set(trajectory.energy) == {
+        "kinetic",
+        "elastic",
+        "gravity",
+        "dissipated",
+        "external_work",
+        "control_work",
+    }
     assert trajectory.structure.to_dict() == critical_damping(class1_shell(3, 1)).to_dict()
 
 
 def test_old_structure_json_reads():
-    assert read_structure(LEGACY / "shell31.json").to_dict() == critical_damping(
-        class1_shell(3, 1)).to_dict()
+    assert (
+        read_structure(LEGACY / "shell31.json").to_dict()
+        == critical_damping(class1_shell(3, 1)).to_dict()
+    )
 
 
 @pytest.mark.parametrize("name", ["class2.yaml", "class2.toml", "class2.npz"])

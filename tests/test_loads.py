@@ -7,8 +7,8 @@ import pytest
 
 from tensegrity import simulate
 from tensegrity.design.catalogue import prism
-from tensegrity.model.loads import ForceTable
 from tensegrity.io.tables import read_force_table
+from tensegrity.model.loads import ForceTable
 
 
 def table(n_nodes=6):
@@ -38,8 +38,16 @@ def test_linear_between_rows_held_or_zero_outside():
 @pytest.mark.parametrize(
     ("time", "force", "message"),
     [
-        ([0.0, 0.2, 0.2], np.zeros((3, 2, 3)), r"^time: must increase strictly, but time\[2\] = 0\.2 <= time\[1\] = 0\.2"),
-        ([0.0, 0.1], np.zeros((3, 2, 3)), r"^force: expected shape \(T, N, 3\) with T = 2 rows like time, got \(3, 2, 3\)"),
+        (
+            [0.0, 0.2, 0.2],
+            np.zeros((3, 2, 3)),
+            r"^time: must increase strictly, but time\[2\] = 0\.2 <= time\[1\] = 0\.2",
+        ),
+        (
+            [0.0, 0.1],
+            np.zeros((3, 2, 3)),
+            r"^force: expected shape \(T, N, 3\) with T = 2 rows like time, got \(3, 2, 3\)",
+        ),
         ([0.0, 0.1], np.zeros((2, 2)), r"^force: expected shape \(T, N, 3\)"),
         ([], np.zeros((0, 2, 3)), r"^time: expected a non-empty 1-D array"),
         ([0.0, np.nan], np.zeros((2, 2, 3)), r"^time\[1\]: must be finite"),
@@ -64,8 +72,12 @@ def test_files_npz_and_csv(tmp_path):
         np.testing.assert_array_equal(again.force, f.force)
     (tmp_path / "bad.csv").write_text("0, 1, 2\n")
     np.savez(tmp_path / "bad.npz", time=f.time)
-    for name, words in (("bad.csv", "expected rows of 1 + 3N numbers"), ("bad.npz", "missing array 'force'"),
-                        ("none.csv", "no such file"), ("f.txt", "unknown force table suffix")):
+    for name, words in (
+        ("bad.csv", "expected rows of 1 + 3N numbers"),
+        ("bad.npz", "missing array 'force'"),
+        ("none.csv", "no such file"),
+        ("f.txt", "unknown force table suffix"),
+    ):
         with pytest.raises(ValueError) as info:
             read_force_table(tmp_path / name)
         assert str(info.value).startswith(str(tmp_path / name)) and words in str(info.value)
@@ -93,6 +105,7 @@ def test_simulation_receives_the_impulse_of_the_table():
     np.testing.assert_allclose(momentum[k] - momentum[0], partial, rtol=0, atol=1e-6)
     # the energy balance counts the work of the table's forces
     assert np.ptp(result.total_energy) < 1e-8
-    same = simulate(s, (0.0, 0.3), external_force=lambda t: f(t), rtol=1e-11, atol=1e-13,
-                    sample_dt=0.01)
+    same = simulate(
+        s, (0.0, 0.3), external_force=lambda t: f(t), rtol=1e-11, atol=1e-13, sample_dt=0.01
+    )
     np.testing.assert_array_equal(same.node_position, result.node_position)

@@ -20,6 +20,8 @@ import scipy.io
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
+from tensegrity.io.matrices import write_matrices
+from tensegrity.model.shell import class1_shell, shell_node_index
 from tensegrity.physics import dynamics
 from tensegrity.physics.matrix_form import (
     ShellMatrixModel,
@@ -28,8 +30,6 @@ from tensegrity.physics.matrix_form import (
     shell_topology,
     undamped,
 )
-from tensegrity.io.matrices import write_matrices
-from tensegrity.model.shell import class1_shell, shell_node_index
 
 #: (n, m, primal): the issue's sizes and their primal variants.
 SIZES = [
@@ -58,7 +58,9 @@ def randomized_shell(n, m, primal, rng, *, margin=0.0):
     q = q.reshape(-1)
     qdot = rng.normal(size=q.shape)
     lengths = dynamics.tendon_lengths(base, dynamics.nodes_from_coordinates(base, q))
-    factor = rng.uniform(margin, 0.5, size=lengths.shape) * rng.choice([-1.0, 1.0], size=lengths.shape)
+    factor = rng.uniform(margin, 0.5, size=lengths.shape) * rng.choice(
+        [-1.0, 1.0], size=lengths.shape
+    )
     structure = base.replace(
         rod_mass=rng.uniform(0.5, 2.0, base.n_rods),
         tendon_stiffness=rng.uniform(50.0, 200.0, base.n_tendons),
@@ -84,11 +86,15 @@ def block_pattern(matrix, row_sizes, col_sizes):
     dense = matrix.toarray() if sp.issparse(matrix) else matrix
     r_edges = np.concatenate([[0], np.cumsum(row_sizes)])
     c_edges = np.concatenate([[0], np.cumsum(col_sizes)])
-    return np.array([
-        [np.any(dense[r_edges[a]:r_edges[a + 1], c_edges[b]:c_edges[b + 1]] != 0)
-         for b in range(len(col_sizes))]
-        for a in range(len(row_sizes))
-    ])
+    return np.array(
+        [
+            [
+                np.any(dense[r_edges[a] : r_edges[a + 1], c_edges[b] : c_edges[b + 1]] != 0)
+                for b in range(len(col_sizes))
+            ]
+            for a in range(len(row_sizes))
+        ]
+    )
 
 
 def kron3(blocks):
@@ -100,11 +106,11 @@ def lower_pattern(first, diag, column, below, count):
     size = first.shape[0]
     out = np.zeros((count * size, count * size))
     for r in range(count):
-        out[r * size:(r + 1) * size, r * size:(r + 1) * size] = first if r == 0 else diag
+        out[r * size : (r + 1) * size, r * size : (r + 1) * size] = first if r == 0 else diag
         if r >= 1:
-            out[r * size:(r + 1) * size, :size] = column
+            out[r * size : (r + 1) * size, :size] = column
         for c in range(1, r):
-            out[r * size:(r + 1) * size, c * size:(c + 1) * size] = below
+            out[r * size : (r + 1) * size, c * size : (c + 1) * size] = below
     return out
 
 
@@ -121,12 +127,29 @@ def test_dimensions(n, m, primal):
     assert structure.n_tendons == nu
     assert top.n_controls == nu and len(top.u_names) == nu
     shapes = {
-        "Q": (nq, nq), "Q_inv": (nq, nq), "R": (nd, nq), "R_o": (no, nq),
-        "T": (10 * n * m + 1, nu), "W_o": (nq, nq), "B_d": (nq, nd), "B_o": (nq, no), "P": (nq, nq),
-        "H": (nq, nq), "K_r": (nq, nq), "K_d": (nd, nq), "K_o": (no, nq),
-        "P_d": (nd, 8 * n * m + 1), "P_o": (no, 2 * n * m), "K_tilde": (nq, nq),
-        "B_tilde": (nq, 10 * n * m + 1), "K_p": (nq, nq), "B": (nq, nu), "D": (nq, nq),
-        "C_t": (3 * nu, nq), "C_l": (nu, nq), "C_f": (nu, nq),
+        "Q": (nq, nq),
+        "Q_inv": (nq, nq),
+        "R": (nd, nq),
+        "R_o": (no, nq),
+        "T": (10 * n * m + 1, nu),
+        "W_o": (nq, nq),
+        "B_d": (nq, nd),
+        "B_o": (nq, no),
+        "P": (nq, nq),
+        "H": (nq, nq),
+        "K_r": (nq, nq),
+        "K_d": (nd, nq),
+        "K_o": (no, nq),
+        "P_d": (nd, 8 * n * m + 1),
+        "P_o": (no, 2 * n * m),
+        "K_tilde": (nq, nq),
+        "B_tilde": (nq, 10 * n * m + 1),
+        "K_p": (nq, nq),
+        "B": (nq, nu),
+        "D": (nq, nq),
+        "C_t": (3 * nu, nq),
+        "C_l": (nu, nq),
+        "C_f": (nu, nq),
     }
     got = {**top.matrices(), **mats.matrices()}
     assert set(got) == set(shapes)
@@ -168,15 +191,26 @@ def test_qddot_matches_the_fast_kernel(n, m, primal):
         w = rng.normal(scale=5.0, size=12 * n * m)
         mats = model.evaluate(q, qdot, u)
         taut = mats.taut_d[1:].sum() + mats.taut_o.sum()
-        assert 0.2 * structure.n_tendons < np.count_nonzero(
-            dynamics.tendon_tensions(structure, dynamics.nodes_from_coordinates(structure, q),
-                                     control=model.control_to_structure(u)) == 0
-        ) < 0.8 * structure.n_tendons, "want a mix of slack and taut tendons"
+        assert (
+            0.2 * structure.n_tendons
+            < np.count_nonzero(
+                dynamics.tendon_tensions(
+                    structure,
+                    dynamics.nodes_from_coordinates(structure, q),
+                    control=model.control_to_structure(u),
+                )
+                == 0
+            )
+            < 0.8 * structure.n_tendons
+        ), "want a mix of slack and taut tendons"
         assert taut > 0
         expected = kernel_qddot(model, q, qdot, u, w)
         got = mats.qddot(w)
         scale = np.abs(expected).max()
-        assert np.abs(got - expected).max() <= 1e-10 * scale, (trial, np.abs(got - expected).max() / scale)
+        assert np.abs(got - expected).max() <= 1e-10 * scale, (
+            trial,
+            np.abs(got - expected).max() / scale,
+        )
 
 
 def test_qddot_matches_the_kernel_with_every_tendon_taut_and_zero_control():
@@ -198,14 +232,20 @@ def test_kr_is_theorem_18_1_with_qdot_so_the_rod_constraint_holds():
     mats = model.evaluate(q, qdot)
     acc = mats.qddot(rng.normal(size=q.shape)).reshape(-1, 2, 3)
     q2, v2 = q.reshape(-1, 2, 3)[:, 1], qdot.reshape(-1, 2, 3)[:, 1]
-    np.testing.assert_allclose(np.sum(q2 * acc[:, 1], axis=1), -np.sum(v2 * v2, axis=1), rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(
+        np.sum(q2 * acc[:, 1], axis=1), -np.sum(v2 * v2, axis=1), rtol=1e-9, atol=1e-9
+    )
     diag = mats.K_r.diagonal().reshape(-1, 2, 3)
-    np.testing.assert_allclose(diag[:, 1], (np.sum(v2 * v2, axis=1) / structure.rod_length**2)[:, None] * np.ones(3))
+    np.testing.assert_allclose(
+        diag[:, 1], (np.sum(v2 * v2, axis=1) / structure.rod_length**2)[:, None] * np.ones(3)
+    )
     assert np.all(diag[:, 0] == 0)
 
 
 # ------------------------------------------------------------------------------ Jacobians
-@pytest.mark.parametrize("n, m, primal", [(3, 1, False), (4, 2, False), (5, 3, True), (8, 4, False)])
+@pytest.mark.parametrize(
+    "n, m, primal", [(3, 1, False), (4, 2, False), (5, 3, True), (8, 4, False)]
+)
 def test_b_and_d_are_the_jacobians_of_qddot(n, m, primal):
     rng = np.random.default_rng(5 + n + m)
     structure, q, qdot = randomized_shell(n, m, primal, rng, margin=0.1)  # |l - L0| >= 0.1 l
@@ -219,7 +259,9 @@ def test_b_and_d_are_the_jacobians_of_qddot(n, m, primal):
     for k in range(u.size):
         du = np.zeros_like(u)
         du[k] = h
-        jac_u[:, k] = (kernel_qddot(model, q, qdot, u + du, w) - kernel_qddot(model, q, qdot, u - du, w)) / (2 * h)
+        jac_u[:, k] = (
+            kernel_qddot(model, q, qdot, u + du, w) - kernel_qddot(model, q, qdot, u - du, w)
+        ) / (2 * h)
     B = mats.B.toarray()
     assert np.abs(B).max() > 0
     assert np.abs(B - jac_u).max() <= 1e-8 * np.abs(B).max()
@@ -227,13 +269,25 @@ def test_b_and_d_are_the_jacobians_of_qddot(n, m, primal):
     for k in range(w.size):
         dw = np.zeros_like(w)
         dw[k] = 1.0
-        jac_w[:, k] = (kernel_qddot(model, q, qdot, u, w + dw) - kernel_qddot(model, q, qdot, u, w - dw)) / 2
+        jac_w[:, k] = (
+            kernel_qddot(model, q, qdot, u, w + dw) - kernel_qddot(model, q, qdot, u, w - dw)
+        ) / 2
     D = mats.D.toarray()
     assert np.abs(D - jac_w).max() <= 1e-9 * np.abs(D).max()
     # a slack tendon has no control authority: its column of B is zero
-    slack = model.control_index[~np.isin(model.control_index, np.flatnonzero(
-        dynamics.tendon_tensions(structure, dynamics.nodes_from_coordinates(structure, q),
-                                 control=model.control_to_structure(u)) > 0))]
+    slack = model.control_index[
+        ~np.isin(
+            model.control_index,
+            np.flatnonzero(
+                dynamics.tendon_tensions(
+                    structure,
+                    dynamics.nodes_from_coordinates(structure, q),
+                    control=model.control_to_structure(u),
+                )
+                > 0
+            ),
+        )
+    ]
     columns = [list(model.control_index).index(s) for s in slack]
     assert columns and np.all(B[:, columns] == 0)
 
@@ -278,8 +332,13 @@ def test_q_l_and_r_q_reproduce_the_tendon_vectors_of_the_node_positions(n, m, pr
     for label in top.l_labels:
         kind, i, j = label.split("_")
         i, j = int(i), int(j)
-        l.append({"rho": lambda: node(1, 1, 1), "r1": lambda: node(2, i, j) - node(1, i, j),
-                  "r2": lambda: node(4, i, j) - node(3, i, j)}.get(kind, lambda: t[label])())
+        l.append(
+            {
+                "rho": lambda: node(1, 1, 1),
+                "r1": lambda: node(2, i, j) - node(1, i, j),
+                "r2": lambda: node(4, i, j) - node(3, i, j),
+            }.get(kind, lambda: t[label])()
+        )
     l = np.concatenate(l)
     np.testing.assert_allclose(top.Q @ l, q, atol=1e-12)
     np.testing.assert_allclose(top.Q_inv @ q, l, atol=1e-12)
@@ -342,13 +401,22 @@ def _rows(**rows):
 
 _E1 = _rows(t2=[0, 0, -1, -1])
 _E2 = _rows(t3=[0, 0, 1, -1], t4=[0, 0, -1, 1])
-_E3 = _rows(t2=[1, -1, 0, 0], t3=[-1, 1, 0, 0], t4=[1, 1, 0, 0], t6=[0, 0, -1, -1],
-            t7=[0, 0, 1, -1], t8=[1, 1, -1, 1], t9=[-1, -1, 0, 0], t10=[0, 0, -1, 1])
+_E3 = _rows(
+    t2=[1, -1, 0, 0],
+    t3=[-1, 1, 0, 0],
+    t4=[1, 1, 0, 0],
+    t6=[0, 0, -1, -1],
+    t7=[0, 0, 1, -1],
+    t8=[1, 1, -1, 1],
+    t9=[-1, -1, 0, 0],
+    t10=[0, 0, -1, 1],
+)
 _E4 = _rows(t9=[1, -1, 0, 0], t10=[0, 0, 1, 1])
 _E4_HAT = _rows(t2=[-1, 1, 0, 0], t9=[1, -1, 0, 0], t10=[0, 0, 1, 1])
 _E4_BAR = _rows(t6=[0, 0, 1, 1], t7=[0, 0, -1, -1], t9=[1, -1, 0, 0], t10=[0, 0, 1, 1])
-_E4_TILDE = _rows(t2=[-1, 1, 0, 0], t6=[0, 0, 1, 1], t7=[0, 0, -1, -1], t9=[1, -1, 0, 0],
-                  t10=[0, 0, 1, 1])
+_E4_TILDE = _rows(
+    t2=[-1, 1, 0, 0], t6=[0, 0, 1, 1], t7=[0, 0, -1, -1], t9=[1, -1, 0, 0], t10=[0, 0, 1, 1]
+)
 _E5 = _rows(t6=[1, -1, 0, 0], t7=[-1, 1, 0, 0])
 _E6 = 0.5 * kron3([[-1, 1, 0, 0]])
 _E7 = 0.5 * kron3([[1, 1, 0, 0]])
@@ -358,27 +426,27 @@ def printed_r(n, m):
     def circulant(diag, nxt, prev):
         out = np.zeros((24 * n, 12 * n))
         for i in range(n):
-            out[24 * i:24 * i + 24, 12 * i:12 * i + 12] += diag
-            out[24 * i:24 * i + 24, 12 * ((i + 1) % n):12 * ((i + 1) % n) + 12] += nxt
-            out[24 * i:24 * i + 24, 12 * ((i - 1) % n):12 * ((i - 1) % n) + 12] += prev
+            out[24 * i : 24 * i + 24, 12 * i : 12 * i + 12] += diag
+            out[24 * i : 24 * i + 24, 12 * ((i + 1) % n) : 12 * ((i + 1) % n) + 12] += nxt
+            out[24 * i : 24 * i + 24, 12 * ((i - 1) % n) : 12 * ((i - 1) % n) + 12] += prev
         return out
 
     R12 = circulant(np.zeros((24, 12)), _E5, np.zeros((24, 12)))
     R21 = np.kron(np.eye(n), _E1)
     R = np.zeros((24 * n * m + 3, 12 * n * m))
     R[0:3, 0:12] = _E6
-    R[0:3, 12 * (n - 1):12 * n] = _E7
+    R[0:3, 12 * (n - 1) : 12 * n] = _E7
     for j in range(m):
         if m == 1:
             diag = circulant(_E3, _E4_TILDE, _E2)
         else:
             diag = circulant(_E3, _E4_HAT if j == 0 else _E4_BAR if j == m - 1 else _E4, _E2)
         rows = slice(3 + 24 * n * j, 3 + 24 * n * (j + 1))
-        R[rows, 12 * n * j:12 * n * (j + 1)] = diag
+        R[rows, 12 * n * j : 12 * n * (j + 1)] = diag
         if j + 1 < m:
-            R[rows, 12 * n * (j + 1):12 * n * (j + 2)] = R12
+            R[rows, 12 * n * (j + 1) : 12 * n * (j + 2)] = R12
         if j > 0:
-            R[rows, 12 * n * (j - 1):12 * n * j] = R21
+            R[rows, 12 * n * (j - 1) : 12 * n * j] = R21
     return R
 
 
@@ -408,20 +476,22 @@ def printed_t(n, m, *, sign, first_row_u1n1):
     for i in range(n):
         r = 1 + 8 * i
         if m == 1:
-            T[r:r + 8, 6 * i:6 * i + 6] = T1p
+            T[r : r + 8, 6 * i : 6 * i + 6] = T1p
         else:
-            T[r:r + 8, 7 * i:7 * i + 7] = T1
-        T[r:r + 8, nu_d + 2 * i:nu_d + 2 * i + 2] = S
+            T[r : r + 8, 7 * i : 7 * i + 7] = T1
+        T[r : r + 8, nu_d + 2 * i : nu_d + 2 * i + 2] = S
         for j in range(2, m):
             r = 1 + 8 * ((j - 1) * n + i)
             c = 7 * n + 8 * n * (j - 2) + 8 * i
-            T[r:r + 8, c:c + 8] = np.eye(8)
+            T[r : r + 8, c : c + 8] = np.eye(8)
         if m > 1:
             r = 1 + 8 * ((m - 1) * n + i)
             c = 7 * n + 8 * n * (m - 2) + 7 * i
-            T[r:r + 8, c:c + 7] = T2
+            T[r : r + 8, c : c + 7] = T2
     for e in range(n * m):
-        T[1 + 8 * n * m + 2 * e:3 + 8 * n * m + 2 * e, nu_d + 2 * e:nu_d + 2 * e + 2] = np.eye(2)
+        T[1 + 8 * n * m + 2 * e : 3 + 8 * n * m + 2 * e, nu_d + 2 * e : nu_d + 2 * e + 2] = np.eye(
+            2
+        )
     return T
 
 
@@ -444,15 +514,21 @@ def test_every_slot_carries_the_force_of_its_tendon_and_the_printed_t_signs_brea
     L0 = model.control_from_structure(structure.tendon_rest_length)
     u = rng.uniform(-0.3, 0.3, size=L0.shape) * L0
     mats = model.evaluate(q, qdot, u)
-    fd = (-mats.K_d @ q + mats.P_d @ mats.utilde[:len(top.d_slots)]).reshape(-1, 3)
-    fo = (-mats.K_o @ q + mats.P_o @ mats.utilde[len(top.d_slots):]).reshape(-1, 3)
+    fd = (-mats.K_d @ q + mats.P_d @ mats.utilde[: len(top.d_slots)]).reshape(-1, 3)
+    fo = (-mats.K_o @ q + mats.P_o @ mats.utilde[len(top.d_slots) :]).reshape(-1, 3)
     p = dynamics.nodes_from_coordinates(structure, q)
-    forces = dynamics.tendon_forces(structure, p, np.zeros_like(p),
-                                    dynamics.rest_lengths(structure, model.control_to_structure(u)))
+    forces = dynamics.tendon_forces(
+        structure,
+        p,
+        np.zeros_like(p),
+        dynamics.rest_lengths(structure, model.control_to_structure(u)),
+    )
     F = dict(zip(structure.tendon_name, forces.tension[:, None] * forces.direction))
     scale = max(np.abs(v).max() for v in F.values())
-    for slots, tendons, signs, f in ((top.d_slots, top.d_tendon, top.d_sign, fd),
-                                     (top.o_slots, top.o_tendon, top.o_sign, fo)):
+    for slots, tendons, signs, f in (
+        (top.d_slots, top.d_tendon, top.d_sign, fd),
+        (top.o_slots, top.o_tendon, top.o_sign, fo),
+    ):
         for name, tendon, sign, value in zip(slots, tendons, signs, f):
             np.testing.assert_allclose(value, sign * F[tendon], atol=1e-12 * scale, err_msg=name)
     printed = printed_t(n, m, sign=-1, first_row_u1n1=False) @ u
@@ -466,7 +542,15 @@ def test_control_names_follow_the_papers_order():
     assert names[:6] == ("t2_1_1", "t3_1_1", "t4_1_1", "t6_1_1", "t7_1_1", "t8_1_1")
     assert names[18:] == ("t5_1_1", "t1_1_1", "t5_2_1", "t1_2_1", "t5_3_1", "t1_3_1")
     names = control_names(3, 3)
-    assert names[:7] == ("t2_1_1", "t3_1_1", "t4_1_1", "t6_1_1", "t7_1_1", "t8_1_1", "t10_1_1")  # 18.57
+    assert names[:7] == (
+        "t2_1_1",
+        "t3_1_1",
+        "t4_1_1",
+        "t6_1_1",
+        "t7_1_1",
+        "t8_1_1",
+        "t10_1_1",
+    )  # 18.57
     assert names[21:29] == tuple(f"t{a}_1_2" for a in (2, 3, 4, 6, 7, 8, 9, 10))
     assert names[45:52] == tuple(f"t{a}_1_3" for a in (2, 3, 4, 6, 7, 8, 9))  # 18.58
     assert names[66:68] == ("t5_1_1", "t1_1_1")
@@ -476,7 +560,9 @@ def test_control_names_follow_the_papers_order():
         model = ShellMatrixModel(structure)
         u = np.arange(model.topology.n_controls, dtype=float)
         control = model.control_to_structure(u)
-        assert [structure.tendon_name[s] for s in model.control_index] == list(control_names(n, m, primal))
+        assert [structure.tendon_name[s] for s in model.control_index] == list(
+            control_names(n, m, primal)
+        )
         np.testing.assert_array_equal(model.control_from_structure(control), u)
     assert control_names(4, 1, True) == control_names(4, 1, False)  # m = 1: primal = full
 
@@ -520,7 +606,9 @@ def test_bd_bo_reproduce_the_printed_nodal_force_balances(n, m, primal):
     structure = class1_shell(n, m, primal=primal)
     top = shell_topology(n, m, primal)
     F = {name: rng.normal(size=3) for name in structure.tendon_name}
-    fd = np.concatenate([np.zeros(3) if t is None else s * F[t] for t, s in zip(top.d_tendon, top.d_sign)])
+    fd = np.concatenate(
+        [np.zeros(3) if t is None else s * F[t] for t, s in zip(top.d_tendon, top.d_sign)]
+    )
     fo = np.concatenate([s * F[t] for t, s in zip(top.o_tendon, top.o_sign)])
     w = rng.normal(size=12 * n * m)
     got = (top.B_d @ fd + top.B_o @ fo + top.W_o @ w).reshape(-1, 4, 3)
@@ -558,13 +646,15 @@ def test_bd_bo_have_the_printed_block_layout(n, m):
         if j == 1 and i > 1:
             expected_o[r, col[(i - 1, 1)]] = True
     expected_d[col[(1, 1)], 0] = expected_d[col[(n, 1)], 0] = True
-    np.testing.assert_array_equal(block_pattern(top.B_d, [12] * n * m, [3] + [24] * n * m), expected_d)
+    np.testing.assert_array_equal(
+        block_pattern(top.B_d, [12] * n * m, [3] + [24] * n * m), expected_d
+    )
     np.testing.assert_array_equal(block_pattern(top.B_o, [12] * n * m, [6] * n * m), expected_o)
 
 
 def _block(matrix, row_element, col_offset, width):
     dense = matrix.toarray()
-    return dense[12 * row_element:12 * row_element + 12, col_offset:col_offset + width]
+    return dense[12 * row_element : 12 * row_element + 12, col_offset : col_offset + width]
 
 
 def test_bd_bo_blocks_of_element_nm_are_those_printed_in_18_E_16():
@@ -575,18 +665,31 @@ def test_bd_bo_blocks_of_element_nm_are_those_printed_in_18_E_16():
     row = e(n, m)
     blocks = {
         d(n - 1, m - 1): [[0, 0, 0, -1, 1, 0, 0, 0], [0, 0, 0, -1, 1, 0, 0, 0], [0] * 8, [0] * 8],
-        d(n - 1, m): [[0, 0, 0, 0, 0, 0, -1, 0], [0, 0, 0, 0, 0, 0, -1, 0],
-                      [0, 0, 0, -1, 1, 0, 0, 0], [0, 0, 0, 1, -1, 0, 0, 0]],
-        d(n, m): [[-1, 1, -1, 0, 0, -1, 1, 0], [-1, 1, 1, 0, 0, 1, -1, 0],
-                  [0, 0, 0, 1, -1, 1, 0, 0], [0, 0, 0, -1, -1, 1, 0, 0]],
+        d(n - 1, m): [
+            [0, 0, 0, 0, 0, 0, -1, 0],
+            [0, 0, 0, 0, 0, 0, -1, 0],
+            [0, 0, 0, -1, 1, 0, 0, 0],
+            [0, 0, 0, 1, -1, 0, 0, 0],
+        ],
+        d(n, m): [
+            [-1, 1, -1, 0, 0, -1, 1, 0],
+            [-1, 1, 1, 0, 0, 1, -1, 0],
+            [0, 0, 0, 1, -1, 1, 0, 0],
+            [0, 0, 0, -1, -1, 1, 0, 0],
+        ],
         d(1, m): [[0] * 8, [0] * 8, [0, -1, 1, 0, 0, 0, 0, 0], [0, -1, 1, 0, 0, 0, 0, 0]],
     }
     for offset, printed in blocks.items():
         np.testing.assert_array_equal(_block(top.B_d, row, offset, 24), kron3(printed))
-    nonzero = {k for k in range(1 + n * m) if np.any(_block(top.B_d, row, 0 if k == 0 else 3 + 24 * (k - 1), 3 if k == 0 else 24))}
+    nonzero = {
+        k
+        for k in range(1 + n * m)
+        if np.any(_block(top.B_d, row, 0 if k == 0 else 3 + 24 * (k - 1), 3 if k == 0 else 24))
+    }
     assert nonzero == {1 + e(n - 1, m - 1), 1 + e(n - 1, m), 1 + e(n, m), 1 + e(1, m)}
-    np.testing.assert_array_equal(_block(top.B_o, row, 6 * e(n, m), 6),
-                                  kron3([[1, -1], [-1, 1], [-1, 0], [1, 0]]))
+    np.testing.assert_array_equal(
+        _block(top.B_o, row, 6 * e(n, m), 6), kron3([[1, -1], [-1, 1], [-1, 0], [1, 0]])
+    )
 
 
 def test_bd_bo_blocks_of_element_n1_are_those_printed_in_appendix_c():
@@ -595,20 +698,32 @@ def test_bd_bo_blocks_of_element_n1_are_those_printed_in_appendix_c():
     row = n - 1
     d = lambda i: 3 + 24 * (i - 1)  # noqa: E731
     blocks = {
-        d(n - 1): [[1, 0, 0, 0, 0, 0, 0, 0], [1, 0, 0, 0, 0, 0, 0, 0],
-                   [0, 0, 0, -1, 1, 0, 0, 0], [0, 0, 0, 1, -1, 0, 0, 0]],
-        d(n): [[-1, 1, -1, 0, 0, -1, 0, 0], [-1, 1, 1, 0, 0, 1, 0, 0],
-               [0, 0, 0, 1, -1, 1, 0, 0], [0, 0, 0, -1, -1, 1, 0, 0]],
+        d(n - 1): [
+            [1, 0, 0, 0, 0, 0, 0, 0],
+            [1, 0, 0, 0, 0, 0, 0, 0],
+            [0, 0, 0, -1, 1, 0, 0, 0],
+            [0, 0, 0, 1, -1, 0, 0, 0],
+        ],
+        d(n): [
+            [-1, 1, -1, 0, 0, -1, 0, 0],
+            [-1, 1, 1, 0, 0, 1, 0, 0],
+            [0, 0, 0, 1, -1, 1, 0, 0],
+            [0, 0, 0, -1, -1, 1, 0, 0],
+        ],
         d(1): [[0] * 8, [0] * 8, [0, -1, 1, 0, 0, 0, 0, 0], [0, -1, 1, 0, 0, 0, 0, 0]],
     }
     for offset, printed in blocks.items():
         np.testing.assert_array_equal(_block(top.B_d, row, offset, 24), kron3(printed))
-    np.testing.assert_array_equal(_block(top.B_d, row, 0, 3), kron3([[-1], [1], [0], [0]]))  # Bbar_1n1
+    np.testing.assert_array_equal(
+        _block(top.B_d, row, 0, 3), kron3([[-1], [1], [0], [0]])
+    )  # Bbar_1n1
     np.testing.assert_array_equal(_block(top.B_d, 0, 0, 3), kron3([[1], [1], [0], [0]]))  # B_1n1
-    np.testing.assert_array_equal(_block(top.B_o, row, 6 * (n - 2), 6),
-                                  kron3([[0, 1], [0, 1], [0, 0], [0, 0]]))  # B^o_01
-    np.testing.assert_array_equal(_block(top.B_o, row, 6 * (n - 1), 6),
-                                  kron3([[1, 0], [-1, 0], [-1, 0], [1, 0]]))  # B^o_n1
+    np.testing.assert_array_equal(
+        _block(top.B_o, row, 6 * (n - 2), 6), kron3([[0, 1], [0, 1], [0, 0], [0, 0]])
+    )  # B^o_01
+    np.testing.assert_array_equal(
+        _block(top.B_o, row, 6 * (n - 1), 6), kron3([[1, 0], [-1, 0], [-1, 0], [1, 0]])
+    )  # B^o_n1
 
 
 def test_h_kr_d_are_block_diagonal():
@@ -624,7 +739,9 @@ def test_h_kr_d_are_block_diagonal():
     H = mats.H.toarray()
     q2 = q[3:6]
     np.testing.assert_allclose(H[:3, :3], 2 / structure.rod_mass[0] * np.eye(3))
-    np.testing.assert_allclose(H[3:6, 3:6], 6 / structure.rod_mass[0] * (np.outer(q2, q2) - q2 @ q2 * np.eye(3)))
+    np.testing.assert_allclose(
+        H[3:6, 3:6], 6 / structure.rod_mass[0] * (np.outer(q2, q2) - q2 @ q2 * np.eye(3))
+    )
 
 
 # ------------------------------------------------------------------------------ errors
@@ -637,11 +754,15 @@ def test_rejects_what_the_matrix_model_cannot_represent():
         ShellMatrixModel(shell.replace(tendon_name=tuple(f"s{k}" for k in range(shell.n_tendons))))
     keep = [k for k, name in enumerate(shell.tendon_name) if name != "t3_2_2"]
     with pytest.raises(ValueError, match="t3_2_2"):
-        shell_size(shell.replace(tendon_nodes=shell.tendon_nodes[keep],
-                                 tendon_stiffness=shell.tendon_stiffness[keep],
-                                 tendon_rest_length=shell.tendon_rest_length[keep],
-                                 tendon_damping=shell.tendon_damping[keep],
-                                 tendon_name=tuple(shell.tendon_name[k] for k in keep)))
+        shell_size(
+            shell.replace(
+                tendon_nodes=shell.tendon_nodes[keep],
+                tendon_stiffness=shell.tendon_stiffness[keep],
+                tendon_rest_length=shell.tendon_rest_length[keep],
+                tendon_damping=shell.tendon_damping[keep],
+                tendon_name=tuple(shell.tendon_name[k] for k in keep),
+            )
+        )
     assert shell_size(shell) == (4, 2, False)
     assert shell_size(class1_shell(4, 2, primal=True)) == (4, 2, True)
     model = ShellMatrixModel(shell)
@@ -683,9 +804,20 @@ def test_write_matrices(tmp_path):
         assert abs(sp.load_npz(out / f"{name}.npz") - matrix).max() == 0 if matrix.nnz else True
         from_mtx = sp.csr_matrix(scipy.io.mmread(out / f"{name}.mtx"))
         assert from_mtx.shape == shape
-        assert abs(from_mtx - matrix).max() <= 1e-15 * max(abs(matrix).max(), 1.0) if nnz else from_mtx.nnz == 0
+        assert (
+            abs(from_mtx - matrix).max() <= 1e-15 * max(abs(matrix).max(), 1.0)
+            if nnz
+            else from_mtx.nnz == 0
+        )
     index = json.loads((out / "matrices.json").read_text())
-    assert index["shell"] == {"n": 3, "m": 1, "primal": False, "nodes": 12, "rods": 6, "tendons": 24}
+    assert index["shell"] == {
+        "n": 3,
+        "m": 1,
+        "primal": False,
+        "nodes": 12,
+        "rods": 6,
+        "tendons": 24,
+    }
     assert index["at"] == "initial"
     assert index["u_tendon"] == list(control_names(3, 1))
     np.testing.assert_array_equal(index["state"]["q"], state.q)
@@ -693,7 +825,8 @@ def test_write_matrices(tmp_path):
     np.testing.assert_allclose(index["state"]["node_position"], structure.node_position, atol=1e-15)
     assert index["state"]["u"] == u.tolist()
     assert {entry["name"]: tuple(entry["shape"]) for entry in index["matrices"]} == {
-        name: shape for name, shape, _ in rows}
+        name: shape for name, shape, _ in rows
+    }
     saved = np.load(out / "state.npz")
     np.testing.assert_array_equal(saved["q"], state.q)
     np.testing.assert_allclose(saved["qddot"], mats.qddot(), rtol=0, atol=0)
@@ -707,7 +840,9 @@ def test_write_matrices_from_a_size_at_the_initial_state(tmp_path):
     assert shapes["B"] == (96, 64) and shapes["T"] == (81, 64)
     index = json.loads((tmp_path / "matrices.json").read_text())
     assert index["shell"]["primal"] is True and index["at"] is None
-    np.testing.assert_allclose(index["state"]["q"], dynamics.initial_state(class1_shell(4, 2, primal=True)).q)
+    np.testing.assert_allclose(
+        index["state"]["q"], dynamics.initial_state(class1_shell(4, 2, primal=True)).q
+    )
 
 
 # ------------------------------------------------------------------------------ outputs (18.60)
@@ -738,4 +873,6 @@ def test_outputs_are_the_tendon_vectors_lengths_tensions_and_their_jacobians(n, 
         fd_l[:, k] = (plus.y_l - minus.y_l) / (2 * h)
         fd_f[:, k] = (plus.y_f - minus.y_f) / (2 * h)
     np.testing.assert_allclose(mats.C_l.toarray(), fd_l, rtol=0, atol=1e-8)
-    np.testing.assert_allclose(mats.C_f.toarray(), fd_f, rtol=0, atol=1e-6 * structure.tendon_stiffness.max())
+    np.testing.assert_allclose(
+        mats.C_f.toarray(), fd_f, rtol=0, atol=1e-6 * structure.tendon_stiffness.max()
+    )

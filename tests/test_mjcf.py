@@ -24,7 +24,6 @@ import numpy as np
 import pytest
 
 from tensegrity import class1_shell, critical_damping, simulate
-from tensegrity.physics import dynamics
 from tensegrity.io.mjcf import (
     SPIN_INERTIA_MIN,
     SPIN_INERTIA_RATIO,
@@ -35,6 +34,7 @@ from tensegrity.io.mjcf import (
     to_mjcf,
     write_mjcf,
 )
+from tensegrity.physics import dynamics
 
 mujoco = pytest.importorskip("mujoco")
 
@@ -179,11 +179,15 @@ def test_initial_state_is_projected_like_initial_state():
     model, data = load(s)
     np.testing.assert_allclose(
         mujoco_node_positions(model, data, s.n_nodes),
-        dynamics.nodes_from_coordinates(s, state.q), rtol=0, atol=1e-12,
+        dynamics.nodes_from_coordinates(s, state.q),
+        rtol=0,
+        atol=1e-12,
     )
     np.testing.assert_allclose(
         mujoco_node_velocities(model, data, s.n_nodes),
-        dynamics.nodes_from_coordinates(s, state.qdot), rtol=0, atol=1e-12,
+        dynamics.nodes_from_coordinates(s, state.qdot),
+        rtol=0,
+        atol=1e-12,
     )
 
 

@@ -17,11 +17,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tensegrity.physics.constraints import constraints_of
 from tensegrity import Structure, simulate
-from tensegrity.physics import dynamics
 from tensegrity.io.mjcf import mujoco_node_velocities, to_mjcf
 from tensegrity.model.planar import planar_two_rod
+from tensegrity.physics import dynamics
+from tensegrity.physics.constraints import constraints_of
 from test_constraints import GRAVITY
 from test_mjcf import SAMPLE_DT, load, max_difference, run_mujoco
 
@@ -48,43 +48,69 @@ def held_rod(ends, **held):
     p = np.array([*ends, [0.1, 0.2, 0.9], [0.7, -0.3, 1.2]], float)
     tendons = [[0, 2], [1, 3], [0, 3], [1, 2]]
     lengths = [np.linalg.norm(p[b] - p[a]) for a, b in tendons]
-    return consistent(Structure(
-        node_position=p, rod_nodes=[[0, 1], [2, 3]], rod_mass=[1.0, 0.8],
-        rod_length=[np.linalg.norm(p[1] - p[0]), np.linalg.norm(p[3] - p[2])],
-        tendon_nodes=tendons, tendon_stiffness=[60.0, 80.0, 50.0, 70.0],
-        tendon_rest_length=0.8 * np.array(lengths), **held))
+    return consistent(
+        Structure(
+            node_position=p,
+            rod_nodes=[[0, 1], [2, 3]],
+            rod_mass=[1.0, 0.8],
+            rod_length=[np.linalg.norm(p[1] - p[0]), np.linalg.norm(p[3] - p[2])],
+            tendon_nodes=tendons,
+            tendon_stiffness=[60.0, 80.0, 50.0, 70.0],
+            tendon_rest_length=0.8 * np.array(lengths),
+            **held,
+        )
+    )
 
 
 def planar_held(directions):
     """Example 2 with rod 0's ends (nodes 0, 1) on lines along ``directions`` (2, 2)."""
-    return consistent(planar_two_rod(rest_length=0.45).replace(line_nodes=[0, 1],
-                                                               line_direction=directions))
+    return consistent(
+        planar_two_rod(rest_length=0.45).replace(line_nodes=[0, 1], line_direction=directions)
+    )
 
 
 EXACT = {
-    "same plane": lambda: held_rod(([0, 0, 0], [0.8, 0.6, 0]), plane_nodes=[0, 1], plane_normal=[Z, Z]),
+    "same plane": lambda: held_rod(
+        ([0, 0, 0], [0.8, 0.6, 0]), plane_nodes=[0, 1], plane_normal=[Z, Z]
+    ),
     "same tilted plane, rod across": lambda: held_rod(
-        ([0, 0, 0], [0.8, 0, 0.6]), plane_nodes=[0, 1], plane_normal=[[0.6, 0, -0.8]] * 2),
+        ([0, 0, 0], [0.8, 0, 0.6]), plane_nodes=[0, 1], plane_normal=[[0.6, 0, -0.8]] * 2
+    ),
     "parallel planes": lambda: held_rod(
-        ([0, 0, 0], [0.8, 0, 0.6]), plane_nodes=[0, 1], plane_normal=[Z, [0, 0, -2.0]]),
+        ([0, 0, 0], [0.8, 0, 0.6]), plane_nodes=[0, 1], plane_normal=[Z, [0, 0, -2.0]]
+    ),
     "line parallel to a plane": lambda: held_rod(
-        ([0, 0, 0.6], [0.8, 0, 0]), plane_nodes=[1], plane_normal=[Z], line_nodes=[0],
-        line_direction=[[0, 1.0, 0]]),
+        ([0, 0, 0.6], [0.8, 0, 0]),
+        plane_nodes=[1],
+        plane_normal=[Z],
+        line_nodes=[0],
+        line_direction=[[0, 1.0, 0]],
+    ),
     "parallel lines": lambda: held_rod(
-        ([0, 0, 0], [0.6, 0, 0.8]), line_nodes=[0, 1], line_direction=[[1, 1.0, 0], [-1, -1.0, 0]]),
+        ([0, 0, 0], [0.6, 0, 0.8]), line_nodes=[0, 1], line_direction=[[1, 1.0, 0], [-1, -1.0, 0]]
+    ),
     "same line": lambda: held_rod(
-        ([0, 0, 0], [0.6, 0, 0.8]), line_nodes=[0, 1], line_direction=[[0.6, 0, 0.8]] * 2),
+        ([0, 0, 0], [0.6, 0, 0.8]), line_nodes=[0, 1], line_direction=[[0.6, 0, 0.8]] * 2
+    ),
     "planar, parallel lines": lambda: planar_held([[1.0, 1.0], [2.0, 2.0]]),
 }
 
 LOOPS = {
     "ladder against a wall": lambda: held_rod(
-        ([0.8, 0, 0], [0, 0, 0.6]), plane_nodes=[0, 1], plane_normal=[Z, [1.0, 0, 0]]),
+        ([0.8, 0, 0], [0, 0, 0.6]), plane_nodes=[0, 1], plane_normal=[Z, [1.0, 0, 0]]
+    ),
     "plane and a skew line": lambda: held_rod(
-        ([0.8, 0, 0], [0, 0, 0.6]), plane_nodes=[0], plane_normal=[Z], line_nodes=[1],
-        line_direction=[[0, 0.3, 1.0]]),
+        ([0.8, 0, 0], [0, 0, 0.6]),
+        plane_nodes=[0],
+        plane_normal=[Z],
+        line_nodes=[1],
+        line_direction=[[0, 0.3, 1.0]],
+    ),
     "skew lines": lambda: held_rod(
-        ([0.8, 0, 0], [0, 0, 0.6]), line_nodes=[0, 1], line_direction=[[1.0, 0.2, 0], [0.1, 0.3, 1.0]]),
+        ([0.8, 0, 0], [0, 0, 0.6]),
+        line_nodes=[0, 1],
+        line_direction=[[1.0, 0.2, 0], [0.1, 0.3, 1.0]],
+    ),
     "planar trammel": lambda: planar_held([[1.0, 0.3], [0.2, 1.0]]),
 }
 
@@ -134,15 +160,21 @@ def test_exact_tree_has_our_degrees_of_freedom_and_initial_state(name):
     model, data = load(s)
     assert model.neq == 0 and model.ntendon == s.n_tendons
     assert model.nv == our_dof(s) + spins(model)
-    np.testing.assert_allclose(mujoco_node_velocities(model, data, s.n_nodes, dim=s.dim),
-                               s.node_velocity, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(
+        mujoco_node_velocities(model, data, s.n_nodes, dim=s.dim),
+        s.node_velocity,
+        rtol=0,
+        atol=1e-12,
+    )
     mujoco.mj_forward(model, data)
     assert data.energy[1] == pytest.approx(
-        float(dynamics.kinetic_energy(s, dynamics.initial_state(s).qdot)), rel=1e-12)
+        float(dynamics.kinetic_energy(s, dynamics.initial_state(s).qdot)), rel=1e-12
+    )
 
 
-@pytest.mark.parametrize(("name", "gravity"),
-                         [(name, GRAVITY if k % 2 else None) for k, name in enumerate(EXACT)])
+@pytest.mark.parametrize(
+    ("name", "gravity"), [(name, GRAVITY if k % 2 else None) for k, name in enumerate(EXACT)]
+)
 def test_exact_tree_same_steps_as_our_rk4(name, gravity):
     """Measured 1e-14 .. 1e-13 m over 0.1 s (5e-14 .. 6e-13 m over 0.5 s at dt = 1e-4, with
     gravity and without); MuJoCo's held nodes stay on their planes and lines to round-off while
@@ -155,9 +187,15 @@ def test_exact_tree_same_steps_as_our_rk4(name, gravity):
 
 
 # ------------------------------------------------------------------------------ closed loops
-@pytest.mark.parametrize(("name", "gravity"), [("ladder against a wall", GRAVITY),
-                                               ("plane and a skew line", None),
-                                               ("skew lines", GRAVITY), ("planar trammel", None)])
+@pytest.mark.parametrize(
+    ("name", "gravity"),
+    [
+        ("ladder against a wall", GRAVITY),
+        ("plane and a skew line", None),
+        ("skew lines", GRAVITY),
+        ("planar trammel", None),
+    ],
+)
 def test_closed_loop_follows_our_rk4(name, gravity):
     """The other end is held by tendon equalities (soft: time constant 2 dt): measured
     4e-8 .. 5.6e-7 m over 0.15 s, all of it the held node lagging off its plane or line (the
@@ -183,15 +221,16 @@ def test_closed_loop_model():
     assert model.ntendon == s.n_tendons + 2
     names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_TENDON, k) for k in range(model.ntendon)]
     assert tuple(names[: s.n_tendons]) == s.tendon_name
-    np.testing.assert_array_equal(model.tendon_stiffness[s.n_tendons:], 0.0)
+    np.testing.assert_array_equal(model.tendon_stiffness[s.n_tendons :], 0.0)
     mujoco.mj_forward(model, data)
-    lengths = data.ten_length[s.n_tendons:]
+    lengths = data.ten_length[s.n_tendons :]
     assert lengths[0] == lengths[1] == pytest.approx(10.0 * s.rod_length.max())
     sites = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, f"hold0{end}") for end in "ab"]
     mirror = data.site_xpos[sites].copy()
     np.testing.assert_allclose(mirror[:, 1:], [s.node_position[1, 1:]] * 2, rtol=0, atol=1e-15)
-    np.testing.assert_allclose(mirror[:, 0], [10.0 * s.rod_length.max(), -10.0 * s.rod_length.max()],
-                               rtol=1e-15)
+    np.testing.assert_allclose(
+        mirror[:, 0], [10.0 * s.rod_length.max(), -10.0 * s.rod_length.max()], rtol=1e-15
+    )
 
 
 # --------------------------------------------------------------------------------- the CLI
@@ -202,27 +241,66 @@ def test_cli_exports_a_structure_file_with_held_rods(tmp_path, capsys):
     s = LOOPS["skew lines"]()
     write_network(tmp_path / "skew.json", s)
     out = tmp_path / "skew.xml"
-    assert main(["export", "--structure", str(tmp_path / "skew.json"), "--format", "mjcf",
-                 "-o", str(out)]) == 0
+    assert (
+        main(
+            [
+                "export",
+                "--structure",
+                str(tmp_path / "skew.json"),
+                "--format",
+                "mjcf",
+                "-o",
+                str(out),
+            ]
+        )
+        == 0
+    )
     assert "(mjcf:" in capsys.readouterr().out
     model = mujoco.MjModel.from_xml_path(str(out))
     assert model.neq == 2 and model.ntendon == s.n_tendons + 4
 
     damped = s.replace(rod_damping=[0.5, 0.0])
     write_network(tmp_path / "damped.json", damped)
-    assert main(["export", "--structure", str(tmp_path / "damped.json"), "--format", "mjcf",
-                 "-o", str(tmp_path / "damped.xml")]) != 0
+    assert (
+        main(
+            [
+                "export",
+                "--structure",
+                str(tmp_path / "damped.json"),
+                "--format",
+                "mjcf",
+                "-o",
+                str(tmp_path / "damped.xml"),
+            ]
+        )
+        != 0
+    )
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "rods[0].damping" in err
     assert not (tmp_path / "damped.xml").exists()
-    assert main(["export", "--structure", str(tmp_path / "skew.json"), "--kind", "prism",
-                 "-o", str(out)]) != 0
+    assert (
+        main(
+            [
+                "export",
+                "--structure",
+                str(tmp_path / "skew.json"),
+                "--kind",
+                "prism",
+                "-o",
+                str(out),
+            ]
+        )
+        != 0
+    )
     assert "cannot be combined with --structure" in capsys.readouterr().err
-
 
 
 def test_a_tendon_named_like_a_closure_tendon_is_refused():
     s = LOOPS["ladder against a wall"]()
-    with pytest.raises(ValueError, match=r"^tendons: the name 'hold0b' is taken by a closure tendon"):
+    with pytest.raises(
+        ValueError, match=r"^tendons: the name 'hold0b' is taken by a closure tendon"
+    ):
         to_mjcf(s.replace(tendon_name=["t0", "hold0b", "t2", "t3"]))
-    to_mjcf(EXACT["parallel planes"]().replace(tendon_name=["t0", "hold0b", "t2", "t3"]))  # no closure
+    to_mjcf(
+        EXACT["parallel planes"]().replace(tendon_name=["t0", "hold0b", "t2", "t3"])
+    )  # no closure

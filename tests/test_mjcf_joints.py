@@ -19,8 +19,9 @@ mujoco = pytest.importorskip("mujoco")
 def max_difference_from_mujoco(structure, t_end, gravity, dt=1e-4, samples=10):
     """Largest node-position difference [m] between our run (tight tolerances) and MuJoCo's RK4
     at step ``dt``, at ``samples`` equally spaced times; and our largest kinetic energy [J]."""
-    ours = simulate(structure, (0.0, t_end), gravity=gravity, sample_dt=t_end / samples,
-                    rtol=1e-11, atol=1e-13)
+    ours = simulate(
+        structure, (0.0, t_end), gravity=gravity, sample_dt=t_end / samples, rtol=1e-11, atol=1e-13
+    )
     assert ours.status == 0, ours.message
     model = mujoco.MjModel.from_xml_string(to_mjcf(structure, timestep=dt, gravity=gravity))
     data = mujoco.MjData(model)
@@ -60,7 +61,9 @@ def test_model_has_the_constraints_and_bodies():
     site = {mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_SITE, k): k for k in range(model.nsite)}
     for anchor in (4, 5, 7):
         assert model.site_bodyid[site[f"node{anchor}"]] == 0
-        np.testing.assert_array_equal(model.site_pos[site[f"node{anchor}"]], s.node_position[anchor])
+        np.testing.assert_array_equal(
+            model.site_pos[site[f"node{anchor}"]], s.node_position[anchor]
+        )
     pinned = class2_shell(3, 2, fixed_base=True)
     model = mujoco.MjModel.from_xml_string(to_mjcf(pinned))
     assert model.neq == len(pinned.joint_nodes) + int(pinned.node_fixed.sum())

@@ -30,7 +30,9 @@ PLANAR_GRAVITY = GRAVITY[[0, 2]]
 def same_steps(structure, gravity=None):
     """Largest node-position difference [m] between MuJoCo's RK4 and ours (same dt) over T_END,
     our run, and which tendons went slack in MuJoCo."""
-    ours = simulate(structure, (0.0, T_END), method="rk4", dt=DT, sample_dt=SAMPLE_DT, gravity=gravity)
+    ours = simulate(
+        structure, (0.0, T_END), method="rk4", dt=DT, sample_dt=SAMPLE_DT, gravity=gravity
+    )
     assert ours.success, ours.message
     positions, went_slack = run_mujoco(structure, T_END, DT, gravity=gravity)
     return max_difference(positions, ours.node_position).max(), ours, went_slack
@@ -58,10 +60,12 @@ def test_planar_model_is_three_dof_rods_in_the_plane():
     expected = np.concatenate([[m, m, m * L**2 / 12] for m, L in zip(s.rod_mass, s.rod_length)])
     np.testing.assert_allclose(full, np.diag(expected), rtol=0, atol=1e-14)
     # Initial state read back as 2-D; the sites lie in z = 0.
-    np.testing.assert_allclose(mujoco_node_positions(model, data, s.n_nodes, dim=2), s.node_position,
-                               rtol=0, atol=1e-15)
-    np.testing.assert_allclose(mujoco_node_velocities(model, data, s.n_nodes, dim=2), s.node_velocity,
-                               rtol=0, atol=1e-14)
+    np.testing.assert_allclose(
+        mujoco_node_positions(model, data, s.n_nodes, dim=2), s.node_position, rtol=0, atol=1e-15
+    )
+    np.testing.assert_allclose(
+        mujoco_node_velocities(model, data, s.n_nodes, dim=2), s.node_velocity, rtol=0, atol=1e-14
+    )
     assert np.abs(mujoco_node_positions(model, data, s.n_nodes)[:, 2]).max() == 0.0
 
 
@@ -109,8 +113,12 @@ def test_planar_fixed_node_and_line_same_steps():
     v[[0, 1]] = 0.0  # rod 0 starts at rest: node 0 is fixed
     v[3] -= v[2]  # rod 1: node 2 starts at rest too (any velocity along the line would do)
     v[2] = 0.0
-    s = s.replace(node_velocity=v, node_fixed=[True, False, False, False], line_nodes=[2],
-                  line_direction=[[1.0, 1.0]])
+    s = s.replace(
+        node_velocity=v,
+        node_fixed=[True, False, False, False],
+        line_nodes=[2],
+        line_direction=[[1.0, 1.0]],
+    )
     difference, ours, _ = same_steps(s, gravity=PLANAR_GRAVITY)
     assert difference < 1e-6, difference  # measured 5.8e-10 (the soft connect)
     p = ours.node_position
@@ -121,8 +129,15 @@ def test_planar_fixed_node_and_line_same_steps():
 
 # ------------------------------------------------------------------ plane and line constraints
 def test_pendulum_sliding_on_a_line_same_steps():
-    s = Structure(node_position=[[0, 0, 0], [0.6, 0.0, -0.8]], rod_nodes=[[0, 1]], rod_mass=[1.0],
-                  rod_length=[1.0], line_nodes=[0], line_direction=[[2.0, 0, 0]], **NO_TENDONS)
+    s = Structure(
+        node_position=[[0, 0, 0], [0.6, 0.0, -0.8]],
+        rod_nodes=[[0, 1]],
+        rod_mass=[1.0],
+        rod_length=[1.0],
+        line_nodes=[0],
+        line_direction=[[2.0, 0, 0]],
+        **NO_TENDONS,
+    )
     difference, ours, _ = same_steps(s, gravity=GRAVITY)
     assert difference < 1e-9, difference
     assert np.ptp(ours.node_position[:, 0, 0]) > 0.05
@@ -149,10 +164,17 @@ def tripod():
         v += [w, apex_v]
     return Structure(
         node_position=np.array([feet[0], apex, feet[1], apex, feet[2], apex]),
-        node_velocity=np.array(v), rod_nodes=[[0, 1], [2, 3], [4, 5]], rod_mass=[1.2] * 3,
-        rod_length=[L] * 3, joint_nodes=[[1, 3], [3, 5]], plane_nodes=[0, 2, 4],
-        plane_normal=[[0, 0, 1.0]] * 3, tendon_nodes=[[0, 2], [2, 4], [4, 0]],
-        tendon_stiffness=[80.0] * 3, tendon_rest_length=[0.9] * 3)
+        node_velocity=np.array(v),
+        rod_nodes=[[0, 1], [2, 3], [4, 5]],
+        rod_mass=[1.2] * 3,
+        rod_length=[L] * 3,
+        joint_nodes=[[1, 3], [3, 5]],
+        plane_nodes=[0, 2, 4],
+        plane_normal=[[0, 0, 1.0]] * 3,
+        tendon_nodes=[[0, 2], [2, 4], [4, 0]],
+        tendon_stiffness=[80.0] * 3,
+        tendon_rest_length=[0.9] * 3,
+    )
 
 
 @pytest.mark.parametrize("gravity", [None, GRAVITY])
@@ -170,12 +192,25 @@ def test_bead_on_a_line_payload_on_a_plane_and_a_block_sliding_down_a_plane():
     swinging under gravity; and a point mass on an inclined plane slides down it at
     g sin(theta), in MuJoCo alone (a closed form)."""
     bead = Structure(
-        node_position=[[0.0, 0, 0], [1.0, 0, 0.5], [-1.0, 0.2, 0.5], [0.3, 0.1, 0.1], [0.3, 0.1, 0.9]],
-        node_velocity=[[0.5, 0.5, 0.0]] + [[0.0] * 3] * 4, rod_nodes=[[3, 4]], rod_mass=[1.0],
-        rod_length=[0.8], node_fixed=[False, True, True, False, False],
-        node_point_mass=[0.5, 0, 0, 0, 0], line_nodes=[0], line_direction=[[1.0, 1.0, 0.0]],
+        node_position=[
+            [0.0, 0, 0],
+            [1.0, 0, 0.5],
+            [-1.0, 0.2, 0.5],
+            [0.3, 0.1, 0.1],
+            [0.3, 0.1, 0.9],
+        ],
+        node_velocity=[[0.5, 0.5, 0.0]] + [[0.0] * 3] * 4,
+        rod_nodes=[[3, 4]],
+        rod_mass=[1.0],
+        rod_length=[0.8],
+        node_fixed=[False, True, True, False, False],
+        node_point_mass=[0.5, 0, 0, 0, 0],
+        line_nodes=[0],
+        line_direction=[[1.0, 1.0, 0.0]],
         tendon_nodes=[[0, 1], [0, 2], [0, 3], [4, 1], [4, 2]],
-        tendon_stiffness=[40.0, 60.0, 30.0, 50.0, 50.0], tendon_rest_length=[0.8, 0.9, 0.1, 0.5, 0.5])
+        tendon_stiffness=[40.0, 60.0, 30.0, 50.0, 50.0],
+        tendon_rest_length=[0.8, 0.9, 0.1, 0.5, 0.5],
+    )
     difference, ours, _ = same_steps(bead, gravity=GRAVITY)
     assert difference < 1e-9, difference  # measured 3e-13
     path = ours.node_position[:, 0]
@@ -188,16 +223,24 @@ def test_bead_on_a_line_payload_on_a_plane_and_a_block_sliding_down_a_plane():
 
     theta = 0.3
     normal = np.array([np.sin(theta), 0, np.cos(theta)])
-    block = Structure(node_position=[[0.0, 0, 0]], rod_nodes=np.zeros((0, 2), int), rod_mass=[],
-                      rod_length=[], node_point_mass=[2.0], plane_nodes=[0], plane_normal=[normal],
-                      **NO_TENDONS)
+    block = Structure(
+        node_position=[[0.0, 0, 0]],
+        rod_nodes=np.zeros((0, 2), int),
+        rod_mass=[],
+        rod_length=[],
+        node_point_mass=[2.0],
+        plane_nodes=[0],
+        plane_normal=[normal],
+        **NO_TENDONS,
+    )
     model, data = load(block, gravity=GRAVITY)
     assert model.nv == 2
     for _ in range(round(T_END / 1e-4)):
         mujoco.mj_step(model, data)
     along = GRAVITY - (GRAVITY @ normal) * normal
-    np.testing.assert_allclose(mujoco_node_positions(model, data, 1)[0], T_END**2 / 2 * along,
-                               rtol=0, atol=1e-12)
+    np.testing.assert_allclose(
+        mujoco_node_positions(model, data, 1)[0], T_END**2 / 2 * along, rtol=0, atol=1e-12
+    )
 
 
 # ------------------------------------------------------------------------------ refusals
@@ -222,8 +265,8 @@ def test_read_back_dimension_is_checked():
 
 @pytest.mark.parametrize("kind", ["planar", "rod"])
 def test_cli_exports_planar_kinds_to_mjcf(kind, tmp_path, capsys):
-    from tensegrity.design import catalogue as generators
     from tensegrity.cli.main import main
+    from tensegrity.design import catalogue as generators
 
     path = tmp_path / "p.xml"
     assert main(["export", "--kind", kind, "--format", "mjcf", "-o", str(path)]) == 0
@@ -233,5 +276,9 @@ def test_cli_exports_planar_kinds_to_mjcf(kind, tmp_path, capsys):
     data = mujoco.MjData(model)
     mujoco.mj_resetDataKeyframe(model, data, 0)
     assert model.nv == 3 * expected.n_rods and model.ntendon == expected.n_tendons
-    np.testing.assert_allclose(mujoco_node_positions(model, data, expected.n_nodes, dim=2),
-                               expected.node_position, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(
+        mujoco_node_positions(model, data, expected.n_nodes, dim=2),
+        expected.node_position,
+        rtol=0,
+        atol=1e-15,
+    )

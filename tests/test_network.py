@@ -9,9 +9,9 @@ import pytest
 import yaml
 
 from tensegrity import class1_shell, critical_damping
-from tensegrity.physics import dynamics
-from tensegrity.model.connectivity import from_connectivity, to_connectivity
 from tensegrity.io.formats import network_from_dict, network_to_dict, read_network, write_network
+from tensegrity.model.connectivity import from_connectivity, to_connectivity
+from tensegrity.physics import dynamics
 
 
 def varied_shell():
@@ -47,9 +47,17 @@ def test_from_connectivity_round_trip():
     s = varied_shell()
     N, C_b, C_s = to_connectivity(s)
     again = from_connectivity(
-        N, C_b, C_s, rod_mass=s.rod_mass, rod_length=s.rod_length, rod_damping=s.rod_damping,
-        tendon_stiffness=s.tendon_stiffness, tendon_rest_length=s.tendon_rest_length,
-        tendon_damping=s.tendon_damping, tendon_name=s.tendon_name, node_velocity=s.node_velocity.T,
+        N,
+        C_b,
+        C_s,
+        rod_mass=s.rod_mass,
+        rod_length=s.rod_length,
+        rod_damping=s.rod_damping,
+        tendon_stiffness=s.tendon_stiffness,
+        tendon_rest_length=s.tendon_rest_length,
+        tendon_damping=s.tendon_damping,
+        tendon_name=s.tendon_name,
+        node_velocity=s.node_velocity.T,
     )
     assert again.to_dict() == s.to_dict()
     # Defaults: bar lengths from N (to round-off), scalars broadcast.
@@ -70,7 +78,9 @@ def test_prestrain_sets_rest_lengths():
     eps = np.linspace(0.01, 0.2, s.n_tendons)
     p = from_connectivity(N, C_b, C_s, tendon_prestrain=eps, tendon_stiffness=80.0)
     length = dynamics.tendon_lengths(p, p.node_position)
-    np.testing.assert_allclose((length - p.tendon_rest_length) / p.tendon_rest_length, eps, rtol=1e-12)
+    np.testing.assert_allclose(
+        (length - p.tendon_rest_length) / p.tendon_rest_length, eps, rtol=1e-12
+    )
     tension = dynamics.tendon_tensions(p, p.node_position)
     np.testing.assert_allclose(tension, 80.0 * length * eps / (1 + eps), rtol=1e-12)
 
@@ -88,8 +98,11 @@ def test_readable_form_is_readable_and_uses_defaults(tmp_path):
     """Shared values go to defaults; YAML and TOML hold the same document."""
     s = class1_shell(3, 1)
     data = network_to_dict(s)
-    assert data["defaults"]["tendon"] == {"stiffness": 100.0, "rest_length": s.tendon_rest_length[0],
-                                          "damping": 0.0}
+    assert data["defaults"]["tendon"] == {
+        "stiffness": 100.0,
+        "rest_length": s.tendon_rest_length[0],
+        "damping": 0.0,
+    }
     assert data["tendons"][0] == {"name": "t1_1_1", "nodes": ["n4", "n1"]}
     assert "velocities" not in data  # all zero
     write_network(tmp_path / "s.yaml", s)
@@ -124,15 +137,22 @@ tendons:
     assert s.tendon_name == ("bottom", "top")
     np.testing.assert_allclose(s.tendon_rest_length, [1 / 1.1, 0.5], rtol=1e-15)
     assert s.tendon_stiffness.tolist() == [50.0, 50.0] and s.tendon_damping.tolist() == [0.0, 1.5]
-    listed = network_from_dict({"nodes": [[0, 0, 0], [0, 0, 1], [1, 0, 0], [1, 0, 1]],
-                                "rods": [{"nodes": [0, 1]}, {"nodes": [2, 3]}],
-                                "tendons": [{"nodes": [0, 2], "rest_length": 0.9}]})
+    listed = network_from_dict(
+        {
+            "nodes": [[0, 0, 0], [0, 0, 1], [1, 0, 0], [1, 0, 1]],
+            "rods": [{"nodes": [0, 1]}, {"nodes": [2, 3]}],
+            "tendons": [{"nodes": [0, 2], "rest_length": 0.9}],
+        }
+    )
     assert listed.tendon_nodes.tolist() == [[0, 2]] and listed.tendon_name == ("s0",)
     # YAML reads a node called 1 as an integer: such names work too
-    numbered = network_from_dict(yaml.safe_load(
-        "nodes: {1: [0, 0, 0], 2: [0, 0, 1], 3: [1, 0, 0], 4: [1, 0, 1]}\n"
-        "rods: [{nodes: [1, 2]}, {nodes: [3, 4]}]\n"
-        "tendons: [{nodes: [1, 3], rest_length: 0.9}]\n"))
+    numbered = network_from_dict(
+        yaml.safe_load(
+            "nodes: {1: [0, 0, 0], 2: [0, 0, 1], 3: [1, 0, 0], 4: [1, 0, 1]}\n"
+            "rods: [{nodes: [1, 2]}, {nodes: [3, 4]}]\n"
+            "tendons: [{nodes: [1, 3], rest_length: 0.9}]\n"
+        )
+    )
     assert numbered.tendon_nodes.tolist() == [[0, 2]]
 
 
@@ -148,18 +168,32 @@ def square():
 @pytest.mark.parametrize(
     ("change", "message"),
     [
-        (lambda N, B, S: (N.T, B, S), r"^N: expected shape \(3, n\) or \(2, n\), got \(4, 3\) \(one column per node"),
-        (lambda N, B, S: (N, B, np.hstack([S, [[1], [0]]])), r"^C_s: has 5 columns but N has 4 nodes"),
-        (lambda N, B, S: (N, B, np.array([[-1, 0, 1, 1], [0, -1, 0, 1]])),
-         r"^C_s\[0\]: expected exactly one -1 and one \+1 \(zeros elsewhere\), got -1 at \[0\], "
-         r"\+1 at \[2, 3\]"),
-        (lambda N, B, S: (N, np.array([[-1, 1, 0, 0], [0, 0, -1, 2]]), S),
-         r"^C_b\[1\]: expected exactly one -1 and one \+1.*2\.0 at 3"),
-        (lambda N, B, S: (N, np.array([[-1, 1, 0, 0], [0, 1, -1, 0]]), S),
-         r"^bars: node 1 is an end of bars \[0, 1\]; .*class 2 joint.*pass ball_joints=True"),
+        (
+            lambda N, B, S: (N.T, B, S),
+            r"^N: expected shape \(3, n\) or \(2, n\), got \(4, 3\) \(one column per node",
+        ),
+        (
+            lambda N, B, S: (N, B, np.hstack([S, [[1], [0]]])),
+            r"^C_s: has 5 columns but N has 4 nodes",
+        ),
+        (
+            lambda N, B, S: (N, B, np.array([[-1, 0, 1, 1], [0, -1, 0, 1]])),
+            r"^C_s\[0\]: expected exactly one -1 and one \+1 \(zeros elsewhere\), got -1 at \[0\], "
+            r"\+1 at \[2, 3\]",
+        ),
+        (
+            lambda N, B, S: (N, np.array([[-1, 1, 0, 0], [0, 0, -1, 2]]), S),
+            r"^C_b\[1\]: expected exactly one -1 and one \+1.*2\.0 at 3",
+        ),
+        (
+            lambda N, B, S: (N, np.array([[-1, 1, 0, 0], [0, 1, -1, 0]]), S),
+            r"^bars: node 1 is an end of bars \[0, 1\]; .*class 2 joint.*pass ball_joints=True",
+        ),
         (lambda N, B, S: (N, B[:1], S), r"^nodes\[2\]: belongs to no bar"),
-        (lambda N, B, S: (np.array([[0, 0, 1, 1], [0, 0, 0, 0], [0, 0, 0, 1.0]]), B, S),
-         r"^C_b\[0\]: bar joins nodes 0 and 1, which coincide \(zero length\)"),
+        (
+            lambda N, B, S: (np.array([[0, 0, 1, 1], [0, 0, 0, 0], [0, 0, 0, 1.0]]), B, S),
+            r"^C_b\[0\]: bar joins nodes 0 and 1, which coincide \(zero length\)",
+        ),
     ],
 )
 def test_bad_connectivity_names_the_field(change, message):
@@ -172,7 +206,9 @@ def test_bad_parameters_name_the_field():
     N, C_b, C_s = square()
     with pytest.raises(ValueError, match="^tendon_rest_length, tendon_prestrain: give exactly one"):
         from_connectivity(N, C_b, C_s)
-    with pytest.raises(ValueError, match=r"^tendon_stiffness: expected a number or 2 values, got shape \(3,\)"):
+    with pytest.raises(
+        ValueError, match=r"^tendon_stiffness: expected a number or 2 values, got shape \(3,\)"
+    ):
         from_connectivity(N, C_b, C_s, tendon_rest_length=0.9, tendon_stiffness=[1, 2, 3])
     with pytest.raises(ValueError, match=r"^tendon_prestrain\[1\]: must be finite and > -1"):
         from_connectivity(N, C_b, C_s, tendon_prestrain=[0.1, -1.0])
@@ -180,37 +216,67 @@ def test_bad_parameters_name_the_field():
         from_connectivity(N, C_b, C_s, tendon_rest_length=0.9, rod_mass=[1, 0])
 
 
-BASE = {"nodes": {"a": [0, 0, 0], "b": [0, 0, 1], "c": [1, 0, 0], "d": [1, 0, 1]},
-        "rods": [{"nodes": ["a", "b"]}, {"nodes": ["c", "d"]}],
-        "tendons": [{"name": "s", "nodes": ["a", "c"], "rest_length": 0.9}]}
+BASE = {
+    "nodes": {"a": [0, 0, 0], "b": [0, 0, 1], "c": [1, 0, 0], "d": [1, 0, 1]},
+    "rods": [{"nodes": ["a", "b"]}, {"nodes": ["c", "d"]}],
+    "tendons": [{"name": "s", "nodes": ["a", "c"], "rest_length": 0.9}],
+}
 
 
 @pytest.mark.parametrize(
     ("patch", "message"),
     [
-        ({"tendons": [{"name": "s", "nodes": ["a", "x7"], "rest_length": 0.9}]},
-         r"^tendons\[0\] \('s'\)\.nodes: no node named 'x7'"),
-        ({"tendons": [{"name": "s", "nodes": ["a", "c"], "rest_length": 0.9}], "fixed": ["a", "x"]},
-         r"^fixed\[1\]: no node named 'x'"),
-        ({"point_masses": [{"node": "a", "mas": 1}]},
-         r"^point_masses\[0\]: unknown key 'mas' \(expected one of node, mass\)"),
-        ({"planes": [{"node": "a", "normal": [0, 1]}]}, r"^planes\[0\]\.normal: expected a list of 3"),
-        ({"rods": [{"nodes": ["a", "b"]}, {"nodes": ["c", "d"], "mas": 1}]},
-         r"^rods\[1\]: unknown key 'mas' \(expected one of nodes, mass, length, damping\)"),
-        ({"tendons": [{"name": "s", "nodes": ["a", "c"]}]},
-         r"^tendons\[0\]: needs exactly one of rest_length \[m\] or prestrain"),
-        ({"tendons": [{"nodes": ["a", "c"], "rest_length": 0.9, "prestrain": 0.1}]},
-         r"^tendons\[0\]: needs exactly one of rest_length"),
-        ({"tendons": [{"nodes": ["a", "c"], "rest_length": "long"}]},
-         r"^tendons\[0\]\.rest_length: expected a number"),
-        ({"nodes": {"a": [0, 0, 0], "b": [0, 0, 0], "c": [1, 0, 0], "d": [1, 0, 1]}},
-         r"^rods\[0\]\.nodes: 'a' and 'b' coincide \(zero length\)"),
-        ({"nodes": {"a": [0, 0], "b": [0, 0, 1], "c": [1, 0, 0], "d": [1, 0, 1]}},
-         r"^nodes\.b: expected a list of 2 numbers \[x, y\] \(the structure is planar\)"),
-        ({"tendons": [{"nodes": ["a", ["c"]], "rest_length": 0.9}]},
-         r"^tendons\[0\]\.nodes: no node \['c'\]"),
-        ({"nodes": {"a": [0, 0, 0], True: [0, 0, 1], "c": [1, 0, 0], "d": [1, 0, 1]}},
-         r"^nodes: node names must be non-empty strings \(or integers\), got True"),
+        (
+            {"tendons": [{"name": "s", "nodes": ["a", "x7"], "rest_length": 0.9}]},
+            r"^tendons\[0\] \('s'\)\.nodes: no node named 'x7'",
+        ),
+        (
+            {
+                "tendons": [{"name": "s", "nodes": ["a", "c"], "rest_length": 0.9}],
+                "fixed": ["a", "x"],
+            },
+            r"^fixed\[1\]: no node named 'x'",
+        ),
+        (
+            {"point_masses": [{"node": "a", "mas": 1}]},
+            r"^point_masses\[0\]: unknown key 'mas' \(expected one of node, mass\)",
+        ),
+        (
+            {"planes": [{"node": "a", "normal": [0, 1]}]},
+            r"^planes\[0\]\.normal: expected a list of 3",
+        ),
+        (
+            {"rods": [{"nodes": ["a", "b"]}, {"nodes": ["c", "d"], "mas": 1}]},
+            r"^rods\[1\]: unknown key 'mas' \(expected one of nodes, mass, length, damping\)",
+        ),
+        (
+            {"tendons": [{"name": "s", "nodes": ["a", "c"]}]},
+            r"^tendons\[0\]: needs exactly one of rest_length \[m\] or prestrain",
+        ),
+        (
+            {"tendons": [{"nodes": ["a", "c"], "rest_length": 0.9, "prestrain": 0.1}]},
+            r"^tendons\[0\]: needs exactly one of rest_length",
+        ),
+        (
+            {"tendons": [{"nodes": ["a", "c"], "rest_length": "long"}]},
+            r"^tendons\[0\]\.rest_length: expected a number",
+        ),
+        (
+            {"nodes": {"a": [0, 0, 0], "b": [0, 0, 0], "c": [1, 0, 0], "d": [1, 0, 1]}},
+            r"^rods\[0\]\.nodes: 'a' and 'b' coincide \(zero length\)",
+        ),
+        (
+            {"nodes": {"a": [0, 0], "b": [0, 0, 1], "c": [1, 0, 0], "d": [1, 0, 1]}},
+            r"^nodes\.b: expected a list of 2 numbers \[x, y\] \(the structure is planar\)",
+        ),
+        (
+            {"tendons": [{"nodes": ["a", ["c"]], "rest_length": 0.9}]},
+            r"^tendons\[0\]\.nodes: no node \['c'\]",
+        ),
+        (
+            {"nodes": {"a": [0, 0, 0], True: [0, 0, 1], "c": [1, 0, 0], "d": [1, 0, 1]}},
+            r"^nodes: node names must be non-empty strings \(or integers\), got True",
+        ),
         ({"format": "other"}, r"^format: expected 'tensegrity-network'"),
         ({"version": 2}, r"^version: this library reads version <= 1"),
         ({"extra": 1}, r"^network: unknown key 'extra'"),
@@ -228,7 +294,10 @@ def test_bad_files_are_one_line_starting_with_the_name(tmp_path):
         "missing.yaml": (None, "no such file"),
         "s.txt": ("", "unknown structure file suffix '.txt'"),
         "bad.npz": ("not a zip", "not a NumPy .npz archive"),
-        "node.toml": ('[nodes]\na = [0, 0, 0]\nb = [0, 0, 1]\nrods = 1\n', "nodes.rods: expected a list of 3"),
+        "node.toml": (
+            "[nodes]\na = [0, 0, 0]\nb = [0, 0, 1]\nrods = 1\n",
+            "nodes.rods: expected a list of 3",
+        ),
     }
     for name, (text, words) in cases.items():
         path = tmp_path / name

@@ -124,7 +124,9 @@ def test_tendon_lengths_figure_labels_and_legends(result):
     assert "[s]" in ax.get_xlabel() and "[m]" in ax.get_ylabel()
     assert len(ax.get_lines()) == 4
     # a shell's 24 tendons: one entry per family t1..t8
-    shell = figure_tendon_lengths(t, lengths, names, rest_length=result.structure.tendon_rest_length)
+    shell = figure_tendon_lengths(
+        t, lengths, names, rest_length=result.structure.tendon_rest_length
+    )
     assert legend_texts(shell.axes[0]) == [f"t{a} (3)" for a in range(1, 9)]
     # many unrelated names: no legend, a note instead
     odd = [f"tendon-{k}" for k in range(len(names))]
@@ -145,8 +147,11 @@ def test_figures_of_a_structure_without_taut_tendons(tmp_path, tendons):
     structure = Structure(
         node_position=[[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]],
         node_velocity=[[0, 0.5, 0], [0, 0.5, 0], [0, -0.5, 0], [0, -0.5, 0]],
-        rod_nodes=[[0, 1], [2, 3]], rod_mass=[1.0, 1.0], rod_length=[1.0, 1.0],
-        tendon_nodes=[[0, 2]][:tendons], tendon_stiffness=[10.0][:tendons],
+        rod_nodes=[[0, 1], [2, 3]],
+        rod_mass=[1.0, 1.0],
+        rod_length=[1.0, 1.0],
+        tendon_nodes=[[0, 2]][:tendons],
+        tendon_stiffness=[10.0][:tendons],
         tendon_rest_length=[0.9][:tendons],
     )
     r = simulate(structure, (0.0, 0.5), sample_dt=0.05)

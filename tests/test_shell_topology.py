@@ -32,9 +32,7 @@ def expected_tendons(n: int, m: int, primal: bool) -> list[tuple[str, int, int]]
         for i in range(1, n + 1):
 
             def add(alpha, head, tail):
-                result.append(
-                    (f"t{alpha}_{i}_{j}", node(*tail, n=n), node(*head, n=n))
-                )
+                result.append((f"t{alpha}_{i}_{j}", node(*tail, n=n), node(*head, n=n)))
 
             # t1: j = 1: p2(i,1) - p1(i+1,1); 1 < j <= m: p2(i,j) - p4(i,j-1)
             if j == 1:
@@ -132,7 +130,9 @@ HAND_ENTRIES = {
 }
 
 
-@pytest.mark.parametrize("key", list(HAND_ENTRIES), ids=[f"{k[0]}x{k[1]}-{k[2]}" for k in HAND_ENTRIES])
+@pytest.mark.parametrize(
+    "key", list(HAND_ENTRIES), ids=[f"{k[0]}x{k[1]}-{k[2]}" for k in HAND_ENTRIES]
+)
 def test_hand_computed_entries(key):
     n, m, name = key
     table = {nm: (tail, head) for nm, tail, head in shell_tendons(n, m)}
@@ -202,8 +202,12 @@ def test_no_tendon_doubles_a_rod_or_another_tendon(n, m):
 @pytest.mark.parametrize("n, m", [(3, 1), (3, 4), (6, 2), (8, 5)])
 def test_node_index_follows_stacking_order(n, m):
     # q = [q_11 ... q_n1, q_12 ... q_n2, ...], each q_ij over p1..p4: k fastest, then i, then j.
-    order = [shell_node_index(k, i, j, n) for j in range(1, m + 1) for i in range(1, n + 1)
-             for k in range(1, 5)]
+    order = [
+        shell_node_index(k, i, j, n)
+        for j in range(1, m + 1)
+        for i in range(1, n + 1)
+        for k in range(1, 5)
+    ]
     assert order == list(range(4 * n * m))
 
 
@@ -301,7 +305,10 @@ def test_n_fold_symmetry(n, m, params):
     rotate = rotation_z(2 * math.pi / n)
     for k, i, j in itertools.product(range(1, 5), range(1, n + 1), range(1, m + 1)):
         np.testing.assert_allclose(
-            rotate @ p[node(k, i, j, n)], p[node(k, i + 1, j, n)], rtol=0, atol=1e-12,
+            rotate @ p[node(k, i, j, n)],
+            p[node(k, i + 1, j, n)],
+            rtol=0,
+            atol=1e-12,
             err_msg=f"p{k}({i},{j})",
         )
 
@@ -368,7 +375,7 @@ def min_rod_distance(s: Structure, samples: int = 401) -> float:
     best = np.inf
     for r in range(s.n_rods - 1):
         points = a[r] + u[:, None] * (b[r] - a[r])  # (samples, 3)
-        q0, d = a[r + 1:], b[r + 1:] - a[r + 1:]  # (others, 3)
+        q0, d = a[r + 1 :], b[r + 1 :] - a[r + 1 :]  # (others, 3)
         rel = points[None, :, :] - q0[:, None, :]
         t = np.clip(np.einsum("osk,ok->os", rel, d) / np.einsum("ok,ok->o", d, d)[:, None], 0, 1)
         gap = np.linalg.norm(rel - t[..., None] * d[:, None, :], axis=-1)
@@ -454,7 +461,9 @@ BAD_PHYSICAL = [
 ]
 
 
-@pytest.mark.parametrize("param, bad, name", BAD_PHYSICAL, ids=[f"{p}={b}" for p, b, _ in BAD_PHYSICAL])
+@pytest.mark.parametrize(
+    "param, bad, name", BAD_PHYSICAL, ids=[f"{p}={b}" for p, b, _ in BAD_PHYSICAL]
+)
 def test_bad_physical_parameter_names_the_field(param, bad, name):
     with pytest.raises(ValueError, match=name):
         class1_shell(4, 2, **{param: bad})

@@ -111,8 +111,13 @@ def single_rod(position, velocity, mass=1.3, length=None):
     position = np.asarray(position, float)
     length = float(np.linalg.norm(position[1] - position[0])) if length is None else length
     return Structure(
-        node_position=position, node_velocity=velocity, rod_nodes=[[0, 1]], rod_mass=[mass],
-        rod_length=[length], tendon_nodes=np.zeros((0, 2), int), tendon_stiffness=[],
+        node_position=position,
+        node_velocity=velocity,
+        rod_nodes=[[0, 1]],
+        rod_mass=[mass],
+        rod_length=[length],
+        tendon_nodes=np.zeros((0, 2), int),
+        tendon_stiffness=[],
         tendon_rest_length=[],
     )
 
@@ -126,8 +131,15 @@ def free_shell_run():
     DOP853 at rtol 1e-11 with located switches."""
     structure = class1_shell(3, 1)
     v = random_velocities(structure, np.random.default_rng(0), speed=0.5)
-    result = simulate(structure, (0.0, 1.0), initial=state_with_velocities(structure, v),
-                      method="DOP853", rtol=1e-11, atol=1e-13, sample_dt=0.01)
+    result = simulate(
+        structure,
+        (0.0, 1.0),
+        initial=state_with_velocities(structure, v),
+        method="DOP853",
+        rtol=1e-11,
+        atol=1e-13,
+        sample_dt=0.01,
+    )
     assert result.status == 0, result.message
     return result
 
@@ -177,8 +189,11 @@ def test_free_shell_keeps_rod_lengths(free_shell_run):
     assert np.max(rod_length_errors(r.structure, r.node_position)) < 1e-9
     # Rigid: (v_b - v_a) . (p_b - p_a) = 0.
     a, b = r.structure.rod_nodes.T
-    dot = np.sum((r.node_velocity[:, b] - r.node_velocity[:, a])
-                 * (r.node_position[:, b] - r.node_position[:, a]), axis=-1)
+    dot = np.sum(
+        (r.node_velocity[:, b] - r.node_velocity[:, a])
+        * (r.node_position[:, b] - r.node_position[:, a]),
+        axis=-1,
+    )
     assert np.max(np.abs(dot)) < 1e-8
 
 
@@ -203,7 +218,9 @@ def test_symmetric_start_stays_symmetric(n):
     linear, angular = momenta(structure, p, r.node_velocity)
     a, b = structure.rod_nodes.T
     v = r.node_velocity
-    rod_angular = np.linalg.norm(np.cross((p[:, a] + p[:, b]) / 2, (v[:, a] + v[:, b]) / 2), axis=-1)
+    rod_angular = np.linalg.norm(
+        np.cross((p[:, a] + p[:, b]) / 2, (v[:, a] + v[:, b]) / 2), axis=-1
+    )
     scale = np.max(np.sum(structure.rod_mass * rod_angular, axis=-1))
     assert scale > 1.0
     assert np.max(np.abs(linear)) < 1e-12 and np.max(np.abs(angular)) < 1e-9 * scale
@@ -238,7 +255,11 @@ def test_free_rod_spins_at_constant_rate(method):
     position = [c0 - d0 / 2, c0 + d0 / 2]
     velocity = [vc - np.cross(w, d0) / 2, vc + np.cross(w, d0) / 2]
     structure = single_rod(position, velocity, length=L)
-    kw = dict(method="DOP853", rtol=1e-11, atol=1e-13) if method == "DOP853" else dict(method="rk4", dt=2e-3)
+    kw = (
+        dict(method="DOP853", rtol=1e-11, atol=1e-13)
+        if method == "DOP853"
+        else dict(method="rk4", dt=2e-3)
+    )
     r = simulate(structure, (0.0, 3.0), sample_dt=0.05, **kw)
     assert r.status == 0, r.message
     t = r.t[:, None]
@@ -253,7 +274,9 @@ def test_free_rod_spins_at_constant_rate(method):
     assert np.max(np.abs(rate - omega)) < tol * omega
     # Samples come from the integrator's interpolant (DOP853) or the end of an RK4 step, before
     # the projection onto the constraints: they carry one step's truncation error.
-    assert np.max(rod_length_errors(structure, r.node_position)) < (1e-9 if method == "DOP853" else 1e-12)
+    assert np.max(rod_length_errors(structure, r.node_position)) < (
+        1e-9 if method == "DOP853" else 1e-12
+    )
 
 
 def test_gravity_energy_and_free_fall_of_the_centre_of_mass():
@@ -262,8 +285,15 @@ def test_gravity_energy_and_free_fall_of_the_centre_of_mass():
     structure = class1_shell(3, 1)
     g = np.array([0.0, 0.0, -9.81])
     v = random_velocities(structure, np.random.default_rng(4), speed=0.3)
-    r = simulate(structure, (0.0, 0.5), initial=state_with_velocities(structure, v), gravity=g,
-                 rtol=1e-11, atol=1e-13, sample_dt=0.01)
+    r = simulate(
+        structure,
+        (0.0, 0.5),
+        initial=state_with_velocities(structure, v),
+        gravity=g,
+        rtol=1e-11,
+        atol=1e-13,
+        sample_dt=0.01,
+    )
     assert r.status == 0, r.message
     masses = structure.node_mass[:, None]
     centre = np.sum(masses * r.node_position, axis=1) / masses.sum()
@@ -271,7 +301,11 @@ def test_gravity_energy_and_free_fall_of_the_centre_of_mass():
     t = r.t[:, None]
     assert np.max(np.abs(centre - (centre[0] + v0 * t + 0.5 * g * t**2))) < 1e-9
     own_gravity = -np.sum(masses[:, 0] * (r.node_position @ g), axis=1)
-    own = kinetic_energy(structure, r.node_velocity) + elastic_energy(structure, r.node_position) + own_gravity
+    own = (
+        kinetic_energy(structure, r.node_velocity)
+        + elastic_energy(structure, r.node_position)
+        + own_gravity
+    )
     scale = np.max(kinetic_energy(structure, r.node_velocity))
     assert np.max(np.abs(own - own[0])) < 1e-9 * scale
     assert np.max(np.abs(r.total_energy - r.total_energy[0])) < 1e-9 * scale
@@ -293,8 +327,15 @@ def test_work_of_control_and_external_forces_balances_energy():
     def external(t):
         return force * math.cos(3.0 * t)
 
-    r = simulate(structure, (0.0, 0.5), control=control, external_force=external,
-                 rtol=1e-10, atol=1e-12, sample_dt=0.01)
+    r = simulate(
+        structure,
+        (0.0, 0.5),
+        control=control,
+        external_force=external,
+        rtol=1e-10,
+        atol=1e-12,
+        sample_dt=0.01,
+    )
     assert r.status == 0, r.message
     total = r.total_energy
     scale = float(np.max(r.energy["elastic"]))
@@ -303,10 +344,14 @@ def test_work_of_control_and_external_forces_balances_energy():
     assert np.max(np.abs(total - total[0])) < 1e-8 * scale
     # Recompute kinetic + elastic with this file's formulas and the controlled rest lengths.
     rest = structure.tendon_rest_length - np.array([control(t) for t in r.t])
-    el = np.array([elastic_energy(structure, r.node_position[i : i + 1], rest[i])[0]
-                   for i in range(len(r.t))])
+    el = np.array(
+        [elastic_energy(structure, r.node_position[i : i + 1], rest[i])[0] for i in range(len(r.t))]
+    )
     own = kinetic_energy(structure, r.node_velocity) + el
-    assert np.max(np.abs(own - r.energy["external_work"] - r.energy["control_work"] - own[0])) < 1e-8 * scale
+    assert (
+        np.max(np.abs(own - r.energy["external_work"] - r.energy["control_work"] - own[0]))
+        < 1e-8 * scale
+    )
     linear, _ = momenta(structure, r.node_position, r.node_velocity)
     impulse = np.outer(np.sin(3.0 * r.t) / 3.0, force.sum(axis=0))
     assert np.max(np.abs(linear - linear[0] - impulse)) < 1e-9 * max(1.0, np.abs(impulse).max())
@@ -321,7 +366,11 @@ def test_damped_energy_balance(damped_run):
     total = r.total_energy
     e0 = total[0]
     assert np.max(np.abs(total - e0)) < 1e-9 * e0
-    own = kinetic_energy(s, r.node_velocity) + elastic_energy(s, r.node_position) + r.energy["dissipated"]
+    own = (
+        kinetic_energy(s, r.node_velocity)
+        + elastic_energy(s, r.node_position)
+        + r.energy["dissipated"]
+    )
     assert np.max(np.abs(own - e0)) < 1e-9 * e0
     # Most of the energy is gone after 2 s, and it went into the dissipated account.
     assert r.energy["dissipated"][-1] > 0.5 * e0
@@ -389,8 +438,15 @@ def test_rk4_is_fourth_order_on_a_smooth_problem():
     for dt in (0.005, 0.0025, 0.00125, 0.000625):
         # A loose blow-up guard: at dt = 5e-3 one RK4 step changes a rod length by ~1e-6, which
         # is truncation error, not instability.
-        r = simulate(structure, (0.0, T), initial=initial, method="rk4", dt=dt, sample_dt=0.05,
-                     max_rod_length_error=1e-2)
+        r = simulate(
+            structure,
+            (0.0, T),
+            initial=initial,
+            method="rk4",
+            dt=dt,
+            sample_dt=0.05,
+            max_rod_length_error=1e-2,
+        )
         assert r.status == 0, r.message
         assert r.nsteps == round(T / dt)
         errors.append(np.max(np.abs(r.node_position - ref.node_position)))
@@ -410,9 +466,12 @@ def test_rk4_keeps_rod_lengths_over_many_steps():
     steps = int(os.environ.get("TENSEGRITY_RK4_STEPS", "100000"))
     structure = Structure(
         node_position=[[0, 0, 0], [1, 0, 0], [0, 0.6, 0.2], [1, 0.6, -0.2]],
-        rod_nodes=[[0, 1], [2, 3]], rod_mass=[1.0, 1.5], rod_length=[1.0, math.sqrt(1.16)],
+        rod_nodes=[[0, 1], [2, 3]],
+        rod_mass=[1.0, 1.5],
+        rod_length=[1.0, math.sqrt(1.16)],
         tendon_nodes=[[0, 2], [1, 3], [0, 3], [1, 2]],
-        tendon_stiffness=[50.0, 60, 70, 80], tendon_rest_length=[0.3, 0.3, 0.9, 0.9],
+        tendon_stiffness=[50.0, 60, 70, 80],
+        tendon_rest_length=[0.3, 0.3, 0.9, 0.9],
         node_velocity=[[0, -1, 0.5], [0, 1, 0.5], [0.3, 0, 0], [0, 0, 1]],
     )
     dt = 1e-3
@@ -435,8 +494,15 @@ def test_located_switches_restore_convergence():
     v = random_velocities(structure, np.random.default_rng(1), speed=0.5)
     initial = state_with_velocities(structure, v)
     T = 0.3
-    run = lambda rtol: simulate(structure, (0.0, T), initial=initial, rtol=rtol, atol=rtol * 1e-3,
-                                sample_dt=0.01, locate_switches=True)
+    run = lambda rtol: simulate(
+        structure,
+        (0.0, T),
+        initial=initial,
+        rtol=rtol,
+        atol=rtol * 1e-3,
+        sample_dt=0.01,
+        locate_switches=True,
+    )
     ref = run(1e-12)
     assert ref.status == 0 and ref.nswitches > 0
     errors = {}
@@ -476,9 +542,13 @@ def _parallel_rods_on_springs():
     stay exact and only the energy check can see an unstable step.  Relative motion is a linear
     oscillator with ``w = sqrt(4 k / m) = 20 rad/s``; RK4 is unstable for ``w dt > 2.79``."""
     return Structure(
-        node_position=[[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], rod_nodes=[[0, 1], [2, 3]],
-        rod_mass=[1.0, 1.0], rod_length=[1.0, 1.0], tendon_nodes=[[0, 2], [1, 3]],
-        tendon_stiffness=[100.0, 100.0], tendon_rest_length=[0.0, 0.0],
+        node_position=[[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]],
+        rod_nodes=[[0, 1], [2, 3]],
+        rod_mass=[1.0, 1.0],
+        rod_length=[1.0, 1.0],
+        tendon_nodes=[[0, 2], [1, 3]],
+        tendon_stiffness=[100.0, 100.0],
+        tendon_rest_length=[0.0, 0.0],
     )
 
 
@@ -496,8 +566,9 @@ def test_energy_growth_with_exact_rod_lengths_reports_unstable():
 def test_non_finite_state_reports_unstable():
     """With the energy check switched off the same run overflows; it must stop there."""
     structure = _parallel_rods_on_springs()
-    r = simulate(structure, (0.0, 200.0), method="rk4", dt=0.2, sample_dt=0.2,
-                 max_energy_growth=np.inf)
+    r = simulate(
+        structure, (0.0, 200.0), method="rk4", dt=0.2, sample_dt=0.2, max_energy_growth=np.inf
+    )
     assert r.status == -1 and "not finite" in r.message, r.message
     assert r.t[-1] < 200.0
 
@@ -550,6 +621,7 @@ def test_bad_inputs_raise_value_error_naming_the_field(kwargs, field):
 def test_control_exactly_at_zero_rest_length_is_accepted():
     """``Lbar = 0`` is allowed (``Lbar >= 0``); only negative rest lengths are rejected."""
     structure = class1_shell(3, 1)
-    r = simulate(structure, (0.0, 0.01), control=structure.tendon_rest_length.copy(),
-                 sample_dt=0.005)
+    r = simulate(
+        structure, (0.0, 0.01), control=structure.tendon_rest_length.copy(), sample_dt=0.005
+    )
     assert r.status == 0, r.message

@@ -13,7 +13,6 @@ import pytest
 
 from tensegrity import class1_shell, critical_damping, simulate
 from tensegrity.io import stream as stream_module
-from tensegrity.io.trajectory import ENERGY_COLUMNS, read_trajectory
 from tensegrity.io.stream import (
     PARTIAL_SUFFIX,
     StreamProgress,
@@ -21,14 +20,24 @@ from tensegrity.io.stream import (
     segment_grid,
     simulate_to_file,
 )
+from tensegrity.io.trajectory import ENERGY_COLUMNS, read_trajectory
 
 #: A damped (3,1) shell: tendons go slack and taut, energy is dissipated from the start.
 SHELL = class1_shell(3, 1, damping=0.5)
 #: Fast options: a short adaptive run at a loose tolerance (exactness is against other streamed
 #: runs, which is independent of the tolerance).
 FAST = dict(sample_dt=0.01, rtol=1e-6, atol=1e-9)
-DATASETS = ("time", "nodes", "velocities", "tendon_length", "tendon_tension", "energy", "q",
-            "qdot", "residual_acceleration")
+DATASETS = (
+    "time",
+    "nodes",
+    "velocities",
+    "tendon_length",
+    "tendon_tension",
+    "energy",
+    "q",
+    "qdot",
+    "residual_acceleration",
+)
 
 
 def datasets(path):
@@ -44,6 +53,7 @@ def stop_after(n_segments):
         seen.append(info)
         if info.segment == n_segments:
             raise KeyboardInterrupt
+
     return callback, seen
 
 
@@ -100,8 +110,14 @@ def test_segments_agree_with_one_simulate_call_and_energy_is_continuous(referenc
     assert np.all(np.diff(dissipated) >= 0) and dissipated[-1] > 1.0
     assert abs(dissipated[-1] - whole.energy["dissipated"][-1]) < 1e-4 * dissipated[-1]
     e = trajectory.energy
-    total = (e["kinetic"] + e["elastic"] + e["gravity"] + e["dissipated"] - e["external_work"]
-             - e["control_work"])
+    total = (
+        e["kinetic"]
+        + e["elastic"]
+        + e["gravity"]
+        + e["dissipated"]
+        - e["external_work"]
+        - e["control_work"]
+    )
     assert np.max(np.abs(total - total[0])) < 1e-3 * dissipated[-1]
 
 
@@ -141,7 +157,11 @@ def test_interrupted_and_resumed_run_is_bitwise_the_uninterrupted_one(tmp_path, 
         assert got[name].shape == want[name].shape, name
         assert np.array_equal(got[name], want[name]), name
     assert (summary.nfev, summary.nsteps, summary.nswitches, summary.nprojections) == (
-        ref_summary.nfev, ref_summary.nsteps, ref_summary.nswitches, ref_summary.nprojections)
+        ref_summary.nfev,
+        ref_summary.nsteps,
+        ref_summary.nswitches,
+        ref_summary.nprojections,
+    )
     assert read_trajectory(path).message == "reached t_end = 0.5 s"
 
 
@@ -196,13 +216,16 @@ def test_finished_run_is_not_run_again(reference):
     assert again.settings_hash == summary.settings_hash
 
 
-@pytest.mark.parametrize("change, words", [
-    (dict(rtol=1e-7), ["options.rtol", "1e-06", "1e-07"]),
-    (dict(segment=0.2), ["samples_per_segment"]),
-    (dict(t_span=(0.0, 0.6)), ["t_span"]),
-    (dict(structure=class1_shell(3, 1, damping=0.6)), ["structure"]),
-    (dict(gravity=(0.0, 0.0, -9.81)), ["options.gravity"]),
-])
+@pytest.mark.parametrize(
+    "change, words",
+    [
+        (dict(rtol=1e-7), ["options.rtol", "1e-06", "1e-07"]),
+        (dict(segment=0.2), ["samples_per_segment"]),
+        (dict(t_span=(0.0, 0.6)), ["t_span"]),
+        (dict(structure=class1_shell(3, 1, damping=0.6)), ["structure"]),
+        (dict(gravity=(0.0, 0.0, -9.81)), ["options.gravity"]),
+    ],
+)
 def test_resume_with_other_settings_is_refused(tmp_path, change, words):
     path = tmp_path / "run.h5"
     callback, _ = stop_after(1)
@@ -231,16 +254,25 @@ def test_explicit_default_options_match_omitted_ones(tmp_path):
     callback, _ = stop_after(1)
     with pytest.raises(KeyboardInterrupt):
         simulate_to_file(SHELL, (0.0, 0.3), path, segment=0.1, progress=callback, **FAST)
-    summary = simulate_to_file(SHELL, (0.0, 0.3), path, segment=0.1, method="DOP853",
-                               steady_state=False, gravity=None, **FAST)
+    summary = simulate_to_file(
+        SHELL,
+        (0.0, 0.3),
+        path,
+        segment=0.1,
+        method="DOP853",
+        steady_state=False,
+        gravity=None,
+        **FAST,
+    )
     assert summary.resumed_from == 1
 
 
 # ----------------------------------------------------------------------------- endings
 def test_unstable_segment_stops_the_run_and_records_the_failure(tmp_path):
     path = tmp_path / "run.h5"
-    summary = simulate_to_file(SHELL, (0.0, 1.0), path, segment=0.2, sample_dt=0.05,
-                               method="rk4", dt=0.05)
+    summary = simulate_to_file(
+        SHELL, (0.0, 1.0), path, segment=0.2, sample_dt=0.05, method="rk4", dt=0.05
+    )
     assert summary.status == -1 and not summary.success
     assert summary.message.startswith("unstable")
     assert summary.segments_stored < summary.n_segments
@@ -253,9 +285,18 @@ def test_unstable_segment_stops_the_run_and_records_the_failure(tmp_path):
 def test_steady_state_stops_the_run(tmp_path):
     path = tmp_path / "run.h5"
     structure = critical_damping(class1_shell(3, 1))
-    summary = simulate_to_file(structure, (0.0, 20.0), path, segment=1.0, sample_dt=0.05,
-                               rtol=1e-6, atol=1e-9, steady_state=True, velocity_tol=1e-3,
-                               acceleration_tol=1e-3)
+    summary = simulate_to_file(
+        structure,
+        (0.0, 20.0),
+        path,
+        segment=1.0,
+        sample_dt=0.05,
+        rtol=1e-6,
+        atol=1e-9,
+        steady_state=True,
+        velocity_tol=1e-3,
+        acceleration_tol=1e-3,
+    )
     assert summary.status == 1 and summary.message.startswith("steady state")
     assert summary.segments_stored < summary.n_segments
     trajectory = read_trajectory(path)
@@ -280,14 +321,19 @@ def test_memory_does_not_grow_with_the_length_of_the_run(tmp_path):
             tracemalloc.stop()
 
     def streamed(t_end):
-        simulate_to_file(structure, (0.0, t_end), tmp_path / f"run{t_end}.h5", segment=0.04,
-                         **options)
+        simulate_to_file(
+            structure, (0.0, t_end), tmp_path / f"run{t_end}.h5", segment=0.04, **options
+        )
 
     short, long = peak(0.16, streamed), peak(0.32, streamed)
-    extra_samples = read_trajectory(tmp_path / "run0.32.h5").t.size - read_trajectory(
-        tmp_path / "run0.16.h5").t.size
+    extra_samples = (
+        read_trajectory(tmp_path / "run0.32.h5").t.size
+        - read_trajectory(tmp_path / "run0.16.h5").t.size
+    )
     with h5py.File(tmp_path / "run0.32.h5", "r") as f:
-        row_bytes = sum(f[name].dtype.itemsize * int(np.prod(f[name].shape[1:])) for name in DATASETS)
+        row_bytes = sum(
+            f[name].dtype.itemsize * int(np.prod(f[name].shape[1:])) for name in DATASETS
+        )
     extra_bytes = extra_samples * row_bytes
     assert extra_bytes > 150_000
     print("MEM", short, long, extra_bytes)
@@ -313,7 +359,6 @@ def test_invalid_arguments(tmp_path):
     with pytest.raises(ValueError, match="directory"):
         simulate_to_file(SHELL, (0.0, 1.0), tmp_path / "missing" / "run.h5")
     assert list(tmp_path.iterdir()) == []
-
 
 
 def test_joint_error_is_kept_across_segments_and_a_resume(tmp_path, monkeypatch):

@@ -106,9 +106,7 @@ def test_optional_fields_default():
 
 
 def test_zero_damping_and_zero_rest_length_are_allowed():
-    s = build(
-        tendon_damping=[0.0] * 9, rod_damping=[0.0] * 3, tendon_rest_length=[0.0] * 9
-    )
+    s = build(tendon_damping=[0.0] * 9, rod_damping=[0.0] * 3, tendon_rest_length=[0.0] * 9)
     assert np.all(s.tendon_rest_length == 0)
 
 
@@ -157,9 +155,7 @@ SIGN_CASES = [
 ]
 
 
-@pytest.mark.parametrize(
-    "case", SIGN_CASES, ids=[f"{c[0]}={c[2]}" for c in SIGN_CASES]
-)
+@pytest.mark.parametrize("case", SIGN_CASES, ids=[f"{c[0]}={c[2]}" for c in SIGN_CASES])
 def test_out_of_range_parameters_are_rejected_naming_field_and_element(case):
     field, index, bad, group, name = case
     kwargs = with_item(field, index, bad)
@@ -574,7 +570,9 @@ def test_from_dict_tendon_not_an_object(bad):
 
 
 @pytest.mark.parametrize("key", ["nodes", "rods", "tendons"])
-@pytest.mark.parametrize("bad", [{"0": [0, 0, 0]}, "abc", 3, None], ids=["dict", "str", "int", "null"])
+@pytest.mark.parametrize(
+    "bad", [{"0": [0, 0, 0]}, "abc", 3, None], ids=["dict", "str", "int", "null"]
+)
 def test_from_dict_top_level_not_a_list(key, bad):
     d = build().to_dict()
     d[key] = bad

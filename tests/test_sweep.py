@@ -13,21 +13,22 @@ pytest.importorskip("distributed")
 pytest.importorskip("xarray")
 pytest.importorskip("numba")
 
-from distributed import Client, LocalCluster  # noqa: E402
+from distributed import Client, LocalCluster
 
-from tensegrity import State, class1_shell, simulate# noqa: E402
+from tensegrity import State, class1_shell, simulate
+from tensegrity.cli.main import main
+from tensegrity.engine.batch import simulate_batch
 from tensegrity.physics import dynamics
-from tensegrity.engine.batch import simulate_batch# noqa: E402
-from tensegrity.cli.main import main# noqa: E402
-from tensegrity.sweep.run import STATUS_ERROR, SweepSpec, read_sweep, run_sweep# noqa: E402
+from tensegrity.sweep.run import STATUS_ERROR, SweepSpec, read_sweep, run_sweep
 
 T_END, SAMPLE_DT, DT = 0.02, 2e-3, 2e-4
 
 
 @pytest.fixture(scope="module")
 def cluster():
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
-                      dashboard_address=":0") as local:
+    with LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=False, dashboard_address=":0"
+    ) as local:
         yield local
 
 
@@ -68,8 +69,10 @@ def direct_series(result):
 
 
 def case_parameters(ds, i):
-    return {name: ds[name].values[i].item()
-            for name in ("n", "m", "stiffness", "rest_scale", "damping", "load")}
+    return {
+        name: ds[name].values[i].item()
+        for name in ("n", "m", "stiffness", "rest_scale", "damping", "load")
+    }
 
 
 GRID = {"stiffness": [80.0, 3e7], "load": [0.0, 6.0], "n": [2, 3], "damping": [0.5]}
@@ -106,8 +109,9 @@ def test_sweep_cases_equal_direct_simulate_bitwise(failing_sweep):
     checked = 0
     for i in np.flatnonzero(ds["status"].values != STATUS_ERROR):
         structure, force = hand_built(**case_parameters(ds, i))
-        result = simulate(structure, (0.0, T_END), method="rk4", dt=DT, sample_dt=SAMPLE_DT,
-                          external_force=force)
+        result = simulate(
+            structure, (0.0, T_END), method="rk4", dt=DT, sample_dt=SAMPLE_DT, external_force=force
+        )
         assert int(ds["status"].values[i]) == result.status
         assert ds["message"].values[i] == result.message
         assert ds["nsteps"].values[i] == result.nsteps
@@ -115,21 +119,31 @@ def test_sweep_cases_equal_direct_simulate_bitwise(failing_sweep):
         for name, series in direct_series(result).items():
             got = ds[name].values[i]
             np.testing.assert_array_equal(got[: rows.sum()], series[rows], err_msg=name)
-            assert np.all(np.isnan(got[rows.sum():])), name
+            assert np.all(np.isnan(got[rows.sum() :])), name
         checked += 1
     assert checked == 4
 
 
 def test_batched_sweep_matches_direct_simulate(client):
-    spec = SweepSpec({"stiffness": [60.0, 150.0], "rest_scale": [0.85, 0.95], "load": [0.0, 4.0],
-                      "damping": [0.3]}, t_end=T_END, sample_dt=SAMPLE_DT, dt=DT)
+    spec = SweepSpec(
+        {
+            "stiffness": [60.0, 150.0],
+            "rest_scale": [0.85, 0.95],
+            "load": [0.0, 4.0],
+            "damping": [0.3],
+        },
+        t_end=T_END,
+        sample_dt=SAMPLE_DT,
+        dt=DT,
+    )
     result = run_sweep(spec, client=client)
     ds = result.dataset
     assert result.success and np.all(ds["batched"].values == 1)
     for i in range(ds.sizes["case"]):
         structure, force = hand_built(**case_parameters(ds, i))
-        ref = simulate(structure, (0.0, T_END), method="rk4", dt=DT, sample_dt=SAMPLE_DT,
-                       external_force=force)
+        ref = simulate(
+            structure, (0.0, T_END), method="rk4", dt=DT, sample_dt=SAMPLE_DT, external_force=force
+        )
         expected = direct_series(ref)
         energy_scale = np.max(expected["kinetic_energy"] + expected["elastic_energy"])
         for name, series in expected.items():
@@ -140,8 +154,12 @@ def test_batched_sweep_matches_direct_simulate(client):
 
 
 def test_monte_carlo_cases_are_reproducible_and_in_range():
-    spec = SweepSpec({"stiffness": [50.0, 200.0], "n": [3, 5], "load": [2.0]},
-                     mode="monte-carlo", samples=40, seed=7)
+    spec = SweepSpec(
+        {"stiffness": [50.0, 200.0], "n": [3, 5], "load": [2.0]},
+        mode="monte-carlo",
+        samples=40,
+        seed=7,
+    )
     cases = spec.cases()
     assert cases == SweepSpec.from_dict(spec.to_dict()).cases()
     assert len(cases) == 40
@@ -173,7 +191,8 @@ def test_bad_specs_name_the_field(changes, field):
 
 def test_spec_files_and_saved_dataset(tmp_path, client):
     (tmp_path / "spec.yaml").write_text(
-        "parameters:\n  stiffness: [90, 110]\nt_end: 0.004\nsample_dt: 0.002\ndt: 0.0002\n")
+        "parameters:\n  stiffness: [90, 110]\nt_end: 0.004\nsample_dt: 0.002\ndt: 0.0002\n"
+    )
     spec = SweepSpec.from_file(tmp_path / "spec.yaml")
     (tmp_path / "spec.json").write_text(json.dumps(spec.to_dict()))
     assert SweepSpec.from_file(tmp_path / "spec.json") == spec
@@ -189,11 +208,15 @@ def test_spec_files_and_saved_dataset(tmp_path, client):
 
 
 def test_scheduler_address(cluster):
-    spec = SweepSpec({"stiffness": [100.0, 120.0, 140.0]}, t_end=0.004, sample_dt=0.002, dt=DT,
-                     method="RK45")
+    spec = SweepSpec(
+        {"stiffness": [100.0, 120.0, 140.0]}, t_end=0.004, sample_dt=0.002, dt=DT, method="RK45"
+    )
     calls = []
-    result = run_sweep(spec, scheduler=cluster.scheduler_address,
-                       progress=lambda done, total: calls.append((done, total)))
+    result = run_sweep(
+        spec,
+        scheduler=cluster.scheduler_address,
+        progress=lambda done, total: calls.append((done, total)),
+    )
     assert result.success and result.dataset.sizes["case"] == 3
     assert calls == [(1, 3), (2, 3), (3, 3)]  # one task per case for an adaptive method
     with pytest.raises(ValueError, match="^scheduler"):
@@ -202,8 +225,23 @@ def test_scheduler_address(cluster):
 
 def test_cli_sweep_reports_failures_and_writes(tmp_path, capsys):
     out = tmp_path / "s.nc"
-    code = main(["sweep", "--param", "stiffness=100,3e7", "--t-end", "0.004", "--sample-dt",
-                 "0.002", "--dt", "0.0002", "--workers", "1", "-o", str(out)])
+    code = main(
+        [
+            "sweep",
+            "--param",
+            "stiffness=100,3e7",
+            "--t-end",
+            "0.004",
+            "--sample-dt",
+            "0.002",
+            "--dt",
+            "0.0002",
+            "--workers",
+            "1",
+            "-o",
+            str(out),
+        ]
+    )
     captured = capsys.readouterr()
     assert code == 1
     assert "1 of 2 cases reached t_end" in captured.out
@@ -245,14 +283,31 @@ def test_batch_matches_single_runs_and_isolates_a_blow_up(min_run, monkeypatch):
         structures.append(s)
         forces.append(rng.normal(0, 2, (s.n_nodes, 3)) if b != 1 else None)
         start = dynamics.initial_state(s)
-        starts.append(State(t=0.0, q=start.q, qdot=start.qdot + 0.1 * rng.standard_normal(start.q.size)))
+        starts.append(
+            State(t=0.0, q=start.q, qdot=start.qdot + 0.1 * rng.standard_normal(start.q.size))
+        )
     assert all(np.array_equal(s.tendon_nodes, base.tendon_nodes) for s in structures)
     g = np.array([0.0, 0.0, -9.81])
-    batch = simulate_batch(structures, (0.0, 0.03), dt=2e-4, sample_dt=2e-3, initial=starts,
-                           external_force=forces, gravity=g)
+    batch = simulate_batch(
+        structures,
+        (0.0, 0.03),
+        dt=2e-4,
+        sample_dt=2e-3,
+        initial=starts,
+        external_force=forces,
+        gravity=g,
+    )
     for b, (s, got) in enumerate(zip(structures, batch)):
-        ref = simulate(s, (0.0, 0.03), method="rk4", dt=2e-4, sample_dt=2e-3, initial=starts[b],
-                       external_force=forces[b], gravity=g)
+        ref = simulate(
+            s,
+            (0.0, 0.03),
+            method="rk4",
+            dt=2e-4,
+            sample_dt=2e-3,
+            initial=starts[b],
+            external_force=forces[b],
+            gravity=g,
+        )
         assert got.status == ref.status and got.nsteps == ref.nsteps
         np.testing.assert_array_equal(got.t, ref.t)
         if b == 2:
@@ -266,8 +321,15 @@ def test_batch_matches_single_runs_and_isolates_a_blow_up(min_run, monkeypatch):
         for name, e in ref.energy.items():
             scale = max(np.max(np.abs(e)), np.max(np.abs(ref.energy["kinetic"])))
             assert np.max(np.abs(got.energy[name] - e)) <= 1e-12 * scale, name
-    alone = simulate_batch(structures[3:], (0.0, 0.03), dt=2e-4, sample_dt=2e-3,
-                           initial=starts[3:], external_force=forces[3:], gravity=g)[0]
+    alone = simulate_batch(
+        structures[3:],
+        (0.0, 0.03),
+        dt=2e-4,
+        sample_dt=2e-3,
+        initial=starts[3:],
+        external_force=forces[3:],
+        gravity=g,
+    )[0]
     for name in ("q", "qdot", "tendon_tension"):
         np.testing.assert_array_equal(getattr(alone, name), getattr(batch[3], name), name)
 
@@ -305,8 +367,16 @@ def test_plan_batches_small_shells_per_worker_and_large_ones_per_case():
 
 def test_cli_sweep_from_a_spec_file(tmp_path, capsys):
     spec = tmp_path / "spec.json"
-    spec.write_text(json.dumps({"parameters": {"damping": [0.0, 1.0]}, "t_end": 0.004,
-                                "sample_dt": 0.002, "dt": 0.0002}))
+    spec.write_text(
+        json.dumps(
+            {
+                "parameters": {"damping": [0.0, 1.0]},
+                "t_end": 0.004,
+                "sample_dt": 0.002,
+                "dt": 0.0002,
+            }
+        )
+    )
     out = tmp_path / "s.nc"
     assert main(["sweep", "--spec", str(spec), "--workers", "1", "-o", str(out)]) == 0
     assert "2 of 2 cases reached t_end" in capsys.readouterr().out
@@ -335,7 +405,10 @@ def structure_case(base, stiffness, load):
     if not load:
         return s, None
     z = s.node_position[:, 2]
-    top, bottom = np.isclose(z, z.max(), rtol=0, atol=1e-12), np.isclose(z, z.min(), rtol=0, atol=1e-12)
+    top, bottom = (
+        np.isclose(z, z.max(), rtol=0, atol=1e-12),
+        np.isclose(z, z.min(), rtol=0, atol=1e-12),
+    )
     force = np.zeros((s.n_nodes, 3))
     force[top, 2] = -load / top.sum()
     force[bottom, 2] = load / bottom.sum()
@@ -347,8 +420,13 @@ def test_structure_sweep_cases_equal_direct_simulate(client, supported):
     from tensegrity.design import catalogue as generators
 
     base = prism_on_ground() if supported else generators.prism(4)
-    spec = SweepSpec({"stiffness": [60.0, 150.0], "load": [0.0, 4.0]}, t_end=T_END,
-                     sample_dt=SAMPLE_DT, dt=DT, structure=base)
+    spec = SweepSpec(
+        {"stiffness": [60.0, 150.0], "load": [0.0, 4.0]},
+        t_end=T_END,
+        sample_dt=SAMPLE_DT,
+        dt=DT,
+        structure=base,
+    )
     result = run_sweep(spec, client=client)
     ds = result.dataset
     assert result.success and ds.sizes["case"] == 4
@@ -357,8 +435,9 @@ def test_structure_sweep_cases_equal_direct_simulate(client, supported):
     assert np.all(ds["batched"].values == (0 if supported else 1))
     for i in range(4):
         structure, force = structure_case(base, ds["stiffness"].values[i], ds["load"].values[i])
-        ref = simulate(structure, (0.0, T_END), method="rk4", dt=DT, sample_dt=SAMPLE_DT,
-                       external_force=force)
+        ref = simulate(
+            structure, (0.0, T_END), method="rk4", dt=DT, sample_dt=SAMPLE_DT, external_force=force
+        )
         # The file's rest lengths are kept: unloaded, the prism stays at its equilibrium.
         moved = np.max(np.abs(ref.node_position[-1] - base.node_position))
         assert moved > 1e-6 if ds["load"].values[i] else moved < 1e-9
@@ -371,9 +450,12 @@ def test_structure_sweep_cases_equal_direct_simulate(client, supported):
             if supported:  # the same simulate call
                 np.testing.assert_array_equal(got, series, err_msg=name)
             else:  # round-off: energies against the case's energy, lengths against a rod's
-                scale = {"kinetic_energy": energy_scale, "elastic_energy": energy_scale,
-                         "energy_error": energy_scale, "max_displacement": base.rod_length[0],
-                         }.get(name, np.max(np.abs(series)))
+                scale = {
+                    "kinetic_energy": energy_scale,
+                    "elastic_energy": energy_scale,
+                    "energy_error": energy_scale,
+                    "max_displacement": base.rod_length[0],
+                }.get(name, np.max(np.abs(series)))
                 assert np.max(np.abs(got - series)) <= 1e-12 * scale, name
     assert "stiffness=60" in result.describe_case(0) and "n=" not in result.describe_case(0)
 
@@ -382,21 +464,28 @@ def test_structure_sweep_spec_forms_and_errors(tmp_path):
     from tensegrity.io.formats import write_structure
 
     base = prism_on_ground()
-    with pytest.raises(ValueError, match=r"^parameters\.n: unknown parameter when sweeping a "
-                                         r"structure file; choose from stiffness"):
+    with pytest.raises(
+        ValueError,
+        match=r"^parameters\.n: unknown parameter when sweeping a "
+        r"structure file; choose from stiffness",
+    ):
         SweepSpec({"n": [3, 4]}, structure=base)
     folder = tmp_path / "study"
     folder.mkdir()
     write_structure(folder / "prism.json", base)
-    (folder / "spec.json").write_text(json.dumps(
-        {"parameters": {"damping": [0.1, 0.2]}, "structure": "prism.json", "t_end": 0.01}))
+    (folder / "spec.json").write_text(
+        json.dumps(
+            {"parameters": {"damping": [0.1, 0.2]}, "structure": "prism.json", "t_end": 0.01}
+        )
+    )
     spec = SweepSpec.from_file(folder / "spec.json")  # the path is relative to the spec file
     assert spec.structure.to_dict() == base.to_dict()
     assert spec.cases() == [{"damping": 0.1}, {"damping": 0.2}]
     again = SweepSpec.from_dict(json.loads(json.dumps(spec.to_dict())))  # structure inline
     assert again.structure.to_dict() == base.to_dict() and again.cases() == spec.cases()
-    (folder / "bad.json").write_text(json.dumps(
-        {"parameters": {"damping": [0.1]}, "structure": "missing.json"}))
+    (folder / "bad.json").write_text(
+        json.dumps({"parameters": {"damping": [0.1]}, "structure": "missing.json"})
+    )
     with pytest.raises(ValueError, match="missing.json"):
         SweepSpec.from_file(folder / "bad.json")
 
@@ -407,15 +496,36 @@ def test_cli_sweep_of_a_structure_file(tmp_path, capsys):
     path = tmp_path / "prism.json"
     write_structure(path, prism_on_ground())
     out = tmp_path / "s.nc"
-    code = main(["sweep", "--structure", str(path), "--param", "stiffness=50,100", "--t-end",
-                 "0.004", "--sample-dt", "0.002", "--dt", "0.0002", "--workers", "1", "-o", str(out)])
+    code = main(
+        [
+            "sweep",
+            "--structure",
+            str(path),
+            "--param",
+            "stiffness=50,100",
+            "--t-end",
+            "0.004",
+            "--sample-dt",
+            "0.002",
+            "--dt",
+            "0.0002",
+            "--workers",
+            "1",
+            "-o",
+            str(out),
+        ]
+    )
     assert code == 0 and "2 of 2 cases reached t_end" in capsys.readouterr().out
     ds = read_sweep(out)
     assert list(ds["stiffness"].values) == [50.0, 100.0] and "n" not in ds.coords
-    assert json.loads(ds.attrs["spec"])["structure"]["nodes"] == prism_on_ground().to_dict()["nodes"]
-    for args in (["--structure", str(path), "--param", "n=3,4"],
-                 ["--structure", str(tmp_path / "missing.json"), "--param", "stiffness=50"],
-                 ["--structure", str(path), "--spec", str(path)]):
+    assert (
+        json.loads(ds.attrs["spec"])["structure"]["nodes"] == prism_on_ground().to_dict()["nodes"]
+    )
+    for args in (
+        ["--structure", str(path), "--param", "n=3,4"],
+        ["--structure", str(tmp_path / "missing.json"), "--param", "stiffness=50"],
+        ["--structure", str(path), "--spec", str(path)],
+    ):
         assert main(["sweep", *args, "-o", str(tmp_path / "x.nc")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 3 and all(line.startswith("tensegrity: error:") for line in err)

@@ -10,8 +10,8 @@ import pytest
 from tensegrity import critical_damping, simulate
 from tensegrity.cli.main import main
 from tensegrity.design.catalogue import prism
-from tensegrity.io.trajectory import read_trajectory, write_trajectory
 from tensegrity.io import vtk as vtk_export
+from tensegrity.io.trajectory import read_trajectory, write_trajectory
 from tensegrity.io.vtk import polydata, write_vtk
 
 
@@ -40,8 +40,10 @@ def read_vtp(path):
     assert np.all(np.diff(np.concatenate([[0], offsets])) == 2)  # two-point lines
     assert int(piece.get("NumberOfPoints")) == points.shape[0]
     assert int(piece.get("NumberOfLines")) == offsets.size
-    cells = {d.get("Name"): array(piece.find("CellData"), d.get("Name"))
-             for d in piece.find("CellData").iter("DataArray")}
+    cells = {
+        d.get("Name"): array(piece.find("CellData"), d.get("Name"))
+        for d in piece.find("CellData").iter("DataArray")
+    }
     point_data = piece.find("PointData")
     velocity = None if point_data is None else array(point_data, "velocity")
     return points, connectivity.reshape(-1, 2), cells, velocity
@@ -71,23 +73,30 @@ def test_files_hold_the_trajectory(run, tmp_path):
         np.testing.assert_array_equal(velocity, run.node_velocity[k])
         np.testing.assert_array_equal(lines, np.vstack([s.rod_nodes, s.tendon_nodes]))
         np.testing.assert_array_equal(cells["is_tendon"], [0] * s.n_rods + [1] * s.n_tendons)
-        np.testing.assert_array_equal(cells["tension"][s.n_rods:], run.tendon_tension[k])
-        np.testing.assert_array_equal(cells["tension"][:s.n_rods], 0.0)
-        np.testing.assert_array_equal(cells["slack"][s.n_rods:], run.tendon_tension[k] <= 0)
+        np.testing.assert_array_equal(cells["tension"][s.n_rods :], run.tendon_tension[k])
+        np.testing.assert_array_equal(cells["tension"][: s.n_rods], 0.0)
+        np.testing.assert_array_equal(cells["slack"][s.n_rods :], run.tendon_tension[k] <= 0)
     # tendon lengths from the file's points = the run's
-    p = points[lines[s.n_rods:]]
-    np.testing.assert_allclose(np.linalg.norm(p[:, 1] - p[:, 0], axis=1),
-                               np.linalg.norm(run.node_position[-1][s.tendon_nodes[:, 1]]
-                                              - run.node_position[-1][s.tendon_nodes[:, 0]], axis=1),
-                               rtol=1e-15)
+    p = points[lines[s.n_rods :]]
+    np.testing.assert_allclose(
+        np.linalg.norm(p[:, 1] - p[:, 0], axis=1),
+        np.linalg.norm(
+            run.node_position[-1][s.tendon_nodes[:, 1]]
+            - run.node_position[-1][s.tendon_nodes[:, 0]],
+            axis=1,
+        ),
+        rtol=1e-15,
+    )
 
 
 def test_every_keeps_the_last_sample_and_bad_options(run, tmp_path):
     written = write_vtk(tmp_path, run, every=4)
     times = [t for t, _ in read_pvd(written[-1])]
     assert times == run.t[[0, 4, 8, 10]].tolist()
-    for options, message in (({"every": 0}, "^every: must be an integer >= 1"),
-                             ({"name": "a/b"}, "^name: must be a plain file name stem")):
+    for options, message in (
+        ({"every": 0}, "^every: must be an integer >= 1"),
+        ({"name": "a/b"}, "^name: must be a plain file name stem"),
+    ):
         with pytest.raises(ValueError, match=message):
             write_vtk(tmp_path / "x", run, **options)
     assert not (tmp_path / "x").exists()
@@ -96,10 +105,20 @@ def test_every_keeps_the_last_sample_and_bad_options(run, tmp_path):
 def test_a_failed_write_leaves_nothing(run, tmp_path, monkeypatch):
     """Inconsistent arrays are refused up front; an error half way (the third file) writes no file
     at all, and the folder created for them is gone."""
-    broken = type("Broken", (), {"structure": run.structure, "t": run.t,
-                                 "node_position": run.node_position, "node_velocity": None,
-                                 "tendon_tension": run.tendon_tension[:, :-1]})()
-    with pytest.raises(ValueError, match=r"^tendon_tension: expected shape \(11, 9\) for 11 samples"):
+    broken = type(
+        "Broken",
+        (),
+        {
+            "structure": run.structure,
+            "t": run.t,
+            "node_position": run.node_position,
+            "node_velocity": None,
+            "tendon_tension": run.tendon_tension[:, :-1],
+        },
+    )()
+    with pytest.raises(
+        ValueError, match=r"^tendon_tension: expected shape \(11, 9\) for 11 samples"
+    ):
         write_vtk(tmp_path / "out", broken)
     calls = []
 
@@ -132,14 +151,46 @@ def test_cli_vtk_verb_and_simulate_vtk(run, tmp_path, capsys):
     np.testing.assert_array_equal(cells["tension"][3:], trajectory.tendon_tension[5])
 
     out = tmp_path / "sim"
-    assert main(["simulate", "--kind", "prism", "--t-end", "0.2", "--no-steady-state",
-                 "--sample-dt", "0.1", "--vtk", "--out", str(out)]) == 0
+    assert (
+        main(
+            [
+                "simulate",
+                "--kind",
+                "prism",
+                "--t-end",
+                "0.2",
+                "--no-steady-state",
+                "--sample-dt",
+                "0.1",
+                "--vtk",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     assert [t for t, _ in read_pvd(out / "vtk" / "tensegrity.pvd")] == pytest.approx([0, 0.1, 0.2])
     printed = capsys.readouterr().out
     assert f"{out / 'vtk' / 'tensegrity.pvd'}" in printed and ".vtp" not in printed
     # again into the same folder: the files are replaced
-    assert main(["simulate", "--kind", "prism", "--t-end", "0.1", "--no-steady-state",
-                 "--sample-dt", "0.1", "--vtk", "--out", str(out)]) == 0
+    assert (
+        main(
+            [
+                "simulate",
+                "--kind",
+                "prism",
+                "--t-end",
+                "0.1",
+                "--no-steady-state",
+                "--sample-dt",
+                "0.1",
+                "--vtk",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     assert [t for t, _ in read_pvd(out / "vtk" / "tensegrity.pvd")] == pytest.approx([0, 0.1])
     assert not [p for p in out.rglob("*") if p.name.startswith(".staging")]
     assert main(["vtk", str(tmp_path / "missing.h5"), "-o", str(tmp_path / "w")]) == 2

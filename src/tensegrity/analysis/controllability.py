@@ -107,18 +107,33 @@ class ReachResult:
     def to_dict(self) -> dict[str, Any]:
         g = self.gramian_eigenvalues
         return {
-            "property": self.property, "name": self.name, "signals": list(self.signals),
-            "states": self.n_states, "rank": self.rank, "rank_rtol": self.rank_rtol,
-            "elastic_states": self.elastic_states, "elastic_rank": self.elastic_rank,
+            "property": self.property,
+            "name": self.name,
+            "signals": list(self.signals),
+            "states": self.n_states,
+            "rank": self.rank,
+            "rank_rtol": self.rank_rtol,
+            "elastic_states": self.elastic_states,
+            "elastic_rank": self.elastic_rank,
             "pbh_rtol": self.pbh_rtol,
             "missed_modes": [
-                {"modes": list(t.modes), "frequency_hz": t.frequency_hz, "kind": t.kind,
-                 "multiplicity": t.multiplicity, "rank": t.rank}
-                for t in self.mode_tests if not t.full
+                {
+                    "modes": list(t.modes),
+                    "frequency_hz": t.frequency_hz,
+                    "kind": t.kind,
+                    "multiplicity": t.multiplicity,
+                    "rank": t.rank,
+                }
+                for t in self.mode_tests
+                if not t.full
             ],
-            "gramian": None if g is None else {
-                "min_eigenvalue": float(g.min()), "max_eigenvalue": float(g.max()),
-                "condition": float(g.max() / g.min()) if g.min() > 0 else float("inf")},
+            "gramian": None
+            if g is None
+            else {
+                "min_eigenvalue": float(g.min()),
+                "max_eigenvalue": float(g.max()),
+                "condition": float(g.max() / g.min()) if g.min() > 0 else float("inf"),
+            },
             "gramian_note": self.gramian_note,
         }
 
@@ -172,8 +187,9 @@ def default_input_sets(lin: Linearization) -> dict[str, tuple[str, ...]]:
     names = lin.structure.tendon_name
     sets = {"all": tuple(names)}
     # t1_1_1 -> t1_* (shells); b0 -> b* (prisms: no '_')
-    families = dict.fromkeys(n.split("_")[0] + "_*" if "_" in n else n.rstrip("0123456789") + "*"
-                             for n in names)
+    families = dict.fromkeys(
+        n.split("_")[0] + "_*" if "_" in n else n.rstrip("0123456789") + "*" for n in names
+    )
     if len(families) > 1:
         for family in families:
             sets[family] = resolve_inputs(lin, family)
@@ -183,7 +199,9 @@ def default_input_sets(lin: Linearization) -> dict[str, tuple[str, ...]]:
 
 def default_output_sets(lin: Linearization) -> dict[str, tuple[str, ...]]:
     """Node positions, tendon lengths, tensions, and the position of node 0 alone."""
-    return {g: resolve_outputs(lin, g) for g in OUTPUT_GROUPS} | {"p0_*": resolve_outputs(lin, "p0_*")}
+    return {g: resolve_outputs(lin, g) for g in OUTPUT_GROUPS} | {
+        "p0_*": resolve_outputs(lin, "p0_*")
+    }
 
 
 # ---------------------------------------------------------------------------- algorithms
@@ -247,9 +265,16 @@ def _mode_tests(
         sv = np.linalg.svd(G, compute_uv=False) if G.size else np.zeros(0)
         rank = int(np.sum(sv > rtol * scale))
         margin = float(sv.min() / scale) if sv.size >= len(cluster) and scale > 0 else 0.0
-        tests.append(ModeTest(tuple(cluster), float(modes.frequency_hz[cluster[0]]),
-                              modes.kind[cluster[0]], len(cluster), min(rank, len(cluster)),
-                              margin))
+        tests.append(
+            ModeTest(
+                tuple(cluster),
+                float(modes.frequency_hz[cluster[0]]),
+                modes.kind[cluster[0]],
+                len(cluster),
+                min(rank, len(cluster)),
+                margin,
+            )
+        )
     return tuple(tests)
 
 
@@ -258,22 +283,43 @@ def _gramian(A_e: np.ndarray, BB: np.ndarray) -> tuple[np.ndarray | None, str]:
 
     decay = float(np.max(np.linalg.eigvals(A_e).real))
     if decay >= -1e-12:
-        return None, ("no infinite-horizon Gramian: the non-rigid part is not asymptotically "
-                      "stable (undamped?); linearize a damped structure")
+        return None, (
+            "no infinite-horizon Gramian: the non-rigid part is not asymptotically "
+            "stable (undamped?); linearize a damped structure"
+        )
     W = control.lyap(A_e, BB, method="scipy")
     W = 0.5 * (W + W.T)
     return np.linalg.eigvalsh(W), "Gramian of the non-rigid part (control.lyap)"
 
 
-def _result(kind: str, lin: Linearization, name: str, signals: tuple[str, ...],
-            tests: tuple[ModeTest, ...], pbh_rtol: float, A_e: np.ndarray,
-            QQ: np.ndarray) -> ReachResult:
+def _result(
+    kind: str,
+    lin: Linearization,
+    name: str,
+    signals: tuple[str, ...],
+    tests: tuple[ModeTest, ...],
+    pbh_rtol: float,
+    A_e: np.ndarray,
+    QQ: np.ndarray,
+) -> ReachResult:
     """The :class:`ReachResult`: rank ``2 x`` modes reached (seen), Gramian of ``(A_e, QQ)``."""
     rank = sum(2 * t.rank for t in tests)
     rigid = sum(2 * t.rank for t in tests if t.kind == RIGID)
     gram, note = _gramian(A_e, QQ)
-    return ReachResult(kind, name, signals, lin.A.shape[0], rank, pbh_rtol, A_e.shape[0],
-                       rank - rigid, tests, pbh_rtol, gram, note)
+    return ReachResult(
+        kind,
+        name,
+        signals,
+        lin.A.shape[0],
+        rank,
+        pbh_rtol,
+        A_e.shape[0],
+        rank - rigid,
+        tests,
+        pbh_rtol,
+        gram,
+        note,
+    )
 
 
 def controllability(
@@ -292,8 +338,9 @@ def controllability(
     tests = _mode_tests(modes, lambda V, w: V.T @ Bf, scale, pbh_rtol)
     A_e, Z = lin.elastic_part()
     B_e = np.vstack([np.zeros((Z.shape[1], cols.size)), Z.T @ Bf])
-    return _result("controllability", lin, name or _name(inputs), signals, tests, pbh_rtol,
-                   A_e, B_e @ B_e.T)
+    return _result(
+        "controllability", lin, name or _name(inputs), signals, tests, pbh_rtol, A_e, B_e @ B_e.T
+    )
 
 
 def observability(
@@ -312,12 +359,14 @@ def observability(
     _, w_ref = _balance(lin)
     root = np.sqrt(lin.mass)
     scale = float(np.linalg.norm(np.hstack([Cx / root[None, :] / w_ref, Cv / root[None, :]]), 2))
-    tests = _mode_tests(modes, lambda V, w: (Cx @ V) / w_ref + 1j * (w / w_ref) * (Cv @ V),
-                        scale, pbh_rtol)
+    tests = _mode_tests(
+        modes, lambda V, w: (Cx @ V) / w_ref + 1j * (w / w_ref) * (Cv @ V), scale, pbh_rtol
+    )
     A_e, Z = lin.elastic_part()
     C_e = np.hstack([Cx @ Z, Cv @ Z])
-    return _result("observability", lin, name or _name(outputs), signals, tests, pbh_rtol,
-                   A_e.T, C_e.T @ C_e)
+    return _result(
+        "observability", lin, name or _name(outputs), signals, tests, pbh_rtol, A_e.T, C_e.T @ C_e
+    )
 
 
 def _name(pattern: str | Sequence[str]) -> str:
@@ -334,5 +383,7 @@ def controllability_table(
     :func:`default_input_sets`, :func:`default_output_sets`)."""
     input_sets = default_input_sets(lin) if input_sets is None else input_sets
     output_sets = default_output_sets(lin) if output_sets is None else output_sets
-    return ([controllability(lin, modes, v, name=k) for k, v in input_sets.items()],
-            [observability(lin, modes, v, name=k) for k, v in output_sets.items()])
+    return (
+        [controllability(lin, modes, v, name=k) for k, v in input_sets.items()],
+        [observability(lin, modes, v, name=k) for k, v in output_sets.items()],
+    )

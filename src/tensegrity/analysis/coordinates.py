@@ -32,9 +32,9 @@ from typing import Any
 
 import numpy as np
 
-from tensegrity.physics.constraints import constraints_of
-from tensegrity.physics import dynamics
 from tensegrity.model.structure import Structure
+from tensegrity.physics import dynamics
+from tensegrity.physics.constraints import constraints_of
 
 #: Rigid-body motions of a free structure in 3-D: 3 translations and 3 rotations.
 N_RIGID = 6
@@ -83,8 +83,10 @@ class Chart:
     def at(cls, structure: Structure, q: np.ndarray) -> Chart:
         """The chart based at the configuration ``q`` (n,) (``x = 0`` there)."""
         if structure.dim != 3:
-            raise ValueError("the analysis package: a planar structure is analysed in its 3-D form "
-                             "(tensegrity.analysis.coordinates.spatial)")
+            raise ValueError(
+                "the analysis package: a planar structure is analysed in its 3-D form "
+                "(tensegrity.analysis.coordinates.spatial)"
+            )
         q = np.asarray(q, dtype=float)
         rods = dynamics.rod_coordinates(structure, q)
         centre = 0.5 * rods[:, 0]
@@ -159,8 +161,10 @@ class Chart:
         qdot = np.asarray(qdot, dtype=float)
         rates = dynamics.rod_coordinates(self.structure, qdot)
         dphi = np.einsum("rij,ri->rj", self.basis, rates[:, 1]) / self.structure.rod_length[:, None]
-        return self._with_point_masses(np.concatenate([0.5 * rates[:, 0], dphi], axis=1),
-                                       dynamics.point_mass_coordinates(self.structure, qdot))
+        return self._with_point_masses(
+            np.concatenate([0.5 * rates[:, 0], dphi], axis=1),
+            dynamics.point_mass_coordinates(self.structure, qdot),
+        )
 
     def velocity_q(self, xdot: np.ndarray) -> np.ndarray:
         """``q'`` (n,) of rates ``x'`` at the base (``x = 0``): ``q1' = 2 dc'``, ``q2' = L E phi'``."""
@@ -207,8 +211,9 @@ class Chart:
         jn, _ = self.node_jacobian(x)
         fa, fb = force[s.rod_nodes[:, 0]], force[s.rod_nodes[:, 1]]
         torque = 0.5 * s.rod_length[:, None] * np.einsum("rij,ri->rj", jn, fb - fa)
-        return self._with_point_masses(np.concatenate([fa + fb, torque], axis=1),
-                                       force[s.point_mass_nodes])
+        return self._with_point_masses(
+            np.concatenate([fa + fb, torque], axis=1), force[s.point_mass_nodes]
+        )
 
     # ------------------------------------------------------------------ joints and supports
     @property
@@ -229,8 +234,9 @@ class Chart:
             return np.zeros((0, self.size))
         return np.asarray(c.node_matrix @ self.jacobian_matrix(x))
 
-    def reaction(self, generalized_force: np.ndarray, x: np.ndarray | None = None
-                 ) -> tuple[np.ndarray, np.ndarray]:
+    def reaction(
+        self, generalized_force: np.ndarray, x: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """``(f_c (N, 3), Q + G^T lambda)``: the nodal forces ``f_c = A_n^T lambda`` [N] of the
         joints and supports that best balance the generalized forces ``Q`` (``lambda`` by least
         squares, minimum norm where the rows are dependent), and what they leave unbalanced."""
@@ -250,7 +256,9 @@ class Chart:
             return q
         return constraints_of(self.structure).project(q, np.zeros_like(q))[0]
 
-    def admitted_motions(self, x: np.ndarray | None = None, rtol: float = 1e-10) -> np.ndarray | None:
+    def admitted_motions(
+        self, x: np.ndarray | None = None, rtol: float = 1e-10
+    ) -> np.ndarray | None:
         """``Z`` (5R + 3M, k): an ``M``-orthonormal basis (``Z^T M Z = I``) of the motions the
         joints and supports admit, ``null(G)``; None without constraints (every motion)."""
         if self.n_constraints == 0:
@@ -277,16 +285,20 @@ def spatial(structure: Structure) -> Structure:
     return structure.replace(
         node_position=spatial_vector(structure, structure.node_position),
         node_velocity=spatial_vector(structure, structure.node_velocity),
-        plane_nodes=planes, plane_normal=np.tile([0.0, 0.0, 1.0], (planes.size, 1)),
+        plane_nodes=planes,
+        plane_normal=np.tile([0.0, 0.0, 1.0], (planes.size, 1)),
         line_nodes=structure.line_nodes,
-        line_direction=spatial_vector(structure, structure.line_direction))
+        line_direction=spatial_vector(structure, structure.line_direction),
+    )
 
 
 def has_supports(structure: Structure) -> bool:
     """True if some node is fixed or held on a plane or line: the supports then hold the
     structure against (some) rigid-body motion, and configurations are compared as they are,
     not after a rigid alignment."""
-    return bool(structure.node_fixed.any() or structure.plane_nodes.size or structure.line_nodes.size)
+    return bool(
+        structure.node_fixed.any() or structure.plane_nodes.size or structure.line_nodes.size
+    )
 
 
 def spatial_vector(structure: Structure, value: np.ndarray | None) -> np.ndarray | None:
@@ -325,8 +337,10 @@ def configuration(structure: Structure, value: Any = None, *, name: str = "q") -
     if value.shape == (structure.n_nodes, structure.dim):
         value = dynamics.coordinates_from_nodes(structure, value)
     if value.shape != (structure.n_coordinates,):
-        raise ValueError(f"{name}: expected node positions ({structure.n_nodes}, {structure.dim}) or q "
-                         f"({structure.n_coordinates},), got shape {value.shape}")
+        raise ValueError(
+            f"{name}: expected node positions ({structure.n_nodes}, {structure.dim}) or q "
+            f"({structure.n_coordinates},), got shape {value.shape}"
+        )
     q, _ = dynamics.project_to_constraints(structure, value, np.zeros_like(value))
     return q
 
@@ -349,7 +363,9 @@ def mass_matrix(structure: Structure) -> np.ndarray:
     rods = np.column_stack([m, m, m, m * L**2 / 12, m * L**2 / 12]).reshape(-1)
     if not structure.point_mass_nodes.size:
         return rods
-    return np.concatenate([rods, np.repeat(structure.node_point_mass[structure.point_mass_nodes], 3)])
+    return np.concatenate(
+        [rods, np.repeat(structure.node_point_mass[structure.point_mass_nodes], 3)]
+    )
 
 
 def rigid_body_basis(chart: Chart) -> np.ndarray:
@@ -375,13 +391,16 @@ def rigid_body_basis(chart: Chart) -> np.ndarray:
     s = chart.structure
     mass = mass_matrix(s)
     weights = np.concatenate([s.rod_mass, s.node_point_mass[s.point_mass_nodes]])
-    centre_of_mass = np.average(np.concatenate([chart.centre, chart.point_mass]), axis=0,
-                                weights=weights)
+    centre_of_mass = np.average(
+        np.concatenate([chart.centre, chart.point_mass]), axis=0, weights=weights
+    )
     columns = []
     for k in range(3):
         v = np.zeros((s.n_rods, 5))
         v[:, k] = 1.0
-        columns.append(chart._with_point_masses(v, np.broadcast_to(np.eye(3)[k], chart.point_mass.shape)))
+        columns.append(
+            chart._with_point_masses(v, np.broadcast_to(np.eye(3)[k], chart.point_mass.shape))
+        )
     for k in range(3):
         a = np.eye(3)[k]
         v = np.zeros((s.n_rods, 5))
@@ -394,16 +413,18 @@ def rigid_body_basis(chart: Chart) -> np.ndarray:
     # along the axis) moves nothing, but its column may hold the round-off of c - c_m and
     # p - c_m (of the equilibrium solver's last bits, or of c_m's): it is exactly no motion.
     # Translations have size sqrt(m_total), rotations at most sqrt(m_total) l.
-    span = np.max(np.linalg.norm(chart.nodes(np.zeros(chart.size)) - centre_of_mass, axis=1),
-                  initial=0.0)
+    span = np.max(
+        np.linalg.norm(chart.nodes(np.zeros(chart.size)) - centre_of_mass, axis=1), initial=0.0
+    )
     still = scale <= RTOL_RIGID * np.sqrt(np.sum(weights)) * np.repeat([1.0, span], 3)
     rigid[:, still] = 0.0
     anchors = s.anchor_nodes
     if chart.n_constraints or anchors.size:
         # coefficients of the motions that move no anchor and keep the constraints
         arm = s.node_position[anchors] - centre_of_mass
-        at_anchors = np.concatenate([np.tile(np.eye(3), (anchors.size, 1)),
-                                     -cross_matrix(arm).reshape(-1, 3)], axis=1)
+        at_anchors = np.concatenate(
+            [np.tile(np.eye(3), (anchors.size, 1)), -cross_matrix(arm).reshape(-1, 3)], axis=1
+        )
         rows = np.vstack([chart.constraint_jacobian() @ rigid, at_anchors])
         scale[still] = 1.0  # motions that move nothing (above): only their anchors count
         _, sigma, vt = np.linalg.svd(rows / scale[None, :])
@@ -441,8 +462,9 @@ def cross_matrix(a: np.ndarray) -> np.ndarray:
     return out
 
 
-def mass_orthonormal(vectors: np.ndarray, mass: np.ndarray, rtol: float = 1e-10, *,
-                     reference: float = 0.0) -> np.ndarray:
+def mass_orthonormal(
+    vectors: np.ndarray, mass: np.ndarray, rtol: float = 1e-10, *, reference: float = 0.0
+) -> np.ndarray:
     """An ``M``-orthonormal basis (``V^T diag(mass) V = I``) of the span of ``vectors``' columns.
 
     Directions whose mass-metric size is at most ``rtol`` times the largest of the columns'
@@ -477,7 +499,9 @@ def align(p: np.ndarray, reference: np.ndarray, weights: np.ndarray) -> np.ndarr
     return np.stack([kabsch(one, reference, weights)[0] for one in flat]).reshape(p.shape)
 
 
-def kabsch(p: np.ndarray, reference: np.ndarray, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def kabsch(
+    p: np.ndarray, reference: np.ndarray, weights: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Weighted Kabsch fit of ``p`` (N, 3) onto ``reference``: ``(aligned, R)`` with
     ``aligned = (p - c) R + c_ref`` (``c``, ``c_ref`` the weighted centroids, ``R`` a rotation)."""
     w = np.asarray(weights, dtype=float) / np.sum(weights)
@@ -489,8 +513,9 @@ def kabsch(p: np.ndarray, reference: np.ndarray, weights: np.ndarray) -> tuple[n
     return (p - c) @ rotation + c_ref, rotation
 
 
-def deformation(p: np.ndarray, reference: np.ndarray, weights: np.ndarray, *,
-                rigid: bool = True) -> np.ndarray:
+def deformation(
+    p: np.ndarray, reference: np.ndarray, weights: np.ndarray, *, rigid: bool = True
+) -> np.ndarray:
     """RMS (weighted by ``weights``) node distance from ``reference`` after rigid alignment [m],
     shape (...,): the size of a deformation, blind to rigid-body motion.  ``rigid=False``: no
     alignment (a supported structure, whose rigid-body motion is a deformation too)."""

@@ -35,8 +35,6 @@ from typing import Any
 import numpy as np
 import scipy.optimize
 
-from tensegrity.physics.constraints import constraints_of
-from tensegrity.physics import dynamics
 from tensegrity.analysis.coordinates import (
     Chart,
     align,
@@ -57,6 +55,8 @@ from tensegrity.analysis.statics import (
     with_reactions,
 )
 from tensegrity.model.structure import Structure
+from tensegrity.physics import dynamics
+from tensegrity.physics.constraints import constraints_of
 
 #: Default force tolerance, relative to ``mean(k) * mean(rod length)`` (100 N for the default
 #: shell: 1e-10 N there).
@@ -113,24 +113,40 @@ class EquilibriumResult:
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready summary: node positions, tensions, slack tendons and residuals."""
         s = self.structure
-        return {
-            "method": self.method,
-            "converged": bool(self.converged),
-            "message": self.message,
-            "residual_force_N": float(self.residual_force),
-            "residual_acceleration_m_s2": float(self.residual_acceleration),
-            "node_position_m": self.node_position.tolist(),
-            "tendons": [
-                {"name": name, "tension_N": float(T), "length_m": float(l),
-                 "rest_length_m": float(r), "slack": bool(sl)}
-                for name, T, l, r, sl in zip(s.tendon_name, self.tension, self.tendon_length,
-                                             self.rest_length, self.slack)
-            ],
-            "rod_compression_N": self.rod_compression.tolist(),
-            "slack_tendons": self.slack_names,
-        } | ({} if self.reaction_force is None else
-             {"reaction_force_N": self.reaction_force.tolist()}) | (
-            {} if self.gravity is None else {"gravity_m_s2": self.gravity.tolist()})
+        return (
+            {
+                "method": self.method,
+                "converged": bool(self.converged),
+                "message": self.message,
+                "residual_force_N": float(self.residual_force),
+                "residual_acceleration_m_s2": float(self.residual_acceleration),
+                "node_position_m": self.node_position.tolist(),
+                "tendons": [
+                    {
+                        "name": name,
+                        "tension_N": float(T),
+                        "length_m": float(l),
+                        "rest_length_m": float(r),
+                        "slack": bool(sl),
+                    }
+                    for name, T, l, r, sl in zip(
+                        s.tendon_name,
+                        self.tension,
+                        self.tendon_length,
+                        self.rest_length,
+                        self.slack,
+                    )
+                ],
+                "rod_compression_N": self.rod_compression.tolist(),
+                "slack_tendons": self.slack_names,
+            }
+            | (
+                {}
+                if self.reaction_force is None
+                else {"reaction_force_N": self.reaction_force.tolist()}
+            )
+            | ({} if self.gravity is None else {"gravity_m_s2": self.gravity.tolist()})
+        )
 
 
 def force_scales(structure: Structure, gravity: np.ndarray | None = None) -> tuple[float, float]:
@@ -158,10 +174,17 @@ def make_result(
 ) -> EquilibriumResult:
     """An :class:`EquilibriumResult` at ``q`` (residuals evaluated there)."""
     if structure.dim == 2:
-        result = make_result(spatial(structure), spatial_coordinates(structure, q), control,
-                             external_force=spatial_vector(structure, external_force),
-                             gravity=spatial_vector(structure, gravity), converged=converged,
-                             method=method, message=message, nfev=nfev)
+        result = make_result(
+            spatial(structure),
+            spatial_coordinates(structure, q),
+            control,
+            external_force=spatial_vector(structure, external_force),
+            gravity=spatial_vector(structure, gravity),
+            converged=converged,
+            method=method,
+            message=message,
+            nfev=nfev,
+        )
         return planar_result(structure, result, external_force, gravity)
     u = np.zeros(structure.n_tendons) if control is None else np.asarray(control, dtype=float)
     rest = dynamics.rest_lengths(structure, u)
@@ -169,8 +192,14 @@ def make_result(
     x0 = np.zeros(chart.size)
     st = statics(chart, x0, rest, external_force, gravity)
     reaction, unbalanced = chart.reaction(st.generalized_force)
-    qddot = dynamics.accelerations(structure, st.q, np.zeros_like(st.q), control=u,
-                                   external_force=external_force, gravity=gravity)
+    qddot = dynamics.accelerations(
+        structure,
+        st.q,
+        np.zeros_like(st.q),
+        control=u,
+        external_force=external_force,
+        gravity=gravity,
+    )
     return EquilibriumResult(
         structure=structure,
         q=st.q,
@@ -193,16 +222,23 @@ def make_result(
     )
 
 
-def planar_result(planar: Structure, result: EquilibriumResult, external_force: np.ndarray | None,
-                  gravity: np.ndarray | None) -> EquilibriumResult:
+def planar_result(
+    planar: Structure,
+    result: EquilibriumResult,
+    external_force: np.ndarray | None,
+    gravity: np.ndarray | None,
+) -> EquilibriumResult:
     """A result of the 3-D form (:func:`~tensegrity.analysis.coordinates.spatial`) of the planar
     structure ``planar``, in 2-D (the loads as ``planar``'s: 2 numbers per vector)."""
     return dataclasses.replace(
-        result, structure=planar, q=planar_coordinates(planar, result.q),
+        result,
+        structure=planar,
+        q=planar_coordinates(planar, result.q),
         node_position=result.node_position[:, :2],
         reaction_force=result.reaction_force[:, :2] if planar.has_constraints else None,
         external_force=None if external_force is None else np.asarray(external_force, float),
-        gravity=None if gravity is None else np.asarray(gravity, float))
+        gravity=None if gravity is None else np.asarray(gravity, float),
+    )
 
 
 class EckartGauge:
@@ -212,8 +248,13 @@ class EckartGauge:
     With supports, only the combinations ``rows`` (k, 6) of them that fix the admitted
     rigid-body motions (:meth:`restricted`)."""
 
-    def __init__(self, structure: Structure, p_ref: np.ndarray, rotations: bool = True,
-                 scale: float | None = None) -> None:
+    def __init__(
+        self,
+        structure: Structure,
+        p_ref: np.ndarray,
+        rotations: bool = True,
+        scale: float | None = None,
+    ) -> None:
         self.rotations = rotations
         self.w = structure.node_mass / structure.node_mass.sum()
         self.p_ref = p_ref
@@ -254,8 +295,9 @@ class EckartGauge:
         return full if self.rows is None else self.rows @ full
 
 
-def eckart_gauge(structure: Structure, q: np.ndarray, p_ref: np.ndarray, rotations: bool,
-                 scale: float) -> EckartGauge | None:
+def eckart_gauge(
+    structure: Structure, q: np.ndarray, p_ref: np.ndarray, rotations: bool, scale: float
+) -> EckartGauge | None:
     """Eckart's conditions for the rigid-body motions the supports of ``structure`` admit at
     ``q`` (all six for a free structure; None if there are none).  Without ``rotations`` (under
     loads, which fix the orientation) only the admitted pure translations are gauged."""
@@ -331,26 +373,55 @@ def find_equilibrium(
     """
     if structure.dim == 2:
         return _find_planar_equilibrium(
-            structure, start, control=control, external_force=external_force, gravity=gravity,
-            gauge=gauge, gauge_reference=gauge_reference, descend=descend, force_tol=force_tol,
-            max_rounds=max_rounds, max_nfev=max_nfev)
+            structure,
+            start,
+            control=control,
+            external_force=external_force,
+            gravity=gravity,
+            gauge=gauge,
+            gauge_reference=gauge_reference,
+            descend=descend,
+            force_tol=force_tol,
+            max_rounds=max_rounds,
+            max_nfev=max_nfev,
+        )
     q = configuration(structure, start, name="start")
     problem = _EquilibriumProblem.build(
-        structure, q, control=control, external_force=external_force, gravity=gravity,
-        gauge=gauge, gauge_reference=gauge_reference, force_tol=force_tol)
+        structure,
+        q,
+        control=control,
+        external_force=external_force,
+        gravity=gravity,
+        gauge=gauge,
+        gauge_reference=gauge_reference,
+        force_tol=force_tol,
+    )
     nfev = 0
     if descend:
         q, nfev = _descend(structure, q, problem.rest, external_force, gravity, problem.eckart)
     q, converged, message, used = problem.solve(q, max_rounds=max_rounds, max_nfev=max_nfev)
-    return make_result(structure, q, problem.control, external_force=external_force,
-                       gravity=gravity, converged=converged, method="least_squares",
-                       message=message, nfev=nfev + used)
+    return make_result(
+        structure,
+        q,
+        problem.control,
+        external_force=external_force,
+        gravity=gravity,
+        converged=converged,
+        method="least_squares",
+        message=message,
+        nfev=nfev + used,
+    )
 
 
-def _find_planar_equilibrium(structure: Structure, start: Any, *, gravity: np.ndarray | None,
-                             external_force: np.ndarray | None,
-                             gauge_reference: np.ndarray | None,
-                             **options: Any) -> EquilibriumResult:
+def _find_planar_equilibrium(
+    structure: Structure,
+    start: Any,
+    *,
+    gravity: np.ndarray | None,
+    external_force: np.ndarray | None,
+    gauge_reference: np.ndarray | None,
+    **options: Any,
+) -> EquilibriumResult:
     """:func:`find_equilibrium` of a planar structure: solved in its 3-D form
     (:func:`~tensegrity.analysis.coordinates.spatial`), reported in 2-D.
 
@@ -359,10 +430,13 @@ def _find_planar_equilibrium(structure: Structure, start: Any, *, gravity: np.nd
     """
     q2 = configuration(structure, start, name="start")
     result = find_equilibrium(
-        spatial(structure), spatial_coordinates(structure, q2),
+        spatial(structure),
+        spatial_coordinates(structure, q2),
         external_force=spatial_vector(structure, external_force),
         gravity=spatial_vector(structure, gravity),
-        gauge_reference=spatial_vector(structure, gauge_reference), **options)
+        gauge_reference=spatial_vector(structure, gauge_reference),
+        **options,
+    )
     return planar_result(structure, result, external_force, gravity)
 
 
@@ -395,22 +469,36 @@ class _EquilibriumProblem:
     eckart: EckartGauge | None
 
     @classmethod
-    def build(cls, structure: Structure, q: np.ndarray, *, control: np.ndarray | None,
-              external_force: np.ndarray | None, gravity: np.ndarray | None, gauge: bool,
-              gauge_reference: np.ndarray | None,
-              force_tol: float | None) -> _EquilibriumProblem:
+    def build(
+        cls,
+        structure: Structure,
+        q: np.ndarray,
+        *,
+        control: np.ndarray | None,
+        external_force: np.ndarray | None,
+        gravity: np.ndarray | None,
+        gauge: bool,
+        gauge_reference: np.ndarray | None,
+        force_tol: float | None,
+    ) -> _EquilibriumProblem:
         """The problem of :func:`find_equilibrium`'s arguments, gauged about ``gauge_reference``
         (N, 3) [m] (default the nodes at ``q``, the (6R,) start) if ``gauge``."""
         u = np.zeros(structure.n_tendons) if control is None else np.asarray(control, dtype=float)
         rest = dynamics.rest_lengths(structure, u)
         k_scale, length = force_scales(structure, gravity)
         tol = FORCE_RTOL * k_scale * length if force_tol is None else float(force_tol)
-        p_ref = (dynamics.nodes_from_coordinates(structure, q) if gauge_reference is None
-                 else np.asarray(gauge_reference, dtype=float))
+        p_ref = (
+            dynamics.nodes_from_coordinates(structure, q)
+            if gauge_reference is None
+            else np.asarray(gauge_reference, dtype=float)
+        )
         # Loads that are not invariant under rotation (external forces, gravity) fix the
         # orientation themselves: then only the translation is gauged.
-        eckart = (eckart_gauge(structure, q, p_ref, external_force is None and gravity is None,
-                               k_scale) if gauge else None)
+        eckart = (
+            eckart_gauge(structure, q, p_ref, external_force is None and gravity is None, k_scale)
+            if gauge
+            else None
+        )
         return cls(structure, u, rest, external_force, gravity, k_scale, tol, eckart)
 
     def statics_at(self, chart: Chart, x: np.ndarray) -> Statics:
@@ -423,8 +511,10 @@ class _EquilibriumProblem:
         st = self.statics_at(chart, x)
         parts = [st.generalized_force]
         if chart.n_constraints:
-            parts = [parts[0] + chart.constraint_jacobian(x).T @ v[chart.size :],
-                     self.k_scale * chart.constraint_residual(x)]
+            parts = [
+                parts[0] + chart.constraint_jacobian(x).T @ v[chart.size :],
+                self.k_scale * chart.constraint_residual(x),
+            ]
         if self.eckart is not None:
             parts.append(self.eckart.residual(st.p))
         return np.concatenate(parts)
@@ -441,8 +531,10 @@ class _EquilibriumProblem:
         c = chart.n_constraints
         G = chart.constraint_jacobian(x)
         reaction = (constraints_of(self.structure).node_matrix_t @ v[chart.size :]).reshape(-1, 3)
-        rows = [np.hstack([force_jacobian(chart, x, st._replace(force=st.force + reaction)), G.T]),
-                np.hstack([self.k_scale * G, np.zeros((c, c))])]
+        rows = [
+            np.hstack([force_jacobian(chart, x, st._replace(force=st.force + reaction)), G.T]),
+            np.hstack([self.k_scale * G, np.zeros((c, c))]),
+        ]
         if self.eckart is not None:
             gauge_rows = self.eckart.jacobian(chart.jacobian_matrix(x))
             rows.append(np.hstack([gauge_rows, np.zeros((gauge_rows.shape[0], c))]))
@@ -463,8 +555,9 @@ class _EquilibriumProblem:
         Q = self.statics_at(chart, np.zeros(chart.size)).generalized_force
         return float(np.max(np.abs(chart.reaction(Q)[1]), initial=0.0))
 
-    def solve(self, q: np.ndarray, *, max_rounds: int,
-              max_nfev: int) -> tuple[np.ndarray, bool, str, int]:
+    def solve(
+        self, q: np.ndarray, *, max_rounds: int, max_nfev: int
+    ) -> tuple[np.ndarray, bool, str, int]:
         """Rounds of least squares from ``q`` (6R,), each on a chart based at the last round's
         solution and ended by Newton steps, until ``max |Q| <= force_tol``.
 
@@ -487,8 +580,9 @@ class _EquilibriumProblem:
             tol = self.force_tol
             if force_residual <= tol:
                 return q, True, f"converged: max |Q| = {force_residual:.3g} N <= {tol:.3g} N", nfev
-            message = (f"did not converge: max |Q| = {force_residual:.3g} N > {tol:.3g} N "
-                       f"({fit.message})")
+            message = (
+                f"did not converge: max |Q| = {force_residual:.3g} N > {tol:.3g} N ({fit.message})"
+            )
             if fit.status > 0 and force_residual > 1e3 * tol:
                 break  # a least-squares minimum that is no equilibrium: going on will not help
         return q, False, message, nfev
@@ -498,9 +592,14 @@ class _EquilibriumProblem:
         Jacobian (Levenberg-Marquardt unless the system is underdetermined)."""
         lm = self.eckart is not None or chart.size <= self.structure.n_coordinates
         return scipy.optimize.least_squares(
-            lambda v: self.residual(chart, v), self.start(chart),
-            jac=lambda v: self.jacobian(chart, v), method="lm" if lm else "trf",
-            xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=max_nfev,
+            lambda v: self.residual(chart, v),
+            self.start(chart),
+            jac=lambda v: self.jacobian(chart, v),
+            method="lm" if lm else "trf",
+            xtol=1e-15,
+            ftol=1e-15,
+            gtol=1e-15,
+            max_nfev=max_nfev,
         )
 
     def polish(self, q: np.ndarray, steps: int = 5) -> tuple[np.ndarray, float, int]:
@@ -519,14 +618,16 @@ class _EquilibriumProblem:
             chart = Chart.at(self.structure, q)
             v0 = self.start(chart)
             nfev += 1
-            step, *_ = np.linalg.lstsq(self.jacobian(chart, v0), -self.residual(chart, v0),
-                                       rcond=None)
+            step, *_ = np.linalg.lstsq(
+                self.jacobian(chart, v0), -self.residual(chart, v0), rcond=None
+            )
             trial = chart.retract(step[: chart.size])
             trial_residual = self.unbalanced(trial)
             if trial_residual >= force_residual:
                 break  # no progress (a near-singular Jacobian: zero-stiffness motions)
             q, force_residual = trial, trial_residual
         return q, force_residual, nfev
+
 
 def potential_energy(structure, p, q, rest, external_force, gravity) -> float:
     """Elastic energy minus the work of constant external forces and gravity [J]."""
@@ -587,8 +688,10 @@ def _descend(structure, q, rest, external_force, gravity, eckart, max_iter=500):
         floor = 1e-8 * max(np.max(np.abs(lam), initial=0.0), 1e-300)
         reduced = -V @ ((V.T @ grad) / np.maximum(np.abs(lam), floor))
         step = reduced if Z is None else Z @ reduced
-        scale = np.concatenate([np.full(3, length), np.ones(2)] * structure.n_rods
-                               + [np.full(3 * structure.point_mass_nodes.size, length)])
+        scale = np.concatenate(
+            [np.full(3, length), np.ones(2)] * structure.n_rods
+            + [np.full(3 * structure.point_mass_nodes.size, length)]
+        )
         biggest = np.max(np.abs(step) / scale, initial=0.0) / 0.25
         if biggest > 1.0:
             step /= biggest
@@ -633,17 +736,38 @@ def equilibrium_by_simulation(
     from tensegrity.engine.simulate import STATUS_STEADY, simulate
 
     result = simulate(
-        with_damping(structure, damping), (0.0, float(t_end)), initial=initial, control=control, steady_state=True,
-        velocity_tol=velocity_tol, acceleration_tol=acceleration_tol, sample_dt=sample_dt,
+        with_damping(structure, damping),
+        (0.0, float(t_end)),
+        initial=initial,
+        control=control,
+        steady_state=True,
+        velocity_tol=velocity_tol,
+        acceleration_tol=acceleration_tol,
+        sample_dt=sample_dt,
         **simulate_options,
     )
     converged = result.status == STATUS_STEADY
-    message = (f"{result.message} (node speeds < {velocity_tol:g} m/s, accelerations < "
-               f"{acceleration_tol:g} m/s^2)" if converged else f"not at rest: {result.message}")
-    loads = {key: simulate_options[key] for key in ("gravity", "external_force")
-             if isinstance(simulate_options.get(key), (list, tuple, np.ndarray))}
-    return make_result(structure, result.q[-1], control, **loads, converged=converged,
-                       method="simulation", message=message, nfev=result.nfev)
+    message = (
+        f"{result.message} (node speeds < {velocity_tol:g} m/s, accelerations < "
+        f"{acceleration_tol:g} m/s^2)"
+        if converged
+        else f"not at rest: {result.message}"
+    )
+    loads = {
+        key: simulate_options[key]
+        for key in ("gravity", "external_force")
+        if isinstance(simulate_options.get(key), (list, tuple, np.ndarray))
+    }
+    return make_result(
+        structure,
+        result.q[-1],
+        control,
+        **loads,
+        converged=converged,
+        method="simulation",
+        message=message,
+        nfev=result.nfev,
+    )
 
 
 def with_damping(structure: Structure, damping: str) -> Structure:

@@ -37,7 +37,6 @@ from typing import Any
 
 import numpy as np
 
-from tensegrity.physics import dynamics
 from tensegrity.analysis.coordinates import (
     Chart,
     admitted_rigid_motions,
@@ -61,6 +60,7 @@ from tensegrity.analysis.statics import (
     with_reactions,
 )
 from tensegrity.model.structure import Structure
+from tensegrity.physics import dynamics
 
 #: Output groups of :class:`Linearization`, in the order of ``C``'s rows.
 OUTPUT_GROUPS = ("position", "length", "tension")
@@ -147,8 +147,12 @@ class Linearization:
         rigid-body motions (``Z^T M Z = I``): ``A_e = [[0, I], [-Z^T K Z, -Z^T C Z]]``."""
         Z = mass_complement(self.rigid_basis, self.mass)
         n = Z.shape[1]
-        A = np.block([[np.zeros((n, n)), np.eye(n)],
-                      [-(Z.T @ self.stiffness @ Z), -(Z.T @ self.damping @ Z)]])
+        A = np.block(
+            [
+                [np.zeros((n, n)), np.eye(n)],
+                [-(Z.T @ self.stiffness @ Z), -(Z.T @ self.damping @ Z)],
+            ]
+        )
         return A, Z
 
     def output_indices(self, outputs: str | Sequence[str] | None) -> np.ndarray:
@@ -199,9 +203,15 @@ class Linearization:
             B = np.hstack([B, self.D])
             F = np.hstack([F, np.zeros((rows.size, self.D.shape[1]))])
             names += list(self.disturbance_names)
-        return control.ss(self.A, B, self.C[rows], F, inputs=names,
-                          outputs=[_signal(self.output_names[r]) for r in rows],
-                          states=list(self.state_names))
+        return control.ss(
+            self.A,
+            B,
+            self.C[rows],
+            F,
+            inputs=names,
+            outputs=[_signal(self.output_names[r]) for r in rows],
+            states=list(self.state_names),
+        )
 
     def state(self, q: np.ndarray, qdot: np.ndarray | None = None) -> np.ndarray:
         """The linear state ``z = [x, x']`` (10R,) of a nonlinear state ``(q, q')``: ``x`` exact
@@ -265,18 +275,36 @@ def linearize(
     A, B, D = _state_equation(mass, K, damping, force_input, J)
     C, F = _output_equation(J, A_eq, k_eff, c_eff)
     return Linearization(
-        structure=s, equilibrium=eq, chart=chart, mass=mass, stiffness=K, damping=damping,
-        force_input=force_input, equilibrium_matrix=A_eq, A=A, B=B, D=D, C=C, F=F, taut=active,
+        structure=s,
+        equilibrium=eq,
+        chart=chart,
+        mass=mass,
+        stiffness=K,
+        damping=damping,
+        force_input=force_input,
+        equilibrium_matrix=A_eq,
+        A=A,
+        B=B,
+        D=D,
+        C=C,
+        F=F,
+        taut=active,
         state_names=_state_names(s, mass.size, restricted=Z is not None),
         input_names=tuple(s.tendon_name),
         disturbance_names=tuple(f"w{i}_{a}" for i in range(s.n_nodes) for a in _AXES),
-        output_names=_output_names(s), rigid_basis=rigid, source=structure, basis=Z,
+        output_names=_output_names(s),
+        rigid_basis=rigid,
+        source=structure,
+        basis=Z,
         position_jacobian=J,
     )
 
 
-def _spatial_equilibrium(structure: Structure, equilibrium: EquilibriumResult | np.ndarray | None,
-                         control: np.ndarray | None) -> EquilibriumResult:
+def _spatial_equilibrium(
+    structure: Structure,
+    equilibrium: EquilibriumResult | np.ndarray | None,
+    control: np.ndarray | None,
+) -> EquilibriumResult:
     """The equilibrium :func:`linearize` is given, as a result of the 3-D form of ``structure``
     (:func:`~tensegrity.analysis.coordinates.spatial`; the structure itself if not planar).
 
@@ -287,20 +315,37 @@ def _spatial_equilibrium(structure: Structure, equilibrium: EquilibriumResult | 
     if isinstance(equilibrium, EquilibriumResult):
         eq = equilibrium
         if eq.structure is not structure or structure.dim == 2:
-            eq = make_result(spatial(structure), spatial_coordinates(structure, eq.q), eq.control,
-                             external_force=spatial_vector(structure, eq.external_force),
-                             gravity=spatial_vector(structure, eq.gravity),
-                             converged=eq.converged, method=eq.method, message=eq.message,
-                             nfev=eq.nfev)
+            eq = make_result(
+                spatial(structure),
+                spatial_coordinates(structure, eq.q),
+                eq.control,
+                external_force=spatial_vector(structure, eq.external_force),
+                gravity=spatial_vector(structure, eq.gravity),
+                converged=eq.converged,
+                method=eq.method,
+                message=eq.message,
+                nfev=eq.nfev,
+            )
         return eq
-    q = (dynamics.coordinates_from_nodes(structure, structure.node_position)
-         if equilibrium is None else np.asarray(equilibrium, dtype=float))
-    return make_result(spatial(structure), spatial_coordinates(structure, q), control,
-                       converged=True, method="given", message="given configuration", nfev=0)
+    q = (
+        dynamics.coordinates_from_nodes(structure, structure.node_position)
+        if equilibrium is None
+        else np.asarray(equilibrium, dtype=float)
+    )
+    return make_result(
+        spatial(structure),
+        spatial_coordinates(structure, q),
+        control,
+        converged=True,
+        method="given",
+        message="given configuration",
+        nfev=0,
+    )
 
 
-def _tangent_stiffness(chart: Chart, st: Statics, J: np.ndarray,
-                       include_threshold: bool) -> np.ndarray:
+def _tangent_stiffness(
+    chart: Chart, st: Statics, J: np.ndarray, include_threshold: bool
+) -> np.ndarray:
     """``K = -dQ/dx`` (n, n), symmetrized, at the chart's base (``st`` its statics, reactions
     included; ``J = dp/dx`` (3N, n)); with ``include_threshold``, tendons exactly at their rest
     length add their material stiffness."""
@@ -308,14 +353,18 @@ def _tangent_stiffness(chart: Chart, st: Statics, J: np.ndarray,
     K = -force_jacobian(chart, x0, st)
     tendons = st.tendons
     if include_threshold and np.any(tendons.at_threshold):
-        K_thr = node_stiffness(chart.structure, tendons._replace(taut=np.zeros_like(tendons.taut)),
-                               include_threshold=True)
+        K_thr = node_stiffness(
+            chart.structure,
+            tendons._replace(taut=np.zeros_like(tendons.taut)),
+            include_threshold=True,
+        )
         K = K + J.T @ K_thr @ J
     return 0.5 * (K + K.T)
 
 
-def _damping_matrix(structure: Structure, tendons: TendonState, J: np.ndarray,
-                    mass: np.ndarray) -> np.ndarray:
+def _damping_matrix(
+    structure: Structure, tendons: TendonState, J: np.ndarray, mass: np.ndarray
+) -> np.ndarray:
     """``C`` (n, n): the damping of the tendons flagged taut in ``tendons`` (``c t t^T`` through
     ``J = dp/dx`` (3N, n)) plus the rods' mass-proportional ``alpha M`` (``mass`` (n,))."""
     s = structure
@@ -324,9 +373,9 @@ def _damping_matrix(structure: Structure, tendons: TendonState, J: np.ndarray,
     return J.T @ C_node @ J + np.diag(alpha * mass)
 
 
-def _state_equation(mass: np.ndarray, K: np.ndarray, damping: np.ndarray,
-                    force_input: np.ndarray,
-                    J: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _state_equation(
+    mass: np.ndarray, K: np.ndarray, damping: np.ndarray, force_input: np.ndarray, J: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(A, B, D)`` of ``z' = A z + B du + D dw``: (2k, 2k), (2k, S), (2k, 3N), from the mass
     diagonal (k,), ``K`` and ``C`` (k, k), ``dQ/du`` (k, S) and ``J = dp/deta`` (3N, k)."""
     n = mass.size
@@ -340,20 +389,24 @@ def _state_equation(mass: np.ndarray, K: np.ndarray, damping: np.ndarray,
     return A, B, D
 
 
-def _output_equation(J: np.ndarray, A_eq: np.ndarray, k_eff: np.ndarray,
-                     c_eff: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _output_equation(
+    J: np.ndarray, A_eq: np.ndarray, k_eff: np.ndarray, c_eff: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """``(C, F)`` of ``y = C z + F du`` (node positions, tendon lengths, tensions): (3N + 2S, 2k)
     and (3N + 2S, S), from ``J = dp/deta`` (3N, k), ``A_eq`` (k, S) and the taut tendons'
     stiffness and damping (S,) [N/m, N s/m] (0 for slack ones)."""
     n_tendons, n = k_eff.size, J.shape[1]
     zeros = np.zeros((n_tendons, n))
-    C = np.vstack([
-        np.hstack([J, np.zeros_like(J)]),
-        np.hstack([-A_eq.T, zeros]),
-        np.hstack([-(k_eff[:, None] * A_eq.T), -(c_eff[:, None] * A_eq.T)]),
-    ])
-    F = np.vstack([np.zeros((J.shape[0], n_tendons)), np.zeros((n_tendons, n_tendons)),
-                   np.diag(k_eff)])
+    C = np.vstack(
+        [
+            np.hstack([J, np.zeros_like(J)]),
+            np.hstack([-A_eq.T, zeros]),
+            np.hstack([-(k_eff[:, None] * A_eq.T), -(c_eff[:, None] * A_eq.T)]),
+        ]
+    )
+    F = np.vstack(
+        [np.zeros((J.shape[0], n_tendons)), np.zeros((n_tendons, n_tendons)), np.diag(k_eff)]
+    )
     return C, F
 
 
@@ -364,17 +417,21 @@ def _state_names(structure: Structure, n_dof: int, *, restricted: bool) -> tuple
     if restricted:
         states = [f"eta{j}" for j in range(n_dof)]
     else:
-        states = ([f"rod{r}_{c}" for r in range(s.n_rods) for c in _ROD_COORDS]
-                  + [f"mass{i}_{a}" for i in s.point_mass_nodes for a in _AXES])
+        states = [f"rod{r}_{c}" for r in range(s.n_rods) for c in _ROD_COORDS] + [
+            f"mass{i}_{a}" for i in s.point_mass_nodes for a in _AXES
+        ]
     return tuple(states + [f"{name}_dot" for name in states])
 
 
 def _output_names(structure: Structure) -> tuple[str, ...]:
     """``p{i}_x``..., ``length_{tendon}``..., ``tension_{tendon}``..."""
     names = structure.tendon_name
-    return tuple([f"p{i}_{a}" for i in range(structure.n_nodes) for a in _AXES]
-                 + [f"length_{name}" for name in names]
-                 + [f"tension_{name}" for name in names])
+    return tuple(
+        [f"p{i}_{a}" for i in range(structure.n_nodes) for a in _AXES]
+        + [f"length_{name}" for name in names]
+        + [f"tension_{name}" for name in names]
+    )
+
 
 def _unloaded(rigid: np.ndarray, K: np.ndarray, mass: np.ndarray, rtol: float = 1e-8) -> np.ndarray:
     """The admitted rigid-body motions (columns of ``rigid``, ``M``-orthonormal) that the loads
@@ -383,7 +440,9 @@ def _unloaded(rigid: np.ndarray, K: np.ndarray, mass: np.ndarray, rtol: float = 
     if not rigid.size:
         return rigid
     root = np.sqrt(mass)
-    largest = float(np.max(np.abs(np.linalg.eigvalsh(K / root[:, None] / root[None, :])), initial=0.0))
+    largest = float(
+        np.max(np.abs(np.linalg.eigvalsh(K / root[:, None] / root[None, :])), initial=0.0)
+    )
     value, vector = np.linalg.eigh(rigid.T @ K @ rigid)
     return rigid @ vector[:, np.abs(value) <= rtol * largest]
 
@@ -408,13 +467,18 @@ def finite_difference_check(lin: Linearization, h: float = 1e-6) -> dict[str, fl
         w = w0 if dw is None else w0 + dw.reshape(w0.shape)
         if source.dim == 2:  # the planar model itself
             qddot = dynamics.accelerations(
-                source, planar_coordinates(source, q), planar_coordinates(source, qdot, rates=True),
-                control=u, external_force=w[:, :2],
-                gravity=None if eq.gravity is None else eq.gravity[:2])
+                source,
+                planar_coordinates(source, q),
+                planar_coordinates(source, qdot, rates=True),
+                control=u,
+                external_force=w[:, :2],
+                gravity=None if eq.gravity is None else eq.gravity[:2],
+            )
             qddot = spatial_coordinates(source, qddot, rates=True)
         else:
-            qddot = dynamics.accelerations(s, q, qdot, control=u, external_force=w,
-                                           gravity=eq.gravity)
+            qddot = dynamics.accelerations(
+                s, q, qdot, control=u, external_force=w, gravity=eq.gravity
+            )
         # x'' = (dc'', E^T q2''/L) at the base (the chart's second derivative vanishes at z = 0
         # for velocity-free perturbations, and is second order in the velocity otherwise)
         return lin.to_eta(lin.chart.velocity_x(q, qddot))
@@ -424,8 +488,9 @@ def finite_difference_check(lin: Linearization, h: float = 1e-6) -> dict[str, fl
         p = dynamics.nodes_from_coordinates(s, q)
         v = dynamics.nodes_from_coordinates(s, qdot, rates=True)
         forces = dynamics.tendon_forces(s, p, v, dynamics.rest_lengths(s, u))
-        return np.concatenate([(p - eq.node_position).ravel(), forces.length - eq.tendon_length,
-                               forces.tension])
+        return np.concatenate(
+            [(p - eq.node_position).ravel(), forces.length - eq.tendon_length, forces.tension]
+        )
 
     def central(f, size: int) -> np.ndarray:
         """Columns ``(f(h e_j) - f(-h e_j)) / 2h`` for the unit vectors of length ``size``."""
@@ -441,14 +506,25 @@ def finite_difference_check(lin: Linearization, h: float = 1e-6) -> dict[str, fl
     F_fd = central(lambda du: outputs(z0, u0 + du), s.n_tendons)
 
     def rel(a: np.ndarray, b: np.ndarray) -> float:
-        return float(np.max(np.abs(a - b), initial=0.0) / max(np.max(np.abs(b), initial=0.0), 1e-300))
+        return float(
+            np.max(np.abs(a - b), initial=0.0) / max(np.max(np.abs(b), initial=0.0), 1e-300)
+        )
 
-    return {"A": rel(lin.A[n:], A_fd), "B": rel(lin.B[n:], B_fd), "D": rel(lin.D[n:], D_fd),
-            "C": rel(lin.C, C_fd), "F": rel(lin.F, F_fd)}
+    return {
+        "A": rel(lin.A[n:], A_fd),
+        "B": rel(lin.B[n:], B_fd),
+        "D": rel(lin.D[n:], D_fd),
+        "C": rel(lin.C, C_fd),
+        "F": rel(lin.F, F_fd),
+    }
 
 
 def describe(lin: Linearization) -> dict[str, Any]:
     """Sizes of the linearized model, for tables and JSON."""
-    return {"states": int(lin.A.shape[0]), "inputs": int(lin.B.shape[1]),
-            "disturbances": int(lin.D.shape[1]), "outputs": int(lin.C.shape[0]),
-            "taut_tendons": int(np.sum(lin.taut))}
+    return {
+        "states": int(lin.A.shape[0]),
+        "inputs": int(lin.B.shape[1]),
+        "disturbances": int(lin.D.shape[1]),
+        "outputs": int(lin.C.shape[0]),
+        "taut_tendons": int(np.sum(lin.taut)),
+    }

@@ -31,9 +31,9 @@ from typing import Any
 import numpy as np
 import scipy.linalg
 
-from tensegrity.physics import dynamics
 from tensegrity.analysis.coordinates import deformation, mass_complement
 from tensegrity.analysis.linearize import Linearization, linearize
+from tensegrity.physics import dynamics
 from tensegrity.physics.dynamics import State
 
 RIGID, MECHANISM, ELASTIC, UNSTABLE = "rigid", "mechanism", "elastic", "unstable"
@@ -105,16 +105,25 @@ class ModalAnalysis:
         """JSON-ready: frequencies [Hz], kinds, verdict and (optionally) node mode shapes."""
         modes = []
         for i in range(len(self.kind)):
-            item: dict[str, Any] = {"index": i, "kind": self.kind[i],
-                                    "frequency_hz": float(self.frequency_hz[i]),
-                                    "omega_squared": float(self.omega_squared[i])}
+            item: dict[str, Any] = {
+                "index": i,
+                "kind": self.kind[i],
+                "frequency_hz": float(self.frequency_hz[i]),
+                "omega_squared": float(self.omega_squared[i]),
+            }
             if shapes:
                 item["node_shape_m"] = self.node_shapes[i].tolist()
             modes.append(item)
-        return {"stable": bool(self.stable), "verdict": self.verdict,
-                "rigid_body_modes": self.n_rigid, "mechanisms": self.n_mechanisms,
-                "unstable_modes": self.n_unstable, "zero_tol_1_s2": self.zero_tol,
-                "rigid_residual": self.rigid_residual, "modes": modes}
+        return {
+            "stable": bool(self.stable),
+            "verdict": self.verdict,
+            "rigid_body_modes": self.n_rigid,
+            "mechanisms": self.n_mechanisms,
+            "unstable_modes": self.n_unstable,
+            "zero_tol_1_s2": self.zero_tol,
+            "rigid_residual": self.rigid_residual,
+            "modes": modes,
+        }
 
 
 def modal_analysis(lin: Linearization, *, zero_tol: float | None = None) -> ModalAnalysis:
@@ -129,8 +138,7 @@ def modal_analysis(lin: Linearization, *, zero_tol: float | None = None) -> Moda
     rigid_residual = float(np.max(np.abs(K @ rigid)) / scale_k) if rigid.size else 0.0
     if zero_tol is None:
         masses = np.concatenate([s.rod_mass, s.node_point_mass[s.point_mass_nodes]])
-        reference = (float(np.mean(s.tendon_stiffness) / np.mean(masses)) if s.n_tendons
-                     else 0.0)
+        reference = float(np.mean(s.tendon_stiffness) / np.mean(masses)) if s.n_tendons else 0.0
         zero_tol = ZERO_RTOL * max(reference, float(np.max(np.abs(lam), initial=0.0)))
     kinds = [RIGID] * rigid.shape[1]
     for value in lam:
@@ -146,26 +154,44 @@ def modal_analysis(lin: Linearization, *, zero_tol: float | None = None) -> Moda
     slack_note = f"; {slack} slack tendon(s) carry nothing" if slack else ""
     if n_unst:
         stable = False
-        verdict = (f"unstable: {n_unst} mode(s) with negative stiffness (omega^2 down to "
-                   f"{lam.min():.4g} 1/s^2); small deformations along them grow{slack_note}")
+        verdict = (
+            f"unstable: {n_unst} mode(s) with negative stiffness (omega^2 down to "
+            f"{lam.min():.4g} 1/s^2); small deformations along them grow{slack_note}"
+        )
     elif n_mech:
         stable = False
-        verdict = (f"not stable (Definition 18.1): {n_mech} mechanism(s), non-rigid modes of zero "
-                   f"stiffness (|omega^2| <= {zero_tol:.3g} 1/s^2) besides the "
-                   f"{rigid.shape[1]} rigid-body modes; a small deformation along them meets no "
-                   f"restoring force and does not return{slack_note}")
+        verdict = (
+            f"not stable (Definition 18.1): {n_mech} mechanism(s), non-rigid modes of zero "
+            f"stiffness (|omega^2| <= {zero_tol:.3g} 1/s^2) besides the "
+            f"{rigid.shape[1]} rigid-body modes; a small deformation along them meets no "
+            f"restoring force and does not return{slack_note}"
+        )
     elif not n_el:
         stable = True
-        verdict = (f"stable (Definition 18.1) trivially: no non-rigid mode, the {rigid.shape[1]} "
-                   f"degree(s) of freedom the supports leave are rigid-body motions{slack_note}")
+        verdict = (
+            f"stable (Definition 18.1) trivially: no non-rigid mode, the {rigid.shape[1]} "
+            f"degree(s) of freedom the supports leave are rigid-body motions{slack_note}"
+        )
     else:
         stable = True
-        verdict = (f"stable (Definition 18.1): all {n_el} non-rigid modes have positive stiffness "
-                   f"(lowest {freq[rigid.shape[1]]:.4g} Hz), {rigid.shape[1]} rigid-body modes; "
-                   f"small deformations return (with damping) and stay bounded (without)"
-                   f"{slack_note}")
-    return ModalAnalysis(lin, omega2, freq, shapes, node_shapes, tuple(kinds), float(zero_tol),
-                         rigid_residual, stable, verdict)
+        verdict = (
+            f"stable (Definition 18.1): all {n_el} non-rigid modes have positive stiffness "
+            f"(lowest {freq[rigid.shape[1]]:.4g} Hz), {rigid.shape[1]} rigid-body modes; "
+            f"small deformations return (with damping) and stay bounded (without)"
+            f"{slack_note}"
+        )
+    return ModalAnalysis(
+        lin,
+        omega2,
+        freq,
+        shapes,
+        node_shapes,
+        tuple(kinds),
+        float(zero_tol),
+        rigid_residual,
+        stable,
+        verdict,
+    )
 
 
 # ------------------------------------------------------------------ nonlinear checks
@@ -193,9 +219,14 @@ class FrequencyCheck:
     signal: np.ndarray  #: modal coordinate of the simulated motion [sqrt(kg) m]
 
     def to_dict(self) -> dict[str, Any]:
-        return {"mode": self.mode, "linear_hz": self.linear_hz, "measured_hz": self.measured_hz,
-                "relative_error": self.relative_error, "amplitude_m": self.amplitude,
-                "duration_s": self.duration}
+        return {
+            "mode": self.mode,
+            "linear_hz": self.linear_hz,
+            "measured_hz": self.measured_hz,
+            "relative_error": self.relative_error,
+            "amplitude_m": self.amplitude,
+            "duration_s": self.duration,
+        }
 
 
 def fft_peak(t: np.ndarray, signal: np.ndarray, *, near: float | None = None) -> float:
@@ -243,16 +274,25 @@ def measure_frequency(
     initial = mode_initial_state(lin, shape, amplitude)
     f_lin = float(modes.frequency_hz[mode])
     duration = periods / f_lin
-    result = simulate(undamped, (0.0, duration), initial=initial, control=lin.equilibrium.control,
-                      sample_dt=1.0 / (samples_per_period * f_lin), rtol=rtol, atol=1e-14,
-                      external_force=lin.equilibrium.external_force, gravity=lin.equilibrium.gravity)
+    result = simulate(
+        undamped,
+        (0.0, duration),
+        initial=initial,
+        control=lin.equilibrium.control,
+        sample_dt=1.0 / (samples_per_period * f_lin),
+        rtol=rtol,
+        atol=1e-14,
+        external_force=lin.equilibrium.external_force,
+        gravity=lin.equilibrium.gravity,
+    )
     if not result.success:
         raise RuntimeError(f"simulation failed: {result.message}")
     eta = lin.to_eta(lin.chart.x(result.q))  # (T, k)
     signal = eta @ (lin.mass * shape)
     measured = fft_peak(result.t, signal, near=f_lin)
-    return FrequencyCheck(mode, f_lin, measured, abs(measured - f_lin) / f_lin, amplitude,
-                          duration, result.t, signal)
+    return FrequencyCheck(
+        mode, f_lin, measured, abs(measured - f_lin) / f_lin, amplitude, duration, result.t, signal
+    )
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -270,17 +310,24 @@ class StabilitySimulation:
     undamped_deformation: np.ndarray
     returns: bool  #: damped: final deformation <= return_ratio * initial
     bounded: bool  #: undamped: max deformation <= bound
-    bound: float  #: the energy bound of the linearization, ``sqrt(w2_max / w2_min)`` x 1.1 x initial
+    bound: (
+        float  #: the energy bound of the linearization, ``sqrt(w2_max / w2_min)`` x 1.1 x initial
+    )
     return_ratio: float
     stable: bool
     verdict: str
 
     def to_dict(self) -> dict[str, Any]:
-        return {"initial_deformation_m": self.initial_deformation,
-                "final_damped_deformation_m": float(self.damped_deformation[-1]),
-                "max_undamped_deformation_m": float(self.undamped_deformation.max()),
-                "bound_m": self.bound, "returns": self.returns, "bounded": self.bounded,
-                "stable": self.stable, "verdict": self.verdict}
+        return {
+            "initial_deformation_m": self.initial_deformation,
+            "final_damped_deformation_m": float(self.damped_deformation[-1]),
+            "max_undamped_deformation_m": float(self.undamped_deformation.max()),
+            "bound_m": self.bound,
+            "returns": self.returns,
+            "bounded": self.bounded,
+            "stable": self.stable,
+            "verdict": self.verdict,
+        }
 
 
 def stability_by_simulation(
@@ -327,10 +374,17 @@ def stability_by_simulation(
         decay = _slowest_decay(linearize(damped, eq))
         damped_time = 5.0 if decay <= 0 else min(np.log(1e3) / decay, 20.0)
     if undamped_time is None:
-        undamped_time = (min(10.0 / (np.sqrt(positive.min()) / (2 * np.pi)), 10.0)
-                         if positive.size else 5.0)
-    common = dict(initial=initial, control=eq.control, external_force=eq.external_force,
-                  gravity=eq.gravity, sample_dt=sample_dt, **simulate_options)
+        undamped_time = (
+            min(10.0 / (np.sqrt(positive.min()) / (2 * np.pi)), 10.0) if positive.size else 5.0
+        )
+    common = dict(
+        initial=initial,
+        control=eq.control,
+        external_force=eq.external_force,
+        gravity=eq.gravity,
+        sample_dt=sample_dt,
+        **simulate_options,
+    )
     run_d = simulate(dynamics.critical_damping(s), (0.0, damped_time), **common)
     undamped = s.replace(tendon_damping=np.zeros(s.n_tendons), rod_damping=np.zeros(s.n_rods))
     run_u = simulate(undamped, (0.0, undamped_time), **common)
@@ -344,20 +398,25 @@ def stability_by_simulation(
     bounded = bool(run_u.success and np.isfinite(bound) and du.max() <= bound)
     stable = returns and bounded
     if bounded:
-        undamped_text = (f"stays within the bound {bound:.3g} m without (max {du.max():.3g} m "
-                         f"over {run_u.t[-1]:.3g} s)")
+        undamped_text = (
+            f"stays within the bound {bound:.3g} m without (max {du.max():.3g} m "
+            f"over {run_u.t[-1]:.3g} s)"
+        )
     elif np.isfinite(bound):
         undamped_text = f"exceeds the bound {bound:.3g} m without damping ({du.max():.3g} m)"
     else:
-        undamped_text = (f"has no energy bound without damping (zero-stiffness modes; max "
-                         f"{du.max():.3g} m over {run_u.t[-1]:.3g} s)")
+        undamped_text = (
+            f"has no energy bound without damping (zero-stiffness modes; max "
+            f"{du.max():.3g} m over {run_u.t[-1]:.3g} s)"
+        )
     verdict = (
         f"{'stable' if stable else 'not stable'} on the nonlinear model: a deformation of "
         f"{d0:.3g} m {'returns' if returns else 'does not return'} with damping "
         f"({dd[-1]:.3g} m after {run_d.t[-1]:.3g} s) and {undamped_text}"
     )
-    return StabilitySimulation(d0, run_d.t, dd, run_u.t, du, returns, bounded, bound,
-                               return_ratio, stable, verdict)
+    return StabilitySimulation(
+        d0, run_d.t, dd, run_u.t, du, returns, bounded, bound, return_ratio, stable, verdict
+    )
 
 
 def _slowest_decay(lin: Linearization) -> float:

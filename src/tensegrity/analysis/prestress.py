@@ -75,7 +75,9 @@ def _equilibrium_matrix(structure: Structure, q: Any) -> _Equilibrium:
     direction = tendon_state(s, p, s.tendon_rest_length).direction
     full = equilibrium_matrix(chart, direction)
     Z = chart.admitted_motions()
-    return _Equilibrium(q, chart, direction, full if Z is None else drop_roundoff(Z.T @ full), full, Z)
+    return _Equilibrium(
+        q, chart, direction, full if Z is None else drop_roundoff(Z.T @ full), full, Z
+    )
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -168,8 +170,9 @@ def feasible_prestress(
     # variables [T (S), t]; minimize -t
     cost = np.zeros(S + 1)
     cost[-1] = -1.0
-    A_eq = np.vstack([np.hstack([A, np.zeros((A.shape[0], 1))]),
-                      np.hstack([np.ones((1, S)), np.zeros((1, 1))])])
+    A_eq = np.vstack(
+        [np.hstack([A, np.zeros((A.shape[0], 1))]), np.hstack([np.ones((1, S)), np.zeros((1, 1))])]
+    )
     b_eq = np.concatenate([np.zeros(A.shape[0]), [float(S)]])
     A_ub = [np.hstack([-np.eye(S), np.ones((S, 1))])]  # t - T_s <= 0
     b_ub = [np.zeros(S)]
@@ -184,20 +187,38 @@ def feasible_prestress(
     if compressed_rods:
         A_ub.append(np.hstack([-unit, np.zeros((structure.n_rods, 1))]))  # -compression <= 0
         b_ub.append(np.zeros(structure.n_rods))
-    fit = scipy.optimize.linprog(cost, A_ub=np.vstack(A_ub), b_ub=np.concatenate(b_ub),
-                                 A_eq=A_eq, b_eq=b_eq, bounds=[(None, None)] * (S + 1),
-                                 method="highs")
+    fit = scipy.optimize.linprog(
+        cost,
+        A_ub=np.vstack(A_ub),
+        b_ub=np.concatenate(b_ub),
+        A_eq=A_eq,
+        b_eq=b_eq,
+        bounds=[(None, None)] * (S + 1),
+        method="highs",
+    )
     if fit.status != 0:
-        return Prestress(np.zeros(S), 0.0, False, float("nan"), np.zeros(structure.n_rods),
-                         f"no self-stress with every tendon in tension: {fit.message}")
+        return Prestress(
+            np.zeros(S),
+            0.0,
+            False,
+            float("nan"),
+            np.zeros(structure.n_rods),
+            f"no self-stress with every tendon in tension: {fit.message}",
+        )
     T = fit.x[:S] * mean_tension
     t_star = float(fit.x[-1])
     feasible = t_star > tol
     return Prestress(
-        T, t_star, feasible, float(np.max(np.abs(A @ T))), unit @ T,
-        ("feasible: every tendon in tension, smallest "
-         f"{t_star:.4g} x the mean" if feasible else
-         f"infeasible: the best self-stress leaves a tendon at {t_star:.3g} x the mean"),
+        T,
+        t_star,
+        feasible,
+        float(np.max(np.abs(A @ T))),
+        unit @ T,
+        (
+            f"feasible: every tendon in tension, smallest {t_star:.4g} x the mean"
+            if feasible
+            else f"infeasible: the best self-stress leaves a tendon at {t_star:.3g} x the mean"
+        ),
     )
 
 
@@ -223,8 +244,10 @@ def rest_lengths_for_tensions(
     rest = length - T / k
     if np.any(rest < 0):
         s = int(np.argmin(rest))
-        raise ValueError(f"tendon {structure.tendon_name[s]!r}: tension {T[s]} N needs rest length "
-                         f"{rest[s]} m < 0 with k = {k[s]} N/m and length {length[s]} m")
+        raise ValueError(
+            f"tendon {structure.tendon_name[s]!r}: tension {T[s]} N needs rest length "
+            f"{rest[s]} m < 0 with k = {k[s]} N/m and length {length[s]} m"
+        )
     return rest, structure.tendon_rest_length - rest
 
 
@@ -288,6 +311,8 @@ def form_find(
     eq = find_equilibrium(current, eq.q)
     modes = modal_analysis(linearize(current, eq))
     stable = bool(eq.converged and not eq.slack.any() and modes.stable)
-    verdict = (f"{'stable' if stable else 'NOT stable'} equilibrium, {int(eq.slack.sum())} slack "
-               f"tendons, residual {eq.residual_force:.3g} N; {modes.verdict}")
+    verdict = (
+        f"{'stable' if stable else 'NOT stable'} equilibrium, {int(eq.slack.sum())} slack "
+        f"tendons, residual {eq.residual_force:.3g} N; {modes.verdict}"
+    )
     return FormFinding(current, eq, prestress, stable, verdict, iterations, tuple(history))

@@ -33,7 +33,6 @@ from typing import Any
 import numpy as np
 import scipy.optimize
 
-from tensegrity.physics import dynamics
 from tensegrity.analysis.controllability import match_tendons
 from tensegrity.analysis.coordinates import Chart, align, has_supports, kabsch, mass_matrix
 from tensegrity.analysis.equilibrium import EquilibriumResult, find_equilibrium
@@ -41,6 +40,8 @@ from tensegrity.analysis.statics import equilibrium_matrix, force_jacobian, stat
 from tensegrity.engine.loop import Feedback
 from tensegrity.engine.simulate import STATUS_END, simulate
 from tensegrity.model.structure import Structure
+from tensegrity.physics import dynamics
+
 
 def require_spatial(structure: Structure) -> None:
     """``ValueError`` for a planar structure (the outputs, rings and alignment here are 3-D;
@@ -65,16 +66,22 @@ def node_outputs(structure: Structure, nodes: Sequence[int], axes: str = "xyz") 
     rows = [3 * int(i) + "xyz".index(a) for i in nodes for a in axes]
     C = np.zeros((len(rows), 3 * structure.n_nodes))
     C[np.arange(len(rows)), rows] = 1.0
-    return ShapeOutput(tuple(f"p{i}_{a}" for i in nodes for a in axes), ("m",) * len(rows),
-                       lambda p: C @ p.reshape(-1), lambda p: C)
+    return ShapeOutput(
+        tuple(f"p{i}_{a}" for i in nodes for a in axes),
+        ("m",) * len(rows),
+        lambda p: C @ p.reshape(-1),
+        lambda p: C,
+    )
 
 
 def shell_rings(n: int, m: int) -> tuple[list[int], list[int]]:
     """Node indices of a shell's bottom ring (``p1`` of stage 1) and top ring (``p4`` of stage m)."""
     from tensegrity.model.shell import shell_node_index
 
-    return ([shell_node_index(1, i, 1, n) for i in range(1, n + 1)],
-            [shell_node_index(4, i, m, n) for i in range(1, n + 1)])
+    return (
+        [shell_node_index(1, i, 1, n) for i in range(1, n + 1)],
+        [shell_node_index(4, i, m, n) for i in range(1, n + 1)],
+    )
 
 
 def height_twist(reference: np.ndarray, bottom: Sequence[int], top: Sequence[int]) -> ShapeOutput:
@@ -91,8 +98,9 @@ def height_twist(reference: np.ndarray, bottom: Sequence[int], top: Sequence[int
     def value(p: np.ndarray) -> np.ndarray:
         angle = np.arctan2(p[:, 1] - axis[1], p[:, 0] - axis[0])
         turn = np.angle(np.exp(1j * (angle - ref_angle)))
-        return np.array([p[top, 2].mean() - p[bottom, 2].mean(),
-                         turn[top].mean() - turn[bottom].mean()])
+        return np.array(
+            [p[top, 2].mean() - p[bottom, 2].mean(), turn[top].mean() - turn[bottom].mean()]
+        )
 
     def jacobian(p: np.ndarray) -> np.ndarray:
         J = np.zeros((2, p.shape[0], 3))
@@ -204,10 +212,17 @@ def _step_control(dydu, dTdu, want_dy, free, T, u, bounds: Bounds, low, high, ac
     ``[low, high]`` and ``T + dTdu du >= min_tension`` (SLSQP); only the ``active`` tendons move."""
     fixed = ~free
     du = np.zeros(u.size)
-    dydu, dTdu, u, low, high = dydu[:, active], dTdu[:, active], u[active], low[active], high[active]
+    dydu, dTdu, u, low, high = (
+        dydu[:, active],
+        dTdu[:, active],
+        u[active],
+        low[active],
+        high[active],
+    )
     S = u.size
-    constraints = [{"type": "ineq", "fun": lambda d: T + dTdu @ d - bounds.min_tension,
-                    "jac": lambda d: dTdu}]
+    constraints = [
+        {"type": "ineq", "fun": lambda d: T + dTdu @ d - bounds.min_tension, "jac": lambda d: dTdu}
+    ]
     if fixed.any():
         Af, bf = dydu[fixed], want_dy[fixed]
         constraints.append({"type": "eq", "fun": lambda d: Af @ d - bf, "jac": lambda d: Af})
@@ -215,8 +230,12 @@ def _step_control(dydu, dTdu, want_dy, free, T, u, bounds: Bounds, low, high, ac
     else:
         d0 = np.zeros(S)
     fit = scipy.optimize.minimize(
-        lambda d: 0.5 * float(d @ d), np.clip(d0, low - u, high - u), jac=lambda d: d,
-        bounds=list(zip(low - u, high - u)), constraints=constraints, method="SLSQP",
+        lambda d: 0.5 * float(d @ d),
+        np.clip(d0, low - u, high - u),
+        jac=lambda d: d,
+        bounds=list(zip(low - u, high - u)),
+        constraints=constraints,
+        method="SLSQP",
         options={"maxiter": 200, "ftol": 1e-14},
     )
     du[active] = fit.x
@@ -255,15 +274,30 @@ def quasi_static(
     tol = np.full(ny, 1e-6) if tolerance is None else np.asarray(tolerance, float)
     steps_list = [steps] * len(phases) if isinstance(steps, int) else list(steps)
     u = eq.control.copy()
-    eqs, controls, ys, wants, phase_of = [eq], [u.copy()], [output.value(reference)], [
-        np.full(ny, np.nan)], [0]
+    eqs, controls, ys, wants, phase_of = (
+        [eq],
+        [u.copy()],
+        [output.value(reference)],
+        [np.full(ny, np.nan)],
+        [0],
+    )
     message = "reached every target"
 
     def advance(eq, u, want, free, active):
         y = output.value(eq.node_position)
         dydu, dTdu, _ = sensitivities(eq, output, reference)
-        du, fit = _step_control(dydu, dTdu, np.where(free, 0.0, want - y), free, eq.tension, u,
-                                bounds, low, high, active)
+        du, fit = _step_control(
+            dydu,
+            dTdu,
+            np.where(free, 0.0, want - y),
+            free,
+            eq.tension,
+            u,
+            bounds,
+            low,
+            high,
+            active,
+        )
         u_new = np.clip(u + du, low, high)
         new = find_equilibrium(s, eq.q, control=u_new, gauge_reference=reference)
         return new, u_new, fit
@@ -303,13 +337,33 @@ def quasi_static(
     err = np.where(np.isnan(final_targets), 0.0, ys_a[-1] - final_targets)
     min_t = np.array([e.tension.min() for e in eqs])
     rest_ok = all(np.all(e.rest_length >= bounds.min_rest_length - 1e-12) for e in eqs)
-    reached = bool(np.all(np.abs(err) <= tol) and min_t.min() >= bounds.min_tension * (1 - 1e-6)
-                   and rest_ok and all(e.converged for e in eqs) and message.startswith("reached"))
+    reached = bool(
+        np.all(np.abs(err) <= tol)
+        and min_t.min() >= bounds.min_tension * (1 - 1e-6)
+        and rest_ok
+        and all(e.converged for e in eqs)
+        and message.startswith("reached")
+    )
     if not reached and message.startswith("reached"):
-        message = (f"missed: error {err.tolist()} (tolerance {tol.tolist()}), min tension "
-                   f"{min_t.min():.4g} N, rest lengths within bounds: {rest_ok}")
-    return QuasiStatic(s, output, bounds, tuple(eqs), np.array(controls), ys_a, wants_a,
-                       np.array(phase_of), min_t, err, tol, reached, message)
+        message = (
+            f"missed: error {err.tolist()} (tolerance {tol.tolist()}), min tension "
+            f"{min_t.min():.4g} N, rest lengths within bounds: {rest_ok}"
+        )
+    return QuasiStatic(
+        s,
+        output,
+        bounds,
+        tuple(eqs),
+        np.array(controls),
+        ys_a,
+        wants_a,
+        np.array(phase_of),
+        min_t,
+        err,
+        tol,
+        reached,
+        message,
+    )
 
 
 # ------------------------------------------------------------------------------ closed loop
@@ -359,8 +413,9 @@ class _Schedule:
             self.gains[k] = _lqr_gain(s, plan.equilibria[k], plan.output, plan.reference, weights)
         self.charts = {k: Chart.at(s, plan.equilibria[k].q) for k in range(len(plan.equilibria))}
         #: the next equilibrium in the chart of each step
-        self.x_next = {k: self.charts[k].x(plan.equilibria[k + 1].q)
-                       for k in range(len(plan.equilibria) - 1)}
+        self.x_next = {
+            k: self.charts[k].x(plan.equilibria[k + 1].q) for k in range(len(plan.equilibria) - 1)
+        }
 
     def segment(self, t: float) -> tuple[int, float]:
         k = int(np.clip(np.searchsorted(self.times, t, side="right") - 1, 0, len(self.times) - 1))
@@ -377,8 +432,13 @@ class _Schedule:
             return u[k], chart, np.zeros(chart.size), np.zeros(chart.size), self._gain(k)
         x_next = self.x_next[k]
         dt = self.times[k + 1] - self.times[k]
-        return (u[k] + frac * (u[k + 1] - u[k]), chart, frac * x_next, x_next / dt,
-                self._gain(k + (frac >= 0.5)))
+        return (
+            u[k] + frac * (u[k + 1] - u[k]),
+            chart,
+            frac * x_next,
+            x_next / dt,
+            self._gain(k + (frac >= 0.5)),
+        )
 
     def _gain(self, k: int):
         nearest = min(self.gain_steps, key=lambda g: abs(g - k))
@@ -441,14 +501,22 @@ def closed_loop(
     plant = s if plant is None else plant
     times = _plan_times(plan, move_time)
     t_end = times[-1] + settle_time
-    gain_steps = sorted(({len(plan.equilibria) - 1} if gain_every is None
-                         else set(range(0, len(plan.equilibria), gain_every))
-                         | {len(plan.equilibria) - 1}))
+    gain_steps = sorted(
+        {len(plan.equilibria) - 1}
+        if gain_every is None
+        else set(range(0, len(plan.equilibria), gain_every)) | {len(plan.equilibria) - 1}
+    )
     law = _FeedbackLaw(plan, _Schedule(plan, times, gain_steps, weights))
     q0 = plan.equilibria[0].q
-    run = simulate(plant, (0.0, t_end), initial=dynamics.State(0.0, q0, np.zeros_like(q0)),
-                   controller=Feedback(law, control_dt), sample_dt=sample_dt, rtol=rtol,
-                   atol=1e-10)
+    run = simulate(
+        plant,
+        (0.0, t_end),
+        initial=dynamics.State(0.0, q0, np.zeros_like(q0)),
+        controller=Feedback(law, control_dt),
+        sample_dt=sample_dt,
+        rtol=rtol,
+        atol=1e-10,
+    )
     return _closed_loop_result(plan, plant, run, law, times, len(gain_steps))
 
 
@@ -498,8 +566,9 @@ class _FeedbackLaw:
         return np.array(self.controls)[np.clip(index, 0, len(self.times) - 1)]
 
 
-def _closed_loop_result(plan: QuasiStatic, plant: Structure, run: Any, law: _FeedbackLaw,
-                        times: np.ndarray, gains: int) -> ClosedLoop:
+def _closed_loop_result(
+    plan: QuasiStatic, plant: Structure, run: Any, law: _FeedbackLaw, times: np.ndarray, gains: int
+) -> ClosedLoop:
     """The :class:`ClosedLoop` of an engine run: outputs, errors, bounds and the verdict."""
     s = plan.structure
     P = run.node_position
@@ -512,15 +581,39 @@ def _closed_loop_result(plan: QuasiStatic, plant: Structure, run: Any, law: _Fee
     rest = plant.tendon_rest_length - controls
     tension = run.tendon_tension
     complete = run.status == STATUS_END
-    reached = bool(complete and np.all(np.abs(err) <= plan.tolerance) and tension.min() > 0
-                   and rest.min() >= plan.bounds.min_rest_length - 1e-12)
-    message = (f"{'reached' if reached else 'missed'}: final error {np.abs(err).tolist()} "
-               f"(tolerance {plan.tolerance.tolist()}), min tension {tension.min():.4g} N, "
-               f"min rest length {rest.min():.4g} m"
-               + ("" if complete else f"; integration failed: {run.message}"))
-    return ClosedLoop(s, run.t, run.q, run.qdot, aligned, controls, tension, ys, ref_ys, err,
-                      plan.tolerance, float(tension.min()), float(rest.min()),
-                      run.max_rod_length_error, law.saturated, reached, message, gains, run.nfev)
+    reached = bool(
+        complete
+        and np.all(np.abs(err) <= plan.tolerance)
+        and tension.min() > 0
+        and rest.min() >= plan.bounds.min_rest_length - 1e-12
+    )
+    message = (
+        f"{'reached' if reached else 'missed'}: final error {np.abs(err).tolist()} "
+        f"(tolerance {plan.tolerance.tolist()}), min tension {tension.min():.4g} N, "
+        f"min rest length {rest.min():.4g} m"
+        + ("" if complete else f"; integration failed: {run.message}")
+    )
+    return ClosedLoop(
+        s,
+        run.t,
+        run.q,
+        run.qdot,
+        aligned,
+        controls,
+        tension,
+        ys,
+        ref_ys,
+        err,
+        plan.tolerance,
+        float(tension.min()),
+        float(rest.min()),
+        run.max_rod_length_error,
+        law.saturated,
+        reached,
+        message,
+        gains,
+        run.nfev,
+    )
 
 
 def _interp_outputs(plan: QuasiStatic, times: np.ndarray, t: float) -> np.ndarray:
@@ -531,11 +624,16 @@ def _interp_outputs(plan: QuasiStatic, times: np.ndarray, t: float) -> np.ndarra
 def describe_plan(plan: QuasiStatic) -> dict[str, Any]:
     """JSON-ready summary of an open-loop plan."""
     return {
-        "outputs": list(plan.output.names), "units": list(plan.output.units),
-        "steps": len(plan.equilibria), "reached": plan.reached, "message": plan.message,
-        "initial_outputs": plan.outputs[0].tolist(), "final_outputs": plan.outputs[-1].tolist(),
+        "outputs": list(plan.output.names),
+        "units": list(plan.output.units),
+        "steps": len(plan.equilibria),
+        "reached": plan.reached,
+        "message": plan.message,
+        "initial_outputs": plan.outputs[0].tolist(),
+        "final_outputs": plan.outputs[-1].tolist(),
         "final_targets": [None if np.isnan(v) else float(v) for v in plan.targets[-1]],
-        "final_error": plan.final_error.tolist(), "tolerance": plan.tolerance.tolist(),
+        "final_error": plan.final_error.tolist(),
+        "tolerance": plan.tolerance.tolist(),
         "min_tension_N": float(plan.min_tension.min()),
         "min_rest_length_m": float(min(e.rest_length.min() for e in plan.equilibria)),
         "final_control_m": dict(zip(plan.structure.tendon_name, plan.control[-1].tolist())),

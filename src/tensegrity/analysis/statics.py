@@ -102,8 +102,9 @@ def node_stiffness(
         block = structure.tendon_damping[use, None, None] * outer
     else:
         geometric = (tendons.tension[use] / tendons.length[use])[:, None, None]
-        block = (structure.tendon_stiffness[use, None, None] * outer
-                 + geometric * (np.eye(3) - outer))
+        block = structure.tendon_stiffness[use, None, None] * outer + geometric * (
+            np.eye(3) - outer
+        )
     tail, head = structure.tendon_nodes[use, 0], structure.tendon_nodes[use, 1]
     K = np.zeros((N, N, 3, 3))
     np.add.at(K, (tail, tail), block)
@@ -165,14 +166,18 @@ def force_jacobian(chart: Chart, x: np.ndarray, st: Statics) -> np.ndarray:
     g_N = np.einsum("ri,rij->rj", g, jn)  # g . N_j
     n_e = np.einsum("ri,rij->rj", n, chart.basis)  # n . e_i
     N_e = np.einsum("rki,rkj->rij", chart.basis, jn)  # e_i . N_j
-    G = (-(n_e[:, :, None] * g_N[:, None, :] + g_n[:, None, None] * N_e) / sq[:, None, None]
-         - g_N[:, :, None] * phi[:, None, :] / sq[:, None, None] ** 2)
+    G = (
+        -(n_e[:, :, None] * g_N[:, None, :] + g_n[:, None, None] * N_e) / sq[:, None, None]
+        - g_N[:, :, None] * phi[:, None, :] / sq[:, None, None] ** 2
+    )
     for r in range(s.n_rods):
         dQ[5 * r + 3 : 5 * r + 5, 5 * r + 3 : 5 * r + 5] += G[r]
     return dQ
 
 
-def equilibrium_matrix(chart: Chart, direction: np.ndarray, x: np.ndarray | None = None) -> np.ndarray:
+def equilibrium_matrix(
+    chart: Chart, direction: np.ndarray, x: np.ndarray | None = None
+) -> np.ndarray:
     """``A`` (5R, S): generalized force of a unit tension in each tendon, ``Q = A T + J^T w``."""
     s = chart.structure
     unit = unit_tension_forces(s, direction)  # (N, 3, S)

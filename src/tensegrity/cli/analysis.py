@@ -33,7 +33,6 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
-from tensegrity.plots import report
 from tensegrity.analysis.equilibrium import (
     EquilibriumResult,
     compare_equilibria,
@@ -42,6 +41,7 @@ from tensegrity.analysis.equilibrium import (
     with_damping,
 )
 from tensegrity.model.structure import Structure
+from tensegrity.plots import report
 
 if TYPE_CHECKING:
     from tensegrity.analysis.shape_control import Bounds, ClosedLoop, QuasiStatic
@@ -62,8 +62,12 @@ def _out(out_dir: str | Path) -> Path:
 
 
 def _structure_summary(s: Structure) -> dict[str, Any]:
-    return {"nodes": s.n_nodes, "rods": s.n_rods, "tendons": s.n_tendons,
-            "tendon_names": list(s.tendon_name)}
+    return {
+        "nodes": s.n_nodes,
+        "rods": s.n_rods,
+        "tendons": s.n_tendons,
+        "tendon_names": list(s.tendon_name),
+    }
 
 
 def _gravity(structure: Structure, gravity: float | Sequence[float] | None) -> np.ndarray | None:
@@ -97,7 +101,9 @@ def run_equilibrium(
     from tensegrity.plots.figures import figure_structure
 
     if method not in ("both", "least_squares", "simulation"):
-        raise ValueError(f"method: expected 'both', 'least_squares' or 'simulation', got {method!r}")
+        raise ValueError(
+            f"method: expected 'both', 'least_squares' or 'simulation', got {method!r}"
+        )
     g = _gravity(structure, gravity)
     out = _out(out_dir)
     results: dict[str, EquilibriumResult] = {}
@@ -105,38 +111,73 @@ def run_equilibrium(
         results["least_squares"] = find_equilibrium(structure, gravity=g)
     if method in ("both", "simulation"):
         results["simulation"] = equilibrium_by_simulation(
-            structure, t_end=t_end, velocity_tol=velocity_tol, acceleration_tol=acceleration_tol,
-            gravity=g)
+            structure,
+            t_end=t_end,
+            velocity_tol=velocity_tol,
+            acceleration_tol=acceleration_tol,
+            gravity=g,
+        )
     data: dict[str, Any] = {"structure": _structure_summary(structure)}
     data |= {name: r.to_dict() for name, r in results.items()}
     text = []
     for name, r in results.items():
         text.append(f"[{name}] {r.message}")
-        text.append(report.key_values([
-            ("converged", r.converged),
-            ("residual force max |Q|", f"{r.residual_force:.3e} N"),
-            ("residual acceleration max |q''|", f"{r.residual_acceleration:.3e} m/s^2"),
-            ("tension range", f"{r.tension.min():.6g} .. {r.tension.max():.6g} N"
-                              if r.tension.size else "no tendons"),
-            ("slack tendons", ", ".join(r.slack_names) or "none"),
-        ]))
+        text.append(
+            report.key_values(
+                [
+                    ("converged", r.converged),
+                    ("residual force max |Q|", f"{r.residual_force:.3e} N"),
+                    ("residual acceleration max |q''|", f"{r.residual_acceleration:.3e} m/s^2"),
+                    (
+                        "tension range",
+                        f"{r.tension.min():.6g} .. {r.tension.max():.6g} N"
+                        if r.tension.size
+                        else "no tendons",
+                    ),
+                    ("slack tendons", ", ".join(r.slack_names) or "none"),
+                ]
+            )
+        )
     if len(results) == 2:
         agreement = compare_equilibria(results["least_squares"], results["simulation"])
         data["agreement"] = agreement
-        text.append(report.key_values([
-            ("routes agree: node distance", f"{agreement['node_distance']:.3e} m (after "
-                                            "removing rigid-body motion)"),
-            ("routes agree: tension difference", f"{agreement['tension_difference']:.3e} N"),
-        ]))
+        text.append(
+            report.key_values(
+                [
+                    (
+                        "routes agree: node distance",
+                        f"{agreement['node_distance']:.3e} m (after removing rigid-body motion)",
+                    ),
+                    (
+                        "routes agree: tension difference",
+                        f"{agreement['tension_difference']:.3e} N",
+                    ),
+                ]
+            )
+        )
     main = results.get("least_squares") or results["simulation"]
-    text.append(report.table(
-        ["tendon", "tension [N]", "length [m]", "rest length [m]", "slack"],
-        [(n, T, l, r, "yes" if sl else "")
-         for n, T, l, r, sl in zip(structure.tendon_name, main.tension, main.tendon_length,
-                                   main.rest_length, main.slack)]))
+    text.append(
+        report.table(
+            ["tendon", "tension [N]", "length [m]", "rest length [m]", "slack"],
+            [
+                (n, T, l, r, "yes" if sl else "")
+                for n, T, l, r, sl in zip(
+                    structure.tendon_name,
+                    main.tension,
+                    main.tendon_length,
+                    main.rest_length,
+                    main.slack,
+                )
+            ],
+        )
+    )
     written = [report.write_json(out / "equilibrium.json", data)]
-    fig = figure_structure(structure, main.node_position, main.tension,
-                           title=f"Equilibrium ({main.method.replace('_', ' ')})")
+    fig = figure_structure(
+        structure,
+        main.node_position,
+        main.tension,
+        title=f"Equilibrium ({main.method.replace('_', ' ')})",
+    )
     written.append(report.save_figure(fig, out / "equilibrium.png"))
     failed = [f"{name}: {r.message}" for name, r in results.items() if not r.converged]
     return Output("\n\n".join(text), written, "; ".join(failed) or None)
@@ -162,19 +203,25 @@ def run_modes(
     out = _out(out_dir)
     lin = linearize(structure, eq)
     modes = modal_analysis(lin)
-    data: dict[str, Any] = {"structure": _structure_summary(structure),
-                            "equilibrium_residual_force_N": eq.residual_force}
+    data: dict[str, Any] = {
+        "structure": _structure_summary(structure),
+        "equilibrium_residual_force_N": eq.residual_force,
+    }
     data |= modes.to_dict()
     text = [modes.verdict]
-    rows = [(i, modes.kind[i], modes.frequency_hz[i], modes.omega_squared[i])
-            for i in range(len(modes.kind))]
+    rows = [
+        (i, modes.kind[i], modes.frequency_hz[i], modes.omega_squared[i])
+        for i in range(len(modes.kind))
+    ]
     text.append(report.table(["mode", "kind", "frequency [Hz]", "omega^2 [1/s^2]"], rows))
     if check_fft:
         check = measure_frequency(modes)
         data["fft_check"] = check.to_dict()
-        text.append(f"FFT check, mode {check.mode}: linearization {check.linear_hz:.6g} Hz, "
-                    f"nonlinear simulation {check.measured_hz:.6g} Hz (relative difference "
-                    f"{check.relative_error:.2e})")
+        text.append(
+            f"FFT check, mode {check.mode}: linearization {check.linear_hz:.6g} Hz, "
+            f"nonlinear simulation {check.measured_hz:.6g} Hz (relative difference "
+            f"{check.relative_error:.2e})"
+        )
     if check_simulation:
         sim = stability_by_simulation(modes)
         data["simulation_check"] = sim.to_dict()
@@ -183,8 +230,9 @@ def run_modes(
     written.append(report.save_figure(report.figure_frequencies(modes), out / "frequencies.png"))
     chosen = [int(i) for i in modes.elastic_indices()[:shapes]]
     if chosen:
-        written.append(report.save_figure(report.figure_mode_shapes(modes, chosen),
-                                          out / "mode_shapes.png"))
+        written.append(
+            report.save_figure(report.figure_mode_shapes(modes, chosen), out / "mode_shapes.png")
+        )
     return Output("\n\n".join(text), written, None)
 
 
@@ -214,37 +262,61 @@ def run_controllability(
     input_sets = None if inputs is None else {p: p for p in inputs}
     output_sets = None if outputs is None else {p: p for p in outputs}
     ctrl, obs = controllability_table(lin, modes, input_sets, output_sets)
-    text = [f"{lin.A.shape[0]} states ({lin.n_dof} coordinates and their rates), of which "
-            f"{ctrl[0].elastic_states} non-rigid; rank = 2 x (modes reached), PBH per mode with "
-            f"relative tolerance {ctrl[0].pbh_rtol:g}; Gramians with {damping} damping"]
+    text = [
+        f"{lin.A.shape[0]} states ({lin.n_dof} coordinates and their rates), of which "
+        f"{ctrl[0].elastic_states} non-rigid; rank = 2 x (modes reached), PBH per mode with "
+        f"relative tolerance {ctrl[0].pbh_rtol:g}; Gramians with {damping} damping"
+    ]
 
     def rows(results):
         out_rows = []
         for r in results:
             g = r.gramian_eigenvalues
             missed = r.missed_modes()
-            out_rows.append((r.name, len(r.signals), f"{r.rank}/{r.n_states}",
-                             f"{r.elastic_rank}/{r.elastic_states}",
-                             ", ".join(str(m) for m in missed[:12]) + (" ..." if len(missed) > 12 else "")
-                             or "none",
-                             "-" if g is None else f"{max(g.min(), 0.0):.3g} .. {g.max():.3g}"))
+            out_rows.append(
+                (
+                    r.name,
+                    len(r.signals),
+                    f"{r.rank}/{r.n_states}",
+                    f"{r.elastic_rank}/{r.elastic_states}",
+                    ", ".join(str(m) for m in missed[:12]) + (" ..." if len(missed) > 12 else "")
+                    or "none",
+                    "-" if g is None else f"{max(g.min(), 0.0):.3g} .. {g.max():.3g}",
+                )
+            )
         return out_rows
 
-    text.append("Controllability (inputs: rest-length changes)\n" + report.table(
-        ["input set", "tendons", "rank", "non-rigid rank", "modes not reached", "Gramian eig"],
-        rows(ctrl)))
-    text.append("Observability\n" + report.table(
-        ["output set", "outputs", "rank", "non-rigid rank", "modes not seen", "Gramian eig"],
-        rows(obs)))
-    data = {"structure": _structure_summary(structure), "states": lin.A.shape[0],
-            "pbh_rtol": ctrl[0].pbh_rtol, "damping": damping,
-            "modes": [{"index": i, "kind": k, "frequency_hz": float(f)}
-                      for i, (k, f) in enumerate(zip(modes.kind, modes.frequency_hz))],
-            "controllability": [r.to_dict() for r in ctrl],
-            "observability": [r.to_dict() for r in obs]}
-    written = [report.write_json(out / "controllability.json", data),
-               report.save_figure(report.figure_reach(ctrl, modes), out / "controllability.png"),
-               report.save_figure(report.figure_reach(obs, modes), out / "observability.png")]
+    text.append(
+        "Controllability (inputs: rest-length changes)\n"
+        + report.table(
+            ["input set", "tendons", "rank", "non-rigid rank", "modes not reached", "Gramian eig"],
+            rows(ctrl),
+        )
+    )
+    text.append(
+        "Observability\n"
+        + report.table(
+            ["output set", "outputs", "rank", "non-rigid rank", "modes not seen", "Gramian eig"],
+            rows(obs),
+        )
+    )
+    data = {
+        "structure": _structure_summary(structure),
+        "states": lin.A.shape[0],
+        "pbh_rtol": ctrl[0].pbh_rtol,
+        "damping": damping,
+        "modes": [
+            {"index": i, "kind": k, "frequency_hz": float(f)}
+            for i, (k, f) in enumerate(zip(modes.kind, modes.frequency_hz))
+        ],
+        "controllability": [r.to_dict() for r in ctrl],
+        "observability": [r.to_dict() for r in obs],
+    }
+    written = [
+        report.write_json(out / "controllability.json", data),
+        report.save_figure(report.figure_reach(ctrl, modes), out / "controllability.png"),
+        report.save_figure(report.figure_reach(obs, modes), out / "observability.png"),
+    ]
     return Output("\n\n".join(text), written, None)
 
 
@@ -292,33 +364,57 @@ def run_control(
     out = _out(out_dir)
     eq = _equilibrium(structure, None)  # shape control: no gravity
     bottom, top = _control_rings(structure, eq.node_position, bottom, top)
-    bounds = Bounds(min_rest_length=min_rest_length, max_change=max_change,
-                    min_tension=min_tension)
-    plan = _open_loop_plan(structure, eq, bottom, top, height=height, twist_back=twist_back,
-                           actuators=actuators, steps=steps, bounds=bounds, tolerance=tolerance)
-    data: dict[str, Any] = {"structure": _structure_summary(structure), "bottom": list(bottom),
-                            "top": list(top), "bounds": dataclasses.asdict(bounds),
-                            "open_loop": describe_plan(plan)}
-    text = [f"open loop (quasi-static, {len(plan.equilibria) - 1} steps): {plan.message}",
-            _plan_table(plan)]
+    bounds = Bounds(min_rest_length=min_rest_length, max_change=max_change, min_tension=min_tension)
+    plan = _open_loop_plan(
+        structure,
+        eq,
+        bottom,
+        top,
+        height=height,
+        twist_back=twist_back,
+        actuators=actuators,
+        steps=steps,
+        bounds=bounds,
+        tolerance=tolerance,
+    )
+    data: dict[str, Any] = {
+        "structure": _structure_summary(structure),
+        "bottom": list(bottom),
+        "top": list(top),
+        "bounds": dataclasses.asdict(bounds),
+        "open_loop": describe_plan(plan),
+    }
+    text = [
+        f"open loop (quasi-static, {len(plan.equilibria) - 1} steps): {plan.message}",
+        _plan_table(plan),
+    ]
     closed = None
     if closed_loop:
         closed = run_closed_loop(plan, move_time=move_time, settle_time=settle_time)
         data["closed_loop"] = _closed_loop_summary(closed)
         text.append(f"closed loop (LQR, nonlinear model, {closed.t[-1]:.3g} s): {closed.message}")
-    written = [report.write_json(out / "control.json", data),
-               report.save_figure(report.figure_shape_motion(plan, closed),
-                                  out / "control_motion.png"),
-               report.save_figure(report.figure_shape_controls(plan, closed),
-                                  out / "control_inputs.png"),
-               report.save_figure(report.figure_shape_structures(plan), out / "control_shapes.png")]
-    missed = [f"{name}: {r.message}" for name, r in (("open loop", plan), ("closed loop", closed))
-              if r is not None and not r.reached]
+    written = [
+        report.write_json(out / "control.json", data),
+        report.save_figure(report.figure_shape_motion(plan, closed), out / "control_motion.png"),
+        report.save_figure(report.figure_shape_controls(plan, closed), out / "control_inputs.png"),
+        report.save_figure(report.figure_shape_structures(plan), out / "control_shapes.png"),
+    ]
+    missed = [
+        f"{name}: {r.message}"
+        for name, r in (("open loop", plan), ("closed loop", closed))
+        if r is not None and not r.reached
+    ]
     return Output("\n\n".join(text), written, "; ".join(missed) or None)
 
 
-def _check_control_options(structure: Structure, *, height: float, steps: tuple[int, int],
-                           bottom: Sequence[int] | None, top: Sequence[int] | None) -> None:
+def _check_control_options(
+    structure: Structure,
+    *,
+    height: float,
+    steps: tuple[int, int],
+    bottom: Sequence[int] | None,
+    top: Sequence[int] | None,
+) -> None:
     """Raise unless ``structure`` is spatial, ``height`` > 0, ``steps`` two counts >= 1 and the
     ``bottom`` and ``top`` rings (if given) node indices of ``structure``."""
     from tensegrity.analysis.shape_control import require_spatial
@@ -326,7 +422,8 @@ def _check_control_options(structure: Structure, *, height: float, steps: tuple[
     require_spatial(structure)
     if not height > 0:
         raise ValueError(
-            f"height: must be > 0 (a fraction of the equilibrium height), got {height}")
+            f"height: must be > 0 (a fraction of the equilibrium height), got {height}"
+        )
     if len(steps) != 2 or min(steps) < 1:
         raise ValueError(f"steps: expected two step counts >= 1, got {list(steps)}")
     for name, nodes in (("bottom", bottom), ("top", top)):
@@ -335,8 +432,9 @@ def _check_control_options(structure: Structure, *, height: float, steps: tuple[
             raise ValueError(f"{name}: node {bad[0]} out of range 0..{structure.n_nodes - 1}")
 
 
-def _control_rings(structure: Structure, p: np.ndarray, bottom: Sequence[int] | None,
-                   top: Sequence[int] | None) -> tuple[Sequence[int], Sequence[int]]:
+def _control_rings(
+    structure: Structure, p: np.ndarray, bottom: Sequence[int] | None, top: Sequence[int] | None
+) -> tuple[Sequence[int], Sequence[int]]:
     """``(bottom, top)``: each as given, or else :func:`rings` of the equilibrium's node
     positions ``p`` (N, 3) [m]; they must not share nodes."""
     if bottom is None or top is None:
@@ -348,9 +446,19 @@ def _control_rings(structure: Structure, p: np.ndarray, bottom: Sequence[int] | 
     return bottom, top
 
 
-def _open_loop_plan(structure: Structure, eq: EquilibriumResult, bottom: Sequence[int],
-                    top: Sequence[int], *, height: float, twist_back: bool, actuators: str,
-                    steps: tuple[int, int], bounds: Bounds, tolerance: float) -> QuasiStatic:
+def _open_loop_plan(
+    structure: Structure,
+    eq: EquilibriumResult,
+    bottom: Sequence[int],
+    top: Sequence[int],
+    *,
+    height: float,
+    twist_back: bool,
+    actuators: str,
+    steps: tuple[int, int],
+    bounds: Bounds,
+    tolerance: float,
+) -> QuasiStatic:
     """The quasi-static plan of ``run_control``: from ``eq``, shorten to ``height`` times its
     height with the ``actuators`` (twist free) in ``steps[0]`` steps, then (``twist_back``)
     restore the twist with every tendon in ``steps[1]``, within ``bounds``."""
@@ -363,28 +471,53 @@ def _open_loop_plan(structure: Structure, eq: EquilibriumResult, bottom: Sequenc
     if twist_back:
         phases.append((height * y0[0], 0.0))
         n_steps.append(steps[1])
-    return quasi_static(structure, output, phases, start=eq, steps=n_steps, bounds=bounds,
-                        tolerance=[tolerance, tolerance])
+    return quasi_static(
+        structure,
+        output,
+        phases,
+        start=eq,
+        steps=n_steps,
+        bounds=bounds,
+        tolerance=[tolerance, tolerance],
+    )
 
 
 def _plan_table(plan: QuasiStatic) -> str:
     """The plan's steps: phase, outputs, smallest tension [N] and largest ``|u|`` [m]."""
     output = plan.output
     return report.table(
-        ["step", "phase", *[f"{n} [{u}]" for n, u in zip(output.names, output.units)],
-         "min tension [N]", "max |u| [m]"],
-        [(k, int(plan.phase[k]), *plan.outputs[k], plan.min_tension[k],
-          float(np.abs(plan.control[k]).max()))
-         for k in range(len(plan.equilibria))])
+        [
+            "step",
+            "phase",
+            *[f"{n} [{u}]" for n, u in zip(output.names, output.units)],
+            "min tension [N]",
+            "max |u| [m]",
+        ],
+        [
+            (
+                k,
+                int(plan.phase[k]),
+                *plan.outputs[k],
+                plan.min_tension[k],
+                float(np.abs(plan.control[k]).max()),
+            )
+            for k in range(len(plan.equilibria))
+        ],
+    )
 
 
 def _closed_loop_summary(closed: ClosedLoop) -> dict[str, Any]:
     """``control.json``'s ``closed_loop``: verdict, final outputs and errors, extremes, gains."""
     return {
-        "reached": closed.reached, "message": closed.message,
-        "final_outputs": closed.outputs[-1].tolist(), "final_error": closed.final_error.tolist(),
-        "tolerance": closed.tolerance.tolist(), "min_tension_N": closed.min_tension,
-        "min_rest_length_m": closed.min_rest_length, "saturated": closed.saturated,
+        "reached": closed.reached,
+        "message": closed.message,
+        "final_outputs": closed.outputs[-1].tolist(),
+        "final_error": closed.final_error.tolist(),
+        "tolerance": closed.tolerance.tolist(),
+        "min_tension_N": closed.min_tension,
+        "min_rest_length_m": closed.min_rest_length,
+        "saturated": closed.saturated,
         "max_rod_length_error": closed.max_rod_length_error,
-        "duration_s": float(closed.t[-1]), "gains": closed.gains,
+        "duration_s": float(closed.t[-1]),
+        "gains": closed.gains,
     }

@@ -22,10 +22,10 @@ from pathlib import Path
 
 import numpy as np
 
-from tensegrity.physics import dynamics
 from tensegrity.engine.options import ADAPTIVE_METHODS, FIXED_STEP_METHODS
 from tensegrity.io.files import write_staged as _write_all
 from tensegrity.model.structure import Structure
+from tensegrity.physics import dynamics
 
 EXIT_FAILED, EXIT_USAGE = 1, 2
 #: Exit code when the reader of stdout closed it early (128 + SIGPIPE, as a shell reports it).
@@ -84,25 +84,42 @@ def _add_structure_options(parser: argparse.ArgumentParser) -> None:
     from tensegrity.design.catalogue import KINDS
 
     group = parser.add_argument_group("structure (default: the paper's (3,1) class 1 shell)")
-    group.add_argument("--structure", type=Path, metavar="FILE",
-                       help="a structure file (.json, .yaml, .toml or connectivity .npz) "
-                            "instead of a generated one")
-    group.add_argument("--kind", choices=list(KINDS), metavar="|".join(KINDS),
-                       help="generated structure (default shell): "
-                            + "; ".join(f"{name}: {kind.summary}" for name, kind in KINDS.items()))
-    group.add_argument("--n", type=int, help="shell elements around (default 3), or bars of a "
-                                             "prism or tower stage")
+    group.add_argument(
+        "--structure",
+        type=Path,
+        metavar="FILE",
+        help="a structure file (.json, .yaml, .toml or connectivity .npz) "
+        "instead of a generated one",
+    )
+    group.add_argument(
+        "--kind",
+        choices=list(KINDS),
+        metavar="|".join(KINDS),
+        help="generated structure (default shell): "
+        + "; ".join(f"{name}: {kind.summary}" for name, kind in KINDS.items()),
+    )
+    group.add_argument(
+        "--n", type=int, help="shell elements around (default 3), or bars of a prism or tower stage"
+    )
     group.add_argument("--m", type=int, help="shell or tower stages (default 1 for a shell)")
-    group.add_argument("--fixed-base", action="store_true",
-                       help="class 2 shell: fix the base ring to ground")
+    group.add_argument(
+        "--fixed-base", action="store_true", help="class 2 shell: fix the base ring to ground"
+    )
     group.add_argument("--primal", action="store_true", help="primal shell: no t9, t10 tendons")
     group.add_argument("--stiffness", type=_positive, help="tendon stiffness k [N/m] (default 100)")
-    group.add_argument("--rest-length", type=_non_negative,
-                       help="shell tendon rest length L0 [m] (default: half the shortest initial "
-                            "tendon)")
-    group.add_argument("--set", type=_assignment, action="append", metavar="NAME=VALUE",
-                       help="any other option of the generator, e.g. tension=8 or overlap=0.2 "
-                            "(repeatable; see the generator's docstring)")
+    group.add_argument(
+        "--rest-length",
+        type=_non_negative,
+        help="shell tendon rest length L0 [m] (default: half the shortest initial tendon)",
+    )
+    group.add_argument(
+        "--set",
+        type=_assignment,
+        action="append",
+        metavar="NAME=VALUE",
+        help="any other option of the generator, e.g. tension=8 or overlap=0.2 "
+        "(repeatable; see the generator's docstring)",
+    )
 
 
 def _assignment(text: str) -> tuple[str, object]:
@@ -130,21 +147,29 @@ def _gravity(text: str) -> float | list[float]:
 
 
 def _add_gravity_option(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--gravity", type=_gravity, metavar="G|GX,GY,GZ",
-                        help="uniform gravity [m/s^2]: G points down the last axis (-z; -y for a "
-                             "planar structure), or the vector's components (default none)")
+    parser.add_argument(
+        "--gravity",
+        type=_gravity,
+        metavar="G|GX,GY,GZ",
+        help="uniform gravity [m/s^2]: G points down the last axis (-z; -y for a "
+        "planar structure), or the vector's components (default none)",
+    )
 
 
 def _structure(args: argparse.Namespace) -> Structure:
     """The structure the options describe (a file, or a generated structure)."""
-    given = {name: getattr(args, name) for name in _SHELL_OPTIONS
-             if getattr(args, name) is not None and getattr(args, name) is not False}
+    given = {
+        name: getattr(args, name)
+        for name in _SHELL_OPTIONS
+        if getattr(args, name) is not None and getattr(args, name) is not False
+    }
     flags = [f"--{name.replace('_', '-')}" for name in given]
     if getattr(args, "structure", None) is not None:
         flags += ["--kind"] * (args.kind is not None) + ["--set"] * bool(args.set)
         if flags:
-            raise CommandError(f"{' '.join(flags)}: generator options cannot be combined with "
-                               "--structure")
+            raise CommandError(
+                f"{' '.join(flags)}: generator options cannot be combined with --structure"
+            )
         from tensegrity.io.formats import read_network
 
         return read_network(args.structure)
@@ -154,12 +179,15 @@ def _structure(args: argparse.Namespace) -> Structure:
     valid = generators.options(kind)
     for name in given:
         if name not in valid:
-            raise CommandError(f"--{name.replace('_', '-')}: not an option of --kind {kind} "
-                               f"(its options: {', '.join(valid)})")
+            raise CommandError(
+                f"--{name.replace('_', '-')}: not an option of --kind {kind} "
+                f"(its options: {', '.join(valid)})"
+            )
     for name, value in args.set or ():
         if name not in valid:
-            raise CommandError(f"--set {name}: not an option of --kind {kind} "
-                               f"(its options: {', '.join(valid)})")
+            raise CommandError(
+                f"--set {name}: not an option of --kind {kind} (its options: {', '.join(valid)})"
+            )
         given[name] = value
     try:
         return generators.generate(kind, **given)
@@ -232,10 +260,10 @@ def _segment(structure: Structure, t_end: float, sample_dt: float) -> float:
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
-    from tensegrity.io.trajectory import read_trajectory
     from tensegrity.io.formats import write_structure
-    from tensegrity.plots.figures import save_figures
     from tensegrity.io.stream import PARTIAL_SUFFIX, read_checkpoint, simulate_to_file
+    from tensegrity.io.trajectory import read_trajectory
+    from tensegrity.plots.figures import save_figures
 
     _check_output_folder(args.out, "--out")
     structure = _structure(args)
@@ -253,8 +281,10 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
         force = read_force_table(args.force_table)
         if force.n_nodes != structure.n_nodes:
-            raise CommandError(f"--force-table: {args.force_table} has forces for {force.n_nodes} "
-                               f"nodes, the structure has {structure.n_nodes}")
+            raise CommandError(
+                f"--force-table: {args.force_table} has forces for {force.n_nodes} "
+                f"nodes, the structure has {structure.n_nodes}"
+            )
     gravity = None
     if args.gravity is not None:
         from tensegrity.model.loads import gravity_vector
@@ -303,20 +333,27 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
             except ValueError as exc:
                 discard()
                 message = " ".join(str(exc).split()).replace(  # one line, in the CLI's words
-                    "pass resume=False to start again", "run without --resume to start again")
-                raise CommandError(message.replace("start again with resume=False",
-                                                   "run without --resume to start again")) from None
+                    "pass resume=False to start again", "run without --resume to start again"
+                )
+                raise CommandError(
+                    message.replace(
+                        "start again with resume=False", "run without --resume to start again"
+                    )
+                ) from None
             except BaseException:
                 discard()
                 raise
             if not summary.success:
                 work.unlink(missing_ok=True)
                 _remove_empty(created)
-                raise CommandError(f"simulation failed: {summary.message} (nothing written)",
-                                   EXIT_FAILED)
+                raise CommandError(
+                    f"simulation failed: {summary.message} (nothing written)", EXIT_FAILED
+                )
             # the figures and the summary from at most FIGURE_SAMPLES samples (and the last),
             # the energy balance from every sample
-            trajectory = read_trajectory(work, every=max(1, -(-summary.n_samples // FIGURE_SAMPLES)))
+            trajectory = read_trajectory(
+                work, every=max(1, -(-summary.n_samples // FIGURE_SAMPLES))
+            )
             balance = _energy_balance_error(work)
 
             def write(staging: Path) -> list[Path]:
@@ -339,11 +376,19 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
             _remove_empty(created)
             print("tensegrity: interrupted (nothing written)", file=sys.stderr)
         else:
-            print(f"tensegrity: interrupted; the run so far is in {kept}: continue it with the "
-                  "same options and --resume", file=sys.stderr)
+            print(
+                f"tensegrity: interrupted; the run so far is in {kept}: continue it with the "
+                "same options and --resume",
+                file=sys.stderr,
+            )
         return code
-    _print_summary(trajectory, summary, balance, args.resume,
-                   [f for f in written if f.parent == out or f.suffix == ".pvd"])
+    _print_summary(
+        trajectory,
+        summary,
+        balance,
+        args.resume,
+        [f for f in written if f.parent == out or f.suffix == ".pvd"],
+    )
     return 0
 
 
@@ -391,8 +436,9 @@ def _energy_balance_error(path: Path) -> float:
     return float(np.abs(total - total[0]).max())
 
 
-def _print_summary(trajectory, summary, balance: float, resume: bool,
-                   files: Sequence[Path]) -> None:
+def _print_summary(
+    trajectory, summary, balance: float, resume: bool, files: Sequence[Path]
+) -> None:
     """The summary of a run: ``trajectory`` read back from its file (its last sample matters),
     the :class:`tensegrity.io.stream.StreamSummary` of the streamed run and the largest energy
     balance error [J]."""
@@ -401,22 +447,33 @@ def _print_summary(trajectory, summary, balance: float, resume: bool,
     tension = trajectory.tendon_tension[-1]
     rows = [
         ("status", trajectory.message),
-        ("samples", f"{summary.n_samples} from t = {summary.t_first:g} to "
-                    f"{summary.t_last:.6g} s"),
+        ("samples", f"{summary.n_samples} from t = {summary.t_first:g} to {summary.t_last:.6g} s"),
         ("final residual acceleration", f"{trajectory.residual_acceleration[-1]:.3e} m/s^2"),
         ("final largest node speed", f"{np.abs(trajectory.node_velocity[-1]).max():.3e} m/s"),
         ("largest rod-length error", f"{summary.max_rod_length_error:.3e} (relative)"),
-        *([("largest joint/support error", f"{summary.max_constraint_error:.3e} m")]
-          if structure.has_constraints else []),
+        *(
+            [("largest joint/support error", f"{summary.max_constraint_error:.3e} m")]
+            if structure.has_constraints
+            else []
+        ),
         ("energy dissipated", f"{e['dissipated'][-1]:.6g} J"),
         ("energy balance error", f"{balance:.3e} J"),
         ("slack tendons at the end", f"{int(np.sum(tension <= 0))} of {structure.n_tendons}"),
-        ("tension range at the end",
-         f"{tension.min():.6g} .. {tension.max():.6g} N" if structure.n_tendons else "no tendons"),
-        ("integration", f"{trajectory.settings['method']}: {summary.nsteps} steps, {summary.nfev} "
-                        f"evaluations, {summary.nswitches} slack/taut switches located"),
-        ("checkpoints", f"{summary.segments_stored} segments of {summary.samples_per_segment} "
-                        "samples"),
+        (
+            "tension range at the end",
+            f"{tension.min():.6g} .. {tension.max():.6g} N"
+            if structure.n_tendons
+            else "no tendons",
+        ),
+        (
+            "integration",
+            f"{trajectory.settings['method']}: {summary.nsteps} steps, {summary.nfev} "
+            f"evaluations, {summary.nswitches} slack/taut switches located",
+        ),
+        (
+            "checkpoints",
+            f"{summary.segments_stored} segments of {summary.samples_per_segment} samples",
+        ),
         *([("resumed", _resumed(summary))] if resume else []),
         ("wall time", f"{summary.wall_time:.2f} s"),
     ]
@@ -428,8 +485,10 @@ def _print_summary(trajectory, summary, balance: float, resume: bool,
 
 def _resumed(summary) -> str:
     if summary.resumed_from is not None:
-        return (f"from segment {summary.resumed_from + 1} of {summary.n_segments} "
-                f"({summary.segments_run} run now)")
+        return (
+            f"from segment {summary.resumed_from + 1} of {summary.n_segments} "
+            f"({summary.segments_run} run now)"
+        )
     if summary.segments_run == 0:
         return "the run had ended already; its files written now"
     return "nothing to resume: started afresh"
@@ -452,8 +511,10 @@ def _cmd_info(args: argparse.Namespace) -> int:
             from tensegrity.analysis.coordinates import admitted_dof
 
             held = s.n_dof - admitted_dof(s)
-            dof = (f"{s.n_dof - held} ({2 * s.dim - 1} per rod{masses}, less {held} held by the "
-                   "joints and supports in this layout)")
+            dof = (
+                f"{s.n_dof - held} ({2 * s.dim - 1} per rod{masses}, less {held} held by the "
+                "joints and supports in this layout)"
+            )
         else:
             dof += " before the joints and supports"
     rows = [
@@ -461,8 +522,10 @@ def _cmd_info(args: argparse.Namespace) -> int:
         ("rods", s.n_rods),
         ("tendons", s.n_tendons),
         ("degrees of freedom", dof),
-        ("coordinates q", f"{s.n_coordinates} ({2 * s.dim} per rod: q1 = p_a + p_b, q2 = p_b - p_a"
-                          f"{masses})"),
+        (
+            "coordinates q",
+            f"{s.n_coordinates} ({2 * s.dim} per rod: q1 = p_a + p_b, q2 = p_b - p_a{masses})",
+        ),
         ("total mass", f"{s.total_mass:.6g} kg"),
         ("rod length", _range(s.rod_length, "m")),
         ("tendon stiffness", _range(s.tendon_stiffness, "N/m")),
@@ -470,12 +533,18 @@ def _cmd_info(args: argparse.Namespace) -> int:
         ("tendon damping", _range(s.tendon_damping, "N s/m")),
         ("initial tendon length", _range(lengths, "m")),
         ("initially slack tendons", slack),
-        ("bounding box", f"[{', '.join(f'{x:.4g}' for x in low)}] .. "
-                         f"[{', '.join(f'{x:.4g}' for x in high)}] m"),
+        (
+            "bounding box",
+            f"[{', '.join(f'{x:.4g}' for x in low)}] .. [{', '.join(f'{x:.4g}' for x in high)}] m",
+        ),
     ]
-    supports = (("ball joints (node pairs)", len(s.joint_nodes)), ("fixed nodes", int(s.node_fixed.sum())),
-                ("point masses", len(s.point_mass_nodes)), ("nodes on planes", len(s.plane_nodes)),
-                ("nodes on lines", len(s.line_nodes)))
+    supports = (
+        ("ball joints (node pairs)", len(s.joint_nodes)),
+        ("fixed nodes", int(s.node_fixed.sum())),
+        ("point masses", len(s.point_mass_nodes)),
+        ("nodes on planes", len(s.plane_nodes)),
+        ("nodes on lines", len(s.line_nodes)),
+    )
     rows += [(name, count) for name, count in supports if count]
     width = max(len(name) for name, _ in rows)
     for name, value in rows:
@@ -500,8 +569,10 @@ def _cmd_export(args: argparse.Namespace) -> int:
         raise CommandError(f"--output: folder {args.output.parent} does not exist")
     fmt = args.format or FORMATS.get(args.output.suffix.lower(), "json")
     write_network(args.output, structure, format=fmt, keep_joints=args.keep_joints)
-    print(f"wrote {args.output} ({fmt}: {structure.n_nodes} nodes, {structure.n_rods} rods, "
-          f"{structure.n_tendons} tendons)")
+    print(
+        f"wrote {args.output} ({fmt}: {structure.n_nodes} nodes, {structure.n_rods} rods, "
+        f"{structure.n_tendons} tendons)"
+    )
     return 0
 
 
@@ -510,28 +581,38 @@ def _cmd_vtk(args: argparse.Namespace) -> int:
     from tensegrity.io.vtk import write_vtk
 
     _check_output_folder(args.output, "--output")
-    written = write_vtk(args.output, read_trajectory(args.trajectory), every=args.every,
-                        name=args.name)
+    written = write_vtk(
+        args.output, read_trajectory(args.trajectory), every=args.every, name=args.name
+    )
     print(f"wrote {len(written) - 1} VTK files and {written[-1]} (open it in ParaView)")
     return 0
 
 
 def _cmd_matrices(args: argparse.Namespace) -> int:
-    from tensegrity.physics.matrix_form import undamped
-    from tensegrity.io.matrices import write_matrices
     from tensegrity.engine.simulate import simulate
+    from tensegrity.io.matrices import write_matrices
+    from tensegrity.physics.matrix_form import undamped
 
     _check_output_folder(args.out, "--out")
     structure = undamped(_structure(args))
     if args.at == "equilibrium":
         # Tight rest tolerances: with the damping removed, K_p q = q'' is then below ~1e-8.
-        result = simulate(dynamics.critical_damping(structure), (0.0, args.t_end),
-                          steady_state=True, velocity_tol=1e-9, acceleration_tol=1e-9,
-                          rtol=1e-10, sample_dt=0.1, progress=sys.stderr.isatty())
+        result = simulate(
+            dynamics.critical_damping(structure),
+            (0.0, args.t_end),
+            steady_state=True,
+            velocity_tol=1e-9,
+            acceleration_tol=1e-9,
+            rtol=1e-10,
+            sample_dt=0.1,
+            progress=sys.stderr.isatty(),
+        )
         if result.status != 1:
             raise CommandError(
                 f"no equilibrium found by damped simulation within --t-end {args.t_end:g} s: "
-                f"{result.message}", EXIT_FAILED)
+                f"{result.message}",
+                EXIT_FAILED,
+            )
         state = result.final_state
     else:
         state = dynamics.initial_state(structure)
@@ -559,8 +640,11 @@ def _cmd_analysis(args: argparse.Namespace) -> int:
     run = getattr(commands, f"run_{args.command}")
     _check_output_folder(args.out, "--out")
     structure = _structure(args)
-    options = {name: getattr(args, name) for name in inspect.signature(run).parameters
-               if name not in ("structure", "out_dir") and hasattr(args, name)}
+    options = {
+        name: getattr(args, name)
+        for name in inspect.signature(run).parameters
+        if name not in ("structure", "out_dir") and hasattr(args, name)
+    }
     outputs: list = []
 
     def write(staging: Path) -> list[Path]:
@@ -584,75 +668,162 @@ def _add_analysis_parsers(sub) -> None:
     """The analysis verbs (issue 4); option names are the keywords of ``commands.run_<verb>``."""
     verbs = {
         "equilibrium": "static equilibrium by least squares and by damped simulation: node "
-                       "positions, tensions, slack tendons, residuals",
+        "positions, tensions, slack tendons, residuals",
         "modes": "natural frequencies [Hz], mode shapes, rigid-body modes, mechanisms and the "
-                 "stability verdict at the equilibrium",
+        "stability verdict at the equilibrium",
         "controllability": "controllability (observability) ranks, PBH test per mode and "
-                           "Gramians per set of actuated tendons (measured outputs)",
+        "Gramians per set of actuated tendons (measured outputs)",
         "control": "shape control: shorten to --height of the equilibrium height, twist back; "
-                   "open loop (equilibria) and closed loop (LQR on the nonlinear model)",
+        "open loop (equilibria) and closed loop (LQR on the nonlinear model)",
     }
     parsers = {}
     for verb, text in verbs.items():
-        parsers[verb] = p = sub.add_parser(verb, help=text, description=text[0].upper() + text[1:]
-                                           + f"; writes {verb}.json and figures to --out.")
+        parsers[verb] = p = sub.add_parser(
+            verb,
+            help=text,
+            description=text[0].upper() + text[1:] + f"; writes {verb}.json and figures to --out.",
+        )
         _add_structure_options(p)
-        p.add_argument("--out", type=Path, default=Path(verb),
-                       help=f"output folder (default ./{verb})")
+        p.add_argument(
+            "--out", type=Path, default=Path(verb), help=f"output folder (default ./{verb})"
+        )
         p.set_defaults(run=_cmd_analysis)
     for verb in ("equilibrium", "modes", "controllability"):  # shape control: without gravity
         _add_gravity_option(parsers[verb])
     p = parsers["equilibrium"]
-    p.add_argument("--method", choices=("both", "least_squares", "simulation"), default="both",
-                   help="least squares (eq. 18.61, analytic Jacobian), damped simulation to rest, "
-                        "or both and their agreement (default both)")
+    p.add_argument(
+        "--method",
+        choices=("both", "least_squares", "simulation"),
+        default="both",
+        help="least squares (eq. 18.61, analytic Jacobian), damped simulation to rest, "
+        "or both and their agreement (default both)",
+    )
     p.add_argument("--t-end", type=_positive, default=60.0, help="longest damped simulation [s]")
-    p.add_argument("--velocity-tol", type=_positive, default=1e-6,
-                   help="at rest when node speeds are below this [m/s] (default 1e-6)")
-    p.add_argument("--acceleration-tol", type=_positive, default=1e-6,
-                   help="... and node accelerations below this [m/s^2] (default 1e-6)")
+    p.add_argument(
+        "--velocity-tol",
+        type=_positive,
+        default=1e-6,
+        help="at rest when node speeds are below this [m/s] (default 1e-6)",
+    )
+    p.add_argument(
+        "--acceleration-tol",
+        type=_positive,
+        default=1e-6,
+        help="... and node accelerations below this [m/s^2] (default 1e-6)",
+    )
     p = parsers["modes"]
     p.add_argument("--shapes", type=int, default=6, help="mode shapes to draw (default 6)")
-    p.add_argument("--check-fft", action="store_true",
-                   help="measure the best-separated frequency by FFT of an undamped simulation")
-    p.add_argument("--check-simulation", action="store_true",
-                   help="perturb the equilibrium and simulate with and without damping")
+    p.add_argument(
+        "--check-fft",
+        action="store_true",
+        help="measure the best-separated frequency by FFT of an undamped simulation",
+    )
+    p.add_argument(
+        "--check-simulation",
+        action="store_true",
+        help="perturb the equilibrium and simulate with and without damping",
+    )
     p = parsers["controllability"]
-    p.add_argument("--inputs", nargs="+", metavar="PATTERN",
-                   help="sets of actuated tendons, each 'all' or comma-separated name patterns "
-                        "(default: all, each family, the first tendon)")
-    p.add_argument("--outputs", nargs="+", metavar="PATTERN",
-                   help="sets of outputs: position, length, tension, all or name patterns like "
-                        "'p0_*' (default: position, length, tension, p0_*)")
-    p.add_argument("--damping", choices=("critical", "as-is"), default="critical",
-                   help="damping of the linearization used for the Gramians (default critical)")
+    p.add_argument(
+        "--inputs",
+        nargs="+",
+        metavar="PATTERN",
+        help="sets of actuated tendons, each 'all' or comma-separated name patterns "
+        "(default: all, each family, the first tendon)",
+    )
+    p.add_argument(
+        "--outputs",
+        nargs="+",
+        metavar="PATTERN",
+        help="sets of outputs: position, length, tension, all or name patterns like "
+        "'p0_*' (default: position, length, tension, p0_*)",
+    )
+    p.add_argument(
+        "--damping",
+        choices=("critical", "as-is"),
+        default="critical",
+        help="damping of the linearization used for the Gramians (default critical)",
+    )
     p = parsers["control"]
-    p.add_argument("--height", type=_positive, default=0.8,
-                   help="target height as a fraction of the equilibrium height (default 0.8)")
-    p.add_argument("--no-twist-back", dest="twist_back", action="store_false",
-                   help="only shorten (twist free), do not restore the twist")
-    p.add_argument("--actuators", default="t1_*",
-                   help="tendons that shorten the structure (default 't1_*'); every tendon "
-                        "takes part in the twist-back")
-    p.add_argument("--steps", type=int, nargs=2, default=(8, 4), metavar=("SHORTEN", "TWIST"),
-                   help="quasi-static steps per phase (default 8 4)")
-    p.add_argument("--bottom", type=int, nargs="+", metavar="NODE",
-                   help="bottom ring nodes (default: the lowest nodes)")
-    p.add_argument("--top", type=int, nargs="+", metavar="NODE",
-                   help="top ring nodes (default: the highest nodes)")
-    p.add_argument("--no-closed-loop", dest="closed_loop", action="store_false",
-                   help="open loop only (no LQR simulation)")
-    p.add_argument("--move-time", type=_positive, default=2.0, help="closed loop: time per phase [s]")
-    p.add_argument("--settle-time", type=_positive, default=4.0,
-                   help="closed loop: time at the final target [s]")
-    p.add_argument("--min-rest-length", type=_non_negative, default=0.05,
-                   help="bound: rest lengths >= this [m] (default 0.05)")
-    p.add_argument("--max-change", type=_positive, default=0.25,
-                   help="bound: |rest-length change| <= this [m] (default 0.25)")
-    p.add_argument("--min-tension", type=_positive, default=1.0,
-                   help="bound: every tendon taut with at least this tension [N] (default 1)")
-    p.add_argument("--tolerance", type=_positive, default=1e-6,
-                   help="targets reached within this [m, rad] (default 1e-6)")
+    p.add_argument(
+        "--height",
+        type=_positive,
+        default=0.8,
+        help="target height as a fraction of the equilibrium height (default 0.8)",
+    )
+    p.add_argument(
+        "--no-twist-back",
+        dest="twist_back",
+        action="store_false",
+        help="only shorten (twist free), do not restore the twist",
+    )
+    p.add_argument(
+        "--actuators",
+        default="t1_*",
+        help="tendons that shorten the structure (default 't1_*'); every tendon "
+        "takes part in the twist-back",
+    )
+    p.add_argument(
+        "--steps",
+        type=int,
+        nargs=2,
+        default=(8, 4),
+        metavar=("SHORTEN", "TWIST"),
+        help="quasi-static steps per phase (default 8 4)",
+    )
+    p.add_argument(
+        "--bottom",
+        type=int,
+        nargs="+",
+        metavar="NODE",
+        help="bottom ring nodes (default: the lowest nodes)",
+    )
+    p.add_argument(
+        "--top",
+        type=int,
+        nargs="+",
+        metavar="NODE",
+        help="top ring nodes (default: the highest nodes)",
+    )
+    p.add_argument(
+        "--no-closed-loop",
+        dest="closed_loop",
+        action="store_false",
+        help="open loop only (no LQR simulation)",
+    )
+    p.add_argument(
+        "--move-time", type=_positive, default=2.0, help="closed loop: time per phase [s]"
+    )
+    p.add_argument(
+        "--settle-time",
+        type=_positive,
+        default=4.0,
+        help="closed loop: time at the final target [s]",
+    )
+    p.add_argument(
+        "--min-rest-length",
+        type=_non_negative,
+        default=0.05,
+        help="bound: rest lengths >= this [m] (default 0.05)",
+    )
+    p.add_argument(
+        "--max-change",
+        type=_positive,
+        default=0.25,
+        help="bound: |rest-length change| <= this [m] (default 0.25)",
+    )
+    p.add_argument(
+        "--min-tension",
+        type=_positive,
+        default=1.0,
+        help="bound: every tendon taut with at least this tension [N] (default 1)",
+    )
+    p.add_argument(
+        "--tolerance",
+        type=_positive,
+        default=1e-6,
+        help="targets reached within this [m, rad] (default 1e-6)",
+    )
 
 
 def _sweep_parameter(text: str) -> tuple[str, list[float]]:
@@ -663,21 +834,25 @@ def _sweep_parameter(text: str) -> tuple[str, list[float]]:
     except ValueError:
         numbers = []
     if not sep or not numbers:
-        raise argparse.ArgumentTypeError(
-            f"expected NAME=V1,V2,... or NAME=LOW:HIGH, got {text!r}")
+        raise argparse.ArgumentTypeError(f"expected NAME=V1,V2,... or NAME=LOW:HIGH, got {text!r}")
     return name, numbers
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
     from tensegrity.sweep.run import SweepSpec, run_sweep
 
-    options = {name: getattr(args, name) for name in ("samples", "seed", "t_end", "sample_dt",
-                                                      "method", "dt") if getattr(args, name) is not None}
+    options = {
+        name: getattr(args, name)
+        for name in ("samples", "seed", "t_end", "sample_dt", "method", "dt")
+        if getattr(args, name) is not None
+    }
     if args.no_batch:
         options["batch"] = False
     if args.spec is not None:
         if args.param or options or args.structure is not None:
-            raise CommandError("--spec: cannot be combined with --param, --structure or run options")
+            raise CommandError(
+                "--spec: cannot be combined with --param, --structure or run options"
+            )
         spec = SweepSpec.from_file(args.spec)
     elif not args.param:
         raise CommandError("sweep: give --spec FILE or at least one --param NAME=VALUES")
@@ -688,11 +863,14 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 
             options["structure"] = read_network(args.structure)
         spec = SweepSpec(dict(args.param), mode=mode, **options)
-    result = run_sweep(spec, scheduler=args.scheduler, n_workers=args.workers,
-                       progress=sys.stderr.isatty())
+    result = run_sweep(
+        spec, scheduler=args.scheduler, n_workers=args.workers, progress=sys.stderr.isatty()
+    )
     path = result.save(args.output)
     n = result.dataset.sizes["case"]
-    print(f"{n - len(result.failed)} of {n} cases reached t_end in {result.wall_time:.1f} s; wrote {path}")
+    print(
+        f"{n - len(result.failed)} of {n} cases reached t_end in {result.wall_time:.1f} s; wrote {path}"
+    )
     for i in result.failed:
         print(f"{result.describe_case(i)}: {result.dataset['message'].values[i]}", file=sys.stderr)
     return EXIT_FAILED if result.failed else 0
@@ -706,60 +884,100 @@ def build_parser() -> argparse.ArgumentParser:
         "simulate",
         help="simulate a structure (default: the paper's damped (3,1) shell, until steady state)",
         description="Simulate a structure and write trajectory.h5, structure.json and figures. "
-                    "Samples are streamed to OUT/.trajectory.h5.partial as the run goes, with "
-                    "checkpoints; an interrupted run continues with --resume.",
+        "Samples are streamed to OUT/.trajectory.h5.partial as the run goes, with "
+        "checkpoints; an interrupted run continues with --resume.",
     )
     _add_structure_options(sim)
-    sim.add_argument("--damping", type=_damping, metavar="none|critical|VALUE",
-                     help="tendon damping: 'critical' (default for a shell; see docs), 'none', or "
-                          "c in N s/m for every tendon (default for --structure: as in the file)")
+    sim.add_argument(
+        "--damping",
+        type=_damping,
+        metavar="none|critical|VALUE",
+        help="tendon damping: 'critical' (default for a shell; see docs), 'none', or "
+        "c in N s/m for every tendon (default for --structure: as in the file)",
+    )
     sim.add_argument("--t-end", type=_positive, default=60.0, help="end time [s] (default 60)")
-    sim.add_argument("--no-steady-state", action="store_true",
-                     help="run to --t-end even after the structure has come to rest")
-    sim.add_argument("--out", type=Path, default=Path("results"), help="output folder (default ./results)")
-    sim.add_argument("--resume", action="store_true",
-                     help="continue an interrupted run in --out from its last checkpoint (same "
-                          "structure and options; without it a run starts afresh)")
-    sim.add_argument("--force-table", type=Path, metavar="FILE.npz|FILE.csv",
-                     help="external nodal forces [N] from a time table, linear in between, held "
-                          "after its end (.npz: time (T,), force (T, N, 3); .csv: rows t, f0x, "
-                          "f0y, f0z, f1x, ...)")
+    sim.add_argument(
+        "--no-steady-state",
+        action="store_true",
+        help="run to --t-end even after the structure has come to rest",
+    )
+    sim.add_argument(
+        "--out", type=Path, default=Path("results"), help="output folder (default ./results)"
+    )
+    sim.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue an interrupted run in --out from its last checkpoint (same "
+        "structure and options; without it a run starts afresh)",
+    )
+    sim.add_argument(
+        "--force-table",
+        type=Path,
+        metavar="FILE.npz|FILE.csv",
+        help="external nodal forces [N] from a time table, linear in between, held "
+        "after its end (.npz: time (T,), force (T, N, 3); .csv: rows t, f0x, "
+        "f0y, f0z, f1x, ...)",
+    )
     _add_gravity_option(sim)
-    sim.add_argument("--vtk", action="store_true",
-                     help="also write the run for ParaView: OUT/vtk/tensegrity.pvd + .vtp files")
+    sim.add_argument(
+        "--vtk",
+        action="store_true",
+        help="also write the run for ParaView: OUT/vtk/tensegrity.pvd + .vtp files",
+    )
     integration = sim.add_argument_group("integration")
-    integration.add_argument("--method", default="DOP853",
-                             choices=[*ADAPTIVE_METHODS, *FIXED_STEP_METHODS],
-                             help="adaptive scipy method or fixed-step 'rk4' (default DOP853)")
+    integration.add_argument(
+        "--method",
+        default="DOP853",
+        choices=[*ADAPTIVE_METHODS, *FIXED_STEP_METHODS],
+        help="adaptive scipy method or fixed-step 'rk4' (default DOP853)",
+    )
     integration.add_argument("--dt", type=_positive, help="fixed step [s] (rk4 only)")
-    integration.add_argument("--rtol", type=_positive, default=1e-9, help="relative tolerance (default 1e-9)")
-    integration.add_argument("--atol", type=_positive, default=1e-12, help="absolute tolerance (default 1e-12)")
-    integration.add_argument("--sample-dt", type=_positive, default=0.01,
-                             help="output spacing [s] (default 0.01)")
+    integration.add_argument(
+        "--rtol", type=_positive, default=1e-9, help="relative tolerance (default 1e-9)"
+    )
+    integration.add_argument(
+        "--atol", type=_positive, default=1e-12, help="absolute tolerance (default 1e-12)"
+    )
+    integration.add_argument(
+        "--sample-dt", type=_positive, default=0.01, help="output spacing [s] (default 0.01)"
+    )
     sim.set_defaults(run=_cmd_simulate)
 
     info = sub.add_parser("info", help="print counts and sizes of a structure")
     _add_structure_options(info)
     info.set_defaults(run=_cmd_info)
 
-    export = sub.add_parser("export", help="write a generated structure or a structure file to a "
-                                           "file (any format)")
+    export = sub.add_parser(
+        "export", help="write a generated structure or a structure file to a file (any format)"
+    )
     _add_structure_options(export)
-    export.add_argument("--damping", type=_damping, metavar="none|critical|VALUE",
-                        help="tendon damping to store (default none)")
-    export.add_argument("--format", choices=("json", "yaml", "toml", "connectivity", "mjcf"),
-                        help="file format (default: from the suffix .json .yaml .toml .npz .xml, "
-                             "else json)")
-    export.add_argument("--keep-joints", action="store_true",
-                        help="yaml/toml/connectivity: keep every rod's end nodes and list the ball "
-                             "joints (reads back identical) instead of merging joined nodes into "
-                             "nodes shared by bars (class k, the default)")
+    export.add_argument(
+        "--damping",
+        type=_damping,
+        metavar="none|critical|VALUE",
+        help="tendon damping to store (default none)",
+    )
+    export.add_argument(
+        "--format",
+        choices=("json", "yaml", "toml", "connectivity", "mjcf"),
+        help="file format (default: from the suffix .json .yaml .toml .npz .xml, else json)",
+    )
+    export.add_argument(
+        "--keep-joints",
+        action="store_true",
+        help="yaml/toml/connectivity: keep every rod's end nodes and list the ball "
+        "joints (reads back identical) instead of merging joined nodes into "
+        "nodes shared by bars (class k, the default)",
+    )
     export.add_argument("-o", "--output", type=Path, required=True, help="output file")
     export.set_defaults(run=_cmd_export)
 
-    vtk = sub.add_parser("vtk", help="convert a trajectory to VTK files for ParaView",
-                         description="Write a trajectory (trajectory.h5) as one VTK PolyData file "
-                                     "per sample (.vtp) and a collection (.pvd) for ParaView.")
+    vtk = sub.add_parser(
+        "vtk",
+        help="convert a trajectory to VTK files for ParaView",
+        description="Write a trajectory (trajectory.h5) as one VTK PolyData file "
+        "per sample (.vtp) and a collection (.pvd) for ParaView.",
+    )
     vtk.add_argument("trajectory", type=Path, help="a trajectory.h5 written by simulate")
     vtk.add_argument("-o", "--output", type=Path, required=True, help="output folder")
     vtk.add_argument("--every", type=int, default=1, help="keep one sample in EVERY (default 1)")
@@ -770,41 +988,65 @@ def build_parser() -> argparse.ArgumentParser:
         "matrices",
         help="write the paper's matrices (Q, R, T, B^d, B^o, H, K_r, K_p, B, D, ...) of a shell",
         description="Write the matrix model (18.59) of a class 1 shell as .npz and Matrix Market "
-                    "(.mtx) files with an index (matrices.json).",
+        "(.mtx) files with an index (matrices.json).",
     )
     _add_structure_options(matrices)
-    matrices.add_argument("--at", choices=("initial", "equilibrium"), default="initial",
-                          help="state at which the state-dependent matrices are evaluated: the "
-                               "initial layout, or the equilibrium reached by damped simulation")
-    matrices.add_argument("--t-end", type=_positive, default=60.0,
-                          help="longest damped simulation when looking for the equilibrium [s]")
-    matrices.add_argument("--out", type=Path, default=Path("matrices"),
-                          help="output folder (default ./matrices)")
+    matrices.add_argument(
+        "--at",
+        choices=("initial", "equilibrium"),
+        default="initial",
+        help="state at which the state-dependent matrices are evaluated: the "
+        "initial layout, or the equilibrium reached by damped simulation",
+    )
+    matrices.add_argument(
+        "--t-end",
+        type=_positive,
+        default=60.0,
+        help="longest damped simulation when looking for the equilibrium [s]",
+    )
+    matrices.add_argument(
+        "--out", type=Path, default=Path("matrices"), help="output folder (default ./matrices)"
+    )
     matrices.set_defaults(run=_cmd_matrices)
     _add_analysis_parsers(sub)
 
     sweep = sub.add_parser(
-        "sweep", help="simulate many shells or copies of a structure file (a grid or Monte Carlo "
-                      "sample of parameters) on Dask",
+        "sweep",
+        help="simulate many shells or copies of a structure file (a grid or Monte Carlo "
+        "sample of parameters) on Dask",
         description="Run a parameter sweep on Dask and write one netCDF/HDF5 dataset; exit code 1 "
-                    "if some case failed (reported per case, the others are kept).")
+        "if some case failed (reported per case, the others are kept).",
+    )
     sweep.add_argument("--spec", type=Path, metavar="FILE", help="sweep spec (.json or .yaml)")
-    sweep.add_argument("--structure", type=Path, metavar="FILE",
-                       help="sweep this structure file (any format) instead of the class 1 shell: "
-                            "then stiffness, rest_scale, damping and load can vary")
-    sweep.add_argument("--param", type=_sweep_parameter, action="append", metavar="NAME=VALUES",
-                       help="vary NAME (n, m, stiffness, rest_scale, damping, load): V1,V2,... "
-                            "for a grid, LOW:HIGH with --samples; repeatable")
+    sweep.add_argument(
+        "--structure",
+        type=Path,
+        metavar="FILE",
+        help="sweep this structure file (any format) instead of the class 1 shell: "
+        "then stiffness, rest_scale, damping and load can vary",
+    )
+    sweep.add_argument(
+        "--param",
+        type=_sweep_parameter,
+        action="append",
+        metavar="NAME=VALUES",
+        help="vary NAME (n, m, stiffness, rest_scale, damping, load): V1,V2,... "
+        "for a grid, LOW:HIGH with --samples; repeatable",
+    )
     sweep.add_argument("--samples", type=int, help="Monte Carlo sample of this many cases")
     sweep.add_argument("--seed", type=int, help="Monte Carlo seed (default 0)")
     sweep.add_argument("--t-end", type=_positive, help="simulated time per case [s] (default 0.1)")
     sweep.add_argument("--sample-dt", type=_positive, help="output spacing [s] (default 1e-3)")
     sweep.add_argument("--method", help="rk4 (default) or an adaptive scipy method")
     sweep.add_argument("--dt", type=_positive, help="rk4 step [s] (default 1e-4)")
-    sweep.add_argument("--no-batch", action="store_true",
-                       help="run rk4 cases one by one through simulate, not batched")
-    sweep.add_argument("--scheduler", metavar="ADDRESS",
-                       help="Dask scheduler address (default: a local cluster)")
+    sweep.add_argument(
+        "--no-batch",
+        action="store_true",
+        help="run rk4 cases one by one through simulate, not batched",
+    )
+    sweep.add_argument(
+        "--scheduler", metavar="ADDRESS", help="Dask scheduler address (default: a local cluster)"
+    )
     sweep.add_argument("--workers", type=int, help="local cluster workers (default: CPU count)")
     sweep.add_argument("-o", "--output", type=Path, required=True, help="output .nc file")
     sweep.set_defaults(run=_cmd_sweep)
@@ -833,4 +1075,3 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("tensegrity: interrupted (nothing written)", file=sys.stderr)
         return 130
-

@@ -56,16 +56,28 @@ def _count(value: Any, name: str, low: int) -> int:
 
 
 def _draft(
-    position: np.ndarray, rods: np.ndarray, tendons: np.ndarray, names: tuple[str, ...], *,
-    rod_mass: Any, stiffness: Any, damping: Any, rest_fraction: float = 1.0,
+    position: np.ndarray,
+    rods: np.ndarray,
+    tendons: np.ndarray,
+    names: tuple[str, ...],
+    *,
+    rod_mass: Any,
+    stiffness: Any,
+    damping: Any,
+    rest_fraction: float = 1.0,
 ) -> Structure:
     """The structure of a layout (via :func:`~tensegrity.io.formats.from_connectivity`), with every
     rest length ``rest_fraction`` times the tendon's length in the layout."""
     n = position.shape[0]
     return from_connectivity(
-        position.T, incidence(rods, n), incidence(tendons, n),
-        rod_mass=_positive(rod_mass, "rod_mass"), tendon_stiffness=_positive(stiffness, "stiffness"),
-        tendon_prestrain=1.0 / rest_fraction - 1.0, tendon_damping=float(damping), tendon_name=names,
+        position.T,
+        incidence(rods, n),
+        incidence(tendons, n),
+        rod_mass=_positive(rod_mass, "rod_mass"),
+        tendon_stiffness=_positive(stiffness, "stiffness"),
+        tendon_prestrain=1.0 / rest_fraction - 1.0,
+        tendon_damping=float(damping),
+        tendon_name=names,
     )
 
 
@@ -141,8 +153,9 @@ def prism_members(n: int) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
     """
     i = np.arange(n)
     rods = _pairs(i, n + i)
-    tendons = np.vstack([_pairs(i, (i + 1) % n), _pairs(n + i, n + (i + 1) % n),
-                         _pairs(i, n + (i - 1) % n)])
+    tendons = np.vstack(
+        [_pairs(i, (i + 1) % n), _pairs(n + i, n + (i + 1) % n), _pairs(i, n + (i - 1) % n)]
+    )
     names = tuple(f"{kind}{k}" for kind in "bts" for k in range(n))
     return rods, tendons, names
 
@@ -175,8 +188,9 @@ def prism(
         Mean tendon tension of the prestress [N].
     """
     layout = prism_layout(n, rod_length=rod_length, height=height)
-    draft = _draft(layout, *prism_members(n), rod_mass=rod_mass, stiffness=stiffness,
-                   damping=damping)
+    draft = _draft(
+        layout, *prism_members(n), rod_mass=rod_mass, stiffness=stiffness, damping=damping
+    )
     return _prestressed(draft, tension)
 
 
@@ -215,8 +229,9 @@ def octahedron(
     tails, heads = np.nonzero(np.triu(np.isclose(distance, string, rtol=1e-12)))
     tendons = _pairs(tails, heads)
     names = tuple(f"s{k}" for k in range(tendons.shape[0]))
-    draft = _draft(position, rods, tendons, names, rod_mass=rod_mass, stiffness=stiffness,
-                   damping=damping)
+    draft = _draft(
+        position, rods, tendons, names, rod_mass=rod_mass, stiffness=stiffness, damping=damping
+    )
     return _prestressed(draft, tension)
 
 
@@ -297,11 +312,19 @@ def tower(
     for j in range(m):
         c, s = math.cos(j * turn), math.sin(j * turn)
         layout.append(stage @ np.array([[c, s, 0], [-s, c, 0], [0, 0, 1]]) + [0, 0, j * pitch])
-    draft = _draft(np.vstack(layout), *tower_members(n, m), rod_mass=rod_mass,
-                   stiffness=stiffness, damping=damping, rest_fraction=0.9)
+    draft = _draft(
+        np.vstack(layout),
+        *tower_members(n, m),
+        rod_mass=rod_mass,
+        stiffness=stiffness,
+        damping=damping,
+        rest_fraction=0.9,
+    )
     found = form_find(draft, mean_tension=_positive(tension, "tension"))
     if not found.stable:
-        raise ValueError(f"tower: form-finding found no stable all-taut equilibrium ({found.verdict})")
+        raise ValueError(
+            f"tower: form-finding found no stable all-taut equilibrium ({found.verdict})"
+        )
     return found.structure
 
 
@@ -355,5 +378,7 @@ def generate(kind: str, **kwargs: Any) -> Any:
     valid = options(kind)
     for name in kwargs:
         if name not in valid:
-            raise ValueError(f"{name}: not an option of kind {kind!r} (its options: {', '.join(valid)})")
+            raise ValueError(
+                f"{name}: not an option of kind {kind!r} (its options: {', '.join(valid)})"
+            )
     return generator(kind)(**kwargs)

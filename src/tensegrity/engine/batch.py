@@ -16,9 +16,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from tensegrity.physics.dynamics import State
 from tensegrity.engine.simulate import SimulationResult, simulate
 from tensegrity.model.structure import Structure
+from tensegrity.physics.dynamics import State
 
 #: Largest relative misfit of ``sample_dt / dt`` and ``(t_end - t0) / dt`` to whole numbers.
 GRID_RTOL = 1e-9
@@ -98,21 +98,33 @@ def simulate_batch(
         raise ValueError(f"dt: must be > 0, got {dt!r}")
     _whole_steps(t1 - t0, dt, "t_span")
     _whole_steps(sample_dt, dt, "sample_dt")
-    for field, value in (("max_rod_length_error", max_rod_length_error),
-                         ("max_energy_growth", max_energy_growth)):
+    for field, value in (
+        ("max_rod_length_error", max_rod_length_error),
+        ("max_energy_growth", max_energy_growth),
+    ):
         if not value > 0:
             raise ValueError(f"{field}: must be > 0, got {value!r}")
     initial = [None] * B if initial is None else list(initial)
     forces = [None] * B if external_force is None else list(external_force)
     for field, values in (("initial", initial), ("external_force", forces)):
         if len(values) != B:
-            raise ValueError(f"{field}: expected {B} entries (one per structure), got {len(values)}")
+            raise ValueError(
+                f"{field}: expected {B} entries (one per structure), got {len(values)}"
+            )
     results = []
     for b, structure in enumerate(structures):
         result = simulate(
-            structure, (t0, t1), initial=initial[b], external_force=forces[b], gravity=gravity,
-            method="rk4", dt=dt, sample_dt=sample_dt, locate_switches=False,
-            max_rod_length_error=max_rod_length_error, max_energy_growth=max_energy_growth,
+            structure,
+            (t0, t1),
+            initial=initial[b],
+            external_force=forces[b],
+            gravity=gravity,
+            method="rk4",
+            dt=dt,
+            sample_dt=sample_dt,
+            locate_switches=False,
+            max_rod_length_error=max_rod_length_error,
+            max_energy_growth=max_energy_growth,
         )
         results.append(dataclasses.replace(result, settings=dict(result.settings, batched=True)))
     return results

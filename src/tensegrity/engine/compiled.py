@@ -39,7 +39,6 @@ from tensegrity.physics.kernel_system import (
     system_rhs,
 )
 
-
 #: DOP853 tableau (scipy's): 12 stages, the 13th is f at the new point (first same as last),
 #: then 3 extra stages for the dense output.
 DOP853_STAGES = _dop853.N_STAGES
@@ -57,7 +56,9 @@ RK4_C = np.array([0.0, 0.5, 0.5, 1.0])
 #: ``"rk4"`` checks the energy balance after every this many steps (and after each stretch).
 ENERGY_CHECK_EVERY = 8
 #: Codes of :func:`check_state` (0: the state is sound).
-CHECK_OK, CHECK_NOT_FINITE, CHECK_ROD_LENGTH, CHECK_CONSTRAINT, CHECK_ENERGY, CHECK_PROJECTION = range(6)
+CHECK_OK, CHECK_NOT_FINITE, CHECK_ROD_LENGTH, CHECK_CONSTRAINT, CHECK_ENERGY, CHECK_PROJECTION = (
+    range(6)
+)
 
 
 # --------------------------------------------------------------------------- right-hand side
@@ -79,10 +80,24 @@ def ode_rhs(y, dy, s, system, inputs, work):  # pragma: no cover - compiled
     node_work, block_force, tension, elastic, damping_power = work
     n = (y.shape[0] - 3) // 2
     q = y[:n]
-    qdot = y[n:2 * n]
+    qdot = y[n : 2 * n]
     dissipated, external = system_rhs(
-        q, qdot, arrays, extras, _row(rest, s), has_external, _row(force, s), has_gravity,
-        gravity, node_work, block_force, dy[n:2 * n], tension, elastic, damping_power)
+        q,
+        qdot,
+        arrays,
+        extras,
+        _row(rest, s),
+        has_external,
+        _row(force, s),
+        has_gravity,
+        gravity,
+        node_work,
+        block_force,
+        dy[n : 2 * n],
+        tension,
+        elastic,
+        damping_power,
+    )
     dy[:n] = qdot
     dy[2 * n] = dissipated
     dy[2 * n + 1] = external
@@ -185,7 +200,9 @@ def rk4_step(y, h, K, stage, system, inputs, work):  # pragma: no cover - compil
 
 
 @njit(**JIT_OPTIONS)
-def rk4_segment(y, h, n_steps, K, stage, y_end, system, inputs, work, limits, monitor):  # pragma: no cover
+def rk4_segment(
+    y, h, n_steps, K, stage, y_end, system, inputs, work, limits, monitor
+):  # pragma: no cover
     """Up to ``n_steps`` RK4 steps of ``h`` with constant inputs, each followed by
     :func:`check_state` and the projection onto the rod and joint constraints (as
     ``simulate(method="rk4")``).  The energy balance is checked every :data:`ENERGY_CHECK_EVERY`
@@ -199,11 +216,12 @@ def rk4_segment(y, h, n_steps, K, stage, y_end, system, inputs, work, limits, mo
         rk4_step(y, h, K, stage, system, inputs, work)
         y_end[:] = y
         with_energy = k == n_steps - 1 or (k + 1) % ENERGY_CHECK_EVERY == 0
-        code, value = check_state(y, inputs[0].shape[0] - 1, system, inputs, work, limits,
-                                  monitor, with_energy)
+        code, value = check_state(
+            y, inputs[0].shape[0] - 1, system, inputs, work, limits, monitor, with_energy
+        )
         if code != CHECK_OK:
             return k + 1, code, value
-        _, _, ok = system_project(y[:n], y[n:2 * n], system[0][1], system[1])
+        _, _, ok = system_project(y[:n], y[n : 2 * n], system[0][1], system[1])
         if not ok:
             return k + 1, CHECK_PROJECTION, np.nan
     return n_steps, CHECK_OK, 0.0
@@ -219,7 +237,8 @@ def energy_balance(y, s, system, inputs, work):  # pragma: no cover - compiled
     rest, _, _, _, _, has_gravity, gravity = inputs
     n = (y.shape[0] - 3) // 2
     kinetic, elastic, potential = system_energies(
-        y[:n], y[n:2 * n], arrays, extras, _row(rest, s), has_gravity, gravity, work[0])
+        y[:n], y[n : 2 * n], arrays, extras, _row(rest, s), has_gravity, gravity, work[0]
+    )
     d, w, u = y[2 * n], y[2 * n + 1], y[2 * n + 2]
     total = kinetic + elastic + potential + d - w - u
     scale = kinetic + elastic + abs(potential) + abs(d) + abs(w) + abs(u)
@@ -274,13 +293,14 @@ def switch_indicator(y, system, rest, work, p, v, out):  # pragma: no cover - co
     arrays, extras = system
     rod_slots, _, tendon_slots, _, stiffness, damping = arrays
     n = (y.shape[0] - 3) // 2
-    system_nodes(y[:n], y[n:2 * n], rod_slots, extras, p, v, damping is not None)
+    system_nodes(y[:n], y[n : 2 * n], rod_slots, extras, p, v, damping is not None)
     _indicator(p, v, tendon_slots, stiffness, damping, rest, out)
 
 
 @njit(**JIT_OPTIONS)
-def switch_distance(F, y_old, x, y, system, rest, work, p, v, indicator, candidates, was_taut,
-                    out):  # pragma: no cover - compiled
+def switch_distance(
+    F, y_old, x, y, system, rest, work, p, v, indicator, candidates, was_taut, out
+):  # pragma: no cover - compiled
     """How far each of the tendons ``candidates`` (kernel positions) is from leaving its state
     ``was_taut`` at the fraction ``x`` of a DOP853 step (its dense polynomial ``F`` from
     ``y_old``): ``out[k]`` is :func:`switch_indicator` of ``candidates[k]``, negated for a
@@ -308,8 +328,9 @@ def _indicator(p, v, tendon_slots, stiffness, damping, rest, out):  # pragma: no
         if damping is None:
             out[s] = stretch
         else:
-            rate = (tx * (v[0, b] - v[0, a]) + ty * (v[1, b] - v[1, a])
-                    + tz * (v[2, b] - v[2, a])) / length
+            rate = (
+                tx * (v[0, b] - v[0, a]) + ty * (v[1, b] - v[1, a]) + tz * (v[2, b] - v[2, a])
+            ) / length
             out[s] = min(stretch, stretch + damping[s] * rate)
 
 
@@ -326,9 +347,9 @@ def sample_outputs(y, dy, system, inputs, work, moving, p, v, accel, lengths):  
     n = (y.shape[0] - 3) // 2
     ode_rhs(y, dy, 0, system, inputs, work)
     kinetic, elastic, potential, _, _ = energy_balance(y, 0, system, inputs, work)
-    system_nodes(y[:n], y[n:2 * n], rod_slots, extras, p, v, True)
+    system_nodes(y[:n], y[n : 2 * n], rod_slots, extras, p, v, True)
     tendon_lengths(p, arrays[2], lengths)
-    system_nodes(dy[n:2 * n], dy[n:2 * n], rod_slots, extras, accel, accel, False)
+    system_nodes(dy[n : 2 * n], dy[n : 2 * n], rod_slots, extras, accel, accel, False)
     return kinetic, elastic, potential, _largest_at(accel, moving), _largest_at(v, moving)
 
 
@@ -343,8 +364,27 @@ def _largest_at(x, slots):  # pragma: no cover - compiled
 
 
 __all__ = [
-    "CHECK_CONSTRAINT", "CHECK_ENERGY", "CHECK_NOT_FINITE", "CHECK_OK", "CHECK_PROJECTION",
-    "CHECK_ROD_LENGTH", "DOP853_C", "DOP853_DENSE_ROWS", "DOP853_STAGES", "ENERGY_CHECK_EVERY", "RK4_C",
-    "check_state", "dop853_attempt", "dop853_dense", "dop853_interpolate", "energy_balance",
-    "ode_rhs", "rk4_segment", "rk4_step", "sample_outputs", "switch_distance", "switch_indicator", "tendon_lengths",
+    "CHECK_CONSTRAINT",
+    "CHECK_ENERGY",
+    "CHECK_NOT_FINITE",
+    "CHECK_OK",
+    "CHECK_PROJECTION",
+    "CHECK_ROD_LENGTH",
+    "DOP853_C",
+    "DOP853_DENSE_ROWS",
+    "DOP853_STAGES",
+    "ENERGY_CHECK_EVERY",
+    "RK4_C",
+    "check_state",
+    "dop853_attempt",
+    "dop853_dense",
+    "dop853_interpolate",
+    "energy_balance",
+    "ode_rhs",
+    "rk4_segment",
+    "rk4_step",
+    "sample_outputs",
+    "switch_distance",
+    "switch_indicator",
+    "tendon_lengths",
 ]

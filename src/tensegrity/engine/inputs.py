@@ -18,7 +18,9 @@ from tensegrity.model.loads import ControlTable, ForceTable
 from tensegrity.model.structure import Structure
 
 
-def _check(value: np.ndarray, shape: tuple[int, ...], field: str, t: float | None = None) -> np.ndarray:
+def _check(
+    value: np.ndarray, shape: tuple[int, ...], field: str, t: float | None = None
+) -> np.ndarray:
     at = "" if t is None else f" at t = {t}"
     if value.shape != shape:
         raise ValueError(f"{field}: expected shape {shape}{at}, got {value.shape}")
@@ -55,8 +57,14 @@ class _Signal:
             return self.value[None]
         if self.kind == "table":
             return self.value.at(times)
-        return np.stack([_check(np.asarray(self.value(float(t)), dtype=float), self.shape,
-                                self.field, float(t)) for t in times])
+        return np.stack(
+            [
+                _check(
+                    np.asarray(self.value(float(t)), dtype=float), self.shape, self.field, float(t)
+                )
+                for t in times
+            ]
+        )
 
     def rate(self, times: np.ndarray) -> np.ndarray | None:
         """Time derivatives (K, *shape) at ``times``, or None if constant."""
@@ -69,8 +77,11 @@ class _Signal:
 
     def setting(self) -> Any:
         """How the run's settings record this input."""
-        return "function" if self.kind == "function" else (
-            "table" if self.kind == "table" else self.kind == "constant")
+        return (
+            "function"
+            if self.kind == "function"
+            else ("table" if self.kind == "table" else self.kind == "constant")
+        )
 
 
 class Inputs:
@@ -80,18 +91,24 @@ class Inputs:
     """
 
     def __init__(
-        self, structure: Structure, *, control: Any = None, external_force: Any = None,
+        self,
+        structure: Structure,
+        *,
+        control: Any = None,
+        external_force: Any = None,
         gravity: Any = None,
     ) -> None:
         self.structure = structure
         self.control = _Signal(control, (structure.n_tendons,), "control")
         self.external_force = _Signal(
-            external_force, (structure.n_nodes, structure.dim), "external_force")
+            external_force, (structure.n_nodes, structure.dim), "external_force"
+        )
         if gravity is not None:
             gravity = np.array(gravity, dtype=float)
             if gravity.shape != (structure.dim,) or not np.all(np.isfinite(gravity)):
                 raise ValueError(
-                    f"gravity: expected {structure.dim} finite numbers, got {gravity!r}")
+                    f"gravity: expected {structure.dim} finite numbers, got {gravity!r}"
+                )
         self.gravity = gravity
         self.constant = self.control.constant and self.external_force.constant
 
@@ -99,13 +116,17 @@ class Inputs:
         """``Lbar = L0 - u`` (K, S) [m] at ``times``; raises ``ValueError`` naming the first
         tendon whose rest length would be negative."""
         u = self.control.at(times)
-        rest = self.structure.tendon_rest_length[None] if u is None else (
-            self.structure.tendon_rest_length - u)
+        rest = (
+            self.structure.tendon_rest_length[None]
+            if u is None
+            else (self.structure.tendon_rest_length - u)
+        )
         if u is not None and np.any(rest < 0):
             k, s = np.argwhere(rest < 0)[0]
             raise ValueError(
                 f"{self.control.field}[{s}]: rest length {self.structure.tendon_rest_length[s]:g} - "
-                f"{u[k, s]:g} is negative at t = {times[min(k, len(times) - 1)]:g} s")
+                f"{u[k, s]:g} is negative at t = {times[min(k, len(times) - 1)]:g} s"
+            )
         return rest
 
     def hold_control(self, u: Any, t: float) -> None:
@@ -122,5 +143,6 @@ class Inputs:
         ``gravity`` (a list or None), for a run's settings record."""
         return dict(
             gravity=None if self.gravity is None else self.gravity.tolist(),
-            control=self.control.setting(), external_force=self.external_force.setting(),
+            control=self.control.setting(),
+            external_force=self.external_force.setting(),
         )

@@ -78,8 +78,9 @@ class Feedback:
     period: float
 
     def __post_init__(self) -> None:
-        if not (isinstance(self.period, (int, float)) and math.isfinite(self.period)
-                and self.period > 0):
+        if not (
+            isinstance(self.period, (int, float)) and math.isfinite(self.period) and self.period > 0
+        ):
             raise ValueError(f"period: must be a finite number > 0, got {self.period!r}")
 
     def __call__(self, t: float, q: np.ndarray, qdot: np.ndarray) -> np.ndarray:
@@ -128,16 +129,23 @@ class LoopState:
         """The state as named arrays (for a file); :meth:`from_arrays` reads them back."""
         landing = self.landing or (math.nan, np.zeros(0, np.int64), np.zeros(0, bool), False)
         return {
-            "t": np.float64(self.t), "y": self.y, "first_stage": self.memory.first_stage,
+            "t": np.float64(self.t),
+            "y": self.y,
+            "first_stage": self.memory.first_stage,
             "step": np.float64(self.memory.step),
             "step_before": np.float64(self.memory.step_before),
-            "steps_done": np.int64(self.steps_done), "next_sample": np.int64(self.next_sample),
-            "monitor": self.monitor, "taut": self.taut,
-            "landing_time": np.float64(landing[0]), "landing_tendons": landing[1],
-            "landing_taut_after": landing[2], "landing_exact": np.bool_(landing[3]),
+            "steps_done": np.int64(self.steps_done),
+            "next_sample": np.int64(self.next_sample),
+            "monitor": self.monitor,
+            "taut": self.taut,
+            "landing_time": np.float64(landing[0]),
+            "landing_tendons": landing[1],
+            "landing_taut_after": landing[2],
+            "landing_exact": np.bool_(landing[3]),
             "allow_provisional": np.bool_(self.allow_provisional),
             **{name: np.int64(value) for name, value in self.counts.items()},
-            "switch_times": np.array(self.switch_times, dtype=float), "control": self.control,
+            "switch_times": np.array(self.switch_times, dtype=float),
+            "control": self.control,
             "last_sample_t": np.float64(self.last_sample_t),
             "wall_time": np.float64(self.wall_time),
         }
@@ -146,20 +154,33 @@ class LoopState:
     def from_arrays(cls, a: dict[str, np.ndarray]) -> LoopState:
         """The state written by :meth:`to_arrays` (``KeyError`` names a missing array)."""
         landing_time = float(a["landing_time"])
-        landing = None if math.isnan(landing_time) else (
-            landing_time, np.asarray(a["landing_tendons"], dtype=np.int64),
-            np.asarray(a["landing_taut_after"], dtype=bool), bool(a["landing_exact"]))
+        landing = (
+            None
+            if math.isnan(landing_time)
+            else (
+                landing_time,
+                np.asarray(a["landing_tendons"], dtype=np.int64),
+                np.asarray(a["landing_taut_after"], dtype=bool),
+                bool(a["landing_exact"]),
+            )
+        )
         return cls(
-            t=float(a["t"]), y=np.asarray(a["y"], dtype=float),
-            memory=StepperMemory(np.asarray(a["first_stage"], dtype=float), float(a["step"]),
-                                 float(a["step_before"])),
-            steps_done=int(a["steps_done"]), next_sample=int(a["next_sample"]),
-            monitor=np.asarray(a["monitor"], dtype=float), taut=np.asarray(a["taut"], dtype=bool),
-            landing=landing, allow_provisional=bool(a["allow_provisional"]),
+            t=float(a["t"]),
+            y=np.asarray(a["y"], dtype=float),
+            memory=StepperMemory(
+                np.asarray(a["first_stage"], dtype=float), float(a["step"]), float(a["step_before"])
+            ),
+            steps_done=int(a["steps_done"]),
+            next_sample=int(a["next_sample"]),
+            monitor=np.asarray(a["monitor"], dtype=float),
+            taut=np.asarray(a["taut"], dtype=bool),
+            landing=landing,
+            allow_provisional=bool(a["allow_provisional"]),
             counts={name: int(a[name]) for name in _COUNTS},
             switch_times=tuple(float(x) for x in np.asarray(a["switch_times"])),
             control=np.asarray(a["control"], dtype=float),
-            last_sample_t=float(a["last_sample_t"]), wall_time=float(a["wall_time"]),
+            last_sample_t=float(a["last_sample_t"]),
+            wall_time=float(a["wall_time"]),
         )
 
 
@@ -167,14 +188,20 @@ _COUNTS = ("nsteps", "nswitches", "nprojections", "nfev")
 
 _FAILURES = {
     compiled.CHECK_NOT_FINITE: "unstable: the state is not finite at t = {t:.6g} s",
-    compiled.CHECK_ROD_LENGTH: ("unstable: a rod's length error {value:.3g} (relative) exceeds "
-                                "{limit:g} within one step at t = {t:.6g} s (step too large, or "
-                                "the motion is unstable)"),
-    compiled.CHECK_CONSTRAINT: ("unstable: the joints and supports are violated by {value:.3g} m "
-                                "within one step at t = {t:.6g} s (step too large, or the motion "
-                                "is unstable)"),
+    compiled.CHECK_ROD_LENGTH: (
+        "unstable: a rod's length error {value:.3g} (relative) exceeds "
+        "{limit:g} within one step at t = {t:.6g} s (step too large, or "
+        "the motion is unstable)"
+    ),
+    compiled.CHECK_CONSTRAINT: (
+        "unstable: the joints and supports are violated by {value:.3g} m "
+        "within one step at t = {t:.6g} s (step too large, or the motion "
+        "is unstable)"
+    ),
     compiled.CHECK_ENERGY: "unstable: energy grew by {value:.3g} J (scale {scale:.3g} J) at t = {t:.6g} s",
-    compiled.CHECK_PROJECTION: ("unstable: could not project onto the constraints at t = {t:.6g} s"),
+    compiled.CHECK_PROJECTION: (
+        "unstable: could not project onto the constraints at t = {t:.6g} s"
+    ),
 }
 
 
@@ -193,9 +220,17 @@ class _Landing:
 class _Run:
     """The state of one run: the system, the monitor, the counters, the boundaries."""
 
-    def __init__(self, structure: Structure, t0: float, t_end: float, inputs: Inputs,
-                 options: Options, sink: Sink, controller: Controller | None,
-                 checkpoint: Checkpointing | None) -> None:
+    def __init__(
+        self,
+        structure: Structure,
+        t0: float,
+        t_end: float,
+        inputs: Inputs,
+        options: Options,
+        sink: Sink,
+        controller: Controller | None,
+        checkpoint: Checkpointing | None,
+    ) -> None:
         self.structure, self.options, self.sink = structure, options, sink
         self.controller, self.checkpointing = controller, checkpoint
         self.t0, self.t_end = t0, t_end
@@ -203,8 +238,11 @@ class _Run:
         self.sample_dt = options.sample_spacing(t0, t_end)
         self.next_sample = 1
         length_scale = max(float(structure.rod_length.max(initial=0.0)), 1.0)
-        self.limits = (options.max_rod_length_error, options.max_rod_length_error * length_scale,
-                       options.max_energy_growth)
+        self.limits = (
+            options.max_rod_length_error,
+            options.max_rod_length_error * length_scale,
+            options.max_energy_growth,
+        )
         self.monitor = np.zeros(4)
         self.counts = dict(nsteps=0, nswitches=0, nprojections=0)
         self.nfev_before = 0  # of the runs before a resume
@@ -223,8 +261,9 @@ class _Run:
         inputs0 = system.stage_inputs(np.array([self.t0]))
         _, _, _, total, scale = compiled.energy_balance(y, 0, system.system, inputs0, system.work)
         self.monitor[:] = (total, scale, 0.0, 0.0)
-        compiled.check_state(y, 0, system.system, inputs0, system.work,
-                             (np.inf, np.inf, np.inf), self.monitor, True)
+        compiled.check_state(
+            y, 0, system.system, inputs0, system.work, (np.inf, np.inf, np.inf), self.monitor, True
+        )
 
     # ------------------------------------------------------------------ samples
     def record(self, t: float, y: np.ndarray) -> Sample:
@@ -247,8 +286,11 @@ class _Run:
 
     def steady(self, sample: Sample) -> bool:
         o = self.options
-        if (o.steady_state and sample.residual_acceleration < o.acceleration_tol
-                and sample.largest_speed < o.velocity_tol):
+        if (
+            o.steady_state
+            and sample.residual_acceleration < o.acceleration_tol
+            and sample.largest_speed < o.velocity_tol
+        ):
             self.status = STATUS_STEADY
             self.message = f"steady state at t = {sample.t:.6g} s"
             return True
@@ -257,14 +299,16 @@ class _Run:
     def fail(self, code: int, value: float, t: float) -> None:
         self.status = STATUS_FAILED
         self.message = _FAILURES[code].format(
-            t=t, value=value, limit=self.options.max_rod_length_error, scale=self.monitor[1])
+            t=t, value=value, limit=self.options.max_rod_length_error, scale=self.monitor[1]
+        )
 
     def check(self, y: np.ndarray, t: float) -> float | None:
         """The compiled blow-up checks at the end of a step; the drift, or None on failure."""
         system = self.system
         inputs = system.stage_inputs(np.array([t]))
-        code, value = compiled.check_state(y, 0, system.system, inputs, system.work, self.limits,
-                                           self.monitor, True)
+        code, value = compiled.check_state(
+            y, 0, system.system, inputs, system.work, self.limits, self.monitor, True
+        )
         if code != compiled.CHECK_OK:
             self.fail(code, value, t)
             return None
@@ -302,26 +346,49 @@ class _Run:
     def checkpoint_due(self) -> bool:
         """True once per checkpoint: its sample (every ``every``-th) was just recorded."""
         c, index = self.checkpointing, self.next_sample - 1
-        return (c is not None and index % c.every == 0 and index > self.saved_at
-                and self.last_sample_t == self.sample_time(index))
+        return (
+            c is not None
+            and index % c.every == 0
+            and index > self.saved_at
+            and self.last_sample_t == self.sample_time(index)
+        )
 
-    def save(self, t: float, y: np.ndarray, stepper: Stepper | RK4, taut: np.ndarray | None,
-             landing: _Landing | None, allow_provisional: bool, wall0: float) -> None:
+    def save(
+        self,
+        t: float,
+        y: np.ndarray,
+        stepper: Stepper | RK4,
+        taut: np.ndarray | None,
+        landing: _Landing | None,
+        allow_provisional: bool,
+        wall0: float,
+    ) -> None:
         self.saved_at = self.next_sample - 1
-        memory = (stepper.memory() if not isinstance(stepper, RK4)
-                  else StepperMemory(np.zeros(0), 0.0, 0.0))
-        self.checkpointing.save(LoopState(
-            t=t, y=y.copy(), memory=memory, steps_done=self.steps_done,
-            next_sample=self.next_sample, monitor=self.monitor.copy(),
-            taut=np.zeros(0, bool) if taut is None else taut.copy(),
-            landing=None if landing is None else (landing.time, landing.tendons,
-                                                  landing.taut_after, landing.exact),
-            allow_provisional=allow_provisional,
-            counts=dict(self.counts, nfev=self.nfev_before + stepper.nfev),
-            switch_times=tuple(self.switch_times), control=self.control.copy(),
-            last_sample_t=self.last_sample_t,
-            wall_time=self.wall_before + time.perf_counter() - wall0,
-        ))
+        memory = (
+            stepper.memory()
+            if not isinstance(stepper, RK4)
+            else StepperMemory(np.zeros(0), 0.0, 0.0)
+        )
+        self.checkpointing.save(
+            LoopState(
+                t=t,
+                y=y.copy(),
+                memory=memory,
+                steps_done=self.steps_done,
+                next_sample=self.next_sample,
+                monitor=self.monitor.copy(),
+                taut=np.zeros(0, bool) if taut is None else taut.copy(),
+                landing=None
+                if landing is None
+                else (landing.time, landing.tendons, landing.taut_after, landing.exact),
+                allow_provisional=allow_provisional,
+                counts=dict(self.counts, nfev=self.nfev_before + stepper.nfev),
+                switch_times=tuple(self.switch_times),
+                control=self.control.copy(),
+                last_sample_t=self.last_sample_t,
+                wall_time=self.wall_before + time.perf_counter() - wall0,
+            )
+        )
 
     def restore(self, state: LoopState) -> None:
         self.next_sample, self.monitor = state.next_sample, state.monitor.copy()
@@ -342,12 +409,12 @@ def _stepper(run: _Run, t: float, y: np.ndarray, memory: StepperMemory | None) -
         return RK4(run.system, t, y)
     if o.method == "DOP853":
         return DOP853(run.system, t, y, rtol=o.rtol, atol=o.atol, t_end=run.t_end, memory=memory)
-    return ScipyMethod(run.system, t, y, method=o.method, rtol=o.rtol, atol=o.atol,
-                       t_end=run.t_end)
+    return ScipyMethod(run.system, t, y, method=o.method, rtol=o.rtol, atol=o.atol, t_end=run.t_end)
 
 
-def _first_switch(stepper: Stepper, candidates: np.ndarray,
-                  was_taut: np.ndarray) -> tuple[float, np.ndarray]:
+def _first_switch(
+    stepper: Stepper, candidates: np.ndarray, was_taut: np.ndarray
+) -> tuple[float, np.ndarray]:
     """Earliest time in the last step at which one of ``candidates`` (kernel positions) changes
     taut/slack state, and the tendons that have switched by then.
 
@@ -356,6 +423,7 @@ def _first_switch(stepper: Stepper, candidates: np.ndarray,
     Illinois modification (superlinear on a smooth ``g``), kept in a shrinking bracket by a
     bisection whenever a false-position step leaves more than half of it; to a bracket of
     :data:`SWITCH_RTOL` (relative).  Returns the bracket's right end: just past the switch."""
+
     def g(t: float) -> float:
         return float(np.min(stepper.switch_distance(t, candidates, was_taut)))
 
@@ -417,8 +485,10 @@ def _adaptive(run: _Run, stepper: Stepper, resume: LoopState | None, wall0: floa
     while stepper.t < run.t_end:
         detect = locate and (landing is None or not landing.exact)
         boundary = run.next_boundary(stepper.t)
-        stepper.step(boundary if landing is None else min(boundary, landing.time),
-                     taut if allow_provisional and landing is None else None)
+        stepper.step(
+            boundary if landing is None else min(boundary, landing.time),
+            taut if allow_provisional and landing is None else None,
+        )
         allow_provisional = locate
         if detect:
             changed = np.flatnonzero((stepper.tensions() > 0) != taut)
@@ -469,14 +539,19 @@ def _adaptive(run: _Run, stepper: Stepper, resume: LoopState | None, wall0: floa
             run.save(stepper.t, stepper.y, stepper, taut, landing, allow_provisional, wall0)
 
 
-def _hermite(t: float, t0: float, y0: np.ndarray, f0: np.ndarray, t1: float, y1: np.ndarray,
-             f1: np.ndarray) -> np.ndarray:
+def _hermite(
+    t: float, t0: float, y0: np.ndarray, f0: np.ndarray, t1: float, y1: np.ndarray, f1: np.ndarray
+) -> np.ndarray:
     """Cubic Hermite interpolation inside a fixed step from the values and slopes at its ends."""
     h = t1 - t0
     s = (t - t0) / h
     s2, s3 = s * s, s * s * s
-    return ((2 * s3 - 3 * s2 + 1) * y0 + (s3 - 2 * s2 + s) * h * f0 + (-2 * s3 + 3 * s2) * y1
-            + (s3 - s2) * h * f1)
+    return (
+        (2 * s3 - 3 * s2 + 1) * y0
+        + (s3 - 2 * s2 + s) * h * f0
+        + (-2 * s3 + 3 * s2) * y1
+        + (s3 - s2) * h * f1
+    )
 
 
 def _fixed_step(run: _Run, stepper: RK4, resume: LoopState | None, wall0: float) -> None:
@@ -510,15 +585,23 @@ def _fixed_step(run: _Run, stepper: RK4, resume: LoopState | None, wall0: float)
             y = stepper.y_end
             if abs(t - stepper.t) > 1e-9 * dt:
                 f_new = np.empty_like(y_old)
-                compiled.ode_rhs(stepper.y_end, f_new, 0, run.system.system,
-                                 run.system.stage_inputs(np.array([stepper.t])), run.system.work)
+                compiled.ode_rhs(
+                    stepper.y_end,
+                    f_new,
+                    0,
+                    run.system.system,
+                    run.system.stage_inputs(np.array([stepper.t])),
+                    run.system.work,
+                )
                 stepper.nfev += 1
                 y = _hermite(t, t_old, y_old, stepper.K[0], stepper.t, stepper.y_end, f_new)
             if run.steady(run.record(t, y)):
                 return
-        if run.controller is not None and run.steps_done < n_steps and (
-                step_reaching(run.control_time(t0 + (run.steps_done - 1) * dt))
-                <= run.steps_done):
+        if (
+            run.controller is not None
+            and run.steps_done < n_steps
+            and (step_reaching(run.control_time(t0 + (run.steps_done - 1) * dt)) <= run.steps_done)
+        ):
             run.update_control(stepper.t, stepper.y)
         if run.steps_done < n_steps and run.checkpoint_due():
             run.save(stepper.t, stepper.y, stepper, None, None, False, wall0)
@@ -598,10 +681,14 @@ def run(
     if r.status != STATUS_STEADY and r.last_sample_t < stepper.t * (1 - 1e-14):
         r.record(stepper.t, stepper.y)  # the end, or the last state before a failure
     return RunSummary(
-        status=r.status, message=r.message, t_final=r.last_sample_t,
+        status=r.status,
+        message=r.message,
+        t_final=r.last_sample_t,
         nfev=r.nfev_before + stepper.nfev,
-        max_rod_length_error=float(r.monitor[2]), max_constraint_error=float(r.monitor[3]),
+        max_rod_length_error=float(r.monitor[2]),
+        max_constraint_error=float(r.monitor[3]),
         wall_time=r.wall_before + time.perf_counter() - wall0,
         settings=options.settings(t0, t_end, **inputs.settings()),
-        switch_times=tuple(r.switch_times), **r.counts,
+        switch_times=tuple(r.switch_times),
+        **r.counts,
     )

@@ -64,10 +64,19 @@ class Options:
             raise ValueError(f"dt: method {self.method!r} is fixed-step and needs a step dt")
         if self.dt is not None and not (math.isfinite(self.dt) and self.dt > 0):
             raise ValueError(f"dt: must be > 0, got {self.dt!r}")
-        if self.sample_dt is not None and not (math.isfinite(self.sample_dt) and self.sample_dt > 0):
+        if self.sample_dt is not None and not (
+            math.isfinite(self.sample_dt) and self.sample_dt > 0
+        ):
             raise ValueError(f"sample_dt: must be > 0, got {self.sample_dt!r}")
-        for field in ("rtol", "atol", "velocity_tol", "acceleration_tol", "projection_tol",
-                      "max_rod_length_error", "max_energy_growth"):
+        for field in (
+            "rtol",
+            "atol",
+            "velocity_tol",
+            "acceleration_tol",
+            "projection_tol",
+            "max_rod_length_error",
+            "max_energy_growth",
+        ):
             value = getattr(self, field)
             if not (isinstance(value, (int, float)) and value > 0):
                 raise ValueError(f"{field}: must be > 0, got {value!r}")
@@ -86,8 +95,15 @@ class Options:
         options a result depends on, and what ``inputs`` were given (see
         :meth:`tensegrity.engine.inputs.Inputs.settings`)."""
         return dict(
-            t_span=[t0, t_end], method=self.method, rtol=self.rtol, atol=self.atol, dt=self.dt,
-            sample_dt=self.sample_spacing(t0, t_end), locate_switches=self.locate_switches,
-            steady_state=self.steady_state, velocity_tol=self.velocity_tol,
-            acceleration_tol=self.acceleration_tol, **inputs,
+            t_span=[t0, t_end],
+            method=self.method,
+            rtol=self.rtol,
+            atol=self.atol,
+            dt=self.dt,
+            sample_dt=self.sample_spacing(t0, t_end),
+            locate_switches=self.locate_switches,
+            steady_state=self.steady_state,
+            velocity_tol=self.velocity_tol,
+            acceleration_tol=self.acceleration_tol,
+            **inputs,
         )

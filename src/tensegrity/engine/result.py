@@ -8,11 +8,19 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from tensegrity.physics.dynamics import State
 from tensegrity.model.structure import Structure
+from tensegrity.physics.dynamics import State
 
-__all__ = ["ENERGY_NAMES", "MemorySink", "RunSummary", "STATUS_END", "STATUS_FAILED",
-           "STATUS_STEADY", "Sample", "SimulationResult"]
+__all__ = [
+    "ENERGY_NAMES",
+    "STATUS_END",
+    "STATUS_FAILED",
+    "STATUS_STEADY",
+    "MemorySink",
+    "RunSummary",
+    "Sample",
+    "SimulationResult",
+]
 
 #: ``status`` values: failed, end time reached, steady state reached.
 STATUS_FAILED, STATUS_END, STATUS_STEADY = -1, 0, 1
@@ -128,8 +136,12 @@ class SimulationResult:
         """``E_kin + E_el + E_grav + E_d - W_w - W_u`` [J], (T,): constant up to integration error."""
         e = self.energy
         return (
-            e["kinetic"] + e["elastic"] + e["gravity"] + e["dissipated"]
-            - e["external_work"] - e["control_work"]
+            e["kinetic"]
+            + e["elastic"]
+            + e["gravity"]
+            + e["dissipated"]
+            - e["external_work"]
+            - e["control_work"]
         )
 
     @property
@@ -141,7 +153,6 @@ class SimulationResult:
     def slack_count(self) -> np.ndarray:
         """Number of slack (zero-tension) tendons at each sample, (T,)."""
         return np.sum(self.tendon_tension <= 0, axis=1)
-
 
 
 class MemorySink:
@@ -162,16 +173,25 @@ class MemorySink:
 
         energy = stack("energy")
         return SimulationResult(
-            structure=structure, t=stack("t"), q=stack("q"), qdot=stack("qdot"),
-            node_position=stack("node_position"), node_velocity=stack("node_velocity"),
-            tendon_length=stack("tendon_length"), tendon_tension=stack("tendon_tension"),
+            structure=structure,
+            t=stack("t"),
+            q=stack("q"),
+            qdot=stack("qdot"),
+            node_position=stack("node_position"),
+            node_velocity=stack("node_velocity"),
+            tendon_length=stack("tendon_length"),
+            tendon_tension=stack("tendon_tension"),
             energy={name: energy[:, k] for k, name in enumerate(ENERGY_NAMES)},
             residual_acceleration=stack("residual_acceleration"),
-            status=summary.status, message=summary.message, nfev=summary.nfev,
-            nsteps=summary.nsteps, nswitches=summary.nswitches,
+            status=summary.status,
+            message=summary.message,
+            nfev=summary.nfev,
+            nsteps=summary.nsteps,
+            nswitches=summary.nswitches,
             nprojections=summary.nprojections,
             max_rod_length_error=summary.max_rod_length_error,
             max_constraint_error=summary.max_constraint_error,
-            wall_time=summary.wall_time, settings=summary.settings,
+            wall_time=summary.wall_time,
+            settings=summary.settings,
             switch_times=np.array(summary.switch_times),
         )

@@ -17,7 +17,6 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from tensegrity.physics.dynamics import State
 from tensegrity.engine.inputs import Inputs
 from tensegrity.engine.options import Options
 from tensegrity.engine.result import (
@@ -28,12 +27,19 @@ from tensegrity.engine.result import (
     SimulationResult,
 )
 from tensegrity.model.structure import Structure
+from tensegrity.physics.dynamics import State
 
 if TYPE_CHECKING:
     from tensegrity.engine.loop import Controller
 
-__all__ = ["STATUS_END", "STATUS_FAILED", "STATUS_STEADY", "SimulationResult", "options_and_inputs",
-           "simulate"]
+__all__ = [
+    "STATUS_END",
+    "STATUS_FAILED",
+    "STATUS_STEADY",
+    "SimulationResult",
+    "options_and_inputs",
+    "simulate",
+]
 
 TimeFunction = Callable[[float], np.ndarray]
 
@@ -105,19 +111,38 @@ def simulate(
         With ``status`` and ``message``.  A failed run keeps its samples up to the failure.
     """
     options, inputs = options_and_inputs(
-        structure, control=control, external_force=external_force, gravity=gravity,
-        method=method, rtol=rtol, atol=atol, dt=dt, sample_dt=sample_dt,
-        locate_switches=locate_switches, steady_state=steady_state, velocity_tol=velocity_tol,
-        acceleration_tol=acceleration_tol, projection_tol=projection_tol,
-        max_rod_length_error=max_rod_length_error, max_energy_growth=max_energy_growth,
+        structure,
+        control=control,
+        external_force=external_force,
+        gravity=gravity,
+        method=method,
+        rtol=rtol,
+        atol=atol,
+        dt=dt,
+        sample_dt=sample_dt,
+        locate_switches=locate_switches,
+        steady_state=steady_state,
+        velocity_tol=velocity_tol,
+        acceleration_tol=acceleration_tol,
+        projection_tol=projection_tol,
+        max_rod_length_error=max_rod_length_error,
+        max_energy_growth=max_energy_growth,
     )
     from tensegrity.engine.loop import run  # compiled code: numba loads on first use
 
     sink = MemorySink()
     bar = ProgressBar(*t_span) if progress else None
     try:
-        summary = run(structure, t_span, initial=initial, inputs=inputs, options=options,
-                      sink=sink, progress=bar, controller=controller)
+        summary = run(
+            structure,
+            t_span,
+            initial=initial,
+            inputs=inputs,
+            options=options,
+            sink=sink,
+            progress=bar,
+            controller=controller,
+        )
     finally:
         if bar is not None:
             bar.close()
@@ -125,16 +150,21 @@ def simulate(
 
 
 def options_and_inputs(
-    structure: Structure, *, control: Any = None, external_force: Any = None,
-    gravity: Any = None, **options: Any,
+    structure: Structure,
+    *,
+    control: Any = None,
+    external_force: Any = None,
+    gravity: Any = None,
+    **options: Any,
 ) -> tuple[Options, Inputs]:
     """:func:`simulate`'s keyword options as the engine takes them: the :class:`Options` of the
     run and its :class:`Inputs` (``TypeError`` names an unknown option)."""
     unknown = sorted(set(options) - {f.name for f in dataclasses.fields(Options)})
     if unknown:
         raise TypeError(f"unknown option {unknown[0]!r}")
-    return Options(**options), Inputs(structure, control=control,
-                                      external_force=external_force, gravity=gravity)
+    return Options(**options), Inputs(
+        structure, control=control, external_force=external_force, gravity=gravity
+    )
 
 
 class ProgressBar:
@@ -144,9 +174,14 @@ class ProgressBar:
         from tqdm import tqdm
 
         self.t0 = float(t0)
-        self.bar = tqdm(total=float(t_end) - self.t0, unit="s", unit_scale=False, desc="simulating",
-                        bar_format="{desc}: {percentage:3.0f}%|{bar}| {n:.3g}/{total:.3g} s "
-                                   "[{elapsed}<{remaining}]")
+        self.bar = tqdm(
+            total=float(t_end) - self.t0,
+            unit="s",
+            unit_scale=False,
+            desc="simulating",
+            bar_format="{desc}: {percentage:3.0f}%|{bar}| {n:.3g}/{total:.3g} s "
+            "[{elapsed}<{remaining}]",
+        )
 
     def __call__(self, t: float) -> None:
         self.bar.update(t - self.t0 - self.bar.n)

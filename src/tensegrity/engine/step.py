@@ -41,15 +41,21 @@ class Model:
 
 
 def make_model(
-    structure: Structure, *, control: Any = None, external_force: Any = None,
-    gravity: Any = None, max_rod_length_error: float = 1e-3,
+    structure: Structure,
+    *,
+    control: Any = None,
+    external_force: Any = None,
+    gravity: Any = None,
+    max_rod_length_error: float = 1e-3,
 ) -> Model:
     """Pack ``structure`` with its inputs (as :func:`tensegrity.engine.simulate.simulate` takes
     them: ``control`` (S,) [m], ``external_force`` (N, dim) [N] or functions of time,
     ``gravity`` (dim,) [m/s^2]).  A step fails when a relative rod-length error exceeds
     ``max_rod_length_error`` (joints and supports: that times the longest rod, >= 1 m)."""
-    system = CompiledSystem(structure, Inputs(structure, control=control,
-                                              external_force=external_force, gravity=gravity))
+    system = CompiledSystem(
+        structure,
+        Inputs(structure, control=control, external_force=external_force, gravity=gravity),
+    )
     scale = max(float(structure.rod_length.max(initial=0.0)), 1.0)
     return Model(structure, system, (max_rod_length_error, max_rod_length_error * scale, np.inf))
 
@@ -61,13 +67,16 @@ def step(model: Model, state: State, dt: float) -> State:
         raise ValueError(f"dt: must be a finite step > 0, got {dt!r}")
     system = model.system
     n = system.n
-    y = np.concatenate([system.state_vector(state)[:2 * n], np.zeros(3)])
+    y = np.concatenate([system.state_vector(state)[: 2 * n], np.zeros(3)])
     K, stage, y_end = np.zeros((4, system.m)), np.empty(system.m), np.empty(system.m)
     inputs = system.stage_inputs(state.t + compiled.RK4_C * dt)
-    _, code, value = compiled.rk4_segment(y, dt, 1, K, stage, y_end, system.system, inputs,
-                                          system.work, model.limits, np.zeros(4))
+    _, code, value = compiled.rk4_segment(
+        y, dt, 1, K, stage, y_end, system.system, inputs, system.work, model.limits, np.zeros(4)
+    )
     if code != compiled.CHECK_OK:
-        raise StepError(f"the step from t = {state.t:.6g} s blew up (check {code}, value "
-                        f"{value:.3g}); take a smaller dt")
+        raise StepError(
+            f"the step from t = {state.t:.6g} s blew up (check {code}, value "
+            f"{value:.3g}); take a smaller dt"
+        )
     q, qdot = system.coordinates(y)
     return State(t=state.t + dt, q=q, qdot=qdot)

@@ -73,8 +73,7 @@ class Stepper(Protocol):
     def tensions(self) -> np.ndarray:
         """Tensions (S,) [N] at the current state, kernel order (a view of the work buffer)."""
 
-    def switch_distance(self, t: float, candidates: np.ndarray,
-                        was_taut: np.ndarray) -> np.ndarray:
+    def switch_distance(self, t: float, candidates: np.ndarray, was_taut: np.ndarray) -> np.ndarray:
         """How far each of ``candidates`` (kernel positions) is from leaving its state
         ``was_taut`` at ``t`` inside the last step (:func:`compiled.switch_distance`; ``<= 0``:
         it has switched)."""
@@ -92,8 +91,17 @@ class DOP853:
 
     SAFETY, MIN_FACTOR, MAX_FACTOR, EXPONENT = 0.9, 0.2, 10.0, -1.0 / 8.0
 
-    def __init__(self, system: CompiledSystem, t0: float, y0: np.ndarray, *, rtol: float,
-                 atol: float, t_end: float, memory: StepperMemory | None = None) -> None:
+    def __init__(
+        self,
+        system: CompiledSystem,
+        t0: float,
+        y0: np.ndarray,
+        *,
+        rtol: float,
+        atol: float,
+        t_end: float,
+        memory: StepperMemory | None = None,
+    ) -> None:
         """Start at ``(t0, y0)`` with Hairer's initial step, or continue with ``memory`` (of a
         checkpoint) exactly as the stepper that made it would have."""
         self.system, self.rtol, self.atol = system, rtol, atol
@@ -119,8 +127,9 @@ class DOP853:
         return self.system.stage_inputs(t + compiled.DOP853_C * h)
 
     def _evaluate_first_stage(self) -> None:
-        compiled.ode_rhs(self.y, self.K[0], 0, self.system.system, self._inputs(self.t, 0.0),
-                         self.system.work)
+        compiled.ode_rhs(
+            self.y, self.K[0], 0, self.system.system, self._inputs(self.t, 0.0), self.system.work
+        )
         self.nfev += 1
 
     def _initial_step(self, t_end: float) -> float:
@@ -131,15 +140,23 @@ class DOP853:
         h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
         h0 = min(h0, t_end - self.t)
         f1 = np.empty_like(y0)
-        compiled.ode_rhs(y0 + h0 * f0, f1, 0, self.system.system,
-                         self.system.stage_inputs(np.array([self.t + h0])), self.system.work)
+        compiled.ode_rhs(
+            y0 + h0 * f0,
+            f1,
+            0,
+            self.system.system,
+            self.system.stage_inputs(np.array([self.t + h0])),
+            self.system.work,
+        )
         self.nfev += 1
-        compiled.ode_rhs(y0, self.K[0], 0, self.system.system, self._inputs(self.t, 0.0),
-                         self.system.work)  # leave the work buffers at the current state
+        compiled.ode_rhs(
+            y0, self.K[0], 0, self.system.system, self._inputs(self.t, 0.0), self.system.work
+        )  # leave the work buffers at the current state
         self.nfev += 1
         d2 = _rms((f1 - f0) / scale) / h0
-        h1 = (max(1e-6, h0 * 1e-3) if d1 <= 1e-15 and d2 <= 1e-15
-              else (0.01 / max(d1, d2)) ** (1 / 8))
+        h1 = (
+            max(1e-6, h0 * 1e-3) if d1 <= 1e-15 and d2 <= 1e-15 else (0.01 / max(d1, d2)) ** (1 / 8)
+        )
         return min(100 * h0, h1, t_end - self.t)
 
     def step(self, bound: float, taut: np.ndarray | None = None) -> None:
@@ -156,28 +173,45 @@ class DOP853:
             h = max(min(h, bound - t), min_step)
             if t + h > bound or bound - (t + h) < min_step:
                 h = bound - t
-            error = compiled.dop853_attempt(self.y, h, self.K, y_new, self._stage, self.rtol,
-                                            self.atol, self.system.system, self._inputs(t, h),
-                                            self.system.work)
+            error = compiled.dop853_attempt(
+                self.y,
+                h,
+                self.K,
+                y_new,
+                self._stage,
+                self.rtol,
+                self.atol,
+                self.system.system,
+                self._inputs(t, h),
+                self.system.work,
+            )
             self.nfev += compiled.DOP853_STAGES
             if error < 1:
                 break
-            if taut is not None and np.isfinite(error) and np.any(
-                    (self.system.work[2] > 0) != taut):
+            if (
+                taut is not None
+                and np.isfinite(error)
+                and np.any((self.system.work[2] > 0) != taut)
+            ):
                 self.provisional = True
                 break
             if not np.isfinite(error):
                 factor = self.MIN_FACTOR
             else:
-                factor = max(self.MIN_FACTOR, self.SAFETY * error ** self.EXPONENT)
+                factor = max(self.MIN_FACTOR, self.SAFETY * error**self.EXPONENT)
             h *= factor
             rejected = True
             if h < min_step:
-                raise IntegrationError(f"DOP853 failed at t = {t:.9g} s: required step size is "
-                                       "less than spacing between numbers")
+                raise IntegrationError(
+                    f"DOP853 failed at t = {t:.9g} s: required step size is "
+                    "less than spacing between numbers"
+                )
         if not self.provisional:
-            factor = self.MAX_FACTOR if error == 0 else min(
-                self.MAX_FACTOR, self.SAFETY * error ** self.EXPONENT)
+            factor = (
+                self.MAX_FACTOR
+                if error == 0
+                else min(self.MAX_FACTOR, self.SAFETY * error**self.EXPONENT)
+            )
             self.h = h * (min(1.0, factor) if rejected else factor)
         self.t_old, self.y_old = t, self.y
         self.t = bound if h == bound - t else t + h
@@ -191,9 +225,17 @@ class DOP853:
     def dense(self) -> Callable[[float], np.ndarray]:
         if not self._dense_ready:
             h = self.t - self.t_old
-            compiled.dop853_dense(self.y_old, self.y, h, self.K, self._F, self._stage,
-                                  self.system.system, self._inputs(self.t_old, h),
-                                  self.system.work)
+            compiled.dop853_dense(
+                self.y_old,
+                self.y,
+                h,
+                self.K,
+                self._F,
+                self._stage,
+                self.system.system,
+                self._inputs(self.t_old, h),
+                self.system.work,
+            )
             self.nfev += 3
             self._dense_ready = True
         F, y_old, t_old, h = self._F, self.y_old, self.t_old, self.t - self.t_old
@@ -202,6 +244,7 @@ class DOP853:
             out = np.empty_like(y_old)
             compiled.dop853_interpolate(F, y_old, (t - t_old) / h, out)
             return out
+
         return at
 
     def retreat(self, to: float) -> None:
@@ -219,15 +262,25 @@ class DOP853:
     def tensions(self) -> np.ndarray:
         return self.system.work[2]
 
-    def switch_distance(self, t: float, candidates: np.ndarray,
-                        was_taut: np.ndarray) -> np.ndarray:
+    def switch_distance(self, t: float, candidates: np.ndarray, was_taut: np.ndarray) -> np.ndarray:
         self.dense()
         system, (y, indicator) = self.system, self._scratch
         out = np.empty(candidates.size)
-        compiled.switch_distance(self._F, self.y_old, (t - self.t_old) / (self.t - self.t_old),
-                                 y, system.system, system.rest_row(t), system.work,
-                                 system.scratch_p, system.scratch_v, indicator, candidates,
-                                 was_taut, out)
+        compiled.switch_distance(
+            self._F,
+            self.y_old,
+            (t - self.t_old) / (self.t - self.t_old),
+            y,
+            system.system,
+            system.rest_row(t),
+            system.work,
+            system.scratch_p,
+            system.scratch_v,
+            indicator,
+            candidates,
+            was_taut,
+            out,
+        )
         return out
 
     def memory(self) -> StepperMemory:
@@ -238,8 +291,17 @@ class ScipyMethod:
     """A ``scipy.integrate`` ``OdeSolver`` (``RK45``, ``Radau``, ``BDF``, ...) on the compiled
     right-hand side; restarted (a new initial step) after a projection or at a switch."""
 
-    def __init__(self, system: CompiledSystem, t0: float, y0: np.ndarray, *, method: str,
-                 rtol: float, atol: float, t_end: float) -> None:
+    def __init__(
+        self,
+        system: CompiledSystem,
+        t0: float,
+        y0: np.ndarray,
+        *,
+        method: str,
+        rtol: float,
+        atol: float,
+        t_end: float,
+    ) -> None:
         self.system, self.rtol, self.atol = system, rtol, atol
         self.solver_class = getattr(integrate, method)
         self.name = method
@@ -250,8 +312,14 @@ class ScipyMethod:
 
     def _rhs(self, t: float, y: np.ndarray) -> np.ndarray:
         dy = np.empty_like(y)
-        compiled.ode_rhs(np.ascontiguousarray(y), dy, 0, self.system.system,
-                         self.system.stage_inputs(np.array([t])), self.system.work)
+        compiled.ode_rhs(
+            np.ascontiguousarray(y),
+            dy,
+            0,
+            self.system.system,
+            self.system.stage_inputs(np.array([t])),
+            self.system.work,
+        )
         return dy
 
     def _start(self, t0: float, y0: np.ndarray, bound: float) -> None:
@@ -296,13 +364,18 @@ class ScipyMethod:
     def restart(self, y: np.ndarray) -> None:
         self._start(self.t, y, self._bound)
 
-    def switch_distance(self, t: float, candidates: np.ndarray,
-                        was_taut: np.ndarray) -> np.ndarray:
+    def switch_distance(self, t: float, candidates: np.ndarray, was_taut: np.ndarray) -> np.ndarray:
         system = self.system
         indicator = np.empty(system.structure.n_tendons)
-        compiled.switch_indicator(np.ascontiguousarray(self.dense()(t)), system.system,
-                                  system.rest_row(t), system.work, system.scratch_p,
-                                  system.scratch_v, indicator)
+        compiled.switch_indicator(
+            np.ascontiguousarray(self.dense()(t)),
+            system.system,
+            system.rest_row(t),
+            system.work,
+            system.scratch_p,
+            system.scratch_v,
+            indicator,
+        )
         return np.where(was_taut[candidates], indicator[candidates], -indicator[candidates])
 
     def memory(self) -> StepperMemory:
@@ -330,8 +403,9 @@ class RK4:
         self.y = np.array(y0, dtype=float)
         self.nfev = 0
 
-    def advance(self, n_steps: int, h: float, limits: tuple,
-                monitor: np.ndarray) -> tuple[int, int, float]:
+    def advance(
+        self, n_steps: int, h: float, limits: tuple, monitor: np.ndarray
+    ) -> tuple[int, int, float]:
         """Up to ``n_steps`` steps of ``h`` [s] from ``t``, each checked
         (:func:`compiled.check_state`) and projected.  Returns ``(steps, check code, check
         value)``; ``self.y_end`` is the last step's end before projection.  Inputs constant: one
@@ -339,15 +413,34 @@ class RK4:
         system = self.system
         if system.inputs.constant:
             steps, code, value = compiled.rk4_segment(
-                self.y, h, n_steps, self.K, self._stage, self.y_end, system.system,
-                system.stage_inputs(np.zeros(1)), system.work, limits, monitor)
+                self.y,
+                h,
+                n_steps,
+                self.K,
+                self._stage,
+                self.y_end,
+                system.system,
+                system.stage_inputs(np.zeros(1)),
+                system.work,
+                limits,
+                monitor,
+            )
         else:
             steps, code, value = 0, compiled.CHECK_OK, 0.0
             while steps < n_steps and code == compiled.CHECK_OK:
                 one, code, value = compiled.rk4_segment(
-                    self.y, h, 1, self.K, self._stage, self.y_end, system.system,
-                    system.stage_inputs(self.t + steps * h + compiled.RK4_C * h), system.work,
-                    limits, monitor)
+                    self.y,
+                    h,
+                    1,
+                    self.K,
+                    self._stage,
+                    self.y_end,
+                    system.system,
+                    system.stage_inputs(self.t + steps * h + compiled.RK4_C * h),
+                    system.work,
+                    limits,
+                    monitor,
+                )
                 steps += one
         self.nfev += 4 * steps
         return steps, code, value

@@ -7,10 +7,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from tensegrity.physics import dynamics
 from tensegrity.engine import compiled
 from tensegrity.engine.inputs import Inputs
 from tensegrity.engine.result import Sample
+from tensegrity.model.structure import Structure
+from tensegrity.physics import dynamics
 from tensegrity.physics.kernel_system import (
     drop_coordinates,
     embed_planar,
@@ -19,7 +20,6 @@ from tensegrity.physics.kernel_system import (
     system_nodes,
     system_project,
 )
-from tensegrity.model.structure import Structure
 
 
 class CompiledSystem:
@@ -42,9 +42,11 @@ class CompiledSystem:
         self.work = (np.zeros((3, 3, n_slots)), None, np.zeros(S), np.zeros(S), np.zeros(S))
         self.tendon_position = np.argsort(packed.layout.tendon_order)
         slot = packed.layout.node_slot
-        self.moving_slots = np.ascontiguousarray(np.concatenate(
-            [slot[self.model.rod_nodes.ravel()], slot[self.model.point_mass_nodes]]
-        ).astype(np.uint64))
+        self.moving_slots = np.ascontiguousarray(
+            np.concatenate(
+                [slot[self.model.rod_nodes.ravel()], slot[self.model.point_mass_nodes]]
+            ).astype(np.uint64)
+        )
         self.node_slot = slot
         #: scratch node arrays (3, n_slots): positions, velocities, accelerations
         self.scratch_p, self.scratch_v, self._a = (np.zeros((3, n_slots)) for _ in range(3))
@@ -72,8 +74,15 @@ class CompiledSystem:
         gravity = inputs.gravity
         has_gravity = gravity is not None
         gravity = self._spatial(gravity) if has_gravity else np.zeros(3)
-        return (np.ascontiguousarray(rest), np.ascontiguousarray(rate), has_rate, has_external,
-                np.ascontiguousarray(force), has_gravity, np.ascontiguousarray(gravity))
+        return (
+            np.ascontiguousarray(rest),
+            np.ascontiguousarray(rate),
+            has_rate,
+            has_external,
+            np.ascontiguousarray(force),
+            has_gravity,
+            np.ascontiguousarray(gravity),
+        )
 
     def _spatial(self, x: np.ndarray) -> np.ndarray:
         """Vectors (..., dim) as (..., 3)."""
@@ -95,8 +104,11 @@ class CompiledSystem:
 
     def elastic_energy(self, t: float, y: np.ndarray) -> float:
         """Elastic energy of the tendons [J] at ``y`` with the rest lengths at ``t``."""
-        return float(compiled.energy_balance(y, 0, self.system, self.stage_inputs(np.array([t])),
-                                             self.work)[1])
+        return float(
+            compiled.energy_balance(y, 0, self.system, self.stage_inputs(np.array([t])), self.work)[
+                1
+            ]
+        )
 
     def rest_row(self, t: float) -> np.ndarray:
         """Rest lengths (S,) at ``t`` in kernel order."""
@@ -114,35 +126,56 @@ class CompiledSystem:
     def project(self, y: np.ndarray) -> bool:
         """Project ``y`` in place onto the constraints; False if that failed."""
         n = self.n
-        return bool(system_project(y[:n], y[n:2 * n], self.system[0][1], self.system[1])[2])
+        return bool(system_project(y[:n], y[n : 2 * n], self.system[0][1], self.system[1])[2])
 
     def coordinates(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(q, qdot)`` of ``y`` in the structure's coordinates (new arrays)."""
-        q, qdot = y[:self.n].copy(), y[self.n:2 * self.n].copy()
+        q, qdot = y[: self.n].copy(), y[self.n : 2 * self.n].copy()
         if self.planar:
             q, qdot = drop_coordinates(self.structure, q), drop_coordinates(self.structure, qdot)
         return q, qdot
 
     def nodes(self, y: np.ndarray) -> np.ndarray:
         """Node positions (N, dim) [m] at ``y``."""
-        system_nodes(y[:self.n], y[self.n:2 * self.n], self.system[0][0], self.system[1],
-                     self.scratch_p, self.scratch_v, False)
+        system_nodes(
+            y[: self.n],
+            y[self.n : 2 * self.n],
+            self.system[0][0],
+            self.system[1],
+            self.scratch_p,
+            self.scratch_v,
+            False,
+        )
         return self.scratch_p[: self.structure.dim, self.node_slot].T.copy()
 
     def sample(self, t: float, y: np.ndarray, inputs: tuple) -> Sample:
         """The sample at ``(t, y)`` with the inputs at ``t`` (one row), from one evaluation."""
         dy = np.empty(self.m)
         kinetic, elastic, gravity, accel, speed = compiled.sample_outputs(
-            y, dy, self.system, inputs, self.work, self.moving_slots, self.scratch_p, self.scratch_v, self._a,
-            self._lengths)
+            y,
+            dy,
+            self.system,
+            inputs,
+            self.work,
+            self.moving_slots,
+            self.scratch_p,
+            self.scratch_v,
+            self._a,
+            self._lengths,
+        )
         d = self.structure.dim
         q, qdot = self.coordinates(y)
         position = self.tendon_position
         energy = np.array([kinetic, elastic, gravity, y[-3], y[-2], y[-1]])
         return Sample(
-            t=t, q=q, qdot=qdot,
+            t=t,
+            q=q,
+            qdot=qdot,
             node_position=self.scratch_p[:d, self.node_slot].T.copy(),
             node_velocity=self.scratch_v[:d, self.node_slot].T.copy(),
-            tendon_length=self._lengths[position], tendon_tension=self.work[2][position],
-            energy=energy, residual_acceleration=accel, largest_speed=speed,
+            tendon_length=self._lengths[position],
+            tendon_tension=self.work[2][position],
+            energy=energy,
+            residual_acceleration=accel,
+            largest_speed=speed,
         )

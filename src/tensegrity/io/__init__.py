@@ -17,6 +17,14 @@ from tensegrity.io.formats import read_network, read_structure, write_network, w
 from tensegrity.io.trajectory import read_trajectory, write_trajectory
 
 __all__ = [
-    "PathLike", "atomic_path", "file_error", "read_network", "read_structure",
-    "read_trajectory", "write_network", "write_staged", "write_structure", "write_trajectory",
+    "PathLike",
+    "atomic_path",
+    "file_error",
+    "read_network",
+    "read_structure",
+    "read_trajectory",
+    "write_network",
+    "write_staged",
+    "write_structure",
+    "write_trajectory",
 ]

@@ -152,4 +152,3 @@ def write_staged(out: Path, write: Callable[[Path], list[Path]]) -> list[Path]:
             with contextlib.suppress(OSError):
                 folder.rmdir()  # only if empty
         raise
-

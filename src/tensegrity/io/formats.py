@@ -46,11 +46,11 @@ from tensegrity.io.files import PathLike, atomic_path, file_error, os_problem
 from tensegrity.model.connectivity import (
     DEFAULT_ROD_MASS,
     DEFAULT_STIFFNESS,
+    connectivity_of,
     from_connectivity,
     incidence,
     merge_joints,
     rest_from_prestrain,
-    connectivity_of,
 )
 from tensegrity.model.structure import Structure, node_dimension, parse_number, parse_vector
 
@@ -87,48 +87,26 @@ NPZ_ARRAYS = {
     "plane_normal": (False, "(P, 3) the planes' normals"),
     "line_nodes": (False, "(Q,) int, nodes held on a line through their position"),
     "line_direction": (False, "(Q, d) the lines' directions"),
-    "joint_nodes": (False, "(J, 2) int, pairs of nodes joined by a ball joint (besides shared nodes)"),
+    "joint_nodes": (
+        False,
+        "(J, 2) int, pairs of nodes joined by a ball joint (besides shared nodes)",
+    ),
 }
 
 _ROD_KEYS = ("mass", "length", "damping")
 _TENDON_KEYS = ("stiffness", "rest_length", "prestrain", "damping")
 
 
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
 # -------------------------------------------------------------------- readable form
 #: Optional support keys of the readable form (as in :meth:`Structure.to_dict`): key -> the
 #: value each ``{node, ...}`` item carries (``None``: a plain list of nodes, or of node pairs).
-_SUPPORT_KEYS = {"fixed": None, "point_masses": "mass", "planes": "normal", "lines": "direction",
-                 "joints": None}
+_SUPPORT_KEYS = {
+    "fixed": None,
+    "point_masses": "mass",
+    "planes": "normal",
+    "lines": "direction",
+    "joints": None,
+}
 
 
 def network_to_dict(structure: Structure, *, keep_joints: bool = False) -> dict[str, Any]:
@@ -158,25 +136,40 @@ def network_to_dict(structure: Structure, *, keep_joints: bool = False) -> dict[
     if merged.node_fixed.any():
         data["fixed"] = [names[i] for i in np.flatnonzero(merged.node_fixed)]
     for key, nodes, values in (
-        ("point_masses", np.flatnonzero(merged.node_point_mass), merged.node_point_mass[merged.node_point_mass > 0]),
+        (
+            "point_masses",
+            np.flatnonzero(merged.node_point_mass),
+            merged.node_point_mass[merged.node_point_mass > 0],
+        ),
         ("planes", merged.plane_nodes, merged.plane_normal),
         ("lines", merged.line_nodes, merged.line_direction),
     ):
         if nodes.size:
-            data[key] = [{"node": names[i], _SUPPORT_KEYS[key]: v.tolist()} for i, v in zip(nodes, values)]
+            data[key] = [
+                {"node": names[i], _SUPPORT_KEYS[key]: v.tolist()} for i, v in zip(nodes, values)
+            ]
     if merged.joint_nodes.size:
         data["joints"] = [[names[a], names[b]] for a, b in merged.joint_nodes]
     rods, tendons = merged.node_map[structure.rod_nodes], merged.node_map[structure.tendon_nodes]
     defaults: dict[str, dict[str, float]] = {"rod": {}, "tendon": {}}
-    members = {"rod": [{"nodes": [names[a], names[b]]} for a, b in rods],
-               "tendon": [{"name": name, "nodes": [names[a], names[b]]}
-                          for name, (a, b) in zip(structure.tendon_name, tendons)]}
+    members = {
+        "rod": [{"nodes": [names[a], names[b]]} for a, b in rods],
+        "tendon": [
+            {"name": name, "nodes": [names[a], names[b]]}
+            for name, (a, b) in zip(structure.tendon_name, tendons)
+        ],
+    }
     columns = {
-        "rod": {"mass": structure.rod_mass, "length": structure.rod_length,
-                "damping": structure.rod_damping},
-        "tendon": {"stiffness": structure.tendon_stiffness,
-                   "rest_length": structure.tendon_rest_length,
-                   "damping": structure.tendon_damping},
+        "rod": {
+            "mass": structure.rod_mass,
+            "length": structure.rod_length,
+            "damping": structure.rod_damping,
+        },
+        "tendon": {
+            "stiffness": structure.tendon_stiffness,
+            "rest_length": structure.tendon_rest_length,
+            "damping": structure.tendon_damping,
+        },
     }
     for kind, table in columns.items():
         for key, values in table.items():
@@ -227,18 +220,29 @@ def network_from_dict(data: Any) -> Structure:
     zero = np.flatnonzero(rod_distance == 0)
     if zero.size:
         k = zero[0]
-        raise ValueError(f"rods[{k}].nodes: {names[rod_nodes[k, 0]]!r} and "
-                         f"{names[rod_nodes[k, 1]]!r} coincide (zero length)")
+        raise ValueError(
+            f"rods[{k}].nodes: {names[rod_nodes[k, 0]]!r} and "
+            f"{names[rod_nodes[k, 1]]!r} coincide (zero length)"
+        )
     zeros = np.zeros(len(rods)), np.zeros(len(tendons))
     n = len(names)
     return from_connectivity(
-        p.T, incidence(rod_nodes, n), incidence(tendon_nodes, n), ball_joints=True,
-        node_velocity=None if velocity is None else velocity.T, **_supports(data, index, dim),
+        p.T,
+        incidence(rod_nodes, n),
+        incidence(tendon_nodes, n),
+        ball_joints=True,
+        node_velocity=None if velocity is None else velocity.T,
+        **_supports(data, index, dim),
         rod_mass=_column(rods, "rods", "mass", rod_default, np.full(len(rods), DEFAULT_ROD_MASS)),
         rod_length=_column(rods, "rods", "length", rod_default, rod_distance),
         rod_damping=_column(rods, "rods", "damping", rod_default, zeros[0]),
-        tendon_stiffness=_column(tendons, "tendons", "stiffness", tendon_default,
-                                 np.full(len(tendons), DEFAULT_STIFFNESS)),
+        tendon_stiffness=_column(
+            tendons,
+            "tendons",
+            "stiffness",
+            tendon_default,
+            np.full(len(tendons), DEFAULT_STIFFNESS),
+        ),
         tendon_rest_length=rest,
         tendon_damping=_column(tendons, "tendons", "damping", tendon_default, zeros[1]),
         tendon_name=tuple(item.get("name", f"s{k}") for k, (_, item) in enumerate(tendons)),
@@ -250,14 +254,28 @@ def _check_header(data: Any) -> None:
     ``version`` (if given) this library's, with ``nodes``."""
     if not isinstance(data, Mapping):
         raise ValueError(f"network: expected a mapping at the top level, got {type(data).__name__}")
-    _only(data, ("format", "version", "units", "nodes", "velocities", *_SUPPORT_KEYS, "defaults",
-                 "rods", "tendons"), "network")
+    _only(
+        data,
+        (
+            "format",
+            "version",
+            "units",
+            "nodes",
+            "velocities",
+            *_SUPPORT_KEYS,
+            "defaults",
+            "rods",
+            "tendons",
+        ),
+        "network",
+    )
     if data.get("format", NETWORK_FORMAT) != NETWORK_FORMAT:
         raise ValueError(f"format: expected {NETWORK_FORMAT!r}, got {data['format']!r:.80}")
     version = data.get("version", NETWORK_VERSION)
     if not isinstance(version, int) or isinstance(version, bool) or version > NETWORK_VERSION:
-        raise ValueError(f"version: this library reads version <= {NETWORK_VERSION}, "
-                         f"got {version!r:.80}")
+        raise ValueError(
+            f"version: this library reads version <= {NETWORK_VERSION}, got {version!r:.80}"
+        )
     if "nodes" not in data:
         raise ValueError("network: missing key 'nodes'")
 
@@ -278,8 +296,10 @@ def _member_defaults(defaults: Any) -> tuple[dict[str, Any], dict[str, Any]]:
     if not isinstance(defaults, Mapping):
         raise ValueError(f"defaults: expected a mapping, got {type(defaults).__name__}")
     _only(defaults, ("rod", "tendon"), "defaults")
-    return (_defaults(defaults.get("rod"), _ROD_KEYS, "defaults.rod"),
-            _defaults(defaults.get("tendon"), _TENDON_KEYS, "defaults.tendon"))
+    return (
+        _defaults(defaults.get("rod"), _ROD_KEYS, "defaults.rod"),
+        _defaults(defaults.get("tendon"), _TENDON_KEYS, "defaults.tendon"),
+    )
 
 
 def _member_nodes(members: list) -> np.ndarray:
@@ -292,8 +312,9 @@ def _distances(p: np.ndarray, pairs: np.ndarray) -> np.ndarray:
     return np.linalg.norm(p[pairs[:, 1]] - p[pairs[:, 0]], axis=1)
 
 
-def _column(items: list, kind: str, key: str, default: Mapping[str, Any],
-            fallback: np.ndarray) -> np.ndarray:
+def _column(
+    items: list, kind: str, key: str, default: Mapping[str, Any], fallback: np.ndarray
+) -> np.ndarray:
     """Parameter ``key`` (k,) of each member of :func:`_members`' ``items``: its own, else the
     ``default`` of its kind, else ``fallback[k]``."""
     out = []
@@ -303,8 +324,9 @@ def _column(items: list, kind: str, key: str, default: Mapping[str, Any],
     return np.array(out, dtype=float)
 
 
-def _tendon_rest_lengths(tendons: list, tendon_default: Mapping[str, Any],
-                         distance: np.ndarray) -> np.ndarray:
+def _tendon_rest_lengths(
+    tendons: list, tendon_default: Mapping[str, Any], distance: np.ndarray
+) -> np.ndarray:
     """Rest lengths (S,) [m]: each tendon's ``rest_length`` or ``prestrain`` (of its length
     ``distance`` (S,) [m] in the file), exactly one of them, its own or else the default's."""
     rest = []
@@ -312,16 +334,25 @@ def _tendon_rest_lengths(tendons: list, tendon_default: Mapping[str, Any],
         where = f"tendons[{k}]"
         given = {key: item[key] for key in ("rest_length", "prestrain") if key in item}
         if not given:
-            given = {key: tendon_default[key] for key in ("rest_length", "prestrain")
-                     if key in tendon_default}
+            given = {
+                key: tendon_default[key]
+                for key in ("rest_length", "prestrain")
+                if key in tendon_default
+            }
         if len(given) != 1:
-            raise ValueError(f"{where}: needs exactly one of rest_length [m] or prestrain "
-                             f"(here or under defaults.tendon), got {sorted(given) or 'neither'}")
-        (key, value), = given.items()
+            raise ValueError(
+                f"{where}: needs exactly one of rest_length [m] or prestrain "
+                f"(here or under defaults.tendon), got {sorted(given) or 'neither'}"
+            )
+        ((key, value),) = given.items()
         value = parse_number(value, f"{where}.{key}")
-        rest.append(value if key == "rest_length" else float(
-            rest_from_prestrain(distance[k:k + 1], value, f"{where}.prestrain")[0]))
+        rest.append(
+            value
+            if key == "rest_length"
+            else float(rest_from_prestrain(distance[k : k + 1], value, f"{where}.prestrain")[0])
+        )
     return np.array(rest, dtype=float)
+
 
 def _supports(data: Mapping[str, Any], index: Mapping[Any, int], dim: int) -> dict[str, Any]:
     """The optional ``fixed``, ``point_masses``, ``planes``, ``lines`` keys of the readable form
@@ -339,11 +370,17 @@ def _supports(data: Mapping[str, Any], index: Mapping[Any, int], dim: int) -> di
         if not isinstance(pairs, Sequence) or isinstance(pairs, str):
             raise ValueError(f"joints: expected a list of node pairs, got {type(pairs).__name__}")
         out["joint_nodes"] = np.array(
-            [[_node_ref(end, f"joints[{k}]", index) for end in _pair(pair, f"joints[{k}]")]
-             for k, pair in enumerate(pairs)], dtype=np.int64).reshape(-1, 2)
-    for key, (nodes_field, value_field) in (("point_masses", ("node_point_mass", None)),
-                                            ("planes", ("plane_nodes", "plane_normal")),
-                                            ("lines", ("line_nodes", "line_direction"))):
+            [
+                [_node_ref(end, f"joints[{k}]", index) for end in _pair(pair, f"joints[{k}]")]
+                for k, pair in enumerate(pairs)
+            ],
+            dtype=np.int64,
+        ).reshape(-1, 2)
+    for key, (nodes_field, value_field) in (
+        ("point_masses", ("node_point_mass", None)),
+        ("planes", ("plane_nodes", "plane_normal")),
+        ("lines", ("line_nodes", "line_direction")),
+    ):
         items = data.get(key)
         if items is None:
             continue
@@ -359,15 +396,20 @@ def _supports(data: Mapping[str, Any], index: Mapping[Any, int], dim: int) -> di
                 if field not in item:
                     raise ValueError(f"{key}[{k}]: missing key {field!r}")
             nodes.append(_node_ref(item["node"], f"{key}[{k}].node", index))
-            values.append(parse_number(item[name], f"{key}[{k}].{name}") if value_field is None
-                          else parse_vector(item[name], f"{key}[{k}].{name}", 3 if key == "planes" else dim))
+            values.append(
+                parse_number(item[name], f"{key}[{k}].{name}")
+                if value_field is None
+                else parse_vector(item[name], f"{key}[{k}].{name}", 3 if key == "planes" else dim)
+            )
         if value_field is None:
             mass = np.zeros(len(index))
             mass[nodes] = values
             out[nodes_field] = mass
         else:
             out[nodes_field] = np.array(nodes, dtype=np.int64)
-            out[value_field] = np.array(values, dtype=float).reshape(-1, 3 if key == "planes" else dim)
+            out[value_field] = np.array(values, dtype=float).reshape(
+                -1, 3 if key == "planes" else dim
+            )
     return out
 
 
@@ -377,21 +419,26 @@ def _only(data: Mapping[str, Any], allowed: Sequence[str], where: str) -> None:
             raise ValueError(f"{where}: unknown key {key!r} (expected one of {', '.join(allowed)})")
 
 
-def _named_points(value: Any, where: str, dim: int | None = None) -> tuple[list[Any], list[list[float]], int]:
+def _named_points(
+    value: Any, where: str, dim: int | None = None
+) -> tuple[list[Any], list[list[float]], int]:
     """Names, vectors and their dimension of a mapping name -> [x, y, z] (or [x, y]: planar),
     or of a list (names 0, 1, ...); ``dim`` ``None``: that of the first vector."""
     if isinstance(value, Mapping):
         names = list(value)
         for name in names:
             if isinstance(name, bool) or not isinstance(name, (str, int)) or name == "":
-                raise ValueError(f"{where}: node names must be non-empty strings (or integers), "
-                                 f"got {name!r:.80}")
+                raise ValueError(
+                    f"{where}: node names must be non-empty strings (or integers), got {name!r:.80}"
+                )
         rows, labels = [value[name] for name in names], [f"{where}.{name}" for name in names]
     elif isinstance(value, Sequence) and not isinstance(value, str):
         names = list(range(len(value)))
         rows, labels = list(value), [f"{where}[{k}]" for k in names]
     else:
-        raise ValueError(f"{where}: expected a mapping name -> [x, y, z] or a list, got {type(value).__name__}")
+        raise ValueError(
+            f"{where}: expected a mapping name -> [x, y, z] or a list, got {type(value).__name__}"
+        )
     if dim is None:
         dim = node_dimension(rows)
     return names, [parse_vector(row, label, dim) for row, label in zip(rows, labels)], dim
@@ -444,13 +491,16 @@ def _node_ref(end: Any, where: str, index: Mapping[Any, int]) -> int:
 def _format(path: PathLike, format: str | None) -> str:
     if format is not None:
         if format not in set(FORMATS.values()):
-            raise ValueError(f"format: expected one of {', '.join(sorted(set(FORMATS.values())))}, "
-                             f"got {format!r}")
+            raise ValueError(
+                f"format: expected one of {', '.join(sorted(set(FORMATS.values())))}, "
+                f"got {format!r}"
+            )
         return format
     suffix = Path(path).suffix.lower()
     if suffix not in FORMATS:
-        raise file_error(path, f"unknown structure file suffix {suffix!r} (expected one of "
-                                f"{', '.join(FORMATS)})")
+        raise file_error(
+            path, f"unknown structure file suffix {suffix!r} (expected one of {', '.join(FORMATS)})"
+        )
     return FORMATS[suffix]
 
 
@@ -510,19 +560,28 @@ def _from_npz(raw: bytes) -> Structure:
     with archive:
         unknown = sorted(set(archive.files) - set(NPZ_ARRAYS))
         if unknown:
-            raise ValueError(f"unknown array {unknown[0]!r} (expected some of {', '.join(NPZ_ARRAYS)})")
+            raise ValueError(
+                f"unknown array {unknown[0]!r} (expected some of {', '.join(NPZ_ARRAYS)})"
+            )
         arrays = {name: archive[name] for name in archive.files}
     for name, (required, _) in NPZ_ARRAYS.items():
         if required and name not in arrays:
             raise ValueError(f"missing array {name!r}")
     names = arrays.pop("tendon_name", None)
     N, C_b, C_s = arrays.pop("N"), arrays.pop("C_b"), arrays.pop("C_s")
-    return from_connectivity(N, C_b, C_s, tendon_name=None if names is None else
-                             tuple(str(x) for x in names), ball_joints=True, **arrays)
+    return from_connectivity(
+        N,
+        C_b,
+        C_s,
+        tendon_name=None if names is None else tuple(str(x) for x in names),
+        ball_joints=True,
+        **arrays,
+    )
 
 
-def write_network(path: PathLike, structure: Structure, *, format: str | None = None,
-                  keep_joints: bool = False) -> Path:
+def write_network(
+    path: PathLike, structure: Structure, *, format: str | None = None, keep_joints: bool = False
+) -> Path:
     """Write ``structure`` in any format (by suffix, or ``format``), atomically.
 
     ``json``: :meth:`Structure.to_dict`; ``yaml``/``toml``: :func:`network_to_dict`;
@@ -552,14 +611,24 @@ def write_network(path: PathLike, structure: Structure, *, format: str | None = 
 def _npz_arrays(structure: Structure, keep_joints: bool) -> dict[str, np.ndarray]:
     merged = merge_joints(structure, keep_joints=keep_joints)
     N, C_b, C_s = connectivity_of(structure, merged)
-    supports = {"node_fixed": merged.node_fixed.any(), "node_point_mass": merged.node_point_mass.any(),
-                "plane_nodes": merged.plane_nodes.size, "plane_normal": merged.plane_nodes.size,
-                "line_nodes": merged.line_nodes.size, "line_direction": merged.line_nodes.size,
-                "joint_nodes": merged.joint_nodes.size}
+    supports = {
+        "node_fixed": merged.node_fixed.any(),
+        "node_point_mass": merged.node_point_mass.any(),
+        "plane_nodes": merged.plane_nodes.size,
+        "plane_normal": merged.plane_nodes.size,
+        "line_nodes": merged.line_nodes.size,
+        "line_direction": merged.line_nodes.size,
+        "joint_nodes": merged.joint_nodes.size,
+    }
     return {
-        "N": N, "C_b": C_b, "C_s": C_s, "node_velocity": merged.node_velocity,
-        "rod_mass": structure.rod_mass, "rod_length": structure.rod_length,
-        "rod_damping": structure.rod_damping, "tendon_stiffness": structure.tendon_stiffness,
+        "N": N,
+        "C_b": C_b,
+        "C_s": C_s,
+        "node_velocity": merged.node_velocity,
+        "rod_mass": structure.rod_mass,
+        "rod_length": structure.rod_length,
+        "rod_damping": structure.rod_damping,
+        "tendon_stiffness": structure.tendon_stiffness,
         "tendon_rest_length": structure.tendon_rest_length,
         "tendon_damping": structure.tendon_damping,
         "tendon_name": np.array(structure.tendon_name, dtype=str),
@@ -568,10 +637,16 @@ def _npz_arrays(structure: Structure, keep_joints: bool) -> dict[str, np.ndarray
 
 def _dump_text(structure: Structure, kind: str, keep_joints: bool) -> str:
     data = network_to_dict(structure, keep_joints=keep_joints)
-    joined = (f" (the structure's {structure.n_nodes}, joined nodes merged: a node of k rods is a "
-              "ball joint)" if structure.joint_nodes.size and not keep_joints else "")
-    header = (f"# {len(data['nodes'])} nodes{joined}, {structure.n_rods} rods (bars), "
-              f"{structure.n_tendons} tendons (strings); SI units\n")
+    joined = (
+        f" (the structure's {structure.n_nodes}, joined nodes merged: a node of k rods is a "
+        "ball joint)"
+        if structure.joint_nodes.size and not keep_joints
+        else ""
+    )
+    header = (
+        f"# {len(data['nodes'])} nodes{joined}, {structure.n_rods} rods (bars), "
+        f"{structure.n_tendons} tendons (strings); SI units\n"
+    )
     if kind == "toml":
         return header + dump_toml(data)
     import yaml
@@ -614,14 +689,20 @@ def dump_toml(data: Mapping[str, Any]) -> str:
         plain = {k: v for k, v in table.items() if not isinstance(v, Mapping)}
         nested = [(f"{name}.{_toml_key(k)}", v) for k, v in table.items() if isinstance(v, Mapping)]
         if plain or not nested:
-            lines += ["", f"[{name}]"] + [f"{_toml_key(k)} = {_toml_value(v)}" for k, v in plain.items()]
+            lines += ["", f"[{name}]"] + [
+                f"{_toml_key(k)} = {_toml_value(v)}" for k, v in plain.items()
+            ]
         tables[:0] = nested
     return "\n".join(lines) + "\n"
 
 
 def _toml_key(key: Any) -> str:
     key = str(key)
-    return key if key and all(c.isascii() and (c.isalnum() or c in "_-") for c in key) else json.dumps(key)
+    return (
+        key
+        if key and all(c.isascii() and (c.isalnum() or c in "_-") for c in key)
+        else json.dumps(key)
+    )
 
 
 def _toml_value(value: Any) -> str:

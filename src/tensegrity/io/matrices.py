@@ -13,17 +13,19 @@ import numpy as np
 import scipy.sparse as sp
 
 from tensegrity.io.files import atomic_path
-from tensegrity.physics import dynamics
 from tensegrity.model.shell import class1_shell
 from tensegrity.model.structure import Structure
+from tensegrity.physics import dynamics
 from tensegrity.physics.matrix_form import STATE_MATRICES, ShellMatrixModel, StateMatrices
-
 
 # ============================================================================ files
 _DESCRIPTIONS = {
     "Q": ("18.28", "q = Q l: coordinates from the independent vectors l"),
     "Q_inv": ("App. B", "l = Q^-1 q, by the block formulas of Appendix B"),
-    "R": ("18.37", "l^d = R q: the vectors of the f^d slots (t1_n1, then t2 t3 t4 t6 t7 t8 t9 t10 per element)"),
+    "R": (
+        "18.37",
+        "l^d = R q: the vectors of the f^d slots (t1_n1, then t2 t3 t4 t6 t7 t8 t9 t10 per element)",
+    ),
     "R_o": ("18.43", "[t5; t1] per element = R_o q: rows of Q^-1 (R_0 for t1_n1)"),
     "T": ("18.55", "u~ = T u: the rest-length change of every slot from the independent u"),
     "W_o": ("18.15", "W^o = BlockDiag[W]: f = W^o (nodal forces)"),
@@ -89,8 +91,16 @@ def write_matrices(
     rows, entries = _write_matrix_files(out, {**model.topology.matrices(), **state.matrices()})
     p = dynamics.nodes_from_coordinates(structure, state.q)
     with _atomic_binary(out / "state.npz") as handle:
-        np.savez(handle, q=state.q, qdot=state.qdot, node_position=p, u=state.u,
-                 utilde=state.utilde, w=w_vec, qddot=state.qddot(w_vec))
+        np.savez(
+            handle,
+            q=state.q,
+            qdot=state.qdot,
+            node_position=p,
+            u=state.u,
+            utilde=state.utilde,
+            w=w_vec,
+            qddot=state.qddot(w_vec),
+        )
     index = _index(model, state, p, w_vec, entries, at=at)
     with atomic_path(out / "matrices.json") as tmp:
         tmp.write_text(json.dumps(index, indent=1) + "\n", encoding="utf-8")
@@ -104,13 +114,17 @@ def _shell(structure_or_size: Structure | Sequence[int]) -> Structure:
     size = tuple(structure_or_size)
     if len(size) not in (2, 3):
         raise ValueError(
-            f"structure_or_size: expected a Structure or (n, m[, primal]), got {size!r}")
+            f"structure_or_size: expected a Structure or (n, m[, primal]), got {size!r}"
+        )
     return class1_shell(size[0], size[1], primal=bool(size[2]) if len(size) == 3 else False)
 
 
 def _evaluated_state(
-    model: ShellMatrixModel, q: np.ndarray | None, qdot: np.ndarray | None,
-    u: np.ndarray | None, w: np.ndarray | None,
+    model: ShellMatrixModel,
+    q: np.ndarray | None,
+    qdot: np.ndarray | None,
+    u: np.ndarray | None,
+    w: np.ndarray | None,
 ) -> tuple[StateMatrices, np.ndarray]:
     """The model's matrices at ``(q, q', u)`` (each default: the initial state, ``u = 0``) and
     the nodal forces ``w`` as a (12nm,) vector [N] (default 0), checked finite."""
@@ -123,8 +137,11 @@ def _evaluated_state(
     w_vec = np.zeros(top.n_coordinates) if w is None else np.asarray(w, dtype=float).reshape(-1)
     if w_vec.shape != (top.n_coordinates,):
         raise ValueError(f"w: expected {top.n_coordinates} numbers, got {w_vec.size}")
-    if not (np.all(np.isfinite(evaluated.q)) and np.all(np.isfinite(evaluated.qdot))
-            and np.all(np.isfinite(w_vec))):
+    if not (
+        np.all(np.isfinite(evaluated.q))
+        and np.all(np.isfinite(evaluated.qdot))
+        and np.all(np.isfinite(w_vec))
+    ):
         raise ValueError("q, qdot, w: must be finite")
     return evaluated, w_vec
 
@@ -155,21 +172,36 @@ def _write_matrix_files(
         with _atomic_binary(out / f"{name}.npz") as handle:
             sp.save_npz(handle, matrix, compressed=True)
         with _atomic_binary(out / f"{name}.mtx") as handle:
-            scipy.io.mmwrite(handle, matrix,
-                             comment=f"tensegrity matrix {name} ({_DESCRIPTIONS[name][1]})")
+            scipy.io.mmwrite(
+                handle, matrix, comment=f"tensegrity matrix {name} ({_DESCRIPTIONS[name][1]})"
+            )
         shape = (int(matrix.shape[0]), int(matrix.shape[1]))
         rows.append((name, shape, int(matrix.nnz)))
         equation, description = _DESCRIPTIONS[name]
-        entries.append({
-            "name": name, "shape": list(shape), "nnz": int(matrix.nnz), "equation": equation,
-            "description": description, "npz": f"{name}.npz", "mtx": f"{name}.mtx",
-            "state_dependent": name in STATE_MATRICES,
-        })
+        entries.append(
+            {
+                "name": name,
+                "shape": list(shape),
+                "nnz": int(matrix.nnz),
+                "equation": equation,
+                "description": description,
+                "npz": f"{name}.npz",
+                "mtx": f"{name}.mtx",
+                "state_dependent": name in STATE_MATRICES,
+            }
+        )
     return rows, entries
 
 
-def _index(model: ShellMatrixModel, state: StateMatrices, node_position: np.ndarray,
-           w: np.ndarray, entries: list[dict[str, Any]], *, at: str | None) -> dict[str, Any]:
+def _index(
+    model: ShellMatrixModel,
+    state: StateMatrices,
+    node_position: np.ndarray,
+    w: np.ndarray,
+    entries: list[dict[str, Any]],
+    *,
+    at: str | None,
+) -> dict[str, Any]:
     """The content of ``matrices.json``: the shell, the state (``node_position`` (4nm, 3) [m],
     ``w`` (12nm,) [N]) labelled ``at``, the orderings and the matrices' ``entries``."""
     structure, top = model.structure, model.topology
@@ -177,8 +209,14 @@ def _index(model: ShellMatrixModel, state: StateMatrices, node_position: np.ndar
         "format": "tensegrity-matrices",
         "version": 1,
         "model": "q'' + (K_r(q') + K_p(q)) q = B(q) u + D(q) w  (Skelton, Pinaud, Mingori, eq. 18.59)",
-        "shell": {"n": top.n, "m": top.m, "primal": top.primal, "nodes": structure.n_nodes,
-                  "rods": structure.n_rods, "tendons": structure.n_tendons},
+        "shell": {
+            "n": top.n,
+            "m": top.m,
+            "primal": top.primal,
+            "nodes": structure.n_nodes,
+            "rods": structure.n_rods,
+            "tendons": structure.n_tendons,
+        },
         "at": at,
         "state": {
             "file": "state.npz",
@@ -199,12 +237,15 @@ def _index(model: ShellMatrixModel, state: StateMatrices, node_position: np.ndar
         "u_tendon": list(top.u_names),
         "matrices": entries,
         "notes": "undamped model; see docs/matrix-model.md for the orderings and the departures "
-                 "from the printed equations",
+        "from the printed equations",
     }
 
 
-def _slot_entries(slots: Sequence[str], tendons: Sequence[str | None], signs: np.ndarray,
-                  counted: np.ndarray) -> list[dict[str, Any]]:
+def _slot_entries(
+    slots: Sequence[str], tendons: Sequence[str | None], signs: np.ndarray, counted: np.ndarray
+) -> list[dict[str, Any]]:
     """One ``{"slot", "tendon", "sign", "counted"}`` per slot of ``l^d`` or ``f^o``."""
-    return [{"slot": s, "tendon": t, "sign": int(g), "counted": bool(c)}
-            for s, t, g, c in zip(slots, tendons, signs, counted)]
+    return [
+        {"slot": s, "tendon": t, "sign": int(g), "counted": bool(c)}
+        for s, t, g, c in zip(slots, tendons, signs, counted)
+    ]

@@ -245,10 +245,17 @@ def mjcf_memory(structure: Structure) -> int:
     """The ``<size memory>`` [bytes] written by :func:`to_mjcf` (see ``MEMORY_PER_ELEMENT``); a
     point mass counts 6 elements (a free body), a joint or support 12 (3 constraint rows), a
     closure row 6 (its two tendons and a constraint row)."""
-    closures = sum(len(tree.closure) for tree in _rod_trees(structure, _held_axes(structure),
-                                                              _rod_motion(structure).axis))
-    elements = (structure.n_coordinates + 3 * structure.point_mass_nodes.size + structure.n_tendons
-                + 12 * len(_connect_pairs(structure)) + 6 * closures)
+    closures = sum(
+        len(tree.closure)
+        for tree in _rod_trees(structure, _held_axes(structure), _rod_motion(structure).axis)
+    )
+    elements = (
+        structure.n_coordinates
+        + 3 * structure.point_mass_nodes.size
+        + structure.n_tendons
+        + 12 * len(_connect_pairs(structure))
+        + 6 * closures
+    )
     size = MEMORY_BASE + MEMORY_PER_ELEMENT * elements
     mebibyte = 1 << 20
     return -(-size // mebibyte) * mebibyte
@@ -301,8 +308,9 @@ def to_mjcf(
         its mass or inertia ``m L^2 / 12`` is below MuJoCo's minimum ``1e-15``; ``tendons``
         when a tendon is named like a closure tendon (``hold{j}a``, ``hold{j}b``).
     """
-    dt, g = _checked_options(structure, timestep=timestep, integrator=integrator,
-                             gravity=gravity, name=name)
+    dt, g = _checked_options(
+        structure, timestep=timestep, integrator=integrator, gravity=gravity, name=name
+    )
     transverse, spin = _checked_rod_inertias(structure)
     motion = _rod_motion(structure)
     connects = _connect_pairs(structure)
@@ -327,8 +335,9 @@ def to_mjcf(
     return ET.tostring(root, encoding="unicode") + "\n"
 
 
-def _checked_options(structure: Structure, *, timestep: Any, integrator: str, gravity: Any,
-                     name: Any) -> tuple[float, np.ndarray]:
+def _checked_options(
+    structure: Structure, *, timestep: Any, integrator: str, gravity: Any, name: Any
+) -> tuple[float, np.ndarray]:
     """:func:`to_mjcf`'s options, checked: ``(timestep [s], gravity (d,) [m/s^2])``.
 
     Raises
@@ -393,17 +402,30 @@ def _check_closure_names(structure: Structure, n_closures: int) -> None:
     closure_names = {f"hold{j}{end}" for j in range(n_closures) for end in "ab"}
     taken = set(structure.tendon_name) & closure_names
     if taken:
-        raise ValueError(f"tendons: the name {sorted(taken)[0]!r} is taken by a closure tendon of "
-                         "the MJCF export (a rod with both ends held); rename that tendon")
+        raise ValueError(
+            f"tendons: the name {sorted(taken)[0]!r} is taken by a closure tendon of "
+            "the MJCF export (a rod with both ends held); rename that tendon"
+        )
 
-def _header(structure: Structure, *, name: str, timestep: float, integrator: str,
-            gravity: np.ndarray, soft: bool) -> ET.Element:
+
+def _header(
+    structure: Structure,
+    *,
+    name: str,
+    timestep: float,
+    integrator: str,
+    gravity: np.ndarray,
+    soft: bool,
+) -> ET.Element:
     """The ``<mujoco>`` root with its compiler, option (``gravity`` (d,) [m/s^2] in 3-D;
     contacts off, energy on, ``refsafe`` off if there are ``soft`` equalities) and size."""
     root = ET.Element("mujoco", model=name)
     ET.SubElement(root, "compiler", angle="radian", inertiafromgeom="false", autolimits="true")
     option = ET.SubElement(
-        root, "option", timestep=_float(timestep), integrator=integrator,
+        root,
+        "option",
+        timestep=_float(timestep),
+        integrator=integrator,
         gravity=_floats(np.pad(gravity, (0, 3 - structure.dim))),
     )
     flags = dict(contact="disable", energy="enable") | ({"refsafe": "disable"} if soft else {})
@@ -427,46 +449,81 @@ class _Keyframe:
     def write(self, root: ET.Element) -> None:
         """The ``<keyframe>`` with the key ``initial`` at time 0."""
         keyframe = ET.SubElement(root, "keyframe")
-        ET.SubElement(keyframe, "key", name="initial", time="0",
-                      qpos=_floats(np.concatenate(self.qpos or [[]])),
-                      qvel=_floats(np.concatenate(self.qvel or [[]])))
+        ET.SubElement(
+            keyframe,
+            "key",
+            name="initial",
+            time="0",
+            qpos=_floats(np.concatenate(self.qpos or [[]])),
+            qvel=_floats(np.concatenate(self.qvel or [[]])),
+        )
 
 
-def _rod_bodies(world: ET.Element, structure: Structure, trees: list[_RodTree],
-                motion: _RodMotion, keyframe: _Keyframe, *, transverse: np.ndarray,
-                spin: np.ndarray) -> None:
+def _rod_bodies(
+    world: ET.Element,
+    structure: Structure,
+    trees: list[_RodTree],
+    motion: _RodMotion,
+    keyframe: _Keyframe,
+    *,
+    transverse: np.ndarray,
+    spin: np.ndarray,
+) -> None:
     """Bodies ``rod{r}`` at the rods' centres and orientations: the joints of their ``trees``,
     the inertias ``diag(transverse, transverse, spin)`` (R,) [kg m^2], a capsule geom without
     contacts and the sites of the end nodes."""
     omega_local = _to_body(motion.quat, motion.omega)
     for r, ((a, b), tree) in enumerate(zip(structure.rod_nodes, trees)):
         L = float(structure.rod_length[r])
-        body = ET.SubElement(world, "body", name=f"rod{r}", pos=_floats(motion.centre[r]),
-                             quat=_floats(motion.quat[r]))
+        body = ET.SubElement(
+            world,
+            "body",
+            name=f"rod{r}",
+            pos=_floats(motion.centre[r]),
+            quat=_floats(motion.quat[r]),
+        )
         _rod_joints(body, structure, r, tree, motion, omega_local[r], keyframe)
         ET.SubElement(
-            body, "inertial", pos="0 0 0", mass=_float(structure.rod_mass[r]),
+            body,
+            "inertial",
+            pos="0 0 0",
+            mass=_float(structure.rod_mass[r]),
             diaginertia=_floats([transverse[r], transverse[r], spin[r]]),
         )
         radius = _float(_SITE_RADIUS_FRACTION * L)
         ET.SubElement(
-            body, "geom", type="capsule", size=radius, fromto=_floats([0, 0, -L / 2, 0, 0, L / 2]),
-            contype="0", conaffinity="0", group="1",
+            body,
+            "geom",
+            type="capsule",
+            size=radius,
+            fromto=_floats([0, 0, -L / 2, 0, 0, L / 2]),
+            contype="0",
+            conaffinity="0",
+            group="1",
         )
         ET.SubElement(body, "site", name=f"node{a}", pos=_floats([0, 0, -L / 2]), size=radius)
         ET.SubElement(body, "site", name=f"node{b}", pos=_floats([0, 0, L / 2]), size=radius)
 
 
-def _rod_joints(body: ET.Element, structure: Structure, r: int, tree: _RodTree,
-                motion: _RodMotion, omega_local: np.ndarray, keyframe: _Keyframe) -> None:
+def _rod_joints(
+    body: ET.Element,
+    structure: Structure,
+    r: int,
+    tree: _RodTree,
+    motion: _RodMotion,
+    omega_local: np.ndarray,
+    keyframe: _Keyframe,
+) -> None:
     """The joints of rod ``r``'s ``tree``: a free joint, or slides along the root's free
     directions (world axes, given in the body frame), then a ball, or hinges (each turning the
     next), at the root: the rod's centre or a held end.  ``omega_local`` (3,) [rad/s] is the
     rod's angular velocity in its body frame."""
     if tree.slides is None:
         ET.SubElement(body, "freejoint", name=f"rod{r}")
-        keyframe.add(np.concatenate([motion.centre[r], motion.quat[r]]),
-                     np.concatenate([motion.velocity[r], omega_local]))
+        keyframe.add(
+            np.concatenate([motion.centre[r], motion.quat[r]]),
+            np.concatenate([motion.velocity[r], omega_local]),
+        )
         return
     a = structure.rod_nodes[r, 0]
     L = float(structure.rod_length[r])
@@ -474,8 +531,13 @@ def _rod_joints(body: ET.Element, structure: Structure, r: int, tree: _RodTree,
     arm = side * L * motion.axis[r]
     rates = tree.slides @ (motion.velocity[r] + np.cross(motion.omega[r], arm))
     frame = motion.quat[r : r + 1]
-    _slides(body, f"rod{r}", _to_body(np.tile(frame, (len(tree.slides), 1)), tree.slides),
-            rates, keyframe)
+    _slides(
+        body,
+        f"rod{r}",
+        _to_body(np.tile(frame, (len(tree.slides), 1)), tree.slides),
+        rates,
+        keyframe,
+    )
     at = _floats([0, 0, side * L])
     if tree.hinges is None:
         ET.SubElement(body, "joint", name=f"rod{r}_ball", type="ball", pos=at)
@@ -483,8 +545,14 @@ def _rod_joints(body: ET.Element, structure: Structure, r: int, tree: _RodTree,
         return
     names = ("rz",) if structure.dim == 2 else ("turn", "spin")
     for joint, hinge, rate in zip(names, tree.hinges, _hinge_rates(tree.hinges, motion.omega[r])):
-        ET.SubElement(body, "joint", name=f"rod{r}_{joint}", type="hinge", pos=at,
-                      axis=_floats(_to_body(frame, hinge[None])[0]))
+        ET.SubElement(
+            body,
+            "joint",
+            name=f"rod{r}_{joint}",
+            type="hinge",
+            pos=at,
+            axis=_floats(_to_body(frame, hinge[None])[0]),
+        )
         keyframe.add([0.0], [rate])
 
 
@@ -493,8 +561,9 @@ def _site_radius(structure: Structure) -> str:
     return _float(_SITE_RADIUS_FRACTION * float(structure.rod_length.max(initial=1.0)))
 
 
-def _point_mass_bodies(world: ET.Element, structure: Structure, held: dict[int, np.ndarray],
-                       keyframe: _Keyframe) -> None:
+def _point_mass_bodies(
+    world: ET.Element, structure: Structure, held: dict[int, np.ndarray], keyframe: _Keyframe
+) -> None:
     """Bodies ``mass{k}``: a free joint, or slides (planar, or along the free directions
     ``held[k]`` of a node held on planes or lines), a negligible inertia and a site ``node{k}``."""
     position, node_velocity = _lifted(structure)
@@ -506,16 +575,26 @@ def _point_mass_bodies(world: ET.Element, structure: Structure, held: dict[int, 
             _slides(body, f"mass{k}", axes, axes @ node_velocity[k], keyframe)
         else:
             ET.SubElement(body, "freejoint", name=f"mass{k}")
-            keyframe.add(np.concatenate([position[k], [1.0, 0.0, 0.0, 0.0]]),
-                         np.concatenate([node_velocity[k], np.zeros(3)]))
-        ET.SubElement(body, "inertial", pos="0 0 0", mass=_float(structure.node_point_mass[k]),
-                      diaginertia=_floats([SPIN_INERTIA_MIN] * 3))
+            keyframe.add(
+                np.concatenate([position[k], [1.0, 0.0, 0.0, 0.0]]),
+                np.concatenate([node_velocity[k], np.zeros(3)]),
+            )
+        ET.SubElement(
+            body,
+            "inertial",
+            pos="0 0 0",
+            mass=_float(structure.node_point_mass[k]),
+            diaginertia=_floats([SPIN_INERTIA_MIN] * 3),
+        )
         ET.SubElement(body, "site", name=f"node{k}", pos="0 0 0", size=site_radius)
 
 
-def _world_sites(world: ET.Element, structure: Structure,
-                 connects: list[tuple[str, str, np.ndarray | None]],
-                 closures: list[tuple[int, np.ndarray]]) -> None:
+def _world_sites(
+    world: ET.Element,
+    structure: Structure,
+    connects: list[tuple[str, str, np.ndarray | None]],
+    closures: list[tuple[int, np.ndarray]],
+) -> None:
     """Sites fixed in the world: anchors ``node{k}``, fixed rod ends ``ground{a}`` (of
     ``connects``) and the two sites ``hold{j}a``, ``hold{j}b`` of each closure row."""
     position, _ = _lifted(structure)
@@ -530,12 +609,22 @@ def _world_sites(world: ET.Element, structure: Structure,
     arm = CLOSURE_ARM * float(structure.rod_length.max(initial=1.0))
     for j, (k, n) in enumerate(closures):
         for sign, end in ((1.0, "a"), (-1.0, "b")):
-            ET.SubElement(world, "site", name=f"hold{j}{end}",
-                          pos=_floats(position[k] + sign * arm * n), size=site_radius)
+            ET.SubElement(
+                world,
+                "site",
+                name=f"hold{j}{end}",
+                pos=_floats(position[k] + sign * arm * n),
+                size=site_radius,
+            )
 
 
-def _equalities(root: ET.Element, connects: list[tuple[str, str, np.ndarray | None]],
-                n_closures: int, *, timestep: float) -> None:
+def _equalities(
+    root: ET.Element,
+    connects: list[tuple[str, str, np.ndarray | None]],
+    n_closures: int,
+    *,
+    timestep: float,
+) -> None:
     """The soft equalities: a ``connect`` per joint or fixed rod end, a ``tendon`` equality
     ``hold{j}`` per closure row (time constant ``2 timestep`` [s], impedance ``CONNECT_SOLIMP``)."""
     equality = ET.SubElement(root, "equality")
@@ -543,40 +632,55 @@ def _equalities(root: ET.Element, connects: list[tuple[str, str, np.ndarray | No
     for site1, site2, _ in connects:
         ET.SubElement(equality, "connect", site1=site1, site2=site2, solref=solref, solimp=solimp)
     for j in range(n_closures):
-        ET.SubElement(equality, "tendon", name=f"hold{j}", tendon1=f"hold{j}a", tendon2=f"hold{j}b",
-                      polycoef="0 1 0 0 0", solref=solref, solimp=solimp)
+        ET.SubElement(
+            equality,
+            "tendon",
+            name=f"hold{j}",
+            tendon1=f"hold{j}a",
+            tendon2=f"hold{j}b",
+            polycoef="0 1 0 0 0",
+            solref=solref,
+            solimp=solimp,
+        )
 
 
-def _tendons(root: ET.Element, structure: Structure,
-             closures: list[tuple[int, np.ndarray]]) -> None:
+def _tendons(
+    root: ET.Element, structure: Structure, closures: list[tuple[int, np.ndarray]]
+) -> None:
     """The spatial tendons: the structure's (deadband springs between node sites), then the two
     zero-stiffness tendons ``hold{j}a``, ``hold{j}b`` of each closure row."""
     tendons = ET.SubElement(root, "tendon")
     width = _float(0.5 * _SITE_RADIUS_FRACTION * float(structure.rod_length.min(initial=1.0)))
     for s, (tail, head) in enumerate(structure.tendon_nodes):
         spatial = ET.SubElement(
-            tendons, "spatial", name=structure.tendon_name[s],
+            tendons,
+            "spatial",
+            name=structure.tendon_name[s],
             stiffness=_float(structure.tendon_stiffness[s]),
             springlength=f"0 {_float(structure.tendon_rest_length[s])}",
-            damping=_float(structure.tendon_damping[s]), width=width,
+            damping=_float(structure.tendon_damping[s]),
+            width=width,
         )
         ET.SubElement(spatial, "site", site=f"node{tail}")
         ET.SubElement(spatial, "site", site=f"node{head}")
     for j, (k, _) in enumerate(closures):
         for end in "ab":
-            spatial = ET.SubElement(tendons, "spatial", name=f"hold{j}{end}", width=width,
-                                    rgba="0.5 0.5 0.5 0.2")
+            spatial = ET.SubElement(
+                tendons, "spatial", name=f"hold{j}{end}", width=width, rgba="0.5 0.5 0.5 0.2"
+            )
             ET.SubElement(spatial, "site", site=f"node{k}")
             ET.SubElement(spatial, "site", site=f"hold{j}{end}")
 
 
-def _slides(body: ET.Element, name: str, axes: np.ndarray, rates: np.ndarray,
-            keyframe: _Keyframe) -> None:
+def _slides(
+    body: ET.Element, name: str, axes: np.ndarray, rates: np.ndarray, keyframe: _Keyframe
+) -> None:
     """Slide joints ``{name}_0, {name}_1, ...`` of ``body`` along ``axes`` (k, 3) in the body
     frame, starting at 0 with the given ``rates`` (k,) [m/s]."""
     for i, axis in enumerate(axes):
         ET.SubElement(body, "joint", name=f"{name}_{i}", type="slide", axis=_floats(axis))
     keyframe.add(np.zeros(len(axes)), rates)
+
 
 def _held_axes(structure: Structure) -> dict[int, np.ndarray]:
     """The free directions of every node held on planes or lines (and not fixed): an orthonormal
@@ -593,8 +697,11 @@ def _held_axes(structure: Structure) -> dict[int, np.ndarray]:
     if structure.line_nodes.size:
         for k, normals in zip(structure.line_nodes, normals(structure.line_direction)):
             rows.setdefault(int(k), []).append(normals)
-    return {k: np.pad(null_space(np.vstack(r)).T, ((0, 0), (0, 3 - d)))
-            for k, r in rows.items() if not structure.node_fixed[k]}
+    return {
+        k: np.pad(null_space(np.vstack(r)).T, ((0, 0), (0, 3 - d)))
+        for k, r in rows.items()
+        if not structure.node_fixed[k]
+    }
 
 
 class _RodTree(NamedTuple):
@@ -607,7 +714,9 @@ class _RodTree(NamedTuple):
     closure: list[tuple[int, np.ndarray]]  # (node, unit normal): planes the node is held on
 
 
-def _rod_trees(structure: Structure, held: dict[int, np.ndarray], axis: np.ndarray) -> list[_RodTree]:
+def _rod_trees(
+    structure: Structure, held: dict[int, np.ndarray], axis: np.ndarray
+) -> list[_RodTree]:
     """The joint tree of every rod's body, ``axis`` (R, 3) the rods' unit axes, ``held`` from
     :func:`_held_axes`.
 
@@ -626,7 +735,9 @@ def _rod_trees(structure: Structure, held: dict[int, np.ndarray], axis: np.ndarr
         if a not in held and b not in held:
             trees.append(_RodTree(-1, plane if planar else None, rotation, []))
             continue
-        root, other = (a, b) if b not in held or (a in held and len(held[a]) <= len(held[b])) else (b, a)
+        root, other = (
+            (a, b) if b not in held or (a in held and len(held[a]) <= len(held[b])) else (b, a)
+        )
         slides = held[root]
         if other not in held:
             trees.append(_RodTree(root, slides, rotation, []))
@@ -667,8 +778,10 @@ def _connect_pairs(structure: Structure) -> list[tuple[str, str, np.ndarray | No
     in_rod = np.zeros(structure.n_nodes, bool)
     in_rod[structure.rod_nodes] = True
     position, _ = _lifted(structure)
-    pairs += [(f"node{a}", f"ground{a}", position[a])
-              for a in np.flatnonzero(structure.node_fixed & in_rod)]
+    pairs += [
+        (f"node{a}", f"ground{a}", position[a])
+        for a in np.flatnonzero(structure.node_fixed & in_rod)
+    ]
     return pairs
 
 

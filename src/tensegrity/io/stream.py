@@ -85,16 +85,15 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from tensegrity.io import trajectory as tio
-from tensegrity.io.files import PathLike, atomic_path, file_error, fsync_directory, new_file_mode
-from tensegrity.physics.dynamics import State
 from tensegrity.engine.inputs import Inputs
 from tensegrity.engine.loop import Checkpointing, LoopState, run
 from tensegrity.engine.options import Options
 from tensegrity.engine.result import RunSummary, Sample
 from tensegrity.engine.simulate import STATUS_END, options_and_inputs, simulate
+from tensegrity.io import trajectory as tio
+from tensegrity.io.files import PathLike, atomic_path, file_error, fsync_directory, new_file_mode
 from tensegrity.model.structure import Structure
-
+from tensegrity.physics.dynamics import State
 
 #: Suffix of the file a run writes into until it ends.
 PARTIAL_SUFFIX = ".partial"
@@ -292,7 +291,11 @@ def _option_token(name: str, value: Any) -> Any:
 
 
 def _stream_settings(
-    structure: Structure, t0: float, t1: float, sample_dt: float, samples_per_segment: int,
+    structure: Structure,
+    t0: float,
+    t1: float,
+    sample_dt: float,
+    samples_per_segment: int,
     options: Mapping[str, Any],
 ) -> dict[str, Any]:
     """The canonical settings of a run; every simulate option appears, defaults filled in."""
@@ -316,7 +319,9 @@ def _settings_json(settings: Mapping[str, Any]) -> str:
     return json.dumps(settings, sort_keys=True, allow_nan=False)
 
 
-def _differences(stored: Mapping[str, Any], wanted: Mapping[str, Any], prefix: str = "") -> list[str]:
+def _differences(
+    stored: Mapping[str, Any], wanted: Mapping[str, Any], prefix: str = ""
+) -> list[str]:
     """Human-readable differences between two settings dicts."""
     out = []
     for key in sorted(set(stored) | set(wanted)):
@@ -327,8 +332,9 @@ def _differences(stored: Mapping[str, Any], wanted: Mapping[str, Any], prefix: s
             if key == "structure":
                 out.append("structure (a different structure or parameters)")
             else:
-                out.append(f"{prefix}{key}: checkpoint has {json.dumps(a)}, this call "
-                           f"{json.dumps(b)}")
+                out.append(
+                    f"{prefix}{key}: checkpoint has {json.dumps(a)}, this call {json.dumps(b)}"
+                )
     return out
 
 
@@ -373,55 +379,74 @@ def _chunk_rows(row_shape: tuple[int, ...], samples_per_segment: int) -> int:
 def _row_shapes(structure: Structure) -> dict[str, tuple[int, ...]]:
     N, S, n = structure.n_nodes, structure.n_tendons, structure.n_coordinates
     return {
-        "time": (), "nodes": (N, structure.dim), "velocities": (N, structure.dim), "tendon_length": (S,),
-        "tendon_tension": (S,), "energy": (len(tio.ENERGY_COLUMNS),), "q": (n,), "qdot": (n,),
+        "time": (),
+        "nodes": (N, structure.dim),
+        "velocities": (N, structure.dim),
+        "tendon_length": (S,),
+        "tendon_tension": (S,),
+        "energy": (len(tio.ENERGY_COLUMNS),),
+        "q": (n,),
+        "qdot": (n,),
         "residual_acceleration": (),
     }
 
 
 def _create_partial(
-    partial: Path, structure: Structure, settings: dict[str, Any], settings_hash: str,
-    samples_per_segment: int, n_segments: int,
+    partial: Path,
+    structure: Structure,
+    settings: dict[str, Any],
+    settings_hash: str,
+    samples_per_segment: int,
+    n_segments: int,
 ) -> None:
     """Create the partial file (atomically: it appears only once it holds its empty layout)."""
     import h5py
 
-    with atomic_path(partial) as tmp:
-        with h5py.File(tmp, "w", libver=("v108", "v108")) as f:
-            f.attrs["format"] = PARTIAL_FORMAT
-            f.attrs["version"] = tio.TRAJECTORY_VERSION
-            f.attrs["complete"] = False
-            f.attrs["structure"] = json.dumps(structure.to_dict(), allow_nan=False)
-            f.attrs["settings"] = _settings_json(settings)
-            f.attrs["stream_settings"] = _settings_json(settings)
-            f.attrs["stream_settings_hash"] = settings_hash
-            f.attrs["status"] = STATUS_END
-            f.attrs["message"] = "running"
-            for name in _COUNTERS:
-                f.attrs[name] = 0
-            f.attrs["max_rod_length_error"] = 0.0
-            f.attrs["max_constraint_error"] = 0.0
-            f.attrs["wall_time"] = 0.0
-            f.attrs["tendon_names"] = np.array(structure.tendon_name, dtype=h5py.string_dtype())
-            for name, shape in _row_shapes(structure).items():
-                f.create_dataset(
-                    name, shape=(0, *shape), dtype="f8",
-                    maxshape=(None, *(d if d > 0 else None for d in shape)),
-                    chunks=(_chunk_rows(shape, samples_per_segment), *(max(d, 1) for d in shape)),
-                )
-            f["energy"].attrs["columns"] = np.array(tio.ENERGY_COLUMNS, dtype=h5py.string_dtype())
-            group = f.create_group("checkpoint")
-            group.attrs["version"] = STREAM_VERSION
-            for slot in _SLOTS:
-                group.create_group(slot)
-            n = structure.n_coordinates
-            _write_checkpoint(group["a"], Checkpoint(
-                next_segment=0, n_segments=n_segments, n_samples=0,
-                state=State(t=math.nan, q=np.zeros(n), qdot=np.zeros(n)), loop=None,
-                counts=dict.fromkeys(_COUNTERS, 0), max_rod_length_error=0.0, wall_time=0.0,
+    with atomic_path(partial) as tmp, h5py.File(tmp, "w", libver=("v108", "v108")) as f:
+        f.attrs["format"] = PARTIAL_FORMAT
+        f.attrs["version"] = tio.TRAJECTORY_VERSION
+        f.attrs["complete"] = False
+        f.attrs["structure"] = json.dumps(structure.to_dict(), allow_nan=False)
+        f.attrs["settings"] = _settings_json(settings)
+        f.attrs["stream_settings"] = _settings_json(settings)
+        f.attrs["stream_settings_hash"] = settings_hash
+        f.attrs["status"] = STATUS_END
+        f.attrs["message"] = "running"
+        for name in _COUNTERS:
+            f.attrs[name] = 0
+        f.attrs["max_rod_length_error"] = 0.0
+        f.attrs["max_constraint_error"] = 0.0
+        f.attrs["wall_time"] = 0.0
+        f.attrs["tendon_names"] = np.array(structure.tendon_name, dtype=h5py.string_dtype())
+        for name, shape in _row_shapes(structure).items():
+            f.create_dataset(
+                name,
+                shape=(0, *shape),
+                dtype="f8",
+                maxshape=(None, *(d if d > 0 else None for d in shape)),
+                chunks=(_chunk_rows(shape, samples_per_segment), *(max(d, 1) for d in shape)),
+            )
+        f["energy"].attrs["columns"] = np.array(tio.ENERGY_COLUMNS, dtype=h5py.string_dtype())
+        group = f.create_group("checkpoint")
+        group.attrs["version"] = STREAM_VERSION
+        for slot in _SLOTS:
+            group.create_group(slot)
+        n = structure.n_coordinates
+        _write_checkpoint(
+            group["a"],
+            Checkpoint(
+                next_segment=0,
+                n_segments=n_segments,
+                n_samples=0,
+                state=State(t=math.nan, q=np.zeros(n), qdot=np.zeros(n)),
+                loop=None,
+                counts=dict.fromkeys(_COUNTERS, 0),
+                max_rod_length_error=0.0,
+                wall_time=0.0,
                 settings_hash=settings_hash,
-            ))
-            group.attrs["current"] = np.int64(0)
+            ),
+        )
+        group.attrs["current"] = np.int64(0)
 
 
 #: The two checkpoint slots; the group attribute ``current`` (0 or 1) names the valid one.
@@ -470,8 +495,11 @@ def _read_checkpoint_open(f, path: PathLike) -> Checkpoint:
         raise file_error(path, "no checkpoint (not written by tensegrity.io.stream)")
     version = int(group.attrs.get("version", 0))
     if version > STREAM_VERSION:
-        raise file_error(path, f"checkpoint version {version} is newer than this library "
-                                    f"reads ({STREAM_VERSION}); upgrade tensegrity")
+        raise file_error(
+            path,
+            f"checkpoint version {version} is newer than this library "
+            f"reads ({STREAM_VERSION}); upgrade tensegrity",
+        )
     slot = group[_SLOTS[int(group.attrs["current"])]]
     a = slot.attrs
     try:
@@ -479,10 +507,14 @@ def _read_checkpoint_open(f, path: PathLike) -> Checkpoint:
             next_segment=int(a["next_segment"]),
             n_segments=int(a["n_segments"]),
             n_samples=int(a["n_samples"]),
-            state=State(t=float(a["t"]), q=np.asarray(slot["q"][()]),
-                        qdot=np.asarray(slot["qdot"][()])),
-            loop=(LoopState.from_arrays({name: slot["loop"][name][()] for name in slot["loop"]})
-                  if "loop" in slot else None),
+            state=State(
+                t=float(a["t"]), q=np.asarray(slot["q"][()]), qdot=np.asarray(slot["qdot"][()])
+            ),
+            loop=(
+                LoopState.from_arrays({name: slot["loop"][name][()] for name in slot["loop"]})
+                if "loop" in slot
+                else None
+            ),
             counts={name: int(a[name]) for name in _COUNTERS},
             max_rod_length_error=float(a["max_rod_length_error"]),
             wall_time=float(a["wall_time"]),
@@ -504,8 +536,9 @@ def _open_h5(path: Path, mode: str):
         return h5py.File(path, mode, libver=("v108", "v108"))
     except OSError as exc:
         raise file_error(
-            path, f"cannot open as HDF5 ({exc}); if the run was killed while writing, start "
-                  "again with resume=False"
+            path,
+            f"cannot open as HDF5 ({exc}); if the run was killed while writing, start "
+            "again with resume=False",
         ) from exc
 
 
@@ -543,8 +576,10 @@ def _truncate(f, n_samples: int, path: Path) -> None:
             raise file_error(path, f"missing dataset {name!r}")
         rows = f[name].shape[0]
         if rows < n_samples:
-            raise file_error(path, f"dataset {name!r} has {rows} rows, fewer than the "
-                                        f"{n_samples} of its checkpoint")
+            raise file_error(
+                path,
+                f"dataset {name!r} has {rows} rows, fewer than the {n_samples} of its checkpoint",
+            )
         if rows > n_samples:
             f[name].resize(n_samples, axis=0)
 
@@ -557,8 +592,14 @@ def _fsync(path: Path) -> None:
         os.close(fd)
 
 
-def _summary(path: Path, f, checkpoint: Checkpoint, samples_per_segment: int, segments_run: int,
-             resumed_from: int | None) -> StreamSummary:
+def _summary(
+    path: Path,
+    f,
+    checkpoint: Checkpoint,
+    samples_per_segment: int,
+    segments_run: int,
+    resumed_from: int | None,
+) -> StreamSummary:
     time_ = f["time"]
     n = time_.shape[0]
     return StreamSummary(
@@ -581,7 +622,9 @@ def _summary(path: Path, f, checkpoint: Checkpoint, samples_per_segment: int, se
     )
 
 
-def _finished_summary(path: Path, settings_hash: str, samples_per_segment: int) -> StreamSummary | None:
+def _finished_summary(
+    path: Path, settings_hash: str, samples_per_segment: int
+) -> StreamSummary | None:
     """The summary of a finished streamed file at ``path`` with these settings, else None."""
     import h5py
 
@@ -591,8 +634,11 @@ def _finished_summary(path: Path, settings_hash: str, samples_per_segment: int) 
         return None
     with f:
         a = f.attrs
-        if (tio.text_attribute(a.get("format")) != tio.TRAJECTORY_FORMAT or not bool(a.get("complete", False))
-                or tio.text_attribute(a.get("stream_settings_hash")) != settings_hash):
+        if (
+            tio.text_attribute(a.get("format")) != tio.TRAJECTORY_FORMAT
+            or not bool(a.get("complete", False))
+            or tio.text_attribute(a.get("stream_settings_hash")) != settings_hash
+        ):
             return None
         checkpoint = _read_checkpoint_open(f, path)
         return _summary(path, f, checkpoint, samples_per_segment, 0, None)
@@ -605,8 +651,14 @@ class FileSink:
     (:meth:`save`, a :class:`tensegrity.engine.loop.Checkpointing` callback); :meth:`finish`
     stores the rest and gives the file its final name."""
 
-    def __init__(self, partial: Path, checkpoint: Checkpoint, *, samples_per_segment: int,
-                 progress: Callable[[StreamProgress], None] | None) -> None:
+    def __init__(
+        self,
+        partial: Path,
+        checkpoint: Checkpoint,
+        *,
+        samples_per_segment: int,
+        progress: Callable[[StreamProgress], None] | None,
+    ) -> None:
         self.partial, self.checkpoint = partial, checkpoint
         self.K, self.progress = samples_per_segment, progress
         self.rows: list[Sample] = []
@@ -617,41 +669,74 @@ class FileSink:
 
     def save(self, loop: LoopState) -> None:
         """Store the segment's samples and ``loop`` as the new checkpoint (then fsync)."""
-        summary = dict(status=STATUS_END, message="running", ended=False, wall_time=loop.wall_time,
-                       max_rod_length_error=float(loop.monitor[2]),
-                       max_constraint_error=float(loop.monitor[3]), counts=loop.counts)
+        summary = dict(
+            status=STATUS_END,
+            message="running",
+            ended=False,
+            wall_time=loop.wall_time,
+            max_rod_length_error=float(loop.monitor[2]),
+            max_constraint_error=float(loop.monitor[3]),
+            counts=loop.counts,
+        )
         self._store(loop, summary)
         if self.progress is not None:
             c = self.checkpoint
-            self.progress(StreamProgress(segment=c.next_segment, n_segments=c.n_segments,
-                                         t=c.state.t, n_samples=c.n_samples,
-                                         wall_time=c.wall_time))
+            self.progress(
+                StreamProgress(
+                    segment=c.next_segment,
+                    n_segments=c.n_segments,
+                    t=c.state.t,
+                    n_samples=c.n_samples,
+                    wall_time=c.wall_time,
+                )
+            )
 
     def finish(self, run: RunSummary) -> None:
         """Store the last samples and the run's end as the (ended) checkpoint."""
-        self._store(self.checkpoint.loop, dict(
-            status=run.status, message=run.message, ended=True, wall_time=run.wall_time,
-            max_rod_length_error=run.max_rod_length_error,
-            max_constraint_error=run.max_constraint_error,
-            counts={name: getattr(run, name) for name in _COUNTERS}),
-            settings=dict(run.settings, stream=dict(
-                segment=self.K * run.settings["sample_dt"], samples_per_segment=self.K,
-                n_segments=self.checkpoint.n_segments)))
+        self._store(
+            self.checkpoint.loop,
+            dict(
+                status=run.status,
+                message=run.message,
+                ended=True,
+                wall_time=run.wall_time,
+                max_rod_length_error=run.max_rod_length_error,
+                max_constraint_error=run.max_constraint_error,
+                counts={name: getattr(run, name) for name in _COUNTERS},
+            ),
+            settings=dict(
+                run.settings,
+                stream=dict(
+                    segment=self.K * run.settings["sample_dt"],
+                    samples_per_segment=self.K,
+                    n_segments=self.checkpoint.n_segments,
+                ),
+            ),
+        )
 
-    def _store(self, loop: LoopState | None, end: dict[str, Any],
-               settings: dict[str, Any] | None = None) -> None:
+    def _store(
+        self, loop: LoopState | None, end: dict[str, Any], settings: dict[str, Any] | None = None
+    ) -> None:
         rows, c = self.rows, self.checkpoint
         n_samples = c.n_samples + len(rows)
         state = c.state if not rows else State(t=rows[-1].t, q=rows[-1].q, qdot=rows[-1].qdot)
         checkpoint = Checkpoint(
-            next_segment=(n_samples - 1) // self.K if not end["ended"] else
-            max(c.next_segment + 1, math.ceil((n_samples - 1) / self.K)),
-            n_segments=c.n_segments, n_samples=n_samples, state=state, loop=loop,
-            counts=dict(end["counts"]), max_rod_length_error=end["max_rod_length_error"],
-            wall_time=end["wall_time"], settings_hash=c.settings_hash, ended=end["ended"],
+            next_segment=(n_samples - 1) // self.K
+            if not end["ended"]
+            else max(c.next_segment + 1, math.ceil((n_samples - 1) / self.K)),
+            n_segments=c.n_segments,
+            n_samples=n_samples,
+            state=state,
+            loop=loop,
+            counts=dict(end["counts"]),
+            max_rod_length_error=end["max_rod_length_error"],
+            wall_time=end["wall_time"],
+            settings_hash=c.settings_hash,
+            ended=end["ended"],
             status=end["status"],
-            message=end["message"] if end["ended"] else
-            f"running: {(n_samples - 1) // self.K} of {c.n_segments} segments",
+            message=end["message"]
+            if end["ended"]
+            else f"running: {(n_samples - 1) // self.K} of {c.n_segments} segments",
             max_constraint_error=end["max_constraint_error"],
         )
         with _open_h5(self.partial, "a") as f:
@@ -674,14 +759,21 @@ class FileSink:
 
 def _columns(rows: list[Sample]) -> dict[str, np.ndarray]:
     """The samples as the file's datasets (rows of :data:`tensegrity.io.trajectory` layout)."""
+
     def stack(field: str) -> np.ndarray:
         return np.array([getattr(row, field) for row in rows])
 
-    return {"time": stack("t"), "nodes": stack("node_position"),
-            "velocities": stack("node_velocity"), "tendon_length": stack("tendon_length"),
-            "tendon_tension": stack("tendon_tension"), "energy": stack("energy"),
-            "q": stack("q"), "qdot": stack("qdot"),
-            "residual_acceleration": stack("residual_acceleration")}
+    return {
+        "time": stack("t"),
+        "nodes": stack("node_position"),
+        "velocities": stack("node_velocity"),
+        "tendon_length": stack("tendon_length"),
+        "tendon_tension": stack("tendon_tension"),
+        "energy": stack("energy"),
+        "q": stack("q"),
+        "qdot": stack("qdot"),
+        "residual_acceleration": stack("residual_acceleration"),
+    }
 
 
 # ----------------------------------------------------------------------------- the run
@@ -761,18 +853,25 @@ def simulate_to_file(
         checkpoint = _resumable_checkpoint(partial, plan.settings, plan.settings_hash)
         resumed_from = checkpoint.next_segment
     else:
-        _create_partial(partial, structure, plan.settings, plan.settings_hash, plan.K,
-                        plan.n_segments)
+        _create_partial(
+            partial, structure, plan.settings, plan.settings_hash, plan.K, plan.n_segments
+        )
         with _open_h5(partial, "r") as f:
             checkpoint = _read_checkpoint_open(f, partial)
     report, close = _reporter(progress, plan.n_segments, checkpoint.next_segment)
     sink = FileSink(partial, checkpoint, samples_per_segment=plan.K, progress=report)
     try:
         if not checkpoint.ended:  # (ended: interrupted between the end and the rename)
-            summary = run(structure, plan.t_span, initial=plan.initial, inputs=plan.inputs,
-                          options=plan.options, sink=sink,
-                          checkpoint=Checkpointing(every=plan.K, save=sink.save),
-                          resume=checkpoint.loop)
+            summary = run(
+                structure,
+                plan.t_span,
+                initial=plan.initial,
+                inputs=plan.inputs,
+                options=plan.options,
+                sink=sink,
+                checkpoint=Checkpointing(every=plan.K, save=sink.save),
+                resume=checkpoint.loop,
+            )
             sink.finish(summary)
     finally:
         close()
@@ -793,8 +892,12 @@ class _Plan(NamedTuple):
     settings_hash: str
 
 
-def _plan(structure: Structure, t_span: tuple[float, float], segment: float | None,
-          simulate_options: dict[str, Any]) -> _Plan:
+def _plan(
+    structure: Structure,
+    t_span: tuple[float, float],
+    segment: float | None,
+    simulate_options: dict[str, Any],
+) -> _Plan:
     t0, t1 = (float(x) for x in t_span)
     if not (math.isfinite(t0) and math.isfinite(t1) and t1 > t0):
         raise ValueError(f"t_span: need finite t0 < t_end, got {t_span!r}")
@@ -810,13 +913,21 @@ def _plan(structure: Structure, t_span: tuple[float, float], segment: float | No
     K = samples_per_segment(structure, segment, sample_dt)
     settings = _stream_settings(structure, t0, t1, sample_dt, K, {**options, "initial": initial})
     run_options, inputs = options_and_inputs(structure, sample_dt=sample_dt, **options)
-    return _Plan((t0, t1), initial, run_options, inputs, K,
-                 len(segment_grid((t0, t1), sample_dt, K)) - 1, settings,
-                 _digest(_settings_json(settings).encode()))
+    return _Plan(
+        (t0, t1),
+        initial,
+        run_options,
+        inputs,
+        K,
+        len(segment_grid((t0, t1), sample_dt, K)) - 1,
+        settings,
+        _digest(_settings_json(settings).encode()),
+    )
 
 
-def _reporter(progress: bool | Callable[[StreamProgress], None], n_segments: int,
-              done: int) -> tuple[Callable[[StreamProgress], None], Callable[[], None]]:
+def _reporter(
+    progress: bool | Callable[[StreamProgress], None], n_segments: int, done: int
+) -> tuple[Callable[[StreamProgress], None], Callable[[], None]]:
     """The sink's progress callback (a ``tqdm`` bar for ``progress=True``, the user's callable
     otherwise) and what closes it."""
     bar = None
@@ -835,7 +946,9 @@ def _reporter(progress: bool | Callable[[StreamProgress], None], n_segments: int
     return report, (bar.close if bar is not None else lambda: None)
 
 
-def _resumable_checkpoint(partial: Path, settings: dict[str, Any], settings_hash: str) -> Checkpoint:
+def _resumable_checkpoint(
+    partial: Path, settings: dict[str, Any], settings_hash: str
+) -> Checkpoint:
     """The checkpoint of ``partial`` if it was made with these settings (rows past it dropped);
     ``ValueError`` naming the differing settings otherwise."""
     with _open_h5(partial, "a") as f:
@@ -850,14 +963,18 @@ def _resumable_checkpoint(partial: Path, settings: dict[str, Any], settings_hash
                 stored = {}
             diff = _differences(stored, settings) or ["settings hash"]
             raise file_error(
-                partial, "cannot resume: the checkpoint was made with other settings ("
-                         + "; ".join(diff) + "); pass resume=False to start again")
+                partial,
+                "cannot resume: the checkpoint was made with other settings ("
+                + "; ".join(diff)
+                + "); pass resume=False to start again",
+            )
         _truncate(f, checkpoint.n_samples, partial)
     return checkpoint
 
 
-def _rename_finished(final: Path, partial: Path, segments_run: int,
-                     resumed_from: int | None) -> StreamSummary:
+def _rename_finished(
+    final: Path, partial: Path, segments_run: int, resumed_from: int | None
+) -> StreamSummary:
     """Give the ended partial file the attributes of a complete trajectory, then its final name
     (an atomic rename)."""
     with _open_h5(partial, "a") as f:
@@ -877,6 +994,13 @@ def _rename_finished(final: Path, partial: Path, segments_run: int,
 
 
 __all__ = [
-    "Checkpoint", "FileSink", "PARTIAL_FORMAT", "PARTIAL_SUFFIX", "StreamProgress", "StreamSummary",
-    "read_checkpoint", "segment_grid", "simulate_to_file",
+    "PARTIAL_FORMAT",
+    "PARTIAL_SUFFIX",
+    "Checkpoint",
+    "FileSink",
+    "StreamProgress",
+    "StreamSummary",
+    "read_checkpoint",
+    "segment_grid",
+    "simulate_to_file",
 ]

@@ -48,8 +48,6 @@ from tensegrity.engine.result import SimulationResult
 from tensegrity.io.files import PathLike, atomic_path, file_error
 from tensegrity.model.structure import Structure
 
-
-
 #: ``format`` attribute of a trajectory file.
 TRAJECTORY_FORMAT = "tensegrity-trajectory"
 #: ``version`` attribute written; files of a higher version are refused.
@@ -58,30 +56,17 @@ TRAJECTORY_VERSION = 1
 ENERGY_COLUMNS = ("kinetic", "elastic", "gravity", "dissipated", "external_work", "control_work")
 
 ARRAY_DATASETS = (
-    "time", "nodes", "velocities", "tendon_length", "tendon_tension", "energy", "q", "qdot",
+    "time",
+    "nodes",
+    "velocities",
+    "tendon_length",
+    "tendon_tension",
+    "energy",
+    "q",
+    "qdot",
     "residual_acceleration",
 )
 _COUNT_ATTRIBUTES = ("nfev", "nsteps", "nswitches", "nprojections")
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
-
 
 
 # --------------------------------------------------------------------------- trajectories
@@ -124,7 +109,8 @@ def write_trajectory(path: PathLike, result: SimulationResult) -> Path:
         "tendon_length": result.tendon_length,
         "tendon_tension": result.tendon_tension,
         "energy": np.column_stack([result.energy[name] for name in energy_names])
-        if energy_names else np.zeros((len(result.t), 0)),
+        if energy_names
+        else np.zeros((len(result.t), 0)),
         "q": result.q,
         "qdot": result.qdot,
         "residual_acceleration": result.residual_acceleration,
@@ -142,17 +128,18 @@ def write_trajectory(path: PathLike, result: SimulationResult) -> Path:
         "wall_time": float(result.wall_time),
         "tendon_names": np.array(structure.tendon_name, dtype=h5py.string_dtype()),
     }
-    with atomic_path(path) as tmp:
-        with h5py.File(tmp, "w", libver=("v108", "v108")) as f:
-            for name, value in attributes.items():
-                f.attrs[name] = value
-            for name, value in arrays.items():
-                value = np.asarray(value, dtype=float)
-                compress = {} if value.size == 0 else dict(
-                    compression="gzip", compression_opts=4, shuffle=True, chunks=True
-                )
-                f.create_dataset(name, data=value, **compress)
-            f["energy"].attrs["columns"] = np.array(energy_names, dtype=h5py.string_dtype())
+    with atomic_path(path) as tmp, h5py.File(tmp, "w", libver=("v108", "v108")) as f:
+        for name, value in attributes.items():
+            f.attrs[name] = value
+        for name, value in arrays.items():
+            value = np.asarray(value, dtype=float)
+            compress = (
+                {}
+                if value.size == 0
+                else dict(compression="gzip", compression_opts=4, shuffle=True, chunks=True)
+            )
+            f.create_dataset(name, data=value, **compress)
+        f["energy"].attrs["columns"] = np.array(energy_names, dtype=h5py.string_dtype())
     return Path(path)
 
 
@@ -204,15 +191,19 @@ def _read_open_trajectory(f, path: PathLike, every: int = 1) -> SimulationResult
     fmt = text_attribute(attrs.get("format"))
     if fmt != TRAJECTORY_FORMAT:
         found = "no 'format' attribute" if fmt is None else f"format {fmt!r}"
-        raise file_error(path, f"not a tensegrity trajectory file ({found}, expected "
-                                f"{TRAJECTORY_FORMAT!r})")
+        raise file_error(
+            path, f"not a tensegrity trajectory file ({found}, expected {TRAJECTORY_FORMAT!r})"
+        )
     try:
         version = int(attrs.get("version"))
     except (TypeError, ValueError) as exc:
         raise file_error(path, "missing or invalid 'version' attribute") from exc
     if version > TRAJECTORY_VERSION:
-        raise file_error(path, f"trajectory format version {version} is newer than this "
-                                f"library reads ({TRAJECTORY_VERSION}); upgrade tensegrity")
+        raise file_error(
+            path,
+            f"trajectory format version {version} is newer than this "
+            f"library reads ({TRAJECTORY_VERSION}); upgrade tensegrity",
+        )
 
     def attribute(name: str) -> Any:
         if name not in attrs:
@@ -227,8 +218,9 @@ def _read_open_trajectory(f, path: PathLike, every: int = 1) -> SimulationResult
 
     missing = [name for name in ARRAY_DATASETS if not isinstance(f.get(name), _h5py_dataset())]
     if missing:
-        raise file_error(path, f"missing dataset {missing[0]!r} (not a complete tensegrity "
-                                "trajectory)")
+        raise file_error(
+            path, f"missing dataset {missing[0]!r} (not a complete tensegrity trajectory)"
+        )
     arrays = {name: _rows(f[name], every) for name in ARRAY_DATASETS}
     columns = [text_attribute(c) for c in f["energy"].attrs.get("columns", ENERGY_COLUMNS)]
 
@@ -239,25 +231,38 @@ def _read_open_trajectory(f, path: PathLike, every: int = 1) -> SimulationResult
         raise file_error(path, f"attribute 'structure': {exc}") from exc
     settings = json_attribute("settings")
 
-    T, N, S, n = (arrays["time"].shape[0] if arrays["time"].ndim == 1 else -1,
-                  structure.n_nodes, structure.n_tendons, structure.n_coordinates)
+    T, N, S, n = (
+        arrays["time"].shape[0] if arrays["time"].ndim == 1 else -1,
+        structure.n_nodes,
+        structure.n_tendons,
+        structure.n_coordinates,
+    )
     expected = {
-        "time": (T,), "nodes": (T, N, structure.dim), "velocities": (T, N, structure.dim),
+        "time": (T,),
+        "nodes": (T, N, structure.dim),
+        "velocities": (T, N, structure.dim),
         "tendon_length": (T, S),
-        "tendon_tension": (T, S), "energy": (T, len(columns)), "q": (T, n), "qdot": (T, n),
+        "tendon_tension": (T, S),
+        "energy": (T, len(columns)),
+        "q": (T, n),
+        "qdot": (T, n),
         "residual_acceleration": (T,),
     }
     for name, shape in expected.items():
         if arrays[name].shape != shape:
-            raise file_error(path, f"dataset {name!r}: expected shape {shape} for this "
-                                    f"structure, got {arrays[name].shape}")
+            raise file_error(
+                path,
+                f"dataset {name!r}: expected shape {shape} for this "
+                f"structure, got {arrays[name].shape}",
+            )
     try:
         counts = {name: int(attribute(name)) for name in _COUNT_ATTRIBUTES}
         status = int(attribute("status"))
         floats = {name: float(attribute(name)) for name in ("max_rod_length_error", "wall_time")}
         # Absent from files written before it was stored: unknown there, unless nothing can err.
-        floats["max_constraint_error"] = float(f.attrs.get(
-            "max_constraint_error", np.nan if structure.has_constraints else 0.0))
+        floats["max_constraint_error"] = float(
+            f.attrs.get("max_constraint_error", np.nan if structure.has_constraints else 0.0)
+        )
     except (TypeError, ValueError) as exc:
         raise file_error(path, f"invalid attribute: {exc}") from exc
     return SimulationResult(

@@ -30,8 +30,9 @@ def _ascii(values: np.ndarray) -> str:
     return " ".join(repr(float(x)) for x in np.ravel(values))
 
 
-def polydata(structure: Structure, nodes: np.ndarray, tension: np.ndarray,
-             velocity: np.ndarray | None = None) -> str:
+def polydata(
+    structure: Structure, nodes: np.ndarray, tension: np.ndarray, velocity: np.ndarray | None = None
+) -> str:
     """One VTK XML PolyData document: nodes (N, 3) [m], tendon tensions (S,) [N], velocities."""
     R, S, N = structure.n_rods, structure.n_tendons, structure.n_nodes
     connectivity = np.concatenate([structure.rod_nodes, structure.tendon_nodes]).ravel()
@@ -52,26 +53,31 @@ def polydata(structure: Structure, nodes: np.ndarray, tension: np.ndarray,
         "      </Points>",
         "      <Lines>",
         '        <DataArray type="Int64" Name="connectivity" format="ascii">'
-        f'{" ".join(map(str, connectivity))}</DataArray>',
+        f"{' '.join(map(str, connectivity))}</DataArray>",
         f'        <DataArray type="Int64" Name="offsets" format="ascii">{" ".join(map(str, offsets))}</DataArray>',
         "      </Lines>",
         '      <CellData Scalars="tension">',
     ]
     for (kind, name), values in cells.items():
         text = _ascii(values) if kind == "Float64" else " ".join(map(str, values))
-        lines.append(f'        <DataArray type="{kind}" Name="{name}" format="ascii">{text}</DataArray>')
+        lines.append(
+            f'        <DataArray type="{kind}" Name="{name}" format="ascii">{text}</DataArray>'
+        )
     lines.append("      </CellData>")
     if velocity is not None:
-        lines += ['      <PointData Vectors="velocity">',
-                  f'        <DataArray type="Float64" Name="velocity" NumberOfComponents="3" '
-                  f'format="ascii">{_ascii(velocity)}</DataArray>',
-                  "      </PointData>"]
+        lines += [
+            '      <PointData Vectors="velocity">',
+            f'        <DataArray type="Float64" Name="velocity" NumberOfComponents="3" '
+            f'format="ascii">{_ascii(velocity)}</DataArray>',
+            "      </PointData>",
+        ]
     lines += ["    </Piece>", "  </PolyData>", "</VTKFile>", ""]
     return "\n".join(lines)
 
 
-def write_vtk(out: PathLike, source: SimulationResult, *, name: str = "tensegrity",
-              every: int = 1) -> list[Path]:
+def write_vtk(
+    out: PathLike, source: SimulationResult, *, name: str = "tensegrity", every: int = 1
+) -> list[Path]:
     """Write every ``every``-th sample of a simulation as ``out/<name>_<k>.vtp`` + ``out/<name>.pvd``.
 
     Parameters
@@ -96,10 +102,15 @@ def write_vtk(out: PathLike, source: SimulationResult, *, name: str = "tensegrit
     structure, times = source.structure, source.t
     nodes, tension, velocity = source.node_position, source.tendon_tension, source.node_velocity
     T, N, S = np.shape(times)[0], structure.n_nodes, structure.n_tendons
-    for field, array, shape in (("nodes", nodes, (T, N, 3)), ("tendon_tension", tension, (T, S)),
-                                ("velocities", velocity, (T, N, 3))):
+    for field, array, shape in (
+        ("nodes", nodes, (T, N, 3)),
+        ("tendon_tension", tension, (T, S)),
+        ("velocities", velocity, (T, N, 3)),
+    ):
         if array is not None and np.shape(array) != shape:
-            raise ValueError(f"{field}: expected shape {shape} for {T} samples, got {np.shape(array)}")
+            raise ValueError(
+                f"{field}: expected shape {shape} for {T} samples, got {np.shape(array)}"
+            )
     keep = np.unique(np.append(np.arange(0, times.size, every), times.size - 1))
     width = len(str(keep.size - 1))
 
@@ -107,15 +118,24 @@ def write_vtk(out: PathLike, source: SimulationResult, *, name: str = "tensegrit
         files, entries = [], []
         for k, i in enumerate(keep):
             path = staging / f"{name}_{k:0{width}d}.vtp"
-            path.write_text(polydata(structure, nodes[i], tension[i],
-                                     None if velocity is None else velocity[i]), encoding="utf-8")
+            path.write_text(
+                polydata(
+                    structure, nodes[i], tension[i], None if velocity is None else velocity[i]
+                ),
+                encoding="utf-8",
+            )
             files.append(path)
-            entries.append(f'    <DataSet timestep={quoteattr(repr(float(times[i])))} part="0" '
-                           f'file={quoteattr(path.name)}/>')
+            entries.append(
+                f'    <DataSet timestep={quoteattr(repr(float(times[i])))} part="0" '
+                f"file={quoteattr(path.name)}/>"
+            )
         collection = staging / f"{name}.pvd"
         collection.write_text(
             '<?xml version="1.0"?>\n<VTKFile type="Collection" version="1.0">\n  <Collection>\n'
-            + "\n".join(entries) + "\n  </Collection>\n</VTKFile>\n", encoding="utf-8")
+            + "\n".join(entries)
+            + "\n  </Collection>\n</VTKFile>\n",
+            encoding="utf-8",
+        )
         return [*files, collection]
 
     return write_staged(Path(out), write)

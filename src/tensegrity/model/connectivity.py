@@ -49,10 +49,14 @@ def member_nodes(C: Any, field: str, n_nodes: int) -> np.ndarray:
     if C.ndim != 2:
         raise ValueError(f"{field}: expected a 2-D matrix (members x nodes), got shape {C.shape}")
     if C.shape[1] != n_nodes:
-        raise ValueError(f"{field}: has {C.shape[1]} columns but N has {n_nodes} nodes "
-                         "(a member on a missing node?)")
+        raise ValueError(
+            f"{field}: has {C.shape[1]} columns but N has {n_nodes} nodes "
+            "(a member on a missing node?)"
+        )
     tails, heads = C == -1, C == 1
-    bad = np.flatnonzero((tails.sum(1) != 1) | (heads.sum(1) != 1) | np.any((C != 0) & ~tails & ~heads, axis=1))
+    bad = np.flatnonzero(
+        (tails.sum(1) != 1) | (heads.sum(1) != 1) | np.any((C != 0) & ~tails & ~heads, axis=1)
+    )
     if bad.size:
         k = bad[0]
         other = np.flatnonzero((C[k] != 0) & ~tails[k] & ~heads[k])
@@ -89,7 +93,9 @@ def _per_member(value: Any, count: int, field: str) -> np.ndarray:
     return array
 
 
-def rest_from_prestrain(length: np.ndarray, prestrain: Any, field: str = "tendon_prestrain") -> np.ndarray:
+def rest_from_prestrain(
+    length: np.ndarray, prestrain: Any, field: str = "tendon_prestrain"
+) -> np.ndarray:
     """Rest lengths ``L0 = l / (1 + eps)`` [m] for strains ``eps = (l - L0) / L0`` (> -1)."""
     eps = _per_member(prestrain, length.size, field)
     bad = np.flatnonzero(~np.isfinite(eps) | (eps <= -1))
@@ -106,20 +112,34 @@ def _node_list(value: Any, field: str, n_nodes: int) -> np.ndarray:
     array = array.astype(np.int64)
     bad = np.flatnonzero((array < 0) | (array >= n_nodes))
     if bad.size:
-        raise ValueError(f"{field}[{bad[0]}]: node index {array[bad[0]]} out of range [0, {n_nodes - 1}]")
+        raise ValueError(
+            f"{field}[{bad[0]}]: node index {array[bad[0]]} out of range [0, {n_nodes - 1}]"
+        )
     return array
 
 
 def from_connectivity(
-    N: Any, C_b: Any, C_s: Any, *,
-    rod_mass: Any = DEFAULT_ROD_MASS, rod_length: Any = None, rod_damping: Any = 0.0,
-    tendon_stiffness: Any = DEFAULT_STIFFNESS, tendon_rest_length: Any = None,
-    tendon_prestrain: Any = None, tendon_damping: Any = 0.0,
+    N: Any,
+    C_b: Any,
+    C_s: Any,
+    *,
+    rod_mass: Any = DEFAULT_ROD_MASS,
+    rod_length: Any = None,
+    rod_damping: Any = 0.0,
+    tendon_stiffness: Any = DEFAULT_STIFFNESS,
+    tendon_rest_length: Any = None,
+    tendon_prestrain: Any = None,
+    tendon_damping: Any = 0.0,
     tendon_name: Sequence[str] | None = None,
-    node_velocity: Any = None, node_fixed: Any = None, node_point_mass: Any = None,
-    plane_nodes: Any = None, plane_normal: Any = None,
-    line_nodes: Any = None, line_direction: Any = None,
-    joint_nodes: Any = None, ball_joints: bool = False,
+    node_velocity: Any = None,
+    node_fixed: Any = None,
+    node_point_mass: Any = None,
+    plane_nodes: Any = None,
+    plane_normal: Any = None,
+    line_nodes: Any = None,
+    line_direction: Any = None,
+    joint_nodes: Any = None,
+    ball_joints: bool = False,
 ) -> Structure:
     """A :class:`Structure` from the node matrix and the connectivity matrices.
 
@@ -177,12 +197,26 @@ def from_connectivity(
     velocity = _node_velocities(network, node_velocity)
     split = _split_nodes(network, node_fixed, node_point_mass, ball_joints=ball_joints)
     return Structure(
-        **_node_fields(network, split, velocity, joint_nodes=joint_nodes, plane_nodes=plane_nodes,
-                       plane_normal=plane_normal, line_nodes=line_nodes,
-                       line_direction=line_direction),
-        **_member_fields(network, rest, rod_mass=rod_mass, rod_length=rod_length,
-                         rod_damping=rod_damping, tendon_stiffness=tendon_stiffness,
-                         tendon_damping=tendon_damping, tendon_name=tendon_name),
+        **_node_fields(
+            network,
+            split,
+            velocity,
+            joint_nodes=joint_nodes,
+            plane_nodes=plane_nodes,
+            plane_normal=plane_normal,
+            line_nodes=line_nodes,
+            line_direction=line_direction,
+        ),
+        **_member_fields(
+            network,
+            rest,
+            rod_mass=rod_mass,
+            rod_length=rod_length,
+            rod_damping=rod_damping,
+            tendon_stiffness=tendon_stiffness,
+            tendon_damping=tendon_damping,
+            tendon_name=tendon_name,
+        ),
     )
 
 
@@ -214,8 +248,9 @@ def _network(N: Any, C_b: Any, C_s: Any) -> _Network:
     zero = np.flatnonzero(length == 0)
     if zero.size:
         k = zero[0]
-        raise ValueError(f"C_b[{k}]: bar joins nodes {rods[k, 0]} and {rods[k, 1]}, which coincide "
-                         "(zero length)")
+        raise ValueError(
+            f"C_b[{k}]: bar joins nodes {rods[k, 0]} and {rods[k, 1]}, which coincide (zero length)"
+        )
     return _Network(position, rods, tendons, length)
 
 
@@ -226,8 +261,11 @@ def _tendon_rest_lengths(network: _Network, rest_length: Any, prestrain: Any) ->
         raise ValueError("tendon_rest_length, tendon_prestrain: give exactly one of them")
     position, tendons = network.position, network.tendons
     string_length = np.linalg.norm(position[tendons[:, 1]] - position[tendons[:, 0]], axis=1)
-    return (rest_from_prestrain(string_length, prestrain) if rest_length is None
-            else _per_member(rest_length, tendons.shape[0], "tendon_rest_length"))
+    return (
+        rest_from_prestrain(string_length, prestrain)
+        if rest_length is None
+        else _per_member(rest_length, tendons.shape[0], "tendon_rest_length")
+    )
 
 
 def _node_velocities(network: _Network, node_velocity: Any) -> np.ndarray | None:
@@ -253,8 +291,9 @@ class _SplitNodes(NamedTuple):
     mass: np.ndarray  #: (n',) point masses [kg] of the structure's nodes
 
 
-def _split_nodes(network: _Network, node_fixed: Any, node_point_mass: Any, *,
-                 ball_joints: bool) -> _SplitNodes:
+def _split_nodes(
+    network: _Network, node_fixed: Any, node_point_mass: Any, *, ball_joints: bool
+) -> _SplitNodes:
     """The :class:`_SplitNodes` of a network with supports ``node_fixed`` (n,) bool and point
     masses ``node_point_mass`` (a number or n) [kg].  Without ``ball_joints``, a node in two
     bars, or a point mass on a bar's end or a support, is an error; a node in no bar must be
@@ -266,8 +305,10 @@ def _split_nodes(network: _Network, node_fixed: Any, node_point_mass: Any, *,
         check_class1(rods, n_nodes)
     free = np.flatnonzero((count == 0) & ~fixed & (mass == 0))
     if free.size:
-        raise ValueError(f"nodes[{free[0]}]: belongs to no bar; fix it (node_fixed) or give it a "
-                         "mass (node_point_mass): a massless free node has no dynamics")
+        raise ValueError(
+            f"nodes[{free[0]}]: belongs to no bar; fix it (node_fixed) or give it a "
+            "mass (node_point_mass): a massless free node has no dynamics"
+        )
     anchor = ((count == 0) & fixed).astype(np.int64)
     has_mass = (mass > 0).astype(np.int64)
     parts = anchor + count + has_mass
@@ -275,10 +316,15 @@ def _split_nodes(network: _Network, node_fixed: Any, node_point_mass: Any, *,
         both = np.flatnonzero(parts > 1)
         if both.size:
             i = both[0]
-            where = (f"an end of bars {np.flatnonzero(np.any(rods == i, axis=1)).tolist()}"
-                     if count[i] else "fixed")
-            raise ValueError(f"node_point_mass[{i}]: node {i} is {where}; a point mass there needs "
-                             "ball_joints=True (it becomes its own node, joined to that one)")
+            where = (
+                f"an end of bars {np.flatnonzero(np.any(rods == i, axis=1)).tolist()}"
+                if count[i]
+                else "fixed"
+            )
+            raise ValueError(
+                f"node_point_mass[{i}]: node {i} is {where}; a point mass there needs "
+                "ball_joints=True (it becomes its own node, joined to that one)"
+            )
     start = np.cumsum(parts) - parts  # the first node of each node of N
     split_fixed = np.zeros(int(parts.sum()), bool)
     split_fixed[start[fixed]] = True
@@ -287,25 +333,36 @@ def _split_nodes(network: _Network, node_fixed: Any, node_point_mass: Any, *,
     return _SplitNodes(start, parts, start + anchor, split_fixed, split_mass)
 
 
-def _supports_and_point_masses(node_fixed: Any, node_point_mass: Any,
-                               n_nodes: int) -> tuple[np.ndarray, np.ndarray]:
+def _supports_and_point_masses(
+    node_fixed: Any, node_point_mass: Any, n_nodes: int
+) -> tuple[np.ndarray, np.ndarray]:
     """``(fixed (n,) bool, point mass (n,) [kg])`` of :func:`from_connectivity`'s arguments,
     checked (booleans; finite masses >= 0)."""
     fixed = np.zeros(n_nodes, bool) if node_fixed is None else np.asarray(node_fixed)
     if fixed.shape != (n_nodes,) or fixed.dtype != bool:
-        raise ValueError(f"node_fixed: expected {n_nodes} booleans, got {fixed.dtype} of shape "
-                         f"{fixed.shape}")
-    mass = _per_member(0.0 if node_point_mass is None else node_point_mass, n_nodes,
-                       "node_point_mass")
+        raise ValueError(
+            f"node_fixed: expected {n_nodes} booleans, got {fixed.dtype} of shape {fixed.shape}"
+        )
+    mass = _per_member(
+        0.0 if node_point_mass is None else node_point_mass, n_nodes, "node_point_mass"
+    )
     bad = np.flatnonzero(~np.isfinite(mass) | (mass < 0))
     if bad.size:
         raise ValueError(f"node_point_mass[{bad[0]}]: must be finite and >= 0, got {mass[bad[0]]}")
     return fixed, mass
 
 
-def _node_fields(network: _Network, split: _SplitNodes, velocity: np.ndarray | None, *,
-                 joint_nodes: Any, plane_nodes: Any, plane_normal: Any, line_nodes: Any,
-                 line_direction: Any) -> dict[str, Any]:
+def _node_fields(
+    network: _Network,
+    split: _SplitNodes,
+    velocity: np.ndarray | None,
+    *,
+    joint_nodes: Any,
+    plane_nodes: Any,
+    plane_normal: Any,
+    line_nodes: Any,
+    line_direction: Any,
+) -> dict[str, Any]:
     """The :class:`Structure` fields of the split nodes (positions, velocities (n, d) [m/s] or
     None, supports, point masses, joints, planes and lines) and of the members' end nodes."""
     start, parts, n_nodes = split.start, split.parts, network.position.shape[0]
@@ -316,8 +373,9 @@ def _node_fields(network: _Network, split: _SplitNodes, velocity: np.ndarray | N
         tendon_nodes=start[network.tendons],
         node_fixed=split.fixed,
         node_point_mass=split.mass,
-        joint_nodes=np.vstack([_star_joints(start, parts),
-                               start[_node_pairs(joint_nodes, n_nodes)]]),
+        joint_nodes=np.vstack(
+            [_star_joints(start, parts), start[_node_pairs(joint_nodes, n_nodes)]]
+        ),
         plane_nodes=start[_node_list(plane_nodes, "plane_nodes", n_nodes)],
         plane_normal=plane_normal,
         line_nodes=start[_node_list(line_nodes, "line_nodes", n_nodes)],
@@ -325,22 +383,32 @@ def _node_fields(network: _Network, split: _SplitNodes, velocity: np.ndarray | N
     )
 
 
-def _member_fields(network: _Network, rest: np.ndarray, *, rod_mass: Any, rod_length: Any,
-                   rod_damping: Any, tendon_stiffness: Any, tendon_damping: Any,
-                   tendon_name: Sequence[str] | None) -> dict[str, Any]:
+def _member_fields(
+    network: _Network,
+    rest: np.ndarray,
+    *,
+    rod_mass: Any,
+    rod_length: Any,
+    rod_damping: Any,
+    tendon_stiffness: Any,
+    tendon_damping: Any,
+    tendon_name: Sequence[str] | None,
+) -> dict[str, Any]:
     """The :class:`Structure` fields of the bars and strings: each parameter a number or one
     value per member; ``rod_length`` [m] defaults to the lengths in ``N``, ``rest`` (S,) [m]."""
     R, S = network.rods.shape[0], network.tendons.shape[0]
     return dict(
         rod_mass=_per_member(rod_mass, R, "rod_mass"),
-        rod_length=(network.length if rod_length is None
-                    else _per_member(rod_length, R, "rod_length")),
+        rod_length=(
+            network.length if rod_length is None else _per_member(rod_length, R, "rod_length")
+        ),
         rod_damping=_per_member(rod_damping, R, "rod_damping"),
         tendon_stiffness=_per_member(tendon_stiffness, S, "tendon_stiffness"),
         tendon_rest_length=rest,
         tendon_damping=_per_member(tendon_damping, S, "tendon_damping"),
         tendon_name=None if tendon_name is None else tuple(tendon_name),
     )
+
 
 def _node_pairs(value: Any, n_nodes: int) -> np.ndarray:
     """``joint_nodes`` of :func:`from_connectivity` as a (J, 2) array of node indices."""
@@ -365,7 +433,9 @@ def _star_joints(start: np.ndarray, parts: np.ndarray) -> np.ndarray:
     consecutive nodes to each of the others."""
     extra = parts - 1
     lead = np.repeat(start, extra)
-    return np.column_stack([lead, lead + 1 + np.arange(lead.size) - np.repeat(np.cumsum(extra) - extra, extra)])
+    return np.column_stack(
+        [lead, lead + 1 + np.arange(lead.size) - np.repeat(np.cumsum(extra) - extra, extra)]
+    )
 
 
 def incidence(pairs: np.ndarray, n_nodes: int) -> np.ndarray:
@@ -433,12 +503,16 @@ def merge_joints(structure: Structure, *, keep_joints: bool = False) -> MergedNo
     for k, (a, b) in enumerate(tendons):
         tail, head = structure.tendon_nodes[k]
         if a == b:
-            raise ValueError(f"tendons[{k}] ({names[k]!r}): joins nodes {tail} and {head}, which are "
-                             "joined by a ball joint; C_s cannot hold a string of zero length")
+            raise ValueError(
+                f"tendons[{k}] ({names[k]!r}): joins nodes {tail} and {head}, which are "
+                "joined by a ball joint; C_s cannot hold a string of zero length"
+            )
         key = (min(a, b), max(a, b))
         if key in seen:
-            raise ValueError(f"tendons[{k}] ({names[k]!r}): joins the same joined nodes as "
-                             f"tendons[{seen[key]}] ({names[seen[key]]!r}); C_s cannot keep them apart")
+            raise ValueError(
+                f"tendons[{k}] ({names[k]!r}): joins the same joined nodes as "
+                f"tendons[{seen[key]}] ({names[seen[key]]!r}); C_s cannot keep them apart"
+            )
         seen[key] = k
     fixed = np.zeros(lead.size, bool)
     np.logical_or.at(fixed, node_map, structure.node_fixed)
@@ -447,7 +521,9 @@ def merge_joints(structure: Structure, *, keep_joints: bool = False) -> MergedNo
         N=structure.node_position[lead].T.copy(),
         node_velocity=structure.node_velocity[lead].T.copy(),
         node_fixed=fixed,
-        node_point_mass=np.bincount(node_map, weights=structure.node_point_mass, minlength=lead.size),
+        node_point_mass=np.bincount(
+            node_map, weights=structure.node_point_mass, minlength=lead.size
+        ),
         plane_nodes=node_map[structure.plane_nodes],
         plane_normal=structure.plane_normal.copy(),
         line_nodes=node_map[structure.line_nodes],

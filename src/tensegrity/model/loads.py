@@ -23,8 +23,9 @@ def gravity_vector(value: float | Sequence[float], dim: int) -> np.ndarray:
     structure); a sequence of ``dim`` numbers is the vector itself.  ``ValueError`` naming
     ``gravity`` otherwise.
     """
-    problem = ValueError(f"gravity: expected a finite number or {dim} finite components, "
-                         f"got {value!r}")
+    problem = ValueError(
+        f"gravity: expected a finite number or {dim} finite components, got {value!r}"
+    )
     try:
         vector = np.array(value, dtype=float, ndmin=1)
     except (TypeError, ValueError):
@@ -56,10 +57,15 @@ class _Table:
         name = self._values_field
         if time.ndim != 1 or time.size == 0:
             raise ValueError(f"time: expected a non-empty 1-D array, got shape {time.shape}")
-        if values.ndim != 1 + row_ndim or values.shape[0] != time.size or (
-                row_ndim == 2 and values.shape[2] != 3):
-            raise ValueError(f"{name}: expected shape (T, {row_shape}) with T = {time.size} rows "
-                             f"like time, got {values.shape}")
+        if (
+            values.ndim != 1 + row_ndim
+            or values.shape[0] != time.size
+            or (row_ndim == 2 and values.shape[2] != 3)
+        ):
+            raise ValueError(
+                f"{name}: expected shape (T, {row_shape}) with T = {time.size} rows "
+                f"like time, got {values.shape}"
+            )
         for field, array in (("time", time), (name, values)):
             bad = np.argwhere(~np.isfinite(array))
             if bad.size:
@@ -67,8 +73,10 @@ class _Table:
         step = np.flatnonzero(np.diff(time) <= 0)
         if step.size:
             k = step[0] + 1
-            raise ValueError(f"time: must increase strictly, but time[{k}] = {float(time[k])!r} <= "
-                             f"time[{k - 1}] = {float(time[k - 1])!r}")
+            raise ValueError(
+                f"time: must increase strictly, but time[{k}] = {float(time[k])!r} <= "
+                f"time[{k - 1}] = {float(time[k - 1])!r}"
+            )
         if self.outside not in ("hold", "zero"):
             raise ValueError(f"outside: expected 'hold' or 'zero', got {self.outside!r}")
         time.setflags(write=False)
@@ -105,7 +113,9 @@ class _Table:
         if time.size == 1:
             return np.zeros((lo.size, *values.shape[1:]))
         hi = lo + 1
-        out = (values[hi] - values[lo]) / (time[hi] - time[lo]).reshape(-1, *[1] * (values.ndim - 1))
+        out = (values[hi] - values[lo]) / (time[hi] - time[lo]).reshape(
+            -1, *[1] * (values.ndim - 1)
+        )
         out[outside] = 0.0
         return out
 
@@ -170,5 +180,3 @@ class ControlTable(_Table):
 
     def __post_init__(self) -> None:
         self._validate("S", 1)
-
-

@@ -32,9 +32,15 @@ EXAMPLE2_TENDONS = (("t1", 2, 1), ("t2", 2, 0), ("t3", 0, 3), ("t5", 1, 3))
 def planar_rod(*, mass: float = 1.0, length: float = 1.0, angle: float = 0.0) -> Structure:
     """Example 1: one free planar rod [kg, m] from the origin at ``angle`` [rad] to the x axis."""
     tip = length * np.array([math.cos(angle), math.sin(angle)])
-    return Structure(node_position=np.array([[0.0, 0.0], tip]), rod_nodes=[[0, 1]],
-                     rod_mass=[mass], rod_length=[length], tendon_nodes=np.zeros((0, 2), int),
-                     tendon_stiffness=[], tendon_rest_length=[])
+    return Structure(
+        node_position=np.array([[0.0, 0.0], tip]),
+        rod_nodes=[[0, 1]],
+        rod_mass=[mass],
+        rod_length=[length],
+        tendon_nodes=np.zeros((0, 2), int),
+        tendon_stiffness=[],
+        tendon_rest_length=[],
+    )
 
 
 def planar_two_rod(
@@ -58,8 +64,11 @@ def planar_two_rod(
     r2 = L2 * np.array([math.cos(angle), math.sin(angle)])
     position = np.array([-r1 / 2, r1 / 2, -r2 / 2, r2 / 2])
     return Structure(
-        node_position=position, rod_nodes=[[0, 1], [2, 3]], rod_mass=list(rod_mass),
-        rod_length=[L1, L2], tendon_nodes=[(tail, head) for _, tail, head in EXAMPLE2_TENDONS],
+        node_position=position,
+        rod_nodes=[[0, 1], [2, 3]],
+        rod_mass=list(rod_mass),
+        rod_length=[L1, L2],
+        tendon_nodes=[(tail, head) for _, tail, head in EXAMPLE2_TENDONS],
         tendon_stiffness=np.broadcast_to(np.asarray(stiffness, dtype=float), (4,)),
         tendon_rest_length=np.broadcast_to(np.asarray(rest_length, dtype=float), (4,)),
         tendon_damping=np.full(4, float(damping)),
@@ -99,5 +108,12 @@ def two_rod_equilibrium(
             f"rest lengths ({rest_a}, {rest_b}): no taut point-symmetric equilibrium for rods "
             f"{rod_length} (cos phi = {cos_phi:.3g}, force density {density:.3g} N/m)"
         )
-    return dict(a=a, b=b, cos_phi=cos_phi, tension_a=density * a, tension_b=density * b,
-                compression_1=density * L1, compression_2=density * L2)
+    return dict(
+        a=a,
+        b=b,
+        cos_phi=cos_phi,
+        tension_a=density * a,
+        tension_b=density * b,
+        compression_1=density * L1,
+        compression_2=density * L2,
+    )

@@ -175,20 +175,34 @@ def class1_shell(
         n, m, rod_length=rod_length, radius=radius, stage_height=stage_height, twist=twist
     )
     return _shell_structure(
-        position, shell_tendons(n, m, primal=primal), rod_mass=rod_mass, rod_length=rod_length,
-        stiffness=stiffness, rest_length=rest_length, damping=damping,
+        position,
+        shell_tendons(n, m, primal=primal),
+        rod_mass=rod_mass,
+        rod_length=rod_length,
+        stiffness=stiffness,
+        rest_length=rest_length,
+        damping=damping,
     )
 
 
 def _shell_structure(
-    position: np.ndarray, tendons: list[tuple[str, int, int]], *, rod_mass: float,
-    rod_length: float, stiffness: float, rest_length: float | None, damping: float, **extra: Any,
+    position: np.ndarray,
+    tendons: list[tuple[str, int, int]],
+    *,
+    rod_mass: float,
+    rod_length: float,
+    stiffness: float,
+    rest_length: float | None,
+    damping: float,
+    **extra: Any,
 ) -> Structure:
     """A shell's :class:`Structure`: rod ``r`` joins nodes ``2r, 2r+1``, uniform parameters, the
     default rest length half the shortest initial tendon; ``extra`` fields passed on."""
     tendon_nodes = np.array([(tail, head) for _, tail, head in tendons])
     if rest_length is None:
-        lengths = np.linalg.norm(position[tendon_nodes[:, 1]] - position[tendon_nodes[:, 0]], axis=1)
+        lengths = np.linalg.norm(
+            position[tendon_nodes[:, 1]] - position[tendon_nodes[:, 0]], axis=1
+        )
         rest_length = 0.5 * float(lengths.min())
     n_rods, n_tendons = len(position) // 2, len(tendons)
     return Structure(
@@ -218,15 +232,19 @@ def class2_joints(n: int, m: int) -> np.ndarray:
     _check_size(n, m)
     pairs = [
         (shell_node_index(2, i, j, n), shell_node_index(1, i + 1, j + 1, n))
-        for j in range(1, m) for i in range(1, n + 1)
+        for j in range(1, m)
+        for i in range(1, n + 1)
     ] + [
         (shell_node_index(3, i - 1, j, n), shell_node_index(4, i, j - 1, n))
-        for j in range(2, m + 1) for i in range(1, n + 1)
+        for j in range(2, m + 1)
+        for i in range(1, n + 1)
     ]
     return np.array(pairs, dtype=np.int64).reshape(-1, 2)
 
 
-def class2_layout(n: int, m: int, *, rod_length: float = 1.0, stage_height: float | None = None) -> np.ndarray:
+def class2_layout(
+    n: int, m: int, *, rod_length: float = 1.0, stage_height: float | None = None
+) -> np.ndarray:
     """Node positions (4nm, 3) [m] of the class 2 shell on a cylinder about the z axis, in which
     the nodes that Lemma 18.1 joins coincide.
 
@@ -249,7 +267,9 @@ def class2_layout(n: int, m: int, *, rod_length: float = 1.0, stage_height: floa
         raise ValueError(f"rod_length: must be > 0, got {rod_length!r}")
     h = L / 2 if stage_height is None else _real(stage_height, "stage_height")
     if not (math.isfinite(h) and 0 < h < L):
-        raise ValueError(f"stage_height: must be in (0, rod_length) = (0, {L}), got {stage_height!r}")
+        raise ValueError(
+            f"stage_height: must be in (0, rod_length) = (0, {L}), got {stage_height!r}"
+        )
     R = math.sqrt(L**2 - h**2) / (2 * math.sin(math.pi / n))
     phi = 2 * math.pi * np.arange(n) / n + np.zeros((m, 1))  # (m, n)
     step = 2 * math.pi / n
@@ -290,7 +310,9 @@ def class2_shell(
     """
     _check_size(n, m)
     if m < 2:
-        raise ValueError(f"m: a class 2 shell needs m >= 2 stages (with m = 1 no nodes join), got {m!r}")
+        raise ValueError(
+            f"m: a class 2 shell needs m >= 2 stages (with m = 1 no nodes join), got {m!r}"
+        )
     position = class2_layout(n, m, rod_length=rod_length, stage_height=stage_height)
     tendons = []
     for name, tail, head in shell_tendons(n, m, primal=primal):
@@ -304,6 +326,13 @@ def class2_shell(
         for i in range(1, n + 1):
             fixed[[shell_node_index(1, i, 1, n), shell_node_index(3, i, 1, n)]] = True
     return _shell_structure(
-        position, tendons, rod_mass=rod_mass, rod_length=rod_length, stiffness=stiffness,
-        rest_length=rest_length, damping=damping, joint_nodes=class2_joints(n, m), node_fixed=fixed,
+        position,
+        tendons,
+        rod_mass=rod_mass,
+        rod_length=rod_length,
+        stiffness=stiffness,
+        rest_length=rest_length,
+        damping=damping,
+        joint_nodes=class2_joints(n, m),
+        node_fixed=fixed,
     )

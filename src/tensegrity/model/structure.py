@@ -76,16 +76,15 @@ def _index_array(value: Any, field: str, n_nodes: int) -> np.ndarray:
     for k, (a, b) in enumerate(array):
         for node in (a, b):
             if not 0 <= node < n_nodes:
-                raise ValueError(
-                    f"{field}[{k}]: node index {node} out of range [0, {n_nodes - 1}]"
-                )
+                raise ValueError(f"{field}[{k}]: node index {node} out of range [0, {n_nodes - 1}]")
         if a == b:
             raise ValueError(f"{field}[{k}]: joins node {a} to itself")
     return array
 
 
-def _check_sign(label: Callable[[int], str], field: str, values: np.ndarray, *,
-                strict: bool) -> None:
+def _check_sign(
+    label: Callable[[int], str], field: str, values: np.ndarray, *, strict: bool
+) -> None:
     """Raise ``{label(k)}.{field}: must be > 0`` (``>= 0`` unless ``strict``) for the first
     element ``k`` of ``values`` that is not."""
     bad = np.flatnonzero(values <= 0 if strict else values < 0)
@@ -121,6 +120,7 @@ def _check_tendon_pairs(tendon_nodes: np.ndarray, names: Sequence[str]) -> None:
                 f"tendons[{pairs[key]}] ({names[pairs[key]]!r})"
             )
         pairs[key] = k
+
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class Structure:
@@ -204,11 +204,18 @@ class Structure:
 
         set_ = lambda name, value: object.__setattr__(self, name, value)  # noqa: E731
         for name, value in (
-            ("node_position", position), ("node_velocity", velocity), ("rod_nodes", rod_nodes),
-            ("rod_mass", rod_mass), ("rod_length", rod_length), ("rod_damping", rod_damping),
-            ("tendon_nodes", tendon_nodes), ("tendon_stiffness", stiffness),
-            ("tendon_rest_length", rest_length), ("tendon_damping", damping),
-            ("node_fixed", fixed), ("node_point_mass", point_mass),
+            ("node_position", position),
+            ("node_velocity", velocity),
+            ("rod_nodes", rod_nodes),
+            ("rod_mass", rod_mass),
+            ("rod_length", rod_length),
+            ("rod_damping", rod_damping),
+            ("tendon_nodes", tendon_nodes),
+            ("tendon_stiffness", stiffness),
+            ("tendon_rest_length", rest_length),
+            ("tendon_damping", damping),
+            ("node_fixed", fixed),
+            ("node_point_mass", point_mass),
         ):
             set_(name, _readonly(value))
         set_("tendon_name", names)
@@ -316,18 +323,26 @@ class Structure:
                 )
         point_mass = _float_array(
             np.zeros(n_nodes) if self.node_point_mass is None else self.node_point_mass,
-            "node_point_mass", (n_nodes,),
+            "node_point_mass",
+            (n_nodes,),
         )
         in_rod = owner >= 0
         for rule, message in (
             (point_mass < 0, "node_point_mass[{k}]: must be >= 0, got {m}"),
-            ((point_mass > 0) & in_rod,
-             "node_point_mass[{k}]: node {k} is an end of rods[{r}]; a payload on a rod goes on "
-             "its own node, joined to the rod's end (joint_nodes)"),
-            ((point_mass > 0) & fixed, "node_point_mass[{k}]: node {k} is fixed; it cannot carry a mass"),
-            (~in_rod & ~fixed & (point_mass == 0),
-             "nodes[{k}]: belongs to no rod; fix it (node_fixed) or give it a mass "
-             "(node_point_mass): a massless free node has no dynamics"),
+            (
+                (point_mass > 0) & in_rod,
+                "node_point_mass[{k}]: node {k} is an end of rods[{r}]; a payload on a rod goes on "
+                "its own node, joined to the rod's end (joint_nodes)",
+            ),
+            (
+                (point_mass > 0) & fixed,
+                "node_point_mass[{k}]: node {k} is fixed; it cannot carry a mass",
+            ),
+            (
+                ~in_rod & ~fixed & (point_mass == 0),
+                "nodes[{k}]: belongs to no rod; fix it (node_fixed) or give it a mass "
+                "(node_point_mass): a massless free node has no dynamics",
+            ),
         ):
             bad = np.flatnonzero(rule)
             if bad.size:
@@ -340,7 +355,8 @@ class Structure:
         n_nodes, dim = position.shape
         joints = _index_array(
             np.zeros((0, 2), int) if self.joint_nodes is None else self.joint_nodes,
-            "joint_nodes", n_nodes,
+            "joint_nodes",
+            n_nodes,
         )
         gap = np.linalg.norm(position[joints[:, 1]] - position[joints[:, 0]], axis=1)
         scale = max(float(self.rod_length.max(initial=0.0)), 1.0)
@@ -358,7 +374,9 @@ class Structure:
                 [] if getattr(self, nodes_field) is None else getattr(self, nodes_field)
             )
             if nodes.ndim != 1 or (nodes.size and not np.issubdtype(nodes.dtype, np.integer)):
-                raise ValueError(f"{nodes_field}: expected a list of node indices, got {nodes!r:.80}")
+                raise ValueError(
+                    f"{nodes_field}: expected a list of node indices, got {nodes!r:.80}"
+                )
             nodes = nodes.astype(np.int64)
             bad = np.flatnonzero((nodes < 0) | (nodes >= n_nodes))
             if bad.size:
@@ -367,8 +385,10 @@ class Structure:
                     f"[0, {n_nodes - 1}]"
                 )
             if nodes.size and kind == "plane" and dim == 2:
-                raise ValueError(f"{nodes_field}: a planar structure has no plane constraints "
-                                 "(hold a node on a line with line_nodes)")
+                raise ValueError(
+                    f"{nodes_field}: a planar structure has no plane constraints "
+                    "(hold a node on a line with line_nodes)"
+                )
             value = getattr(self, vector_field)
             vectors = _float_array(
                 np.zeros((0, dim)) if value is None else value, vector_field, (nodes.size, dim)
@@ -431,15 +451,20 @@ class Structure:
         """True for a 3-D class 1 structure without supports, joints or point masses: every
         node the end of exactly one rod, ``q`` the rods' coordinates only."""
         return self.dim == 3 and not (
-            self.node_fixed.any() or self.point_mass_nodes.size or self.joint_nodes.size
-            or self.plane_nodes.size or self.line_nodes.size
+            self.node_fixed.any()
+            or self.point_mass_nodes.size
+            or self.joint_nodes.size
+            or self.plane_nodes.size
+            or self.line_nodes.size
         )
 
     @cached_property
     def has_constraints(self) -> bool:
         """True if some node is fixed to a rod's end, joined, or held on a plane or line."""
         return bool(
-            self.joint_nodes.size or self.plane_nodes.size or self.line_nodes.size
+            self.joint_nodes.size
+            or self.plane_nodes.size
+            or self.line_nodes.size
             or np.any(self.node_fixed[self.rod_nodes])
         )
 
@@ -503,7 +528,8 @@ class Structure:
             extra["fixed"] = np.flatnonzero(self.node_fixed).tolist()
         if self.point_mass_nodes.size:
             extra["point_masses"] = [
-                {"node": int(k), "mass": float(self.node_point_mass[k])} for k in self.point_mass_nodes
+                {"node": int(k), "mass": float(self.node_point_mass[k])}
+                for k in self.point_mass_nodes
             ]
         if self.joint_nodes.size:
             extra["joints"] = self.joint_nodes.tolist()
@@ -513,32 +539,41 @@ class Structure:
         ):
             if nodes.size:
                 extra[key] = [{"node": int(k), name: v.tolist()} for k, v in zip(nodes, vectors)]
-        return extra | {
-            "nodes": self.node_position.tolist(),
-            "velocities": self.node_velocity.tolist(),
-            "rods": [
-                {"nodes": [int(a), int(b)], "mass": float(m), "length": float(L), "damping": float(c)}
-                for (a, b), m, L, c in zip(
-                    self.rod_nodes, self.rod_mass, self.rod_length, self.rod_damping
-                )
-            ],
-            "tendons": [
-                {
-                    "name": name,
-                    "nodes": [int(a), int(b)],
-                    "stiffness": float(k),
-                    "rest_length": float(L0),
-                    "damping": float(c),
-                }
-                for name, (a, b), k, L0, c in zip(
-                    self.tendon_name,
-                    self.tendon_nodes,
-                    self.tendon_stiffness,
-                    self.tendon_rest_length,
-                    self.tendon_damping,
-                )
-            ],
-        } | extra
+        return (
+            extra
+            | {
+                "nodes": self.node_position.tolist(),
+                "velocities": self.node_velocity.tolist(),
+                "rods": [
+                    {
+                        "nodes": [int(a), int(b)],
+                        "mass": float(m),
+                        "length": float(L),
+                        "damping": float(c),
+                    }
+                    for (a, b), m, L, c in zip(
+                        self.rod_nodes, self.rod_mass, self.rod_length, self.rod_damping
+                    )
+                ],
+                "tendons": [
+                    {
+                        "name": name,
+                        "nodes": [int(a), int(b)],
+                        "stiffness": float(k),
+                        "rest_length": float(L0),
+                        "damping": float(c),
+                    }
+                    for name, (a, b), k, L0, c in zip(
+                        self.tendon_name,
+                        self.tendon_nodes,
+                        self.tendon_stiffness,
+                        self.tendon_rest_length,
+                        self.tendon_damping,
+                    )
+                ],
+            }
+            | extra
+        )
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> Structure:
@@ -589,11 +624,17 @@ def _supports_from_dict(data: Mapping[str, Any], n_nodes: int, dim: int) -> dict
         fields["node_fixed"] = fixed
     if data.get("point_masses") is not None:
         mass = np.zeros(n_nodes)
-        items = [_require_item(item, f"point_masses[{k}]")
-                 for k, item in enumerate(_require(data, "point_masses", "structure", Sequence))]
+        items = [
+            _require_item(item, f"point_masses[{k}]")
+            for k, item in enumerate(_require(data, "point_masses", "structure", Sequence))
+        ]
         for k, item in enumerate(items):
-            node = _node_index(_require(item, "node", f"point_masses[{k}]"), f"point_masses[{k}].node", n_nodes)
-            mass[node] = parse_number(_require(item, "mass", f"point_masses[{k}]"), f"point_masses[{k}].mass")
+            node = _node_index(
+                _require(item, "node", f"point_masses[{k}]"), f"point_masses[{k}].node", n_nodes
+            )
+            mass[node] = parse_number(
+                _require(item, "mass", f"point_masses[{k}]"), f"point_masses[{k}].mass"
+            )
         fields["node_point_mass"] = mass
     if data.get("joints") is not None:
         joints = _require(data, "joints", "structure", Sequence)
@@ -601,8 +642,10 @@ def _supports_from_dict(data: Mapping[str, Any], n_nodes: int, dim: int) -> dict
     for key, vector, prefix in (("planes", "normal", "plane"), ("lines", "direction", "line")):
         if data.get(key) is None:
             continue
-        items = [_require_item(item, f"{key}[{k}]")
-                 for k, item in enumerate(_require(data, key, "structure", Sequence))]
+        items = [
+            _require_item(item, f"{key}[{k}]")
+            for k, item in enumerate(_require(data, key, "structure", Sequence))
+        ]
         fields[f"{prefix}_nodes"] = [
             _node_index(_require(item, "node", f"{key}[{k}]"), f"{key}[{k}].node", n_nodes)
             for k, item in enumerate(items)
@@ -631,7 +674,9 @@ def parse_number(value: Any, where: str) -> float:
 def node_dimension(nodes: Sequence[Any]) -> int:
     """2 if the first node of a JSON node list has two coordinates (a planar structure), else 3."""
     first = nodes[0] if len(nodes) else None
-    return 2 if isinstance(first, Sequence) and not isinstance(first, str) and len(first) == 2 else 3
+    return (
+        2 if isinstance(first, Sequence) and not isinstance(first, str) and len(first) == 2 else 3
+    )
 
 
 def parse_vector(value: Any, where: str, dim: int) -> list[float]:
@@ -665,8 +710,12 @@ def _node_pairs(items: Sequence[Mapping[str, Any]], kind: str) -> Any:
 
 def _node_pair(value: Any, where: str) -> list[int]:
     """A JSON list of two integer node indices."""
-    if (not isinstance(value, Sequence) or isinstance(value, str) or len(value) != 2
-            or any(isinstance(x, bool) or not isinstance(x, int) for x in value)):
+    if (
+        not isinstance(value, Sequence)
+        or isinstance(value, str)
+        or len(value) != 2
+        or any(isinstance(x, bool) or not isinstance(x, int) for x in value)
+    ):
         raise ValueError(f"{where}: expected two integer node indices [a, b], got {value!r:.80}")
     if any(not 0 <= x < 2**62 for x in value):
         raise ValueError(f"{where}: node index out of range in {value!r:.80}")

@@ -68,7 +68,9 @@ PROJECTION_RTOL = 1e-14
 PROJECTION_FLOOR_RTOL = 1e-12
 
 
-def solve_psd(matrix: sp.spmatrix | np.ndarray, rhs: np.ndarray, *, refinements: int = 2) -> np.ndarray:
+def solve_psd(
+    matrix: sp.spmatrix | np.ndarray, rhs: np.ndarray, *, refinements: int = 2
+) -> np.ndarray:
     """Solve ``K x = r`` for a symmetric positive semi-definite ``K`` (c x c), dense or sparse.
 
     Factorizes ``K + delta I`` (``delta = REGULARIZATION max(diag K)``) once (a dense ``K`` is
@@ -163,10 +165,12 @@ class LinearConstraints:
         self.node_matrix_t = self.node_matrix.T.tocsr()
         self.matrix = matrix[keep].tocsr()
         self.rhs = rhs[keep]
-        mass = np.concatenate([
-            np.repeat(np.stack([4 / s.rod_mass, 12 / s.rod_mass], axis=1), d, axis=1).ravel(),
-            np.repeat(1 / s.node_point_mass[s.point_mass_nodes], d),
-        ])
+        mass = np.concatenate(
+            [
+                np.repeat(np.stack([4 / s.rod_mass, 12 / s.rod_mass], axis=1), d, axis=1).ravel(),
+                np.repeat(1 / s.node_point_mass[s.point_mass_nodes], d),
+            ]
+        )
         self.inverse_mass = mass
         self.length_scale = max(float(s.rod_length.max(initial=0.0)), 1.0)
         self._g_pattern = self._acceleration_pattern(s)
@@ -222,8 +226,12 @@ class LinearConstraints:
         d, R = s.dim, s.n_rods
         slot_q1 = 2 * d * np.arange(R)
         a, b = d * s.rod_nodes[:, 0], d * s.rod_nodes[:, 1]
-        row_slot = np.concatenate([np.stack([slot_q1, slot_q1, slot_q1 + d, slot_q1 + d], 1).ravel(),
-                                   2 * d * R + d * np.arange(s.point_mass_nodes.size)])
+        row_slot = np.concatenate(
+            [
+                np.stack([slot_q1, slot_q1, slot_q1 + d, slot_q1 + d], 1).ravel(),
+                2 * d * R + d * np.arange(s.point_mass_nodes.size),
+            ]
+        )
         col_slot = np.concatenate([np.stack([a, b, a, b], 1).ravel(), d * s.point_mass_nodes])
         rows, cols = np.meshgrid(np.arange(d), np.arange(d), indexing="ij")
         return ((row_slot[:, None, None] + rows).ravel(), (col_slot[:, None, None] + cols).ravel())
@@ -253,7 +261,9 @@ class LinearConstraints:
         if not self.dense:
             return self.matrix @ (self.acceleration_matrix(q) @ self.node_matrix_t)
 
-        unit_forces = self._dense_node_matrix.reshape(-1, self.structure.n_nodes, self.structure.dim)
+        unit_forces = self._dense_node_matrix.reshape(
+            -1, self.structure.n_nodes, self.structure.dim
+        )
         # sparse A times a dense array: single-threaded, unlike a BLAS product, which stalls
         # when the machine is busy
         return self.matrix @ force_response(self.structure, q, unit_forces).T
@@ -282,7 +292,9 @@ class LinearConstraints:
         )
         return sp.vstack([self.matrix, lengths]).tocsr()
 
-    def project(self, q: np.ndarray, qdot: np.ndarray, *, max_iter: int = 50) -> tuple[np.ndarray, np.ndarray]:
+    def project(
+        self, q: np.ndarray, qdot: np.ndarray, *, max_iter: int = 50
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Closest ``(q, q')`` in the kinetic-energy metric with ``A q = b``, ``|q2| = L``,
         ``A q' = 0`` and ``q2 . q2' = 0``.
 
@@ -303,7 +315,9 @@ class LinearConstraints:
             q2 = rod_coordinates(s, q)[:, 1]
             length = np.linalg.norm(q2, axis=1)
             residual = self.residual(q)
-            error = max(np.max(np.abs(residual), initial=0.0), np.max(np.abs(length - L), initial=0.0))
+            error = max(
+                np.max(np.abs(residual), initial=0.0), np.max(np.abs(length - L), initial=0.0)
+            )
             if error <= tol or (error <= floor and error > 0.5 * previous):
                 break
             previous = error

@@ -51,7 +51,9 @@ def coordinates_from_nodes(structure: Structure, node_value: np.ndarray) -> np.n
     return q
 
 
-def nodes_from_coordinates(structure: Structure, q: np.ndarray, *, rates: bool = False) -> np.ndarray:
+def nodes_from_coordinates(
+    structure: Structure, q: np.ndarray, *, rates: bool = False
+) -> np.ndarray:
     """Node positions ``p = P q`` (eq. 18.26), shape (..., N, 3); anchors at their fixed
     positions.  With ``rates=True``, node velocities from ``qdot`` (anchors at rest)."""
     rods = rod_coordinates(structure, q)
@@ -83,14 +85,19 @@ def force_response(
     q2 = rod_coordinates(structure, q)[:, 1]
     m, L2 = structure.rod_mass[:, None], structure.rod_length[:, None] ** 2
     # skew(q2)^2 f = q2 (q2 . f) - |q2|^2 f
-    skew2_f = q2 * np.sum(q2 * f_diff, axis=-1, keepdims=True) - np.sum(q2 * q2, axis=-1, keepdims=True) * f_diff
+    skew2_f = (
+        q2 * np.sum(q2 * f_diff, axis=-1, keepdims=True)
+        - np.sum(q2 * q2, axis=-1, keepdims=True) * f_diff
+    )
     qddot = np.empty((*f_sum.shape[:-1], 2, structure.dim))
     qddot[..., 0, :] = (2.0 / m) * f_sum
     if rates is None:
         qddot[..., 1, :] = (6.0 / (m * L2)) * skew2_f
     else:
         v2 = rates[:, 1]
-        qddot[:, 1] = -(np.sum(v2 * v2, axis=1, keepdims=True) / L2) * q2 + (6.0 / (m * L2)) * skew2_f
+        qddot[:, 1] = (
+            -(np.sum(v2 * v2, axis=1, keepdims=True) / L2) * q2 + (6.0 / (m * L2)) * skew2_f
+        )
         qddot -= structure.rod_damping[:, None, None] * rates
     qddot = qddot.reshape(*qddot.shape[:-3], -1)
     if structure.is_free_class1:

@@ -48,16 +48,6 @@ class State:
     qdot: np.ndarray
 
 
-
-
-
-
-
-
-
-
-
-
 def project_to_constraints(
     structure: Structure, q: np.ndarray, qdot: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -280,8 +270,6 @@ def evaluate(
     return Evaluation(qddot, tendons, dissipated, external_power, reaction)
 
 
-
-
 def accelerations(
     structure: Structure,
     q: np.ndarray,
@@ -341,5 +329,7 @@ def gravity_energy(structure: Structure, q: np.ndarray, gravity: np.ndarray | No
     energy = -np.sum(structure.rod_mass * (centre @ g), axis=-1)
     if structure.point_mass_nodes.size:
         x = point_mass_coordinates(structure, q)
-        energy = energy - np.sum(structure.node_point_mass[structure.point_mass_nodes] * (x @ g), axis=-1)
+        energy = energy - np.sum(
+            structure.node_point_mass[structure.point_mass_nodes] * (x @ g), axis=-1
+        )
     return energy

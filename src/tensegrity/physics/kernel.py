@@ -68,8 +68,19 @@ from numba import njit, prange
 from tensegrity.model.structure import Structure
 
 __all__ = [
-    "FastKernel", "KernelEvaluation", "PackedStructure", "RK4Result", "StencilLayout", "energies",
-    "pack", "project", "rhs", "rk4_step", "rk4_steps", "stencil_layout", "tendon_vector",
+    "FastKernel",
+    "KernelEvaluation",
+    "PackedStructure",
+    "RK4Result",
+    "StencilLayout",
+    "energies",
+    "pack",
+    "project",
+    "rhs",
+    "rk4_step",
+    "rk4_steps",
+    "stencil_layout",
+    "tendon_vector",
 ]
 
 
@@ -85,7 +96,10 @@ class JitOptions(TypedDict):
 
 
 JIT_OPTIONS: JitOptions = {
-    "cache": True, "fastmath": {"contract"}, "nogil": True, "boundscheck": False,
+    "cache": True,
+    "fastmath": {"contract"},
+    "nogil": True,
+    "boundscheck": False,
     "error_model": "numpy",
 }
 
@@ -136,8 +150,7 @@ def tendon_vector(p, tendon_slots, s):  # pragma: no cover - compiled
     """``(tail, head, tx, ty, tz)``: tendon ``s``'s slots and ``t = p_head - p_tail``."""
     tail = tendon_slots[s, 0]
     head = tendon_slots[s, 1]
-    return (tail, head, p[0, head] - p[0, tail], p[1, head] - p[1, tail],
-            p[2, head] - p[2, tail])
+    return (tail, head, p[0, head] - p[0, tail], p[1, head] - p[1, tail], p[2, head] - p[2, tail])
 
 
 @njit(inline="always", **JIT_OPTIONS)
@@ -153,9 +166,9 @@ def _node_pass(q, qdot, rod_slots, tendon_damping, p, v, first, last):  # pragma
     # compiler cannot prove an index >= 0 when ``first`` is not known at compile time (the
     # threaded blocks), and keeps numba's negative-index wrap-around on every access.
     rod_slots = rod_slots[first:last]
-    end_values(q[6 * first:6 * last], rod_slots, p)
+    end_values(q[6 * first : 6 * last], rod_slots, p)
     if tendon_damping is not None:
-        end_values(qdot[6 * first:6 * last], rod_slots, v)
+        end_values(qdot[6 * first : 6 * last], rod_slots, v)
 
 
 @njit(inline="always", **JIT_OPTIONS)
@@ -186,7 +199,17 @@ def _tendon_force(tx, ty, tz, length, rest, stiffness, c, t_dot_dv):  # pragma: 
 
 @njit(inline="always", **JIT_OPTIONS)
 def _store_tendon(
-    tension, elastic_tension, force, s, tail, head, total, elastic, fx, fy, fz,
+    tension,
+    elastic_tension,
+    force,
+    s,
+    tail,
+    head,
+    total,
+    elastic,
+    fx,
+    fy,
+    fz,
 ):  # pragma: no cover - compiled
     """Tendon ``s``'s tension and elastic tension, and its force ``f`` added at the tail slot
     and ``-f`` at the head slot of ``force`` (3, n_slots)."""
@@ -209,14 +232,27 @@ def _tendon_rates(p, v, a, b, first, n, out):  # pragma: no cover - compiled
     for e in range(n):
         ia = a + e
         ib = b + e
-        out[first + e] = ((p[0, ib] - p[0, ia]) * (v[0, ib] - v[0, ia])
-                          + (p[1, ib] - p[1, ia]) * (v[1, ib] - v[1, ia])
-                          + (p[2, ib] - p[2, ia]) * (v[2, ib] - v[2, ia]))
+        out[first + e] = (
+            (p[0, ib] - p[0, ia]) * (v[0, ib] - v[0, ia])
+            + (p[1, ib] - p[1, ia]) * (v[1, ib] - v[1, ia])
+            + (p[2, ib] - p[2, ia]) * (v[2, ib] - v[2, ia])
+        )
 
 
 @njit(**JIT_OPTIONS)
 def _tendon_run(
-    p, force, a, b, first, n, stiffness, damping, rest, tension, elastic_tension, damping_power,
+    p,
+    force,
+    a,
+    b,
+    first,
+    n,
+    stiffness,
+    damping,
+    rest,
+    tension,
+    elastic_tension,
+    damping_power,
 ):  # pragma: no cover - compiled
     """A run of ``n`` tendons whose tails and heads sit at consecutive slots: tendon ``e`` of the
     run is at kernel position ``first + e``, its tail at slot ``a + e`` and its head at
@@ -239,10 +275,12 @@ def _tendon_run(
         length = np.sqrt(tx * tx + ty * ty + tz * tz)
         if damping is None:
             total, elastic, fx, fy, fz, _ = _tendon_force(
-                tx, ty, tz, length, rest[s], stiffness[s], None, 0.0)
+                tx, ty, tz, length, rest[s], stiffness[s], None, 0.0
+            )
         else:
             total, elastic, fx, fy, fz, power = _tendon_force(
-                tx, ty, tz, length, rest[s], stiffness[s], damping[s], damping_power[s])
+                tx, ty, tz, length, rest[s], stiffness[s], damping[s], damping_power[s]
+            )
             damping_power[s] = power
         _store_tendon(tension, elastic_tension, force, s, ia, ib, total, elastic, fx, fy, fz)
 
@@ -265,8 +303,19 @@ def _sum(values):  # pragma: no cover - compiled
 
 @njit(inline="always", **JIT_OPTIONS)
 def _tendon_pass(
-    p, v, force, tendon_slots, tendon_runs, tendon_stiffness, tendon_damping, rest_length,
-    tension, elastic_tension, damping_power, first, last,
+    p,
+    v,
+    force,
+    tendon_slots,
+    tendon_runs,
+    tendon_stiffness,
+    tendon_damping,
+    rest_length,
+    tension,
+    elastic_tension,
+    damping_power,
+    first,
+    last,
 ):  # pragma: no cover - compiled
     """Tendons at kernel positions ``first:last``: tension and elastic tension, nodal forces
     added to ``force`` (3, n_slots), the tail pulled toward the head and the head toward the
@@ -290,12 +339,36 @@ def _tendon_pass(
         first_run = np.uint64(lo)
         n = np.uint64(hi - lo)
         if tendon_damping is None:
-            _tendon_run(p, force, a, b, first_run, n, tendon_stiffness, None, rest_length, tension,
-                        elastic_tension, None)
+            _tendon_run(
+                p,
+                force,
+                a,
+                b,
+                first_run,
+                n,
+                tendon_stiffness,
+                None,
+                rest_length,
+                tension,
+                elastic_tension,
+                None,
+            )
         else:
             _tendon_rates(p, v, a, b, first_run, n, damping_power)
-            _tendon_run(p, force, a, b, first_run, n, tendon_stiffness, tendon_damping,
-                        rest_length, tension, elastic_tension, damping_power)
+            _tendon_run(
+                p,
+                force,
+                a,
+                b,
+                first_run,
+                n,
+                tendon_stiffness,
+                tendon_damping,
+                rest_length,
+                tension,
+                elastic_tension,
+                damping_power,
+            )
             dissipation += _sum(damping_power[lo:hi])
     # The tendons outside runs (kernel positions in_runs:S), one by one.
     lo = max(first, in_runs)
@@ -313,13 +386,24 @@ def _tendon_pass(
             continue
         if tendon_damping is None:
             total, elastic, fx, fy, fz, _ = _tendon_force(
-                tx, ty, tz, length, rest_length[s], tendon_stiffness[s], None, 0.0)
+                tx, ty, tz, length, rest_length[s], tendon_stiffness[s], None, 0.0
+            )
         else:
-            t_dot_dv = (tx * (v[0, head] - v[0, tail]) + ty * (v[1, head] - v[1, tail])
-                        + tz * (v[2, head] - v[2, tail]))
+            t_dot_dv = (
+                tx * (v[0, head] - v[0, tail])
+                + ty * (v[1, head] - v[1, tail])
+                + tz * (v[2, head] - v[2, tail])
+            )
             total, elastic, fx, fy, fz, d = _tendon_force(
-                tx, ty, tz, length, rest_length[s], tendon_stiffness[s], tendon_damping[lo + s],
-                t_dot_dv)
+                tx,
+                ty,
+                tz,
+                length,
+                rest_length[s],
+                tendon_stiffness[s],
+                tendon_damping[lo + s],
+                t_dot_dv,
+            )
             dissipation += d
         _store_tendon(tension, elastic_tension, force, s, tail, head, total, elastic, fx, fy, fz)
     return dissipation
@@ -339,8 +423,18 @@ def _take_force(force, slot):  # pragma: no cover - compiled
 
 @njit(inline="always", **JIT_OPTIONS)
 def _rod_pass(
-    q, qdot, rod_slots, rod_param, has_external, external_force, has_gravity, gravity, force,
-    qddot, first, last,
+    q,
+    qdot,
+    rod_slots,
+    rod_param,
+    has_external,
+    external_force,
+    has_gravity,
+    gravity,
+    force,
+    qddot,
+    first,
+    last,
 ):  # pragma: no cover - compiled
     """Rods ``first:last``: eqs. 18.17, 18.20 and mass-proportional damping into ``qddot``, from
     the tendon forces ``force`` (3, n_slots; left zero, :func:`_take_force`), half the rod's
@@ -349,9 +443,9 @@ def _rod_pass(
     external_power)``."""
     rod_slots = rod_slots[first:last]
     rod_param = rod_param[first:last]
-    q = q[6 * first:6 * last]
-    qdot = qdot[6 * first:6 * last]
-    qddot = qddot[6 * first:6 * last]
+    q = q[6 * first : 6 * last]
+    qdot = qdot[6 * first : 6 * last]
+    qddot = qddot[6 * first : 6 * last]
     external_power = 0.0
     rod_dissipation = 0.0
     for r in range(rod_slots.shape[0]):
@@ -372,8 +466,9 @@ def _rod_pass(
             for i in range(3):  # node velocities p' = P q' (eq. 18.26)
                 v1 = qdot[o + i]
                 v2 = qdot[o + 3 + i]
-                external_power += (external_force[i, a] * (0.5 * (v1 - v2))
-                                   + external_force[i, b] * (0.5 * (v1 + v2)))
+                external_power += external_force[i, a] * (0.5 * (v1 - v2)) + external_force[
+                    i, b
+                ] * (0.5 * (v1 + v2))
             fax += external_force[0, a]
             fay += external_force[1, a]
             faz += external_force[2, a]
@@ -426,9 +521,25 @@ def _block(k, n_blocks, n):  # pragma: no cover - compiled
 
 @njit(parallel=True, **JIT_OPTIONS)
 def _rhs_threaded(
-    q, qdot, rod_slots, rod_param, tendon_slots, tendon_runs, tendon_stiffness, tendon_damping,
-    rest_length, has_external, external_force, has_gravity, gravity,
-    node_work, block_force, qddot, tension, elastic_tension, damping_power,
+    q,
+    qdot,
+    rod_slots,
+    rod_param,
+    tendon_slots,
+    tendon_runs,
+    tendon_stiffness,
+    tendon_damping,
+    rest_length,
+    has_external,
+    external_force,
+    has_gravity,
+    gravity,
+    node_work,
+    block_force,
+    qddot,
+    tension,
+    elastic_tension,
+    damping_power,
 ):  # pragma: no cover - compiled
     """:func:`rhs` on ``B = block_force.shape[0] + 1`` threads: each pass is cut into B blocks run
     in parallel (``prange``).  Tendon block 0 adds its forces to ``node_work[2]``, block
@@ -446,9 +557,21 @@ def _rhs_threaded(
     for k in prange(n_blocks):
         force = force0 if k == 0 else block_force[k - 1]
         first, last = _block(k, n_blocks, n_tendons)
-        tendon_power[k] = _tendon_pass(p, v, force, tendon_slots, tendon_runs, tendon_stiffness,
-                                       tendon_damping, rest_length, tension, elastic_tension,
-                                       damping_power, first, last)
+        tendon_power[k] = _tendon_pass(
+            p,
+            v,
+            force,
+            tendon_slots,
+            tendon_runs,
+            tendon_stiffness,
+            tendon_damping,
+            rest_length,
+            tension,
+            elastic_tension,
+            damping_power,
+            first,
+            last,
+        )
     rod_power = np.empty((n_blocks, 2))
     for k in prange(n_blocks):
         first, last = _block(k, n_blocks, n_rods)
@@ -462,8 +585,19 @@ def _rhs_threaded(
                     block_force[j, i, a] = 0.0
                     block_force[j, i, b] = 0.0
         rod_power[k, 0], rod_power[k, 1] = _rod_pass(
-            q, qdot, rod_slots, rod_param, has_external, external_force, has_gravity, gravity,
-            force0, qddot, first, last)
+            q,
+            qdot,
+            rod_slots,
+            rod_param,
+            has_external,
+            external_force,
+            has_gravity,
+            gravity,
+            force0,
+            qddot,
+            first,
+            last,
+        )
     dissipated = 0.0
     external = 0.0
     for k in range(n_blocks):  # fixed order: deterministic
@@ -476,9 +610,25 @@ def _rhs_threaded(
 
 @njit(**JIT_OPTIONS)
 def rhs(
-    q, qdot, rod_slots, rod_param, tendon_slots, tendon_runs, tendon_stiffness, tendon_damping,
-    rest_length, has_external, external_force, has_gravity, gravity,
-    node_work, block_force, qddot, tension, elastic_tension, damping_power,
+    q,
+    qdot,
+    rod_slots,
+    rod_param,
+    tendon_slots,
+    tendon_runs,
+    tendon_stiffness,
+    tendon_damping,
+    rest_length,
+    has_external,
+    external_force,
+    has_gravity,
+    gravity,
+    node_work,
+    block_force,
+    qddot,
+    tension,
+    elastic_tension,
+    damping_power,
 ):  # pragma: no cover - compiled
     """Theorem 18.1 for all rods: fills ``qddot`` (6R,), ``tension`` and ``elastic_tension``
     (S,), and with tendon damping ``damping_power`` (S,), all in kernel order.
@@ -492,19 +642,59 @@ def rhs(
     compile time).  Returns ``(dissipated_power, external_power)``.
     """
     if block_force is not None:
-        return _rhs_threaded(q, qdot, rod_slots, rod_param, tendon_slots, tendon_runs,
-                             tendon_stiffness, tendon_damping, rest_length, has_external,
-                             external_force, has_gravity, gravity, node_work, block_force, qddot,
-                             tension, elastic_tension, damping_power)
+        return _rhs_threaded(
+            q,
+            qdot,
+            rod_slots,
+            rod_param,
+            tendon_slots,
+            tendon_runs,
+            tendon_stiffness,
+            tendon_damping,
+            rest_length,
+            has_external,
+            external_force,
+            has_gravity,
+            gravity,
+            node_work,
+            block_force,
+            qddot,
+            tension,
+            elastic_tension,
+            damping_power,
+        )
     n_rods = rod_slots.shape[0]
     p, v, force = node_work[0], node_work[1], node_work[2]
     _node_pass(q, qdot, rod_slots, tendon_damping, p, v, 0, n_rods)
-    tendon_dissipation = _tendon_pass(p, v, force, tendon_slots, tendon_runs, tendon_stiffness,
-                                      tendon_damping, rest_length, tension, elastic_tension,
-                                      damping_power, 0, tendon_slots.shape[0])
-    rod_dissipation, external_power = _rod_pass(q, qdot, rod_slots, rod_param, has_external,
-                                                external_force, has_gravity, gravity, force,
-                                                qddot, 0, n_rods)
+    tendon_dissipation = _tendon_pass(
+        p,
+        v,
+        force,
+        tendon_slots,
+        tendon_runs,
+        tendon_stiffness,
+        tendon_damping,
+        rest_length,
+        tension,
+        elastic_tension,
+        damping_power,
+        0,
+        tendon_slots.shape[0],
+    )
+    rod_dissipation, external_power = _rod_pass(
+        q,
+        qdot,
+        rod_slots,
+        rod_param,
+        has_external,
+        external_force,
+        has_gravity,
+        gravity,
+        force,
+        qddot,
+        0,
+        n_rods,
+    )
     return tendon_dissipation + rod_dissipation, external_power
 
 
@@ -537,7 +727,14 @@ def project(q, qdot, rod_param):  # pragma: no cover - compiled
 
 @njit(**JIT_OPTIONS)
 def rk4_step(
-    q, qdot, h, model, tension, elastic_tension, damping_power, stage_work,
+    q,
+    qdot,
+    h,
+    model,
+    tension,
+    elastic_tension,
+    damping_power,
+    stage_work,
 ):  # pragma: no cover - compiled
     """One classical RK4 step of ``h`` on ``y = [q, q']`` in place (no projection); ``model`` is
     the tuple of :func:`rhs`'s model arguments.  The stage arithmetic is that of
@@ -579,10 +776,28 @@ def rk4_step(
 
 @njit(**JIT_OPTIONS)
 def rk4_steps(
-    q, qdot, dt, n_steps, max_rod_length_error,
-    rod_slots, rod_param, tendon_slots, tendon_runs, tendon_stiffness, tendon_damping,
-    rest_length, has_external, external_force, has_gravity, gravity,
-    node_work, block_force, tension, elastic_tension, damping_power, stage_work,
+    q,
+    qdot,
+    dt,
+    n_steps,
+    max_rod_length_error,
+    rod_slots,
+    rod_param,
+    tendon_slots,
+    tendon_runs,
+    tendon_stiffness,
+    tendon_damping,
+    rest_length,
+    has_external,
+    external_force,
+    has_gravity,
+    gravity,
+    node_work,
+    block_force,
+    tension,
+    elastic_tension,
+    damping_power,
+    stage_work,
 ):  # pragma: no cover - compiled
     """Advance ``(q, qdot)`` in place by ``n_steps`` classical RK4 steps of ``dt``
     (:func:`rk4_step`), projecting onto the rod constraints after every step; inputs are constant
@@ -599,12 +814,23 @@ def rk4_steps(
     external = 0.0
     worst = 0.0
     taken = 0
-    model = (rod_slots, rod_param, tendon_slots, tendon_runs, tendon_stiffness, tendon_damping,
-             rest_length, has_external, external_force, has_gravity, gravity, node_work,
-             block_force)
+    model = (
+        rod_slots,
+        rod_param,
+        tendon_slots,
+        tendon_runs,
+        tendon_stiffness,
+        tendon_damping,
+        rest_length,
+        has_external,
+        external_force,
+        has_gravity,
+        gravity,
+        node_work,
+        block_force,
+    )
     while taken < n_steps:
-        d, w = rk4_step(q, qdot, dt, model, tension, elastic_tension, damping_power,
-                        stage_work)
+        d, w = rk4_step(q, qdot, dt, model, tension, elastic_tension, damping_power, stage_work)
         dissipated = dissipated + d
         external = external + w
         error = project(q, qdot, rod_param)
@@ -618,8 +844,16 @@ def rk4_steps(
 
 @njit(**JIT_OPTIONS)
 def energies(
-    q, qdot, rod_slots, rod_param, tendon_slots, tendon_stiffness, rest_length, has_gravity,
-    gravity, node_work,
+    q,
+    qdot,
+    rod_slots,
+    rod_param,
+    tendon_slots,
+    tendon_stiffness,
+    rest_length,
+    has_gravity,
+    gravity,
+    node_work,
 ):  # pragma: no cover - compiled
     """``(kinetic, elastic, gravity)`` energies [J], as ``dynamics.kinetic_energy``,
     ``elastic_energy`` and ``gravity_energy``; ``node_work[0]`` receives the node positions
@@ -720,8 +954,12 @@ def stencil_layout(tendon_nodes: np.ndarray, n_nodes: int) -> StencilLayout:
         lengths = np.diff(np.r_[starts, S])
         keep = lengths >= MIN_RUN
         if lengths[keep].sum() > best[0]:
-            best = (int(lengths[keep].sum()), K,
-                    np.stack([starts[keep], lengths[keep]], axis=1), order)
+            best = (
+                int(lengths[keep].sum()),
+                K,
+                np.stack([starts[keep], lengths[keep]], axis=1),
+                order,
+            )
     if best[0] < MIN_TENDONS_IN_RUNS:
         best = (0, 1, np.zeros((0, 2), dtype=np.int64), np.arange(S))
     _, K, runs, order = best
@@ -731,8 +969,11 @@ def stencil_layout(tendon_nodes: np.ndarray, n_nodes: int) -> StencilLayout:
     # Runs cut into pieces of at most RUN_CHUNK tendons, ordered by the cell of their first tail:
     # consecutive pieces then work on the same cells, whose node data stay in cache (beyond the
     # L3 cache, whole runs one after the other re-read the node arrays from memory once a run).
-    run_tendons = [order[piece:min(piece + RUN_CHUNK, start + length)]
-                   for start, length in runs for piece in range(start, start + length, RUN_CHUNK)]
+    run_tendons = [
+        order[piece : min(piece + RUN_CHUNK, start + length)]
+        for start, length in runs
+        for piece in range(start, start + length, RUN_CHUNK)
+    ]
     first_cell = np.array([tendon_nodes[t[0], 0] // K for t in run_tendons], dtype=np.int64)
     run_tendons = [run_tendons[g] for g in np.argsort(first_cell, kind="stable")]
     in_runs = np.zeros(S, dtype=bool)
@@ -785,8 +1026,10 @@ def pack(structure: Structure, *, general: bool = False) -> PackedStructure:
     if not general:
         structure.require_free_class1("the compiled kernel")
     elif structure.dim != 3:
-        raise ValueError("structure: the compiled kernel takes 3-D structures only (embed a "
-                         "planar one with tensegrity.physics.kernel_system.embed_planar)")
+        raise ValueError(
+            "structure: the compiled kernel takes 3-D structures only (embed a "
+            "planar one with tensegrity.physics.kernel_system.embed_planar)"
+        )
     m, L = structure.rod_mass, structure.rod_length
     rod_param = np.empty((structure.n_rods, 5))
     rod_param[:, ROD_MASS] = m
@@ -804,8 +1047,9 @@ def pack(structure: Structure, *, general: bool = False) -> PackedStructure:
         tendon_slots=np.ascontiguousarray(layout.node_slot[tendon_nodes[order]], dtype=np.uint64),
         tendon_runs=layout.tendon_runs,
         tendon_stiffness=np.ascontiguousarray(structure.tendon_stiffness[order], dtype=np.float64),
-        tendon_damping=(np.ascontiguousarray(damping[order], dtype=np.float64)
-                        if np.any(damping != 0) else None),
+        tendon_damping=(
+            np.ascontiguousarray(damping[order], dtype=np.float64) if np.any(damping != 0) else None
+        ),
         layout=layout,
     )
 
@@ -897,7 +1141,9 @@ class FastKernel:
             # a value set by the user wins.
             os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
         self.n_rods, self.n_tendons, self.n_nodes = (
-            structure.n_rods, structure.n_tendons, structure.n_nodes,
+            structure.n_rods,
+            structure.n_tendons,
+            structure.n_nodes,
         )
         self.n_coordinates = 6 * self.n_rods
         packed = pack(structure)
@@ -906,13 +1152,14 @@ class FastKernel:
         # Tendon values cross the boundary in the structure's order; inside they are in kernel
         # order: position[s] is tendon s's kernel position (uint32: half the bytes to read).
         order = packed.layout.tendon_order
-        self._position = (None if np.array_equal(order, np.arange(self.n_tendons))
-                          else np.argsort(order).astype(np.uint32))
+        self._position = (
+            None
+            if np.array_equal(order, np.arange(self.n_tendons))
+            else np.argsort(order).astype(np.uint32)
+        )
         n_slots = packed.layout.n_slots
         self._node_work = np.zeros((3, 3, n_slots))
-        self._block_force = (
-            None if self.threads == 1 else np.zeros((self.threads - 1, 3, n_slots))
-        )
+        self._block_force = None if self.threads == 1 else np.zeros((self.threads - 1, 3, n_slots))
         self._rest_length = np.zeros(self.n_tendons)  # kernel order
         self._tension = np.zeros(self.n_tendons)  # kernel order
         self._elastic = np.zeros(self.n_tendons)  # kernel order
@@ -925,8 +1172,15 @@ class FastKernel:
     def _model(self, rest: np.ndarray) -> ModelArrays:
         """:func:`rhs`'s model arguments up to ``rest_length`` (kernel order)."""
         p = self._packed
-        return (p.rod_slots, p.rod_param, p.tendon_slots, p.tendon_runs, p.tendon_stiffness,
-                p.tendon_damping, rest)
+        return (
+            p.rod_slots,
+            p.rod_param,
+            p.tendon_slots,
+            p.tendon_runs,
+            p.tendon_stiffness,
+            p.tendon_damping,
+            rest,
+        )
 
     # ------------------------------------------------------------------ inputs
     def _rest(self, rest_length: np.ndarray) -> np.ndarray:
@@ -954,8 +1208,12 @@ class FastKernel:
         if external_force is None:
             has_w, w = False, self._no_external
         else:
-            has_w, w = True, self._packed.to_slots(
-                _float_input(external_force, (self.n_nodes, 3), "external_force"))
+            has_w, w = (
+                True,
+                self._packed.to_slots(
+                    _float_input(external_force, (self.n_nodes, 3), "external_force")
+                ),
+            )
         if gravity is None:
             has_g, g = False, self._no_gravity
         else:
@@ -1001,8 +1259,17 @@ class FastKernel:
         # Without runs the kernel order is the structure's (small structures): no reordering.
         reorder = self._position is not None
         dissipated, external = rhs(
-            q, qdot, *self._model(rest), has_w, w, has_g, g, self._node_work, self._block_force,
-            qddot, self._tension if reorder else tension,
+            q,
+            qdot,
+            *self._model(rest),
+            has_w,
+            w,
+            has_g,
+            g,
+            self._node_work,
+            self._block_force,
+            qddot,
+            self._tension if reorder else tension,
             self._elastic if reorder or elastic_tension_out is None else elastic_tension_out,
             self._damping_power,
         )
@@ -1047,9 +1314,22 @@ class FastKernel:
         rest = self._rest(rest_length)
         has_w, w, has_g, g = self._loads(external_force, gravity)
         taken, dissipated, external, worst = rk4_steps(
-            q, qdot, dt, int(n_steps), float(max_rod_length_error), *self._model(rest),
-            has_w, w, has_g, g, self._node_work, self._block_force, self._tension, self._elastic,
-            self._damping_power, np.empty((5, n)),
+            q,
+            qdot,
+            dt,
+            int(n_steps),
+            float(max_rod_length_error),
+            *self._model(rest),
+            has_w,
+            w,
+            has_g,
+            g,
+            self._node_work,
+            self._block_force,
+            self._tension,
+            self._elastic,
+            self._damping_power,
+            np.empty((5, n)),
         )
         return RK4Result(q, qdot, dissipated, external, taken, worst)
 

@@ -74,9 +74,18 @@ from tensegrity.physics.kernel import (
 )
 
 __all__ = [
-    "MAX_ITER", "SystemArrays", "SystemExtras", "drop_coordinates", "embed_planar",
-    "lift_coordinates", "pack_system", "system_energies", "system_errors", "system_nodes",
-    "system_project", "system_rhs",
+    "MAX_ITER",
+    "SystemArrays",
+    "SystemExtras",
+    "drop_coordinates",
+    "embed_planar",
+    "lift_coordinates",
+    "pack_system",
+    "system_energies",
+    "system_errors",
+    "system_nodes",
+    "system_project",
+    "system_rhs",
 ]
 
 #: Gauss-Newton iterations of :func:`system_project` (``LinearConstraints.project``'s max_iter).
@@ -98,20 +107,24 @@ def embed_planar(structure: Structure) -> Structure:
         return np.concatenate([values, np.zeros((values.shape[0], 1))], axis=1)
 
     return structure.replace(
-        node_position=pad(structure.node_position), node_velocity=pad(structure.node_velocity),
-        plane_normal=pad(structure.plane_normal), line_direction=pad(structure.line_direction),
+        node_position=pad(structure.node_position),
+        node_velocity=pad(structure.node_velocity),
+        plane_normal=pad(structure.plane_normal),
+        line_direction=pad(structure.line_direction),
     )
 
 
 def _coordinate_count(structure2d: Structure, x: np.ndarray, per_vector: int, name: str) -> int:
     """Number of 2-vectors in ``x``'s last axis (rods' ``q1``, ``q2``, then point masses)."""
     if structure2d.dim != 2:
-        raise ValueError("structure2d: expected a planar (dim 2) structure, got dim "
-                         f"{structure2d.dim}")
+        raise ValueError(
+            f"structure2d: expected a planar (dim 2) structure, got dim {structure2d.dim}"
+        )
     count = 2 * structure2d.n_rods + structure2d.point_mass_nodes.size
     if x.ndim == 0 or x.shape[-1] != per_vector * count:
-        raise ValueError(f"{name}: expected a last axis of {per_vector * count}, got shape "
-                         f"{x.shape}")
+        raise ValueError(
+            f"{name}: expected a last axis of {per_vector * count}, got shape {x.shape}"
+        )
     return count
 
 
@@ -131,7 +144,8 @@ def drop_coordinates(structure2d: Structure, x: np.ndarray) -> np.ndarray:
     x = np.asarray(x, dtype=np.float64)
     count = _coordinate_count(structure2d, x, 3, "x")
     return np.ascontiguousarray(x.reshape((*x.shape[:-1], count, 3))[..., :2]).reshape(
-        (*x.shape[:-1], 2 * count))
+        (*x.shape[:-1], 2 * count)
+    )
 
 
 # --------------------------------------------------------------------------- packing
@@ -210,8 +224,12 @@ def _row_order(
     """Reverse Cuthill-McKee order of the projection rows (c constraint rows, then R rod rows)
     on the graph of rows sharing a body: ``(constraint_prow, rod_prow, k_rank, pattern)``."""
     incidence = sp.csr_matrix(
-        (np.ones(row.size + R), (np.concatenate([row, c + np.arange(R)]),
-                                 np.concatenate([body, np.arange(R)]))), shape=(c + R, n_bodies))
+        (
+            np.ones(row.size + R),
+            (np.concatenate([row, c + np.arange(R)]), np.concatenate([body, np.arange(R)])),
+        ),
+        shape=(c + R, n_bodies),
+    )
     pattern = (incidence @ incidence.T + sp.identity(c + R)).tocsr()
     order = reverse_cuthill_mckee(pattern, symmetric_mode=True).astype(np.int64)
     position = np.empty(c + R, dtype=np.int64)
@@ -226,16 +244,25 @@ def _constraint_rows(structure: Structure) -> dict[str, np.ndarray]:
     ``constraints_of(structure)`` renumbered in the order of :func:`_row_order`, entries grouped by
     body, and the envelopes of ``K`` and ``J W^-1 J^T``."""
     R, M = structure.n_rods, structure.point_mass_nodes.size
-    row, body, sign, coef = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0),
-                             np.zeros((0, 3)))
+    row, body, sign, coef = (
+        np.zeros(0, np.int64),
+        np.zeros(0, np.int64),
+        np.zeros(0),
+        np.zeros((0, 3)),
+    )
     rhs_b = np.zeros(0)
     constraints = constraints_of(structure)  # None without joints and supports
     if constraints is not None:
         row, body, sign, coef, rhs_b = _entries(structure, constraints)
     c = rhs_b.size
-    fields = dict(rod_prow=np.zeros(R, dtype=np.int64), constraint_prow=np.zeros(0, np.int64),
-                  k_first=np.zeros(0, np.int64), k_offset=np.zeros(1, np.int64),
-                  n_first=np.zeros(0, np.int64), n_offset=np.zeros(1, np.int64))
+    fields = dict(
+        rod_prow=np.zeros(R, dtype=np.int64),
+        constraint_prow=np.zeros(0, np.int64),
+        k_first=np.zeros(0, np.int64),
+        k_offset=np.zeros(1, np.int64),
+        n_first=np.zeros(0, np.int64),
+        n_offset=np.zeros(1, np.int64),
+    )
     if c:
         constraint_prow, rod_prow, k_rank, pattern = _row_order(row, body, c, R, R + M)
         row = k_rank[row]
@@ -243,7 +270,8 @@ def _constraint_rows(structure: Structure) -> dict[str, np.ndarray]:
         rhs_b, constraint_prow = rhs_b[k_order], constraint_prow[k_order]
         old = np.empty(c + R, dtype=np.int64)  # old row at each projection position
         old[np.concatenate([constraint_prow, rod_prow])] = np.concatenate(
-            [k_order, c + np.arange(R)])
+            [k_order, c + np.arange(R)]
+        )
         fields.update(rod_prow=rod_prow, constraint_prow=constraint_prow)
         fields["n_first"], fields["n_offset"] = _envelope(pattern[old][:, old])
         fields["k_first"], fields["k_offset"] = _envelope(pattern[k_order][:, k_order])
@@ -268,8 +296,10 @@ def pack_system(structure: Structure) -> SystemArrays:
         If ``structure`` is planar (``dim == 2``: pack ``embed_planar(structure)``).
     """
     if structure.dim != 3:
-        raise ValueError("structure: pack_system takes 3-D structures; embed a planar one with "
-                         "embed_planar(structure) first")
+        raise ValueError(
+            "structure: pack_system takes 3-D structures; embed a planar one with "
+            "embed_planar(structure) first"
+        )
     packed = pack(structure, general=True)
     n_coordinates = 6 * structure.n_rods + 3 * structure.point_mass_nodes.size
     if structure.is_free_class1:
@@ -283,8 +313,10 @@ def pack_system(structure: Structure) -> SystemArrays:
         point_mass=np.array(structure.node_point_mass[masses], dtype=np.float64),
         anchor_slots=np.array(slot[anchors], dtype=np.uint64),
         anchor_position=np.array(structure.node_position[anchors].T, dtype=np.float64, order="C"),
-        k_values=np.zeros(k_size), k_factor=np.zeros(k_size),
-        n_values=np.zeros(n_size), n_factor=np.zeros(n_size),
+        k_values=np.zeros(k_size),
+        k_factor=np.zeros(k_size),
+        n_values=np.zeros(n_size),
+        n_factor=np.zeros(n_size),
         work=np.zeros((4, max(rows["n_first"].size, 1))),
         **rows,
     )
@@ -499,8 +531,11 @@ def _assemble_coupling(q, rod_param, extras):  # pragma: no cover - compiled
         for e1 in range(start[body], start[body + 1]):
             c1q = coef[e1, 0] * x + coef[e1, 1] * y + coef[e1, 2] * z
             for e2 in range(e1, start[body + 1]):
-                dot = (coef[e1, 0] * coef[e2, 0] + coef[e1, 1] * coef[e2, 1]
-                       + coef[e1, 2] * coef[e2, 2])
+                dot = (
+                    coef[e1, 0] * coef[e2, 0]
+                    + coef[e1, 1] * coef[e2, 1]
+                    + coef[e1, 2] * coef[e2, 2]
+                )
                 c2q = coef[e2, 0] * x + coef[e2, 1] * y + coef[e2, 2] * z
                 value = dot * inv_m - sign[e1] * sign[e2] * half_c2 * (c1q * c2q - q2_sq * dot)
                 if e1 != e2 and rows[e1] == rows[e2]:
@@ -509,8 +544,9 @@ def _assemble_coupling(q, rod_param, extras):  # pragma: no cover - compiled
 
 
 @njit(**JIT_OPTIONS)
-def _point_mass_pass(qdot, n_rods, extras, has_external, external_force, has_gravity, gravity,
-                     force, qddot):  # pragma: no cover - compiled
+def _point_mass_pass(
+    qdot, n_rods, extras, has_external, external_force, has_gravity, gravity, force, qddot
+):  # pragma: no cover - compiled
     """``x'' = (f + w) / m + g`` for every point mass from the tendon forces ``force``
     (3, n_slots), which it leaves zero, as it leaves the anchors' (kernel.rhs's contract).
     Returns the power of ``w`` on the point masses [W]."""
@@ -545,15 +581,29 @@ def _constraint_pass(q, rod_param, extras, qddot):  # pragma: no cover - compile
     for i in range(c):
         rhs_[i] = -rhs_[i]
     _assemble_coupling(q, rod_param, extras)
-    _solve_psd(extras.k_values, extras.k_factor, extras.k_first, extras.k_offset, rhs_,
-               multiplier, scratch)
+    _solve_psd(
+        extras.k_values, extras.k_factor, extras.k_first, extras.k_offset, rhs_, multiplier, scratch
+    )
     _add_response(q, multiplier, rod_param, extras, qddot)
 
 
 @njit(**JIT_OPTIONS)
 def system_rhs(
-    q, qdot, arrays, extras, rest_length, has_external, external_force, has_gravity, gravity,
-    node_work, block_force, qddot, tension, elastic_tension, damping_power,
+    q,
+    qdot,
+    arrays,
+    extras,
+    rest_length,
+    has_external,
+    external_force,
+    has_gravity,
+    gravity,
+    node_work,
+    block_force,
+    qddot,
+    tension,
+    elastic_tension,
+    damping_power,
 ):  # pragma: no cover - compiled
     """Theorem 18.1 for any 3-D structure: fills ``qddot`` (6R + 3M,) [m/s^2], ``tension`` and
     ``elastic_tension`` (S,) [N] and, with tendon damping, ``damping_power`` (S,) [W] (tendons in
@@ -569,15 +619,51 @@ def system_rhs(
     forces are added (:func:`_constraint_pass`).
     """
     if extras is None:
-        return rhs(q, qdot, *arrays, rest_length, has_external, external_force, has_gravity,
-                   gravity, node_work, block_force, qddot, tension, elastic_tension, damping_power)
+        return rhs(
+            q,
+            qdot,
+            *arrays,
+            rest_length,
+            has_external,
+            external_force,
+            has_gravity,
+            gravity,
+            node_work,
+            block_force,
+            qddot,
+            tension,
+            elastic_tension,
+            damping_power,
+        )
     n_rods = arrays[0].shape[0]
     _extra_nodes(q, qdot, n_rods, extras, node_work[0], node_work[1], arrays[5] is not None)
-    dissipated, external = rhs(q, qdot, *arrays, rest_length, has_external, external_force,
-                               has_gravity, gravity, node_work, None, qddot, tension,
-                               elastic_tension, damping_power)
-    external += _point_mass_pass(qdot, n_rods, extras, has_external, external_force, has_gravity,
-                                 gravity, node_work[2], qddot)
+    dissipated, external = rhs(
+        q,
+        qdot,
+        *arrays,
+        rest_length,
+        has_external,
+        external_force,
+        has_gravity,
+        gravity,
+        node_work,
+        None,
+        qddot,
+        tension,
+        elastic_tension,
+        damping_power,
+    )
+    external += _point_mass_pass(
+        qdot,
+        n_rods,
+        extras,
+        has_external,
+        external_force,
+        has_gravity,
+        gravity,
+        node_work[2],
+        qddot,
+    )
     if extras.constraint_rhs.shape[0]:
         _constraint_pass(q, arrays[1], extras, qddot)
     return dissipated, external
@@ -679,8 +765,11 @@ def _assemble_normal(q, rod_param, extras):  # pragma: no cover - compiled
                 c1q = coef[e1, 0] * x + coef[e1, 1] * y + coef[e1, 2] * z
                 _env_add(values, first, offset, prow[rows[e1]], own, 6.0 * sign[e1] * c1q * inv_m)
             for e2 in range(e1, start[body + 1]):
-                dot = (coef[e1, 0] * coef[e2, 0] + coef[e1, 1] * coef[e2, 1]
-                       + coef[e1, 2] * coef[e2, 2])
+                dot = (
+                    coef[e1, 0] * coef[e2, 0]
+                    + coef[e1, 1] * coef[e2, 1]
+                    + coef[e1, 2] * coef[e2, 2]
+                )
                 value = (1.0 + 3.0 * sign[e1] * sign[e2]) * dot * inv_m
                 if e1 != e2 and rows[e1] == rows[e2]:
                     value *= 2.0
@@ -724,8 +813,15 @@ def _subtract_step(target, q, y, rod_param, extras):  # pragma: no cover - compi
 def _normal_solve(q, rod_param, extras, violation, y):  # pragma: no cover - compiled
     """``y = (J W^-1 J^T)^-1 violation`` at ``q``."""
     _assemble_normal(q, rod_param, extras)
-    _solve_psd(extras.n_values, extras.n_factor, extras.n_first, extras.n_offset, violation, y,
-               extras.work[2])
+    _solve_psd(
+        extras.n_values,
+        extras.n_factor,
+        extras.n_first,
+        extras.n_offset,
+        violation,
+        y,
+        extras.work[2],
+    )
 
 
 @njit(**JIT_OPTIONS)
@@ -763,8 +859,9 @@ def _project_constrained(q, qdot, rod_param, extras):  # pragma: no cover - comp
         violation[extras.constraint_prow[i]] = rates[i]
     for r in range(n_rods):
         o = 6 * r + 3
-        violation[extras.rod_prow[r]] = (q[o] * qdot[o] + q[o + 1] * qdot[o + 1]
-                                         + q[o + 2] * qdot[o + 2])
+        violation[extras.rod_prow[r]] = (
+            q[o] * qdot[o] + q[o + 1] * qdot[o + 1] + q[o + 2] * qdot[o + 2]
+        )
     _normal_solve(q, rod_param, extras, violation, y)
     _subtract_step(qdot, q, y, rod_param, extras)
     return _all_finite(q) and _all_finite(qdot)
@@ -798,7 +895,14 @@ def system_project(q, qdot, rod_param, extras):  # pragma: no cover - compiled
 # --------------------------------------------------------------------------- compiled: energy
 @njit(**JIT_OPTIONS)
 def system_energies(
-    q, qdot, arrays, extras, rest_length, has_gravity, gravity, node_work,
+    q,
+    qdot,
+    arrays,
+    extras,
+    rest_length,
+    has_gravity,
+    gravity,
+    node_work,
 ):  # pragma: no cover - compiled
     """``(kinetic, elastic, gravity)`` energies [J], as ``dynamics.kinetic_energy``,
     ``elastic_energy`` and ``gravity_energy``: :func:`kernel.energies` (which it is, with
@@ -806,13 +910,32 @@ def system_energies(
     masses taking part in the tendons' energy.  ``node_work[0]`` receives the node positions."""
     rod_slots, rod_param, tendon_slots, _, tendon_stiffness, _ = arrays
     if extras is None:
-        return energies(q, qdot, rod_slots, rod_param, tendon_slots, tendon_stiffness,
-                        rest_length, has_gravity, gravity, node_work)
+        return energies(
+            q,
+            qdot,
+            rod_slots,
+            rod_param,
+            tendon_slots,
+            tendon_stiffness,
+            rest_length,
+            has_gravity,
+            gravity,
+            node_work,
+        )
     n_rods = rod_slots.shape[0]
     _extra_nodes(q, qdot, n_rods, extras, node_work[0], node_work[1], False)
-    kinetic, elastic, potential = energies(q, qdot, rod_slots, rod_param, tendon_slots,
-                                           tendon_stiffness, rest_length, has_gravity, gravity,
-                                           node_work)
+    kinetic, elastic, potential = energies(
+        q,
+        qdot,
+        rod_slots,
+        rod_param,
+        tendon_slots,
+        tendon_stiffness,
+        rest_length,
+        has_gravity,
+        gravity,
+        node_work,
+    )
     for k in range(extras.point_mass.shape[0]):
         o = 6 * n_rods + 3 * k
         m = extras.point_mass[k]

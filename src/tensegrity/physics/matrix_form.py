@@ -48,9 +48,9 @@ from typing import Any, NamedTuple
 import numpy as np
 import scipy.sparse as sp
 
-from tensegrity.physics import dynamics
 from tensegrity.model.shell import shell_node_index, shell_tendons
 from tensegrity.model.structure import Structure
+from tensegrity.physics import dynamics
 
 #: Tendons of ``f^d_ij`` / ``l^d`` slots, in the paper's order (18.16, 18.31).
 D_ALPHAS = (2, 3, 4, 6, 7, 8, 9, 10)
@@ -261,8 +261,11 @@ def _independent_vectors(
         r2 = (f"r2_{i}_{j}", node(3, i, j), node(4, i, j))
         t5 = (f"t5_{i}_{j}", *full[f"t5_{i}_{j}"])
         if j == 1:
-            first = (("rho_1_1", None, node(1, 1, 1)) if i == 1
-                     else (f"t1_{i-1}_1", *full[f"t1_{i-1}_1"]))
+            first = (
+                ("rho_1_1", None, node(1, 1, 1))
+                if i == 1
+                else (f"t1_{i - 1}_1", *full[f"t1_{i - 1}_1"])
+            )
             l_vectors += [first, r1, r2, t5]
         else:
             l_vectors += [r1, r2, t5, (f"t1_{i}_{j}", *full[f"t1_{i}_{j}"])]
@@ -304,8 +307,9 @@ def _slot(name: str, full: dict[str, tuple[int, int]], present: set[str], m: int
     return _Slot((head, tail), partner, -1, False)
 
 
-def _o_slot_vectors(o_slots: Sequence[str], l_labels: Sequence[str], R: sp.csr_matrix,
-                    Q_inv: sp.csr_matrix, n: int) -> sp.csr_matrix:
+def _o_slot_vectors(
+    o_slots: Sequence[str], l_labels: Sequence[str], R: sp.csr_matrix, Q_inv: sp.csr_matrix, n: int
+) -> sp.csr_matrix:
     """``R_o`` (6nm, 12nm): the rows of ``Q^-1`` for ``t5_ij`` and ``t1_ij`` (labels of ``l``:
     ``l_labels``), and ``R_0`` (the first three rows of ``R``) for ``t1_n1``, not in ``l``."""
     l_index = {label: k for k, label in enumerate(l_labels)}
@@ -320,7 +324,9 @@ def _control_spread(slots: Sequence[_Slot], u_names: Sequence[str]) -> sp.csr_ma
     """``T`` (slots, controls) of ``u~ = T u`` (18.55): every slot gets the rest-length change
     of its tendon (``u_names`` names the tendon of each entry of ``u``)."""
     u_column = {name: k for k, name in enumerate(u_names)}
-    entries = [(r, u_column[info.tendon]) for r, info in enumerate(slots) if info.tendon is not None]
+    entries = [
+        (r, u_column[info.tendon]) for r, info in enumerate(slots) if info.tendon is not None
+    ]
     rows, columns = [r for r, _ in entries], [c for _, c in entries]
     return _frozen_csr(
         sp.csr_matrix((np.ones(len(rows)), (rows, columns)), shape=(len(slots), len(u_names)))
@@ -336,6 +342,7 @@ def _incidence(slots: Sequence[_Slot], n_nodes: int) -> np.ndarray:
             N[tail, s] += 1.0
             N[head, s] -= 1.0
     return N
+
 
 def _readonly(array: np.ndarray) -> np.ndarray:
     array.setflags(write=False)
@@ -481,7 +488,10 @@ def shell_size(structure: Structure) -> tuple[int, int, bool]:
             f"rods: the tendon names imply an ({n},{m}) shell, whose rod r joins nodes 2r, 2r+1 "
             f"({2 * n * m} rods); the structure has {structure.n_rods} rods"
         )
-    got = {name: (int(a), int(b)) for name, (a, b) in zip(structure.tendon_name, structure.tendon_nodes)}
+    got = {
+        name: (int(a), int(b))
+        for name, (a, b) in zip(structure.tendon_name, structure.tendon_nodes)
+    }
     if got != expected:
         wrong = sorted(set(got.items()) ^ set(expected.items()))
         raise ValueError(
@@ -543,7 +553,19 @@ class StateMatrices:
 
 
 STATE_MATRICES = (
-    "H", "K_r", "K_d", "K_o", "P_d", "P_o", "K_tilde", "B_tilde", "K_p", "B", "D", "C_t", "C_l",
+    "H",
+    "K_r",
+    "K_d",
+    "K_o",
+    "P_d",
+    "P_o",
+    "K_tilde",
+    "B_tilde",
+    "K_p",
+    "B",
+    "D",
+    "C_t",
+    "C_l",
     "C_f",
 )
 
@@ -604,7 +626,9 @@ class ShellMatrixModel:
         """The ``u`` (paper order) of a ``control`` array in structure tendon order."""
         control = np.asarray(control, dtype=float)
         if control.shape != (self.structure.n_tendons,):
-            raise ValueError(f"control: expected shape ({self.structure.n_tendons},), got {control.shape}")
+            raise ValueError(
+                f"control: expected shape ({self.structure.n_tendons},), got {control.shape}"
+            )
         return control[self.control_index]
 
     def _check_u(self, u: np.ndarray | None) -> np.ndarray:
@@ -613,11 +637,15 @@ class ShellMatrixModel:
             return np.zeros(nu)
         u = np.asarray(u, dtype=float)
         if u.shape != (nu,):
-            raise ValueError(f"u: expected shape ({nu},) (tendons in the paper's order), got {u.shape}")
+            raise ValueError(
+                f"u: expected shape ({nu},) (tendons in the paper's order), got {u.shape}"
+            )
         return u
 
     # ------------------------------------------------------------------ evaluation
-    def evaluate(self, q: np.ndarray, qdot: np.ndarray, u: np.ndarray | None = None) -> StateMatrices:
+    def evaluate(
+        self, q: np.ndarray, qdot: np.ndarray, u: np.ndarray | None = None
+    ) -> StateMatrices:
         """All state-dependent matrices of (18.59) at ``q``, ``q'`` and the control ``u``.
 
         ``u`` (paper order, default 0) enters ``K_p`` and ``B`` through which tendons are slack
@@ -699,7 +727,9 @@ class ShellMatrixModel:
         skew2 = q2[:, :, None] * q2[:, None, :] - np.sum(q2 * q2, axis=1)[:, None, None] * np.eye(3)
         blocks[1::2] = (6.0 / (self._mass * self._length2))[:, None, None] * skew2
         diagonal = np.arange(2 * n_rods)
-        H = sp.bsr_matrix((blocks, diagonal, np.arange(2 * n_rods + 1)), shape=(6 * n_rods, 6 * n_rods))
+        H = sp.bsr_matrix(
+            (blocks, diagonal, np.arange(2 * n_rods + 1)), shape=(6 * n_rods, 6 * n_rods)
+        )
         return _clean(H.tocsr())
 
     def _kr_matrix(self, qdot: np.ndarray) -> sp.csr_matrix:
@@ -741,7 +771,3 @@ def _clean(matrix: sp.spmatrix) -> sp.csr_matrix:
     out.eliminate_zeros()
     out.sort_indices()
     return out
-
-
-
-

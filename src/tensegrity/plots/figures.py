@@ -143,8 +143,12 @@ def draw_structure(
     taut_pairs = tendon_pairs[~slack]
     mappable = None
     taut_tension = None if tension is None else tension[~slack]
-    if (color_by_tension and taut_tension is not None and taut_tension.size
-            and not _uniform(taut_tension)):
+    if (
+        color_by_tension
+        and taut_tension is not None
+        and taut_tension.size
+        and not _uniform(taut_tension)
+    ):
         low, high = float(taut_tension.min()), float(taut_tension.max())
         mappable = ScalarMappable(Normalize(low, high), _tension_colormap())
         mappable.set_array(taut_tension)
@@ -160,14 +164,20 @@ def draw_structure(
     slack_lines = None
     if slack.any():
         slack_lines = Line3DCollection(
-            segments(tendon_pairs[slack]), colors=SLACK_COLOR, linewidths=TENDON_WIDTH + 0.3,
-            linestyles=(0, (4, 2.5)), zorder=2,
+            segments(tendon_pairs[slack]),
+            colors=SLACK_COLOR,
+            linewidths=TENDON_WIDTH + 0.3,
+            linestyles=(0, (4, 2.5)),
+            zorder=2,
         )
         ax.add_collection3d(slack_lines)
     rods = None
     if structure.n_rods:  # (a structure of point masses has none)
         rods = Line3DCollection(
-            segments(structure.rod_nodes), colors=ROD_COLOR, linewidths=ROD_WIDTH, zorder=3,
+            segments(structure.rod_nodes),
+            colors=ROD_COLOR,
+            linewidths=ROD_WIDTH,
+            zorder=3,
             capstyle="round",
         )
         ax.add_collection3d(rods)
@@ -175,32 +185,71 @@ def draw_structure(
     if show_nodes:
         nodes = ax.scatter(*p.T, s=14, color=ROD_COLOR, depthshade=False, zorder=4)
     elif structure.point_mass_nodes.size:  # point masses are bodies: always drawn
-        nodes = ax.scatter(*p[structure.point_mass_nodes].T, s=30, color=ROD_COLOR,
-                           depthshade=False, zorder=4)
+        nodes = ax.scatter(
+            *p[structure.point_mass_nodes].T, s=30, color=ROD_COLOR, depthshade=False, zorder=4
+        )
     fixed = None
     if structure.node_fixed.any():
-        fixed = ax.scatter(*p[structure.node_fixed].T, s=60, marker="^", color=FIXED_COLOR,
-                           depthshade=False, zorder=5)
+        fixed = ax.scatter(
+            *p[structure.node_fixed].T,
+            s=60,
+            marker="^",
+            color=FIXED_COLOR,
+            depthshade=False,
+            zorder=5,
+        )
 
     _fit_axes(ax, p)
     if legend:
-        handles = [Line2D([], [], color=ROD_COLOR, lw=ROD_WIDTH, solid_capstyle="round",
-                          label=f"rods ({structure.n_rods})")]
+        handles = [
+            Line2D(
+                [],
+                [],
+                color=ROD_COLOR,
+                lw=ROD_WIDTH,
+                solid_capstyle="round",
+                label=f"rods ({structure.n_rods})",
+            )
+        ]
         n_taut = int(np.count_nonzero(~slack))
         if n_taut or tension is None:
             color = mappable.cmap(0.5) if mappable is not None else TENDON_COLOR
             what = "tendons" if tension is None else "taut tendons"
-            handles.append(Line2D([], [], color=color, lw=TENDON_WIDTH + 0.5,
-                                  label=f"{what} ({n_taut})"))
+            handles.append(
+                Line2D([], [], color=color, lw=TENDON_WIDTH + 0.5, label=f"{what} ({n_taut})")
+            )
         if slack.any():
-            handles.append(Line2D([], [], color=SLACK_COLOR, lw=TENDON_WIDTH + 0.5,
-                                  ls=(0, (4, 2.5)), label=f"slack tendons ({int(slack.sum())})"))
+            handles.append(
+                Line2D(
+                    [],
+                    [],
+                    color=SLACK_COLOR,
+                    lw=TENDON_WIDTH + 0.5,
+                    ls=(0, (4, 2.5)),
+                    label=f"slack tendons ({int(slack.sum())})",
+                )
+            )
         if fixed is not None:
-            handles.append(Line2D([], [], color=FIXED_COLOR, marker="^", ls="", markersize=8,
-                                  label=f"fixed nodes ({int(structure.node_fixed.sum())})"))
+            handles.append(
+                Line2D(
+                    [],
+                    [],
+                    color=FIXED_COLOR,
+                    marker="^",
+                    ls="",
+                    markersize=8,
+                    label=f"fixed nodes ({int(structure.node_fixed.sum())})",
+                )
+            )
         ax.legend(handles=handles, loc="upper left", fontsize="small", framealpha=0.85)
-    return {"rods": rods, "tendons": tendons, "slack": slack_lines, "nodes": nodes,
-            "fixed": fixed, "mappable": mappable}
+    return {
+        "rods": rods,
+        "tendons": tendons,
+        "slack": slack_lines,
+        "nodes": nodes,
+        "fixed": fixed,
+        "mappable": mappable,
+    }
 
 
 def _uniform(values: np.ndarray) -> bool:
@@ -268,19 +317,20 @@ def figure_structure(
     artists = draw_structure(ax, structure, node_position, tension)
     ax.view_init(elev=elev, azim=azim)
     if artists["mappable"] is not None:
-        figure.colorbar(artists["mappable"], ax=ax, shrink=0.6, pad=0.1,
-                        label="tendon tension [N]")
+        figure.colorbar(artists["mappable"], ax=ax, shrink=0.6, pad=0.1, label="tendon tension [N]")
     if subtitle is None:
-        subtitle = (f"{structure.n_nodes} nodes, {structure.n_rods} rods, "
-                    f"{structure.n_tendons} tendons")
+        subtitle = (
+            f"{structure.n_nodes} nodes, {structure.n_rods} rods, {structure.n_tendons} tendons"
+        )
         t = _tensions(structure, tension)
         if t is not None and t.size:
             n_slack = int(np.sum(t <= 0))
             taut = t[t > 0]
             subtitle += f"; {n_slack} slack" if n_slack else "; all taut"
             if taut.size and _uniform(taut):
-                subtitle += f"; tension {taut.mean():.4g} N" + (" in every taut tendon"
-                                                                if n_slack else " in every tendon")
+                subtitle += f"; tension {taut.mean():.4g} N" + (
+                    " in every taut tendon" if n_slack else " in every tendon"
+                )
             elif taut.size:
                 subtitle += f"; tension {taut.min():.4g} .. {taut.max():.4g} N"
 
@@ -291,11 +341,22 @@ def figure_structure(
 def _titles(figure: Figure, title: str | None, subtitle: str | None) -> None:
     if title and subtitle:
         figure.suptitle(f"{title}\n", fontsize="large", fontweight="bold")
-        figure.text(0.5, 0.955, subtitle, ha="center", va="top", fontsize="small", color="0.3",
-                    transform=figure.transFigure)
+        figure.text(
+            0.5,
+            0.955,
+            subtitle,
+            ha="center",
+            va="top",
+            fontsize="small",
+            color="0.3",
+            transform=figure.transFigure,
+        )
     elif title or subtitle:
-        figure.suptitle(title or subtitle, fontsize="large" if title else "small",
-                        fontweight="bold" if title else "normal")
+        figure.suptitle(
+            title or subtitle,
+            fontsize="large" if title else "small",
+            fontweight="bold" if title else "normal",
+        )
 
 
 def tendon_family(name: str) -> str:
@@ -305,8 +366,11 @@ def tendon_family(name: str) -> str:
 
 def natural_key(text: str) -> list:
     """Sort key with numbers compared as numbers: ``t9`` before ``t10``."""
-    return [(0, int(part), "") if part.isdigit() else (1, 0, part)
-            for part in re.split(r"(\d+)", text) if part]
+    return [
+        (0, int(part), "") if part.isdigit() else (1, 0, part)
+        for part in re.split(r"(\d+)", text)
+        if part
+    ]
 
 
 def figure_tendon_lengths(
@@ -361,10 +425,18 @@ def figure_tendon_lengths(
     if S == 0:
         note = "no tendons"
     elif S > MAX_TENDON_LINES:
-        ax.fill_between(t, lengths.min(axis=1), lengths.max(axis=1), color=TENDON_COLOR,
-                        alpha=0.25, lw=0, label=f"range over {S} tendons")
-        ax.plot(t, np.median(lengths, axis=1), color=TENDON_COLOR, lw=1.5, marker=marker,
-                label="median")
+        ax.fill_between(
+            t,
+            lengths.min(axis=1),
+            lengths.max(axis=1),
+            color=TENDON_COLOR,
+            alpha=0.25,
+            lw=0,
+            label=f"range over {S} tendons",
+        )
+        ax.plot(
+            t, np.median(lengths, axis=1), color=TENDON_COLOR, lw=1.5, marker=marker, label="median"
+        )
         ax.legend(fontsize="small", loc="best")
     elif S <= MAX_LEGEND_TENDONS:
         for k, name in enumerate(names):
@@ -375,13 +447,26 @@ def figure_tendon_lengths(
         if len(families) <= 10:
             colors = {f: f"C{k}" for k, f in enumerate(families)}
             for k, name in enumerate(names):
-                ax.plot(t, lengths[:, k], lw=1.3, color=colors[tendon_family(name)], alpha=0.9,
-                        marker=marker)
+                ax.plot(
+                    t,
+                    lengths[:, k],
+                    lw=1.3,
+                    color=colors[tendon_family(name)],
+                    alpha=0.9,
+                    marker=marker,
+                )
             counts = {f: sum(tendon_family(n) == f for n in names) for f in families}
-            handles = [Line2D([], [], color=colors[f], lw=2, label=f"{f} ({counts[f]})")
-                       for f in families]
-            ax.legend(handles=handles, fontsize="small", loc="best", title="tendon family",
-                      title_fontsize="small", ncols=2 if len(families) > 5 else 1)
+            handles = [
+                Line2D([], [], color=colors[f], lw=2, label=f"{f} ({counts[f]})") for f in families
+            ]
+            ax.legend(
+                handles=handles,
+                fontsize="small",
+                loc="best",
+                title="tendon family",
+                title_fontsize="small",
+                ncols=2 if len(families) > 5 else 1,
+            )
         else:
             for k in range(S):
                 ax.plot(t, lengths[:, k], lw=1.0, alpha=0.8, marker=marker)
@@ -390,13 +475,28 @@ def figure_tendon_lengths(
         rest = np.broadcast_to(np.asarray(rest_length, dtype=float), (S,))
         if np.ptp(rest) == 0:
             ax.axhline(rest[0], color="0.35", ls="--", lw=1.0, zorder=0)
-            ax.annotate(f"rest length {rest[0]:.4g} m", (1.0, rest[0]),
-                        xycoords=("axes fraction", "data"), xytext=(-4, -3),
-                        textcoords="offset points", ha="right", va="top",
-                        fontsize="small", color="0.35")
+            ax.annotate(
+                f"rest length {rest[0]:.4g} m",
+                (1.0, rest[0]),
+                xycoords=("axes fraction", "data"),
+                xytext=(-4, -3),
+                textcoords="offset points",
+                ha="right",
+                va="top",
+                fontsize="small",
+                color="0.35",
+            )
     if note:
-        ax.text(0.99, 0.98, note, transform=ax.transAxes, ha="right", va="top",
-                fontsize="small", color="0.3")
+        ax.text(
+            0.99,
+            0.98,
+            note,
+            transform=ax.transAxes,
+            ha="right",
+            va="top",
+            fontsize="small",
+            color="0.3",
+        )
     if t.size > 1:
         ax.set_xlim(t[0], t[-1])
     ax.set_xlabel("time [s]")
@@ -447,8 +547,12 @@ def save_figures(result: SimulationResult, out_dir: str | Path, *, dpi: int = 15
         ),
         "equilibrium.png": figure_structure(structure, nodes[-1], tension[-1], title=final_title),
         "tendon_lengths.png": figure_tendon_lengths(
-            time, result.tendon_length, structure.tendon_name, rest_length=rest,
-            title="Tendon lengths", subtitle=_first_upper(result.message),
+            time,
+            result.tendon_length,
+            structure.tendon_name,
+            rest_length=rest,
+            title="Tendon lengths",
+            subtitle=_first_upper(result.message),
         ),
     }
     paths = []

@@ -25,8 +25,12 @@ if TYPE_CHECKING:
     from tensegrity.analysis.modes import ModalAnalysis
     from tensegrity.analysis.shape_control import ClosedLoop, QuasiStatic
 
-KIND_COLORS = {"rigid": "#7f7f7f", "mechanism": "#d62728", "elastic": "#2f6fb0",
-               "unstable": "#ff7f0e"}
+KIND_COLORS = {
+    "rigid": "#7f7f7f",
+    "mechanism": "#d62728",
+    "elastic": "#2f6fb0",
+    "unstable": "#ff7f0e",
+}
 
 
 # ------------------------------------------------------------------------------ text and files
@@ -34,12 +38,15 @@ def table(headers: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
     """A plain-text table: columns padded to their widest cell, numbers right-aligned."""
     cells = [[_cell(v) for v in row] for row in rows]
     widths = [max([len(h)] + [len(r[i]) for r in cells]) for i, h in enumerate(headers)]
-    numeric = [all(_is_number(row[i]) for row in rows) if rows else False
-               for i in range(len(headers))]
+    numeric = [
+        all(_is_number(row[i]) for row in rows) if rows else False for i in range(len(headers))
+    ]
 
     def line(values: Sequence[str]) -> str:
-        return "  ".join(v.rjust(w) if num else v.ljust(w)
-                         for v, w, num in zip(values, widths, numeric, strict=True)).rstrip()
+        return "  ".join(
+            v.rjust(w) if num else v.ljust(w)
+            for v, w, num in zip(values, widths, numeric, strict=True)
+        ).rstrip()
 
     out = [line(headers), line(["-" * w for w in widths])]
     out.extend(line(r) for r in cells)
@@ -87,8 +94,12 @@ def _finite(value: Any) -> Any:
 
 def write_json(path: str | Path, data: dict[str, Any]) -> Path:
     """Write ``data`` as indented JSON, atomically; non-finite numbers become ``null``."""
-    text = json.dumps(_finite(json.loads(json.dumps(data, default=json_default))), indent=2,
-                      allow_nan=False) + "\n"
+    text = (
+        json.dumps(
+            _finite(json.loads(json.dumps(data, default=json_default))), indent=2, allow_nan=False
+        )
+        + "\n"
+    )
     with atomic_path(path) as tmp:
         tmp.write_text(text, encoding="utf-8")
     return Path(path)
@@ -111,8 +122,14 @@ def figure_frequencies(modes: ModalAnalysis, *, title: str = "Natural frequencie
         sel = [i for i, k in enumerate(modes.kind) if k == kind]
         if sel:
             ax.vlines(index[sel], 0, modes.frequency_hz[sel], color=color, lw=2)
-            ax.plot(index[sel], modes.frequency_hz[sel], "o", color=color, ms=4,
-                    label=f"{kind} ({len(sel)})")
+            ax.plot(
+                index[sel],
+                modes.frequency_hz[sel],
+                "o",
+                color=color,
+                ms=4,
+                label=f"{kind} ({len(sel)})",
+            )
     ax.set_xlabel("mode")
     ax.set_ylabel("frequency [Hz]")
     ax.set_title(title, fontsize="medium")
@@ -135,15 +152,24 @@ def _frequency_table(ax: Axes, modes: ModalAnalysis, max_rows: int = 18) -> None
     if len(rows) > max_rows:
         shown.append(["...", f"{len(rows) - max_rows} more", "", ""])
     ax.axis("off")
-    table = ax.table(cellText=shown, colLabels=["modes", "f [Hz]", "mult.", "kind"],
-                     loc="upper center", cellLoc="center")
+    table = ax.table(
+        cellText=shown,
+        colLabels=["modes", "f [Hz]", "mult.", "kind"],
+        loc="upper center",
+        cellLoc="center",
+    )
     table.auto_set_font_size(False)
     table.set_fontsize(8)
     table.scale(1.0, 1.1)
 
 
-def figure_mode_shapes(modes: ModalAnalysis, indices: Sequence[int], *, amplitude: float | None = None,
-                       columns: int = 3) -> Figure:
+def figure_mode_shapes(
+    modes: ModalAnalysis,
+    indices: Sequence[int],
+    *,
+    amplitude: float | None = None,
+    columns: int = 3,
+) -> Figure:
     """The equilibrium (grey) and each mode's displaced shape (largest node displacement
     ``amplitude`` [m], default 15% of the structure's size), one 3-D panel per mode."""
     from mpl_toolkits.mplot3d.art3d import Line3DCollection
@@ -162,8 +188,9 @@ def figure_mode_shapes(modes: ModalAnalysis, indices: Sequence[int], *, amplitud
         pairs = np.vstack([s.rod_nodes, s.tendon_nodes])
         ax.add_collection3d(Line3DCollection(p0[pairs], colors="0.8", linewidths=0.8))
         draw_structure(ax, s, p, None, legend=False, show_nodes=False)
-        ax.set_title(f"mode {i}: {modes.frequency_hz[i]:.4g} Hz ({modes.kind[i]})",
-                     fontsize="small")
+        ax.set_title(
+            f"mode {i}: {modes.frequency_hz[i]:.4g} Hz ({modes.kind[i]})", fontsize="small"
+        )
         ax.tick_params(labelsize="x-small")
     return fig
 
@@ -176,15 +203,21 @@ def figure_reach(results: Sequence[ReachResult], modes: ModalAnalysis) -> Figure
     fig = new_figure((max(6.0, 0.22 * len(clusters) + 3), 0.35 * len(results) + 2.2))
     ax = fig.add_subplot()
     image = ax.imshow(data, aspect="auto", cmap="RdYlGn", vmin=0, vmax=1, interpolation="nearest")
-    ax.set_yticks(range(len(results)), [f"{r.name} ({r.rank}/{r.n_states})" for r in results],
-                  fontsize="small")
+    ax.set_yticks(
+        range(len(results)),
+        [f"{r.name} ({r.rank}/{r.n_states})" for r in results],
+        fontsize="small",
+    )
     labels = ["rigid" if t.kind == "rigid" else f"{t.frequency_hz:.3g}" for t in clusters]
     ax.set_xticks(range(len(clusters)), labels, rotation=90, fontsize="x-small")
     ax.set_xlabel("mode cluster (frequency [Hz])")
     kind = results[0].property
-    ax.set_title(f"PBH test of {kind}: fraction of each cluster reached"
-                 if kind == "controllability" else
-                 f"PBH test of {kind}: fraction of each cluster seen", fontsize="medium")
+    ax.set_title(
+        f"PBH test of {kind}: fraction of each cluster reached"
+        if kind == "controllability"
+        else f"PBH test of {kind}: fraction of each cluster seen",
+        fontsize="medium",
+    )
     fig.colorbar(image, ax=ax, shrink=0.8)
     return fig
 
@@ -197,9 +230,16 @@ def figure_shape_motion(plan: QuasiStatic, closed: ClosedLoop | None = None) -> 
     axes = fig.subplots(len(names), 1, sharex=True, squeeze=False)[:, 0]
     for j, ax in enumerate(axes):
         if closed is not None:
-            ax.plot(closed.t, closed.outputs[:, j], color="#2f6fb0", label="closed loop (nonlinear)")
-            ax.plot(closed.t, closed.reference_outputs[:, j], "--", color="0.4",
-                    label="quasi-static plan")
+            ax.plot(
+                closed.t, closed.outputs[:, j], color="#2f6fb0", label="closed loop (nonlinear)"
+            )
+            ax.plot(
+                closed.t,
+                closed.reference_outputs[:, j],
+                "--",
+                color="0.4",
+                label="quasi-static plan",
+            )
             final = plan.targets[-1, j]
             if np.isfinite(final):
                 ax.axhline(final, color="#d62728", lw=0.8, label="final target")
@@ -233,8 +273,12 @@ def figure_shape_controls(plan: QuasiStatic, closed: ClosedLoop | None = None) -
         labelled.add(family)
         ax_u.plot(x, u[:, j], lw=0.9, color=colors[family], label=label)
     if len(families) <= 12:
-        ax_u.legend(fontsize="small", ncols=min(len(families), 6), title="tendon family",
-                    title_fontsize="small")
+        ax_u.legend(
+            fontsize="small",
+            ncols=min(len(families), 6),
+            title="tendon family",
+            title_fontsize="small",
+        )
     ax_u.set_ylabel("rest-length change u [m]")
     ax_u.grid(alpha=0.3)
     ax_t.plot(x, tmin, color="#2f6fb0", label="smallest tendon tension")
@@ -243,8 +287,9 @@ def figure_shape_controls(plan: QuasiStatic, closed: ClosedLoop | None = None) -
     ax_t.set_xlabel(xlabel)
     ax_t.grid(alpha=0.3)
     ax_t.legend(fontsize="small")
-    fig.suptitle("Shape control: controls (every tendon) and the smallest tension",
-                 fontsize="medium")
+    fig.suptitle(
+        "Shape control: controls (every tendon) and the smallest tension", fontsize="medium"
+    )
     return fig
 
 
@@ -256,11 +301,17 @@ def figure_shape_structures(plan: QuasiStatic) -> Figure:
         ax = fig.add_subplot(1, 2, k + 1, projection="3d")
         artists = draw_structure(ax, plan.structure, eq.node_position, eq.tension, legend=k == 0)
         if artists["mappable"] is not None:
-            fig.colorbar(artists["mappable"], ax=ax, shrink=0.6, pad=0.1,
-                         label="tendon tension [N]")
+            fig.colorbar(
+                artists["mappable"], ax=ax, shrink=0.6, pad=0.1, label="tendon tension [N]"
+            )
         y = plan.output.value(eq.node_position)
-        ax.set_title(title + ": " + ", ".join(f"{n} {v:.4g} {u}" for n, v, u in
-                                             zip(plan.output.names, y, plan.output.units,
-                                                 strict=True)),
-                     fontsize="small")
+        ax.set_title(
+            title
+            + ": "
+            + ", ".join(
+                f"{n} {v:.4g} {u}"
+                for n, v, u in zip(plan.output.names, y, plan.output.units, strict=True)
+            ),
+            fontsize="small",
+        )
     return fig

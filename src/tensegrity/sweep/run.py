@@ -87,7 +87,12 @@ PathLike = str | os.PathLike
 
 #: Parameters a sweep can vary, with their values when not varied.
 DEFAULTS: dict[str, float] = {
-    "n": 3, "m": 1, "stiffness": 100.0, "rest_scale": 0.9, "damping": 0.0, "load": 0.0,
+    "n": 3,
+    "m": 1,
+    "stiffness": 100.0,
+    "rest_scale": 0.9,
+    "damping": 0.0,
+    "load": 0.0,
 }
 INTEGER_PARAMETERS = ("n", "m")
 #: The parameters that can vary in a sweep of a given structure (its topology is fixed).
@@ -98,10 +103,25 @@ BATCH_MAX_RODS = 1000
 #: ``status`` of a case that could not be built or raised while running.
 STATUS_ERROR = -2
 MODES = ("grid", "monte-carlo")
-SERIES = ("kinetic_energy", "elastic_energy", "energy_error", "max_tension", "slack_count",
-          "max_displacement")
-SCALARS = ("status", "message", "t_final", "nsteps", "nfev", "wall_time", "max_rod_length_error",
-           "max_constraint_error", "batched")
+SERIES = (
+    "kinetic_energy",
+    "elastic_energy",
+    "energy_error",
+    "max_tension",
+    "slack_count",
+    "max_displacement",
+)
+SCALARS = (
+    "status",
+    "message",
+    "t_final",
+    "nsteps",
+    "nfev",
+    "wall_time",
+    "max_rod_length_error",
+    "max_constraint_error",
+    "batched",
+)
 
 
 # ------------------------------------------------------------------------------- the spec
@@ -176,7 +196,9 @@ class SweepSpec:
             allowed = DEFAULTS if self.structure is None else STRUCTURE_PARAMETERS
             if name not in allowed:
                 why = "" if name not in DEFAULTS else " when sweeping a structure file"
-                raise ValueError(f"{field}: unknown parameter{why}; choose from {', '.join(allowed)}")
+                raise ValueError(
+                    f"{field}: unknown parameter{why}; choose from {', '.join(allowed)}"
+                )
             if isinstance(values, (str, bytes)) or not isinstance(values, Sequence) or not values:
                 raise ValueError(f"{field}: expected a non-empty list of numbers")
             numbers = tuple(
@@ -186,7 +208,9 @@ class SweepSpec:
             if self.mode == "monte-carlo" and not (
                 len(numbers) == 1 or (len(numbers) == 2 and numbers[0] <= numbers[1])
             ):
-                raise ValueError(f"{field}: Monte Carlo needs [low, high] with low <= high, or [value]")
+                raise ValueError(
+                    f"{field}: Monte Carlo needs [low, high] with low <= high, or [value]"
+                )
             clean[name] = numbers
         object.__setattr__(self, "parameters", clean)
         for field in ("samples", "seed"):
@@ -199,16 +223,22 @@ class SweepSpec:
                 raise ValueError(f"{field}: must be > 0, got {value!r}")
             object.__setattr__(self, field, value)
         if self.method not in (*ADAPTIVE_METHODS, *FIXED_STEP_METHODS):
-            raise ValueError(f"method: expected one of "
-                             f"{', '.join([*FIXED_STEP_METHODS, *ADAPTIVE_METHODS])}, got {self.method!r}")
+            raise ValueError(
+                f"method: expected one of "
+                f"{', '.join([*FIXED_STEP_METHODS, *ADAPTIVE_METHODS])}, got {self.method!r}"
+            )
         intervals = round(self.t_end / self.sample_dt)
         if intervals < 1 or abs(intervals * self.sample_dt - self.t_end) > 1e-9 * self.t_end:
-            raise ValueError(f"t_end: must be a whole multiple of sample_dt = {self.sample_dt:g} s, "
-                             f"got {self.t_end:g} s")
+            raise ValueError(
+                f"t_end: must be a whole multiple of sample_dt = {self.sample_dt:g} s, "
+                f"got {self.t_end:g} s"
+            )
         if not isinstance(self.batch, bool):
             raise ValueError(f"batch: expected true or false, got {self.batch!r}")
         if self.structure is not None and not isinstance(self.structure, Structure):
-            raise ValueError(f"structure: expected a Structure, got {type(self.structure).__name__}")
+            raise ValueError(
+                f"structure: expected a Structure, got {type(self.structure).__name__}"
+            )
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], *, folder: PathLike = ".") -> SweepSpec:
@@ -273,16 +303,20 @@ class SweepSpec:
         structure sweep, for each varied parameter only)."""
         names = list(self.parameters)
         if self.mode == "grid":
-            combos = [dict(zip(names, values, strict=True))
-                      for values in itertools.product(*self.parameters.values())]
+            combos = [
+                dict(zip(names, values, strict=True))
+                for values in itertools.product(*self.parameters.values())
+            ]
         else:
             rng = np.random.default_rng(self.seed)
             draws: dict[str, list[float | int]] = {}
             for name, values in self.parameters.items():
                 low, high = values[0], values[-1]
                 if name in INTEGER_PARAMETERS:  # integers (__post_init__)
-                    draws[name] = [int(v) for v in rng.integers(int(low), int(high), self.samples,
-                                                                endpoint=True)]
+                    draws[name] = [
+                        int(v)
+                        for v in rng.integers(int(low), int(high), self.samples, endpoint=True)
+                    ]
                 else:
                     draws[name] = [float(v) for v in rng.uniform(low, high, self.samples)]
             combos = [{name: draws[name][i] for name in names} for i in range(self.samples)]
@@ -293,22 +327,28 @@ class SweepSpec:
 
 # ------------------------------------------------------------------------------- one case
 def case_model(
-    case: Mapping[str, float], structure: Structure | None = None,
+    case: Mapping[str, float],
+    structure: Structure | None = None,
 ) -> tuple[Structure, np.ndarray | None]:
     """``(structure, external_force)`` of a case (see the module docstring): the class 1 shell of
     the case, or ``structure`` with the case's parameters applied; raises ValueError naming the
     parameter if the case is not a valid structure."""
     if structure is None:
-        structure = class1_shell(int(case["n"]), int(case["m"]), stiffness=case["stiffness"],
-                                 damping=case["damping"])
+        structure = class1_shell(
+            int(case["n"]), int(case["m"]), stiffness=case["stiffness"], damping=case["damping"]
+        )
     else:
-        changes = {f"tendon_{name}": np.full(structure.n_tendons, float(case[name]))
-                   for name in ("stiffness", "damping") if name in case}
+        changes = {
+            f"tendon_{name}": np.full(structure.n_tendons, float(case[name]))
+            for name in ("stiffness", "damping")
+            if name in case
+        }
         try:
             structure = structure.replace(**changes)
         except ValueError as exc:  # "tendon_stiffness[0]: must be > 0": name the parameter
-            raise ValueError(f"{', '.join(n for n in ('stiffness', 'damping') if n in case)}: "
-                             f"{exc}") from None
+            raise ValueError(
+                f"{', '.join(n for n in ('stiffness', 'damping') if n in case)}: {exc}"
+            ) from None
     if "rest_scale" in case:
         scale = case["rest_scale"]
         if not scale >= 0:
@@ -336,7 +376,8 @@ def summarize(result: SimulationResult, times: np.ndarray) -> dict[str, Any]:
     on_grid = (np.abs(result.t - index * sample_dt) <= 1e-9 * sample_dt) & (index < times.size)
     rows, where = np.flatnonzero(on_grid), index[on_grid]
     displacement = np.linalg.norm(
-        result.node_position - result.structure.node_position, axis=-1).max(axis=1)
+        result.node_position - result.structure.node_position, axis=-1
+    ).max(axis=1)
     values = {
         "kinetic_energy": result.energy["kinetic"],
         "elastic_energy": result.energy["elastic"],
@@ -351,8 +392,12 @@ def summarize(result: SimulationResult, times: np.ndarray) -> dict[str, Any]:
         series[where] = value[rows]
         out[name] = series
     out.update(
-        status=int(result.status), message=result.message, t_final=float(result.t[-1]),
-        nsteps=int(result.nsteps), nfev=int(result.nfev), wall_time=float(result.wall_time),
+        status=int(result.status),
+        message=result.message,
+        t_final=float(result.t[-1]),
+        nsteps=int(result.nsteps),
+        nfev=int(result.nfev),
+        wall_time=float(result.wall_time),
         max_rod_length_error=float(result.max_rod_length_error),
         max_constraint_error=float(result.max_constraint_error),
         batched=int(bool(result.settings.get("batched", False))),
@@ -362,9 +407,17 @@ def summarize(result: SimulationResult, times: np.ndarray) -> dict[str, Any]:
 
 def _error_summary(exc: BaseException, times: np.ndarray) -> dict[str, Any]:
     out: dict[str, Any] = {name: np.full(times.size, np.nan) for name in SERIES}
-    out.update(status=STATUS_ERROR, message=f"{type(exc).__name__}: {exc}", t_final=np.nan,
-               nsteps=0, nfev=0, wall_time=0.0, max_rod_length_error=np.nan,
-               max_constraint_error=np.nan, batched=0)
+    out.update(
+        status=STATUS_ERROR,
+        message=f"{type(exc).__name__}: {exc}",
+        t_final=np.nan,
+        nsteps=0,
+        nfev=0,
+        wall_time=0.0,
+        max_rod_length_error=np.nan,
+        max_constraint_error=np.nan,
+        batched=0,
+    )
     return out
 
 
@@ -390,8 +443,11 @@ def run_cases(cases: Sequence[Mapping[str, float]], spec: SweepSpec, batched: bo
         keys = list(models)
         try:
             results = simulate_batch(
-                [models[i][0] for i in keys], (0.0, spec.t_end), dt=spec.dt,
-                sample_dt=spec.sample_dt, external_force=[models[i][1] for i in keys],
+                [models[i][0] for i in keys],
+                (0.0, spec.t_end),
+                dt=spec.dt,
+                sample_dt=spec.sample_dt,
+                external_force=[models[i][1] for i in keys],
             )
         except Exception as exc:  # noqa: BLE001 - reported for every case of the batch
             for i in keys:
@@ -402,9 +458,16 @@ def run_cases(cases: Sequence[Mapping[str, float]], spec: SweepSpec, batched: bo
         return [out[i] for i in range(len(cases))]
     for i, (structure, force) in models.items():
         try:
-            result = simulate(structure, (0.0, spec.t_end), method=spec.method, dt=(
-                spec.dt if spec.method in FIXED_STEP_METHODS else None), rtol=spec.rtol,
-                atol=spec.atol, sample_dt=spec.sample_dt, external_force=force)
+            result = simulate(
+                structure,
+                (0.0, spec.t_end),
+                method=spec.method,
+                dt=(spec.dt if spec.method in FIXED_STEP_METHODS else None),
+                rtol=spec.rtol,
+                atol=spec.atol,
+                sample_dt=spec.sample_dt,
+                external_force=force,
+            )
             out[i] = summarize(result, times)
         except Exception as exc:  # noqa: BLE001 - reported per case
             out[i] = _error_summary(exc, times)
@@ -432,8 +495,9 @@ class SweepResult:
     def describe_case(self, index: int) -> str:
         """``"case 3 (n=3, m=1, stiffness=100, ...)"``."""
         ds = self.dataset
-        values = ", ".join(f"{name}={ds[name].values[index]:g}" for name in DEFAULTS
-                           if name in ds.coords)
+        values = ", ".join(
+            f"{name}={ds[name].values[index]:g}" for name in DEFAULTS if name in ds.coords
+        )
         return f"case {index} ({values})"
 
     def save(self, path: PathLike) -> Path:
@@ -458,7 +522,9 @@ def read_sweep(path: PathLike) -> xr.Dataset:
         raise ValueError(f"{path}: not a sweep file ({exc})") from None
 
 
-def plan(spec: SweepSpec, cases: Sequence[Mapping[str, float]], n_slots: int) -> list[tuple[list[int], bool]]:
+def plan(
+    spec: SweepSpec, cases: Sequence[Mapping[str, float]], n_slots: int
+) -> list[tuple[list[int], bool]]:
     """The tasks: ``(case indices, batched)``.
 
     RK4 with ``spec.batch``: the cases of each ``(n, m)`` (or all cases of a structure sweep) in
@@ -467,8 +533,7 @@ def plan(spec: SweepSpec, cases: Sequence[Mapping[str, float]], n_slots: int) ->
     take, one ``simulate`` task per case.
     """
     base = spec.structure
-    if (spec.method in FIXED_STEP_METHODS and spec.batch
-            and (base is None or base.is_free_class1)):
+    if spec.method in FIXED_STEP_METHODS and spec.batch and (base is None or base.is_free_class1):
         groups: dict[tuple[int, int], list[int]] = {}
         for i, case in enumerate(cases):
             key = (0, 0) if base is not None else (int(case["n"]), int(case["m"]))
@@ -499,10 +564,19 @@ def _dataset(
     for name in SCALARS:
         values = [r[name] for r in rows]
         data[name] = ("case", np.array(values, dtype=str if name == "message" else None))
-    units = dict(kinetic_energy="J", elastic_energy="J", energy_error="J", max_tension="N",
-                 max_displacement="m", t_final="s", wall_time="s", max_constraint_error="m",
-                 stiffness="N/m",
-                 damping="N s/m", load="N")
+    units = dict(
+        kinetic_energy="J",
+        elastic_energy="J",
+        energy_error="J",
+        max_tension="N",
+        max_displacement="m",
+        t_final="s",
+        wall_time="s",
+        max_constraint_error="m",
+        stiffness="N/m",
+        damping="N s/m",
+        load="N",
+    )
     ds = xr.Dataset(data, coords=coords, attrs={"spec": json.dumps(spec.to_dict())})
     for name, unit in units.items():
         if name in ds.variables:
@@ -514,7 +588,10 @@ class _Cluster:
     """A Dask client: the given one, one connected to ``scheduler``, or a new LocalCluster."""
 
     def __init__(
-        self, client: Client | None, scheduler: str | None, n_workers: int | None,
+        self,
+        client: Client | None,
+        scheduler: str | None,
+        n_workers: int | None,
         processes: bool,
     ) -> None:
         self.client, self.scheduler = client, scheduler
@@ -530,8 +607,10 @@ class _Cluster:
             self.client = Client(self.scheduler)
         else:
             cluster = LocalCluster(
-                n_workers=self.n_workers or os.cpu_count() or 1, threads_per_worker=1,
-                processes=self.processes, dashboard_address=":0",  # any free port
+                n_workers=self.n_workers or os.cpu_count() or 1,
+                threads_per_worker=1,
+                processes=self.processes,
+                dashboard_address=":0",  # any free port
             )
             self._own.append(cluster)
             self.client = Client(cluster)
