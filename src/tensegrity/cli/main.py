@@ -19,6 +19,7 @@ import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import NoReturn, TypeAlias
 
 import numpy as np
 
@@ -41,8 +42,12 @@ class CommandError(Exception):
 
 
 class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> None:  # one line, not usage + error
+    def error(self, message: str) -> NoReturn:  # one line, not usage + error
         raise CommandError(f"{self.prog}: {message}")
+
+
+#: The ``tensegrity`` parser's subcommands, to which each ``_add_*_parser`` adds its own.
+_Commands: TypeAlias = "argparse._SubParsersAction[_Parser]"
 
 
 def _positive(text: str) -> float:
@@ -664,7 +669,7 @@ def _cmd_analysis(args: argparse.Namespace) -> int:
     return 0
 
 
-def _add_analysis_parsers(sub) -> None:
+def _add_analysis_parsers(sub: _Commands) -> None:
     """The analysis verbs (issue 4); option names are the keywords of ``commands.run_<verb>``."""
     verbs = {
         "equilibrium": "static equilibrium by least squares and by damped simulation: node "
@@ -690,7 +695,15 @@ def _add_analysis_parsers(sub) -> None:
         p.set_defaults(run=_cmd_analysis)
     for verb in ("equilibrium", "modes", "controllability"):  # shape control: without gravity
         _add_gravity_option(parsers[verb])
-    p = parsers["equilibrium"]
+    _add_equilibrium_options(parsers["equilibrium"])
+    _add_modes_options(parsers["modes"])
+    _add_controllability_options(parsers["controllability"])
+    _add_control_options(parsers["control"])
+    _add_closed_loop_options(parsers["control"])
+
+
+def _add_equilibrium_options(p: argparse.ArgumentParser) -> None:
+    """``equilibrium``: the method and the damped simulation's limits."""
     p.add_argument(
         "--method",
         choices=("both", "least_squares", "simulation"),
@@ -711,7 +724,10 @@ def _add_analysis_parsers(sub) -> None:
         default=1e-6,
         help="... and node accelerations below this [m/s^2] (default 1e-6)",
     )
-    p = parsers["modes"]
+
+
+def _add_modes_options(p: argparse.ArgumentParser) -> None:
+    """``modes``: the shapes drawn and the optional checks."""
     p.add_argument("--shapes", type=int, default=6, help="mode shapes to draw (default 6)")
     p.add_argument(
         "--check-fft",
@@ -723,7 +739,10 @@ def _add_analysis_parsers(sub) -> None:
         action="store_true",
         help="perturb the equilibrium and simulate with and without damping",
     )
-    p = parsers["controllability"]
+
+
+def _add_controllability_options(p: argparse.ArgumentParser) -> None:
+    """``controllability``: the input and output sets and the damping."""
     p.add_argument(
         "--inputs",
         nargs="+",
@@ -744,7 +763,10 @@ def _add_analysis_parsers(sub) -> None:
         default="critical",
         help="damping of the linearization used for the Gramians (default critical)",
     )
-    p = parsers["control"]
+
+
+def _add_control_options(p: argparse.ArgumentParser) -> None:
+    """``control``: the targets, the actuators, the steps and the rings."""
     p.add_argument(
         "--height",
         type=_positive,
@@ -785,6 +807,10 @@ def _add_analysis_parsers(sub) -> None:
         metavar="NODE",
         help="top ring nodes (default: the highest nodes)",
     )
+
+
+def _add_closed_loop_options(p: argparse.ArgumentParser) -> None:
+    """``control``: the closed loop's times, the bounds and the tolerance."""
     p.add_argument(
         "--no-closed-loop",
         dest="closed_loop",
@@ -876,10 +902,8 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     return EXIT_FAILED if result.failed else 0
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="tensegrity", description=__doc__.splitlines()[0])
-    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
-
+def _add_simulate_parser(sub: _Commands) -> None:
+    """``simulate``: run a structure and write its trajectory, structure and figures."""
     sim = sub.add_parser(
         "simulate",
         help="simulate a structure (default: the paper's damped (3,1) shell, until steady state)",
@@ -924,7 +948,13 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="also write the run for ParaView: OUT/vtk/tensegrity.pvd + .vtp files",
     )
-    integration = sim.add_argument_group("integration")
+    _add_integration_options(sim)
+    sim.set_defaults(run=_cmd_simulate)
+
+
+def _add_integration_options(parser: argparse.ArgumentParser) -> None:
+    """``simulate``'s integration options (method, step, tolerances, sampling)."""
+    integration = parser.add_argument_group("integration")
     integration.add_argument(
         "--method",
         default="DOP853",
@@ -941,12 +971,17 @@ def build_parser() -> argparse.ArgumentParser:
     integration.add_argument(
         "--sample-dt", type=_positive, default=0.01, help="output spacing [s] (default 0.01)"
     )
-    sim.set_defaults(run=_cmd_simulate)
 
+
+def _add_info_parser(sub: _Commands) -> None:
+    """``info``: counts and sizes of a structure."""
     info = sub.add_parser("info", help="print counts and sizes of a structure")
     _add_structure_options(info)
     info.set_defaults(run=_cmd_info)
 
+
+def _add_export_parser(sub: _Commands) -> None:
+    """``export``: a structure to a file in any format."""
     export = sub.add_parser(
         "export", help="write a generated structure or a structure file to a file (any format)"
     )
@@ -972,6 +1007,9 @@ def build_parser() -> argparse.ArgumentParser:
     export.add_argument("-o", "--output", type=Path, required=True, help="output file")
     export.set_defaults(run=_cmd_export)
 
+
+def _add_vtk_parser(sub: _Commands) -> None:
+    """``vtk``: a trajectory file to VTK files for ParaView."""
     vtk = sub.add_parser(
         "vtk",
         help="convert a trajectory to VTK files for ParaView",
@@ -984,6 +1022,9 @@ def build_parser() -> argparse.ArgumentParser:
     vtk.add_argument("--name", default="tensegrity", help="file name stem (default tensegrity)")
     vtk.set_defaults(run=_cmd_vtk)
 
+
+def _add_matrices_parser(sub: _Commands) -> None:
+    """``matrices``: the paper's matrix model of a shell to files."""
     matrices = sub.add_parser(
         "matrices",
         help="write the paper's matrices (Q, R, T, B^d, B^o, H, K_r, K_p, B, D, ...) of a shell",
@@ -1008,8 +1049,10 @@ def build_parser() -> argparse.ArgumentParser:
         "--out", type=Path, default=Path("matrices"), help="output folder (default ./matrices)"
     )
     matrices.set_defaults(run=_cmd_matrices)
-    _add_analysis_parsers(sub)
 
+
+def _add_sweep_parser(sub: _Commands) -> None:
+    """``sweep``: a parameter sweep on Dask."""
     sweep = sub.add_parser(
         "sweep",
         help="simulate many shells or copies of a structure file (a grid or Monte Carlo "
@@ -1050,6 +1093,19 @@ def build_parser() -> argparse.ArgumentParser:
     sweep.add_argument("--workers", type=int, help="local cluster workers (default: CPU count)")
     sweep.add_argument("-o", "--output", type=Path, required=True, help="output .nc file")
     sweep.set_defaults(run=_cmd_sweep)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The parser of the ``tensegrity`` command: one subcommand per verb."""
+    parser = _Parser(prog="tensegrity", description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    _add_simulate_parser(sub)
+    _add_info_parser(sub)
+    _add_export_parser(sub)
+    _add_vtk_parser(sub)
+    _add_matrices_parser(sub)
+    _add_analysis_parsers(sub)
+    _add_sweep_parser(sub)
     return parser
 
 
