@@ -14,12 +14,13 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import math
 import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import NoReturn, TypeAlias
+from typing import TYPE_CHECKING, NoReturn, TypeAlias
 
 import numpy as np
 
@@ -27,6 +28,11 @@ from tensegrity.engine.options import ADAPTIVE_METHODS, FIXED_STEP_METHODS
 from tensegrity.io.files import write_staged as _write_all
 from tensegrity.model.structure import Structure
 from tensegrity.physics import dynamics
+
+if TYPE_CHECKING:
+    from tensegrity.engine.result import SimulationResult
+    from tensegrity.io.stream import StreamSummary
+    from tensegrity.model.loads import ForceTable
 
 EXIT_FAILED, EXIT_USAGE = 1, 2
 #: Exit code when the reader of stdout closed it early (128 + SIGPIPE, as a shell reports it).
@@ -234,7 +240,8 @@ class _Interrupted(KeyboardInterrupt):
 
 @contextlib.contextmanager
 def _terminate_as_interrupt():
-    """Within the block, SIGTERM raises :class:`_Interrupted` (as Ctrl-C raises KeyboardInterrupt)."""
+    """Within the block, SIGTERM raises :class:`_Interrupted` (as Ctrl-C raises
+    KeyboardInterrupt)."""
     import signal
 
     def handler(signum, frame):
@@ -264,13 +271,10 @@ def _segment(structure: Structure, t_end: float, sample_dt: float) -> float:
     return min(default, tenth) * sample_dt
 
 
-def _cmd_simulate(args: argparse.Namespace) -> int:
-    from tensegrity.io.formats import write_structure
-    from tensegrity.io.stream import PARTIAL_SUFFIX, read_checkpoint, simulate_to_file
-    from tensegrity.io.trajectory import read_trajectory
-    from tensegrity.plots.figures import save_figures
-
-    _check_output_folder(args.out, "--out")
+def _simulation_inputs(
+    args: argparse.Namespace,
+) -> tuple[Structure, ForceTable | None, np.ndarray | None]:
+    """The structure (damped as the options say), the force table and the gravity of a run."""
     structure = _structure(args)
     damping = args.damping
     if damping is None and getattr(args, "structure", None) is None:
@@ -295,90 +299,52 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         from tensegrity.model.loads import gravity_vector
 
         gravity = gravity_vector(args.gravity, structure.dim)
+    return structure, force, gravity
 
-    out: Path = args.out
-    work = out / WORK_FILE
-    partial = Path(str(work) + PARTIAL_SUFFIX)
-    created = [folder for folder in (out, *out.parents) if not folder.exists()]
-    out.mkdir(parents=True, exist_ok=True)
-    fresh = not args.resume or not partial.exists()  # this call starts a new partial file
 
-    def discard() -> None:
+@dataclasses.dataclass(frozen=True)
+class _RunFiles:
+    """The files of one ``simulate`` call in ``--out``: the run streams into ``partial`` and ends
+    as ``work``; ``created`` are the folders this call made, ``fresh`` whether it starts a new
+    partial file (not ``--resume``, or nothing to resume)."""
+
+    out: Path
+    work: Path
+    partial: Path
+    created: list[Path]
+    fresh: bool
+
+    @classmethod
+    def prepare(cls, out: Path, resume: bool) -> _RunFiles:
+        """The files of a run in ``out``, which is made (with its parents) if need be."""
+        from tensegrity.io.stream import PARTIAL_SUFFIX
+
+        work = out / WORK_FILE
+        partial = Path(str(work) + PARTIAL_SUFFIX)
+        created = [folder for folder in (out, *out.parents) if not folder.exists()]
+        out.mkdir(parents=True, exist_ok=True)
+        fresh = not resume or not partial.exists()  # this call starts a new partial file
+        return cls(out, work, partial, created, fresh)
+
+    def discard(self) -> None:
         """Remove what this call made that holds nothing: an empty fresh partial, new folders."""
-        if fresh and partial.exists():
+        from tensegrity.io.stream import read_checkpoint
+
+        if self.fresh and self.partial.exists():
             try:
-                empty = read_checkpoint(partial).next_segment == 0
+                empty = read_checkpoint(self.partial).next_segment == 0
             except ValueError:
                 empty = True
             if empty:
-                partial.unlink(missing_ok=True)
-        _remove_empty(created)
+                self.partial.unlink(missing_ok=True)
+        _remove_empty(self.created)
 
-    try:
-        with _terminate_as_interrupt():
-            try:
-                summary = simulate_to_file(
-                    structure,
-                    (0.0, args.t_end),
-                    work,
-                    segment=_segment(structure, args.t_end, args.sample_dt),
-                    resume=args.resume,
-                    progress=sys.stderr.isatty(),
-                    external_force=force,
-                    gravity=gravity,
-                    method=args.method,
-                    rtol=args.rtol,
-                    atol=args.atol,
-                    dt=args.dt,
-                    sample_dt=args.sample_dt,
-                    steady_state=not args.no_steady_state,
-                )
-            except KeyboardInterrupt:
-                raise
-            except ValueError as exc:
-                discard()
-                message = " ".join(str(exc).split()).replace(  # one line, in the CLI's words
-                    "pass resume=False to start again", "run without --resume to start again"
-                )
-                raise CommandError(
-                    message.replace(
-                        "start again with resume=False", "run without --resume to start again"
-                    )
-                ) from None
-            except BaseException:
-                discard()
-                raise
-            if not summary.success:
-                work.unlink(missing_ok=True)
-                _remove_empty(created)
-                raise CommandError(
-                    f"simulation failed: {summary.message} (nothing written)", EXIT_FAILED
-                )
-            # the figures and the summary from at most FIGURE_SAMPLES samples (and the last),
-            # the energy balance from every sample
-            trajectory = read_trajectory(
-                work, every=max(1, -(-summary.n_samples // FIGURE_SAMPLES))
-            )
-            balance = _energy_balance_error(work)
-
-            def write(staging: Path) -> list[Path]:
-                files = [
-                    write_structure(staging / "structure.json", structure),
-                    *save_figures(trajectory, staging),
-                    *(_vtk_files(staging / "vtk", read_trajectory(work)) if args.vtk else []),
-                ]
-                # Last, so that the finished run stays in ``work`` if anything before fails.
-                target = staging / "trajectory.h5"
-                _link_or_move(work, target)
-                return [target, *files]
-
-            written = _write_all(out, write)
-            work.unlink(missing_ok=True)  # a second name of trajectory.h5, if linked
-    except KeyboardInterrupt as exc:
+    def interrupted(self, exc: KeyboardInterrupt) -> int:
+        """Report an interrupted run (what it left, if anything); its exit code."""
         code = 128 + exc.signum if isinstance(exc, _Interrupted) else 130
-        kept = next((p for p in (partial, work) if p.exists()), None)
+        kept = next((p for p in (self.partial, self.work) if p.exists()), None)
         if kept is None:
-            _remove_empty(created)
+            _remove_empty(self.created)
             print("tensegrity: interrupted (nothing written)", file=sys.stderr)
         else:
             print(
@@ -387,12 +353,106 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
                 file=sys.stderr,
             )
         return code
+
+
+def _in_cli_words(exc: ValueError) -> str:
+    """The library's error as one line, in the CLI's words."""
+    message = " ".join(str(exc).split()).replace(
+        "pass resume=False to start again", "run without --resume to start again"
+    )
+    return message.replace("start again with resume=False", "run without --resume to start again")
+
+
+def _stream_run(
+    args: argparse.Namespace,
+    structure: Structure,
+    force: ForceTable | None,
+    gravity: np.ndarray | None,
+    files: _RunFiles,
+) -> StreamSummary:
+    """Simulate into ``files.work`` (through its partial file); a rejected or failed run leaves
+    nothing of this call's making behind, an interrupted one its partial file."""
+    from tensegrity.io.stream import simulate_to_file
+
+    try:
+        summary = simulate_to_file(
+            structure,
+            (0.0, args.t_end),
+            files.work,
+            segment=_segment(structure, args.t_end, args.sample_dt),
+            resume=args.resume,
+            progress=sys.stderr.isatty(),
+            external_force=force,
+            gravity=gravity,
+            method=args.method,
+            rtol=args.rtol,
+            atol=args.atol,
+            dt=args.dt,
+            sample_dt=args.sample_dt,
+            steady_state=not args.no_steady_state,
+        )
+    except KeyboardInterrupt:
+        raise
+    except ValueError as exc:
+        files.discard()
+        raise CommandError(_in_cli_words(exc)) from None
+    except BaseException:
+        files.discard()
+        raise
+    if not summary.success:
+        files.work.unlink(missing_ok=True)
+        _remove_empty(files.created)
+        raise CommandError(f"simulation failed: {summary.message} (nothing written)", EXIT_FAILED)
+    return summary
+
+
+def _write_run(
+    args: argparse.Namespace, structure: Structure, summary: StreamSummary, files: _RunFiles
+) -> tuple[SimulationResult, float, list[Path]]:
+    """Write the finished run's files to ``--out`` together; the trajectory read back for the
+    figures and the summary, the largest energy balance error [J] and the files written."""
+    from tensegrity.io.formats import write_structure
+    from tensegrity.io.trajectory import read_trajectory
+    from tensegrity.plots.figures import save_figures
+
+    work = files.work
+    # the figures and the summary from at most FIGURE_SAMPLES samples (and the last),
+    # the energy balance from every sample
+    trajectory = read_trajectory(work, every=max(1, -(-summary.n_samples // FIGURE_SAMPLES)))
+    balance = _energy_balance_error(work)
+
+    def write(staging: Path) -> list[Path]:
+        outputs = [
+            write_structure(staging / "structure.json", structure),
+            *save_figures(trajectory, staging),
+            *(_vtk_files(staging / "vtk", read_trajectory(work)) if args.vtk else []),
+        ]
+        # Last, so that the finished run stays in ``work`` if anything before fails.
+        target = staging / "trajectory.h5"
+        _link_or_move(work, target)
+        return [target, *outputs]
+
+    written = _write_all(files.out, write)
+    work.unlink(missing_ok=True)  # a second name of trajectory.h5, if linked
+    return trajectory, balance, written
+
+
+def _cmd_simulate(args: argparse.Namespace) -> int:
+    _check_output_folder(args.out, "--out")
+    structure, force, gravity = _simulation_inputs(args)
+    files = _RunFiles.prepare(args.out, args.resume)
+    try:
+        with _terminate_as_interrupt():
+            summary = _stream_run(args, structure, force, gravity, files)
+            trajectory, balance, written = _write_run(args, structure, summary, files)
+    except KeyboardInterrupt as exc:
+        return files.interrupted(exc)
     _print_summary(
         trajectory,
         summary,
         balance,
         args.resume,
-        [f for f in written if f.parent == out or f.suffix == ".pvd"],
+        [f for f in written if f.parent == files.out or f.suffix == ".pvd"],
     )
     return 0
 
@@ -895,7 +955,8 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     path = result.save(args.output)
     n = result.dataset.sizes["case"]
     print(
-        f"{n - len(result.failed)} of {n} cases reached t_end in {result.wall_time:.1f} s; wrote {path}"
+        f"{n - len(result.failed)} of {n} cases reached t_end in {result.wall_time:.1f} s; "
+        f"wrote {path}"
     )
     for i in result.failed:
         print(f"{result.describe_case(i)}: {result.dataset['message'].values[i]}", file=sys.stderr)
