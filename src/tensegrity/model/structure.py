@@ -25,15 +25,22 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Mapping, Sequence
 from functools import cached_property
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 import scipy.sparse as sp
 
 #: Relative tolerance on ``| |p_b - p_a| - L | / L`` accepted for the node positions of a rod.
 ROD_LENGTH_RTOL = 1e-6
 #: Tolerance on the distance between joined nodes, relative to the longest rod.
 JOINT_RTOL = 1e-6
+
+#: The default of an optional :class:`Structure` field: "not given".  ``__post_init__`` replaces
+#: it by the field's filled-in value, so the field is typed as that value (typed ``Any`` here so
+#: that a ``None`` default fits the field's type; the constructor's own signature, for type
+#: checkers, says which arguments may be ``None``).
+_NOT_GIVEN: Any = None
 
 
 def _readonly(array: np.ndarray) -> np.ndarray:
@@ -49,7 +56,7 @@ def _float_array(value: Any, field: str, shape: tuple[int | None, ...]) -> np.nd
     except (TypeError, ValueError) as exc:
         raise ValueError(f"{field}: expected numbers, got {value!r:.80}") from exc
     if array.ndim != len(shape) or any(
-        want is not None and got != want for got, want in zip(array.shape, shape)
+        want is not None and got != want for got, want in zip(array.shape, shape, strict=True)
     ):
         pretty = "(" + ", ".join("n" if s is None else str(s) for s in shape) + ")"
         raise ValueError(f"{field}: expected shape {pretty}, got {array.shape}")
@@ -172,26 +179,56 @@ class Structure:
         Naming the field and element, e.g. ``tendons[3] ('t5_1_1').stiffness: must be > 0``.
     """
 
-    node_position: np.ndarray
-    rod_nodes: np.ndarray
-    rod_mass: np.ndarray
-    rod_length: np.ndarray
-    tendon_nodes: np.ndarray
-    tendon_stiffness: np.ndarray
-    tendon_rest_length: np.ndarray
-    tendon_damping: np.ndarray | None = None
-    tendon_name: tuple[str, ...] | None = None
-    node_velocity: np.ndarray | None = None
-    rod_damping: np.ndarray | None = None
-    node_fixed: np.ndarray | None = None
-    node_point_mass: np.ndarray | None = None
-    joint_nodes: np.ndarray | None = None
-    plane_nodes: np.ndarray | None = None
-    plane_normal: np.ndarray | None = None
-    line_nodes: np.ndarray | None = None
-    line_direction: np.ndarray | None = None
+    # The fields have the types of the validated, read-only values ``__post_init__`` stores; the
+    # constructor takes any array_like (see its signature below, for type checkers).
+    node_position: npt.NDArray[np.float64]
+    rod_nodes: npt.NDArray[np.int64]
+    rod_mass: npt.NDArray[np.float64]
+    rod_length: npt.NDArray[np.float64]
+    tendon_nodes: npt.NDArray[np.int64]
+    tendon_stiffness: npt.NDArray[np.float64]
+    tendon_rest_length: npt.NDArray[np.float64]
+    tendon_damping: npt.NDArray[np.float64] = _NOT_GIVEN
+    tendon_name: tuple[str, ...] = _NOT_GIVEN
+    node_velocity: npt.NDArray[np.float64] = _NOT_GIVEN
+    rod_damping: npt.NDArray[np.float64] = _NOT_GIVEN
+    node_fixed: npt.NDArray[np.bool_] = _NOT_GIVEN
+    node_point_mass: npt.NDArray[np.float64] = _NOT_GIVEN
+    joint_nodes: npt.NDArray[np.int64] = _NOT_GIVEN
+    plane_nodes: npt.NDArray[np.int64] = _NOT_GIVEN
+    plane_normal: npt.NDArray[np.float64] = _NOT_GIVEN
+    line_nodes: npt.NDArray[np.int64] = _NOT_GIVEN
+    line_direction: npt.NDArray[np.float64] = _NOT_GIVEN
+
+    if TYPE_CHECKING:
+        # The signature of the generated ``__init__`` as the caller sees it: the arguments are
+        # array_like, not yet the arrays the fields hold, and the optional ones may be None.
+
+        def __init__(
+            self,
+            node_position: npt.ArrayLike,
+            rod_nodes: npt.ArrayLike,
+            rod_mass: npt.ArrayLike,
+            rod_length: npt.ArrayLike,
+            tendon_nodes: npt.ArrayLike,
+            tendon_stiffness: npt.ArrayLike,
+            tendon_rest_length: npt.ArrayLike,
+            tendon_damping: npt.ArrayLike | None = None,
+            tendon_name: Sequence[str] | None = None,
+            node_velocity: npt.ArrayLike | None = None,
+            rod_damping: npt.ArrayLike | None = None,
+            node_fixed: npt.ArrayLike | None = None,
+            node_point_mass: npt.ArrayLike | None = None,
+            joint_nodes: npt.ArrayLike | None = None,
+            plane_nodes: npt.ArrayLike | None = None,
+            plane_normal: npt.ArrayLike | None = None,
+            line_nodes: npt.ArrayLike | None = None,
+            line_direction: npt.ArrayLike | None = None,
+        ) -> None: ...
 
     def __post_init__(self) -> None:
+        # Until the end of ``__post_init__``, the fields hold the arguments as given (array_like,
+        # or None for an optional one): the ``_check*`` methods read them as such.
         position, velocity = self._checked_positions()
         n_nodes = position.shape[0]
         rod_nodes, rod_mass, rod_length, rod_damping = self._checked_rods(n_nodes)
@@ -319,7 +356,8 @@ class Structure:
             fixed = np.array(self.node_fixed)
             if fixed.shape != (n_nodes,) or fixed.dtype != bool:
                 raise ValueError(
-                    f"node_fixed: expected {n_nodes} booleans, got {fixed.dtype} of shape {fixed.shape}"
+                    f"node_fixed: expected {n_nodes} booleans, got {fixed.dtype} of shape "
+                    f"{fixed.shape}"
                 )
         point_mass = _float_array(
             np.zeros(n_nodes) if self.node_point_mass is None else self.node_point_mass,
@@ -364,8 +402,8 @@ class Structure:
         if bad.size:
             k = bad[0]
             raise ValueError(
-                f"joint_nodes[{k}]: nodes {joints[k, 0]} and {joints[k, 1]} are {float(gap[k])!r} m "
-                "apart; joined nodes must coincide"
+                f"joint_nodes[{k}]: nodes {joints[k, 0]} and {joints[k, 1]} are "
+                f"{float(gap[k])!r} m apart; joined nodes must coincide"
             )
         set_("joint_nodes", _readonly(joints))
         for kind, vector in (("plane", "normal"), ("line", "direction")):
@@ -538,7 +576,9 @@ class Structure:
             ("lines", self.line_nodes, self.line_direction, "direction"),
         ):
             if nodes.size:
-                extra[key] = [{"node": int(k), name: v.tolist()} for k, v in zip(nodes, vectors)]
+                extra[key] = [
+                    {"node": int(k), name: v.tolist()} for k, v in zip(nodes, vectors, strict=True)
+                ]
         return (
             extra
             | {
@@ -552,7 +592,11 @@ class Structure:
                         "damping": float(c),
                     }
                     for (a, b), m, L, c in zip(
-                        self.rod_nodes, self.rod_mass, self.rod_length, self.rod_damping
+                        self.rod_nodes,
+                        self.rod_mass,
+                        self.rod_length,
+                        self.rod_damping,
+                        strict=True,
                     )
                 ],
                 "tendons": [
@@ -569,6 +613,7 @@ class Structure:
                         self.tendon_stiffness,
                         self.tendon_rest_length,
                         self.tendon_damping,
+                        strict=True,
                     )
                 ],
             }
