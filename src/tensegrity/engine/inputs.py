@@ -57,6 +57,10 @@ class _Signal:
             return self.value[None]
         if self.kind == "table":
             return self.value.at(times)
+        return self._calls(times)
+
+    def _calls(self, times: np.ndarray) -> np.ndarray:
+        """Values (K, *shape) of the callable at ``times`` (K,), one call each, checked."""
         return np.stack(
             [
                 _check(
@@ -73,7 +77,7 @@ class _Signal:
         if self.kind == "table":
             return self.value.slope(times)
         h = 1e-6 * np.maximum(1.0, np.abs(times))
-        return (self.at(times + h) - self.at(times - h)) / (2 * h)[:, None]
+        return (self._calls(times + h) - self._calls(times - h)) / (2 * h)[:, None]
 
     def setting(self) -> Any:
         """How the run's settings record this input."""

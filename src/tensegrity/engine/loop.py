@@ -22,7 +22,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Any, Protocol
 
 import numpy as np
@@ -125,8 +125,9 @@ class LoopState:
     last_sample_t: float
     wall_time: float
 
-    def to_arrays(self) -> dict[str, np.ndarray]:
-        """The state as named arrays (for a file); :meth:`from_arrays` reads them back."""
+    def to_arrays(self) -> dict[str, np.ndarray | np.generic]:
+        """The state as named arrays and NumPy scalars (for a file); :meth:`from_arrays` reads
+        them back."""
         landing = self.landing or (math.nan, np.zeros(0, np.int64), np.zeros(0, bool), False)
         return {
             "t": np.float64(self.t),
@@ -151,7 +152,7 @@ class LoopState:
         }
 
     @classmethod
-    def from_arrays(cls, a: dict[str, np.ndarray]) -> LoopState:
+    def from_arrays(cls, a: Mapping[str, np.ndarray | np.generic]) -> LoopState:
         """The state written by :meth:`to_arrays` (``KeyError`` names a missing array)."""
         landing_time = float(a["landing_time"])
         landing = (
@@ -327,7 +328,8 @@ class _Run:
         return min(times)
 
     def control_time(self, t: float) -> float:
-        """The first controller update after ``t`` [s]."""
+        """The first controller update after ``t`` [s] (a run with a controller)."""
+        assert self.controller is not None, "control_time: the run has no controller"
         period = self.controller.period
         return self.t0 + (math.floor((t - self.t0) / period + 1e-9) + 1) * period
 
@@ -338,6 +340,7 @@ class _Run:
 
     def update_control(self, t: float, y: np.ndarray) -> None:
         """Call the controller at ``(t, y)`` and hold its output (the system's inputs change)."""
+        assert self.controller is not None, "update_control: the run has no controller"
         q, qdot = self.system.coordinates(y)
         u = np.array(self.controller(t, q, qdot), dtype=float)
         self.system.hold_control(u, t, y)
@@ -363,6 +366,7 @@ class _Run:
         allow_provisional: bool,
         wall0: float,
     ) -> None:
+        assert self.checkpointing is not None, "save: the run has no checkpoints"
         self.saved_at = self.next_sample - 1
         memory = (
             stepper.memory()
@@ -491,6 +495,7 @@ def _adaptive(run: _Run, stepper: Stepper, resume: LoopState | None, wall0: floa
         )
         allow_provisional = locate
         if detect:
+            assert taut is not None  # detecting switches implies locating them: flags are kept
             changed = np.flatnonzero((stepper.tensions() > 0) != taut)
             if changed.size:
                 t_switch, tendons = _first_switch(stepper, changed, taut)
@@ -560,6 +565,7 @@ def _fixed_step(run: _Run, stepper: RK4, resume: LoopState | None, wall0: float)
     Hermite), one on a step's end is that end before projection.  A controller is called at the
     end of the first step at or after each of its update times."""
     t0, dt = run.t0, run.options.dt
+    assert dt is not None  # `Options` requires a step for a fixed-step method
     n_full = int(np.floor((run.t_end - t0) / dt + 1e-9))
     last = run.t_end - (t0 + n_full * dt)
     n_steps = n_full + (1 if last > 1e-9 * dt else 0)
@@ -628,7 +634,7 @@ def run(
     *,
     initial: dynamics.State | None = None,
     inputs: Inputs | None = None,
-    options: Options = Options(),
+    options: Options | None = None,
     sink: Sink,
     progress: Callable[[float], None] | None = None,
     controller: Controller | None = None,
@@ -639,8 +645,9 @@ def run(
     (Theorem 18.1 with eqs. 18.39-18.60; the loop of the module docstring).
 
     ``initial`` defaults to the structure's node positions and velocities at ``t0``;
-    ``inputs`` (:class:`Inputs`) to no control, load or gravity.  ``progress``, if given, is
-    called with the time reached after each stretch of steps.  ``controller``
+    ``inputs`` (:class:`Inputs`) to no control, load or gravity, ``options`` to ``Options()``.
+    ``progress``, if given, is called with the time reached after each stretch of steps.
+    ``controller``
     (:class:`Controller`) sets the control at ``t0`` and every ``controller.period`` after (the
     inputs may then have no control of their own).  ``checkpoint`` saves the loop's state every
     ``checkpoint.every`` samples; ``resume`` continues from such a state (the same structure,
@@ -648,6 +655,7 @@ def run(
     ``sink`` again).  Returns a :class:`RunSummary`; the samples went to ``sink``, the last one
     at the end time, the steady state or the failing state.
     """
+    options = Options() if options is None else options
     t0, t_end = (float(x) for x in t_span)
     if not (np.isfinite(t0) and np.isfinite(t_end) and t_end > t0):
         raise ValueError(f"t_span: need finite t0 < t_end, got {t_span!r}")
@@ -672,7 +680,7 @@ def run(
         r.restore(resume)
         stepper = _stepper(r, resume.t, resume.y.copy(), resume.memory)
     try:
-        if options.fixed_step:
+        if isinstance(stepper, RK4):  # the stepper of the fixed-step method (options.fixed_step)
             _fixed_step(r, stepper, resume, wall0)
         else:
             _adaptive(r, stepper, resume, wall0)

@@ -49,8 +49,11 @@ class Stepper(Protocol):
     t: float
     t_old: float
     y: np.ndarray
-    nfev: int
     provisional: bool
+
+    @property
+    def nfev(self) -> int:
+        """Right-hand-side evaluations so far (an attribute, or a property: read only here)."""
 
     def step(self, bound: float, taut: np.ndarray | None = None) -> None:
         """One accepted step, ending at or before ``bound`` (see :meth:`DOP853.step`)."""
@@ -307,8 +310,7 @@ class ScipyMethod:
         self.name = method
         self.provisional = False
         self._nfev_before = 0  # of earlier solvers and of tension evaluations
-        self._solver: integrate.OdeSolver | None = None
-        self._start(t0, y0, t_end)
+        self._solver: integrate.OdeSolver = self._new_solver(t0, y0, t_end)
 
     def _rhs(self, t: float, y: np.ndarray) -> np.ndarray:
         dy = np.empty_like(y)
@@ -322,16 +324,22 @@ class ScipyMethod:
         )
         return dy
 
-    def _start(self, t0: float, y0: np.ndarray, bound: float) -> None:
-        if self._solver is not None:
-            self._nfev_before += self._solver.nfev
-        self._solver = self.solver_class(self._rhs, t0, y0, bound, rtol=self.rtol, atol=self.atol)
+    def _new_solver(self, t0: float, y0: np.ndarray, bound: float) -> integrate.OdeSolver:
+        """A solver from ``(t0, y0)`` towards ``bound``; the stepper's state set to its start."""
+        solver = self.solver_class(self._rhs, t0, y0, bound, rtol=self.rtol, atol=self.atol)
         self._bound = bound
         self.t = self.t_old = float(t0)
         self.y = np.array(y0, dtype=float)
         self.y_old = self.y
-        self._dense = None
+        self._dense: Callable[[float], np.ndarray] | None = None
         self._tensions_here = False
+        return solver
+
+    def _start(self, t0: float, y0: np.ndarray, bound: float) -> None:
+        """Start again from ``(t0, y0)`` towards ``bound`` with a new solver (the evaluations of
+        the one before counted)."""
+        self._nfev_before += self._solver.nfev
+        self._solver = self._new_solver(t0, y0, bound)
 
     @property
     def nfev(self) -> int:
@@ -351,9 +359,10 @@ class ScipyMethod:
         pass
 
     def dense(self) -> Callable[[float], np.ndarray]:
-        if self._dense is None:
-            self._dense = self._solver.dense_output()
-        return self._dense
+        dense = self._dense
+        if dense is None:
+            dense = self._dense = self._solver.dense_output()
+        return dense
 
     def retreat(self, to: float) -> None:
         self._start(self.t_old, self.y_old, self._bound)

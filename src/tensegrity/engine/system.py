@@ -62,18 +62,18 @@ class CompiledSystem:
             return self._constant
         inputs, packed = self.inputs, self.packed
         rest = packed.to_kernel_order(inputs.rest_length(times))
-        rate = inputs.control.rate(times)
-        has_rate = rate is not None
-        rate = packed.to_kernel_order(rate) if has_rate else np.zeros((1, 1))
-        force = inputs.external_force.at(times)
-        has_external = force is not None
-        if has_external:
-            force = packed.to_slots(self._spatial(force))
-        else:
+        rate_or_none = inputs.control.rate(times)
+        has_rate = rate_or_none is not None
+        rate = np.zeros((1, 1)) if rate_or_none is None else packed.to_kernel_order(rate_or_none)
+        force_or_none = inputs.external_force.at(times)
+        has_external = force_or_none is not None
+        if force_or_none is None:
             force = np.zeros((1, 3, 1))
-        gravity = inputs.gravity
-        has_gravity = gravity is not None
-        gravity = self._spatial(gravity) if has_gravity else np.zeros(3)
+        else:
+            force = packed.to_slots(self._spatial(force_or_none))
+        gravity_or_none = inputs.gravity
+        has_gravity = gravity_or_none is not None
+        gravity = np.zeros(3) if gravity_or_none is None else self._spatial(gravity_or_none)
         return (
             np.ascontiguousarray(rest),
             np.ascontiguousarray(rate),
