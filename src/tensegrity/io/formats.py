@@ -98,15 +98,12 @@ _TENDON_KEYS = ("stiffness", "rest_length", "prestrain", "damping")
 
 
 # -------------------------------------------------------------------- readable form
+#: The support keys of the readable form whose items are ``{node, ...}``: key -> the value each
+#: item carries.
+_ITEM_KEYS = {"point_masses": "mass", "planes": "normal", "lines": "direction"}
 #: Optional support keys of the readable form (as in :meth:`Structure.to_dict`): key -> the
 #: value each ``{node, ...}`` item carries (``None``: a plain list of nodes, or of node pairs).
-_SUPPORT_KEYS = {
-    "fixed": None,
-    "point_masses": "mass",
-    "planes": "normal",
-    "lines": "direction",
-    "joints": None,
-}
+_SUPPORT_KEYS: dict[str, str | None] = {"fixed": None, **_ITEM_KEYS, "joints": None}
 
 
 def network_to_dict(structure: Structure, *, keep_joints: bool = False) -> dict[str, Any]:
@@ -146,13 +143,13 @@ def network_to_dict(structure: Structure, *, keep_joints: bool = False) -> dict[
     ):
         if nodes.size:
             data[key] = [
-                {"node": names[i], _SUPPORT_KEYS[key]: v.tolist()} for i, v in zip(nodes, values)
+                {"node": names[i], _ITEM_KEYS[key]: v.tolist()} for i, v in zip(nodes, values)
             ]
     if merged.joint_nodes.size:
         data["joints"] = [[names[a], names[b]] for a, b in merged.joint_nodes]
     rods, tendons = merged.node_map[structure.rod_nodes], merged.node_map[structure.tendon_nodes]
     defaults: dict[str, dict[str, float]] = {"rod": {}, "tendon": {}}
-    members = {
+    members: dict[str, list[dict[str, Any]]] = {
         "rod": [{"nodes": [names[a], names[b]]} for a, b in rods],
         "tendon": [
             {"name": name, "nodes": [names[a], names[b]]}
@@ -176,7 +173,7 @@ def network_to_dict(structure: Structure, *, keep_joints: bool = False) -> dict[
             if values.size and np.all(values == values[0]):
                 defaults[kind][key] = float(values[0])
             else:
-                for item, value in zip(members[kind], values):
+                for item, value in zip(members[kind], values, strict=True):
                     item[key] = float(value)
     data["defaults"] = {kind: table for kind, table in defaults.items() if table}
     data["rods"] = members["rod"]
@@ -386,7 +383,7 @@ def _supports(data: Mapping[str, Any], index: Mapping[Any, int], dim: int) -> di
             continue
         if not isinstance(items, Sequence) or isinstance(items, str):
             raise ValueError(f"{key}: expected a list, got {type(items).__name__}")
-        name = _SUPPORT_KEYS[key]
+        name = _ITEM_KEYS[key]
         nodes, values = [], []
         for k, item in enumerate(items):
             if not isinstance(item, Mapping):
@@ -602,7 +599,9 @@ def write_network(
     with atomic_path(path) as tmp:
         if kind == "connectivity":
             with open(tmp, "wb") as f:
-                np.savez(f, **_npz_arrays(structure, keep_joints))
+                # numpy's stub lets a `**` mapping fill `allow_pickle: bool`; these keys are the
+                # arrays' names (`_npz_arrays`), never that argument's.
+                np.savez(f, **_npz_arrays(structure, keep_joints))  # type: ignore[arg-type]
         else:
             tmp.write_text(_dump_text(structure, kind, keep_joints), encoding="utf-8")
     return Path(path)

@@ -429,7 +429,7 @@ def _header(
         gravity=_floats(np.pad(gravity, (0, 3 - structure.dim))),
     )
     flags = dict(contact="disable", energy="enable") | ({"refsafe": "disable"} if soft else {})
-    ET.SubElement(option, "flag", **flags)
+    ET.SubElement(option, "flag", flags)
     ET.SubElement(root, "size", memory=str(mjcf_memory(structure)))
     return root
 
@@ -695,8 +695,8 @@ def _held_axes(structure: Structure) -> dict[int, np.ndarray]:
     for k, normal in zip(structure.plane_nodes, structure.plane_normal):
         rows.setdefault(int(k), []).append(normal[None])
     if structure.line_nodes.size:
-        for k, normals in zip(structure.line_nodes, normals(structure.line_direction)):
-            rows.setdefault(int(k), []).append(normals)
+        for k, line_normals in zip(structure.line_nodes, normals(structure.line_direction)):
+            rows.setdefault(int(k), []).append(line_normals)
     return {
         k: np.pad(null_space(np.vstack(r)).T, ((0, 0), (0, 3 - d)))
         for k, r in rows.items()

@@ -478,8 +478,8 @@ def _write_checkpoint(slot, checkpoint: Checkpoint) -> None:
     a["n_segments"] = checkpoint.n_segments
     a["n_samples"] = checkpoint.n_samples
     a["t"] = float(checkpoint.state.t)
-    for name, value in checkpoint.counts.items():
-        a[name] = int(value)
+    for name, count in checkpoint.counts.items():
+        a[name] = int(count)
     a["max_rod_length_error"] = float(checkpoint.max_rod_length_error)
     a["max_constraint_error"] = float(checkpoint.max_constraint_error)
     a["wall_time"] = float(checkpoint.wall_time)
@@ -518,10 +518,10 @@ def _read_checkpoint_open(f, path: PathLike) -> Checkpoint:
             counts={name: int(a[name]) for name in _COUNTERS},
             max_rod_length_error=float(a["max_rod_length_error"]),
             wall_time=float(a["wall_time"]),
-            settings_hash=tio.text_attribute(a["settings_hash"]),
+            settings_hash=tio.required_text(a["settings_hash"]),
             ended=bool(a["ended"]),
             status=int(a["status"]),
-            message=tio.text_attribute(a["message"]),
+            message=tio.required_text(a["message"]),
             # absent from checkpoints written before it was kept: unknown
             max_constraint_error=float(a.get("max_constraint_error", np.nan)),
         )
@@ -605,7 +605,7 @@ def _summary(
     return StreamSummary(
         path=path,
         status=int(f.attrs["status"]),
-        message=tio.text_attribute(f.attrs["message"]),
+        message=tio.required_text(f.attrs["message"]),
         n_samples=n,
         t_first=float(time_[0]) if n else math.nan,
         t_last=float(time_[n - 1]) if n else math.nan,
@@ -958,7 +958,7 @@ def _resumable_checkpoint(
         checkpoint = _read_checkpoint_open(f, partial)
         if checkpoint.settings_hash != settings_hash:
             try:
-                stored = json.loads(tio.text_attribute(f.attrs["stream_settings"]))
+                stored = json.loads(tio.required_text(f.attrs["stream_settings"]))
             except (KeyError, TypeError, json.JSONDecodeError):
                 stored = {}
             diff = _differences(stored, settings) or ["settings hash"]
@@ -984,7 +984,7 @@ def _rename_finished(
         f.attrs["complete"] = True
         f.attrs["format"] = tio.TRAJECTORY_FORMAT
         f.flush()
-        K = json.loads(tio.text_attribute(f.attrs["stream_settings"]))["samples_per_segment"]
+        K = json.loads(tio.required_text(f.attrs["stream_settings"]))["samples_per_segment"]
         summary = _summary(final, f, checkpoint, K, segments_run, resumed_from)
     _fsync(partial)
     os.chmod(partial, new_file_mode(final))

@@ -212,7 +212,7 @@ def _read_open_trajectory(f, path: PathLike, every: int = 1) -> SimulationResult
 
     def json_attribute(name: str) -> Any:
         try:
-            return json.loads(text_attribute(attribute(name)))
+            return json.loads(required_text(attribute(name)))
         except (TypeError, json.JSONDecodeError) as exc:
             raise file_error(path, f"attribute {name!r}: invalid JSON ({exc})") from exc
 
@@ -222,7 +222,7 @@ def _read_open_trajectory(f, path: PathLike, every: int = 1) -> SimulationResult
             path, f"missing dataset {missing[0]!r} (not a complete tensegrity trajectory)"
         )
     arrays = {name: _rows(f[name], every) for name in ARRAY_DATASETS}
-    columns = [text_attribute(c) for c in f["energy"].attrs.get("columns", ENERGY_COLUMNS)]
+    columns = [required_text(c) for c in f["energy"].attrs.get("columns", ENERGY_COLUMNS)]
 
     structure_data = json_attribute("structure")
     try:
@@ -258,9 +258,10 @@ def _read_open_trajectory(f, path: PathLike, every: int = 1) -> SimulationResult
     try:
         counts = {name: int(attribute(name)) for name in _COUNT_ATTRIBUTES}
         status = int(attribute("status"))
-        floats = {name: float(attribute(name)) for name in ("max_rod_length_error", "wall_time")}
+        max_rod_length_error = float(attribute("max_rod_length_error"))
+        wall_time = float(attribute("wall_time"))
         # Absent from files written before it was stored: unknown there, unless nothing can err.
-        floats["max_constraint_error"] = float(
+        max_constraint_error = float(
             f.attrs.get("max_constraint_error", np.nan if structure.has_constraints else 0.0)
         )
     except (TypeError, ValueError) as exc:
@@ -278,9 +279,14 @@ def _read_open_trajectory(f, path: PathLike, every: int = 1) -> SimulationResult
         structure=structure,
         settings=settings,
         status=status,
-        message=text_attribute(attribute("message")),
-        **counts,
-        **floats,
+        message=required_text(attribute("message")),
+        nfev=counts["nfev"],
+        nsteps=counts["nsteps"],
+        nswitches=counts["nswitches"],
+        nprojections=counts["nprojections"],
+        max_rod_length_error=max_rod_length_error,
+        wall_time=wall_time,
+        max_constraint_error=max_constraint_error,
     )
 
 
@@ -309,3 +315,12 @@ def text_attribute(value: Any) -> str | None:
     if isinstance(value, np.ndarray) and value.shape == ():
         return text_attribute(value[()])
     return str(value)
+
+
+def required_text(value: Any) -> str:
+    """:func:`text_attribute` of an attribute that is present: a ``str``, never ``None`` (h5py
+    reads no attribute as ``None``; ``TypeError`` if given one, as ``json.loads(None)`` raises)."""
+    text = text_attribute(value)
+    if text is None:
+        raise TypeError("expected a text attribute, got None")
+    return text
