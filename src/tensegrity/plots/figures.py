@@ -34,6 +34,8 @@ from tensegrity.model.structure import Structure
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
+    from mpl_toolkits.mplot3d.art3d import Line3DCollection, Path3DCollection
+    from mpl_toolkits.mplot3d.axes3d import Axes3D
 
     from tensegrity.engine.result import SimulationResult
 
@@ -89,7 +91,7 @@ def _tensions(structure: Structure, tension: Any) -> np.ndarray | None:
 
 
 def draw_structure(
-    ax: Axes,
+    ax: Axes3D,
     structure: Structure,
     node_position: Any,
     tension: Any = None,
@@ -132,16 +134,30 @@ def draw_structure(
         fixed), and ``"mappable"``: a ``ScalarMappable`` of the tension
         colours, or None.
     """
-    from mpl_toolkits.mplot3d.art3d import Line3DCollection
-
     p = _positions(structure, node_position)
     tension = _tensions(structure, tension)
-    segments = lambda pairs: p[pairs] if len(pairs) else np.zeros((0, 2, 3))  # noqa: E731
-
-    tendon_pairs = structure.tendon_nodes
     slack = np.zeros(structure.n_tendons, bool) if tension is None else tension <= 0
-    taut_pairs = tendon_pairs[~slack]
-    mappable = None
+    mappable, tendon_colors = _tendon_colors(tension, slack, color_by_tension)
+    tendons, slack_lines, rods = _draw_lines(ax, structure, p, slack, tendon_colors)
+    nodes, fixed = _draw_nodes(ax, structure, p, show_nodes)
+    _fit_axes(ax, p)
+    if legend:
+        handles = _legend_handles(structure, tension, slack, mappable, fixed is not None)
+        ax.legend(handles=handles, loc="upper left", fontsize="small", framealpha=0.85)
+    return {
+        "rods": rods,
+        "tendons": tendons,
+        "slack": slack_lines,
+        "nodes": nodes,
+        "fixed": fixed,
+        "mappable": mappable,
+    }
+
+
+def _tendon_colors(
+    tension: np.ndarray | None, slack: np.ndarray, color_by_tension: bool
+) -> tuple[ScalarMappable | None, np.ndarray | str]:
+    """The taut tendons' colours: by tension (with its mappable) or one colour (and None)."""
     taut_tension = None if tension is None else tension[~slack]
     if (
         color_by_tension
@@ -152,19 +168,37 @@ def draw_structure(
         low, high = float(taut_tension.min()), float(taut_tension.max())
         mappable = ScalarMappable(Normalize(low, high), _tension_colormap())
         mappable.set_array(taut_tension)
-        tendon_colors = mappable.to_rgba(taut_tension)
-    else:
-        tendon_colors = TENDON_COLOR
+        return mappable, mappable.to_rgba(taut_tension)
+    return None, TENDON_COLOR
+
+
+def _segments(p: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+    """The line segments (K, 2, 3) between the node ``pairs`` (K, 2) at positions ``p``."""
+    return p[pairs] if len(pairs) else np.zeros((0, 2, 3))
+
+
+def _draw_lines(
+    ax: Axes3D,
+    structure: Structure,
+    p: np.ndarray,
+    slack: np.ndarray,
+    tendon_colors: np.ndarray | str,
+) -> tuple[Line3DCollection | None, Line3DCollection | None, Line3DCollection | None]:
+    """Draw the taut tendons, the slack ones (dashed) and the rods; each collection or None."""
+    from mpl_toolkits.mplot3d.art3d import Line3DCollection
+
+    tendon_pairs = structure.tendon_nodes
+    taut_pairs = tendon_pairs[~slack]
     tendons = None
     if len(taut_pairs):  # matplotlib cannot add an empty 3-D collection
         tendons = Line3DCollection(
-            segments(taut_pairs), colors=tendon_colors, linewidths=TENDON_WIDTH, zorder=1
+            _segments(p, taut_pairs), colors=tendon_colors, linewidths=TENDON_WIDTH, zorder=1
         )
         ax.add_collection3d(tendons)
     slack_lines = None
     if slack.any():
         slack_lines = Line3DCollection(
-            segments(tendon_pairs[slack]),
+            _segments(p, tendon_pairs[slack]),
             colors=SLACK_COLOR,
             linewidths=TENDON_WIDTH + 0.3,
             linestyles=(0, (4, 2.5)),
@@ -174,13 +208,20 @@ def draw_structure(
     rods = None
     if structure.n_rods:  # (a structure of point masses has none)
         rods = Line3DCollection(
-            segments(structure.rod_nodes),
+            _segments(p, structure.rod_nodes),
             colors=ROD_COLOR,
             linewidths=ROD_WIDTH,
             zorder=3,
             capstyle="round",
         )
         ax.add_collection3d(rods)
+    return tendons, slack_lines, rods
+
+
+def _draw_nodes(
+    ax: Axes3D, structure: Structure, p: np.ndarray, show_nodes: bool
+) -> tuple[Path3DCollection | None, Path3DCollection | None]:
+    """Mark the nodes (or only the point masses) and the fixed nodes; each collection or None."""
     nodes = None
     if show_nodes:
         nodes = ax.scatter(*p.T, s=14, color=ROD_COLOR, depthshade=False, zorder=4)
@@ -198,58 +239,58 @@ def draw_structure(
             depthshade=False,
             zorder=5,
         )
+    return nodes, fixed
 
-    _fit_axes(ax, p)
-    if legend:
-        handles = [
+
+def _legend_handles(
+    structure: Structure,
+    tension: np.ndarray | None,
+    slack: np.ndarray,
+    mappable: ScalarMappable | None,
+    has_fixed: bool,
+) -> list[Line2D]:
+    """Legend entries: rods, (taut) tendons, slack tendons and fixed nodes, with counts."""
+    handles = [
+        Line2D(
+            [],
+            [],
+            color=ROD_COLOR,
+            lw=ROD_WIDTH,
+            solid_capstyle="round",
+            label=f"rods ({structure.n_rods})",
+        )
+    ]
+    n_taut = int(np.count_nonzero(~slack))
+    if n_taut or tension is None:
+        color = mappable.cmap(0.5) if mappable is not None else TENDON_COLOR
+        what = "tendons" if tension is None else "taut tendons"
+        handles.append(
+            Line2D([], [], color=color, lw=TENDON_WIDTH + 0.5, label=f"{what} ({n_taut})")
+        )
+    if slack.any():
+        handles.append(
             Line2D(
                 [],
                 [],
-                color=ROD_COLOR,
-                lw=ROD_WIDTH,
-                solid_capstyle="round",
-                label=f"rods ({structure.n_rods})",
+                color=SLACK_COLOR,
+                lw=TENDON_WIDTH + 0.5,
+                ls=(0, (4, 2.5)),
+                label=f"slack tendons ({int(slack.sum())})",
             )
-        ]
-        n_taut = int(np.count_nonzero(~slack))
-        if n_taut or tension is None:
-            color = mappable.cmap(0.5) if mappable is not None else TENDON_COLOR
-            what = "tendons" if tension is None else "taut tendons"
-            handles.append(
-                Line2D([], [], color=color, lw=TENDON_WIDTH + 0.5, label=f"{what} ({n_taut})")
+        )
+    if has_fixed:
+        handles.append(
+            Line2D(
+                [],
+                [],
+                color=FIXED_COLOR,
+                marker="^",
+                ls="",
+                markersize=8,
+                label=f"fixed nodes ({int(structure.node_fixed.sum())})",
             )
-        if slack.any():
-            handles.append(
-                Line2D(
-                    [],
-                    [],
-                    color=SLACK_COLOR,
-                    lw=TENDON_WIDTH + 0.5,
-                    ls=(0, (4, 2.5)),
-                    label=f"slack tendons ({int(slack.sum())})",
-                )
-            )
-        if fixed is not None:
-            handles.append(
-                Line2D(
-                    [],
-                    [],
-                    color=FIXED_COLOR,
-                    marker="^",
-                    ls="",
-                    markersize=8,
-                    label=f"fixed nodes ({int(structure.node_fixed.sum())})",
-                )
-            )
-        ax.legend(handles=handles, loc="upper left", fontsize="small", framealpha=0.85)
-    return {
-        "rods": rods,
-        "tendons": tendons,
-        "slack": slack_lines,
-        "nodes": nodes,
-        "fixed": fixed,
-        "mappable": mappable,
-    }
+        )
+    return handles
 
 
 def _uniform(values: np.ndarray) -> bool:
@@ -257,7 +298,7 @@ def _uniform(values: np.ndarray) -> bool:
     return float(np.ptp(values)) <= 1e-4 * float(np.max(np.abs(values)))
 
 
-def _fit_axes(ax: Axes, p: np.ndarray) -> None:
+def _fit_axes(ax: Axes3D, p: np.ndarray) -> None:
     """Limits around ``p`` (N, 3) with a margin, equal scales, labels in m."""
     low, high = p.min(axis=0), p.max(axis=0)
     span = high - low
@@ -351,12 +392,10 @@ def _titles(figure: Figure, title: str | None, subtitle: str | None) -> None:
             color="0.3",
             transform=figure.transFigure,
         )
-    elif title or subtitle:
-        figure.suptitle(
-            title or subtitle,
-            fontsize="large" if title else "small",
-            fontweight="bold" if title else "normal",
-        )
+    elif title:
+        figure.suptitle(title, fontsize="large", fontweight="bold")
+    elif subtitle:
+        figure.suptitle(subtitle, fontsize="small", fontweight="normal")
 
 
 def tendon_family(name: str) -> str:
@@ -419,12 +458,39 @@ def figure_tendon_lengths(
         )
     figure = new_figure(figsize)
     ax = figure.add_subplot()
+    note = _plot_tendon_lengths(ax, t, lengths, names)
+    if rest_length is not None and names:
+        _mark_rest_length(ax, rest_length, len(names))
+    if note:
+        ax.text(
+            0.99,
+            0.98,
+            note,
+            transform=ax.transAxes,
+            ha="right",
+            va="top",
+            fontsize="small",
+            color="0.3",
+        )
+    if t.size > 1:
+        ax.set_xlim(t[0], t[-1])
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("tendon length [m]")
+    ax.grid(True, alpha=0.3)
+    _titles(figure, title, subtitle)
+    return figure
+
+
+def _plot_tendon_lengths(
+    ax: Axes, t: np.ndarray, lengths: np.ndarray, names: list[str]
+) -> str | None:
+    """Plot the lengths (T, S) as :func:`figure_tendon_lengths` says; a note for the corner (no
+    tendons, or no legend), or None."""
     S = len(names)
-    note = None
     marker = "o" if t.size == 1 else None
     if S == 0:
-        note = "no tendons"
-    elif S > MAX_TENDON_LINES:
+        return "no tendons"
+    if S > MAX_TENDON_LINES:
         ax.fill_between(
             t,
             lengths.min(axis=1),
@@ -444,66 +510,61 @@ def figure_tendon_lengths(
         ax.legend(fontsize="small", loc="best", ncols=2 if S > 6 else 1)
     else:
         families = sorted(dict.fromkeys(tendon_family(name) for name in names), key=natural_key)
-        if len(families) <= 10:
-            colors = {f: f"C{k}" for k, f in enumerate(families)}
-            for k, name in enumerate(names):
-                ax.plot(
-                    t,
-                    lengths[:, k],
-                    lw=1.3,
-                    color=colors[tendon_family(name)],
-                    alpha=0.9,
-                    marker=marker,
-                )
-            counts = {f: sum(tendon_family(n) == f for n in names) for f in families}
-            handles = [
-                Line2D([], [], color=colors[f], lw=2, label=f"{f} ({counts[f]})") for f in families
-            ]
-            ax.legend(
-                handles=handles,
-                fontsize="small",
-                loc="best",
-                title="tendon family",
-                title_fontsize="small",
-                ncols=2 if len(families) > 5 else 1,
-            )
-        else:
+        if len(families) > 10:
             for k in range(S):
                 ax.plot(t, lengths[:, k], lw=1.0, alpha=0.8, marker=marker)
-            note = f"{S} tendons (legend omitted)"
-    if rest_length is not None and S:
-        rest = np.broadcast_to(np.asarray(rest_length, dtype=float), (S,))
-        if np.ptp(rest) == 0:
-            ax.axhline(rest[0], color="0.35", ls="--", lw=1.0, zorder=0)
-            ax.annotate(
-                f"rest length {rest[0]:.4g} m",
-                (1.0, rest[0]),
-                xycoords=("axes fraction", "data"),
-                xytext=(-4, -3),
-                textcoords="offset points",
-                ha="right",
-                va="top",
-                fontsize="small",
-                color="0.35",
-            )
-    if note:
-        ax.text(
-            0.99,
-            0.98,
-            note,
-            transform=ax.transAxes,
+            return f"{S} tendons (legend omitted)"
+        _plot_tendon_families(ax, t, lengths, names, families, marker)
+    return None
+
+
+def _plot_tendon_families(
+    ax: Axes,
+    t: np.ndarray,
+    lengths: np.ndarray,
+    names: list[str],
+    families: list[str],
+    marker: str | None,
+) -> None:
+    """One colour per tendon family, with one legend entry (and count) per family."""
+    colors = {f: f"C{k}" for k, f in enumerate(families)}
+    for k, name in enumerate(names):
+        ax.plot(
+            t,
+            lengths[:, k],
+            lw=1.3,
+            color=colors[tendon_family(name)],
+            alpha=0.9,
+            marker=marker,
+        )
+    counts = {f: sum(tendon_family(n) == f for n in names) for f in families}
+    handles = [Line2D([], [], color=colors[f], lw=2, label=f"{f} ({counts[f]})") for f in families]
+    ax.legend(
+        handles=handles,
+        fontsize="small",
+        loc="best",
+        title="tendon family",
+        title_fontsize="small",
+        ncols=2 if len(families) > 5 else 1,
+    )
+
+
+def _mark_rest_length(ax: Axes, rest_length: Any, S: int) -> None:
+    """A dashed line at the rest length, if every one of the ``S`` tendons has the same."""
+    rest = np.broadcast_to(np.asarray(rest_length, dtype=float), (S,))
+    if np.ptp(rest) == 0:
+        ax.axhline(rest[0], color="0.35", ls="--", lw=1.0, zorder=0)
+        ax.annotate(
+            f"rest length {rest[0]:.4g} m",
+            (1.0, rest[0]),
+            xycoords=("axes fraction", "data"),
+            xytext=(-4, -3),
+            textcoords="offset points",
             ha="right",
             va="top",
             fontsize="small",
-            color="0.3",
+            color="0.35",
         )
-    if t.size > 1:
-        ax.set_xlim(t[0], t[-1])
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel("tendon length [m]")
-    ax.grid(True, alpha=0.3)
-    _titles(figure, title, subtitle)
-    return figure
 
 
 def save_figures(result: SimulationResult, out_dir: str | Path, *, dpi: int = 150) -> list[Path]:
