@@ -371,20 +371,38 @@ def find_equilibrium(
         ``converged`` False (with a message) if the tolerance was not met; the residual is
         reported either way.
     """
-    if structure.dim == 2:
-        return _find_planar_equilibrium(
-            structure,
-            start,
-            control=control,
-            external_force=external_force,
-            gravity=gravity,
-            gauge=gauge,
-            gauge_reference=gauge_reference,
-            descend=descend,
-            force_tol=force_tol,
-            max_rounds=max_rounds,
-            max_nfev=max_nfev,
-        )
+    solve = _find_planar_equilibrium if structure.dim == 2 else _find_spatial_equilibrium
+    return solve(
+        structure,
+        start,
+        control=control,
+        external_force=external_force,
+        gravity=gravity,
+        gauge=gauge,
+        gauge_reference=gauge_reference,
+        descend=descend,
+        force_tol=force_tol,
+        max_rounds=max_rounds,
+        max_nfev=max_nfev,
+    )
+
+
+def _find_spatial_equilibrium(
+    structure: Structure,
+    start: Any,
+    *,
+    control: np.ndarray | None,
+    external_force: np.ndarray | None,
+    gravity: np.ndarray | None,
+    gauge: bool,
+    gauge_reference: np.ndarray | None,
+    descend: bool,
+    force_tol: float | None,
+    max_rounds: int,
+    max_nfev: int,
+) -> EquilibriumResult:
+    """:func:`find_equilibrium` of a 3-D structure: descent (if ``descend``), then rounds of
+    least squares and Newton steps (:meth:`_EquilibriumProblem.solve`)."""
     q = configuration(structure, start, name="start")
     problem = _EquilibriumProblem.build(
         structure,
@@ -429,7 +447,7 @@ def _find_planar_equilibrium(
     (N, 2) [m] are in 2-D; ``options`` are :func:`find_equilibrium`'s others.
     """
     q2 = configuration(structure, start, name="start")
-    result = find_equilibrium(
+    result = _find_spatial_equilibrium(
         spatial(structure),
         spatial_coordinates(structure, q2),
         external_force=spatial_vector(structure, external_force),
