@@ -53,7 +53,8 @@ def require_spatial(structure: Structure) -> None:
 # ------------------------------------------------------------------------------ outputs
 @dataclasses.dataclass(frozen=True)
 class ShapeOutput:
-    """Outputs ``y = value(p)`` (ny,) with Jacobian ``jacobian(p)`` (ny, 3N), and their names/units."""
+    """Outputs ``y = value(p)`` (ny,) with Jacobian ``jacobian(p)`` (ny, 3N), and their
+    names/units."""
 
     names: tuple[str, ...]
     units: tuple[str, ...]
@@ -75,7 +76,8 @@ def node_outputs(structure: Structure, nodes: Sequence[int], axes: str = "xyz") 
 
 
 def shell_rings(n: int, m: int) -> tuple[list[int], list[int]]:
-    """Node indices of a shell's bottom ring (``p1`` of stage 1) and top ring (``p4`` of stage m)."""
+    """Node indices of a shell's bottom ring (``p1`` of stage 1) and top ring (``p4`` of stage
+    m)."""
     from tensegrity.model.shell import shell_node_index
 
     return (
@@ -91,7 +93,7 @@ def height_twist(reference: np.ndarray, bottom: Sequence[int], top: Sequence[int
     azimuth (about the vertical axis through the reference's centroid) of the ``top`` nodes
     minus that of the ``bottom`` nodes, relative to ``reference`` (N, 3): 0 there.
     """
-    bottom, top = np.asarray(bottom, int), np.asarray(top, int)
+    bottom_nodes, top_nodes = np.asarray(bottom, int), np.asarray(top, int)
     axis = reference.mean(axis=0)[:2]
     ref_angle = np.arctan2(reference[:, 1] - axis[1], reference[:, 0] - axis[0])
 
@@ -99,18 +101,21 @@ def height_twist(reference: np.ndarray, bottom: Sequence[int], top: Sequence[int
         angle = np.arctan2(p[:, 1] - axis[1], p[:, 0] - axis[0])
         turn = np.angle(np.exp(1j * (angle - ref_angle)))
         return np.array(
-            [p[top, 2].mean() - p[bottom, 2].mean(), turn[top].mean() - turn[bottom].mean()]
+            [
+                p[top_nodes, 2].mean() - p[bottom_nodes, 2].mean(),
+                turn[top_nodes].mean() - turn[bottom_nodes].mean(),
+            ]
         )
 
     def jacobian(p: np.ndarray) -> np.ndarray:
         J = np.zeros((2, p.shape[0], 3))
-        J[0, top, 2] = 1.0 / top.size
-        J[0, bottom, 2] = -1.0 / bottom.size
+        J[0, top_nodes, 2] = 1.0 / top_nodes.size
+        J[0, bottom_nodes, 2] = -1.0 / bottom_nodes.size
         d = p[:, :2] - axis
         r2 = np.sum(d**2, axis=1)
         dtheta = np.stack([-d[:, 1] / r2, d[:, 0] / r2], axis=1)  # (N, 2)
-        J[1, top, :2] = dtheta[top] / top.size
-        J[1, bottom, :2] = -dtheta[bottom] / bottom.size
+        J[1, top_nodes, :2] = dtheta[top_nodes] / top_nodes.size
+        J[1, bottom_nodes, :2] = -dtheta[bottom_nodes] / bottom_nodes.size
         return J.reshape(2, -1)
 
     return ShapeOutput(("height", "twist"), ("m", "rad"), value, jacobian)
@@ -233,7 +238,7 @@ def _step_control(dydu, dTdu, want_dy, free, T, u, bounds: Bounds, low, high, ac
         lambda d: 0.5 * float(d @ d),
         np.clip(d0, low - u, high - u),
         jac=lambda d: d,
-        bounds=list(zip(low - u, high - u)),
+        bounds=list(zip(low - u, high - u, strict=True)),
         constraints=constraints,
         method="SLSQP",
         options={"maxiter": 200, "ftol": 1e-14},
@@ -266,104 +271,179 @@ def quasi_static(
     tolerance : per output, for ``reached`` (default 1e-6 m / 1e-6 rad).
     """
     require_spatial(structure)
-    s = structure
-    eq = find_equilibrium(s) if start is None else start
-    reference = eq.node_position
-    low, high = bounds.u_limits(s)
+    eq = find_equilibrium(structure) if start is None else start
     ny = len(output.names)
     tol = np.full(ny, 1e-6) if tolerance is None else np.asarray(tolerance, float)
     steps_list = [steps] * len(phases) if isinstance(steps, int) else list(steps)
-    u = eq.control.copy()
-    eqs, controls, ys, wants, phase_of = (
-        [eq],
-        [u.copy()],
-        [output.value(reference)],
-        [np.full(ny, np.nan)],
-        [0],
+    stepper = _Stepper(structure, output, eq.node_position, bounds, *bounds.u_limits(structure))
+    plan = _Sequence(
+        [eq], [eq.control.copy()], [output.value(eq.node_position)], [np.full(ny, np.nan)], [0]
     )
+    u = eq.control.copy()
     message = "reached every target"
+    # a ``steps`` list shorter than ``phases`` ends the sequence early (unchecked, as it was)
+    for k, (spec, n_steps) in enumerate(zip(phases, steps_list, strict=False)):
+        eq, u, failure = _run_phase(stepper, plan, eq, u, k, spec, n_steps, tol, max_corrections)
+        if failure is not None:
+            message = failure
+        if not eq.converged:
+            break
+    return plan.result(stepper, tol, message)
 
-    def advance(eq, u, want, free, active):
-        y = output.value(eq.node_position)
-        dydu, dTdu, _ = sensitivities(eq, output, reference)
-        du, fit = _step_control(
+
+@dataclasses.dataclass(frozen=True)
+class _Stepper:
+    """One step of :func:`quasi_static`: a control change towards the wanted outputs, then the
+    equilibrium for it (in the frame of ``reference``)."""
+
+    structure: Structure
+    output: ShapeOutput
+    reference: np.ndarray
+    bounds: Bounds
+    low: np.ndarray
+    high: np.ndarray
+
+    def advance(
+        self,
+        eq: EquilibriumResult,
+        u: np.ndarray,
+        want: np.ndarray,
+        free: np.ndarray,
+        active: np.ndarray,
+    ) -> tuple[EquilibriumResult, np.ndarray]:
+        """The equilibrium and control after a step from ``eq``, ``u`` towards ``want``."""
+        y = self.output.value(eq.node_position)
+        dydu, dTdu, _ = sensitivities(eq, self.output, self.reference)
+        du, _ = _step_control(
             dydu,
             dTdu,
             np.where(free, 0.0, want - y),
             free,
             eq.tension,
             u,
-            bounds,
-            low,
-            high,
+            self.bounds,
+            self.low,
+            self.high,
             active,
         )
-        u_new = np.clip(u + du, low, high)
-        new = find_equilibrium(s, eq.q, control=u_new, gauge_reference=reference)
-        return new, u_new, fit
+        u_new = np.clip(u + du, self.low, self.high)
+        new = find_equilibrium(self.structure, eq.q, control=u_new, gauge_reference=self.reference)
+        return new, u_new
 
-    for k, (spec, n_steps) in enumerate(zip(phases, steps_list)):
-        targets = spec["targets"] if isinstance(spec, dict) else spec
-        active = np.ones(s.n_tendons, bool)
-        if isinstance(spec, dict) and spec.get("actuators") is not None:
-            active[:] = False
-            for name in match_tendons(s, spec["actuators"]):
-                active[s.tendon_index(name)] = True
-        free = np.array([t is None for t in targets])
-        final = np.array([np.nan if t is None else float(t) for t in targets])
-        y_start = output.value(eq.node_position)
-        for j in range(1, n_steps + 1):
-            want = np.where(free, np.nan, y_start + (final - y_start) * j / n_steps)
-            eq, u, fit = advance(eq, u, want, free, active)
-            if not eq.converged:
-                message = f"phase {k}, step {j}: equilibrium not found ({eq.message})"
+    def correct(
+        self,
+        eq: EquilibriumResult,
+        u: np.ndarray,
+        want: np.ndarray,
+        free: np.ndarray,
+        active: np.ndarray,
+        tol: np.ndarray,
+        max_corrections: int,
+    ) -> tuple[EquilibriumResult, np.ndarray]:
+        """Newton-like steps to ``want`` until within a tenth of ``tol`` (at most
+        ``max_corrections``)."""
+        for _ in range(max_corrections):
+            err = np.where(free, 0.0, self.output.value(eq.node_position) - want)
+            if np.all(np.abs(err) <= 0.1 * tol):
                 break
-            # corrections at the end of the phase
-            if j == n_steps:
-                for _ in range(max_corrections):
-                    err = np.where(free, 0.0, output.value(eq.node_position) - want)
-                    if np.all(np.abs(err) <= 0.1 * tol):
-                        break
-                    eq, u, fit = advance(eq, u, want, free, active)
-            eqs.append(eq)
-            controls.append(u.copy())
-            ys.append(output.value(eq.node_position))
-            wants.append(want)
-            phase_of.append(k)
+            eq, u = self.advance(eq, u, want, free, active)
+        return eq, u
+
+
+def _actuated(structure: Structure, spec: Sequence[float | None] | dict[str, Any]) -> np.ndarray:
+    """(S,) the tendons a phase moves: its ``"actuators"`` pattern's, or every tendon."""
+    active = np.ones(structure.n_tendons, bool)
+    if isinstance(spec, dict) and spec.get("actuators") is not None:
+        active[:] = False
+        for name in match_tendons(structure, spec["actuators"]):
+            active[structure.tendon_index(name)] = True
+    return active
+
+
+def _run_phase(
+    stepper: _Stepper,
+    plan: _Sequence,
+    eq: EquilibriumResult,
+    u: np.ndarray,
+    k: int,
+    spec: Sequence[float | None] | dict[str, Any],
+    n_steps: int,
+    tol: np.ndarray,
+    max_corrections: int,
+) -> tuple[EquilibriumResult, np.ndarray, str | None]:
+    """Phase ``k`` of :func:`quasi_static` from ``eq``, ``u``: its steps added to ``plan``; the
+    last equilibrium and control, and why the phase stopped short (None if it did not)."""
+    targets = spec["targets"] if isinstance(spec, dict) else spec
+    active = _actuated(stepper.structure, spec)
+    free = np.array([t is None for t in targets])
+    final = np.array([np.nan if t is None else float(t) for t in targets])
+    y_start = stepper.output.value(eq.node_position)
+    for j in range(1, n_steps + 1):
+        want = np.where(free, np.nan, y_start + (final - y_start) * j / n_steps)
+        eq, u = stepper.advance(eq, u, want, free, active)
         if not eq.converged:
-            break
-    ys_a, wants_a = np.array(ys), np.array(wants)
-    final_targets = wants_a[-1]
-    err = np.where(np.isnan(final_targets), 0.0, ys_a[-1] - final_targets)
-    min_t = np.array([e.tension.min() for e in eqs])
-    rest_ok = all(np.all(e.rest_length >= bounds.min_rest_length - 1e-12) for e in eqs)
-    reached = bool(
-        np.all(np.abs(err) <= tol)
-        and min_t.min() >= bounds.min_tension * (1 - 1e-6)
-        and rest_ok
-        and all(e.converged for e in eqs)
-        and message.startswith("reached")
-    )
-    if not reached and message.startswith("reached"):
-        message = (
-            f"missed: error {err.tolist()} (tolerance {tol.tolist()}), min tension "
-            f"{min_t.min():.4g} N, rest lengths within bounds: {rest_ok}"
+            return eq, u, f"phase {k}, step {j}: equilibrium not found ({eq.message})"
+        # corrections at the end of the phase
+        if j == n_steps:
+            eq, u = stepper.correct(eq, u, want, free, active, tol, max_corrections)
+        plan.add(eq, u, stepper.output.value(eq.node_position), want, k)
+    return eq, u, None
+
+
+@dataclasses.dataclass
+class _Sequence:
+    """The steps of :func:`quasi_static` so far: equilibria, controls, outputs, targets, phases."""
+
+    eqs: list[EquilibriumResult]
+    controls: list[np.ndarray]
+    ys: list[np.ndarray]
+    wants: list[np.ndarray]
+    phase_of: list[int]
+
+    def add(
+        self, eq: EquilibriumResult, u: np.ndarray, y: np.ndarray, want: np.ndarray, k: int
+    ) -> None:
+        self.eqs.append(eq)
+        self.controls.append(u.copy())
+        self.ys.append(y)
+        self.wants.append(want)
+        self.phase_of.append(k)
+
+    def result(self, stepper: _Stepper, tol: np.ndarray, message: str) -> QuasiStatic:
+        """The sequence with its final error and verdict (``message`` explains a miss)."""
+        eqs, bounds = self.eqs, stepper.bounds
+        ys_a, wants_a = np.array(self.ys), np.array(self.wants)
+        final_targets = wants_a[-1]
+        err = np.where(np.isnan(final_targets), 0.0, ys_a[-1] - final_targets)
+        min_t = np.array([e.tension.min() for e in eqs])
+        rest_ok = all(np.all(e.rest_length >= bounds.min_rest_length - 1e-12) for e in eqs)
+        reached = bool(
+            np.all(np.abs(err) <= tol)
+            and min_t.min() >= bounds.min_tension * (1 - 1e-6)
+            and rest_ok
+            and all(e.converged for e in eqs)
+            and message.startswith("reached")
         )
-    return QuasiStatic(
-        s,
-        output,
-        bounds,
-        tuple(eqs),
-        np.array(controls),
-        ys_a,
-        wants_a,
-        np.array(phase_of),
-        min_t,
-        err,
-        tol,
-        reached,
-        message,
-    )
+        if not reached and message.startswith("reached"):
+            message = (
+                f"missed: error {err.tolist()} (tolerance {tol.tolist()}), min tension "
+                f"{min_t.min():.4g} N, rest lengths within bounds: {rest_ok}"
+            )
+        return QuasiStatic(
+            stepper.structure,
+            stepper.output,
+            bounds,
+            tuple(eqs),
+            np.array(self.controls),
+            ys_a,
+            wants_a,
+            np.array(self.phase_of),
+            min_t,
+            err,
+            tol,
+            reached,
+            message,
+        )
 
 
 # ------------------------------------------------------------------------------ closed loop
@@ -636,5 +716,7 @@ def describe_plan(plan: QuasiStatic) -> dict[str, Any]:
         "tolerance": plan.tolerance.tolist(),
         "min_tension_N": float(plan.min_tension.min()),
         "min_rest_length_m": float(min(e.rest_length.min() for e in plan.equilibria)),
-        "final_control_m": dict(zip(plan.structure.tendon_name, plan.control[-1].tolist())),
+        "final_control_m": dict(
+            zip(plan.structure.tendon_name, plan.control[-1].tolist(), strict=True)
+        ),
     }
