@@ -12,8 +12,9 @@ Every function here evaluates the physics through :mod:`tensegrity.physics.kerne
     for a free class 1 structure).
 ``inputs`` = ``(rest, rate, has_rate, has_external, force, has_gravity, gravity)``
     Per-stage inputs: ``rest`` (K, S) rest lengths ``Lbar = L0 - u`` [m] and ``rate`` (K, S)
-    the control rates ``du/dt`` [m/s] (read if ``has_rate``), in kernel order, ``force`` (K, 3, n_slots) external nodal forces [N] in
-    the kernel's node layout, ``gravity`` (3,) [m/s^2].  Stage ``s`` of a step reads row ``s``
+    the control rates ``du/dt`` [m/s] (read if ``has_rate``), in kernel order, ``force``
+    (K, 3, n_slots) external nodal forces [N] in the kernel's node layout, ``gravity`` (3,)
+    [m/s^2].  Stage ``s`` of a step reads row ``s``
     when K > 1 and row 0 when K = 1 (inputs constant over the step).
 ``work`` = ``(node_work, block_force, tension, elastic_tension, damping_power)``
     Scratch buffers of the kernel (see :func:`tensegrity.physics.kernel.rhs`); after an evaluation
@@ -279,7 +280,8 @@ def check_state(y, s, system, inputs, work, limits, monitor, with_energy):  # pr
 
 @njit(**JIT_OPTIONS)
 def tendon_lengths(p, tendon_slots, out):  # pragma: no cover - compiled
-    """``|p_head - p_tail|`` [m] per tendon (kernel order) from node positions ``p`` (3, n_slots)."""
+    """``|p_head - p_tail|`` [m] per tendon (kernel order) from node positions ``p``
+    (3, n_slots)."""
     for s in range(tendon_slots.shape[0]):
         _, _, tx, ty, tz = tendon_vector(p, tendon_slots, s)
         out[s] = np.sqrt(tx * tx + ty * ty + tz * tz)

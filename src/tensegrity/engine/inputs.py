@@ -1,11 +1,11 @@
 """The inputs of a run: control ``u`` (rest-length changes, ``Lbar = L0 - u``), external nodal
 forces ``w`` and gravity, evaluated at the stage times of a step.
 
-Each of ``u`` and ``w`` is None, a constant array, a table (:class:`tensegrity.model.loads.ForceTable`,
-:class:`tensegrity.model.loads.ControlTable`: linear between rows, evaluated for all stages of a step
-at once) or a Python callable of time, called once per stage.  The control's rate ``du/dt``
-(for the work of the control) is the table's slope, or for a callable a central difference
-(two more calls per stage).
+Each of ``u`` and ``w`` is None, a constant array, a table
+(:class:`tensegrity.model.loads.ForceTable`, :class:`tensegrity.model.loads.ControlTable`: linear
+between rows, evaluated for all stages of a step at once) or a Python callable of time, called
+once per stage.  The control's rate ``du/dt`` (for the work of the control) is the table's
+slope, or for a callable a central difference (two more calls per stage).
 """
 
 from __future__ import annotations
@@ -128,8 +128,9 @@ class Inputs:
         if u is not None and np.any(rest < 0):
             k, s = np.argwhere(rest < 0)[0]
             raise ValueError(
-                f"{self.control.field}[{s}]: rest length {self.structure.tendon_rest_length[s]:g} - "
-                f"{u[k, s]:g} is negative at t = {times[min(k, len(times) - 1)]:g} s"
+                f"{self.control.field}[{s}]: rest length "
+                f"{self.structure.tendon_rest_length[s]:g} - {u[k, s]:g} is negative at "
+                f"t = {times[min(k, len(times) - 1)]:g} s"
             )
         return rest
 

@@ -199,7 +199,9 @@ _FAILURES = {
         "within one step at t = {t:.6g} s (step too large, or the motion "
         "is unstable)"
     ),
-    compiled.CHECK_ENERGY: "unstable: energy grew by {value:.3g} J (scale {scale:.3g} J) at t = {t:.6g} s",
+    compiled.CHECK_ENERGY: (
+        "unstable: energy grew by {value:.3g} J (scale {scale:.3g} J) at t = {t:.6g} s"
+    ),
     compiled.CHECK_PROJECTION: (
         "unstable: could not project onto the constraints at t = {t:.6g} s"
     ),

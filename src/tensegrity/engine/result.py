@@ -133,7 +133,8 @@ class SimulationResult:
 
     @property
     def total_energy(self) -> np.ndarray:
-        """``E_kin + E_el + E_grav + E_d - W_w - W_u`` [J], (T,): constant up to integration error."""
+        """``E_kin + E_el + E_grav + E_d - W_w - W_u`` [J], (T,): constant up to integration
+        error."""
         e = self.energy
         return (
             e["kinetic"]

@@ -87,7 +87,8 @@ def simulate(
         An adaptive ``scipy.integrate`` method (``"DOP853"``, ``"RK45"``, ``"Radau"``, ...) with
         ``rtol``, ``atol``; or ``"rk4"``, fixed step ``dt`` [s].
     sample_dt : float, optional
-        Output spacing [s]; default ``(t_end - t0) / 1000``.  The last sample is where the run ended.
+        Output spacing [s]; default ``(t_end - t0) / 1000``.  The last sample is where the run
+        ended.
     locate_switches : bool
         Adaptive methods only: when a tendon goes slack or taut within a step, find the switch
         (bisection on the step's dense output, to 1e-13 s relative), discard the step, integrate

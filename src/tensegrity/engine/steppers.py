@@ -3,8 +3,8 @@
 ``retreat(to)`` discards it to head for a located switch at ``to``, ``resume()`` goes on at the
 step size of before once there, ``restart(y)`` continues from a changed state (after a
 projection or a controller's update), ``switch_distance(t, ...)`` tells how far tendons are
-from changing taut/slack state at a time inside the last step, and ``memory()`` is what a checkpoint must keep
-to continue exactly (:class:`StepperMemory`).
+from changing taut/slack state at a time inside the last step, and ``memory()`` is what a
+checkpoint must keep to continue exactly (:class:`StepperMemory`).
 
 - :class:`DOP853` — the default: ``scipy.integrate.DOP853``'s method, coefficients, error norm
   and step-size law, its stages evaluated in compiled code (:mod:`tensegrity.engine.compiled`).
