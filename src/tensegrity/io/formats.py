@@ -126,10 +126,12 @@ def network_to_dict(structure: Structure, *, keep_joints: bool = False) -> dict[
         "format": NETWORK_FORMAT,
         "version": NETWORK_VERSION,
         "units": "SI: m, kg, s, N",
-        "nodes": {name: p.tolist() for name, p in zip(names, merged.N.T)},
+        "nodes": {name: p.tolist() for name, p in zip(names, merged.N.T, strict=True)},
     }
     if np.any(merged.node_velocity != 0):
-        data["velocities"] = {name: v.tolist() for name, v in zip(names, merged.node_velocity.T)}
+        data["velocities"] = {
+            name: v.tolist() for name, v in zip(names, merged.node_velocity.T, strict=True)
+        }
     if merged.node_fixed.any():
         data["fixed"] = [names[i] for i in np.flatnonzero(merged.node_fixed)]
     for key, nodes, values in (
@@ -143,7 +145,8 @@ def network_to_dict(structure: Structure, *, keep_joints: bool = False) -> dict[
     ):
         if nodes.size:
             data[key] = [
-                {"node": names[i], _ITEM_KEYS[key]: v.tolist()} for i, v in zip(nodes, values)
+                {"node": names[i], _ITEM_KEYS[key]: v.tolist()}
+                for i, v in zip(nodes, values, strict=True)
             ]
     if merged.joint_nodes.size:
         data["joints"] = [[names[a], names[b]] for a, b in merged.joint_nodes]
@@ -153,7 +156,7 @@ def network_to_dict(structure: Structure, *, keep_joints: bool = False) -> dict[
         "rod": [{"nodes": [names[a], names[b]]} for a, b in rods],
         "tendon": [
             {"name": name, "nodes": [names[a], names[b]]}
-            for name, (a, b) in zip(structure.tendon_name, tendons)
+            for name, (a, b) in zip(structure.tendon_name, tendons, strict=True)
         ],
     }
     columns = {
@@ -438,7 +441,11 @@ def _named_points(
         )
     if dim is None:
         dim = node_dimension(rows)
-    return names, [parse_vector(row, label, dim) for row, label in zip(rows, labels)], dim
+    return (
+        names,
+        [parse_vector(row, label, dim) for row, label in zip(rows, labels, strict=True)],
+        dim,
+    )
 
 
 def _defaults(value: Any, keys: Sequence[str], where: str) -> dict[str, Any]:

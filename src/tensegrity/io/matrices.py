@@ -24,7 +24,8 @@ _DESCRIPTIONS = {
     "Q_inv": ("App. B", "l = Q^-1 q, by the block formulas of Appendix B"),
     "R": (
         "18.37",
-        "l^d = R q: the vectors of the f^d slots (t1_n1, then t2 t3 t4 t6 t7 t8 t9 t10 per element)",
+        "l^d = R q: the vectors of the f^d slots "
+        "(t1_n1, then t2 t3 t4 t6 t7 t8 t9 t10 per element)",
     ),
     "R_o": ("18.43", "[t5; t1] per element = R_o q: rows of Q^-1 (R_0 for t1_n1)"),
     "T": ("18.55", "u~ = T u: the rest-length change of every slot from the independent u"),
@@ -208,7 +209,9 @@ def _index(
     return {
         "format": "tensegrity-matrices",
         "version": 1,
-        "model": "q'' + (K_r(q') + K_p(q)) q = B(q) u + D(q) w  (Skelton, Pinaud, Mingori, eq. 18.59)",
+        "model": (
+            "q'' + (K_r(q') + K_p(q)) q = B(q) u + D(q) w  (Skelton, Pinaud, Mingori, eq. 18.59)"
+        ),
         "shell": {
             "n": top.n,
             "m": top.m,
@@ -227,7 +230,10 @@ def _index(
             "w": w.tolist(),
         },
         "orderings": {
-            "q": "per element (i,j), e = (j-1) n + (i-1): [p1+p2, p2-p1, p3+p4, p4-p3], 3 numbers each",
+            "q": (
+                "per element (i,j), e = (j-1) n + (i-1): [p1+p2, p2-p1, p3+p4, p4-p3], "
+                "3 numbers each"
+            ),
             "w": "per element: forces on nodes p1, p2, p3, p4 (node order), 3 numbers each",
             "u": "one tendon per entry (u_tendon); u = rest-length change [m], Lbar = L0 - u",
             "l": list(top.l_labels),
@@ -247,5 +253,5 @@ def _slot_entries(
     """One ``{"slot", "tendon", "sign", "counted"}`` per slot of ``l^d`` or ``f^o``."""
     return [
         {"slot": s, "tendon": t, "sign": int(g), "counted": bool(c)}
-        for s, t, g, c in zip(slots, tendons, signs, counted)
+        for s, t, g, c in zip(slots, tendons, signs, counted, strict=True)
     ]

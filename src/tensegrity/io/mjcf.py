@@ -90,10 +90,10 @@ Differences from :mod:`tensegrity.physics.dynamics` that matter when comparing
   inertias above ``mjMINVAL = 1e-15``, so ``eps`` must stay above that for very light rods.)
 - **Rod lengths.**  The sites are exactly ``rod_length`` apart, centred on the midpoint of the
   structure's two nodes and along the line joining them: the same projection onto the rod
-  constraint that :func:`tensegrity.physics.dynamics.initial_state` makes (equal to ``node_position`` up
-  to round-off when the nodes are exactly ``L`` apart).  Likewise the initial angular velocity is
-  ``u x (v_b - v_a) / L`` with zero spin, which drops any rod-stretching velocity component just
-  as ``initial_state`` does.
+  constraint that :func:`tensegrity.physics.dynamics.initial_state` makes (equal to
+  ``node_position`` up to round-off when the nodes are exactly ``L`` apart).  Likewise the initial
+  angular velocity is ``u x (v_b - v_a) / L`` with zero spin, which drops any rod-stretching
+  velocity component just as ``initial_state`` does.
 
 Reading positions: after ``mujoco.mj_step`` with the RK4 integrator, ``data.site_xpos`` still
 holds the last Runge-Kutta stage, not the end of the step; :func:`mujoco_node_positions` calls
@@ -105,6 +105,7 @@ MuJoCo is an optional dependency: :func:`to_mjcf` and :func:`write_mjcf` only bu
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import tempfile
@@ -129,11 +130,11 @@ INTEGRATORS = ("Euler", "RK4", "implicit", "implicitfast")
 
 #: ``<size memory>`` is ``MEMORY_BASE + MEMORY_PER_ELEMENT * (6 R + S)`` bytes, rounded up to a
 #: mebibyte.  MuJoCo's arena holds the contact/constraint buffers (contacts are off; the joints'
-#: equality rows are counted in :func:`mjcf_memory`) and the stack of temporaries, which grows linearly
-#: in the number of degrees of freedom plus tendons.  Peak use measured on class 1 shells from
-#: (3,1) to (30,30) with MuJoCo 4.0: about 50 bytes per (dof + tendon) with Euler/implicitfast, 120
-#: with RK4, 360 with implicit, so this leaves a margin of 5x (implicit) to 17x (RK4).  (MuJoCo's
-#: own estimate asks for 1.2 GB for a (20,20) shell, which needs 1 MB.)
+#: equality rows are counted in :func:`mjcf_memory`) and the stack of temporaries, which grows
+#: linearly in the number of degrees of freedom plus tendons.  Peak use measured on class 1 shells
+#: from (3,1) to (30,30) with MuJoCo 4.0: about 50 bytes per (dof + tendon) with
+#: Euler/implicitfast, 120 with RK4, 360 with implicit, so this leaves a margin of 5x (implicit) to
+#: 17x (RK4).  (MuJoCo's own estimate asks for 1.2 GB for a (20,20) shell, which needs 1 MB.)
 MEMORY_BASE = 1 << 20
 MEMORY_PER_ELEMENT = 2 << 10
 
@@ -217,7 +218,9 @@ def _rod_motion(structure: Structure) -> _RodMotion:
 def _to_body(quat: np.ndarray, vectors: np.ndarray) -> np.ndarray:
     """World ``vectors`` (R, 3) in the body frames of orientations ``quat`` (R, 4)."""
     conjugate = quat * np.array([1.0, -1.0, -1.0, -1.0])
-    return np.array([_rotate(qc, w) for qc, w in zip(conjugate, vectors)]).reshape(-1, 3)
+    return np.array([_rotate(qc, w) for qc, w in zip(conjugate, vectors, strict=True)]).reshape(
+        -1, 3
+    )
 
 
 def rod_frames(structure: Structure) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -473,7 +476,7 @@ def _rod_bodies(
     the inertias ``diag(transverse, transverse, spin)`` (R,) [kg m^2], a capsule geom without
     contacts and the sites of the end nodes."""
     omega_local = _to_body(motion.quat, motion.omega)
-    for r, ((a, b), tree) in enumerate(zip(structure.rod_nodes, trees)):
+    for r, ((a, b), tree) in enumerate(zip(structure.rod_nodes, trees, strict=True)):
         L = float(structure.rod_length[r])
         body = ET.SubElement(
             world,
@@ -544,7 +547,9 @@ def _rod_joints(
         keyframe.add([1.0, 0.0, 0.0, 0.0], omega_local)
         return
     names = ("rz",) if structure.dim == 2 else ("turn", "spin")
-    for joint, hinge, rate in zip(names, tree.hinges, _hinge_rates(tree.hinges, motion.omega[r])):
+    # A rod with both ends held may have no hinges (`_rod_trees`): it takes none of the names.
+    rates = _hinge_rates(tree.hinges, motion.omega[r])
+    for joint, hinge, rate in zip(names, tree.hinges, rates, strict=False):
         ET.SubElement(
             body,
             "joint",
@@ -692,10 +697,12 @@ def _held_axes(structure: Structure) -> dict[int, np.ndarray]:
 
     d = structure.dim
     rows: dict[int, list[np.ndarray]] = {}
-    for k, normal in zip(structure.plane_nodes, structure.plane_normal):
+    for k, normal in zip(structure.plane_nodes, structure.plane_normal, strict=True):
         rows.setdefault(int(k), []).append(normal[None])
     if structure.line_nodes.size:
-        for k, line_normals in zip(structure.line_nodes, normals(structure.line_direction)):
+        for k, line_normals in zip(
+            structure.line_nodes, normals(structure.line_direction), strict=True
+        ):
             rows.setdefault(int(k), []).append(line_normals)
     return {
         k: np.pad(null_space(np.vstack(r)).T, ((0, 0), (0, 3 - d)))
@@ -813,10 +820,8 @@ def write_mjcf(path: str | os.PathLike, structure: Structure, **options: Any) ->
             os.chmod(tmp, 0o666 & ~umask)
         os.replace(tmp, final)
     except BaseException:
-        try:
+        with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
-        except FileNotFoundError:
-            pass
         raise
     return final
 

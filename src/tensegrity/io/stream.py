@@ -1,8 +1,8 @@
 """Long simulations streamed to an HDF5 trajectory file in segments, resumable after interruption.
 
 :func:`simulate_to_file` cuts ``t_span`` into segments on a fixed grid of boundaries and runs
-:func:`tensegrity.engine.simulate.simulate` once per segment, each starting from the last state of the one
-before.  After every segment its samples are appended to resizable, chunked datasets and a
+:func:`tensegrity.engine.simulate.simulate` once per segment, each starting from the last state of
+the one before.  After every segment its samples are appended to resizable, chunked datasets and a
 checkpoint is stored in the same file, so that
 
 - memory is that of one segment, whatever the length of the run;
@@ -36,17 +36,18 @@ tensegrity trajectory file").  When the run ends (end time reached, steady state
 unstable segment) the attributes are set to those of a finished trajectory (``format =
 "tensegrity-trajectory"``, ``complete = True``, ``status``, ``message``), the file is flushed to
 disk and renamed onto ``path`` (an atomic :func:`os.replace`).  So a file under ``path`` is always
-complete, and :func:`tensegrity.io.trajectory.read_trajectory` reads it: the datasets have the names and
-layout of :func:`tensegrity.io.trajectory.write_trajectory` (module docstring of :mod:`tensegrity.io.trajectory`), stored
-exactly (float64, uncompressed: trajectories of moving structures shrink by ~10% under gzip,
-which cost 60 times the write time, measured on a (10,10) segment) in chunks of about 1 MiB.  Extra root attributes:
-``complete``, ``stream_settings`` (JSON) and ``stream_settings_hash``; an extra group
-``checkpoint`` (see :class:`Checkpoint`).
+complete, and :func:`tensegrity.io.trajectory.read_trajectory` reads it: the datasets have the names
+and layout of :func:`tensegrity.io.trajectory.write_trajectory` (module docstring of
+:mod:`tensegrity.io.trajectory`), stored exactly (float64, uncompressed: trajectories of moving
+structures shrink by ~10% under gzip, which cost 60 times the write time, measured on a (10,10)
+segment) in chunks of about 1 MiB.  Extra root attributes: ``complete``, ``stream_settings`` (JSON)
+and ``stream_settings_hash``; an extra group ``checkpoint`` (see :class:`Checkpoint`).
 
 A segment is stored in this order: its rows are appended to every dataset; the new checkpoint is
 written into whichever of the two slots ``checkpoint/a``, ``checkpoint/b`` is not current; one
-attribute write, ``checkpoint.attrs["current"]`` (0 or 1), then commits it.  An interruption anywhere before
-that write leaves the previous checkpoint current, and its ``n_samples`` tells how many rows count.
+attribute write, ``checkpoint.attrs["current"]`` (0 or 1), then commits it.  An interruption
+anywhere before that write leaves the previous checkpoint current, and its ``n_samples`` tells how
+many rows count.
 
 The partial file is open only while a segment's samples and the checkpoint are written (the
 simulation itself runs with the file closed), then closed and ``fsync``-ed.  An interruption raised
@@ -65,8 +66,8 @@ the structure and every setting (``t_span``, ``sample_dt``, the segment grid and
 ``external_force`` only through its module and qualified name, so a changed function body under
 the same name is not detected.  If ``path`` already holds a finished streamed run with the same
 settings, nothing is run and its summary is returned.  A finished file with other settings is
-replaced (atomically, at the end of the new run), as every writer of :mod:`tensegrity.io.trajectory` does.
-``resume=False`` discards a partial file and starts again.
+replaced (atomically, at the end of the new run), as every writer of :mod:`tensegrity.io.trajectory`
+does.  ``resume=False`` discards a partial file and starts again.
 
 SI units throughout: m, kg, s, N, J.
 """
@@ -97,8 +98,8 @@ from tensegrity.physics.dynamics import State
 
 #: Suffix of the file a run writes into until it ends.
 PARTIAL_SUFFIX = ".partial"
-#: ``format`` attribute of an unfinished streamed file (:func:`tensegrity.io.trajectory.read_trajectory`
-#: refuses it).
+#: ``format`` attribute of an unfinished streamed file
+#: (:func:`tensegrity.io.trajectory.read_trajectory` refuses it).
 PARTIAL_FORMAT = "tensegrity-trajectory-partial"
 #: Version of the checkpoint layout and of the settings hash.
 STREAM_VERSION = 1
@@ -206,7 +207,8 @@ class StreamSummary:
     Attributes
     ----------
     path : pathlib.Path
-        The finished trajectory file (readable with :func:`tensegrity.io.trajectory.read_trajectory`).
+        The finished trajectory file (readable with
+        :func:`tensegrity.io.trajectory.read_trajectory`).
     status : int
         ``1`` steady state reached, ``0`` end time reached, ``-1`` a segment failed (unstable);
         the samples up to the failure are stored.

@@ -9,8 +9,9 @@ the structure's order), with
 - point data ``velocity`` [m/s] when the velocities are known.
 
 ``<name>.pvd`` lists the files with their times [s]; open it in ParaView to play the motion.
-The files are written into a staging folder and moved into place (:func:`tensegrity.io.trajectory.write_staged`),
-the collection last, so a reader never sees a collection that points at missing files.
+The files are written into a staging folder and moved into place
+(:func:`tensegrity.io.trajectory.write_staged`), the collection last, so a reader never sees a
+collection that points at missing files.
 """
 
 from __future__ import annotations
@@ -49,12 +50,14 @@ def polydata(
         f'    <Piece NumberOfPoints="{N}" NumberOfVerts="0" NumberOfLines="{R + S}" '
         'NumberOfStrips="0" NumberOfPolys="0">',
         "      <Points>",
-        f'        <DataArray type="Float64" NumberOfComponents="3" format="ascii">{_ascii(nodes)}</DataArray>',
+        '        <DataArray type="Float64" NumberOfComponents="3" format="ascii">'
+        f"{_ascii(nodes)}</DataArray>",
         "      </Points>",
         "      <Lines>",
         '        <DataArray type="Int64" Name="connectivity" format="ascii">'
         f"{' '.join(map(str, connectivity))}</DataArray>",
-        f'        <DataArray type="Int64" Name="offsets" format="ascii">{" ".join(map(str, offsets))}</DataArray>',
+        '        <DataArray type="Int64" Name="offsets" format="ascii">'
+        f"{' '.join(map(str, offsets))}</DataArray>",
         "      </Lines>",
         '      <CellData Scalars="tension">',
     ]
@@ -78,7 +81,8 @@ def polydata(
 def write_vtk(
     out: PathLike, source: SimulationResult, *, name: str = "tensegrity", every: int = 1
 ) -> list[Path]:
-    """Write every ``every``-th sample of a simulation as ``out/<name>_<k>.vtp`` + ``out/<name>.pvd``.
+    """Write every ``every``-th sample of a simulation as ``out/<name>_<k>.vtp`` and
+    ``out/<name>.pvd``.
 
     Parameters
     ----------

@@ -4,8 +4,8 @@
 
     K_p = H K~,   K~ = B^d K^d + B^o K^o,   B = H [B^d P^d, B^o P^o] T,   D = H W^o
 
-Every matrix is built from the shell's topology (:func:`tensegrity.model.shell.shell_tendons`, i.e. the
-table of ``shared/spec/shell-topology.md``), never typed in from the printed blocks, and is a
+Every matrix is built from the shell's topology (:func:`tensegrity.model.shell.shell_tendons`, i.e.
+the table of ``shared/spec/shell-topology.md``), never typed in from the printed blocks, and is a
 ``scipy.sparse.csr_matrix`` in the paper's orderings.  ``tests/test_matrices.py`` checks the
 blocks against the printed forms and the accelerations against :func:`dynamics.accelerations`.
 ``docs/matrix-model.md`` describes the model and every place where the printed equations are
@@ -490,7 +490,7 @@ def shell_size(structure: Structure) -> tuple[int, int, bool]:
         )
     got = {
         name: (int(a), int(b))
-        for name, (a, b) in zip(structure.tendon_name, structure.tendon_nodes)
+        for name, (a, b) in zip(structure.tendon_name, structure.tendon_nodes, strict=True)
     }
     if got != expected:
         wrong = sorted(set(got.items()) ^ set(expected.items()))
