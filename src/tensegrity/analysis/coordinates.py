@@ -2,8 +2,8 @@
 
 Every rod ``r`` (end nodes ``a``, ``b``, length ``L``) is described by its centre ``c`` (3) and
 its unit direction ``n`` (``p_a = c - (L/2) n``, ``p_b = c + (L/2) n``, so ``q1 = 2 c`` and
-``q2 = L n`` of :mod:`tensegrity.physics.dynamics`).  About a *base* configuration ``(c0, n0)`` we use,
-per rod, the 5 numbers
+``q2 = L n`` of :mod:`tensegrity.physics.dynamics`).  About a *base* configuration ``(c0, n0)``
+we use, per rod, the 5 numbers
 
     x_r = [dc (3), phi (2)],   c = c0 + dc,   n = (n0 + E phi) / sqrt(1 + |phi|^2)
 
@@ -19,16 +19,17 @@ The kinetic energy in these coordinates at ``phi = 0`` is ``x'^T M x' / 2`` with
 Point masses (nodes of no rod, ``Structure.point_mass_nodes``) follow the rods: 3 numbers each,
 their displacement from the base (``M = diag(m, m, m)``), so ``x`` has ``5R + 3M`` entries.
 Joints and supports are *not* eliminated from ``x``: they are the constraints
-``g(x) = A q(x) - b = 0`` of :mod:`tensegrity.physics.constraints`, nonlinear in ``x`` through the rod
-angles, with tangent ``G = A_n J(x)`` (:meth:`Chart.constraint_jacobian`).  A planar structure is
-analysed as its 3-D form with every node held on the plane ``z = 0`` (:func:`spatial`).
+``g(x) = A q(x) - b = 0`` of :mod:`tensegrity.physics.constraints`, nonlinear in ``x`` through
+the rod angles, with tangent ``G = A_n J(x)`` (:meth:`Chart.constraint_jacobian`).  A planar
+structure is analysed as its 3-D form with every node held on the plane ``z = 0``
+(:func:`spatial`).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import functools
-from typing import Any
+from typing import Any, overload
 
 import numpy as np
 
@@ -44,7 +45,8 @@ RTOL_RIGID = 1e-10
 
 
 def tangent_basis(direction: np.ndarray) -> np.ndarray:
-    """Orthonormal ``E = [e1, e2]`` (..., 3, 2) perpendicular to unit vectors ``direction`` (..., 3).
+    """Orthonormal ``E = [e1, e2]`` (..., 3, 2) perpendicular to unit vectors ``direction``
+    (..., 3).
 
     Deterministic: ``e1`` is ``z x n`` normalized (``x x n`` when ``n`` is within 0.1 rad of z),
     ``e2 = n x e1``.
@@ -167,13 +169,15 @@ class Chart:
         )
 
     def velocity_q(self, xdot: np.ndarray) -> np.ndarray:
-        """``q'`` (n,) of rates ``x'`` at the base (``x = 0``): ``q1' = 2 dc'``, ``q2' = L E phi'``."""
+        """``q'`` (n,) of rates ``x'`` at the base (``x = 0``): ``q1' = 2 dc'``,
+        ``q2' = L E phi'``."""
         dc, dphi = self.split(xdot)
         v2 = self.structure.rod_length[:, None] * np.einsum("rij,rj->ri", self.basis, dphi)
         return self._with_point_masses(np.stack([2.0 * dc, v2], axis=1), self._point_part(xdot))
 
     def node_jacobian(self, x: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """``dp/dx`` per rod: ``(Jn (R, 3, 2), n (R, 3))`` with ``Jn = dn/dphi = (I - n n^T) E / s``.
+        """``dp/dx`` per rod: ``(Jn (R, 3, 2), n (R, 3))`` with
+        ``Jn = dn/dphi = (I - n n^T) E / s``.
 
         Node ``a`` moves by ``dc - (L/2) Jn dphi``, node ``b`` by ``dc + (L/2) Jn dphi``.
         """
@@ -189,14 +193,14 @@ class Chart:
         jn, _ = self.node_jacobian(x)
         half = 0.5 * s.rod_length[:, None, None] * jn
         R = s.n_rods
-        J = np.zeros((s.n_nodes, 3, R, 5))
+        per_rod = np.zeros((s.n_nodes, 3, R, 5))
         r = np.arange(R)
         a, b = s.rod_nodes[:, 0], s.rod_nodes[:, 1]
-        J[a, :, r, :3] = np.eye(3)
-        J[b, :, r, :3] = np.eye(3)
-        J[a, :, r, 3:] = -half
-        J[b, :, r, 3:] = half
-        J = J.reshape(3 * s.n_nodes, 5 * R)
+        per_rod[a, :, r, :3] = np.eye(3)
+        per_rod[b, :, r, :3] = np.eye(3)
+        per_rod[a, :, r, 3:] = -half
+        per_rod[b, :, r, 3:] = half
+        J = per_rod.reshape(3 * s.n_nodes, 5 * R)
         if not self.point_mass.size:
             return J
         masses = s.point_mass_nodes
@@ -241,20 +245,23 @@ class Chart:
         joints and supports that best balance the generalized forces ``Q`` (``lambda`` by least
         squares, minimum norm where the rows are dependent), and what they leave unbalanced."""
         s = self.structure
-        if self.n_constraints == 0:
+        c = constraints_of(s)
+        if c is None or c.matrix.shape[0] == 0:  # (self.n_constraints == 0)
             return np.zeros((s.n_nodes, 3)), generalized_force
         G = self.constraint_jacobian(x)
         multiplier, *_ = np.linalg.lstsq(G.T, -generalized_force, rcond=None)
-        force = (constraints_of(s).node_matrix_t @ multiplier).reshape(-1, 3)
+        force = (c.node_matrix_t @ multiplier).reshape(-1, 3)
         return force, generalized_force + G.T @ multiplier
 
     def retract(self, x: np.ndarray) -> np.ndarray:
         """``q`` (n,) of ``x`` moved onto the joints and supports (the closest configuration in
-        the kinetic-energy metric, :meth:`tensegrity.physics.constraints.LinearConstraints.project`)."""
+        the kinetic-energy metric,
+        :meth:`tensegrity.physics.constraints.LinearConstraints.project`)."""
         q = self.q(x)
-        if self.n_constraints == 0:
+        c = constraints_of(self.structure)
+        if c is None or c.matrix.shape[0] == 0:  # (self.n_constraints == 0)
             return q
-        return constraints_of(self.structure).project(q, np.zeros_like(q))[0]
+        return c.project(q, np.zeros_like(q))[0]
 
     def admitted_motions(
         self, x: np.ndarray | None = None, rtol: float = 1e-10
@@ -301,6 +308,12 @@ def has_supports(structure: Structure) -> bool:
     )
 
 
+@overload
+def spatial_vector(structure: Structure, value: np.ndarray) -> np.ndarray: ...
+@overload
+def spatial_vector(structure: Structure, value: None) -> None: ...
+@overload
+def spatial_vector(structure: Structure, value: np.ndarray | None) -> np.ndarray | None: ...
 def spatial_vector(structure: Structure, value: np.ndarray | None) -> np.ndarray | None:
     """Vectors (..., d) of ``structure`` -- nodal forces or positions (N, d), a gravity vector
     (d,) -- in 3-D (``z = 0`` added to a planar structure's); None stays None."""
@@ -320,7 +333,8 @@ def spatial_coordinates(structure: Structure, q: np.ndarray, *, rates: bool = Fa
 
 
 def planar_coordinates(structure: Structure, q: np.ndarray, *, rates: bool = False) -> np.ndarray:
-    """Inverse of :func:`spatial_coordinates`: a planar ``structure``'s ``q`` from its 3-D form's."""
+    """Inverse of :func:`spatial_coordinates`: a planar ``structure``'s ``q`` from its 3-D
+    form's."""
     if structure.dim == 3:
         return q
     p = dynamics.nodes_from_coordinates(spatial(structure), np.asarray(q, dtype=float), rates=rates)
