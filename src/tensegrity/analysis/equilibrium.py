@@ -12,8 +12,8 @@ Two routes, which agree (``tests/test_analysis_equilibrium.py``):
   forces or gravity fix the orientation themselves; then only the mass centre is gauged (and a
   free structure under a net force has no equilibrium: the solver reports its residual).
 - :func:`equilibrium_by_simulation` runs the paper's route: the structure with artificial
-  critical damping (:func:`tensegrity.physics.dynamics.critical_damping`) is simulated until it is at
-  rest.  Convergence test: every node speed below ``velocity_tol`` [m/s] *and* every node
+  critical damping (:func:`tensegrity.physics.dynamics.critical_damping`) is simulated until it
+  is at rest.  Convergence test: every node speed below ``velocity_tol`` [m/s] *and* every node
   acceleration below ``acceleration_tol`` [m/s^2] at a sample (``simulate(steady_state=True)``).
 
 Both report an :class:`EquilibriumResult`: node positions, tensions, slack tendons and residuals.
@@ -108,7 +108,7 @@ class EquilibriumResult:
     @property
     def slack_names(self) -> list[str]:
         """Names of the slack tendons."""
-        return [n for n, sl in zip(self.structure.tendon_name, self.slack) if sl]
+        return [n for n, sl in zip(self.structure.tendon_name, self.slack, strict=True) if sl]
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready summary: node positions, tensions, slack tendons and residuals."""
@@ -125,16 +125,17 @@ class EquilibriumResult:
                     {
                         "name": name,
                         "tension_N": float(T),
-                        "length_m": float(l),
+                        "length_m": float(length),
                         "rest_length_m": float(r),
                         "slack": bool(sl),
                     }
-                    for name, T, l, r, sl in zip(
+                    for name, T, length, r, sl in zip(
                         s.tendon_name,
                         self.tension,
                         self.tendon_length,
                         self.rest_length,
                         self.slack,
+                        strict=True,
                     )
                 ],
                 "rod_compression_N": self.rod_compression.tolist(),
@@ -230,12 +231,16 @@ def planar_result(
 ) -> EquilibriumResult:
     """A result of the 3-D form (:func:`~tensegrity.analysis.coordinates.spatial`) of the planar
     structure ``planar``, in 2-D (the loads as ``planar``'s: 2 numbers per vector)."""
+    reaction = None
+    if planar.has_constraints:  # so has its 3-D form: ``result`` has the reactions
+        assert result.reaction_force is not None
+        reaction = result.reaction_force[:, :2]
     return dataclasses.replace(
         result,
         structure=planar,
         q=planar_coordinates(planar, result.q),
         node_position=result.node_position[:, :2],
-        reaction_force=result.reaction_force[:, :2] if planar.has_constraints else None,
+        reaction_force=reaction,
         external_force=None if external_force is None else np.asarray(external_force, float),
         gravity=None if gravity is None else np.asarray(gravity, float),
     )
@@ -301,12 +306,12 @@ def eckart_gauge(
     """Eckart's conditions for the rigid-body motions the supports of ``structure`` admit at
     ``q`` (all six for a free structure; None if there are none).  Without ``rotations`` (under
     loads, which fix the orientation) only the admitted pure translations are gauged."""
-    scale = None if structure.n_tendons else scale
-    eckart = EckartGauge(structure, p_ref, rotations, scale=scale)
+    gauge_scale = None if structure.n_tendons else scale
+    eckart = EckartGauge(structure, p_ref, rotations, scale=gauge_scale)
     if not (structure.has_constraints or structure.anchor_nodes.size):
         return eckart
     chart = Chart.at(structure, q)
-    full = EckartGauge(structure, p_ref, True, scale=scale)
+    full = EckartGauge(structure, p_ref, True, scale=gauge_scale)
     moves = full.jacobian(chart.jacobian_matrix()) @ rigid_body_basis(chart)  # (6, r)
     if not rotations:
         # pure translations: no change of the rotation conditions
@@ -357,8 +362,9 @@ def find_equilibrium(
     descend : bool
         First go down the potential energy (elastic, minus the work of ``w`` and gravity) from
         ``start`` by a modified Newton method (analytic gradient ``-Q`` and Hessian
-        ``K = -dQ/dx``, eigenvalues made positive, line search; gauge added as a penalty), so that the root found is a minimum -- a stable equilibrium -- rather than
-        whatever stationary point is nearest.  Without it, least squares alone converges to
+        ``K = -dQ/dx``, eigenvalues made positive, line search; gauge added as a penalty), so
+        that the root found is a minimum -- a stable equilibrium -- rather than whatever
+        stationary point is nearest.  Without it, least squares alone converges to
         the nearest root, which may be a saddle (e.g. the (3,1) shell from its cylinder layout
         then lands on an equilibrium with 3 slack tendons).
     force_tol : float, optional
@@ -548,7 +554,9 @@ class _EquilibriumProblem:
             return np.vstack(rows)
         c = chart.n_constraints
         G = chart.constraint_jacobian(x)
-        reaction = (constraints_of(self.structure).node_matrix_t @ v[chart.size :]).reshape(-1, 3)
+        constraints = constraints_of(self.structure)
+        assert constraints is not None  # the chart of this structure has constraints
+        reaction = (constraints.node_matrix_t @ v[chart.size :]).reshape(-1, 3)
         rows = [
             np.hstack([force_jacobian(chart, x, st._replace(force=st.force + reaction)), G.T]),
             np.hstack([self.k_scale * G, np.zeros((c, c))]),
@@ -748,8 +756,8 @@ def equilibrium_by_simulation(
 
     Parameters
     ----------
-    damping : ``"critical"`` (default: :func:`tensegrity.physics.dynamics.critical_damping`, the paper's
-        "artificial critical damping") or ``"as-is"`` (the structure's own damping).
+    damping : ``"critical"`` (default: :func:`tensegrity.physics.dynamics.critical_damping`, the
+        paper's "artificial critical damping") or ``"as-is"`` (the structure's own damping).
     """
     from tensegrity.engine.simulate import STATUS_STEADY, simulate
 
