@@ -1,11 +1,11 @@
 """One function per CLI verb: compute, write JSON and figures into ``out_dir``, return the tables.
 
 ``run_equilibrium``, ``run_modes``, ``run_controllability`` and ``run_control`` each take a
-:class:`~tensegrity.model.structure.Structure` and an output folder (created if missing), write every
-file atomically (:func:`tensegrity.io.trajectory.atomic_path`) and return an :class:`Output`: the readable
-tables, the files written and, if the analysis did not succeed (no equilibrium, targets missed),
-a one-line problem.  The ``tensegrity`` command runs them in a staging folder and moves all
-files into place together (:mod:`tensegrity.cli.main`).  Files:
+:class:`~tensegrity.model.structure.Structure` and an output folder (created if missing), write
+every file atomically (:func:`tensegrity.io.trajectory.atomic_path`) and return an
+:class:`Output`: the readable tables, the files written and, if the analysis did not succeed (no
+equilibrium, targets missed), a one-line problem.  The ``tensegrity`` command runs them in a
+staging folder and moves all files into place together (:mod:`tensegrity.cli.main`).  Files:
 
 ==========================  ================================================================
 verb                        files
@@ -44,6 +44,7 @@ from tensegrity.model.structure import Structure
 from tensegrity.plots import report
 
 if TYPE_CHECKING:
+    from tensegrity.analysis.controllability import ReachResult
     from tensegrity.analysis.shape_control import Bounds, ClosedLoop, QuasiStatic
 
 
@@ -119,58 +120,13 @@ def run_equilibrium(
         )
     data: dict[str, Any] = {"structure": _structure_summary(structure)}
     data |= {name: r.to_dict() for name, r in results.items()}
-    text = []
-    for name, r in results.items():
-        text.append(f"[{name}] {r.message}")
-        text.append(
-            report.key_values(
-                [
-                    ("converged", r.converged),
-                    ("residual force max |Q|", f"{r.residual_force:.3e} N"),
-                    ("residual acceleration max |q''|", f"{r.residual_acceleration:.3e} m/s^2"),
-                    (
-                        "tension range",
-                        f"{r.tension.min():.6g} .. {r.tension.max():.6g} N"
-                        if r.tension.size
-                        else "no tendons",
-                    ),
-                    ("slack tendons", ", ".join(r.slack_names) or "none"),
-                ]
-            )
-        )
+    text = [line for name, r in results.items() for line in _route_text(name, r)]
     if len(results) == 2:
         agreement = compare_equilibria(results["least_squares"], results["simulation"])
         data["agreement"] = agreement
-        text.append(
-            report.key_values(
-                [
-                    (
-                        "routes agree: node distance",
-                        f"{agreement['node_distance']:.3e} m (after removing rigid-body motion)",
-                    ),
-                    (
-                        "routes agree: tension difference",
-                        f"{agreement['tension_difference']:.3e} N",
-                    ),
-                ]
-            )
-        )
+        text.append(_agreement_text(agreement))
     main = results.get("least_squares") or results["simulation"]
-    text.append(
-        report.table(
-            ["tendon", "tension [N]", "length [m]", "rest length [m]", "slack"],
-            [
-                (n, T, l, r, "yes" if sl else "")
-                for n, T, l, r, sl in zip(
-                    structure.tendon_name,
-                    main.tension,
-                    main.tendon_length,
-                    main.rest_length,
-                    main.slack,
-                )
-            ],
-        )
-    )
+    text.append(_tendon_table(structure, main))
     written = [report.write_json(out / "equilibrium.json", data)]
     fig = figure_structure(
         structure,
@@ -181,6 +137,61 @@ def run_equilibrium(
     written.append(report.save_figure(fig, out / "equilibrium.png"))
     failed = [f"{name}: {r.message}" for name, r in results.items() if not r.converged]
     return Output("\n\n".join(text), written, "; ".join(failed) or None)
+
+
+def _route_text(name: str, r: EquilibriumResult) -> list[str]:
+    """The heading and the key values (convergence, residuals, tensions) of one route."""
+    return [
+        f"[{name}] {r.message}",
+        report.key_values(
+            [
+                ("converged", r.converged),
+                ("residual force max |Q|", f"{r.residual_force:.3e} N"),
+                ("residual acceleration max |q''|", f"{r.residual_acceleration:.3e} m/s^2"),
+                (
+                    "tension range",
+                    f"{r.tension.min():.6g} .. {r.tension.max():.6g} N"
+                    if r.tension.size
+                    else "no tendons",
+                ),
+                ("slack tendons", ", ".join(r.slack_names) or "none"),
+            ]
+        ),
+    ]
+
+
+def _agreement_text(agreement: dict[str, Any]) -> str:
+    """How far apart the two routes' equilibria are (:func:`compare_equilibria`)."""
+    return report.key_values(
+        [
+            (
+                "routes agree: node distance",
+                f"{agreement['node_distance']:.3e} m (after removing rigid-body motion)",
+            ),
+            (
+                "routes agree: tension difference",
+                f"{agreement['tension_difference']:.3e} N",
+            ),
+        ]
+    )
+
+
+def _tendon_table(structure: Structure, eq: EquilibriumResult) -> str:
+    """Per tendon of ``eq``: tension, length, rest length and whether it is slack."""
+    return report.table(
+        ["tendon", "tension [N]", "length [m]", "rest length [m]", "slack"],
+        [
+            (n, T, length, r, "yes" if sl else "")
+            for n, T, length, r, sl in zip(
+                structure.tendon_name,
+                eq.tension,
+                eq.tendon_length,
+                eq.rest_length,
+                eq.slack,
+                strict=True,
+            )
+        ],
+    )
 
 
 # ------------------------------------------------------------------------------ modes
@@ -268,36 +279,18 @@ def run_controllability(
         f"relative tolerance {ctrl[0].pbh_rtol:g}; Gramians with {damping} damping"
     ]
 
-    def rows(results):
-        out_rows = []
-        for r in results:
-            g = r.gramian_eigenvalues
-            missed = r.missed_modes()
-            out_rows.append(
-                (
-                    r.name,
-                    len(r.signals),
-                    f"{r.rank}/{r.n_states}",
-                    f"{r.elastic_rank}/{r.elastic_states}",
-                    ", ".join(str(m) for m in missed[:12]) + (" ..." if len(missed) > 12 else "")
-                    or "none",
-                    "-" if g is None else f"{max(g.min(), 0.0):.3g} .. {g.max():.3g}",
-                )
-            )
-        return out_rows
-
     text.append(
         "Controllability (inputs: rest-length changes)\n"
         + report.table(
             ["input set", "tendons", "rank", "non-rigid rank", "modes not reached", "Gramian eig"],
-            rows(ctrl),
+            _reach_rows(ctrl),
         )
     )
     text.append(
         "Observability\n"
         + report.table(
             ["output set", "outputs", "rank", "non-rigid rank", "modes not seen", "Gramian eig"],
-            rows(obs),
+            _reach_rows(obs),
         )
     )
     data = {
@@ -307,7 +300,7 @@ def run_controllability(
         "damping": damping,
         "modes": [
             {"index": i, "kind": k, "frequency_hz": float(f)}
-            for i, (k, f) in enumerate(zip(modes.kind, modes.frequency_hz))
+            for i, (k, f) in enumerate(zip(modes.kind, modes.frequency_hz, strict=True))
         ],
         "controllability": [r.to_dict() for r in ctrl],
         "observability": [r.to_dict() for r in obs],
@@ -318,6 +311,27 @@ def run_controllability(
         report.save_figure(report.figure_reach(obs, modes), out / "observability.png"),
     ]
     return Output("\n\n".join(text), written, None)
+
+
+def _reach_rows(results: Sequence[ReachResult]) -> list[tuple[Any, ...]]:
+    """Table rows of controllability (observability) results: signals, ranks, the modes not
+    reached (seen) and the Gramian's eigenvalue range."""
+    out_rows = []
+    for r in results:
+        g = r.gramian_eigenvalues
+        missed = r.missed_modes()
+        out_rows.append(
+            (
+                r.name,
+                len(r.signals),
+                f"{r.rank}/{r.n_states}",
+                f"{r.elastic_rank}/{r.elastic_states}",
+                ", ".join(str(m) for m in missed[:12]) + (" ..." if len(missed) > 12 else "")
+                or "none",
+                "-" if g is None else f"{max(g.min(), 0.0):.3g} .. {g.max():.3g}",
+            )
+        )
+    return out_rows
 
 
 # ------------------------------------------------------------------------------ control
@@ -489,7 +503,7 @@ def _plan_table(plan: QuasiStatic) -> str:
         [
             "step",
             "phase",
-            *[f"{n} [{u}]" for n, u in zip(output.names, output.units)],
+            *[f"{n} [{u}]" for n, u in zip(output.names, output.units, strict=True)],
             "min tension [N]",
             "max |u| [m]",
         ],
