@@ -106,9 +106,9 @@ def test_no_import_circles():
         state[node] = 1
         for nxt in sorted(graph.get(node, ())):
             if state.get(nxt) == 1:
-                circles.append(" -> ".join(path[path.index(nxt) :] + [node, nxt]))
+                circles.append(" -> ".join([*path[path.index(nxt) :], node, nxt]))
             elif nxt not in state:
-                visit(nxt, path + [node])
+                visit(nxt, [*path, node])
         state[node] = 2
 
     for node in sorted(graph):

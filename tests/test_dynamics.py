@@ -412,7 +412,7 @@ def test_energies_match_independent_formulas():
     rng = np.random.default_rng(11)
     structure = class1_shell(4, 2)
     p, v = random_consistent_state(structure, rng, speed=2.0)
-    u, rest, slack = mixed_controls(structure, p, rng)
+    _, rest, _ = mixed_controls(structure, p, rng)
     M = reference_mass_matrix(structure)
     ke = 0.5 * v.reshape(-1) @ M @ v.reshape(-1)
     assert float(kinetic_energy(structure, to_coordinates(structure, v))) == pytest.approx(

@@ -1,10 +1,11 @@
-"""The compiled kernel (``tensegrity.physics.kernel``) against the NumPy reference ``dynamics.evaluate``.
+"""The compiled kernel (``tensegrity.physics.kernel``) against the NumPy reference
+``dynamics.evaluate``.
 
 Random consistent states (every rod exactly ``L`` long, no rod-stretching velocity), random rest
 lengths with a third of the tendons slack and one at zero, random tendon and rod damping (so that
 some taut tendons have their tension clipped at zero), random external forces and gravity.  The
-compiled RK4 loop is compared with a classical RK4 (``python_rk4``) driven by ``dynamics.evaluate`` and
-projected after every step, as ``simulate(method="rk4")`` does.  The threaded evaluation
+compiled RK4 loop is compared with a classical RK4 (``python_rk4``) driven by ``dynamics.evaluate``
+and projected after every step, as ``simulate(method="rk4")`` does.  The threaded evaluation
 (``FastKernel(..., threads=B)``) is held to the same tolerance, and its RK4 loop to the one-thread
 loop.
 """
@@ -403,7 +404,7 @@ def test_rk4_zero_steps_and_bad_arguments():
     structure = class1_shell(3, 1)
     kernel = FastKernel(structure)
     state = dynamics.initial_state(structure)
-    q, qdot = kernel.rk4(state.q, state.qdot, 1e-4, 0, structure.tendon_rest_length)
+    q, _ = kernel.rk4(state.q, state.qdot, 1e-4, 0, structure.tendon_rest_length)
     assert np.array_equal(q, state.q) and q is not state.q
     for dt in (0.0, -1e-4, np.nan):
         with pytest.raises(ValueError, match="dt"):
@@ -466,7 +467,8 @@ def test_import_tensegrity_does_not_import_numba():
 
 
 # --------------------------------------------------------------------------- stencil layout
-LAYOUT_CASES = CASES[:3] + [
+LAYOUT_CASES = [
+    *CASES[:3],
     pytest.param(dict(n=40, m=3), id="shell(40,3)"),
     pytest.param(dict(n=12, m=4, primal=True), id="primal(12,4)"),
     pytest.param(None, id="general"),

@@ -349,7 +349,7 @@ def test_free_class1_is_the_existing_kernel_bit_for_bit():
             q, qdot, *compiled.arrays, rest, True, w, True, g, work[1], None, *outs[1]
         )
         assert got == expected
-        for a, b in zip(*outs):
+        for a, b in zip(*outs, strict=True):
             assert np.array_equal(a, b)
         assert not np.any(work[0][2])
 
@@ -471,7 +471,7 @@ def test_energies_errors_and_nodes_match_reference(name):
             dynamics.gravity_energy(s, q, g if with_gravity else None),
         )
         scale = sum(abs(x) for x in expected) + 1e-300
-        for got, want in zip((kinetic, elastic, potential), expected):
+        for got, want in zip((kinetic, elastic, potential), expected, strict=True):
             assert abs(got - want) < TOL * scale
         assert not np.any(compiled.node_work[2])
 
@@ -545,17 +545,17 @@ def test_planar_embedding_and_coordinates():
 
 
 def test_packing_rejects_wrong_dimensions():
-    with pytest.raises(ValueError, match="^structure: "):
+    with pytest.raises(ValueError, match=r"^structure: "):
         pack_system(planar_two_rod())
-    with pytest.raises(ValueError, match="^structure: "):
+    with pytest.raises(ValueError, match=r"^structure: "):
         embed_planar(class1_shell(3, 1))
-    with pytest.raises(ValueError, match="^structure: "):
+    with pytest.raises(ValueError, match=r"^structure: "):
         kernel.pack(planar_two_rod(), general=True)
-    with pytest.raises(ValueError, match="^the compiled kernel: supports only free 3-D class 1"):
+    with pytest.raises(ValueError, match=r"^the compiled kernel: supports only free 3-D class 1"):
         kernel.pack(crane())
-    with pytest.raises(ValueError, match="^x: "):
+    with pytest.raises(ValueError, match=r"^x: "):
         lift_coordinates(planar_two_rod(), np.zeros(5))
-    with pytest.raises(ValueError, match="^structure2d: "):
+    with pytest.raises(ValueError, match=r"^structure2d: "):
         lift_coordinates(class1_shell(3, 1), np.zeros(12))
 
 

@@ -57,7 +57,7 @@ def test_linear_between_rows_held_or_zero_outside():
 def test_bad_tables_name_the_field(time, force, message):
     with pytest.raises(ValueError, match=message):
         ForceTable(time, force)
-    with pytest.raises(ValueError, match="^outside: expected 'hold' or 'zero'"):
+    with pytest.raises(ValueError, match=r"^outside: expected 'hold' or 'zero'"):
         ForceTable([0.0], np.zeros((1, 2, 3)), outside="wrap")
 
 

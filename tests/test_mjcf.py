@@ -266,7 +266,7 @@ def test_write_mjcf_is_atomic(tmp_path):
     model = mujoco.MjModel.from_xml_path(str(path))
     assert model.opt.timestep == 5e-5 and model.nbody == s.n_rods + 1
     before = path.read_text()
-    with pytest.raises(ValueError, match="^timestep:"):
+    with pytest.raises(ValueError, match=r"^timestep:"):
         write_mjcf(path, s, timestep=-1.0)
     assert path.read_text() == before
     with pytest.raises(FileNotFoundError):

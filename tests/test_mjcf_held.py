@@ -120,9 +120,9 @@ def off_constraints(structure, positions):
     (T, N, d)."""
     start = structure.node_position
     worst = 0.0
-    for k, normal in zip(structure.plane_nodes, structure.plane_normal):
+    for k, normal in zip(structure.plane_nodes, structure.plane_normal, strict=True):
         worst = max(worst, np.abs((positions[:, k] - start[k]) @ normal[: structure.dim]).max())
-    for k, e in zip(structure.line_nodes, structure.line_direction):
+    for k, e in zip(structure.line_nodes, structure.line_direction, strict=True):
         offset = positions[:, k] - start[k]
         worst = max(worst, np.linalg.norm(offset - np.outer(offset @ e, e), axis=1).max())
     return worst
@@ -142,7 +142,10 @@ def spins(model):
     """Joints that turn a rod about its own axis: free joints, balls and ``spin`` hinges."""
     kinds = (int(mujoco.mjtJoint.mjJNT_FREE), int(mujoco.mjtJoint.mjJNT_BALL))
     names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in range(model.njnt)]
-    return sum(kind in kinds or name.endswith("_spin") for kind, name in zip(model.jnt_type, names))
+    return sum(
+        kind in kinds or name.endswith("_spin")
+        for kind, name in zip(model.jnt_type, names, strict=True)
+    )
 
 
 def our_dof(structure):

@@ -57,7 +57,9 @@ def test_planar_model_is_three_dof_rods_in_the_plane():
     mujoco.mj_forward(model, data)
     full = np.zeros((model.nv, model.nv))
     mujoco.mj_fullM(model, data, full)
-    expected = np.concatenate([[m, m, m * L**2 / 12] for m, L in zip(s.rod_mass, s.rod_length)])
+    expected = np.concatenate(
+        [[m, m, m * L**2 / 12] for m, L in zip(s.rod_mass, s.rod_length, strict=True)]
+    )
     np.testing.assert_allclose(full, np.diag(expected), rtol=0, atol=1e-14)
     # Initial state read back as 2-D; the sites lie in z = 0.
     np.testing.assert_allclose(
@@ -259,7 +261,7 @@ def test_what_cannot_be_exported_is_refused(structure, options, message):
 def test_read_back_dimension_is_checked():
     model, data = load(planar_rod())
     for dim in (1, 4, True):
-        with pytest.raises(ValueError, match="^dim:"):
+        with pytest.raises(ValueError, match=r"^dim:"):
             mujoco_node_positions(model, data, 2, dim=dim)
 
 

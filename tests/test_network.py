@@ -1,4 +1,5 @@
-"""Any class 1 network: N, C_b, C_s in and out, the readable YAML/TOML form, the .npz form, errors."""
+"""Any class 1 network: N, C_b, C_s in and out, the readable YAML/TOML form, the .npz form,
+errors."""
 
 from __future__ import annotations
 
@@ -204,7 +205,9 @@ def test_bad_connectivity_names_the_field(change, message):
 
 def test_bad_parameters_name_the_field():
     N, C_b, C_s = square()
-    with pytest.raises(ValueError, match="^tendon_rest_length, tendon_prestrain: give exactly one"):
+    with pytest.raises(
+        ValueError, match=r"^tendon_rest_length, tendon_prestrain: give exactly one"
+    ):
         from_connectivity(N, C_b, C_s)
     with pytest.raises(
         ValueError, match=r"^tendon_stiffness: expected a number or 2 values, got shape \(3,\)"
@@ -308,7 +311,7 @@ def test_bad_files_are_one_line_starting_with_the_name(tmp_path):
         message = str(info.value)
         assert message.startswith(str(path)) and words in message and "\n" not in message, message
     np.savez(tmp_path / "short.npz", N=np.zeros((3, 2)))
-    with pytest.raises(ValueError, match="short.npz: missing array 'C_b'"):
+    with pytest.raises(ValueError, match=r"short\.npz: missing array 'C_b'"):
         read_network(tmp_path / "short.npz")
     with pytest.raises(ValueError, match="MJCF files are written for MuJoCo, not read back"):
         read_network(tmp_path / "model.xml")

@@ -59,7 +59,7 @@ def test_shared_node_becomes_joined_rod_ends():
     np.testing.assert_array_equal(s.node_position, N.T[[0, 0, 0, 1, 2, 2, 3, 4]])
     # and back: each joined group is one node again, in N's order
     back = to_connectivity(s)
-    for got, want in zip(back, (N, C_b, C_s)):
+    for got, want in zip(back, (N, C_b, C_s), strict=True):
         np.testing.assert_array_equal(got, want)
     merged = merge_joints(s)
     assert merged.node_fixed.tolist() == [False] * 4 + [True]
@@ -102,7 +102,7 @@ def test_class2_shell_round_trips_its_connectivity():
         ball_joints=True,
     )
     assert again.joint_nodes.shape == s.joint_nodes.shape
-    for got, want in zip(to_connectivity(again), (N, C_b, C_s)):
+    for got, want in zip(to_connectivity(again), (N, C_b, C_s), strict=True):
         np.testing.assert_array_equal(got, want)
 
 
@@ -188,14 +188,14 @@ def test_every_format_round_trips_structures_without_joints_exactly(make, suffix
     path = tmp_path / f"s.{suffix}"
     write_network(path, s)
     assert read_network(path).to_dict() == s.to_dict()
-    N, C_b, C_s = to_connectivity(s)
+    N, _, _ = to_connectivity(s)
     assert N.shape == (s.dim, s.n_nodes)
 
 
 def same_merged(a: Structure, b: Structure) -> None:
-    for got, want in zip(to_connectivity(a), to_connectivity(b)):
+    for got, want in zip(to_connectivity(a), to_connectivity(b), strict=True):
         np.testing.assert_array_equal(got, want)
-    for got, want in zip(merge_joints(a)[1:], merge_joints(b)[1:]):
+    for got, want in zip(merge_joints(a)[1:], merge_joints(b)[1:], strict=True):
         np.testing.assert_array_equal(got, want)
     for field in (
         "rod_mass",

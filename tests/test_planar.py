@@ -195,14 +195,14 @@ def test_planar_invariants_and_supports():
 def test_planar_validation():
     s = planar_rod()
     with pytest.raises(
-        ValueError, match="^plane_nodes: a planar structure has no plane constraints"
+        ValueError, match=r"^plane_nodes: a planar structure has no plane constraints"
     ):
         s.replace(plane_nodes=[0], plane_normal=[[0, 1]])
     with pytest.raises(ValueError, match=r"^velocities: expected shape \(2, 2\)"):
         s.replace(node_velocity=np.zeros((2, 3)))
-    with pytest.raises(ValueError, match="^gravity: expected 2 finite numbers"):
+    with pytest.raises(ValueError, match=r"^gravity: expected 2 finite numbers"):
         simulate(s, (0, 1), gravity=[0, 0, -9.81])
-    with pytest.raises(ValueError, match="^the compiled kernel: supports only free 3-D class 1"):
+    with pytest.raises(ValueError, match=r"^the compiled kernel: supports only free 3-D class 1"):
         from tensegrity.physics.kernel import FastKernel
 
         FastKernel(planar_two_rod())

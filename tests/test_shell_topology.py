@@ -31,7 +31,7 @@ def expected_tendons(n: int, m: int, primal: bool) -> list[tuple[str, int, int]]
     for j in range(1, m + 1):
         for i in range(1, n + 1):
 
-            def add(alpha, head, tail):
+            def add(alpha, head, tail, i=i, j=j):
                 result.append((f"t{alpha}_{i}_{j}", node(*tail, n=n), node(*head, n=n)))
 
             # t1: j = 1: p2(i,1) - p1(i+1,1); 1 < j <= m: p2(i,j) - p4(i,j-1)
@@ -78,7 +78,9 @@ def as_set(tendons):
 
 
 def structure_tendons(s: Structure):
-    return {(name, (int(a), int(b))) for name, (a, b) in zip(s.tendon_name, s.tendon_nodes)}
+    return {
+        (name, (int(a), int(b))) for name, (a, b) in zip(s.tendon_name, s.tendon_nodes, strict=True)
+    }
 
 
 def describe_difference(got: set, want: set) -> str:

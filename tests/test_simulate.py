@@ -494,15 +494,18 @@ def test_located_switches_restore_convergence():
     v = random_velocities(structure, np.random.default_rng(1), speed=0.5)
     initial = state_with_velocities(structure, v)
     T = 0.3
-    run = lambda rtol: simulate(
-        structure,
-        (0.0, T),
-        initial=initial,
-        rtol=rtol,
-        atol=rtol * 1e-3,
-        sample_dt=0.01,
-        locate_switches=True,
-    )
+
+    def run(rtol):
+        return simulate(
+            structure,
+            (0.0, T),
+            initial=initial,
+            rtol=rtol,
+            atol=rtol * 1e-3,
+            sample_dt=0.01,
+            locate_switches=True,
+        )
+
     ref = run(1e-12)
     assert ref.status == 0 and ref.nswitches > 0
     errors = {}
