@@ -370,13 +370,9 @@ def stability_by_simulation(
     w2 = modes.omega_squared[idx]
     positive = w2[w2 > modes.zero_tol]
     if damped_time is None:
-        damped = dynamics.critical_damping(s)
-        decay = _slowest_decay(linearize(damped, eq))
-        damped_time = 5.0 if decay <= 0 else min(np.log(1e3) / decay, 20.0)
+        damped_time = _damped_time(lin)
     if undamped_time is None:
-        undamped_time = (
-            min(10.0 / (np.sqrt(positive.min()) / (2 * np.pi)), 10.0) if positive.size else 5.0
-        )
+        undamped_time = _undamped_time(positive)
     common = dict(
         initial=initial,
         control=eq.control,
@@ -397,18 +393,7 @@ def stability_by_simulation(
     returns = bool(run_d.success and dd[-1] <= return_ratio * d0)
     bounded = bool(run_u.success and np.isfinite(bound) and du.max() <= bound)
     stable = returns and bounded
-    if bounded:
-        undamped_text = (
-            f"stays within the bound {bound:.3g} m without (max {du.max():.3g} m "
-            f"over {run_u.t[-1]:.3g} s)"
-        )
-    elif np.isfinite(bound):
-        undamped_text = f"exceeds the bound {bound:.3g} m without damping ({du.max():.3g} m)"
-    else:
-        undamped_text = (
-            f"has no energy bound without damping (zero-stiffness modes; max "
-            f"{du.max():.3g} m over {run_u.t[-1]:.3g} s)"
-        )
+    undamped_text = _undamped_text(bounded, bound, du, float(run_u.t[-1]))
     verdict = (
         f"{'stable' if stable else 'not stable'} on the nonlinear model: a deformation of "
         f"{d0:.3g} m {'returns' if returns else 'does not return'} with damping "
@@ -416,6 +401,36 @@ def stability_by_simulation(
     )
     return StabilitySimulation(
         d0, run_d.t, dd, run_u.t, du, returns, bounded, bound, return_ratio, stable, verdict
+    )
+
+
+def _damped_time(lin: Linearization) -> float:
+    """Default damped run [s]: until the damped linearization has shrunk 1000-fold, at most
+    20 s (5 s if it does not decay)."""
+    s, eq = lin.structure, lin.equilibrium
+    damped = dynamics.critical_damping(s)
+    decay = _slowest_decay(linearize(damped, eq))
+    return 5.0 if decay <= 0 else min(np.log(1e3) / decay, 20.0)
+
+
+def _undamped_time(positive: np.ndarray) -> float:
+    """Default undamped run [s]: 10 periods of the lowest of the ``positive`` ``omega^2``, at
+    most 10 s (5 s without any)."""
+    return min(10.0 / (np.sqrt(positive.min()) / (2 * np.pi)), 10.0) if positive.size else 5.0
+
+
+def _undamped_text(bounded: bool, bound: float, du: np.ndarray, t_end: float) -> str:
+    """The undamped run's part of the verdict: within the energy bound, beyond it, or no bound."""
+    if bounded:
+        return (
+            f"stays within the bound {bound:.3g} m without (max {du.max():.3g} m "
+            f"over {t_end:.3g} s)"
+        )
+    if np.isfinite(bound):
+        return f"exceeds the bound {bound:.3g} m without damping ({du.max():.3g} m)"
+    return (
+        f"has no energy bound without damping (zero-stiffness modes; max "
+        f"{du.max():.3g} m over {t_end:.3g} s)"
     )
 
 
