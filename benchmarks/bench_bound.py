@@ -63,8 +63,13 @@ def main() -> None:
         parts = [f"round {k}: DRAM copy {bandwidth[1] / 1e9:.1f} GB/s"]
         for name, (kernel, nbytes, threads) in kernels.items():
             bound = nbytes / bandwidth[threads]
-            t = best_time(lambda: kernel.evaluate(q, qdot, rest, out=out), 0.4, repeats=5)
-            step = best_time(lambda: kernel.rk4(q, qdot, 1e-4, 10, rest), 0.4, repeats=3) / 40
+            t = best_time(
+                lambda kernel=kernel: kernel.evaluate(q, qdot, rest, out=out), 0.4, repeats=5
+            )
+            step = (
+                best_time(lambda kernel=kernel: kernel.rk4(q, qdot, 1e-4, 10, rest), 0.4, repeats=3)
+                / 40
+            )
             ratios[name].append(t / bound)
             ratios[f"{name}, in RK4"].append(step / bound)
             parts.append(

@@ -15,8 +15,8 @@ three repeats of wall-clock time (the machine may be shared).
 Methods (all one thread, the same structure, the same state; the kernel also with
 ``threads=T``):
 
-- ``numpy``: ``tensegrity.physics.dynamics.evaluate`` (the readable reference), and a plain RK4 loop of it
-  with projection onto the rod constraints after every step.
+- ``numpy``: ``tensegrity.physics.dynamics.evaluate`` (the readable reference), and a plain RK4 loop
+  of it with projection onto the rod constraints after every step.
 - ``simulate``: the user's path, ``simulate()`` through the engine (blow-up checks, energy
   bookkeeping and samples included): ``method="rk4"`` with one sample per 100 steps, and the
   default DOP853 over ``SPAN`` = 0.02 s (steps, evaluations per step, time), each with its
@@ -49,6 +49,7 @@ kernel, by the bandwidth of T such copies of 1/T of the array each, run at once 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import datetime
 import json
 import math
@@ -88,7 +89,7 @@ def bench_problem(n: int, m: int):
     rest = 0.95 * dynamics.tendon_lengths(structure, p)
     rng = np.random.default_rng(SEED)
     v = np.empty_like(p)
-    for r, (a, b) in enumerate(structure.rod_nodes):
+    for a, b in structure.rod_nodes:
         d = p[b] - p[a]
         vc = 0.3 * rng.standard_normal(3)
         dv = np.cross(0.3 * rng.standard_normal(3), d)
@@ -560,7 +561,7 @@ def copy_bandwidth(nbytes: int, budget: float = 0.3, threads: int = 1) -> float:
     import threading
 
     n = max(threads, nbytes // 8)
-    src, dst = np.random.rand(n), np.empty(n)
+    src, dst = np.random.default_rng().random(n), np.empty(n)  # any values: only copied
     np.copyto(dst, src)  # fault the pages in first: not part of the bandwidth
     if threads == 1:
         t = best_time(lambda: np.copyto(dst, src), budget, repeats=5)
@@ -634,10 +635,8 @@ def machine_info() -> dict:
         if kind != "Instruction":
             caches.append(f"L{level} {size}")
     info["caches"] = ", ".join(caches) if caches else "?"
-    try:
+    with contextlib.suppress(OSError):
         info["load_before"] = " ".join(f"{x:.2f}" for x in os.getloadavg())
-    except OSError:
-        pass
     return info
 
 
@@ -659,7 +658,7 @@ def fmt_ratio(num: float | None, den: float | None) -> str:
     if not num or not den:
         return "—"
     x = den / num  # rates: (1/num) / (1/den)
-    return f"{x:,.0f}×" if x >= 100 else (f"{x:.1f}×" if x >= 1 else f"{x:.2f}×")
+    return f"{x:,.0f}×" if x >= 100 else (f"{x:.1f}×" if x >= 1 else f"{x:.2f}×")  # noqa: RUF001 - the report's multiplication sign, U+00D7
 
 
 def fmt_time(seconds: float | None) -> str:
@@ -691,7 +690,8 @@ def report(results: dict, sizes, info: dict, bw: dict, command: str, notes: list
     lines = []
     out = lines.append
     out(
-        "# RHS and RK4 benchmark: NumPy reference vs compiled kernel vs mass-matrix formulation vs MuJoCo\n"
+        "# RHS and RK4 benchmark: NumPy reference vs compiled kernel vs mass-matrix formulation "
+        "vs MuJoCo\n"
     )
     out(f"- Command: `{command}`")
     out(f"- Date: {info['date']}")
@@ -711,8 +711,9 @@ def report(results: dict, sizes, info: dict, bw: dict, command: str, notes: list
         f"one slice each (or one thread if that is faster) {bw['dram_threads'] / 1e9:.1f} GB/s"
     )
     out(
-        "- Structure: `class1_shell(n, m)` (rods 1 kg, 1 m; tendons 100 N/m, undamped), rest lengths "
-        "0.95 × initial lengths, random rod-consistent velocities (~0.3 m/s), no gravity. "
+        "- Structure: `class1_shell(n, m)` (rods 1 kg, 1 m; tendons 100 N/m, undamped), "
+        "rest lengths "
+        "0.95 × initial lengths, random rod-consistent velocities (~0.3 m/s), no gravity. "  # noqa: RUF001 - the report's multiplication sign, U+00D7
         f"One thread everywhere, except the kernel's columns marked {bw['threads']} threads "
         f"(`FastKernel(structure, threads={bw['threads']})`). "
         "Rates are the best of 3 timed batches (wall clock)."
@@ -721,7 +722,8 @@ def report(results: dict, sizes, info: dict, bw: dict, command: str, notes: list
     out("## Right-hand-side evaluations per second\n")
     T = bw["threads"]
     out(
-        "| shell | rods R | tendons S | NumPy `dynamics.evaluate` | kernel `evaluate()` (Python call) "
+        "| shell | rods R | tendons S | NumPy `dynamics.evaluate` "
+        "| kernel `evaluate()` (Python call) "
         f"| kernel `evaluate(out=)` | same, {T} threads "
         "| kernel, in the RK4 loop (step/4) | mass matrix + sparse KKT | MuJoCo `mj_forward` "
         "| kernel call / NumPy |"
@@ -731,7 +733,8 @@ def report(results: dict, sizes, info: dict, bw: dict, command: str, notes: list
         r = results.get((s, "numpy"), {})
         k_loop = get(s, "kernel", "rk4_step_s")
         out(
-            f"| {label(s)} | {r.get('R', '')} | {r.get('S', '')} | {fmt_rate(get(s, 'numpy', 'rhs_s'))} "
+            f"| {label(s)} | {r.get('R', '')} | {r.get('S', '')} "
+            f"| {fmt_rate(get(s, 'numpy', 'rhs_s'))} "
             f"| {fmt_rate(get(s, 'kernel', 'rhs_s'))} | {fmt_rate(get(s, 'kernel', 'rhs_out_s'))} "
             f"| {fmt_rate(get(s, 'kernel', 'rhs_out_threaded_s'))} "
             f"| {fmt_rate(k_loop / 4 if k_loop else None)} "
@@ -747,7 +750,8 @@ def report(results: dict, sizes, info: dict, bw: dict, command: str, notes: list
         "| kernel `rk4()` (compiled loop) "
         f"| same, {T} threads | {T} threads / 1 "
         "| mass matrix + KKT | MuJoCo `mj_step` | kernel / MuJoCo | kernel / NumPy loop "
-        "| kernel / mass matrix | mass matrix / MuJoCo | `simulate` / kernel | `simulate` / MuJoCo |"
+        "| kernel / mass matrix | mass matrix / MuJoCo | `simulate` / kernel "
+        "| `simulate` / MuJoCo |"
     )
     out("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for s in sizes:
@@ -759,7 +763,8 @@ def report(results: dict, sizes, info: dict, bw: dict, command: str, notes: list
             f"| {label(s)} | {fmt_rate(get(s, 'numpy', 'rk4_step_s'))} "
             f"| {fmt_rate(get(s, 'simulate', 'rk4_step_s'))} | {fmt_rate(k)} | {fmt_rate(kt)} "
             f"| {fmt_ratio(kt, k)} | {fmt_rate(mm)} "
-            f"| {fmt_rate(mj)} | {fmt_ratio(k, mj)} | {fmt_ratio(k, get(s, 'numpy', 'rk4_step_s'))} "
+            f"| {fmt_rate(mj)} | {fmt_ratio(k, mj)} "
+            f"| {fmt_ratio(k, get(s, 'numpy', 'rk4_step_s'))} "
             f"| {fmt_ratio(k, mm)} | {fmt_ratio(mm, mj)} "
             f"| {fmt_ratio(get(s, 'simulate', 'rk4_step_s'), k)} "
             f"| {fmt_ratio(get(s, 'simulate', 'rk4_step_s'), mj)} |"
@@ -781,9 +786,12 @@ def report(results: dict, sizes, info: dict, bw: dict, command: str, notes: list
     for s in sizes:
         steps = get(s, "simulate", "dop853_steps")
         per = f"{steps}, {get(s, 'simulate', 'dop853_nfev') / steps:.1f}" if steps else "—"
-        dev = lambda key: (
-            f"{get(s, 'simulate', key):.1e} m" if get(s, "simulate", key) is not None else "—"
-        )
+
+        def dev(key, s=s):
+            return (
+                f"{get(s, 'simulate', key):.1e} m" if get(s, "simulate", key) is not None else "—"
+            )
+
         k, mj = get(s, "kernel", "rk4_step_s"), get(s, "mujoco", "rk4_step_s")
         out(
             f"| {label(s)} | {fmt_time(get(s, 'simulate', 'dop853_s'))} | {per} "
@@ -820,7 +828,10 @@ def report(results: dict, sizes, info: dict, bw: dict, command: str, notes: list
             nbytes / bw["by_size_threads"][key],
         )
         k1, kt = get(s, "kernel", "rhs_out_s"), get(s, "kernel", "rhs_out_threaded_s")
-        x = lambda t, b: f"{t / b:.1f}×" if t else "—"  # noqa: E731
+
+        def x(t, b):
+            return f"{t / b:.1f}×" if t else "—"  # noqa: RUF001 - the report's multiplication sign, U+00D7
+
         out(
             f"| {label(s)} | {nbytes / 1e6:.3f} MB | {fmt_time(bounds[0])} | {fmt_time(bounds[1])} "
             f"| {fmt_time(k1)} | {x(k1, bounds[0])} | {x(k1, bounds[1])} "
@@ -837,8 +848,13 @@ def report(results: dict, sizes, info: dict, bw: dict, command: str, notes: list
     )
     out("|---|---:|---:|---:|---:|---:|---:|---:|")
     for s, R, S in measured_sizes():
-        per = lambda t: "—" if not t else f"{t / (R + S) * 1e9:.1f}"  # noqa: E731
-        quarter = lambda t: t / 4 if t else None  # noqa: E731
+
+        def per(t, R=R, S=S):
+            return "—" if not t else f"{t / (R + S) * 1e9:.1f}"
+
+        def quarter(t):
+            return t / 4 if t else None
+
         mj = get(s, "mujoco", "rk4_step_s")
         out(
             f"| {label(s)} | {per(get(s, 'kernel', 'rhs_out_s'))} "
@@ -861,7 +877,7 @@ def report(results: dict, sizes, info: dict, bw: dict, command: str, notes: list
     out("|---|---:|---:|---:|---:|---:|---:|---:|")
     for s in sizes:
 
-        def mem(method):
+        def mem(method, s=s):
             r = results.get((s, method))
             if r is None:
                 return "not run"
@@ -880,8 +896,8 @@ def report(results: dict, sizes, info: dict, bw: dict, command: str, notes: list
             f"{kr['first_call_s']:.2f} s ({kr['first_call_kind']})" if "first_call_s" in kr else "—"
         )
         out(
-            f"| {label(s)} | {mem('numpy')} | {mem('kernel')} | {mem('massmatrix')} | {mem('mujoco')} "
-            f"| {fmt_time(mjr.get('compile_s'))} | {arena} | {first} |"
+            f"| {label(s)} | {mem('numpy')} | {mem('kernel')} | {mem('massmatrix')} "
+            f"| {mem('mujoco')} | {fmt_time(mjr.get('compile_s'))} | {arena} | {first} |"
         )
     out("")
     out("## Checks\n")
@@ -1015,7 +1031,8 @@ def main(argv=None) -> int:
                 print(f"ERROR {r['error']}", flush=True)
             else:
                 print(
-                    f"rhs {fmt_rate(r.get('rhs_s'))}/s, rk4 {fmt_rate(r.get('rk4_step_s'))} steps/s "
+                    f"rhs {fmt_rate(r.get('rhs_s'))}/s, "
+                    f"rk4 {fmt_rate(r.get('rk4_step_s'))} steps/s "
                     f"({time.perf_counter() - t0:.1f} s)",
                     flush=True,
                 )
@@ -1025,10 +1042,8 @@ def main(argv=None) -> int:
                 f"({n},{m}): MuJoCo not run (--mujoco-max {args.mujoco_max}); the cross-check "
                 "notes measured ~5 steps/s and a 6.5 min compile at (100,100)"
             )
-    try:
+    with contextlib.suppress(OSError):
         info["load_after"] = " ".join(f"{x:.2f}" for x in os.getloadavg())
-    except OSError:
-        pass
     write_report(report(results, sizes, info, bw, command, notes), args.output)
     return 0
 

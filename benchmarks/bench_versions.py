@@ -69,10 +69,10 @@ def main() -> None:
     for _ in range(args.rounds):
         for name, kernel in kernels.items():
             times[name, "evaluate"].append(
-                best_time(lambda: kernel.evaluate(q, qdot, rest, out=out), 0.3)
+                best_time(lambda kernel=kernel: kernel.evaluate(q, qdot, rest, out=out), 0.3)
             )
             times[name, "RK4 step"].append(
-                best_time(lambda: kernel.rk4(q, qdot, 1e-4, steps, rest), 0.3) / steps
+                best_time(lambda kernel=kernel: kernel.rk4(q, qdot, 1e-4, steps, rest), 0.3) / steps
             )
     case = f"{args.size}, {'damped' if args.damped else 'undamped'}, {args.threads} thread(s)"
     for what in ("evaluate", "RK4 step"):
