@@ -78,7 +78,7 @@ def kernel_qddot(model, q, qdot, u, w):
 
 def tendon_vector_by_name(structure, q):
     p = dynamics.nodes_from_coordinates(structure, q)
-    return p, dict(zip(structure.tendon_name, dynamics.tendon_vectors(structure, p)))
+    return p, dict(zip(structure.tendon_name, dynamics.tendon_vectors(structure, p), strict=True))
 
 
 def block_pattern(matrix, row_sizes, col_sizes):
@@ -328,20 +328,20 @@ def test_q_l_and_r_q_reproduce_the_tendon_vectors_of_the_node_positions(n, m, pr
     def node(k, i, j):
         return p[shell_node_index(k, i, j, n)]
 
-    l = []
+    parts = []
     for label in top.l_labels:
         kind, i, j = label.split("_")
         i, j = int(i), int(j)
-        l.append(
+        parts.append(
             {
                 "rho": lambda: node(1, 1, 1),
-                "r1": lambda: node(2, i, j) - node(1, i, j),
-                "r2": lambda: node(4, i, j) - node(3, i, j),
-            }.get(kind, lambda: t[label])()
+                "r1": lambda i=i, j=j: node(2, i, j) - node(1, i, j),
+                "r2": lambda i=i, j=j: node(4, i, j) - node(3, i, j),
+            }.get(kind, lambda label=label: t[label])()
         )
-    l = np.concatenate(l)
-    np.testing.assert_allclose(top.Q @ l, q, atol=1e-12)
-    np.testing.assert_allclose(top.Q_inv @ q, l, atol=1e-12)
+    l_vector = np.concatenate(parts)
+    np.testing.assert_allclose(top.Q @ l_vector, q, atol=1e-12)
+    np.testing.assert_allclose(top.Q_inv @ q, l_vector, atol=1e-12)
 
     def slot_vector(name):
         if name in t:
@@ -357,7 +357,7 @@ def test_q_l_and_r_q_reproduce_the_tendon_vectors_of_the_node_positions(n, m, pr
 
     ld = np.concatenate([slot_vector(name) for name in top.d_slots])
     np.testing.assert_allclose(top.R @ q, ld, atol=1e-12)
-    np.testing.assert_allclose(top.R @ (top.Q @ l), ld, atol=1e-12)  # (18.38)
+    np.testing.assert_allclose(top.R @ (top.Q @ l_vector), ld, atol=1e-12)  # (18.38)
     lo = np.concatenate([t[name] for name in top.o_slots])
     np.testing.assert_allclose(top.R_o @ q, lo, atol=1e-12)
     np.testing.assert_allclose((top.P @ q).reshape(-1, 3), p, atol=1e-15)
@@ -450,7 +450,7 @@ def printed_r(n, m):
     return R
 
 
-@pytest.mark.parametrize("n, m, primal", SIZES + [(3, 2, False), (6, 5, False)])
+@pytest.mark.parametrize("n, m, primal", [*SIZES, (3, 2, False), (6, 5, False)])
 def test_r_has_the_printed_block_structure(n, m, primal):
     np.testing.assert_array_equal(shell_topology(n, m, primal).R.toarray(), printed_r(n, m))
 
@@ -523,13 +523,13 @@ def test_every_slot_carries_the_force_of_its_tendon_and_the_printed_t_signs_brea
         np.zeros_like(p),
         dynamics.rest_lengths(structure, model.control_to_structure(u)),
     )
-    F = dict(zip(structure.tendon_name, forces.tension[:, None] * forces.direction))
+    F = dict(zip(structure.tendon_name, forces.tension[:, None] * forces.direction, strict=True))
     scale = max(np.abs(v).max() for v in F.values())
     for slots, tendons, signs, f in (
         (top.d_slots, top.d_tendon, top.d_sign, fd),
         (top.o_slots, top.o_tendon, top.o_sign, fo),
     ):
-        for name, tendon, sign, value in zip(slots, tendons, signs, f):
+        for name, tendon, sign, value in zip(slots, tendons, signs, f, strict=True):
             np.testing.assert_allclose(value, sign * F[tendon], atol=1e-12 * scale, err_msg=name)
     printed = printed_t(n, m, sign=-1, first_row_u1n1=False) @ u
     copies = [k for k, name in enumerate(top.d_slots) if top.d_sign[k] < 0]
@@ -600,16 +600,19 @@ NODE_BALANCE = {
 }
 
 
-@pytest.mark.parametrize("n, m, primal", SIZES + [(3, 2, False), (3, 3, True)])
+@pytest.mark.parametrize("n, m, primal", [*SIZES, (3, 2, False), (3, 3, True)])
 def test_bd_bo_reproduce_the_printed_nodal_force_balances(n, m, primal):
     rng = np.random.default_rng(17)
     structure = class1_shell(n, m, primal=primal)
     top = shell_topology(n, m, primal)
     F = {name: rng.normal(size=3) for name in structure.tendon_name}
     fd = np.concatenate(
-        [np.zeros(3) if t is None else s * F[t] for t, s in zip(top.d_tendon, top.d_sign)]
+        [
+            np.zeros(3) if t is None else s * F[t]
+            for t, s in zip(top.d_tendon, top.d_sign, strict=True)
+        ]
     )
-    fo = np.concatenate([s * F[t] for t, s in zip(top.o_tendon, top.o_sign)])
+    fo = np.concatenate([s * F[t] for t, s in zip(top.o_tendon, top.o_sign, strict=True)])
     w = rng.normal(size=12 * n * m)
     got = (top.B_d @ fd + top.B_o @ fo + top.W_o @ w).reshape(-1, 4, 3)
     W = np.array([[1, 1, 0, 0], [1, -1, 0, 0], [0, 0, 1, 1], [0, 0, 1, -1]])
