@@ -95,7 +95,7 @@ def test_paper_example_facts(undamped, shell, equilibrium):
     mechanism = self_stress(shell, equilibrium.q).mechanisms  # (5R, 1)
     for r in ctrl:
         assert r.n_states == 60 and r.elastic_states == 48
-        rigid = [t for t in r.mode_tests if t.kind == RIGID][0]
+        rigid = next(t for t in r.mode_tests if t.kind == RIGID)
         assert rigid.rank == 0  # internal forces cannot move the whole
     full_sets = [r for r in ctrl if r.name != "t1_1_1"]
     for r in full_sets:
@@ -136,7 +136,8 @@ def test_gramian_equals_the_time_integral(shell, equilibrium):
     W = int_0^inf e^{At} B B^T e^{A^T t} dt of the *full* damped linearization (60 states, rigid
     modes included: tendons never excite them), computed independently by Van Loan's matrix
     exponential over dt = 5 ms (small enough for expm to be accurate to ~1e-12) and doubling
-    (W <- W + Phi W Phi^T, Phi <- Phi^2) to 0.005 x 2^18 s, then expressed in the non-rigid coordinates eta = Z^T M x."""
+    (W <- W + Phi W Phi^T, Phi <- Phi^2) to 0.005 x 2^18 s, then expressed in the non-rigid
+    coordinates eta = Z^T M x."""
     import scipy.linalg
 
     from tensegrity.analysis.coordinates import mass_complement

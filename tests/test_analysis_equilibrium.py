@@ -1,7 +1,8 @@
 """Equilibria (issue 4, step 1): coordinates, analytic Jacobians, and the two routes agreeing.
 
 References independent of the code under test: central finite differences, the potential energy
-of :mod:`tensegrity.physics.dynamics`, and Theorem 18.1's accelerations (``dynamics.accelerations``).
+of :mod:`tensegrity.physics.dynamics`, and Theorem 18.1's accelerations
+(``dynamics.accelerations``).
 """
 
 from __future__ import annotations

@@ -100,7 +100,7 @@ def test_closed_loop_lqr_reaches_the_targets_on_the_nonlinear_model(setup, plan)
     """The plan played in 2 s per phase with LQR feedback, simulated on Theorem 18.1 with the
     slack law: targets within 1e-6 (m, rad) after 4 s of settling, no tendon slack at any
     sample (every 0.02 s), rest lengths within bounds."""
-    s, eq, output = setup
+    s, _, _ = setup
     result = closed_loop(plan, move_time=2.0, settle_time=4.0)
     assert result.reached, result.message
     assert np.all(np.abs(result.final_error) <= 1e-6)

@@ -220,7 +220,7 @@ def test_class_k_forms_carry_a_class2_shell_to_simulate(fmt, tmp_path, capsys):
     assert main(["export", "--kind", "class2-shell", "--fixed-base", "-o", str(path)]) == 0
     expected = generators.generate("class2-shell", fixed_base=True)
     got = read_network(path)
-    for a, b in zip(to_connectivity(got), to_connectivity(expected)):
+    for a, b in zip(to_connectivity(got), to_connectivity(expected), strict=True):
         np.testing.assert_array_equal(a, b)
     np.testing.assert_array_equal(merge_joints(got).node_fixed, merge_joints(expected).node_fixed)
     out = tmp_path / "run"

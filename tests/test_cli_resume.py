@@ -178,7 +178,7 @@ def test_terminated_run_leaves_only_its_partial_file(tmp_path):
         assert process.poll() is None and time.monotonic() < deadline, "the run did not start"
         time.sleep(0.002)
     process.send_signal(signal.SIGTERM)
-    stdout, stderr = process.communicate(timeout=120)
+    _, stderr = process.communicate(timeout=120)
     if process.returncode == 0:
         pytest.skip("the run ended before SIGTERM arrived")
     assert process.returncode == 128 + signal.SIGTERM, stderr

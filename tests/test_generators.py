@@ -137,9 +137,9 @@ def test_prism_height_is_a_free_parameter_of_the_equilibrium():
         )
         np.testing.assert_allclose(polygon_twist(s.node_position, 3), math.pi / 6, atol=1e-14)
         assert self_stress(s).n_states == 1
-    with pytest.raises(ValueError, match="^height: must be < rod_length"):
+    with pytest.raises(ValueError, match=r"^height: must be < rod_length"):
         prism(3, height=1.0)
-    with pytest.raises(ValueError, match="^n: must be an integer >= 3"):
+    with pytest.raises(ValueError, match=r"^n: must be an integer >= 3"):
         prism(2)
 
 
