@@ -256,7 +256,10 @@ def mujoco_memory_mb(structure) -> int:
 
 def mjcf(structure, rest: np.ndarray, p: np.ndarray, dt: float = DT) -> str:
     """MJCF of the structure at node positions ``p`` (rod axes = body z axes)."""
-    f = lambda x: repr(float(x))  # noqa: E731
+
+    def f(x):
+        return repr(float(x))
+
     lines = [
         '<mujoco model="tensegrity">',
         '  <compiler angle="radian"/>',
@@ -362,10 +365,10 @@ def worker(method: str, n: int, m: int, budget: float, cold: bool, threads: int 
     from tensegrity.physics import dynamics
 
     if method in ("kernel", "simulate"):
-        import numba  # noqa: F401
+        import numba  # noqa: F401  (import cost outside the measurement)
     if method == "mujoco":
         import mujoco
-    import scipy.sparse.linalg  # noqa: F401
+    import scipy.sparse.linalg  # noqa: F401  (import cost outside the measurement)
 
     structure, q, qdot, rest = bench_problem(n, m)
     out: dict = dict(
@@ -378,7 +381,10 @@ def worker(method: str, n: int, m: int, budget: float, cold: bool, threads: int 
     )
 
     if method == "numpy":
-        ev = lambda: dynamics.evaluate(structure, q, qdot, rest_length=rest)  # noqa: E731
+
+        def ev():
+            return dynamics.evaluate(structure, q, qdot, rest_length=rest)
+
         out["rhs_s"] = best_time(ev, budget)
 
         def rk4_step(qq, vv, h=DT):
@@ -678,7 +684,8 @@ def report(results: dict, sizes, info: dict, bw: dict, command: str, notes: list
         r = results.get((size, method))
         return None if r is None or "error" in r else r.get(key)
 
-    label = lambda s: f"({s[0]},{s[1]})"  # noqa: E731
+    def label(s):
+        return f"({s[0]},{s[1]})"
 
     def measured_sizes():
         """``(size, R, S)`` for the sizes some method measured."""

@@ -36,7 +36,7 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from bench_rhs import machine_info, parse_size, write_report  # noqa: E402
+from bench_rhs import machine_info, parse_size, write_report  # noqa: E402 - after the sys.path insert
 
 
 def make_spec(n: int, m: int, cases: int, *, batch: bool = True):

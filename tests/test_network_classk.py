@@ -242,7 +242,10 @@ def test_jointed_structure_read_back_hangs_like_the_original(tmp_path):
     a, b = simulate(s, (0.0, 0.3), **options), simulate(t, (0.0, 0.3), **options)
     assert a.status == 0 and b.status == 0
     ms, mt = merge_joints(s), merge_joints(t)
-    lead = lambda m: [np.flatnonzero(m.node_map == i)[0] for i in range(m.N.shape[1])]  # noqa: E731
+
+    def lead(m):
+        return [np.flatnonzero(m.node_map == i)[0] for i in range(m.N.shape[1])]
+
     pa, pb = a.node_position[:, lead(ms)], b.node_position[:, lead(mt)]
     assert np.ptp(pa, axis=0).max() > 0.05
     assert np.abs(pa - pb).max() < 1e-12

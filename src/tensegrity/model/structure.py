@@ -239,7 +239,9 @@ class Structure:
         _check_tendon_pairs(tendon_nodes, names)
         stiffness, rest_length, damping = self._checked_tendon_parameters(names)
 
-        set_ = lambda name, value: object.__setattr__(self, name, value)  # noqa: E731
+        def set_(name: str, value: Any) -> None:
+            object.__setattr__(self, name, value)
+
         for name, value in (
             ("node_position", position),
             ("node_velocity", velocity),
@@ -388,7 +390,7 @@ class Structure:
                 raise ValueError(message.format(k=k, m=point_mass[k], r=owner[k]))
         return fixed, point_mass
 
-    def _set_constraints(self, position: np.ndarray, set_: Any) -> None:
+    def _set_constraints(self, position: np.ndarray, set_: Callable[[str, Any], None]) -> None:
         """Validate and store ``joint_nodes`` and the plane and line constraints."""
         n_nodes, dim = position.shape
         joints = _index_array(

@@ -88,8 +88,9 @@ def solve_psd(
         # Products by einsum, not BLAS: a threaded BLAS call on a busy machine can stall for
         # milliseconds, far longer than the product of these small matrices takes.
         inverse = np.linalg.inv(matrix + delta * np.eye(size))
-        solve = lambda r: np.einsum("ij,j->i", inverse, r)  # noqa: E731
-        product = lambda x: np.einsum("ij,j->i", matrix, x)  # noqa: E731
+        # (lambdas: each branch binds the same two names, the other to library callables)
+        solve = lambda r: np.einsum("ij,j->i", inverse, r)  # noqa: E731 - see above
+        product = lambda x: np.einsum("ij,j->i", matrix, x)  # noqa: E731 - see above
     else:
         matrix = sp.csc_matrix(matrix)
         solve = sp.linalg.splu(matrix + delta * sp.identity(size, format="csc")).solve

@@ -428,7 +428,10 @@ def _pattern_inverse(first_inv, diag_inv, column, below, count: int) -> sp.csr_m
 
 def _pattern_blocks(matrix: sp.csr_matrix, size: int, count: int, what: str):
     """The four blocks of a :func:`_lower_pattern` matrix; raises if it is not one."""
-    block = lambda r, c: sp.csr_matrix(matrix[r * size : (r + 1) * size, c * size : (c + 1) * size])  # noqa: E731
+
+    def block(r: int, c: int) -> sp.csr_matrix:
+        return sp.csr_matrix(matrix[r * size : (r + 1) * size, c * size : (c + 1) * size])
+
     first, diag = block(0, 0), block(1, 1) if count > 1 else None
     column = block(1, 0) if count > 1 else None
     below = block(2, 1) if count > 2 else sp.csr_matrix((size, size))
