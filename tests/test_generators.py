@@ -204,7 +204,10 @@ def test_a_disturbed_generated_structure_returns(generated):
     kicked = s.replace(node_velocity=0.2 * rng.normal(size=(s.n_nodes, 3)))
     eq = equilibrium_by_simulation(kicked, t_end=60.0)
     assert eq.converged, (name, eq.message)
-    distances = lambda p: np.linalg.norm(p[:, None] - p[None], axis=2)  # noqa: E731
+
+    def distances(p):
+        return np.linalg.norm(p[:, None] - p[None], axis=2)
+
     np.testing.assert_allclose(distances(eq.node_position), distances(s.node_position), atol=1e-5)
 
 

@@ -663,8 +663,13 @@ def _block(matrix, row_element, col_offset, width):
 def test_bd_bo_blocks_of_element_nm_are_those_printed_in_18_E_16():
     n, m = 5, 3
     top = shell_topology(n, m)
-    e = lambda i, j: (j - 1) * n + (i - 1)  # noqa: E731
-    d = lambda i, j: 3 + 24 * e(i, j)  # noqa: E731
+
+    def e(i, j):
+        return (j - 1) * n + (i - 1)
+
+    def d(i, j):
+        return 3 + 24 * e(i, j)
+
     row = e(n, m)
     blocks = {
         d(n - 1, m - 1): [[0, 0, 0, -1, 1, 0, 0, 0], [0, 0, 0, -1, 1, 0, 0, 0], [0] * 8, [0] * 8],
@@ -699,7 +704,10 @@ def test_bd_bo_blocks_of_element_n1_are_those_printed_in_appendix_c():
     n = 4
     top = shell_topology(n, 1)
     row = n - 1
-    d = lambda i: 3 + 24 * (i - 1)  # noqa: E731
+
+    def d(i):
+        return 3 + 24 * (i - 1)
+
     blocks = {
         d(n - 1): [
             [1, 0, 0, 0, 0, 0, 0, 0],
