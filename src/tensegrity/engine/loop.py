@@ -65,7 +65,10 @@ class Controller(Protocol):
     with ``(t, q, qdot)`` (the structure's coordinates [m], [m/s]); returns the control ``u``
     (S,) [m] (rest lengths ``L0 - u``) held until the next call."""
 
-    period: float
+    @property
+    def period(self) -> float:
+        """Time between updates [s]."""
+        ...
 
     def __call__(self, t: float, q: np.ndarray, qdot: np.ndarray) -> np.ndarray: ...
 
