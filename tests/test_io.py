@@ -14,7 +14,12 @@ from tensegrity import class1_shell, critical_damping, simulate
 from tensegrity.engine.result import SimulationResult
 from tensegrity.io.files import atomic_path
 from tensegrity.io.formats import read_structure, write_structure
-from tensegrity.io.trajectory import ENERGY_COLUMNS, read_trajectory, write_trajectory
+from tensegrity.io.trajectory import (
+    ENERGY_COLUMNS,
+    read_dataset,
+    read_trajectory,
+    write_trajectory,
+)
 
 
 @pytest.fixture(scope="module")
@@ -363,3 +368,10 @@ def test_trajectory_read_back_is_the_result_written(tmp_path):
     assert np.array_equal(some.energy["elastic"], result.energy["elastic"][rows])
     with pytest.raises(ValueError, match="every"):
         read_trajectory(path, every=0)
+    # one dataset alone, the same rows
+    assert np.array_equal(read_dataset(path, "tendon_length", every=7), result.tendon_length[rows])
+    assert np.array_equal(read_dataset(path, "time"), result.t)
+    with pytest.raises(ValueError, match=r"^name: expected one of time, nodes"):
+        read_dataset(path, "tension")
+    with pytest.raises(ValueError, match="no such file"):
+        read_dataset(tmp_path / "missing.h5", "time")

@@ -222,7 +222,8 @@ def _apply_damping(structure: Structure, damping: str | float | None) -> Structu
 #: are in this name + ``.partial`` until it ends); not a final name: the finished file becomes
 #: ``trajectory.h5`` only together with the other outputs.
 WORK_FILE = ".trajectory.h5"
-#: The figures and the printed summary read at most this many samples of a run (and its last).
+#: The tendon-length figure reads at most this many samples of a run (and its last); the other
+#: figures and the printed summary its first and last.
 FIGURE_SAMPLES = 1000
 #: ``simulate`` checkpoints a run at least this many times (segments of at most this fraction of
 #: it), and at least every 1000 samples (or about 64 MiB of samples: the default of
@@ -412,19 +413,24 @@ def _write_run(
     """Write the finished run's files to ``--out`` together; the trajectory read back for the
     figures and the summary, the largest energy balance error [J] and the files written."""
     from tensegrity.io.formats import write_structure
-    from tensegrity.io.trajectory import read_trajectory
+    from tensegrity.io.trajectory import read_dataset, read_trajectory
     from tensegrity.plots.figures import save_figures
 
     work = files.work
-    # the figures and the summary from at most FIGURE_SAMPLES samples (and the last),
-    # the energy balance from every sample
-    trajectory = read_trajectory(work, every=max(1, -(-summary.n_samples // FIGURE_SAMPLES)))
+    # the first and last samples for the structure figures and the summary, the tendon lengths
+    # at most FIGURE_SAMPLES times (and the last), the energy balance from every sample
+    trajectory = read_trajectory(work, every=max(1, summary.n_samples - 1))
+    every = max(1, -(-summary.n_samples // FIGURE_SAMPLES))
+    history = (
+        read_dataset(work, "time", every=every),
+        read_dataset(work, "tendon_length", every=every),
+    )
     balance = _energy_balance_error(work)
 
     def write(staging: Path) -> list[Path]:
         outputs = [
             write_structure(staging / "structure.json", structure),
-            *save_figures(trajectory, staging),
+            *save_figures(trajectory, staging, history=history),
             *(_vtk_files(staging / "vtk", read_trajectory(work)) if args.vtk else []),
         ]
         # Last, so that the finished run stays in ``work`` if anything before fails.
@@ -489,12 +495,9 @@ def _vtk_files(folder: Path, result) -> list[Path]:
 
 def _energy_balance_error(path: Path) -> float:
     """Largest change of the energy balance [J] over every sample of the trajectory file."""
-    import h5py
+    from tensegrity.io.trajectory import ENERGY_COLUMNS, read_dataset
 
-    from tensegrity.io.trajectory import ENERGY_COLUMNS
-
-    with h5py.File(path, "r") as f:
-        energy = f["energy"][()]
+    energy = read_dataset(path, "energy")
     # E_kin + E_el + E_grav + E_d - W_w - W_u
     sign = np.array([-1.0 if name.endswith("_work") else 1.0 for name in ENERGY_COLUMNS])
     total = energy @ sign

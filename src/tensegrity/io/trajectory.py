@@ -166,10 +166,36 @@ def read_trajectory(path: PathLike, *, every: int = 1) -> SimulationResult:
         tensegrity trajectory (``format`` attribute), is of a newer version, misses a dataset or
         an attribute, or holds arrays whose shapes do not fit its structure.
     """
+    _check_every(every)
+    with _open(path) as f:
+        return _read_open_trajectory(f, path, every)
+
+
+def read_dataset(path: PathLike, name: str, *, every: int = 1) -> np.ndarray:
+    """One dataset of a trajectory file (a name of the layout above, e.g. ``"tendon_length"``),
+    one sample in ``every`` and the last as in :func:`read_trajectory`: a long run's series
+    without the rest of the file in memory.  ``ValueError`` names the file and the problem."""
+    _check_every(every)
+    if name not in ARRAY_DATASETS:
+        raise ValueError(f"name: expected one of {', '.join(ARRAY_DATASETS)}, got {name!r}")
+    with _open(path) as f:
+        _check_format(f, path)
+        if not isinstance(f.get(name), _h5py_dataset()):
+            raise file_error(path, f"missing dataset {name!r}")
+        return _rows(f[name], every)
+
+
+def _check_every(every: int) -> None:
+    if isinstance(every, bool) or not isinstance(every, int) or every < 1:
+        raise ValueError(f"every: must be an integer >= 1, got {every!r}")
+
+
+def _open(path: PathLike) -> Any:
+    """The HDF5 file at ``path``, open for reading (one-line errors naming the file)."""
     import h5py
 
     try:
-        handle = h5py.File(path, "r")
+        return h5py.File(path, "r")
     except FileNotFoundError as exc:
         raise file_error(path, "no such file") from exc
     except IsADirectoryError as exc:
@@ -180,13 +206,10 @@ def read_trajectory(path: PathLike, *, every: int = 1) -> SimulationResult:
         if not Path(path).exists():
             raise file_error(path, "no such file") from exc
         raise file_error(path, "not an HDF5 file (a tensegrity trajectory is HDF5)") from exc
-    if isinstance(every, bool) or not isinstance(every, int) or every < 1:
-        raise ValueError(f"every: must be an integer >= 1, got {every!r}")
-    with handle as f:
-        return _read_open_trajectory(f, path, every)
 
 
-def _read_open_trajectory(f, path: PathLike, every: int = 1) -> SimulationResult:
+def _check_format(f: Any, path: PathLike) -> None:
+    """``ValueError`` unless ``f`` is a tensegrity trajectory this library reads."""
     attrs = f.attrs
     fmt = text_attribute(attrs.get("format"))
     if fmt != TRAJECTORY_FORMAT:
@@ -204,6 +227,11 @@ def _read_open_trajectory(f, path: PathLike, every: int = 1) -> SimulationResult
             f"trajectory format version {version} is newer than this "
             f"library reads ({TRAJECTORY_VERSION}); upgrade tensegrity",
         )
+
+
+def _read_open_trajectory(f: Any, path: PathLike, every: int = 1) -> SimulationResult:
+    _check_format(f, path)
+    attrs = f.attrs
 
     def attribute(name: str) -> Any:
         if name not in attrs:

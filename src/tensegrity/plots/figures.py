@@ -567,7 +567,13 @@ def _mark_rest_length(ax: Axes, rest_length: Any, S: int) -> None:
         )
 
 
-def save_figures(result: SimulationResult, out_dir: str | Path, *, dpi: int = 150) -> list[Path]:
+def save_figures(
+    result: SimulationResult,
+    out_dir: str | Path,
+    *,
+    dpi: int = 150,
+    history: tuple[np.ndarray, np.ndarray] | None = None,
+) -> list[Path]:
     """Write the figures of a simulation as PNG files in ``out_dir``, each atomically.
 
     - ``initial.png``: the structure at the first sample (Figure 18.10);
@@ -585,6 +591,10 @@ def save_figures(result: SimulationResult, out_dir: str | Path, *, dpi: int = 15
         Output folder, created if missing.
     dpi : int
         Resolution; the default gives about 1100 x 1000 pixels for the structure figures.
+    history : (t (T,) [s], tendon_length (T, S) [m]), optional
+        The series of the tendon-length figure, if not the result's own samples: a long run's
+        figures from its first and last samples (``result``) and its tendon lengths alone
+        (:func:`tensegrity.io.trajectory.read_dataset`).
 
     Returns
     -------
@@ -602,14 +612,15 @@ def save_figures(result: SimulationResult, out_dir: str | Path, *, dpi: int = 15
     else:
         final_title = f"Final configuration (t = {time[-1]:.4g} s)"
     rest = None if (result.settings or {}).get("control") else structure.tendon_rest_length
+    series_t, series_length = (time, result.tendon_length) if history is None else history
     figures = {
         "initial.png": figure_structure(
             structure, nodes[0], tension[0], title=f"Initial configuration (t = {time[0]:.4g} s)"
         ),
         "equilibrium.png": figure_structure(structure, nodes[-1], tension[-1], title=final_title),
         "tendon_lengths.png": figure_tendon_lengths(
-            time,
-            result.tendon_length,
+            series_t,
+            series_length,
             structure.tendon_name,
             rest_length=rest,
             title="Tendon lengths",
