@@ -8,20 +8,12 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
+from states import perturbed_state
 from tensegrity import class1_shell, simulate
 from tensegrity.physics import dynamics
 from tensegrity.physics.dynamics import State
 
-
-def _perturbed(structure, seed: int, jitter: float, speed: float) -> State:
-    rng = np.random.default_rng(seed)
-    start = dynamics.initial_state(structure)
-    q, qdot = dynamics.project_to_constraints(
-        structure,
-        start.q + jitter * rng.standard_normal(start.q.size),
-        speed * rng.standard_normal(start.q.size),
-    )
-    return State(0.0, q, qdot)
+_perturbed = perturbed_state
 
 
 def _reference(structure, initial: State, t_end: float, times: np.ndarray) -> np.ndarray:

@@ -9,25 +9,18 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from states import perturbed_state
 from tensegrity import class1_shell, simulate
 from tensegrity.engine.inputs import Inputs
 from tensegrity.engine.loop import Checkpointing, Feedback, run
 from tensegrity.engine.options import Options
 from tensegrity.engine.result import MemorySink
 from tensegrity.model.shell import class2_shell
-from tensegrity.physics import dynamics
 from tensegrity.physics.dynamics import State
 
 
 def _perturbed(structure, seed: int = 3, jitter: float = 0.02, speed: float = 0.5) -> State:
-    rng = np.random.default_rng(seed)
-    start = dynamics.initial_state(structure)
-    q, qdot = dynamics.project_to_constraints(
-        structure,
-        start.q + jitter * rng.standard_normal(start.q.size),
-        speed * rng.standard_normal(start.q.size),
-    )
-    return State(0.0, q, qdot)
+    return perturbed_state(structure, seed, jitter, speed)
 
 
 SHELL = class1_shell(3, 1, damping=0.3)

@@ -44,7 +44,7 @@ from typing import Any
 
 import numpy as np
 
-from tensegrity.engine.result import SimulationResult
+from tensegrity.engine.result import ENERGY_NAMES, SimulationResult
 from tensegrity.io.files import PathLike, atomic_path, file_error
 from tensegrity.model.structure import Structure
 
@@ -53,7 +53,7 @@ TRAJECTORY_FORMAT = "tensegrity-trajectory"
 #: ``version`` attribute written; files of a higher version are refused.
 TRAJECTORY_VERSION = 1
 #: Energy columns in the order :func:`tensegrity.engine.simulate.simulate` produces them [J].
-ENERGY_COLUMNS = ("kinetic", "elastic", "gravity", "dissipated", "external_work", "control_work")
+ENERGY_COLUMNS = ENERGY_NAMES
 
 ARRAY_DATASETS = (
     "time",
