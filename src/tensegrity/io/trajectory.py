@@ -231,19 +231,7 @@ def _check_format(f: Any, path: PathLike) -> None:
 
 def _read_open_trajectory(f: Any, path: PathLike, every: int = 1) -> SimulationResult:
     _check_format(f, path)
-    attrs = f.attrs
-
-    def attribute(name: str) -> Any:
-        if name not in attrs:
-            raise file_error(path, f"missing attribute {name!r}")
-        return attrs[name]
-
-    def json_attribute(name: str) -> Any:
-        try:
-            return json.loads(required_text(attribute(name)))
-        except (TypeError, json.JSONDecodeError) as exc:
-            raise file_error(path, f"attribute {name!r}: invalid JSON ({exc})") from exc
-
+    attrs = _Attributes(f.attrs, path)
     missing = [name for name in ARRAY_DATASETS if not isinstance(f.get(name), _h5py_dataset())]
     if missing:
         raise file_error(
@@ -251,49 +239,13 @@ def _read_open_trajectory(f: Any, path: PathLike, every: int = 1) -> SimulationR
         )
     arrays = {name: _rows(f[name], every) for name in ARRAY_DATASETS}
     columns = [required_text(c) for c in f["energy"].attrs.get("columns", ENERGY_COLUMNS)]
-
-    structure_data = json_attribute("structure")
+    structure_data = attrs.json("structure")
     try:
         structure = Structure.from_dict(structure_data)
     except (ValueError, TypeError, KeyError, OverflowError) as exc:
         raise file_error(path, f"attribute 'structure': {exc}") from exc
-    settings = json_attribute("settings")
-
-    T, N, S, n = (
-        arrays["time"].shape[0] if arrays["time"].ndim == 1 else -1,
-        structure.n_nodes,
-        structure.n_tendons,
-        structure.n_coordinates,
-    )
-    expected = {
-        "time": (T,),
-        "nodes": (T, N, structure.dim),
-        "velocities": (T, N, structure.dim),
-        "tendon_length": (T, S),
-        "tendon_tension": (T, S),
-        "energy": (T, len(columns)),
-        "q": (T, n),
-        "qdot": (T, n),
-        "residual_acceleration": (T,),
-    }
-    for name, shape in expected.items():
-        if arrays[name].shape != shape:
-            raise file_error(
-                path,
-                f"dataset {name!r}: expected shape {shape} for this "
-                f"structure, got {arrays[name].shape}",
-            )
-    try:
-        counts = {name: int(attribute(name)) for name in _COUNT_ATTRIBUTES}
-        status = int(attribute("status"))
-        max_rod_length_error = float(attribute("max_rod_length_error"))
-        wall_time = float(attribute("wall_time"))
-        # Absent from files written before it was stored: unknown there, unless nothing can err.
-        max_constraint_error = float(
-            f.attrs.get("max_constraint_error", np.nan if structure.has_constraints else 0.0)
-        )
-    except (TypeError, ValueError) as exc:
-        raise file_error(path, f"invalid attribute: {exc}") from exc
+    settings = attrs.json("settings")
+    _check_shapes(arrays, structure, len(columns), path)
     return SimulationResult(
         t=arrays["time"],
         node_position=arrays["nodes"],
@@ -306,16 +258,70 @@ def _read_open_trajectory(f: Any, path: PathLike, every: int = 1) -> SimulationR
         residual_acceleration=arrays["residual_acceleration"],
         structure=structure,
         settings=settings,
-        status=status,
-        message=required_text(attribute("message")),
-        nfev=counts["nfev"],
-        nsteps=counts["nsteps"],
-        nswitches=counts["nswitches"],
-        nprojections=counts["nprojections"],
-        max_rod_length_error=max_rod_length_error,
-        wall_time=wall_time,
-        max_constraint_error=max_constraint_error,
+        **attrs.run_figures(structure),
+        message=required_text(attrs["message"]),
     )
+
+
+class _Attributes:
+    """A trajectory file's root attributes, read with one-line errors naming the file."""
+
+    def __init__(self, attrs: Any, path: PathLike) -> None:
+        self.attrs, self.path = attrs, path
+
+    def __getitem__(self, name: str) -> Any:
+        if name not in self.attrs:
+            raise file_error(self.path, f"missing attribute {name!r}")
+        return self.attrs[name]
+
+    def json(self, name: str) -> Any:
+        try:
+            return json.loads(required_text(self[name]))
+        except (TypeError, json.JSONDecodeError) as exc:
+            raise file_error(self.path, f"attribute {name!r}: invalid JSON ({exc})") from exc
+
+    def run_figures(self, structure: Structure) -> dict[str, Any]:
+        """``status``, the counts and the errors of the run, as :class:`SimulationResult`
+        takes them."""
+        try:
+            figures: dict[str, Any] = {name: int(self[name]) for name in _COUNT_ATTRIBUTES}
+            figures["status"] = int(self["status"])
+            figures["max_rod_length_error"] = float(self["max_rod_length_error"])
+            figures["wall_time"] = float(self["wall_time"])
+            # Absent from files written before it was stored: unknown there, unless nothing can
+            # err.
+            figures["max_constraint_error"] = float(
+                self.attrs.get("max_constraint_error", np.nan if structure.has_constraints else 0.0)
+            )
+        except (TypeError, ValueError) as exc:
+            raise file_error(self.path, f"invalid attribute: {exc}") from exc
+        return figures
+
+
+def _check_shapes(
+    arrays: dict[str, np.ndarray], structure: Structure, n_energy: int, path: PathLike
+) -> None:
+    """``ValueError`` naming the first dataset whose shape does not fit ``structure``."""
+    T = arrays["time"].shape[0] if arrays["time"].ndim == 1 else -1
+    N, S, n, d = structure.n_nodes, structure.n_tendons, structure.n_coordinates, structure.dim
+    expected = {
+        "time": (T,),
+        "nodes": (T, N, d),
+        "velocities": (T, N, d),
+        "tendon_length": (T, S),
+        "tendon_tension": (T, S),
+        "energy": (T, n_energy),
+        "q": (T, n),
+        "qdot": (T, n),
+        "residual_acceleration": (T,),
+    }
+    for name, shape in expected.items():
+        if arrays[name].shape != shape:
+            raise file_error(
+                path,
+                f"dataset {name!r}: expected shape {shape} for this "
+                f"structure, got {arrays[name].shape}",
+            )
 
 
 def _rows(dataset: Any, every: int) -> np.ndarray:
