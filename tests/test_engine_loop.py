@@ -168,3 +168,9 @@ def test_loop_state_round_trips_through_arrays():
     back = LoopState.from_arrays(state.to_arrays())
     for name, value in state.to_arrays().items():
         assert np.array_equal(back.to_arrays()[name], value, equal_nan=True), name
+
+
+def test_checkpointing_needs_a_whole_number_of_samples():
+    for every in (0, 2.5):
+        with pytest.raises(ValueError, match=r"^checkpoint\.every: must be a whole number > 0"):
+            _run(SHELL, 0.1, Options(sample_dt=0.01), every=every)
