@@ -23,7 +23,7 @@ import dataclasses
 import math
 import time
 from collections.abc import Callable, Mapping
-from typing import Any, Protocol
+from typing import Protocol
 
 import numpy as np
 
@@ -236,8 +236,10 @@ class _Run:
         sink: Sink,
         controller: Controller | None,
         checkpoint: Checkpointing | None,
+        progress: Callable[[float], None] | None,
     ) -> None:
         self.structure, self.options, self.sink = structure, options, sink
+        self.progress = progress
         self.controller, self.checkpointing = controller, checkpoint
         self.t0, self.t_end = t0, t_end
         self.system = CompiledSystem(structure, inputs)
@@ -252,7 +254,6 @@ class _Run:
         self.monitor = np.zeros(4)
         self.counts = dict(nsteps=0, nswitches=0, nprojections=0)
         self.nfev_before = 0  # of the runs before a resume
-        self.progress: Any = None
         self.switch_times: list[float] = []
         self.status, self.message = STATUS_END, f"reached t_end = {t_end:g} s"
         self.last_sample_t = -np.inf
@@ -339,8 +340,11 @@ class _Run:
         return self.t0 + (math.floor((t - self.t0) / period + 1e-9) + 1) * period
 
     def at_control_time(self, t: float) -> bool:
-        period = self.controller.period if self.controller is not None else math.inf
-        k = round((t - self.t0) / period) if math.isfinite(period) else -1
+        """True at a controller's update time (to 1e-9 of its period)."""
+        if self.controller is None:
+            return False
+        period = self.controller.period
+        k = round((t - self.t0) / period)
         return k >= 0 and abs(self.t0 + k * period - t) <= 1e-9 * period
 
     def update_control(self, t: float, y: np.ndarray) -> None:
@@ -348,7 +352,11 @@ class _Run:
         assert self.controller is not None, "update_control: the run has no controller"
         q, qdot = self.system.coordinates(y)
         u = np.array(self.controller(t, q, qdot), dtype=float)
-        self.system.hold_control(u, t, y)
+        before = self.system.elastic_energy(t, y)
+        self.system.hold_control(u, t)
+        # The rest lengths jump, and so does the elastic energy at ``y``: the control's work
+        # ``W_u`` takes that jump, so that the energy balance holds across it.
+        y[-1] += self.system.elastic_energy(t, y) - before
         self.control = u
 
     def checkpoint_due(self) -> bool:
@@ -373,16 +381,11 @@ class _Run:
     ) -> None:
         assert self.checkpointing is not None, "save: the run has no checkpoints"
         self.saved_at = self.next_sample - 1
-        memory = (
-            stepper.memory()
-            if not isinstance(stepper, RK4)
-            else StepperMemory(np.zeros(0), 0.0, 0.0)
-        )
         self.checkpointing.save(
             LoopState(
                 t=t,
                 y=y.copy(),
-                memory=memory,
+                memory=stepper.memory(),
                 steps_done=self.steps_done,
                 next_sample=self.next_sample,
                 monitor=self.monitor.copy(),
@@ -408,7 +411,7 @@ class _Run:
         self.steps_done = state.steps_done
         self.saved_at = state.next_sample - 1
         if self.controller is not None and state.control.size:
-            self.system.hold_control(state.control, state.t, state.y.copy())
+            self.system.hold_control(state.control, state.t)
             self.control = state.control.copy()
 
 
@@ -453,10 +456,11 @@ def _first_switch(
             g_lo, kept = (0.5 * g_lo if kept == -1 else g_lo), -1
         if hi - lo > 0.5 * width:  # false position crawled: bisect
             mid = 0.5 * (lo + hi)
-            if g(mid) > 0:
-                lo, g_lo = mid, g(mid)
+            g_mid = g(mid)
+            if g_mid > 0:
+                lo, g_lo = mid, g_mid
             else:
-                hi, g_hi = mid, g(mid)
+                hi, g_hi = mid, g_mid
             kept = 0
     # The switch is reported at the end of a bracket of width ``tol``, as by bisection, so that
     # tendons switching within ``tol`` of it (the symmetric twins of a regular shell) switch
@@ -564,7 +568,7 @@ def _hermite(
     )
 
 
-def _fixed_step(run: _Run, stepper: RK4, resume: LoopState | None, wall0: float) -> None:
+def _fixed_step(run: _Run, stepper: RK4, wall0: float) -> None:
     """The loop of ``"rk4"``: compiled stretches of steps up to each sample or controller update
     (the last step shorter, to land on ``t_end``); a sample inside a step is interpolated (cubic
     Hermite), one on a step's end is that end before projection.  A controller is called at the
@@ -671,8 +675,7 @@ def run(
         raise ValueError(f"checkpoint.every: must be a whole number > 0, got {checkpoint.every!r}")
     inputs.rest_length(np.array([t0]))  # a control making a rest length negative fails here
     wall0 = time.perf_counter()
-    r = _Run(structure, t0, t_end, inputs, options, sink, controller, checkpoint)
-    r.progress = progress
+    r = _Run(structure, t0, t_end, inputs, options, sink, controller, checkpoint, progress)
     if resume is None:
         state = dynamics.initial_state(structure, t=t0) if initial is None else initial
         y0 = r.system.state_vector(state)
@@ -686,7 +689,7 @@ def run(
         stepper = _stepper(r, resume.t, resume.y.copy(), resume.memory)
     try:
         if isinstance(stepper, RK4):  # the stepper of the fixed-step method (options.fixed_step)
-            _fixed_step(r, stepper, resume, wall0)
+            _fixed_step(r, stepper, wall0)
         else:
             _adaptive(r, stepper, resume, wall0)
     except (IntegrationError, ValueError, FloatingPointError) as exc:

@@ -453,3 +453,7 @@ class RK4:
                 steps += one
         self.nfev += 4 * steps
         return steps, code, value
+
+    def memory(self) -> StepperMemory:
+        """Nothing: a step starts from ``(t, y)`` alone (the loop keeps the steps taken)."""
+        return StepperMemory(np.zeros(0), 0.0, 0.0)

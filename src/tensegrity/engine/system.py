@@ -90,17 +90,13 @@ class CompiledSystem:
             return np.asarray(x, dtype=float)
         return np.concatenate([x, np.zeros((*x.shape[:-1], 1))], axis=-1)
 
-    def hold_control(self, u: np.ndarray, t: float, y: np.ndarray) -> None:
+    def hold_control(self, u: np.ndarray, t: float) -> None:
         """Hold the control at ``u`` (S,) [m] from ``t`` [s] on (a controller's update,
-        :meth:`Inputs.hold_control`).  The rest lengths jump, and so does the elastic energy at
-        ``y``: the control's work ``W_u`` in ``y`` takes that jump, so that the energy balance
-        holds across it."""
-        before = self.elastic_energy(t, y)
+        :meth:`Inputs.hold_control`): the compiled inputs follow."""
         self.inputs.hold_control(u, t)
         self._constant = None
         if self.inputs.constant:
             self._constant = self.stage_inputs(np.zeros(1))
-        y[-1] += self.elastic_energy(t, y) - before
 
     def elastic_energy(self, t: float, y: np.ndarray) -> float:
         """Elastic energy of the tendons [J] at ``y`` with the rest lengths at ``t``."""
