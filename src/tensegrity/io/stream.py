@@ -671,16 +671,18 @@ class FileSink:
 
     def save(self, loop: LoopState) -> None:
         """Store the segment's samples and ``loop`` as the new checkpoint (then fsync)."""
-        summary = dict(
-            status=STATUS_END,
-            message="running",
-            ended=False,
-            wall_time=loop.wall_time,
-            max_rod_length_error=float(loop.monitor[2]),
-            max_constraint_error=float(loop.monitor[3]),
-            counts=loop.counts,
+        self._store(
+            self._next_checkpoint(
+                loop=loop,
+                ended=False,
+                status=STATUS_END,
+                message="running",
+                counts=loop.counts,
+                max_rod_length_error=float(loop.monitor[2]),
+                max_constraint_error=float(loop.monitor[3]),
+                wall_time=loop.wall_time,
+            )
         )
-        self._store(loop, summary)
         if self.progress is not None:
             c = self.checkpoint
             self.progress(
@@ -695,54 +697,48 @@ class FileSink:
 
     def finish(self, run: RunSummary) -> None:
         """Store the last samples and the run's end as the (ended) checkpoint."""
-        self._store(
-            self.checkpoint.loop,
-            dict(
-                status=run.status,
-                message=run.message,
-                ended=True,
-                wall_time=run.wall_time,
-                max_rod_length_error=run.max_rod_length_error,
-                max_constraint_error=run.max_constraint_error,
-                counts={name: getattr(run, name) for name in _COUNTERS},
-            ),
-            settings=dict(
-                run.settings,
-                stream=dict(
-                    segment=self.K * run.settings["sample_dt"],
-                    samples_per_segment=self.K,
-                    n_segments=self.checkpoint.n_segments,
-                ),
-            ),
+        checkpoint = self._next_checkpoint(
+            loop=self.checkpoint.loop,
+            ended=True,
+            status=run.status,
+            message=run.message,
+            counts={name: getattr(run, name) for name in _COUNTERS},
+            max_rod_length_error=run.max_rod_length_error,
+            max_constraint_error=run.max_constraint_error,
+            wall_time=run.wall_time,
         )
+        stream = dict(
+            segment=self.K * run.settings["sample_dt"],
+            samples_per_segment=self.K,
+            n_segments=checkpoint.n_segments,
+        )
+        self._store(checkpoint, settings=dict(run.settings, stream=stream))
 
-    def _store(
-        self, loop: LoopState | None, end: dict[str, Any], settings: dict[str, Any] | None = None
-    ) -> None:
-        rows, c = self.rows, self.checkpoint
+    def _next_checkpoint(self, *, ended: bool, message: str, **fields: Any) -> Checkpoint:
+        """The checkpoint after the samples held now: their count, the last of them, the
+        segments stored (a run that ended stores its last, shorter segment too)."""
+        c, rows = self.checkpoint, self.rows
         n_samples = c.n_samples + len(rows)
-        state = c.state if not rows else State(t=rows[-1].t, q=rows[-1].q, qdot=rows[-1].qdot)
-        checkpoint = Checkpoint(
-            next_segment=(n_samples - 1) // self.K
-            if not end["ended"]
-            else max(c.next_segment + 1, math.ceil((n_samples - 1) / self.K)),
+        segments = (n_samples - 1) // self.K
+        if ended:
+            segments = max(c.next_segment + 1, math.ceil((n_samples - 1) / self.K))
+        else:
+            message = f"running: {segments} of {c.n_segments} segments"
+        return Checkpoint(
+            next_segment=segments,
             n_segments=c.n_segments,
             n_samples=n_samples,
-            state=state,
-            loop=loop,
-            counts=dict(end["counts"]),
-            max_rod_length_error=end["max_rod_length_error"],
-            wall_time=end["wall_time"],
+            state=c.state if not rows else State(t=rows[-1].t, q=rows[-1].q, qdot=rows[-1].qdot),
             settings_hash=c.settings_hash,
-            ended=end["ended"],
-            status=end["status"],
-            message=end["message"]
-            if end["ended"]
-            else f"running: {(n_samples - 1) // self.K} of {c.n_segments} segments",
-            max_constraint_error=end["max_constraint_error"],
+            ended=ended,
+            message=message,
+            **fields,
         )
+
+    def _store(self, checkpoint: Checkpoint, *, settings: dict[str, Any] | None = None) -> None:
+        """Append the samples held to the file and make ``checkpoint`` its current one."""
         with _open_h5(self.partial, "a") as f:
-            _append(f, _columns(rows), c.n_samples)
+            _append(f, _columns(self.rows), self.checkpoint.n_samples)
             _store_checkpoint(f, checkpoint)
             f.attrs["message"] = checkpoint.message
             f.attrs["status"] = int(checkpoint.status)
