@@ -64,3 +64,20 @@ def test_a_blow_up_and_a_bad_step_are_refused():
         step(model, moving, 0.5)
     with pytest.raises(ValueError, match="dt"):
         step(model, state, 0.0)
+
+
+def test_a_state_made_by_hand_is_projected_first_on_request():
+    shell = class1_shell(3, 1)
+    model = make_model(shell)
+    start = dynamics.initial_state(shell)
+    rng = np.random.default_rng(2)
+    rough = dynamics.State(
+        0.0,
+        start.q + 1e-4 * rng.standard_normal(start.q.size),
+        0.1 * rng.standard_normal(start.q.size),
+    )
+    q, qdot = dynamics.project_to_constraints(shell, rough.q, rough.qdot)
+    by_hand = step(model, rough, 1e-3, project=True)
+    projected = step(model, dynamics.State(0.0, q, qdot), 1e-3)
+    assert np.array_equal(by_hand.q, projected.q) and np.array_equal(by_hand.qdot, projected.qdot)
+    assert np.max(np.abs(dynamics.rod_length_error(shell, by_hand.q))) < 1e-13

@@ -38,6 +38,8 @@ class Model:
     structure: Structure
     system: CompiledSystem
     limits: tuple[float, float, float]
+    #: scratch of a step: its stages (4, m), a stage state and the end before projection (m,)
+    scratch: tuple[np.ndarray, np.ndarray, np.ndarray]
 
 
 def make_model(
@@ -57,18 +59,21 @@ def make_model(
         Inputs(structure, control=control, external_force=external_force, gravity=gravity),
     )
     scale = max(float(structure.rod_length.max(initial=0.0)), 1.0)
-    return Model(structure, system, (max_rod_length_error, max_rod_length_error * scale, np.inf))
+    limits = (max_rod_length_error, max_rod_length_error * scale, np.inf)
+    m = system.m
+    return Model(structure, system, limits, (np.zeros((4, m)), np.empty(m), np.empty(m)))
 
 
-def step(model: Model, state: State, dt: float) -> State:
+def step(model: Model, state: State, dt: float, *, project: bool = False) -> State:
     """``state`` advanced by one RK4 step of ``dt`` [s] (Theorem 18.1, eqs. 18.39-18.60), then
-    projected onto the constraints; ``StepError`` if the step blew up."""
+    projected onto the constraints; ``StepError`` if the step blew up.  ``project``: project
+    ``state`` onto the constraints first (for a state made by hand; one returned by
+    :func:`step` or :func:`~tensegrity.physics.dynamics.initial_state` is on them)."""
     if not (np.isfinite(dt) and dt > 0):
         raise ValueError(f"dt: must be a finite step > 0, got {dt!r}")
     system = model.system
-    n = system.n
-    y = np.concatenate([system.state_vector(state)[: 2 * n], np.zeros(3)])
-    K, stage, y_end = np.zeros((4, system.m)), np.empty(system.m), np.empty(system.m)
+    y = system.state_vector(state, project=project)
+    K, stage, y_end = model.scratch
     inputs = system.stage_inputs(state.t + compiled.RK4_C * dt)
     _, code, value = compiled.rk4_segment(
         y, dt, 1, K, stage, y_end, system.system, inputs, system.work, model.limits, np.zeros(4)

@@ -111,10 +111,12 @@ class CompiledSystem:
         return self.stage_inputs(np.array([t]))[0][0]
 
     # ------------------------------------------------------------------ states
-    def state_vector(self, state: dynamics.State) -> np.ndarray:
+    def state_vector(self, state: dynamics.State, *, project: bool = True) -> np.ndarray:
         """The ODE state ``y`` of ``state`` (energy integrals zero), projected onto the rod,
-        joint and support constraints."""
-        q, qdot = dynamics.project_to_constraints(self.structure, state.q, state.qdot)
+        joint and support constraints unless ``project`` is False (a state that is on them)."""
+        q, qdot = state.q, state.qdot
+        if project:
+            q, qdot = dynamics.project_to_constraints(self.structure, q, qdot)
         if self.planar:
             q, qdot = lift_coordinates(self.structure, q), lift_coordinates(self.structure, qdot)
         return np.concatenate([q, qdot, np.zeros(3)])
