@@ -38,7 +38,7 @@ from tensegrity.analysis.coordinates import Chart, align, has_supports, kabsch, 
 from tensegrity.analysis.equilibrium import EquilibriumResult, find_equilibrium
 from tensegrity.analysis.statics import equilibrium_matrix, force_jacobian, statics, with_reactions
 from tensegrity.engine.loop import Feedback
-from tensegrity.engine.simulate import STATUS_END, simulate
+from tensegrity.engine.simulate import STATUS_END, SimulationResult, simulate
 from tensegrity.model.structure import Structure
 from tensegrity.physics import dynamics
 
@@ -647,7 +647,12 @@ class _FeedbackLaw:
 
 
 def _closed_loop_result(
-    plan: QuasiStatic, plant: Structure, run: Any, law: _FeedbackLaw, times: np.ndarray, gains: int
+    plan: QuasiStatic,
+    plant: Structure,
+    run: SimulationResult,
+    law: _FeedbackLaw,
+    times: np.ndarray,
+    gains: int,
 ) -> ClosedLoop:
     """The :class:`ClosedLoop` of an engine run: outputs, errors, bounds and the verdict."""
     s = plan.structure
