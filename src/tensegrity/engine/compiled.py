@@ -2,6 +2,10 @@
 the steps of the integrators (DOP853 with its error estimate and dense output, classical RK4),
 the checks made after every step, and the outputs of a sample.
 
+Constant arguments go to compiled callees as runtime values (``np.int64(0)``,
+``np.bool_(True)``): numba compiles a callee once per argument type, and a literal ``0`` or
+``True`` is a type of its own, so each would compile (and cache) another copy of the kernel.
+
 Every function here evaluates the physics through :mod:`tensegrity.physics.kernel_system`
 (``system_rhs``, ``system_project``, ...), so that one code path serves every structure
 ``simulate`` accepts.  The arguments come in a few tuples, built once per run by
@@ -31,7 +35,7 @@ import numpy as np
 from numba import njit
 from scipy.integrate._ivp import dop853_coefficients as _dop853
 
-from tensegrity.physics.kernel import JIT_OPTIONS, tendon_vector
+from tensegrity.physics.kernel import JIT_OPTIONS, copy_values, tendon_vector
 from tensegrity.physics.kernel_system import (
     system_energies,
     system_errors,
@@ -99,7 +103,7 @@ def ode_rhs(y, dy, s, system, inputs, work):  # pragma: no cover - compiled
         elastic,
         damping_power,
     )
-    dy[:n] = qdot
+    copy_values(qdot, dy, n)
     dy[2 * n] = dissipated
     dy[2 * n + 1] = external
     control = 0.0
@@ -114,7 +118,7 @@ def ode_rhs(y, dy, s, system, inputs, work):  # pragma: no cover - compiled
 @njit(**JIT_OPTIONS)
 def _combine(y, K, row, stages, h, out):  # pragma: no cover - compiled
     """``out = y + h sum_j row[j] K[j]`` over ``j < stages``."""
-    out[:] = y
+    copy_values(y, out, y.shape[0])
     for j in range(stages):
         a = h * row[j]
         if a != 0.0:
@@ -132,8 +136,9 @@ def dop853_attempt(y, h, K, y_new, stage, rtol, atol, system, inputs, work):  # 
     for s in range(1, DOP853_STAGES):
         _combine(y, K, DOP853_A[s], s, h, stage)
         ode_rhs(stage, K[s], s, system, inputs, work)
-    _combine(y, K, DOP853_B, DOP853_STAGES, h, y_new)
-    ode_rhs(y_new, K[DOP853_STAGES], DOP853_STAGES, system, inputs, work)
+    last = np.int64(DOP853_STAGES)
+    _combine(y, K, DOP853_B, last, h, y_new)
+    ode_rhs(y_new, K[last], last, system, inputs, work)
     err5 = 0.0
     err3 = 0.0
     m = y.shape[0]
@@ -189,7 +194,7 @@ def dop853_interpolate(F, y_old, x, out):  # pragma: no cover - compiled
 def rk4_step(y, h, K, stage, system, inputs, work):  # pragma: no cover - compiled
     """One classical RK4 step of ``h`` [s] on ``y`` in place; ``K`` (4, len(y)) and ``stage``
     scratch.  Stage rows of the inputs: 0, 1, 2, 3 at ``t, t + h/2, t + h/2, t + h``."""
-    ode_rhs(y, K[0], 0, system, inputs, work)
+    ode_rhs(y, K[0], np.int64(0), system, inputs, work)
     for s in range(1, 4):
         c = h * RK4_C[s]
         for i in range(y.shape[0]):
@@ -215,7 +220,7 @@ def rk4_segment(
     n = (y.shape[0] - 3) // 2
     for k in range(n_steps):
         rk4_step(y, h, K, stage, system, inputs, work)
-        y_end[:] = y
+        copy_values(y, y_end, y.shape[0])
         with_energy = k == n_steps - 1 or (k + 1) % ENERGY_CHECK_EVERY == 0
         code, value = check_state(
             y, inputs[0].shape[0] - 1, system, inputs, work, limits, monitor, with_energy
@@ -347,11 +352,12 @@ def sample_outputs(y, dy, system, inputs, work, moving, p, v, accel, lengths):  
     arrays, extras = system
     rod_slots = arrays[0]
     n = (y.shape[0] - 3) // 2
-    ode_rhs(y, dy, 0, system, inputs, work)
-    kinetic, elastic, potential, _, _ = energy_balance(y, 0, system, inputs, work)
-    system_nodes(y[:n], y[n : 2 * n], rod_slots, extras, p, v, True)
+    first = np.int64(0)
+    ode_rhs(y, dy, first, system, inputs, work)
+    kinetic, elastic, potential, _, _ = energy_balance(y, first, system, inputs, work)
+    system_nodes(y[:n], y[n : 2 * n], rod_slots, extras, p, v, np.bool_(True))
     tendon_lengths(p, arrays[2], lengths)
-    system_nodes(dy[n : 2 * n], dy[n : 2 * n], rod_slots, extras, accel, accel, False)
+    system_nodes(dy[n : 2 * n], dy[n : 2 * n], rod_slots, extras, accel, accel, np.bool_(False))
     return kinetic, elastic, potential, _largest_at(accel, moving), _largest_at(v, moving)
 
 

@@ -133,6 +133,15 @@ ROD_MASS, ROD_LENGTH, ROD_DAMPING, ROD_C1, ROD_C2 = range(5)
 
 
 @njit(inline="always", **JIT_OPTIONS)
+def copy_values(source, out, n):  # pragma: no cover - compiled
+    """``out[:n] = source[:n]``, as a loop: an array-to-array slice assignment makes numba
+    compile its shape-mismatch error message (string formatting, about 2 s of a first run's
+    compilation) into every function that holds one."""
+    for i in range(n):
+        out[i] = source[i]
+
+
+@njit(inline="always", **JIT_OPTIONS)
 def end_values(x, rod_slots, out):  # pragma: no cover - compiled
     """``out[:, slot of a] = (x1 - x2) / 2``, ``out[:, slot of b] = (x1 + x2) / 2`` for every rod
     (``x`` = ``q`` or ``q'``, 6 per rod): the end positions or velocities ``P x`` (eq. 18.26)."""

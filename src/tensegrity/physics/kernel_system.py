@@ -66,6 +66,7 @@ from tensegrity.physics.kernel import (
     ROD_LENGTH,
     ROD_MASS,
     PackedStructure,
+    copy_values,
     end_values,
     energies,
     pack,
@@ -475,7 +476,7 @@ def _env_substitute(factor, first, offset, x):  # pragma: no cover - compiled
 def _env_residual(values, first, offset, x, rhs, out):  # pragma: no cover - compiled
     """``out = rhs - M x`` for the symmetric ``M`` stored as its lower envelope."""
     n = first.shape[0]
-    out[:n] = rhs[:n]
+    copy_values(rhs, out, n)
     for i in range(n):
         oi = offset[i] - first[i]
         s = values[oi + i] * x[i]
@@ -497,7 +498,7 @@ def _solve_psd(values, factor, first, offset, rhs, x, scratch):  # pragma: no co
         if d > largest:
             largest = d
     _env_cholesky(values, factor, first, offset, REGULARIZATION * largest)
-    x[:n] = rhs[:n]
+    copy_values(rhs, x, n)
     _env_substitute(factor, first, offset, x)
     for _ in range(2):
         _env_residual(values, first, offset, x, rhs, scratch)
