@@ -156,3 +156,94 @@ def test_control_table_bad_input_names_the_field():
     )
     result = simulate(shell, (0.0, 0.1), control=too_short)
     assert result.status == -1 and "control[" in result.message and "negative" in result.message
+
+
+# --------------------------------------------------------------------------- compiled tables
+def _force_table(structure, outside):
+    from tensegrity.model.loads import ForceTable
+
+    rng = np.random.default_rng(11)
+    times = np.array([0.02, 0.05, 0.09])
+    return ForceTable(times, rng.normal(size=(3, structure.n_nodes, 3)), outside)
+
+
+@pytest.mark.parametrize("outside", ["hold", "zero"])
+@pytest.mark.parametrize("planar", [False, True])
+def test_compiled_table_rows_equal_numpy_bit_for_bit(outside, planar):
+    """The rows the compiled code interpolates from a control and a force table, at times
+    before, inside, on the corners of and after the tables, are those of ``ForceTable.at`` /
+    ``ControlTable.at`` (and the slopes ``ControlTable.slope``) bit for bit, in the kernel's
+    order and layout; a one-row table too."""
+    from tensegrity.design.catalogue import planar_two_rod
+    from tensegrity.engine.inputs import Inputs
+    from tensegrity.engine.system import CompiledSystem
+    from tensegrity.model.loads import ControlTable
+
+    structure = planar_two_rod() if planar else class1_shell(3, 1)
+    # (a ForceTable holds 3-D forces: a planar structure takes a force function instead)
+    force = None if planar else _force_table(structure, outside)
+    u = np.random.default_rng(5).uniform(-0.01, 0.01, size=(3, structure.n_tendons))
+    controls = [ControlTable([0.0, 0.04, 0.1], u, outside), ControlTable([0.03], u[:1], outside)]
+    times = np.array([-0.01, 0.0, 0.02, 0.031, 0.04, 0.05, 0.0712, 0.09, 0.1, 0.2])
+    for control in controls:
+        system = CompiledSystem(structure, Inputs(structure, control=control, external_force=force))
+        assert system.tables is not None  # the compiled path
+        rest, rate, has_rate, has_external, slots, _, _ = system.stage_inputs(times)
+        assert has_rate and has_external == (force is not None)
+        packed = system.packed
+        expected_rest = packed.to_kernel_order(structure.tendon_rest_length - control.at(times))
+        np.testing.assert_array_equal(rest, expected_rest)
+        np.testing.assert_array_equal(rate, packed.to_kernel_order(control.slope(times)))
+        if force is not None:
+            np.testing.assert_array_equal(slots, packed.to_slots(force.at(times)))
+
+
+def test_rk4_with_tables_runs_compiled_stretches_and_equals_the_functions(monkeypatch):
+    """``simulate(method="rk4")`` with a control table and a force table steps in compiled
+    stretches between samples (a few calls, not one per step), and gives the trajectory of the
+    same tables called as Python functions of time (stepped one call per step) bit for bit."""
+    from tensegrity.engine import compiled
+
+    shell = class1_shell(3, 1)
+    control, force = _control_table(shell), _force_table(shell, "zero")
+    calls = []
+    segment = compiled.rk4_segment
+
+    def counting(*args):
+        calls.append(args[3])  # n_steps
+        return segment(*args)
+
+    monkeypatch.setattr(compiled, "rk4_segment", counting)
+    kwargs = dict(method="rk4", dt=1e-4, sample_dt=0.01, initial=_perturbed(shell, 2, 0.0, 0.1))
+    tables = simulate(shell, (0.0, 0.3), control=control, external_force=force, **kwargs)
+    n_table_calls = len(calls)
+    functions = simulate(
+        shell, (0.0, 0.3), control=lambda t: control(t), external_force=lambda t: force(t), **kwargs
+    )
+    assert tables.status == functions.status == 0
+    assert tables.nsteps == functions.nsteps == 3000
+    assert n_table_calls <= 2 * tables.t.size < 100  # stretches up to each sample
+    assert len(calls) - n_table_calls == 3000  # the functions: one call per step
+    np.testing.assert_array_equal(tables.q, functions.q)
+    np.testing.assert_array_equal(tables.qdot, functions.qdot)
+    # (the control's work differs: a function's rate is a central difference, a table's exact)
+
+
+def test_rk4_stops_where_a_control_table_makes_a_rest_length_negative():
+    """A control table that shortens a tendon past its rest length ends an RK4 run before the
+    step that would use it, with the message (tendon, time) of the same table called as a
+    function, and the same last state."""
+    from tensegrity.model.loads import ControlTable
+
+    shell = class1_shell(3, 1)
+    u = np.zeros((2, shell.n_tendons))
+    u[1, 3] = 2 * shell.tendon_rest_length[3]  # rest length 0 at t = 0.05 s, then negative
+    table = ControlTable([0.0, 0.1], u)
+    kwargs = dict(method="rk4", dt=1e-3, sample_dt=0.02)
+    compiled_run = simulate(shell, (0.0, 0.2), control=table, **kwargs)
+    python_run = simulate(shell, (0.0, 0.2), control=lambda t: table(t), **kwargs)
+    assert compiled_run.status == python_run.status == -1
+    assert "control[3]" in compiled_run.message and "negative" in compiled_run.message
+    assert compiled_run.message == python_run.message
+    assert 0.049 < compiled_run.t[-1] <= 0.05
+    np.testing.assert_array_equal(compiled_run.q[-1], python_run.q[-1])

@@ -19,7 +19,10 @@ Every function here evaluates the physics through :mod:`tensegrity.physics.kerne
     the control rates ``du/dt`` [m/s] (read if ``has_rate``), in kernel order, ``force``
     (K, 3, n_slots) external nodal forces [N] in the kernel's node layout, ``gravity`` (3,)
     [m/s^2].  Stage ``s`` of a step reads row ``s``
-    when K > 1 and row 0 when K = 1 (inputs constant over the step).
+    when K > 1 and row 0 when K = 1 (inputs constant over the step).  Tabulated inputs
+    (:class:`~tensegrity.model.loads.ForceTable`, :class:`~tensegrity.model.loads.ControlTable`)
+    are interpolated here (:func:`fill_stage_inputs`), inside a compiled stretch of RK4 steps
+    too; only a Python callable makes the engine step from Python.
 ``work`` = ``(node_work, block_force, tension, elastic_tension, damping_power)``
     Scratch buffers of the kernel (see :func:`tensegrity.physics.kernel.rhs`); after an evaluation
     ``tension`` and ``elastic_tension`` hold that state's values, in kernel order.
@@ -35,7 +38,7 @@ import numpy as np
 from numba import njit
 from scipy.integrate._ivp import dop853_coefficients as _dop853
 
-from tensegrity.physics.kernel import JIT_OPTIONS, copy_values, tendon_vector
+from tensegrity.physics.kernel import JIT_OPTIONS, JitOptions, copy_values, tendon_vector
 from tensegrity.physics.kernel_system import (
     system_energies,
     system_errors,
@@ -60,10 +63,84 @@ RK4_C = np.array([0.0, 0.5, 0.5, 1.0])
 
 #: ``"rk4"`` checks the energy balance after every this many steps (and after each stretch).
 ENERGY_CHECK_EVERY = 8
-#: Codes of :func:`check_state` (0: the state is sound).
-CHECK_OK, CHECK_NOT_FINITE, CHECK_ROD_LENGTH, CHECK_CONSTRAINT, CHECK_ENERGY, CHECK_PROJECTION = (
-    range(6)
-)
+#: Codes of :func:`check_state` and :func:`rk4_segment` (0: the state is sound;
+#: ``CHECK_INPUT``: a control table makes a rest length negative).
+(
+    CHECK_OK,
+    CHECK_NOT_FINITE,
+    CHECK_ROD_LENGTH,
+    CHECK_CONSTRAINT,
+    CHECK_ENERGY,
+    CHECK_PROJECTION,
+    CHECK_INPUT,
+) = range(7)
+
+
+# --------------------------------------------------------------------------- tables
+#: Options of the tables' code: no fused multiply-adds, so that the rows and stage times are
+#: bit for bit those NumPy computes (:meth:`tensegrity.model.loads.ForceTable.at`): a table
+#: drives a run exactly as the same table called as a function of time does.
+EXACT_JIT_OPTIONS: JitOptions = {**JIT_OPTIONS, "fastmath": set()}
+
+
+@njit(**EXACT_JIT_OPTIONS)
+def _table_rows(time, values, zero_outside, times, rows, slopes):  # pragma: no cover
+    """Rows (K, X) of a piecewise-linear table at ``times`` (K,) [s] into ``rows``, as
+    :meth:`tensegrity.model.loads.ForceTable.at`: ``time`` (T,) strictly increasing,
+    ``values`` (T, X), linear in between, outside ``[time[0], time[-1]]`` the end rows or
+    (``zero_outside``) zero.  With ``slopes`` (K, X) (None: not wanted) the time derivatives
+    too, zero outside the table."""
+    T = time.shape[0]
+    for k in range(times.shape[0]):
+        t = times[k]
+        after = min(max(np.searchsorted(time, t, side="right"), 1), max(T - 1, 1))
+        lo = after - 1
+        hi = min(lo + 1, T - 1)
+        outside = t < time[0] or t > time[T - 1]
+        w = 0.0
+        if T > 1:
+            w = min(max((t - time[lo]) / (time[after] - time[lo]), 0.0), 1.0)
+        for x in range(values.shape[1]):
+            rows[k, x] = (1.0 - w) * values[lo, x] + w * values[hi, x]
+            if outside and zero_outside:
+                rows[k, x] = 0.0
+        if slopes is not None:
+            for x in range(values.shape[1]):
+                slope = 0.0
+                if T > 1 and not outside:
+                    slope = (values[hi, x] - values[lo, x]) / (time[hi] - time[lo])
+                slopes[k, x] = slope
+
+
+@njit(**EXACT_JIT_OPTIONS)
+def rk4_stage_times(t, k, h, out):  # pragma: no cover - compiled
+    """The stage times of step ``k`` of ``h`` [s] from ``t`` [s] into ``out`` (4,), as Python
+    computes them (``t + k h + RK4_C h``)."""
+    for i in range(RK4_C.shape[0]):
+        out[i] = (t + k * h) + RK4_C[i] * h
+
+
+@njit(**EXACT_JIT_OPTIONS)
+def fill_stage_inputs(tables, times, rest, rate, force):  # pragma: no cover - compiled
+    """The rows of the tabulated inputs at the stage ``times`` (K,) [s]: with a control table,
+    ``rest`` (K, S) the rest lengths ``Lbar = L0 - u`` [m] and ``rate`` (K, S) ``du/dt`` [m/s];
+    with a force table, ``force`` (K, 3, n_slots) [N].  ``tables`` = ``(control_time,
+    control (Tc, S) [m], control_zero_outside, L0 (S,) [m], force_time, force (Tf, 3 * n_slots)
+    [N], force_zero_outside)``, kernel order and slot layout; an empty time array: no such
+    table.  Returns the first row holding a negative rest length, or -1."""
+    control_time, control, control_zero, rest0, force_time, force_values, force_zero = tables
+    first_negative = -1
+    if control_time.shape[0] > 0:
+        _table_rows(control_time, control, control_zero, times, rest, rate)
+        for k in range(times.shape[0]):
+            for s in range(rest0.shape[0]):
+                rest[k, s] = rest0[s] - rest[k, s]
+                if rest[k, s] < 0.0 and first_negative < 0:
+                    first_negative = k
+    if force_time.shape[0] > 0:
+        rows = force.reshape((force.shape[0], -1))
+        _table_rows(force_time, force_values, force_zero, times, rows, None)
+    return first_negative
 
 
 # --------------------------------------------------------------------------- right-hand side
@@ -207,24 +284,32 @@ def rk4_step(y, h, K, stage, system, inputs, work):  # pragma: no cover - compil
 
 @njit(**JIT_OPTIONS)
 def rk4_segment(
-    y, h, n_steps, K, stage, y_end, system, inputs, work, limits, monitor
+    y, t, h, n_steps, K, stage, y_end, system, inputs, tables, work, limits, monitor
 ):  # pragma: no cover
-    """Up to ``n_steps`` RK4 steps of ``h`` with constant inputs, each followed by
+    """Up to ``n_steps`` RK4 steps of ``h`` [s] from time ``t`` [s], each followed by
     :func:`check_state` and the projection onto the rod and joint constraints (as
-    ``simulate(method="rk4")``).  The energy balance is checked every :data:`ENERGY_CHECK_EVERY`
-    steps and after the last one (it costs about one evaluation; the other checks are cheap);
-    it reads the inputs' last row, the step's end.  ``y_end`` receives the state at the end of
-    the last step before its projection (what a sample records, and the failing state).
-    Returns ``(steps_taken, check_code, check_value)``; the loop stops at the first failed
-    check."""
+    ``simulate(method="rk4")``).  Inputs constant over the stretch (``tables`` None: one row or
+    the 4 stage rows of a single step), or tabulated (``tables`` as :func:`fill_stage_inputs`'s,
+    whose 4 stage rows are filled here before each step).  The energy balance is checked every
+    :data:`ENERGY_CHECK_EVERY` steps and after the last one (it costs about one evaluation; the
+    other checks are cheap); it reads the inputs at the step's end.  ``y_end`` receives the
+    state at the end of the last step before its projection (what a sample records, and the
+    failing state).  Returns ``(steps_taken, check_code, check_value)``; the loop stops at the
+    first failed check, and before a step whose control table makes a rest length negative
+    (:data:`CHECK_INPUT`, that step not taken)."""
     n = (y.shape[0] - 3) // 2
+    step_end = min(RK4_C.shape[0], inputs[0].shape[0]) - 1
+    rest, rate, _, _, force, _, _ = inputs
+    times = np.empty(RK4_C.shape[0])
     for k in range(n_steps):
+        if tables is not None:
+            rk4_stage_times(t, k, h, times)
+            if fill_stage_inputs(tables, times, rest, rate, force) >= 0:
+                return k, CHECK_INPUT, np.nan
         rk4_step(y, h, K, stage, system, inputs, work)
         copy_values(y, y_end, y.shape[0])
         with_energy = k == n_steps - 1 or (k + 1) % ENERGY_CHECK_EVERY == 0
-        code, value = check_state(
-            y, inputs[0].shape[0] - 1, system, inputs, work, limits, monitor, with_energy
-        )
+        code, value = check_state(y, step_end, system, inputs, work, limits, monitor, with_energy)
         if code != CHECK_OK:
             return k + 1, code, value
         _, _, ok = system_project(y[:n], y[n : 2 * n], system[0][1], system[1])
@@ -374,6 +459,7 @@ def _largest_at(x, slots):  # pragma: no cover - compiled
 __all__ = [
     "CHECK_CONSTRAINT",
     "CHECK_ENERGY",
+    "CHECK_INPUT",
     "CHECK_NOT_FINITE",
     "CHECK_OK",
     "CHECK_PROJECTION",
@@ -388,6 +474,7 @@ __all__ = [
     "dop853_dense",
     "dop853_interpolate",
     "energy_balance",
+    "fill_stage_inputs",
     "ode_rhs",
     "rk4_segment",
     "rk4_step",

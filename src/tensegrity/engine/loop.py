@@ -629,7 +629,10 @@ def _rk4_steps(run: _Run, stepper: RK4, n: int, h: float) -> bool:
     stepper.t += steps * h
     run.steps_done += steps
     run.counts["nsteps"] += steps
-    run.counts["nprojections"] += steps - (code != compiled.CHECK_OK)
+    run.counts["nprojections"] += steps - (code not in (compiled.CHECK_OK, compiled.CHECK_INPUT))
+    if code == compiled.CHECK_INPUT:  # (the last state, projected, is recorded at the end)
+        run.status, run.message = STATUS_FAILED, stepper.input_error
+        return False
     if code != compiled.CHECK_OK:
         run.fail(code, value, stepper.t)
         run.record(stepper.t, stepper.y_end)

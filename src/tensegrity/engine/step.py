@@ -76,7 +76,19 @@ def step(model: Model, state: State, dt: float, *, project: bool = False) -> Sta
     K, stage, y_end = model.scratch
     inputs = system.stage_inputs(state.t + compiled.RK4_C * dt)
     _, code, value = compiled.rk4_segment(
-        y, dt, 1, K, stage, y_end, system.system, inputs, system.work, model.limits, np.zeros(4)
+        y,
+        state.t,
+        dt,
+        1,
+        K,
+        stage,
+        y_end,
+        system.system,
+        inputs,
+        None,
+        system.work,
+        model.limits,
+        np.zeros(4),
     )
     if code != compiled.CHECK_OK:
         raise StepError(

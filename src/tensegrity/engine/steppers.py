@@ -411,47 +411,78 @@ class RK4:
         self.t = float(t0)
         self.y = np.array(y0, dtype=float)
         self.nfev = 0
+        #: why the last :meth:`advance` stopped with ``CHECK_INPUT`` (the inputs' ValueError)
+        self.input_error = ""
 
     def advance(
         self, n_steps: int, h: float, limits: tuple, monitor: np.ndarray
     ) -> tuple[int, int, float]:
         """Up to ``n_steps`` steps of ``h`` [s] from ``t``, each checked
         (:func:`compiled.check_state`) and projected.  Returns ``(steps, check code, check
-        value)``; ``self.y_end`` is the last step's end before projection.  Inputs constant: one
-        compiled call; otherwise one per step, with the inputs at its stage times."""
+        value)``; ``self.y_end`` is the last step's end before projection.  Constant or
+        tabulated inputs: one compiled call; a Python callable among them: one per step, with
+        the inputs at its stage times.  Inputs that cannot be used (a rest length would be
+        negative) stop it before that step with ``CHECK_INPUT``, the reason in
+        :attr:`input_error`."""
         system = self.system
-        if system.inputs.constant:
-            steps, code, value = compiled.rk4_segment(
+        if system.inputs.constant or system.tables is not None:
+            return self._stretch(n_steps, h, limits, monitor)
+        steps, code, value = 0, compiled.CHECK_OK, 0.0
+        while steps < n_steps and code == compiled.CHECK_OK:
+            stages = self.t + steps * h + compiled.RK4_C * h
+            try:
+                inputs = system.stage_inputs(stages)
+            except ValueError as exc:
+                self.input_error = str(exc)
+                code, value = compiled.CHECK_INPUT, np.nan
+                break
+            one, code, value = compiled.rk4_segment(
                 self.y,
+                self.t + steps * h,
                 h,
-                n_steps,
+                1,
                 self.K,
                 self._stage,
                 self.y_end,
                 system.system,
-                system.stage_inputs(np.zeros(1)),
+                inputs,
+                None,
                 system.work,
                 limits,
                 monitor,
             )
-        else:
-            steps, code, value = 0, compiled.CHECK_OK, 0.0
-            while steps < n_steps and code == compiled.CHECK_OK:
-                one, code, value = compiled.rk4_segment(
-                    self.y,
-                    h,
-                    1,
-                    self.K,
-                    self._stage,
-                    self.y_end,
-                    system.system,
-                    system.stage_inputs(self.t + steps * h + compiled.RK4_C * h),
-                    system.work,
-                    limits,
-                    monitor,
-                )
-                steps += one
+            steps += one
         self.nfev += 4 * steps
+        return steps, code, value
+
+    def _stretch(
+        self, n_steps: int, h: float, limits: tuple, monitor: np.ndarray
+    ) -> tuple[int, int, float]:
+        """:meth:`advance` in one compiled call (the inputs constant or tabulated)."""
+        system = self.system
+        tables = system.tables
+        stages = self.t + compiled.RK4_C * h
+        steps, code, value = compiled.rk4_segment(
+            self.y,
+            self.t,
+            h,
+            n_steps,
+            self.K,
+            self._stage,
+            self.y_end,
+            system.system,
+            system.stage_inputs(stages if tables is not None else stages[:1]),
+            tables,
+            system.work,
+            limits,
+            monitor,
+        )
+        self.nfev += 4 * steps
+        if code == compiled.CHECK_INPUT:
+            try:
+                system.inputs.rest_length(self.t + steps * h + compiled.RK4_C * h)
+            except ValueError as exc:  # (it raises: the message names the tendon and time)
+                self.input_error = str(exc)
         return steps, code, value
 
     def memory(self) -> StepperMemory:

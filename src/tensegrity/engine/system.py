@@ -51,38 +51,95 @@ class CompiledSystem:
         #: scratch node arrays (3, n_slots): positions, velocities, accelerations
         self.scratch_p, self.scratch_v, self._a = (np.zeros((3, n_slots)) for _ in range(3))
         self._lengths = np.zeros(S)
-        self._constant: tuple | None = None
-        if inputs.constant:
-            self._constant = self.stage_inputs(np.zeros(1))
+        self._prepare_inputs()
 
     # ------------------------------------------------------------------ inputs
+    def _prepare_inputs(self) -> None:
+        """What :meth:`stage_inputs` reuses: the inputs tuple if every input is constant; with
+        tables (and constants, no callable) the compiled tables (:attr:`tables`)."""
+        inputs, packed = self.inputs, self.packed
+        self._constant: tuple | None = None
+        #: :func:`compiled.fill_stage_inputs`'s tables, or None (constant inputs, or a callable)
+        self.tables: tuple | None = None
+        if inputs.constant:
+            self._constant = self._numpy_inputs(np.zeros(1))
+            return
+        control, force = inputs.control, inputs.external_force
+        if control.kind == "function" or force.kind == "function":
+            return
+        no_table = (np.zeros(0), np.zeros((0, 0)), False)
+        control_table, force_table = no_table, no_table
+        if control.kind == "table":
+            table = control.value
+            control_table = (
+                np.array(table.time),
+                packed.to_kernel_order(table.values),
+                table.outside == "zero",
+            )
+        if force.kind == "table":
+            table = force.value
+            values = packed.to_slots(self._spatial(table.values)).reshape(len(table.time), -1)
+            force_table = (np.array(table.time), values, table.outside == "zero")
+        rest0 = packed.to_kernel_order(self.structure.tendon_rest_length)
+        self.tables = (*control_table, rest0, *force_table)
+
     def stage_inputs(self, times: np.ndarray) -> tuple:
-        """The compiled inputs tuple at the stage ``times`` (K,) [s] (one row if constant)."""
+        """The compiled inputs tuple at the stage ``times`` (K,) [s]: one row for a constant
+        input, K new rows for one that varies.  ``ValueError`` naming the control if a rest
+        length would be negative."""
         if self._constant is not None:
             return self._constant
+        if self.tables is not None:
+            return self._table_inputs(times)
+        return self._numpy_inputs(times)
+
+    def _table_inputs(self, times: np.ndarray) -> tuple:
+        """:meth:`stage_inputs` with tables and constants: the tables' rows made by compiled
+        code, the constants' as by NumPy."""
+        times = np.ascontiguousarray(times, dtype=float)
+        K = times.size
+        if self.inputs.control.kind == "table":
+            S = self.structure.n_tendons
+            rest, rate, has_rate = np.empty((K, S)), np.empty((K, S)), True
+        else:
+            rest, rate, has_rate = self._control_rows(times[:1])
+        if self.inputs.external_force.kind == "table":
+            force, has_external = np.empty((K, 3, self.packed.layout.n_slots)), True
+        else:
+            force, has_external = self._force_rows(times[:1])
+        if compiled.fill_stage_inputs(self.tables, times, rest, rate, force) >= 0:
+            self.inputs.rest_length(times)  # raises the ValueError naming the tendon
+        return (rest, rate, has_rate, has_external, force, *self._gravity())
+
+    def _numpy_inputs(self, times: np.ndarray) -> tuple:
+        """:meth:`stage_inputs` evaluated by NumPy and the Python callables."""
+        rest, rate, has_rate = self._control_rows(times)
+        force, has_external = self._force_rows(times)
+        return (rest, rate, has_rate, has_external, force, *self._gravity())
+
+    def _control_rows(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
+        """Rest lengths and control rates (K or 1, S) in kernel order, and whether there are
+        rates."""
         inputs, packed = self.inputs, self.packed
         rest = packed.to_kernel_order(inputs.rest_length(times))
-        rate_or_none = inputs.control.rate(times)
-        has_rate = rate_or_none is not None
-        rate = np.zeros((1, 1)) if rate_or_none is None else packed.to_kernel_order(rate_or_none)
-        force_or_none = inputs.external_force.at(times)
-        has_external = force_or_none is not None
-        if force_or_none is None:
-            force = np.zeros((1, 3, 1))
-        else:
-            force = packed.to_slots(self._spatial(force_or_none))
-        gravity_or_none = inputs.gravity
-        has_gravity = gravity_or_none is not None
-        gravity = np.zeros(3) if gravity_or_none is None else self._spatial(gravity_or_none)
-        return (
-            np.ascontiguousarray(rest),
-            np.ascontiguousarray(rate),
-            has_rate,
-            has_external,
-            np.ascontiguousarray(force),
-            has_gravity,
-            np.ascontiguousarray(gravity),
-        )
+        rate = inputs.control.rate(times)
+        if rate is None:
+            return rest, np.zeros((1, 1)), False
+        return rest, packed.to_kernel_order(rate), True
+
+    def _force_rows(self, times: np.ndarray) -> tuple[np.ndarray, bool]:
+        """External forces (K or 1, 3, n_slots), and whether there are any."""
+        force = self.inputs.external_force.at(times)
+        if force is None:
+            return np.zeros((1, 3, 1)), False
+        return self.packed.to_slots(self._spatial(force)), True
+
+    def _gravity(self) -> tuple[bool, np.ndarray]:
+        """Whether there is gravity, and its (3,) vector [m/s^2]."""
+        gravity = self.inputs.gravity
+        if gravity is None:
+            return False, np.zeros(3)
+        return True, np.ascontiguousarray(self._spatial(gravity))
 
     def _spatial(self, x: np.ndarray) -> np.ndarray:
         """Vectors (..., dim) as (..., 3)."""
@@ -94,9 +151,7 @@ class CompiledSystem:
         """Hold the control at ``u`` (S,) [m] from ``t`` [s] on (a controller's update,
         :meth:`Inputs.hold_control`): the compiled inputs follow."""
         self.inputs.hold_control(u, t)
-        self._constant = None
-        if self.inputs.constant:
-            self._constant = self.stage_inputs(np.zeros(1))
+        self._prepare_inputs()
 
     def elastic_energy(self, t: float, y: np.ndarray) -> float:
         """Elastic energy of the tendons [J] at ``y`` with the rest lengths at ``t``."""
