@@ -34,9 +34,12 @@ engine follows the trajectories of the adaptive path it replaces.
 
 from __future__ import annotations
 
+import importlib.util
+from pathlib import Path
+from types import ModuleType
+
 import numpy as np
 from numba import njit
-from scipy.integrate._ivp import dop853_coefficients as _dop853
 
 from tensegrity.physics.kernel import JIT_OPTIONS, JitOptions, copy_values, tendon_vector
 from tensegrity.physics.kernel_system import (
@@ -47,6 +50,22 @@ from tensegrity.physics.kernel_system import (
     system_rhs,
 )
 
+
+def _scipy_dop853_tableau() -> ModuleType:
+    """``scipy.integrate._ivp.dop853_coefficients``, loaded from its file alone: importing it as
+    a module imports ``scipy.integrate`` and with it ``scipy.optimize`` first, 0.15 s of every
+    run's start (measured) that a simulation does not otherwise need."""
+    scipy_spec = importlib.util.find_spec("scipy")
+    assert scipy_spec is not None and scipy_spec.origin is not None, "scipy is a dependency"
+    path = Path(scipy_spec.origin).parent / "integrate" / "_ivp" / "dop853_coefficients.py"
+    spec = importlib.util.spec_from_file_location("_scipy_dop853_coefficients", path)
+    assert spec is not None and spec.loader is not None, f"no DOP853 tableau at {path}"
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+_dop853 = _scipy_dop853_tableau()
 #: DOP853 tableau (scipy's): 12 stages, the 13th is f at the new point (first same as last),
 #: then 3 extra stages for the dense output.
 DOP853_STAGES = _dop853.N_STAGES

@@ -19,13 +19,15 @@ checkpoint must keep to continue exactly (:class:`StepperMemory`).
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import NamedTuple, Protocol
+from typing import TYPE_CHECKING, NamedTuple, Protocol
 
 import numpy as np
-from scipy import integrate
 
 from tensegrity.engine import compiled
 from tensegrity.engine.system import CompiledSystem
+
+if TYPE_CHECKING:  # (imported when used: scipy.integrate costs 0.15 s of a start, measured)
+    from scipy.integrate import OdeSolver
 
 
 class IntegrationError(RuntimeError):
@@ -305,12 +307,14 @@ class ScipyMethod:
         atol: float,
         t_end: float,
     ) -> None:
+        from scipy import integrate
+
         self.system, self.rtol, self.atol = system, rtol, atol
         self.solver_class = getattr(integrate, method)
         self.name = method
         self.provisional = False
         self._nfev_before = 0  # of earlier solvers and of tension evaluations
-        self._solver: integrate.OdeSolver = self._new_solver(t0, y0, t_end)
+        self._solver: OdeSolver = self._new_solver(t0, y0, t_end)
 
     def _rhs(self, t: float, y: np.ndarray) -> np.ndarray:
         dy = np.empty_like(y)
@@ -324,7 +328,7 @@ class ScipyMethod:
         )
         return dy
 
-    def _new_solver(self, t0: float, y0: np.ndarray, bound: float) -> integrate.OdeSolver:
+    def _new_solver(self, t0: float, y0: np.ndarray, bound: float) -> OdeSolver:
         """A solver from ``(t0, y0)`` towards ``bound``; the stepper's state set to its start."""
         solver = self.solver_class(self._rhs, t0, y0, bound, rtol=self.rtol, atol=self.atol)
         self._bound = bound
