@@ -247,3 +247,17 @@ def test_rk4_stops_where_a_control_table_makes_a_rest_length_negative():
     assert compiled_run.message == python_run.message
     assert 0.049 < compiled_run.t[-1] <= 0.05
     np.testing.assert_array_equal(compiled_run.q[-1], python_run.q[-1])
+
+
+@pytest.mark.parametrize("method", ["RK45", "Radau"])
+def test_scipy_methods_follow_the_default_method(method):
+    """The other ``scipy.integrate`` methods, stepped by scipy on the compiled right-hand side
+    (imported only when asked for), follow DOP853's trajectory to their tolerance."""
+    shell = class1_shell(3, 1)
+    kwargs = dict(initial=_perturbed(shell, 7, 0.0, 0.2), sample_dt=0.01, rtol=1e-9, atol=1e-11)
+    result = simulate(shell, (0.0, 0.1), method=method, **kwargs)
+    reference = simulate(shell, (0.0, 0.1), **kwargs)
+    assert result.status == reference.status == 0, result.message
+    assert result.settings["method"] == method
+    assert result.nswitches == reference.nswitches > 0
+    np.testing.assert_allclose(result.node_position, reference.node_position, rtol=0, atol=1e-8)
