@@ -34,7 +34,6 @@ from __future__ import annotations
 
 import io as _io
 import json
-import math
 import tomllib
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -654,7 +653,9 @@ def _dump_text(structure: Structure, kind: str, keep_joints: bool) -> str:
         f"{structure.n_tendons} tendons (strings); SI units\n"
     )
     if kind == "toml":
-        return header + dump_toml(data)
+        import tomli_w
+
+        return header + tomli_w.dumps(data)
     import yaml
 
     class _Dumper(yaml.SafeDumper):
@@ -671,62 +672,6 @@ def _dump_text(structure: Structure, kind: str, keep_joints: bool) -> str:
     _Dumper.add_representer(list, short_lists)
     _Dumper.add_representer(dict, members)
     return header + yaml.dump(data, Dumper=_Dumper, sort_keys=False, allow_unicode=True, width=120)
-
-
-def dump_toml(data: Mapping[str, Any]) -> str:
-    """TOML text of a two-level mapping of numbers, strings, lists and mappings (no dates).
-
-    A small writer for the readable form, one line per node and per member: the top-level
-    values that are not mappings come first (lists of mappings one item per line, as inline
-    tables), then each mapping as a ``[table]`` (a mapping of mappings as ``[table.sub]``).
-    Floats are written with ``repr`` (shortest round trip), strings and non-bare keys as JSON
-    strings (a subset of TOML's basic strings).  ``tomllib.loads`` reads it back equal.
-    """
-    lines, tables = [], []
-    for key, value in data.items():
-        if isinstance(value, Mapping):
-            tables.append((_toml_key(key), value))
-        elif isinstance(value, list) and value and all(isinstance(x, Mapping) for x in value):
-            lines += [f"{_toml_key(key)} = ["] + [f"    {_toml_value(x)}," for x in value] + ["]"]
-        else:
-            lines.append(f"{_toml_key(key)} = {_toml_value(value)}")
-    while tables:
-        name, table = tables.pop(0)
-        plain = {k: v for k, v in table.items() if not isinstance(v, Mapping)}
-        nested = [(f"{name}.{_toml_key(k)}", v) for k, v in table.items() if isinstance(v, Mapping)]
-        if plain or not nested:
-            lines += ["", f"[{name}]"] + [
-                f"{_toml_key(k)} = {_toml_value(v)}" for k, v in plain.items()
-            ]
-        tables[:0] = nested
-    return "\n".join(lines) + "\n"
-
-
-def _toml_key(key: Any) -> str:
-    key = str(key)
-    return (
-        key
-        if key and all(c.isascii() and (c.isalnum() or c in "_-") for c in key)
-        else json.dumps(key)
-    )
-
-
-def _toml_value(value: Any) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, int):
-        return str(value)
-    if isinstance(value, float):
-        if not math.isfinite(value):
-            raise ValueError(f"TOML: cannot write the non-finite number {value!r}")
-        return repr(value)
-    if isinstance(value, str):
-        return json.dumps(value)
-    if isinstance(value, Mapping):
-        return "{" + ", ".join(f"{_toml_key(k)} = {_toml_value(v)}" for k, v in value.items()) + "}"
-    if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(_toml_value(x) for x in value) + "]"
-    raise ValueError(f"TOML: cannot write a {type(value).__name__}")
 
 
 # ----------------------------------------------------------------------------- structures
