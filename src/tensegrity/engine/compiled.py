@@ -43,6 +43,7 @@ from numba import njit
 
 from tensegrity.physics.kernel import JIT_OPTIONS, JitOptions, copy_values, tendon_vector
 from tensegrity.physics.kernel_system import (
+    all_finite,
     system_energies,
     system_errors,
     system_nodes,
@@ -327,11 +328,27 @@ def rk4_segment(
                 return k, CHECK_INPUT, np.nan
         rk4_step(y, h, K, stage, system, inputs, work)
         copy_values(y, y_end, y.shape[0])
+        # The projection measures the errors it removes: they are the checks' (one pass less).
+        rod_error, constraint_error, ok = system_project(
+            y[:n], y[n : 2 * n], system[0][1], system[1]
+        )
+        if not all_finite(y_end[2 * n :]):
+            rod_error = np.nan
         with_energy = k == n_steps - 1 or (k + 1) % ENERGY_CHECK_EVERY == 0
-        code, value = check_state(y, step_end, system, inputs, work, limits, monitor, with_energy)
+        code, value = judge_state(
+            y_end,
+            rod_error,
+            constraint_error,
+            step_end,
+            system,
+            inputs,
+            work,
+            limits,
+            monitor,
+            with_energy,
+        )
         if code != CHECK_OK:
             return k + 1, code, value
-        _, _, ok = system_project(y[:n], y[n : 2 * n], system[0][1], system[1])
         if not ok:
             return k + 1, CHECK_PROJECTION, np.nan
     return n_steps, CHECK_OK, 0.0
@@ -367,10 +384,22 @@ def check_state(y, s, system, inputs, work, limits, monitor, with_energy):  # pr
     error, largest constraint error]``.  The energy balance may not grow by more than
     ``max_energy_growth`` times the largest energy magnitude seen so far."""
     n = (y.shape[0] - 3) // 2
-    for i in range(y.shape[0]):
-        if not np.isfinite(y[i]):
-            return CHECK_NOT_FINITE, np.nan
     rod_error, constraint_error = system_errors(y[:n], system[0][1], system[1])
+    if not all_finite(y):
+        rod_error = np.nan
+    return judge_state(
+        y, rod_error, constraint_error, s, system, inputs, work, limits, monitor, with_energy
+    )
+
+
+@njit(**JIT_OPTIONS)
+def judge_state(
+    y, rod_error, constraint_error, s, system, inputs, work, limits, monitor, with_energy
+):  # pragma: no cover - compiled
+    """:func:`check_state` from the state's errors, measured by the caller: ``rod_error`` NaN
+    if the state is not finite."""
+    if np.isnan(rod_error):
+        return CHECK_NOT_FINITE, np.nan
     monitor[2] = max(monitor[2], rod_error)
     monitor[3] = max(monitor[3], constraint_error)
     if not rod_error <= limits[0]:

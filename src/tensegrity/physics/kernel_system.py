@@ -78,6 +78,7 @@ __all__ = [
     "MAX_ITER",
     "SystemArrays",
     "SystemExtras",
+    "all_finite",
     "drop_coordinates",
     "embed_planar",
     "lift_coordinates",
@@ -712,7 +713,7 @@ def system_errors(q, rod_param, extras):  # pragma: no cover - compiled
 
 
 @njit(**JIT_OPTIONS)
-def _all_finite(x):  # pragma: no cover - compiled
+def all_finite(x):  # pragma: no cover - compiled
     for i in range(x.shape[0]):  # noqa: SIM110 - compiled code: a loop, not all() of a generator
         if not np.isfinite(x[i]):
             return False
@@ -865,7 +866,7 @@ def _project_constrained(q, qdot, rod_param, extras):  # pragma: no cover - comp
         )
     _normal_solve(q, rod_param, extras, violation, y)
     _subtract_step(qdot, q, y, rod_param, extras)
-    return _all_finite(q) and _all_finite(qdot)
+    return all_finite(q) and all_finite(qdot)
 
 
 @njit(**JIT_OPTIONS)
@@ -882,8 +883,9 @@ def system_project(q, qdot, rod_param, extras):  # pragma: no cover - compiled
     """
     if extras is None:
         error = project(q, qdot, rod_param)
-        return error, 0.0, _all_finite(q) and _all_finite(qdot)
-    finite = _all_finite(q) and _all_finite(qdot)
+        finite = all_finite(q) and all_finite(qdot)
+        return (error if finite else np.nan), 0.0, finite
+    finite = all_finite(q) and all_finite(qdot)
     if extras.constraint_rhs.shape[0] == 0:
         error = project(q, qdot, rod_param)
         return (error if finite else np.nan), 0.0, finite
