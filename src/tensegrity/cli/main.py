@@ -1,13 +1,15 @@
 """Command-line interface: ``tensegrity simulate | info | export | vtk | matrices | equilibrium
 | modes | controllability | control | sweep``.
 
-A thin layer over the library.  Errors are one line on stderr with exit code 2 (bad input) or
-1 (the simulation failed); nothing is written under a final name unless the whole run succeeded,
-and every file is written atomically.  ``simulate`` streams its samples, with checkpoints, to
+A thin layer over the library.  Every error is one line on stderr with exit code 2 (bad
+input), 1 (the computation failed, or an internal error: rerun with ``--debug`` for the trace) or
+130 (interrupted; 128 + N for SIGTERM and SIGHUP): :mod:`tensegrity.cli.errors`, the one error
+boundary.  Nothing is written under a final name unless the whole run succeeded, and every file
+is written atomically.  ``simulate`` streams its samples, with checkpoints, to
 ``OUT/.trajectory.h5.partial`` as it goes (:func:`tensegrity.io.stream.simulate_to_file`); an
-interrupted run (Ctrl-C, SIGTERM, a killed process) leaves only that file, and ``--resume``
-continues it.  The final names (``trajectory.h5``, ``structure.json``, the figures) appear
-together when the run has ended.
+interrupted run (Ctrl-C, SIGTERM, SIGHUP, a killed process) leaves only that file, and
+``--resume`` continues it.  The final names (``trajectory.h5``, ``structure.json``, the figures)
+appear together when the run has ended.
 """
 
 from __future__ import annotations
@@ -24,6 +26,17 @@ from typing import TYPE_CHECKING, NoReturn, TypeAlias
 
 import numpy as np
 
+from tensegrity.cli.errors import (
+    EXIT_FAILED,
+    CommandError,
+    blame,
+    describe,
+    interrupt_code,
+    report,
+    show_warnings,
+    signals_as_interrupts,
+    warnings_on_success,
+)
 from tensegrity.engine.options import ADAPTIVE_METHODS, FIXED_STEP_METHODS
 from tensegrity.io.files import write_staged as _write_all
 from tensegrity.model.structure import Structure
@@ -34,22 +47,14 @@ if TYPE_CHECKING:
     from tensegrity.io.stream import StreamSummary
     from tensegrity.model.loads import ForceTable
 
-EXIT_FAILED, EXIT_USAGE = 1, 2
-#: Exit code when the reader of stdout closed it early (128 + SIGPIPE, as a shell reports it).
-EXIT_BROKEN_PIPE = 141
-
-
-class CommandError(Exception):
-    """A one-line error for the user, with its exit code."""
-
-    def __init__(self, message: str, code: int = EXIT_USAGE) -> None:
-        super().__init__(message)
-        self.code = code
+#: The command's name: the ``prog`` of its parser, which the verbs' parsers extend.
+PROG = "tensegrity"
 
 
 class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> NoReturn:  # one line, not usage + error
-        raise CommandError(f"{self.prog}: {message}")
+        verb = self.prog.removeprefix(PROG).strip()  # "" for the command's own parser
+        raise CommandError(f"{verb}: {message}" if verb else message)
 
 
 #: The ``tensegrity`` parser's subcommands, to which each ``_add_*_parser`` adds its own.
@@ -80,6 +85,13 @@ def _finite(text: str) -> float:
     return value
 
 
+def _path(text: str) -> Path:
+    """A file or folder name; not empty (``Path("")`` would be the current folder)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"expected a file or folder name, got {text!r}")
+    return Path(text)
+
+
 def _damping(text: str) -> str | float:
     if text in ("none", "critical"):
         return text
@@ -97,7 +109,7 @@ def _add_structure_options(parser: argparse.ArgumentParser) -> None:
     group = parser.add_argument_group("structure (default: the paper's (3,1) class 1 shell)")
     group.add_argument(
         "--structure",
-        type=Path,
+        type=_path,
         metavar="FILE",
         help="a structure file (.json, .yaml, .toml or connectivity .npz) "
         "instead of a generated one",
@@ -169,52 +181,99 @@ def _add_gravity_option(parser: argparse.ArgumentParser) -> None:
 
 def _structure(args: argparse.Namespace) -> Structure:
     """The structure the options describe (a file, or a generated structure)."""
-    given = {
+    flags = {
         name: getattr(args, name)
         for name in _SHELL_OPTIONS
         if getattr(args, name) is not None and getattr(args, name) is not False
     }
-    flags = [f"--{name.replace('_', '-')}" for name in given]
     if getattr(args, "structure", None) is not None:
-        flags += ["--kind"] * (args.kind is not None) + ["--set"] * bool(args.set)
-        if flags:
+        given = [
+            *map(_flag, flags),
+            *["--kind"] * (args.kind is not None),
+            *["--set"] * bool(args.set),
+        ]
+        if given:
             raise CommandError(
-                f"{' '.join(flags)}: generator options cannot be combined with --structure"
+                f"{' '.join(given)}: generator options cannot be combined with --structure"
             )
-        from tensegrity.io.formats import read_network
+        return _read_structure(args.structure, "--structure")
+    return _generated(args.kind or "shell", flags, args.set or ())
 
-        return read_network(args.structure)
+
+def _flag(name: str) -> str:
+    """The option of a generator's keyword: ``rest_length`` -> ``--rest-length``."""
+    return f"--{name.replace('_', '-')}"
+
+
+def _read_structure(path: Path, option: str) -> Structure:
+    """The structure file ``path``; an error names ``option`` and the file."""
+    from tensegrity.io.formats import read_network
+
+    with blame(option, path):
+        return read_network(path)
+
+
+def _generated(
+    kind: str, flags: dict[str, object], assignments: Sequence[tuple[str, object]]
+) -> Structure:
+    """The structure ``--kind`` generates with the options ``flags`` (``--n``, ...) and
+    ``assignments`` (``--set NAME=VALUE``), each given once; an error names them."""
     from tensegrity.design import catalogue as generators
 
-    kind = args.kind or "shell"
     valid = generators.options(kind)
-    for name in given:
+    for name in flags:
         if name not in valid:
             raise CommandError(
-                f"--{name.replace('_', '-')}: not an option of --kind {kind} "
-                f"(its options: {', '.join(valid)})"
+                f"{_flag(name)}: not an option of --kind {kind} (its options: {', '.join(valid)})"
             )
-    for name, value in args.set or ():
+    options = dict(flags)
+    for name, value in assignments:
         if name not in valid:
             raise CommandError(
                 f"--set {name}: not an option of --kind {kind} (its options: {', '.join(valid)})"
             )
-        given[name] = value
-    try:
-        return generators.generate(kind, **given)
-    except TypeError as exc:  # a value of the wrong type that slipped past the generator's checks
-        raise CommandError(f"--kind {kind}: {exc}") from exc
+        if name in options:
+            twice = f"by {_flag(name)} too" if name in flags else "twice"
+            raise CommandError(f"--set {name}={value}: {name} is given {twice}; give it once")
+        options[name] = value
+    source = " ".join(
+        [
+            f"--kind {kind}",
+            *(
+                _flag(name) if value is True else f"{_flag(name)} {value}"
+                for name, value in flags.items()
+            ),
+            *(f"--set {name}={value}" for name, value in assignments),
+        ]
+    )
+    with blame(source):
+        return generators.generate(kind, **options)
 
 
 def _apply_damping(structure: Structure, damping: str | float | None) -> Structure:
     if damping is None:
         return structure
     if damping == "critical":
-        return dynamics.critical_damping(structure)
+        return _critically_damped(structure)
     tendon = 0.0 if damping == "none" else float(damping)
     return structure.replace(
         tendon_damping=np.full(structure.n_tendons, tendon), rod_damping=np.zeros(structure.n_rods)
     )
+
+
+def _critically_damped(structure: Structure) -> Structure:
+    """:func:`~tensegrity.physics.dynamics.critical_damping`; an error names ``--damping``."""
+    try:
+        with np.errstate(over="raise"):
+            return dynamics.critical_damping(structure)
+    except FloatingPointError:
+        raise CommandError(
+            "--damping critical: overflows for tendon stiffness up to "
+            f"{structure.tendon_stiffness.max():g} N/m and rod mass up to "
+            f"{structure.rod_mass.max():g} kg: lower them or give --damping VALUE"
+        ) from None
+    except ValueError as exc:
+        raise CommandError(f"--damping critical: {describe(exc)}") from exc
 
 
 # ------------------------------------------------------------------------------ commands
@@ -225,38 +284,31 @@ WORK_FILE = ".trajectory.h5"
 #: The tendon-length figure reads at most this many samples of a run (and its last); the other
 #: figures and the printed summary its first and last.
 FIGURE_SAMPLES = 1000
+#: Most samples one run may have (``--t-end / --sample-dt``): over a terabyte of samples of the
+#: paper's (3,1) shell (about 200 numbers each), 10^5 times the default run's 6000; far beyond, a
+#: run's bookkeeping arrays (segment bounds, sample times) alone outgrow memory.
+MAX_SAMPLES = 10**9
 #: ``simulate`` checkpoints a run at least this many times (segments of at most this fraction of
 #: it), and at least every 1000 samples (or about 64 MiB of samples: the default of
 #: :func:`tensegrity.io.stream.simulate_to_file`).
 MIN_SEGMENTS = 10
 
 
-class _Interrupted(KeyboardInterrupt):
-    """A termination signal (SIGTERM) turned into an exception, so that clean-ups run."""
-
-    def __init__(self, signum: int) -> None:
-        super().__init__(signum)
-        self.signum = signum
-
-
-@contextlib.contextmanager
-def _terminate_as_interrupt():
-    """Within the block, SIGTERM raises :class:`_Interrupted` (as Ctrl-C raises
-    KeyboardInterrupt)."""
-    import signal
-
-    def handler(signum, frame):
-        raise _Interrupted(signum)
-
-    try:
-        previous = signal.signal(signal.SIGTERM, handler)
-    except ValueError:  # not the main thread: leave signals alone
-        yield
-        return
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
+def _check_samples(
+    t_end: float,
+    sample_dt: float,
+    names: tuple[str, str] = ("--t-end", "--sample-dt"),
+    where: str = "",
+) -> None:
+    """Fail up front if a run of ``t_end`` sampled every ``sample_dt`` has more than
+    :data:`MAX_SAMPLES` samples; the error names them ``names`` (in ``where``, e.g. a file)."""
+    samples = t_end / sample_dt
+    if not samples <= MAX_SAMPLES:  # inf too
+        t_name, dt_name = names
+        raise CommandError(
+            f"{where}{t_name}: {t_end:g} s at {dt_name} {sample_dt:g} s is {samples:.3g} samples; "
+            f"expected at most {MAX_SAMPLES:.0e} (a shorter {t_name} or a larger {dt_name})"
+        )
 
 
 def _segment(structure: Structure, t_end: float, sample_dt: float) -> float:
@@ -289,7 +341,8 @@ def _simulation_inputs(
     if args.force_table is not None:
         from tensegrity.io.tables import read_force_table
 
-        force = read_force_table(args.force_table)
+        with blame("--force-table", args.force_table):
+            force = read_force_table(args.force_table)
         if force.n_nodes != structure.n_nodes:
             raise CommandError(
                 f"--force-table: {args.force_table} has forces for {force.n_nodes} "
@@ -342,7 +395,7 @@ class _RunFiles:
 
     def interrupted(self, exc: KeyboardInterrupt) -> int:
         """Report an interrupted run (what it left, if anything); its exit code."""
-        code = 128 + exc.signum if isinstance(exc, _Interrupted) else 130
+        code = interrupt_code(exc)
         kept = next((p for p in (self.partial, self.work) if p.exists()), None)
         if kept is None:
             _remove_empty(self.created)
@@ -445,13 +498,13 @@ def _write_run(
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
     _check_output_folder(args.out, "--out")
+    _check_samples(args.t_end, args.sample_dt)
     structure, force, gravity = _simulation_inputs(args)
     files = _RunFiles.prepare(args.out, args.resume)
     try:
-        with _terminate_as_interrupt():
-            summary = _stream_run(args, structure, force, gravity, files)
-            trajectory, balance, written = _write_run(args, structure, summary, files)
-    except KeyboardInterrupt as exc:
+        summary = _stream_run(args, structure, force, gravity, files)
+        trajectory, balance, written = _write_run(args, structure, summary, files)
+    except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM/SIGHUP (signals_as_interrupts)
         return files.interrupted(exc)
     _print_summary(
         trajectory,
@@ -649,9 +702,9 @@ def _cmd_vtk(args: argparse.Namespace) -> int:
     from tensegrity.io.vtk import write_vtk
 
     _check_output_folder(args.output, "--output")
-    written = write_vtk(
-        args.output, read_trajectory(args.trajectory), every=args.every, name=args.name
-    )
+    with blame("vtk", args.trajectory):
+        trajectory = read_trajectory(args.trajectory)
+    written = write_vtk(args.output, trajectory, every=args.every, name=args.name)
     print(f"wrote {len(written) - 1} VTK files and {written[-1]} (open it in ParaView)")
     return 0
 
@@ -663,6 +716,7 @@ def _cmd_matrices(args: argparse.Namespace) -> int:
 
     _check_output_folder(args.out, "--out")
     structure = undamped(_structure(args))
+    _check_matrix_size(structure)
     if args.at == "equilibrium":
         # Tight rest tolerances: with the damping removed, K_p q = q'' is then below ~1e-8.
         result = simulate(
@@ -697,6 +751,21 @@ def _cmd_matrices(args: argparse.Namespace) -> int:
         print(f"{name:<{width}}  {n_rows:>6} x {n_cols:<6}  {nnz}")
     print(f"evaluated at the {args.at} state; wrote {len(written)} files to {args.out}")
     return 0
+
+
+#: ``matrices`` builds dense (nodes x nodes) arrays: at most this many nodes (0.5 GiB each).
+_MATRICES_NODE_LIMIT = 8192
+
+
+def _check_matrix_size(structure: Structure) -> None:
+    """Fail up front if the matrix model of ``structure`` would need too large dense arrays."""
+    n = structure.n_nodes
+    if n > _MATRICES_NODE_LIMIT:
+        raise CommandError(
+            f"matrices: the matrix model of {n} nodes builds dense {n} x {n} arrays "
+            f"({n * n * 8 / 2**30:.3g} GiB each); expected at most {_MATRICES_NODE_LIMIT} nodes "
+            "(a smaller shell)"
+        )
 
 
 def _cmd_analysis(args: argparse.Namespace) -> int:
@@ -753,7 +822,7 @@ def _add_analysis_parsers(sub: _Commands) -> None:
         )
         _add_structure_options(p)
         p.add_argument(
-            "--out", type=Path, default=Path(verb), help=f"output folder (default ./{verb})"
+            "--out", type=_path, default=Path(verb), help=f"output folder (default ./{verb})"
         )
         p.set_defaults(run=_cmd_analysis)
     for verb in ("equilibrium", "modes", "controllability"):  # shape control: without gravity
@@ -942,15 +1011,19 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
             raise CommandError(
                 "--spec: cannot be combined with --param, --structure or run options"
             )
-        spec = SweepSpec.from_file(args.spec)
+        with blame("--spec", args.spec):
+            spec = SweepSpec.from_file(args.spec)
+        _check_samples(spec.t_end, spec.sample_dt, ("t_end", "sample_dt"), f"--spec: {args.spec}: ")
     elif not args.param:
         raise CommandError("sweep: give --spec FILE or at least one --param NAME=VALUES")
     else:
+        defaults = {field.name: field.default for field in dataclasses.fields(SweepSpec)}
+        _check_samples(
+            options.get("t_end", defaults["t_end"]), options.get("sample_dt", defaults["sample_dt"])
+        )
         mode = "monte-carlo" if args.samples is not None else "grid"
         if args.structure is not None:
-            from tensegrity.io.formats import read_network
-
-            options["structure"] = read_network(args.structure)
+            options["structure"] = _read_structure(args.structure, "--structure")
         spec = SweepSpec(dict(args.param), mode=mode, **options)
     result = run_sweep(
         spec, scheduler=args.scheduler, n_workers=args.workers, progress=sys.stderr.isatty()
@@ -990,7 +1063,7 @@ def _add_simulate_parser(sub: _Commands) -> None:
         help="run to --t-end even after the structure has come to rest",
     )
     sim.add_argument(
-        "--out", type=Path, default=Path("results"), help="output folder (default ./results)"
+        "--out", type=_path, default=Path("results"), help="output folder (default ./results)"
     )
     sim.add_argument(
         "--resume",
@@ -1000,7 +1073,7 @@ def _add_simulate_parser(sub: _Commands) -> None:
     )
     sim.add_argument(
         "--force-table",
-        type=Path,
+        type=_path,
         metavar="FILE.npz|FILE.csv",
         help="external nodal forces [N] from a time table, linear in between, held "
         "after its end (.npz: time (T,), force (T, N, 3); .csv: rows t, f0x, "
@@ -1068,7 +1141,7 @@ def _add_export_parser(sub: _Commands) -> None:
         "joints (reads back identical) instead of merging joined nodes into "
         "nodes shared by bars (class k, the default)",
     )
-    export.add_argument("-o", "--output", type=Path, required=True, help="output file")
+    export.add_argument("-o", "--output", type=_path, required=True, help="output file")
     export.set_defaults(run=_cmd_export)
 
 
@@ -1080,8 +1153,8 @@ def _add_vtk_parser(sub: _Commands) -> None:
         description="Write a trajectory (trajectory.h5) as one VTK PolyData file "
         "per sample (.vtp) and a collection (.pvd) for ParaView.",
     )
-    vtk.add_argument("trajectory", type=Path, help="a trajectory.h5 written by simulate")
-    vtk.add_argument("-o", "--output", type=Path, required=True, help="output folder")
+    vtk.add_argument("trajectory", type=_path, help="a trajectory.h5 written by simulate")
+    vtk.add_argument("-o", "--output", type=_path, required=True, help="output folder")
     vtk.add_argument("--every", type=int, default=1, help="keep one sample in EVERY (default 1)")
     vtk.add_argument("--name", default="tensegrity", help="file name stem (default tensegrity)")
     vtk.set_defaults(run=_cmd_vtk)
@@ -1110,7 +1183,7 @@ def _add_matrices_parser(sub: _Commands) -> None:
         help="longest damped simulation when looking for the equilibrium [s]",
     )
     matrices.add_argument(
-        "--out", type=Path, default=Path("matrices"), help="output folder (default ./matrices)"
+        "--out", type=_path, default=Path("matrices"), help="output folder (default ./matrices)"
     )
     matrices.set_defaults(run=_cmd_matrices)
 
@@ -1124,10 +1197,10 @@ def _add_sweep_parser(sub: _Commands) -> None:
         description="Run a parameter sweep on Dask and write one netCDF/HDF5 dataset; exit code 1 "
         "if some case failed (reported per case, the others are kept).",
     )
-    sweep.add_argument("--spec", type=Path, metavar="FILE", help="sweep spec (.json or .yaml)")
+    sweep.add_argument("--spec", type=_path, metavar="FILE", help="sweep spec (.json or .yaml)")
     sweep.add_argument(
         "--structure",
-        type=Path,
+        type=_path,
         metavar="FILE",
         help="sweep this structure file (any format) instead of the class 1 shell: "
         "then stiffness, rest_scale, damping and load can vary",
@@ -1155,13 +1228,14 @@ def _add_sweep_parser(sub: _Commands) -> None:
         "--scheduler", metavar="ADDRESS", help="Dask scheduler address (default: a local cluster)"
     )
     sweep.add_argument("--workers", type=int, help="local cluster workers (default: CPU count)")
-    sweep.add_argument("-o", "--output", type=Path, required=True, help="output .nc file")
+    sweep.add_argument("-o", "--output", type=_path, required=True, help="output .nc file")
     sweep.set_defaults(run=_cmd_sweep)
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The parser of the ``tensegrity`` command: one subcommand per verb."""
-    parser = _Parser(prog="tensegrity", description=__doc__.splitlines()[0])
+    """The parser of the ``tensegrity`` command: one subcommand per verb, and ``--debug``."""
+    parser = _Parser(prog=PROG, description=__doc__.splitlines()[0])
+    _add_debug_option(parser, default=False)
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     _add_simulate_parser(sub)
     _add_info_parser(sub)
@@ -1170,28 +1244,53 @@ def build_parser() -> argparse.ArgumentParser:
     _add_matrices_parser(sub)
     _add_analysis_parsers(sub)
     _add_sweep_parser(sub)
+    for verb in sub.choices.values():  # after the verb too; not given there: the command's value
+        _add_debug_option(verb, default=argparse.SUPPRESS)
     return parser
 
 
+def _add_debug_option(parser: argparse.ArgumentParser, default: object) -> None:
+    parser.add_argument(
+        "--debug",
+        action="store_true",
+        default=default,
+        help="on an error, print the traceback before the one-line message; show warnings "
+        "as they come",
+    )
+
+
+def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
+    """The options of ``argv``; an unknown option fails in one line naming the verb."""
+    args, unknown = build_parser().parse_known_args(argv)
+    if unknown:
+        raise CommandError(
+            f"{args.command}: unrecognized arguments: {' '.join(unknown)} "
+            f"(see {PROG} {args.command} --help)"
+        )
+    return args
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``tensegrity`` command; returns the exit code."""
+    """Entry point of the ``tensegrity`` command; returns the exit code.
+
+    The one error boundary (:mod:`tensegrity.cli.errors`): whatever a verb raises ends as one
+    line on stderr and exit code 2 (bad input), 1 (the computation failed, or an internal error)
+    or 130 (interrupted; 128 + N for SIGTERM and SIGHUP).  Warnings are shown only after a
+    verb that succeeded.  ``--debug`` prints the traceback before the line and shows warnings
+    as they come.
+    """
     try:
-        args = build_parser().parse_args(argv)
-        code = args.run(args)
-        sys.stdout.flush()  # a reader that went away shows here, not at the interpreter's exit
-        return code
+        args = _parse(argv)
     except CommandError as exc:
-        print(f"tensegrity: error: {exc}", file=sys.stderr)
-        return exc.code
-    except BrokenPipeError:
-        # The reader of the output went away (``tensegrity modes | head``): stop quietly, with
-        # stdout pointed at /dev/null so that Python's flush at exit does not fail again.
-        with contextlib.suppress(OSError, ValueError, AttributeError):
-            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        return EXIT_BROKEN_PIPE
-    except (ValueError, OSError, KeyError) as exc:
-        print(f"tensegrity: error: {exc}", file=sys.stderr)
-        return EXIT_USAGE
-    except KeyboardInterrupt:
-        print("tensegrity: interrupted (nothing written)", file=sys.stderr)
-        return 130
+        return report(exc, debug=False)
+    try:
+        with signals_as_interrupts(), warnings_on_success(show_now=args.debug) as caught:
+            code = args.run(args)
+            sys.stdout.flush()  # a reader that went away shows here, not at the interpreter's exit
+    except SystemExit:
+        raise
+    except BaseException as exc:  # noqa: BLE001 - the boundary: every error becomes one line
+        return report(exc, debug=args.debug)
+    if code == 0:
+        show_warnings(caught)
+    return code
