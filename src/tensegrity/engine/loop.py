@@ -549,6 +549,14 @@ def _adaptive(run: _Run, stepper: Stepper, resume: LoopState | None, wall0: floa
             stepper.restart(stepper.y)
             if locate:
                 taut = _taut(stepper, landed)
+        if stepper.t < run.t_end and run.counts["nsteps"] >= o.max_steps:
+            run.status = STATUS_FAILED
+            run.message = (
+                f"stopped after max_steps = {o.max_steps:,} steps at t = {stepper.t:.6g} s of "
+                f"{run.t_end:g} s: the steps became tiny (a stiff or unstable structure?); "
+                "raise max_steps, loosen rtol and atol, or try method='Radau'"
+            )
+            return
         if stepper.t < run.t_end and run.checkpoint_due():
             run.save(stepper.t, stepper.y, stepper, taut, landing, allow_provisional, wall0)
 
@@ -676,6 +684,7 @@ def run(
         raise ValueError("control: give a control or a controller, not both")
     if checkpoint is not None and not (isinstance(checkpoint.every, int) and checkpoint.every > 0):
         raise ValueError(f"checkpoint.every: must be a whole number > 0, got {checkpoint.every!r}")
+    options.check_span(t0, t_end)
     inputs.rest_length(np.array([t0]))  # a control making a rest length negative fails here
     wall0 = time.perf_counter()
     r = _Run(structure, t0, t_end, inputs, options, sink, controller, checkpoint, progress)

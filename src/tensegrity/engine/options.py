@@ -14,6 +14,17 @@ COMPILED_ADAPTIVE_METHODS = ("DOP853",)
 SCIPY_METHODS = ("RK45", "RK23", "Radau", "BDF", "LSODA")
 ADAPTIVE_METHODS = COMPILED_ADAPTIVE_METHODS + SCIPY_METHODS
 FIXED_STEP_METHODS = ("rk4",)
+#: :attr:`Options.max_steps` by default: far beyond a structure settling (a (10,10) shell: 4,049
+#: DOP853 steps over 60 s) or a long fixed-step run (1000 s at 1e-4 s), it bounds the grind of a
+#: stiff or unstable adaptive run (minutes at (3,1), about 30 us a step).
+DEFAULT_MAX_STEPS = 10_000_000
+#: :attr:`Options.max_samples` by default (a (10,10) shell's sample holds 51 kB).
+DEFAULT_MAX_SAMPLES = 10_000_000
+
+
+def _count(n: int) -> str:
+    """A count for a message: ``1,000``, or ``6e+10`` when too long to read."""
+    return f"{n:,}" if n < 10**12 else f"{n:.3g}"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -39,6 +50,11 @@ class Options:
         ``max_rod_length_error`` (joints and supports: that times the longest rod, at least 1
         m), or the energy balance has grown by more than ``max_energy_growth`` times the largest
         energy magnitude seen.
+    max_steps : the most steps a run may take.  ``"rk4"``: a run that would take more is refused
+        before it starts; an adaptive run that has taken this many steps without reaching its
+        end stops (status -1): its steps have become tiny (a stiff or unstable structure).
+    max_samples : the most samples a run may make (each holds the whole state: memory, or
+        disk for a streamed run); a run that would make more is refused before it starts.
     """
 
     method: str = "DOP853"
@@ -53,6 +69,8 @@ class Options:
     projection_tol: float = 1e-12
     max_rod_length_error: float = 1e-3
     max_energy_growth: float = 0.1
+    max_steps: int = DEFAULT_MAX_STEPS
+    max_samples: int = DEFAULT_MAX_SAMPLES
 
     def __post_init__(self) -> None:
         if self.method not in ADAPTIVE_METHODS + FIXED_STEP_METHODS:
@@ -80,6 +98,35 @@ class Options:
             value = getattr(self, field)
             if not (isinstance(value, (int, float)) and value > 0):
                 raise ValueError(f"{field}: must be > 0, got {value!r}")
+        for field in ("max_steps", "max_samples"):
+            value = getattr(self, field)
+            if not (isinstance(value, int) and not isinstance(value, bool) and value > 0):
+                raise ValueError(f"{field}: must be a whole number > 0, got {value!r}")
+
+    def check_span(self, t0: float, t_end: float) -> None:
+        """``ValueError`` if a run over ``(t0, t_end)`` [s] would take more than ``max_steps``
+        fixed steps, or a step ``dt`` too small to advance the time, or make more than
+        ``max_samples`` samples: before any work, each naming the option to change."""
+        span = t_end - t0
+        if self.dt is not None and self.fixed_step:
+            if t_end + self.dt == t_end or t0 + self.dt == t0:
+                raise ValueError(
+                    f"dt: {self.dt:g} s does not advance the time (at t = {t_end:g} s a step "
+                    "must be at least its rounding); use a larger dt"
+                )
+            steps = math.ceil(span / self.dt - 1e-9)
+            if steps > self.max_steps:
+                raise ValueError(
+                    f"dt: {self.dt:g} s over {span:g} s is {_count(steps)} steps, more than "
+                    f"max_steps = {self.max_steps:,}; use a larger dt, or raise max_steps"
+                )
+        samples = math.floor(span / self.sample_spacing(t0, t_end) + 1e-9) + 1
+        if samples > self.max_samples:
+            raise ValueError(
+                f"sample_dt: {self.sample_spacing(t0, t_end):g} s over {span:g} s is "
+                f"{_count(samples)} samples, more than max_samples = {self.max_samples:,}; use a "
+                "larger sample_dt, or raise max_samples"
+            )
 
     @property
     def fixed_step(self) -> bool:

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from tensegrity.engine.inputs import Inputs
-from tensegrity.engine.options import Options
+from tensegrity.engine.options import DEFAULT_MAX_SAMPLES, DEFAULT_MAX_STEPS, Options
 from tensegrity.engine.result import (
     STATUS_END,
     STATUS_FAILED,
@@ -65,6 +65,8 @@ def simulate(
     projection_tol: float = 1e-12,
     max_rod_length_error: float = 1e-3,
     max_energy_growth: float = 0.1,
+    max_steps: int = DEFAULT_MAX_STEPS,
+    max_samples: int = DEFAULT_MAX_SAMPLES,
     progress: bool = False,
 ) -> SimulationResult:
     """Simulate ``structure`` over ``t_span = (t0, t_end)`` [s] (Theorem 18.1, eqs. 18.39-18.60).
@@ -105,6 +107,11 @@ def simulate(
         Blow-up detection: the run fails if, at the end of a step, the state is not finite, a
         relative rod-length error exceeds ``max_rod_length_error``, or the energy balance has grown
         by more than ``max_energy_growth`` times its scale.
+    max_steps, max_samples : int
+        Limits checked before work: a run that would take more than ``max_steps`` fixed steps
+        (``"rk4"``) or make more than ``max_samples`` samples is refused (``ValueError`` naming
+        the option); an adaptive run stops (status -1) once it has taken ``max_steps`` steps
+        short of its end (defaults 10,000,000 each).
 
     Returns
     -------
@@ -128,6 +135,8 @@ def simulate(
         projection_tol=projection_tol,
         max_rod_length_error=max_rod_length_error,
         max_energy_growth=max_energy_growth,
+        max_steps=max_steps,
+        max_samples=max_samples,
     )
     from tensegrity.engine.loop import run  # compiled code: numba loads on first use
 

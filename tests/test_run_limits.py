@@ -1,0 +1,92 @@
+"""Limits checked before work (issue "Reliability and security"): a run whose fixed steps cannot
+advance the time, would take more than ``max_steps`` steps or make more than ``max_samples``
+samples is refused at once with a one-line ``ValueError`` naming the option to change; an
+adaptive run whose steps became tiny stops after ``max_steps`` steps (status -1) instead of
+grinding on."""
+
+from __future__ import annotations
+
+import resource
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from tensegrity import class1_shell, simulate
+from tensegrity.cli.main import main
+
+#: Address space of a child process [bytes]: numba and its compiled code fit in well under this.
+_MEMORY_CAP = 6 * 2**30
+
+
+@pytest.mark.parametrize(
+    ("options", "words"),
+    [
+        (dict(method="rk4", dt=1e-300), "dt: 1e-300 s does not advance the time"),
+        (
+            dict(method="rk4", dt=1e-9),
+            "dt: 1e-09 s over 60 s is 60,000,000,000 steps, more than max_steps = 10,000,000;",
+        ),
+        (dict(sample_dt=1e-300), "sample_dt: 1e-300 s over 60 s is 6e+301 samples, more than"),
+        (dict(max_steps=0), "max_steps: must be a whole number > 0, got 0"),
+        (dict(max_samples=2.5), "max_samples: must be a whole number > 0, got 2.5"),
+        (dict(max_steps=True), "max_steps: must be a whole number > 0, got True"),
+    ],
+)
+def test_impossible_runs_are_refused_before_any_work(options, words):
+    """In a child process under a time and memory cap: without the checks these runs loop
+    forever or grow memory until killed, which must fail the test, not hang the machine."""
+    script = (
+        "from tensegrity import class1_shell, simulate\n"
+        "try:\n"
+        f"    simulate(class1_shell(3, 1), (0.0, 60.0), **{options!r})\n"
+        "except ValueError as exc:\n"
+        "    print(exc)\n"
+    )
+    child = subprocess.run(
+        [sys.executable, "-c", script],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        preexec_fn=lambda: resource.setrlimit(resource.RLIMIT_AS, (_MEMORY_CAP, _MEMORY_CAP)),
+    )
+    assert child.returncode == 0, child.stderr[-2000:]
+    message = child.stdout.strip()
+    assert message.startswith(words) and "\n" not in message
+
+
+def test_the_limits_are_exact_and_can_be_raised():
+    """1000 steps of 1 ms over 1 s need ``max_steps >= 1000``; 11 samples ``max_samples >= 11``."""
+    shell = class1_shell(3, 1)
+    kwargs = dict(method="rk4", dt=1e-3, sample_dt=0.1)
+    with pytest.raises(
+        ValueError, match=r"^dt: 0.001 s over 1 s is 1,000 steps, more than max_steps = 999;"
+    ):
+        simulate(shell, (0.0, 1.0), max_steps=999, **kwargs)
+    with pytest.raises(
+        ValueError, match=r"^sample_dt: 0.1 s over 1 s is 11 samples, more than max_samples = 10;"
+    ):
+        simulate(shell, (0.0, 1.0), max_samples=10, **kwargs)
+    result = simulate(shell, (0.0, 1.0), max_steps=1000, max_samples=11, **kwargs)
+    assert result.status == 0 and result.nsteps == 1000 and result.t.size == 11
+
+
+def test_a_stiff_adaptive_run_stops_at_its_step_budget():
+    """Tendons a million times stiffer: DOP853's steps shrink to ~1e-8 s; the run stops after
+    ``max_steps`` checked steps with a message saying what to change, its samples kept."""
+    stiff = class1_shell(3, 1, stiffness=1e12)
+    result = simulate(stiff, (0.0, 1.0), max_steps=2000, sample_dt=1e-5)
+    assert result.status == -1 and result.nsteps == 2000
+    assert result.message.startswith("stopped after max_steps = 2,000 steps at t = ")
+    assert "raise max_steps" in result.message
+    assert 0 < result.t[-1] < 1e-3 and np.all(np.isfinite(result.q))
+    assert simulate(stiff, (0.0, 1e-5), max_steps=2000).status == 0  # a short span: within it
+
+
+def test_cli_refuses_a_step_that_cannot_advance_in_one_line(tmp_path, capsys):
+    out = tmp_path / "out"
+    code = main(["simulate", "--method", "rk4", "--dt", "1e-300", "--out", str(out)])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1 and "does not advance the time" in err
+    assert not out.exists() or not any(out.iterdir())
