@@ -37,7 +37,7 @@ from tensegrity.cli.errors import (
     signals_as_interrupts,
     warnings_on_success,
 )
-from tensegrity.engine.options import ADAPTIVE_METHODS, FIXED_STEP_METHODS
+from tensegrity.engine.options import ADAPTIVE_METHODS, DEFAULT_MAX_SAMPLES, FIXED_STEP_METHODS
 from tensegrity.io.files import write_staged as _write_all
 from tensegrity.model.structure import Structure
 from tensegrity.physics import dynamics
@@ -284,10 +284,6 @@ WORK_FILE = ".trajectory.h5"
 #: The tendon-length figure reads at most this many samples of a run (and its last); the other
 #: figures and the printed summary its first and last.
 FIGURE_SAMPLES = 1000
-#: Most samples one run may have (``--t-end / --sample-dt``): over a terabyte of samples of the
-#: paper's (3,1) shell (about 200 numbers each), 10^5 times the default run's 6000; far beyond, a
-#: run's bookkeeping arrays (segment bounds, sample times) alone outgrow memory.
-MAX_SAMPLES = 10**9
 #: ``simulate`` checkpoints a run at least this many times (segments of at most this fraction of
 #: it), and at least every 1000 samples (or about 64 MiB of samples: the default of
 #: :func:`tensegrity.io.stream.simulate_to_file`).
@@ -300,14 +296,17 @@ def _check_samples(
     names: tuple[str, str] = ("--t-end", "--sample-dt"),
     where: str = "",
 ) -> None:
-    """Fail up front if a run of ``t_end`` sampled every ``sample_dt`` has more than
-    :data:`MAX_SAMPLES` samples; the error names them ``names`` (in ``where``, e.g. a file)."""
-    samples = t_end / sample_dt
-    if not samples <= MAX_SAMPLES:  # inf too
+    """Fail up front, before any work, if a run of ``t_end`` sampled every ``sample_dt`` has
+    more samples than the engine's limit (``max_samples`` of :func:`tensegrity.simulate`); the
+    error names them ``names`` (in ``where``, e.g. a file).  Far beyond the limit, the run's
+    bookkeeping (segment bounds, sample times) would overflow or outgrow memory."""
+    samples = t_end / sample_dt + 1
+    if not samples <= DEFAULT_MAX_SAMPLES:  # inf too
         t_name, dt_name = names
         raise CommandError(
-            f"{where}{t_name}: {t_end:g} s at {dt_name} {sample_dt:g} s is {samples:.3g} samples; "
-            f"expected at most {MAX_SAMPLES:.0e} (a shorter {t_name} or a larger {dt_name})"
+            f"{where}{t_name}: {t_end:g} s at {dt_name} {sample_dt:g} s is {samples:,.0f} "
+            f"samples, more than {DEFAULT_MAX_SAMPLES:,}; use a shorter {t_name} or a larger "
+            f"{dt_name}"
         )
 
 
