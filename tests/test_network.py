@@ -113,7 +113,7 @@ def test_readable_form_is_readable_and_uses_defaults(tmp_path):
     assert "- {name: t1_1_1, nodes: [n4, n1]}\n" in text
     assert yaml.safe_load(text) == data
     toml_text = (tmp_path / "s.toml").read_text()
-    assert '    {name = "t1_1_1", nodes = ["n4", "n1"]},\n' in toml_text
+    assert '[[tendons]]\nname = "t1_1_1"\nnodes = [\n    "n4",\n    "n1",\n]\n' in toml_text
     assert tomllib.loads(toml_text) == data
 
 
