@@ -1,6 +1,9 @@
 """The I/O layer: files in and out, all written atomically, all read with one-line errors.
 
-- :mod:`~tensegrity.io.files` — atomic writes, staged sets of outputs, file errors;
+- :mod:`~tensegrity.io.files` — atomic writes, staged sets of outputs, file errors, input files
+  read within limits;
+- :mod:`~tensegrity.io.checked` — HDF5 datasets and attributes and ``.npz`` arrays checked
+  against the documented layout and the limits before they are read (untrusted files);
 - :mod:`~tensegrity.io.formats` — structure files (JSON, YAML, TOML, connectivity ``.npz``,
   MJCF ``.xml``);
 - :mod:`~tensegrity.io.trajectory` — the trajectory HDF5 file (its layout is defined there);

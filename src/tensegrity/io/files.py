@@ -1,6 +1,20 @@
 """Files written all at once: :func:`atomic_path` (a temporary file in the target's directory
 that replaces the target only when complete), :func:`write_staged` (a set of outputs that
-appear together), and the one-line file errors every reader raises (:func:`file_error`)."""
+appear together), the one-line file errors every reader raises (:func:`file_error`), and input
+files read within limits (:func:`read_input`, :func:`regular_file`, :func:`byte_limit`).
+
+Limits on input files (docs/reliability.md), each raised by an environment variable holding a
+number of bytes:
+
+=================================  =======  =================================================
+variable                           default  what it bounds
+=================================  =======  =================================================
+``TENSEGRITY_MAX_INPUT_BYTES``     1 GiB    a file read whole (structure files, force tables)
+``TENSEGRITY_MAX_ARRAY_BYTES``     4 GiB    the array data one read takes from a file (HDF5
+                                            datasets, ``.npz`` arrays), checked against the
+                                            shapes in the file's headers before reading
+=================================  =======  =================================================
+"""
 
 from __future__ import annotations
 
@@ -10,6 +24,7 @@ import stat
 import tempfile
 from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import BinaryIO
 
 #: A file name: ``str`` or ``os.PathLike``.
 PathLike = str | os.PathLike
@@ -114,6 +129,7 @@ def file_error(path: PathLike, problem: str) -> ValueError:
 
 
 def os_problem(exc: OSError) -> str:
+    """The problem an ``OSError`` of opening or reading a file means, in words."""
     if isinstance(exc, FileNotFoundError):
         return "no such file"
     if isinstance(exc, IsADirectoryError):
@@ -152,3 +168,140 @@ def write_staged(out: Path, write: Callable[[Path], list[Path]]) -> list[Path]:
             with contextlib.suppress(OSError):
                 folder.rmdir()  # only if empty
         raise
+
+
+# ----------------------------------------------------------------------------- input limits
+#: Environment variable: the largest file [bytes] a reader reads whole.
+MAX_INPUT_BYTES = "TENSEGRITY_MAX_INPUT_BYTES"
+#: Environment variable: the most array data [bytes] one read takes from a file.
+MAX_ARRAY_BYTES = "TENSEGRITY_MAX_ARRAY_BYTES"
+#: The limits [bytes] when their variables are not set.
+DEFAULT_LIMITS = {MAX_INPUT_BYTES: 2**30, MAX_ARRAY_BYTES: 4 * 2**30}
+
+
+def byte_limit(variable: str) -> int:
+    """The limit [bytes] named by ``variable`` (:data:`MAX_INPUT_BYTES` or
+    :data:`MAX_ARRAY_BYTES`): the environment variable's value if set, else its default.
+
+    Raises
+    ------
+    ValueError
+        One line naming the variable if it is set to anything but a whole number >= 1.
+    """
+    text = os.environ.get(variable, "").strip()
+    if not text:
+        return DEFAULT_LIMITS[variable]
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise ValueError(f"{variable}: expected a number of bytes >= 1, got {text!r}")
+    return value
+
+
+def over_limit(what: str, size: int, variable: str) -> str:
+    """The problem of ``what`` taking ``size`` bytes, more than ``variable`` allows: the
+    number, and how to raise it."""
+    limit = byte_limit(variable)
+    return (
+        f"{what} takes {byte_text(size)}, more than the limit of {byte_text(limit)} "
+        f"({variable}={limit}); set {variable} to a larger number of bytes to read it"
+    )
+
+
+def byte_text(size: int) -> str:
+    """``size`` bytes in the largest binary unit that keeps it >= 1: ``"7.0 GiB"``, ``"12 B"``."""
+    for power, unit in ((4, "TiB"), (3, "GiB"), (2, "MiB"), (1, "KiB")):
+        if size >= 1024**power:
+            return f"{size / 1024**power:.1f} {unit}"
+    return f"{size} B"
+
+
+_FILE_KINDS = (
+    (stat.S_ISDIR, "is a directory, not a file"),
+    (stat.S_ISFIFO, "not a regular file (a FIFO)"),
+    (stat.S_ISCHR, "not a regular file (a character device)"),
+    (stat.S_ISBLK, "not a regular file (a block device)"),
+    (stat.S_ISSOCK, "not a regular file (a socket)"),
+)
+
+
+def _require_regular(path: PathLike, mode: int) -> None:
+    if not stat.S_ISREG(mode):
+        problem = next((text for test, text in _FILE_KINDS if test(mode)), "not a regular file")
+        raise file_error(path, problem)
+
+
+def regular_file(path: PathLike) -> os.stat_result:
+    """The status of ``path`` (links followed), if it is a regular file: a device or a FIFO, read
+    on, would never end (``/dev/zero``) or never start.
+
+    Raises
+    ------
+    ValueError
+        ``"<path>: no such file"``, ``"<path>: not a regular file (a FIFO)"``, ...
+    """
+    try:
+        status = os.stat(path)
+    except OSError as exc:
+        raise file_error(path, os_problem(exc)) from exc
+    _require_regular(path, status.st_mode)
+    return status
+
+
+def read_input(path: PathLike) -> bytes:
+    """The content of the regular file ``path``, read whole, if it holds at most
+    :data:`MAX_INPUT_BYTES` (checked before reading, and again while reading a file that grows).
+
+    Raises
+    ------
+    ValueError
+        One line starting with the file name: missing, not a regular file, too large (with the
+        limit and the variable that raises it).
+    """
+    limit = byte_limit(MAX_INPUT_BYTES)
+    with os.fdopen(_open_regular(path), "rb") as handle:
+        size = os.fstat(handle.fileno()).st_size
+        if size > limit:
+            raise file_error(path, over_limit("the file", size, MAX_INPUT_BYTES))
+        try:
+            content = _read_at_most(handle, size, limit)
+        except OSError as exc:
+            raise file_error(path, os_problem(exc)) from exc
+    if len(content) > limit:
+        raise file_error(path, over_limit("the file", len(content), MAX_INPUT_BYTES))
+    return content
+
+
+def _open_regular(path: PathLike) -> int:
+    """A descriptor of ``path`` open for reading, if it is a regular file (opened without
+    blocking, so that a FIFO is refused rather than waited on)."""
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+    except OSError as exc:
+        raise file_error(path, os_problem(exc)) from exc
+    try:
+        _require_regular(path, os.fstat(fd).st_mode)
+    except BaseException:
+        os.close(fd)
+        raise
+    return fd
+
+
+def _read_at_most(handle: BinaryIO, size: int, limit: int) -> bytes:
+    """The content of ``handle``, a file of ``size`` bytes by its status, up to ``limit + 1``
+    bytes: one read of ``size + 1`` bytes, then (a file that grew, or one of ``/proc`` whose
+    size is 0) reads of at most 1 MiB, so that no read asks for memory the file has not filled."""
+    content = handle.read(min(size, limit) + 1)
+    if len(content) <= size:
+        return content
+    parts = [content]
+    total = len(content)
+    while total <= limit:
+        part = handle.read(min(2**20, limit + 1 - total))
+        if not part:
+            break
+        parts.append(part)
+        total += len(part)
+    return b"".join(parts)

@@ -32,7 +32,6 @@ SI units throughout: m, kg, s, N.
 
 from __future__ import annotations
 
-import io as _io
 import json
 import tomllib
 from collections.abc import Mapping, Sequence
@@ -41,7 +40,8 @@ from typing import Any
 
 import numpy as np
 
-from tensegrity.io.files import PathLike, atomic_path, file_error, os_problem
+from tensegrity.io.checked import npz_arrays, open_npz
+from tensegrity.io.files import PathLike, atomic_path, file_error, read_input
 from tensegrity.model.connectivity import (
     DEFAULT_ROD_MASS,
     DEFAULT_STIFFNESS,
@@ -520,10 +520,7 @@ def read_network(path: PathLike, *, format: str | None = None) -> Structure:
         return read_structure(path)
     if kind == "mjcf":
         raise file_error(path, "MJCF files are written for MuJoCo, not read back")
-    try:
-        raw = Path(path).read_bytes()
-    except OSError as exc:
-        raise file_error(path, os_problem(exc)) from exc
+    raw = read_input(path)
     try:
         if kind == "connectivity":
             return _from_npz(raw)
@@ -556,17 +553,13 @@ def _parse_text(raw: bytes, kind: str) -> Any:
 
 
 def _from_npz(raw: bytes) -> Structure:
-    try:
-        archive = np.load(_io.BytesIO(raw), allow_pickle=False)
-    except Exception as exc:  # numpy raises several types for a file that is not an archive
-        raise ValueError(f"not a NumPy .npz archive ({type(exc).__name__})") from exc
-    with archive:
+    with open_npz(raw) as archive:
         unknown = sorted(set(archive.files) - set(NPZ_ARRAYS))
         if unknown:
             raise ValueError(
                 f"unknown array {unknown[0]!r} (expected some of {', '.join(NPZ_ARRAYS)})"
             )
-        arrays = {name: archive[name] for name in archive.files}
+        arrays = npz_arrays(archive)
     for name, (required, _) in NPZ_ARRAYS.items():
         if required and name not in arrays:
             raise ValueError(f"missing array {name!r}")
@@ -707,9 +700,7 @@ def read_structure(path: PathLike) -> Structure:
 
         return read_network(path)
     try:
-        text = Path(path).read_bytes().decode("utf-8")
-    except OSError as exc:
-        raise file_error(path, os_problem(exc)) from exc
+        text = read_input(path).decode("utf-8")
     except UnicodeDecodeError as exc:
         raise file_error(path, f"not UTF-8 text (byte {exc.start})") from exc
     try:

@@ -92,7 +92,24 @@ from tensegrity.engine.options import Options
 from tensegrity.engine.result import RunSummary, Sample
 from tensegrity.engine.simulate import STATUS_END, options_and_inputs, simulate
 from tensegrity.io import trajectory as tio
-from tensegrity.io.files import PathLike, atomic_path, file_error, fsync_directory, new_file_mode
+from tensegrity.io.checked import (
+    FLOATS,
+    NUMBERS,
+    attribute_json,
+    attribute_number,
+    attribute_text,
+    hdf5_dataset,
+    hdf5_group,
+    read_datasets,
+)
+from tensegrity.io.files import (
+    PathLike,
+    atomic_path,
+    file_error,
+    fsync_directory,
+    new_file_mode,
+    regular_file,
+)
 from tensegrity.model.structure import Structure
 from tensegrity.physics.dynamics import State
 
@@ -306,15 +323,19 @@ def _stream_settings(
         for name, default in _SIMULATE_PARAMETERS.items()
         if name not in _OWN_OPTIONS
     }
-    structure_json = json.dumps(structure.to_dict(), allow_nan=False, sort_keys=True)
     return {
         "stream_version": STREAM_VERSION,
-        "structure": _digest(structure_json.encode()),
+        "structure": _structure_digest(structure.to_dict()),
         "t_span": [t0, t1],
         "sample_dt": sample_dt,
         "samples_per_segment": samples_per_segment,
         "options": {name: _option_token(name, value) for name, value in sorted(filled.items())},
     }
+
+
+def _structure_digest(data: Mapping[str, Any]) -> str:
+    """SHA-256 of a structure's dict form (:meth:`Structure.to_dict`), keys sorted."""
+    return _digest(json.dumps(data, allow_nan=False, sort_keys=True).encode())
 
 
 def _settings_json(settings: Mapping[str, Any]) -> str:
@@ -492,43 +513,96 @@ def _write_checkpoint(slot, checkpoint: Checkpoint) -> None:
 
 
 def _read_checkpoint_open(f, path: PathLike) -> Checkpoint:
-    group = f.get("checkpoint")
-    if group is None or group.attrs.get("current") not in (0, 1):
+    """The current checkpoint of the open streamed file ``f``; each group, attribute and dataset
+    is checked (:mod:`tensegrity.io.checked`) before it is read."""
+    group = hdf5_group(f, "checkpoint", path)
+    if group is None or "current" not in group.attrs:
         raise file_error(path, "no checkpoint (not written by tensegrity.io.stream)")
-    version = int(group.attrs.get("version", 0))
+    current = attribute_number(group, "current", path, integer=True)
+    if current not in (0, 1):
+        raise file_error(
+            path, f"attribute 'current' of 'checkpoint': expected 0 or 1, got {current}"
+        )
+    version = (
+        attribute_number(group, "version", path, integer=True) if "version" in group.attrs else 0
+    )
     if version > STREAM_VERSION:
         raise file_error(
             path,
             f"checkpoint version {version} is newer than this library "
             f"reads ({STREAM_VERSION}); upgrade tensegrity",
         )
-    slot = group[_SLOTS[int(group.attrs["current"])]]
-    a = slot.attrs
+    slot = hdf5_group(group, _SLOTS[current], path)
+    if slot is None:
+        raise file_error(path, f"checkpoint: missing group 'checkpoint/{_SLOTS[current]}'")
     try:
-        return Checkpoint(
-            next_segment=int(a["next_segment"]),
-            n_segments=int(a["n_segments"]),
-            n_samples=int(a["n_samples"]),
-            state=State(
-                t=float(a["t"]), q=np.asarray(slot["q"][()]), qdot=np.asarray(slot["qdot"][()])
-            ),
-            loop=(
-                LoopState.from_arrays({name: slot["loop"][name][()] for name in slot["loop"]})
-                if "loop" in slot
-                else None
-            ),
-            counts={name: int(a[name]) for name in _COUNTERS},
-            max_rod_length_error=float(a["max_rod_length_error"]),
-            wall_time=float(a["wall_time"]),
-            settings_hash=tio.required_text(a["settings_hash"]),
-            ended=bool(a["ended"]),
-            status=int(a["status"]),
-            message=tio.required_text(a["message"]),
-            # absent from checkpoints written before it was kept: unknown
-            max_constraint_error=float(a.get("max_constraint_error", np.nan)),
-        )
+        return _checkpoint_in(slot, path)
     except KeyError as exc:
         raise file_error(path, f"checkpoint: missing attribute or dataset {exc}") from exc
+
+
+def _checkpoint_in(slot, path: PathLike) -> Checkpoint:
+    """The checkpoint stored in ``slot`` (``KeyError`` names what is missing)."""
+
+    def number(name: str, integer: bool = False) -> Any:
+        if name not in slot.attrs:
+            raise KeyError(name)
+        return attribute_number(slot, name, path, integer=integer)
+
+    datasets = {name: _slot_dataset(slot, name, path) for name in ("q", "qdot")}
+    loop = hdf5_group(slot, "loop", path)
+    if loop is not None:
+        datasets |= {f"loop/{name}": _slot_dataset(loop, name, path, NUMBERS) for name in loop}
+    arrays = read_datasets(datasets, path)
+    if not (arrays["q"].ndim == 1 and arrays["q"].shape == arrays["qdot"].shape):
+        raise file_error(
+            path,
+            f"checkpoint: expected q and qdot of one shape (n,), got {arrays['q'].shape} and "
+            f"{arrays['qdot'].shape}",
+        )
+    segments = {name: number(name, integer=True) for name in ("next_segment", "n_segments")}
+    n_samples = number("n_samples", integer=True)
+    if not (n_samples >= 0 and 0 <= segments["next_segment"] <= segments["n_segments"]):
+        raise file_error(
+            path, f"checkpoint: inconsistent counts ({n_samples} samples, segments {segments})"
+        )
+    for name in ("settings_hash", "message"):
+        if name not in slot.attrs:
+            raise KeyError(name)
+    return Checkpoint(
+        **segments,
+        n_samples=n_samples,
+        state=State(t=number("t"), q=arrays["q"], qdot=arrays["qdot"]),
+        loop=None if loop is None else _loop_state(arrays, path),
+        counts={name: number(name, integer=True) for name in _COUNTERS},
+        max_rod_length_error=number("max_rod_length_error"),
+        wall_time=number("wall_time"),
+        settings_hash=attribute_text(slot, "settings_hash", path),
+        ended=bool(number("ended", integer=True)),
+        status=number("status", integer=True),
+        message=attribute_text(slot, "message", path),
+        # absent from checkpoints written before it was kept: unknown
+        max_constraint_error=(
+            number("max_constraint_error") if "max_constraint_error" in slot.attrs else np.nan
+        ),
+    )
+
+
+def _loop_state(arrays: dict[str, np.ndarray], path: PathLike) -> LoopState:
+    """The engine's state from the arrays ``loop/<name>`` of a checkpoint."""
+    try:
+        return LoopState.from_arrays(
+            {name[5:]: value for name, value in arrays.items() if name.startswith("loop/")}
+        )
+    except (TypeError, ValueError, OverflowError) as exc:
+        raise file_error(path, f"checkpoint: group 'loop': {exc}") from exc
+
+
+def _slot_dataset(group, name: str, path: PathLike, kinds: str = FLOATS):
+    dataset = hdf5_dataset(group, name, path, kinds=kinds)
+    if dataset is None:
+        raise KeyError(name)
+    return dataset
 
 
 def _open_h5(path: Path, mode: str):
@@ -557,6 +631,7 @@ def read_checkpoint(path: PathLike) -> Checkpoint:
     target = path if path.exists() else Path(str(path) + PARTIAL_SUFFIX)
     if not target.exists():
         raise file_error(path, f"no such file (nor {target.name})")
+    regular_file(target)
     with _open_h5(target, "r") as f:
         return _read_checkpoint_open(f, target)
 
@@ -602,12 +677,14 @@ def _summary(
     segments_run: int,
     resumed_from: int | None,
 ) -> StreamSummary:
-    time_ = f["time"]
+    time_ = hdf5_dataset(f, "time", path)
+    if time_ is None or time_.ndim != 1:
+        raise file_error(path, "missing dataset 'time' (or not of shape (T,))")
     n = time_.shape[0]
     return StreamSummary(
         path=path,
-        status=int(f.attrs["status"]),
-        message=tio.required_text(f.attrs["message"]),
+        status=attribute_number(f, "status", path, integer=True),
+        message=attribute_text(f, "message", path),
         n_samples=n,
         t_first=float(time_[0]) if n else math.nan,
         t_last=float(time_[n - 1]) if n else math.nan,
@@ -627,23 +704,33 @@ def _summary(
 def _finished_summary(
     path: Path, settings_hash: str, samples_per_segment: int
 ) -> StreamSummary | None:
-    """The summary of a finished streamed file at ``path`` with these settings, else None."""
+    """The summary of a finished streamed file at ``path`` with these settings, else None (an
+    unreadable file, or not a regular file, is no finished run: the run replaces it)."""
     import h5py
 
     try:
+        regular_file(path)
         f = h5py.File(path, "r")
-    except OSError:
+    except (OSError, ValueError):
         return None
     with f:
-        a = f.attrs
-        if (
-            tio.text_attribute(a.get("format")) != tio.TRAJECTORY_FORMAT
-            or not bool(a.get("complete", False))
-            or tio.text_attribute(a.get("stream_settings_hash")) != settings_hash
+        if not (
+            _has_text(f, "format", tio.TRAJECTORY_FORMAT)
+            and _has_text(f, "stream_settings_hash", settings_hash)
+            and "complete" in f.attrs
+            and attribute_number(f, "complete", path, integer=True)
         ):
             return None
         checkpoint = _read_checkpoint_open(f, path)
         return _summary(path, f, checkpoint, samples_per_segment, 0, None)
+
+
+def _has_text(f, name: str, expected: str) -> bool:
+    """Whether ``f`` has the text attribute ``name`` and it is ``expected``."""
+    try:
+        return name in f.attrs and attribute_text(f, name, f.filename) == expected
+    except ValueError:
+        return False
 
 
 # ----------------------------------------------------------------------------- the sink
@@ -948,16 +1035,19 @@ def _resumable_checkpoint(
     partial: Path, settings: dict[str, Any], settings_hash: str
 ) -> Checkpoint:
     """The checkpoint of ``partial`` if it was made with these settings (rows past it dropped);
-    ``ValueError`` naming the differing settings otherwise."""
+    ``ValueError`` naming the differing settings, or what in the file is not the layout the run
+    appends to, otherwise."""
+    regular_file(partial)
     with _open_h5(partial, "a") as f:
-        fmt = tio.text_attribute(f.attrs.get("format"))
-        if fmt != PARTIAL_FORMAT:
-            raise file_error(partial, f"not a partial streamed trajectory (format {fmt!r})")
+        if not _has_text(f, "format", PARTIAL_FORMAT):
+            raise file_error(
+                partial, f"not a partial streamed trajectory (format is not {PARTIAL_FORMAT!r})"
+            )
         checkpoint = _read_checkpoint_open(f, partial)
         if checkpoint.settings_hash != settings_hash:
             try:
-                stored = json.loads(tio.required_text(f.attrs["stream_settings"]))
-            except (KeyError, TypeError, json.JSONDecodeError):
+                stored = attribute_json(f, "stream_settings", partial)
+            except (KeyError, ValueError):
                 stored = {}
             diff = _differences(stored, settings) or ["settings hash"]
             raise file_error(
@@ -966,8 +1056,42 @@ def _resumable_checkpoint(
                 + "; ".join(diff)
                 + "); pass resume=False to start again",
             )
+        _check_partial_layout(f, partial, settings["structure"], checkpoint)
         _truncate(f, checkpoint.n_samples, partial)
     return checkpoint
+
+
+def _check_partial_layout(f, path: Path, structure_digest: str, checkpoint: Checkpoint) -> None:
+    """``ValueError`` unless the partial file holds the run's structure, datasets in the file
+    that rows of that structure can be appended to, and a checkpoint state that fits it."""
+    if "structure" not in f.attrs:
+        raise file_error(path, "missing attribute 'structure'")
+    data = attribute_json(f, "structure", path)
+    if _structure_digest(data) != structure_digest:
+        raise file_error(path, "attribute 'structure': not the structure of this run")
+    try:
+        structure = Structure.from_dict(data)
+    except (ValueError, TypeError, KeyError, OverflowError) as exc:
+        raise file_error(path, f"attribute 'structure': {exc}") from exc
+    for name, row in _row_shapes(structure).items():
+        dataset = hdf5_dataset(f, name, path)
+        if dataset is None:
+            raise file_error(path, f"missing dataset {name!r}")
+        if (
+            dataset.ndim != 1 + len(row)
+            or dataset.shape[1:] != row
+            or dataset.maxshape[0] is not None
+        ):
+            raise file_error(
+                path,
+                f"dataset {name!r}: expected a resizable dataset of rows {row}, got shape "
+                f"{dataset.shape} (at most {dataset.maxshape})",
+            )
+    n = structure.n_coordinates
+    if checkpoint.state.q.shape != (n,):
+        raise file_error(
+            path, f"checkpoint: expected q of shape ({n},), got {checkpoint.state.q.shape}"
+        )
 
 
 def _rename_finished(

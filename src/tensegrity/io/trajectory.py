@@ -45,7 +45,15 @@ from typing import Any
 import numpy as np
 
 from tensegrity.engine.result import ENERGY_NAMES, SimulationResult
-from tensegrity.io.files import PathLike, atomic_path, file_error
+from tensegrity.io.checked import (
+    attribute_json,
+    attribute_number,
+    attribute_text,
+    attribute_text_list,
+    hdf5_dataset,
+    read_datasets,
+)
+from tensegrity.io.files import PathLike, atomic_path, file_error, regular_file
 from tensegrity.model.structure import Structure
 
 #: ``format`` attribute of a trajectory file.
@@ -180,9 +188,7 @@ def read_dataset(path: PathLike, name: str, *, every: int = 1) -> np.ndarray:
         raise ValueError(f"name: expected one of {', '.join(ARRAY_DATASETS)}, got {name!r}")
     with _open(path) as f:
         _check_format(f, path)
-        if not isinstance(f.get(name), _h5py_dataset()):
-            raise file_error(path, f"missing dataset {name!r}")
-        return _rows(f[name], every)
+        return read_datasets({name: _dataset(f, name, path)}, path, every=every)[name]
 
 
 def _check_every(every: int) -> None:
@@ -191,9 +197,11 @@ def _check_every(every: int) -> None:
 
 
 def _open(path: PathLike) -> Any:
-    """The HDF5 file at ``path``, open for reading (one-line errors naming the file)."""
+    """The HDF5 file at ``path``, open for reading (one-line errors naming the file); a regular
+    file only."""
     import h5py
 
+    regular_file(path)
     try:
         return h5py.File(path, "r")
     except FileNotFoundError as exc:
@@ -210,17 +218,13 @@ def _open(path: PathLike) -> Any:
 
 def _check_format(f: Any, path: PathLike) -> None:
     """``ValueError`` unless ``f`` is a tensegrity trajectory this library reads."""
-    attrs = f.attrs
-    fmt = text_attribute(attrs.get("format"))
+    fmt = attribute_text(f, "format", path) if "format" in f.attrs else None
     if fmt != TRAJECTORY_FORMAT:
         found = "no 'format' attribute" if fmt is None else f"format {fmt!r}"
         raise file_error(
             path, f"not a tensegrity trajectory file ({found}, expected {TRAJECTORY_FORMAT!r})"
         )
-    try:
-        version = int(attrs.get("version"))
-    except (TypeError, ValueError) as exc:
-        raise file_error(path, "missing or invalid 'version' attribute") from exc
+    version = _Attributes(f, path).integer("version")
     if version > TRAJECTORY_VERSION:
         raise file_error(
             path,
@@ -229,23 +233,35 @@ def _check_format(f: Any, path: PathLike) -> None:
         )
 
 
+def _dataset(f: Any, name: str, path: PathLike) -> Any:
+    """The dataset ``name`` of the trajectory, checked to be stored in the file as floats."""
+    dataset = hdf5_dataset(f, name, path)
+    if dataset is None:
+        raise file_error(path, f"missing dataset {name!r} (not a complete tensegrity trajectory)")
+    return dataset
+
+
 def _read_open_trajectory(f: Any, path: PathLike, every: int = 1) -> SimulationResult:
+    """The trajectory in the open file ``f``: its layout, attributes and shapes are checked
+    before any array is read."""
     _check_format(f, path)
-    attrs = _Attributes(f.attrs, path)
-    missing = [name for name in ARRAY_DATASETS if not isinstance(f.get(name), _h5py_dataset())]
-    if missing:
-        raise file_error(
-            path, f"missing dataset {missing[0]!r} (not a complete tensegrity trajectory)"
-        )
-    arrays = {name: _rows(f[name], every) for name in ARRAY_DATASETS}
-    columns = [required_text(c) for c in f["energy"].attrs.get("columns", ENERGY_COLUMNS)]
+    datasets = {name: _dataset(f, name, path) for name in ARRAY_DATASETS}
+    attrs = _Attributes(f, path)
     structure_data = attrs.json("structure")
     try:
         structure = Structure.from_dict(structure_data)
     except (ValueError, TypeError, KeyError, OverflowError) as exc:
         raise file_error(path, f"attribute 'structure': {exc}") from exc
     settings = attrs.json("settings")
-    _check_shapes(arrays, structure, len(columns), path)
+    figures, message = attrs.run_figures(structure), attrs.text("message")
+    energy = datasets["energy"]
+    columns = (
+        attribute_text_list(energy, "columns", path)
+        if "columns" in energy.attrs
+        else list(ENERGY_COLUMNS)
+    )
+    _check_shapes({name: d.shape for name, d in datasets.items()}, structure, len(columns), path)
+    arrays = read_datasets(datasets, path, every=every)
     return SimulationResult(
         t=arrays["time"],
         node_position=arrays["nodes"],
@@ -258,51 +274,56 @@ def _read_open_trajectory(f: Any, path: PathLike, every: int = 1) -> SimulationR
         residual_acceleration=arrays["residual_acceleration"],
         structure=structure,
         settings=settings,
-        **attrs.run_figures(structure),
-        message=required_text(attrs["message"]),
+        **figures,
+        message=message,
     )
 
 
 class _Attributes:
-    """A trajectory file's root attributes, read with one-line errors naming the file."""
+    """A trajectory file's root attributes, each checked for its type and shape before it is
+    read, with one-line errors naming the file and the attribute."""
 
-    def __init__(self, attrs: Any, path: PathLike) -> None:
-        self.attrs, self.path = attrs, path
+    def __init__(self, f: Any, path: PathLike) -> None:
+        self.f, self.path = f, path
 
-    def __getitem__(self, name: str) -> Any:
-        if name not in self.attrs:
+    def _present(self, name: str) -> str:
+        if name not in self.f.attrs:
             raise file_error(self.path, f"missing attribute {name!r}")
-        return self.attrs[name]
+        return name
 
-    def json(self, name: str) -> Any:
-        try:
-            return json.loads(required_text(self[name]))
-        except (TypeError, json.JSONDecodeError) as exc:
-            raise file_error(self.path, f"attribute {name!r}: invalid JSON ({exc})") from exc
+    def json(self, name: str) -> dict[str, Any]:
+        return attribute_json(self.f, self._present(name), self.path)
+
+    def text(self, name: str) -> str:
+        return attribute_text(self.f, self._present(name), self.path)
+
+    def integer(self, name: str) -> int:
+        return int(attribute_number(self.f, self._present(name), self.path, integer=True))
+
+    def number(self, name: str) -> float:
+        return float(attribute_number(self.f, self._present(name), self.path))
 
     def run_figures(self, structure: Structure) -> dict[str, Any]:
         """``status``, the counts and the errors of the run, as :class:`SimulationResult`
         takes them."""
-        try:
-            figures: dict[str, Any] = {name: int(self[name]) for name in _COUNT_ATTRIBUTES}
-            figures["status"] = int(self["status"])
-            figures["max_rod_length_error"] = float(self["max_rod_length_error"])
-            figures["wall_time"] = float(self["wall_time"])
-            # Absent from files written before it was stored: unknown there, unless nothing can
-            # err.
-            figures["max_constraint_error"] = float(
-                self.attrs.get("max_constraint_error", np.nan if structure.has_constraints else 0.0)
-            )
-        except (TypeError, ValueError) as exc:
-            raise file_error(self.path, f"invalid attribute: {exc}") from exc
+        figures: dict[str, Any] = {name: self.integer(name) for name in _COUNT_ATTRIBUTES}
+        figures["status"] = self.integer("status")
+        figures["max_rod_length_error"] = self.number("max_rod_length_error")
+        figures["wall_time"] = self.number("wall_time")
+        # Absent from files written before it was stored: unknown there, unless nothing can err.
+        figures["max_constraint_error"] = (
+            self.number("max_constraint_error")
+            if "max_constraint_error" in self.f.attrs
+            else (np.nan if structure.has_constraints else 0.0)
+        )
         return figures
 
 
 def _check_shapes(
-    arrays: dict[str, np.ndarray], structure: Structure, n_energy: int, path: PathLike
+    shapes: dict[str, tuple[int, ...]], structure: Structure, n_energy: int, path: PathLike
 ) -> None:
     """``ValueError`` naming the first dataset whose shape does not fit ``structure``."""
-    T = arrays["time"].shape[0] if arrays["time"].ndim == 1 else -1
+    T = shapes["time"][0] if len(shapes["time"]) == 1 else -1
     N, S, n, d = structure.n_nodes, structure.n_tendons, structure.n_coordinates, structure.dim
     expected = {
         "time": (T,),
@@ -316,28 +337,11 @@ def _check_shapes(
         "residual_acceleration": (T,),
     }
     for name, shape in expected.items():
-        if arrays[name].shape != shape:
+        if shapes[name] != shape:
             raise file_error(
                 path,
-                f"dataset {name!r}: expected shape {shape} for this "
-                f"structure, got {arrays[name].shape}",
+                f"dataset {name!r}: expected shape {shape} for this structure, got {shapes[name]}",
             )
-
-
-def _rows(dataset: Any, every: int) -> np.ndarray:
-    """Every ``every``-th row of ``dataset`` and its last row (all of it for ``every`` 1)."""
-    if every == 1 or dataset.ndim == 0 or dataset.shape[0] <= 1:
-        return np.asarray(dataset[()])
-    rows = dataset[::every]
-    if (dataset.shape[0] - 1) % every:
-        rows = np.concatenate([rows, dataset[-1:]])
-    return np.asarray(rows)
-
-
-def _h5py_dataset() -> type:
-    import h5py
-
-    return h5py.Dataset
 
 
 def text_attribute(value: Any) -> str | None:

@@ -268,12 +268,15 @@ class SweepSpec:
 
     @classmethod
     def from_file(cls, path: PathLike) -> SweepSpec:
-        """A spec from a ``.json`` or ``.yaml``/``.yml`` file."""
+        """A spec from a ``.json`` or ``.yaml``/``.yml`` file (a regular file of at most
+        ``TENSEGRITY_MAX_INPUT_BYTES``, :func:`tensegrity.io.files.read_input`)."""
+        from tensegrity.io.files import read_input
+
         path = Path(path)
         try:
-            text = path.read_text()
-        except OSError as exc:
-            raise ValueError(f"{path}: cannot read ({exc.strerror or exc})") from None
+            text = read_input(path).decode("utf-8")
+        except UnicodeDecodeError as exc:
+            raise ValueError(f"{path}: not UTF-8 text (byte {exc.start})") from None
         try:
             if path.suffix.lower() in (".yaml", ".yml"):
                 import yaml

@@ -1,0 +1,453 @@
+"""Untrusted input files (docs/reliability.md): every reader refuses, with a one-line
+``ValueError`` naming the file and the dataset or attribute, what is not the documented layout
+(HDF5 external storage, external, soft and virtual links out of the file, compound, complex and
+other non-float dtypes, attributes of the wrong type or shape), and anything over its limits
+(devices and FIFOs, files and arrays larger than ``TENSEGRITY_MAX_INPUT_BYTES`` and
+``TENSEGRITY_MAX_ARRAY_BYTES``), before reading the data.
+
+The cases that would exhaust the machine on a regression (a file or array of gigabytes, a FIFO
+that never ends) run in a child process under a cap on its address space (``RLIMIT_AS``) and a
+timeout: a regression fails the test (a ``MemoryError`` traceback, or the timeout) instead of
+the machine.
+"""
+
+from __future__ import annotations
+
+import os
+import resource
+import subprocess
+import sys
+import zipfile
+import zlib
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from tensegrity import class1_shell, critical_damping, simulate
+from tensegrity.cli.main import main
+from tensegrity.io.formats import write_network
+from tensegrity.io.stream import PARTIAL_SUFFIX, StreamProgress, read_checkpoint, simulate_to_file
+from tensegrity.io.trajectory import read_dataset, read_trajectory, write_trajectory
+
+GiB = 2**30
+#: Address space of a child process [bytes]: the interpreter with numpy, h5py and numba loaded
+#: takes about 0.45 GiB; every crafted file asks for more than the rest.
+MEMORY_CAP = GiB
+#: Seconds a child process may take (it takes about 2 s; a FIFO read on would block forever).
+TIMEOUT = 30
+#: Exit code of a child process that caught a ``ValueError`` (printed to stdout).
+REFUSED = 3
+
+CHILD = """
+import sys
+from tensegrity.io.formats import read_network, read_structure
+from tensegrity.io.stream import read_checkpoint
+from tensegrity.io.tables import read_force_table
+from tensegrity.io.trajectory import read_dataset, read_trajectory
+from tensegrity.sweep import SweepSpec
+path = sys.argv[1]
+try:
+    {call}
+except ValueError as exc:
+    print(exc)
+    sys.exit({refused})
+"""
+
+
+def _capped() -> None:
+    resource.setrlimit(resource.RLIMIT_AS, (MEMORY_CAP, MEMORY_CAP))
+
+
+def run_capped(call: str, path: Path, **env: str) -> str:
+    """Run ``call`` (Python, on ``path``) in a child process under the memory cap and timeout;
+    return the one-line message of the ``ValueError`` it must raise."""
+    environment = {
+        **os.environ,
+        "OPENBLAS_NUM_THREADS": "1",
+        "OMP_NUM_THREADS": "1",
+        "NUMBA_NUM_THREADS": "1",
+        **env,
+    }
+    try:
+        child = subprocess.run(
+            [sys.executable, "-c", CHILD.format(call=call, refused=REFUSED), str(path)],
+            capture_output=True,
+            text=True,
+            timeout=TIMEOUT,
+            env=environment,
+            preexec_fn=_capped,
+        )
+    except subprocess.TimeoutExpired:
+        pytest.fail(f"{call} on {path} still running after {TIMEOUT} s")
+    assert child.returncode == REFUSED, (
+        f"{call}: exit {child.returncode}\n{child.stdout}\n{child.stderr[-3000:]}"
+    )
+    return child.stdout.rstrip("\n")
+
+
+def assert_one_line(message: str, path: Path, *words: str) -> None:
+    assert "\n" not in message, message
+    assert message.startswith(f"{path}: "), message
+    for word in words:
+        assert word in message, (word, message)
+
+
+def assert_refused(read, path: Path, *words: str) -> None:
+    with pytest.raises(ValueError) as info:
+        read(path)
+    assert_one_line(str(info.value), path, *words)
+
+
+# ------------------------------------------------------------------------------ fixtures
+@pytest.fixture(scope="module")
+def result():
+    """A short damped (3,1) shell run: 3 samples, 12 nodes, 24 tendons, 36 coordinates."""
+    return simulate(critical_damping(class1_shell(3, 1)), (0.0, 0.1), sample_dt=0.05)
+
+
+@pytest.fixture
+def secret(tmp_path):
+    """A local file a crafted trajectory points at, and an HDF5 file with a dataset of it."""
+    path = tmp_path / "secret.txt"
+    path.write_bytes(b"password=hunter2;" * 256)
+    other = tmp_path / "other.h5"
+    with h5py.File(other, "w") as f:
+        f["data"] = np.frombuffer(path.read_bytes()[: 3 * 12 * 3 * 8], dtype="<f8").reshape(
+            3, 12, 3
+        )
+    return path, other
+
+
+def crafted(tmp_path: Path, result, edit) -> Path:
+    """A trajectory written by the library, then changed by ``edit(file)``."""
+    path = tmp_path / "crafted.h5"
+    write_trajectory(path, result)
+    with h5py.File(path, "a") as f:
+        edit(f)
+    return path
+
+
+def replace(f, name: str, **dataset) -> None:
+    del f[name]
+    f.create_dataset(name, **dataset)
+
+
+# ------------------------------------------------------------------ not the documented layout
+def _external_storage(f, secret, other):
+    replace(f, "nodes", shape=(3, 12, 3), dtype="<f8", external=[(str(secret), 0, 864)])
+
+
+def _external_link(f, secret, other):
+    del f["nodes"]
+    f["nodes"] = h5py.ExternalLink(str(other), "/data")
+
+
+def _soft_link_out(f, secret, other):
+    f["elsewhere"] = h5py.ExternalLink(str(other), "/data")
+    del f["nodes"]
+    f["nodes"] = h5py.SoftLink("/elsewhere")
+
+
+def _virtual(f, secret, other):
+    layout = h5py.VirtualLayout(shape=(3, 12, 3), dtype="<f8")
+    layout[...] = h5py.VirtualSource(str(other), "data", shape=(3, 12, 3))
+    del f["nodes"]
+    f.create_virtual_dataset("nodes", layout)
+
+
+def _complex(f, secret, other):
+    replace(f, "nodes", data=np.zeros((3, 12, 3), complex))
+
+
+def _compound(f, secret, other):
+    replace(f, "time", data=np.zeros(3, dtype=[("t", "<f8"), ("u", "<f8")]))
+
+
+def _text(f, secret, other):
+    replace(
+        f, "tendon_tension", data=np.full((3, 24), "1.0", dtype=object), dtype=h5py.string_dtype()
+    )
+
+
+def _integer(f, secret, other):
+    replace(f, "q", data=np.zeros((3, 36), np.int64))
+
+
+@pytest.mark.parametrize(
+    "edit, name, words",
+    [
+        (_external_storage, "nodes", ["external storage"]),
+        (_external_link, "nodes", ["external link"]),
+        (_soft_link_out, "nodes", ["soft link"]),
+        (_virtual, "nodes", ["virtual"]),
+        (_complex, "nodes", ["complex"]),
+        (_compound, "time", ["compound"]),
+        (_text, "tendon_tension", ["floating-point"]),
+        (_integer, "q", ["floating-point", "int64"]),
+    ],
+)
+def test_trajectory_datasets_outside_the_layout_are_refused(
+    tmp_path, result, secret, edit, name, words
+):
+    """Refused by both readers with the dataset named, before any of its data is read."""
+    path = crafted(tmp_path, result, lambda f: edit(f, *secret))
+    assert_refused(read_trajectory, path, f"dataset {name!r}", *words)
+    assert_refused(lambda p: read_dataset(p, name), path, f"dataset {name!r}", *words)
+
+
+def test_vtk_command_does_not_copy_local_files_into_its_output(tmp_path, result, secret, capsys):
+    """``tensegrity vtk`` on a trajectory whose nodes are stored in another local file: one line,
+    exit 2, and no ``.vtp`` file carrying that file's bytes."""
+    path = crafted(tmp_path, result, lambda f: _external_storage(f, *secret))
+    out = tmp_path / "vtk"
+    assert main(["vtk", str(path), "-o", str(out)]) == 2
+    error = capsys.readouterr().err.strip()
+    assert "\n" not in error and str(path) in error and "'nodes'" in error, error
+    assert not out.exists() or not list(out.iterdir())
+
+
+@pytest.mark.parametrize(
+    "edit, words",
+    [
+        (lambda f: f.attrs.__setitem__("version", np.inf), ["attribute 'version'"]),
+        (lambda f: f.attrs.__setitem__("status", np.inf), ["attribute 'status'"]),
+        (lambda f: f.attrs.__setitem__("status", np.array([0, 0])), ["attribute 'status'"]),
+        (lambda f: f.attrs.__setitem__("nfev", "many"), ["attribute 'nfev'"]),
+        (lambda f: f.attrs.__setitem__("wall_time", 1 + 2j), ["attribute 'wall_time'"]),
+        (lambda f: f.attrs.__setitem__("message", 5), ["attribute 'message'", "text"]),
+        (lambda f: f.attrs.__setitem__("structure", np.bytes_(b"\xff{")), ["'structure'", "UTF-8"]),
+        (lambda f: f.attrs.__setitem__("settings", "[" * 100_000), ["attribute 'settings'"]),
+        (lambda f: f.attrs.__setitem__("settings", "[1, 2]"), ["attribute 'settings'", "object"]),
+        (lambda f: f["energy"].attrs.__setitem__("columns", 5), ["'columns'"]),
+    ],
+)
+def test_trajectory_attributes_of_the_wrong_type_or_shape_are_refused(
+    tmp_path, result, edit, words
+):
+    assert_refused(read_trajectory, crafted(tmp_path, result, edit), *words)
+
+
+# ---------------------------------------------------------------------- streamed files
+def _partial(tmp_path: Path) -> tuple[Path, dict]:
+    """An interrupted streamed run (two of five segments stored): the partial file, and the
+    arguments that resume it."""
+    shell = class1_shell(3, 1, damping=0.5)
+    path = tmp_path / "run.h5"
+    args = dict(structure=shell, t_span=(0.0, 0.5), path=path, segment=0.1, sample_dt=0.01)
+
+    def stop(info: StreamProgress) -> None:
+        if info.segment == 2:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        simulate_to_file(**args, progress=stop)
+    return Path(str(path) + PARTIAL_SUFFIX), args
+
+
+def test_checkpoint_outside_the_layout_is_refused(tmp_path, secret):
+    partial, _ = _partial(tmp_path)
+    with h5py.File(partial, "a") as f:
+        current = "ab"[int(f["checkpoint"].attrs["current"])]
+        slot = f["checkpoint"][current]
+        n = slot["q"].shape
+        del slot["q"]
+        slot.create_dataset("q", shape=n, dtype="<f8", external=[(str(secret[0]), 0, 8 * n[0])])
+    assert_refused(read_checkpoint, partial, f"'checkpoint/{current}/q'", "external storage")
+    with h5py.File(partial, "a") as f:
+        f["checkpoint"].attrs["current"] = np.array([0, 1])
+    assert_refused(read_checkpoint, partial, "'current'")
+
+
+def test_resume_does_not_write_into_a_file_a_dataset_points_at(tmp_path, secret):
+    """A partial file whose ``time`` is stored in another file: resuming refuses it, and the other
+    file is unchanged (the run would append its samples there)."""
+    partial, args = _partial(tmp_path)
+    before = secret[0].read_bytes()
+    with h5py.File(partial, "a") as f:
+        rows = f["time"].shape[0]
+        replace(
+            f,
+            "time",
+            shape=(rows,),
+            maxshape=(None,),
+            dtype="<f8",
+            external=[(str(secret[0]), 0, h5py.h5f.UNLIMITED)],
+        )
+    with pytest.raises(ValueError) as info:
+        simulate_to_file(**args)
+    assert_one_line(str(info.value), partial, "dataset 'time'", "external storage")
+    assert secret[0].read_bytes() == before
+
+
+# ------------------------------------------------------------------ limits, under a memory cap
+def _huge_time(path: Path, rows: int) -> Path:
+    """A trajectory-looking file whose ``time`` claims ``rows`` samples (no data stored: HDF5
+    reads the fill value)."""
+    with h5py.File(path, "w") as f:
+        f.attrs["format"] = "tensegrity-trajectory"
+        f.attrs["version"] = 1
+        f.create_dataset("time", shape=(rows,), dtype="<f8", chunks=(2**16,))
+    return path
+
+
+@pytest.mark.parametrize("size", [7 * GiB, 21 * 2**40], ids=["7GiB", "21TiB"])
+def test_dataset_larger_than_the_limit_is_refused_before_reading(tmp_path, size):
+    path = _huge_time(tmp_path / "huge.h5", size // 8)
+    message = run_capped("read_dataset(path, 'time')", path)
+    assert_one_line(message, path, "dataset 'time'", "TENSEGRITY_MAX_ARRAY_BYTES", "4294967296")
+
+
+def test_trajectory_larger_than_the_limit_is_refused_before_reading(tmp_path, result):
+    """Every dataset of a consistent shape, 2**25 samples (17 GiB in all, 256 MiB of it
+    ``time``): the sum over the datasets counts."""
+    rows = 2**25
+
+    def grow(f):
+        for name in list(f):
+            shape, dtype = (rows, *f[name].shape[1:]), f[name].dtype
+            attrs = dict(f[name].attrs)
+            replace(f, name, shape=shape, dtype=dtype, chunks=(1024, *shape[1:]))
+            f[name].attrs.update(attrs)
+
+    path = crafted(tmp_path, result, grow)
+    message = run_capped("read_trajectory(path)", path)
+    assert_one_line(message, path, "TENSEGRITY_MAX_ARRAY_BYTES")
+
+
+def test_a_huge_chunk_is_refused(tmp_path):
+    """Three samples in one chunk of 2 GiB (9 MiB on disk, compressed): reading one sample
+    would decompress the whole chunk."""
+    path = tmp_path / "chunk.h5"
+    rows = 2**28
+    deflate = zlib.compressobj(1)
+    block = bytes(2**20)
+    data = b"".join(deflate.compress(block) for _ in range(8 * rows // len(block)))
+    data += deflate.flush()
+    with h5py.File(path, "w") as f:
+        f.attrs["format"] = "tensegrity-trajectory"
+        f.attrs["version"] = 1
+        time = f.create_dataset(
+            "time", shape=(3,), maxshape=(None,), chunks=(rows,), dtype="<f8", compression="gzip"
+        )
+        time.id.write_direct_chunk((0,), data)
+    message = run_capped("read_dataset(path, 'time', every=2)", path)
+    assert_one_line(message, path, "dataset 'time'", "chunk")
+
+
+def _npz_with_header(path: Path, arrays: dict[str, tuple[tuple[int, ...], bytes]]) -> Path:
+    """An ``.npz`` whose members have the given header shapes (float64) and raw data."""
+    with zipfile.ZipFile(path, "w") as archive:
+        for name, (shape, data) in arrays.items():
+            header = {"descr": "<f8", "fortran_order": False, "shape": shape}
+            with archive.open(f"{name}.npy", "w") as member:
+                np.lib.format.write_array_header_1_0(member, header)
+                member.write(data)
+    return path
+
+
+@pytest.mark.parametrize("size", [7 * GiB, 21 * 2**40], ids=["7GiB", "21TiB"])
+def test_npz_header_asking_for_more_than_its_data_is_refused(tmp_path, size):
+    path = _npz_with_header(
+        tmp_path / "table.npz",
+        {"time": ((size // 8,), bytes(16)), "force": ((2, 1, 3), bytes(48))},
+    )
+    message = run_capped("read_force_table(path)", path)
+    assert_one_line(message, path, "'time'")
+
+
+def test_connectivity_npz_header_asking_for_terabytes_is_refused(tmp_path):
+    path = _npz_with_header(tmp_path / "net.npz", {"N": ((2**40, 3), bytes(72))})
+    message = run_capped("read_network(path)", path)
+    assert_one_line(message, path, "'N'")
+
+
+def test_npz_array_larger_than_the_limit_is_refused(tmp_path):
+    """256 MiB of real (compressed) zeros against a limit lowered to 16 MiB: the limit and the
+    variable that raises it are named."""
+    T, N = 2**10, 2**13
+    path = tmp_path / "table.npz"
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED, compresslevel=1) as archive:
+        with archive.open("time.npy", "w") as member:
+            np.lib.format.write_array(member, np.arange(T, dtype=float))
+        with archive.open("force.npy", "w", force_zip64=True) as member:
+            header = {"descr": "<f8", "fortran_order": False, "shape": (T, N, 3)}
+            np.lib.format.write_array_header_1_0(member, header)
+            block = bytes(2**20)
+            for _ in range(T * N * 3 * 8 // len(block)):
+                member.write(block)
+    message = run_capped("read_force_table(path)", path, TENSEGRITY_MAX_ARRAY_BYTES=str(16 * 2**20))
+    assert_one_line(message, path, "'force'", "TENSEGRITY_MAX_ARRAY_BYTES", "16777216")
+
+
+@pytest.mark.parametrize(
+    "suffix, call",
+    [
+        (".json", "read_structure(path)"),
+        (".csv", "read_force_table(path)"),
+    ],
+)
+def test_input_file_larger_than_the_limit_is_refused_before_reading(tmp_path, suffix, call):
+    """A 2 GiB file (sparse: it takes no disk space) read whole would not fit the cap."""
+    path = tmp_path / f"big{suffix}"
+    with open(path, "wb") as f:
+        f.truncate(2 * GiB)
+    message = run_capped(call, path)
+    assert_one_line(message, path, "TENSEGRITY_MAX_INPUT_BYTES", "1073741824")
+
+
+def test_input_limit_can_be_lowered(tmp_path):
+    path = tmp_path / "net.yaml"
+    write_network(path, class1_shell(3, 1))
+    limit = path.stat().st_size - 1
+    message = run_capped("read_network(path)", path, TENSEGRITY_MAX_INPUT_BYTES=str(limit))
+    assert_one_line(message, path, "TENSEGRITY_MAX_INPUT_BYTES", str(limit))
+
+
+READERS = [
+    (".json", "read_structure(path)"),
+    (".yaml", "read_network(path)"),
+    (".csv", "read_force_table(path)"),
+    (".npz", "read_force_table(path)"),
+    (".h5", "read_trajectory(path)"),
+    (".h5", "read_checkpoint(path)"),
+    (".yaml", "SweepSpec.from_file(path)"),
+]
+
+
+@pytest.mark.parametrize("suffix, call", READERS)
+def test_fifo_is_refused_not_read_forever(tmp_path, suffix, call):
+    path = tmp_path / f"input{suffix}"
+    os.mkfifo(path)
+    assert_one_line(run_capped(call, path), path, "not a regular file")
+
+
+@pytest.mark.parametrize("suffix, call", READERS)
+def test_device_is_refused_not_read_forever(tmp_path, suffix, call):
+    path = tmp_path / f"input{suffix}"
+    path.symlink_to("/dev/zero")
+    assert_one_line(run_capped(call, path), path, "not a regular file")
+
+
+def test_limit_variables_must_be_byte_counts(tmp_path, result, monkeypatch):
+    path = write_trajectory(tmp_path / "run.h5", result)
+    monkeypatch.setenv("TENSEGRITY_MAX_ARRAY_BYTES", "lots")
+    with pytest.raises(
+        ValueError, match=r"^TENSEGRITY_MAX_ARRAY_BYTES: expected a number of bytes"
+    ):
+        read_trajectory(path)
+
+
+def test_array_limit_counts_the_bytes_read(tmp_path, result, monkeypatch):
+    """A trajectory reads with the limit set to exactly the bytes of its arrays, and is refused
+    one byte below; ``every`` counts only the rows it reads."""
+    path = write_trajectory(tmp_path / "run.h5", result)
+    arrays = (result.t, result.node_position, result.node_velocity, result.tendon_length)
+    arrays += (result.tendon_tension, result.q, result.qdot, result.residual_acceleration)
+    size = sum(a.nbytes for a in arrays) + 8 * result.t.size * len(result.energy)
+    monkeypatch.setenv("TENSEGRITY_MAX_ARRAY_BYTES", str(size))
+    assert np.array_equal(read_trajectory(path).node_position, result.node_position)
+    monkeypatch.setenv("TENSEGRITY_MAX_ARRAY_BYTES", str(size - 1))
+    assert_refused(read_trajectory, path, "TENSEGRITY_MAX_ARRAY_BYTES", str(size - 1))
+    assert read_trajectory(path, every=2).t.size == 2  # 2 of 3 rows fit
