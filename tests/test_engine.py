@@ -249,6 +249,62 @@ def test_rk4_stops_where_a_control_table_makes_a_rest_length_negative():
     np.testing.assert_array_equal(compiled_run.q[-1], python_run.q[-1])
 
 
+def test_dop853_runs_compiled_between_samples_and_equals_its_python_twin(monkeypatch):
+    """The default method's whole loop (steps, error control, located switches, checks,
+    projections) runs compiled from one sample to the next: a (4,2) shell with switches and a
+    force table returns to Python about once per sample, not once per step.  The same force
+    given as a Python function runs the same loop as Python (the function called from it), and
+    the two runs agree bit for bit: trajectories, switch times and counts."""
+    from tensegrity.engine import dop853
+
+    shell = class1_shell(4, 2)
+    force = _force_table(shell, "zero")
+    calls = []
+    compiled_run = dop853.dop853_run
+
+    def counting(*args):
+        calls.append(args[0][0])  # clock[T]
+        return compiled_run(*args)
+
+    monkeypatch.setattr(dop853, "dop853_run", counting)
+    kwargs = dict(sample_dt=0.01, initial=_perturbed(shell, 2, 0.03, 1.0))
+    table = simulate(shell, (0.0, 0.3), external_force=force, **kwargs)
+    function = simulate(shell, (0.0, 0.3), external_force=lambda t: force(t), **kwargs)
+    assert table.status == function.status == 0
+    assert table.nswitches > 50 and table.nsteps > 200  # switches located, many steps
+    assert len(calls) <= table.t.size + 1 < table.nsteps / 5  # one call per sample
+    assert (table.nsteps, table.nswitches, table.nprojections, table.nfev) == (
+        function.nsteps,
+        function.nswitches,
+        function.nprojections,
+        function.nfev,
+    )
+    np.testing.assert_array_equal(table.switch_times, function.switch_times)
+    np.testing.assert_array_equal(table.q, function.q)
+    np.testing.assert_array_equal(table.qdot, function.qdot)
+
+
+def test_dop853_stops_where_a_control_table_makes_a_rest_length_negative():
+    """A control table that shortens a tendon past its rest length ends a DOP853 run with a
+    message naming the tendon and the time, as the same table called as a function does (at a
+    stage time a little different: a function's control rate is a central difference, which
+    changes the control's work in the state and with it the steps)."""
+    from tensegrity.model.loads import ControlTable
+
+    shell = class1_shell(3, 1)
+    u = np.zeros((2, shell.n_tendons))
+    u[1, 3] = 2 * shell.tendon_rest_length[3]  # rest length 0 at t = 0.05 s, then negative
+    table = ControlTable([0.0, 0.1], u)
+    compiled_run = simulate(shell, (0.0, 0.2), control=table, sample_dt=0.02)
+    python_run = simulate(shell, (0.0, 0.2), control=lambda t: table(t), sample_dt=0.02)
+    assert compiled_run.status == python_run.status == -1
+    assert "control[3]" in compiled_run.message and "negative" in compiled_run.message
+    for run in (compiled_run, python_run):
+        failed_at = float(run.message.rsplit("t = ", 1)[1].removesuffix(" s"))
+        assert 0.05 < failed_at < 0.051  # the first stage past the zero rest length
+        assert 0.04 < run.t[-1] <= failed_at
+
+
 @pytest.mark.parametrize("method", ["RK45", "Radau"])
 def test_scipy_methods_follow_the_default_method(method):
     """The other ``scipy.integrate`` methods, stepped by scipy on the compiled right-hand side

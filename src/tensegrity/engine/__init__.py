@@ -6,7 +6,8 @@ or the HDF5 file of :mod:`tensegrity.io.stream`).
 - :mod:`~tensegrity.engine.inputs` — controls, loads and gravity at the stage times;
 - :mod:`~tensegrity.engine.system` — a structure packed for the compiled code;
 - :mod:`~tensegrity.engine.compiled` — the compiled stages, steps, checks and outputs;
-- :mod:`~tensegrity.engine.steppers` — DOP853, other ``scipy`` methods, RK4, one protocol;
+- :mod:`~tensegrity.engine.dop853` — DOP853, the default method, its whole step loop compiled;
+- :mod:`~tensegrity.engine.steppers` — other ``scipy`` methods behind one protocol, and RK4;
 - :mod:`~tensegrity.engine.loop` — :func:`run`, the controller hook (:class:`Controller`,
   :class:`Feedback`) and exact checkpoints (:class:`Checkpointing`, :class:`LoopState`);
 - :mod:`~tensegrity.engine.result` — :class:`SimulationResult`, :class:`MemorySink`;

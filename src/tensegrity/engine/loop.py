@@ -8,8 +8,11 @@ is found by bisection on the step's dense output (to 1e-13 s relative), the step
 and retaken to end exactly there, and the switching tendons are marked as switched, so that the
 same switch is not found again a round-off later.  The step size carries over.  Then the blow-up
 checks run (compiled), samples inside the step are interpolated, and the state is projected when
-its drift exceeds ``projection_tol``.  ``"rk4"`` runs whole stretches of steps between samples in
-one compiled call.
+its drift exceeds ``projection_tol``.  DOP853, the default, does all of this in compiled code
+from one sample or boundary to the next (:mod:`tensegrity.engine.dop853`; :func:`_compiled_adaptive`
+records the samples, calls the controller and saves checkpoints); the other ``scipy`` methods
+run the same procedure here in Python (:func:`_adaptive`).  ``"rk4"`` runs whole stretches of
+steps between samples in one compiled call.
 
 Boundaries: steps end exactly at the times of a controller's updates (zero-order hold, every
 ``controller.period`` from ``t0``) and of checkpoints (every ``checkpoint.every`` samples).  At
@@ -27,7 +30,8 @@ from typing import Protocol
 
 import numpy as np
 
-from tensegrity.engine import compiled
+from tensegrity.engine import compiled, dop853
+from tensegrity.engine.dop853 import DOP853, SWITCH_RTOL
 from tensegrity.engine.inputs import Inputs
 from tensegrity.engine.options import Options
 from tensegrity.engine.result import (
@@ -38,7 +42,6 @@ from tensegrity.engine.result import (
     Sample,
 )
 from tensegrity.engine.steppers import (
-    DOP853,
     RK4,
     IntegrationError,
     ScipyMethod,
@@ -48,9 +51,6 @@ from tensegrity.engine.steppers import (
 from tensegrity.engine.system import CompiledSystem
 from tensegrity.model.structure import Structure
 from tensegrity.physics import dynamics
-
-#: Relative width of the final bracket of a located switch.
-SWITCH_RTOL = 1e-13
 
 
 class Sink(Protocol):
@@ -303,6 +303,14 @@ class _Run:
             return True
         return False
 
+    def stop_at_max_steps(self, t: float) -> None:
+        self.status = STATUS_FAILED
+        self.message = (
+            f"stopped after max_steps = {self.options.max_steps:,} steps at t = {t:.6g} s of "
+            f"{self.t_end:g} s: the steps became tiny (a stiff or unstable structure?); "
+            "raise max_steps, loosen rtol and atol, or try method='Radau'"
+        )
+
     def fail(self, code: int, value: float, t: float) -> None:
         self.status = STATUS_FAILED
         self.message = _FAILURES[code].format(
@@ -373,9 +381,9 @@ class _Run:
         self,
         t: float,
         y: np.ndarray,
-        stepper: Stepper | RK4,
+        stepper: Stepper | DOP853 | RK4,
         taut: np.ndarray | None,
-        landing: _Landing | None,
+        landing: tuple[float, np.ndarray, np.ndarray, bool] | None,
         allow_provisional: bool,
         wall0: float,
     ) -> None:
@@ -390,9 +398,7 @@ class _Run:
                 next_sample=self.next_sample,
                 monitor=self.monitor.copy(),
                 taut=np.zeros(0, bool) if taut is None else taut.copy(),
-                landing=None
-                if landing is None
-                else (landing.time, landing.tendons, landing.taut_after, landing.exact),
+                landing=landing,
                 allow_provisional=allow_provisional,
                 counts=dict(self.counts, nfev=self.nfev_before + stepper.nfev),
                 switch_times=tuple(self.switch_times),
@@ -415,12 +421,25 @@ class _Run:
             self.control = state.control.copy()
 
 
-def _stepper(run: _Run, t: float, y: np.ndarray, memory: StepperMemory | None) -> Stepper | RK4:
+def _stepper(
+    run: _Run, t: float, y: np.ndarray, memory: StepperMemory | None
+) -> Stepper | DOP853 | RK4:
     o = run.options
     if o.method == "rk4":
         return RK4(run.system, t, y)
     if o.method == "DOP853":
-        return DOP853(run.system, t, y, rtol=o.rtol, atol=o.atol, t_end=run.t_end, memory=memory)
+        return DOP853(
+            run.system,
+            t,
+            y,
+            rtol=o.rtol,
+            atol=o.atol,
+            t_end=run.t_end,
+            max_steps=o.max_steps,
+            projection_tol=o.projection_tol,
+            locate=o.locate_switches,
+            memory=memory,
+        )
     return ScipyMethod(run.system, t, y, method=o.method, rtol=o.rtol, atol=o.atol, t_end=run.t_end)
 
 
@@ -550,15 +569,72 @@ def _adaptive(run: _Run, stepper: Stepper, resume: LoopState | None, wall0: floa
             if locate:
                 taut = _taut(stepper, landed)
         if stepper.t < run.t_end and run.counts["nsteps"] >= o.max_steps:
-            run.status = STATUS_FAILED
-            run.message = (
-                f"stopped after max_steps = {o.max_steps:,} steps at t = {stepper.t:.6g} s of "
-                f"{run.t_end:g} s: the steps became tiny (a stiff or unstable structure?); "
-                "raise max_steps, loosen rtol and atol, or try method='Radau'"
-            )
+            run.stop_at_max_steps(stepper.t)
             return
         if stepper.t < run.t_end and run.checkpoint_due():
-            run.save(stepper.t, stepper.y, stepper, taut, landing, allow_provisional, wall0)
+            kept = None
+            if landing is not None:
+                kept = (landing.time, landing.tendons, landing.taut_after, landing.exact)
+            run.save(stepper.t, stepper.y, stepper, taut, kept, allow_provisional, wall0)
+
+
+def _compiled_adaptive(run: _Run, stepper: DOP853, resume: LoopState | None, wall0: float) -> None:
+    """The loop of DOP853: :meth:`DOP853.run` (compiled) from one sample or boundary to the
+    next; here the samples are recorded, a controller called and checkpoints saved."""
+    if resume is not None:
+        stepper.restore(resume.taut, resume.landing, resume.allow_provisional)
+        stepper.set_counts(resume.counts)
+    bound = run.next_boundary(stepper.t)  # (kept until reached: a step may end past samples)
+    while True:
+        code, check, value = stepper.run(
+            bound, run.sample_time(run.next_sample), run.limits, run.monitor
+        )
+        run.counts.update(stepper.counts())
+        run.switch_times.extend(stepper.new_switch_times())
+        if code == dop853.RUN_SWITCHES:
+            continue
+        if code == dop853.RUN_CHECK_FAILED:
+            run.fail(check, value, stepper.t)
+            if check != compiled.CHECK_PROJECTION:  # (the state before projection was recorded)
+                run.record(stepper.t, stepper.y)
+            return
+        if code == dop853.RUN_STEP_FAILED:
+            raise IntegrationError(
+                f"DOP853 failed at t = {stepper.t:.9g} s: required step size is less than "
+                "spacing between numbers"
+            )
+        if code == dop853.RUN_INPUT:  # (raises the ValueError naming the tendon and time)
+            run.system.inputs.rest_length(np.array([stepper.clock[dop853.INPUT_TIME]]))
+            raise AssertionError("RUN_INPUT: the inputs were made")  # pragma: no cover
+        if code == dop853.RUN_MAX_STEPS:
+            run.stop_at_max_steps(stepper.t)
+            return
+        if run.progress is not None:
+            run.progress(stepper.t)
+        if code == dop853.RUN_SAMPLES:
+            y_at = stepper.dense()
+            for t in run.sample_times(stepper.t):
+                if run.steady(run.record(t, y_at(t) if t < stepper.t else stepper.y)):
+                    return
+            continue
+        # RUN_BOUNDARY: the end, a controller's update, a checkpoint
+        if stepper.t >= run.t_end:
+            return
+        if run.at_control_time(stepper.t):
+            run.update_control(stepper.t, stepper.y)
+            stepper.restart()
+        if run.checkpoint_due():
+            stepper.run(stepper.t, math.inf, run.limits, run.monitor)  # (the restart, if due)
+            run.save(
+                stepper.t,
+                stepper.y,
+                stepper,
+                stepper.taut,
+                stepper.landing(),
+                bool(stepper.tally[dop853.ALLOW_PROVISIONAL]),
+                wall0,
+            )
+        bound = run.next_boundary(stepper.t)
 
 
 def _hermite(
@@ -702,6 +778,8 @@ def run(
     try:
         if isinstance(stepper, RK4):  # the stepper of the fixed-step method (options.fixed_step)
             _fixed_step(r, stepper, wall0)
+        elif isinstance(stepper, DOP853):
+            _compiled_adaptive(r, stepper, resume, wall0)
         else:
             _adaptive(r, stepper, resume, wall0)
     except (IntegrationError, ValueError, FloatingPointError) as exc:

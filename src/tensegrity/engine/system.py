@@ -61,6 +61,7 @@ class CompiledSystem:
         self._constant: tuple | None = None
         #: :func:`compiled.fill_stage_inputs`'s tables, or None (constant inputs, or a callable)
         self.tables: tuple | None = None
+        self._buffers: dict[int, tuple] = {}
         if inputs.constant:
             self._constant = self._numpy_inputs(np.zeros(1))
             return
@@ -93,23 +94,40 @@ class CompiledSystem:
             return self._table_inputs(times)
         return self._numpy_inputs(times)
 
+    def input_buffers(self, k: int) -> tuple | None:
+        """An inputs tuple for compiled code to fill with ``k`` stages' rows of the tables
+        (:func:`compiled.fill_stage_inputs`; kept until the inputs change), the constant inputs,
+        or None if a Python function is among the inputs."""
+        if self._constant is not None:
+            return self._constant
+        if self.tables is None:
+            return None
+        if k not in self._buffers:
+            self._buffers[k] = self._table_buffers(k)
+        return self._buffers[k]
+
+    def _table_buffers(self, k: int) -> tuple:
+        """An inputs tuple of ``k`` rows for the tables to fill, the constants' rows made."""
+        t0 = np.zeros(1)
+        if self.inputs.control.kind == "table":
+            S = self.structure.n_tendons
+            rest, rate, has_rate = np.empty((k, S)), np.empty((k, S)), True
+        else:
+            rest, rate, has_rate = self._control_rows(t0)
+        if self.inputs.external_force.kind == "table":
+            force, has_external = np.empty((k, 3, self.packed.layout.n_slots)), True
+        else:
+            force, has_external = self._force_rows(t0)
+        return (rest, rate, has_rate, has_external, force, *self._gravity())
+
     def _table_inputs(self, times: np.ndarray) -> tuple:
         """:meth:`stage_inputs` with tables and constants: the tables' rows made by compiled
         code, the constants' as by NumPy."""
         times = np.ascontiguousarray(times, dtype=float)
-        K = times.size
-        if self.inputs.control.kind == "table":
-            S = self.structure.n_tendons
-            rest, rate, has_rate = np.empty((K, S)), np.empty((K, S)), True
-        else:
-            rest, rate, has_rate = self._control_rows(times[:1])
-        if self.inputs.external_force.kind == "table":
-            force, has_external = np.empty((K, 3, self.packed.layout.n_slots)), True
-        else:
-            force, has_external = self._force_rows(times[:1])
-        if compiled.fill_stage_inputs(self.tables, times, rest, rate, force) >= 0:
+        inputs = self._table_buffers(times.size)
+        if compiled.fill_stage_inputs(self.tables, times, inputs[0], inputs[1], inputs[4]) >= 0:
             self.inputs.rest_length(times)  # raises the ValueError naming the tendon
-        return (rest, rate, has_rate, has_external, force, *self._gravity())
+        return inputs
 
     def _numpy_inputs(self, times: np.ndarray) -> tuple:
         """:meth:`stage_inputs` evaluated by NumPy and the Python callables."""

@@ -1,0 +1,601 @@
+"""DOP853, the default method, with its whole step loop compiled (:func:`dop853_run`): the
+attempts and their error control, the located slack/taut switches, the blow-up checks, the
+projection onto the constraints and the step-size law run in compiled code from one output
+sample (or boundary) to the next; :class:`DOP853` holds the loop's state between those calls
+for the run loop (:mod:`tensegrity.engine.loop`), which records the samples, calls a
+controller and saves checkpoints.
+
+The method, coefficients, error norm and step-size law are ``scipy.integrate.DOP853``'s
+(:mod:`tensegrity.engine.compiled`). Per accepted step, as the run loop's docstring says: the
+tensions at the step's end (known from its last stage) are compared with the taut flags at its
+start; if a tendon went slack or taut, the earliest switch is found on the step's dense output
+(:func:`_locate_switch`), the step is discarded and retaken to end exactly there, and the
+switching tendons are marked as switched.  A rejected attempt whose end shows a switch may
+stand for the step (*provisional*): the switch is located on it instead of shrinking the step
+until the kink falls out of it.  The step size carries over a projection or a located switch.
+
+Inputs: constant, or tabulated (``tables``, interpolated here), or a Python function of time
+(``provider``, :meth:`CompiledSystem.stage_inputs`).  With a provider the same loop runs as
+Python (``dop853_run.py_func``; the helpers that reach the provider are
+``register_jitable``: Python there, compiled inside :func:`dop853_run`), calling the compiled
+kernels; the provider is called once per attempt with the attempt's stage times.
+
+The loop's state lives in a few arrays (:class:`DOP853`): ``clock`` (float64, indices
+``T``...), ``tally`` (int64, indices ``NFEV``...), the state buffers, the taut flags and the
+landing (a located switch being headed for) as masks over the tendons (kernel order).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+from numba import njit
+from numba.extending import register_jitable
+
+from tensegrity.engine import compiled
+from tensegrity.engine.compiled import (
+    CHECK_OK,
+    DOP853_C,
+    DOP853_STAGES,
+    EXACT_JIT_OPTIONS,
+    check_state,
+    dop853_attempt,
+    dop853_dense,
+    dop853_interpolate,
+    fill_stage_inputs,
+    ode_rhs,
+    switch_distance,
+)
+from tensegrity.engine.steppers import StepperMemory
+from tensegrity.engine.system import CompiledSystem
+from tensegrity.physics.kernel import copy_values
+from tensegrity.physics.kernel_system import system_project
+
+#: Relative width of the final bracket of a located switch.
+SWITCH_RTOL = 1e-13
+#: Step-size law (scipy's): safety factor, smallest and largest factor, error exponent.
+SAFETY, MIN_FACTOR, MAX_FACTOR, EXPONENT = 0.9, 0.2, 10.0, -1.0 / 8.0
+#: Located switches :func:`dop853_run` keeps before it returns them (``RUN_SWITCHES``).
+SWITCH_BUFFER = 256
+
+#: Indices of ``clock`` (float64): time [s], start of the last step [s], the next step size
+#: [s], the step size before heading for a switch [s], the time of the switch headed for [s],
+#: the last step's largest constraint drift (rod relative, joints [m]), the time whose inputs
+#: could not be made [s].
+T, T_OLD, STEP, STEP_BEFORE, LANDING_TIME, DRIFT, INPUT_TIME = range(7)
+N_CLOCK = 7
+#: Indices of ``tally`` (int64): evaluations, accepted steps, located switches, projections;
+#: flags: the last step is a provisional (rejected) attempt, its dense output is ready, a
+#: provisional step may be taken, a switch is headed for, it was located exactly, the last step
+#: landed on it, an accepted step waits to be finished (its samples were handed out), the
+#: first stage must be evaluated again (the state changed); switches in the buffer.
+(
+    NFEV,
+    NSTEPS,
+    NSWITCHES,
+    NPROJECTIONS,
+    PROVISIONAL,
+    DENSE_READY,
+    ALLOW_PROVISIONAL,
+    LANDING,
+    LANDING_EXACT,
+    LANDED,
+    PENDING,
+    RESTART,
+    NEW_SWITCHES,
+) = range(13)
+N_TALLY = 13
+
+#: What :func:`dop853_run` returns: the samples up to the last step's end are due (its dense
+#: output ready); the step reached ``bound``; ``max_steps`` steps were taken; the switch buffer
+#: is full; a blow-up check failed; the step size fell below its minimum; an input could not be
+#: made (a control table makes a rest length negative at ``clock[INPUT_TIME]``).
+(
+    RUN_SAMPLES,
+    RUN_BOUNDARY,
+    RUN_MAX_STEPS,
+    RUN_SWITCHES,
+    RUN_CHECK_FAILED,
+    RUN_STEP_FAILED,
+    RUN_INPUT,
+) = range(7)
+
+
+@register_jitable
+def _inputs_at(times, inputs, tables, provider):  # pragma: no cover - compiled
+    """The inputs at ``times`` and the first row holding a negative rest length (-1: none):
+    from the ``provider`` (a new tuple), or filled into ``inputs`` from the ``tables``, or the
+    constant ``inputs``."""
+    if provider is not None:
+        return provider(times), -1
+    if tables is not None:
+        return inputs, fill_stage_inputs(tables, times, inputs[0], inputs[1], inputs[4])
+    return inputs, -1
+
+
+@register_jitable
+def _point(t, point, tables, provider, times1):  # pragma: no cover - compiled
+    """The inputs at the single time ``t`` [s] (``times1`` (1,) scratch)."""
+    times1[0] = t
+    return _inputs_at(times1, point, tables, provider)
+
+
+@njit(**EXACT_JIT_OPTIONS)
+def _taut_flags(tension, landed_exact, landing_mask, landing_after, taut):  # pragma: no cover
+    """Taut flags from the tensions (S,) [N]; tendons that have just switched (a landing
+    located exactly) keep the side they switched to (the state retaken up to a switch may sit a
+    round-off short of it)."""
+    for s in range(taut.shape[0]):
+        taut[s] = tension[s] > 0.0
+        if landed_exact and landing_mask[s]:
+            taut[s] = landing_after[s]
+
+
+@register_jitable
+def _attempt_step(clock, tally, buffers, taut, use_taut, system, rows, tables, provider, work,
+                  settings, bound, times):  # pragma: no cover - compiled  # fmt: skip
+    """One step not past ``bound`` [s] (scipy's DOP853 step-size law); with ``use_taut``, a
+    rejected attempt whose end shows a tendon switched is returned as the step
+    (``tally[PROVISIONAL]``).  Returns ``(rows, code)``: the stage inputs of the step and
+    ``RUN_SAMPLES`` (taken), ``RUN_STEP_FAILED`` or ``RUN_INPUT``."""
+    y, y_old, K, _, y_new, stage, _ = buffers
+    rtol, atol = settings[0], settings[1]
+    t, h = clock[T], clock[STEP]
+    tally[PROVISIONAL] = 0
+    min_step = 10.0 * abs(np.nextafter(t, np.inf) - t)
+    rejected = False
+    error = 0.0
+    while True:
+        h = max(min(h, bound - t), min_step)
+        if t + h > bound or bound - (t + h) < min_step:
+            h = bound - t
+        for i in range(DOP853_C.shape[0]):
+            times[i] = t + DOP853_C[i] * h
+        rows, bad = _inputs_at(times, rows, tables, provider)
+        if bad >= 0:
+            clock[INPUT_TIME] = times[bad]
+            return rows, RUN_INPUT
+        error = dop853_attempt(y, h, K, y_new, stage, rtol, atol, system, rows, work)
+        tally[NFEV] += DOP853_STAGES
+        if error < 1.0:
+            break
+        if use_taut and np.isfinite(error) and _any_switched(work[2], taut):
+            tally[PROVISIONAL] = 1
+            break
+        factor = MIN_FACTOR
+        if np.isfinite(error):
+            factor = max(MIN_FACTOR, SAFETY * error**EXPONENT)
+        h *= factor
+        rejected = True
+        if h < min_step:
+            return rows, RUN_STEP_FAILED
+    if not tally[PROVISIONAL]:
+        factor = MAX_FACTOR
+        if error != 0.0:
+            factor = min(MAX_FACTOR, SAFETY * error**EXPONENT)
+        clock[STEP] = h * (min(1.0, factor) if rejected else factor)
+    clock[T_OLD] = t
+    copy_values(y, y_old, y.shape[0])
+    clock[T] = bound if h == bound - t else t + h
+    copy_values(y_new, y, y.shape[0])
+    tally[DENSE_READY] = 0
+    return rows, RUN_SAMPLES
+
+
+@njit(**EXACT_JIT_OPTIONS)
+def _any_switched(tension, taut):  # pragma: no cover - compiled
+    """Whether a tendon's tension (S,) [N] disagrees with its taut flag."""
+    for s in range(taut.shape[0]):  # noqa: SIM110 - (a loop numba compiles)
+        if (tension[s] > 0.0) != taut[s]:
+            return True
+    return False
+
+
+@register_jitable
+def _dense(clock, tally, buffers, system, rows, tables, provider, work, times):  # pragma: no cover
+    """The last step's dense output into ``F`` (three more stages, their inputs at the step's
+    stage times), unless it is ready.  Returns ``(rows, bad)`` as :func:`_inputs_at`."""
+    if tally[DENSE_READY]:
+        return rows, -1
+    y, y_old, K, F, _, stage, _ = buffers
+    t_old, h = clock[T_OLD], clock[T] - clock[T_OLD]
+    for i in range(DOP853_C.shape[0]):
+        times[i] = t_old + DOP853_C[i] * h
+    rows, bad = _inputs_at(times, rows, tables, provider)
+    if bad >= 0:
+        clock[INPUT_TIME] = times[bad]
+        return rows, bad
+    dop853_dense(y_old, y, h, K, F, stage, system, rows, work)
+    tally[NFEV] += 3
+    tally[DENSE_READY] = 1
+    return rows, -1
+
+
+@register_jitable
+def _distance(t, context, tables, provider):  # pragma: no cover - compiled
+    """``min_k`` of :func:`compiled.switch_distance` over the candidates at ``t`` [s] inside
+    the last step (``<= 0`` once one has switched); NaN if the inputs at ``t`` cannot be made.
+    ``context`` = ``(clock, buffers, system, point, work, scratch, candidates, taut, times1)``
+    (:func:`_locate_switch`)."""
+    clock, buffers, system, point, work, scratch, candidates, taut, times1 = context
+    _, y_old, _, F, _, _, y_at = buffers
+    p, v, indicator, distance = scratch
+    point, bad = _point(t, point, tables, provider, times1)
+    if bad >= 0:
+        clock[INPUT_TIME] = t
+        return np.nan
+    x = (t - clock[T_OLD]) / (clock[T] - clock[T_OLD])
+    out = distance[: candidates.shape[0]]
+    return switch_distance(
+        F, y_old, x, y_at, system, point[0][0], work, p, v, indicator, candidates, taut, out
+    )
+
+
+@register_jitable
+def _locate_switch(context, tables, provider):  # pragma: no cover - compiled
+    """Earliest time [s] in the last step at which one of the candidates (kernel positions,
+    ``context`` as :func:`_distance`'s) changes taut/slack state; the distances there are left
+    in ``scratch[3][:len(candidates)]`` (``<= 0``: switched).  NaN if an input cannot be made.
+
+    The first root of ``g(t) = min_k d_k(t)`` on the step's dense output, by regula falsi with
+    the Illinois modification (superlinear on a smooth ``g``), kept in a shrinking bracket by a
+    bisection whenever a false-position step leaves more than half of it; to a bracket of
+    :data:`SWITCH_RTOL` (relative).  Returns the bracket's right end, just past the switch, so
+    that tendons switching within the bracket (the symmetric twins of a regular shell) switch
+    together instead of being located one by one."""
+    clock = context[0]
+    lo, hi = clock[T_OLD], clock[T]
+    g_lo = _distance(lo, context, tables, provider)
+    g_hi = _distance(hi, context, tables, provider)
+    tol = SWITCH_RTOL * max(1.0, abs(hi))
+    kept = 0  # which end stayed put last time: -1 lo, +1 hi (Illinois halves its value)
+    while hi - lo > tol:
+        if np.isnan(g_lo) or np.isnan(g_hi):
+            return np.nan
+        width = hi - lo
+        mid = 0.5 * (lo + hi)
+        if g_lo > 0.0 > g_hi:
+            mid = lo + g_lo * width / (g_lo - g_hi)
+        mid = min(max(mid, lo + 0.25 * tol), hi - 0.25 * tol)
+        g_mid = _distance(mid, context, tables, provider)
+        if g_mid > 0.0:
+            lo, g_lo = mid, g_mid
+            g_hi, kept = (0.5 * g_hi if kept == 1 else g_hi), 1
+        else:
+            hi, g_hi = mid, g_mid
+            g_lo, kept = (0.5 * g_lo if kept == -1 else g_lo), -1
+        if hi - lo > 0.5 * width:  # false position crawled: bisect
+            mid = 0.5 * (lo + hi)
+            g_mid = _distance(mid, context, tables, provider)
+            if g_mid > 0.0:
+                lo, g_lo = mid, g_mid
+            else:
+                hi, g_hi = mid, g_mid
+            kept = 0
+    end = min(max(hi, lo + tol), clock[T])
+    if not _distance(end, context, tables, provider) <= 0.0:  # (switched back within tol)
+        end = hi
+        if np.isnan(_distance(end, context, tables, provider)):
+            return np.nan
+    return end
+
+
+def _dop853_loop(clock, tally, buffers, flags, switch_times, system, rows, point, tables,
+                 provider, work, scratch, settings, limits, monitor, bound,
+                 next_sample_t):  # pragma: no cover - compiled (dop853_run)  # fmt: skip
+    """The adaptive loop from ``clock[T]`` until the samples of a step are due, the step
+    reaches ``bound`` [s], or the run must stop (see the module doc); ``(code, check code,
+    check value)``.
+
+    ``buffers`` = ``(y, y_old, K (16, m), F (7, m), y_new, stage, y_at)``; ``flags`` = ``(taut,
+    landing_mask, landing_after)`` (S,) bool, kernel order; ``switch_times`` (SWITCH_BUFFER,)
+    [s]; ``rows`` and ``point`` the inputs tuples for a step's 16 stages and for one time;
+    ``scratch`` = ``(p, v (3, n_slots), indicator (S,), distance (S,), candidates (S,) int64)``;
+    ``settings`` = ``(rtol, atol, t_end [s], projection_tol, max_steps, locate)``; ``limits``
+    and ``monitor`` as :func:`compiled.check_state`'s.
+    """
+    y, _, K, _, _, _, _ = buffers
+    taut, landing_mask, landing_after = flags
+    p, v, indicator, distance, candidates = scratch
+    t_end, projection_tol, max_steps, locate = settings[2], settings[3], settings[4], settings[5]
+    n = (y.shape[0] - 3) // 2
+    times = np.empty(DOP853_C.shape[0])
+    times1 = np.empty(1)
+    switch_scratch = (p, v, indicator, distance)
+    while True:
+        if tally[PENDING]:  # finish the accepted step whose samples were handed out
+            tally[PENDING] = 0
+            copy_values(K[DOP853_STAGES], K[0], y.shape[0])  # first same as last
+            if tally[LANDED]:
+                clock[STEP] = max(clock[STEP], clock[STEP_BEFORE])
+                tally[ALLOW_PROVISIONAL] = tally[LANDING_EXACT]
+                tally[LANDING] = 0
+            if clock[DRIFT] > projection_tol:
+                if not system_project(y[:n], y[n : 2 * n], system[0][1], system[1])[2]:
+                    return RUN_CHECK_FAILED, compiled.CHECK_PROJECTION, np.nan
+                tally[NPROJECTIONS] += 1
+                tally[RESTART] = 1
+            if clock[T] >= t_end or clock[T] >= bound:
+                return RUN_BOUNDARY, CHECK_OK, 0.0  # (a controller may change the inputs)
+            if tally[NSTEPS] >= max_steps:
+                return RUN_MAX_STEPS, CHECK_OK, 0.0
+        if tally[RESTART]:  # the state changed: its first stage and taut flags anew
+            tally[RESTART] = 0
+            point, bad = _point(clock[T], point, tables, provider, times1)
+            if bad >= 0:
+                clock[INPUT_TIME] = clock[T]
+                return RUN_INPUT, CHECK_OK, 0.0
+            ode_rhs(y, K[0], np.int64(0), system, point, work)
+            tally[NFEV] += 1
+            if locate:
+                exact = bool(tally[LANDED]) and bool(tally[LANDING_EXACT])
+                _taut_flags(work[2], exact, landing_mask, landing_after, taut)
+        tally[LANDED] = 0
+        if clock[T] >= bound:
+            return RUN_BOUNDARY, CHECK_OK, 0.0
+        heading = bool(tally[LANDING])
+        detect = locate and not (heading and tally[LANDING_EXACT])
+        target = min(bound, clock[LANDING_TIME]) if heading else bound
+        use_taut = locate and bool(tally[ALLOW_PROVISIONAL]) and not heading
+        rows, code = _attempt_step(
+            clock, tally, buffers, taut, use_taut, system, rows, tables, provider, work,
+            settings, target, times,
+        )  # fmt: skip
+        if code != RUN_SAMPLES:
+            return code, CHECK_OK, 0.0
+        tally[ALLOW_PROVISIONAL] = locate
+        if detect:
+            count = 0
+            for s in range(taut.shape[0]):
+                if (work[2][s] > 0.0) != taut[s]:
+                    candidates[count] = s
+                    count += 1
+            if count:
+                rows, bad = _dense(clock, tally, buffers, system, rows, tables, provider, work,
+                                   times)  # fmt: skip
+                if bad >= 0:
+                    return RUN_INPUT, CHECK_OK, 0.0
+                context = (clock, buffers, system, point, work, switch_scratch,
+                           candidates[:count], taut, times1)  # fmt: skip
+                t_switch = _locate_switch(context, tables, provider)
+                if np.isnan(t_switch):
+                    return RUN_INPUT, CHECK_OK, 0.0
+                exact = not tally[PROVISIONAL]
+                landing_mask[:] = False
+                for k in range(count):
+                    s = candidates[k]
+                    if distance[k] <= 0.0:
+                        landing_mask[s] = True
+                        landing_after[s] = not taut[s]
+                clock[LANDING_TIME] = t_switch
+                tally[LANDING] = 1
+                tally[LANDING_EXACT] = exact
+                # retreat: back to the step's start, heading for the switch
+                clock[T] = clock[T_OLD]
+                copy_values(buffers[1], y, y.shape[0])
+                tally[DENSE_READY] = 0
+                clock[STEP_BEFORE], clock[STEP] = clock[STEP], t_switch - clock[T]
+                if exact:
+                    tally[NSWITCHES] += 1
+                    switch_times[tally[NEW_SWITCHES]] = t_switch
+                    tally[NEW_SWITCHES] += 1
+                    if tally[NEW_SWITCHES] == switch_times.shape[0]:
+                        return RUN_SWITCHES, CHECK_OK, 0.0
+                continue
+        tally[NSTEPS] += 1
+        landed = bool(tally[LANDING]) and clock[T] >= clock[LANDING_TIME]
+        tally[LANDED] = landed
+        if locate:
+            exact = landed and bool(tally[LANDING_EXACT])
+            _taut_flags(work[2], exact, landing_mask, landing_after, taut)
+        point, bad = _point(clock[T], point, tables, provider, times1)
+        if bad >= 0:
+            clock[INPUT_TIME] = clock[T]
+            return RUN_INPUT, CHECK_OK, 0.0
+        check, value = check_state(y, np.int64(0), system, point, work, limits, monitor, True)
+        if check != CHECK_OK:
+            return RUN_CHECK_FAILED, check, value
+        clock[DRIFT] = value
+        tally[PENDING] = 1
+        if next_sample_t <= clock[T] * (1.0 + 1e-14):
+            rows, bad = _dense(clock, tally, buffers, system, rows, tables, provider, work, times)
+            if bad >= 0:
+                return RUN_INPUT, CHECK_OK, 0.0
+            return RUN_SAMPLES, CHECK_OK, 0.0
+
+
+#: :func:`_dop853_loop` compiled (constant or tabulated inputs; ``provider`` None).
+dop853_run = njit(**EXACT_JIT_OPTIONS)(_dop853_loop)
+
+
+class DOP853:
+    """Explicit Runge-Kutta of order 8(5,3), adaptive (``rtol``, ``atol``), its loop compiled
+    (:func:`dop853_run`).  ``t``, ``y`` the current time [s] and state, ``nfev`` the
+    right-hand-side evaluations so far."""
+
+    def __init__(
+        self,
+        system: CompiledSystem,
+        t0: float,
+        y0: np.ndarray,
+        *,
+        rtol: float,
+        atol: float,
+        t_end: float,
+        max_steps: int,
+        projection_tol: float,
+        locate: bool,
+        memory: StepperMemory | None = None,
+    ) -> None:
+        """Start at ``(t0, y0)`` with Hairer's initial step, or continue with ``memory`` (of a
+        checkpoint) exactly as the stepper that made it would have."""
+        self.system, self.rtol, self.atol = system, rtol, atol
+        m, S = system.m, system.structure.n_tendons
+        self.clock, self.tally = np.zeros(N_CLOCK), np.zeros(N_TALLY, np.int64)
+        self.clock[T] = self.clock[T_OLD] = float(t0)
+        y = np.array(y0, dtype=float)
+        K = np.zeros((DOP853_C.size, m))
+        self.buffers = (y, y.copy(), K, np.empty((compiled.DOP853_DENSE_ROWS, m)),
+                        np.empty(m), np.empty(m), np.empty(m))  # fmt: skip
+        self.flags = (np.zeros(S, bool), np.zeros(S, bool), np.zeros(S, bool))
+        self.switch_times = np.zeros(SWITCH_BUFFER)
+        self.scratch = (system.scratch_p, system.scratch_v, np.empty(S), np.empty(S),
+                        np.empty(S, np.int64))  # fmt: skip
+        self.settings = (float(rtol), float(atol), float(t_end), float(projection_tol),
+                         np.int64(max_steps), np.bool_(locate))  # fmt: skip
+        if memory is None:
+            self._evaluate_first_stage()
+            self.clock[STEP] = self._initial_step(t_end)
+            self.tally[ALLOW_PROVISIONAL] = locate
+            self.flags[0][:] = system.work[2] > 0.0  # (the work buffers are at y0)
+        else:
+            K[0] = memory.first_stage
+            self.clock[STEP], self.clock[STEP_BEFORE] = memory.step, memory.step_before
+
+    # ------------------------------------------------------------------ the state
+    @property
+    def t(self) -> float:
+        return float(self.clock[T])
+
+    @property
+    def y(self) -> np.ndarray:
+        return self.buffers[0]
+
+    @property
+    def nfev(self) -> int:
+        return int(self.tally[NFEV])
+
+    @property
+    def taut(self) -> np.ndarray:
+        """Taut flags (S,), kernel order."""
+        return self.flags[0]
+
+    def memory(self) -> StepperMemory:
+        """What a checkpoint keeps to continue from the current state exactly."""
+        return StepperMemory(
+            self.buffers[2][0].copy(), float(self.clock[STEP]), float(self.clock[STEP_BEFORE])
+        )
+
+    def landing(self) -> tuple[float, np.ndarray, np.ndarray, bool] | None:
+        """The switch headed for: ``(time, tendons, taut after, exact)``, or None."""
+        if not self.tally[LANDING]:
+            return None
+        _, mask, after = self.flags
+        tendons = np.flatnonzero(mask)
+        return (
+            float(self.clock[LANDING_TIME]),
+            tendons,
+            after[tendons],
+            bool(self.tally[LANDING_EXACT]),
+        )
+
+    def restore(
+        self,
+        taut: np.ndarray,
+        landing: tuple[float, np.ndarray, np.ndarray, bool] | None,
+        allow_provisional: bool,
+    ) -> None:
+        """The taut flags, the landing and the provisional flag of a checkpoint."""
+        flags = self.flags
+        flags[0][:] = taut
+        flags[1][:] = False
+        self.tally[ALLOW_PROVISIONAL] = allow_provisional
+        self.tally[LANDING] = landing is not None
+        if landing is not None:
+            time, tendons, after, exact = landing
+            self.clock[LANDING_TIME] = time
+            flags[1][tendons] = True
+            flags[2][tendons] = after
+            self.tally[LANDING_EXACT] = exact
+
+    def counts(self) -> dict[str, int]:
+        """Accepted steps, located switches and projections so far."""
+        tally = self.tally
+        return dict(
+            nsteps=int(tally[NSTEPS]),
+            nswitches=int(tally[NSWITCHES]),
+            nprojections=int(tally[NPROJECTIONS]),
+        )
+
+    def set_counts(self, counts: dict[str, int]) -> None:
+        """The counts of a checkpoint (``nsteps``, ``nswitches``, ``nprojections``)."""
+        self.tally[NSTEPS] = counts["nsteps"]
+        self.tally[NSWITCHES] = counts["nswitches"]
+        self.tally[NPROJECTIONS] = counts["nprojections"]
+
+    # ------------------------------------------------------------------ stepping
+    def _evaluate_first_stage(self) -> None:
+        y, K = self.buffers[0], self.buffers[2]
+        t = self.t
+        compiled.ode_rhs(y, K[0], 0, self.system.system, self._inputs(t, 0.0), self.system.work)
+        self.tally[NFEV] += 1
+
+    def _inputs(self, t: float, h: float) -> tuple:
+        return self.system.stage_inputs(t + DOP853_C * h)
+
+    def _initial_step(self, t_end: float) -> float:
+        """Hairer, Norsett and Wanner's initial step (II.4), as ``scipy``'s."""
+        y0, f0 = self.y, self.buffers[2][0].copy()
+        scale = self.atol + np.abs(y0) * self.rtol
+        d0, d1 = _rms(y0 / scale), _rms(f0 / scale)
+        h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
+        h0 = min(h0, t_end - self.t)
+        f1 = np.empty_like(y0)
+        system = self.system
+        inputs = system.stage_inputs(np.array([self.t + h0]))
+        compiled.ode_rhs(y0 + h0 * f0, f1, 0, system.system, inputs, system.work)
+        self._evaluate_first_stage()  # leave the work buffers at the current state
+        self.tally[NFEV] += 1
+        d2 = _rms((f1 - f0) / scale) / h0
+        h1 = (
+            max(1e-6, h0 * 1e-3) if d1 <= 1e-15 and d2 <= 1e-15 else (0.01 / max(d1, d2)) ** (1 / 8)
+        )
+        return min(100 * h0, h1, t_end - self.t)
+
+    def run(
+        self, bound: float, next_sample_t: float, limits: tuple, monitor: np.ndarray
+    ) -> tuple[int, int, float]:
+        """:func:`dop853_run` up to ``bound`` [s] or the step whose samples are due from
+        ``next_sample_t`` [s]: ``(code, check code, check value)``.  The located switches it
+        returns are in :meth:`new_switch_times`."""
+        system = self.system
+        self.tally[NEW_SWITCHES] = 0
+        args = (self.clock, self.tally, self.buffers, self.flags, self.switch_times,
+                system.system)  # fmt: skip
+        tail = (system.work, self.scratch, self.settings, limits, monitor, float(bound),
+                float(next_sample_t))  # fmt: skip
+        rows, point = system.input_buffers(DOP853_C.size), system.input_buffers(1)
+        if rows is None:  # a Python function among the inputs: the loop as Python
+            start = np.array([self.t])
+            rows = point = system.stage_inputs(start)
+            return _dop853_loop(*args, rows, point, None, system.stage_inputs, *tail)
+        return dop853_run(*args, rows, point, system.tables, None, *tail)
+
+    def new_switch_times(self) -> list[float]:
+        """The switches located by the last :meth:`run` [s]."""
+        return self.switch_times[: self.tally[NEW_SWITCHES]].tolist()
+
+    def dense(self) -> Callable[[float], np.ndarray]:
+        """``y(t)`` inside the last step (its dense output made by :meth:`run`)."""
+        assert self.tally[DENSE_READY], "dense: the last step's dense output was not made"
+        _, y_old, _, F, _, _, _ = self.buffers
+        t_old, h = self.clock[T_OLD], self.clock[T] - self.clock[T_OLD]
+
+        def at(t: float) -> np.ndarray:
+            out = np.empty_like(y_old)
+            dop853_interpolate(F, y_old, (t - t_old) / h, out)
+            return out
+
+        return at
+
+    def restart(self) -> None:
+        """The state changed at the current time (a controller's update): the next
+        :meth:`run` evaluates its first stage and taut flags anew; a switch headed for is
+        forgotten."""
+        self.tally[RESTART] = 1
+        self.tally[LANDING] = 0
+
+
+def _rms(x: np.ndarray) -> float:
+    return float(np.linalg.norm(x) / np.sqrt(x.size))
