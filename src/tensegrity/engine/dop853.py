@@ -393,7 +393,9 @@ def _dop853_loop(clock, tally, buffers, flags, switch_times, system, rows, point
         if bad >= 0:
             clock[INPUT_TIME] = clock[T]
             return RUN_INPUT, CHECK_OK, 0.0
-        check, value = check_state(y, np.int64(0), system, point, work, limits, monitor, True)
+        check, value = check_state(
+            y, np.int64(0), system, point, work, limits, monitor, np.bool_(True)
+        )
         if check != CHECK_OK:
             return RUN_CHECK_FAILED, check, value
         clock[DRIFT] = value
