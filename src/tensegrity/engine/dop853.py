@@ -39,6 +39,10 @@ from tensegrity.engine.compiled import (
     DOP853_C,
     DOP853_STAGES,
     EXACT_JIT_OPTIONS,
+    bracket_open,
+    bracket_query,
+    bracket_start,
+    bracket_update,
     check_state,
     dop853_attempt,
     dop853_dense,
@@ -86,6 +90,9 @@ N_CLOCK = 7
     NEW_SWITCHES,
 ) = range(13)
 N_TALLY = 13
+
+#: The counts a run reports, by their index in ``tally``.
+_COUNTS = {"nsteps": NSTEPS, "nswitches": NSWITCHES, "nprojections": NPROJECTIONS}
 
 #: What :func:`dop853_run` returns: the samples up to the last step's end are due (its dense
 #: output ready); the step reached ``bound``; ``max_steps`` steps were taken; the switch buffer
@@ -235,45 +242,27 @@ def _distance(t, context, tables, provider):  # pragma: no cover - compiled
 @register_jitable
 def _locate_switch(context, tables, provider):  # pragma: no cover - compiled
     """Earliest time [s] in the last step at which one of the candidates (kernel positions,
-    ``context`` as :func:`_distance`'s) changes taut/slack state; the distances there are left
-    in ``scratch[3][:len(candidates)]`` (``<= 0``: switched).  NaN if an input cannot be made.
-
-    The first root of ``g(t) = min_k d_k(t)`` on the step's dense output, by regula falsi with
-    the Illinois modification (superlinear on a smooth ``g``), kept in a shrinking bracket by a
-    bisection whenever a false-position step leaves more than half of it; to a bracket of
+    ``context`` as :func:`_distance`'s) changes taut/slack state: the first root of ``g(t) =
+    min_k d_k(t)`` on the step's dense output (:func:`compiled.bracket_start`), to a bracket of
     :data:`SWITCH_RTOL` (relative).  Returns the bracket's right end, just past the switch, so
     that tendons switching within the bracket (the symmetric twins of a regular shell) switch
-    together instead of being located one by one."""
+    together instead of being located one by one; the distances there are left in
+    ``scratch[3][:len(candidates)]`` (``<= 0``: switched).  NaN if an input cannot be made."""
     clock = context[0]
     lo, hi = clock[T_OLD], clock[T]
     g_lo = _distance(lo, context, tables, provider)
     g_hi = _distance(hi, context, tables, provider)
-    tol = SWITCH_RTOL * max(1.0, abs(hi))
-    kept = 0  # which end stayed put last time: -1 lo, +1 hi (Illinois halves its value)
-    while hi - lo > tol:
-        if np.isnan(g_lo) or np.isnan(g_hi):
+    if np.isnan(g_lo) or np.isnan(g_hi):
+        return np.nan
+    bracket = bracket_start(lo, hi, g_lo, g_hi, SWITCH_RTOL * max(1.0, abs(hi)))
+    while bracket_open(bracket):
+        t = bracket_query(bracket)
+        g = _distance(t, context, tables, provider)
+        if np.isnan(g):
             return np.nan
-        width = hi - lo
-        mid = 0.5 * (lo + hi)
-        if g_lo > 0.0 > g_hi:
-            mid = lo + g_lo * width / (g_lo - g_hi)
-        mid = min(max(mid, lo + 0.25 * tol), hi - 0.25 * tol)
-        g_mid = _distance(mid, context, tables, provider)
-        if g_mid > 0.0:
-            lo, g_lo = mid, g_mid
-            g_hi, kept = (0.5 * g_hi if kept == 1 else g_hi), 1
-        else:
-            hi, g_hi = mid, g_mid
-            g_lo, kept = (0.5 * g_lo if kept == -1 else g_lo), -1
-        if hi - lo > 0.5 * width:  # false position crawled: bisect
-            mid = 0.5 * (lo + hi)
-            g_mid = _distance(mid, context, tables, provider)
-            if g_mid > 0.0:
-                lo, g_lo = mid, g_mid
-            else:
-                hi, g_hi = mid, g_mid
-            kept = 0
-    end = min(max(hi, lo + tol), clock[T])
+        bracket_update(bracket, t, g)
+    lo, hi = bracket[compiled.LO], bracket[compiled.HI]
+    end = min(max(hi, lo + bracket[compiled.TOL]), clock[T])
     if not _distance(end, context, tables, provider) <= 0.0:  # (switched back within tol)
         end = hi
         if np.isnan(_distance(end, context, tables, provider)):
@@ -458,14 +447,17 @@ class DOP853:
     # ------------------------------------------------------------------ the state
     @property
     def t(self) -> float:
+        """The current time [s]."""
         return float(self.clock[T])
 
     @property
     def y(self) -> np.ndarray:
+        """The current state (m,), the engine's ``[q, q', E_d, W_w, W_u]`` (a buffer)."""
         return self.buffers[0]
 
     @property
     def nfev(self) -> int:
+        """Right-hand-side evaluations so far."""
         return int(self.tally[NFEV])
 
     @property
@@ -513,18 +505,12 @@ class DOP853:
 
     def counts(self) -> dict[str, int]:
         """Accepted steps, located switches and projections so far."""
-        tally = self.tally
-        return dict(
-            nsteps=int(tally[NSTEPS]),
-            nswitches=int(tally[NSWITCHES]),
-            nprojections=int(tally[NPROJECTIONS]),
-        )
+        return {name: int(self.tally[i]) for name, i in _COUNTS.items()}
 
     def set_counts(self, counts: dict[str, int]) -> None:
         """The counts of a checkpoint (``nsteps``, ``nswitches``, ``nprojections``)."""
-        self.tally[NSTEPS] = counts["nsteps"]
-        self.tally[NSWITCHES] = counts["nswitches"]
-        self.tally[NPROJECTIONS] = counts["nprojections"]
+        for name, i in _COUNTS.items():
+            self.tally[i] = counts[name]
 
     # ------------------------------------------------------------------ stepping
     def _evaluate_first_stage(self) -> None:

@@ -450,37 +450,20 @@ def _first_switch(
     taut/slack state, and the tendons that have switched by then.
 
     The first root of ``g(t) = min_k d_k(t)`` (:meth:`Stepper.switch_distance`: ``d_k <= 0``
-    once tendon ``k`` has switched) on the step's dense output, by regula falsi with the
-    Illinois modification (superlinear on a smooth ``g``), kept in a shrinking bracket by a
-    bisection whenever a false-position step leaves more than half of it; to a bracket of
-    :data:`SWITCH_RTOL` (relative).  Returns the bracket's right end: just past the switch."""
+    once tendon ``k`` has switched) on the step's dense output, by the solver the compiled
+    DOP853 loop uses (:func:`compiled.bracket_start`), to a bracket of :data:`SWITCH_RTOL`
+    (relative).  Returns the bracket's right end: just past the switch."""
 
     def g(t: float) -> float:
         return float(np.min(stepper.switch_distance(t, candidates, was_taut)))
 
     lo, hi = stepper.t_old, stepper.t
-    g_lo, g_hi = g(lo), g(hi)
     tol = SWITCH_RTOL * max(1.0, abs(hi))
-    kept = 0  # which end stayed put last time: -1 lo, +1 hi (Illinois halves its value)
-    while hi - lo > tol:
-        width = hi - lo
-        mid = lo + g_lo * width / (g_lo - g_hi) if g_lo > 0 > g_hi else 0.5 * (lo + hi)
-        mid = min(max(mid, lo + 0.25 * tol), hi - 0.25 * tol)
-        g_mid = g(mid)
-        if g_mid > 0:
-            lo, g_lo = mid, g_mid
-            g_hi, kept = (0.5 * g_hi if kept == 1 else g_hi), 1
-        else:
-            hi, g_hi = mid, g_mid
-            g_lo, kept = (0.5 * g_lo if kept == -1 else g_lo), -1
-        if hi - lo > 0.5 * width:  # false position crawled: bisect
-            mid = 0.5 * (lo + hi)
-            g_mid = g(mid)
-            if g_mid > 0:
-                lo, g_lo = mid, g_mid
-            else:
-                hi, g_hi = mid, g_mid
-            kept = 0
+    bracket = compiled.bracket_start(lo, hi, g(lo), g(hi), tol)
+    while compiled.bracket_open(bracket):
+        t = float(compiled.bracket_query(bracket))
+        compiled.bracket_update(bracket, t, g(t))
+    lo, hi = float(bracket[compiled.LO]), float(bracket[compiled.HI])
     # The switch is reported at the end of a bracket of width ``tol``, as by bisection, so that
     # tendons switching within ``tol`` of it (the symmetric twins of a regular shell) switch
     # together instead of being located one by one.
