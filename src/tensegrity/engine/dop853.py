@@ -9,16 +9,17 @@ The method, coefficients, error norm and step-size law are ``scipy.integrate.DOP
 (:mod:`tensegrity.engine.compiled`). Per accepted step, as the run loop's docstring says: the
 tensions at the step's end (known from its last stage) are compared with the taut flags at its
 start; if a tendon went slack or taut, the earliest switch is found on the step's dense output
-(:func:`_locate_switch`), the step is discarded and retaken to end exactly there, and the
+(:func:`compiled.bracket_start`), the step is discarded and retaken to end exactly there, and the
 switching tendons are marked as switched.  A rejected attempt whose end shows a switch may
 stand for the step (*provisional*): the switch is located on it instead of shrinking the step
 until the kink falls out of it.  The step size carries over a projection or a located switch.
 
 Inputs: constant, or tabulated (``tables``, interpolated here), or a Python function of time
 (``provider``, :meth:`CompiledSystem.stage_inputs`).  With a provider the same loop runs as
-Python (``dop853_run.py_func``; the helpers that reach the provider are
-``register_jitable``: Python there, compiled inside :func:`dop853_run`), calling the compiled
-kernels; the provider is called once per attempt with the attempt's stage times.
+Python (:func:`_dop853_loop`; the helpers that reach the provider, :func:`_inputs_at` and
+:func:`_point`, are ``register_jitable``: Python there, compiled inside :func:`dop853_run`),
+calling the compiled kernels; the provider is called once per attempt with the attempt's stage
+times.
 
 The loop's state lives in a few arrays (:class:`DOP853`): ``clock`` (float64, indices
 ``T``...), ``tally`` (int64, indices ``NFEV``...), the state buffers, the taut flags and the
@@ -139,55 +140,39 @@ def _taut_flags(tension, landed_exact, landing_mask, landing_after, taut):  # pr
             taut[s] = landing_after[s]
 
 
-@register_jitable
-def _attempt_step(clock, tally, buffers, taut, use_taut, system, rows, tables, provider, work,
-                  settings, bound, times):  # pragma: no cover - compiled  # fmt: skip
-    """One step not past ``bound`` [s] (scipy's DOP853 step-size law); with ``use_taut``, a
-    rejected attempt whose end shows a tendon switched is returned as the step
-    (``tally[PROVISIONAL]``).  Returns ``(rows, code)``: the stage inputs of the step and
-    ``RUN_SAMPLES`` (taken), ``RUN_STEP_FAILED`` or ``RUN_INPUT``."""
-    y, y_old, K, _, y_new, stage, _ = buffers
-    rtol, atol = settings[0], settings[1]
-    t, h = clock[T], clock[STEP]
-    tally[PROVISIONAL] = 0
-    min_step = 10.0 * abs(np.nextafter(t, np.inf) - t)
-    rejected = False
-    error = 0.0
-    while True:
-        h = max(min(h, bound - t), min_step)
-        if t + h > bound or bound - (t + h) < min_step:
-            h = bound - t
-        for i in range(DOP853_C.shape[0]):
-            times[i] = t + DOP853_C[i] * h
-        rows, bad = _inputs_at(times, rows, tables, provider)
-        if bad >= 0:
-            clock[INPUT_TIME] = times[bad]
-            return rows, RUN_INPUT
-        error = dop853_attempt(y, h, K, y_new, stage, rtol, atol, system, rows, work)
-        tally[NFEV] += DOP853_STAGES
-        if error < 1.0:
-            break
-        if use_taut and np.isfinite(error) and _any_switched(work[2], taut):
-            tally[PROVISIONAL] = 1
-            break
-        factor = MIN_FACTOR
-        if np.isfinite(error):
-            factor = max(MIN_FACTOR, SAFETY * error**EXPONENT)
-        h *= factor
-        rejected = True
-        if h < min_step:
-            return rows, RUN_STEP_FAILED
-    if not tally[PROVISIONAL]:
-        factor = MAX_FACTOR
-        if error != 0.0:
-            factor = min(MAX_FACTOR, SAFETY * error**EXPONENT)
-        clock[STEP] = h * (min(1.0, factor) if rejected else factor)
-    clock[T_OLD] = t
-    copy_values(y, y_old, y.shape[0])
-    clock[T] = bound if h == bound - t else t + h
-    copy_values(y_new, y, y.shape[0])
-    tally[DENSE_READY] = 0
-    return rows, RUN_SAMPLES
+@njit(**EXACT_JIT_OPTIONS)
+def _step_within(t, h, bound, min_step):  # pragma: no cover - compiled
+    """The step size [s] to try from ``t`` [s]: ``h`` but not past ``bound``, and all the way
+    to it when less than ``min_step`` would be left."""
+    h = max(min(h, bound - t), min_step)
+    if t + h > bound or bound - (t + h) < min_step:
+        h = bound - t
+    return h
+
+
+@njit(**EXACT_JIT_OPTIONS)
+def _stage_times(t, h, times):  # pragma: no cover - compiled
+    """The 16 stage times of a step of ``h`` [s] from ``t`` [s] into ``times``."""
+    for i in range(DOP853_C.shape[0]):
+        times[i] = t + DOP853_C[i] * h
+
+
+@njit(**EXACT_JIT_OPTIONS)
+def _shrink(error):  # pragma: no cover - compiled
+    """The factor of a rejected step with error norm ``error`` (> 1, or not finite)."""
+    if not np.isfinite(error):
+        return MIN_FACTOR
+    return max(MIN_FACTOR, SAFETY * error**EXPONENT)
+
+
+@njit(**EXACT_JIT_OPTIONS)
+def _grow(error, rejected):  # pragma: no cover - compiled
+    """The factor of the next step after one accepted with error norm ``error`` (< 1), not
+    above 1 if the step was rejected before."""
+    factor = MAX_FACTOR
+    if error != 0.0:
+        factor = min(MAX_FACTOR, SAFETY * error**EXPONENT)
+    return min(1.0, factor) if rejected else factor
 
 
 @njit(**EXACT_JIT_OPTIONS)
@@ -197,77 +182,6 @@ def _any_switched(tension, taut):  # pragma: no cover - compiled
         if (tension[s] > 0.0) != taut[s]:
             return True
     return False
-
-
-@register_jitable
-def _dense(clock, tally, buffers, system, rows, tables, provider, work, times):  # pragma: no cover
-    """The last step's dense output into ``F`` (three more stages, their inputs at the step's
-    stage times), unless it is ready.  Returns ``(rows, bad)`` as :func:`_inputs_at`."""
-    if tally[DENSE_READY]:
-        return rows, -1
-    y, y_old, K, F, _, stage, _ = buffers
-    t_old, h = clock[T_OLD], clock[T] - clock[T_OLD]
-    for i in range(DOP853_C.shape[0]):
-        times[i] = t_old + DOP853_C[i] * h
-    rows, bad = _inputs_at(times, rows, tables, provider)
-    if bad >= 0:
-        clock[INPUT_TIME] = times[bad]
-        return rows, bad
-    dop853_dense(y_old, y, h, K, F, stage, system, rows, work)
-    tally[NFEV] += 3
-    tally[DENSE_READY] = 1
-    return rows, -1
-
-
-@register_jitable
-def _distance(t, context, tables, provider):  # pragma: no cover - compiled
-    """``min_k`` of :func:`compiled.switch_distance` over the candidates at ``t`` [s] inside
-    the last step (``<= 0`` once one has switched); NaN if the inputs at ``t`` cannot be made.
-    ``context`` = ``(clock, buffers, system, point, work, scratch, candidates, taut, times1)``
-    (:func:`_locate_switch`)."""
-    clock, buffers, system, point, work, scratch, candidates, taut, times1 = context
-    _, y_old, _, F, _, _, y_at = buffers
-    p, v, indicator, distance = scratch
-    point, bad = _point(t, point, tables, provider, times1)
-    if bad >= 0:
-        clock[INPUT_TIME] = t
-        return np.nan
-    x = (t - clock[T_OLD]) / (clock[T] - clock[T_OLD])
-    out = distance[: candidates.shape[0]]
-    return switch_distance(
-        F, y_old, x, y_at, system, point[0][0], work, p, v, indicator, candidates, taut, out
-    )
-
-
-@register_jitable
-def _locate_switch(context, tables, provider):  # pragma: no cover - compiled
-    """Earliest time [s] in the last step at which one of the candidates (kernel positions,
-    ``context`` as :func:`_distance`'s) changes taut/slack state: the first root of ``g(t) =
-    min_k d_k(t)`` on the step's dense output (:func:`compiled.bracket_start`), to a bracket of
-    :data:`SWITCH_RTOL` (relative).  Returns the bracket's right end, just past the switch, so
-    that tendons switching within the bracket (the symmetric twins of a regular shell) switch
-    together instead of being located one by one; the distances there are left in
-    ``scratch[3][:len(candidates)]`` (``<= 0``: switched).  NaN if an input cannot be made."""
-    clock = context[0]
-    lo, hi = clock[T_OLD], clock[T]
-    g_lo = _distance(lo, context, tables, provider)
-    g_hi = _distance(hi, context, tables, provider)
-    if np.isnan(g_lo) or np.isnan(g_hi):
-        return np.nan
-    bracket = bracket_start(lo, hi, g_lo, g_hi, SWITCH_RTOL * max(1.0, abs(hi)))
-    while bracket_open(bracket):
-        t = bracket_query(bracket)
-        g = _distance(t, context, tables, provider)
-        if np.isnan(g):
-            return np.nan
-        bracket_update(bracket, t, g)
-    lo, hi = bracket[compiled.LO], bracket[compiled.HI]
-    end = min(max(hi, lo + bracket[compiled.TOL]), clock[T])
-    if not _distance(end, context, tables, provider) <= 0.0:  # (switched back within tol)
-        end = hi
-        if np.isnan(_distance(end, context, tables, provider)):
-            return np.nan
-    return end
 
 
 def _dop853_loop(clock, tally, buffers, flags, switch_times, system, rows, point, tables,
@@ -283,19 +197,40 @@ def _dop853_loop(clock, tally, buffers, flags, switch_times, system, rows, point
     ``scratch`` = ``(p, v (3, n_slots), indicator (S,), distance (S,), candidates (S,) int64)``;
     ``settings`` = ``(rtol, atol, t_end [s], projection_tol, max_steps, locate)``; ``limits``
     and ``monitor`` as :func:`compiled.check_state`'s.
+
+    The whole loop is one function, its heavy callees (the stages, the dense output, the switch
+    distance, the checks, the projection) called from here only: numba compiles every function
+    that calls them with their code linked in again, so helpers around them would each cost
+    about a second of the first run's compile.
     """
-    y, _, K, _, _, _, _ = buffers
+    y, y_old, K, F, y_new, stage, y_at = buffers
     taut, landing_mask, landing_after = flags
     p, v, indicator, distance, candidates = scratch
-    t_end, projection_tol, max_steps, locate = settings[2], settings[3], settings[4], settings[5]
-    n = (y.shape[0] - 3) // 2
+    rtol, atol, t_end, projection_tol = settings[0], settings[1], settings[2], settings[3]
+    max_steps, locate = settings[4], settings[5]
+    m = y.shape[0]
+    n = (m - 3) // 2
     times = np.empty(DOP853_C.shape[0])
     times1 = np.empty(1)
-    switch_scratch = (p, v, indicator, distance)
+
+    def switch_distance_at(t, count):
+        """min_k of the candidates' distances at ``t`` inside the last step, and whether the
+        inputs at ``t`` could not be made (then ``clock[INPUT_TIME]`` is ``t``)."""
+        inputs, bad = _point(t, point, tables, provider, times1)
+        if bad >= 0:
+            clock[INPUT_TIME] = t
+            return np.nan, True
+        x = (t - clock[T_OLD]) / (clock[T] - clock[T_OLD])
+        least = switch_distance(
+            F, y_old, x, y_at, system, inputs[0][0], work, p, v, indicator,
+            candidates[:count], taut, distance[:count],
+        )  # fmt: skip
+        return least, False
+
     while True:
         if tally[PENDING]:  # finish the accepted step whose samples were handed out
             tally[PENDING] = 0
-            copy_values(K[DOP853_STAGES], K[0], y.shape[0])  # first same as last
+            copy_values(K[DOP853_STAGES], K[0], m)  # first same as last
             if tally[LANDED]:
                 clock[STEP] = max(clock[STEP], clock[STEP_BEFORE])
                 tally[ALLOW_PROVISIONAL] = tally[LANDING_EXACT]
@@ -327,73 +262,123 @@ def _dop853_loop(clock, tally, buffers, flags, switch_times, system, rows, point
         detect = locate and not (heading and tally[LANDING_EXACT])
         target = min(bound, clock[LANDING_TIME]) if heading else bound
         use_taut = locate and bool(tally[ALLOW_PROVISIONAL]) and not heading
-        rows, code = _attempt_step(
-            clock, tally, buffers, taut, use_taut, system, rows, tables, provider, work,
-            settings, target, times,
-        )  # fmt: skip
-        if code != RUN_SAMPLES:
-            return code, CHECK_OK, 0.0
+
+        # ---- one step not past ``target`` (scipy's step-size law); with ``use_taut`` a
+        # rejected attempt whose end shows a tendon switched stands for it (provisional)
+        t, h = clock[T], clock[STEP]
+        tally[PROVISIONAL] = 0
+        min_step = 10.0 * abs(np.nextafter(t, np.inf) - t)
+        rejected = False
+        while True:
+            h = _step_within(t, h, target, min_step)
+            _stage_times(t, h, times)
+            rows, bad = _inputs_at(times, rows, tables, provider)
+            if bad >= 0:
+                clock[INPUT_TIME] = times[bad]
+                return RUN_INPUT, CHECK_OK, 0.0
+            error = dop853_attempt(y, h, K, y_new, stage, rtol, atol, system, rows, work)
+            tally[NFEV] += DOP853_STAGES
+            if error < 1.0:
+                break
+            if use_taut and np.isfinite(error) and _any_switched(work[2], taut):
+                tally[PROVISIONAL] = 1
+                break
+            h *= _shrink(error)
+            rejected = True
+            if h < min_step:
+                return RUN_STEP_FAILED, CHECK_OK, 0.0
+        if not tally[PROVISIONAL]:
+            clock[STEP] = h * _grow(error, rejected)
+        clock[T_OLD] = t
+        copy_values(y, y_old, m)
+        clock[T] = target if h == target - t else t + h
+        copy_values(y_new, y, m)
+        tally[DENSE_READY] = 0
         tally[ALLOW_PROVISIONAL] = locate
+
+        # ---- a tendon switched within the step: the candidates
+        count = 0
         if detect:
-            count = 0
             for s in range(taut.shape[0]):
                 if (work[2][s] > 0.0) != taut[s]:
                     candidates[count] = s
                     count += 1
-            if count:
-                rows, bad = _dense(clock, tally, buffers, system, rows, tables, provider, work,
-                                   times)  # fmt: skip
-                if bad >= 0:
-                    return RUN_INPUT, CHECK_OK, 0.0
-                context = (clock, buffers, system, point, work, switch_scratch,
-                           candidates[:count], taut, times1)  # fmt: skip
-                t_switch = _locate_switch(context, tables, provider)
-                if np.isnan(t_switch):
-                    return RUN_INPUT, CHECK_OK, 0.0
-                exact = not tally[PROVISIONAL]
-                landing_mask[:] = False
-                for k in range(count):
-                    s = candidates[k]
-                    if distance[k] <= 0.0:
-                        landing_mask[s] = True
-                        landing_after[s] = not taut[s]
-                clock[LANDING_TIME] = t_switch
-                tally[LANDING] = 1
-                tally[LANDING_EXACT] = exact
-                # retreat: back to the step's start, heading for the switch
-                clock[T] = clock[T_OLD]
-                copy_values(buffers[1], y, y.shape[0])
-                tally[DENSE_READY] = 0
-                clock[STEP_BEFORE], clock[STEP] = clock[STEP], t_switch - clock[T]
-                if exact:
-                    tally[NSWITCHES] += 1
-                    switch_times[tally[NEW_SWITCHES]] = t_switch
-                    tally[NEW_SWITCHES] += 1
-                    if tally[NEW_SWITCHES] == switch_times.shape[0]:
-                        return RUN_SWITCHES, CHECK_OK, 0.0
-                continue
-        tally[NSTEPS] += 1
-        landed = bool(tally[LANDING]) and clock[T] >= clock[LANDING_TIME]
-        tally[LANDED] = landed
-        if locate:
-            exact = landed and bool(tally[LANDING_EXACT])
-            _taut_flags(work[2], exact, landing_mask, landing_after, taut)
-        point, bad = _point(clock[T], point, tables, provider, times1)
-        if bad >= 0:
-            clock[INPUT_TIME] = clock[T]
-            return RUN_INPUT, CHECK_OK, 0.0
-        check, value = check_state(
-            y, np.int64(0), system, point, work, limits, monitor, np.bool_(True)
-        )
-        if check != CHECK_OK:
-            return RUN_CHECK_FAILED, check, value
-        clock[DRIFT] = value
-        tally[PENDING] = 1
-        if next_sample_t <= clock[T] * (1.0 + 1e-14):
-            rows, bad = _dense(clock, tally, buffers, system, rows, tables, provider, work, times)
+        if count == 0:  # the step stands: the checks, then the next step or the samples
+            tally[NSTEPS] += 1
+            landed = bool(tally[LANDING]) and clock[T] >= clock[LANDING_TIME]
+            tally[LANDED] = landed
+            if locate:
+                exact = landed and bool(tally[LANDING_EXACT])
+                _taut_flags(work[2], exact, landing_mask, landing_after, taut)
+            point, bad = _point(clock[T], point, tables, provider, times1)
             if bad >= 0:
+                clock[INPUT_TIME] = clock[T]
                 return RUN_INPUT, CHECK_OK, 0.0
+            check, value = check_state(
+                y, np.int64(0), system, point, work, limits, monitor, np.bool_(True)
+            )
+            if check != CHECK_OK:
+                return RUN_CHECK_FAILED, check, value
+            clock[DRIFT] = value
+            tally[PENDING] = 1
+            if next_sample_t > clock[T] * (1.0 + 1e-14):
+                continue
+
+        # ---- the step's dense output: for its samples, or to locate the switch
+        t_old, h = clock[T_OLD], clock[T] - clock[T_OLD]
+        _stage_times(t_old, h, times)
+        rows, bad = _inputs_at(times, rows, tables, provider)
+        if bad >= 0:
+            clock[INPUT_TIME] = times[bad]
+            return RUN_INPUT, CHECK_OK, 0.0
+        dop853_dense(y_old, y, h, K, F, stage, system, rows, work)
+        tally[NFEV] += 3
+        tally[DENSE_READY] = 1
+        if count == 0:
             return RUN_SAMPLES, CHECK_OK, 0.0
+
+        # ---- the earliest switch: the first root of g(t) = min_k d_k(t) on the dense output
+        # (compiled.bracket_start), to a bracket of SWITCH_RTOL (relative); reported at the
+        # bracket's right end, just past it, so that tendons switching within the bracket (the
+        # symmetric twins of a regular shell) switch together instead of one by one
+        g_lo, failed = switch_distance_at(t_old, count)
+        g_hi, failed_hi = switch_distance_at(clock[T], count)
+        failed = failed or failed_hi
+        bracket = bracket_start(t_old, clock[T], g_lo, g_hi, SWITCH_RTOL * max(1.0, abs(clock[T])))
+        while not failed and bracket_open(bracket):
+            t = bracket_query(bracket)
+            g, failed = switch_distance_at(t, count)
+            bracket_update(bracket, t, g)
+        lo, hi = bracket[compiled.LO], bracket[compiled.HI]
+        t_switch = min(max(hi, lo + bracket[compiled.TOL]), clock[T])
+        if not failed:
+            g, failed = switch_distance_at(t_switch, count)
+            if not failed and not g <= 0.0:  # (switched back within the bracket: the root)
+                t_switch = hi
+                g, failed = switch_distance_at(t_switch, count)
+        if failed:
+            return RUN_INPUT, CHECK_OK, 0.0
+        exact = not tally[PROVISIONAL]
+        landing_mask[:] = False
+        for k in range(count):  # the tendons switched by then (distance <= 0 there)
+            s = candidates[k]
+            if distance[k] <= 0.0:
+                landing_mask[s] = True
+                landing_after[s] = not taut[s]
+        clock[LANDING_TIME] = t_switch
+        tally[LANDING] = 1
+        tally[LANDING_EXACT] = exact
+        # retreat: back to the step's start, heading for the switch
+        clock[T] = t_old
+        copy_values(y_old, y, m)
+        tally[DENSE_READY] = 0
+        clock[STEP_BEFORE], clock[STEP] = clock[STEP], t_switch - t_old
+        if exact:
+            tally[NSWITCHES] += 1
+            switch_times[tally[NEW_SWITCHES]] = t_switch
+            tally[NEW_SWITCHES] += 1
+            if tally[NEW_SWITCHES] == switch_times.shape[0]:
+                return RUN_SWITCHES, CHECK_OK, 0.0
 
 
 #: :func:`_dop853_loop` compiled (constant or tabulated inputs; ``provider`` None).
