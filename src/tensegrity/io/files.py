@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import shutil
 import stat
 import tempfile
 from collections.abc import Callable, Iterator
@@ -35,11 +36,13 @@ PathLike = str | os.PathLike
 def atomic_path(path: PathLike, *, fsync: bool = True) -> Iterator[Path]:
     """Write a file atomically: yield a temporary path to write, then move it onto ``path``.
 
-    The temporary file (``<name>.<random>.tmp``) is created empty in ``path``'s directory, so the
-    final :func:`os.replace` is an atomic rename on the same file system.  If the ``with`` body
-    completes, the temporary file is flushed to disk (``fsync``) and replaces ``path``; if it
-    raises (any exception, ``KeyboardInterrupt`` included), the temporary file is removed and the
-    exception propagates, leaving ``path`` as it was (absent, or the older file intact).
+    The temporary file (``<name>.<pid>.<random>.tmp``) is created empty in ``path``'s directory,
+    so the final :func:`os.replace` is an atomic rename on the same file system; temporary files
+    of ``path`` that a killed process left are removed first (:func:`remove_stale`).  If the
+    ``with`` body completes, the temporary file is flushed to disk (``fsync``) and replaces
+    ``path``; if it raises (any exception, ``KeyboardInterrupt`` included), the temporary file
+    is removed and the exception propagates, leaving ``path`` as it was (absent, or the older
+    file intact).
 
     The new file gets the permissions of the file it replaces, or the usual ``0o666 & ~umask``
     for a new file (rather than ``mkstemp``'s private ``0o600``).
@@ -65,8 +68,9 @@ def atomic_path(path: PathLike, *, fsync: bool = True) -> Iterator[Path]:
     ...     figure.savefig(tmp, format="png")
     """
     final = Path(path)
+    remove_stale(final.parent, final.name)
     with tempfile.NamedTemporaryFile(
-        dir=final.parent, prefix=f"{final.name}.", suffix=".tmp", delete=False
+        dir=final.parent, prefix=f"{final.name}.{os.getpid()}.", suffix=".tmp", delete=False
     ) as handle:
         tmp = Path(handle.name)
     try:
@@ -140,34 +144,146 @@ def os_problem(exc: OSError) -> str:
 
 
 # ------------------------------------------------------------------- staged output folders
-def write_staged(out: Path, write: Callable[[Path], list[Path]]) -> list[Path]:
-    """Write every output into a staging folder inside ``out``, then move them into ``out``.
+#: Name prefix of a staging folder: ``.staging-<pid>-<random>``.
+STAGING_PREFIX = ".staging-"
 
-    ``write(staging)`` writes the files and returns them in the order they are to be moved;
-    a file in a subfolder of ``staging`` goes to the same subfolder of ``out`` (created if
-    missing; files already there and not rewritten stay).  Either all files appear (each by an
-    atomic rename) or, if any write fails, none does and the folders created for them are
-    removed again.
+
+def write_staged(out: Path, write: Callable[[Path], list[Path]]) -> list[Path]:
+    """Write a set of outputs into ``out`` all together, or not at all.
+
+    ``write(staging)`` writes the files into a new staging folder inside ``out`` (the same file
+    system, so that each move is an atomic rename) and returns them in the order they are to be
+    moved; a file in a subfolder of ``staging`` goes to the same subfolder of ``out`` (created
+    if missing; files already there and not rewritten stay).  Then every target is checked
+    (no folder where a file goes, no file where a folder goes) before anything moves, and the
+    files are moved in, each file they replace kept aside until all are in.  If ``write`` or
+    any move fails (or the run is interrupted), ``out`` is rolled back to what was there: the
+    files replaced so far are put back, the new ones removed, and the folders created for them
+    removed again.  What a killed run left in ``out`` (staging folders and temporary files of
+    processes that no longer exist) is removed first (:func:`remove_stale`).
+
+    Raises
+    ------
+    ValueError
+        One line naming the target that is in the way (nothing moved).
     """
     out = Path(out)
     created = [folder for folder in (out, *out.parents) if not folder.exists()]
     out.mkdir(parents=True, exist_ok=True)
+    remove_stale(out)
     try:
-        with tempfile.TemporaryDirectory(dir=out, prefix=".staging-") as staging:
-            moved = []
-            for path in write(Path(staging)):
-                target = out / Path(path).relative_to(staging)
-                if not target.parent.exists():
-                    target.parent.mkdir(parents=True)
-                    created.append(target.parent)
-                os.replace(path, target)
-                moved.append(target)
-            return moved
+        with tempfile.TemporaryDirectory(
+            dir=out, prefix=f"{STAGING_PREFIX}{os.getpid()}-"
+        ) as staging:
+            moves = [
+                (Path(path), out / Path(path).relative_to(staging)) for path in write(Path(staging))
+            ]
+            _check_targets(out, moves)
+            return _move_all(moves, Path(staging) / ".replaced", out, created)
     except BaseException:
-        for folder in sorted(created, key=lambda f: len(f.parts), reverse=True):
-            with contextlib.suppress(OSError):
-                folder.rmdir()  # only if empty
+        _remove_folders(created)
         raise
+
+
+def _check_targets(out: Path, moves: list[tuple[Path, Path]]) -> None:
+    """``ValueError`` naming the first target a file cannot be moved to: a folder stands there,
+    or a file where one of its folders goes."""
+    for _, target in moves:
+        if target.is_dir() and not target.is_symlink():
+            raise file_error(target, "is a folder, where an output file goes; nothing was written")
+        for folder in target.relative_to(out).parents:
+            path = out / folder
+            if path.exists() and not path.is_dir():
+                raise file_error(
+                    path, "is a file, where an output folder goes; nothing was written"
+                )
+
+
+def _move_all(
+    moves: list[tuple[Path, Path]], aside: Path, out: Path, created: list[Path]
+) -> list[Path]:
+    """Move each ``(source, target)``, the file a target replaces moved into ``aside`` first;
+    on any failure put everything back (the folders made for targets are added to
+    ``created``)."""
+    done: list[tuple[Path, Path | None]] = []
+    try:
+        for source, target in moves:
+            for folder in reversed(target.relative_to(out).parents):
+                if not (out / folder).exists():
+                    (out / folder).mkdir()
+                    created.append(out / folder)
+            kept = None
+            if target.exists() or target.is_symlink():
+                kept = aside / target.relative_to(out)
+                kept.parent.mkdir(parents=True, exist_ok=True)
+                os.replace(target, kept)
+            done.append((target, kept))
+            os.replace(source, target)
+    except BaseException:
+        for target, kept in reversed(done):  # roll back, last move first
+            with contextlib.suppress(OSError):
+                if kept is not None:
+                    os.replace(kept, target)
+                else:
+                    target.unlink()
+        raise
+    return [target for _, target in moves]
+
+
+def _remove_folders(folders: list[Path]) -> None:
+    """Remove ``folders`` that are empty, deepest first."""
+    for folder in sorted(folders, key=lambda f: len(f.parts), reverse=True):
+        with contextlib.suppress(OSError):
+            folder.rmdir()  # only if empty
+
+
+def remove_stale(folder: Path, name: str | None = None) -> list[Path]:
+    """Remove what killed runs left in ``folder``: staging folders (``.staging-<pid>-*``) and
+    temporary files (``<name>.<pid>.<random>.tmp``; of ``name`` only, if given) whose process
+    ``<pid>`` no longer exists.  Those of a live process (a run going on) stay, as do names of
+    another form.  Returns what was removed."""
+    removed = []
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return removed
+    for entry in entries:
+        pid = _owner(entry.name, name)
+        if pid is None or _alive(pid):
+            continue
+        path = Path(entry.path)
+        with contextlib.suppress(OSError):
+            if entry.is_dir(follow_symlinks=False):
+                shutil.rmtree(path)
+            else:
+                path.unlink()
+            removed.append(path)
+    return removed
+
+
+def _owner(entry: str, name: str | None) -> int | None:
+    """The process id in a staging folder's or temporary file's name, or None."""
+    if entry.startswith(STAGING_PREFIX) and name is None:
+        pid = entry[len(STAGING_PREFIX) :].split("-", 1)[0]
+    elif entry.endswith(".tmp") and (name is None or entry.startswith(f"{name}.")):
+        parts = entry.split(".")
+        pid = parts[-3] if len(parts) >= 4 else ""
+    else:
+        return None
+    return int(pid) if pid.isdigit() else None
+
+
+def _alive(pid: int) -> bool:
+    """Whether process ``pid`` exists (a process of another user counts as alive)."""
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:
+        return True
+    return True
 
 
 # ----------------------------------------------------------------------------- input limits

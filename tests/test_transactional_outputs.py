@@ -1,0 +1,177 @@
+"""Outputs appear all together or not at all (issue 16, docs/reliability.md): a target that is
+in the way is found before anything moves, a failed move rolls the folder back to what was
+there, what a killed run left behind is removed by the next run, and a run killed with SIGKILL
+at any moment leaves every file under a final name either as it was or complete."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tensegrity.cli.main import main
+from tensegrity.io import files
+from tensegrity.io.files import remove_stale, write_staged
+from tensegrity.io.trajectory import read_trajectory
+
+
+def _contents(folder: Path) -> dict[str, bytes]:
+    """Every file under ``folder`` by its relative name (hidden ones too)."""
+    return {
+        str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()
+    }
+
+
+def _dead_pid() -> int:
+    """The id of a process that has ended."""
+    child = subprocess.Popen([sys.executable, "-c", "pass"])
+    child.wait()
+    return child.pid
+
+
+def _writer(names: dict[str, str]):
+    def write(staging: Path) -> list[Path]:
+        out = []
+        for name, text in names.items():
+            path = staging / name
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_text(text)
+            out.append(path)
+        return out
+
+    return write
+
+
+def test_a_folder_where_an_output_goes_changes_nothing(tmp_path, capsys):
+    """``matrices`` into a folder of an earlier run where one output's name is now a folder:
+    one line naming it, exit code 2, and every file of the earlier run as it was (before, the
+    files moved before the failing one had already replaced the old ones)."""
+    out = tmp_path / "out"
+    assert main(["matrices", "--n", "3", "--m", "1", "--out", str(out)]) == 0
+    blocked = sorted(p for p in out.iterdir() if p.suffix == ".npz")[-1]
+    blocked.unlink()
+    blocked.mkdir()
+    before = _contents(out)
+    capsys.readouterr()
+    assert main(["matrices", "--n", "4", "--m", "2", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and blocked.name in err and "folder" in err, err
+    assert _contents(out) == before
+    assert not [p for p in out.iterdir() if p.name.startswith(".staging")]
+
+
+def test_a_failed_move_rolls_the_folder_back(tmp_path, monkeypatch):
+    """The third of four moves fails: the two files it replaced are back with their old
+    content, the new file is gone, the folder made for it removed, and the error propagates."""
+    out = tmp_path / "out"
+    write_staged(out, _writer({"a.txt": "old a", "b.txt": "old b", "keep.txt": "kept"}))
+    before = _contents(out)
+    replace = os.replace
+    calls = []
+
+    def failing(source, target):
+        if Path(source).parent.name != ".replaced" and Path(target).parent.name != ".replaced":
+            calls.append(target)  # a move of a new file into place
+            if len(calls) == 3:
+                raise OSError(28, "No space left on device")
+        return replace(source, target)
+
+    monkeypatch.setattr(files.os, "replace", failing)
+    new = {"a.txt": "new a", "sub/c.txt": "new c", "b.txt": "new b", "d.txt": "new d"}
+    with pytest.raises(OSError, match="No space"):
+        write_staged(out, _writer(new))
+    monkeypatch.setattr(files.os, "replace", replace)
+    assert len(calls) == 3
+    assert _contents(out) == before
+    assert not (out / "sub").exists()
+    assert not [p for p in out.iterdir() if p.name.startswith(".staging")]
+
+
+def test_outputs_replace_the_old_ones_together(tmp_path):
+    out = tmp_path / "out"
+    write_staged(out, _writer({"a.txt": "old a", "keep.txt": "kept"}))
+    written = write_staged(out, _writer({"a.txt": "new a", "sub/b.txt": "new b"}))
+    assert written == [out / "a.txt", out / "sub" / "b.txt"]
+    assert _contents(out) == {"a.txt": b"new a", "keep.txt": b"kept", "sub/b.txt": b"new b"}
+
+
+def test_what_a_killed_run_left_is_removed_by_the_next(tmp_path):
+    """Staging folders and temporary files of processes that have ended are removed by the next
+    write into the folder; those of a live process (another run going on), and names of other
+    forms, stay."""
+    out = tmp_path / "out"
+    out.mkdir()
+    dead, live = _dead_pid(), os.getppid()
+    (out / f".staging-{dead}-abc").mkdir()
+    (out / f".staging-{dead}-abc" / "trajectory.h5").write_text("half")
+    (out / f"figure.png.{dead}.x1y2.tmp").write_text("half")
+    (out / f".staging-{live}-def").mkdir()
+    (out / f"figure.png.{live}.x1y2.tmp").write_text("being written")
+    (out / "notes.tmp").write_text("the user's")
+    write_staged(out, _writer({"a.txt": "a"}))
+    names = sorted(p.name for p in out.iterdir())
+    assert names == sorted(
+        ["a.txt", f".staging-{live}-def", f"figure.png.{live}.x1y2.tmp", "notes.tmp"]
+    )
+    assert remove_stale(out) == []
+
+
+def test_atomic_write_removes_its_stale_temporaries(tmp_path):
+    dead = _dead_pid()
+    stale = tmp_path / f"result.json.{dead}.abcd.tmp"
+    other = tmp_path / f"other.json.{dead}.abcd.tmp"
+    stale.write_text("{")
+    other.write_text("{")
+    with files.atomic_path(tmp_path / "result.json") as tmp:
+        assert f".{os.getpid()}." in tmp.name
+        tmp.write_text("{}")
+    assert not stale.exists() and other.exists()  # only the file being written is tidied
+
+
+KILL_AFTER = [0.4, 0.9, 1.3, 1.7, 2.2, 2.8]  # seconds: imports, the run, the figures, the moves
+
+
+@pytest.mark.parametrize("delay", KILL_AFTER)
+def test_simulate_killed_at_any_moment_leaves_each_file_old_or_complete(tmp_path, delay):
+    """``tensegrity simulate`` into the folder of an earlier run, killed with SIGKILL after
+    ``delay``: every file under a final name is the earlier run's, byte for byte, or a complete
+    file of the new run (a trajectory that reads, JSON that parses, a PNG with its end chunk);
+    the next run removes what the killed one left and leaves no staging folder or temporary
+    file."""
+    out = tmp_path / "out"
+    base = [sys.executable, "-m", "tensegrity.cli", "simulate", "--out", str(out)]
+    subprocess.run([*base, "--t-end", "0.5", "--no-steady-state"], check=True, capture_output=True)
+    old = _contents(out)
+    child = subprocess.Popen(
+        [*base, "--n", "4", "--m", "2", "--t-end", "2", "--no-steady-state"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    time.sleep(delay)
+    child.send_signal(signal.SIGKILL)
+    child.wait()
+    for name, content in _contents(out).items():
+        if name.startswith(".") or name.split("/")[0].startswith("."):
+            continue  # a hidden staging folder, partial or temporary file
+        if old.get(name) == content:
+            continue
+        path = out / name
+        if name.endswith(".h5"):
+            assert read_trajectory(path).t[-1] == pytest.approx(2.0), name
+        elif name.endswith(".json"):
+            json.loads(content)
+        elif name.endswith(".png"):
+            assert content.startswith(b"\x89PNG") and content.endswith(b"IEND\xaeB`\x82"), name
+        else:
+            raise AssertionError(f"unexpected file {name}")
+    subprocess.run([*base, "--t-end", "0.5", "--no-steady-state"], check=True, capture_output=True)
+    left = [p.name for p in out.iterdir() if p.name.startswith(".staging") or ".tmp" in p.name]
+    assert left == []
+    assert np.isclose(read_trajectory(out / "trajectory.h5").t[-1], 0.5)
