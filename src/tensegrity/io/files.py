@@ -242,7 +242,7 @@ def remove_stale(folder: Path, name: str | None = None) -> list[Path]:
     temporary files (``<name>.<pid>.<random>.tmp``; of ``name`` only, if given) whose process
     ``<pid>`` no longer exists.  Those of a live process (a run going on) stay, as do names of
     another form.  Returns what was removed."""
-    removed = []
+    removed: list[Path] = []
     try:
         entries = list(os.scandir(folder))
     except OSError:
