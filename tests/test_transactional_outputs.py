@@ -12,8 +12,8 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from xml.etree import ElementTree
 
-import numpy as np
 import pytest
 
 from tensegrity.cli.main import main
@@ -135,43 +135,72 @@ def test_atomic_write_removes_its_stale_temporaries(tmp_path):
     assert not stale.exists() and other.exists()  # only the file being written is tidied
 
 
-KILL_AFTER = [0.4, 0.9, 1.3, 1.7, 2.2, 2.8]  # seconds: imports, the run, the figures, the moves
+def _check_complete(path: Path, content: bytes) -> None:
+    """``AssertionError`` unless ``path`` is a complete output file of its kind."""
+    if path.suffix == ".h5":
+        read_trajectory(path)
+    elif path.suffix == ".json":
+        json.loads(content)
+    elif path.suffix == ".png":
+        assert content.startswith(b"\x89PNG") and content.endswith(b"IEND\xaeB`\x82"), path
+    elif path.suffix in (".vtp", ".pvd"):
+        ElementTree.fromstring(content)
+    else:
+        raise AssertionError(f"unexpected file {path}")
 
 
-@pytest.mark.parametrize("delay", KILL_AFTER)
-def test_simulate_killed_at_any_moment_leaves_each_file_old_or_complete(tmp_path, delay):
-    """``tensegrity simulate`` into the folder of an earlier run, killed with SIGKILL after
+def _verb(name: str, tmp_path: Path) -> tuple[list[str], list[str]]:
+    """The arguments of a verb's earlier run and of the run to kill (a different result)."""
+    if name == "simulate":
+        return (
+            ["--t-end", "0.5", "--no-steady-state"],
+            ["--n", "4", "--m", "2", "--t-end", "2", "--no-steady-state"],
+        )
+    if name == "equilibrium":
+        return ["--n", "3", "--m", "1"], ["--n", "4", "--m", "2"]
+    runs = []
+    for n, m, t_end in (("3", "1", "0.2"), ("5", "3", "3")):  # vtk: two trajectories
+        folder = tmp_path / f"run{n}{m}"
+        main(["simulate", "--n", n, "--m", m, "--t-end", t_end, "--no-steady-state",
+              "--sample-dt", "0.002", "--out", str(folder)])  # fmt: skip
+        runs.append([str(folder / "trajectory.h5")])
+    return runs[0], runs[1]
+
+
+KILL_AFTER = {
+    "simulate": [0.4, 0.9, 1.3, 1.8, 2.4],  # seconds: imports, the run, the figures, the moves
+    "equilibrium": [0.6, 1.2, 1.7],
+    "vtk": [0.5, 1.0, 1.5],
+}
+
+
+@pytest.mark.parametrize(
+    "verb, delay", [(verb, delay) for verb, delays in KILL_AFTER.items() for delay in delays]
+)
+def test_a_verb_killed_at_any_moment_leaves_each_file_old_or_complete(tmp_path, verb, delay):
+    """``tensegrity VERB`` into the folder of an earlier run, killed with SIGKILL after
     ``delay``: every file under a final name is the earlier run's, byte for byte, or a complete
-    file of the new run (a trajectory that reads, JSON that parses, a PNG with its end chunk);
-    the next run removes what the killed one left and leaves no staging folder or temporary
-    file."""
+    file of the new run (a trajectory that reads, JSON that parses, a PNG with its end chunk,
+    VTK XML that parses); the next run removes what the killed one left and leaves no staging
+    folder or temporary file behind."""
     out = tmp_path / "out"
-    base = [sys.executable, "-m", "tensegrity.cli", "simulate", "--out", str(out)]
-    subprocess.run([*base, "--t-end", "0.5", "--no-steady-state"], check=True, capture_output=True)
+    old_args, new_args = _verb(verb, tmp_path)
+    base = [sys.executable, "-m", "tensegrity.cli", verb]
+    where = ["--out", str(out)] if verb != "vtk" else ["--output", str(out)]
+    subprocess.run([*base, *old_args, *where], check=True, capture_output=True)
     old = _contents(out)
     child = subprocess.Popen(
-        [*base, "--n", "4", "--m", "2", "--t-end", "2", "--no-steady-state"],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
+        [*base, *new_args, *where], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
     )
     time.sleep(delay)
     child.send_signal(signal.SIGKILL)
     child.wait()
     for name, content in _contents(out).items():
-        if name.startswith(".") or name.split("/")[0].startswith("."):
+        if any(part.startswith(".") for part in Path(name).parts):
             continue  # a hidden staging folder, partial or temporary file
-        if old.get(name) == content:
-            continue
-        path = out / name
-        if name.endswith(".h5"):
-            assert read_trajectory(path).t[-1] == pytest.approx(2.0), name
-        elif name.endswith(".json"):
-            json.loads(content)
-        elif name.endswith(".png"):
-            assert content.startswith(b"\x89PNG") and content.endswith(b"IEND\xaeB`\x82"), name
-        else:
-            raise AssertionError(f"unexpected file {name}")
-    subprocess.run([*base, "--t-end", "0.5", "--no-steady-state"], check=True, capture_output=True)
-    left = [p.name for p in out.iterdir() if p.name.startswith(".staging") or ".tmp" in p.name]
+        if old.get(name) != content:
+            _check_complete(out / name, content)
+    subprocess.run([*base, *old_args, *where], check=True, capture_output=True)
+    left = [p for p in out.rglob("*") if p.name.startswith(".staging") or ".tmp" in p.name]
     assert left == []
-    assert np.isclose(read_trajectory(out / "trajectory.h5").t[-1], 0.5)
+    assert _contents(out).keys() >= old.keys()
