@@ -262,3 +262,27 @@ def test_a_termination_signal_stops_any_verb_as_ctrl_c_does(name, code, tmp_path
     assert done.returncode == code, done.stderr
     assert done.stderr == "tensegrity: interrupted (nothing written)\n", done.stderr
     assert not list(tmp_path.iterdir())
+
+
+def test_a_large_run_says_before_it_starts_what_it_will_write(tmp_path, monkeypatch, capsys):
+    """Above ``LARGE_RUN_BYTES`` (lowered here to 0), ``simulate`` says before the run how
+    large its trajectory will be, how much is held in memory at a time and that the disk is too
+    small when it is; the size it gives is that of the file written (HDF5 overhead aside)."""
+    import importlib
+    import re
+
+    cli = importlib.import_module("tensegrity.cli.main")  # (the package's ``main`` is the function)
+
+    monkeypatch.setattr(cli, "LARGE_RUN_BYTES", 0)
+    out = tmp_path / "out"
+    args = ["simulate", "--n", "4", "--m", "2", "--t-end", "0.5", "--no-steady-state"]
+    assert main([*args, "--sample-dt", "0.0005", "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    said = re.search(r"large run: up to 1,001 samples of .* about ([\d.]+) MiB in trajectory", err)
+    assert said, err
+    written = (out / "trajectory.h5").stat().st_size / 2**20
+    assert 0.95 * written < float(said.group(1)) <= written
+    assert "free there" not in err
+    monkeypatch.setattr(cli.shutil, "disk_usage", lambda path: type("U", (), {"free": 1000})())
+    assert main([*args, "--out", str(tmp_path / "small")]) == 0
+    assert "more than the 1000 B free there" in capsys.readouterr().err

@@ -19,6 +19,7 @@ import contextlib
 import dataclasses
 import math
 import os
+import shutil
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -38,7 +39,7 @@ from tensegrity.cli.errors import (
     warnings_on_success,
 )
 from tensegrity.engine.options import ADAPTIVE_METHODS, DEFAULT_MAX_SAMPLES, FIXED_STEP_METHODS
-from tensegrity.io.files import write_staged as _write_all
+from tensegrity.io.files import byte_text, write_staged as _write_all
 from tensegrity.model.structure import Structure
 from tensegrity.physics import dynamics
 
@@ -310,6 +311,39 @@ def _check_samples(
         )
 
 
+#: ``simulate`` says before a run that writes at least this many bytes what it will write.
+LARGE_RUN_BYTES = 2**30
+
+
+def _announce_large_run(structure: Structure, t_end: float, sample_dt: float, out: Path) -> None:
+    """Before a run whose trajectory file would reach :data:`LARGE_RUN_BYTES`, say on stderr
+    how large it will be, how much of it is held in memory at a time, and whether the disk of
+    ``out`` has room for it (a run stopped at a steady state writes less)."""
+    from tensegrity.io.stream import sample_bytes, samples_per_segment
+
+    row = sample_bytes(structure)
+    samples = math.floor(t_end / sample_dt + 1e-9) + 1
+    if samples * row < LARGE_RUN_BYTES:
+        return
+    held = 2 * samples_per_segment(structure, _segment(structure, t_end, sample_dt), sample_dt)
+    try:
+        free = shutil.disk_usage(out).free
+    except OSError:
+        free = None
+    room = (
+        f" - more than the {byte_text(free)} free there"
+        if free is not None and free < samples * row
+        else ""
+    )
+    print(
+        f"tensegrity: a large run: up to {samples:,} samples of {row / 2**20:.3g} MiB, about "
+        f"{byte_text(samples * row)} in trajectory.h5{room}, written as the run goes (at most "
+        f"{byte_text(held * row)} of samples in memory at a time); a larger --sample-dt "
+        "writes less",
+        file=sys.stderr,
+    )
+
+
 def _segment(structure: Structure, t_end: float, sample_dt: float) -> float:
     """Segment duration [s] of a ``simulate`` run: at most a tenth of it, rounded to samples.
 
@@ -500,6 +534,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     _check_samples(args.t_end, args.sample_dt)
     structure, force, gravity = _simulation_inputs(args)
     files = _RunFiles.prepare(args.out, args.resume)
+    _announce_large_run(structure, args.t_end, args.sample_dt, files.out)
     try:
         summary = _stream_run(args, structure, force, gravity, files)
         trajectory, balance, written = _write_run(args, structure, summary, files)

@@ -381,11 +381,17 @@ def segment_grid(
     return bounds
 
 
+def sample_bytes(structure: Structure) -> int:
+    """Bytes of one sample of ``structure`` in a trajectory file (its datasets' rows)."""
+    return 8 * sum(max(1, math.prod(shape)) for shape in _row_shapes(structure).values())
+
+
 def samples_per_segment(structure: Structure, segment: float | None, sample_dt: float) -> int:
+    """Samples of one segment: ``segment`` [s] in samples, or by default as many as fit
+    :data:`DEFAULT_SEGMENT_BYTES` (held twice while a segment is written), at most
+    :data:`DEFAULT_SEGMENT_SAMPLES`."""
     if segment is None:
-        n, s = structure.n_coordinates, structure.n_tendons
-        row_bytes = 8 * (2 * n + 6 * structure.n_nodes + 2 * s + 8)
-        # The recorder holds a segment's samples twice while it builds the result's arrays.
+        row_bytes = sample_bytes(structure)
         return int(max(1, min(DEFAULT_SEGMENT_SAMPLES, DEFAULT_SEGMENT_BYTES // (2 * row_bytes))))
     segment = float(segment)
     if not (math.isfinite(segment) and segment > 0):
