@@ -76,7 +76,7 @@ def case_parameters(ds, i):
     }
 
 
-GRID = {"stiffness": [80.0, 3e7], "load": [0.0, 6.0], "n": [2, 3], "damping": [0.5]}
+GRID = {"stiffness": [80.0, 3e7], "load": [0.0, 6.0], "n": [3, 4], "damping": [0.5]}
 
 
 @pytest.fixture(scope="module")
@@ -89,20 +89,62 @@ def test_failing_cases_are_reported_and_the_others_finish(failing_sweep):
     ds = failing_sweep.dataset
     assert ds.sizes["case"] == 8 and ds.sizes["time"] == round(T_END / SAMPLE_DT) + 1
     status = ds["status"].values
-    n, k = ds["n"].values, ds["stiffness"].values
-    # n = 2 is not a shell: an error naming the parameter; k = 3e7 at this step blows up.
-    assert np.all(status[n == 2] == STATUS_ERROR)
-    assert all("n: a shell needs n >= 3" in m for m in ds["message"].values[n == 2])
-    unstable = (n == 3) & (k == 3e7)
+    k = ds["stiffness"].values
+    # k = 3e7 at this step blows up.
+    unstable = k == 3e7
     assert np.all(status[unstable] == -1)
     assert all(m.startswith("unstable") for m in ds["message"].values[unstable])
     assert np.all(ds["t_final"].values[unstable] < T_END)
-    good = (n == 3) & (k == 80.0)
+    good = k == 80.0
     assert np.all(status[good] == 0)
     assert np.all(ds["t_final"].values[good] == pytest.approx(T_END))
     assert np.all(np.isfinite(ds["kinetic_energy"].values[good]))
     assert sorted(failing_sweep.failed) == sorted(np.flatnonzero(~good).tolist())
     assert "stiffness=3e+07" in failing_sweep.describe_case(int(np.flatnonzero(unstable)[0]))
+
+
+@pytest.mark.parametrize(
+    "grid, words",
+    [
+        ({"n": [3, 2]}, "case 1 (n=2, m=1, stiffness=100, rest_scale=0.9, damping=0, load=0): n:"),
+        ({"stiffness": [100.0, -5.0, 50.0]}, "case 1 (n=3, m=1, stiffness=-5,"),
+        ({"damping": [0.0, 1.0, -0.5]}, "case 2 (n=3, m=1, stiffness=100, rest_scale=0.9, dam"),
+    ],
+)
+def test_cases_out_of_range_are_refused_before_the_cluster_starts(grid, words, monkeypatch):
+    """A parameter out of its range fails in one line naming the case, before any cluster is
+    started or work sent out (before, every such case failed on the cluster and the sweep
+    wrote a dataset of failed cases)."""
+    from tensegrity.sweep import run as sweep_run
+
+    def no_cluster(*args, **kwargs):
+        raise AssertionError("a cluster was started")
+
+    monkeypatch.setattr(sweep_run._Cluster, "__enter__", no_cluster)
+    with pytest.raises(ValueError) as refused:
+        run_sweep(SweepSpec(grid, t_end=T_END, sample_dt=SAMPLE_DT, dt=DT))
+    message = str(refused.value)
+    assert message.startswith(words) and "\n" not in message, message
+
+
+def test_a_case_that_fails_on_a_worker_is_reported_not_raised():
+    """What a worker runs (``run_cases``): a case whose model cannot be built (one the check
+    up front did not probe) becomes a failed row naming the parameter, and the others run."""
+    from tensegrity.sweep.run import run_cases
+
+    spec = SweepSpec({"n": [3]}, t_end=T_END, sample_dt=SAMPLE_DT, dt=DT, batch=False)
+    good, bad = spec.cases()[0], {**spec.cases()[0], "n": 2}
+    rows = run_cases([bad, good], spec, batched=False)
+    assert rows[0]["status"] == STATUS_ERROR and "n: a shell needs n >= 3" in rows[0]["message"]
+    assert rows[1]["status"] == 0
+
+
+def test_cli_sweep_out_of_range_writes_nothing(tmp_path, capsys):
+    out = tmp_path / "s.nc"
+    assert main(["sweep", "--param", "stiffness=-5,100", "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("tensegrity: error: case 0 (") and "stiffness: must be > 0" in err, err
+    assert not out.exists() and not list(tmp_path.iterdir())
 
 
 def test_sweep_cases_equal_direct_simulate_bitwise(failing_sweep):
@@ -122,7 +164,7 @@ def test_sweep_cases_equal_direct_simulate_bitwise(failing_sweep):
             np.testing.assert_array_equal(got[: rows.sum()], series[rows], err_msg=name)
             assert np.all(np.isnan(got[rows.sum() :])), name
         checked += 1
-    assert checked == 4
+    assert checked == 8  # (every case: none is out of range)
 
 
 def test_batched_sweep_matches_direct_simulate(client):

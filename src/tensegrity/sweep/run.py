@@ -368,6 +368,29 @@ def case_model(
     return structure, force
 
 
+def check_cases(cases: Sequence[Mapping[str, float]], structure: Structure | None = None) -> None:
+    """Build the models of the cases that hold each parameter's smallest and largest value
+    (:func:`case_model`), before any work is sent out: a parameter out of its range (a stiffness
+    <= 0, a negative damping, ...) fails here in one line naming the case, not in every case on
+    the cluster.  The ranges are bounds, so these cases stand for all.
+
+    Raises
+    ------
+    ValueError
+        ``"case 0 (n=3, m=1, stiffness=-5, ...): tendons[0] ('t1_1_1').stiffness: must be > 0"``.
+    """
+    probe = {0} if cases else set()
+    for name in cases[0] if cases else ():
+        values = np.array([case[name] for case in cases], dtype=float)
+        probe.update((int(np.argmin(values)), int(np.argmax(values))))
+    for i in sorted(probe):
+        try:
+            case_model(cases[i], structure)
+        except ValueError as exc:
+            values = ", ".join(f"{name}={value:g}" for name, value in cases[i].items())
+            raise ValueError(f"case {i} ({values}): {exc}") from None
+
+
 def summarize(result: SimulationResult, times: np.ndarray) -> dict[str, Any]:
     """The per-case variables of the sweep dataset from one simulation's samples.
 
@@ -663,6 +686,7 @@ def run_sweep(
     if n_workers is not None and n_workers < 1:
         raise ValueError(f"n_workers: must be >= 1, got {n_workers!r}")
     cases = spec.cases()
+    check_cases(cases, spec.structure)
     rows: dict[int, dict] = {}  # case index: summary (every case is in one task)
     wall0 = time.perf_counter()
     bar = None
