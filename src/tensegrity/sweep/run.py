@@ -387,8 +387,8 @@ def check_cases(cases: Sequence[Mapping[str, float]], structure: Structure | Non
         try:
             case_model(cases[i], structure)
         except ValueError as exc:
-            values = ", ".join(f"{name}={value:g}" for name, value in cases[i].items())
-            raise ValueError(f"case {i} ({values}): {exc}") from None
+            shown = ", ".join(f"{name}={value:g}" for name, value in cases[i].items())
+            raise ValueError(f"case {i} ({shown}): {exc}") from None
 
 
 def summarize(result: SimulationResult, times: np.ndarray) -> dict[str, Any]:
