@@ -574,3 +574,32 @@ def test_cli_sweep_of_a_structure_file(tmp_path, capsys):
     assert len(err) == 3 and all(line.startswith("tensegrity: error:") for line in err)
     assert "parameters.n" in err[0] and "missing.json" in err[1] and "--spec" in err[2]
     assert not (tmp_path / "x.nc").exists()
+
+
+FULL_DISK_CHILD = """
+import resource, signal, sys
+signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write past the limit fails (EFBIG) instead
+resource.setrlimit(resource.RLIMIT_FSIZE, (100_000, 100_000))  # files of at most 100 kB
+from tensegrity.cli.main import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def test_sweep_onto_a_full_disk_fails_in_one_line_and_leaves_nothing(tmp_path):
+    """Writing the dataset fails part way (a file-size limit stands for a full disk): one line
+    naming the file, exit code 2, no file left (before: pages of h5py tracebacks and a
+    segmentation fault, exit code 139)."""
+    import subprocess
+    import sys
+
+    out = tmp_path / "s.nc"
+    args = ["sweep", "--param", "stiffness=100,200,300,400", "--param", "load=0,1,2"]
+    args += ["--t-end", "0.5", "--workers", "1", "-o", str(out)]
+    child = subprocess.run(
+        [sys.executable, "-c", FULL_DISK_CHILD, *args], capture_output=True, text=True, timeout=300
+    )
+    assert child.returncode == 2, child.stderr[-2000:]
+    assert child.stderr.strip().splitlines() == [f"tensegrity: error: {out}: File too large"], (
+        child.stderr[-2000:]
+    )
+    assert list(tmp_path.iterdir()) == []

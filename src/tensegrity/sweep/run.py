@@ -527,11 +527,22 @@ class SweepResult:
         return f"case {index} ({values})"
 
     def save(self, path: PathLike) -> Path:
-        """Write the dataset to ``path`` (netCDF-4/HDF5 via h5netcdf), atomically."""
+        """Write the dataset to ``path`` (netCDF-4/HDF5 via h5netcdf), atomically.
+
+        The file is made in memory and then written by Python: HDF5 writing a file directly
+        onto a disk that fills up printed a page of tracebacks and crashed the process
+        (a segmentation fault) instead of raising; now a full disk is an ``OSError``."""
+        import io
+
         from tensegrity.io.files import atomic_path
 
-        with atomic_path(path) as tmp:
-            self.dataset.to_netcdf(tmp, engine="h5netcdf")
+        image = io.BytesIO()
+        self.dataset.to_netcdf(image, engine="h5netcdf")
+        try:
+            with atomic_path(path) as tmp:
+                tmp.write_bytes(image.getbuffer())
+        except OSError as exc:  # (named after the file asked for, not the temporary one)
+            raise OSError(exc.errno, exc.strerror, os.fspath(path)) from exc
         return Path(path)
 
 
