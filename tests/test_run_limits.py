@@ -90,3 +90,61 @@ def test_cli_refuses_a_step_that_cannot_advance_in_one_line(tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert code == 2 and len(err.splitlines()) == 1 and "does not advance the time" in err
     assert not out.exists() or not any(out.iterdir())
+
+
+_STIFFNESSES = "stiffness=" + ",".join(str(k) for k in range(1, 1101))  # 1100 x 1000 cases
+_LOADS = "load=" + ",".join(str(k) for k in range(1000))
+
+
+@pytest.mark.parametrize(
+    ("argv", "words"),
+    [
+        (["info", "--n", "1000000000"], "n = 1000000000, m = 1: about 14,000,000,000 members"),
+        (["info", "--kind", "prism", "--n", "100000000"], "n = 100000000: about 400,000,000"),
+        (["info", "--kind", "tower", "--m", "100000000"], "n = 3, m = 100000000: about"),
+        (
+            ["sweep", "--param", "stiffness=1:2", "--samples", "1000000000", "-o", "x.nc"],
+            "samples: 1,000,000,000 cases, more than the limit of 1,000,000; set "
+            "TENSEGRITY_MAX_CASES",
+        ),
+        (
+            ["sweep", "--param", _STIFFNESSES, "--param", _LOADS, "-o", "x.nc"],
+            "parameters: 1,100,000 cases, more than the limit of 1,000,000",
+        ),
+    ],
+)
+def test_generated_sizes_are_refused_before_any_work(argv, words, tmp_path):
+    """A structure or a sweep far too large is refused in one line with the number, the limit
+    and the variable that raises it, in a child under a time and memory cap (before: allocated
+    until memory ran out, or, for the tower, built for minutes)."""
+    child = subprocess.run(
+        [sys.executable, "-m", "tensegrity.cli", *argv],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=tmp_path,
+        preexec_fn=lambda: resource.setrlimit(resource.RLIMIT_AS, (_MEMORY_CAP, _MEMORY_CAP)),
+    )
+    assert child.returncode == 2, child.stderr[-2000:]
+    line = child.stderr.strip()
+    assert "\n" not in line and words in line, line
+    assert "more than the limit of" in line and "set TENSEGRITY_MAX_" in line
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_the_size_limits_can_be_set(monkeypatch):
+    monkeypatch.setenv("TENSEGRITY_MAX_MEMBERS", "41")
+    with pytest.raises(ValueError, match=r"^n = 3, m = 1: about 42 members .* limit of 41;"):
+        class1_shell(3, 1)
+    monkeypatch.setenv("TENSEGRITY_MAX_MEMBERS", "42")
+    assert class1_shell(3, 1).n_rods == 6
+    monkeypatch.setenv("TENSEGRITY_MAX_MEMBERS", "many")
+    with pytest.raises(ValueError, match=r"^TENSEGRITY_MAX_MEMBERS: expected a whole number"):
+        class1_shell(3, 1)
+    from tensegrity.sweep import SweepSpec
+
+    monkeypatch.setenv("TENSEGRITY_MAX_CASES", "3")
+    with pytest.raises(ValueError, match=r"^parameters: 4 cases, more than the limit of 3;"):
+        SweepSpec({"stiffness": [1.0, 2.0], "load": [0.0, 1.0]})
+    monkeypatch.setenv("TENSEGRITY_MAX_CASES", "4")
+    assert len(SweepSpec({"stiffness": [1.0, 2.0], "load": [0.0, 1.0]}).cases()) == 4

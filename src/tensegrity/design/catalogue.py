@@ -35,7 +35,7 @@ import numpy as np
 from tensegrity.model.connectivity import from_connectivity, incidence
 from tensegrity.model.planar import planar_rod, planar_two_rod
 from tensegrity.model.shell import class1_shell, class2_shell
-from tensegrity.model.structure import Structure
+from tensegrity.model.structure import Structure, check_member_count
 
 
 # ----------------------------------------------------------------------------- helpers
@@ -129,6 +129,7 @@ def prism_layout(
         and changes the height (a start away from equilibrium).
     """
     n = _count(n, "n", 3)
+    check_member_count(4 * n, f"n = {n}")  # n bars, 3 n strings
     L = _positive(rod_length, "rod_length")
     h0 = L / math.sqrt(2) if height is None else _positive(height, "height")
     if not h0 < L:
@@ -303,6 +304,7 @@ def tower(
     from tensegrity.analysis.prestress import form_find
 
     n, m = _count(n, "n", 3), _count(m, "m", 1)
+    check_member_count(6 * n * m, f"n = {n}, m = {m}")  # per stage n bars, at most 5 n strings
     if not 0 <= overlap < 1:
         raise ValueError(f"overlap: must be in [0, 1), got {overlap!r}")
     stage = prism_layout(n, rod_length=rod_length)

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from tensegrity.model.structure import Structure
+from tensegrity.model.structure import Structure, check_member_count
 
 #: Tendon ``alpha`` of element ``(i, j)`` as ``(boundary, at_boundary, elsewhere)``.  Each end pair
 #: ``(head, tail)`` names node ``p_k`` of element ``(i + di, j + dj)`` as ``(k, di, dj)``; the
@@ -71,6 +71,8 @@ def _check_size(n: int, m: int) -> None:
         raise ValueError(f"n: a shell needs n >= 3 elements around, got {n!r}")
     if not isinstance(m, (int, np.integer)) or isinstance(m, bool) or m < 1:
         raise ValueError(f"m: a shell needs m >= 1 stages, got {m!r}")
+    # 2 rods and at most 12 tendons per element (Table 18.1)
+    check_member_count(14 * int(n) * int(m), f"n = {n}, m = {m}")
 
 
 def _real(value: Any, name: str) -> float:

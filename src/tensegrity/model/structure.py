@@ -23,6 +23,7 @@ Conventions (SI units throughout)
 from __future__ import annotations
 
 import dataclasses
+import os
 from collections.abc import Callable, Mapping, Sequence
 from functools import cached_property
 from typing import TYPE_CHECKING, Any
@@ -127,6 +128,42 @@ def _check_tendon_pairs(tendon_nodes: np.ndarray, names: Sequence[str]) -> None:
                 f"tendons[{pairs[key]}] ({names[pairs[key]]!r})"
             )
         pairs[key] = k
+
+
+#: Environment variable: the most members (rods + tendons) a generator builds.
+MAX_MEMBERS_VARIABLE = "TENSEGRITY_MAX_MEMBERS"
+#: The limit when the variable is not set: about 10 GB of model and run buffers.
+DEFAULT_MAX_MEMBERS = 10_000_000
+
+
+def check_member_count(members: int, what: str) -> None:
+    """Refuse, before building anything, a generated structure of more than the limit of
+    members (``TENSEGRITY_MAX_MEMBERS``, default :data:`DEFAULT_MAX_MEMBERS`): a size typed by
+    mistake (``--n 1000000000``) otherwise runs until memory runs out.
+
+    Parameters
+    ----------
+    members : int
+        The members the generator would build (an upper bound will do).
+    what : str
+        The request, as the message names it: ``"n = 1000000000, m = 1"``.
+
+    Raises
+    ------
+    ValueError
+        One line with the number, the limit and how to raise it.
+    """
+    text = os.environ.get(MAX_MEMBERS_VARIABLE, "").strip()
+    limit = DEFAULT_MAX_MEMBERS
+    if text:
+        if not text.isdigit() or int(text) < 1:
+            raise ValueError(f"{MAX_MEMBERS_VARIABLE}: expected a whole number >= 1, got {text!r}")
+        limit = int(text)
+    if members > limit:
+        raise ValueError(
+            f"{what}: about {members:,} members (rods and tendons), more than the limit of "
+            f"{limit:,}; set {MAX_MEMBERS_VARIABLE} to a larger number to build it"
+        )
 
 
 @dataclasses.dataclass(frozen=True, eq=False)

@@ -137,6 +137,28 @@ def _number(value: Any, field: str, *, integer: bool) -> float | int:
     return float(value)
 
 
+#: Environment variable: the most cases a sweep runs.
+MAX_CASES_VARIABLE = "TENSEGRITY_MAX_CASES"
+#: The limit when the variable is not set.
+DEFAULT_MAX_CASES = 1_000_000
+
+
+def _check_case_count(cases: int, field: str) -> None:
+    """Refuse a sweep of more than ``TENSEGRITY_MAX_CASES`` cases (default
+    :data:`DEFAULT_MAX_CASES`) before its cases are made, naming ``field``."""
+    text = os.environ.get(MAX_CASES_VARIABLE, "").strip()
+    limit = DEFAULT_MAX_CASES
+    if text:
+        if not text.isdigit() or int(text) < 1:
+            raise ValueError(f"{MAX_CASES_VARIABLE}: expected a whole number >= 1, got {text!r}")
+        limit = int(text)
+    if cases > limit:
+        raise ValueError(
+            f"{field}: {cases:,} cases, more than the limit of {limit:,}; set "
+            f"{MAX_CASES_VARIABLE} to a larger number to run them"
+        )
+
+
 @dataclasses.dataclass(frozen=True)
 class SweepSpec:
     """What to sweep and how to run each case (validated at construction).
@@ -217,6 +239,12 @@ class SweepSpec:
             object.__setattr__(self, field, _number(getattr(self, field), field, integer=True))
         if self.mode == "monte-carlo" and self.samples < 1:
             raise ValueError(f"samples: Monte Carlo needs samples >= 1, got {self.samples}")
+        _check_case_count(
+            self.samples
+            if self.mode == "monte-carlo"
+            else math.prod(len(values) for values in clean.values()),
+            "samples" if self.mode == "monte-carlo" else "parameters",
+        )
         for field in ("t_end", "sample_dt", "dt", "rtol", "atol"):
             value = _number(getattr(self, field), field, integer=False)
             if value <= 0:
