@@ -224,6 +224,7 @@ def test_default_rings_of_a_shell_are_its_bottom_and_top_rings(n_m):
         (["control", "--actuators", "t99_*"], "no tendon matches 't99_*'"),
         (["control", "--height", "-0.2"], "--height"),
         (["control", "--steps", "0", "2"], "steps"),
+        (["control", "--steps", "10", "1000000000"], "steps: expected two step counts from 1 to"),
         (["control", "--bottom", "0", "--top", "0"], "share nodes [0]"),
         (["equilibrium", "--method", "guess"], "--method"),
         (["equilibrium", "--structure", "missing.json"], "missing.json"),

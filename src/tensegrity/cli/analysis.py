@@ -421,6 +421,10 @@ def run_control(
     return Output("\n\n".join(text), written, "; ".join(missed) or None)
 
 
+#: Most quasi-static steps per phase of ``control``.
+MAX_CONTROL_STEPS = 10_000
+
+
 def _check_control_options(
     structure: Structure,
     *,
@@ -438,8 +442,11 @@ def _check_control_options(
         raise ValueError(
             f"height: must be > 0 (a fraction of the equilibrium height), got {height}"
         )
-    if len(steps) != 2 or min(steps) < 1:
-        raise ValueError(f"steps: expected two step counts >= 1, got {list(steps)}")
+    if len(steps) != 2 or min(steps) < 1 or max(steps) > MAX_CONTROL_STEPS:
+        raise ValueError(
+            f"steps: expected two step counts from 1 to {MAX_CONTROL_STEPS:,} (each step is an "
+            f"equilibrium solve, about a second each for a large shell), got {list(steps)}"
+        )
     for name, nodes in (("bottom", bottom), ("top", top)):
         bad = [i for i in nodes or () if not 0 <= i < structure.n_nodes]
         if bad:
