@@ -14,6 +14,7 @@ Numbering (0-based, the paper's stacking order of ``q``, eq. 18.24):
 from __future__ import annotations
 
 import math
+import sys
 from typing import Any
 
 import numpy as np
@@ -82,6 +83,11 @@ def _real(value: Any, name: str) -> float:
         raise ValueError(f"{name}: must be a number, got {value!r}") from None
 
 
+#: Largest shell radius, in rod lengths: node coordinates of ``R`` [m] carry a round-off of
+#: about ``2e-16 R``, which must stay far below a rod's length.
+MAX_RADIUS_RATIO = 1e9
+
+
 def shell_layout(
     n: int,
     m: int,
@@ -116,6 +122,10 @@ def shell_layout(
     h = L if stage_height is None else _real(stage_height, "stage_height")
     if not (math.isfinite(L) and L > 0):
         raise ValueError(f"rod_length: must be > 0, got {rod_length!r}")
+    if not L * L >= sys.float_info.min:
+        raise ValueError(
+            f"rod_length: too small to compute with (its square underflows), got {L!r}"
+        )
     if not (math.isfinite(h) and 0 < h < 2 * L):
         raise ValueError(f"stage_height: must be in (0, 2 rod_length) = (0, {2 * L}), got {h!r}")
     chord = math.sqrt(L**2 - (h / 2) ** 2)
@@ -128,6 +138,12 @@ def shell_layout(
             raise ValueError(
                 f"radius: must be >= {chord / 2!r} m for rods of length {L} to fit a stage of "
                 f"height {h}, got {radius!r}"
+            )
+        if R > MAX_RADIUS_RATIO * L:
+            raise ValueError(
+                f"radius: at most {MAX_RADIUS_RATIO:g} rod lengths ({MAX_RADIUS_RATIO * L:g} m): "
+                f"farther out the rods are lost in the round-off of the node coordinates, got "
+                f"{radius!r}"
             )
         sweep = 2 * math.asin(chord / (2 * R))
     stage_twist = 2 * sweep if twist is None else _real(twist, "twist")
@@ -267,6 +283,10 @@ def class2_layout(
     L = _real(rod_length, "rod_length")
     if not (math.isfinite(L) and L > 0):
         raise ValueError(f"rod_length: must be > 0, got {rod_length!r}")
+    if not L * L >= sys.float_info.min:
+        raise ValueError(
+            f"rod_length: too small to compute with (its square underflows), got {L!r}"
+        )
     h = L / 2 if stage_height is None else _real(stage_height, "stage_height")
     if not (math.isfinite(h) and 0 < h < L):
         raise ValueError(
