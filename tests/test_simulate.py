@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 
 import numpy as np
 import pytest
@@ -612,13 +613,34 @@ def test_nan_external_force_fails_the_run():
         (dict(control=lambda t: np.full(24, 0.5)), "control"),
         (dict(external_force=np.zeros((12, 2))), "external_force"),
         (dict(gravity=[0.0, -9.81]), "gravity"),
+        # values of the wrong type (before: "could not convert string to float", "too many
+        # values to unpack", "must be real number, not str", "cannot reshape array", naming
+        # nothing)
+        (dict(t_span=("a", "b")), "t_span"),
+        (dict(t_span=(0.0, 0.001, 0.002)), "t_span"),
+        (dict(t_span=0.002), "t_span"),
+        (dict(method="rk4", dt="0.001"), "dt"),
+        (dict(sample_dt="0.001"), "sample_dt"),
+        (dict(rtol="1e-9"), "rtol"),
+        (dict(control="abc"), "control"),
+        (dict(external_force="abc"), "external_force"),
+        (dict(gravity="abc"), "gravity"),
+        (dict(initial=State(0.0, np.zeros(5), np.zeros(5))), "initial.q"),
+        (dict(initial=State(0.0, np.zeros(36), np.zeros((36, 1)))), "initial.qdot"),
     ],
 )
 def test_bad_inputs_raise_value_error_naming_the_field(kwargs, field):
     structure = class1_shell(3, 1)
     t_span = kwargs.pop("t_span", (0.0, 0.1))
-    with pytest.raises(ValueError, match=field):
+    with pytest.raises(ValueError) as refused:
         simulate(structure, t_span, **kwargs)
+    message = str(refused.value)
+    assert re.match(rf"{re.escape(field)}[:\[]", message) and "\n" not in message, message
+
+
+def test_an_initial_state_that_is_not_a_state_is_a_type_error():
+    with pytest.raises(TypeError, match=r"^initial: expected a State \(t, q, qdot\), got str"):
+        simulate(class1_shell(3, 1), (0.0, 0.1), initial="abc")
 
 
 def test_control_exactly_at_zero_rest_length_is_accepted():

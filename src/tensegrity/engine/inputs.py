@@ -29,6 +29,17 @@ def _check(
     return value
 
 
+def _numbers(value: Any, field: str, expected: str) -> np.ndarray:
+    """``value`` as a float array; ``ValueError`` naming ``field`` and what was ``expected``
+    if it is not numbers."""
+    try:
+        return np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(
+            f"{field}: expected {expected}, got {type(value).__name__} {value!r:.60}"
+        ) from None
+
+
 class _Signal:
     """One input, ``None``, a constant, a table or a callable, evaluated at many times."""
 
@@ -42,7 +53,8 @@ class _Signal:
             self.kind = "function"
         else:
             self.kind = "constant"
-            self.value = _check(np.array(value, dtype=float), shape, field)
+            expected = f"numbers of shape {shape}, a table or a function of time"
+            self.value = _check(_numbers(value, field, expected), shape, field)
             self.value.setflags(write=False)
 
     @property
@@ -108,7 +120,7 @@ class Inputs:
             external_force, (structure.n_nodes, structure.dim), "external_force"
         )
         if gravity is not None:
-            gravity = np.array(gravity, dtype=float)
+            gravity = _numbers(gravity, "gravity", f"{structure.dim} numbers [m/s^2]")
             if gravity.shape != (structure.dim,) or not np.all(np.isfinite(gravity)):
                 raise ValueError(
                     f"gravity: expected {structure.dim} finite numbers, got {gravity!r}"

@@ -26,7 +26,7 @@ import dataclasses
 import math
 import time
 from collections.abc import Callable, Mapping
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -707,6 +707,35 @@ def _rk4_steps(run: _Run, stepper: RK4, n: int, h: float) -> bool:
     return True
 
 
+def time_span(t_span: Any) -> tuple[float, float]:
+    """``(t0, t_end)`` [s] of a run, finite with ``t0 < t_end``; ``ValueError`` naming
+    ``t_span`` otherwise."""
+    try:
+        t0, t_end = t_span
+        t0, t_end = float(t0), float(t_end)
+    except (TypeError, ValueError):
+        raise ValueError(
+            f"t_span: expected (t0, t_end), two numbers in s, got {t_span!r:.60}"
+        ) from None
+    if not (np.isfinite(t0) and np.isfinite(t_end) and t_end > t0):
+        raise ValueError(f"t_span: need finite t0 < t_end, got {t_span!r}")
+    return t0, t_end
+
+
+def _check_initial(structure: Structure, state: Any) -> None:
+    """``TypeError`` unless ``state`` is a :class:`~tensegrity.physics.dynamics.State`,
+    ``ValueError`` unless its ``q`` and ``qdot`` have the structure's coordinates."""
+    if not isinstance(state, dynamics.State):
+        raise TypeError(f"initial: expected a State (t, q, qdot), got {type(state).__name__}")
+    n = structure.n_coordinates
+    for name in ("q", "qdot"):
+        shape = np.shape(getattr(state, name))
+        if shape != (n,):
+            raise ValueError(
+                f"initial.{name}: expected shape ({n},) for this structure, got {shape}"
+            )
+
+
 def run(
     structure: Structure,
     t_span: tuple[float, float],
@@ -735,9 +764,7 @@ def run(
     at the end time, the steady state or the failing state.
     """
     options = Options() if options is None else options
-    t0, t_end = (float(x) for x in t_span)
-    if not (np.isfinite(t0) and np.isfinite(t_end) and t_end > t0):
-        raise ValueError(f"t_span: need finite t0 < t_end, got {t_span!r}")
+    t0, t_end = time_span(t_span)
     inputs = Inputs(structure) if inputs is None else inputs
     if controller is not None and inputs.control.kind != "none":
         raise ValueError("control: give a control or a controller, not both")
@@ -749,6 +776,7 @@ def run(
     r = _Run(structure, t0, t_end, inputs, options, sink, controller, checkpoint, progress)
     if resume is None:
         state = dynamics.initial_state(structure, t=t0) if initial is None else initial
+        _check_initial(structure, state)
         y0 = r.system.state_vector(state)
         if controller is not None:
             r.update_control(t0, y0)

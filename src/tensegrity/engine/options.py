@@ -7,6 +7,8 @@ import dataclasses
 import math
 from typing import Any
 
+import numpy as np
+
 #: Adaptive methods the engine integrates in compiled code (the default first).
 COMPILED_ADAPTIVE_METHODS = ("DOP853",)
 #: ``scipy.integrate`` methods still accepted, stepped through ``scipy`` with the compiled
@@ -80,12 +82,10 @@ class Options:
             )
         if self.fixed_step and self.dt is None:
             raise ValueError(f"dt: method {self.method!r} is fixed-step and needs a step dt")
-        if self.dt is not None and not (math.isfinite(self.dt) and self.dt > 0):
-            raise ValueError(f"dt: must be > 0, got {self.dt!r}")
-        if self.sample_dt is not None and not (
-            math.isfinite(self.sample_dt) and self.sample_dt > 0
-        ):
-            raise ValueError(f"sample_dt: must be > 0, got {self.sample_dt!r}")
+        for field in ("dt", "sample_dt"):
+            value = getattr(self, field)
+            if value is not None and not (_is_number(value) and math.isfinite(value) and value > 0):
+                raise ValueError(f"{field}: must be a number > 0 in s, got {value!r}")
         for field in (
             "rtol",
             "atol",
@@ -96,7 +96,7 @@ class Options:
             "max_energy_growth",
         ):
             value = getattr(self, field)
-            if not (isinstance(value, (int, float)) and value > 0):
+            if not (_is_number(value) and value > 0):
                 raise ValueError(f"{field}: must be > 0, got {value!r}")
         for field in ("max_steps", "max_samples"):
             value = getattr(self, field)
@@ -154,3 +154,8 @@ class Options:
             acceleration_tol=self.acceleration_tol,
             **inputs,
         )
+
+
+def _is_number(value: object) -> bool:
+    """Whether ``value`` is a real number (not a bool, not text)."""
+    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)

@@ -138,10 +138,10 @@ def simulate(
         max_steps=max_steps,
         max_samples=max_samples,
     )
-    from tensegrity.engine.loop import run  # compiled code: numba loads on first use
+    from tensegrity.engine.loop import run, time_span  # (compiled code: numba loads on use)
 
     sink = MemorySink()
-    bar = ProgressBar(*t_span) if progress else None
+    bar = ProgressBar(*time_span(t_span)) if progress else None
     try:
         summary = run(
             structure,
