@@ -294,6 +294,8 @@ def attribute_json(owner: Any, name: str, path: PathLike) -> dict[str, Any]:
         raise file_error(path, f"{where}: invalid JSON ({exc})") from exc
     except RecursionError as exc:
         raise file_error(path, f"{where}: invalid JSON (nested too deeply)") from exc
+    except ValueError as exc:  # an integer of more digits than Python converts (4300)
+        raise file_error(path, f"{where}: invalid JSON ({exc})") from exc
     if not isinstance(data, dict):
         raise file_error(path, f"{where}: expected a JSON object, got {type(data).__name__}")
     return data

@@ -662,8 +662,13 @@ def _dump_text(structure: Structure, kind: str, keep_joints: bool) -> str:
         flow = isinstance(value.get("nodes"), list)
         return dumper.represent_mapping("tag:yaml.org,2002:map", value.items(), flow_style=flow)
 
+    def text(dumper, value):  # PyYAML writes NEL (U+0085) raw, which reads back as a space
+        style = '"' if "\x85" in value else None
+        return dumper.represent_scalar("tag:yaml.org,2002:str", value, style=style)
+
     _Dumper.add_representer(list, short_lists)
     _Dumper.add_representer(dict, members)
+    _Dumper.add_representer(str, text)
     return header + yaml.dump(data, Dumper=_Dumper, sort_keys=False, allow_unicode=True, width=120)
 
 
@@ -711,6 +716,8 @@ def read_structure(path: PathLike) -> Structure:
         ) from exc
     except RecursionError as exc:
         raise file_error(path, "invalid JSON: nested too deeply") from exc
+    except ValueError as exc:  # an integer of more digits than Python converts (4300)
+        raise file_error(path, f"invalid JSON: {exc}") from exc
     return _structure_from_dict(data, path)
 
 

@@ -44,6 +44,12 @@ JOINT_RTOL = 1e-6
 _NOT_GIVEN: Any = None
 
 
+def _shown(value: Any) -> str:
+    """``repr(value)`` for a message: on one line (a NumPy array's repr has several), at most 80
+    characters."""
+    return " ".join(repr(value).split())[:80]
+
+
 def _readonly(array: np.ndarray) -> np.ndarray:
     array = np.ascontiguousarray(array)
     array.setflags(write=False)
@@ -54,8 +60,8 @@ def _float_array(value: Any, field: str, shape: tuple[int | None, ...]) -> np.nd
     """Convert ``value`` to a finite float array of the given shape (``None`` = any length)."""
     try:
         array = np.array(value, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{field}: expected numbers, got {value!r:.80}") from exc
+    except (TypeError, ValueError, OverflowError) as exc:
+        raise ValueError(f"{field}: expected numbers, got {_shown(value)}") from exc
     if array.ndim != len(shape) or any(
         want is not None and got != want for got, want in zip(array.shape, shape, strict=True)
     ):
@@ -78,7 +84,9 @@ def _index_array(value: Any, field: str, n_nodes: int) -> np.ndarray:
         array = array.reshape(0, 2)
     if array.ndim != 2 or array.shape[1] != 2:
         raise ValueError(f"{field}: expected shape (n, 2) of node indices, got {array.shape}")
-    if not (np.issubdtype(array.dtype, np.integer) or np.all(np.mod(array, 1) == 0)):
+    if array.dtype.kind not in "biuf" or not (
+        np.issubdtype(array.dtype, np.integer) or np.all(np.mod(array, 1) == 0)
+    ):
         raise ValueError(f"{field}: node indices must be integers")
     array = array.astype(np.int64)
     for k, (a, b) in enumerate(array):
@@ -300,7 +308,10 @@ class Structure:
     def _checked_positions(self) -> tuple[np.ndarray, np.ndarray]:
         """``(node_position, node_velocity)``, (N, 3) [m] and [m/s] ((N, 2) if planar), checked:
         at least one node, finite numbers; velocities default to zero."""
-        shape = np.shape(self.node_position)
+        try:
+            shape = np.shape(self.node_position)
+        except ValueError:  # a ragged list: _float_array names it
+            shape = ()
         dim = shape[1] if len(shape) == 2 and shape[1] == 2 else 3  # 2: a planar structure
         position = _float_array(self.node_position, "nodes", (None, dim))
         n_nodes = position.shape[0]
@@ -336,17 +347,28 @@ class Structure:
     def _checked_tendon_names(self, n_tendons: int) -> tuple[str, ...]:
         """The tendon names (default ``s0``, ``s1``, ...), checked: one non-empty string per
         tendon, no two alike."""
-        names = (
-            tuple(f"s{k}" for k in range(n_tendons))
-            if self.tendon_name is None
-            else tuple(self.tendon_name)
-        )
+        try:
+            names = (
+                tuple(f"s{k}" for k in range(n_tendons))
+                if self.tendon_name is None
+                else tuple(self.tendon_name)
+            )
+        except TypeError:
+            raise ValueError(
+                f"tendons.name: expected {n_tendons} names, got {_shown(self.tendon_name)}"
+            ) from None
         if len(names) != n_tendons:
             raise ValueError(f"tendons.name: expected {n_tendons} names, got {len(names)}")
         seen: dict[str, int] = {}
         for k, name in enumerate(names):
             if not isinstance(name, str) or not name:
-                raise ValueError(f"tendons[{k}].name: must be a non-empty string, got {name!r}")
+                raise ValueError(
+                    f"tendons[{k}].name: must be a non-empty string, got {_shown(name)}"
+                )
+            if "\x00" in name:  # .npz and HDF5 text ends at one (the name would not read back)
+                raise ValueError(
+                    f"tendons[{k}].name: must not contain a NUL character, got {name!r}"
+                )
             if name in seen:
                 raise ValueError(
                     f"tendons[{k}].name: {name!r} is also the name of tendons[{seen[name]}]"
@@ -452,7 +474,7 @@ class Structure:
             )
             if nodes.ndim != 1 or (nodes.size and not np.issubdtype(nodes.dtype, np.integer)):
                 raise ValueError(
-                    f"{nodes_field}: expected a list of node indices, got {nodes!r:.80}"
+                    f"{nodes_field}: expected a list of node indices, got {_shown(nodes)}"
                 )
             nodes = nodes.astype(np.int64)
             bad = np.flatnonzero((nodes < 0) | (nodes >= n_nodes))
@@ -474,6 +496,10 @@ class Structure:
             bad = np.flatnonzero(norm == 0)
             if bad.size:
                 raise ValueError(f"{vector_field}[{bad[0]}]: must not be zero")
+            # A vector already of unit length (to rounding: a normalized vector's norm is within
+            # 2 ulp of 1) is kept as it is, so that a structure read back is bit for bit the one
+            # written (normalizing again would move a unit vector by an ulp).
+            norm[np.abs(norm - 1.0) <= 4 * np.finfo(float).eps] = 1.0
             set_(nodes_field, _readonly(nodes))
             set_(vector_field, _readonly(vectors / norm[:, None]))
 
@@ -744,15 +770,20 @@ def _supports_from_dict(data: Mapping[str, Any], n_nodes: int, dim: int) -> dict
 def _node_index(value: Any, where: str, n_nodes: int) -> int:
     """A JSON integer node index in ``[0, n_nodes)``."""
     if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value < n_nodes:
-        raise ValueError(f"{where}: expected a node index in [0, {n_nodes - 1}], got {value!r:.80}")
+        raise ValueError(
+            f"{where}: expected a node index in [0, {n_nodes - 1}], got {_shown(value)}"
+        )
     return value
 
 
 def parse_number(value: Any, where: str) -> float:
     """A JSON number (not a string, a bool or a list)."""
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ValueError(f"{where}: expected a number, got {value!r:.80}")
-    return float(value)
+        raise ValueError(f"{where}: expected a number, got {_shown(value)}")
+    try:
+        return float(value)
+    except OverflowError:  # an integer beyond the floats
+        raise ValueError(f"{where}: expected a number, got {_shown(value)} (too large)") from None
 
 
 def node_dimension(nodes: Sequence[Any]) -> int:
@@ -767,7 +798,7 @@ def parse_vector(value: Any, where: str, dim: int) -> list[float]:
     """A JSON list of ``dim`` numbers (3, or 2 in a planar structure)."""
     if not isinstance(value, Sequence) or isinstance(value, str) or len(value) != dim:
         pretty = "[x, y, z]" if dim == 3 else "[x, y] (the structure is planar)"
-        raise ValueError(f"{where}: expected a list of {dim} numbers {pretty}, got {value!r:.80}")
+        raise ValueError(f"{where}: expected a list of {dim} numbers {pretty}, got {_shown(value)}")
     return [parse_number(x, f"{where}[{k}]") for k, x in enumerate(value)]
 
 
@@ -800,9 +831,9 @@ def _node_pair(value: Any, where: str) -> list[int]:
         or len(value) != 2
         or any(isinstance(x, bool) or not isinstance(x, int) for x in value)
     ):
-        raise ValueError(f"{where}: expected two integer node indices [a, b], got {value!r:.80}")
+        raise ValueError(f"{where}: expected two integer node indices [a, b], got {_shown(value)}")
     if any(not 0 <= x < 2**62 for x in value):
-        raise ValueError(f"{where}: node index out of range in {value!r:.80}")
+        raise ValueError(f"{where}: node index out of range in {_shown(value)}")
     return list(value)
 
 
