@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from tensegrity import Structure, class1_shell, critical_damping, simulate
-from tensegrity.physics.dynamics import State
+from tensegrity.physics.dynamics import State, initial_state
 
 # --------------------------------------------------------------------------- helpers
 
@@ -627,6 +627,11 @@ def test_nan_external_force_fails_the_run():
         (dict(gravity="abc"), "gravity"),
         (dict(initial=State(0.0, np.zeros(5), np.zeros(5))), "initial.q"),
         (dict(initial=State(0.0, np.zeros(36), np.zeros((36, 1)))), "initial.qdot"),
+        # a state that is not finite (before: DOP853's step size became NaN and the loop never
+        # ended)
+        (dict(initial=State(0.0, np.full(36, np.nan), np.zeros(36))), "initial.q[0]"),
+        (dict(initial=State(0.0, np.zeros(36), np.full(36, np.inf))), "initial.qdot[0]"),
+        (dict(gravity=np.zeros((2, 2))), "gravity"),  # (the array on one line)
     ],
 )
 def test_bad_inputs_raise_value_error_naming_the_field(kwargs, field):
@@ -636,6 +641,20 @@ def test_bad_inputs_raise_value_error_naming_the_field(kwargs, field):
         simulate(structure, t_span, **kwargs)
     message = str(refused.value)
     assert re.match(rf"{re.escape(field)}[:\[]", message) and "\n" not in message, message
+
+
+def test_velocities_too_large_to_integrate_fail_without_a_traceback():
+    """Rod-consistent velocities of 1e200 m/s: derivatives too large to measure; the run
+    fails at once with status -1 and a message, no ZeroDivisionError in the initial step and
+    no RuntimeWarning."""
+    import warnings
+
+    shell = class1_shell(3, 1)
+    start = initial_state(shell)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        result = simulate(shell, (0.0, 0.01), initial=State(0.0, start.q, np.full(36, 1e200)))
+    assert result.status == -1 and "DOP853 failed at t = 0 s" in result.message
 
 
 def test_an_initial_state_that_is_not_a_state_is_a_type_error():

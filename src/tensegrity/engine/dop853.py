@@ -28,6 +28,7 @@ landing (a located switch being headed for) as masks over the tendons (kernel or
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 import numpy as np
@@ -285,7 +286,7 @@ def _dop853_loop(clock, tally, buffers, flags, switch_times, system, rows, point
                 break
             h *= _shrink(error)
             rejected = True
-            if h < min_step:
+            if not h >= min_step:  # (NaN too: a step size that is not a number never shrinks)
                 return RUN_STEP_FAILED, CHECK_OK, 0.0
         if not tally[PROVISIONAL]:
             clock[STEP] = h * _grow(error, rejected)
@@ -508,22 +509,29 @@ class DOP853:
         return self.system.stage_inputs(t + DOP853_C * h)
 
     def _initial_step(self, t_end: float) -> float:
-        """Hairer, Norsett and Wanner's initial step (II.4), as ``scipy``'s."""
+        """Hairer, Norsett and Wanner's initial step (II.4), as ``scipy``'s.  Derivatives too
+        large to measure (not finite: a velocity of 1e200 m/s) give scipy's fallback ``1e-6``
+        s, not a division by zero: the steps then find the state unusable and say so."""
         y0, f0 = self.y, self.buffers[2][0].copy()
-        scale = self.atol + np.abs(y0) * self.rtol
-        d0, d1 = _rms(y0 / scale), _rms(f0 / scale)
-        h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
-        h0 = min(h0, t_end - self.t)
-        f1 = np.empty_like(y0)
-        system = self.system
-        inputs = system.stage_inputs(np.array([self.t + h0]))
-        compiled.ode_rhs(y0 + h0 * f0, f1, 0, system.system, inputs, system.work)
-        self._evaluate_first_stage()  # leave the work buffers at the current state
-        self.tally[NFEV] += 1
-        d2 = _rms((f1 - f0) / scale) / h0
-        h1 = (
-            max(1e-6, h0 * 1e-3) if d1 <= 1e-15 and d2 <= 1e-15 else (0.01 / max(d1, d2)) ** (1 / 8)
-        )
+        with np.errstate(all="ignore"):
+            scale = self.atol + np.abs(y0) * self.rtol
+            d0, d1 = _rms(y0 / scale), _rms(f0 / scale)
+            h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
+            if not (math.isfinite(h0) and h0 > 0):
+                h0 = 1e-6
+            h0 = min(h0, t_end - self.t)
+            f1 = np.empty_like(y0)
+            system = self.system
+            inputs = system.stage_inputs(np.array([self.t + h0]))
+            compiled.ode_rhs(y0 + h0 * f0, f1, 0, system.system, inputs, system.work)
+            self._evaluate_first_stage()  # leave the work buffers at the current state
+            self.tally[NFEV] += 1
+            d2 = _rms((f1 - f0) / scale) / h0
+            h1 = (
+                max(1e-6, h0 * 1e-3)
+                if d1 <= 1e-15 and d2 <= 1e-15
+                else (0.01 / max(d1, d2)) ** (1 / 8)
+            )
         return min(100 * h0, h1, t_end - self.t)
 
     def run(

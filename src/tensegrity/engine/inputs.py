@@ -122,8 +122,10 @@ class Inputs:
         if gravity is not None:
             gravity = _numbers(gravity, "gravity", f"{structure.dim} numbers [m/s^2]")
             if gravity.shape != (structure.dim,) or not np.all(np.isfinite(gravity)):
+                shown = np.array2string(gravity.ravel()[:6], separator=", ")
                 raise ValueError(
-                    f"gravity: expected {structure.dim} finite numbers, got {gravity!r}"
+                    f"gravity: expected {structure.dim} finite numbers [m/s^2], got shape "
+                    f"{gravity.shape}: {shown}"
                 )
         self.gravity = gravity
         self.constant = self.control.constant and self.external_force.constant

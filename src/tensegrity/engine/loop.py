@@ -724,16 +724,21 @@ def time_span(t_span: Any) -> tuple[float, float]:
 
 def _check_initial(structure: Structure, state: Any) -> None:
     """``TypeError`` unless ``state`` is a :class:`~tensegrity.physics.dynamics.State`,
-    ``ValueError`` unless its ``q`` and ``qdot`` have the structure's coordinates."""
+    ``ValueError`` unless its ``q`` and ``qdot`` are finite and have the structure's
+    coordinates."""
     if not isinstance(state, dynamics.State):
         raise TypeError(f"initial: expected a State (t, q, qdot), got {type(state).__name__}")
     n = structure.n_coordinates
     for name in ("q", "qdot"):
-        shape = np.shape(getattr(state, name))
+        value = getattr(state, name)
+        shape = np.shape(value)
         if shape != (n,):
             raise ValueError(
                 f"initial.{name}: expected shape ({n},) for this structure, got {shape}"
             )
+        if not np.all(np.isfinite(value)):
+            bad = int(np.flatnonzero(~np.isfinite(value))[0])
+            raise ValueError(f"initial.{name}[{bad}]: must be finite, got {value[bad]!r}")
 
 
 def run(
