@@ -466,16 +466,17 @@ LO, HI, G_LO, G_HI, KEPT, WIDTH, BISECT, TOL = range(8)
 @njit(**EXACT_JIT_OPTIONS)
 def bracket_start(lo, hi, g_lo, g_hi, tol):  # pragma: no cover - compiled
     """A bracket ``[lo, hi]`` [s] of the first root of a distance ``g`` (``g(lo) > 0 >= g(hi)``)
-    for :func:`bracket_open` / :func:`bracket_query` / :func:`bracket_update`: regula falsi with
-    the Illinois modification (superlinear on a smooth ``g``), kept shrinking by a bisection
-    whenever a false-position step leaves more than half of the bracket, down to a width of
-    ``tol`` [s].  The caller evaluates ``g`` (reverse communication), so that the compiled
-    DOP853 loop and the loop of scipy's methods locate switches with one solver::
+    for :func:`bracket_next`: regula falsi with the Illinois modification (superlinear on a
+    smooth ``g``), kept shrinking by a bisection whenever a false-position step leaves more than
+    half of the bracket, down to a width of ``tol`` [s].  The caller evaluates ``g`` (reverse
+    communication), so that the compiled DOP853 loop and the loop of scipy's methods locate
+    switches with one solver::
 
         b = bracket_start(lo, hi, g(lo), g(hi), tol)
-        while bracket_open(b):
-            t = bracket_query(b)
-            bracket_update(b, t, g(t))
+        t = bracket_next(b, nan, nan)  # the first time to evaluate g at; NaN: done
+        while not isnan(t):
+            t = bracket_next(b, t, g(t))
+        # the root is in [b[LO], b[HI]]
     """
     b = np.zeros(8)
     b[LO], b[HI], b[G_LO], b[G_HI], b[TOL] = lo, hi, g_lo, g_hi, tol
@@ -483,47 +484,40 @@ def bracket_start(lo, hi, g_lo, g_hi, tol):  # pragma: no cover - compiled
 
 
 @njit(**EXACT_JIT_OPTIONS)
-def bracket_open(b):  # pragma: no cover - compiled
-    """Whether the bracket needs another evaluation (wider than its tolerance, or a bisection
-    due)."""
-    return b[BISECT] != 0.0 or b[HI] - b[LO] > b[TOL]
-
-
-@njit(**EXACT_JIT_OPTIONS)
-def bracket_query(b):  # pragma: no cover - compiled
-    """The next time [s] at which to evaluate the distance."""
+def bracket_next(b, t, g):  # pragma: no cover - compiled
+    """The bracket after the distance ``g`` at the time ``t`` [s] it asked for (nothing if ``t``
+    is NaN), and the next time to evaluate the distance at, or NaN once the bracket is within
+    its tolerance."""
+    if not np.isnan(t):
+        if b[BISECT] != 0.0:
+            if g > 0.0:
+                b[LO], b[G_LO] = t, g
+            else:
+                b[HI], b[G_HI] = t, g
+            b[KEPT], b[BISECT] = 0.0, 0.0
+        else:
+            if g > 0.0:
+                b[LO], b[G_LO] = t, g
+                if b[KEPT] == 1.0:
+                    b[G_HI] *= 0.5
+                b[KEPT] = 1.0
+            else:
+                b[HI], b[G_HI] = t, g
+                if b[KEPT] == -1.0:
+                    b[G_LO] *= 0.5
+                b[KEPT] = -1.0
+            if b[HI] - b[LO] > 0.5 * b[WIDTH]:  # false position crawled: bisect
+                b[BISECT] = 1.0
     lo, hi, tol = b[LO], b[HI], b[TOL]
     if b[BISECT] != 0.0:
         return 0.5 * (lo + hi)
+    if not hi - lo > tol:
+        return np.nan
     b[WIDTH] = hi - lo
     mid = 0.5 * (lo + hi)
     if b[G_LO] > 0.0 > b[G_HI]:
         mid = lo + b[G_LO] * (hi - lo) / (b[G_LO] - b[G_HI])
     return min(max(mid, lo + 0.25 * tol), hi - 0.25 * tol)
-
-
-@njit(**EXACT_JIT_OPTIONS)
-def bracket_update(b, t, g):  # pragma: no cover - compiled
-    """The bracket after the distance ``g`` at the queried time ``t`` [s]."""
-    if b[BISECT] != 0.0:
-        if g > 0.0:
-            b[LO], b[G_LO] = t, g
-        else:
-            b[HI], b[G_HI] = t, g
-        b[KEPT], b[BISECT] = 0.0, 0.0
-        return
-    if g > 0.0:
-        b[LO], b[G_LO] = t, g
-        if b[KEPT] == 1.0:
-            b[G_HI] *= 0.5
-        b[KEPT] = 1.0
-    else:
-        b[HI], b[G_HI] = t, g
-        if b[KEPT] == -1.0:
-            b[G_LO] *= 0.5
-        b[KEPT] = -1.0
-    if b[HI] - b[LO] > 0.5 * b[WIDTH]:  # false position crawled: bisect
-        b[BISECT] = 1.0
 
 
 @njit(**JIT_OPTIONS)

@@ -41,10 +41,8 @@ from tensegrity.engine.compiled import (
     DOP853_C,
     DOP853_STAGES,
     EXACT_JIT_OPTIONS,
-    bracket_open,
-    bracket_query,
+    bracket_next,
     bracket_start,
-    bracket_update,
     check_state,
     dop853_attempt,
     dop853_dense,
@@ -130,61 +128,6 @@ def _point(t, point, tables, provider, times1):  # pragma: no cover - compiled
     return _inputs_at(times1, point, tables, provider)
 
 
-@njit(**EXACT_JIT_OPTIONS)
-def _taut_flags(tension, landed_exact, landing_mask, landing_after, taut):  # pragma: no cover
-    """Taut flags from the tensions (S,) [N]; tendons that have just switched (a landing
-    located exactly) keep the side they switched to (the state retaken up to a switch may sit a
-    round-off short of it)."""
-    for s in range(taut.shape[0]):
-        taut[s] = tension[s] > 0.0
-        if landed_exact and landing_mask[s]:
-            taut[s] = landing_after[s]
-
-
-@njit(**EXACT_JIT_OPTIONS)
-def _step_within(t, h, bound, min_step):  # pragma: no cover - compiled
-    """The step size [s] to try from ``t`` [s]: ``h`` but not past ``bound``, and all the way
-    to it when less than ``min_step`` would be left."""
-    h = max(min(h, bound - t), min_step)
-    if t + h > bound or bound - (t + h) < min_step:
-        h = bound - t
-    return h
-
-
-@njit(**EXACT_JIT_OPTIONS)
-def _stage_times(t, h, times):  # pragma: no cover - compiled
-    """The 16 stage times of a step of ``h`` [s] from ``t`` [s] into ``times``."""
-    for i in range(DOP853_C.shape[0]):
-        times[i] = t + DOP853_C[i] * h
-
-
-@njit(**EXACT_JIT_OPTIONS)
-def _shrink(error):  # pragma: no cover - compiled
-    """The factor of a rejected step with error norm ``error`` (> 1, or not finite)."""
-    if not np.isfinite(error):
-        return MIN_FACTOR
-    return max(MIN_FACTOR, SAFETY * error**EXPONENT)
-
-
-@njit(**EXACT_JIT_OPTIONS)
-def _grow(error, rejected):  # pragma: no cover - compiled
-    """The factor of the next step after one accepted with error norm ``error`` (< 1), not
-    above 1 if the step was rejected before."""
-    factor = MAX_FACTOR
-    if error != 0.0:
-        factor = min(MAX_FACTOR, SAFETY * error**EXPONENT)
-    return min(1.0, factor) if rejected else factor
-
-
-@njit(**EXACT_JIT_OPTIONS)
-def _any_switched(tension, taut):  # pragma: no cover - compiled
-    """Whether a tendon's tension (S,) [N] disagrees with its taut flag."""
-    for s in range(taut.shape[0]):  # noqa: SIM110 - (a loop numba compiles)
-        if (tension[s] > 0.0) != taut[s]:
-            return True
-    return False
-
-
 def _dop853_loop(clock, tally, buffers, flags, switch_times, system, rows, point, tables,
                  provider, work, scratch, settings, limits, monitor, bound,
                  next_sample_t):  # pragma: no cover - compiled (dop853_run)  # fmt: skip
@@ -202,7 +145,8 @@ def _dop853_loop(clock, tally, buffers, flags, switch_times, system, rows, point
     The whole loop is one function, its heavy callees (the stages, the dense output, the switch
     distance, the checks, the projection) called from here only: numba compiles every function
     that calls them with their code linked in again, so helpers around them would each cost
-    about a second of the first run's compile.
+    about a second of the first run's compile.  Its small helpers are closures, which numba
+    inlines (a compiled function of its own costs about 0.1 s of that compile each).
     """
     y, y_old, K, F, y_new, stage, y_at = buffers
     taut, landing_mask, landing_after = flags
@@ -213,6 +157,49 @@ def _dop853_loop(clock, tally, buffers, flags, switch_times, system, rows, point
     n = (m - 3) // 2
     times = np.empty(DOP853_C.shape[0])
     times1 = np.empty(1)
+
+    def stage_times(t, h):
+        """The 16 stage times of a step of ``h`` [s] from ``t`` [s] into ``times``."""
+        for i in range(DOP853_C.shape[0]):
+            times[i] = t + DOP853_C[i] * h
+
+    def step_within(t, h, bound, min_step):
+        """The step size [s] to try from ``t``: ``h`` but not past ``bound``, and all the way
+        to it when less than ``min_step`` would be left."""
+        h = max(min(h, bound - t), min_step)
+        if t + h > bound or bound - (t + h) < min_step:
+            h = bound - t
+        return h
+
+    def shrink(error):
+        """The factor of a rejected step with error norm ``error`` (> 1, or not finite)."""
+        if not np.isfinite(error):
+            return MIN_FACTOR
+        return max(MIN_FACTOR, SAFETY * error**EXPONENT)
+
+    def grow(error, rejected):
+        """The factor of the next step after one accepted with error norm ``error`` (< 1),
+        not above 1 if the step was rejected before."""
+        factor = MAX_FACTOR
+        if error != 0.0:
+            factor = min(MAX_FACTOR, SAFETY * error**EXPONENT)
+        return min(1.0, factor) if rejected else factor
+
+    def any_switched():
+        """Whether a tendon's tension at the last stage disagrees with its taut flag."""
+        for s in range(taut.shape[0]):  # noqa: SIM110 - (a loop numba compiles)
+            if (work[2][s] > 0.0) != taut[s]:
+                return True
+        return False
+
+    def set_taut_flags(landed_exact):
+        """Taut flags from the tensions at the last evaluation; tendons that have just switched
+        (a landing located exactly) keep the side they switched to (the state retaken up to a
+        switch may sit a round-off short of it)."""
+        for s in range(taut.shape[0]):
+            taut[s] = work[2][s] > 0.0
+            if landed_exact and landing_mask[s]:
+                taut[s] = landing_after[s]
 
     def switch_distance_at(t, count):
         """min_k of the candidates' distances at ``t`` inside the last step, and whether the
@@ -255,7 +242,7 @@ def _dop853_loop(clock, tally, buffers, flags, switch_times, system, rows, point
             tally[NFEV] += 1
             if locate:
                 exact = bool(tally[LANDED]) and bool(tally[LANDING_EXACT])
-                _taut_flags(work[2], exact, landing_mask, landing_after, taut)
+                set_taut_flags(exact)
         tally[LANDED] = 0
         if clock[T] >= bound:
             return RUN_BOUNDARY, CHECK_OK, 0.0
@@ -271,8 +258,8 @@ def _dop853_loop(clock, tally, buffers, flags, switch_times, system, rows, point
         min_step = 10.0 * abs(np.nextafter(t, np.inf) - t)
         rejected = False
         while True:
-            h = _step_within(t, h, target, min_step)
-            _stage_times(t, h, times)
+            h = step_within(t, h, target, min_step)
+            stage_times(t, h)
             rows, bad = _inputs_at(times, rows, tables, provider)
             if bad >= 0:
                 clock[INPUT_TIME] = times[bad]
@@ -281,15 +268,15 @@ def _dop853_loop(clock, tally, buffers, flags, switch_times, system, rows, point
             tally[NFEV] += DOP853_STAGES
             if error < 1.0:
                 break
-            if use_taut and np.isfinite(error) and _any_switched(work[2], taut):
+            if use_taut and np.isfinite(error) and any_switched():
                 tally[PROVISIONAL] = 1
                 break
-            h *= _shrink(error)
+            h *= shrink(error)
             rejected = True
             if not h >= min_step:  # (NaN too: a step size that is not a number never shrinks)
                 return RUN_STEP_FAILED, CHECK_OK, 0.0
         if not tally[PROVISIONAL]:
-            clock[STEP] = h * _grow(error, rejected)
+            clock[STEP] = h * grow(error, rejected)
         clock[T_OLD] = t
         copy_values(y, y_old, m)
         clock[T] = target if h == target - t else t + h
@@ -310,7 +297,7 @@ def _dop853_loop(clock, tally, buffers, flags, switch_times, system, rows, point
             tally[LANDED] = landed
             if locate:
                 exact = landed and bool(tally[LANDING_EXACT])
-                _taut_flags(work[2], exact, landing_mask, landing_after, taut)
+                set_taut_flags(exact)
             point, bad = _point(clock[T], point, tables, provider, times1)
             if bad >= 0:
                 clock[INPUT_TIME] = clock[T]
@@ -327,7 +314,7 @@ def _dop853_loop(clock, tally, buffers, flags, switch_times, system, rows, point
 
         # ---- the step's dense output: for its samples, or to locate the switch
         t_old, h = clock[T_OLD], clock[T] - clock[T_OLD]
-        _stage_times(t_old, h, times)
+        stage_times(t_old, h)
         rows, bad = _inputs_at(times, rows, tables, provider)
         if bad >= 0:
             clock[INPUT_TIME] = times[bad]
@@ -346,10 +333,10 @@ def _dop853_loop(clock, tally, buffers, flags, switch_times, system, rows, point
         g_hi, failed_hi = switch_distance_at(clock[T], count)
         failed = failed or failed_hi
         bracket = bracket_start(t_old, clock[T], g_lo, g_hi, SWITCH_RTOL * max(1.0, abs(clock[T])))
-        while not failed and bracket_open(bracket):
-            t = bracket_query(bracket)
+        t = bracket_next(bracket, np.nan, np.nan)
+        while not failed and not np.isnan(t):
             g, failed = switch_distance_at(t, count)
-            bracket_update(bracket, t, g)
+            t = bracket_next(bracket, t, g)
         lo, hi = bracket[compiled.LO], bracket[compiled.HI]
         t_switch = min(max(hi, lo + bracket[compiled.TOL]), clock[T])
         if not failed:

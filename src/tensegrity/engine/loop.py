@@ -460,9 +460,9 @@ def _first_switch(
     lo, hi = stepper.t_old, stepper.t
     tol = SWITCH_RTOL * max(1.0, abs(hi))
     bracket = compiled.bracket_start(lo, hi, g(lo), g(hi), tol)
-    while compiled.bracket_open(bracket):
-        t = float(compiled.bracket_query(bracket))
-        compiled.bracket_update(bracket, t, g(t))
+    t = float(compiled.bracket_next(bracket, math.nan, math.nan))
+    while not math.isnan(t):
+        t = float(compiled.bracket_next(bracket, t, g(t)))
     lo, hi = float(bracket[compiled.LO]), float(bracket[compiled.HI])
     # The switch is reported at the end of a bracket of width ``tol``, as by bisection, so that
     # tendons switching within ``tol`` of it (the symmetric twins of a regular shell) switch
