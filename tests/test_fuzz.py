@@ -54,7 +54,7 @@ from tensegrity.io.formats import (
     write_structure,
 )
 from tensegrity.io.tables import read_force_table
-from tensegrity.io.trajectory import read_trajectory, write_trajectory
+from tensegrity.io.trajectory import ARRAY_DATASETS, read_trajectory, write_trajectory
 from tensegrity.model.structure import Structure
 from tensegrity.physics.dynamics import State
 
@@ -500,6 +500,7 @@ OPTIONAL = (
 @example(changes={"rod_nodes": [[0, 2**70]]})  # OverflowError
 @example(changes={"node_position": [None, []]})  # numpy's ValueError (inhomogeneous shape)
 @example(changes={"tendon_name": 5})  # TypeError: 'int' object is not iterable
+@example(changes={"plane_nodes": [None, []]})  # numpy's ValueError (inhomogeneous shape)
 def test_structure_constructor(changes: dict[str, Any]) -> None:
     """The ``Structure`` constructor with the shell's arguments, one to three of them replaced
     by anything: a structure, or a one-line ``ValueError``/``TypeError`` naming the field."""
@@ -576,17 +577,7 @@ ROOT_ATTRIBUTES = (
     "wall_time",
     "tendon_names",
 )
-DATASETS = (
-    "time",
-    "nodes",
-    "velocities",
-    "tendon_length",
-    "tendon_tension",
-    "energy",
-    "q",
-    "qdot",
-    "residual_acceleration",
-)
+DATASETS = ARRAY_DATASETS
 #: Values an attribute may be replaced by: numbers, text, bytes, arrays, JSON documents.
 ATTRIBUTE_VALUES = st.one_of(
     st.integers(-(2**63), 2**63 - 1),

@@ -469,9 +469,13 @@ class Structure:
         set_("joint_nodes", _readonly(joints))
         for kind, vector in (("plane", "normal"), ("line", "direction")):
             nodes_field, vector_field = f"{kind}_nodes", f"{kind}_{vector}"
-            nodes = np.array(
-                [] if getattr(self, nodes_field) is None else getattr(self, nodes_field)
-            )
+            given = getattr(self, nodes_field)
+            try:
+                nodes = np.array([] if given is None else given)
+            except (TypeError, ValueError):  # (ragged: numpy's "inhomogeneous shape")
+                raise ValueError(
+                    f"{nodes_field}: expected a list of node indices, got {_shown(given)}"
+                ) from None
             if nodes.ndim != 1 or (nodes.size and not np.issubdtype(nodes.dtype, np.integer)):
                 raise ValueError(
                     f"{nodes_field}: expected a list of node indices, got {_shown(nodes)}"
