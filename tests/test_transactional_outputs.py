@@ -20,6 +20,7 @@ from tensegrity.cli.main import main
 from tensegrity.io import files
 from tensegrity.io.files import remove_stale, write_staged
 from tensegrity.io.trajectory import read_trajectory
+from tensegrity.sweep import read_sweep
 
 
 def _contents(folder: Path) -> dict[str, bytes]:
@@ -145,6 +146,8 @@ def _check_complete(path: Path, content: bytes) -> None:
         assert content.startswith(b"\x89PNG") and content.endswith(b"IEND\xaeB`\x82"), path
     elif path.suffix in (".vtp", ".pvd"):
         ElementTree.fromstring(content)
+    elif path.suffix == ".nc":
+        assert read_sweep(path).sizes["case"] == 8, path
     else:
         raise AssertionError(f"unexpected file {path}")
 
@@ -158,6 +161,11 @@ def _verb(name: str, tmp_path: Path) -> tuple[list[str], list[str]]:
         )
     if name == "equilibrium":
         return ["--n", "3", "--m", "1"], ["--n", "4", "--m", "2"]
+    if name == "sweep":  # (the output is one file, inside --out's folder here)
+        return (
+            ["--param", "stiffness=100,200", "--t-end", "0.01", "--workers", "1"],
+            ["--param", "stiffness=100,150,200,250", "--param", "n=3,4", "--t-end", "0.2"],
+        )
     runs = []
     for n, m, t_end in (("3", "1", "0.2"), ("5", "3", "3")):  # vtk: two trajectories
         folder = tmp_path / f"run{n}{m}"
@@ -171,6 +179,7 @@ KILL_AFTER = {
     "simulate": [0.4, 0.9, 1.3, 1.8, 2.4],  # seconds: imports, the run, the figures, the moves
     "equilibrium": [0.6, 1.2, 1.7],
     "vtk": [0.5, 1.0, 1.5],
+    "sweep": [1.0, 2.5, 4.0],  # (the cluster starts, the cases run, the file is written)
 }
 
 
@@ -186,7 +195,10 @@ def test_a_verb_killed_at_any_moment_leaves_each_file_old_or_complete(tmp_path, 
     out = tmp_path / "out"
     old_args, new_args = _verb(verb, tmp_path)
     base = [sys.executable, "-m", "tensegrity.cli", verb]
-    where = ["--out", str(out)] if verb != "vtk" else ["--output", str(out)]
+    where = {"vtk": ["--output", str(out)], "sweep": ["-o", str(out / "sweep.nc")]}.get(
+        verb, ["--out", str(out)]
+    )
+    out.mkdir()  # (sweep writes one file into a folder that must exist)
     subprocess.run([*base, *old_args, *where], check=True, capture_output=True)
     old = _contents(out)
     child = subprocess.Popen(
