@@ -27,6 +27,8 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import BinaryIO
 
+from tensegrity.model.limits import environment_limit
+
 #: A file name: ``str`` or ``os.PathLike``.
 PathLike = str | os.PathLike
 
@@ -304,16 +306,7 @@ def byte_limit(variable: str) -> int:
     ValueError
         One line naming the variable if it is set to anything but a whole number >= 1.
     """
-    text = os.environ.get(variable, "").strip()
-    if not text:
-        return DEFAULT_LIMITS[variable]
-    try:
-        value = int(text)
-    except ValueError:
-        value = 0
-    if value < 1:
-        raise ValueError(f"{variable}: expected a number of bytes >= 1, got {text!r}")
-    return value
+    return environment_limit(variable, DEFAULT_LIMITS[variable], unit="a number of bytes")
 
 
 def over_limit(what: str, size: int, variable: str) -> str:

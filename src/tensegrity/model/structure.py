@@ -23,7 +23,6 @@ Conventions (SI units throughout)
 from __future__ import annotations
 
 import dataclasses
-import os
 from collections.abc import Callable, Mapping, Sequence
 from functools import cached_property
 from typing import TYPE_CHECKING, Any
@@ -31,6 +30,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 import scipy.sparse as sp
+
+from tensegrity.model.limits import environment_limit
 
 #: Relative tolerance on ``| |p_b - p_a| - L | / L`` accepted for the node positions of a rod.
 ROD_LENGTH_RTOL = 1e-6
@@ -161,12 +162,7 @@ def check_member_count(members: int, what: str) -> None:
     ValueError
         One line with the number, the limit and how to raise it.
     """
-    text = os.environ.get(MAX_MEMBERS_VARIABLE, "").strip()
-    limit = DEFAULT_MAX_MEMBERS
-    if text:
-        if not text.isdigit() or int(text) < 1:
-            raise ValueError(f"{MAX_MEMBERS_VARIABLE}: expected a whole number >= 1, got {text!r}")
-        limit = int(text)
+    limit = environment_limit(MAX_MEMBERS_VARIABLE, DEFAULT_MAX_MEMBERS)
     if members > limit:
         raise ValueError(
             f"{what}: about {members:,} members (rods and tendons), more than the limit of "

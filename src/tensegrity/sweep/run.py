@@ -75,6 +75,7 @@ import numpy as np
 
 from tensegrity.engine.options import ADAPTIVE_METHODS, FIXED_STEP_METHODS
 from tensegrity.engine.simulate import SimulationResult, simulate
+from tensegrity.model.limits import environment_limit
 from tensegrity.model.shell import class1_shell
 from tensegrity.model.structure import Structure
 from tensegrity.physics import dynamics
@@ -146,12 +147,7 @@ DEFAULT_MAX_CASES = 1_000_000
 def _check_case_count(cases: int, field: str) -> None:
     """Refuse a sweep of more than ``TENSEGRITY_MAX_CASES`` cases (default
     :data:`DEFAULT_MAX_CASES`) before its cases are made, naming ``field``."""
-    text = os.environ.get(MAX_CASES_VARIABLE, "").strip()
-    limit = DEFAULT_MAX_CASES
-    if text:
-        if not text.isdigit() or int(text) < 1:
-            raise ValueError(f"{MAX_CASES_VARIABLE}: expected a whole number >= 1, got {text!r}")
-        limit = int(text)
+    limit = environment_limit(MAX_CASES_VARIABLE, DEFAULT_MAX_CASES)
     if cases > limit:
         raise ValueError(
             f"{field}: {cases:,} cases, more than the limit of {limit:,}; set "
