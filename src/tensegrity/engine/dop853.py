@@ -534,10 +534,9 @@ class DOP853:
         tail = (system.work, self.scratch, self.settings, limits, monitor, float(bound),
                 float(next_sample_t))  # fmt: skip
         rows, point = system.input_buffers(DOP853_C.size), system.input_buffers(1)
-        if rows is None:  # a Python function among the inputs: the loop as Python
-            start = np.array([self.t])
-            rows = point = system.stage_inputs(start)
-            return _dop853_loop(*args, rows, point, None, system.stage_inputs, *tail)
+        if rows is None:  # a Python function among the inputs: the loop as Python, every
+            # input made by the provider where it is used (no buffers to fill)
+            return _dop853_loop(*args, None, None, None, system.stage_inputs, *tail)
         return dop853_run(*args, rows, point, system.tables, None, *tail)
 
     def new_switch_times(self) -> list[float]:
