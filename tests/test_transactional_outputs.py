@@ -136,6 +136,66 @@ def test_atomic_write_removes_its_stale_temporaries(tmp_path):
     assert not stale.exists() and other.exists()  # only the file being written is tidied
 
 
+#: An analysis verb's quick options, and the computations (module, function) it runs, each
+#: looked up where the verb finds it when it runs.
+ANALYSIS_COMPUTATIONS = {
+    "equilibrium": (
+        ["--method", "least_squares"],
+        [("tensegrity.cli.analysis", "find_equilibrium")],
+    ),
+    "modes": (
+        [],
+        [
+            ("tensegrity.cli.analysis", "find_equilibrium"),
+            ("tensegrity.analysis.modes", "modal_analysis"),
+        ],
+    ),
+    "controllability": (
+        ["--inputs", "all"],
+        [
+            ("tensegrity.cli.analysis", "find_equilibrium"),
+            ("tensegrity.analysis.controllability", "controllability_table"),
+        ],
+    ),
+    "control": (
+        ["--steps", "1", "1", "--no-closed-loop"],
+        [
+            ("tensegrity.cli.analysis", "find_equilibrium"),
+            ("tensegrity.analysis.shape_control", "quasi_static"),
+        ],
+    ),
+}
+
+
+@pytest.mark.parametrize("verb", ANALYSIS_COMPUTATIONS)
+def test_analysis_verbs_compute_outside_the_output_folder(tmp_path, monkeypatch, capsys, verb):
+    """The analysis verbs compute first, with nothing of theirs in ``--out``, and stage only the
+    writing of their files: a run killed while it computes (most of its time) leaves no staging
+    folder (before, the whole computation ran inside one)."""
+    import importlib
+
+    out = tmp_path / "out"
+    options, computations = ANALYSIS_COMPUTATIONS[verb]
+    seen: list[tuple[str, list[str]]] = []
+
+    def watched(name, function):
+        def compute(*args, **kwargs):
+            inside = [p.name for p in out.rglob("*")] if out.exists() else []
+            seen.append((name, inside))
+            return function(*args, **kwargs)
+
+        return compute
+
+    for module_name, name in computations:
+        module = importlib.import_module(module_name)
+        monkeypatch.setattr(module, name, watched(name, getattr(module, name)))
+    assert main([verb, *options, "--out", str(out)]) == 0
+    assert {name for name, _ in seen} == {name for _, name in computations}
+    assert all(inside == [] for _, inside in seen), seen
+    written = capsys.readouterr().out.rsplit("\nwrote ", 1)[1].strip().split(", ")
+    assert sorted(p.name for p in out.iterdir()) == sorted(Path(f).name for f in written)
+
+
 def _check_complete(path: Path, content: bytes) -> None:
     """``AssertionError`` unless ``path`` is a complete output file of its kind."""
     if path.suffix == ".h5":

@@ -1,11 +1,13 @@
-"""One function per CLI verb: compute, write JSON and figures into ``out_dir``, return the tables.
+"""One function per CLI verb: compute, return the tables and a writer of the JSON and figures.
 
 ``run_equilibrium``, ``run_modes``, ``run_controllability`` and ``run_control`` each take a
-:class:`~tensegrity.model.structure.Structure` and an output folder (created if missing), write
-every file atomically (:func:`tensegrity.io.trajectory.atomic_path`) and return an
-:class:`Output`: the readable tables, the files written and, if the analysis did not succeed (no
-equilibrium, targets missed), a one-line problem.  The ``tensegrity`` command runs them in a
-staging folder and moves all files into place together (:mod:`tensegrity.cli.main`).  Files:
+:class:`~tensegrity.model.structure.Structure`, compute the whole analysis in memory and return
+an :class:`Output`: the readable tables, a function that writes the files into a folder (each
+atomically, :func:`tensegrity.io.files.atomic_path`) and, if the analysis did not succeed (no
+equilibrium, targets missed), a one-line problem.  Nothing is written while they compute: the
+``tensegrity`` command then runs the writer alone in a staging folder and moves all files into
+place together (:mod:`tensegrity.cli.main`, :func:`tensegrity.io.files.write_staged`), so a run
+killed while it computes leaves nothing in its output folder.  Files:
 
 ==========================  ================================================================
 verb                        files
@@ -27,7 +29,7 @@ verb                        files
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple
 
@@ -49,17 +51,12 @@ if TYPE_CHECKING:
 
 
 class Output(NamedTuple):
-    """What a verb produced."""
+    """What a verb computed."""
 
     text: str  #: tables and verdicts to print
-    files: list[Path]  #: the files written
+    #: ``write(folder)`` writes the verb's files into ``folder`` (which exists) and returns them
+    write: Callable[[Path], list[Path]]
     problem: str | None  #: why the analysis did not succeed (None if it did)
-
-
-def _out(out_dir: str | Path) -> Path:
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    return out
 
 
 def _structure_summary(s: Structure) -> dict[str, Any]:
@@ -88,7 +85,6 @@ def _equilibrium(structure: Structure, gravity: np.ndarray | None) -> Equilibriu
 # ------------------------------------------------------------------------------ equilibrium
 def run_equilibrium(
     structure: Structure,
-    out_dir: str | Path,
     *,
     method: str = "both",
     t_end: float = 60.0,
@@ -106,7 +102,6 @@ def run_equilibrium(
             f"method: expected 'both', 'least_squares' or 'simulation', got {method!r}"
         )
     g = _gravity(structure, gravity)
-    out = _out(out_dir)
     results: dict[str, EquilibriumResult] = {}
     if method in ("both", "least_squares"):
         results["least_squares"] = find_equilibrium(structure, gravity=g)
@@ -127,16 +122,21 @@ def run_equilibrium(
         text.append(_agreement_text(agreement))
     main = results.get("least_squares") or results["simulation"]
     text.append(_tendon_table(structure, main))
-    written = [report.write_json(out / "equilibrium.json", data)]
-    fig = figure_structure(
-        structure,
-        main.node_position,
-        main.tension,
-        title=f"Equilibrium ({main.method.replace('_', ' ')})",
-    )
-    written.append(report.save_figure(fig, out / "equilibrium.png"))
+
+    def write(out: Path) -> list[Path]:
+        fig = figure_structure(
+            structure,
+            main.node_position,
+            main.tension,
+            title=f"Equilibrium ({main.method.replace('_', ' ')})",
+        )
+        return [
+            report.write_json(out / "equilibrium.json", data),
+            report.save_figure(fig, out / "equilibrium.png"),
+        ]
+
     failed = [f"{name}: {r.message}" for name, r in results.items() if not r.converged]
-    return Output("\n\n".join(text), written, "; ".join(failed) or None)
+    return Output("\n\n".join(text), write, "; ".join(failed) or None)
 
 
 def _route_text(name: str, r: EquilibriumResult) -> list[str]:
@@ -197,7 +197,6 @@ def _tendon_table(structure: Structure, eq: EquilibriumResult) -> str:
 # ------------------------------------------------------------------------------ modes
 def run_modes(
     structure: Structure,
-    out_dir: str | Path,
     *,
     shapes: int = 6,
     check_fft: bool = False,
@@ -211,7 +210,6 @@ def run_modes(
     from tensegrity.analysis.modes import measure_frequency, modal_analysis, stability_by_simulation
 
     eq = _equilibrium(structure, _gravity(structure, gravity))
-    out = _out(out_dir)
     lin = linearize(structure, eq)
     modes = modal_analysis(lin)
     data: dict[str, Any] = {
@@ -237,20 +235,24 @@ def run_modes(
         sim = stability_by_simulation(modes)
         data["simulation_check"] = sim.to_dict()
         text.append(sim.verdict)
-    written = [report.write_json(out / "modes.json", data)]
-    written.append(report.save_figure(report.figure_frequencies(modes), out / "frequencies.png"))
     chosen = [int(i) for i in modes.elastic_indices()[:shapes]]
-    if chosen:
+
+    def write(out: Path) -> list[Path]:
+        written = [report.write_json(out / "modes.json", data)]
         written.append(
-            report.save_figure(report.figure_mode_shapes(modes, chosen), out / "mode_shapes.png")
+            report.save_figure(report.figure_frequencies(modes), out / "frequencies.png")
         )
-    return Output("\n\n".join(text), written, None)
+        if chosen:
+            figure = report.figure_mode_shapes(modes, chosen)
+            written.append(report.save_figure(figure, out / "mode_shapes.png"))
+        return written
+
+    return Output("\n\n".join(text), write, None)
 
 
 # ------------------------------------------------------------------------------ controllability
 def run_controllability(
     structure: Structure,
-    out_dir: str | Path,
     *,
     inputs: Sequence[str] | None = None,
     outputs: Sequence[str] | None = None,
@@ -267,7 +269,6 @@ def run_controllability(
 
     damped = with_damping(structure, damping)
     eq = _equilibrium(structure, _gravity(structure, gravity))
-    out = _out(out_dir)
     lin = linearize(damped, eq)
     modes = modal_analysis(lin)
     input_sets = None if inputs is None else {p: p for p in inputs}
@@ -305,12 +306,15 @@ def run_controllability(
         "controllability": [r.to_dict() for r in ctrl],
         "observability": [r.to_dict() for r in obs],
     }
-    written = [
-        report.write_json(out / "controllability.json", data),
-        report.save_figure(report.figure_reach(ctrl, modes), out / "controllability.png"),
-        report.save_figure(report.figure_reach(obs, modes), out / "observability.png"),
-    ]
-    return Output("\n\n".join(text), written, None)
+
+    def write(out: Path) -> list[Path]:
+        return [
+            report.write_json(out / "controllability.json", data),
+            report.save_figure(report.figure_reach(ctrl, modes), out / "controllability.png"),
+            report.save_figure(report.figure_reach(obs, modes), out / "observability.png"),
+        ]
+
+    return Output("\n\n".join(text), write, None)
 
 
 def _reach_rows(results: Sequence[ReachResult]) -> list[tuple[Any, ...]]:
@@ -347,7 +351,6 @@ def rings(structure: Structure, p: np.ndarray, rtol: float = 1e-6) -> tuple[list
 
 def run_control(
     structure: Structure,
-    out_dir: str | Path,
     *,
     height: float = 0.8,
     twist_back: bool = True,
@@ -375,7 +378,6 @@ def run_control(
     )
 
     _check_control_options(structure, height=height, steps=steps, bottom=bottom, top=top)
-    out = _out(out_dir)
     eq = _equilibrium(structure, None)  # shape control: no gravity
     bottom, top = _control_rings(structure, eq.node_position, bottom, top)
     bounds = Bounds(min_rest_length=min_rest_length, max_change=max_change, min_tension=min_tension)
@@ -407,18 +409,25 @@ def run_control(
         closed = run_closed_loop(plan, move_time=move_time, settle_time=settle_time)
         data["closed_loop"] = _closed_loop_summary(closed)
         text.append(f"closed loop (LQR, nonlinear model, {closed.t[-1]:.3g} s): {closed.message}")
-    written = [
-        report.write_json(out / "control.json", data),
-        report.save_figure(report.figure_shape_motion(plan, closed), out / "control_motion.png"),
-        report.save_figure(report.figure_shape_controls(plan, closed), out / "control_inputs.png"),
-        report.save_figure(report.figure_shape_structures(plan), out / "control_shapes.png"),
-    ]
+
+    def write(out: Path) -> list[Path]:
+        return [
+            report.write_json(out / "control.json", data),
+            report.save_figure(
+                report.figure_shape_motion(plan, closed), out / "control_motion.png"
+            ),
+            report.save_figure(
+                report.figure_shape_controls(plan, closed), out / "control_inputs.png"
+            ),
+            report.save_figure(report.figure_shape_structures(plan), out / "control_shapes.png"),
+        ]
+
     missed = [
         f"{name}: {r.message}"
         for name, r in (("open loop", plan), ("closed loop", closed))
         if r is not None and not r.reached
     ]
-    return Output("\n\n".join(text), written, "; ".join(missed) or None)
+    return Output("\n\n".join(text), write, "; ".join(missed) or None)
 
 
 #: Most quasi-static steps per phase of ``control``.

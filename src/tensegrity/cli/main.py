@@ -814,24 +814,20 @@ def _cmd_analysis(args: argparse.Namespace) -> int:
     options = {
         name: getattr(args, name)
         for name in inspect.signature(run).parameters
-        if name not in ("structure", "out_dir") and hasattr(args, name)
+        if name != "structure" and hasattr(args, name)
     }
-    outputs: list = []
-
-    def write(staging: Path) -> list[Path]:
-        try:
-            outputs.append(run(structure, staging, **options))
-        except RuntimeError as exc:  # no equilibrium, a failed simulation: nothing written
-            raise CommandError(f"{exc} (nothing written)", EXIT_FAILED) from None
-        except KeyError as exc:  # a tendon or output pattern that matches nothing
-            raise CommandError(str(exc.args[0])) from None
-        return outputs[0].files
-
-    written = _write_all(args.out, write)
-    print(outputs[0].text)
+    # The whole computation first, with nothing in --out; then only the writing is staged.
+    try:
+        output = run(structure, **options)
+    except RuntimeError as exc:  # no equilibrium, a failed simulation: nothing written
+        raise CommandError(f"{exc} (nothing written)", EXIT_FAILED) from None
+    except KeyError as exc:  # a tendon or output pattern that matches nothing
+        raise CommandError(str(exc.args[0])) from None
+    written = _write_all(args.out, output.write)
+    print(output.text)
     print("\nwrote " + ", ".join(str(f) for f in written))
-    if outputs[0].problem:
-        raise CommandError(f"{outputs[0].problem} (results written)", EXIT_FAILED)
+    if output.problem:
+        raise CommandError(f"{output.problem} (results written)", EXIT_FAILED)
     return 0
 
 
