@@ -4,8 +4,10 @@ case's results are those of a direct ``simulate`` call on a structure built here
 
 from __future__ import annotations
 
+import errno
 import json
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -145,6 +147,52 @@ def test_cli_sweep_out_of_range_writes_nothing(tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert err.startswith("tensegrity: error: case 0 (") and "stiffness: must be > 0" in err, err
     assert not out.exists() and not list(tmp_path.iterdir())
+
+
+QUICK_SWEEP = ["--param", "stiffness=100,200", "--t-end", "0.004", "--sample-dt", "0.002"]
+QUICK_SWEEP += ["--dt", "0.0002", "--workers", "1"]
+
+
+def test_cli_sweep_makes_the_folders_of_its_output(tmp_path, capsys, monkeypatch):
+    """``-o`` in folders that do not exist: sweep makes them, as the other verbs make theirs
+    (before: ``No such file or directory`` after the whole sweep had run); if writing the dataset
+    fails, the folders it made are removed again."""
+    from tensegrity.sweep.run import SweepResult
+
+    out = tmp_path / "new" / "deeper" / "s.nc"
+    save = SweepResult.save
+
+    def full_disk(self, path):
+        assert Path(path).parent.is_dir()
+        raise OSError(errno.ENOSPC, "No space left on device", str(path))
+
+    monkeypatch.setattr(SweepResult, "save", full_disk)
+    assert main(["sweep", *QUICK_SWEEP, "-o", str(out)]) == 2
+    assert capsys.readouterr().err == f"tensegrity: error: {out}: No space left on device\n"
+    assert list(tmp_path.iterdir()) == []
+    monkeypatch.setattr(SweepResult, "save", save)
+    assert main(["sweep", *QUICK_SWEEP, "-o", str(out)]) == 0
+    assert f"wrote {out}" in capsys.readouterr().out
+    assert read_sweep(out).sizes["case"] == 2
+
+
+def test_cli_sweep_refuses_an_output_it_cannot_write_before_it_runs(tmp_path, capsys, monkeypatch):
+    """A file where a folder of ``-o`` goes, or a folder where the file goes: one line and exit 2
+    before any case runs (before: after the whole sweep)."""
+
+    def never(*args, **kwargs):
+        raise AssertionError("the sweep ran")
+
+    monkeypatch.setattr("tensegrity.sweep.run.run_sweep", never)
+    (tmp_path / "file").write_text("")
+    (tmp_path / "folder.nc").mkdir()
+    assert main(["sweep", *QUICK_SWEEP, "-o", str(tmp_path / "file" / "s.nc")]) == 2
+    assert main(["sweep", *QUICK_SWEEP, "-o", str(tmp_path / "folder.nc")]) == 2
+    assert capsys.readouterr().err.splitlines() == [
+        f"tensegrity: error: --output: {tmp_path / 'file'} exists and is not a folder",
+        f"tensegrity: error: --output: {tmp_path / 'folder.nc'} is a folder, expected a file name",
+    ]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["file", "folder.nc"]
 
 
 def test_sweep_cases_equal_direct_simulate_bitwise(failing_sweep):

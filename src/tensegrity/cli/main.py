@@ -1029,6 +1029,9 @@ def _sweep_parameter(text: str) -> tuple[str, list[float]]:
 def _cmd_sweep(args: argparse.Namespace) -> int:
     from tensegrity.sweep.run import SweepSpec, run_sweep
 
+    _check_output_folder(args.output.parent, "--output")
+    if args.output.is_dir():
+        raise CommandError(f"--output: {args.output} is a folder, expected a file name")
     options = {
         name: getattr(args, name)
         for name in ("samples", "seed", "t_end", "sample_dt", "method", "dt")
@@ -1058,7 +1061,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     result = run_sweep(
         spec, scheduler=args.scheduler, n_workers=args.workers, progress=sys.stderr.isatty()
     )
-    path = result.save(args.output)
+    path = _save_sweep(result, args.output)
     n = result.dataset.sizes["case"]
     print(
         f"{n - len(result.failed)} of {n} cases reached t_end in {result.wall_time:.1f} s; "
@@ -1067,6 +1070,18 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     for i in result.failed:
         print(f"{result.describe_case(i)}: {result.dataset['message'].values[i]}", file=sys.stderr)
     return EXIT_FAILED if result.failed else 0
+
+
+def _save_sweep(result, path: Path) -> Path:
+    """Write the sweep's dataset to ``path``, making its missing folders first (as the other
+    verbs make their output folders); those are removed again if the writing fails."""
+    created = [folder for folder in path.parents if not folder.exists()]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        return result.save(path)
+    except BaseException:
+        _remove_empty(created)
+        raise
 
 
 def _add_simulate_parser(sub: _Commands) -> None:
@@ -1258,7 +1273,13 @@ def _add_sweep_parser(sub: _Commands) -> None:
         "--scheduler", metavar="ADDRESS", help="Dask scheduler address (default: a local cluster)"
     )
     sweep.add_argument("--workers", type=int, help="local cluster workers (default: CPU count)")
-    sweep.add_argument("-o", "--output", type=_path, required=True, help="output .nc file")
+    sweep.add_argument(
+        "-o",
+        "--output",
+        type=_path,
+        required=True,
+        help="output .nc file (missing folders are made)",
+    )
     sweep.set_defaults(run=_cmd_sweep)
 
 
