@@ -287,3 +287,48 @@ def test_a_large_run_says_before_it_starts_what_it_will_write(tmp_path, monkeypa
     monkeypatch.setattr(cli.shutil, "disk_usage", lambda path: type("U", (), {"free": 1000})())
     assert main([*args, "--out", str(tmp_path / "small")]) == 0
     assert "more than the 1000 B free there" in capsys.readouterr().err
+
+
+#: File names with a newline, a terminal escape (it turns the text red), a line separator and a
+#: right-to-left override, and how a message shows them: escaped as in a Python string's repr.
+ODD_NAMES = [
+    ("two\nlines", "two\\nlines"),
+    ("red\x1b[31m", "red\\x1b[31m"),
+    ("line\u2028separator", "line\\u2028separator"),
+    ("gnp.\u202eexe", "gnp.\\u202eexe"),
+]
+
+
+def _assert_shown_escaped(err: str, shown: str) -> None:
+    """``err`` is one line ending in a newline, shows ``shown`` and holds no other control,
+    format or line-separating character."""
+    import unicodedata
+
+    assert err.endswith("\n") and err.count("\n") == 1, repr(err)
+    assert shown in err, repr(err)
+    odd = [c for c in err[:-1] if unicodedata.category(c) in ("Cc", "Cf", "Zl", "Zp")]
+    assert odd == [], repr(err)
+
+
+@pytest.mark.parametrize("name, shown", ODD_NAMES, ids=["newline", "escape", "u2028", "u202e"])
+def test_a_file_name_with_control_characters_is_shown_escaped(
+    name, shown, tmp_path, monkeypatch, capsys
+):
+    """Every error line that names a file: from a reader (``--structure``), an output folder in
+    the way (``--out``, ``export --output``), an ``OSError``; the name is escaped, not printed
+    raw (before: a newline or line separator became a space, a terminal escape or a
+    right-to-left override reached the terminal)."""
+    monkeypatch.chdir(tmp_path)
+    Path(name).write_text("")  # a file where --out's folder goes
+    Path(f"{name}.json").mkdir()  # a folder where export's file goes
+    runs = [
+        (["info", "--structure", f"missing {name}.json"], f"--structure: missing {shown}.json: "),
+        (["matrices", "--out", f"{name}/sub"], f"--out: {shown} exists and is not a folder"),
+        (["export", "-o", f"{name}.json"], f"--output: {shown}.json is a folder"),
+    ]
+    for argv, words in runs:
+        assert main(argv) == 2
+        _assert_shown_escaped(capsys.readouterr().err, words)
+    _fail_with(monkeypatch, PermissionError(13, "Permission denied", f"out/{name}.json"))
+    assert main(["info"]) == 2
+    _assert_shown_escaped(capsys.readouterr().err, f"out/{shown}.json: Permission denied")

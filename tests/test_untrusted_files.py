@@ -27,7 +27,8 @@ import pytest
 
 from tensegrity import class1_shell, critical_damping, simulate
 from tensegrity.cli.main import main
-from tensegrity.io.formats import write_network
+from tensegrity.io.files import file_error
+from tensegrity.io.formats import read_structure, write_network
 from tensegrity.io.stream import PARTIAL_SUFFIX, StreamProgress, read_checkpoint, simulate_to_file
 from tensegrity.io.trajectory import read_dataset, read_trajectory, write_trajectory
 
@@ -195,6 +196,29 @@ def test_trajectory_datasets_outside_the_layout_are_refused(
     path = crafted(tmp_path, result, lambda f: edit(f, *secret))
     assert_refused(read_trajectory, path, f"dataset {name!r}", *words)
     assert_refused(lambda p: read_dataset(p, name), path, f"dataset {name!r}", *words)
+
+
+def test_names_in_messages_are_one_line_with_control_characters_escaped(tmp_path, result, secret):
+    """A file name with a newline or a terminal escape, given to a reader or stored in a crafted
+    file as the target of an external link, shows in the message escaped as in a Python string
+    (``\\n``, ``\\x1b``): one line, no escape sequence for the terminal."""
+    odd = tmp_path / "two\nlines\x1b[2J.json"
+    assert str(file_error(odd, "no such file")) == (
+        f"{tmp_path}/two\\nlines\\x1b[2J.json: no such file"
+    )
+    with pytest.raises(ValueError) as info:
+        read_structure(odd)
+    assert str(info.value) == f"{tmp_path}/two\\nlines\\x1b[2J.json: no such file"
+
+    def link(f):
+        del f["nodes"]
+        f["nodes"] = h5py.ExternalLink(f"{secret[1]}\n\x1b[2J", "/data")
+
+    path = crafted(tmp_path, result, link)
+    with pytest.raises(ValueError) as info:
+        read_trajectory(path)
+    assert_one_line(str(info.value), path, f"(to {secret[1]}\\n\\x1b[2J:/data)")
+    assert "\x1b" not in str(info.value)
 
 
 def test_vtk_command_does_not_copy_local_files_into_its_output(tmp_path, result, secret, capsys):

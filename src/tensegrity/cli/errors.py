@@ -35,6 +35,8 @@ from typing import Any
 
 import numpy as np
 
+from tensegrity.io.files import shown_path
+
 EXIT_FAILED, EXIT_USAGE = 1, 2
 #: Exit code of a command interrupted by Ctrl-C (128 + SIGINT, as a shell reports it).
 EXIT_INTERRUPTED = 128 + signal.SIGINT
@@ -116,10 +118,11 @@ def one_line(text: object) -> str:
 
 
 def describe(exc: BaseException) -> str:
-    """The message of ``exc`` in one line (an ``OSError`` as ``file: reason``, a ``KeyError``
-    without quotes), or its type's name if it has none."""
+    """The message of ``exc`` in one line (an ``OSError`` as ``file: reason``, the file name
+    escaped by :func:`tensegrity.io.files.shown_path`; a ``KeyError`` without quotes), or its
+    type's name if it has none."""
     if isinstance(exc, OSError) and exc.strerror:
-        files = [os.fspath(f) for f in (exc.filename, exc.filename2) if f is not None]
+        files = [shown_path(f) for f in (exc.filename, exc.filename2) if f is not None]
         return one_line(": ".join([*map(str, files), exc.strerror]))
     if isinstance(exc, KeyError) and exc.args:
         return one_line(exc.args[0])
@@ -149,9 +152,9 @@ def blame(source: str, path: Path | None = None) -> Iterator[None]:
 
 
 def _where(source: str, path: Path | None, problem: str) -> str:
-    if path is None or problem.startswith(os.fspath(path)):
+    if path is None or problem.startswith(shown_path(path)):
         return f"{source}: {problem}"
-    return f"{source}: {os.fspath(path)}: {problem}"
+    return f"{source}: {shown_path(path)}: {problem}"
 
 
 def exit_status(exc: BaseException) -> tuple[int, str]:

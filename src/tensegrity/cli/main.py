@@ -39,7 +39,7 @@ from tensegrity.cli.errors import (
     warnings_on_success,
 )
 from tensegrity.engine.options import ADAPTIVE_METHODS, DEFAULT_MAX_SAMPLES, FIXED_STEP_METHODS
-from tensegrity.io.files import byte_text, write_staged as _write_all
+from tensegrity.io.files import byte_text, shown_path, write_staged as _write_all
 from tensegrity.model.structure import Structure
 from tensegrity.physics import dynamics
 
@@ -378,7 +378,7 @@ def _simulation_inputs(
             force = read_force_table(args.force_table)
         if force.n_nodes != structure.n_nodes:
             raise CommandError(
-                f"--force-table: {args.force_table} has forces for {force.n_nodes} "
+                f"--force-table: {shown_path(args.force_table)} has forces for {force.n_nodes} "
                 f"nodes, the structure has {structure.n_nodes}"
             )
     gravity = None
@@ -435,8 +435,8 @@ class _RunFiles:
             print("tensegrity: interrupted (nothing written)", file=sys.stderr)
         else:
             print(
-                f"tensegrity: interrupted; the run so far is in {kept}: continue it with the "
-                "same options and --resume",
+                f"tensegrity: interrupted; the run so far is in {shown_path(kept)}: continue it "
+                "with the same options and --resume",
                 file=sys.stderr,
             )
         return code
@@ -570,7 +570,7 @@ def _check_output_folder(folder: Path, option: str) -> None:
     for path in (folder, *folder.parents):
         if path.exists():
             if not path.is_dir():
-                raise CommandError(f"{option}: {path} exists and is not a folder")
+                raise CommandError(f"{option}: {shown_path(path)} exists and is not a folder")
             return
 
 
@@ -719,7 +719,7 @@ def _cmd_export(args: argparse.Namespace) -> int:
 
     structure = _apply_damping(_structure(args), args.damping)
     if args.output.is_dir():
-        raise CommandError(f"--output: {args.output} is a folder, expected a file name")
+        raise CommandError(f"--output: {shown_path(args.output)} is a folder, expected a file name")
     if not args.output.parent.is_dir():
         raise CommandError(f"--output: folder {args.output.parent} does not exist")
     fmt = args.format or FORMATS.get(args.output.suffix.lower(), "json")
@@ -1031,7 +1031,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 
     _check_output_folder(args.output.parent, "--output")
     if args.output.is_dir():
-        raise CommandError(f"--output: {args.output} is a folder, expected a file name")
+        raise CommandError(f"--output: {shown_path(args.output)} is a folder, expected a file name")
     options = {
         name: getattr(args, name)
         for name in ("samples", "seed", "t_end", "sample_dt", "method", "dt")
@@ -1046,7 +1046,8 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
             )
         with blame("--spec", args.spec):
             spec = SweepSpec.from_file(args.spec)
-        _check_samples(spec.t_end, spec.sample_dt, ("t_end", "sample_dt"), f"--spec: {args.spec}: ")
+        where = f"--spec: {shown_path(args.spec)}: "
+        _check_samples(spec.t_end, spec.sample_dt, ("t_end", "sample_dt"), where)
     elif not args.param:
         raise CommandError("sweep: give --spec FILE or at least one --param NAME=VALUES")
     else:

@@ -32,6 +32,7 @@ from tensegrity.io.files import (
     byte_text,
     file_error,
     over_limit,
+    shown_path,
 )
 
 #: Largest chunk [bytes] of a dataset, unless one row of the dataset is larger: reading any
@@ -72,12 +73,14 @@ def _stored_object(group: Any, name: str, path: PathLike, kind: str) -> Any:
         return None if link is None else group[name]
     where = _name(group, name)
     if isinstance(link, h5py.ExternalLink):
-        target = f"{link.filename}:{link.path}"
+        target = f"{shown_path(link.filename)}:{shown_path(link.path)}"
         raise file_error(
             path, f"{kind} {where!r} is an external link (to {target}), not in the file"
         )
     if isinstance(link, h5py.SoftLink):
-        raise file_error(path, f"{kind} {where!r} is a soft link (to {link.path}), not in place")
+        raise file_error(
+            path, f"{kind} {where!r} is a soft link (to {shown_path(link.path)}), not in place"
+        )
     raise file_error(path, f"{kind} {where!r} is a {type(link).__name__}, not in the file")
 
 
@@ -128,7 +131,7 @@ def hdf5_dataset(group: Any, name: str, path: PathLike, *, kinds: str = FLOATS) 
     if found.is_virtual:
         raise file_error(path, f"{where} is a virtual dataset (its data are in other files)")
     if found.external:
-        files = ", ".join(sorted({entry[0] for entry in found.external}))
+        files = ", ".join(sorted({shown_path(entry[0]) for entry in found.external}))
         raise file_error(path, f"{where} has external storage (its data are in {files})")
     _check_kind(found.dtype, kinds, where, path)
     _check_chunks(found, where, path)

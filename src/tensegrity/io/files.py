@@ -1,7 +1,8 @@
 """Files written all at once: :func:`atomic_path` (a temporary file in the target's directory
 that replaces the target only when complete), :func:`write_staged` (a set of outputs that
-appear together), the one-line file errors every reader raises (:func:`file_error`), and input
-files read within limits (:func:`read_input`, :func:`regular_file`, :func:`byte_limit`).
+appear together), the one-line file errors every reader raises (:func:`file_error`, the file
+name shown by :func:`shown_path`), and input files read within limits (:func:`read_input`,
+:func:`regular_file`, :func:`byte_limit`).
 
 Limits on input files (docs/reliability.md), each raised by an environment variable holding a
 number of bytes:
@@ -23,6 +24,7 @@ import os
 import shutil
 import stat
 import tempfile
+import unicodedata
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import BinaryIO
@@ -130,8 +132,29 @@ def fsync_directory(directory: Path) -> None:
 
 
 def file_error(path: PathLike, problem: str) -> ValueError:
-    """A one-line ``ValueError``: ``"<path>: <problem>"``."""
-    return ValueError(f"{os.fspath(path)}: {' '.join(str(problem).split())}")
+    """A one-line ``ValueError``: ``"<path>: <problem>"`` (the path as :func:`shown_path` shows
+    it, the problem's runs of whitespace made one space)."""
+    return ValueError(f"{shown_path(path)}: {' '.join(str(problem).split())}")
+
+
+#: Unicode categories of the characters :func:`shown_path` escapes: control (newlines, tabs,
+#: terminal escapes, ...), format (bidirectional overrides, zero-width), surrogate (the bytes of
+#: a file name that are not UTF-8), line and paragraph separators.
+ESCAPED_CATEGORIES = frozenset({"Cc", "Cf", "Cs", "Zl", "Zp"})
+
+
+def shown_path(path: PathLike) -> str:
+    """A file name as a message shows it: every control, format, surrogate or line-separating
+    character escaped as a Python string's repr writes it (``"a\\nb.json"`` for a newline,
+    ``\\x1b``, ``\\u202e``, ``\\udcff``), so that the message stays one line and sends
+    nothing to the terminal but text; any other name as it is."""
+    name = os.fspath(path)
+    text = os.fsdecode(name) if isinstance(name, bytes) else name
+    if text.isprintable():
+        return text
+    return "".join(
+        repr(c)[1:-1] if unicodedata.category(c) in ESCAPED_CATEGORIES else c for c in text
+    )
 
 
 def os_problem(exc: OSError) -> str:

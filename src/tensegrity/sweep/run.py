@@ -294,13 +294,13 @@ class SweepSpec:
     def from_file(cls, path: PathLike) -> SweepSpec:
         """A spec from a ``.json`` or ``.yaml``/``.yml`` file (a regular file of at most
         ``TENSEGRITY_MAX_INPUT_BYTES``, :func:`tensegrity.io.files.read_input`)."""
-        from tensegrity.io.files import read_input
+        from tensegrity.io.files import file_error, read_input
 
         path = Path(path)
         try:
             text = read_input(path).decode("utf-8")
         except UnicodeDecodeError as exc:
-            raise ValueError(f"{path}: not UTF-8 text (byte {exc.start})") from None
+            raise file_error(path, f"not UTF-8 text (byte {exc.start})") from None
         try:
             if path.suffix.lower() in (".yaml", ".yml"):
                 import yaml
@@ -310,7 +310,7 @@ class SweepSpec:
                 data = json.loads(text)
         except Exception as exc:  # noqa: BLE001 - any parser error (JSONDecodeError, YAMLError)
             first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-            raise ValueError(f"{path}: not a valid sweep spec file ({first})") from None
+            raise file_error(path, f"not a valid sweep spec file ({first})") from None
         return cls.from_dict(data, folder=path.parent)
 
     def to_dict(self) -> dict[str, Any]:
