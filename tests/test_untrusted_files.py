@@ -28,7 +28,7 @@ import pytest
 from tensegrity import class1_shell, critical_damping, simulate
 from tensegrity.cli.main import main
 from tensegrity.io.files import file_error
-from tensegrity.io.formats import read_structure, write_network
+from tensegrity.io.formats import read_network, read_structure, write_network
 from tensegrity.io.stream import PARTIAL_SUFFIX, StreamProgress, read_checkpoint, simulate_to_file
 from tensegrity.io.trajectory import read_dataset, read_trajectory, write_trajectory
 
@@ -251,6 +251,89 @@ def test_trajectory_attributes_of_the_wrong_type_or_shape_are_refused(
     tmp_path, result, edit, words
 ):
     assert_refused(read_trajectory, crafted(tmp_path, result, edit), *words)
+
+
+# ---------------------------------------------------------------- .npz arrays of a structure
+def _network_arrays(tmp_path: Path) -> dict[str, np.ndarray]:
+    """The arrays of the (3,1) shell's connectivity file, with a node on a plane and one on a
+    line."""
+    path = write_network(tmp_path / "shell.npz", class1_shell(3, 1))
+    with np.load(path) as archive:
+        arrays = {name: archive[name] for name in archive.files}
+    arrays |= dict(plane_nodes=np.array([0]), plane_normal=np.array([[0.0, 0.0, 1.0]]))
+    arrays |= dict(line_nodes=np.array([1]), line_direction=np.array([[1.0, 0.0, 0.0]]))
+    return arrays
+
+
+def _saved(tmp_path: Path, arrays: dict[str, np.ndarray]) -> Path:
+    path = tmp_path / "crafted.npz"
+    np.savez(path, **arrays)
+    return path
+
+
+REAL_ARRAYS = ["N", "C_b", "C_s", "node_velocity", "rod_mass", "rod_length", "rod_damping"]
+REAL_ARRAYS += ["tendon_stiffness", "tendon_rest_length", "tendon_damping"]
+REAL_ARRAYS += ["plane_normal", "line_direction"]
+
+
+@pytest.mark.parametrize(
+    "dtype, words", [(complex, "complex numbers"), (bool, "bool"), ("<U24", "text")]
+)
+@pytest.mark.parametrize("name", REAL_ARRAYS)
+def test_npz_arrays_of_numbers_refuse_complex_booleans_and_text(tmp_path, name, dtype, words):
+    """Complex numbers where real ones belong were read with a ComplexWarning and their
+    imaginary parts dropped; booleans and text (numpy parses "1.5") were read as numbers.  Each
+    is refused naming the array, as the HDF5 readers refuse them."""
+    arrays = _network_arrays(tmp_path)
+    arrays[name] = arrays[name].astype(dtype)
+    path = _saved(tmp_path, arrays)
+    assert_refused(read_network, path, f"array {name!r}: expected real numbers", words)
+
+
+@pytest.mark.parametrize(
+    "value, words",
+    [
+        (np.array([0.5]), "whole numbers, got 0.5"),
+        (np.array([np.nan]), "whole numbers, got nan"),
+        (np.array([0j]), "expected node indices, got complex numbers"),
+        (np.array([True]), "expected node indices, got bool"),
+        (np.array(["0"]), "expected node indices, got text"),
+    ],
+)
+@pytest.mark.parametrize("name", ["plane_nodes", "line_nodes", "joint_nodes"])
+def test_npz_node_indices_refuse_fractions_complex_booleans_and_text(tmp_path, name, value, words):
+    """A node index array of fractions, complex numbers, booleans or text is refused naming the
+    array (before: booleans were taken as indices 0 and 1, complex numbers and text failed on
+    numpy's "ufunc 'remainder' not supported" naming nothing, fractions on "expected a list of
+    node indices, got shape (1,)")."""
+    arrays = _network_arrays(tmp_path)
+    arrays[name] = value.reshape(1, 1).repeat(2, axis=1) if name == "joint_nodes" else value
+    assert_refused(read_network, _saved(tmp_path, arrays), f"array {name!r}", words)
+
+
+def test_npz_other_arrays_refuse_other_kinds(tmp_path):
+    """Tendon names must be text (numbers were read as the names "0", "1", ...), the fixed
+    nodes booleans."""
+    arrays = _network_arrays(tmp_path)
+    arrays["tendon_name"] = np.arange(arrays["tendon_name"].size)
+    path = _saved(tmp_path, arrays)
+    assert_refused(read_network, path, "array 'tendon_name': expected text, got int64")
+    arrays = _network_arrays(tmp_path)
+    arrays["node_fixed"] = np.zeros(12)
+    path = _saved(tmp_path, arrays)
+    assert_refused(read_network, path, "array 'node_fixed': expected booleans, got float64")
+
+
+def test_npz_integers_for_numbers_and_whole_floats_for_indices_are_read(tmp_path):
+    """What is refused is the kind of data, not its width: integer node positions and masses,
+    and node indices written as floats of whole numbers, read as the same structure."""
+    arrays = _network_arrays(tmp_path)
+    expected = read_network(_saved(tmp_path, arrays))
+    arrays["rod_mass"] = arrays["rod_mass"].astype(np.int32)
+    arrays["C_b"] = arrays["C_b"].astype(np.float32)
+    arrays["plane_nodes"] = arrays["plane_nodes"].astype(float)
+    arrays["line_nodes"] = arrays["line_nodes"].astype(np.uint8)
+    assert read_network(_saved(tmp_path, arrays)).to_dict() == expected.to_dict()
 
 
 # ---------------------------------------------------------------------- streamed files

@@ -21,7 +21,7 @@ import math
 import zipfile
 import zlib
 from collections.abc import Iterable, Mapping
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -43,6 +43,14 @@ MAX_CHUNK_BYTES = 64 * 2**20
 #: NumPy dtype kinds: real floats; numbers (also integers and booleans).
 FLOATS = "f"
 NUMBERS = "biuf"
+
+
+class ArrayKind(NamedTuple):
+    """What an ``.npz`` array may hold (:func:`npz_arrays`): its NumPy dtype kinds, and what
+    they are in words for the message that refuses others."""
+
+    kinds: str  #: e.g. ``"iuf"``: integers or real floats
+    words: str  #: e.g. ``"real numbers"``
 
 
 def _within_limit(total: int, size: int, what: str) -> int:
@@ -336,19 +344,23 @@ def open_npz(raw: bytes) -> Any:
 
 
 def npz_arrays(
-    archive: Any, names: Iterable[str] | None = None, *, kinds: str | None = None
+    archive: Any,
+    names: Iterable[str] | None = None,
+    *,
+    kinds: str | Mapping[str, ArrayKind] | None = None,
 ) -> dict[str, np.ndarray]:
     """The arrays ``names`` (default: all) of an open ``.npz`` archive (:func:`open_npz`), each
-    read only after its header is checked: the data its header describes must be in the archive
-    member (a crafted header asks for terabytes), and within ``TENSEGRITY_MAX_ARRAY_BYTES`` over
-    all of them.
+    read only after its header is checked: of the kind of data allowed, the data its header
+    describes in the archive member (a crafted header asks for terabytes), and within
+    ``TENSEGRITY_MAX_ARRAY_BYTES`` over all of them.
 
     Parameters
     ----------
     archive : numpy.lib.npyio.NpzFile
     names : iterable of str, optional
-    kinds : str, optional
-        NumPy dtype kinds allowed (e.g. :data:`NUMBERS`); any but objects if None.
+    kinds : str or mapping of str to ArrayKind, optional
+        NumPy dtype kinds allowed, for every array (e.g. :data:`NUMBERS`) or per array name
+        (an array not in the mapping: any kind but objects); any but objects if None.
 
     Raises
     ------
@@ -367,9 +379,21 @@ def npz_arrays(
     return arrays
 
 
-def _check_npy(name: str, dtype: np.dtype, size: int, stored: int, kinds: str | None) -> None:
-    if dtype.hasobject or (kinds is not None and (dtype.names or dtype.kind not in kinds)):
-        raise ValueError(f"array {name!r}: expected numbers, got {_dtype_text(dtype)}")
+def _check_npy(
+    name: str,
+    dtype: np.dtype,
+    size: int,
+    stored: int,
+    kinds: str | Mapping[str, ArrayKind] | None,
+) -> None:
+    allowed = ArrayKind(kinds, "numbers") if isinstance(kinds, str) else None
+    if isinstance(kinds, Mapping):
+        allowed = kinds.get(name)
+    if dtype.hasobject or (
+        allowed is not None and (dtype.names is not None or dtype.kind not in allowed.kinds)
+    ):
+        wanted = "numbers" if allowed is None else allowed.words
+        raise ValueError(f"array {name!r}: expected {wanted}, got {_dtype_text(dtype)}")
     if size > stored:
         raise ValueError(
             f"array {name!r}: its header asks for {byte_text(size)}, but the archive holds "

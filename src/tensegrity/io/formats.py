@@ -40,7 +40,7 @@ from typing import Any
 
 import numpy as np
 
-from tensegrity.io.checked import npz_arrays, open_npz
+from tensegrity.io.checked import ArrayKind, npz_arrays, open_npz
 from tensegrity.io.files import PathLike, atomic_path, file_error, read_input
 from tensegrity.model.connectivity import (
     DEFAULT_ROD_MASS,
@@ -90,6 +90,19 @@ NPZ_ARRAYS = {
         False,
         "(J, 2) int, pairs of nodes joined by a ball joint (besides shared nodes)",
     ),
+}
+
+#: Arrays of node indices in the connectivity file.
+NPZ_INDEX_ARRAYS = ("plane_nodes", "line_nodes", "joint_nodes")
+#: What each array of the connectivity file may hold, checked before it is read: real numbers
+#: (integers too, of any width: ``C_b`` and ``C_s`` hold -1, 0 and +1), node indices (integers,
+#: or floats of whole numbers), booleans, text; never complex numbers, and booleans or text only
+#: where they belong.
+NPZ_KINDS = {
+    **{name: ArrayKind("iuf", "real numbers") for name in NPZ_ARRAYS},
+    **{name: ArrayKind("iuf", "node indices") for name in NPZ_INDEX_ARRAYS},
+    "node_fixed": ArrayKind("b", "booleans"),
+    "tendon_name": ArrayKind("U", "text"),
 }
 
 _ROD_KEYS = ("mass", "length", "damping")
@@ -559,10 +572,12 @@ def _from_npz(raw: bytes) -> Structure:
             raise ValueError(
                 f"unknown array {unknown[0]!r} (expected some of {', '.join(NPZ_ARRAYS)})"
             )
-        arrays = npz_arrays(archive)
+        arrays = npz_arrays(archive, kinds=NPZ_KINDS)
     for name, (required, _) in NPZ_ARRAYS.items():
         if required and name not in arrays:
             raise ValueError(f"missing array {name!r}")
+    for name in NPZ_INDEX_ARRAYS:
+        _check_whole(arrays.get(name), name)
     names = arrays.pop("tendon_name", None)
     N, C_b, C_s = arrays.pop("N"), arrays.pop("C_b"), arrays.pop("C_s")
     return from_connectivity(
@@ -573,6 +588,18 @@ def _from_npz(raw: bytes) -> Structure:
         ball_joints=True,
         **arrays,
     )
+
+
+def _check_whole(indices: np.ndarray | None, name: str) -> None:
+    """``ValueError`` naming the array ``name`` of node indices if it holds a float that is not a
+    whole number."""
+    if indices is None or indices.dtype.kind != "f":
+        return
+    with np.errstate(invalid="ignore"):
+        bad = np.flatnonzero(~(np.isfinite(indices) & (indices == np.round(indices))))
+    if bad.size:
+        value = indices.flat[bad[0]]
+        raise ValueError(f"array {name!r}: node indices must be whole numbers, got {value}")
 
 
 def write_network(
