@@ -189,21 +189,21 @@ def test_terminated_run_leaves_only_its_partial_file(tmp_path):
 
 
 def test_resume_with_other_options_is_refused_in_one_line(tmp_path, capsys, monkeypatch):
-    import tensegrity.io.stream
+    from tensegrity.engine.system import CompiledSystem
 
     out = tmp_path / "out"
     calls = []
-    add = tensegrity.io.stream.FileSink.add
+    record = CompiledSystem.record
 
-    def interrupt_in_the_second_segment(sink, sample):
+    def interrupt_in_the_second_segment(system, samples, row, t, y, inputs):
         calls.append(1)
         if len(calls) == 25:  # samples 0..20 are the first segment (20 samples each)
             raise KeyboardInterrupt
-        add(sink, sample)
+        record(system, samples, row, t, y, inputs)
 
-    monkeypatch.setattr(tensegrity.io.stream.FileSink, "add", interrupt_in_the_second_segment)
+    monkeypatch.setattr(CompiledSystem, "record", interrupt_in_the_second_segment)
     assert main([*RUN, "--out", str(out)]) == 130
-    monkeypatch.setattr(tensegrity.io.stream.FileSink, "add", add)
+    monkeypatch.setattr(CompiledSystem, "record", record)
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--resume" in err, err
     assert [p.name for p in out.iterdir()] == [PARTIAL]

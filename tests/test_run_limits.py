@@ -148,3 +148,90 @@ def test_the_size_limits_can_be_set(monkeypatch):
         SweepSpec({"stiffness": [1.0, 2.0], "load": [0.0, 1.0]})
     monkeypatch.setenv("TENSEGRITY_MAX_CASES", "4")
     assert len(SweepSpec({"stiffness": [1.0, 2.0], "load": [0.0, 1.0]}).cases()) == 4
+
+
+@pytest.mark.parametrize(
+    "options",
+    [dict(), dict(method="rk4", dt=1e-9, max_steps=10**9), dict(method="RK45")],
+    ids=["DOP853", "rk4", "RK45"],
+)
+def test_a_run_stops_at_its_wall_clock_budget(options):
+    """Tendons a million times stiffer and one sample at the end: without the budget the run
+    takes minutes (tiny steps, nothing to return for); with ``max_wall_time = 0.5`` s it stops
+    soon after, status -1, the message saying what to change, its first sample and last state
+    kept."""
+    stiff = class1_shell(3, 1, stiffness=1e12)
+    result = simulate(stiff, (0.0, 1.0), sample_dt=1.0, max_wall_time=0.5, **options)
+    assert result.status == -1, result.message
+    assert result.message.startswith("stopped after max_wall_time = 0.5 s of wall-clock time")
+    assert "raise max_wall_time" in result.message
+    assert 0.5 < result.wall_time < 5.0
+    assert result.t[0] == 0.0 and 0 < result.t[-1] < 1.0 and np.all(np.isfinite(result.q))
+
+
+def test_the_wall_clock_budget_is_checked():
+    with pytest.raises(ValueError, match=r"^max_wall_time: must be a number > 0 in s, got 0"):
+        simulate(class1_shell(3, 1), (0.0, 1.0), max_wall_time=0)
+
+
+@pytest.mark.parametrize("method", ["DOP853", "rk4"])
+def test_compiled_stretches_give_python_its_turn_without_changing_the_run(monkeypatch, method):
+    """Between two samples the compiled loop returns to Python after a bounded amount of work
+    (for signals and the budget), and the run is the same bit for bit as in one stretch."""
+    from tensegrity.engine import dop853, loop
+
+    shell = class1_shell(3, 1)
+    kwargs = dict(sample_dt=0.5, method=method, dt=1e-3 if method == "rk4" else None)
+    one_stretch = simulate(shell, (0.0, 1.0), **kwargs)
+    turns = []
+    monkeypatch.setattr(dop853, "YIELD_WORK", 24 * 12 * 10)  # ten DOP853 attempts, 30 RK4 steps
+    out_of_time = loop._Run.out_of_time
+
+    def counting(run, t):
+        turns.append(t)
+        return out_of_time(run, t)
+
+    monkeypatch.setattr(loop._Run, "out_of_time", counting)
+    many = simulate(shell, (0.0, 1.0), **kwargs)
+    assert len(turns) > many.nsteps / 40 > 5
+    assert (many.nsteps, many.nfev, many.nswitches) == (
+        one_stretch.nsteps,
+        one_stretch.nfev,
+        one_stretch.nswitches,
+    )
+    np.testing.assert_array_equal(many.q, one_stretch.q)
+    np.testing.assert_array_equal(many.qdot, one_stretch.qdot)
+
+
+def test_cli_budget_and_signals_reach_a_run_of_tiny_steps(tmp_path):
+    """Runs of tiny steps with no sample before their end (a minute or more of compiled
+    stepping): a SIGTERM is heard at once (before: only at the next sample, a minute later),
+    and ``--max-wall-time`` ends one with exit 1 and one line in the CLI's words."""
+    import signal
+    import time
+
+    argv = [sys.executable, "-m", "tensegrity.cli", "simulate", "--stiffness", "1e12"]
+    argv += ["--t-end", "1", "--sample-dt", "1", "--no-steady-state"]
+    rk4 = ["--method", "rk4", "--dt", "1e-7"]  # 10^7 steps: a minute in one compiled call
+    process = subprocess.Popen(
+        [*argv, *rk4, "--out", str(tmp_path / "a")], stderr=subprocess.PIPE, text=True
+    )
+    time.sleep(4.0)  # (imports, the cache loaded, stepping)
+    assert process.poll() is None
+    sent = time.monotonic()
+    process.send_signal(signal.SIGTERM)
+    _, stderr = process.communicate(timeout=60)
+    assert time.monotonic() - sent < 2.0
+    assert process.returncode == 128 + signal.SIGTERM, stderr
+
+    child = subprocess.run(
+        [*argv, "--max-wall-time", "0.5", "--out", str(tmp_path / "b")],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    line = child.stderr.strip()
+    assert child.returncode == 1 and "\n" not in line, line
+    assert "stopped after --max-wall-time 0.5 s of wall-clock time" in line
+    assert "raise --max-wall-time" in line and "(nothing written)" in line
+    assert not (tmp_path / "b").exists()

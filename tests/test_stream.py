@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from tensegrity import class1_shell, critical_damping, simulate
+from tensegrity.engine.system import CompiledSystem
 from tensegrity.io import stream as stream_module
 from tensegrity.io.stream import (
     PARTIAL_SUFFIX,
@@ -171,18 +172,18 @@ def test_interruption_inside_a_segment_and_inside_a_write(tmp_path, reference, m
     stays current and the rows past it are dropped on resume."""
     ref_path, _ = reference
     path = tmp_path / "run.h5"
-    add = stream_module.FileSink.add
+    record = CompiledSystem.record
 
-    def add_then_interrupt(sink, sample):
-        if sample.t > 0.25:  # inside segment 3 (0.2 .. 0.3 s)
+    def record_then_interrupt(system, samples, row, t, y, inputs):
+        if t > 0.25:  # inside segment 3 (0.2 .. 0.3 s)
             raise KeyboardInterrupt
-        add(sink, sample)
+        record(system, samples, row, t, y, inputs)
 
-    monkeypatch.setattr(stream_module.FileSink, "add", add_then_interrupt)
+    monkeypatch.setattr(CompiledSystem, "record", record_then_interrupt)
     with pytest.raises(KeyboardInterrupt):
         simulate_to_file(SHELL, (0.0, 0.5), path, segment=0.1, **FAST)
     assert read_checkpoint(path).next_segment == 2
-    monkeypatch.setattr(stream_module.FileSink, "add", add)
+    monkeypatch.setattr(CompiledSystem, "record", record)
 
     write_checkpoint = stream_module._write_checkpoint
 

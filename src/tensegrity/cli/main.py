@@ -38,7 +38,12 @@ from tensegrity.cli.errors import (
     signals_as_interrupts,
     warnings_on_success,
 )
-from tensegrity.engine.options import ADAPTIVE_METHODS, DEFAULT_MAX_SAMPLES, FIXED_STEP_METHODS
+from tensegrity.engine.options import (
+    ADAPTIVE_METHODS,
+    DEFAULT_MAX_SAMPLES,
+    DEFAULT_MAX_STEPS,
+    FIXED_STEP_METHODS,
+)
 from tensegrity.io.files import byte_text, shown_path, write_staged as _write_all
 from tensegrity.model.structure import Structure
 from tensegrity.physics import dynamics
@@ -73,6 +78,16 @@ def _non_negative(text: str) -> float:
     value = _finite(text)
     if value < 0:
         raise argparse.ArgumentTypeError(f"must be >= 0, got {text!r}")
+    return value
+
+
+def _whole_positive(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"must be > 0, got {text!r}")
     return value
 
 
@@ -442,12 +457,25 @@ class _RunFiles:
         return code
 
 
-def _in_cli_words(exc: ValueError) -> str:
-    """The library's error as one line, in the CLI's words."""
-    message = " ".join(str(exc).split()).replace(
-        "pass resume=False to start again", "run without --resume to start again"
-    )
-    return message.replace("start again with resume=False", "run without --resume to start again")
+#: The library's words for its options, as the CLI's (messages of ``simulate``).
+_CLI_WORDS = (
+    ("pass resume=False to start again", "run without --resume to start again"),
+    ("start again with resume=False", "run without --resume to start again"),
+    ("max_wall_time = ", "--max-wall-time "),
+    ("max_steps = ", "--max-steps "),
+    ("raise max_wall_time", "raise --max-wall-time"),
+    ("raise max_steps", "raise --max-steps"),
+    ("loosen rtol and atol", "loosen --rtol and --atol"),
+    ("method='Radau'", "--method Radau"),
+)
+
+
+def _in_cli_words(exc: ValueError | str) -> str:
+    """The library's error (or message) as one line, in the CLI's words."""
+    message = " ".join(str(exc).split())
+    for library, cli in _CLI_WORDS:
+        message = message.replace(library, cli)
+    return message
 
 
 def _stream_run(
@@ -477,6 +505,8 @@ def _stream_run(
             dt=args.dt,
             sample_dt=args.sample_dt,
             steady_state=not args.no_steady_state,
+            max_steps=args.max_steps,
+            max_wall_time=args.max_wall_time,
         )
     except KeyboardInterrupt:
         raise
@@ -489,7 +519,9 @@ def _stream_run(
     if not summary.success:
         files.work.unlink(missing_ok=True)
         _remove_empty(files.created)
-        raise CommandError(f"simulation failed: {summary.message} (nothing written)", EXIT_FAILED)
+        raise CommandError(
+            f"simulation failed: {_in_cli_words(summary.message)} (nothing written)", EXIT_FAILED
+        )
     return summary
 
 
@@ -1153,6 +1185,19 @@ def _add_integration_options(parser: argparse.ArgumentParser) -> None:
     )
     integration.add_argument(
         "--sample-dt", type=_positive, default=0.01, help="output spacing [s] (default 0.01)"
+    )
+    integration.add_argument(
+        "--max-steps",
+        type=_whole_positive,
+        default=DEFAULT_MAX_STEPS,
+        help=f"stop (exit 1) after this many steps (default {DEFAULT_MAX_STEPS:,})",
+    )
+    integration.add_argument(
+        "--max-wall-time",
+        type=_positive,
+        default=math.inf,
+        metavar="SECONDS",
+        help="stop (exit 1) after this much wall-clock time (default: none)",
     )
 
 

@@ -538,13 +538,22 @@ def _indicator(p, v, tendon_slots, stiffness, damping, rest, out):  # pragma: no
 
 
 @njit(**JIT_OPTIONS)
-def sample_outputs(y, dy, system, inputs, work, moving, p, v, accel, lengths):  # pragma: no cover
-    """Everything a sample records, from one evaluation at ``y`` (the inputs' row 0): ``dy``,
-    node positions ``p`` and velocities ``v`` (3, n_slots), tendon lengths (kernel order; the
-    tensions are left in ``work``) and node accelerations ``accel`` (3, n_slots).  Returns
-    ``(kinetic, elastic, gravity, largest node acceleration [m/s^2], largest node speed [m/s])``
-    over the slots ``moving`` (rod ends and point masses).
+def record_sample(y, system, inputs, work, scratch, maps, columns, row):  # pragma: no cover
+    """Sample ``row`` of ``columns`` (:class:`tensegrity.engine.result.Samples`' fields after
+    ``t``) at ``y``, from one evaluation with the inputs' row 0: coordinates, node positions
+    and velocities, tendon lengths and tensions, the energies, and the largest node
+    acceleration [m/s^2] and speed [m/s] over the moving slots (rod ends and point masses).
+
+    ``scratch`` = ``(dy (m,), p, v, accel (3, n_slots), lengths (S,), moving slots)``;
+    ``maps`` = ``(kept, node_slot, tendon_position)``: the coordinates of ``y`` the structure
+    has (all, or those not in ``z`` for a planar structure), each node's slot, each tendon's
+    position in kernel order.
     """
+    q, qdot, nodes, velocities, tendon_length, tension, energy, largest_accel, largest_speed = (
+        columns
+    )
+    dy, p, v, accel, lengths, moving = scratch
+    kept, node_slot, position = maps
     arrays, extras = system
     rod_slots = arrays[0]
     n = (y.shape[0] - 3) // 2
@@ -554,7 +563,21 @@ def sample_outputs(y, dy, system, inputs, work, moving, p, v, accel, lengths):  
     system_nodes(y[:n], y[n : 2 * n], rod_slots, extras, p, v, np.bool_(True))
     tendon_lengths(p, arrays[2], lengths)
     system_nodes(dy[n : 2 * n], dy[n : 2 * n], rod_slots, extras, accel, accel, np.bool_(False))
-    return kinetic, elastic, potential, _largest_at(accel, moving), _largest_at(v, moving)
+    for i in range(kept.shape[0]):
+        q[row, i] = y[kept[i]]
+        qdot[row, i] = y[n + kept[i]]
+    for i in range(node_slot.shape[0]):
+        for k in range(nodes.shape[2]):
+            nodes[row, i, k] = p[k, node_slot[i]]
+            velocities[row, i, k] = v[k, node_slot[i]]
+    tensions = work[2]
+    for j in range(position.shape[0]):
+        tendon_length[row, j] = lengths[position[j]]
+        tension[row, j] = tensions[position[j]]
+    energy[row, 0], energy[row, 1], energy[row, 2] = kinetic, elastic, potential
+    energy[row, 3], energy[row, 4], energy[row, 5] = y[-3], y[-2], y[-1]
+    largest_accel[row] = _largest_at(accel, moving)
+    largest_speed[row] = _largest_at(v, moving)
 
 
 @njit(**JIT_OPTIONS)
@@ -587,9 +610,9 @@ __all__ = [
     "energy_balance",
     "fill_stage_inputs",
     "ode_rhs",
+    "record_sample",
     "rk4_segment",
     "rk4_step",
-    "sample_outputs",
     "switch_distance",
     "switch_indicator",
     "tendon_lengths",

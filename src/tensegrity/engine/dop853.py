@@ -62,6 +62,10 @@ SWITCH_RTOL = 1e-13
 SAFETY, MIN_FACTOR, MAX_FACTOR, EXPONENT = 0.9, 0.2, 10.0, -1.0 / 8.0
 #: Located switches :func:`dop853_run` keeps before it returns them (``RUN_SWITCHES``).
 SWITCH_BUFFER = 256
+#: Work of one compiled call between returns to Python, in member evaluations (members times
+#: right-hand-side evaluations): about 0.05 s, so that signals (Ctrl-C, SIGTERM) and the
+#: wall-clock budget are heard within a fraction of a second however small the steps.
+YIELD_WORK = 2_000_000
 
 #: Indices of ``clock`` (float64): time [s], start of the last step [s], the next step size
 #: [s], the step size before heading for a switch [s], the time of the switch headed for [s],
@@ -97,7 +101,9 @@ _COUNTS = {"nsteps": NSTEPS, "nswitches": NSWITCHES, "nprojections": NPROJECTION
 #: What :func:`dop853_run` returns: the samples up to the last step's end are due (its dense
 #: output ready); the step reached ``bound``; ``max_steps`` steps were taken; the switch buffer
 #: is full; a blow-up check failed; the step size fell below its minimum; an input could not be
-#: made (a control table makes a rest length negative at ``clock[INPUT_TIME]``).
+#: made (a control table makes a rest length negative at ``clock[INPUT_TIME]``); the call has
+#: made its share of attempts (``settings[6]``: Python gets its turn, for signals and the
+#: wall-clock budget, at least that often).
 (
     RUN_SAMPLES,
     RUN_BOUNDARY,
@@ -106,7 +112,8 @@ _COUNTS = {"nsteps": NSTEPS, "nswitches": NSWITCHES, "nprojections": NPROJECTION
     RUN_CHECK_FAILED,
     RUN_STEP_FAILED,
     RUN_INPUT,
-) = range(7)
+    RUN_YIELD,
+) = range(8)
 
 
 @register_jitable
@@ -139,8 +146,9 @@ def _dop853_loop(clock, tally, buffers, flags, switch_times, system, rows, point
     landing_mask, landing_after)`` (S,) bool, kernel order; ``switch_times`` (SWITCH_BUFFER,)
     [s]; ``rows`` and ``point`` the inputs tuples for a step's 16 stages and for one time;
     ``scratch`` = ``(p, v (3, n_slots), indicator (S,), distance (S,), candidates (S,) int64)``;
-    ``settings`` = ``(rtol, atol, t_end [s], projection_tol, max_steps, locate)``; ``limits``
-    and ``monitor`` as :func:`compiled.check_state`'s.
+    ``settings`` = ``(rtol, atol, t_end [s], projection_tol, max_steps, locate, attempts)``:
+    the call returns (``RUN_YIELD``) once it has made ``attempts`` attempts; ``limits`` and
+    ``monitor`` as :func:`compiled.check_state`'s.
 
     The whole loop is one function, its heavy callees (the stages, the dense output, the switch
     distance, the checks, the projection) called from here only: numba compiles every function
@@ -152,7 +160,8 @@ def _dop853_loop(clock, tally, buffers, flags, switch_times, system, rows, point
     taut, landing_mask, landing_after = flags
     p, v, indicator, distance, candidates = scratch
     rtol, atol, t_end, projection_tol = settings[0], settings[1], settings[2], settings[3]
-    max_steps, locate = settings[4], settings[5]
+    max_steps, locate, attempts_per_call = settings[4], settings[5], settings[6]
+    attempts = 0
     m = y.shape[0]
     n = (m - 3) // 2
     times = np.empty(DOP853_C.shape[0])
@@ -216,6 +225,8 @@ def _dop853_loop(clock, tally, buffers, flags, switch_times, system, rows, point
         return least, False
 
     while True:
+        if attempts >= attempts_per_call:
+            return RUN_YIELD, CHECK_OK, 0.0
         if tally[PENDING]:  # finish the accepted step whose samples were handed out
             tally[PENDING] = 0
             copy_values(K[DOP853_STAGES], K[0], m)  # first same as last
@@ -266,6 +277,7 @@ def _dop853_loop(clock, tally, buffers, flags, switch_times, system, rows, point
                 return RUN_INPUT, CHECK_OK, 0.0
             error = dop853_attempt(y, h, K, y_new, stage, rtol, atol, system, rows, work)
             tally[NFEV] += DOP853_STAGES
+            attempts += 1
             if error < 1.0:
                 break
             if use_taut and np.isfinite(error) and any_switched():
@@ -406,8 +418,9 @@ class DOP853:
         self.switch_times = np.zeros(SWITCH_BUFFER)
         self.scratch = (system.scratch_p, system.scratch_v, np.empty(S), np.empty(S),
                         np.empty(S, np.int64))  # fmt: skip
+        attempts = steps_per_turn(system, DOP853_STAGES)
         self.settings = (float(rtol), float(atol), float(t_end), float(projection_tol),
-                         np.int64(max_steps), np.bool_(locate))  # fmt: skip
+                         np.int64(max_steps), np.bool_(locate), np.int64(attempts))  # fmt: skip
         if memory is None:
             self._evaluate_first_stage()
             self.clock[STEP] = self._initial_step(t_end)
@@ -566,3 +579,10 @@ class DOP853:
 
 def _rms(x: np.ndarray) -> float:
     return float(np.linalg.norm(x) / np.sqrt(x.size))
+
+
+def steps_per_turn(system: CompiledSystem, evaluations: int) -> int:
+    """Steps of ``evaluations`` evaluations each that make about :data:`YIELD_WORK` (at least
+    one): how many a compiled call takes before Python gets its turn."""
+    members = max(1, system.structure.n_rods + system.structure.n_tendons)
+    return max(1, YIELD_WORK // (evaluations * members))

@@ -39,7 +39,7 @@ from tensegrity.engine.result import (
     STATUS_FAILED,
     STATUS_STEADY,
     RunSummary,
-    Sample,
+    Samples,
 )
 from tensegrity.engine.steppers import (
     RK4,
@@ -54,10 +54,13 @@ from tensegrity.physics import dynamics
 
 
 class Sink(Protocol):
-    """Where samples go (:class:`tensegrity.engine.result.MemorySink` keeps them in memory)."""
+    """Where samples go (:class:`tensegrity.engine.result.MemorySink` keeps them in memory).
 
-    def add(self, sample: Sample) -> None:
-        """Keep one sample."""
+    They come in blocks of one or more samples, in time order; a block is the sink's to keep.
+    With checkpoints, a checkpoint's samples have all been handed over before it is saved."""
+
+    def add(self, samples: Samples) -> None:
+        """Keep a block of samples."""
 
 
 class Controller(Protocol):
@@ -238,6 +241,7 @@ class _Run:
         checkpoint: Checkpointing | None,
         progress: Callable[[float], None] | None,
     ) -> None:
+        self.wall0 = time.perf_counter()
         self.structure, self.options, self.sink = structure, options, sink
         self.progress = progress
         self.controller, self.checkpointing = controller, checkpoint
@@ -261,6 +265,8 @@ class _Run:
         self.wall_before = 0.0
         self.steps_done = 0  # "rk4"
         self.saved_at = 0  # index of the sample of the last checkpoint
+        self.block_rows = _block_rows(structure, options, t0, t_end, checkpoint)
+        self.block, self.rows = Samples.empty(self.block_rows, structure), 0
 
     def start(self, y: np.ndarray) -> None:
         """The monitor at the first state (energy balance, largest errors)."""
@@ -273,11 +279,21 @@ class _Run:
         )
 
     # ------------------------------------------------------------------ samples
-    def record(self, t: float, y: np.ndarray) -> Sample:
-        sample = self.system.sample(t, y, self.system.stage_inputs(np.array([t])))
-        self.sink.add(sample)
+    def record(self, t: float, y: np.ndarray) -> int:
+        """Record the sample at ``(t, y)``; its row in :attr:`block`."""
+        if self.rows == self.block_rows:
+            self.flush()
+        row = self.rows
+        self.system.record(self.block, row, t, y, self.system.stage_inputs(np.array([t])))
+        self.rows += 1
         self.last_sample_t = t
-        return sample
+        return row
+
+    def flush(self) -> None:
+        """Hand the samples recorded so far to the sink."""
+        if self.rows:
+            self.sink.add(self.block.head(self.rows))
+            self.block, self.rows = Samples.empty(self.block_rows, self.structure), 0
 
     def sample_time(self, index: int) -> float:
         """Time of sample ``index`` [s] (the one formula for every sample and boundary)."""
@@ -291,15 +307,16 @@ class _Run:
             self.next_sample += 1
         return times
 
-    def steady(self, sample: Sample) -> bool:
-        o = self.options
+    def steady(self, row: int) -> bool:
+        """Whether the sample in ``row`` of :attr:`block` is at rest (the run stops there)."""
+        o, block = self.options, self.block
         if (
             o.steady_state
-            and sample.residual_acceleration < o.acceleration_tol
-            and sample.largest_speed < o.velocity_tol
+            and block.residual_acceleration[row] < o.acceleration_tol
+            and block.largest_speed[row] < o.velocity_tol
         ):
             self.status = STATUS_STEADY
-            self.message = f"steady state at t = {sample.t:.6g} s"
+            self.message = f"steady state at t = {block.t[row]:.6g} s"
             return True
         return False
 
@@ -310,6 +327,24 @@ class _Run:
             f"{self.t_end:g} s: the steps became tiny (a stiff or unstable structure?); "
             "raise max_steps, loosen rtol and atol, or try method='Radau'"
         )
+
+    def wall_time(self) -> float:
+        """Wall-clock time of the run so far [s] (the runs before a resume included)."""
+        return self.wall_before + time.perf_counter() - self.wall0
+
+    def out_of_time(self, t: float) -> bool:
+        """Whether the run has used up ``max_wall_time`` at ``t`` [s] (it is then failed)."""
+        budget = self.options.max_wall_time
+        if self.wall_time() <= budget:
+            return False
+        self.status = STATUS_FAILED
+        self.message = (
+            f"stopped after max_wall_time = {budget:g} s of wall-clock time at t = {t:.6g} s of "
+            f"{self.t_end:g} s ({self.counts['nsteps']:,} steps); raise max_wall_time, or make "
+            "the steps larger (a stiff or unstable structure? loosen rtol and atol, or try "
+            "method='Radau')"
+        )
+        return True
 
     def fail(self, code: int, value: float, t: float) -> None:
         self.status = STATUS_FAILED
@@ -385,9 +420,9 @@ class _Run:
         taut: np.ndarray | None,
         landing: tuple[float, np.ndarray, np.ndarray, bool] | None,
         allow_provisional: bool,
-        wall0: float,
     ) -> None:
         assert self.checkpointing is not None, "save: the run has no checkpoints"
+        self.flush()
         self.saved_at = self.next_sample - 1
         self.checkpointing.save(
             LoopState(
@@ -404,7 +439,7 @@ class _Run:
                 switch_times=tuple(self.switch_times),
                 control=self.control.copy(),
                 last_sample_t=self.last_sample_t,
-                wall_time=self.wall_before + time.perf_counter() - wall0,
+                wall_time=self.wall_time(),
             )
         )
 
@@ -419,6 +454,26 @@ class _Run:
         if self.controller is not None and state.control.size:
             self.system.hold_control(state.control, state.t)
             self.control = state.control.copy()
+
+
+#: Bytes of samples :func:`run` holds before it hands them to its sink (without checkpoints).
+BLOCK_BYTES = 32 * 2**20
+
+
+def _block_rows(
+    structure: Structure,
+    options: Options,
+    t0: float,
+    t_end: float,
+    checkpoint: Checkpointing | None,
+) -> int:
+    """Samples per block handed to the sink: those of a checkpoint (every ``every`` samples,
+    the first one's including the sample at ``t0``), else :data:`BLOCK_BYTES` worth, and not
+    more than the run can make."""
+    if checkpoint is not None:
+        return checkpoint.every + 1
+    most = math.floor((t_end - t0) / options.sample_spacing(t0, t_end) * (1 + 1e-12)) + 2
+    return max(1, min(most, BLOCK_BYTES // Samples.row_bytes(structure)))
 
 
 def _stepper(
@@ -483,7 +538,7 @@ def _taut(stepper: Stepper, landed: _Landing | None) -> np.ndarray:
     return taut
 
 
-def _adaptive(run: _Run, stepper: Stepper, resume: LoopState | None, wall0: float) -> None:
+def _adaptive(run: _Run, stepper: Stepper, resume: LoopState | None) -> None:
     """The loop of an adaptive method."""
     o, system = run.options, run.system
     locate = o.locate_switches
@@ -554,14 +609,16 @@ def _adaptive(run: _Run, stepper: Stepper, resume: LoopState | None, wall0: floa
         if stepper.t < run.t_end and run.counts["nsteps"] >= o.max_steps:
             run.stop_at_max_steps(stepper.t)
             return
+        if stepper.t < run.t_end and run.out_of_time(stepper.t):
+            return
         if stepper.t < run.t_end and run.checkpoint_due():
             kept = None
             if landing is not None:
                 kept = (landing.time, landing.tendons, landing.taut_after, landing.exact)
-            run.save(stepper.t, stepper.y, stepper, taut, kept, allow_provisional, wall0)
+            run.save(stepper.t, stepper.y, stepper, taut, kept, allow_provisional)
 
 
-def _compiled_adaptive(run: _Run, stepper: DOP853, resume: LoopState | None, wall0: float) -> None:
+def _compiled_adaptive(run: _Run, stepper: DOP853, resume: LoopState | None) -> None:
     """The loop of DOP853: :meth:`DOP853.run` (compiled) from one sample or boundary to the
     next; here the samples are recorded, a controller called and checkpoints saved."""
     if resume is not None:
@@ -574,8 +631,6 @@ def _compiled_adaptive(run: _Run, stepper: DOP853, resume: LoopState | None, wal
         )
         run.counts.update(stepper.counts())
         run.switch_times.extend(stepper.new_switch_times())
-        if code == dop853.RUN_SWITCHES:
-            continue
         if code == dop853.RUN_CHECK_FAILED:
             run.fail(check, value, stepper.t)
             if check != compiled.CHECK_PROJECTION:  # (the state before projection was recorded)
@@ -592,8 +647,12 @@ def _compiled_adaptive(run: _Run, stepper: DOP853, resume: LoopState | None, wal
         if code == dop853.RUN_MAX_STEPS:
             run.stop_at_max_steps(stepper.t)
             return
+        if run.out_of_time(stepper.t):
+            return
         if run.progress is not None:
             run.progress(stepper.t)
+        if code in (dop853.RUN_SWITCHES, dop853.RUN_YIELD):
+            continue
         if code == dop853.RUN_SAMPLES:
             y_at = stepper.dense()
             for t in run.sample_times(stepper.t):
@@ -615,7 +674,6 @@ def _compiled_adaptive(run: _Run, stepper: DOP853, resume: LoopState | None, wal
                 stepper.taut,
                 stepper.landing(),
                 bool(stepper.tally[dop853.ALLOW_PROVISIONAL]),
-                wall0,
             )
         bound = run.next_boundary(stepper.t)
 
@@ -635,7 +693,7 @@ def _hermite(
     )
 
 
-def _fixed_step(run: _Run, stepper: RK4, wall0: float) -> None:
+def _fixed_step(run: _Run, stepper: RK4) -> None:
     """The loop of ``"rk4"``: compiled stretches of steps up to each sample or controller update
     (the last step shorter, to land on ``t_end``); a sample inside a step is interpolated (cubic
     Hermite), one on a step's end is that end before projection.  A controller is called at the
@@ -686,24 +744,31 @@ def _fixed_step(run: _Run, stepper: RK4, wall0: float) -> None:
         ):
             run.update_control(stepper.t, stepper.y)
         if run.steps_done < n_steps and run.checkpoint_due():
-            run.save(stepper.t, stepper.y, stepper, None, None, False, wall0)
+            run.save(stepper.t, stepper.y, stepper, None, None, False)
 
 
 def _rk4_steps(run: _Run, stepper: RK4, n: int, h: float) -> bool:
-    """``n`` checked, projected RK4 steps of ``h``, the stepper's time moved on; False (and the
-    run failed) on a blow-up."""
-    steps, code, value = stepper.advance(n, h, run.limits, run.monitor)
-    stepper.t += steps * h
-    run.steps_done += steps
-    run.counts["nsteps"] += steps
-    run.counts["nprojections"] += steps - (code not in (compiled.CHECK_OK, compiled.CHECK_INPUT))
-    if code == compiled.CHECK_INPUT:  # (the last state, projected, is recorded at the end)
-        run.status, run.message = STATUS_FAILED, stepper.input_error
-        return False
-    if code != compiled.CHECK_OK:
-        run.fail(code, value, stepper.t)
-        run.record(stepper.t, stepper.y_end)
-        return False
+    """``n`` checked, projected RK4 steps of ``h``, the stepper's time moved on, in compiled
+    calls of at most :func:`dop853.steps_per_turn` steps (the wall-clock budget checked between
+    them); False (and the run failed) on a blow-up or when out of time."""
+    per_call, t_start, done = dop853.steps_per_turn(run.system, 4), stepper.t, 0
+    while done < n:
+        steps, code, value = stepper.advance(min(n - done, per_call), h, run.limits, run.monitor)
+        done += steps
+        stepper.t = t_start + done * h
+        run.steps_done += steps
+        run.counts["nsteps"] += steps
+        failed = code not in (compiled.CHECK_OK, compiled.CHECK_INPUT)
+        run.counts["nprojections"] += steps - failed
+        if code == compiled.CHECK_INPUT:  # (the last state, projected, is recorded at the end)
+            run.status, run.message = STATUS_FAILED, stepper.input_error
+            return False
+        if code != compiled.CHECK_OK:
+            run.fail(code, value, stepper.t)
+            run.record(stepper.t, stepper.y_end)
+            return False
+        if run.out_of_time(stepper.t):
+            return False
     return True
 
 
@@ -777,7 +842,6 @@ def run(
         raise ValueError(f"checkpoint.every: must be a whole number > 0, got {checkpoint.every!r}")
     options.check_span(t0, t_end)
     inputs.rest_length(np.array([t0]))  # a control making a rest length negative fails here
-    wall0 = time.perf_counter()
     r = _Run(structure, t0, t_end, inputs, options, sink, controller, checkpoint, progress)
     if resume is None:
         state = dynamics.initial_state(structure, t=t0) if initial is None else initial
@@ -793,15 +857,16 @@ def run(
         stepper = _stepper(r, resume.t, resume.y.copy(), resume.memory)
     try:
         if isinstance(stepper, RK4):  # the stepper of the fixed-step method (options.fixed_step)
-            _fixed_step(r, stepper, wall0)
+            _fixed_step(r, stepper)
         elif isinstance(stepper, DOP853):
-            _compiled_adaptive(r, stepper, resume, wall0)
+            _compiled_adaptive(r, stepper, resume)
         else:
-            _adaptive(r, stepper, resume, wall0)
+            _adaptive(r, stepper, resume)
     except (IntegrationError, ValueError, FloatingPointError) as exc:
         r.status, r.message = STATUS_FAILED, str(exc)
     if r.status != STATUS_STEADY and r.last_sample_t < stepper.t * (1 - 1e-14):
         r.record(stepper.t, stepper.y)  # the end, or the last state before a failure
+    r.flush()
     return RunSummary(
         status=r.status,
         message=r.message,
@@ -809,7 +874,7 @@ def run(
         nfev=r.nfev_before + stepper.nfev,
         max_rod_length_error=float(r.monitor[2]),
         max_constraint_error=float(r.monitor[3]),
-        wall_time=r.wall_before + time.perf_counter() - wall0,
+        wall_time=r.wall_time(),
         settings=options.settings(t0, t_end, **inputs.settings()),
         switch_times=tuple(r.switch_times),
         **r.counts,

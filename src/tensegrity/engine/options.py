@@ -57,6 +57,10 @@ class Options:
         end stops (status -1): its steps have become tiny (a stiff or unstable structure).
     max_samples : the most samples a run may make (each holds the whole state: memory, or
         disk for a streamed run); a run that would make more is refused before it starts.
+    max_wall_time : the longest a run may take [s of wall-clock time]; a run still going then
+        stops (status -1) within about 0.1 s, its samples so far kept.  Not part of the
+        run's ``settings``: a resumed run may have another budget (it counts the time before
+        the resume too).
     """
 
     method: str = "DOP853"
@@ -73,6 +77,7 @@ class Options:
     max_energy_growth: float = 0.1
     max_steps: int = DEFAULT_MAX_STEPS
     max_samples: int = DEFAULT_MAX_SAMPLES
+    max_wall_time: float = math.inf
 
     def __post_init__(self) -> None:
         if self.method not in ADAPTIVE_METHODS + FIXED_STEP_METHODS:
@@ -98,6 +103,10 @@ class Options:
             value = getattr(self, field)
             if not (_is_number(value) and value > 0):
                 raise ValueError(f"{field}: must be > 0, got {value!r}")
+        if not (_is_number(self.max_wall_time) and self.max_wall_time > 0):
+            raise ValueError(
+                f"max_wall_time: must be a number > 0 in s, got {self.max_wall_time!r}"
+            )
         for field in ("max_steps", "max_samples"):
             value = getattr(self, field)
             if not (isinstance(value, int) and not isinstance(value, bool) and value > 0):

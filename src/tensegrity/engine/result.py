@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Sequence
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -18,7 +19,7 @@ __all__ = [
     "STATUS_STEADY",
     "MemorySink",
     "RunSummary",
-    "Sample",
+    "Samples",
     "SimulationResult",
 ]
 
@@ -29,19 +30,56 @@ STATUS_FAILED, STATUS_END, STATUS_STEADY = -1, 0, 1
 ENERGY_NAMES = ("kinetic", "elastic", "gravity", "dissipated", "external_work", "control_work")
 
 
-class Sample(NamedTuple):
-    """One output sample, in the structure's order and dimension (SI units)."""
+class Samples(NamedTuple):
+    """Output samples as columns, one row per sample time, in the structure's order and
+    dimension (SI units).  The engine fills them a row at a time
+    (:meth:`tensegrity.engine.system.CompiledSystem.record`) and hands them to its sink in
+    blocks of many rows."""
 
-    t: float  #: [s]
-    q: np.ndarray  #: (n,) [m]
-    qdot: np.ndarray  #: (n,) [m/s]
-    node_position: np.ndarray  #: (N, dim) [m]
-    node_velocity: np.ndarray  #: (N, dim) [m/s]
-    tendon_length: np.ndarray  #: (S,) [m]
-    tendon_tension: np.ndarray  #: (S,) [N]
-    energy: np.ndarray  #: (6,) [J]: kinetic, elastic, gravity, dissipated, external, control work
-    residual_acceleration: float  #: largest node acceleration [m/s^2]
-    largest_speed: float  #: largest node speed [m/s]
+    t: np.ndarray  #: (T,) [s]
+    q: np.ndarray  #: (T, n) [m]
+    qdot: np.ndarray  #: (T, n) [m/s]
+    node_position: np.ndarray  #: (T, N, dim) [m]
+    node_velocity: np.ndarray  #: (T, N, dim) [m/s]
+    tendon_length: np.ndarray  #: (T, S) [m]
+    tendon_tension: np.ndarray  #: (T, S) [N]
+    energy: np.ndarray  #: (T, 6) [J]: kinetic, elastic, gravity, dissipated, external, control
+    residual_acceleration: np.ndarray  #: (T,) largest node acceleration [m/s^2]
+    largest_speed: np.ndarray  #: (T,) largest node speed [m/s]
+
+    @classmethod
+    def empty(cls, rows: int, structure: Structure) -> Samples:
+        """Room for ``rows`` samples of ``structure`` (uninitialised)."""
+        n, N, S, d = structure.n_coordinates, structure.n_nodes, structure.n_tendons, structure.dim
+        return cls(
+            np.empty(rows),
+            np.empty((rows, n)),
+            np.empty((rows, n)),
+            np.empty((rows, N, d)),
+            np.empty((rows, N, d)),
+            np.empty((rows, S)),
+            np.empty((rows, S)),
+            np.empty((rows, len(ENERGY_NAMES))),
+            np.empty(rows),
+            np.empty(rows),
+        )
+
+    @staticmethod
+    def row_bytes(structure: Structure) -> int:
+        """Bytes of one sample of ``structure``."""
+        n, N, S, d = structure.n_coordinates, structure.n_nodes, structure.n_tendons, structure.dim
+        return 8 * (1 + 2 * n + 2 * N * d + 2 * S + len(ENERGY_NAMES) + 2)
+
+    def head(self, rows: int) -> Samples:
+        """The first ``rows`` samples (views)."""
+        return Samples(*(column[:rows] for column in self))
+
+    @classmethod
+    def join(cls, blocks: Sequence[Samples]) -> Samples:
+        """``blocks`` (at least one) one after the other; the block itself if only one."""
+        if len(blocks) == 1:
+            return blocks[0]
+        return cls(*(np.concatenate(columns) for columns in zip(*blocks, strict=True)))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -160,30 +198,30 @@ class MemorySink:
     """Keeps every sample; :meth:`result` assembles the :class:`SimulationResult`."""
 
     def __init__(self) -> None:
-        self.samples: list[Sample] = []
+        self.blocks: list[Samples] = []
 
-    def add(self, sample: Sample) -> None:
-        self.samples.append(sample)
+    def add(self, samples: Samples) -> None:
+        self.blocks.append(samples)
+
+    @property
+    def samples(self) -> Samples:
+        """Every sample so far (at least one)."""
+        return Samples.join(self.blocks)
 
     def result(self, structure: Structure, summary: RunSummary) -> SimulationResult:
         """The samples and ``summary`` as one result."""
-        rows = self.samples
-
-        def stack(field: str) -> np.ndarray:
-            return np.array([getattr(row, field) for row in rows])
-
-        energy = stack("energy")
+        s = self.samples
         return SimulationResult(
             structure=structure,
-            t=stack("t"),
-            q=stack("q"),
-            qdot=stack("qdot"),
-            node_position=stack("node_position"),
-            node_velocity=stack("node_velocity"),
-            tendon_length=stack("tendon_length"),
-            tendon_tension=stack("tendon_tension"),
-            energy={name: energy[:, k] for k, name in enumerate(ENERGY_NAMES)},
-            residual_acceleration=stack("residual_acceleration"),
+            t=s.t,
+            q=s.q,
+            qdot=s.qdot,
+            node_position=s.node_position,
+            node_velocity=s.node_velocity,
+            tendon_length=s.tendon_length,
+            tendon_tension=s.tendon_tension,
+            energy={name: s.energy[:, k] for k, name in enumerate(ENERGY_NAMES)},
+            residual_acceleration=s.residual_acceleration,
             status=summary.status,
             message=summary.message,
             nfev=summary.nfev,

@@ -12,6 +12,7 @@ dissipated by damping, the work of the external forces ``w`` and the work of the
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
@@ -67,6 +68,7 @@ def simulate(
     max_energy_growth: float = 0.1,
     max_steps: int = DEFAULT_MAX_STEPS,
     max_samples: int = DEFAULT_MAX_SAMPLES,
+    max_wall_time: float = math.inf,
     progress: bool = False,
 ) -> SimulationResult:
     """Simulate ``structure`` over ``t_span = (t0, t_end)`` [s] (Theorem 18.1, eqs. 18.39-18.60).
@@ -112,6 +114,9 @@ def simulate(
         (``"rk4"``) or make more than ``max_samples`` samples is refused (``ValueError`` naming
         the option); an adaptive run stops (status -1) once it has taken ``max_steps`` steps
         short of its end (defaults 10,000,000 each).
+    max_wall_time : float
+        A budget of wall-clock time [s]: a run still going after it stops (status -1, the
+        message says where it stood), its samples so far kept.  Default: none.
 
     Returns
     -------
@@ -137,6 +142,7 @@ def simulate(
         max_energy_growth=max_energy_growth,
         max_steps=max_steps,
         max_samples=max_samples,
+        max_wall_time=max_wall_time,
     )
     from tensegrity.engine.loop import run, time_span  # (compiled code: numba loads on use)
 

@@ -9,7 +9,7 @@ import numpy as np
 
 from tensegrity.engine import compiled
 from tensegrity.engine.inputs import Inputs
-from tensegrity.engine.result import Sample
+from tensegrity.engine.result import Samples
 from tensegrity.model.structure import Structure
 from tensegrity.physics import dynamics
 from tensegrity.physics.kernel_system import (
@@ -48,9 +48,14 @@ class CompiledSystem:
             ).astype(np.uint64)
         )
         self.node_slot = slot
-        #: scratch node arrays (3, n_slots): positions, velocities, accelerations
-        self.scratch_p, self.scratch_v, self._a = (np.zeros((3, n_slots)) for _ in range(3))
-        self._lengths = np.zeros(S)
+        #: scratch node arrays (3, n_slots): positions, velocities
+        self.scratch_p, self.scratch_v = np.zeros((3, n_slots)), np.zeros((3, n_slots))
+        self._sample_scratch = (np.empty(self.m), *(np.zeros((3, n_slots)) for _ in range(3)),
+                                np.zeros(S), self.moving_slots)  # fmt: skip
+        kept = np.arange(self.n)
+        if self.planar:
+            kept = kept[kept % 3 != 2]
+        self._sample_maps = (kept, slot.astype(np.int64), self.tendon_position)
         self._prepare_inputs()
 
     # ------------------------------------------------------------------ inputs
@@ -219,34 +224,11 @@ class CompiledSystem:
         )
         return self.scratch_p[: self.structure.dim, self.node_slot].T.copy()
 
-    def sample(self, t: float, y: np.ndarray, inputs: tuple) -> Sample:
-        """The sample at ``(t, y)`` with the inputs at ``t`` (one row), from one evaluation."""
-        dy = np.empty(self.m)
-        kinetic, elastic, gravity, accel, speed = compiled.sample_outputs(
-            y,
-            dy,
-            self.system,
-            inputs,
-            self.work,
-            self.moving_slots,
-            self.scratch_p,
-            self.scratch_v,
-            self._a,
-            self._lengths,
-        )
-        d = self.structure.dim
-        q, qdot = self.coordinates(y)
-        position = self.tendon_position
-        energy = np.array([kinetic, elastic, gravity, y[-3], y[-2], y[-1]])
-        return Sample(
-            t=t,
-            q=q,
-            qdot=qdot,
-            node_position=self.scratch_p[:d, self.node_slot].T.copy(),
-            node_velocity=self.scratch_v[:d, self.node_slot].T.copy(),
-            tendon_length=self._lengths[position],
-            tendon_tension=self.work[2][position],
-            energy=energy,
-            residual_acceleration=accel,
-            largest_speed=speed,
-        )
+    def record(self, samples: Samples, row: int, t: float, y: np.ndarray, inputs: tuple) -> None:
+        """Sample ``row`` of ``samples`` at ``(t, y)`` with the inputs at ``t`` (one row), from
+        one evaluation (:func:`compiled.record_sample`)."""
+        samples.t[row] = t
+        compiled.record_sample(
+            y, self.system, inputs, self.work, self._sample_scratch, self._sample_maps,
+            samples[1:], row,
+        )  # fmt: skip

@@ -89,7 +89,7 @@ import numpy as np
 from tensegrity.engine.inputs import Inputs
 from tensegrity.engine.loop import Checkpointing, LoopState, run
 from tensegrity.engine.options import Options
-from tensegrity.engine.result import RunSummary, Sample
+from tensegrity.engine.result import RunSummary, Samples
 from tensegrity.engine.simulate import STATUS_END, options_and_inputs, simulate
 from tensegrity.io import trajectory as tio
 from tensegrity.io.checked import (
@@ -134,6 +134,9 @@ _SIMULATE_PARAMETERS = {
 }
 #: ``simulate`` options handled here rather than passed through.
 _OWN_OPTIONS = ("sample_dt", "progress")
+#: ``simulate`` options left out of the settings a resumed run must match: a budget (a run
+#: may be resumed with more time).
+_BUDGETS = ("max_wall_time",)
 _COUNTERS = ("nfev", "nsteps", "nswitches", "nprojections")
 
 
@@ -321,7 +324,7 @@ def _stream_settings(
     filled = {
         name: options.get(name, default)
         for name, default in _SIMULATE_PARAMETERS.items()
-        if name not in _OWN_OPTIONS
+        if name not in _OWN_OPTIONS + _BUDGETS
     }
     return {
         "stream_version": STREAM_VERSION,
@@ -756,11 +759,11 @@ class FileSink:
     ) -> None:
         self.partial, self.checkpoint = partial, checkpoint
         self.K, self.progress = samples_per_segment, progress
-        self.rows: list[Sample] = []
+        self.blocks: list[Samples] = []
         self.segments_run = 0
 
-    def add(self, sample: Sample) -> None:
-        self.rows.append(sample)
+    def add(self, samples: Samples) -> None:
+        self.blocks.append(samples)
 
     def save(self, loop: LoopState) -> None:
         """Store the segment's samples and ``loop`` as the new checkpoint (then fsync)."""
@@ -810,8 +813,8 @@ class FileSink:
     def _next_checkpoint(self, *, ended: bool, message: str, **fields: Any) -> Checkpoint:
         """The checkpoint after the samples held now: their count, the last of them, the
         segments stored (a run that ended stores its last, shorter segment too)."""
-        c, rows = self.checkpoint, self.rows
-        n_samples = c.n_samples + len(rows)
+        c, blocks = self.checkpoint, self.blocks
+        n_samples = c.n_samples + sum(len(block.t) for block in blocks)
         segments = (n_samples - 1) // self.K
         if ended:
             segments = max(c.next_segment + 1, math.ceil((n_samples - 1) / self.K))
@@ -821,7 +824,7 @@ class FileSink:
             next_segment=segments,
             n_segments=c.n_segments,
             n_samples=n_samples,
-            state=c.state if not rows else State(t=rows[-1].t, q=rows[-1].q, qdot=rows[-1].qdot),
+            state=c.state if not blocks else _last_state(blocks[-1]),
             settings_hash=c.settings_hash,
             ended=ended,
             message=message,
@@ -831,7 +834,7 @@ class FileSink:
     def _store(self, checkpoint: Checkpoint, *, settings: dict[str, Any] | None = None) -> None:
         """Append the samples held to the file and make ``checkpoint`` its current one."""
         with _open_h5(self.partial, "a") as f:
-            _append(f, _columns(self.rows), self.checkpoint.n_samples)
+            _append(f, _columns(self.blocks), self.checkpoint.n_samples)
             _store_checkpoint(f, checkpoint)
             f.attrs["message"] = checkpoint.message
             f.attrs["status"] = int(checkpoint.status)
@@ -844,26 +847,30 @@ class FileSink:
                 f.attrs["settings"] = json.dumps(settings, default=tio.json_default)
             f.flush()
         _fsync(self.partial)
-        self.rows, self.checkpoint = [], checkpoint
+        self.blocks, self.checkpoint = [], checkpoint
         self.segments_run += 1
 
 
-def _columns(rows: list[Sample]) -> dict[str, np.ndarray]:
+def _last_state(samples: Samples) -> State:
+    """The state of the last of ``samples``."""
+    return State(t=float(samples.t[-1]), q=samples.q[-1].copy(), qdot=samples.qdot[-1].copy())
+
+
+def _columns(blocks: list[Samples]) -> dict[str, np.ndarray]:
     """The samples as the file's datasets (rows of :data:`tensegrity.io.trajectory` layout)."""
-
-    def stack(field: str) -> np.ndarray:
-        return np.array([getattr(row, field) for row in rows])
-
+    if not blocks:  # (nothing to append)
+        return {"time": np.zeros(0)}
+    s = Samples.join(blocks)
     return {
-        "time": stack("t"),
-        "nodes": stack("node_position"),
-        "velocities": stack("node_velocity"),
-        "tendon_length": stack("tendon_length"),
-        "tendon_tension": stack("tendon_tension"),
-        "energy": stack("energy"),
-        "q": stack("q"),
-        "qdot": stack("qdot"),
-        "residual_acceleration": stack("residual_acceleration"),
+        "time": s.t,
+        "nodes": s.node_position,
+        "velocities": s.node_velocity,
+        "tendon_length": s.tendon_length,
+        "tendon_tension": s.tendon_tension,
+        "energy": s.energy,
+        "q": s.q,
+        "qdot": s.qdot,
+        "residual_acceleration": s.residual_acceleration,
     }
 
 
