@@ -47,7 +47,7 @@ from tensegrity.io.formats import read_network, read_structure
 from tensegrity.io.stream import read_checkpoint
 from tensegrity.io.tables import read_force_table
 from tensegrity.io.trajectory import read_dataset, read_trajectory
-from tensegrity.sweep import SweepSpec
+from tensegrity.sweep import SweepSpec, read_sweep
 path = sys.argv[1]
 try:
     {call}
@@ -336,6 +336,190 @@ def test_npz_integers_for_numbers_and_whole_floats_for_indices_are_read(tmp_path
     assert read_network(_saved(tmp_path, arrays)).to_dict() == expected.to_dict()
 
 
+# ---------------------------------------------------------------------- sweep datasets
+@pytest.fixture(scope="module")
+def sweep_file(tmp_path_factory):
+    """A sweep of four (3,1) and (4,1) shells, three samples each, saved by the library."""
+    pytest.importorskip("distributed")
+    pytest.importorskip("xarray")
+    from distributed import Client, LocalCluster
+
+    from tensegrity.sweep import SweepSpec, run_sweep
+
+    spec = SweepSpec({"stiffness": [100.0, 200.0], "n": [3, 4]}, t_end=0.004, sample_dt=0.002)
+    with (
+        LocalCluster(
+            n_workers=1, threads_per_worker=1, processes=False, dashboard_address=":0"
+        ) as cluster,
+        Client(cluster) as client,
+    ):
+        result = run_sweep(spec, client=client)
+    return result.save(tmp_path_factory.mktemp("sweep") / "sweep.nc")
+
+
+def crafted_sweep(tmp_path: Path, sweep_file: Path, edit) -> Path:
+    """A sweep file written by the library, then changed by ``edit(file)``."""
+    path = tmp_path / "crafted.nc"
+    path.write_bytes(sweep_file.read_bytes())
+    with h5py.File(path, "a") as f:
+        edit(f)
+    return path
+
+
+def replace_variable(f, name: str, **dataset) -> None:
+    """Replace the sweep's variable ``name`` by ``f.create_dataset(name, **dataset)`` (the old
+    shape, and the dtype of the data or the old one, unless given), with the old one's
+    attributes and dimensions: xarray reads it as one of the sweep's variables."""
+    old = f[name]
+    dtype = dataset["data"].dtype if "data" in dataset else old.dtype
+    dataset = {"shape": old.shape, "dtype": dtype, **dataset}
+    drop = ("DIMENSION_LIST", "_FillValue")  # (the fill value is of the old dtype)
+    attrs = {key: value for key, value in old.attrs.items() if key not in drop}
+    scales = [old.dims[i][0] for i in range(old.ndim)]
+    for i, scale in enumerate(scales):
+        old.dims[i].detach_scale(scale)
+    del f[name]
+    new = f.create_dataset(name, **dataset)
+    new.attrs.update(attrs)
+    for i, scale in enumerate(scales):
+        new.dims[i].attach_scale(scale)
+
+
+def _sweep_external_storage(f, secret, other):
+    replace_variable(f, "max_tension", external=[(str(secret), 0, 8 * f["max_tension"].size)])
+
+
+def _sweep_external_link(f, secret, other):
+    del f["max_tension"]
+    f["max_tension"] = h5py.ExternalLink(str(other), "/data")
+
+
+def _sweep_soft_link(f, secret, other):
+    del f["max_tension"]
+    f["max_tension"] = h5py.SoftLink("/wall_time")
+
+
+def _sweep_virtual(f, secret, other):
+    layout = h5py.VirtualLayout(shape=f["max_tension"].shape, dtype="<f8")
+    source = h5py.VirtualSource(str(other), "data", shape=(3, 12, 3))
+    layout[...] = source[0, : layout.shape[0], : layout.shape[1]]
+    del f["max_tension"]
+    f.create_virtual_dataset("max_tension", layout)
+
+
+def _sweep_group(f, secret, other):
+    f.create_group("extra").create_dataset("data", data=np.zeros(3))
+
+
+@pytest.mark.parametrize(
+    "edit, words",
+    [
+        (_sweep_external_storage, ["dataset 'max_tension'", "external storage"]),
+        (_sweep_external_link, ["dataset 'max_tension'", "external link"]),
+        (_sweep_soft_link, ["dataset 'max_tension'", "soft link"]),
+        (_sweep_virtual, ["dataset 'max_tension'", "virtual"]),
+        (lambda f, *_: replace_variable(f, "max_tension", dtype=complex), ["complex"]),
+        (
+            lambda f, *_: replace_variable(f, "max_tension", dtype=np.int64),
+            ["dataset 'max_tension'", "floating-point", "int64"],
+        ),
+        (
+            lambda f, *_: replace_variable(
+                f, "t_final", data=np.full(4, "1.0", dtype=object), dtype=h5py.string_dtype()
+            ),
+            ["dataset 't_final'", "floating-point", "text"],
+        ),
+        (
+            lambda f, *_: replace_variable(f, "message", data=np.zeros(4)),
+            ["dataset 'message'", "expected text"],
+        ),
+        (
+            lambda f, *_: replace_variable(
+                f, "wall_time", data=np.zeros(4, dtype=[("t", "<f8"), ("u", "<f8")])
+            ),
+            ["dataset 'wall_time'", "compound"],
+        ),
+        (_sweep_group, ["'extra' is not a dataset"]),
+        (lambda f, *_: f.attrs.__delitem__("spec"), ["missing attribute 'spec'"]),
+        (lambda f, *_: f.attrs.__setitem__("spec", 5), ["attribute 'spec'", "text"]),
+        (lambda f, *_: f.attrs.__setitem__("spec", "[1, 2]"), ["attribute 'spec'", "object"]),
+    ],
+)
+def test_sweep_outside_the_layout_is_refused(tmp_path, sweep_file, secret, edit, words):
+    """``read_sweep`` checks the file as the other readers do before xarray reads it (before:
+    xarray read whatever the file held: the secret file through external storage, complex
+    and text data, links out of the file)."""
+    from tensegrity.sweep import read_sweep
+
+    path = crafted_sweep(tmp_path, sweep_file, lambda f: edit(f, *secret))
+    assert_refused(read_sweep, path, *words)
+
+
+def test_sweep_reads_the_dataset_it_was_saved_with(sweep_file):
+    import xarray as xr
+
+    from tensegrity.sweep import read_sweep
+
+    dataset = read_sweep(sweep_file)
+    with xr.open_dataset(sweep_file, engine="h5netcdf") as direct:
+        assert dataset.identical(direct)
+    assert dataset.sizes == {"case": 4, "time": 3}
+
+
+def test_sweep_arrays_and_attributes_count_against_the_limit(tmp_path, sweep_file, monkeypatch):
+    """The sweep's arrays and every attribute count against ``TENSEGRITY_MAX_ARRAY_BYTES``."""
+    from tensegrity.sweep import read_sweep
+
+    monkeypatch.setenv("TENSEGRITY_MAX_ARRAY_BYTES", "100")
+    assert_refused(read_sweep, sweep_file, "TENSEGRITY_MAX_ARRAY_BYTES=100")
+    monkeypatch.setenv("TENSEGRITY_MAX_ARRAY_BYTES", str(2**15))
+    read_sweep(sweep_file)
+    path = crafted_sweep(
+        tmp_path, sweep_file, lambda f: f["stiffness"].attrs.__setitem__("note", np.zeros(5000))
+    )
+    assert_refused(read_sweep, path, "attribute 'note' of 'stiffness'", "TENSEGRITY_MAX_ARRAY")
+
+
+def test_sweep_not_hdf5_is_refused(tmp_path):
+    from tensegrity.sweep import read_sweep
+
+    path = tmp_path / "sweep.nc"
+    path.write_text("case,stiffness\n0,100\n")
+    assert_refused(read_sweep, path, "not an HDF5 file")
+
+
+def _huge_sweep_variable(f):
+    """A variable of its own dimension whose shape asks for 7 GiB (no data stored)."""
+    f.create_dataset("huge", shape=(7 * GiB // 8,), dtype="<f8", chunks=(2**16,))
+    f["huge"].make_scale("huge")
+
+
+def _sweep_chunk_bomb(f):
+    """Three samples in one chunk of 2 GiB (9 MiB on disk, compressed)."""
+    rows = 2**28
+    deflate = zlib.compressobj(1)
+    block = bytes(2**20)
+    data = b"".join(deflate.compress(block) for _ in range(8 * rows // len(block)))
+    data += deflate.flush()
+    bomb = f.create_dataset(
+        "bomb", shape=(3,), maxshape=(None,), chunks=(rows,), dtype="<f8", compression="gzip"
+    )
+    bomb.id.write_direct_chunk((0,), data)
+    bomb.make_scale("bomb")
+
+
+@pytest.mark.parametrize(
+    "edit, words",
+    [
+        (_huge_sweep_variable, ["dataset 'huge'", "TENSEGRITY_MAX_ARRAY_BYTES", "4294967296"]),
+        (_sweep_chunk_bomb, ["dataset 'bomb'", "chunk"]),
+    ],
+)
+def test_sweep_larger_than_the_limit_is_refused_before_reading(tmp_path, sweep_file, edit, words):
+    path = crafted_sweep(tmp_path, sweep_file, edit)
+    assert_one_line(run_capped("read_sweep(path)", path), path, *words)
+
+
 # ---------------------------------------------------------------------- streamed files
 def _partial(tmp_path: Path) -> tuple[Path, dict]:
     """An interrupted streamed run (two of five segments stored): the partial file, and the
@@ -520,6 +704,7 @@ READERS = [
     (".h5", "read_trajectory(path)"),
     (".h5", "read_checkpoint(path)"),
     (".yaml", "SweepSpec.from_file(path)"),
+    (".nc", "read_sweep(path)"),
 ]
 
 

@@ -21,6 +21,7 @@ import math
 import zipfile
 import zlib
 from collections.abc import Iterable, Mapping
+from pathlib import Path
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -32,6 +33,7 @@ from tensegrity.io.files import (
     byte_text,
     file_error,
     over_limit,
+    regular_file,
     shown_path,
 )
 
@@ -43,6 +45,8 @@ MAX_CHUNK_BYTES = 64 * 2**20
 #: NumPy dtype kinds: real floats; numbers (also integers and booleans).
 FLOATS = "f"
 NUMBERS = "biuf"
+#: The kinds of an HDF5 dataset of text (:func:`hdf5_dataset`): strings, of any length.
+TEXT = "text"
 
 
 class ArrayKind(NamedTuple):
@@ -65,6 +69,32 @@ def _within_limit(total: int, size: int, what: str) -> int:
 
 
 # ------------------------------------------------------------------------------------ HDF5
+def open_hdf5(path: PathLike, why: str) -> Any:
+    """The HDF5 file at ``path`` (a regular file only), open for reading; ``why`` says in the
+    message of a file that is not HDF5 why it should be (``"a tensegrity trajectory is HDF5"``).
+
+    Raises
+    ------
+    ValueError
+        One line naming the file: missing, not a regular file, not HDF5, ...
+    """
+    import h5py
+
+    regular_file(path)
+    try:
+        return h5py.File(path, "r")
+    except FileNotFoundError as exc:
+        raise file_error(path, "no such file") from exc
+    except IsADirectoryError as exc:
+        raise file_error(path, "is a directory, not a file") from exc
+    except PermissionError as exc:
+        raise file_error(path, "permission denied") from exc
+    except OSError as exc:
+        if not Path(path).exists():
+            raise file_error(path, "no such file") from exc
+        raise file_error(path, f"not an HDF5 file ({why})") from exc
+
+
 def _name(group: Any, name: str) -> str:
     """``name`` inside ``group`` as a path in the file, without the leading ``/``."""
     parent = group.name.strip("/")
@@ -119,7 +149,8 @@ def hdf5_dataset(group: Any, name: str, path: PathLike, *, kinds: str = FLOATS) 
     path : str or os.PathLike
         The file, for the messages.
     kinds : str
-        The NumPy dtype kinds allowed: :data:`FLOATS` (default) or :data:`NUMBERS`.
+        The NumPy dtype kinds allowed: :data:`FLOATS` (default) or :data:`NUMBERS`; or
+        :data:`TEXT` for strings.
 
     Raises
     ------
@@ -157,7 +188,9 @@ def _dtype_text(dtype: np.dtype) -> str:
 
 
 def _check_kind(dtype: np.dtype, kinds: str, where: str, path: PathLike) -> None:
-    if dtype.names is not None or dtype.kind not in kinds:
+    if kinds == TEXT:
+        _check_text(dtype, where, path)
+    elif dtype.names is not None or dtype.kind not in kinds:
         wanted = "real floating-point numbers" if kinds == FLOATS else "real numbers"
         raise file_error(path, f"{where}: expected {wanted}, got {_dtype_text(dtype)}")
 
@@ -188,14 +221,21 @@ def read_datasets(
     ValueError
         Over the limit, or a dataset HDF5 cannot read (e.g. an unknown compression filter).
     """
+    check_read_bytes(datasets.values(), path, every=every)
+    return {name: _rows(dataset, every, path) for name, dataset in datasets.items()}
+
+
+def check_read_bytes(datasets: Iterable[Any], path: PathLike, *, every: int = 1) -> None:
+    """``ValueError`` naming the file and the first dataset over ``TENSEGRITY_MAX_ARRAY_BYTES``,
+    counted over ``datasets`` (every ``every``-th row and the last of each) as
+    :func:`read_datasets` reads them, at least 8 bytes an element; nothing of them is read."""
     total = 0
-    for dataset in datasets.values():
+    for dataset in datasets:
         size = math.prod(_selected_shape(dataset.shape, every)) * max(8, dataset.dtype.itemsize)
         try:
             total = _within_limit(total, size, _dataset_name(dataset))
         except ValueError as exc:
             raise file_error(path, str(exc)) from None
-    return {name: _rows(dataset, every, path) for name, dataset in datasets.items()}
 
 
 def _dataset_name(dataset: Any) -> str:
@@ -232,6 +272,12 @@ def _attribute_dtype(owner: Any, name: str, path: PathLike, shape: tuple[int, ..
     if not (ident.shape == shape or (shape == (-1,) and len(ident.shape) == 1)):
         wanted = "a scalar" if shape == () else "a list"
         raise file_error(path, f"{where}: expected {wanted}, got an array of shape {ident.shape}")
+    return _checked_attribute_dtype(ident, where, path)
+
+
+def _checked_attribute_dtype(ident: Any, where: str, path: PathLike) -> np.dtype:
+    """The dtype of the attribute ``ident`` if NumPy reads it and it is within
+    ``TENSEGRITY_MAX_ARRAY_BYTES``."""
     try:
         dtype = ident.dtype
     except (TypeError, ValueError) as exc:
@@ -240,6 +286,14 @@ def _attribute_dtype(owner: Any, name: str, path: PathLike, shape: tuple[int, ..
     if size > byte_limit(MAX_ARRAY_BYTES):
         raise file_error(path, over_limit(where, size, MAX_ARRAY_BYTES))
     return dtype
+
+
+def check_attributes(owner: Any, path: PathLike) -> None:
+    """``ValueError`` naming the file and the attribute unless every attribute of the HDF5 group
+    or dataset ``owner`` is of a type NumPy reads and within ``TENSEGRITY_MAX_ARRAY_BYTES``
+    (for a reader that reads all of them, as xarray does); nothing of their values is read."""
+    for name in owner.attrs:
+        _checked_attribute_dtype(owner.attrs.get_id(name), _attribute_name(owner, name), path)
 
 
 def _attribute_name(owner: Any, name: str) -> str:

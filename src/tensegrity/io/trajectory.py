@@ -51,9 +51,10 @@ from tensegrity.io.checked import (
     attribute_text,
     attribute_text_list,
     hdf5_dataset,
+    open_hdf5,
     read_datasets,
 )
-from tensegrity.io.files import PathLike, atomic_path, file_error, regular_file
+from tensegrity.io.files import PathLike, atomic_path, file_error
 from tensegrity.model.structure import Structure
 
 #: ``format`` attribute of a trajectory file.
@@ -199,21 +200,7 @@ def _check_every(every: int) -> None:
 def _open(path: PathLike) -> Any:
     """The HDF5 file at ``path``, open for reading (one-line errors naming the file); a regular
     file only."""
-    import h5py
-
-    regular_file(path)
-    try:
-        return h5py.File(path, "r")
-    except FileNotFoundError as exc:
-        raise file_error(path, "no such file") from exc
-    except IsADirectoryError as exc:
-        raise file_error(path, "is a directory, not a file") from exc
-    except PermissionError as exc:
-        raise file_error(path, "permission denied") from exc
-    except OSError as exc:
-        if not Path(path).exists():
-            raise file_error(path, "no such file") from exc
-        raise file_error(path, "not an HDF5 file (a tensegrity trajectory is HDF5)") from exc
+    return open_hdf5(path, "a tensegrity trajectory is HDF5")
 
 
 def _check_format(f: Any, path: PathLike) -> None:

@@ -56,7 +56,7 @@ Per case and time (NaN after a run stopped): ``kinetic_energy``, ``elastic_energ
 ``slack_count``, ``max_displacement`` (largest node displacement from the initial layout) [m].
 Attribute ``spec``: the spec as JSON (with the whole structure, for a structure sweep).
 :meth:`SweepResult.save` writes it as netCDF-4/HDF5 (``h5netcdf``) atomically; :func:`read_sweep`
-reads it back.
+reads it back, checked first as a file from someone else (:mod:`tensegrity.io.checked`).
 """
 
 from __future__ import annotations
@@ -75,6 +75,17 @@ import numpy as np
 
 from tensegrity.engine.options import ADAPTIVE_METHODS, FIXED_STEP_METHODS
 from tensegrity.engine.simulate import SimulationResult, simulate
+from tensegrity.io.checked import (
+    FLOATS,
+    NUMBERS,
+    TEXT,
+    attribute_json,
+    check_attributes,
+    check_read_bytes,
+    hdf5_dataset,
+    open_hdf5,
+)
+from tensegrity.io.files import file_error, read_input
 from tensegrity.model.limits import environment_limit
 from tensegrity.model.shell import class1_shell
 from tensegrity.model.structure import Structure
@@ -294,8 +305,6 @@ class SweepSpec:
     def from_file(cls, path: PathLike) -> SweepSpec:
         """A spec from a ``.json`` or ``.yaml``/``.yml`` file (a regular file of at most
         ``TENSEGRITY_MAX_INPUT_BYTES``, :func:`tensegrity.io.files.read_input`)."""
-        from tensegrity.io.files import file_error, read_input
-
         path = Path(path)
         try:
             text = read_input(path).decode("utf-8")
@@ -570,17 +579,52 @@ class SweepResult:
         return Path(path)
 
 
+#: The kinds of data of the sweep dataset's variables, as its netCDF-4/HDF5 datasets hold them
+#: (:func:`tensegrity.io.checked.hdf5_dataset`); any other variable: real numbers.
+SWEEP_KINDS = {
+    **dict.fromkeys(("time", *SERIES, "t_final", "wall_time"), FLOATS),
+    **dict.fromkeys(("max_rod_length_error", "max_constraint_error"), FLOATS),
+    "message": TEXT,
+}
+
+
 def read_sweep(path: PathLike) -> xr.Dataset:
-    """The :class:`xarray.Dataset` a :meth:`SweepResult.save` wrote."""
+    """The :class:`xarray.Dataset` a :meth:`SweepResult.save` wrote.
+
+    The file may come from someone else: it is checked as the library's other readers check
+    theirs (docs/reliability.md, "Untrusted files") before xarray reads any of it: a regular
+    file, HDF5, with the ``spec`` attribute (a JSON object); every variable a dataset stored in
+    the file (no external or soft link, virtual dataset or external raw storage, which would
+    read other local files), of its kind of data (:data:`SWEEP_KINDS`: real floats, text;
+    numbers for the others), in chunks of at most one row or 64 MiB; the variables and every
+    attribute within ``TENSEGRITY_MAX_ARRAY_BYTES``.
+
+    Raises
+    ------
+    ValueError
+        One line starting with the file name, naming the variable or attribute at fault.
+    """
     import xarray as xr
 
-    path = Path(path)
-    if not path.is_file():
-        raise ValueError(f"{path}: no such file")
-    try:
-        return xr.load_dataset(path, engine="h5netcdf")
-    except OSError as exc:
-        raise ValueError(f"{path}: not a sweep file ({exc})") from None
+    with open_hdf5(path, "a sweep file is netCDF-4/HDF5") as f:
+        _check_sweep_file(f, path)
+        try:
+            return xr.load_dataset(f, engine="h5netcdf")
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            raise file_error(path, f"not a sweep file ({exc})") from None
+
+
+def _check_sweep_file(f: Any, path: PathLike) -> None:
+    """``ValueError`` naming the file and the object unless the open HDF5 file ``f`` has the
+    sweep dataset's layout (:func:`read_sweep`); nothing of its data is read."""
+    if "spec" not in f.attrs:
+        raise file_error(path, "missing attribute 'spec' (not a tensegrity sweep file)")
+    check_attributes(f, path)
+    attribute_json(f, "spec", path)
+    datasets = [hdf5_dataset(f, name, path, kinds=SWEEP_KINDS.get(name, NUMBERS)) for name in f]
+    for dataset in datasets:
+        check_attributes(dataset, path)
+    check_read_bytes(datasets, path)
 
 
 def plan(
