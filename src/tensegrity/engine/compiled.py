@@ -381,8 +381,9 @@ def check_state(y, s, system, inputs, work, limits, monitor, with_energy):  # pr
 
     ``limits`` = ``(max_rod_length_error, max_constraint_error [m], max_energy_growth)``;
     ``monitor`` (4,) float64 is updated in place: ``[energy0, largest scale seen, largest rod
-    error, largest constraint error]``.  The energy balance may not grow by more than
-    ``max_energy_growth`` times the largest energy magnitude seen so far."""
+    error, largest constraint error]`` (``energy0`` NaN: set to this state's energy).  The
+    energy balance may not grow by more than ``max_energy_growth`` times the largest energy
+    magnitude seen so far."""
     n = (y.shape[0] - 3) // 2
     rod_error, constraint_error = system_errors(y[:n], system[0][1], system[1])
     if not all_finite(y):
@@ -409,6 +410,8 @@ def judge_state(
     if not with_energy:
         return CHECK_OK, max(rod_error, constraint_error)
     _, _, _, total, scale = energy_balance(y, s, system, inputs, work)
+    if np.isnan(monitor[0]):  # (the first check of a run: its energy is the reference)
+        monitor[0] = total
     monitor[1] = max(monitor[1], scale)
     growth = total - monitor[0]
     if not growth <= limits[2] * max(monitor[1], 1e-300):

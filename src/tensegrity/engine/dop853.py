@@ -28,7 +28,6 @@ landing (a located switch being headed for) as masks over the tendons (kernel or
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 
 import numpy as np
@@ -77,7 +76,8 @@ N_CLOCK = 7
 #: flags: the last step is a provisional (rejected) attempt, its dense output is ready, a
 #: provisional step may be taken, a switch is headed for, it was located exactly, the last step
 #: landed on it, an accepted step waits to be finished (its samples were handed out), the
-#: first stage must be evaluated again (the state changed); switches in the buffer.
+#: first stage must be evaluated again (the state changed); switches in the buffer; the run
+#: starts here (its first stage, the blow-up monitor and the initial step are to be made).
 (
     NFEV,
     NSTEPS,
@@ -92,8 +92,9 @@ N_CLOCK = 7
     PENDING,
     RESTART,
     NEW_SWITCHES,
-) = range(13)
-N_TALLY = 13
+    START,
+) = range(14)
+N_TALLY = 14
 
 #: The counts a run reports, by their index in ``tally``.
 _COUNTS = {"nsteps": NSTEPS, "nswitches": NSWITCHES, "nprojections": NPROJECTIONS}
@@ -224,9 +225,59 @@ def _dop853_loop(clock, tally, buffers, flags, switch_times, system, rows, point
         )  # fmt: skip
         return least, False
 
+    def initial_step(f0, f1):
+        """Hairer, Norsett and Wanner's initial step (II.4), as ``scipy``'s, from the first
+        stage ``f0`` at ``y`` (``f1`` scratch); derivatives too large to measure (a velocity of
+        1e200 m/s) give scipy's fallback ``1e-6`` s: the steps then find the state unusable
+        and say so."""
+        t = clock[T]
+        d0, d1 = 0.0, 0.0
+        for i in range(m):
+            scale = atol + abs(y[i]) * rtol
+            d0 += (y[i] / scale) ** 2
+            d1 += (f0[i] / scale) ** 2
+        d0, d1 = np.sqrt(d0 / m), np.sqrt(d1 / m)
+        h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
+        if not (np.isfinite(h0) and h0 > 0.0):
+            h0 = 1e-6
+        h0 = min(h0, t_end - t)
+        for i in range(m):
+            y_new[i] = y[i] + h0 * f0[i]
+        inputs, bad = _point(t + h0, point, tables, provider, times1)
+        if bad >= 0:
+            clock[INPUT_TIME] = t + h0
+            return np.nan
+        ode_rhs(y_new, f1, np.int64(0), system, inputs, work)
+        tally[NFEV] += 1
+        d2 = 0.0
+        for i in range(m):
+            d2 += ((f1[i] - f0[i]) / (atol + abs(y[i]) * rtol)) ** 2
+        d2 = np.sqrt(d2 / m) / h0
+        if d1 <= 1e-15 and d2 <= 1e-15:
+            h1 = max(1e-6, h0 * 1e-3)
+        else:
+            h1 = (0.01 / max(d1, d2)) ** (1.0 / 8.0)
+        return min(100.0 * h0, h1, t_end - t)
+
     while True:
         if attempts >= attempts_per_call:
             return RUN_YIELD, CHECK_OK, 0.0
+        if tally[START]:  # the first stage, the monitor at the start, the taut flags, the step
+            tally[START] = 0
+            point, bad = _point(clock[T], point, tables, provider, times1)
+            if bad >= 0:
+                clock[INPUT_TIME] = clock[T]
+                return RUN_INPUT, CHECK_OK, 0.0
+            ode_rhs(y, K[0], np.int64(0), system, point, work)
+            tally[NFEV] += 1
+            no_limits = (np.inf, np.inf, np.inf)
+            check_state(y, np.int64(0), system, point, work, no_limits, monitor, np.bool_(True))
+            for s in range(taut.shape[0]):
+                taut[s] = work[2][s] > 0.0
+            clock[STEP] = initial_step(K[0], K[1])
+            if np.isnan(clock[STEP]):
+                return RUN_INPUT, CHECK_OK, 0.0
+            tally[ALLOW_PROVISIONAL] = locate
         if tally[PENDING]:  # finish the accepted step whose samples were handed out
             tally[PENDING] = 0
             copy_values(K[DOP853_STAGES], K[0], m)  # first same as last
@@ -421,11 +472,8 @@ class DOP853:
         attempts = steps_per_turn(system, DOP853_STAGES)
         self.settings = (float(rtol), float(atol), float(t_end), float(projection_tol),
                          np.int64(max_steps), np.bool_(locate), np.int64(attempts))  # fmt: skip
-        if memory is None:
-            self._evaluate_first_stage()
-            self.clock[STEP] = self._initial_step(t_end)
-            self.tally[ALLOW_PROVISIONAL] = locate
-            self.flags[0][:] = system.work[2] > 0.0  # (the work buffers are at y0)
+        if memory is None:  # (the first call makes the first stage and the initial step)
+            self.tally[START] = 1
         else:
             K[0] = memory.first_stage
             self.clock[STEP], self.clock[STEP_BEFORE] = memory.step, memory.step_before
@@ -499,41 +547,6 @@ class DOP853:
             self.tally[i] = counts[name]
 
     # ------------------------------------------------------------------ stepping
-    def _evaluate_first_stage(self) -> None:
-        y, K = self.buffers[0], self.buffers[2]
-        t = self.t
-        compiled.ode_rhs(y, K[0], 0, self.system.system, self._inputs(t, 0.0), self.system.work)
-        self.tally[NFEV] += 1
-
-    def _inputs(self, t: float, h: float) -> tuple:
-        return self.system.stage_inputs(t + DOP853_C * h)
-
-    def _initial_step(self, t_end: float) -> float:
-        """Hairer, Norsett and Wanner's initial step (II.4), as ``scipy``'s.  Derivatives too
-        large to measure (not finite: a velocity of 1e200 m/s) give scipy's fallback ``1e-6``
-        s, not a division by zero: the steps then find the state unusable and say so."""
-        y0, f0 = self.y, self.buffers[2][0].copy()
-        with np.errstate(all="ignore"):
-            scale = self.atol + np.abs(y0) * self.rtol
-            d0, d1 = _rms(y0 / scale), _rms(f0 / scale)
-            h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
-            if not (math.isfinite(h0) and h0 > 0):
-                h0 = 1e-6
-            h0 = min(h0, t_end - self.t)
-            f1 = np.empty_like(y0)
-            system = self.system
-            inputs = system.stage_inputs(np.array([self.t + h0]))
-            compiled.ode_rhs(y0 + h0 * f0, f1, 0, system.system, inputs, system.work)
-            self._evaluate_first_stage()  # leave the work buffers at the current state
-            self.tally[NFEV] += 1
-            d2 = _rms((f1 - f0) / scale) / h0
-            h1 = (
-                max(1e-6, h0 * 1e-3)
-                if d1 <= 1e-15 and d2 <= 1e-15
-                else (0.01 / max(d1, d2)) ** (1 / 8)
-            )
-        return min(100 * h0, h1, t_end - self.t)
-
     def run(
         self, bound: float, next_sample_t: float, limits: tuple, monitor: np.ndarray
     ) -> tuple[int, int, float]:
@@ -575,10 +588,6 @@ class DOP853:
         forgotten."""
         self.tally[RESTART] = 1
         self.tally[LANDING] = 0
-
-
-def _rms(x: np.ndarray) -> float:
-    return float(np.linalg.norm(x) / np.sqrt(x.size))
 
 
 def steps_per_turn(system: CompiledSystem, evaluations: int) -> int:
