@@ -272,12 +272,46 @@ def test_monte_carlo_cases_are_reproducible_and_in_range():
         (dict(t_end=0.0105), "t_end"),
         (dict(method="euler"), "method"),
         (dict(mode="random"), "mode"),
+        (dict(mode="monte-carlo", samples=2, seed=-1), "seed: must be >= 0, got -1"),
     ],
 )
 def test_bad_specs_name_the_field(changes, field):
     base = dict(parameters={"stiffness": [100.0]})
     with pytest.raises(ValueError, match=f"^{field}"):
         SweepSpec(**{**base, **changes})
+
+
+@pytest.mark.parametrize(
+    "args, line",
+    [
+        (["--param", "stiffness=1:2", "--samples", "0"], "--samples: must be >= 1 for Monte Carlo"),
+        (
+            ["--param", "stiffness=2:1", "--samples", "3"],
+            "--param stiffness: Monte Carlo needs a range low <= high (two values) or one value",
+        ),
+        (["--param", "n=3,3.5"], "--param n: expected an integer, got 3.5"),
+        (["--param", "stifness=1"], "--param stifness: unknown parameter; choose from n, m"),
+        (
+            ["--param", "stiffness=1", "--t-end", "0.0015"],
+            "--t-end: must be a whole multiple of --sample-dt = 0.001 s, got 0.0015 s",
+        ),
+        (["--param", "stiffness=1", "--method", "euler"], "--method: expected one of rk4, "),
+        (["--param", "stiffness=1:2", "--samples", "2", "--seed", "-1"], "--seed: must be >= 0"),
+        (["--param", "stiffness=1:2", "--samples", "5"], "--samples: 5 cases, more than the "),
+        (["--param", "stiffness=1,2", "--param", "n=3,4"], "--param: 4 cases, more than the "),
+        (["--param", "stiffness=1", "--workers", "0"], "--workers: must be >= 1, got 0"),
+    ],
+)
+def test_cli_sweep_errors_name_the_option(args, line, tmp_path, capsys, monkeypatch):
+    """The sweep's one-line errors name the option the user typed (``--samples``,
+    ``--param n``, ``--t-end``), not the library's argument (``samples``, ``parameters.n[1]``,
+    ``t_end``; those stay in the library's own messages, above); refused before any case runs."""
+    monkeypatch.setenv("TENSEGRITY_MAX_CASES", "3")
+    out = tmp_path / "s.nc"
+    assert main(["sweep", *args, "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"tensegrity: error: {line}") and err.count("\n") == 1, err
+    assert not out.exists()
 
 
 def test_spec_files_and_saved_dataset(tmp_path, client):
@@ -620,7 +654,8 @@ def test_cli_sweep_of_a_structure_file(tmp_path, capsys):
         assert main(["sweep", *args, "-o", str(tmp_path / "x.nc")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 3 and all(line.startswith("tensegrity: error:") for line in err)
-    assert "parameters.n" in err[0] and "missing.json" in err[1] and "--spec" in err[2]
+    assert err[0].startswith("tensegrity: error: --param n: unknown parameter when sweeping a")
+    assert "missing.json" in err[1] and "--spec" in err[2]
     assert not (tmp_path / "x.nc").exists()
 
 

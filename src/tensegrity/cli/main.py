@@ -19,9 +19,10 @@ import contextlib
 import dataclasses
 import math
 import os
+import re
 import shutil
 import sys
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, NoReturn, TypeAlias
 
@@ -33,6 +34,7 @@ from tensegrity.cli.errors import (
     blame,
     describe,
     interrupt_code,
+    one_line,
     report,
     show_warnings,
     signals_as_interrupts,
@@ -1090,10 +1092,12 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         mode = "monte-carlo" if args.samples is not None else "grid"
         if args.structure is not None:
             options["structure"] = _read_structure(args.structure, "--structure")
-        spec = SweepSpec(dict(args.param), mode=mode, **options)
-    result = run_sweep(
-        spec, scheduler=args.scheduler, n_workers=args.workers, progress=sys.stderr.isatty()
-    )
+        with _in_sweep_options():
+            spec = SweepSpec(dict(args.param), mode=mode, **options)
+    with _in_sweep_options():
+        result = run_sweep(
+            spec, scheduler=args.scheduler, n_workers=args.workers, progress=sys.stderr.isatty()
+        )
     path = _save_sweep(result, args.output)
     n = result.dataset.sizes["case"]
     print(
@@ -1103,6 +1107,40 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     for i in result.failed:
         print(f"{result.describe_case(i)}: {result.dataset['message'].values[i]}", file=sys.stderr)
     return EXIT_FAILED if result.failed else 0
+
+
+#: The sweep's arguments (``SweepSpec`` fields, ``run_sweep`` keywords) the options set.
+_SWEEP_OPTIONS = {
+    "parameters": "--param",
+    "samples": "--samples",
+    "seed": "--seed",
+    "t_end": "--t-end",
+    "sample_dt": "--sample-dt",
+    "method": "--method",
+    "dt": "--dt",
+    "n_workers": "--workers",
+    "scheduler": "--scheduler",
+}
+
+
+@contextlib.contextmanager
+def _in_sweep_options() -> Iterator[None]:
+    """A sweep's ``ValueError`` raised within the block (``SweepSpec``, ``run_sweep``) as a
+    one-line error naming the options the user typed instead of the library's arguments:
+    ``parameters.n[1]: ...`` -> ``--param n: ...``, ``t_end: ... of sample_dt`` ->
+    ``--t-end: ... of --sample-dt``.  A message that names no argument (a case's) stays."""
+    try:
+        yield
+    except ValueError as exc:
+        message = one_line(exc)
+        field, sep, problem = message.partition(": ")
+        parameter = re.fullmatch(r"parameters\.(.+?)(?:\[\d+\])?", field)
+        if parameter is not None:
+            message = f"--param {parameter.group(1)}: {problem}"
+        elif sep and field in _SWEEP_OPTIONS:
+            problem = re.sub(r"\b(t_end|sample_dt)\b", lambda m: _SWEEP_OPTIONS[m[1]], problem)
+            message = f"{_SWEEP_OPTIONS[field]}: {problem}"
+        raise CommandError(message) from exc
 
 
 def _save_sweep(result, path: Path) -> Path:

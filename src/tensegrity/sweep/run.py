@@ -238,14 +238,17 @@ class SweepSpec:
                 len(numbers) == 1 or (len(numbers) == 2 and numbers[0] <= numbers[1])
             ):
                 raise ValueError(
-                    f"{field}: Monte Carlo needs [low, high] with low <= high, or [value]"
+                    f"{field}: Monte Carlo needs a range low <= high (two values) or one value, "
+                    f"got {list(numbers)}"
                 )
             clean[name] = numbers
         object.__setattr__(self, "parameters", clean)
         for field in ("samples", "seed"):
             object.__setattr__(self, field, _number(getattr(self, field), field, integer=True))
         if self.mode == "monte-carlo" and self.samples < 1:
-            raise ValueError(f"samples: Monte Carlo needs samples >= 1, got {self.samples}")
+            raise ValueError(f"samples: must be >= 1 for Monte Carlo, got {self.samples}")
+        if self.seed < 0:  # (numpy's default_rng: "expected non-negative integer")
+            raise ValueError(f"seed: must be >= 0, got {self.seed}")
         _check_case_count(
             self.samples
             if self.mode == "monte-carlo"
