@@ -288,9 +288,11 @@ def dop853_interpolate(F, y_old, x, out):  # pragma: no cover - compiled
 
 # --------------------------------------------------------------------------- RK4
 @njit(**JIT_OPTIONS)
-def rk4_step(y, h, K, stage, system, inputs, work):  # pragma: no cover - compiled
-    """One classical RK4 step of ``h`` [s] on ``y`` in place; ``K`` (4, len(y)) and ``stage``
-    scratch.  Stage rows of the inputs: 0, 1, 2, 3 at ``t, t + h/2, t + h/2, t + h``."""
+def rk4_step(y, h, K, stage, system, inputs, work, y_end):  # pragma: no cover - compiled
+    """One classical RK4 step of ``h`` [s] on ``y`` in place, the result also written to
+    ``y_end`` (in the same pass: a copy of its own would read ``y`` once more); ``K`` (4,
+    len(y)) and ``stage`` scratch.  Stage rows of the inputs: 0, 1, 2, 3 at ``t, t + h/2, t +
+    h/2, t + h``."""
     ode_rhs(y, K[0], np.int64(0), system, inputs, work)
     for s in range(1, 4):
         c = h * RK4_C[s]
@@ -299,7 +301,8 @@ def rk4_step(y, h, K, stage, system, inputs, work):  # pragma: no cover - compil
         ode_rhs(stage, K[s], s, system, inputs, work)
     h6 = h / 6.0
     for i in range(y.shape[0]):
-        y[i] += h6 * (K[0, i] + 2.0 * K[1, i] + 2.0 * K[2, i] + K[3, i])
+        y_end[i] = y[i] + h6 * (K[0, i] + 2.0 * K[1, i] + 2.0 * K[2, i] + K[3, i])
+        y[i] = y_end[i]
 
 
 @njit(**JIT_OPTIONS)
@@ -326,8 +329,7 @@ def rk4_segment(
             rk4_stage_times(t, k, h, times)
             if fill_stage_inputs(tables, times, rest, rate, force) >= 0:
                 return k, CHECK_INPUT, np.nan
-        rk4_step(y, h, K, stage, system, inputs, work)
-        copy_values(y, y_end, y.shape[0])
+        rk4_step(y, h, K, stage, system, inputs, work, y_end)
         # The projection measures the errors it removes: they are the checks' (one pass less).
         rod_error, constraint_error, ok = system_project(
             y[:n], y[n : 2 * n], system[0][1], system[1]

@@ -753,7 +753,10 @@ def _rk4_steps(run: _Run, stepper: RK4, n: int, h: float) -> bool:
     """``n`` checked, projected RK4 steps of ``h``, the stepper's time moved on, in compiled
     calls of at most :func:`dop853.steps_per_turn` steps (the wall-clock budget checked between
     them); False (and the run failed) on a blow-up or when out of time."""
-    per_call, t_start, done = dop853.steps_per_turn(run.system, 4), stepper.t, 0
+    # (whole multiples of the energy check's period: each call checks the energy at its end)
+    every = compiled.ENERGY_CHECK_EVERY
+    per_call = max(1, dop853.steps_per_turn(run.system, 4) // every) * every
+    t_start, done = stepper.t, 0
     while done < n:
         steps, code, value = stepper.advance(min(n - done, per_call), h, run.limits, run.monitor)
         done += steps
