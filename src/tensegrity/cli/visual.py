@@ -1,0 +1,194 @@
+"""The verbs that show a run: ``tensegrity animate TRAJECTORY.h5 -o motion.mp4|.webm|.gif`` (a
+video, :mod:`tensegrity.plots.animation`) and ``tensegrity view TRAJECTORY.h5 -o view.html``
+(the interactive viewer, :mod:`tensegrity.plots.viewer`).
+
+Both read only as many samples of the trajectory as they show (``read_trajectory(every=)``),
+write their file atomically (nothing is left behind by a failure or an interrupt) and report a
+bad trajectory file (missing, truncated, not a trajectory) in one line with exit code 2
+(:func:`tensegrity.cli.errors.blame`).
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+from tensegrity.cli.errors import CommandError, blame
+from tensegrity.io.files import byte_text, shown_path
+
+__all__ = ["add_parsers"]
+
+
+def _file_name(text: str) -> Path:
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"expected a file name, got {text!r}")
+    return Path(text)
+
+
+def _positive(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (value > 0 and value < float("inf")):
+        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text!r}")
+    return value
+
+
+def _count(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be >= 1, got {text!r}")
+    return value
+
+
+def _size(text: str) -> tuple[int, int]:
+    try:
+        width, height = (int(part) for part in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT, got {text!r}") from None
+    if width % 16 or height % 16 or min(width, height) < 160:
+        raise argparse.ArgumentTypeError(f"width and height: multiples of 16, >= 160, got {text!r}")
+    return width, height
+
+
+def _view(text: str) -> tuple[float, float]:
+    try:
+        elev, azim = (float(part) for part in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected ELEV,AZIM in degrees, got {text!r}") from None
+    return elev, azim
+
+
+def _check_output(path: Path, suffixes: tuple[str, ...]) -> None:
+    """Fail before any work if ``path`` cannot be written: a folder, a missing folder, or a
+    suffix not among ``suffixes``."""
+    if path.suffix.lower() not in suffixes:
+        raise CommandError(
+            f"--output: {shown_path(path)}: expected a name ending in {', '.join(suffixes)}"
+        )
+    if path.is_dir():
+        raise CommandError(f"--output: {shown_path(path)} is a folder, expected a file name")
+    if not path.parent.is_dir():
+        raise CommandError(f"--output: folder {shown_path(path.parent)} does not exist")
+
+
+def _read(verb: str, path: Path, frames_wanted: int) -> Any:
+    """The trajectory at ``path``, about ``frames_wanted`` samples of it (one in ``every``, and
+    the last); one line naming the file if it cannot be read."""
+    from tensegrity.io.trajectory import read_dataset, read_trajectory
+
+    with blame(verb, path):
+        n_samples = read_dataset(path, "time").size
+        every = max(1, (n_samples - 1) // max(frames_wanted - 1, 1))
+        return read_trajectory(path, every=every), n_samples
+
+
+def _cmd_animate(args: argparse.Namespace) -> int:
+    from tensegrity.plots.animation import VIDEO_FORMATS, animate
+    from tensegrity.plots.motion import playback_times
+
+    _check_output(args.output, tuple(VIDEO_FORMATS))
+    if args.duration is not None and args.speed is not None:
+        raise CommandError("animate: give --duration or --speed, not both")
+    from tensegrity.io.trajectory import read_dataset
+
+    with blame("animate", args.trajectory):
+        time = read_dataset(args.trajectory, "time")
+    wanted = playback_times(
+        time[0], time[-1], fps=args.fps, duration=args.duration, speed=args.speed
+    ).size
+    result, _ = _read("animate", args.trajectory, 2 * wanted)
+    animate(
+        result,
+        args.output,
+        fps=args.fps,
+        duration=args.duration,
+        speed=args.speed,
+        size=args.size,
+        view=args.view,
+        progress=None if args.progress else False,
+    )
+    size = byte_text(args.output.stat().st_size)
+    print(f"wrote {args.output} ({wanted} frames at {args.fps:g} fps, {size})")
+    return 0
+
+
+def _cmd_view(args: argparse.Namespace) -> int:
+    from tensegrity.io.trajectory import read_trajectory
+    from tensegrity.plots.viewer import frame_budget, view
+
+    _check_output(args.output, (".html", ".htm"))
+    max_bytes = int(args.max_mb * 1e6)
+    with blame("view", args.trajectory):
+        first = read_trajectory(args.trajectory, every=2**62)  # the first and last samples
+    budget = frame_budget(first.structure, max_frames=args.max_frames, max_bytes=max_bytes)
+    result, n_samples = _read("view", args.trajectory, budget)
+    view(result, args.output, max_frames=budget, max_bytes=max_bytes, title=args.title)
+    size = byte_text(args.output.stat().st_size)
+    shown = min(budget, result.t.size)
+    print(f"wrote {args.output} ({size}; {shown} frames of {n_samples} samples)")
+    return 0
+
+
+def add_parsers(sub: Any) -> None:
+    """Add the verbs ``animate`` and ``view`` to the subparsers ``sub`` of ``tensegrity``."""
+    from tensegrity.plots.viewer import MAX_BYTES, MAX_FRAMES
+
+    animate = sub.add_parser(
+        "animate",
+        help="a video of a trajectory (.mp4, .webm or .gif)",
+        description="Write a video of a trajectory file: rods, tendons coloured by tension "
+        "(slack ones dashed), supports, joints, point masses; time and energy. By default "
+        "real time, at most 20 s of video.",
+    )
+    animate.add_argument("trajectory", type=_file_name, help="a trajectory.h5 written by simulate")
+    animate.add_argument(
+        "-o", "--output", type=_file_name, required=True, help="the video: .mp4, .webm or .gif"
+    )
+    animate.add_argument("--fps", type=_positive, default=30.0, help="frames per second (30)")
+    animate.add_argument("--duration", type=_positive, help="length of the video [s]")
+    animate.add_argument(
+        "--speed", type=_positive, help="simulated seconds per second of video (1: real time)"
+    )
+    animate.add_argument(
+        "--size", type=_size, default=(800, 640), help="WIDTHxHEIGHT in pixels (800x640)"
+    )
+    animate.add_argument(
+        "--view", type=_view, help="camera ELEV,AZIM in degrees (default 22,-58; planar: 90,-90)"
+    )
+    animate.add_argument(
+        "--no-progress",
+        dest="progress",
+        action="store_false",
+        help="no progress bar (shown by default when stderr is a terminal)",
+    )
+    animate.set_defaults(run=_cmd_animate)
+
+    viewer = sub.add_parser(
+        "view",
+        help="an interactive 3-D viewer of a trajectory: one self-contained HTML file",
+        description="Write one HTML file that shows a trajectory in 3-D in any browser, "
+        "offline: orbit, zoom, pan, play, a time slider, tensions, slack tendons, supports; "
+        "hover a member to read its name, length and tension.",
+    )
+    viewer.add_argument("trajectory", type=_file_name, help="a trajectory.h5 written by simulate")
+    viewer.add_argument("-o", "--output", type=_file_name, required=True, help="the .html file")
+    viewer.add_argument(
+        "--max-frames",
+        type=_count,
+        default=MAX_FRAMES,
+        help=f"at most this many frames, spread over the run ({MAX_FRAMES})",
+    )
+    viewer.add_argument(
+        "--max-mb",
+        type=_positive,
+        default=MAX_BYTES / 1e6,
+        help=f"at most this many MB of positions and tensions ({MAX_BYTES / 1e6:g})",
+    )
+    viewer.add_argument("--title", help="the page's title (default: the structure's counts)")
+    viewer.set_defaults(run=_cmd_view)

@@ -1,0 +1,282 @@
+"""Animations of a run: MP4, WebM or GIF video of its frames (:mod:`.motion`), drawn with
+matplotlib (Agg, no ``pyplot``) and encoded with imageio: MP4 (H.264) and WebM (VP8) through the
+ffmpeg binary of ``imageio-ffmpeg``, GIF through Pillow.
+
+Each frame shows the structure as :mod:`tensegrity.plots.figures` draws it: rods thick and dark,
+taut tendons coloured by tension on a colour bar whose range is fixed over the whole run, slack
+tendons thin, dashed and red, fixed nodes as brown triangles, ball joints as open circles, point
+masses as dots; the simulation time and energies in the corner.  The camera and the axis limits
+are fixed over the run (the box of every node in every frame).  A planar structure is seen from
+above (its plane ``z = 0``).
+
+:func:`animate` writes the file atomically (:func:`tensegrity.io.files.atomic_path`): an
+interrupted or failed animation leaves no file behind (and an older file intact).
+
+SI units: m, s, N, J.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.cm import ScalarMappable
+from matplotlib.colors import Normalize
+from matplotlib.figure import Figure
+
+from tensegrity.io.files import PathLike, atomic_path
+from tensegrity.plots.figures import (
+    FIXED_COLOR,
+    ROD_COLOR,
+    ROD_WIDTH,
+    SLACK_COLOR,
+    TENDON_WIDTH,
+)
+from tensegrity.plots.motion import (
+    Frames,
+    colormap,
+    frame_indices,
+    make_frames,
+    playback_times,
+    tension_colors,
+)
+
+if TYPE_CHECKING:
+    from tensegrity.engine.result import SimulationResult
+
+__all__ = ["VIDEO_FORMATS", "animate", "render_frames"]
+
+#: File suffixes :func:`animate` writes, and the encoder of each.
+VIDEO_FORMATS = {".mp4": "libx264", ".webm": "libvpx", ".gif": "pillow"}
+#: Default view of a 3-D structure: elevation and azimuth [degrees], as the still figures.
+VIEW_3D = (22.0, -58.0)
+#: View of a planar structure: from above its plane.
+VIEW_PLANAR = (90.0, -90.0)
+
+
+def _video_format(path: Path) -> str:
+    suffix = path.suffix.lower()
+    if suffix not in VIDEO_FORMATS:
+        raise ValueError(
+            f"{path}: unknown video format {path.suffix!r}, expected one of "
+            f"{', '.join(VIDEO_FORMATS)}"
+        )
+    return suffix
+
+
+class _Scene:
+    """The figure of a run, drawn once; :meth:`show` moves it to a frame."""
+
+    def __init__(
+        self, frames: Frames, *, size: tuple[int, int], view: tuple[float, float] | None
+    ) -> None:
+        from mpl_toolkits.mplot3d.art3d import Line3DCollection
+
+        self.frames = frames
+        structure = frames.structure
+        width, height = size
+        dpi = 100
+        self.figure = figure = Figure(figsize=(width / dpi, height / dpi), dpi=dpi)
+        FigureCanvasAgg(figure)
+        figure.set_facecolor("white")
+        ax: Any = figure.add_axes((0.0, 0.0, 0.84, 0.92), projection="3d")
+        self.ax = ax
+        if view is None:
+            view = VIEW_3D if structure.dim == 3 else VIEW_PLANAR
+        ax.view_init(elev=view[0], azim=view[1])
+        _fix_limits(ax, frames.bounds)
+        empty = np.zeros((0, 2, 3))
+        self.tendons = Line3DCollection(empty, linewidths=TENDON_WIDTH, zorder=1)
+        self.slack = Line3DCollection(
+            empty, colors=SLACK_COLOR, linewidths=0.8, linestyles=(0, (4, 2.5)), zorder=2
+        )
+        self.rods = Line3DCollection(
+            empty, colors=ROD_COLOR, linewidths=ROD_WIDTH, zorder=3, capstyle="round"
+        )
+        for collection in (self.tendons, self.slack, self.rods):
+            ax.add_collection3d(collection, autolim=False)
+        self.markers: list[tuple[Any, np.ndarray]] = []
+        styles: tuple[tuple[np.ndarray, dict[str, Any]], ...] = (
+            (frames.point_mass_nodes, dict(marker="o", ms=7, color=ROD_COLOR)),
+            (frames.joint_nodes, dict(marker="o", ms=7, mfc="white", mec=ROD_COLOR, mew=1.5)),
+            (frames.fixed_nodes, dict(marker="^", ms=9, color=FIXED_COLOR)),
+        )
+        for nodes, style in styles:
+            if nodes.size:
+                (line,) = ax.plot([], [], [], ls="", zorder=5, **style)
+                self.markers.append((line, nodes))
+        colour_axes = figure.add_axes((0.86, 0.2, 0.025, 0.6))
+        mappable = ScalarMappable(Normalize(*frames.tension_range), colormap())
+        figure.colorbar(mappable, cax=colour_axes, label="tendon tension [N]")
+        self.text = figure.text(0.02, 0.97, "", va="top", fontsize="small", family="monospace")
+        self.count = figure.text(0.02, 0.02, "", va="bottom", fontsize="small", color="0.3")
+        figure.text(
+            0.98, 0.97, frames.title[:60], va="top", ha="right", fontsize="small", color="0.3"
+        )
+
+    def show(self, k: int) -> np.ndarray:
+        """Draw frame ``k``; its pixels, shape (height, width, 3), uint8."""
+        frames, structure = self.frames, self.frames.structure
+        slack = frames.slack[k]
+        pairs = structure.tendon_nodes
+        self.tendons.set_segments(frames.segments(k, pairs[~slack]))
+        self.tendons.set_colors(tension_colors(frames.tension[k][~slack], frames.tension_range))
+        self.slack.set_segments(frames.segments(k, pairs[slack]))
+        self.rods.set_segments(frames.segments(k, structure.rod_nodes))
+        for line, nodes in self.markers:
+            line.set_data_3d(*frames.position[k][nodes].T)
+        lines = [f"t = {frames.time[k]:8.3f} s"]
+        if frames.energy:
+            lines += [
+                f"E       = {frames.energy['total'][k]:.5g} J",
+                f"E_kin   = {frames.energy['kinetic'][k]:.4g} J",
+                f"E_el    = {frames.energy['elastic'][k]:.4g} J",
+            ]
+        self.text.set_text("\n".join(lines))
+        n_slack = int(slack.sum())
+        self.count.set_text(
+            f"{structure.n_rods} rods, {structure.n_tendons} tendons, {n_slack} slack"
+            + (" (dashed)" if n_slack else "")
+        )
+        canvas = self.figure.canvas
+        canvas.draw()
+        return np.asarray(canvas.buffer_rgba())[..., :3].copy()  # type: ignore[attr-defined]
+
+
+def _fix_limits(ax: Any, bounds: np.ndarray) -> None:
+    """Axis limits around ``bounds`` (2, 3) [m] with a margin, equal scales, labels in m."""
+    low, high = bounds
+    span = high - low
+    size = float(span.max()) if span.max() > 0 else 1.0
+    half = 0.5 * np.maximum(span, 0.08 * size) + 0.04 * size
+    centre = 0.5 * (low + high)
+    ax.set_xlim(centre[0] - half[0], centre[0] + half[0])
+    ax.set_ylim(centre[1] - half[1], centre[1] + half[1])
+    ax.set_zlim(centre[2] - half[2], centre[2] + half[2])
+    ax.set_box_aspect(tuple(2 * half))
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_zlabel("z [m]")
+    ax.tick_params(labelsize="small")
+
+
+def render_frames(
+    frames: Frames,
+    *,
+    size: tuple[int, int] = (800, 640),
+    view: tuple[float, float] | None = None,
+    progress: bool | None = None,
+) -> Iterator[np.ndarray]:
+    """The pictures of ``frames``, one by one: arrays (height, width, 3) of uint8.
+
+    Parameters
+    ----------
+    frames : Frames
+    size : (int, int)
+        Width and height [pixels], each a multiple of 16 (what video encoders need) and >= 160.
+    view : (float, float), optional
+        Elevation and azimuth of the camera [degrees]; default :data:`VIEW_3D`, or
+        :data:`VIEW_PLANAR` for a planar structure.
+    progress : bool, optional
+        Show a progress bar (tqdm) on stderr; default: when stderr is a terminal.
+    """
+    width, height = size
+    if width % 16 or height % 16 or min(width, height) < 160:
+        raise ValueError(f"size: width and height must be multiples of 16, >= 160, got {size}")
+    from tqdm import tqdm
+
+    if progress is None:
+        progress = sys.stderr.isatty()
+    scene = _Scene(frames, size=size, view=view)
+    for k in tqdm(range(frames.n_frames), desc="animate", unit="frame", disable=not progress):
+        yield scene.show(k)
+
+
+def animate(
+    result: SimulationResult,
+    path: PathLike,
+    *,
+    fps: float = 30.0,
+    duration: float | None = None,
+    speed: float | None = None,
+    size: tuple[int, int] = (800, 640),
+    view: tuple[float, float] | None = None,
+    progress: bool | None = None,
+) -> Path:
+    """Write an animation of ``result`` to ``path`` (``.mp4``, ``.webm`` or ``.gif``), atomically.
+
+    Parameters
+    ----------
+    result : SimulationResult
+        A run in memory or read back (:func:`tensegrity.io.trajectory.read_trajectory`).
+    path : str or os.PathLike
+        The video file; its suffix picks the format (:data:`VIDEO_FORMATS`).  Its folder must
+        exist.
+    fps : float
+        Frames per second of the video.
+    duration, speed : float, optional
+        Length of the video [s], or simulated seconds per second of video (one of them; default:
+        real time, at most :data:`tensegrity.plots.motion.MAX_REAL_TIME` s of video).  Each
+        frame shows the last sample at or before its time (:func:`~.motion.playback_times`).
+    size : (int, int)
+        Width and height [pixels], multiples of 16.
+    view : (float, float), optional
+        Camera elevation and azimuth [degrees].
+    progress : bool, optional
+        Progress bar on stderr; default: when stderr is a terminal.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+    """
+    path = Path(path)
+    suffix = _video_format(path)
+    times = playback_times(result.t[0], result.t[-1], fps=fps, duration=duration, speed=speed)
+    frames = make_frames(result, frame_indices(result.t, times))
+    pictures = render_frames(frames, size=size, view=view, progress=progress)
+    with atomic_path(path) as tmp:
+        _encode(tmp, suffix, pictures, fps)
+    return path
+
+
+def _encode(tmp: Path, suffix: str, pictures: Iterator[np.ndarray], fps: float) -> None:
+    """Encode ``pictures`` into ``tmp`` as the video format of ``suffix``."""
+    if suffix == ".gif":
+        import imageio.v2 as imageio
+
+        # GIF frame times are whole hundredths of a second
+        writer: Any = imageio.get_writer(tmp, format="GIF", mode="I", duration=1000 / fps, loop=0)
+        with writer:
+            for picture in pictures:
+                writer.append_data(picture)
+        return
+    import imageio_ffmpeg
+
+    first = next(pictures, None)
+    if first is None:
+        raise ValueError("no frames to encode")
+    height, width = first.shape[:2]
+    extra = ["-b:v", "2M", "-deadline", "realtime", "-cpu-used", "8"] if suffix == ".webm" else []
+    writer = imageio_ffmpeg.write_frames(
+        str(tmp),
+        (width, height),
+        fps=fps,
+        codec=VIDEO_FORMATS[suffix],
+        pix_fmt_in="rgb24",
+        pix_fmt_out="yuv420p",
+        macro_block_size=16,
+        output_params=["-f", suffix[1:], *extra],
+        ffmpeg_log_level="error",
+    )
+    writer.send(None)  # start ffmpeg
+    try:
+        writer.send(first)
+        for picture in pictures:
+            writer.send(picture)
+    finally:
+        writer.close()

@@ -1,0 +1,290 @@
+"""A run as frames to show: the one source of what the animation (:mod:`.animation`) and the
+interactive viewer (:mod:`.viewer`) draw.
+
+A :class:`Frames` holds, for ``F`` frames picked from a run's ``T`` samples (or the one frame of
+a structure at rest):
+
+- the frame times and the samples they show (``index``): each frame shows a recorded sample
+  exactly, the last at or before its playback time (no interpolation, so rods keep their lengths);
+- node positions ``(F, N, 3)`` [m]: a planar structure's ``(x, y)`` are drawn in the plane
+  ``z = 0``;
+- tendon tensions ``(F, S)`` [N] and the slack tendons (tension ``<= 0``) of each frame;
+- the tension range [N] of the colour map, fixed over the whole run (every sample, not only the
+  frames shown), and the box [m] that holds every node of every frame (fixed camera and axes);
+- the energies [J] of each frame;
+- what the structure is: rods, tendons and their names, fixed nodes (supports, anchors), ball
+  joints, point masses.
+
+:func:`playback_times` turns a video's length (``duration``, ``fps`` or ``speed``) into frame
+times; :func:`frame_indices` finds the samples they show; :func:`decimated_indices` picks at most
+a number of samples spread evenly over a run (the viewer's frames).
+
+SI units throughout: m, s, N, J.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from tensegrity.model.structure import Structure
+
+if TYPE_CHECKING:
+    from tensegrity.engine.result import SimulationResult
+
+__all__ = [
+    "MAX_REAL_TIME",
+    "Frames",
+    "decimated_indices",
+    "frame_indices",
+    "make_frames",
+    "playback_times",
+    "structure_frames",
+    "tension_colors",
+]
+
+#: A run up to this long [s] is played at its own speed by default; a longer one in this time.
+MAX_REAL_TIME = 20.0
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Frames:
+    """Frames of a run (or of a structure at rest) to draw.
+
+    Attributes
+    ----------
+    structure : Structure
+        ``N`` nodes, ``R`` rods, ``S`` tendons.
+    time : ndarray, shape (F,)
+        Simulation time of each frame [s] (the time of the sample it shows).
+    index : ndarray of int, shape (F,)
+        The sample of the run each frame shows.
+    position : ndarray, shape (F, N, 3)
+        Node positions [m]; ``z = 0`` for a planar structure.
+    tension : ndarray, shape (F, S)
+        Tendon tensions [N].
+    slack : ndarray of bool, shape (F, S)
+        Slack tendons (tension ``<= 0``).
+    energy : dict of str to ndarray, shape (F,)
+        ``"total"`` (the conserved balance, ``SimulationResult.total_energy``), ``"kinetic"``,
+        ``"elastic"`` [J]; empty for a structure at rest.
+    tension_range : (float, float)
+        Low and high ends of the tension colour map [N], over the taut tensions of every sample
+        of the run; ``low < high``.
+    bounds : ndarray, shape (2, 3)
+        Lowest and highest x, y, z of any node in any frame [m].
+    title : str
+        A line naming the run (status message), or empty.
+    """
+
+    structure: Structure
+    time: np.ndarray
+    index: np.ndarray
+    position: np.ndarray
+    tension: np.ndarray
+    slack: np.ndarray
+    energy: dict[str, np.ndarray]
+    tension_range: tuple[float, float]
+    bounds: np.ndarray
+    title: str = ""
+
+    @property
+    def n_frames(self) -> int:
+        """Number of frames ``F``."""
+        return int(self.time.size)
+
+    @property
+    def joint_nodes(self) -> np.ndarray:
+        """One node of each ball joint (the pair's first), shape (J,)."""
+        joints = self.structure.joint_nodes
+        return np.unique(joints[:, 0]) if joints.size else np.zeros(0, np.int64)
+
+    @property
+    def fixed_nodes(self) -> np.ndarray:
+        """Fixed nodes (supports and anchors), shape (K,)."""
+        return np.flatnonzero(self.structure.node_fixed)
+
+    @property
+    def point_mass_nodes(self) -> np.ndarray:
+        """Nodes with a point mass, shape (M,)."""
+        return self.structure.point_mass_nodes
+
+    def segments(self, k: int, pairs: np.ndarray) -> np.ndarray:
+        """The line segments (K, 2, 3) [m] between node ``pairs`` (K, 2) at frame ``k``."""
+        return self.position[k][pairs] if len(pairs) else np.zeros((0, 2, 3))
+
+
+def playback_times(
+    t_start: float,
+    t_end: float,
+    *,
+    fps: float = 30.0,
+    duration: float | None = None,
+    speed: float | None = None,
+) -> np.ndarray:
+    """Simulation times [s] of a video's frames, evenly spaced from ``t_start`` to ``t_end``.
+
+    Parameters
+    ----------
+    t_start, t_end : float
+        The run's first and last sample times [s].
+    fps : float
+        Frames per second of the video, > 0.
+    duration : float, optional
+        Length of the video [s], > 0.  Give this or ``speed``, not both.
+    speed : float, optional
+        Simulated seconds per second of video, > 0 (1 is real time).  Default: real time for a
+        run up to :data:`MAX_REAL_TIME` long, else whatever plays it in ``MAX_REAL_TIME``.
+
+    Returns
+    -------
+    ndarray, shape (F,)
+        ``F = max(1, round(duration * fps))`` times [s]; the first is ``t_start`` and the last
+        ``t_end`` (one frame, at ``t_end``, if ``F = 1``).
+    """
+    for name, value in (("fps", fps), ("duration", duration), ("speed", speed)):
+        if value is not None and not (np.isfinite(value) and value > 0):
+            raise ValueError(f"{name}: must be a finite number > 0, got {value!r}")
+    if duration is not None and speed is not None:
+        raise ValueError("duration, speed: give one of them, not both")
+    span = max(float(t_end) - float(t_start), 0.0)
+    if duration is None:
+        duration = (span / speed) if speed is not None else min(span, MAX_REAL_TIME)
+    count = max(1, round(duration * fps))
+    if count == 1:
+        return np.array([float(t_end)])
+    return np.linspace(float(t_start), float(t_end), count)
+
+
+def frame_indices(t: np.ndarray, times: np.ndarray) -> np.ndarray:
+    """For each time of ``times`` (F,), the last sample of ``t`` (T,) at or before it [s]
+    (the first sample for a time before it), shape (F,)."""
+    t = np.asarray(t, dtype=float)
+    found = np.searchsorted(t, np.asarray(times, dtype=float), side="right") - 1
+    return np.clip(found, 0, t.size - 1)
+
+
+def decimated_indices(n_samples: int, max_frames: int) -> np.ndarray:
+    """At most ``max_frames`` (>= 1) samples of ``n_samples``, evenly spread, the first and the
+    last among them (the last alone if ``max_frames`` is 1), ascending, shape (F,)."""
+    if max_frames < 1:
+        raise ValueError(f"max_frames: must be >= 1, got {max_frames}")
+    if n_samples <= max_frames:
+        return np.arange(n_samples)
+    if max_frames == 1:
+        return np.array([n_samples - 1])
+    return np.unique(np.round(np.linspace(0, n_samples - 1, max_frames)).astype(np.int64))
+
+
+def _padded(structure: Structure, position: np.ndarray) -> np.ndarray:
+    """Node positions (..., N, 3) [m]: a planar structure's (..., N, 2) with ``z = 0``."""
+    position = np.asarray(position, dtype=float)
+    if structure.dim == 3:
+        return position
+    return np.concatenate([position, np.zeros((*position.shape[:-1], 1))], axis=-1)
+
+
+def _tension_range(tension: np.ndarray) -> tuple[float, float]:
+    """The colour map's range [N] over the taut tensions of ``tension`` (any shape): from the
+    lowest to the highest, widened to ``(v - 0.5, v + 0.5)`` [N] or by 1e-3 relative if they
+    agree; ``(0, 1)`` without a taut tendon."""
+    taut = tension[tension > 0]
+    if not taut.size:
+        return 0.0, 1.0
+    low, high = float(taut.min()), float(taut.max())
+    if high - low <= 1e-9 * high:
+        widen = 0.5 if high < 500 else 1e-3 * high
+        return max(low - widen, 0.0), high + widen
+    return low, high
+
+
+def make_frames(result: SimulationResult, indices: np.ndarray | None = None) -> Frames:
+    """The frames of ``result`` that show the samples ``indices`` (default: every sample).
+
+    Parameters
+    ----------
+    result : SimulationResult
+        A run in memory, or read with :func:`tensegrity.io.trajectory.read_trajectory` (its
+        ``every=`` reads a long run's overview).
+    indices : array_like of int, shape (F,), optional
+        Samples to show, e.g. :func:`frame_indices` of :func:`playback_times` (a video) or
+        :func:`decimated_indices` (the viewer).
+
+    Returns
+    -------
+    Frames
+        Tension range and bounds over every sample of ``result`` (not only those shown).
+    """
+    structure = result.structure
+    T = result.t.size
+    index = np.arange(T) if indices is None else np.asarray(indices, dtype=np.int64)
+    if index.ndim != 1 or not index.size or index.min() < 0 or index.max() >= T:
+        raise ValueError(f"indices: expected sample numbers in 0..{T - 1}, got {index!r}")
+    position = _padded(structure, result.node_position[index])
+    every = _padded(structure, result.node_position)
+    tension = np.asarray(result.tendon_tension[index], dtype=float)
+    energy = {
+        "total": result.total_energy[index],
+        "kinetic": result.energy["kinetic"][index],
+        "elastic": result.energy["elastic"][index],
+    }
+    bounds = np.stack([every.min(axis=(0, 1)), every.max(axis=(0, 1))])
+    return Frames(
+        structure=structure,
+        time=np.asarray(result.t[index], dtype=float),
+        index=index,
+        position=position,
+        tension=tension,
+        slack=tension <= 0,
+        energy=energy,
+        tension_range=_tension_range(np.asarray(result.tendon_tension)),
+        bounds=bounds,
+        title=result.message,
+    )
+
+
+def structure_frames(structure: Structure, position: np.ndarray | None = None) -> Frames:
+    """One frame of ``structure`` at rest: at ``position`` (N, dim) [m] (default its
+    ``node_position``), its tendons' tensions from their stretch, ``k (L - L0)`` [N], where
+    positive (a structure's view before any run; damping and control left out)."""
+    p = _padded(structure, structure.node_position if position is None else position)[None]
+    pairs = structure.tendon_nodes
+    length = np.linalg.norm(p[0][pairs[:, 1]] - p[0][pairs[:, 0]], axis=-1) if pairs.size else 0
+    tension = np.maximum(
+        structure.tendon_stiffness * (length - structure.tendon_rest_length), 0.0
+    ).reshape(1, structure.n_tendons)
+    return Frames(
+        structure=structure,
+        time=np.zeros(1),
+        index=np.zeros(1, np.int64),
+        position=p,
+        tension=tension,
+        slack=tension <= 0,
+        energy={},
+        tension_range=_tension_range(tension),
+        bounds=np.stack([p[0].min(axis=0), p[0].max(axis=0)]),
+        title="",
+    )
+
+
+def tension_colors(tension: np.ndarray, tension_range: tuple[float, float]) -> np.ndarray:
+    """RGBA colours (..., 4) of tensions (...) [N] on the tension colour map over
+    ``tension_range`` (clipped at its ends); the map of :mod:`tensegrity.plots.figures`."""
+    low, high = tension_range
+    scaled = np.clip((np.asarray(tension, dtype=float) - low) / (high - low), 0.0, 1.0)
+    return colormap()(scaled)
+
+
+def colormap():
+    """The tension colour map (a matplotlib ``Colormap``): :data:`~tensegrity.plots.figures.
+    TENSION_CMAP` with its yellow end cut off, so that every tendon shows on white."""
+    import matplotlib
+    from matplotlib.colors import ListedColormap
+
+    from tensegrity.plots.figures import TENSION_CMAP
+
+    # figures.py's private _CMAP_RANGE: (0, 0.85) of the map
+    base = matplotlib.colormaps[TENSION_CMAP]
+    return ListedColormap(base(np.linspace(0.0, 0.85, 256)), name=f"{TENSION_CMAP}_cut")

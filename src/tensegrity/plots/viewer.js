@@ -1,0 +1,291 @@
+// The interactive viewer of a tensegrity run (tensegrity.plots.viewer), inlined into its HTML
+// page after three.js (window.THREE, the vendored build in vendor/).  It reads the run from the
+// JSON in <script id="tensegrity-data">: node positions and tensions as base64 little-endian
+// Float32 (frame after frame), members as base64 Int32 pairs.  SI units: m, s, N, J.
+// window.tensegrityViewer is its interface for scripts and tests.
+(function () {
+  "use strict";
+  const T = window.THREE;
+  const data = JSON.parse(document.getElementById("tensegrity-data").textContent);
+
+  function bytes(b64) {
+    const text = atob(b64);
+    const out = new Uint8Array(text.length);
+    for (let i = 0; i < text.length; i++) out[i] = text.charCodeAt(i);
+    return out.buffer;
+  }
+  const F = data.n_frames, N = data.n_nodes, R = data.n_rods, S = data.n_tendons;
+  const positions = new Float32Array(bytes(data.positions)); // F * N * 3
+  const tensions = new Float32Array(bytes(data.tensions)); // F * S
+  const rods = new Int32Array(bytes(data.rods)); // R * 2
+  const tendons = new Int32Array(bytes(data.tendons)); // S * 2
+  const times = data.time;
+  const [lowT, highT] = data.tension_range;
+  const lut = data.colormap; // 256 [r, g, b] in 0..1
+
+  // ---------------------------------------------------------------- scene and camera
+  const view = document.getElementById("view");
+  const renderer = new T.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+  renderer.setPixelRatio(window.devicePixelRatio || 1);
+  renderer.setClearColor(0xffffff, 1);
+  view.appendChild(renderer.domElement);
+  const scene = new T.Scene();
+  const low = new T.Vector3(...data.bounds[0]), high = new T.Vector3(...data.bounds[1]);
+  const centre = low.clone().add(high).multiplyScalar(0.5);
+  const size = Math.max(high.clone().sub(low).length(), 1e-6);
+  const camera = new T.PerspectiveCamera(40, 1, size * 1e-3, size * 100);
+  if (data.dim === 2) camera.position.set(centre.x, centre.y, centre.z + 1.6 * size);
+  else {
+    camera.up.set(0, 0, 1);
+    camera.position.set(centre.x + 1.1 * size, centre.y - 0.9 * size, centre.z + 0.7 * size);
+  }
+  const controls = new T.OrbitControls(camera, renderer.domElement);
+  controls.target.copy(centre);
+  controls.update();
+  scene.add(new T.AmbientLight(0xffffff, 1.6));
+  const sun = new T.DirectionalLight(0xffffff, 1.8);
+  sun.position.set(1, -1, 2);
+  scene.add(sun);
+  const everywhere = new T.Sphere(centre, 0.5 * size + 1e-6); // every node of every frame
+
+  // ---------------------------------------------------------------- members
+  const rodRadius = data.rod_radius;
+  const rodMesh = new T.InstancedMesh(
+    new T.CylinderGeometry(1, 1, 1, 8, 1, false),
+    new T.MeshLambertMaterial({ color: data.colors.rod }),
+    Math.max(R, 1)
+  );
+  rodMesh.count = R;
+  rodMesh.instanceMatrix.setUsage(T.DynamicDrawUsage);
+  rodMesh.frustumCulled = false;
+  rodMesh.boundingSphere = everywhere;
+  scene.add(rodMesh);
+
+  function lines(material, attributes) {
+    const geometry = new T.BufferGeometry();
+    for (const [name, width] of attributes) {
+      const attribute = new T.BufferAttribute(new Float32Array(Math.max(2 * S, 2) * width), width);
+      attribute.setUsage(T.DynamicDrawUsage);
+      geometry.setAttribute(name, attribute);
+    }
+    geometry.boundingSphere = everywhere;
+    const object = new T.LineSegments(geometry, material);
+    object.frustumCulled = false;
+    scene.add(object);
+    return object;
+  }
+  const taut = lines(new T.LineBasicMaterial({ vertexColors: true }), [["position", 3], ["color", 3]]);
+  const slack = lines(
+    new T.LineDashedMaterial({ color: data.colors.slack, dashSize: 0.02 * size, gapSize: 0.015 * size }),
+    [["position", 3], ["lineDistance", 1]]
+  );
+  const tautIds = new Int32Array(Math.max(S, 1)), slackIds = new Int32Array(Math.max(S, 1));
+
+  function markers(nodes, geometry, color) {
+    const mesh = new T.InstancedMesh(geometry, new T.MeshLambertMaterial({ color }), Math.max(nodes.length, 1));
+    mesh.count = nodes.length;
+    mesh.frustumCulled = false;
+    mesh.boundingSphere = everywhere;
+    scene.add(mesh);
+    return { mesh, nodes };
+  }
+  const r = rodRadius;
+  const nodeMarkers = [
+    markers(data.point_masses, new T.SphereGeometry(2.6 * r, 16, 12), data.colors.rod),
+    markers(data.joints, new T.SphereGeometry(2.0 * r, 16, 12), data.colors.joint),
+    markers(data.fixed, new T.ConeGeometry(3.0 * r, 6.0 * r, 12).rotateX(Math.PI / 2), data.colors.fixed),
+  ];
+
+  // ---------------------------------------------------------------- one frame
+  let current = 0;
+  const a = new T.Vector3(), b = new T.Vector3(), up = new T.Vector3(0, 1, 0);
+  const quaternion = new T.Quaternion(), scale = new T.Vector3(), matrix = new T.Matrix4();
+
+  function colorOf(tension, out, at) {
+    let x = (tension - lowT) / (highT - lowT);
+    x = Math.min(Math.max(x, 0), 1);
+    const c = lut[Math.round(x * (lut.length - 1))];
+    out[at] = c[0]; out[at + 1] = c[1]; out[at + 2] = c[2];
+  }
+
+  function setFrame(k) {
+    k = Math.min(Math.max(Math.round(k), 0), F - 1);
+    current = k;
+    const p = positions.subarray(k * N * 3, (k + 1) * N * 3);
+    const t = tensions.subarray(k * S, (k + 1) * S);
+    for (let i = 0; i < R; i++) {
+      const u = 3 * rods[2 * i], v = 3 * rods[2 * i + 1];
+      a.set(p[u], p[u + 1], p[u + 2]);
+      b.set(p[v], p[v + 1], p[v + 2]);
+      const length = a.distanceTo(b);
+      b.sub(a);
+      if (length > 0) quaternion.setFromUnitVectors(up, b.multiplyScalar(1 / length));
+      a.add(b.multiplyScalar(0.5 * length));
+      scale.set(r, length, r);
+      matrix.compose(a, quaternion, scale);
+      rodMesh.setMatrixAt(i, matrix);
+    }
+    rodMesh.instanceMatrix.needsUpdate = true;
+    const tp = taut.geometry.attributes.position.array, tc = taut.geometry.attributes.color.array;
+    const sp = slack.geometry.attributes.position.array, sd = slack.geometry.attributes.lineDistance.array;
+    let nt = 0, ns = 0;
+    for (let j = 0; j < S; j++) {
+      const u = 3 * tendons[2 * j], v = 3 * tendons[2 * j + 1];
+      if (t[j] > 0) {
+        const o = 6 * nt;
+        for (let c = 0; c < 3; c++) { tp[o + c] = p[u + c]; tp[o + 3 + c] = p[v + c]; }
+        colorOf(t[j], tc, o);
+        colorOf(t[j], tc, o + 3);
+        tautIds[nt++] = j;
+      } else {
+        const o = 6 * ns;
+        for (let c = 0; c < 3; c++) { sp[o + c] = p[u + c]; sp[o + 3 + c] = p[v + c]; }
+        sd[2 * ns] = 0;
+        sd[2 * ns + 1] = Math.hypot(p[v] - p[u], p[v + 1] - p[u + 1], p[v + 2] - p[u + 2]);
+        slackIds[ns++] = j;
+      }
+    }
+    taut.geometry.setDrawRange(0, 2 * nt);
+    slack.geometry.setDrawRange(0, 2 * ns);
+    for (const name of ["position", "color"]) taut.geometry.attributes[name].needsUpdate = true;
+    for (const name of ["position", "lineDistance"]) slack.geometry.attributes[name].needsUpdate = true;
+    for (const { mesh, nodes } of nodeMarkers) {
+      nodes.forEach((n, i) => {
+        a.set(p[3 * n], p[3 * n + 1], p[3 * n + 2]);
+        matrix.makeTranslation(a.x, a.y, a.z);
+        mesh.setMatrixAt(i, matrix);
+      });
+      mesh.instanceMatrix.needsUpdate = true;
+    }
+    slider.value = String(k);
+    const e = data.energy;
+    clock.textContent = `t = ${times[k].toFixed(3)} s` +
+      (e.total ? `   E = ${e.total[k].toPrecision(6)} J   E_kin = ${e.kinetic[k].toPrecision(4)} J` : "");
+    counts.textContent = `${R} rods, ${S} tendons, ${ns} slack (dashed)`;
+    if (pinned) showInfo(pinned);
+    renderer.render(scene, camera);
+  }
+
+  // ---------------------------------------------------------------- what a member is
+  function member(kind, id) {
+    const k = current, p = positions.subarray(k * N * 3, (k + 1) * N * 3);
+    const pair = kind === "rod" ? rods : tendons;
+    const u = 3 * pair[2 * id], v = 3 * pair[2 * id + 1];
+    const length = Math.hypot(p[v] - p[u], p[v + 1] - p[u + 1], p[v + 2] - p[u + 2]);
+    const info = { kind, id, name: kind === "rod" ? `rod ${id}` : data.tendon_names[id],
+      nodes: [pair[2 * id], pair[2 * id + 1]], length };
+    if (kind === "tendon") info.tension = tensions[k * S + id];
+    return info;
+  }
+  const raycaster = new T.Raycaster();
+  raycaster.params.Line.threshold = 0.01 * size;
+  function pickAt(x, y) {
+    const box = renderer.domElement.getBoundingClientRect();
+    const pointer = new T.Vector2(((x - box.left) / box.width) * 2 - 1, -((y - box.top) / box.height) * 2 + 1);
+    raycaster.setFromCamera(pointer, camera);
+    const hit = raycaster.intersectObjects([rodMesh, taut, slack], false)[0];
+    if (!hit) return null;
+    if (hit.object === rodMesh) return { kind: "rod", id: hit.instanceId };
+    const ids = hit.object === taut ? tautIds : slackIds;
+    return { kind: "tendon", id: ids[Math.floor(hit.index / 2)] };
+  }
+  function describe(info) {
+    let text = `${info.name} (nodes ${info.nodes[0]}-${info.nodes[1]})\nlength ${info.length.toPrecision(5)} m`;
+    if (info.kind === "tendon") text += info.tension > 0 ? `\ntension ${info.tension.toPrecision(5)} N` : "\nslack (tension 0 N)";
+    return text;
+  }
+  let pinned = null;
+  function showInfo(which) { infoBox.textContent = which ? describe(member(which.kind, which.id)) : ""; }
+  let hoverQueued = false;
+  renderer.domElement.addEventListener("pointermove", (event) => {
+    if (hoverQueued) return;
+    hoverQueued = true;
+    requestAnimationFrame(() => {
+      hoverQueued = false;
+      const which = pickAt(event.clientX, event.clientY);
+      tip.style.display = which ? "block" : "none";
+      if (which) {
+        tip.textContent = describe(member(which.kind, which.id));
+        tip.style.left = `${event.clientX + 14}px`;
+        tip.style.top = `${event.clientY + 14}px`;
+      }
+    });
+  });
+  renderer.domElement.addEventListener("click", (event) => {
+    pinned = pickAt(event.clientX, event.clientY);
+    showInfo(pinned);
+  });
+
+  // ---------------------------------------------------------------- controls and legend
+  const slider = document.getElementById("time");
+  const clock = document.getElementById("clock");
+  const counts = document.getElementById("counts");
+  const infoBox = document.getElementById("info");
+  const tip = document.getElementById("tip");
+  const playButton = document.getElementById("play");
+  const speedBox = document.getElementById("speed");
+  slider.max = String(F - 1);
+  slider.addEventListener("input", () => { playing = false; playButton.textContent = "play"; setFrame(+slider.value); });
+  const span = times[F - 1] - times[0];
+  const baseRate = span > 0 ? span / Math.min(span, data.max_real_time) : 1; // run seconds per second
+  let playing = false, clockTime = times[0], last = null;
+  function tick(now) {
+    if (playing) {
+      if (last !== null) clockTime += ((now - last) / 1000) * baseRate * +speedBox.value;
+      last = now;
+      if (clockTime > times[F - 1]) clockTime = times[0];
+      let k = current;
+      while (k + 1 < F && times[k + 1] <= clockTime) k++;
+      if (times[k] > clockTime) k = 0;
+      if (k !== current) setFrame(k);
+    } else last = null;
+    requestAnimationFrame(tick);
+  }
+  playButton.addEventListener("click", () => {
+    playing = !playing && F > 1;
+    playButton.textContent = playing ? "pause" : "play";
+    clockTime = times[current];
+  });
+  document.getElementById("rate").textContent = `×1 = ${baseRate.toPrecision(3)} s of run per s`;
+
+  const legend = document.getElementById("colorbar");
+  const g = legend.getContext("2d");
+  for (let i = 0; i < legend.height; i++) {
+    const c = lut[Math.round((1 - i / (legend.height - 1)) * (lut.length - 1))];
+    g.fillStyle = `rgb(${255 * c[0]},${255 * c[1]},${255 * c[2]})`;
+    g.fillRect(0, i, legend.width, 1);
+  }
+  document.getElementById("t-high").textContent = `${highT.toPrecision(4)} N`;
+  document.getElementById("t-low").textContent = `${lowT.toPrecision(4)} N`;
+
+  controls.addEventListener("change", () => renderer.render(scene, camera));
+  function resize() {
+    const w = view.clientWidth, h = view.clientHeight;
+    renderer.setSize(w, h);
+    camera.aspect = w / Math.max(h, 1);
+    camera.updateProjectionMatrix();
+    renderer.render(scene, camera);
+  }
+  window.addEventListener("resize", resize);
+  resize();
+  setFrame(0);
+  requestAnimationFrame(tick);
+
+  window.tensegrityViewer = {
+    data, nFrames: F, setFrame,
+    frame: () => current,
+    time: () => times[current],
+    play: () => { if (!playing) playButton.click(); },
+    pause: () => { if (playing) playButton.click(); },
+    nodePositions: (k) => Array.from(positions.subarray(k * N * 3, (k + 1) * N * 3)),
+    tensions: (k) => Array.from(tensions.subarray(k * S, (k + 1) * S)),
+    // the drawn colour [r, g, b] of tendon j in this frame, or null if it is slack (dashed)
+    tendonColor: (j) => {
+      const t = taut.geometry.drawRange.count / 2;
+      for (let i = 0; i < t; i++) if (tautIds[i] === j) return Array.from(taut.geometry.attributes.color.array.subarray(6 * i, 6 * i + 3));
+      return null;
+    },
+    pickAt: (x, y) => { const w = pickAt(x, y); return w && member(w.kind, w.id); },
+    ready: true,
+  };
+})();

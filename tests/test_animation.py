@@ -1,0 +1,254 @@
+"""Frames of a run (plots.motion), videos (plots.animation), the viewer page's data
+(plots.viewer) and the verbs ``tensegrity animate`` / ``view`` (issue 15).  The page in a real
+browser: tests/test_viewer_browser.py."""
+
+from __future__ import annotations
+
+import h5py
+import numpy as np
+import pytest
+
+from tensegrity import class1_shell, critical_damping, simulate
+from tensegrity.cli.main import main
+from tensegrity.io.trajectory import write_trajectory
+from tensegrity.model.planar import planar_two_rod
+from tensegrity.model.shell import class2_shell
+from tensegrity.plots.animation import animate, render_frames
+from tensegrity.plots.motion import (
+    decimated_indices,
+    frame_indices,
+    make_frames,
+    playback_times,
+    structure_frames,
+    tension_colors,
+)
+from tensegrity.plots.viewer import frame_budget, html, read_viewer_data, view
+
+iio = pytest.importorskip("imageio.v2")
+
+
+@pytest.fixture(scope="module")
+def shell31():
+    """The README's example, 2 s sampled every 10 ms: it moves a lot, then settles."""
+    return simulate(critical_damping(class1_shell(3, 1)), (0.0, 2.0), sample_dt=0.01)
+
+
+@pytest.fixture(scope="module")
+def planar():
+    s = planar_two_rod(angle=1.1, rest_length=[0.3, 0.35, 0.4, 0.45])
+    return simulate(s, (0.0, 0.5), sample_dt=0.01)
+
+
+@pytest.fixture(scope="module")
+def trajectory(tmp_path_factory, shell31):
+    path = tmp_path_factory.mktemp("run") / "trajectory.h5"
+    write_trajectory(path, shell31)
+    return path
+
+
+# ------------------------------------------------------------------ frames
+
+
+def test_playback_times_span_the_run_at_the_frame_rate():
+    assert playback_times(0.0, 10.0, fps=30).size == 300  # real time
+    assert playback_times(0.0, 100.0, fps=30).size == 600  # at most 20 s of video
+    t = playback_times(1.0, 3.0, fps=10, speed=0.5)
+    assert t.size == 40 and t[0] == 1.0 and t[-1] == 3.0
+    assert playback_times(0.0, 3.0, fps=10, duration=1.0).size == 10
+    assert playback_times(0.0, 0.0, fps=30).tolist() == [0.0]
+    with pytest.raises(ValueError, match="one of them"):
+        playback_times(0.0, 1.0, duration=1.0, speed=1.0)
+    with pytest.raises(ValueError, match="fps"):
+        playback_times(0.0, 1.0, fps=0)
+
+
+def test_frames_show_the_last_sample_at_or_before_their_time():
+    t = np.array([0.0, 0.1, 0.2, 0.3])
+    assert frame_indices(t, [0.0, 0.05, 0.1, 0.29, 0.3, 9.0, -1.0]).tolist() == [
+        0, 0, 1, 2, 3, 3, 0,
+    ]  # fmt: skip
+    assert decimated_indices(10, 20).tolist() == list(range(10))
+    picked = decimated_indices(1001, 7)
+    assert picked.size == 7 and picked[0] == 0 and picked[-1] == 1000
+    assert decimated_indices(5, 1).tolist() == [4]
+
+
+def test_frames_hold_the_samples_and_a_fixed_tension_range(shell31):
+    index = np.array([0, 50, 200])
+    frames = make_frames(shell31, index)
+    np.testing.assert_array_equal(frames.position, shell31.node_position[index])
+    np.testing.assert_array_equal(frames.tension, shell31.tendon_tension[index])
+    taut = shell31.tendon_tension[shell31.tendon_tension > 0]
+    assert frames.tension_range == (taut.min(), taut.max())  # over every sample, not 3
+    assert np.all(frames.bounds[0] <= shell31.node_position.min(axis=(0, 1)))
+    np.testing.assert_allclose(frames.energy["total"], shell31.total_energy[index])
+
+
+def test_planar_frames_lie_in_the_plane_z_0(planar):
+    frames = make_frames(planar)
+    assert frames.position.shape == (planar.t.size, 4, 3)
+    np.testing.assert_array_equal(frames.position[..., :2], planar.node_position)
+    assert not frames.position[..., 2].any()
+
+
+def test_a_structure_at_rest_is_one_frame_with_tensions_from_its_stretch():
+    s = class1_shell(3, 1)
+    frames = structure_frames(s)
+    length = np.linalg.norm(np.diff(s.node_position[s.tendon_nodes], axis=1)[:, 0], axis=1)
+    expected = np.maximum(s.tendon_stiffness * (length - s.tendon_rest_length), 0)
+    np.testing.assert_allclose(frames.tension[0], expected)
+    slack = structure_frames(s.replace(tendon_rest_length=np.full(s.n_tendons, 5.0)))
+    assert slack.slack.all() and slack.tension_range == (0.0, 1.0)
+
+
+def test_tension_colours_run_along_the_colour_map():
+    low, mid, high = tension_colors(np.array([1.0, 5.5, 10.0]), (1.0, 10.0))
+    assert not np.allclose(low, high) and not np.allclose(low, mid)
+    np.testing.assert_array_equal(tension_colors(np.array([-3.0, 99.0]), (1.0, 10.0)), [low, high])
+
+
+# ------------------------------------------------------------------ animation
+
+
+def video_frames(path):
+    reader = iio.get_reader(path)
+    try:
+        return [np.asarray(frame) for frame in reader]
+    finally:
+        reader.close()
+
+
+@pytest.mark.parametrize("suffix", [".mp4", ".gif", ".webm"])
+def test_animation_has_its_frames_size_and_motion(tmp_path, shell31, suffix):
+    path = animate(shell31, tmp_path / f"motion{suffix}", fps=10, duration=1.0, size=(320, 256))
+    frames = video_frames(path)
+    assert len(frames) == 10
+    assert frames[0].shape[:2] == (256, 320)
+    first, last = (f[..., :3].astype(int) for f in (frames[0], frames[-1]))
+    changed = np.abs(first - last).max(axis=-1) > 40
+    assert changed.mean() > 0.01, "the structure does not move between the first and last frame"
+    drawn = first.min(axis=-1) < 200  # dark pixels: rods, tendons, labels
+    assert drawn.mean() > 0.02
+    assert sorted(p.name for p in tmp_path.iterdir()) == [f"motion{suffix}"]
+
+
+def test_each_frame_draws_its_own_sample(shell31):
+    frames = make_frames(shell31, np.array([0, 0, 150]))
+    pictures = list(render_frames(frames, size=(320, 256), progress=False))
+    assert len(pictures) == 3 and pictures[0].shape == (256, 320, 3)
+    np.testing.assert_array_equal(pictures[0], pictures[1])
+    assert (pictures[0] != pictures[2]).any()
+
+
+def test_planar_and_constrained_structures_animate(tmp_path, planar):
+    animate(planar, tmp_path / "planar.gif", fps=5, duration=1.0, size=(320, 256))
+    assert len(video_frames(tmp_path / "planar.gif")) == 5
+    shell = class2_shell(3, 2, fixed_base=True)
+    run = simulate(critical_damping(shell), (0.0, 0.2), sample_dt=0.02, gravity=[0, 0, -9.81])
+    animate(run, tmp_path / "class2.mp4", fps=10, duration=0.5, size=(320, 256))
+    assert len(video_frames(tmp_path / "class2.mp4")) == 5
+
+
+def test_an_unknown_video_format_writes_nothing(tmp_path, shell31):
+    with pytest.raises(ValueError, match="unknown video format"):
+        animate(shell31, tmp_path / "motion.avi")
+    assert not list(tmp_path.iterdir())
+
+
+# ------------------------------------------------------------------ the page's data
+
+
+def test_page_data_hold_the_positions_to_float32_precision(shell31):
+    page = html(shell31, max_frames=25)
+    data = read_viewer_data(page)
+    index = np.array(data["sample_index"])
+    assert data["n_frames"] == index.size == 25 and index[0] == 0 and index[-1] == 200
+    np.testing.assert_array_equal(
+        data["positions"], shell31.node_position[index].astype(np.float32)
+    )
+    np.testing.assert_array_equal(
+        data["tensions"], shell31.tendon_tension[index].astype(np.float32)
+    )
+    np.testing.assert_array_equal(data["tendons"], class1_shell(3, 1).tendon_nodes)
+    assert data["tendon_names"] == list(shell31.structure.tendon_name)
+    assert "<script src" not in page and "<link" not in page  # everything inline
+
+
+def test_page_frames_fit_the_byte_budget():
+    big = class1_shell(30, 30)
+    per_frame = 4 * (3 * big.n_nodes + big.n_tendons)
+    assert frame_budget(big, max_frames=300, max_bytes=10 * per_frame + 5) == 10
+    assert frame_budget(big, max_frames=4, max_bytes=10**12) == 4
+    assert frame_budget(big, max_frames=300, max_bytes=1) == 1
+
+
+def test_a_name_cannot_end_the_data_script(shell31):
+    names = tuple(f"</script><b>{k}" for k in range(shell31.structure.n_tendons))
+    s = shell31.structure.replace(tendon_name=names)
+    page = html(s)
+    assert page.count("</script>") == 3  # data, three.js, viewer
+    assert read_viewer_data(page)["tendon_names"] == list(names)
+
+
+# ------------------------------------------------------------------ the verbs
+
+
+def test_cli_animate_and_view_write_their_files(tmp_path, trajectory, capsys):
+    assert main(["animate", str(trajectory), "-o", str(tmp_path / "m.gif"), "--fps", "5",
+                 "--size", "320x256"]) == 0  # fmt: skip
+    assert len(video_frames(tmp_path / "m.gif")) == 10  # 2 s in real time
+    assert main(["view", str(trajectory), "-o", str(tmp_path / "v.html"), "--max-frames", "7"]) == 0
+    out = capsys.readouterr().out
+    assert "wrote" in out and "KiB" in out and "7 frames of 201 samples" in out
+    assert read_viewer_data((tmp_path / "v.html").read_text())["n_frames"] == 7
+
+
+@pytest.fixture
+def bad_files(tmp_path, trajectory):
+    truncated = tmp_path / "truncated.h5"
+    truncated.write_bytes(trajectory.read_bytes()[:4000])
+    other = tmp_path / "other.h5"
+    with h5py.File(other, "w") as f:
+        f["x"] = np.zeros(3)
+    text = tmp_path / "text.h5"
+    text.write_text("not a trajectory\n")
+    return {"missing": tmp_path / "missing.h5", "truncated": truncated, "other": other,
+            "text": text}  # fmt: skip
+
+
+@pytest.mark.parametrize("which", ["missing", "truncated", "other", "text"])
+@pytest.mark.parametrize("verb, name", [("animate", "m.mp4"), ("view", "v.html")])
+def test_cli_bad_trajectory_is_one_line_exit_2_nothing_written(
+    tmp_path, bad_files, capsys, which, verb, name
+):
+    out = tmp_path / "out"
+    out.mkdir()
+    assert main([verb, str(bad_files[which]), "-o", str(out / name)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith(f"tensegrity: error: {verb}: ")
+    assert bad_files[which].name in err
+    assert not list(out.iterdir())
+
+
+@pytest.mark.parametrize(
+    "argv, words",
+    [
+        (["animate", "T", "-o", "m.avi"], "expected a name ending in .mp4"),
+        (["view", "T", "-o", "nowhere/v.html"], "does not exist"),
+        (["animate", "T", "-o", "m.mp4", "--size", "100x100"], "multiples of 16"),
+        (["animate", "T", "-o", "m.mp4", "--duration", "1", "--speed", "2"], "not both"),
+    ],
+)
+def test_cli_bad_options_are_one_line(tmp_path, trajectory, capsys, monkeypatch, argv, words):
+    monkeypatch.chdir(tmp_path)
+    argv = [str(trajectory) if a == "T" else a for a in argv]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and words in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
+def test_view_writes_a_structure_page_atomically(tmp_path):
+    path = view(class1_shell(3, 1), tmp_path / "s.html")
+    assert [p.name for p in tmp_path.iterdir()] == ["s.html"]
+    assert read_viewer_data(path.read_text())["n_frames"] == 1

@@ -1,0 +1,231 @@
+"""The viewer page (plots.viewer) in a real browser: headless Chromium (Debian's ``chromium``;
+``.ci/run`` installs it) driven by Playwright, with every network request refused.  The page
+must draw the structure without a console error, move in time (two screenshots differ; the
+slider moves the time), hold the run's node positions to float32 precision and colour each
+tendon by its tension (issue 15).  Skipped only if Chromium or Playwright is missing."""
+
+from __future__ import annotations
+
+import io
+import shutil
+
+import numpy as np
+import pytest
+
+from tensegrity import class1_shell, critical_damping, simulate
+from tensegrity.model.planar import planar_two_rod
+from tensegrity.model.shell import class2_shell
+from tensegrity.plots.motion import colormap
+from tensegrity.plots.viewer import read_viewer_data, view
+
+sync_api = pytest.importorskip("playwright.sync_api")
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+if CHROMIUM is None:
+    pytest.skip("no chromium on this machine (.ci/run installs it)", allow_module_level=True)
+
+Image = pytest.importorskip("PIL.Image")
+
+
+@pytest.fixture(scope="module")
+def browser():
+    with sync_api.sync_playwright() as playwright:
+        # WebGL without a GPU: SwiftShader, Chromium's software renderer
+        chromium = playwright.chromium.launch(
+            executable_path=CHROMIUM,
+            args=["--use-angle=swiftshader", "--enable-unsafe-swiftshader"],
+        )
+        yield chromium
+        chromium.close()
+
+
+class Page:
+    """A viewer page open in the browser, its console errors and refused requests recorded."""
+
+    def __init__(self, browser, path):
+        self.errors: list[str] = []
+        self.requests: list[str] = []
+        self.page = browser.new_page(viewport={"width": 900, "height": 640})
+        self.page.on(
+            "console", lambda m: m.type == "error" and self.errors.append(m.text)
+        )  # fmt: skip
+        self.page.on("pageerror", lambda e: self.errors.append(str(e)))
+        self.page.route("**/*", self._route)
+        self.page.goto(path.as_uri())
+        self.page.wait_for_function("window.tensegrityViewer && tensegrityViewer.ready")
+
+    def _route(self, route):
+        url = route.request.url
+        if url.startswith("file:"):
+            route.continue_()
+        else:  # no network: anything else is refused, and recorded
+            self.requests.append(url)
+            route.abort()
+
+    def call(self, script):
+        return self.page.evaluate(script)
+
+    def picture(self):
+        """The 3-D view (without the page's text and controls) as RGB, (H, W, 3)."""
+        box = self.page.locator("#view canvas").bounding_box()
+        png = self.page.screenshot(clip=box)
+        return np.asarray(Image.open(io.BytesIO(png)).convert("RGB")).astype(int)
+
+    def check_clean(self):
+        assert self.errors == [], self.errors
+        assert self.requests == [], self.requests
+
+
+def drawn(picture):
+    """Pixels that are not the white background."""
+    return picture.min(axis=-1) < 235
+
+
+@pytest.fixture(scope="module")
+def shell31():
+    return simulate(critical_damping(class1_shell(3, 1)), (0.0, 2.0), sample_dt=0.01)
+
+
+@pytest.fixture(scope="module")
+def page31(browser, shell31, tmp_path_factory):
+    path = view(shell31, tmp_path_factory.mktemp("page") / "view.html", max_frames=50)
+    page = Page(browser, path)
+    yield page, read_viewer_data(path.read_text())
+    page.page.close()
+
+
+def test_the_structure_is_drawn_and_moves(page31, tmp_path):
+    page, _ = page31
+    page.call("tensegrityViewer.setFrame(0)")
+    first = page.picture()
+    page.call("tensegrityViewer.setFrame(5)")  # 0.2 s: the shell is contracting fast
+    later = page.picture()
+    Image.fromarray(first.astype(np.uint8)).save(tmp_path / "first.png")
+    assert drawn(first).sum() > 3000, "too few pixels drawn: is the structure there?"
+    assert drawn(later).sum() > 3000
+    differ = np.abs(first - later).max(axis=-1) > 60
+    assert differ.sum() > 1000, "the two times look the same"
+    page.check_clean()
+
+
+def test_the_slider_moves_the_time(page31):
+    page, data = page31
+    page.call("tensegrityViewer.setFrame(0)")
+    assert page.call("tensegrityViewer.time()") == 0.0
+    assert "t = 0.000 s" in page.page.inner_text("#clock")
+    box = page.page.locator("#time").bounding_box()
+    page.page.mouse.click(box["x"] + 0.75 * box["width"], box["y"] + box["height"] / 2)
+    frame = page.call("tensegrityViewer.frame()")
+    assert 30 <= frame <= 45
+    t = data["time"][frame]
+    assert page.call("tensegrityViewer.time()") == t > 1.0
+    assert f"t = {t:.3f} s" in page.page.inner_text("#clock")
+    page.check_clean()
+
+
+def test_play_advances_the_frames(page31):
+    page, _ = page31
+    page.call("tensegrityViewer.setFrame(0)")
+    page.call("tensegrityViewer.play()")
+    page.page.wait_for_function("tensegrityViewer.frame() > 3", timeout=10_000)
+    page.call("tensegrityViewer.pause()")
+    page.check_clean()
+
+
+def test_node_positions_in_the_page_are_the_run_s_to_float32(page31, shell31):
+    page, data = page31
+    for frame in (0, 17, data["n_frames"] - 1):
+        sample = data["sample_index"][frame]
+        shown = np.array(page.call(f"tensegrityViewer.nodePositions({frame})"), dtype=np.float32)
+        expected = shell31.node_position[sample].astype(np.float32).ravel()
+        np.testing.assert_array_equal(shown, expected)
+
+
+def test_tendon_colour_follows_its_tension(page31, shell31):
+    page, data = page31
+    frame = 0  # all taut, tensions from 4.5 to 99 N
+    page.call(f"tensegrityViewer.setFrame({frame})")
+    tension = data["tensions"][frame].astype(float)
+    low, high = data["tension_range"]
+    colours = np.array([page.call(f"tensegrityViewer.tendonColor({j})") for j in range(24)])
+    expected = colormap()((tension - low) / (high - low))[:, :3]
+    np.testing.assert_allclose(colours, expected, atol=0.02)  # a 256-colour table
+    # the most and least tense tendons are far apart on the map
+    assert np.abs(colours[tension.argmax()] - colours[tension.argmin()]).sum() > 0.5
+
+
+def test_hovering_a_member_names_it(page31):
+    page, _ = page31
+    page.call("tensegrityViewer.setFrame(0)")
+    canvas = page.page.locator("#view canvas").bounding_box()
+    # scan the view for a member under the pointer
+    found = None
+    for y in np.linspace(0.3, 0.7, 9):
+        for x in np.linspace(0.3, 0.7, 9):
+            px = round(canvas["x"] + x * canvas["width"])
+            py = round(canvas["y"] + y * canvas["height"])
+            info = page.call(f"tensegrityViewer.pickAt({px}, {py})")
+            if info:
+                found = (px, py, info)
+                break
+        if found:
+            break
+    assert found, "no member found under the pointer in the middle of the view"
+    px, py, info = found
+    page.page.mouse.move(px, py)
+    page.page.wait_for_selector("#tip", state="visible")
+    tip = page.page.inner_text("#tip")
+    assert info["name"] in tip and "length" in tip and " m" in tip
+    page.page.mouse.click(px, py)
+    assert info["name"] in page.page.inner_text("#info")
+    page.check_clean()
+
+
+def load_clean(browser, tmp_path, what, **options):
+    path = view(what, tmp_path / "view.html", **options)
+    page = Page(browser, path)
+    try:
+        picture = page.picture()
+        page.check_clean()
+        assert drawn(picture).sum() > 500
+        return page.call("tensegrityViewer.data.n_frames"), page
+    finally:
+        page.page.close()
+
+
+def test_no_taut_tendon_loads_cleanly(browser, tmp_path):
+    s = class1_shell(3, 1)
+    loose = s.replace(tendon_rest_length=np.full(s.n_tendons, 3.0))
+    run = simulate(loose, (0.0, 0.1), sample_dt=0.01)
+    assert (run.tendon_tension <= 0).all()
+    path = view(run, tmp_path / "loose.html")
+    page = Page(browser, path)
+    try:
+        colours = [page.call(f"tensegrityViewer.tendonColor({j})") for j in range(24)]
+        assert colours == [None] * 24  # every one drawn slack (dashed)
+        assert "24 slack" in page.page.inner_text("#counts")
+        assert drawn(page.picture()).sum() > 500
+        page.check_clean()
+    finally:
+        page.page.close()
+
+
+def test_planar_structure_loads_cleanly(browser, tmp_path):
+    run = simulate(planar_two_rod(angle=1.1, rest_length=0.3), (0.0, 0.3), sample_dt=0.01)
+    frames, _ = load_clean(browser, tmp_path, run)
+    assert frames == run.t.size
+
+
+def test_class2_shell_with_fixed_base_loads_cleanly(browser, tmp_path):
+    shell = critical_damping(class2_shell(4, 2, fixed_base=True))
+    run = simulate(shell, (0.0, 0.1), sample_dt=0.01, gravity=[0, 0, -9.81])
+    load_clean(browser, tmp_path, run)
+
+
+def test_shell_30_30_loads_cleanly(browser, tmp_path):
+    run = simulate(class1_shell(30, 30), (0.0, 0.02), sample_dt=0.01)
+    frames, _ = load_clean(browser, tmp_path, run)
+    assert frames == 3
+
+
+def test_a_structure_page_loads_cleanly(browser, tmp_path):
+    load_clean(browser, tmp_path, class2_shell(3, 2, fixed_base=True))
