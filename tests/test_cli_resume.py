@@ -260,3 +260,20 @@ def test_unstable_run_leaves_no_trajectory(tmp_path, capsys, existing):
         assert not list(out.iterdir())  # no trajectory.h5, nor the work file or its partial
     else:
         assert not out.exists()
+
+
+def test_a_run_out_of_its_wall_clock_budget_can_be_resumed(tmp_path, capsys):
+    """``--max-wall-time`` stops a run with exit 1 and one line; its finished segments stay in
+    the partial file, and ``--resume`` (with another budget, or none) continues it."""
+    out = tmp_path / "out"
+    long_run = ["simulate", "--n", "10", "--m", "10", "--no-steady-state", "--out", str(out)]
+    assert main([*long_run, "--max-wall-time", "1"]) == 1
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "simulation stopped after --max-wall-time 1 s" in err, err
+    assert err.endswith("continue it with the same options and --resume"), err
+    assert [p.name for p in out.iterdir()] == [PARTIAL]
+    stored = read_checkpoint(out / PARTIAL).next_segment
+    assert stored >= 1
+    assert main([*long_run, "--resume", "--max-wall-time", "1"]) == 1
+    capsys.readouterr()
+    assert read_checkpoint(out / PARTIAL).next_segment > stored

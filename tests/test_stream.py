@@ -166,6 +166,34 @@ def test_interrupted_and_resumed_run_is_bitwise_the_uninterrupted_one(tmp_path, 
     assert read_trajectory(path).message == "reached t_end = 0.5 s"
 
 
+def test_a_run_out_of_time_keeps_its_segments_and_resumes_bitwise(tmp_path, reference):
+    """``max_wall_time`` is a budget per call: a streamed run that uses it up raises
+    ``OutOfTimeError`` and keeps its finished segments in the partial file; the next call (another
+    budget is allowed) continues it to the uninterrupted run's file, bit for bit."""
+    import time
+
+    from tensegrity.io.stream import OutOfTimeError
+
+    ref_path, _ = reference
+    path = tmp_path / "run.h5"
+    partial = tmp_path / ("run.h5" + PARTIAL_SUFFIX)
+
+    def slow(info: StreamProgress) -> None:  # each stored segment costs 0.2 s more
+        time.sleep(0.2)
+
+    with pytest.raises(OutOfTimeError, match=r"^stopped after max_wall_time = 0.3 s") as stop:
+        simulate_to_file(
+            SHELL, (0.0, 0.5), path, segment=0.1, progress=slow, max_wall_time=0.3, **FAST
+        )
+    assert stop.value.partial == partial and partial.exists() and not path.exists()
+    assert 1 <= read_checkpoint(path).next_segment < 5
+    summary = simulate_to_file(SHELL, (0.0, 0.5), path, segment=0.1, max_wall_time=60.0, **FAST)
+    assert summary.status == 0 and summary.resumed_from is not None
+    got, want = datasets(path), datasets(ref_path)
+    for name in DATASETS:
+        assert np.array_equal(got[name], want[name]), name
+
+
 def test_interruption_inside_a_segment_and_inside_a_write(tmp_path, reference, monkeypatch):
     """Interrupted while simulating segment 3, then while storing segment 4 (its rows appended
     and its checkpoint written to the spare slot, but not committed): the previous checkpoint

@@ -265,6 +265,7 @@ class _Run:
         self.wall_before = 0.0
         self.steps_done = 0  # "rk4"
         self.saved_at = 0  # index of the sample of the last checkpoint
+        self.stopped_for_time = False  # by max_wall_time
         self.block_rows = _block_rows(structure, options, t0, t_end, checkpoint)
         self.block, self.rows = Samples.empty(self.block_rows, structure), 0
 
@@ -335,10 +336,12 @@ class _Run:
         return self.wall_before + time.perf_counter() - self.wall0
 
     def out_of_time(self, t: float) -> bool:
-        """Whether the run has used up ``max_wall_time`` at ``t`` [s] (it is then failed)."""
+        """Whether this call has used up ``max_wall_time`` at ``t`` [s] (the run is then
+        failed, :attr:`stopped_for_time`)."""
         budget = self.options.max_wall_time
-        if self.wall_time() <= budget:
+        if time.perf_counter() - self.wall0 <= budget:
             return False
+        self.stopped_for_time = True
         self.status = STATUS_FAILED
         self.message = (
             f"stopped after max_wall_time = {budget:g} s of wall-clock time at t = {t:.6g} s of "
@@ -882,5 +885,6 @@ def run(
         wall_time=r.wall_time(),
         settings=options.settings(t0, t_end, **inputs.settings()),
         switch_times=tuple(r.switch_times),
+        stopped_for_time=r.stopped_for_time,
         **r.counts,
     )

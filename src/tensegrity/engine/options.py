@@ -57,10 +57,10 @@ class Options:
         end stops (status -1): its steps have become tiny (a stiff or unstable structure).
     max_samples : the most samples a run may make (each holds the whole state: memory, or
         disk for a streamed run); a run that would make more is refused before it starts.
-    max_wall_time : the longest a run may take [s of wall-clock time]; a run still going then
-        stops (status -1) within about 0.1 s, its samples so far kept.  Not part of the
-        run's ``settings``: a resumed run may have another budget (it counts the time before
-        the resume too).
+    max_wall_time : the longest one call may run [s of wall-clock time]; a run still going
+        then stops (status -1) within about 0.1 s, its samples so far kept (a streamed run
+        keeps its partial file, to be resumed: a budget per session, for batch queues).  Not
+        part of the run's ``settings``: a resumed run may have another budget.
     """
 
     method: str = "DOP853"

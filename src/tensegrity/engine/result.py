@@ -98,6 +98,7 @@ class RunSummary:
     wall_time: float  #: [s]
     settings: dict[str, Any]
     switch_times: tuple[float, ...] = ()  #: times of the located switches [s]
+    stopped_for_time: bool = False  #: failed because this call used up ``max_wall_time``
 
     @property
     def evaluations_per_step(self) -> float:

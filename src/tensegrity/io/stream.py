@@ -141,6 +141,15 @@ _COUNTERS = ("nfev", "nsteps", "nswitches", "nprojections")
 
 
 # ----------------------------------------------------------------------------- results
+class OutOfTimeError(RuntimeError):
+    """A streamed run stopped by ``max_wall_time``; ``partial`` [path] holds it up to its last
+    checkpoint, to be resumed (:func:`simulate_to_file` with ``resume=True``)."""
+
+    def __init__(self, message: str, partial: Path) -> None:
+        super().__init__(message)
+        self.partial = partial
+
+
 @dataclasses.dataclass(frozen=True)
 class StreamProgress:
     """What a ``progress`` callback of :func:`simulate_to_file` receives after each segment.
@@ -916,8 +925,9 @@ def simulate_to_file(
         ``(t_end - t0) / 1000``), ``initial``, ``control``, ``external_force``, ``gravity``,
         ``method``, ``rtol``, ``atol``, ``dt``, ``locate_switches``, ``steady_state``,
         ``velocity_tol``, ``acceleration_tol``, ``projection_tol``, ``max_rod_length_error``,
-        ``max_energy_growth``.  Controls and forces given as functions receive the absolute
-        time.  (``progress`` is this function's: it reports segments.)
+        ``max_energy_growth``, ``max_steps``, ``max_samples``, ``max_wall_time`` (a budget for
+        this call: see :class:`OutOfTimeError`).  Controls and forces given as functions receive the
+        absolute time.  (``progress`` is this function's: it reports segments.)
 
     Returns
     -------
@@ -931,6 +941,9 @@ def simulate_to_file(
     ValueError
         Invalid arguments, or a partial file whose checkpoint does not match this call (the
         message lists the differing settings), or an unreadable partial file.
+    OutOfTimeError
+        This call used up ``max_wall_time``: the partial file keeps every finished segment and
+        the run resumes from there (a budget per session, for batch queues).
     KeyboardInterrupt, Exception
         Whatever interrupts the run propagates; the partial file keeps every finished segment
         and the run resumes from there.
@@ -970,6 +983,8 @@ def simulate_to_file(
                 checkpoint=Checkpointing(every=plan.K, save=sink.save),
                 resume=checkpoint.loop,
             )
+            if summary.stopped_for_time:
+                raise OutOfTimeError(summary.message, partial)
             sink.finish(summary)
     finally:
         close()
@@ -1133,6 +1148,7 @@ __all__ = [
     "PARTIAL_SUFFIX",
     "Checkpoint",
     "FileSink",
+    "OutOfTimeError",
     "StreamProgress",
     "StreamSummary",
     "read_checkpoint",
