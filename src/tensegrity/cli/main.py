@@ -489,7 +489,7 @@ def _stream_run(
 ) -> StreamSummary:
     """Simulate into ``files.work`` (through its partial file); a rejected or failed run leaves
     nothing of this call's making behind, an interrupted one its partial file."""
-    from tensegrity.io.stream import simulate_to_file
+    from tensegrity.io.stream import OutOfTimeError, simulate_to_file
 
     try:
         summary = simulate_to_file(
@@ -512,6 +512,15 @@ def _stream_run(
         )
     except KeyboardInterrupt:
         raise
+    except OutOfTimeError as exc:  # the finished segments stay in the partial file, for --resume
+        files.discard()
+        kept = (
+            f"; the run so far is in {shown_path(exc.partial)}: continue it with the same "
+            "options and --resume"
+            if exc.partial.exists()
+            else " (nothing written)"
+        )
+        raise CommandError(f"simulation {_in_cli_words(str(exc))}{kept}", EXIT_FAILED) from None
     except ValueError as exc:
         files.discard()
         raise CommandError(_in_cli_words(exc)) from None
