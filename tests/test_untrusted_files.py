@@ -221,6 +221,18 @@ def test_names_in_messages_are_one_line_with_control_characters_escaped(tmp_path
     assert "\x1b" not in str(info.value)
 
 
+def test_a_torn_copy_is_refused_in_one_line(tmp_path, result):
+    """A file copied while it was written (its superblock from before the write, a dataset
+    rewritten past the end the superblock records): h5py raised a ``KeyError`` ("address of
+    object past end of allocation") from the checks themselves; now one line naming the file and
+    the dataset.  (``tests/test_cli_resume.py`` reads such copies of a running partial file.)"""
+    before = write_trajectory(tmp_path / "before.h5", result).read_bytes()
+    path = crafted(tmp_path, result, lambda f: replace(f, "nodes", data=np.zeros((3, 12, 3))))
+    path.write_bytes(before[:48] + path.read_bytes()[48:])  # the superblock of before the write
+    for read in (read_trajectory, lambda p: read_dataset(p, "nodes")):
+        assert_refused(read, path, "dataset 'nodes'", "damaged")
+
+
 def test_vtk_command_does_not_copy_local_files_into_its_output(tmp_path, result, secret, capsys):
     """``tensegrity vtk`` on a trajectory whose nodes are stored in another local file: one line,
     exit 2, and no ``.vtp`` file carrying that file's bytes."""

@@ -103,13 +103,20 @@ def _name(group: Any, name: str) -> str:
 
 def _stored_object(group: Any, name: str, path: PathLike, kind: str) -> Any:
     """The object ``name`` of ``group`` if it is a hard link (in the file), else ``None`` if
-    absent; ``ValueError`` for an external or soft link."""
+    absent; ``ValueError`` for an external or soft link, or an object HDF5 cannot open (a
+    damaged file, e.g. copied while it was written: h5py raises ``KeyError``)."""
     import h5py
 
-    link = group.get(name, getlink=True)
-    if link is None or isinstance(link, h5py.HardLink):
-        return None if link is None else group[name]
     where = _name(group, name)
+    try:
+        link = group.get(name, getlink=True)
+        if link is None or isinstance(link, h5py.HardLink):
+            return None if link is None else group[name]
+    except (KeyError, OSError, RuntimeError) as exc:
+        problem = " ".join(str(exc).split()) or type(exc).__name__
+        raise file_error(
+            path, f"{kind} {where!r} cannot be opened, the file is damaged ({problem})"
+        ) from exc
     if isinstance(link, h5py.ExternalLink):
         target = f"{shown_path(link.filename)}:{shown_path(link.path)}"
         raise file_error(
