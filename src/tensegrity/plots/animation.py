@@ -83,19 +83,28 @@ class _Scene:
         self.figure = figure = Figure(figsize=(width / dpi, height / dpi), dpi=dpi)
         FigureCanvasAgg(figure)
         figure.set_facecolor("white")
-        ax: Any = figure.add_axes((0.0, 0.0, 0.84, 0.92), projection="3d")
+        ax: Any = figure.add_axes((0.0, 0.05, 0.84, 0.87), projection="3d")
         self.ax = ax
         if view is None:
             view = VIEW_3D if structure.dim == 3 else VIEW_PLANAR
         ax.view_init(elev=view[0], azim=view[1])
         _fix_limits(ax, frames.bounds)
         empty = np.zeros((0, 2, 3))
-        self.tendons = Line3DCollection(empty, linewidths=TENDON_WIDTH, zorder=1)
+        tendon_width = _thinned(TENDON_WIDTH, structure.n_tendons, 40)
+        self.tendons = Line3DCollection(empty, linewidths=tendon_width, zorder=1)
         self.slack = Line3DCollection(
-            empty, colors=SLACK_COLOR, linewidths=0.8, linestyles=(0, (4, 2.5)), zorder=2
+            empty,
+            colors=SLACK_COLOR,
+            linewidths=0.6 * tendon_width,
+            linestyles=(0, (4, 2.5)),
+            zorder=2,
         )
         self.rods = Line3DCollection(
-            empty, colors=ROD_COLOR, linewidths=ROD_WIDTH, zorder=3, capstyle="round"
+            empty,
+            colors=ROD_COLOR,
+            linewidths=_thinned(ROD_WIDTH, structure.n_rods, 12),
+            zorder=3,
+            capstyle="round",
         )
         for collection in (self.tendons, self.slack, self.rods):
             ax.add_collection3d(collection, autolim=False)
@@ -113,7 +122,9 @@ class _Scene:
         mappable = ScalarMappable(Normalize(*frames.tension_range), colormap())
         figure.colorbar(mappable, cax=colour_axes, label="tendon tension [N]")
         self.text = figure.text(0.02, 0.97, "", va="top", fontsize="small", family="monospace")
-        self.count = figure.text(0.02, 0.02, "", va="bottom", fontsize="small", color="0.3")
+        self.count = figure.text(
+            0.98, 0.93, "", va="top", ha="right", fontsize="small", color="0.3"
+        )
         figure.text(
             0.98, 0.97, frames.title[:60], va="top", ha="right", fontsize="small", color="0.3"
         )
@@ -145,6 +156,12 @@ class _Scene:
         canvas = self.figure.canvas
         canvas.draw()
         return np.asarray(canvas.buffer_rgba())[..., :3].copy()  # type: ignore[attr-defined]
+
+
+def _thinned(width: float, count: int, up_to: int) -> float:
+    """A line width [points]: ``width`` for up to ``up_to`` lines, thinner as ``1 / sqrt(count)``
+    for more (a large shell would be a solid block), at least 0.25."""
+    return max(0.25, width * min(1.0, (up_to / max(count, 1)) ** 0.5))
 
 
 def _fix_limits(ax: Any, bounds: np.ndarray) -> None:
