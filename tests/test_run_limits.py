@@ -104,12 +104,12 @@ _LOADS = "load=" + ",".join(str(k) for k in range(1000))
         (["info", "--kind", "tower", "--m", "100000000"], "n = 3, m = 100000000: about"),
         (
             ["sweep", "--param", "stiffness=1:2", "--samples", "1000000000", "-o", "x.nc"],
-            "samples: 1,000,000,000 cases, more than the limit of 1,000,000; set "
+            "--samples: 1,000,000,000 cases, more than the limit of 1,000,000; set "
             "TENSEGRITY_MAX_CASES",
         ),
         (
             ["sweep", "--param", _STIFFNESSES, "--param", _LOADS, "-o", "x.nc"],
-            "parameters: 1,100,000 cases, more than the limit of 1,000,000",
+            "--param: 1,100,000 cases, more than the limit of 1,000,000",
         ),
     ],
 )
