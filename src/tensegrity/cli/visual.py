@@ -137,7 +137,7 @@ def _cmd_view(args: argparse.Namespace) -> int:
 
 def add_parsers(sub: Any) -> None:
     """Add the verbs ``animate`` and ``view`` to the subparsers ``sub`` of ``tensegrity``."""
-    from tensegrity.plots.viewer import MAX_BYTES, MAX_FRAMES
+    from tensegrity.plots.motion import MAX_BYTES, MAX_FRAMES  # light: no matplotlib
 
     animate = sub.add_parser(
         "animate",

@@ -35,6 +35,8 @@ if TYPE_CHECKING:
     from tensegrity.engine.result import SimulationResult
 
 __all__ = [
+    "MAX_BYTES",
+    "MAX_FRAMES",
     "MAX_REAL_TIME",
     "Frames",
     "decimated_indices",
@@ -47,6 +49,11 @@ __all__ = [
 
 #: A run up to this long [s] is played at its own speed by default; a longer one in this time.
 MAX_REAL_TIME = 20.0
+#: Default largest number of frames of a viewer page (:mod:`.viewer`).
+MAX_FRAMES = 300
+#: Default largest size of a viewer page's positions and tensions [bytes] (before base64, which
+#: adds a third): about 36 frames of the (100, 100) shell.
+MAX_BYTES = 32_000_000
 
 
 @dataclasses.dataclass(frozen=True, eq=False)

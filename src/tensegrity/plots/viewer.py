@@ -32,6 +32,8 @@ from tensegrity.io.files import PathLike, atomic_path
 from tensegrity.model.structure import Structure
 from tensegrity.plots.figures import FIXED_COLOR, ROD_COLOR, SLACK_COLOR
 from tensegrity.plots.motion import (
+    MAX_BYTES,
+    MAX_FRAMES,
     MAX_REAL_TIME,
     Frames,
     colormap,
@@ -54,11 +56,6 @@ __all__ = [
     "viewer_data",
 ]
 
-#: Default largest number of frames of a page.
-MAX_FRAMES = 300
-#: Default largest size of a page's positions and tensions [bytes] (before base64, which adds a
-#: third): about 36 frames of the (100, 100) shell.
-MAX_BYTES = 32_000_000
 JOINT_COLOR = "#d9d9d9"
 
 
