@@ -3,6 +3,12 @@
 - :mod:`~tensegrity.design.catalogue` — the generators by kind (``tensegrity export --kind``):
   the paper's shells and planar examples and the prestressed prism, expanded octahedron and
   Needle Tower.
+- :mod:`~tensegrity.design.materials` — materials (a table of common ones) and round sections;
+  the structure a choice of them makes (``E A / Lbar``, ``rho A L``).
+- :mod:`~tensegrity.design.utilisation` — how close each member is to yielding, breaking or
+  buckling, at a state or over a run.
+- :mod:`~tensegrity.design.sizing` — minimal-mass member sizing under yield and buckling for a
+  prestress and load cases (linear programs, ``docs/design.md``).
 
 Imports model, physics, engine and analysis; nothing above.
 """
