@@ -13,6 +13,7 @@ from tensegrity.cli.main import main
 from tensegrity.io.trajectory import write_trajectory
 from tensegrity.model.planar import planar_two_rod
 from tensegrity.model.shell import class2_shell
+from tensegrity.model.structure import Structure
 from tensegrity.plots.animation import animate, render_frames
 from tensegrity.plots.motion import (
     decimated_indices,
@@ -147,6 +148,52 @@ def test_planar_and_constrained_structures_animate(tmp_path, planar):
     run = simulate(critical_damping(shell), (0.0, 0.2), sample_dt=0.02, gravity=[0, 0, -9.81])
     animate(run, tmp_path / "class2.mp4", fps=10, duration=0.5, size=(320, 256))
     assert len(video_frames(tmp_path / "class2.mp4")) == 5
+
+
+def mass_between_anchors() -> Structure:
+    """No rod: a point mass on two tendons between two anchors (fixed nodes)."""
+    return Structure(
+        node_position=[[-2, 0, 0], [2, 0, 0], [0.3, 0, 0]],
+        rod_nodes=np.zeros((0, 2), int),
+        rod_mass=[],
+        rod_length=[],
+        node_fixed=[True, True, False],
+        node_point_mass=[0, 0, 0.3],
+        tendon_nodes=[[0, 2], [2, 1]],
+        tendon_stiffness=[50.0, 50.0],
+        tendon_rest_length=[1.0, 1.0],
+    )
+
+
+def test_point_masses_and_anchors_animate(tmp_path):
+    run = simulate(mass_between_anchors(), (0.0, 0.2), sample_dt=0.01)
+    frames = make_frames(run)
+    assert frames.point_mass_nodes.tolist() == [2] and frames.fixed_nodes.tolist() == [0, 1]
+    animate(run, tmp_path / "mass.gif", fps=10, duration=1.0, size=(320, 256))
+    pictures = video_frames(tmp_path / "mass.gif")
+    assert len(pictures) == 10
+    assert (np.abs(pictures[0].astype(int) - pictures[5].astype(int)).max(axis=-1) > 40).any()
+
+
+def test_an_interrupted_animation_leaves_the_old_file(tmp_path, shell31, monkeypatch):
+    from tensegrity.plots import animation
+
+    path = tmp_path / "motion.mp4"
+    path.write_bytes(b"the older video")
+    shown = animation._Scene.show
+    calls = []
+
+    def interrupted(self, k):
+        calls.append(k)
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        return shown(self, k)
+
+    monkeypatch.setattr(animation._Scene, "show", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        animate(shell31, path, fps=10, duration=1.0, size=(320, 256))
+    assert [p.name for p in tmp_path.iterdir()] == ["motion.mp4"]
+    assert path.read_bytes() == b"the older video"
 
 
 def test_an_unknown_video_format_writes_nothing(tmp_path, shell31):

@@ -16,7 +16,8 @@ from tensegrity import class1_shell, critical_damping, simulate
 from tensegrity.model.planar import planar_two_rod
 from tensegrity.model.shell import class2_shell
 from tensegrity.plots.motion import colormap
-from tensegrity.plots.viewer import read_viewer_data, view
+from tensegrity.plots.viewer import notebook_html, read_viewer_data, view
+from test_animation import mass_between_anchors
 
 sync_api = pytest.importorskip("playwright.sync_api")
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
@@ -41,7 +42,7 @@ def browser():
 class Page:
     """A viewer page open in the browser, its console errors and refused requests recorded."""
 
-    def __init__(self, browser, path):
+    def __init__(self, browser, path, *, viewer=True):
         self.errors: list[str] = []
         self.requests: list[str] = []
         self.page = browser.new_page(viewport={"width": 900, "height": 640})
@@ -51,7 +52,8 @@ class Page:
         self.page.on("pageerror", lambda e: self.errors.append(str(e)))
         self.page.route("**/*", self._route)
         self.page.goto(path.as_uri())
-        self.page.wait_for_function("window.tensegrityViewer && tensegrityViewer.ready")
+        if viewer:  # else a page that holds the viewer in a frame
+            self.page.wait_for_function("window.tensegrityViewer && tensegrityViewer.ready")
 
     def _route(self, route):
         url = route.request.url
@@ -225,6 +227,33 @@ def test_shell_30_30_loads_cleanly(browser, tmp_path):
     run = simulate(class1_shell(30, 30), (0.0, 0.02), sample_dt=0.01)
     frames, _ = load_clean(browser, tmp_path, run)
     assert frames == 3
+
+
+def test_point_mass_between_anchors_loads_cleanly(browser, tmp_path):
+    run = simulate(mass_between_anchors(), (0.0, 0.2), sample_dt=0.01)
+    path = view(run, tmp_path / "mass.html")
+    page = Page(browser, path)
+    try:
+        assert page.call("tensegrityViewer.tendonColor(0)") is not None
+        assert drawn(page.picture()).sum() > 300
+        page.check_clean()
+    finally:
+        page.page.close()
+
+
+def test_the_notebook_view_runs_in_its_iframe(browser, tmp_path, shell31):
+    path = tmp_path / "notebook.html"
+    path.write_text(f"<!DOCTYPE html><html><body>{notebook_html(shell31)}</body></html>")
+    page = Page(browser, path, viewer=False)
+    try:
+        page.page.frame_locator("iframe").locator("#clock").wait_for()
+        inner = page.page.frames[1]
+        inner.wait_for_function("window.tensegrityViewer && tensegrityViewer.ready")
+        assert inner.evaluate("tensegrityViewer.nFrames") == 100  # the notebook's default
+        assert "t = 0.000 s" in inner.inner_text("#clock")
+        page.check_clean()
+    finally:
+        page.page.close()
 
 
 def test_a_structure_page_loads_cleanly(browser, tmp_path):
