@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, NoReturn, TypeAlias
 
 import numpy as np
 
-from tensegrity.cli import visual
+from tensegrity.cli import design, visual
 from tensegrity.cli.errors import (
     EXIT_FAILED,
     CommandError,
@@ -1390,6 +1390,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_analysis_parsers(sub)
     _add_sweep_parser(sub)
     visual.add_parsers(sub)  # animate, view
+    design.add_parsers(sub)  # design: minimal-mass members
     for verb in sub.choices.values():  # after the verb too; not given there: the command's value
         _add_debug_option(verb, default=argparse.SUPPRESS)
     return parser

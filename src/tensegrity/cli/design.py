@@ -1,0 +1,230 @@
+"""``tensegrity design``: minimal-mass members for a structure's geometry under load cases
+(:func:`tensegrity.design.sizing.size_members`, ``docs/design.md``)::
+
+    tensegrity design --structure crane.json --material steel,dyneema \\
+        --load down:1:0,0,-1000 --load side:1:0,-1000,-1000 --prestress 0 -o out/
+
+writes ``out/structure.json`` (the sized structure, ready for ``tensegrity simulate
+--structure``) and ``out/design.json`` (masses, areas, sections, forces and utilisations per
+case), together or not at all (:func:`tensegrity.io.files.write_staged`), and prints a summary.
+Bad input and a load case the structure cannot carry are one line with exit code 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from tensegrity.cli.errors import CommandError, blame
+from tensegrity.io.files import atomic_path, shown_path, write_staged
+
+__all__ = ["add_parsers"]
+
+
+def _number(text: str, low: float, strict: bool) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not math.isfinite(value) or value < low or (strict and value == low):
+        raise argparse.ArgumentTypeError(
+            f"must be a finite number {'>' if strict else '>='} {low:g}, got {text!r}"
+        )
+    return value
+
+
+def _load(text: str) -> tuple[str, int, list[float]]:
+    """``CASE:NODE:FX,FY[,FZ]`` [N]."""
+    parts = text.split(":")
+    if len(parts) != 3 or not parts[0]:
+        raise argparse.ArgumentTypeError(f"expected CASE:NODE:FX,FY,FZ (newtons), got {text!r}")
+    try:
+        node = int(parts[1])
+        force = [float(v) for v in parts[2].split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected CASE:NODE:FX,FY,FZ with a node index and numbers, got {text!r}"
+        ) from None
+    if not all(math.isfinite(f) for f in force):
+        raise argparse.ArgumentTypeError(f"forces must be finite, got {text!r}")
+    return parts[0], node, force
+
+
+def _shape(text: str) -> float | None:
+    """``solid`` (None) or ``tube:RATIO`` (wall thickness over outer diameter)."""
+    if text == "solid":
+        return None
+    kind, _, ratio = text.partition(":")
+    try:
+        value = float(ratio)
+    except ValueError:
+        value = math.nan
+    if kind != "tube" or not 0 < value <= 0.5:
+        raise argparse.ArgumentTypeError(
+            f"expected solid or tube:T/D with 0 < T/D <= 0.5, got {text!r}"
+        )
+    return value
+
+
+def add_parsers(sub: Any) -> None:
+    """Add the ``design`` verb to the ``tensegrity`` subcommands ``sub``."""
+    from tensegrity.design.materials import MATERIALS
+
+    names = ", ".join(sorted(MATERIALS))
+    p = sub.add_parser(
+        "design",
+        help="minimal-mass rods and tendons under yield and buckling for load cases",
+        description=__doc__.splitlines()[0] if __doc__ else None,
+    )
+    p.add_argument(
+        "--structure", type=Path, required=True, help="geometry and topology (a structure file)"
+    )
+    p.add_argument(
+        "--material",
+        required=True,
+        metavar="ROD[,TENDON]",
+        help=f"material of the rods, and of the tendons if different: {names}",
+    )
+    p.add_argument(
+        "--section",
+        type=_shape,
+        default=None,
+        metavar="solid|tube:T/D",
+        help="rod section: solid round bars (default) or round tubes of wall thickness T/D "
+        "times the outer diameter; tendons are round cables",
+    )
+    p.add_argument(
+        "--load",
+        type=_load,
+        action="append",
+        default=[],
+        metavar="CASE:NODE:FX,FY,FZ",
+        help="a nodal force [N] of load case CASE (repeat: forces of one case add up)",
+    )
+    p.add_argument(
+        "--gravity",
+        type=lambda t: _number(t, 0.0, False),
+        default=0.0,
+        metavar="G",
+        help="gravity [m/s^2] down the last axis on the members' weight in every load case",
+    )
+    p.add_argument(
+        "--prestress",
+        type=lambda t: _number(t, 0.0, False),
+        default=0.0,
+        metavar="N",
+        help="the smallest tendon tension [N] of the unloaded, prestressed state (default 0)",
+    )
+    p.add_argument(
+        "--safety-factor",
+        type=lambda t: _number(t, 1.0, False),
+        default=1.0,
+        help="divides the Euler buckling load (>= 1, default 1)",
+    )
+    p.add_argument(
+        "--strength-factor",
+        type=lambda t: _number(t, 1.0, False),
+        default=1.0,
+        help="divides the yield strengths (>= 1, default 1)",
+    )
+    p.add_argument(
+        "--min-area",
+        type=lambda t: _number(t, 0.0, True),
+        default=1e-8,
+        metavar="M2",
+        help="the smallest member area [m^2] (default 1e-8)",
+    )
+    p.add_argument(
+        "--tendon-mass", action="store_true", help="count the tendons' own weight and mass"
+    )
+    p.add_argument("-o", "--out", type=Path, required=True, help="output folder")
+    p.set_defaults(run=_cmd_design)
+
+
+def _cmd_design(args: argparse.Namespace) -> int:
+    from tensegrity.design.materials import material, member_table
+    from tensegrity.design.sizing import LoadCase, size_members
+    from tensegrity.io.formats import read_network, write_structure
+
+    if args.out.exists() and not args.out.is_dir():
+        raise CommandError(f"--out: {shown_path(args.out)} is a file, expected a folder")
+    with blame("--material", None):
+        names = args.material.split(",")
+        if len(names) > 2:
+            raise ValueError(f"expected ROD or ROD,TENDON, got {args.material!r}")
+        rod_material = material(names[0])
+        tendon_material = material(names[-1])
+    with blame("--structure", args.structure):
+        structure = read_network(args.structure)
+    d = structure.dim
+    forces: dict[str, np.ndarray] = {}
+    for case, node, force in args.load:
+        where = f"--load {case}:{node}"
+        if not 0 <= node < structure.n_nodes:
+            raise CommandError(f"{where}: node {node} out of range [0, {structure.n_nodes - 1}]")
+        if len(force) != d:
+            raise CommandError(f"{where}: expected {d} force components, got {len(force)}")
+        forces.setdefault(case, np.zeros((structure.n_nodes, d)))[node] += force
+    gravity = None
+    if args.gravity:
+        gravity = np.zeros(d)
+        gravity[-1] = -args.gravity
+    if args.gravity and not forces:
+        forces["gravity"] = np.zeros((structure.n_nodes, d))
+    cases = [LoadCase(name, w, gravity) for name, w in forces.items()]
+    if not cases and not args.prestress:
+        raise CommandError("--load: give at least one load case (or --prestress N > 0)")
+    try:
+        sizing = size_members(
+            structure,
+            rod_material=rod_material,
+            tendon_material=tendon_material,
+            load_cases=cases,
+            prestress=args.prestress,
+            wall_ratio=args.section,
+            safety_factor=args.safety_factor,
+            strength_factor=args.strength_factor,
+            min_area=args.min_area,
+            tendon_mass=args.tendon_mass,
+        )
+    except ValueError as exc:
+        raise CommandError(" ".join(str(exc).split())) from None
+    report = sizing.to_dict() | {
+        "settings": dict(
+            structure=str(args.structure),
+            rod_material=rod_material.name,
+            tendon_material=tendon_material.name,
+            section="solid" if args.section is None else f"tube, t/D = {args.section:g}",
+            prestress_N=args.prestress,
+            gravity_m_per_s2=args.gravity,
+            safety_factor=args.safety_factor,
+            strength_factor=args.strength_factor,
+            min_area_m2=args.min_area,
+            tendon_mass=args.tendon_mass,
+        ),
+        "members": member_table(sizing.structure, sizing.members),
+    }
+
+    def write(staging: Path) -> list[Path]:
+        target = write_structure(staging / "structure.json", sizing.structure)
+        with atomic_path(staging / "design.json") as tmp:
+            tmp.write_text(json.dumps(report, indent=2, allow_nan=False) + "\n", "utf-8")
+        return [target, staging / "design.json"]
+
+    written = write_staged(args.out, write)
+    u = sizing.utilisation
+    print(
+        f"total mass {sizing.total_mass:.6g} kg (rods {sizing.rod_mass.sum():.6g} kg, tendons "
+        f"{sizing.tendon_mass.sum():.6g} kg); {sizing.message}"
+    )
+    for k, case in enumerate(sizing.cases):
+        rod = u.rod[k].max(initial=0.0)
+        tendon = u.tendon[k].max(initial=0.0)
+        print(f"case {case!r}: largest utilisation rods {rod:.4g}, tendons {tendon:.4g}")
+    print("wrote " + ", ".join(str(f) for f in written))
+    return 0
