@@ -103,7 +103,7 @@ MATERIALS: dict[str, Material] = {
     m.name: m
     for m in (
         Material(
-            "steel", 210e9, 7850.0, 355e6, 490e6, "structural steel S355, EN 1993-1-1 / EN 10025-2"
+            "steel", 210e9, 7850.0, 355e6, 510e6, "structural steel S355, EN 1993-1-1 Table 3.1"
         ),
         Material("stainless", 200e9, 8000.0, 220e6, 520e6, "austenitic 1.4401 (316), EN 1993-1-4"),
         Material("aluminium", 68.9e9, 2700.0, 276e6, 310e6, "6061-T6, ASM Handbook / MatWeb"),
