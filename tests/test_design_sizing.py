@@ -519,3 +519,51 @@ def test_gravity_counts_the_members_own_weight():
     np.testing.assert_allclose(r.tendon_tension, [[math.sqrt(3) * P / 2] * 2], rtol=1e-7)
     assert r.utilisation.largest <= 1 + 1e-7
     assert r.structure.node_mass[1] == pytest.approx(r.rod_mass[0] / 2, rel=1e-12)
+
+
+def test_run_utilisation_counts_the_forces_of_the_supports():
+    """A sized prism held at a fixed node, on a plane and on a line stays at its prestressed
+    equilibrium: at every sample its rods carry the compressions of the sizing's nodal balance,
+    which the supports' reactions are part of."""
+    from tensegrity.engine.simulate import simulate
+
+    s = prism(3)
+    fixed = np.zeros(6, bool)
+    fixed[0] = True
+    held = s.replace(
+        node_fixed=fixed,
+        plane_nodes=[1],
+        plane_normal=[[0, 0, 1]],
+        line_nodes=[2],
+        line_direction=[[1, 1, 0]],
+    )
+    r = size_members(held, rod_material=STEEL, tendon_material=material("kevlar"), prestress=20.0)
+    result = simulate(r.structure, (0.0, 0.01), sample_dt=0.005)
+    run = run_utilisation(result, r.members)
+    expected = np.broadcast_to(r.rod_compression[0], run.samples.rod_compression.shape)
+    np.testing.assert_allclose(run.samples.rod_compression, expected, rtol=1e-8)
+    np.testing.assert_allclose(run.rod_peak, r.utilisation.rod[0], rtol=1e-8)
+
+
+def test_rod_forces_with_a_support_equal_the_equilibrium_solvers():
+    """The crane's rod is pinned at its tail: the pin pushes back along the rod, so its
+    compression is the load's P, not P / 2 from the head's forces alone.  The dynamics'
+    constraint forces (rod_axial_forces) against the statics' reactions (find_equilibrium)."""
+    from tensegrity.design.utilisation import rod_axial_forces
+
+    s = _crane()
+    w = _load(s, 1, [0, 0, -1000.0])
+    r = size_members(
+        s, rod_material=STEEL, tendon_material=DYNEEMA, load_cases=[LoadCase("down", w)]
+    )
+    # rest lengths that give the loaded case's tensions at the geometry: it is an equilibrium
+    EA = r.members.tendon_modulus * r.tendon_area
+    length = np.full(2, math.sqrt(3))
+    loaded = r.structure.replace(tendon_rest_length=length * EA / (EA + r.tendon_tension[0]))
+    eq = find_equilibrium(loaded, external_force=w)
+    assert eq.converged
+    C = rod_axial_forces(loaded, eq.q, eq.tension, external_force=w)
+    np.testing.assert_allclose(C, eq.rod_compression, rtol=1e-9)
+    np.testing.assert_allclose(C, [1000.0], rtol=1e-6)
+    head_only = _hand_compression(loaded, eq.node_position, eq.tension)
+    assert abs(head_only[0] - C[0]) > 400.0
