@@ -495,14 +495,29 @@ def test_to_dict_content():
     assert type(d["tendons"][0]["stiffness"]) is float
 
 
-def test_from_dict_allows_extra_keys():
+@pytest.mark.parametrize(
+    ("where", "key", "message"),
+    [
+        ((), "comment", r"^structure: unknown key 'comment' \(expected one of nodes, velocities,"),
+        (("rods", 0), "mas", r"^rods\[0\]: unknown key 'mas' \(expected one of nodes, mass, "),
+        (("tendons", 3), "stifness", r"^tendons\[3\]: unknown key 'stifness' \(expected one "),
+        (("point_masses", 0), "mas", r"^point_masses\[0\]: unknown key 'mas' \(expected one of"),
+        (("planes", 0), "norm", r"^planes\[0\]: unknown key 'norm' \(expected one of node, "),
+    ],
+)
+def test_from_dict_refuses_unknown_keys_naming_them(where, key, message):
+    """As the network files (YAML, TOML) do: a typo is not silently ignored (issue 16; the
+    JSON form used to ignore every unknown key)."""
     s = build()
     d = s.to_dict()
-    d["comment"] = "made by hand"
-    d["version"] = 2
-    d["rods"][0]["colour"] = "red"
-    d["tendons"][3]["material"] = {"kind": "kevlar"}
-    assert_same_structure(Structure.from_dict(d), s)
+    d["point_masses"] = [{"node": 0, "mass": 1.0}]
+    d["planes"] = [{"node": 0, "normal": [0.0, 0.0, 1.0]}]
+    target = d
+    for step in where:
+        target = target[step]
+    target[key] = 1.0
+    with pytest.raises(ValueError, match=message):
+        Structure.from_dict(d)
 
 
 def test_from_dict_optional_keys_default():

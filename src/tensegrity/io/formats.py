@@ -51,7 +51,13 @@ from tensegrity.model.connectivity import (
     merge_joints,
     rest_from_prestrain,
 )
-from tensegrity.model.structure import Structure, node_dimension, parse_number, parse_vector
+from tensegrity.model.structure import (
+    Structure,
+    check_keys,
+    node_dimension,
+    parse_number,
+    parse_vector,
+)
 
 #: Format name of each file suffix.
 FORMATS = {
@@ -266,7 +272,7 @@ def _check_header(data: Any) -> None:
     ``version`` (if given) this library's, with ``nodes``."""
     if not isinstance(data, Mapping):
         raise ValueError(f"network: expected a mapping at the top level, got {type(data).__name__}")
-    _only(
+    check_keys(
         data,
         (
             "format",
@@ -307,7 +313,7 @@ def _member_defaults(defaults: Any) -> tuple[dict[str, Any], dict[str, Any]]:
     """The rod and tendon parameters under ``defaults`` (``{}`` for a kind without)."""
     if not isinstance(defaults, Mapping):
         raise ValueError(f"defaults: expected a mapping, got {type(defaults).__name__}")
-    _only(defaults, ("rod", "tendon"), "defaults")
+    check_keys(defaults, ("rod", "tendon"), "defaults")
     return (
         _defaults(defaults.get("rod"), _ROD_KEYS, "defaults.rod"),
         _defaults(defaults.get("tendon"), _TENDON_KEYS, "defaults.tendon"),
@@ -403,7 +409,7 @@ def _supports(data: Mapping[str, Any], index: Mapping[Any, int], dim: int) -> di
         for k, item in enumerate(items):
             if not isinstance(item, Mapping):
                 raise ValueError(f"{key}[{k}]: expected a mapping, got {type(item).__name__}")
-            _only(item, ("node", name), f"{key}[{k}]")
+            check_keys(item, ("node", name), f"{key}[{k}]")
             for field in ("node", name):
                 if field not in item:
                     raise ValueError(f"{key}[{k}]: missing key {field!r}")
@@ -423,12 +429,6 @@ def _supports(data: Mapping[str, Any], index: Mapping[Any, int], dim: int) -> di
                 -1, 3 if key == "planes" else dim
             )
     return out
-
-
-def _only(data: Mapping[str, Any], allowed: Sequence[str], where: str) -> None:
-    for key in data:
-        if key not in allowed:
-            raise ValueError(f"{where}: unknown key {key!r} (expected one of {', '.join(allowed)})")
 
 
 def _named_points(
@@ -465,7 +465,7 @@ def _defaults(value: Any, keys: Sequence[str], where: str) -> dict[str, Any]:
         return {}
     if not isinstance(value, Mapping):
         raise ValueError(f"{where}: expected a mapping, got {type(value).__name__}")
-    _only(value, keys, where)
+    check_keys(value, keys, where)
     return {key: parse_number(x, f"{where}.{key}") for key, x in value.items()}
 
 
@@ -478,7 +478,7 @@ def _members(value: Any, kind: str, keys: Sequence[str], index: Mapping[Any, int
         if not isinstance(item, Mapping):
             raise ValueError(f"{kind}[{k}]: expected a mapping, got {type(item).__name__}")
         label = f"{kind}[{k}]" + (f" ({item['name']!r})" if "name" in item else "")
-        _only(item, keys, label)
+        check_keys(item, keys, label)
         if "nodes" not in item:
             raise ValueError(f"{label}: missing key 'nodes'")
         ends = _pair(item["nodes"], f"{label}.nodes")

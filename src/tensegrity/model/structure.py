@@ -689,10 +689,13 @@ class Structure:
     def from_dict(cls, data: Mapping[str, Any]) -> Structure:
         """Build from the JSON form; a malformed document raises ``ValueError`` naming the key.
 
-        Extra keys are allowed (and ignored) at every level, for later features.
+        Unknown keys are errors at every level, as in the network files (a typo such as
+        ``"stifness"`` is not silently ignored): ``rods[0]: unknown key 'mas' (expected one of
+        nodes, mass, length, damping)``.
         """
         if not isinstance(data, Mapping):
             raise ValueError(f"structure: expected a JSON object, got {type(data).__name__}")
+        check_keys(data, _JSON_KEYS["structure"], "structure")
         nodes = _require(data, "nodes", "structure", Sequence)
         rods = _require(data, "rods", "structure", Sequence)
         tendons = _require(data, "tendons", "structure", Sequence)
@@ -706,6 +709,9 @@ class Structure:
         }
         rod_items = [_require_item(rod, f"rods[{k}]") for k, rod in enumerate(rods)]
         tendon_items = [_require_item(t, f"tendons[{k}]") for k, t in enumerate(tendons)]
+        for kind, items in (("rods", rod_items), ("tendons", tendon_items)):
+            for k, item in enumerate(items):
+                check_keys(item, _JSON_KEYS[kind], f"{kind}[{k}]")
 
         return cls(
             node_position=points["nodes"] or np.zeros((0, 3)),
@@ -721,6 +727,37 @@ class Structure:
             tendon_name=tuple(t.get("name", f"s{k}") for k, t in enumerate(tendon_items)),
             **_supports_from_dict(data, len(points["nodes"]), dim),
         )
+
+
+#: The keys of the JSON form (:meth:`Structure.to_dict`), at each level.
+_JSON_KEYS: dict[str, tuple[str, ...]] = {
+    "structure": (
+        "nodes",
+        "velocities",
+        "rods",
+        "tendons",
+        "fixed",
+        "point_masses",
+        "joints",
+        "planes",
+        "lines",
+    ),
+    "rods": ("nodes", "mass", "length", "damping"),
+    "tendons": ("name", "nodes", "stiffness", "rest_length", "damping"),
+    "point_masses": ("node", "mass"),
+    "planes": ("node", "normal"),
+    "lines": ("node", "direction"),
+}
+
+
+def check_keys(data: Mapping[Any, Any], allowed: Sequence[str], where: str) -> None:
+    """``ValueError`` naming the first key of ``data`` not in ``allowed``: ``"<where>: unknown
+    key 'mas' (expected one of nodes, mass, length, damping)"``."""
+    for key in data:
+        if key not in allowed:
+            raise ValueError(
+                f"{where}: unknown key {_shown(key)} (expected one of {', '.join(allowed)})"
+            )
 
 
 def _supports_from_dict(data: Mapping[str, Any], n_nodes: int, dim: int) -> dict[str, Any]:
@@ -739,6 +776,7 @@ def _supports_from_dict(data: Mapping[str, Any], n_nodes: int, dim: int) -> dict
             for k, item in enumerate(_require(data, "point_masses", "structure", Sequence))
         ]
         for k, item in enumerate(items):
+            check_keys(item, _JSON_KEYS["point_masses"], f"point_masses[{k}]")
             node = _node_index(
                 _require(item, "node", f"point_masses[{k}]"), f"point_masses[{k}].node", n_nodes
             )
@@ -756,6 +794,8 @@ def _supports_from_dict(data: Mapping[str, Any], n_nodes: int, dim: int) -> dict
             _require_item(item, f"{key}[{k}]")
             for k, item in enumerate(_require(data, key, "structure", Sequence))
         ]
+        for k, item in enumerate(items):
+            check_keys(item, _JSON_KEYS[key], f"{key}[{k}]")
         fields[f"{prefix}_nodes"] = [
             _node_index(_require(item, "node", f"{key}[{k}]"), f"{key}[{k}].node", n_nodes)
             for k, item in enumerate(items)
