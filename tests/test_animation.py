@@ -125,6 +125,15 @@ def test_animation_has_its_frames_size_and_motion(tmp_path, shell31, suffix):
     frames = video_frames(path)
     assert len(frames) == 10
     assert frames[0].shape[:2] == (256, 320)
+    if suffix == ".gif":
+        from PIL import Image
+
+        with Image.open(path) as gif:
+            assert gif.info["duration"] == 100 and gif.info["loop"] == 0  # [ms], for ever
+    else:
+        reader = iio.get_reader(path)
+        assert reader.get_meta_data()["fps"] == 10
+        reader.close()
     first, last = (f[..., :3].astype(int) for f in (frames[0], frames[-1]))
     changed = np.abs(first - last).max(axis=-1) > 40
     assert changed.mean() > 0.01, "the structure does not move between the first and last frame"
@@ -139,6 +148,15 @@ def test_each_frame_draws_its_own_sample(shell31):
     assert len(pictures) == 3 and pictures[0].shape == (256, 320, 3)
     np.testing.assert_array_equal(pictures[0], pictures[1])
     assert (pictures[0] != pictures[2]).any()
+
+
+def test_progress_bar_on_request(shell31, capsys):
+    frames = make_frames(shell31, np.array([0, 10, 20]))
+    assert len(list(render_frames(frames, size=(320, 256), progress=True))) == 3
+    err = capsys.readouterr().err
+    assert "animate" in err and "3/3" in err
+    list(render_frames(frames, size=(320, 256)))  # not a terminal: no bar
+    assert capsys.readouterr().err == ""
 
 
 def test_planar_and_constrained_structures_animate(tmp_path, planar):
