@@ -89,6 +89,9 @@ class _Scene:
             view = VIEW_3D if structure.dim == 3 else VIEW_PLANAR
         ax.view_init(elev=view[0], azim=view[1])
         _fix_limits(ax, frames.bounds)
+        if structure.dim == 2:  # seen from above: no z axis to read
+            ax.set_zticks([])
+            ax.set_zlabel("")
         empty = np.zeros((0, 2, 3))
         tendon_width = _thinned(TENDON_WIDTH, structure.n_tendons, 40)
         self.tendons = Line3DCollection(empty, linewidths=tendon_width, zorder=1)
