@@ -13,7 +13,6 @@ from tensegrity.cli.main import main
 from tensegrity.io.trajectory import write_trajectory
 from tensegrity.model.planar import planar_two_rod
 from tensegrity.model.shell import class2_shell
-from tensegrity.model.structure import Structure
 from tensegrity.plots.animation import animate, render_frames
 from tensegrity.plots.motion import (
     decimated_indices,
@@ -24,6 +23,7 @@ from tensegrity.plots.motion import (
     tension_colors,
 )
 from tensegrity.plots.viewer import frame_budget, html, read_viewer_data, view
+from test_kernel_system import point_mass_between_anchors
 
 iio = pytest.importorskip("imageio.v2")
 
@@ -168,23 +168,8 @@ def test_planar_and_constrained_structures_animate(tmp_path, planar):
     assert len(video_frames(tmp_path / "class2.mp4")) == 5
 
 
-def mass_between_anchors() -> Structure:
-    """No rod: a point mass on two tendons between two anchors (fixed nodes)."""
-    return Structure(
-        node_position=[[-2, 0, 0], [2, 0, 0], [0.3, 0, 0]],
-        rod_nodes=np.zeros((0, 2), int),
-        rod_mass=[],
-        rod_length=[],
-        node_fixed=[True, True, False],
-        node_point_mass=[0, 0, 0.3],
-        tendon_nodes=[[0, 2], [2, 1]],
-        tendon_stiffness=[50.0, 50.0],
-        tendon_rest_length=[1.0, 1.0],
-    )
-
-
 def test_point_masses_and_anchors_animate(tmp_path):
-    run = simulate(mass_between_anchors(), (0.0, 0.2), sample_dt=0.01)
+    run = simulate(point_mass_between_anchors(), (0.0, 0.2), sample_dt=0.01)
     frames = make_frames(run)
     assert frames.point_mass_nodes.tolist() == [2] and frames.fixed_nodes.tolist() == [0, 1]
     animate(run, tmp_path / "mass.gif", fps=10, duration=1.0, size=(320, 256))

@@ -17,7 +17,7 @@ from tensegrity.model.planar import planar_two_rod
 from tensegrity.model.shell import class2_shell
 from tensegrity.plots.motion import colormap
 from tensegrity.plots.viewer import notebook_html, read_viewer_data, view
-from test_animation import mass_between_anchors
+from test_kernel_system import point_mass_between_anchors
 
 sync_api = pytest.importorskip("playwright.sync_api")
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
@@ -230,7 +230,7 @@ def test_shell_30_30_loads_cleanly(browser, tmp_path):
 
 
 def test_point_mass_between_anchors_loads_cleanly(browser, tmp_path):
-    run = simulate(mass_between_anchors(), (0.0, 0.2), sample_dt=0.01)
+    run = simulate(point_mass_between_anchors(), (0.0, 0.2), sample_dt=0.01)
     path = view(run, tmp_path / "mass.html")
     page = Page(browser, path)
     try:
