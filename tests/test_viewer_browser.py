@@ -15,7 +15,7 @@ import pytest
 from tensegrity import class1_shell, critical_damping, simulate
 from tensegrity.model.planar import planar_two_rod
 from tensegrity.model.shell import class2_shell
-from tensegrity.plots.motion import colormap
+from tensegrity.plots.figures import tension_colormap
 from tensegrity.plots.viewer import notebook_html, read_viewer_data, view
 from test_kernel_system import point_mass_between_anchors
 
@@ -149,7 +149,7 @@ def test_tendon_colour_follows_its_tension(page31, shell31):
     tension = data["tensions"][frame].astype(float)
     low, high = data["tension_range"]
     colours = np.array([page.call(f"tensegrityViewer.tendonColor({j})") for j in range(24)])
-    expected = colormap()((tension - low) / (high - low))[:, :3]
+    expected = tension_colormap()((tension - low) / (high - low))[:, :3]
     np.testing.assert_allclose(colours, expected, atol=0.02)  # a 256-colour table
     # the most and least tense tendons are far apart on the map
     assert np.abs(colours[tension.argmax()] - colours[tension.argmin()]).sum() > 0.5

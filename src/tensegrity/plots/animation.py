@@ -35,10 +35,11 @@ from tensegrity.plots.figures import (
     ROD_WIDTH,
     SLACK_COLOR,
     TENDON_WIDTH,
+    fit_axes,
+    tension_colormap,
 )
 from tensegrity.plots.motion import (
     Frames,
-    colormap,
     frame_indices,
     make_frames,
     playback_times,
@@ -88,7 +89,7 @@ class _Scene:
         if view is None:
             view = VIEW_3D if structure.dim == 3 else VIEW_PLANAR
         ax.view_init(elev=view[0], azim=view[1])
-        _fix_limits(ax, frames.bounds)
+        fit_axes(ax, frames.bounds)
         if structure.dim == 2:  # seen from above: no z axis to read
             ax.set_zticks([])
             ax.set_zlabel("")
@@ -122,7 +123,7 @@ class _Scene:
                 (line,) = ax.plot([], [], [], ls="", zorder=5, **style)
                 self.markers.append((line, nodes))
         colour_axes = figure.add_axes((0.86, 0.2, 0.025, 0.6))
-        mappable = ScalarMappable(Normalize(*frames.tension_range), colormap())
+        mappable = ScalarMappable(Normalize(*frames.tension_range), tension_colormap())
         figure.colorbar(mappable, cax=colour_axes, label="tendon tension [N]")
         self.text = figure.text(0.02, 0.97, "", va="top", fontsize="small", family="monospace")
         self.count = figure.text(
@@ -165,23 +166,6 @@ def _thinned(width: float, count: int, up_to: int) -> float:
     """A line width [points]: ``width`` for up to ``up_to`` lines, thinner as ``1 / sqrt(count)``
     for more (a large shell would be a solid block), at least 0.25."""
     return max(0.25, width * min(1.0, (up_to / max(count, 1)) ** 0.5))
-
-
-def _fix_limits(ax: Any, bounds: np.ndarray) -> None:
-    """Axis limits around ``bounds`` (2, 3) [m] with a margin, equal scales, labels in m."""
-    low, high = bounds
-    span = high - low
-    size = float(span.max()) if span.max() > 0 else 1.0
-    half = 0.5 * np.maximum(span, 0.08 * size) + 0.04 * size
-    centre = 0.5 * (low + high)
-    ax.set_xlim(centre[0] - half[0], centre[0] + half[0])
-    ax.set_ylim(centre[1] - half[1], centre[1] + half[1])
-    ax.set_zlim(centre[2] - half[2], centre[2] + half[2])
-    ax.set_box_aspect(tuple(2 * half))
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
-    ax.set_zlabel("z [m]")
-    ax.tick_params(labelsize="small")
 
 
 def render_frames(

@@ -60,7 +60,10 @@ def new_figure(figsize: tuple[float, float]) -> Figure:
     return figure
 
 
-def _tension_colormap():
+def tension_colormap():
+    """The tension colour map (a matplotlib ``Colormap``): :data:`TENSION_CMAP` with its
+    yellow end cut off, so that every tendon shows on white; the figures', the animations' and
+    the viewer's."""
     import matplotlib
     from matplotlib.colors import ListedColormap
 
@@ -140,7 +143,7 @@ def draw_structure(
     mappable, tendon_colors = _tendon_colors(tension, slack, color_by_tension)
     tendons, slack_lines, rods = _draw_lines(ax, structure, p, slack, tendon_colors)
     nodes, fixed = _draw_nodes(ax, structure, p, show_nodes)
-    _fit_axes(ax, p)
+    fit_axes(ax, np.array([p.min(axis=0), p.max(axis=0)]))
     if legend:
         handles = _legend_handles(structure, tension, slack, mappable, fixed is not None)
         ax.legend(handles=handles, loc="upper left", fontsize="small", framealpha=0.85)
@@ -166,7 +169,7 @@ def _tendon_colors(
         and not _uniform(taut_tension)
     ):
         low, high = float(taut_tension.min()), float(taut_tension.max())
-        mappable = ScalarMappable(Normalize(low, high), _tension_colormap())
+        mappable = ScalarMappable(Normalize(low, high), tension_colormap())
         mappable.set_array(taut_tension)
         return mappable, mappable.to_rgba(taut_tension)
     return None, TENDON_COLOR
@@ -298,12 +301,13 @@ def _uniform(values: np.ndarray) -> bool:
     return float(np.ptp(values)) <= 1e-4 * float(np.max(np.abs(values)))
 
 
-def _fit_axes(ax: Axes3D, p: np.ndarray) -> None:
-    """Limits around ``p`` (N, 3) with a margin, equal scales, labels in m."""
-    low, high = p.min(axis=0), p.max(axis=0)
+def fit_axes(ax: Axes3D, bounds: np.ndarray) -> None:
+    """Limits around ``bounds`` (2, 3) [m] (the lowest and highest corner of what is drawn)
+    with a margin, equal scales, labels in m; a flat structure still gets a visible box."""
+    low, high = np.asarray(bounds, dtype=float)
     span = high - low
     size = float(span.max()) if span.max() > 0 else 1.0
-    span = np.maximum(span, 0.08 * size)  # a flat structure still gets a visible box
+    span = np.maximum(span, 0.08 * size)
     centre = 0.5 * (low + high)
     half = 0.5 * span + 0.04 * size
     ax.set_xlim(centre[0] - half[0], centre[0] + half[0])

@@ -279,19 +279,8 @@ def structure_frames(structure: Structure, position: np.ndarray | None = None) -
 def tension_colors(tension: np.ndarray, tension_range: tuple[float, float]) -> np.ndarray:
     """RGBA colours (..., 4) of tensions (...) [N] on the tension colour map over
     ``tension_range`` (clipped at its ends); the map of :mod:`tensegrity.plots.figures`."""
+    from tensegrity.plots.figures import tension_colormap  # (matplotlib: loaded on use)
+
     low, high = tension_range
     scaled = np.clip((np.asarray(tension, dtype=float) - low) / (high - low), 0.0, 1.0)
-    return colormap()(scaled)
-
-
-def colormap():
-    """The tension colour map (a matplotlib ``Colormap``): :data:`~tensegrity.plots.figures.
-    TENSION_CMAP` with its yellow end cut off, so that every tendon shows on white."""
-    import matplotlib
-    from matplotlib.colors import ListedColormap
-
-    from tensegrity.plots.figures import TENSION_CMAP
-
-    # figures.py's private _CMAP_RANGE: (0, 0.85) of the map
-    base = matplotlib.colormaps[TENSION_CMAP]
-    return ListedColormap(base(np.linspace(0.0, 0.85, 256)), name=f"{TENSION_CMAP}_cut")
+    return tension_colormap()(scaled)

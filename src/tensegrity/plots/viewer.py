@@ -30,13 +30,12 @@ import numpy as np
 
 from tensegrity.io.files import PathLike, atomic_path
 from tensegrity.model.structure import Structure
-from tensegrity.plots.figures import FIXED_COLOR, ROD_COLOR, SLACK_COLOR
+from tensegrity.plots.figures import FIXED_COLOR, ROD_COLOR, SLACK_COLOR, tension_colormap
 from tensegrity.plots.motion import (
     MAX_BYTES,
     MAX_FRAMES,
     MAX_REAL_TIME,
     Frames,
-    colormap,
     decimated_indices,
     make_frames,
     structure_frames,
@@ -102,7 +101,7 @@ def viewer_data(frames: Frames) -> dict[str, Any]:
         "tension_range": list(frames.tension_range),
         "bounds": frames.bounds.tolist(),
         "rod_radius": 0.012 * min(rod_length, span),
-        "colormap": np.round(colormap()(np.linspace(0, 1, 256))[:, :3], 5).tolist(),
+        "colormap": np.round(tension_colormap()(np.linspace(0, 1, 256))[:, :3], 5).tolist(),
         "colors": {
             "rod": ROD_COLOR,
             "slack": SLACK_COLOR,
