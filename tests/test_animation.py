@@ -302,3 +302,23 @@ def test_view_writes_a_structure_page_atomically(tmp_path):
     path = view(class1_shell(3, 1), tmp_path / "s.html")
     assert [p.name for p in tmp_path.iterdir()] == ["s.html"]
     assert read_viewer_data(path.read_text())["n_frames"] == 1
+
+
+def test_results_and_structures_show_themselves(tmp_path):
+    """``result.view(path)``, ``result.animate(path)``, ``structure.view(path)`` and the inline
+    view in Jupyter (``_repr_html_``): the same files and page as the functions they call."""
+    from tensegrity import class1_shell, simulate
+    from tensegrity.plots.viewer import html, read_viewer_data
+
+    shell = class1_shell(3, 1)
+    result = simulate(shell, (0.0, 0.2), sample_dt=0.02)
+    page = result.view(tmp_path / "run.html").read_text()
+    assert page == html(result)
+    data = read_viewer_data(page)
+    np.testing.assert_array_equal(data["positions"], result.node_position.astype(np.float32))
+    assert read_viewer_data(shell.view(tmp_path / "shell.html").read_text())["n_frames"] == 1
+    video = result.animate(tmp_path / "run.gif", fps=10)
+    assert video.stat().st_size > 0
+    for shown in (result, shell):
+        inline = shown._repr_html_()
+        assert inline.startswith("<iframe srcdoc=") and "tensegrity-data" in inline
