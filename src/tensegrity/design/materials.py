@@ -34,6 +34,7 @@ __all__ = [
     "Cable",
     "HollowTube",
     "Material",
+    "MemberDesign",
     "MemberProperties",
     "Section",
     "SolidRod",
@@ -413,3 +414,74 @@ def member_table(structure: Structure, members: MemberProperties) -> list[dict[s
             )
         )
     return rows
+
+
+@dataclasses.dataclass(frozen=True)
+class MemberDesign:
+    """The material and section of every member, as objects (what a structure file in the
+    material form gives, ``docs/design.md``): tuples of one per rod (R,) and one per tendon
+    (S,), and whether the tendons' own mass is added to the nodes (:func:`with_members`).
+
+    :meth:`properties` gives the numbers (:class:`MemberProperties`) that
+    :func:`~tensegrity.design.utilisation.utilisation` needs; :meth:`apply` the structure they
+    make.
+    """
+
+    rod_material: tuple[Material, ...]
+    rod_section: tuple[Section, ...]
+    tendon_material: tuple[Material, ...]
+    tendon_section: tuple[Section, ...]
+    tendon_mass: bool = False
+
+    @classmethod
+    def of(
+        cls,
+        structure: Structure,
+        *,
+        rod_material: Material | Sequence[Material],
+        rod_section: Section | Sequence[Section],
+        tendon_material: Material | Sequence[Material],
+        tendon_section: Section | Sequence[Section],
+        tendon_mass: bool = False,
+    ) -> MemberDesign:
+        """One material (section) for all rods (tendons) of ``structure``, or one per member;
+        checked as :func:`member_properties` checks them."""
+        design = cls(
+            tuple(per_member(rod_material, structure.n_rods, "rod_material", Material)),
+            tuple(per_member(rod_section, structure.n_rods, "rod_section", _SECTIONS)),
+            tuple(per_member(tendon_material, structure.n_tendons, "tendon_material", Material)),
+            tuple(per_member(tendon_section, structure.n_tendons, "tendon_section", _SECTIONS)),
+            tendon_mass,
+        )
+        design.properties(structure)
+        return design
+
+    def properties(self, structure: Structure) -> MemberProperties:
+        """:func:`member_properties` of these materials and sections for ``structure``."""
+        return member_properties(
+            structure,
+            rod_material=self.rod_material,
+            rod_section=self.rod_section,
+            tendon_material=self.tendon_material,
+            tendon_section=self.tendon_section,
+        )
+
+    def apply(self, structure: Structure) -> Structure:
+        """``structure`` with the stiffness ``E A / Lbar`` and masses ``rho A L`` of these
+        members (:func:`with_members`, the tendons' mass too if :attr:`tendon_mass`)."""
+        return with_members(structure, self.properties(structure), tendon_mass=self.tendon_mass)
+
+    def without_tendon_mass(self, structure: Structure) -> Structure:
+        """The inverse of :meth:`apply`'s lumping: ``structure``'s point masses less the
+        tendons' share (the payloads a file gives); ``structure`` unchanged without
+        :attr:`tendon_mass`."""
+        if not self.tendon_mass or not structure.n_tendons:
+            return structure
+        extra = lumped_tendon_mass(structure, tendon_masses(structure, self.properties(structure)))
+        free = structure.node_point_mass > 0
+        point_mass = structure.node_point_mass.copy()
+        point_mass[free] -= extra[free]
+        return structure.replace(node_point_mass=point_mass)
+
+
+_SECTIONS = (SolidRod, HollowTube, Cable)

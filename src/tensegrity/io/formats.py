@@ -32,9 +32,10 @@ SI units throughout: m, kg, s, N.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import tomllib
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -113,6 +114,9 @@ NPZ_KINDS = {
 
 _ROD_KEYS = ("mass", "length", "damping")
 _TENDON_KEYS = ("stiffness", "rest_length", "prestrain", "damping")
+#: Keys of the material form (members and ``defaults``: ``material``, ``section``; the top
+#: level: ``tendon_mass``), read by :func:`tensegrity.design.files.read_design`, not here.
+MATERIAL_FORM_KEYS = ("material", "section", "tendon_mass")
 
 
 # -------------------------------------------------------------------- readable form
@@ -221,6 +225,7 @@ def network_from_dict(data: Any) -> Structure:
         Naming the key: ``tendons[3] ('s3').nodes: no node named 'x7'``,
         ``rods[0]: unknown key 'mas' (expected one of nodes, mass, length, damping)``, ...
     """
+    _refuse_material_form(data)
     _check_header(data)
     names, position, dim = _named_points(data["nodes"], "nodes")
     for key in ("rods", "tendons"):
@@ -265,6 +270,29 @@ def network_from_dict(data: Any) -> Structure:
         tendon_damping=_column(tendons, "tendons", "damping", tendon_default, zeros[1]),
         tendon_name=tuple(item.get("name", f"s{k}") for k, (_, item) in enumerate(tendons)),
     )
+
+
+def _refuse_material_form(data: Any) -> None:
+    """``ValueError`` naming the first place of ``data`` that uses the material form (members
+    given by material and section, ``docs/design.md``), which the design layer reads."""
+    if not isinstance(data, Mapping):
+        return
+    places: list[tuple[str, Any]] = [("network", data)]
+    defaults = data.get("defaults")
+    if isinstance(defaults, Mapping):
+        places += [(f"defaults.{kind}", defaults.get(kind)) for kind in ("rod", "tendon")]
+    for kind in ("rods", "tendons"):
+        items = data.get(kind)
+        if isinstance(items, Sequence) and not isinstance(items, str):
+            places += [(f"{kind}[{k}]", item) for k, item in enumerate(items)]
+    for where, item in places:
+        if isinstance(item, Mapping):
+            found = [key for key in MATERIAL_FORM_KEYS if key in item]
+            if found:
+                raise ValueError(
+                    f"{where}: {found[0]!r} is the material form, read by "
+                    "tensegrity.design.read_design (tensegrity simulate and design read both forms)"
+                )
 
 
 def _check_header(data: Any) -> None:
@@ -504,7 +532,9 @@ def _node_ref(end: Any, where: str, index: Mapping[Any, int]) -> int:
 
 
 # ------------------------------------------------------------------------------- files
-def _format(path: PathLike, format: str | None) -> str:
+def file_format(path: PathLike, format: str | None = None) -> str:
+    """The format name (a value of :data:`FORMATS`) of ``path``: ``format`` if given (checked),
+    else by the file's suffix; a one-line ``ValueError`` otherwise."""
     if format is not None:
         if format not in set(FORMATS.values()):
             raise ValueError(
@@ -528,21 +558,84 @@ def read_network(path: PathLike, *, format: str | None = None) -> Structure:
     ValueError
         One line starting with the file name, naming the problem and the element.
     """
-    kind = _format(path, format)
+    kind = file_format(path, format)
     if kind == "json":
         return read_structure(path)
     if kind == "mjcf":
         raise file_error(path, "MJCF files are written for MuJoCo, not read back")
-    raw = read_input(path)
-    try:
-        if kind == "connectivity":
+    if kind == "connectivity":
+        raw = read_input(path)
+        with _blamed(path):
             return _from_npz(raw)
-        data = _parse_text(raw, kind)
+    data = read_document(path, format=kind)
+    with _blamed(path):
         return network_from_dict(data)
+
+
+@contextlib.contextmanager
+def _blamed(path: PathLike) -> Iterator[None]:
+    """Errors of reading ``path`` as one-line ``ValueError``s that start with its name."""
+    try:
+        yield
     except ValueError as exc:
         raise file_error(path, str(exc)) from exc
     except (TypeError, KeyError, OverflowError) as exc:
         raise file_error(path, str(exc) or type(exc).__name__) from exc
+
+
+def read_document(path: PathLike, *, format: str | None = None) -> Any:
+    """The document of a YAML, TOML or JSON structure file (by suffix, or ``format``), parsed
+    but not interpreted: mappings, lists, numbers, text.
+
+    Raises
+    ------
+    ValueError
+        One line starting with the file name (missing, not UTF-8, invalid syntax), or for a
+        format without such a document (``.npz``, ``.xml``).
+    """
+    kind = file_format(path, format)
+    if kind not in ("json", "yaml", "toml"):
+        raise file_error(path, f"a {kind} file is not a YAML, TOML or JSON document")
+    raw = read_input(path)
+    with _blamed(path):
+        if kind == "json":
+            return _parse_json(raw)
+        return _parse_text(raw, kind)
+
+
+def _parse_json(raw: bytes) -> Any:
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"not UTF-8 text (byte {exc.start})") from exc
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ValueError(
+            f"invalid JSON at line {exc.lineno}, column {exc.colno}: {exc.msg}"
+        ) from exc
+    except RecursionError as exc:
+        raise ValueError("invalid JSON: nested too deeply") from exc
+    except ValueError as exc:  # an integer of more digits than Python converts (4300)
+        raise ValueError(f"invalid JSON: {exc}") from exc
+
+
+def write_document(
+    path: PathLike, data: Mapping[str, Any], *, format: str | None = None, header: str = ""
+) -> Path:
+    """Write a readable-form document ``data`` (e.g. :func:`network_to_dict`'s) as YAML, TOML
+    or JSON (by suffix, or ``format``), atomically; ``header`` (lines of ``# ...``) heads YAML
+    and TOML files."""
+    kind = file_format(path, format)
+    if kind == "json":
+        text = json.dumps(data, indent=2, allow_nan=False) + "\n"
+    elif kind in ("yaml", "toml"):
+        text = header + _dump_document(data, kind)
+    else:
+        raise file_error(path, f"a {kind} file is not a YAML, TOML or JSON document")
+    with atomic_path(path) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+    return Path(path)
 
 
 def _parse_text(raw: bytes, kind: str) -> Any:
@@ -615,7 +708,7 @@ def write_network(
     structure written merged reads back with the same ``N, C_b, C_s``, supports and parameters
     in the layout of :func:`from_connectivity` (see ``docs/networks.md``).
     """
-    kind = _format(path, format)
+    kind = file_format(path, format)
     if kind == "json":
         return write_structure(path, structure)
     if kind == "mjcf":
@@ -672,10 +765,15 @@ def _dump_text(structure: Structure, kind: str, keep_joints: bool) -> str:
         f"# {len(data['nodes'])} nodes{joined}, {structure.n_rods} rods (bars), "
         f"{structure.n_tendons} tendons (strings); SI units\n"
     )
+    return header + _dump_document(data, kind)
+
+
+def _dump_document(data: Mapping[str, Any], kind: str) -> str:
+    """``data`` as TOML or YAML text (members one a line in YAML)."""
     if kind == "toml":
         import tomli_w
 
-        return header + tomli_w.dumps(data)
+        return tomli_w.dumps(data)
     import yaml
 
     class _Dumper(yaml.SafeDumper):
@@ -696,7 +794,7 @@ def _dump_text(structure: Structure, kind: str, keep_joints: bool) -> str:
     _Dumper.add_representer(list, short_lists)
     _Dumper.add_representer(dict, members)
     _Dumper.add_representer(str, text)
-    return header + yaml.dump(data, Dumper=_Dumper, sort_keys=False, allow_unicode=True, width=120)
+    return yaml.dump(data, Dumper=_Dumper, sort_keys=False, allow_unicode=True, width=120)
 
 
 # ----------------------------------------------------------------------------- structures
@@ -728,23 +826,11 @@ def read_structure(path: PathLike) -> Structure:
     :func:`tensegrity.io.formats.read_network` instead (docs/networks.md); any other name as JSON.
     """
     if Path(path).suffix.lower() in (".yaml", ".yml", ".toml", ".npz"):
-        from tensegrity.io.formats import read_network
-
         return read_network(path)
-    try:
-        text = read_input(path).decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise file_error(path, f"not UTF-8 text (byte {exc.start})") from exc
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise file_error(
-            path, f"invalid JSON at line {exc.lineno}, column {exc.colno}: {exc.msg}"
-        ) from exc
-    except RecursionError as exc:
-        raise file_error(path, "invalid JSON: nested too deeply") from exc
-    except ValueError as exc:  # an integer of more digits than Python converts (4300)
-        raise file_error(path, f"invalid JSON: {exc}") from exc
+    data = read_document(path, format="json")
+    if isinstance(data, Mapping) and "format" in data:  # the readable form, as JSON
+        with _blamed(path):
+            return network_from_dict(data)
     return _structure_from_dict(data, path)
 
 
