@@ -226,3 +226,27 @@ def test_json_readable_form_is_read_by_the_numeric_reader(tmp_path):
     path.write_text(json.dumps(network_to_dict(s)))
     assert read_structure(path).to_dict() == s.to_dict()
     assert read_network(path).to_dict() == s.to_dict()
+
+
+def test_keep_tension_keeps_the_prestress():
+    """``apply(keep_tension=True)``: each taut tendon's tension at the node positions is the
+    structure's before (the rest lengths change); a slack tendon keeps its rest length."""
+    s = prism(tension=7)
+    slack = s.tendon_rest_length.copy()
+    slack[0] *= 2  # longer than its length: slack
+    s = s.replace(tendon_rest_length=slack)
+    design = MemberDesign.of(
+        s,
+        rod_material=material("steel"),
+        rod_section=SolidRod(0.01),
+        tendon_material=material("dyneema"),
+        tendon_section=Cable(0.001),
+    )
+    kept = design.apply(s, keep_tension=True)
+    p = s.node_position
+    length = np.linalg.norm(p[s.tendon_nodes[:, 1]] - p[s.tendon_nodes[:, 0]], axis=1)
+    before = np.maximum(s.tendon_stiffness * (length - s.tendon_rest_length), 0)
+    after = np.maximum(kept.tendon_stiffness * (length - kept.tendon_rest_length), 0)
+    np.testing.assert_allclose(after, before, rtol=1e-9)
+    assert kept.tendon_rest_length[0] == s.tendon_rest_length[0] and after[0] == 0
+    assert design.apply(s).tendon_rest_length.tolist() == s.tendon_rest_length.tolist()

@@ -16,14 +16,45 @@ import argparse
 import json
 import math
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from tensegrity.cli.errors import CommandError, blame
 from tensegrity.io.files import atomic_path, shown_path, write_staged
 
-__all__ = ["add_parsers"]
+if TYPE_CHECKING:
+    from tensegrity.design.materials import Material, Section
+
+__all__ = ["add_parsers", "parse_materials", "parse_sections"]
+
+
+def parse_materials(text: str) -> tuple[Material, Material]:
+    """``--material ROD[,TENDON]``: the rods' and the tendons' table materials (the same one
+    if only one is named); a one-line ``ValueError`` otherwise."""
+    from tensegrity.design.materials import material
+
+    names = text.split(",")
+    if len(names) > 2:
+        raise ValueError(f"expected ROD or ROD,TENDON, got {text!r}")
+    return material(names[0]), material(names[-1])
+
+
+def parse_sections(text: str) -> tuple[Section, Section]:
+    """``--section ROD,TENDON`` of ``tensegrity simulate``: the rods' section ``rod:D`` or
+    ``tube:D:T`` and the tendons' ``cable:D``, millimetres
+    (:func:`tensegrity.design.materials.parse_section`); a one-line ``ValueError`` otherwise."""
+    from tensegrity.design.materials import Cable, parse_section
+
+    parts = text.split(",")
+    if len(parts) != 2:
+        raise ValueError(
+            f"expected ROD,TENDON, e.g. rod:20,cable:3 or tube:40:2,cable:3 (mm), got {text!r}"
+        )
+    rod, tendon = parse_section(parts[0]), parse_section(parts[1])
+    if isinstance(rod, Cable):
+        raise ValueError(f"a cable cannot be a rod (no bending stiffness): {parts[0]!r}")
+    return rod, tendon
 
 
 def _number(text: str, low: float, strict: bool) -> float:
@@ -147,20 +178,17 @@ def add_parsers(sub: Any) -> None:
 
 
 def _cmd_design(args: argparse.Namespace) -> int:
-    from tensegrity.design.materials import material, member_table
+    from tensegrity.design.files import read_design
+    from tensegrity.design.materials import member_table
     from tensegrity.design.sizing import LoadCase, size_members
-    from tensegrity.io.formats import read_network, write_structure
+    from tensegrity.io.formats import write_structure
 
     if args.out.exists() and not args.out.is_dir():
         raise CommandError(f"--out: {shown_path(args.out)} is a file, expected a folder")
     with blame("--material", None):
-        names = args.material.split(",")
-        if len(names) > 2:
-            raise ValueError(f"expected ROD or ROD,TENDON, got {args.material!r}")
-        rod_material = material(names[0])
-        tendon_material = material(names[-1])
+        rod_material, tendon_material = parse_materials(args.material)
     with blame("--structure", args.structure):
-        structure = read_network(args.structure)
+        structure = read_design(args.structure).structure  # its geometry and topology
     d = structure.dim
     forces: dict[str, np.ndarray] = {}
     for case, node, force in args.load:

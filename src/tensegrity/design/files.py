@@ -186,9 +186,9 @@ def _members_design(
                 f"{label}: no {' and no '.join(missing)} (other members are given by material "
                 f"and section: give every member both, its own or under defaults.{kind})"
             )
-        where = {key: label if key in own else f"defaults.{kind}" for key in chosen}
-        materials.append(_material(chosen["material"], f"{where['material']}.material"))
-        sections.append(_section(chosen["section"], f"{where['section']}.section", kind))
+        origin = {key: label if key in own else f"defaults.{kind}" for key in chosen}
+        materials.append(_material(chosen["material"], f"{origin['material']}.material"))
+        sections.append(_section(chosen["section"], f"{origin['section']}.section", kind))
     return materials, sections
 
 

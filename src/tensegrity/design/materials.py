@@ -466,10 +466,25 @@ class MemberDesign:
             tendon_section=self.tendon_section,
         )
 
-    def apply(self, structure: Structure) -> Structure:
+    def apply(self, structure: Structure, *, keep_tension: bool = False) -> Structure:
         """``structure`` with the stiffness ``E A / Lbar`` and masses ``rho A L`` of these
-        members (:func:`with_members`, the tendons' mass too if :attr:`tendon_mass`)."""
-        return with_members(structure, self.properties(structure), tendon_mass=self.tendon_mass)
+        members (:func:`with_members`, the tendons' mass too if :attr:`tendon_mass`).
+
+        With ``keep_tension``, each taut tendon first gets the rest length
+        ``Lbar = l E A / (E A + T)`` that keeps its tension ``T = k (l - Lbar)`` [N] at the
+        structure's node positions (``l`` its length there) under the new stiffness: a
+        prestressed structure keeps its prestress (its strain changes instead).  Slack
+        tendons keep their rest length."""
+        members = self.properties(structure)
+        if keep_tension and structure.n_tendons:
+            p = structure.node_position
+            ends = structure.tendon_nodes
+            length = np.linalg.norm(p[ends[:, 1]] - p[ends[:, 0]], axis=1)
+            tension = structure.tendon_stiffness * (length - structure.tendon_rest_length)
+            EA = members.tendon_modulus * members.tendon_area
+            rest = np.where(tension > 0, length * EA / (EA + tension), structure.tendon_rest_length)
+            structure = structure.replace(tendon_rest_length=rest)
+        return with_members(structure, members, tendon_mass=self.tendon_mass)
 
     def without_tendon_mass(self, structure: Structure) -> Structure:
         """The inverse of :meth:`apply`'s lumping: ``structure``'s point masses less the

@@ -19,6 +19,8 @@ end) adds nothing to it.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from pathlib import Path
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
@@ -34,11 +36,16 @@ if TYPE_CHECKING:
     from tensegrity.engine.result import SimulationResult
 
 __all__ = [
+    "Peak",
     "RunUtilisation",
+    "TrajectoryUtilisation",
     "Utilisation",
     "euler_load",
+    "failures",
+    "peak",
     "rod_axial_forces",
     "run_utilisation",
+    "trajectory_utilisation",
     "utilisation",
 ]
 
@@ -162,16 +169,22 @@ class RunUtilisation(NamedTuple):
 
     def failures(self, structure: Structure) -> list[str]:
         """One line per member whose utilisation exceeded 1, with its peak and time."""
-        lines = [
-            f"tendon {structure.tendon_name[s]!r}: utilisation {self.tendon_peak[s]:.3g} at "
-            f"t = {self.tendon_peak_time[s]:.6g} s"
-            for s in np.flatnonzero(self.tendon_peak > 1)
-        ]
-        lines += [
-            f"rod {r}: utilisation {self.rod_peak[r]:.3g} at t = {self.rod_peak_time[r]:.6g} s"
-            for r in np.flatnonzero(self.rod_peak > 1)
-        ]
-        return lines
+        return failures(structure, self)
+
+
+def failures(structure: Structure, peaks: RunUtilisation | TrajectoryUtilisation) -> list[str]:
+    """One line per member of ``structure`` whose peak utilisation (``peaks``) exceeded 1, with
+    its time."""
+    lines = [
+        f"tendon {structure.tendon_name[s]!r}: utilisation {peaks.tendon_peak[s]:.3g} at "
+        f"t = {peaks.tendon_peak_time[s]:.6g} s"
+        for s in np.flatnonzero(peaks.tendon_peak > 1)
+    ]
+    lines += [
+        f"rod {r}: utilisation {peaks.rod_peak[r]:.3g} at t = {peaks.rod_peak_time[r]:.6g} s"
+        for r in np.flatnonzero(peaks.rod_peak > 1)
+    ]
+    return lines
 
 
 def run_utilisation(
@@ -179,22 +192,32 @@ def run_utilisation(
     members: MemberProperties,
     *,
     safety_factor: float = 1.0,
-    external_force: np.ndarray | None = None,
+    external_force: np.ndarray | Callable[[float], np.ndarray] | None = None,
 ) -> RunUtilisation:
     """The utilisation of every member at every sample of a run, and each member's largest.
 
     Tendon stresses come from the run's recorded tensions (damping included); rod compressions
     from those tensions, the run's gravity (its ``settings``) and ``external_force`` (N, dim)
-    [N] (constant; the run's own forces are not in the result: give them here), by
-    :func:`rod_axial_forces` at each sample.
+    [N] (constant, or a function ``w(t)`` such as a
+    :class:`~tensegrity.model.loads.ForceTable`, as :func:`tensegrity.simulate` takes it; the
+    run's own forces are not in the result: give them here), by :func:`rod_axial_forces` at
+    each sample.
     """
     s = result.structure
     g = result.settings.get("gravity")
     gravity = None if g is None else np.asarray(g, dtype=float)
+
+    def force(t: float) -> np.ndarray | None:
+        if external_force is None or not callable(external_force):
+            return external_force
+        return np.asarray(external_force(t), dtype=float)
+
     compression = np.array(
         [
-            rod_axial_forces(s, q, T, qdot=qdot, external_force=external_force, gravity=gravity)
-            for q, qdot, T in zip(result.q, result.qdot, result.tendon_tension, strict=True)
+            rod_axial_forces(s, q, T, qdot=qdot, external_force=force(t), gravity=gravity)
+            for t, q, qdot, T in zip(
+                result.t, result.q, result.qdot, result.tendon_tension, strict=True
+            )
         ]
     ).reshape(len(result.t), s.n_rods)
     u = utilisation(
@@ -212,4 +235,97 @@ def run_utilisation(
         tendon_peak_time=result.t[tendon_at],
         rod_peak=np.max(u.rod, axis=0, initial=0.0),
         rod_peak_time=result.t[rod_at],
+    )
+
+
+class Peak(NamedTuple):
+    """The largest of a utilisation over members and samples: its value, the member (index)
+    and the time [s]."""
+
+    value: float
+    member: int
+    time: float
+
+
+def peak(values: np.ndarray, t: np.ndarray) -> Peak | None:
+    """The largest of ``values`` (T, M) (samples x members) at times ``t`` (T,) [s]; None
+    without members or samples."""
+    if values.size == 0:
+        return None
+    sample, member = np.unravel_index(int(np.argmax(values)), values.shape)
+    return Peak(float(values[sample, member]), int(member), float(t[sample]))
+
+
+#: :func:`trajectory_utilisation` finds rod forces at this many samples of a run at most.
+ROD_SAMPLES = 2000
+#: ... and reads at most this many bytes of tendon tensions (every sample when they fit).
+TENSION_BYTES = 2**27
+
+
+class TrajectoryUtilisation(NamedTuple):
+    """The largest utilisation of each member over a run read from its trajectory file
+    (:func:`trajectory_utilisation`): tendons from one sample in ``tendon_every``, rods from
+    one in ``rod_every`` (and always the last)."""
+
+    tendon_peak: np.ndarray  #: largest ``sigma / sigma_y`` of each tendon (S,)
+    tendon_peak_time: np.ndarray  #: when (S,) [s]
+    tendon_yield: Peak | None  #: the largest over tendons
+    rod_peak: np.ndarray  #: largest governing utilisation of each rod (R,)
+    rod_peak_time: np.ndarray  #: when (R,) [s]
+    rod_yield: Peak | None  #: the largest ``|C| / (A sigma_y)`` over rods
+    rod_buckling: Peak | None  #: the largest ``C / P_Euler`` over rods
+    tendon_every: int
+    rod_every: int
+
+    @property
+    def largest(self) -> float:
+        """The largest utilisation of any member."""
+        return float(max(self.tendon_peak.max(initial=0.0), self.rod_peak.max(initial=0.0)))
+
+    def failures(self, structure: Structure) -> list[str]:
+        """One line per member whose utilisation exceeded 1, with its peak and time."""
+        return failures(structure, self)
+
+
+def trajectory_utilisation(
+    path: str | Path,
+    members: MemberProperties,
+    *,
+    n_samples: int,
+    safety_factor: float = 1.0,
+    external_force: np.ndarray | Callable[[float], np.ndarray] | None = None,
+    rod_samples: int = ROD_SAMPLES,
+    tension_bytes: int = TENSION_BYTES,
+) -> TrajectoryUtilisation:
+    """The largest utilisation of every member over the run in a trajectory file of
+    ``n_samples`` samples, reading only what it needs: the tendon tensions (every sample, or
+    one in k to stay within ``tension_bytes``) and, for the rods' forces (:func:`run_utilisation`,
+    a solve per sample), one sample in k to stay within ``rod_samples``.  ``external_force``:
+    the run's (the file does not hold it).
+    """
+    from tensegrity.io.trajectory import read_dataset, read_trajectory
+
+    run = read_trajectory(path, every=max(1, -(-n_samples // rod_samples)))
+    rods = run_utilisation(run, members, safety_factor=safety_factor, external_force=external_force)
+    S = run.structure.n_tendons
+    tendon_every = max(1, -(-n_samples * S * 8 // tension_bytes))
+    t = read_dataset(path, "time", every=tendon_every)
+    tension = read_dataset(path, "tendon_tension", every=tendon_every)
+    tendon = utilisation(
+        run.structure,
+        members,
+        tension=tension,
+        compression=np.zeros((len(t), run.structure.n_rods)),
+    ).tendon_yield
+    at = np.argmax(tendon, axis=0) if S else np.zeros(0, dtype=int)
+    return TrajectoryUtilisation(
+        tendon_peak=np.max(tendon, axis=0, initial=0.0),
+        tendon_peak_time=t[at],
+        tendon_yield=peak(tendon, t),
+        rod_peak=rods.rod_peak,
+        rod_peak_time=rods.rod_peak_time,
+        rod_yield=peak(rods.samples.rod_yield, rods.t),
+        rod_buckling=peak(rods.samples.rod_buckling, rods.t),
+        tendon_every=tendon_every,
+        rod_every=max(1, -(-n_samples // rod_samples)),
     )
