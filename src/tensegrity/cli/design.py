@@ -15,12 +15,13 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from tensegrity.cli.errors import CommandError, blame
+from tensegrity.cli.errors import EXIT_FAILED, CommandError, blame
 from tensegrity.io.files import atomic_path, shown_path, write_staged
 
 if TYPE_CHECKING:
@@ -173,6 +174,20 @@ def add_parsers(sub: Any) -> None:
     p.add_argument(
         "--tendon-mass", action="store_true", help="count the tendons' own weight and mass"
     )
+    p.add_argument(
+        "--check-dynamics",
+        action="store_true",
+        help="simulate the sized structure under each load case applied suddenly (from rest at "
+        "the prestressed equilibrium) and report the members' largest utilisation in motion",
+    )
+    p.add_argument(
+        "--damping-ratio",
+        type=lambda t: _number(t, 0.0, False),
+        default=None,
+        metavar="ZETA",
+        help="with --check-dynamics: each tendon's damping as a fraction of its critical "
+        "damping (default 0.02; 0: undamped)",
+    )
     p.add_argument("-o", "--out", type=Path, required=True, help="output folder")
     p.set_defaults(run=_cmd_design)
 
@@ -222,6 +237,7 @@ def _cmd_design(args: argparse.Namespace) -> int:
         )
     except ValueError as exc:
         raise CommandError(" ".join(str(exc).split())) from None
+    dynamic = _dynamic(args, sizing, cases)
     report = sizing.to_dict() | {
         "settings": dict(
             structure=str(args.structure),
@@ -237,6 +253,8 @@ def _cmd_design(args: argparse.Namespace) -> int:
         ),
         "members": member_table(sizing.structure, sizing.members),
     }
+    if dynamic is not None:
+        report["dynamic"] = dynamic
 
     def write(staging: Path) -> list[Path]:
         target = write_structure(staging / "structure.json", sizing.structure)
@@ -254,5 +272,74 @@ def _cmd_design(args: argparse.Namespace) -> int:
         rod = u.rod[k].max(initial=0.0)
         tendon = u.tendon[k].max(initial=0.0)
         print(f"case {case!r}: largest utilisation rods {rod:.4g}, tendons {tendon:.4g}")
+    failing = []
+    dynamic = dynamic or {"cases": []}
+    for case in dynamic["cases"]:
+        verdict = "a member exceeds its limits" if case["exceeds"] else "within limits"
+        print(
+            f"case {case['case']!r} applied suddenly: largest utilisation "
+            f"{case['largest_utilisation']:.4g} in motion ({case['duration_s']:.4g} s simulated, "
+            f"damping ratio {dynamic['damping_ratio']:g}): {verdict}"
+        )
+        failing += [f"case {case['case']!r}: {line}" for line in case["failures"]]
     print("wrote " + ", ".join(str(f) for f in written))
+    if failing:
+        more = f"; and {len(failing) - 3} more" if len(failing) > 3 else ""
+        print(
+            "tensegrity: warning: under loads applied suddenly, members exceed their limits: "
+            + "; ".join(failing[:3])
+            + more,
+            file=sys.stderr,
+        )
     return 0
+
+
+def _dynamic(args: argparse.Namespace, sizing: Any, cases: list[Any]) -> dict[str, Any] | None:
+    """``--check-dynamics``: :func:`tensegrity.design.dynamic.dynamic_check` of the sized
+    structure under the load cases, as the report's ``dynamic`` section (None without it)."""
+    if not args.check_dynamics:
+        if args.damping_ratio is not None:
+            raise CommandError("--damping-ratio: only with --check-dynamics")
+        return None
+    from tensegrity.design.dynamic import DAMPING_RATIO, dynamic_check
+
+    ratio = DAMPING_RATIO if args.damping_ratio is None else args.damping_ratio
+    if not ratio < 1:
+        raise CommandError(f"--damping-ratio: must be < 1, got {ratio:g}")
+    if not cases:
+        raise CommandError("--check-dynamics: give a load case (--load or --gravity)")
+    try:
+        runs = dynamic_check(
+            sizing.structure,
+            sizing.members,
+            cases,
+            damping_ratio=ratio,
+            safety_factor=args.safety_factor,
+        )
+    except ValueError as exc:
+        raise CommandError(f"--check-dynamics: {' '.join(str(exc).split())}", EXIT_FAILED) from None
+    s = sizing.structure
+    return dict(
+        damping_ratio=ratio,
+        cases=[
+            dict(
+                case=run.name,
+                duration_s=run.duration,
+                sample_dt_s=run.sample_dt,
+                largest_utilisation=run.largest,
+                static_largest_utilisation=float(
+                    max(
+                        sizing.utilisation.tendon[sizing.cases.index(run.name)].max(initial=0.0),
+                        sizing.utilisation.rod[sizing.cases.index(run.name)].max(initial=0.0),
+                    )
+                ),
+                exceeds=run.fails,
+                failures=run.utilisation.failures(s),
+                tendon_peak=run.utilisation.tendon_peak.tolist(),
+                tendon_peak_time_s=run.utilisation.tendon_peak_time.tolist(),
+                rod_peak=run.utilisation.rod_peak.tolist(),
+                rod_peak_time_s=run.utilisation.rod_peak_time.tolist(),
+            )
+            for run in runs
+        ],
+    )

@@ -9,6 +9,10 @@
   buckling, at a state or over a run.
 - :mod:`~tensegrity.design.sizing` — minimal-mass member sizing under yield and buckling for a
   prestress and load cases (linear programs, ``docs/design.md``).
+- :mod:`~tensegrity.design.dynamic` — the dynamic check: a structure under each load case
+  applied suddenly, the members' largest utilisation in motion.
+- :mod:`~tensegrity.design.files` — structure files in the material form (members by material
+  and section): ``read_design``, ``write_design``.
 
-Imports model, physics, engine and analysis; nothing above.
+Imports model, physics, engine, io and analysis; nothing above.
 """
