@@ -291,7 +291,7 @@ def _refuse_material_form(data: Any) -> None:
             if found:
                 raise ValueError(
                     f"{where}: {found[0]!r} is the material form, read by "
-                    "tensegrity.design.read_design (tensegrity simulate and design read both forms)"
+                    "tensegrity.design.files.read_design (every CLI command reads both forms)"
                 )
 
 
