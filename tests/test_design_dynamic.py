@@ -19,12 +19,11 @@ from tensegrity.model.structure import Structure
 F = 1000.0  # [N]
 
 
-@pytest.fixture(scope="module")
-def pendulum():
+def _pendulum(min_area: float) -> tuple:
     """A steel rod pinned at its tail (a fixed node), its tip held by one tendon to an anchor
     at right angles, pulled away from the anchor by F: statically determinate, T = F, C = 0.
     For small motions one degree of freedom: the tip's, of effective mass m/3 (I / L^2 of a
-    rod about its end) on the tendon's stiffness E A / L."""
+    rod about its end) on the tendon's stiffness E A / L.  Sized with ``min_area`` [m^2]."""
     s = Structure(
         node_position=np.array([[0.0, 0, 0], [1, 0, 0], [1, 1, 0]]),
         rod_nodes=[[0, 1]],
@@ -40,9 +39,15 @@ def pendulum():
     case = LoadCase("pull", force)
     steel = material("steel")
     sizing = size_members(
-        s, rod_material=steel, tendon_material=steel, load_cases=[case], min_area=1e-4
+        s, rod_material=steel, tendon_material=steel, load_cases=[case], min_area=min_area
     )
     return sizing, case
+
+
+@pytest.fixture(scope="module")
+def pendulum():
+    """The pendulum with a heavy rod (min_area 1e-4 m^2): its tendon far below yield."""
+    return _pendulum(1e-4)
 
 
 @pytest.mark.parametrize("zeta", [0.0, 0.02, 0.1])
@@ -94,23 +99,7 @@ def test_a_member_sized_to_its_limit_fails_in_motion():
     exceeds 1 (about 2), and the check says so.  (The rod, of the least area, C = 0 in the
     small-displacement statics, also buckles in motion: turned by the tip's swing it takes a
     part of the fixed-direction load along its axis.)"""
-    s = Structure(
-        node_position=np.array([[0.0, 0, 0], [1, 0, 0], [1, 1, 0]]),
-        rod_nodes=[[0, 1]],
-        rod_mass=[1.0],
-        rod_length=[1.0],
-        tendon_nodes=[[1, 2]],
-        tendon_stiffness=[1.0],
-        tendon_rest_length=[1.0],
-        node_fixed=[True, False, True],
-    )
-    force = np.zeros((3, 3))
-    force[1] = [0, -F, 0]
-    case = LoadCase("pull", force)
-    steel = material("steel")
-    sizing = size_members(
-        s, rod_material=steel, tendon_material=steel, load_cases=[case], min_area=1e-6
-    )
+    sizing, case = _pendulum(1e-6)
     assert sizing.utilisation.tendon[0, 0] == pytest.approx(1.0, rel=1e-9)
     (run,) = dynamic_check(sizing.structure, sizing.members, [case])
     assert run.fails and 1.8 < run.utilisation.tendon_peak[0] <= 2.0 + 1e-3
