@@ -322,3 +322,39 @@ def test_results_and_structures_show_themselves(tmp_path):
     for shown in (result, shell):
         inline = shown._repr_html_()
         assert inline.startswith("<iframe srcdoc=") and "tensegrity-data" in inline
+
+
+def test_simulate_writes_the_viewer_from_the_samples_it_kept(tmp_path):
+    """``tensegrity simulate`` writes ``view.html`` beside its figures, its frames kept as the
+    run's samples passed (not read back from the file): each frame is a sample of the
+    trajectory (positions and tensions to float32), the first and the last among them, at most
+    the page's frame budget; a resumed run's page, read from the file, shows the same samples'
+    values; ``--no-view`` writes none."""
+    from tensegrity.cli.main import main
+    from tensegrity.io.trajectory import read_trajectory
+    from tensegrity.plots.motion import MAX_FRAMES, read_frames
+    from tensegrity.plots.viewer import read_viewer_data
+
+    out = tmp_path / "out"
+    run = ["simulate", "--t-end", "8", "--no-steady-state", "--sample-dt", "0.01"]
+    assert main([*run, "--out", str(out)]) == 0
+    trajectory = read_trajectory(out / "trajectory.h5")
+    data = read_viewer_data((out / "view.html").read_text())
+    numbers = np.array(data["sample_index"])
+    assert 100 <= numbers.size <= MAX_FRAMES and numbers[0] == 0
+    assert numbers[-1] == trajectory.t.size - 1 and np.all(np.diff(numbers) > 0)
+    np.testing.assert_array_equal(data["time"], trajectory.t[numbers])
+    np.testing.assert_array_equal(
+        data["positions"], trajectory.node_position[numbers].astype(np.float32)
+    )
+    np.testing.assert_array_equal(
+        data["tensions"], trajectory.tendon_tension[numbers].astype(np.float32)
+    )
+    # (a resumed run's frames are read from the file: the datasets they show, one row in k)
+    frames, n_samples = read_frames(out / "trajectory.h5", max_frames=50, max_bytes=10**9)
+    assert n_samples == trajectory.t.size and frames.n_frames <= 50 and frames.index[-1] == 800
+    np.testing.assert_array_equal(frames.time, trajectory.t[frames.index])
+    np.testing.assert_array_equal(frames.position, trajectory.node_position[frames.index])
+    np.testing.assert_array_equal(frames.tension, trajectory.tendon_tension[frames.index])
+    assert main([*run, "--no-view", "--out", str(tmp_path / "bare")]) == 0
+    assert not (tmp_path / "bare" / "view.html").exists()

@@ -38,6 +38,7 @@ FINAL_NAMES = {
     "initial.png",
     "equilibrium.png",
     "tendon_lengths.png",
+    "view.html",
 }
 PARTIAL = ".trajectory.h5.partial"
 DATASETS = (

@@ -20,6 +20,7 @@ from tensegrity.cli.main import main
 from tensegrity.io import files
 from tensegrity.io.files import remove_stale, write_staged
 from tensegrity.io.trajectory import read_trajectory
+from tensegrity.plots.viewer import read_viewer_data
 from tensegrity.sweep import read_sweep
 
 
@@ -208,6 +209,10 @@ def _check_complete(path: Path, content: bytes) -> None:
         ElementTree.fromstring(content)
     elif path.suffix == ".nc":
         assert read_sweep(path).sizes["case"] == 8, path
+    elif path.suffix == ".html":
+        text = content.decode("utf-8")
+        assert text.rstrip().endswith("</html>"), path
+        assert read_viewer_data(text)["n_frames"] >= 2, path
     else:
         raise AssertionError(f"unexpected file {path}")
 

@@ -55,6 +55,7 @@ if TYPE_CHECKING:
     from tensegrity.engine.result import SimulationResult
     from tensegrity.io.stream import StreamSummary
     from tensegrity.model.loads import ForceTable
+    from tensegrity.plots.motion import FrameKeeper
 
 #: The command's name: the ``prog`` of its parser, which the verbs' parsers extend.
 PROG = "tensegrity"
@@ -487,9 +488,11 @@ def _stream_run(
     force: ForceTable | None,
     gravity: np.ndarray | None,
     files: _RunFiles,
+    keeper: FrameKeeper | None,
 ) -> StreamSummary:
-    """Simulate into ``files.work`` (through its partial file); a rejected or failed run leaves
-    nothing of this call's making behind, an interrupted one its partial file."""
+    """Simulate into ``files.work`` (through its partial file), the viewer's frames into
+    ``keeper`` as they come; a rejected or failed run leaves nothing of this call's making
+    behind, an interrupted one its partial file."""
     from tensegrity.io.stream import OutOfTimeError, simulate_to_file
 
     try:
@@ -510,6 +513,7 @@ def _stream_run(
             steady_state=not args.no_steady_state,
             max_steps=args.max_steps,
             max_wall_time=args.max_wall_time,
+            observe=None if keeper is None else keeper.add,
         )
     except KeyboardInterrupt:
         raise
@@ -538,18 +542,31 @@ def _stream_run(
 
 
 def _write_run(
-    args: argparse.Namespace, structure: Structure, summary: StreamSummary, files: _RunFiles
+    args: argparse.Namespace,
+    structure: Structure,
+    summary: StreamSummary,
+    files: _RunFiles,
+    keeper: FrameKeeper | None,
 ) -> tuple[SimulationResult, float, list[Path]]:
     """Write the finished run's files to ``--out`` together; the trajectory read back for the
-    figures and the summary, the largest energy balance error [J] and the files written."""
+    figures and the summary, the largest energy balance error [J] and the files written.  The
+    viewer's frames are ``keeper``'s (read from the file for a resumed run)."""
     from tensegrity.io.formats import write_structure
     from tensegrity.io.trajectory import read_dataset, read_trajectory
     from tensegrity.plots.figures import save_figures
+    from tensegrity.plots.motion import MAX_BYTES, MAX_FRAMES, read_frames
+    from tensegrity.plots.viewer import view
 
     work = files.work
     # the first and last samples for the structure figures and the summary, the tendon lengths
-    # at most FIGURE_SAMPLES times (and the last), the energy balance from every sample
+    # at most FIGURE_SAMPLES times (and the last), the energy balance from every sample; the
+    # viewer's frames as kept during the run, or (a resumed run) from the datasets they show
     trajectory = read_trajectory(work, every=max(1, summary.n_samples - 1))
+    frames = None
+    if keeper is not None and summary.resumed_from is None and summary.segments_run:
+        frames = keeper.frames(summary.message)
+    elif keeper is not None:
+        frames, _ = read_frames(work, max_frames=MAX_FRAMES, max_bytes=MAX_BYTES)
     every = max(1, -(-summary.n_samples // FIGURE_SAMPLES))
     history = (
         read_dataset(work, "time", every=every),
@@ -561,6 +578,7 @@ def _write_run(
         outputs = [
             write_structure(staging / "structure.json", structure),
             *save_figures(trajectory, staging, history=history),
+            *([] if frames is None else [view(frames, staging / "view.html")]),
             *(_vtk_files(staging / "vtk", read_trajectory(work)) if args.vtk else []),
         ]
         # Last, so that the finished run stays in ``work`` if anything before fails.
@@ -579,9 +597,15 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     structure, force, gravity = _simulation_inputs(args)
     files = _RunFiles.prepare(args.out, args.resume)
     _announce_large_run(structure, args.t_end, args.sample_dt, files.out)
+    keeper = None
+    if not args.no_view:
+        from tensegrity.plots.motion import MAX_BYTES, MAX_FRAMES, FrameKeeper, frame_budget
+
+        budget = frame_budget(structure, max_frames=MAX_FRAMES, max_bytes=MAX_BYTES)
+        keeper = FrameKeeper(structure, t0=0.0, sample_dt=args.sample_dt, max_frames=budget)
     try:
-        summary = _stream_run(args, structure, force, gravity, files)
-        trajectory, balance, written = _write_run(args, structure, summary, files)
+        summary = _stream_run(args, structure, force, gravity, files, keeper)
+        trajectory, balance, written = _write_run(args, structure, summary, files, keeper)
     except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM/SIGHUP (signals_as_interrupts)
         return files.interrupted(exc)
     _print_summary(
@@ -1170,7 +1194,8 @@ def _add_simulate_parser(sub: _Commands) -> None:
     sim = sub.add_parser(
         "simulate",
         help="simulate a structure (default: the paper's damped (3,1) shell, until steady state)",
-        description="Simulate a structure and write trajectory.h5, structure.json and figures. "
+        description="Simulate a structure and write trajectory.h5, structure.json, figures "
+        "and view.html (the run in an interactive 3-D viewer). "
         "Samples are streamed to OUT/.trajectory.h5.partial as the run goes, with "
         "checkpoints; an interrupted run continues with --resume.",
     )
@@ -1210,6 +1235,12 @@ def _add_simulate_parser(sub: _Commands) -> None:
         "--vtk",
         action="store_true",
         help="also write the run for ParaView: OUT/vtk/tensegrity.pvd + .vtp files",
+    )
+    sim.add_argument(
+        "--no-view",
+        action="store_true",
+        help="do not write OUT/view.html, the run in an interactive 3-D viewer (one offline "
+        "HTML file; `tensegrity view` makes one from trajectory.h5 later)",
     )
     _add_integration_options(sim)
     sim.set_defaults(run=_cmd_simulate)

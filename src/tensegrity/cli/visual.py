@@ -119,19 +119,17 @@ def _cmd_animate(args: argparse.Namespace) -> int:
 
 
 def _cmd_view(args: argparse.Namespace) -> int:
-    from tensegrity.io.trajectory import read_trajectory
-    from tensegrity.plots.viewer import frame_budget, view
+    from tensegrity.plots.motion import read_frames
+    from tensegrity.plots.viewer import view
 
     _check_output(args.output, (".html", ".htm"))
-    max_bytes = int(args.max_mb * 1e6)
     with blame("view", args.trajectory):
-        first = read_trajectory(args.trajectory, every=2**62)  # the first and last samples
-    budget = frame_budget(first.structure, max_frames=args.max_frames, max_bytes=max_bytes)
-    result, n_samples = _read("view", args.trajectory, budget)
-    view(result, args.output, max_frames=budget, max_bytes=max_bytes, title=args.title)
+        frames, n_samples = read_frames(
+            args.trajectory, max_frames=args.max_frames, max_bytes=int(args.max_mb * 1e6)
+        )
+    view(frames, args.output, title=args.title)
     size = byte_text(args.output.stat().st_size)
-    shown = min(budget, result.t.size)
-    print(f"wrote {args.output} ({size}; {shown} frames of {n_samples} samples)")
+    print(f"wrote {args.output} ({size}; {frames.n_frames} frames of {n_samples} samples)")
     return 0
 
 

@@ -4,7 +4,7 @@
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -21,6 +21,7 @@ __all__ = [
     "RunSummary",
     "Samples",
     "SimulationResult",
+    "total_energy",
 ]
 
 #: ``status`` values: failed, end time reached, steady state reached.
@@ -106,6 +107,20 @@ class RunSummary:
         return self.nfev / max(self.nsteps, 1)
 
 
+def total_energy(energy: Mapping[str, np.ndarray]) -> np.ndarray:
+    """``E_kin + E_el + E_grav + E_d - W_w - W_u`` [J] of energies by :data:`ENERGY_NAMES`
+    (arrays of one shape): the balance a run conserves up to integration error."""
+    e = energy
+    return (
+        e["kinetic"]
+        + e["elastic"]
+        + e["gravity"]
+        + e["dissipated"]
+        - e["external_work"]
+        - e["control_work"]
+    )
+
+
 @dataclasses.dataclass(frozen=True, eq=False)
 class SimulationResult:
     """Samples of a simulation and how it ended.
@@ -174,15 +189,7 @@ class SimulationResult:
     def total_energy(self) -> np.ndarray:
         """``E_kin + E_el + E_grav + E_d - W_w - W_u`` [J], (T,): constant up to integration
         error."""
-        e = self.energy
-        return (
-            e["kinetic"]
-            + e["elastic"]
-            + e["gravity"]
-            + e["dissipated"]
-            - e["external_work"]
-            - e["control_work"]
-        )
+        return total_energy(self.energy)
 
     @property
     def tendon_names(self) -> tuple[str, ...]:

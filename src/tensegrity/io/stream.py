@@ -765,14 +765,17 @@ class FileSink:
         *,
         samples_per_segment: int,
         progress: Callable[[StreamProgress], None] | None,
+        observe: Callable[[Samples], None] | None = None,
     ) -> None:
         self.partial, self.checkpoint = partial, checkpoint
-        self.K, self.progress = samples_per_segment, progress
+        self.K, self.progress, self.observe = samples_per_segment, progress, observe
         self.blocks: list[Samples] = []
         self.segments_run = 0
 
     def add(self, samples: Samples) -> None:
         self.blocks.append(samples)
+        if self.observe is not None:
+            self.observe(samples)
 
     def save(self, loop: LoopState) -> None:
         """Store the segment's samples and ``loop`` as the new checkpoint (then fsync)."""
@@ -892,6 +895,7 @@ def simulate_to_file(
     segment: float | None = None,
     resume: bool = True,
     progress: bool | Callable[[StreamProgress], None] = False,
+    observe: Callable[[Samples], None] | None = None,
     **simulate_options: Any,
 ) -> StreamSummary:
     """Simulate ``structure`` over ``t_span = (t0, t_end)`` [s], streaming samples to ``path``.
@@ -920,6 +924,11 @@ def simulate_to_file(
         True: a ``tqdm`` bar over segments on stderr.  A callable is called with a
         :class:`StreamProgress` after each stored segment (once its checkpoint is on disk); an
         exception it raises (``KeyboardInterrupt`` included) stops the run, which can be resumed.
+    observe : callable, optional
+        Called with each block of samples this call makes
+        (:class:`~tensegrity.engine.result.Samples`, in time order, a resumed call's from where
+        it resumed) as the file gets them: what a caller wants of them without reading the file
+        again (the CLI's viewer frames).
     **simulate_options
         The options of :func:`tensegrity.engine.simulate.simulate`: ``sample_dt`` [s] (default
         ``(t_end - t0) / 1000``), ``initial``, ``control``, ``external_force``, ``gravity``,
@@ -970,7 +979,9 @@ def simulate_to_file(
         with _open_h5(partial, "r") as f:
             checkpoint = _read_checkpoint_open(f, partial)
     report, close = _reporter(progress, plan.n_segments, checkpoint.next_segment)
-    sink = FileSink(partial, checkpoint, samples_per_segment=plan.K, progress=report)
+    sink = FileSink(
+        partial, checkpoint, samples_per_segment=plan.K, progress=report, observe=observe
+    )
     try:
         if not checkpoint.ended:  # (ended: interrupted between the end and the rename)
             summary = run(

@@ -25,14 +25,17 @@ SI units throughout: m, s, N, J.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Mapping
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from tensegrity.engine.result import ENERGY_NAMES, total_energy
 from tensegrity.model.structure import Structure
 
 if TYPE_CHECKING:
-    from tensegrity.engine.result import SimulationResult
+    from tensegrity.engine.result import Samples, SimulationResult
+    from tensegrity.io.files import PathLike
 
 __all__ = [
     "MAX_BYTES",
@@ -224,31 +227,143 @@ def make_frames(result: SimulationResult, indices: np.ndarray | None = None) -> 
     Frames
         Tension range and bounds over every sample of ``result`` (not only those shown).
     """
-    structure = result.structure
-    T = result.t.size
+    return _frames(
+        result.structure,
+        result.t,
+        result.node_position,
+        result.tendon_tension,
+        result.energy,
+        indices,
+        result.message,
+    )
+
+
+def frame_budget(structure: Structure, *, max_frames: int, max_bytes: int) -> int:
+    """How many frames a page of ``structure`` holds: at most ``max_frames``, and at most
+    ``max_bytes`` of Float32 positions ``(N, 3)`` and tensions ``(S,)`` (at least one frame)."""
+    if max_frames < 1 or max_bytes < 1:
+        raise ValueError(f"max_frames, max_bytes: must be >= 1, got {max_frames}, {max_bytes}")
+    per_frame = 4 * (3 * structure.n_nodes + structure.n_tendons)
+    return max(1, min(max_frames, max_bytes // per_frame))
+
+
+class FrameKeeper:
+    """The viewer's frames of a run as its samples come (:func:`tensegrity.io.stream.
+    simulate_to_file`'s ``observe``): at most ``max_frames`` evenly spread samples and the last,
+    kept as they pass (the spacing doubles whenever twice that many are held; only the times,
+    node positions, tensions and energies), so that a long run's file need not be read again
+    for them.  :meth:`frames` makes them."""
+
+    def __init__(self, structure: Structure, *, t0: float, sample_dt: float, max_frames: int):
+        self.structure, self.t0, self.sample_dt = structure, float(t0), float(sample_dt)
+        self.max_frames, self.every = max(1, max_frames), 1
+        #: kept rows (sample number divisible by ``every``): (number, t, position, tension,
+        #: energy) arrays, one tuple per block
+        self.kept: list[tuple[np.ndarray, ...]] = []
+        self.last: tuple[np.ndarray, ...] | None = None
+
+    def add(self, samples: Samples) -> None:
+        """Keep what the frames need of ``samples`` (a block, in time order)."""
+        number = np.round((samples.t - self.t0) / self.sample_dt).astype(np.int64)
+        columns = (number, samples.t, samples.node_position, samples.tendon_tension, samples.energy)
+        self.kept.append(_rows(columns, number % self.every == 0))
+        self.last = _rows(columns, np.arange(number.size) == number.size - 1)
+        while sum(k[0].size for k in self.kept) > 2 * self.max_frames:
+            self.every *= 2
+            self.kept = [_rows(k, k[0] % self.every == 0) for k in self.kept]
+
+    def frames(self, title: str = "") -> Frames:
+        """The frames kept (at most ``max_frames``, evenly spread, the first and last)."""
+        assert self.last is not None, "frames: no samples were kept"
+        number, t, position, tension, energy = (
+            np.concatenate(column) for column in zip(*self.kept, self.last, strict=True)
+        )
+        if number.size > 1 and number[-2] == number[-1]:  # (the last sample was kept already)
+            number, t, position, tension, energy = (
+                c[:-1] for c in (number, t, position, tension, energy)
+            )
+        return _frames(
+            self.structure,
+            t,
+            position,
+            tension,
+            {name: energy[:, k] for k, name in enumerate(ENERGY_NAMES)},
+            decimated_indices(t.size, self.max_frames),
+            title,
+            number,
+        )
+
+
+def _rows(columns: tuple[np.ndarray, ...], keep: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The rows ``keep`` (a mask) of each of ``columns``, copied (a block's arrays are the
+    sink's)."""
+    return tuple(column[keep] for column in columns)
+
+
+def read_frames(path: PathLike, *, max_frames: int, max_bytes: int) -> tuple[Frames, int]:
+    """The frames of the trajectory file at ``path`` for the viewer (:func:`frame_budget` of
+    them, evenly spread, the first and last samples among them) and
+    its number of samples, reading only the datasets they show: a long run's whole file is
+    several times larger (``q``, ``qdot``, velocities, lengths).  ``ValueError`` names the file
+    and the problem (:mod:`tensegrity.io.trajectory`)."""
+    from tensegrity.io.trajectory import read_dataset, read_trajectory
+
+    ends = read_trajectory(path, every=2**62)  # the structure, the message: two samples
+    n_samples = read_dataset(path, "time").size
+    budget = frame_budget(ends.structure, max_frames=max_frames, max_bytes=max_bytes)
+    every = max(1, -(-(n_samples - 1) // max(budget - 1, 1)))
+    energy = read_dataset(path, "energy", every=every)
+    numbers = np.r_[np.arange(0, n_samples - 1, every), n_samples - 1]  # (as read_dataset reads)
+    frames = _frames(
+        ends.structure,
+        read_dataset(path, "time", every=every),
+        read_dataset(path, "nodes", every=every),
+        read_dataset(path, "tendon_tension", every=every),
+        {name: energy[:, k] for k, name in enumerate(ENERGY_NAMES)},
+        None,
+        ends.message,
+        numbers,
+    )
+    return frames, n_samples
+
+
+def _frames(
+    structure: Structure,
+    t: np.ndarray,
+    node_position: np.ndarray,
+    tendon_tension: np.ndarray,
+    energy: Mapping[str, np.ndarray],
+    indices: np.ndarray | None,
+    title: str,
+    numbers: np.ndarray | None = None,
+) -> Frames:
+    """:func:`make_frames` of a run's arrays (T rows each; ``energy`` by
+    :data:`~tensegrity.engine.result.ENERGY_NAMES`); ``numbers`` (T,) the rows' sample numbers
+    in the run (default: the rows are every sample)."""
+    T = t.size
     index = np.arange(T) if indices is None else np.asarray(indices, dtype=np.int64)
     if index.ndim != 1 or not index.size or index.min() < 0 or index.max() >= T:
         raise ValueError(f"indices: expected sample numbers in 0..{T - 1}, got {index!r}")
-    position = _padded(structure, result.node_position[index])
-    every = _padded(structure, result.node_position)
-    tension = np.asarray(result.tendon_tension[index], dtype=float)
-    energy = {
-        "total": result.total_energy[index],
-        "kinetic": result.energy["kinetic"][index],
-        "elastic": result.energy["elastic"][index],
+    position = _padded(structure, node_position[index])
+    every = _padded(structure, node_position)
+    tension = np.asarray(tendon_tension[index], dtype=float)
+    energies = {
+        "total": total_energy(energy)[index],
+        "kinetic": energy["kinetic"][index],
+        "elastic": energy["elastic"][index],
     }
     bounds = np.stack([every.min(axis=(0, 1)), every.max(axis=(0, 1))])
     return Frames(
         structure=structure,
-        time=np.asarray(result.t[index], dtype=float),
-        index=index,
+        time=np.asarray(t[index], dtype=float),
+        index=index if numbers is None else np.asarray(numbers, dtype=np.int64)[index],
         position=position,
         tension=tension,
         slack=tension <= 0,
-        energy=energy,
-        tension_range=_tension_range(np.asarray(result.tendon_tension)),
+        energy=energies,
+        tension_range=_tension_range(np.asarray(tendon_tension)),
         bounds=bounds,
-        title=result.message,
+        title=title,
     )
 
 

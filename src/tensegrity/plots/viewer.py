@@ -37,6 +37,7 @@ from tensegrity.plots.motion import (
     MAX_REAL_TIME,
     Frames,
     decimated_indices,
+    frame_budget,
     make_frames,
     structure_frames,
 )
@@ -56,15 +57,6 @@ __all__ = [
 ]
 
 JOINT_COLOR = "#d9d9d9"
-
-
-def frame_budget(structure: Structure, *, max_frames: int, max_bytes: int) -> int:
-    """How many frames a page of ``structure`` holds: at most ``max_frames``, and at most
-    ``max_bytes`` of Float32 positions ``(N, 3)`` and tensions ``(S,)`` (at least one frame)."""
-    if max_frames < 1 or max_bytes < 1:
-        raise ValueError(f"max_frames, max_bytes: must be >= 1, got {max_frames}, {max_bytes}")
-    per_frame = 4 * (3 * structure.n_nodes + structure.n_tendons)
-    return max(1, min(max_frames, max_bytes // per_frame))
 
 
 def _base64(array: np.ndarray, dtype: str) -> str:
