@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import contextvars
 import dataclasses
 import math
 import os
@@ -52,6 +53,8 @@ from tensegrity.model.structure import Structure
 from tensegrity.physics import dynamics
 
 if TYPE_CHECKING:
+    from tensegrity.design.files import Designed
+    from tensegrity.design.materials import MemberDesign
     from tensegrity.engine.result import SimulationResult
     from tensegrity.io.stream import StreamSummary
     from tensegrity.model.loads import ForceTable
@@ -163,6 +166,24 @@ def _add_structure_options(parser: argparse.ArgumentParser) -> None:
         help="any other option of the generator, e.g. tension=8 or overlap=0.2 "
         "(repeatable; see the generator's docstring)",
     )
+    group.add_argument(
+        "--material",
+        metavar="ROD[,TENDON]",
+        help="members of these table materials (with --section): tendon stiffness E A / Lbar, "
+        "rod mass rho A L, each taut tendon's tension at the start kept (its rest length "
+        "changed); a file in the material form gives its own (docs/design.md)",
+    )
+    group.add_argument(
+        "--section",
+        metavar="ROD,TENDON",
+        help="with --material: the rods' rod:D or tube:D:T and the tendons' cable:D, in mm "
+        "(e.g. tube:40:2,cable:3)",
+    )
+    group.add_argument(
+        "--tendon-mass",
+        action="store_true",
+        help="with --material: add the tendons' own mass rho A Lbar to their end nodes",
+    )
 
 
 def _assignment(text: str) -> tuple[str, object]:
@@ -201,6 +222,14 @@ def _add_gravity_option(parser: argparse.ArgumentParser) -> None:
 
 def _structure(args: argparse.Namespace) -> Structure:
     """The structure the options describe (a file, or a generated structure)."""
+    return _designed(args).structure
+
+
+def _designed(args: argparse.Namespace) -> Designed:
+    """The structure the options describe and its members' design (a file in the material
+    form, or ``--material`` and ``--section``; None otherwise)."""
+    from tensegrity.design.files import Designed
+
     flags = {
         name: getattr(args, name)
         for name in _SHELL_OPTIONS
@@ -216,8 +245,51 @@ def _structure(args: argparse.Namespace) -> Structure:
             raise CommandError(
                 f"{' '.join(given)}: generator options cannot be combined with --structure"
             )
-        return _read_structure(args.structure, "--structure")
-    return _generated(args.kind or "shell", flags, args.set or ())
+        designed = _read_designed(args.structure, "--structure")
+    else:
+        designed = Designed(_generated(args.kind or "shell", flags, args.set or ()), None)
+    return _with_materials(args, designed)
+
+
+def _with_materials(args: argparse.Namespace, designed: Designed) -> Designed:
+    """``designed`` built from ``--material``, ``--section`` (and ``--tendon-mass``) if given:
+    :meth:`~tensegrity.design.materials.MemberDesign.apply`, tensions at the start kept."""
+    from tensegrity.design.files import Designed
+    from tensegrity.design.materials import MemberDesign
+
+    material, section = getattr(args, "material", None), getattr(args, "section", None)
+    if material is None and section is None:
+        if getattr(args, "tendon_mass", False):
+            raise CommandError("--tendon-mass: only with --material and --section")
+        return designed
+    if material is None or section is None:
+        given, needed = (
+            ("--section", "--material") if material is None else ("--material", "--section")
+        )
+        raise CommandError(f"{given}: needs {needed} too (materials and sections make the members)")
+    if designed.design is not None:
+        raise CommandError(
+            f"--material: {shown_path(args.structure)} gives its members' materials and "
+            "sections already (the material form); give them in one place"
+        )
+    if getattr(args, "stiffness", None) is not None:
+        raise CommandError(
+            "--stiffness: cannot be combined with --material (E A / Lbar is the stiffness)"
+        )
+    with blame(f"--material {material}"):
+        rod_material, tendon_material = design.parse_materials(material)
+    with blame(f"--section {section}"):
+        rod_section, tendon_section = design.parse_sections(section)
+    with blame(f"--material {material} --section {section}"):
+        members = MemberDesign.of(
+            designed.structure,
+            rod_material=rod_material,
+            rod_section=rod_section,
+            tendon_material=tendon_material,
+            tendon_section=tendon_section,
+            tendon_mass=args.tendon_mass,
+        )
+        return Designed(members.apply(designed.structure, keep_tension=True), members)
 
 
 def _flag(name: str) -> str:
@@ -227,10 +299,16 @@ def _flag(name: str) -> str:
 
 def _read_structure(path: Path, option: str) -> Structure:
     """The structure file ``path``; an error names ``option`` and the file."""
-    from tensegrity.io.formats import read_network
+    return _read_designed(path, option).structure
+
+
+def _read_designed(path: Path, option: str) -> Designed:
+    """The structure file ``path`` in either form (members by stiffness and mass, or by
+    material and section) and its members' design; an error names ``option`` and the file."""
+    from tensegrity.design.files import read_design
 
     with blame(option, path):
-        return read_network(path)
+        return read_design(path)
 
 
 def _generated(
@@ -379,8 +457,12 @@ def _segment(structure: Structure, t_end: float, sample_dt: float) -> float:
 def _simulation_inputs(
     args: argparse.Namespace,
 ) -> tuple[Structure, ForceTable | None, np.ndarray | None]:
-    """The structure (damped as the options say), the force table and the gravity of a run."""
-    structure = _structure(args)
+    """The structure (damped as the options say), the force table and the gravity of a run.
+
+    A structure whose members have a design is remembered with the force table (``_RUN``)
+    for :func:`_print_summary`'s utilisation report."""
+    _RUN.set(None)
+    structure, members = _designed(args)
     damping = args.damping
     if damping is None and getattr(args, "structure", None) is None:
         damping = "critical"  # the paper's example
@@ -405,7 +487,35 @@ def _simulation_inputs(
         from tensegrity.model.loads import gravity_vector
 
         gravity = gravity_vector(args.gravity, structure.dim)
+    if members is not None:
+        _RUN.set(_DesignedRun(structure, members, force))
     return structure, force, gravity
+
+
+@dataclasses.dataclass(frozen=True)
+class _DesignedRun:
+    """The structure of a ``simulate`` run whose members have a design, that design and the
+    run's force table (the trajectory file holds neither)."""
+
+    structure: Structure
+    members: MemberDesign
+    force: ForceTable | None
+
+    def of(self, structure: Structure) -> bool:
+        """Whether ``structure`` (a trajectory's) is this run's."""
+        mine = self.structure
+        return (
+            structure.n_nodes == mine.n_nodes
+            and np.array_equal(structure.rod_nodes, mine.rod_nodes)
+            and np.array_equal(structure.tendon_nodes, mine.tendon_nodes)
+            and np.array_equal(structure.tendon_stiffness, mine.tendon_stiffness)
+            and np.array_equal(structure.rod_mass, mine.rod_mass)
+        )
+
+
+#: The design of the run ``_simulation_inputs`` prepared last (``_cmd_simulate`` hands
+#: ``_print_summary`` the trajectory, not the options).
+_RUN: contextvars.ContextVar[_DesignedRun | None] = contextvars.ContextVar("_RUN", default=None)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -700,10 +810,66 @@ def _print_summary(
         *([("resumed", _resumed(summary))] if resume else []),
         ("wall time", f"{summary.wall_time:.2f} s"),
     ]
+    run = _RUN.get()
+    failures: list[str] = []
+    if run is not None and run.of(structure):
+        path = next(f for f in files if f.name == "trajectory.h5")
+        more, failures = _utilisation_rows(path, run, summary.n_samples)
+        rows += more
     width = max(len(name) for name, _ in rows)
     for name, value in rows:
         print(f"{name:<{width}}  {value}")
     print("wrote " + ", ".join(str(f) for f in files))
+    if failures:
+        shown = "; ".join(failures[:3]) + (
+            f"; and {len(failures) - 3} more" if len(failures) > 3 else ""
+        )
+        print(
+            f"tensegrity: warning: {len(failures)} member{'s' * (len(failures) > 1)} beyond "
+            f"{'their' if len(failures) > 1 else 'its'} limits (utilisation > 1): {shown}",
+            file=sys.stderr,
+        )
+
+
+def _utilisation_rows(
+    path: Path, run: _DesignedRun, n_samples: int
+) -> tuple[list[tuple[str, str]], list[str]]:
+    """The summary's rows of the members' largest utilisation over the run in ``path``
+    (:func:`tensegrity.design.utilisation.trajectory_utilisation`) and a line per member
+    beyond its limits."""
+    from tensegrity.design.utilisation import Peak, trajectory_utilisation
+
+    u = trajectory_utilisation(
+        path, run.members.properties(run.structure), n_samples=n_samples, external_force=run.force
+    )
+
+    def shown(name: str, p: Peak | None, member: Sequence[str], every: int) -> str:
+        if p is None:
+            return f"{name} -"
+        sampled = f", from one sample in {every}" if every > 1 else ""
+        return f"{name} {p.value:.4g} ({member[p.member]}, t = {p.time:.6g} s{sampled})"
+
+    s = run.structure
+    rods = [f"rod {r}" for r in range(s.n_rods)]
+    tendons = [f"tendon {name!r}" for name in s.tendon_name]
+    rows = [
+        (
+            "largest rod utilisation",
+            ", ".join(
+                shown(kind, p, rods, u.rod_every)
+                for kind, p in (("buckling", u.rod_buckling), ("yield", u.rod_yield))
+            )
+            if s.n_rods
+            else "no rods",
+        ),
+        (
+            "largest tendon utilisation",
+            shown("yield", u.tendon_yield, tendons, u.tendon_every)
+            if s.n_tendons
+            else "no tendons",
+        ),
+    ]
+    return rows, u.failures(run.structure)
 
 
 def _resumed(summary) -> str:
