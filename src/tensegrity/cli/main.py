@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import contextvars
 import dataclasses
 import math
 import os
@@ -456,12 +455,10 @@ def _segment(structure: Structure, t_end: float, sample_dt: float) -> float:
 
 def _simulation_inputs(
     args: argparse.Namespace,
-) -> tuple[Structure, ForceTable | None, np.ndarray | None]:
-    """The structure (damped as the options say), the force table and the gravity of a run.
-
-    A structure whose members have a design is remembered with the force table (``_RUN``)
-    for :func:`_print_summary`'s utilisation report."""
-    _RUN.set(None)
+) -> tuple[Structure, ForceTable | None, np.ndarray | None, _DesignedRun | None]:
+    """The structure (damped as the options say), the force table and the gravity of a run,
+    and, if its members have a design, what :func:`_print_summary`'s utilisation report
+    needs."""
     structure, members = _designed(args)
     damping = args.damping
     if damping is None and getattr(args, "structure", None) is None:
@@ -487,9 +484,8 @@ def _simulation_inputs(
         from tensegrity.model.loads import gravity_vector
 
         gravity = gravity_vector(args.gravity, structure.dim)
-    if members is not None:
-        _RUN.set(_DesignedRun(structure, members, force))
-    return structure, force, gravity
+    designed = None if members is None else _DesignedRun(structure, members, force)
+    return structure, force, gravity, designed
 
 
 @dataclasses.dataclass(frozen=True)
@@ -500,22 +496,6 @@ class _DesignedRun:
     structure: Structure
     members: MemberDesign
     force: ForceTable | None
-
-    def of(self, structure: Structure) -> bool:
-        """Whether ``structure`` (a trajectory's) is this run's."""
-        mine = self.structure
-        return (
-            structure.n_nodes == mine.n_nodes
-            and np.array_equal(structure.rod_nodes, mine.rod_nodes)
-            and np.array_equal(structure.tendon_nodes, mine.tendon_nodes)
-            and np.array_equal(structure.tendon_stiffness, mine.tendon_stiffness)
-            and np.array_equal(structure.rod_mass, mine.rod_mass)
-        )
-
-
-#: The design of the run ``_simulation_inputs`` prepared last (``_cmd_simulate`` hands
-#: ``_print_summary`` the trajectory, not the options).
-_RUN: contextvars.ContextVar[_DesignedRun | None] = contextvars.ContextVar("_RUN", default=None)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -704,7 +684,7 @@ def _write_run(
 def _cmd_simulate(args: argparse.Namespace) -> int:
     _check_output_folder(args.out, "--out")
     _check_samples(args.t_end, args.sample_dt)
-    structure, force, gravity = _simulation_inputs(args)
+    structure, force, gravity, designed = _simulation_inputs(args)
     files = _RunFiles.prepare(args.out, args.resume)
     _announce_large_run(structure, args.t_end, args.sample_dt, files.out)
     keeper = None
@@ -724,6 +704,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         balance,
         args.resume,
         [f for f in written if f.parent == files.out or f.suffix == ".pvd"],
+        designed,
     )
     return 0
 
@@ -760,21 +741,25 @@ def _vtk_files(folder: Path, result) -> list[Path]:
 
 def _energy_balance_error(path: Path) -> float:
     """Largest change of the energy balance [J] over every sample of the trajectory file."""
+    from tensegrity.engine.result import total_energy
     from tensegrity.io.trajectory import ENERGY_COLUMNS, read_dataset
 
     energy = read_dataset(path, "energy")
-    # E_kin + E_el + E_grav + E_d - W_w - W_u
-    sign = np.array([-1.0 if name.endswith("_work") else 1.0 for name in ENERGY_COLUMNS])
-    total = energy @ sign
+    total = total_energy({name: energy[:, k] for k, name in enumerate(ENERGY_COLUMNS)})
     return float(np.abs(total - total[0]).max())
 
 
 def _print_summary(
-    trajectory, summary, balance: float, resume: bool, files: Sequence[Path]
+    trajectory,
+    summary,
+    balance: float,
+    resume: bool,
+    files: Sequence[Path],
+    designed: _DesignedRun | None,
 ) -> None:
     """The summary of a run: ``trajectory`` read back from its file (its last sample matters),
-    the :class:`tensegrity.io.stream.StreamSummary` of the streamed run and the largest energy
-    balance error [J]."""
+    the :class:`tensegrity.io.stream.StreamSummary` of the streamed run, the largest energy
+    balance error [J], and the members' utilisation if they have a design (``designed``)."""
     structure = trajectory.structure
     e = trajectory.energy
     tension = trajectory.tendon_tension[-1]
@@ -810,11 +795,10 @@ def _print_summary(
         *([("resumed", _resumed(summary))] if resume else []),
         ("wall time", f"{summary.wall_time:.2f} s"),
     ]
-    run = _RUN.get()
     failures: list[str] = []
-    if run is not None and run.of(structure):
+    if designed is not None:
         path = next(f for f in files if f.name == "trajectory.h5")
-        more, failures = _utilisation_rows(path, run, summary.n_samples)
+        more, failures = _utilisation_rows(path, designed, summary.n_samples)
         rows += more
     width = max(len(name) for name, _ in rows)
     for name, value in rows:
