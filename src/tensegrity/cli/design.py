@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from tensegrity.cli import arguments
 from tensegrity.cli.errors import EXIT_FAILED, CommandError, blame
 from tensegrity.io.files import atomic_path, shown_path, write_staged
 
@@ -56,18 +57,6 @@ def parse_sections(text: str) -> tuple[Section, Section]:
     if isinstance(rod, Cable):
         raise ValueError(f"a cable cannot be a rod (no bending stiffness): {parts[0]!r}")
     return rod, tendon
-
-
-def _number(text: str, low: float, strict: bool) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not math.isfinite(value) or value < low or (strict and value == low):
-        raise argparse.ArgumentTypeError(
-            f"must be a finite number {'>' if strict else '>='} {low:g}, got {text!r}"
-        )
-    return value
 
 
 def _load(text: str) -> tuple[str, int, list[float]]:
@@ -140,33 +129,33 @@ def add_parsers(sub: Any) -> None:
     )
     p.add_argument(
         "--gravity",
-        type=lambda t: _number(t, 0.0, False),
+        type=arguments.at_least(0.0, strict=False),
         default=0.0,
         metavar="G",
         help="gravity [m/s^2] down the last axis on the members' weight in every load case",
     )
     p.add_argument(
         "--prestress",
-        type=lambda t: _number(t, 0.0, False),
+        type=arguments.at_least(0.0, strict=False),
         default=0.0,
         metavar="N",
         help="the smallest tendon tension [N] of the unloaded, prestressed state (default 0)",
     )
     p.add_argument(
         "--safety-factor",
-        type=lambda t: _number(t, 1.0, False),
+        type=arguments.at_least(1.0, strict=False),
         default=1.0,
         help="divides the Euler buckling load (>= 1, default 1)",
     )
     p.add_argument(
         "--strength-factor",
-        type=lambda t: _number(t, 1.0, False),
+        type=arguments.at_least(1.0, strict=False),
         default=1.0,
         help="divides the yield strengths (>= 1, default 1)",
     )
     p.add_argument(
         "--min-area",
-        type=lambda t: _number(t, 0.0, True),
+        type=arguments.at_least(0.0, strict=True),
         default=1e-8,
         metavar="M2",
         help="the smallest member area [m^2] (default 1e-8)",
@@ -182,7 +171,7 @@ def add_parsers(sub: Any) -> None:
     )
     p.add_argument(
         "--damping-ratio",
-        type=lambda t: _number(t, 0.0, False),
+        type=arguments.at_least(0.0, strict=False),
         default=None,
         metavar="ZETA",
         help="with --check-dynamics: each tendon's damping as a fraction of its critical "

@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, NoReturn, TypeAlias
 
 import numpy as np
 
-from tensegrity.cli import design, visual
+from tensegrity.cli import arguments, design, visual
 from tensegrity.cli.errors import (
     EXIT_FAILED,
     CommandError,
@@ -73,52 +73,11 @@ class _Parser(argparse.ArgumentParser):
 _Commands: TypeAlias = "argparse._SubParsersAction[_Parser]"
 
 
-def _positive(text: str) -> float:
-    value = _finite(text)
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"must be > 0, got {text!r}")
-    return value
-
-
-def _non_negative(text: str) -> float:
-    value = _finite(text)
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be >= 0, got {text!r}")
-    return value
-
-
-def _whole_positive(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"must be > 0, got {text!r}")
-    return value
-
-
-def _finite(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not math.isfinite(value):
-        raise argparse.ArgumentTypeError(f"must be finite, got {text!r}")
-    return value
-
-
-def _path(text: str) -> Path:
-    """A file or folder name; not empty (``Path("")`` would be the current folder)."""
-    if not text.strip():
-        raise argparse.ArgumentTypeError(f"expected a file or folder name, got {text!r}")
-    return Path(text)
-
-
 def _damping(text: str) -> str | float:
     if text in ("none", "critical"):
         return text
     try:
-        return _non_negative(text)
+        return arguments.non_negative(text)
     except argparse.ArgumentTypeError:
         raise argparse.ArgumentTypeError(
             f"expected 'none', 'critical' or a damping >= 0 in N s/m, got {text!r}"
@@ -131,7 +90,7 @@ def _add_structure_options(parser: argparse.ArgumentParser) -> None:
     group = parser.add_argument_group("structure (default: the paper's (3,1) class 1 shell)")
     group.add_argument(
         "--structure",
-        type=_path,
+        type=arguments.name,
         metavar="FILE",
         help="a structure file (.json, .yaml, .toml or connectivity .npz) "
         "instead of a generated one",
@@ -151,10 +110,12 @@ def _add_structure_options(parser: argparse.ArgumentParser) -> None:
         "--fixed-base", action="store_true", help="class 2 shell: fix the base ring to ground"
     )
     group.add_argument("--primal", action="store_true", help="primal shell: no t9, t10 tendons")
-    group.add_argument("--stiffness", type=_positive, help="tendon stiffness k [N/m] (default 100)")
+    group.add_argument(
+        "--stiffness", type=arguments.positive, help="tendon stiffness k [N/m] (default 100)"
+    )
     group.add_argument(
         "--rest-length",
-        type=_non_negative,
+        type=arguments.non_negative,
         help="shell tendon rest length L0 [m] (default: half the shortest initial tendon)",
     )
     group.add_argument(
@@ -1070,7 +1031,10 @@ def _add_analysis_parsers(sub: _Commands) -> None:
         )
         _add_structure_options(p)
         p.add_argument(
-            "--out", type=_path, default=Path(verb), help=f"output folder (default ./{verb})"
+            "--out",
+            type=arguments.name,
+            default=Path(verb),
+            help=f"output folder (default ./{verb})",
         )
         p.set_defaults(run=_cmd_analysis)
     for verb in ("equilibrium", "modes", "controllability"):  # shape control: without gravity
@@ -1091,16 +1055,18 @@ def _add_equilibrium_options(p: argparse.ArgumentParser) -> None:
         help="least squares (eq. 18.61, analytic Jacobian), damped simulation to rest, "
         "or both and their agreement (default both)",
     )
-    p.add_argument("--t-end", type=_positive, default=60.0, help="longest damped simulation [s]")
+    p.add_argument(
+        "--t-end", type=arguments.positive, default=60.0, help="longest damped simulation [s]"
+    )
     p.add_argument(
         "--velocity-tol",
-        type=_positive,
+        type=arguments.positive,
         default=1e-6,
         help="at rest when node speeds are below this [m/s] (default 1e-6)",
     )
     p.add_argument(
         "--acceleration-tol",
-        type=_positive,
+        type=arguments.positive,
         default=1e-6,
         help="... and node accelerations below this [m/s^2] (default 1e-6)",
     )
@@ -1149,7 +1115,7 @@ def _add_control_options(p: argparse.ArgumentParser) -> None:
     """``control``: the targets, the actuators, the steps and the rings."""
     p.add_argument(
         "--height",
-        type=_positive,
+        type=arguments.positive,
         default=0.8,
         help="target height as a fraction of the equilibrium height (default 0.8)",
     )
@@ -1198,35 +1164,35 @@ def _add_closed_loop_options(p: argparse.ArgumentParser) -> None:
         help="open loop only (no LQR simulation)",
     )
     p.add_argument(
-        "--move-time", type=_positive, default=2.0, help="closed loop: time per phase [s]"
+        "--move-time", type=arguments.positive, default=2.0, help="closed loop: time per phase [s]"
     )
     p.add_argument(
         "--settle-time",
-        type=_positive,
+        type=arguments.positive,
         default=4.0,
         help="closed loop: time at the final target [s]",
     )
     p.add_argument(
         "--min-rest-length",
-        type=_non_negative,
+        type=arguments.non_negative,
         default=0.05,
         help="bound: rest lengths >= this [m] (default 0.05)",
     )
     p.add_argument(
         "--max-change",
-        type=_positive,
+        type=arguments.positive,
         default=0.25,
         help="bound: |rest-length change| <= this [m] (default 0.25)",
     )
     p.add_argument(
         "--min-tension",
-        type=_positive,
+        type=arguments.positive,
         default=1.0,
         help="bound: every tendon taut with at least this tension [N] (default 1)",
     )
     p.add_argument(
         "--tolerance",
-        type=_positive,
+        type=arguments.positive,
         default=1e-6,
         help="targets reached within this [m, rad] (default 1e-6)",
     )
@@ -1357,14 +1323,19 @@ def _add_simulate_parser(sub: _Commands) -> None:
         help="tendon damping: 'critical' (default for a shell; see docs), 'none', or "
         "c in N s/m for every tendon (default for --structure: as in the file)",
     )
-    sim.add_argument("--t-end", type=_positive, default=60.0, help="end time [s] (default 60)")
+    sim.add_argument(
+        "--t-end", type=arguments.positive, default=60.0, help="end time [s] (default 60)"
+    )
     sim.add_argument(
         "--no-steady-state",
         action="store_true",
         help="run to --t-end even after the structure has come to rest",
     )
     sim.add_argument(
-        "--out", type=_path, default=Path("results"), help="output folder (default ./results)"
+        "--out",
+        type=arguments.name,
+        default=Path("results"),
+        help="output folder (default ./results)",
     )
     sim.add_argument(
         "--resume",
@@ -1374,7 +1345,7 @@ def _add_simulate_parser(sub: _Commands) -> None:
     )
     sim.add_argument(
         "--force-table",
-        type=_path,
+        type=arguments.name,
         metavar="FILE.npz|FILE.csv",
         help="external nodal forces [N] from a time table, linear in between, held "
         "after its end (.npz: time (T,), force (T, N, 3); .csv: rows t, f0x, "
@@ -1405,25 +1376,28 @@ def _add_integration_options(parser: argparse.ArgumentParser) -> None:
         choices=[*ADAPTIVE_METHODS, *FIXED_STEP_METHODS],
         help="adaptive scipy method or fixed-step 'rk4' (default DOP853)",
     )
-    integration.add_argument("--dt", type=_positive, help="fixed step [s] (rk4 only)")
+    integration.add_argument("--dt", type=arguments.positive, help="fixed step [s] (rk4 only)")
     integration.add_argument(
-        "--rtol", type=_positive, default=1e-9, help="relative tolerance (default 1e-9)"
+        "--rtol", type=arguments.positive, default=1e-9, help="relative tolerance (default 1e-9)"
     )
     integration.add_argument(
-        "--atol", type=_positive, default=1e-12, help="absolute tolerance (default 1e-12)"
+        "--atol", type=arguments.positive, default=1e-12, help="absolute tolerance (default 1e-12)"
     )
     integration.add_argument(
-        "--sample-dt", type=_positive, default=0.01, help="output spacing [s] (default 0.01)"
+        "--sample-dt",
+        type=arguments.positive,
+        default=0.01,
+        help="output spacing [s] (default 0.01)",
     )
     integration.add_argument(
         "--max-steps",
-        type=_whole_positive,
+        type=arguments.whole_positive,
         default=DEFAULT_MAX_STEPS,
         help=f"stop (exit 1) after this many steps (default {DEFAULT_MAX_STEPS:,})",
     )
     integration.add_argument(
         "--max-wall-time",
-        type=_positive,
+        type=arguments.positive,
         default=math.inf,
         metavar="SECONDS",
         help="stop (exit 1) after this much wall-clock time (default: none)",
@@ -1461,7 +1435,7 @@ def _add_export_parser(sub: _Commands) -> None:
         "joints (reads back identical) instead of merging joined nodes into "
         "nodes shared by bars (class k, the default)",
     )
-    export.add_argument("-o", "--output", type=_path, required=True, help="output file")
+    export.add_argument("-o", "--output", type=arguments.name, required=True, help="output file")
     export.set_defaults(run=_cmd_export)
 
 
@@ -1473,8 +1447,8 @@ def _add_vtk_parser(sub: _Commands) -> None:
         description="Write a trajectory (trajectory.h5) as one VTK PolyData file "
         "per sample (.vtp) and a collection (.pvd) for ParaView.",
     )
-    vtk.add_argument("trajectory", type=_path, help="a trajectory.h5 written by simulate")
-    vtk.add_argument("-o", "--output", type=_path, required=True, help="output folder")
+    vtk.add_argument("trajectory", type=arguments.name, help="a trajectory.h5 written by simulate")
+    vtk.add_argument("-o", "--output", type=arguments.name, required=True, help="output folder")
     vtk.add_argument("--every", type=int, default=1, help="keep one sample in EVERY (default 1)")
     vtk.add_argument("--name", default="tensegrity", help="file name stem (default tensegrity)")
     vtk.set_defaults(run=_cmd_vtk)
@@ -1498,12 +1472,15 @@ def _add_matrices_parser(sub: _Commands) -> None:
     )
     matrices.add_argument(
         "--t-end",
-        type=_positive,
+        type=arguments.positive,
         default=60.0,
         help="longest damped simulation when looking for the equilibrium [s]",
     )
     matrices.add_argument(
-        "--out", type=_path, default=Path("matrices"), help="output folder (default ./matrices)"
+        "--out",
+        type=arguments.name,
+        default=Path("matrices"),
+        help="output folder (default ./matrices)",
     )
     matrices.set_defaults(run=_cmd_matrices)
 
@@ -1517,10 +1494,12 @@ def _add_sweep_parser(sub: _Commands) -> None:
         description="Run a parameter sweep on Dask and write one netCDF/HDF5 dataset; exit code 1 "
         "if some case failed (reported per case, the others are kept).",
     )
-    sweep.add_argument("--spec", type=_path, metavar="FILE", help="sweep spec (.json or .yaml)")
+    sweep.add_argument(
+        "--spec", type=arguments.name, metavar="FILE", help="sweep spec (.json or .yaml)"
+    )
     sweep.add_argument(
         "--structure",
-        type=_path,
+        type=arguments.name,
         metavar="FILE",
         help="sweep this structure file (any format) instead of the class 1 shell: "
         "then stiffness, rest_scale, damping and load can vary",
@@ -1535,10 +1514,14 @@ def _add_sweep_parser(sub: _Commands) -> None:
     )
     sweep.add_argument("--samples", type=int, help="Monte Carlo sample of this many cases")
     sweep.add_argument("--seed", type=int, help="Monte Carlo seed (default 0)")
-    sweep.add_argument("--t-end", type=_positive, help="simulated time per case [s] (default 0.1)")
-    sweep.add_argument("--sample-dt", type=_positive, help="output spacing [s] (default 1e-3)")
+    sweep.add_argument(
+        "--t-end", type=arguments.positive, help="simulated time per case [s] (default 0.1)"
+    )
+    sweep.add_argument(
+        "--sample-dt", type=arguments.positive, help="output spacing [s] (default 1e-3)"
+    )
     sweep.add_argument("--method", help="rk4 (default) or an adaptive scipy method")
-    sweep.add_argument("--dt", type=_positive, help="rk4 step [s] (default 1e-4)")
+    sweep.add_argument("--dt", type=arguments.positive, help="rk4 step [s] (default 1e-4)")
     sweep.add_argument(
         "--no-batch",
         action="store_true",
@@ -1551,7 +1534,7 @@ def _add_sweep_parser(sub: _Commands) -> None:
     sweep.add_argument(
         "-o",
         "--output",
-        type=_path,
+        type=arguments.name,
         required=True,
         help="output .nc file (missing folders are made)",
     )

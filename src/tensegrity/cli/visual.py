@@ -14,36 +14,11 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+from tensegrity.cli import arguments
 from tensegrity.cli.errors import CommandError, blame
 from tensegrity.io.files import byte_text, shown_path
 
 __all__ = ["add_parsers"]
-
-
-def _file_name(text: str) -> Path:
-    if not text.strip():
-        raise argparse.ArgumentTypeError(f"expected a file name, got {text!r}")
-    return Path(text)
-
-
-def _positive(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not (value > 0 and value < float("inf")):
-        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text!r}")
-    return value
-
-
-def _count(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be >= 1, got {text!r}")
-    return value
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -144,14 +119,20 @@ def add_parsers(sub: Any) -> None:
         "(slack ones dashed), supports, joints, point masses; time and energy. By default "
         "real time, at most 20 s of video.",
     )
-    animate.add_argument("trajectory", type=_file_name, help="a trajectory.h5 written by simulate")
     animate.add_argument(
-        "-o", "--output", type=_file_name, required=True, help="the video: .mp4, .webm or .gif"
+        "trajectory", type=arguments.name, help="a trajectory.h5 written by simulate"
     )
-    animate.add_argument("--fps", type=_positive, default=30.0, help="frames per second (30)")
-    animate.add_argument("--duration", type=_positive, help="length of the video [s]")
     animate.add_argument(
-        "--speed", type=_positive, help="simulated seconds per second of video (1: real time)"
+        "-o", "--output", type=arguments.name, required=True, help="the video: .mp4, .webm or .gif"
+    )
+    animate.add_argument(
+        "--fps", type=arguments.positive, default=30.0, help="frames per second (30)"
+    )
+    animate.add_argument("--duration", type=arguments.positive, help="length of the video [s]")
+    animate.add_argument(
+        "--speed",
+        type=arguments.positive,
+        help="simulated seconds per second of video (1: real time)",
     )
     animate.add_argument(
         "--size", type=_size, default=(800, 640), help="WIDTHxHEIGHT in pixels (800x640)"
@@ -174,17 +155,19 @@ def add_parsers(sub: Any) -> None:
         "offline: orbit, zoom, pan, play, a time slider, tensions, slack tendons, supports; "
         "hover a member to read its name, length and tension.",
     )
-    viewer.add_argument("trajectory", type=_file_name, help="a trajectory.h5 written by simulate")
-    viewer.add_argument("-o", "--output", type=_file_name, required=True, help="the .html file")
+    viewer.add_argument(
+        "trajectory", type=arguments.name, help="a trajectory.h5 written by simulate"
+    )
+    viewer.add_argument("-o", "--output", type=arguments.name, required=True, help="the .html file")
     viewer.add_argument(
         "--max-frames",
-        type=_count,
+        type=arguments.whole_positive,
         default=MAX_FRAMES,
         help=f"at most this many frames, spread over the run ({MAX_FRAMES})",
     )
     viewer.add_argument(
         "--max-mb",
-        type=_positive,
+        type=arguments.positive,
         default=MAX_BYTES / 1e6,
         help=f"at most this many MB of positions and tensions ({MAX_BYTES / 1e6:g})",
     )

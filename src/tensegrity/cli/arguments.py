@@ -1,0 +1,62 @@
+"""The types of the command's options (``argparse`` ``type=`` functions), shared by its verbs:
+each turns an option's text into its value, or raises ``ArgumentTypeError`` saying what was
+expected, which the parser prints as one line naming the option
+(``simulate: argument --t-end: must be > 0, got '-1'``)."""
+
+from __future__ import annotations
+
+import argparse
+import math
+from collections.abc import Callable
+from pathlib import Path
+
+__all__ = ["at_least", "finite", "name", "non_negative", "positive", "whole_positive"]
+
+
+def finite(text: str) -> float:
+    """A finite number."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"must be finite, got {text!r}")
+    return value
+
+
+def at_least(low: float, *, strict: bool) -> Callable[[str], float]:
+    """The type of a finite number ``>= low`` (``> low`` if ``strict``)."""
+
+    def number(text: str) -> float:
+        value = finite(text)
+        if value < low or (strict and value == low):
+            raise argparse.ArgumentTypeError(
+                f"must be {'>' if strict else '>='} {low:g}, got {text!r}"
+            )
+        return value
+
+    return number
+
+
+#: A finite number > 0.
+positive = at_least(0.0, strict=True)
+#: A finite number >= 0.
+non_negative = at_least(0.0, strict=False)
+
+
+def whole_positive(text: str) -> int:
+    """A whole number >= 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be > 0, got {text!r}")
+    return value
+
+
+def name(text: str) -> Path:
+    """A file or folder name; not empty (``Path("")`` would be the current folder)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"expected a file or folder name, got {text!r}")
+    return Path(text)
