@@ -262,22 +262,6 @@ def _dop853_loop(clock, tally, buffers, flags, switch_times, system, rows, point
     while True:
         if attempts >= attempts_per_call:
             return RUN_YIELD, CHECK_OK, 0.0
-        if tally[START]:  # the first stage, the monitor at the start, the taut flags, the step
-            tally[START] = 0
-            point, bad = _point(clock[T], point, tables, provider, times1)
-            if bad >= 0:
-                clock[INPUT_TIME] = clock[T]
-                return RUN_INPUT, CHECK_OK, 0.0
-            ode_rhs(y, K[0], np.int64(0), system, point, work)
-            tally[NFEV] += 1
-            no_limits = (np.inf, np.inf, np.inf)
-            check_state(y, np.int64(0), system, point, work, no_limits, monitor, np.bool_(True))
-            for s in range(taut.shape[0]):
-                taut[s] = work[2][s] > 0.0
-            clock[STEP] = initial_step(K[0], K[1])
-            if np.isnan(clock[STEP]):
-                return RUN_INPUT, CHECK_OK, 0.0
-            tally[ALLOW_PROVISIONAL] = locate
         if tally[PENDING]:  # finish the accepted step whose samples were handed out
             tally[PENDING] = 0
             copy_values(K[DOP853_STAGES], K[0], m)  # first same as last
@@ -294,17 +278,25 @@ def _dop853_loop(clock, tally, buffers, flags, switch_times, system, rows, point
                 return RUN_BOUNDARY, CHECK_OK, 0.0  # (a controller may change the inputs)
             if tally[NSTEPS] >= max_steps:
                 return RUN_MAX_STEPS, CHECK_OK, 0.0
-        if tally[RESTART]:  # the state changed: its first stage and taut flags anew
-            tally[RESTART] = 0
+        if tally[RESTART] or tally[START]:  # the state changed, or the run starts: its first
+            tally[RESTART] = 0  # stage and taut flags anew
             point, bad = _point(clock[T], point, tables, provider, times1)
             if bad >= 0:
                 clock[INPUT_TIME] = clock[T]
                 return RUN_INPUT, CHECK_OK, 0.0
             ode_rhs(y, K[0], np.int64(0), system, point, work)
             tally[NFEV] += 1
-            if locate:
+            if locate or tally[START]:
                 exact = bool(tally[LANDED]) and bool(tally[LANDING_EXACT])
                 set_taut_flags(exact)
+            if tally[START]:  # and the monitor at the start, the initial step
+                tally[START] = 0
+                no_limits = (np.inf, np.inf, np.inf)
+                check_state(y, np.int64(0), system, point, work, no_limits, monitor, np.bool_(True))
+                clock[STEP] = initial_step(K[0], K[1])
+                if np.isnan(clock[STEP]):
+                    return RUN_INPUT, CHECK_OK, 0.0
+                tally[ALLOW_PROVISIONAL] = locate
         tally[LANDED] = 0
         if clock[T] >= bound:
             return RUN_BOUNDARY, CHECK_OK, 0.0
