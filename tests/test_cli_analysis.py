@@ -107,7 +107,9 @@ def test_modes_writes_frequencies_in_hz_with_mode_shapes(tmp_path, capsys, shell
         capsys,
     )
     assert code == 0, err
-    data = _check_files(out, ["modes.json", "frequencies.png", "mode_shapes.png"])["modes.json"]
+    clips = [f"mode_{i}.html" for i in range(6, 10)]  # the 4 lowest elastic modes
+    names = ["modes.json", "frequencies.png", "mode_shapes.png", *clips]
+    data = _check_files(out, names)["modes.json"]
     modes = data["modes"]
     assert len(modes) == 30 and data["rigid_body_modes"] == 6 and data["mechanisms"] == 0
     assert data["stable"] and data["verdict"].startswith("stable")
@@ -120,6 +122,30 @@ def test_modes_writes_frequencies_in_hz_with_mode_shapes(tmp_path, capsys, shell
     # the FFT of the undamped nonlinear simulation agrees within 1%
     assert data["fft_check"]["relative_error"] < 0.01
     assert "FFT check" in text and "2.12942" in text
+    _check_mode_clip(out / "mode_6.html", modes[6], 6)
+
+
+def _check_mode_clip(path, mode, i):
+    """The page of mode ``i`` (its ``modes.json`` entry ``mode``): one period of
+    ``p0 + a sin(2 pi j / 48) phi`` at the mode's own period, largest displacement 10% of the
+    structure's size, tensions of each displaced configuration."""
+    from tensegrity.physics.dynamics import tendon_tensions
+    from tensegrity.plots.viewer import read_viewer_data
+
+    page = read_viewer_data(path.read_text())
+    structure = class1_shell(3, 1)
+    p0 = find_equilibrium(structure).node_position
+    phi = np.array(mode["node_shape_m"])
+    a = 0.1 * np.ptp(p0, axis=0).max() / np.linalg.norm(phi, axis=1).max()
+    j = np.arange(48)
+    expected = p0 + a * np.sin(2 * np.pi * j / 48)[:, None, None] * phi
+    assert page["n_frames"] == 48 and f"mode {i}" in page["title"]
+    np.testing.assert_allclose(page["time"], j / 48 / mode["frequency_hz"], rtol=1e-12)
+    np.testing.assert_allclose(page["positions"], expected, rtol=0, atol=1e-6)
+    displacement = np.linalg.norm(page["positions"] - p0, axis=-1).max()
+    assert displacement == pytest.approx(0.1 * np.ptp(p0, axis=0).max(), rel=1e-3)
+    tension = tendon_tensions(structure, expected[12])
+    np.testing.assert_allclose(page["tensions"][12], tension, rtol=1e-5)
 
 
 def test_controllability_ranks_per_input_set(tmp_path, capsys):

@@ -47,7 +47,9 @@ from tensegrity.plots import report
 
 if TYPE_CHECKING:
     from tensegrity.analysis.controllability import ReachResult
+    from tensegrity.analysis.modes import ModalAnalysis
     from tensegrity.analysis.shape_control import Bounds, ClosedLoop, QuasiStatic
+    from tensegrity.plots.motion import Frames
 
 
 class Output(NamedTuple):
@@ -236,8 +238,11 @@ def run_modes(
         data["simulation_check"] = sim.to_dict()
         text.append(sim.verdict)
     chosen = [int(i) for i in modes.elastic_indices()[:shapes]]
+    clips = {i: mode_clip(modes, i) for i in chosen}
 
     def write(out: Path) -> list[Path]:
+        from tensegrity.plots.viewer import view
+
         written = [report.write_json(out / "modes.json", data)]
         written.append(
             report.save_figure(report.figure_frequencies(modes), out / "frequencies.png")
@@ -245,9 +250,41 @@ def run_modes(
         if chosen:
             figure = report.figure_mode_shapes(modes, chosen)
             written.append(report.save_figure(figure, out / "mode_shapes.png"))
+        written += [view(clip, out / f"mode_{i}.html") for i, clip in clips.items()]
         return written
 
     return Output("\n\n".join(text), write, None)
+
+
+#: Frames of one period of a mode's clip (:func:`mode_clip`).
+MODE_CLIP_FRAMES = 48
+#: Largest node displacement of a mode's clip, as a fraction of the structure's size.
+MODE_CLIP_AMPLITUDE = 0.1
+
+
+def mode_clip(modes: ModalAnalysis, i: int, *, n_frames: int = MODE_CLIP_FRAMES) -> Frames:
+    """One period of mode ``i`` (elastic) as the viewer's frames: node positions
+    ``p0 + a sin(2 pi j / n_frames) phi_i`` (the linearized motion, frames ``j = 0 ..
+    n_frames - 1`` at times ``j T / n_frames``, ``T`` the mode's period [s]), the largest node
+    displacement ``a |phi_i|_max`` :data:`MODE_CLIP_AMPLITUDE` of the structure's size; tendon
+    tensions exact at each displaced configuration (:func:`~tensegrity.physics.dynamics.
+    tendon_tensions`, at rest: no damping)."""
+    from tensegrity.physics.dynamics import tendon_tensions
+    from tensegrity.plots.motion import motion_frames
+
+    lin = modes.linearization
+    p0 = lin.equilibrium.node_position
+    size = float(np.ptp(p0, axis=0).max()) or 1.0
+    shape = modes.node_shapes[i]
+    amplitude = MODE_CLIP_AMPLITUDE * size / (float(np.max(np.linalg.norm(shape, axis=1))) or 1.0)
+    phase = 2 * np.pi * np.arange(n_frames) / n_frames
+    position = p0 + amplitude * np.sin(phase)[:, None, None] * shape
+    tension = np.stack([tendon_tensions(lin.structure, p) for p in position])
+    period = 1.0 / modes.frequency_hz[i]
+    title = f"mode {i}: {modes.frequency_hz[i]:.4g} Hz (period {period:.4g} s), linearized"
+    return motion_frames(
+        lin.structure, phase / (2 * np.pi) * period, position, tension, title=title
+    )
 
 
 # ------------------------------------------------------------------------------ controllability

@@ -45,6 +45,7 @@ __all__ = [
     "decimated_indices",
     "frame_indices",
     "make_frames",
+    "motion_frames",
     "playback_times",
     "structure_frames",
     "tension_colors",
@@ -332,14 +333,15 @@ def _frames(
     t: np.ndarray,
     node_position: np.ndarray,
     tendon_tension: np.ndarray,
-    energy: Mapping[str, np.ndarray],
+    energy: Mapping[str, np.ndarray] | None,
     indices: np.ndarray | None,
     title: str,
     numbers: np.ndarray | None = None,
 ) -> Frames:
     """:func:`make_frames` of a run's arrays (T rows each; ``energy`` by
-    :data:`~tensegrity.engine.result.ENERGY_NAMES`); ``numbers`` (T,) the rows' sample numbers
-    in the run (default: the rows are every sample)."""
+    :data:`~tensegrity.engine.result.ENERGY_NAMES`, or ``None``: no energies, ``{}`` as
+    :func:`structure_frames`); ``numbers`` (T,) the rows' sample numbers in the run (default:
+    the rows are every sample)."""
     T = t.size
     index = np.arange(T) if indices is None else np.asarray(indices, dtype=np.int64)
     if index.ndim != 1 or not index.size or index.min() < 0 or index.max() >= T:
@@ -347,11 +349,15 @@ def _frames(
     position = _padded(structure, node_position[index])
     every = _padded(structure, node_position)
     tension = np.asarray(tendon_tension[index], dtype=float)
-    energies = {
-        "total": total_energy(energy)[index],
-        "kinetic": energy["kinetic"][index],
-        "elastic": energy["elastic"][index],
-    }
+    energies = (
+        {}
+        if energy is None
+        else {
+            "total": total_energy(energy)[index],
+            "kinetic": energy["kinetic"][index],
+            "elastic": energy["elastic"][index],
+        }
+    )
     bounds = np.stack([every.min(axis=(0, 1)), every.max(axis=(0, 1))])
     return Frames(
         structure=structure,
@@ -364,6 +370,44 @@ def _frames(
         tension_range=_tension_range(np.asarray(tendon_tension)),
         bounds=bounds,
         title=title,
+    )
+
+
+def motion_frames(
+    structure: Structure,
+    t: np.ndarray,
+    node_position: np.ndarray,
+    tendon_tension: np.ndarray,
+    *,
+    title: str = "",
+) -> Frames:
+    """Frames of a motion that is not a :class:`~tensegrity.engine.result.SimulationResult`
+    (a mode's oscillation, a sequence of equilibria, a controlled run's states): every row
+    a frame, no energies (``{}``, as :func:`structure_frames`).
+
+    Parameters
+    ----------
+    structure : Structure
+        ``N`` nodes, ``S`` tendons.
+    t : array_like, shape (T,)
+        Time of each frame [s], ascending.
+    node_position : array_like, shape (T, N, dim)
+        Node positions [m].
+    tendon_tension : array_like, shape (T, S)
+        Tendon tensions [N], e.g. :func:`tensegrity.physics.dynamics.tendon_tensions` of each
+        configuration.
+    title : str
+        A line naming the motion, or empty.
+    """
+    t = np.asarray(t, dtype=float)
+    return _frames(
+        structure,
+        t,
+        np.asarray(node_position, dtype=float),
+        np.asarray(tendon_tension, dtype=float).reshape(t.size, structure.n_tendons),
+        None,
+        None,
+        title,
     )
 
 
