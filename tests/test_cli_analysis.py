@@ -18,6 +18,7 @@ from tensegrity.analysis.equilibrium import find_equilibrium
 from tensegrity.analysis.shape_control import shell_rings
 from tensegrity.cli.analysis import rings
 from tensegrity.cli.main import main
+from tensegrity.plots.viewer import read_viewer_data
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
@@ -49,8 +50,10 @@ def test_equilibrium_writes_positions_tensions_and_residuals(tmp_path, capsys):
     out = tmp_path / "eq"
     code, text, err = _run(["equilibrium", "--out", str(out)], capsys)
     assert code == 0, err
-    data = _check_files(out, ["equilibrium.json", "equilibrium.png"])["equilibrium.json"]
+    names = ["equilibrium.json", "equilibrium.png", "settling.html"]
+    data = _check_files(out, names)["equilibrium.json"]
     direct, simulated = data["least_squares"], data["simulation"]
+    _check_settling(out / "settling.html", np.array(simulated["node_position_m"]))
     assert direct["converged"] and simulated["converged"]
     p = np.array(direct["node_position_m"])
     assert p.shape == (12, 3)
@@ -66,6 +69,21 @@ def test_equilibrium_writes_positions_tensions_and_residuals(tmp_path, capsys):
     assert data["agreement"]["node_distance"] < 1e-6
     assert data["agreement"]["tension_difference"] < 1e-4
     assert "routes agree" in text and "t8_3_1" in text and "wrote" in text
+
+
+def _check_settling(path, settled):
+    """The settling page: the damped run's samples from the start to where it settled."""
+    from tensegrity.analysis.equilibrium import equilibrium_by_simulation
+
+    page = read_viewer_data(path.read_text())
+    run = equilibrium_by_simulation(class1_shell(3, 1), t_end=60.0).trajectory
+    assert 1 < page["n_frames"] <= 300 and np.all(np.diff(page["time"]) > 0)
+    index = np.array(page["sample_index"])
+    np.testing.assert_allclose(page["time"], run.t[index], rtol=1e-12)
+    np.testing.assert_allclose(page["positions"], run.node_position[index], atol=1e-6)
+    np.testing.assert_allclose(page["tensions"], run.tendon_tension[index], rtol=1e-5, atol=1e-4)
+    assert index[0] == 0 and index[-1] == run.t.size - 1
+    np.testing.assert_allclose(page["positions"][-1], settled, atol=1e-6)
 
 
 def test_equilibrium_of_a_structure_file_matches_the_shell_options(tmp_path, capsys, shell_file):
@@ -85,6 +103,9 @@ def test_equilibrium_of_a_structure_file_matches_the_shell_options(tmp_path, cap
     assert code == 0, err
     data = json.loads((out / "equilibrium.json").read_text())
     assert "simulation" not in data and "agreement" not in data
+    page = read_viewer_data((out / "settling.html").read_text())  # no run: the structure at rest
+    assert page["n_frames"] == 1
+    np.testing.assert_allclose(page["positions"][0], class1_shell(3, 1).node_position, atol=1e-6)
     reference = find_equilibrium(class1_shell(3, 1))
     np.testing.assert_allclose(
         [t["tension_N"] for t in data["least_squares"]["tendons"]], reference.tension, rtol=1e-9
@@ -130,7 +151,6 @@ def _check_mode_clip(path, mode, i):
     ``p0 + a sin(2 pi j / 48) phi`` at the mode's own period, largest displacement 10% of the
     structure's size, tensions of each displaced configuration."""
     from tensegrity.physics.dynamics import tendon_tensions
-    from tensegrity.plots.viewer import read_viewer_data
 
     page = read_viewer_data(path.read_text())
     structure = class1_shell(3, 1)

@@ -30,7 +30,7 @@ and reported in 2-D.
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import scipy.optimize
@@ -57,6 +57,9 @@ from tensegrity.analysis.statics import (
 from tensegrity.model.structure import Structure
 from tensegrity.physics import dynamics
 from tensegrity.physics.constraints import constraints_of
+
+if TYPE_CHECKING:
+    from tensegrity.engine.result import SimulationResult
 
 #: Default force tolerance, relative to ``mean(k) * mean(rod length)`` (100 N for the default
 #: shell: 1e-10 N there).
@@ -104,6 +107,8 @@ class EquilibriumResult:
     external_force: np.ndarray | None = None
     gravity: np.ndarray | None = None
     reaction_force: np.ndarray | None = None
+    #: the damped run that settled (:func:`equilibrium_by_simulation`; None for least squares)
+    trajectory: SimulationResult | None = None
 
     @property
     def slack_names(self) -> list[str]:
@@ -784,7 +789,7 @@ def equilibrium_by_simulation(
         for key in ("gravity", "external_force")
         if isinstance(simulate_options.get(key), (list, tuple, np.ndarray))
     }
-    return make_result(
+    settled = make_result(
         structure,
         result.q[-1],
         control,
@@ -794,6 +799,7 @@ def equilibrium_by_simulation(
         message=message,
         nfev=result.nfev,
     )
+    return dataclasses.replace(settled, trajectory=result)
 
 
 def with_damping(structure: Structure, damping: str) -> Structure:

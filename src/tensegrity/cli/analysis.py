@@ -124,8 +124,14 @@ def run_equilibrium(
         text.append(_agreement_text(agreement))
     main = results.get("least_squares") or results["simulation"]
     text.append(_tendon_table(structure, main))
+    # the page: the damped run's settling if the simulation route ran (the viewer decimates
+    # its samples), else the structure at rest
+    simulated = results.get("simulation")
+    settling = structure if simulated is None else (simulated.trajectory or structure)
 
     def write(out: Path) -> list[Path]:
+        from tensegrity.plots.viewer import view
+
         fig = figure_structure(
             structure,
             main.node_position,
@@ -135,6 +141,7 @@ def run_equilibrium(
         return [
             report.write_json(out / "equilibrium.json", data),
             report.save_figure(fig, out / "equilibrium.png"),
+            view(settling, out / "settling.html"),
         ]
 
     failed = [f"{name}: {r.message}" for name, r in results.items() if not r.converged]
