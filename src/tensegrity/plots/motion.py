@@ -264,14 +264,27 @@ class FrameKeeper:
         self.last: tuple[np.ndarray, ...] | None = None
 
     def add(self, samples: Samples) -> None:
-        """Keep what the frames need of ``samples`` (a block, in time order)."""
+        """Keep what the frames need of ``samples`` (a block, in time order): positions and
+        tensions as float32, what the page holds."""
         number = np.round((samples.t - self.t0) / self.sample_dt).astype(np.int64)
-        columns = (number, samples.t, samples.node_position, samples.tendon_tension, samples.energy)
-        self.kept.append(_rows(columns, number % self.every == 0))
-        self.last = _rows(columns, np.arange(number.size) == number.size - 1)
+        last = np.arange(number.size) == number.size - 1
+        self.last = self._columns(samples, number, last)
+        self.kept.append(self._columns(samples, number, number % self.every == 0))
         while sum(k[0].size for k in self.kept) > 2 * self.max_frames:
             self.every *= 2
             self.kept = [_rows(k, k[0] % self.every == 0) for k in self.kept]
+
+    @staticmethod
+    def _columns(samples: Samples, number: np.ndarray, keep: np.ndarray) -> tuple[np.ndarray, ...]:
+        """The rows ``keep`` of what a frame shows: sample number, time, positions, tensions
+        (float32) and energies."""
+        return (
+            number[keep],
+            samples.t[keep],
+            samples.node_position[keep].astype(np.float32),
+            samples.tendon_tension[keep].astype(np.float32),
+            samples.energy[keep],
+        )
 
     def frames(self, title: str = "") -> Frames:
         """The frames kept (at most ``max_frames``, evenly spread, the first and last)."""
@@ -296,8 +309,7 @@ class FrameKeeper:
 
 
 def _rows(columns: tuple[np.ndarray, ...], keep: np.ndarray) -> tuple[np.ndarray, ...]:
-    """The rows ``keep`` (a mask) of each of ``columns``, copied (a block's arrays are the
-    sink's)."""
+    """The rows ``keep`` (a mask) of each of ``columns``."""
     return tuple(column[keep] for column in columns)
 
 
@@ -379,6 +391,7 @@ def motion_frames(
     node_position: np.ndarray,
     tendon_tension: np.ndarray,
     *,
+    indices: np.ndarray | None = None,
     title: str = "",
 ) -> Frames:
     """Frames of a motion that is not a :class:`~tensegrity.engine.result.SimulationResult`
@@ -396,6 +409,9 @@ def motion_frames(
     tendon_tension : array_like, shape (T, S)
         Tendon tensions [N], e.g. :func:`tensegrity.physics.dynamics.tendon_tensions` of each
         configuration.
+    indices : array_like of int, optional
+        Rows to show (e.g. :func:`decimated_indices` of a long motion); default every row.
+        The tension range and bounds are over every row.
     title : str
         A line naming the motion, or empty.
     """
@@ -406,7 +422,7 @@ def motion_frames(
         np.asarray(node_position, dtype=float),
         np.asarray(tendon_tension, dtype=float).reshape(t.size, structure.n_tendons),
         None,
-        None,
+        indices,
         title,
     )
 
