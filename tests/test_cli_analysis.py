@@ -212,8 +212,18 @@ def test_control_reaches_the_targets_open_and_closed_loop(tmp_path, capsys):
     code, text, err = _run(["control", "--steps", "4", "2", "--out", str(out)], capsys)
     assert code == 0, err
     files = ["control.json", "control_motion.png", "control_inputs.png", "control_shapes.png"]
-    data = _check_files(out, files)["control.json"]
+    data = _check_files(out, [*files, "open_loop.html", "control.html"])["control.json"]
     plan, closed = data["open_loop"], data["closed_loop"]
+    # the pages: the plan's equilibria one per step from the initial one; the closed loop's
+    # samples from t = 0 to its end, taut throughout
+    steps = read_viewer_data((out / "open_loop.html").read_text())
+    p0 = find_equilibrium(class1_shell(3, 1)).node_position
+    assert steps["n_frames"] >= 7 and steps["time"] == list(range(steps["n_frames"]))
+    np.testing.assert_allclose(steps["positions"][0], p0, atol=1e-5)
+    run = read_viewer_data((out / "control.html").read_text())
+    assert 1 < run["n_frames"] <= 300 and run["time"][0] == 0 and np.all(np.diff(run["time"]) > 0)
+    np.testing.assert_allclose(run["positions"][0], p0, atol=1e-5)
+    assert run["tensions"].min() > 0 and f"{run['time'][-1]:.3g} s" in text
     h0 = plan["initial_outputs"][0]
     assert plan["reached"] and closed["reached"]
     assert plan["final_outputs"][0] == pytest.approx(0.8 * h0, abs=1e-6)

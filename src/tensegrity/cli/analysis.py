@@ -454,8 +454,15 @@ def run_control(
         data["closed_loop"] = _closed_loop_summary(closed)
         text.append(f"closed loop (LQR, nonlinear model, {closed.t[-1]:.3g} s): {closed.message}")
 
+    pages = {"open_loop.html": _open_loop_frames(plan)}
+    if closed is not None:
+        pages["control.html"] = _closed_loop_frames(closed)
+
     def write(out: Path) -> list[Path]:
+        from tensegrity.plots.viewer import view
+
         return [
+            *(view(frames, out / name) for name, frames in pages.items()),
             report.write_json(out / "control.json", data),
             report.save_figure(
                 report.figure_shape_motion(plan, closed), out / "control_motion.png"
@@ -472,6 +479,44 @@ def run_control(
         if r is not None and not r.reached
     ]
     return Output("\n\n".join(text), write, "; ".join(missed) or None)
+
+
+def _open_loop_frames(plan: QuasiStatic) -> Frames:
+    """The viewer's frames of the open-loop plan: one per equilibrium of the quasi-static
+    sequence, its "time" the step number (a sequence of states at rest, not a motion)."""
+    from tensegrity.plots.motion import motion_frames
+
+    steps = np.arange(len(plan.equilibria), dtype=float)
+    return motion_frames(
+        plan.structure,
+        steps,
+        np.stack([eq.node_position for eq in plan.equilibria]),
+        np.stack([eq.tension for eq in plan.equilibria]),
+        title=f"open loop: {len(steps) - 1} quasi-static steps (time axis = step number)",
+    )
+
+
+def _closed_loop_frames(closed: ClosedLoop) -> Frames:
+    """The viewer's frames of the closed-loop manoeuvre: its samples (times [s], node
+    positions, tensions), decimated to the page's budget (first and last kept)."""
+    from tensegrity.plots.motion import (
+        MAX_BYTES,
+        MAX_FRAMES,
+        decimated_indices,
+        frame_budget,
+        motion_frames,
+    )
+
+    s = closed.structure
+    budget = frame_budget(s, max_frames=MAX_FRAMES, max_bytes=MAX_BYTES)
+    return motion_frames(
+        s,
+        closed.t,
+        closed.node_position[..., : s.dim],
+        closed.tension,
+        indices=decimated_indices(closed.t.size, budget),
+        title=f"closed loop (LQR, nonlinear model): {closed.message}",
+    )
 
 
 #: Most quasi-static steps per phase of ``control``.
