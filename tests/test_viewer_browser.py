@@ -258,3 +258,16 @@ def test_the_notebook_view_runs_in_its_iframe(browser, tmp_path, shell31):
 
 def test_a_structure_page_loads_cleanly(browser, tmp_path):
     load_clean(browser, tmp_path, class2_shell(3, 2, fixed_base=True))
+
+
+def test_a_mode_clip_without_energies_loads_cleanly(browser, tmp_path):
+    """``tensegrity modes``' page: frames of ``plots.motion.motion_frames`` (no energies)."""
+    from tensegrity.analysis.equilibrium import find_equilibrium
+    from tensegrity.analysis.linearize import linearize
+    from tensegrity.analysis.modes import modal_analysis
+    from tensegrity.cli.analysis import mode_clip
+
+    s = class1_shell(3, 1)
+    modes = modal_analysis(linearize(s, find_equilibrium(s)))
+    n_frames, _ = load_clean(browser, tmp_path, mode_clip(modes, int(modes.elastic_indices()[0])))
+    assert n_frames == 48
