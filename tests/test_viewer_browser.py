@@ -271,3 +271,22 @@ def test_a_mode_clip_without_energies_loads_cleanly(browser, tmp_path):
     modes = modal_analysis(linearize(s, find_equilibrium(s)))
     n_frames, _ = load_clean(browser, tmp_path, mode_clip(modes, int(modes.elastic_indices()[0])))
     assert n_frames == 48
+
+
+def test_the_analysis_verbs_pages_load_cleanly(browser, tmp_path):
+    """``tensegrity equilibrium``'s settling and ``tensegrity control``'s open- and closed-loop
+    manoeuvres, as the verbs write them: drawn, no console error."""
+    from tensegrity.cli.analysis import run_control, run_equilibrium
+
+    s = class1_shell(3, 1)
+    run_equilibrium(s, method="simulation").write(tmp_path)
+    run_control(s, steps=(4, 2)).write(tmp_path)
+    for name in ("settling.html", "open_loop.html", "control.html"):
+        page = Page(browser, tmp_path / name)
+        try:
+            picture = page.picture()
+            page.check_clean()
+            assert drawn(picture).sum() > 500, name
+            assert page.call("tensegrityViewer.data.n_frames") >= 2, name
+        finally:
+            page.page.close()
