@@ -457,6 +457,24 @@ def test_rk4_is_fourth_order_on_a_smooth_problem():
     assert errors[-1] > 1e3 * 1e-11  # well above the reference's own error
 
 
+def test_rk4_samples_inside_a_step_are_interpolated_to_the_methods_accuracy():
+    # Samples half-way through the steps are cubic Hermite interpolants of the step's ends and
+    # slopes: as close to a tight reference as the samples on the steps' ends (RK4's own error,
+    # 5e-9 m here).  A wrong slope at the step's start (f0 = 0) puts them 2e-3 m off.
+    structure, initial = _smooth_problem()
+    T, dt = 0.02, 1e-3
+    ref = simulate(structure, (0.0, T), initial=initial, rtol=1e-13, atol=1e-14, sample_dt=dt / 2)
+    r = simulate(structure, (0.0, T), initial=initial, method="rk4", dt=dt, sample_dt=dt / 2)
+    assert r.status == 0 and r.nsteps == round(T / dt), r.message
+    np.testing.assert_allclose(r.t, ref.t, atol=1e-15)
+    position = np.abs(r.node_position - ref.node_position).max(axis=(1, 2))
+    velocity = np.abs(r.node_velocity - ref.node_velocity).max(axis=(1, 2))
+    on_ends, inside = slice(2, None, 2), slice(1, None, 2)
+    assert 0 < position[on_ends].max() < 1e-8
+    assert position[inside].max() < 2 * position[on_ends].max()
+    assert velocity[inside].max() < 1e-6
+
+
 def test_rk4_keeps_rod_lengths_over_many_steps():
     """RK4 projects onto the rod constraints after each step: over many steps of a two-rod
     structure with taut and slack tendons, rod lengths stay at ``L`` to 1e-9.

@@ -171,18 +171,14 @@ def _row(values, s):  # pragma: no cover - compiled
 
 
 @njit(**JIT_OPTIONS)
-def ode_rhs(y, dy, s, system, inputs, work):  # pragma: no cover - compiled
-    """``dy = f(t_s, y)`` for ``y = [q, q', E_d, W_w, W_u]`` (length ``2n + 3``): ``q'``, the
-    accelerations of Theorem 18.1 (eqs. 18.17, 18.20, constraint forces included), the power
-    dissipated by damping, the power of the external forces and the power of the control,
-    ``sum_i T_el,i du_i/dt`` [W] (``Lbar = L0 - u``); ``s`` selects the stage's row of the
-    inputs."""
+def accelerations(q, qdot, qddot, s, system, inputs, work):  # pragma: no cover - compiled
+    """``qddot`` = the accelerations of Theorem 18.1 (eqs. 18.17, 18.20, constraint forces
+    included) at ``(q, q')`` with the inputs' row ``s``; returns the powers ``(dissipated,
+    external, control)`` [W]: damping, external forces, and ``sum_i T_el,i du_i/dt`` (``Lbar =
+    L0 - u``), the rates of ``E_d``, ``W_w`` and ``W_u``."""
     arrays, extras = system
     rest, rate, has_rate, has_external, force, has_gravity, gravity = inputs
     node_work, block_force, tension, elastic, damping_power = work
-    n = (y.shape[0] - 3) // 2
-    q = y[:n]
-    qdot = y[n : 2 * n]
     dissipated, external = system_rhs(
         q,
         qdot,
@@ -195,20 +191,30 @@ def ode_rhs(y, dy, s, system, inputs, work):  # pragma: no cover - compiled
         gravity,
         node_work,
         block_force,
-        dy[n : 2 * n],
+        qddot,
         tension,
         elastic,
         damping_power,
     )
-    copy_values(qdot, dy, n)
-    dy[2 * n] = dissipated
-    dy[2 * n + 1] = external
     control = 0.0
     if has_rate:
         rate_s = _row(rate, s)
         for i in range(elastic.shape[0]):
             control += elastic[i] * rate_s[i]
-    dy[2 * n + 2] = control
+    return dissipated, external, control
+
+
+@njit(**JIT_OPTIONS)
+def ode_rhs(y, dy, s, system, inputs, work):  # pragma: no cover - compiled
+    """``dy = f(t_s, y)`` for ``y = [q, q', E_d, W_w, W_u]`` (length ``2n + 3``): ``q'``, the
+    accelerations and the three powers of :func:`accelerations`; ``s`` selects the stage's row
+    of the inputs."""
+    n = (y.shape[0] - 3) // 2
+    qdot = y[n : 2 * n]
+    dy[2 * n], dy[2 * n + 1], dy[2 * n + 2] = accelerations(
+        y[:n], qdot, dy[n : 2 * n], s, system, inputs, work
+    )
+    copy_values(qdot, dy, n)
 
 
 # --------------------------------------------------------------------------- DOP853
@@ -288,26 +294,63 @@ def dop853_interpolate(F, y_old, x, out):  # pragma: no cover - compiled
 
 # --------------------------------------------------------------------------- RK4
 @njit(**JIT_OPTIONS)
-def rk4_step(y, h, K, stage, system, inputs, work, y_end):  # pragma: no cover - compiled
-    """One classical RK4 step of ``h`` [s] on ``y`` in place, the result also written to
-    ``y_end`` (in the same pass: a copy of its own would read ``y`` once more); ``K`` (4,
-    len(y)) and ``stage`` scratch.  Stage rows of the inputs: 0, 1, 2, 3 at ``t, t + h/2, t +
-    h/2, t + h``."""
-    ode_rhs(y, K[0], np.int64(0), system, inputs, work)
-    for s in range(1, 4):
-        c = h * RK4_C[s]
-        for i in range(y.shape[0]):
-            stage[i] = y[i] + c * K[s - 1, i]
-        ode_rhs(stage, K[s], s, system, inputs, work)
+def rk4_step(y, h, work_step, keep_first, system, inputs, work, y_end):  # pragma: no cover
+    """One classical RK4 step of ``h`` [s] on ``y`` in place, ``y + h/6 (k1 + 2 k2 + 2 k3 +
+    k4)``, the result also written to ``y_end``.  Stage rows of the inputs: 0, 1, 2, 3 at ``t,
+    t + h/2, t + h/2, t + h``.
+
+    The sum is accumulated stage by stage in the order written, so the result is that of the
+    four stages kept apart, bit for bit, with two vectors of scratch instead of four: a pass
+    after each stage adds it to the sum and makes the next stage's state (at (100,100) the step
+    is 15% faster than with the stages kept, measured).  ``work_step`` = ``(total (m,), stage
+    (m,), qddot (n,), first (m,))``; with ``keep_first``, ``first`` receives ``k1 = f(t, y)``
+    (what a cubic Hermite sample inside the step needs)."""
+    total, stage, qddot, first = work_step
+    n = (y.shape[0] - 3) // 2
+    q, qdot = y[:n], y[n : 2 * n]
+    q_stage, qdot_stage = stage[:n], stage[n : 2 * n]
+    # k1 = f(y): the sum starts with it, and stage 2 is y + h/2 k1
+    powers = accelerations(q, qdot, qddot, np.int64(0), system, inputs, work)
+    c = h * RK4_C[1]
+    for i in range(n):
+        total[i] = qdot[i]
+        q_stage[i] = q[i] + c * qdot[i]
+    for i in range(n):
+        total[n + i] = qddot[i]
+        qdot_stage[i] = qdot[i] + c * qddot[i]
+    for j in range(3):
+        total[2 * n + j] = powers[j]
+    if keep_first:
+        copy_values(total, first, y.shape[0])
+    # k2 and k3 (weight 2), each making the next stage, y + c k
+    for s in range(1, 3):
+        powers = accelerations(q_stage, qdot_stage, qddot, s, system, inputs, work)
+        c = h * RK4_C[s + 1]
+        for i in range(n):  # (q_stage is made from qdot_stage before that is overwritten)
+            total[i] = total[i] + 2.0 * qdot_stage[i]
+            q_stage[i] = q[i] + c * qdot_stage[i]
+        for i in range(n):
+            total[n + i] = total[n + i] + 2.0 * qddot[i]
+            qdot_stage[i] = qdot[i] + c * qddot[i]
+        for j in range(3):
+            total[2 * n + j] = total[2 * n + j] + 2.0 * powers[j]
+    # k4 (weight 1) goes straight into the step's end
+    powers = accelerations(q_stage, qdot_stage, qddot, np.int64(3), system, inputs, work)
     h6 = h / 6.0
-    for i in range(y.shape[0]):
-        y_end[i] = y[i] + h6 * (K[0, i] + 2.0 * K[1, i] + 2.0 * K[2, i] + K[3, i])
-        y[i] = y_end[i]
+    for i in range(n):
+        y_end[i] = q[i] + h6 * (total[i] + qdot_stage[i])
+        q[i] = y_end[i]
+    for i in range(n):
+        y_end[n + i] = qdot[i] + h6 * (total[n + i] + qddot[i])
+        qdot[i] = y_end[n + i]
+    for j in range(2 * n, 2 * n + 3):
+        y_end[j] = y[j] + h6 * (total[j] + powers[j - 2 * n])
+        y[j] = y_end[j]
 
 
 @njit(**JIT_OPTIONS)
 def rk4_segment(
-    y, t, h, n_steps, K, stage, y_end, system, inputs, tables, work, limits, monitor
+    y, t, h, n_steps, work_step, keep_first, y_end, system, inputs, tables, work, limits, monitor
 ):  # pragma: no cover
     """Up to ``n_steps`` RK4 steps of ``h`` [s] from time ``t`` [s], each followed by
     :func:`check_state` and the projection onto the rod and joint constraints (as
@@ -329,7 +372,7 @@ def rk4_segment(
             rk4_stage_times(t, k, h, times)
             if fill_stage_inputs(tables, times, rest, rate, force) >= 0:
                 return k, CHECK_INPUT, np.nan
-        rk4_step(y, h, K, stage, system, inputs, work, y_end)
+        rk4_step(y, h, work_step, keep_first, system, inputs, work, y_end)
         # The projection measures the errors it removes: they are the checks' (one pass less).
         rod_error, constraint_error, ok = system_project(
             y[:n], y[n : 2 * n], system[0][1], system[1]

@@ -721,7 +721,7 @@ def _fixed_step(run: _Run, stepper: RK4) -> None:
             return  # (the whole steps before the one that reaches the sample)
         h = last if run.steps_done == n_full else dt
         t_old, y_old = stepper.t, stepper.y.copy()
-        if not _rk4_steps(run, stepper, 1, h):
+        if not _rk4_steps(run, stepper, 1, h, keep_first=True):
             return
         stepper.t = run.t_end if run.steps_done == n_steps else t0 + run.steps_done * dt
         if run.progress is not None:
@@ -739,7 +739,7 @@ def _fixed_step(run: _Run, stepper: RK4) -> None:
                     run.system.work,
                 )
                 stepper.nfev += 1
-                y = _hermite(t, t_old, y_old, stepper.K[0], stepper.t, stepper.y_end, f_new)
+                y = _hermite(t, t_old, y_old, stepper.first, stepper.t, stepper.y_end, f_new)
             if run.steady(run.record(t, y)):
                 return
         if (
@@ -752,16 +752,19 @@ def _fixed_step(run: _Run, stepper: RK4) -> None:
             run.save(stepper.t, stepper.y, stepper, None, None, False)
 
 
-def _rk4_steps(run: _Run, stepper: RK4, n: int, h: float) -> bool:
+def _rk4_steps(run: _Run, stepper: RK4, n: int, h: float, *, keep_first: bool = False) -> bool:
     """``n`` checked, projected RK4 steps of ``h``, the stepper's time moved on, in compiled
     calls of at most :func:`dop853.steps_per_turn` steps (the wall-clock budget checked between
-    them); False (and the run failed) on a blow-up or when out of time."""
+    them); False (and the run failed) on a blow-up or when out of time.  ``keep_first``: the
+    stepper keeps ``f`` at the last step's start (:attr:`RK4.first`)."""
     # (whole multiples of the energy check's period: each call checks the energy at its end)
     every = compiled.ENERGY_CHECK_EVERY
     per_call = max(1, dop853.steps_per_turn(run.system, 4) // every) * every
     t_start, done = stepper.t, 0
     while done < n:
-        steps, code, value = stepper.advance(min(n - done, per_call), h, run.limits, run.monitor)
+        steps, code, value = stepper.advance(
+            min(n - done, per_call), h, run.limits, run.monitor, keep_first=keep_first
+        )
         done += steps
         stepper.t = t_start + done * h
         run.steps_done += steps

@@ -38,8 +38,9 @@ class Model:
     structure: Structure
     system: CompiledSystem
     limits: tuple[float, float, float]
-    #: scratch of a step: its stages (4, m), a stage state and the end before projection (m,)
-    scratch: tuple[np.ndarray, np.ndarray, np.ndarray]
+    #: scratch of a step (:func:`compiled.rk4_step`'s ``work_step``) and the end before
+    #: projection (m,)
+    scratch: tuple[tuple[np.ndarray, ...], np.ndarray]
 
 
 def make_model(
@@ -60,8 +61,9 @@ def make_model(
     )
     scale = max(float(structure.rod_length.max(initial=0.0)), 1.0)
     limits = (max_rod_length_error, max_rod_length_error * scale, np.inf)
-    m = system.m
-    return Model(structure, system, limits, (np.zeros((4, m)), np.empty(m), np.empty(m)))
+    m, n = system.m, system.n
+    work_step = (np.zeros(m), np.zeros(m), np.zeros(n), np.zeros(m))
+    return Model(structure, system, limits, (work_step, np.empty(m)))
 
 
 def step(model: Model, state: State, dt: float, *, project: bool = False) -> State:
@@ -73,15 +75,15 @@ def step(model: Model, state: State, dt: float, *, project: bool = False) -> Sta
         raise ValueError(f"dt: must be a finite step > 0, got {dt!r}")
     system = model.system
     y = system.state_vector(state, project=project)
-    K, stage, y_end = model.scratch
+    work_step, y_end = model.scratch
     inputs = system.stage_inputs(state.t + compiled.RK4_C * dt)
     _, code, value = compiled.rk4_segment(
         y,
         state.t,
         dt,
         1,
-        K,
-        stage,
+        work_step,
+        False,
         y_end,
         system.system,
         inputs,

@@ -205,7 +205,11 @@ class RK4:
     def __init__(self, system: CompiledSystem, t0: float, y0: np.ndarray) -> None:
         self.system = system
         m = system.m
-        self.K, self._stage, self.y_end = np.zeros((4, m)), np.empty(m), np.empty(m)
+        #: a step's scratch (:func:`compiled.rk4_step`); ``first`` = ``f(t, y)`` at the start of
+        #: the last step taken with ``keep_first``
+        self.work_step = (np.zeros(m), np.zeros(m), np.zeros(system.n), np.zeros(m))
+        self.first = self.work_step[3]
+        self.y_end = np.empty(m)
         self.t = float(t0)
         self.y = np.array(y0, dtype=float)
         self.nfev = 0
@@ -213,7 +217,7 @@ class RK4:
         self.input_error = ""
 
     def advance(
-        self, n_steps: int, h: float, limits: tuple, monitor: np.ndarray
+        self, n_steps: int, h: float, limits: tuple, monitor: np.ndarray, *, keep_first: bool
     ) -> tuple[int, int, float]:
         """Up to ``n_steps`` steps of ``h`` [s] from ``t``, each checked
         (:func:`compiled.check_state`) and projected.  Returns ``(steps, check code, check
@@ -221,10 +225,11 @@ class RK4:
         tabulated inputs: one compiled call; a Python callable among them: one per step, with
         the inputs at its stage times.  Inputs that cannot be used (a rest length would be
         negative) stop it before that step with ``CHECK_INPUT``, the reason in
-        :attr:`input_error`."""
+        :attr:`input_error`.  ``keep_first``: :attr:`first` receives ``f(t, y)`` at the start of
+        each step."""
         system = self.system
         if system.inputs.constant or system.tables is not None:
-            return self._stretch(n_steps, h, limits, monitor)
+            return self._stretch(n_steps, h, limits, monitor, keep_first)
         steps, code, value = 0, compiled.CHECK_OK, 0.0
         while steps < n_steps and code == compiled.CHECK_OK:
             stages = self.t + steps * h + compiled.RK4_C * h
@@ -239,8 +244,8 @@ class RK4:
                 self.t + steps * h,
                 h,
                 1,
-                self.K,
-                self._stage,
+                self.work_step,
+                keep_first,
                 self.y_end,
                 system.system,
                 inputs,
@@ -254,7 +259,7 @@ class RK4:
         return steps, code, value
 
     def _stretch(
-        self, n_steps: int, h: float, limits: tuple, monitor: np.ndarray
+        self, n_steps: int, h: float, limits: tuple, monitor: np.ndarray, keep_first: bool
     ) -> tuple[int, int, float]:
         """:meth:`advance` in one compiled call (the inputs constant or tabulated)."""
         system = self.system
@@ -265,8 +270,8 @@ class RK4:
             self.t,
             h,
             n_steps,
-            self.K,
-            self._stage,
+            self.work_step,
+            keep_first,
             self.y_end,
             system.system,
             system.stage_inputs(stages if tables is not None else stages[:1]),
