@@ -19,7 +19,7 @@ import pytest
 
 pytest.importorskip("numba")
 
-from tensegrity import Structure, class1_shell
+from tensegrity import Structure, class1_shell, simulate
 from tensegrity.physics import (
     dynamics,
     kernel as kernel_module,
@@ -541,3 +541,14 @@ def test_long_runs_match_reference(threads):
         assert abs(got.dissipated_power - ref.dissipated_power) < TOL * (
             abs(ref.dissipated_power) + 1.0
         )
+
+
+def test_a_compiled_only_function_called_from_python_is_a_type_error():
+    """The engine's callees compiled without a wrapper for Python (``compiled_only``) refuse a
+    call from Python instead of crashing the interpreter, and still serve compiled callers."""
+    from tensegrity.engine import compiled
+
+    for function in (compiled.dop853_attempt, compiled.judge_state, compiled.accelerations):
+        with pytest.raises(TypeError, match="called from compiled code only"):
+            function(np.zeros(3))
+    assert simulate(class1_shell(3, 1, damping=0.3), (0.0, 0.05)).success

@@ -327,9 +327,23 @@ def test_rhs_matches_numpy_reference(name, loads, damped):
             assert _rel(compiled.drop(qddot), free) > 1e-6
 
 
-def test_free_class1_is_the_existing_kernel_bit_for_bit():
+#: Units in the last place by which two compiled copies of the same code may differ: numba links
+#: every entry point with copies of its callees of its own, each optimised in its caller's
+#: context, and with ``fastmath={"contract"}`` a copy may fuse ``a * b + c`` where another does
+#: not; which copy a call reaches depends on which library was loaded first (measured: with a
+#: simulation's entry points loaded from the cache first, system_rhs was 1 ulp off kernel.rhs in
+#: 2 of 36 accelerations; with the two loaded first, bit for bit).
+COPIES_ULP = 4
+
+
+def _same_code(got, expected):
+    np.testing.assert_array_max_ulp(np.asarray(got), np.asarray(expected), maxulp=COPIES_ULP)
+
+
+def test_free_class1_is_the_existing_kernel():
     """``extras`` None: system_rhs, system_project, system_energies and system_errors give
-    kernel.rhs's, kernel.project's and kernel.energies's numbers exactly."""
+    kernel.rhs's, kernel.project's and kernel.energies's numbers (the same code; to the last
+    ulps of :data:`COPIES_ULP`)."""
     for damped in (True, False):
         rng = np.random.default_rng(_seed("bitwise", damped))
         s = randomized("class1(3,1)", rng, damped)
@@ -348,30 +362,33 @@ def test_free_class1_is_the_existing_kernel_bit_for_bit():
         expected = kernel.rhs(
             q, qdot, *compiled.arrays, rest, True, w, True, g, work[1], None, *outs[1]
         )
-        assert got == expected
+        _same_code(got, expected)
         for a, b in zip(*outs, strict=True):
-            assert np.array_equal(a, b)
+            _same_code(a, b)
         assert not np.any(work[0][2])
 
         energy = system_energies(q, qdot, compiled.arrays, None, rest, True, g, work[0])
-        assert energy == kernel.energies(
-            q,
-            qdot,
-            p.rod_slots,
-            p.rod_param,
-            p.tendon_slots,
-            p.tendon_stiffness,
-            rest,
-            True,
-            g,
-            work[1],
+        _same_code(
+            energy,
+            kernel.energies(
+                q,
+                qdot,
+                p.rod_slots,
+                p.rod_param,
+                p.tendon_slots,
+                p.tendon_stiffness,
+                rest,
+                True,
+                g,
+                work[1],
+            ),
         )
         states = [(q.copy(), qdot.copy()) for _ in range(2)]
         rod_error, constraint_error, ok = system_project(*states[0], p.rod_param, None)
-        assert rod_error == kernel.project(*states[1], p.rod_param) and ok
-        assert constraint_error == 0.0
-        assert np.array_equal(states[0][0], states[1][0])
-        assert np.array_equal(states[0][1], states[1][1])
+        _same_code(rod_error, kernel.project(*states[1], p.rod_param))
+        assert ok and constraint_error == 0.0
+        _same_code(states[0][0], states[1][0])
+        _same_code(states[0][1], states[1][1])
         assert system_errors(q, p.rod_param, None) == (rod_error, 0.0)
 
 

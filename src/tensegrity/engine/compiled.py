@@ -41,7 +41,13 @@ from types import ModuleType
 import numpy as np
 from numba import njit
 
-from tensegrity.physics.kernel import JIT_OPTIONS, JitOptions, copy_values, tendon_vector
+from tensegrity.physics.kernel import (
+    JIT_OPTIONS,
+    JitOptions,
+    compiled_only,
+    copy_values,
+    tendon_vector,
+)
 from tensegrity.physics.kernel_system import (
     all_finite,
     system_energies,
@@ -170,7 +176,7 @@ def _row(values, s):  # pragma: no cover - compiled
     return values[s] if values.shape[0] > 1 else values[0]
 
 
-@njit(**JIT_OPTIONS)
+@compiled_only
 def accelerations(q, qdot, qddot, s, system, inputs, work):  # pragma: no cover - compiled
     """``qddot`` = the accelerations of Theorem 18.1 (eqs. 18.17, 18.20, constraint forces
     included) at ``(q, q')`` with the inputs' row ``s``; returns the powers ``(dissipated,
@@ -218,7 +224,7 @@ def ode_rhs(y, dy, s, system, inputs, work):  # pragma: no cover - compiled
 
 
 # --------------------------------------------------------------------------- DOP853
-@njit(**JIT_OPTIONS)
+@compiled_only
 def _combine(y, K, row, stages, h, out):  # pragma: no cover - compiled
     """``out = y + h sum_j row[j] K[j]`` over ``j < stages``."""
     copy_values(y, out, y.shape[0])
@@ -230,7 +236,7 @@ def _combine(y, K, row, stages, h, out):  # pragma: no cover - compiled
                 out[i] += a * kj[i]
 
 
-@njit(**JIT_OPTIONS)
+@compiled_only
 def dop853_attempt(y, h, K, y_new, stage, rtol, atol, system, inputs, work):  # pragma: no cover
     """One DOP853 step of ``h`` [s] from ``y`` with ``K[0] = f(y)`` given; fills ``K[1:13]``
     (``K[12] = f(y_new)``, after which ``work`` holds the tensions at ``y_new``) and ``y_new``.
@@ -261,7 +267,7 @@ def dop853_attempt(y, h, K, y_new, stage, rtol, atol, system, inputs, work):  # 
     return abs(h) * err5 / np.sqrt((err5 + 0.01 * err3) * m)
 
 
-@njit(**JIT_OPTIONS)
+@compiled_only
 def dop853_dense(y_old, y, h, K, F, stage, system, inputs, work):  # pragma: no cover - compiled
     """The step's dense-output polynomial into ``F`` (7, len(y)), as ``scipy``'s DOP853: three
     more stages (rows 13-15 of ``K`` and of the inputs).  ``K[0]`` and ``K[12]`` are f at the
@@ -438,7 +444,7 @@ def check_state(y, s, system, inputs, work, limits, monitor, with_energy):  # pr
     )
 
 
-@njit(**JIT_OPTIONS)
+@compiled_only
 def judge_state(
     y, rod_error, constraint_error, s, system, inputs, work, limits, monitor, with_energy
 ):  # pragma: no cover - compiled
@@ -485,7 +491,7 @@ def switch_indicator(y, system, rest, work, p, v, out):  # pragma: no cover - co
     _indicator(p, v, tendon_slots, stiffness, damping, rest, out)
 
 
-@njit(**JIT_OPTIONS)
+@compiled_only
 def switch_distance(
     F, y_old, x, y, system, rest, work, p, v, indicator, candidates, was_taut, out
 ):  # pragma: no cover - compiled
@@ -568,7 +574,7 @@ def bracket_next(b, t, g):  # pragma: no cover - compiled
     return min(max(mid, lo + 0.25 * tol), hi - 0.25 * tol)
 
 
-@njit(**JIT_OPTIONS)
+@compiled_only
 def _indicator(p, v, tendon_slots, stiffness, damping, rest, out):  # pragma: no cover
     """:func:`switch_indicator` from the node positions ``p`` and velocities ``v``; ``damping``
     None: undamped tendons (decided at compile time)."""

@@ -28,6 +28,7 @@ landing (a located switch being headed for) as masks over the tendons (kernel or
 
 from __future__ import annotations
 
+import types
 from collections.abc import Callable
 
 import numpy as np
@@ -428,6 +429,35 @@ def _dop853_loop(clock, tally, buffers, flags, switch_times, system, rows, point
 dop853_run = njit(**EXACT_JIT_OPTIONS)(_dop853_loop)
 
 
+# The loop run by Python (a Python function among the inputs, the ``provider``): its compiled
+# callees that Python may not call (:func:`tensegrity.physics.kernel.compiled_only`) through
+# entries of their own, compiled (with the wrapper for Python) only when this loop first runs.
+@njit(**EXACT_JIT_OPTIONS)
+def _attempt_from_python(*args):  # pragma: no cover - compiled
+    return dop853_attempt(*args)
+
+
+@njit(**EXACT_JIT_OPTIONS)
+def _dense_from_python(*args):  # pragma: no cover - compiled
+    dop853_dense(*args)
+
+
+@njit(**EXACT_JIT_OPTIONS)
+def _switch_distance_from_python(*args):  # pragma: no cover - compiled
+    return switch_distance(*args)
+
+
+_dop853_loop_in_python = types.FunctionType(
+    _dop853_loop.__code__,
+    {
+        **globals(),
+        "dop853_attempt": _attempt_from_python,
+        "dop853_dense": _dense_from_python,
+        "switch_distance": _switch_distance_from_python,
+    },
+)
+
+
 class DOP853:
     """Explicit Runge-Kutta of order 8(5,3), adaptive (``rtol``, ``atol``), its loop compiled
     (:func:`dop853_run`).  ``t``, ``y`` the current time [s] and state, ``nfev`` the
@@ -554,7 +584,7 @@ class DOP853:
         rows, point = system.input_buffers(DOP853_C.size), system.input_buffers(1)
         if rows is None:  # a Python function among the inputs: the loop as Python, every
             # input made by the provider where it is used (no buffers to fill)
-            return _dop853_loop(*args, None, None, None, system.stage_inputs, *tail)
+            return _dop853_loop_in_python(*args, None, None, None, system.stage_inputs, *tail)
         return dop853_run(*args, rows, point, system.tables, None, *tail)
 
     def new_switch_times(self) -> list[float]:
