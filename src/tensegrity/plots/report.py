@@ -16,7 +16,13 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from tensegrity.io.files import atomic_path
-from tensegrity.plots.figures import draw_structure, natural_key, new_figure, tendon_family
+from tensegrity.plots.figures import (
+    draw_structure,
+    natural_key,
+    new_figure,
+    save_png,
+    tendon_family,
+)
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -106,10 +112,8 @@ def write_json(path: str | Path, data: dict[str, Any]) -> Path:
 
 
 def save_figure(figure: Figure, path: str | Path, *, dpi: int = 130) -> Path:
-    """Save a figure as PNG, atomically."""
-    with atomic_path(path) as tmp:
-        figure.savefig(tmp, format="png", dpi=dpi, facecolor="white")
-    return Path(path)
+    """Save a figure as PNG, atomically (:func:`tensegrity.plots.figures.save_png`)."""
+    return save_png(figure, path, dpi=dpi)
 
 
 # ------------------------------------------------------------------------------ modes
