@@ -445,8 +445,16 @@ def _simulation_inputs(
         from tensegrity.model.loads import gravity_vector
 
         gravity = gravity_vector(args.gravity, structure.dim)
-    designed = None if members is None else _DesignedRun(structure, members, force)
-    return structure, force, gravity, designed
+    if members is None:
+        for option, value in (("--safety-factor", args.safety_factor != 1.0),
+                              ("--stop-on-failure", args.stop_on_failure)):  # fmt: skip
+            if value:
+                raise CommandError(
+                    f"{option}: needs members with a design (--material and --section, or a "
+                    "structure file in the material form)"
+                )
+        return structure, force, gravity, None
+    return structure, force, gravity, _DesignedRun(structure, members, force, args.safety_factor)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -457,6 +465,7 @@ class _DesignedRun:
     structure: Structure
     members: MemberDesign
     force: ForceTable | None
+    safety_factor: float  #: divides the rods' Euler load
 
 
 @dataclasses.dataclass(frozen=True)
@@ -540,11 +549,25 @@ def _stream_run(
     gravity: np.ndarray | None,
     files: _RunFiles,
     keeper: FrameKeeper | None,
+    designed: _DesignedRun | None,
 ) -> StreamSummary:
     """Simulate into ``files.work`` (through its partial file), the viewer's frames into
-    ``keeper`` as they come; a rejected or failed run leaves nothing of this call's making
-    behind, an interrupted one its partial file."""
+    ``keeper`` as they come, stopping at a member's failure with ``--stop-on-failure``; a
+    rejected or failed run leaves nothing of this call's making behind, an interrupted one its
+    partial file."""
     from tensegrity.io.stream import OutOfTimeError, simulate_to_file
+
+    stop = None
+    if designed is not None and args.stop_on_failure:
+        from tensegrity.design.utilisation import stop_at_failure
+
+        stop = stop_at_failure(
+            structure,
+            designed.members.properties(structure),
+            safety_factor=designed.safety_factor,
+            external_force=force,
+            gravity=gravity,
+        )
 
     try:
         summary = simulate_to_file(
@@ -565,6 +588,7 @@ def _stream_run(
             max_steps=args.max_steps,
             max_wall_time=args.max_wall_time,
             observe=None if keeper is None else keeper.add,
+            stop=stop,
         )
     except KeyboardInterrupt:
         raise
@@ -655,7 +679,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         budget = frame_budget(structure, max_frames=MAX_FRAMES, max_bytes=MAX_BYTES)
         keeper = FrameKeeper(structure, t0=0.0, sample_dt=args.sample_dt, max_frames=budget)
     try:
-        summary = _stream_run(args, structure, force, gravity, files, keeper)
+        summary = _stream_run(args, structure, force, gravity, files, keeper, designed)
         trajectory, balance, written = _write_run(args, structure, summary, files, keeper)
     except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM/SIGHUP (signals_as_interrupts)
         return files.interrupted(exc)
@@ -785,7 +809,11 @@ def _utilisation_rows(
     from tensegrity.design.utilisation import Peak, trajectory_utilisation
 
     u = trajectory_utilisation(
-        path, run.members.properties(run.structure), n_samples=n_samples, external_force=run.force
+        path,
+        run.members.properties(run.structure),
+        n_samples=n_samples,
+        safety_factor=run.safety_factor,
+        external_force=run.force,
     )
 
     def shown(name: str, p: Peak | None, member: Sequence[str], every: int) -> str:
@@ -1362,6 +1390,19 @@ def _add_simulate_parser(sub: _Commands) -> None:
         action="store_true",
         help="do not write OUT/view.html, the run in an interactive 3-D viewer (one offline "
         "HTML file; `tensegrity view` makes one from trajectory.h5 later)",
+    )
+    design = sim.add_argument_group("design checks (members with a material and section)")
+    design.add_argument(
+        "--safety-factor",
+        type=arguments.at_least(1.0, strict=False),
+        default=1.0,
+        help="divides the rods' Euler buckling load in the utilisation report (>= 1, default 1)",
+    )
+    design.add_argument(
+        "--stop-on-failure",
+        action="store_true",
+        help="stop the run at the first sample where a member is over its limits "
+        "(utilisation > 1); the files hold the run up to there",
     )
     _add_integration_options(sim)
     sim.set_defaults(run=_cmd_simulate)

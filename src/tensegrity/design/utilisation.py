@@ -33,7 +33,7 @@ from tensegrity.physics.coordinates import force_response, nodes_from_coordinate
 from tensegrity.physics.dynamics import tendon_vectors
 
 if TYPE_CHECKING:
-    from tensegrity.engine.result import SimulationResult
+    from tensegrity.engine.result import Samples, SimulationResult
 
 __all__ = [
     "Peak",
@@ -45,6 +45,7 @@ __all__ = [
     "peak",
     "rod_axial_forces",
     "run_utilisation",
+    "stop_at_failure",
     "trajectory_utilisation",
     "utilisation",
 ]
@@ -152,6 +153,60 @@ def rod_axial_forces(
     return rod_compression(structure, force, rod / structure.rod_length[:, None])
 
 
+def _forces_at(
+    external_force: np.ndarray | Callable[[float], np.ndarray] | None,
+) -> Callable[[float], np.ndarray | None]:
+    """``external_force`` (constant, a function of time or None) as a function of time."""
+
+    def at(t: float) -> np.ndarray | None:
+        if external_force is None or not callable(external_force):
+            return external_force
+        return np.asarray(external_force(t), dtype=float)
+
+    return at
+
+
+def stop_at_failure(
+    structure: Structure,
+    members: MemberProperties,
+    *,
+    safety_factor: float = 1.0,
+    external_force: np.ndarray | Callable[[float], np.ndarray] | None = None,
+    gravity: np.ndarray | None = None,
+) -> Callable[[Samples], str | None]:
+    """A stop condition for :func:`tensegrity.simulate` (``stop=``): the run stops at the first
+    sample where a member's utilisation exceeds 1 (:func:`utilisation` of the sample's
+    tensions and of :func:`rod_axial_forces`), the reason naming the member with the largest.
+    ``external_force`` (N, dim) [N] (or ``w(t)``) and ``gravity`` (dim,) [m/s^2]: the run's,
+    for the rods' forces."""
+    force = _forces_at(external_force)
+    g = None if gravity is None else np.asarray(gravity, dtype=float)
+
+    def stop(sample: Samples) -> str | None:
+        t, tension = float(sample.t[0]), sample.tendon_tension[0]
+        compression = rod_axial_forces(
+            structure, sample.q[0], tension, qdot=sample.qdot[0], external_force=force(t), gravity=g
+        )
+        u = utilisation(
+            structure,
+            members,
+            tension=tension,
+            compression=compression,
+            safety_factor=safety_factor,
+        )
+        if u.largest <= 1.0:
+            return None
+        tendon, rod = u.tendon.max(initial=0.0), u.rod.max(initial=0.0)
+        if tendon >= rod:
+            name = structure.tendon_name[int(np.argmax(u.tendon))]
+            return f"tendon {name!r} over its limits (utilisation {tendon:.3g}: yield)"
+        r = int(np.argmax(u.rod))
+        mode = "buckling" if u.rod_buckling[r] >= u.rod_yield[r] else "yield"
+        return f"rod {r} over its limits (utilisation {rod:.3g}: {mode})"
+
+    return stop
+
+
 class RunUtilisation(NamedTuple):
     """The utilisation of every member over a run (:func:`run_utilisation`)."""
 
@@ -206,11 +261,7 @@ def run_utilisation(
     s = result.structure
     g = result.settings.get("gravity")
     gravity = None if g is None else np.asarray(g, dtype=float)
-
-    def force(t: float) -> np.ndarray | None:
-        if external_force is None or not callable(external_force):
-            return external_force
-        return np.asarray(external_force(t), dtype=float)
+    force = _forces_at(external_force)
 
     compression = np.array(
         [

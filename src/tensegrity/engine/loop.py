@@ -1,6 +1,7 @@
 """The one integration loop (:func:`run`): stepping, sampling, slack/taut switch location,
-projection onto the constraints, blow-up checks, the steady-state stop, a controller's updates
-and checkpoints, for every method and every structure, samples handed to a sink as they are made.
+projection onto the constraints, blow-up checks, the steady-state stop and a stop condition's,
+a controller's updates and checkpoints, for every method and every structure, samples handed
+to a sink as they are made.
 
 Per accepted step of an adaptive method: the tensions at the step's end (known from its last
 stage) are compared with those at its start; if a tendon went slack or taut, the earliest switch
@@ -38,6 +39,7 @@ from tensegrity.engine.result import (
     STATUS_END,
     STATUS_FAILED,
     STATUS_STEADY,
+    STATUS_STOPPED,
     RunSummary,
     Samples,
 )
@@ -74,6 +76,16 @@ class Controller(Protocol):
         ...
 
     def __call__(self, t: float, q: np.ndarray, qdot: np.ndarray) -> np.ndarray: ...
+
+
+class StopCondition(Protocol):
+    """Ends a run at a sample: called with each new sample (a :class:`Samples` block of one
+    row, views valid during the call), the first one too; returns None to go on, or the reason
+    the run stops there, a sentence that becomes the run's message (status
+    :data:`~tensegrity.engine.result.STATUS_STOPPED`).  E.g. a member over its limits
+    (:func:`tensegrity.design.utilisation.stop_at_failure`)."""
+
+    def __call__(self, sample: Samples, /) -> str | None: ...
 
 
 @dataclasses.dataclass(frozen=True)
@@ -240,10 +252,11 @@ class _Run:
         controller: Controller | None,
         checkpoint: Checkpointing | None,
         progress: Callable[[float], None] | None,
+        stop: StopCondition | None,
     ) -> None:
         self.wall0 = time.perf_counter()
         self.structure, self.options, self.sink = structure, options, sink
-        self.progress = progress
+        self.progress, self.stop = progress, stop
         self.controller, self.checkpointing = controller, checkpoint
         self.t0, self.t_end = t0, t_end
         self.system = CompiledSystem(structure, inputs)
@@ -310,8 +323,9 @@ class _Run:
             self.next_sample += 1
         return times
 
-    def steady(self, row: int) -> bool:
-        """Whether the sample in ``row`` of :attr:`block` is at rest (the run stops there)."""
+    def ends_at(self, row: int) -> bool:
+        """Whether the run ends at the sample in ``row`` of :attr:`block`: it is at rest, or
+        the stop condition says so (:meth:`stopped_at`; the status and message set)."""
         o, block = self.options, self.block
         if (
             o.steady_state
@@ -321,7 +335,17 @@ class _Run:
             self.status = STATUS_STEADY
             self.message = f"steady state at t = {block.t[row]:.6g} s"
             return True
-        return False
+        return self.stopped_at(row)
+
+    def stopped_at(self, row: int) -> bool:
+        """Whether the stop condition ends the run at the sample in ``row`` of :attr:`block`
+        (the status and message set)."""
+        reason = None if self.stop is None else self.stop(self.block.row(row))
+        if reason is None:
+            return False
+        self.status = STATUS_STOPPED
+        self.message = f"stopped at t = {self.block.t[row]:.6g} s: {reason}"
+        return True
 
     def stop_at_max_steps(self, t: float) -> None:
         self.status = STATUS_FAILED
@@ -588,7 +612,7 @@ def _adaptive(run: _Run, stepper: Stepper, resume: LoopState | None) -> None:
         if times:
             y_at = stepper.dense()
             for t in times:
-                if run.steady(run.record(t, y_at(t) if t < stepper.t else stepper.y)):
+                if run.ends_at(run.record(t, y_at(t) if t < stepper.t else stepper.y)):
                     return
         stepper.accept()
         if run.progress is not None:
@@ -661,7 +685,7 @@ def _compiled_adaptive(run: _Run, stepper: DOP853, resume: LoopState | None) -> 
         if code == dop853.RUN_SAMPLES:
             y_at = stepper.dense()
             for t in run.sample_times(stepper.t):
-                if run.steady(run.record(t, y_at(t) if t < stepper.t else stepper.y)):
+                if run.ends_at(run.record(t, y_at(t) if t < stepper.t else stepper.y)):
                     return
             continue
         # RUN_BOUNDARY: the end, a controller's update, a checkpoint
@@ -740,7 +764,7 @@ def _fixed_step(run: _Run, stepper: RK4) -> None:
                 )
                 stepper.nfev += 1
                 y = _hermite(t, t_old, y_old, stepper.first, stepper.t, stepper.y_end, f_new)
-            if run.steady(run.record(t, y)):
+            if run.ends_at(run.record(t, y)):
                 return
         if (
             run.controller is not None
@@ -829,6 +853,7 @@ def run(
     controller: Controller | None = None,
     checkpoint: Checkpointing | None = None,
     resume: LoopState | None = None,
+    stop: StopCondition | None = None,
 ) -> RunSummary:
     """Integrate ``structure`` over ``t_span = (t0, t_end)`` [s], handing samples to ``sink``
     (Theorem 18.1 with eqs. 18.39-18.60; the loop of the module docstring).
@@ -841,8 +866,9 @@ def run(
     inputs may then have no control of their own).  ``checkpoint`` saves the loop's state every
     ``checkpoint.every`` samples; ``resume`` continues from such a state (the same structure,
     inputs, options and controller, and no ``initial``; the samples up to it are not handed to
-    ``sink`` again).  Returns a :class:`RunSummary`; the samples went to ``sink``, the last one
-    at the end time, the steady state or the failing state.
+    ``sink`` again).  ``stop`` (:class:`StopCondition`) may end the run at a sample.  Returns a
+    :class:`RunSummary`; the samples went to ``sink``, the last one at the end time, the steady
+    state, the stop or the failing state.
     """
     options = Options() if options is None else options
     t0, t_end = time_span(t_span)
@@ -853,7 +879,7 @@ def run(
         raise ValueError(f"checkpoint.every: must be a whole number > 0, got {checkpoint.every!r}")
     options.check_span(t0, t_end)
     inputs.rest_length(np.array([t0]))  # a control making a rest length negative fails here
-    r = _Run(structure, t0, t_end, inputs, options, sink, controller, checkpoint, progress)
+    r = _Run(structure, t0, t_end, inputs, options, sink, controller, checkpoint, progress, stop)
     if resume is None:
         state = dynamics.initial_state(structure, t=t0) if initial is None else initial
         _check_initial(structure, state)
@@ -862,12 +888,14 @@ def run(
             r.update_control(t0, y0)
         stepper = _stepper(r, t0, y0.copy(), None)
         r.start(y0, stepper)
-        r.record(t0, y0)
+        r.stopped_at(r.record(t0, y0))
     else:
         r.restore(resume)
         stepper = _stepper(r, resume.t, resume.y.copy(), resume.memory)
     try:
-        if isinstance(stepper, RK4):  # the stepper of the fixed-step method (options.fixed_step)
+        if r.status == STATUS_STOPPED:
+            pass  # (by the stop condition, at the first sample)
+        elif isinstance(stepper, RK4):  # the stepper of the fixed-step method (options.fixed_step)
             _fixed_step(r, stepper)
         elif isinstance(stepper, DOP853):
             _compiled_adaptive(r, stepper, resume)
@@ -875,7 +903,9 @@ def run(
             _adaptive(r, stepper, resume)
     except (IntegrationError, ValueError, FloatingPointError) as exc:
         r.status, r.message = STATUS_FAILED, str(exc)
-    if r.status != STATUS_STEADY and r.last_sample_t < stepper.t * (1 - 1e-14):
+    if r.status not in (STATUS_STEADY, STATUS_STOPPED) and r.last_sample_t < stepper.t * (
+        1 - 1e-14
+    ):
         r.record(stepper.t, stepper.y)  # the end, or the last state before a failure
     r.flush()
     return RunSummary(

@@ -17,6 +17,7 @@ __all__ = [
     "STATUS_END",
     "STATUS_FAILED",
     "STATUS_STEADY",
+    "STATUS_STOPPED",
     "MemorySink",
     "RunSummary",
     "Samples",
@@ -24,8 +25,9 @@ __all__ = [
     "total_energy",
 ]
 
-#: ``status`` values: failed, end time reached, steady state reached.
-STATUS_FAILED, STATUS_END, STATUS_STEADY = -1, 0, 1
+#: ``status`` values: failed, end time reached, steady state reached, stopped by the run's
+#: stop condition (``simulate(stop=...)``).
+STATUS_FAILED, STATUS_END, STATUS_STEADY, STATUS_STOPPED = -1, 0, 1, 2
 
 #: Names of the energy components of a sample, in order [J].
 ENERGY_NAMES = ("kinetic", "elastic", "gravity", "dissipated", "external_work", "control_work")
@@ -74,6 +76,10 @@ class Samples(NamedTuple):
     def head(self, rows: int) -> Samples:
         """The first ``rows`` samples (views)."""
         return Samples(*(column[:rows] for column in self))
+
+    def row(self, index: int) -> Samples:
+        """Sample ``index`` alone, as a block of one row (views)."""
+        return Samples(*(column[index : index + 1] for column in self))
 
     @classmethod
     def join(cls, blocks: Sequence[Samples]) -> Samples:

@@ -24,6 +24,7 @@ from tensegrity.engine.result import (
     STATUS_END,
     STATUS_FAILED,
     STATUS_STEADY,
+    STATUS_STOPPED,
     MemorySink,
     SimulationResult,
 )
@@ -31,12 +32,13 @@ from tensegrity.model.structure import Structure
 from tensegrity.physics.dynamics import State
 
 if TYPE_CHECKING:
-    from tensegrity.engine.loop import Controller
+    from tensegrity.engine.loop import Controller, StopCondition
 
 __all__ = [
     "STATUS_END",
     "STATUS_FAILED",
     "STATUS_STEADY",
+    "STATUS_STOPPED",
     "SimulationResult",
     "options_and_inputs",
     "simulate",
@@ -54,6 +56,7 @@ def simulate(
     external_force: np.ndarray | TimeFunction | None = None,
     gravity: np.ndarray | None = None,
     controller: Controller | None = None,
+    stop: StopCondition | None = None,
     method: str = "DOP853",
     rtol: float = 1e-9,
     atol: float = 1e-12,
@@ -87,6 +90,11 @@ def simulate(
         State feedback ``u = controller(t, q, qdot)`` held for ``controller.period`` [s] from
         ``t0`` on (zero-order hold; :class:`tensegrity.engine.loop.Feedback` makes one of a
         function); instead of ``control``.  Steps end at its update times.
+    stop : StopCondition, optional
+        Called with every sample (a :class:`~tensegrity.engine.result.Samples` block of one
+        row); the run stops at the first for which it returns a reason (a sentence), with
+        status 2 and the message ``"stopped at t = ... s: <reason>"``; e.g.
+        :func:`tensegrity.design.utilisation.stop_at_failure` for members over their limits.
     method : str
         An adaptive ``scipy.integrate`` method (``"DOP853"``, ``"RK45"``, ``"Radau"``, ...) with
         ``rtol``, ``atol``; or ``"rk4"``, fixed step ``dt`` [s].
@@ -121,7 +129,8 @@ def simulate(
     Returns
     -------
     SimulationResult
-        With ``status`` and ``message``.  A failed run keeps its samples up to the failure.
+        With ``status`` (-1 failed, 0 end reached, 1 steady state, 2 stopped by ``stop``) and
+        ``message``.  A failed run keeps its samples up to the failure.
     """
     options, inputs = options_and_inputs(
         structure,
@@ -158,6 +167,7 @@ def simulate(
             sink=sink,
             progress=bar,
             controller=controller,
+            stop=stop,
         )
     finally:
         if bar is not None:

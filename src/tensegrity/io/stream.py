@@ -87,7 +87,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from tensegrity.engine.inputs import Inputs
-from tensegrity.engine.loop import Checkpointing, LoopState, run
+from tensegrity.engine.loop import Checkpointing, LoopState, StopCondition, run
 from tensegrity.engine.options import Options
 from tensegrity.engine.result import RunSummary, Samples
 from tensegrity.engine.simulate import STATUS_END, options_and_inputs, simulate
@@ -896,6 +896,7 @@ def simulate_to_file(
     resume: bool = True,
     progress: bool | Callable[[StreamProgress], None] = False,
     observe: Callable[[Samples], None] | None = None,
+    stop: StopCondition | None = None,
     **simulate_options: Any,
 ) -> StreamSummary:
     """Simulate ``structure`` over ``t_span = (t0, t_end)`` [s], streaming samples to ``path``.
@@ -929,6 +930,9 @@ def simulate_to_file(
         (:class:`~tensegrity.engine.result.Samples`, in time order, a resumed call's from where
         it resumed) as the file gets them: what a caller wants of them without reading the file
         again (the CLI's viewer frames).
+    stop : StopCondition, optional
+        Ends the run at a sample (:func:`tensegrity.engine.simulate.simulate`'s ``stop``); the
+        file is finished there, with status 2.  Not part of the settings a resume must match.
     **simulate_options
         The options of :func:`tensegrity.engine.simulate.simulate`: ``sample_dt`` [s] (default
         ``(t_end - t0) / 1000``), ``initial``, ``control``, ``external_force``, ``gravity``,
@@ -941,9 +945,9 @@ def simulate_to_file(
     Returns
     -------
     StreamSummary
-        ``status`` ``1`` (steady state: the run stops at the first steady sample), ``0`` (end time
-        reached) or ``-1`` (the run went unstable: its samples up to the failure are stored,
-        ``message`` says why; the file is finished all the same).
+        ``status`` ``1`` (steady state: the run stops at the first steady sample), ``2`` (stopped
+        by ``stop``), ``0`` (end time reached) or ``-1`` (the run went unstable: its samples up
+        to the failure are stored, ``message`` says why; the file is finished all the same).
 
     Raises
     ------
@@ -993,6 +997,7 @@ def simulate_to_file(
                 sink=sink,
                 checkpoint=Checkpointing(every=plan.K, save=sink.save),
                 resume=checkpoint.loop,
+                stop=stop,
             )
             if summary.stopped_for_time:
                 raise OutOfTimeError(summary.message, partial)
