@@ -10,7 +10,15 @@ import math
 from collections.abc import Callable
 from pathlib import Path
 
-__all__ = ["at_least", "finite", "name", "non_negative", "positive", "whole_positive"]
+__all__ = [
+    "add_safety_factor",
+    "at_least",
+    "finite",
+    "name",
+    "non_negative",
+    "positive",
+    "whole_positive",
+]
 
 
 def finite(text: str) -> float:
@@ -60,3 +68,14 @@ def name(text: str) -> Path:
     if not text.strip():
         raise argparse.ArgumentTypeError(f"expected a file or folder name, got {text!r}")
     return Path(text)
+
+
+def add_safety_factor(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
+    """``--safety-factor GAMMA``: divides the rods' Euler buckling load (>= 1, default 1)."""
+    parser.add_argument(
+        "--safety-factor",
+        type=at_least(1.0, strict=False),
+        default=1.0,
+        metavar="GAMMA",
+        help="divides the rods' Euler buckling load (>= 1, default 1)",
+    )

@@ -141,12 +141,7 @@ def add_parsers(sub: Any) -> None:
         metavar="N",
         help="the smallest tendon tension [N] of the unloaded, prestressed state (default 0)",
     )
-    p.add_argument(
-        "--safety-factor",
-        type=arguments.at_least(1.0, strict=False),
-        default=1.0,
-        help="divides the Euler buckling load (>= 1, default 1)",
-    )
+    arguments.add_safety_factor(p)
     p.add_argument(
         "--strength-factor",
         type=arguments.at_least(1.0, strict=False),

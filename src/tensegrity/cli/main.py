@@ -1392,12 +1392,7 @@ def _add_simulate_parser(sub: _Commands) -> None:
         "HTML file; `tensegrity view` makes one from trajectory.h5 later)",
     )
     design = sim.add_argument_group("design checks (members with a material and section)")
-    design.add_argument(
-        "--safety-factor",
-        type=arguments.at_least(1.0, strict=False),
-        default=1.0,
-        help="divides the rods' Euler buckling load in the utilisation report (>= 1, default 1)",
-    )
+    arguments.add_safety_factor(design)
     design.add_argument(
         "--stop-on-failure",
         action="store_true",
