@@ -2,7 +2,9 @@
 ``.ci/run`` installs it) driven by Playwright, with every network request refused.  The page
 must draw the structure without a console error, move in time (two screenshots differ; the
 slider moves the time), hold the run's node positions to float32 precision and colour each
-tendon by its tension (issue 15).  Skipped only if Chromium or Playwright is missing."""
+tendon by its tension (issue 15); a run whose members have a design switches to colouring every
+member by its utilisation, failing ones in the failure colour (issue 18).  Skipped only if
+Chromium or Playwright is missing."""
 
 from __future__ import annotations
 
@@ -11,13 +13,15 @@ import shutil
 
 import numpy as np
 import pytest
+from matplotlib.colors import to_rgb
 
 from tensegrity import class1_shell, critical_damping, simulate
 from tensegrity.model.planar import planar_two_rod
 from tensegrity.model.shell import class2_shell
-from tensegrity.plots.figures import tension_colormap
+from tensegrity.plots.figures import ROD_COLOR, tension_colormap, utilisation_colors
 from tensegrity.plots.viewer import notebook_html, read_viewer_data, view
 from test_kernel_system import point_mass_between_anchors
+from test_utilisation_colours import designed_prism
 
 sync_api = pytest.importorskip("playwright.sync_api")
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
@@ -95,6 +99,20 @@ def page31(browser, shell31, tmp_path_factory):
     page.page.close()
 
 
+def _member_under_pointer(page, xs, ys):
+    """``(px, py, info)``: the first point of the grid ``xs`` x ``ys`` (fractions of the view,
+    row by row) with a member under it, and what the viewer says of that member."""
+    canvas = page.page.locator("#view canvas").bounding_box()
+    for y in ys:
+        for x in xs:
+            px = round(canvas["x"] + x * canvas["width"])
+            py = round(canvas["y"] + y * canvas["height"])
+            info = page.call(f"tensegrityViewer.pickAt({px}, {py})")
+            if info:
+                return px, py, info
+    raise AssertionError("no member under the pointer in the middle of the view")
+
+
 def test_the_structure_is_drawn_and_moves(page31, tmp_path):
     page, _ = page31
     page.call("tensegrityViewer.setFrame(0)")
@@ -158,21 +176,7 @@ def test_tendon_colour_follows_its_tension(page31, shell31):
 def test_hovering_a_member_names_it(page31):
     page, _ = page31
     page.call("tensegrityViewer.setFrame(0)")
-    canvas = page.page.locator("#view canvas").bounding_box()
-    # scan the view for a member under the pointer
-    found = None
-    for y in np.linspace(0.3, 0.7, 9):
-        for x in np.linspace(0.3, 0.7, 9):
-            px = round(canvas["x"] + x * canvas["width"])
-            py = round(canvas["y"] + y * canvas["height"])
-            info = page.call(f"tensegrityViewer.pickAt({px}, {py})")
-            if info:
-                found = (px, py, info)
-                break
-        if found:
-            break
-    assert found, "no member found under the pointer in the middle of the view"
-    px, py, info = found
+    px, py, info = _member_under_pointer(page, np.linspace(0.3, 0.7, 9), np.linspace(0.3, 0.7, 9))
     page.page.mouse.move(px, py)
     page.page.wait_for_selector("#tip", state="visible")
     tip = page.page.inner_text("#tip")
@@ -290,3 +294,78 @@ def test_the_analysis_verbs_pages_load_cleanly(browser, tmp_path):
             assert page.call("tensegrityViewer.data.n_frames") >= 2, name
         finally:
             page.page.close()
+
+
+def test_a_page_without_a_design_has_no_colour_mode(page31):
+    page, data = page31
+    assert "utilisation" not in data
+    assert page.page.locator("#color-mode").count() == 0
+    assert page.call("tensegrityViewer.utilisation(0)") is None
+    assert page.call("tensegrityViewer.rodColor(0)") is None  # one material colour
+    assert page.page.inner_text("#legend").startswith("tendon tension")
+    assert "utilisation" not in page.page.inner_text("#legend")
+    page.check_clean()
+
+
+def test_a_designed_run_s_page_colours_members_by_utilisation(browser, tmp_path):
+    run, check, _ = designed_prism()
+    path = view(run, tmp_path / "designed.html", check=check, max_frames=16)
+    data = read_viewer_data(path.read_text())
+    u, high = data["utilisation"], data["utilisation"]["high"]
+    page = Page(browser, path)
+    try:
+        frame = 10
+        page.call(f"tensegrityViewer.setFrame({frame})")
+        assert page.call("tensegrityViewer.colorMode()") == "tension"
+        by_tension = page.picture()
+        Image.fromarray(by_tension.astype(np.uint8)).save(tmp_path / "tension.png")
+        page.page.select_option("#color-mode", "utilisation")  # the switch, as a user would
+        assert page.call("tensegrityViewer.colorMode()") == "utilisation"
+        by_use = page.picture()
+        Image.fromarray(by_use.astype(np.uint8)).save(tmp_path / "utilisation.png")
+        assert (np.abs(by_tension - by_use).max(axis=-1) > 60).sum() > 1000, "colours unchanged"
+        assert page.page.inner_text("#legend").startswith("member utilisation")
+        assert "utilisation > 1 (fails)" in page.page.inner_text("#legend")
+
+        # the drawn colours: the page's rule, as the figures' (failing members: the failure colour)
+        tendon, rod = u["tendons"][frame], u["rods"][frame]
+        assert (tendon > 1).any() and (tendon <= 1).any() and (rod <= 1).all()
+        drawn_tendons = [page.call(f"tensegrityViewer.tendonColor({j})") for j in range(9)]
+        drawn_rods = [page.call(f"tensegrityViewer.rodColor({i})") for i in range(3)]
+        np.testing.assert_allclose(
+            drawn_tendons, utilisation_colors(tendon, high)[:, :3], atol=0.02
+        )
+        np.testing.assert_allclose(drawn_rods, utilisation_colors(rod, high)[:, :3], atol=0.02)
+        failure = utilisation_colors(np.array([2.0]), high)[0, :3]
+        for j in np.flatnonzero(tendon > 1):
+            np.testing.assert_allclose(drawn_tendons[j], failure, atol=1e-6)
+
+        # hovering a member shows its utilisation
+        px, py, info = _member_under_pointer(
+            page, np.linspace(0.35, 0.65, 13), np.linspace(0.2, 0.6, 17)
+        )
+        expected = (u["rods"] if info["kind"] == "rod" else u["tendons"])[frame][info["id"]]
+        assert info["utilisation"] == pytest.approx(float(expected), rel=1e-7)
+        page.page.mouse.move(px, py)
+        page.page.wait_for_selector("#tip", state="visible")
+        assert f"utilisation {float(expected):.4g}"[:15] in page.page.inner_text("#tip")
+
+        canvas = page.page.locator("#view canvas").bounding_box()
+        page.page.mouse.move(canvas["x"] + 5, canvas["y"] + 5)  # (nothing there: no tip)
+        page.page.wait_for_selector("#tip", state="hidden")
+        # and back: tension colours, rods in the rod colour
+        page.call("tensegrityViewer.setColorMode('tension')")
+        assert page.page.input_value("#color-mode") == "tension"
+        low, top = data["tension_range"]
+        tension = data["tensions"][frame].astype(float)
+        np.testing.assert_allclose(
+            [page.call(f"tensegrityViewer.tendonColor({j})") for j in range(9)],
+            tension_colormap()((tension - low) / (top - low))[:, :3],
+            atol=0.02,
+        )
+        rod_colour = page.call("tensegrityViewer.rodColor(0)")
+        np.testing.assert_allclose(rod_colour, to_rgb(ROD_COLOR), atol=1e-3)
+        assert np.abs(page.picture() - by_tension).max() < 60
+        page.check_clean()
+    finally:
+        page.page.close()

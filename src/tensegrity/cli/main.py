@@ -54,6 +54,7 @@ from tensegrity.physics import dynamics
 if TYPE_CHECKING:
     from tensegrity.design.files import Designed
     from tensegrity.design.materials import MemberDesign
+    from tensegrity.design.utilisation import TrajectoryUtilisation
     from tensegrity.engine.result import SimulationResult
     from tensegrity.io.stream import StreamSummary
     from tensegrity.model.loads import ForceTable
@@ -467,6 +468,20 @@ class _DesignedRun:
     force: ForceTable | None
     safety_factor: float  #: divides the rods' Euler load
 
+    def peaks(self, path: Path, n_samples: int) -> TrajectoryUtilisation:
+        """The members' largest utilisation over the run of ``n_samples`` samples in the
+        trajectory file ``path`` (:func:`tensegrity.design.utilisation.trajectory_utilisation`;
+        the figures, the viewer and the summary show it)."""
+        from tensegrity.design.utilisation import trajectory_utilisation
+
+        return trajectory_utilisation(
+            path,
+            self.members.properties(self.structure),
+            n_samples=n_samples,
+            safety_factor=self.safety_factor,
+            external_force=self.force,
+        )
+
 
 @dataclasses.dataclass(frozen=True)
 class _RunFiles:
@@ -622,26 +637,40 @@ def _write_run(
     summary: StreamSummary,
     files: _RunFiles,
     keeper: FrameKeeper | None,
-) -> tuple[SimulationResult, float, list[Path]]:
+    designed: _DesignedRun | None,
+) -> tuple[SimulationResult, float, list[Path], TrajectoryUtilisation | None]:
     """Write the finished run's files to ``--out`` together; the trajectory read back for the
-    figures and the summary, the largest energy balance error [J] and the files written.  The
-    viewer's frames are ``keeper``'s (read from the file for a resumed run)."""
+    figures and the summary, the largest energy balance error [J], the files written and the
+    members' largest utilisation over the run (members with a design: ``designed``).  The
+    viewer's frames are ``keeper``'s, or (a resumed run, or members with a design:
+    ``designed``, their utilisation in the frames and in utilisation.png, drawn at the last
+    sample) read from the file."""
     from tensegrity.io.formats import write_structure
     from tensegrity.io.trajectory import read_dataset, read_trajectory
-    from tensegrity.plots.figures import save_figures
-    from tensegrity.plots.motion import MAX_BYTES, MAX_FRAMES, read_frames
+    from tensegrity.plots.figures import FIGURE_DPI, figure_utilisation, save_figures, save_png
+    from tensegrity.plots.motion import MAX_BYTES, MAX_FRAMES, MemberCheck, read_frames
     from tensegrity.plots.viewer import view
 
     work = files.work
     # the first and last samples for the structure figures and the summary, the tendon lengths
     # at most FIGURE_SAMPLES times (and the last), the energy balance from every sample; the
-    # viewer's frames as kept during the run, or (a resumed run) from the datasets they show
+    # viewer's frames as kept during the run, or (a resumed or designed run) from the datasets
+    # they show
     trajectory = read_trajectory(work, every=max(1, summary.n_samples - 1))
+    peaks = check = None
+    if designed is not None:
+        peaks = designed.peaks(work, summary.n_samples)
+        check = MemberCheck(
+            designed.members.properties(designed.structure),
+            safety_factor=designed.safety_factor,
+            external_force=designed.force,
+            largest=peaks.largest,
+        )
     frames = None
     if keeper is not None and summary.resumed_from is None and summary.segments_run:
         frames = keeper.frames(summary.message)
-    elif keeper is not None:
-        frames, _ = read_frames(work, max_frames=MAX_FRAMES, max_bytes=MAX_BYTES)
+    elif not args.no_view:
+        frames, _ = read_frames(work, max_frames=MAX_FRAMES, max_bytes=MAX_BYTES, check=check)
     every = max(1, -(-summary.n_samples // FIGURE_SAMPLES))
     history = (
         read_dataset(work, "time", every=every),
@@ -653,6 +682,24 @@ def _write_run(
         outputs = [
             write_structure(staging / "structure.json", structure),
             *save_figures(trajectory, staging, history=history),
+            *(
+                []
+                if peaks is None
+                else [
+                    save_png(
+                        figure_utilisation(
+                            structure,
+                            trajectory.node_position[-1],
+                            peaks.rod_peak,
+                            peaks.tendon_peak,
+                            title="Largest member utilisation over the run, t = "
+                            f"{trajectory.t[0]:.4g} .. {trajectory.t[-1]:.4g} s",
+                        ),
+                        staging / "utilisation.png",
+                        dpi=FIGURE_DPI,
+                    )
+                ]
+            ),
             *([] if frames is None else [view(frames, staging / "view.html")]),
             *(_vtk_files(staging / "vtk", read_trajectory(work)) if args.vtk else []),
         ]
@@ -663,7 +710,7 @@ def _write_run(
 
     written = _write_all(files.out, write)
     work.unlink(missing_ok=True)  # a second name of trajectory.h5, if linked
-    return trajectory, balance, written
+    return trajectory, balance, written, peaks
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
@@ -673,14 +720,16 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     files = _RunFiles.prepare(args.out, args.resume)
     _announce_large_run(structure, args.t_end, args.sample_dt, files.out)
     keeper = None
-    if not args.no_view:
+    if not args.no_view and designed is None:  # (a design's frames are read with their forces)
         from tensegrity.plots.motion import MAX_BYTES, MAX_FRAMES, FrameKeeper, frame_budget
 
         budget = frame_budget(structure, max_frames=MAX_FRAMES, max_bytes=MAX_BYTES)
         keeper = FrameKeeper(structure, t0=0.0, sample_dt=args.sample_dt, max_frames=budget)
     try:
         summary = _stream_run(args, structure, force, gravity, files, keeper, designed)
-        trajectory, balance, written = _write_run(args, structure, summary, files, keeper)
+        trajectory, balance, written, peaks = _write_run(
+            args, structure, summary, files, keeper, designed
+        )
     except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM/SIGHUP (signals_as_interrupts)
         return files.interrupted(exc)
     _print_summary(
@@ -689,7 +738,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         balance,
         args.resume,
         [f for f in written if f.parent == files.out or f.suffix == ".pvd"],
-        designed,
+        peaks,
     )
     return 0
 
@@ -740,11 +789,11 @@ def _print_summary(
     balance: float,
     resume: bool,
     files: Sequence[Path],
-    designed: _DesignedRun | None,
+    peaks: TrajectoryUtilisation | None,
 ) -> None:
     """The summary of a run: ``trajectory`` read back from its file (its last sample matters),
     the :class:`tensegrity.io.stream.StreamSummary` of the streamed run, the largest energy
-    balance error [J], and the members' utilisation if they have a design (``designed``)."""
+    balance error [J], and the members' largest utilisation if they have a design (``peaks``)."""
     structure = trajectory.structure
     e = trajectory.energy
     tension = trajectory.tendon_tension[-1]
@@ -781,9 +830,8 @@ def _print_summary(
         ("wall time", f"{summary.wall_time:.2f} s"),
     ]
     failures: list[str] = []
-    if designed is not None:
-        path = next(f for f in files if f.name == "trajectory.h5")
-        more, failures = _utilisation_rows(path, designed, summary.n_samples)
+    if peaks is not None:
+        more, failures = _utilisation_rows(peaks, structure)
         rows += more
     width = max(len(name) for name, _ in rows)
     for name, value in rows:
@@ -801,20 +849,11 @@ def _print_summary(
 
 
 def _utilisation_rows(
-    path: Path, run: _DesignedRun, n_samples: int
+    u: TrajectoryUtilisation, s: Structure
 ) -> tuple[list[tuple[str, str]], list[str]]:
-    """The summary's rows of the members' largest utilisation over the run in ``path``
-    (:func:`tensegrity.design.utilisation.trajectory_utilisation`) and a line per member
-    beyond its limits."""
-    from tensegrity.design.utilisation import Peak, trajectory_utilisation
-
-    u = trajectory_utilisation(
-        path,
-        run.members.properties(run.structure),
-        n_samples=n_samples,
-        safety_factor=run.safety_factor,
-        external_force=run.force,
-    )
+    """The summary's rows of the members' largest utilisation over a run of ``s`` (``u``) and
+    a line per member beyond its limits."""
+    from tensegrity.design.utilisation import Peak
 
     def shown(name: str, p: Peak | None, member: Sequence[str], every: int) -> str:
         if p is None:
@@ -822,7 +861,6 @@ def _utilisation_rows(
         sampled = f", from one sample in {every}" if every > 1 else ""
         return f"{name} {p.value:.4g} ({member[p.member]}, t = {p.time:.6g} s{sampled})"
 
-    s = run.structure
     rods = [f"rod {r}" for r in range(s.n_rods)]
     tendons = [f"tendon {name!r}" for name in s.tendon_name]
     rows = [
@@ -842,7 +880,7 @@ def _utilisation_rows(
             else "no tendons",
         ),
     ]
-    return rows, u.failures(run.structure)
+    return rows, u.failures(s)
 
 
 def _resumed(summary) -> str:

@@ -1,6 +1,8 @@
 """The verbs that show a run: ``tensegrity animate TRAJECTORY.h5 -o motion.mp4|.webm|.gif`` (a
 video, :mod:`tensegrity.plots.animation`) and ``tensegrity view TRAJECTORY.h5 -o view.html``
-(the interactive viewer, :mod:`tensegrity.plots.viewer`).
+(the interactive viewer, :mod:`tensegrity.plots.viewer`; with ``--structure FILE``, a structure
+file in the material form, it colours the members by utilisation too: a trajectory file holds
+its structure's stiffness and masses, not its members' materials and sections).
 
 Both read only as many samples of the trajectory as they show (``read_trajectory(every=)``),
 write their file atomically (nothing is left behind by a failure or an interrupt) and report a
@@ -13,6 +15,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from tensegrity.cli import arguments
 from tensegrity.cli.errors import CommandError, blame
@@ -93,14 +97,59 @@ def _cmd_animate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _member_check(args: argparse.Namespace) -> Any:
+    """The :class:`~tensegrity.plots.motion.MemberCheck` of ``view --structure FILE`` (the
+    members' design in FILE, for the trajectory's structure; the run's largest utilisation as
+    ``simulate`` reports it), or None without ``--structure``."""
+    from tensegrity.design.files import read_design
+    from tensegrity.design.utilisation import trajectory_utilisation
+    from tensegrity.io.trajectory import read_dataset, read_trajectory
+    from tensegrity.plots.motion import MemberCheck
+
+    if args.structure is None:
+        if args.safety_factor != 1.0:
+            raise CommandError("--safety-factor: only with --structure (the members' design)")
+        return None
+    with blame("--structure", args.structure):
+        given = read_design(args.structure)
+    if given.design is None:
+        raise CommandError(
+            f"--structure: {shown_path(args.structure)} gives no materials and sections (a "
+            "structure file in the material form, as `tensegrity design` writes)"
+        )
+    with blame("view", args.trajectory):
+        structure = read_trajectory(args.trajectory, every=2**62).structure
+        n_samples = read_dataset(args.trajectory, "time").size
+    same = (
+        given.structure.n_nodes == structure.n_nodes
+        and np.array_equal(given.structure.rod_nodes, structure.rod_nodes)
+        and np.array_equal(given.structure.tendon_nodes, structure.tendon_nodes)
+    )
+    if not same:
+        raise CommandError(
+            f"--structure: {shown_path(args.structure)} is not the structure of "
+            f"{shown_path(args.trajectory)} (other nodes, rods or tendons)"
+        )
+    members = given.design.properties(structure)
+    with blame("view", args.trajectory):
+        peaks = trajectory_utilisation(
+            args.trajectory, members, n_samples=n_samples, safety_factor=args.safety_factor
+        )
+    return MemberCheck(members, safety_factor=args.safety_factor, largest=peaks.largest)
+
+
 def _cmd_view(args: argparse.Namespace) -> int:
     from tensegrity.plots.motion import read_frames
     from tensegrity.plots.viewer import view
 
     _check_output(args.output, (".html", ".htm"))
+    check = _member_check(args)
     with blame("view", args.trajectory):
         frames, n_samples = read_frames(
-            args.trajectory, max_frames=args.max_frames, max_bytes=int(args.max_mb * 1e6)
+            args.trajectory,
+            max_frames=args.max_frames,
+            max_bytes=int(args.max_mb * 1e6),
+            check=check,
         )
     view(frames, args.output, title=args.title)
     size = byte_text(args.output.stat().st_size)
@@ -172,4 +221,15 @@ def add_parsers(sub: Any) -> None:
         help=f"at most this many MB of positions and tensions ({MAX_BYTES / 1e6:g})",
     )
     viewer.add_argument("--title", help="the page's title (default: the structure's counts)")
+    design = viewer.add_argument_group("members by utilisation")
+    design.add_argument(
+        "--structure",
+        type=arguments.name,
+        metavar="FILE",
+        help="the run's structure file in the material form (members by material and "
+        "section, as `tensegrity design` writes): the page can colour every member by its "
+        "utilisation (the trajectory does not hold the members' design). Rod forces leave out "
+        "a run's --force-table, which the trajectory does not hold either",
+    )
+    arguments.add_safety_factor(design)
     viewer.set_defaults(run=_cmd_view)

@@ -3,6 +3,9 @@
 - :func:`figure_structure` -- the structure in 3-D: rods thick and dark, tendons thin (coloured by
   tension when tensions are given), slack tendons dashed red (Figures 18.10 and 18.11);
 - :func:`figure_tendon_lengths` -- tendon lengths against time (Figure 18.12);
+- :func:`figure_utilisation` -- the structure with every member (rods too) coloured by its
+  largest utilisation over a run (:mod:`tensegrity.design.utilisation`), failing members
+  (utilisation > 1) in :data:`FAILURE_COLOR`;
 - :func:`save_figures` -- the three figures of a simulation as PNG files, written atomically.
 
 Figures are built as :class:`matplotlib.figure.Figure` objects with the Agg canvas, without
@@ -43,11 +46,17 @@ ROD_COLOR = "#26282b"
 TENDON_COLOR = "#2f6fb0"
 SLACK_COLOR = "#d62728"
 FIXED_COLOR = "#8c564b"
+#: Members whose utilisation exceeds 1 (they yield, break or buckle): apart from the colour map
+#: and from the slack tendons' red.
+FAILURE_COLOR = "#ff00d4"
 #: Colour map of tendon tension; the yellow end is cut off so that every tendon shows on white.
 TENSION_CMAP = "viridis"
 _CMAP_RANGE = (0.0, 0.85)
 ROD_WIDTH = 4.0
 TENDON_WIDTH = 1.3
+#: Resolution of the figures a run writes [dots per inch]: about 1100 x 1000 pixels for the
+#: structure figures.
+FIGURE_DPI = 150
 #: At most this many tendons get a legend entry each in :func:`figure_tendon_lengths`.
 MAX_LEGEND_TENDONS = 12
 #: Above this many tendons, :func:`figure_tendon_lengths` draws the range and median only.
@@ -69,6 +78,26 @@ def tension_colormap():
 
     base = matplotlib.colormaps[TENSION_CMAP]
     return ListedColormap(base(np.linspace(*_CMAP_RANGE, 256)), name=f"{TENSION_CMAP}_cut")
+
+
+def utilisation_colors(utilisation: Any, high: float) -> np.ndarray:
+    """RGBA colours (..., 4) of utilisations (...): the tension colour map over the scale
+    ``0 .. high`` (``high >= 1``, clipped at its ends), :data:`FAILURE_COLOR` above 1; the
+    figures' and the viewer's (``viewer.js`` applies the same rule)."""
+    from matplotlib.colors import to_rgba
+
+    u = np.asarray(utilisation, dtype=float)
+    colors = tension_colormap()(np.clip(u / high, 0.0, 1.0))
+    colors[u > 1.0] = to_rgba(FAILURE_COLOR)
+    return colors
+
+
+def utilisation_colormap(high: float):
+    """The colour bar of :func:`utilisation_colors` (a matplotlib ``Colormap`` over
+    ``0 .. high``): the tension colour map up to 1, :data:`FAILURE_COLOR` above."""
+    from matplotlib.colors import ListedColormap
+
+    return ListedColormap(utilisation_colors(np.linspace(0.0, high, 512), high), "utilisation")
 
 
 def _positions(structure: Structure, node_position: Any) -> np.ndarray:
@@ -186,6 +215,7 @@ def _draw_lines(
     p: np.ndarray,
     slack: np.ndarray,
     tendon_colors: np.ndarray | str,
+    rod_colors: np.ndarray | str = ROD_COLOR,
 ) -> tuple[Line3DCollection | None, Line3DCollection | None, Line3DCollection | None]:
     """Draw the taut tendons, the slack ones (dashed) and the rods; each collection or None."""
     from mpl_toolkits.mplot3d.art3d import Line3DCollection
@@ -212,7 +242,7 @@ def _draw_lines(
     if structure.n_rods:  # (a structure of point masses has none)
         rods = Line3DCollection(
             _segments(p, structure.rod_nodes),
-            colors=ROD_COLOR,
+            colors=rod_colors,
             linewidths=ROD_WIDTH,
             zorder=3,
             capstyle="round",
@@ -379,6 +409,90 @@ def figure_structure(
             elif taut.size:
                 subtitle += f"; tension {taut.min():.4g} .. {taut.max():.4g} N"
 
+    _titles(figure, title, subtitle)
+    return figure
+
+
+def figure_utilisation(
+    structure: Structure,
+    node_position: Any,
+    rod_utilisation: Any,
+    tendon_utilisation: Any,
+    *,
+    high: float | None = None,
+    title: str | None = "Largest member utilisation over the run",
+    subtitle: str | None = None,
+    elev: float = 22.0,
+    azim: float = -58.0,
+    figsize: tuple[float, float] = (7.5, 6.5),
+) -> Figure:
+    """A figure of the structure at ``node_position`` with every member coloured by its
+    utilisation (:func:`utilisation_colors`), e.g. its largest over a run
+    (:class:`~tensegrity.design.utilisation.TrajectoryUtilisation`'s ``rod_peak`` and
+    ``tendon_peak``): a colour bar over ``0 .. high``, failing members (> 1) in
+    :data:`FAILURE_COLOR` with a legend entry and their count.
+
+    Parameters
+    ----------
+    structure : Structure
+        ``N`` nodes, ``R`` rods, ``S`` tendons.
+    node_position : array_like, shape (N, 3)
+        Node positions [m] (``(N, 2)`` for a planar structure).
+    rod_utilisation : array_like, shape (R,)
+        The rods' governing utilisation (the larger of yield and buckling).
+    tendon_utilisation : array_like, shape (S,)
+        The tendons' (yield).
+    high : float, optional
+        Top of the colour scale; default ``max(1, largest utilisation given)``.
+    title, subtitle : str, optional
+        Default subtitle: the counts, the largest utilisation and the failing members.
+    elev, azim : float
+        View angles [degrees].
+    figsize : (float, float)
+        Size [inches].
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        With an Agg canvas.
+    """
+    p = _positions(structure, node_position)
+    rod = np.asarray(rod_utilisation, dtype=float).reshape(structure.n_rods)
+    tendon = np.asarray(tendon_utilisation, dtype=float).reshape(structure.n_tendons)
+    largest = float(max(rod.max(initial=0.0), tendon.max(initial=0.0)))
+    high = max(1.0, largest) if high is None else float(high)
+    figure = new_figure(figsize)
+    ax = figure.add_subplot(projection="3d")
+    _draw_lines(
+        ax,
+        structure,
+        p,
+        np.zeros(structure.n_tendons, bool),
+        utilisation_colors(tendon, high),
+        utilisation_colors(rod, high),
+    )
+    _draw_nodes(ax, structure, p, False)
+    fit_axes(ax, np.array([p.min(axis=0), p.max(axis=0)]))
+    ax.view_init(elev=elev, azim=azim)
+    failing = int(np.sum(rod > 1) + np.sum(tendon > 1))
+    shown = "0.45"  # (a member's colour is its utilisation's: the keys show the widths)
+    handles = [
+        Line2D([], [], color=shown, lw=ROD_WIDTH, label=f"rods ({structure.n_rods})"),
+        Line2D([], [], color=shown, lw=TENDON_WIDTH + 0.5, label=f"tendons ({tendon.size})"),
+    ]
+    if failing:
+        handles.append(
+            Line2D([], [], color=FAILURE_COLOR, lw=ROD_WIDTH, label=f"failing, > 1 ({failing})")
+        )
+    ax.legend(handles=handles, loc="upper left", fontsize="small", framealpha=0.85)
+    mappable = ScalarMappable(Normalize(0.0, high), utilisation_colormap(high))
+    figure.colorbar(mappable, ax=ax, shrink=0.6, pad=0.1, label="utilisation")
+    if subtitle is None:
+        subtitle = (
+            f"{structure.n_nodes} nodes, {structure.n_rods} rods, {structure.n_tendons} "
+            f"tendons; largest {largest:.3g}; "
+            + (f"{failing} failing (> 1)" if failing else "none failing")
+        )
     _titles(figure, title, subtitle)
     return figure
 
@@ -575,7 +689,7 @@ def save_figures(
     result: SimulationResult,
     out_dir: str | Path,
     *,
-    dpi: int = 150,
+    dpi: int = FIGURE_DPI,
     history: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> list[Path]:
     """Write the figures of a simulation as PNG files in ``out_dir``, each atomically.

@@ -12,6 +12,9 @@ a structure at rest):
 - the tension range [N] of the colour map, fixed over the whole run (every sample, not only the
   frames shown), and the box [m] that holds every node of every frame (fixed camera and axes);
 - the energies [J] of each frame;
+- for a run whose members have a design (materials and sections, :class:`MemberCheck`), each
+  member's utilisation at each frame (:mod:`tensegrity.design.utilisation`: a rod's larger of
+  yield and buckling, a tendon's yield) and the top of its colour scale, ``max(1, largest)``;
 - what the structure is: rods, tendons and their names, fixed nodes (supports, anchors), ball
   joints, point masses.
 
@@ -25,8 +28,8 @@ SI units throughout: m, s, N, J.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping
-from typing import TYPE_CHECKING
+from collections.abc import Callable, Mapping
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
@@ -34,6 +37,7 @@ from tensegrity.engine.result import ENERGY_NAMES, total_energy
 from tensegrity.model.structure import Structure
 
 if TYPE_CHECKING:
+    from tensegrity.design.materials import MemberProperties
     from tensegrity.engine.result import Samples, SimulationResult
     from tensegrity.io.files import PathLike
 
@@ -41,7 +45,9 @@ __all__ = [
     "MAX_BYTES",
     "MAX_FRAMES",
     "MAX_REAL_TIME",
+    "FrameUtilisation",
     "Frames",
+    "MemberCheck",
     "decimated_indices",
     "frame_indices",
     "make_frames",
@@ -58,6 +64,42 @@ MAX_FRAMES = 300
 #: Default largest size of a viewer page's positions and tensions [bytes] (before base64, which
 #: adds a third): about 36 frames of the (100, 100) shell.
 MAX_BYTES = 32_000_000
+
+
+class MemberCheck(NamedTuple):
+    """What the utilisation of a run's members needs besides the run's samples (its gravity
+    is in its settings): :func:`make_frames` and :func:`read_frames` colour the members by it.
+
+    Attributes
+    ----------
+    members : MemberProperties
+        The materials and sections of the members
+        (:meth:`~tensegrity.design.materials.MemberDesign.properties`).
+    safety_factor : float
+        Divides the rods' Euler load (>= 1).
+    external_force : ndarray, shape (N, dim), or callable, optional
+        The run's external forces [N] (constant, or ``w(t)`` such as a
+        :class:`~tensegrity.model.loads.ForceTable`): neither a result nor a trajectory file
+        holds them.
+    largest : float
+        The run's largest utilisation if known from more samples than the frames show (e.g.
+        :attr:`~tensegrity.design.utilisation.TrajectoryUtilisation.largest`): the colour scale
+        reaches at least this.
+    """
+
+    members: MemberProperties
+    safety_factor: float = 1.0
+    external_force: np.ndarray | Callable[[float], np.ndarray] | None = None
+    largest: float = 0.0
+
+
+class FrameUtilisation(NamedTuple):
+    """The governing utilisation of every member at each frame
+    (:class:`~tensegrity.design.utilisation.Utilisation`'s ``rod`` and ``tendon``)."""
+
+    rod: np.ndarray  #: (F, R): the larger of yield and buckling
+    tendon: np.ndarray  #: (F, S): yield
+    high: float  #: top of the colour scale: ``max(1, largest utilisation of the run)``
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -88,6 +130,9 @@ class Frames:
         Lowest and highest x, y, z of any node in any frame [m].
     title : str
         A line naming the run (status message), or empty.
+    utilisation : FrameUtilisation, optional
+        The members' utilisation at each frame, for a run whose members have a design
+        (:class:`MemberCheck`); None otherwise.
     """
 
     structure: Structure
@@ -100,6 +145,7 @@ class Frames:
     tension_range: tuple[float, float]
     bounds: np.ndarray
     title: str = ""
+    utilisation: FrameUtilisation | None = None
 
     @property
     def n_frames(self) -> int:
@@ -211,7 +257,12 @@ def _tension_range(tension: np.ndarray) -> tuple[float, float]:
     return low, high
 
 
-def make_frames(result: SimulationResult, indices: np.ndarray | None = None) -> Frames:
+def make_frames(
+    result: SimulationResult,
+    indices: np.ndarray | None = None,
+    *,
+    check: MemberCheck | None = None,
+) -> Frames:
     """The frames of ``result`` that show the samples ``indices`` (default: every sample).
 
     Parameters
@@ -222,13 +273,16 @@ def make_frames(result: SimulationResult, indices: np.ndarray | None = None) -> 
     indices : array_like of int, shape (F,), optional
         Samples to show, e.g. :func:`frame_indices` of :func:`playback_times` (a video) or
         :func:`decimated_indices` (the viewer).
+    check : MemberCheck, optional
+        The design of the run's members: the frames get their utilisation (rod forces at each
+        frame shown, a solve each).
 
     Returns
     -------
     Frames
         Tension range and bounds over every sample of ``result`` (not only those shown).
     """
-    return _frames(
+    frames = _frames(
         result.structure,
         result.t,
         result.node_position,
@@ -237,14 +291,48 @@ def make_frames(result: SimulationResult, indices: np.ndarray | None = None) -> 
         indices,
         result.message,
     )
+    if check is None:
+        return frames
+    from tensegrity.design.utilisation import run_utilisation  # (the statics: loaded on use)
+
+    u = run_utilisation(
+        _sample_rows(result, frames.index),
+        check.members,
+        safety_factor=check.safety_factor,
+        external_force=check.external_force,
+    )
+    high = max(1.0, check.largest, u.largest)
+    return dataclasses.replace(
+        frames, utilisation=FrameUtilisation(u.samples.rod, u.samples.tendon, high)
+    )
 
 
-def frame_budget(structure: Structure, *, max_frames: int, max_bytes: int) -> int:
+def _sample_rows(result: SimulationResult, index: np.ndarray) -> SimulationResult:
+    """The samples ``index`` (K,) of ``result``, as a run of K samples."""
+    return dataclasses.replace(
+        result,
+        t=result.t[index],
+        q=result.q[index],
+        qdot=result.qdot[index],
+        node_position=result.node_position[index],
+        node_velocity=result.node_velocity[index],
+        tendon_length=result.tendon_length[index],
+        tendon_tension=result.tendon_tension[index],
+        energy={name: values[index] for name, values in result.energy.items()},
+        residual_acceleration=result.residual_acceleration[index],
+    )
+
+
+def frame_budget(
+    structure: Structure, *, max_frames: int, max_bytes: int, utilisation: bool = False
+) -> int:
     """How many frames a page of ``structure`` holds: at most ``max_frames``, and at most
-    ``max_bytes`` of Float32 positions ``(N, 3)`` and tensions ``(S,)`` (at least one frame)."""
+    ``max_bytes`` of Float32 positions ``(N, 3)`` and tensions ``(S,)`` (and, with
+    ``utilisation``, the members' utilisation ``(R + S,)``) (at least one frame)."""
     if max_frames < 1 or max_bytes < 1:
         raise ValueError(f"max_frames, max_bytes: must be >= 1, got {max_frames}, {max_bytes}")
-    per_frame = 4 * (3 * structure.n_nodes + structure.n_tendons)
+    members = structure.n_rods + structure.n_tendons if utilisation else 0
+    per_frame = 4 * (3 * structure.n_nodes + structure.n_tendons + members)
     return max(1, min(max_frames, max_bytes // per_frame))
 
 
@@ -313,20 +401,32 @@ def _rows(columns: tuple[np.ndarray, ...], keep: np.ndarray) -> tuple[np.ndarray
     return tuple(column[keep] for column in columns)
 
 
-def read_frames(path: PathLike, *, max_frames: int, max_bytes: int) -> tuple[Frames, int]:
+def read_frames(
+    path: PathLike, *, max_frames: int, max_bytes: int, check: MemberCheck | None = None
+) -> tuple[Frames, int]:
     """The frames of the trajectory file at ``path`` for the viewer (:func:`frame_budget` of
     them, evenly spread, the first and last samples among them) and
     its number of samples, reading only the datasets they show: a long run's whole file is
-    several times larger (``q``, ``qdot``, velocities, lengths).  ``ValueError`` names the file
-    and the problem (:mod:`tensegrity.io.trajectory`)."""
+    several times larger (``q``, ``qdot``, velocities, lengths).  With ``check`` (the design
+    of the run's members) the frames get their utilisation (:func:`make_frames`), from every
+    dataset at those samples.  ``ValueError`` names the file and the problem
+    (:mod:`tensegrity.io.trajectory`)."""
     from tensegrity.io.trajectory import read_dataset, read_trajectory
 
     ends = read_trajectory(path, every=2**62)  # the structure, the message: two samples
     n_samples = read_dataset(path, "time").size
-    budget = frame_budget(ends.structure, max_frames=max_frames, max_bytes=max_bytes)
+    budget = frame_budget(
+        ends.structure,
+        max_frames=max_frames,
+        max_bytes=max_bytes,
+        utilisation=check is not None,
+    )
     every = max(1, -(-(n_samples - 1) // max(budget - 1, 1)))
-    energy = read_dataset(path, "energy", every=every)
     numbers = np.r_[np.arange(0, n_samples - 1, every), n_samples - 1]  # (as read_dataset reads)
+    if check is not None:
+        frames = make_frames(read_trajectory(path, every=every), check=check)
+        return dataclasses.replace(frames, index=numbers), n_samples
+    energy = read_dataset(path, "energy", every=every)
     frames = _frames(
         ends.structure,
         read_dataset(path, "time", every=every),

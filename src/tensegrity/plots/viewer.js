@@ -1,7 +1,9 @@
 // The interactive viewer of a tensegrity run (tensegrity.plots.viewer), inlined into its HTML
 // page after three.js (window.THREE, the vendored build in vendor/).  It reads the run from the
 // JSON in <script id="tensegrity-data">: node positions and tensions as base64 little-endian
-// Float32 (frame after frame), members as base64 Int32 pairs.  SI units: m, s, N, J.
+// Float32 (frame after frame), members as base64 Int32 pairs, and, when the members have a
+// design, their utilisation (base64 Float32, rods and tendons frame after frame) with a colour
+// mode switch "tension" / "utilisation".  SI units: m, s, N, J.
 // window.tensegrityViewer is its interface for scripts and tests.
 (function () {
   "use strict";
@@ -22,6 +24,13 @@
   const times = data.time;
   const [lowT, highT] = data.tension_range;
   const lut = data.colormap; // 256 [r, g, b] in 0..1
+  const usage = data.utilisation ? { // the members' utilisation, or null without a design
+    rods: new Float32Array(bytes(data.utilisation.rods)), // F * R
+    tendons: new Float32Array(bytes(data.utilisation.tendons)), // F * S
+    high: data.utilisation.high, // top of the colour scale, >= 1
+    failure: [1, 3, 5].map((i) => parseInt(data.colors.failure.slice(i, i + 2), 16) / 255),
+  } : null;
+  let mode = "tension"; // or "utilisation" (with a design)
 
   // ---------------------------------------------------------------- scene and camera
   const view = document.getElementById("view");
@@ -52,9 +61,10 @@
   const rodRadius = data.rod_radius;
   const rodMesh = new T.InstancedMesh(
     new T.CylinderGeometry(1, 1, 1, 8, 1, false),
-    new T.MeshLambertMaterial({ color: data.colors.rod }),
+    new T.MeshLambertMaterial({ color: usage ? 0xffffff : data.colors.rod }), // (per rod)
     Math.max(R, 1)
   );
+  const rodColor = new T.Color(data.colors.rod), drawnColor = new T.Color(), rgb = [0, 0, 0];
   rodMesh.count = R;
   rodMesh.instanceMatrix.setUsage(T.DynamicDrawUsage);
   rodMesh.frustumCulled = false;
@@ -101,11 +111,17 @@
   const a = new T.Vector3(), b = new T.Vector3(), up = new T.Vector3(0, 1, 0);
   const quaternion = new T.Quaternion(), scale = new T.Vector3(), matrix = new T.Matrix4();
 
-  function colorOf(tension, out, at) {
-    let x = (tension - lowT) / (highT - lowT);
+  // the colour of a value on the colour map over low..high (clipped), into out[at..at+2]
+  function colorOf(value, low, high, out, at) {
+    let x = (value - low) / (high - low);
     x = Math.min(Math.max(x, 0), 1);
     const c = lut[Math.round(x * (lut.length - 1))];
     out[at] = c[0]; out[at + 1] = c[1]; out[at + 2] = c[2];
+  }
+  // a utilisation's colour: the map over 0..high, the failure colour above 1 (figures.py's rule)
+  function utilisationColor(u, out, at) {
+    if (u > 1) { out[at] = usage.failure[0]; out[at + 1] = usage.failure[1]; out[at + 2] = usage.failure[2]; }
+    else colorOf(u, 0, usage.high, out, at);
   }
 
   function setFrame(k) {
@@ -124,8 +140,13 @@
       scale.set(r, length, r);
       matrix.compose(a, quaternion, scale);
       rodMesh.setMatrixAt(i, matrix);
+      if (usage && mode === "utilisation") {
+        utilisationColor(usage.rods[k * R + i], rgb, 0);
+        rodMesh.setColorAt(i, drawnColor.setRGB(rgb[0], rgb[1], rgb[2], "srgb")); // (as a material's)
+      } else if (usage) rodMesh.setColorAt(i, rodColor);
     }
     rodMesh.instanceMatrix.needsUpdate = true;
+    if (rodMesh.instanceColor) rodMesh.instanceColor.needsUpdate = true;
     const tp = taut.geometry.attributes.position.array, tc = taut.geometry.attributes.color.array;
     const sp = slack.geometry.attributes.position.array, sd = slack.geometry.attributes.lineDistance.array;
     let nt = 0, ns = 0;
@@ -134,8 +155,9 @@
       if (t[j] > 0) {
         const o = 6 * nt;
         for (let c = 0; c < 3; c++) { tp[o + c] = p[u + c]; tp[o + 3 + c] = p[v + c]; }
-        colorOf(t[j], tc, o);
-        colorOf(t[j], tc, o + 3);
+        if (mode === "utilisation") utilisationColor(usage.tendons[k * S + j], tc, o);
+        else colorOf(t[j], lowT, highT, tc, o);
+        for (let c = 0; c < 3; c++) tc[o + 3 + c] = tc[o + c];
         tautIds[nt++] = j;
       } else {
         const o = 6 * ns;
@@ -175,6 +197,7 @@
     const info = { kind, id, name: kind === "rod" ? `rod ${id}` : data.tendon_names[id],
       nodes: [pair[2 * id], pair[2 * id + 1]], length };
     if (kind === "tendon") info.tension = tensions[k * S + id];
+    if (usage) info.utilisation = kind === "rod" ? usage.rods[k * R + id] : usage.tendons[k * S + id];
     return info;
   }
   const raycaster = new T.Raycaster();
@@ -192,6 +215,7 @@
   function describe(info) {
     let text = `${info.name} (nodes ${info.nodes[0]}-${info.nodes[1]})\nlength ${info.length.toPrecision(5)} m`;
     if (info.kind === "tendon") text += info.tension > 0 ? `\ntension ${info.tension.toPrecision(5)} N` : "\nslack (tension 0 N)";
+    if (info.utilisation !== undefined) text += `\nutilisation ${info.utilisation.toPrecision(4)}${info.utilisation > 1 ? " (fails)" : ""}`;
     return text;
   }
   let pinned = null;
@@ -250,13 +274,47 @@
 
   const legend = document.getElementById("colorbar");
   const g = legend.getContext("2d");
-  for (let i = 0; i < legend.height; i++) {
-    const c = lut[Math.round((1 - i / (legend.height - 1)) * (lut.length - 1))];
-    g.fillStyle = `rgb(${255 * c[0]},${255 * c[1]},${255 * c[2]})`;
-    g.fillRect(0, i, legend.width, 1);
+  const legendTitle = document.getElementById("legend").firstChild; // the text "tendon tension"
+  const failureKey = document.createElement("span");
+  const oneMark = document.createElement("span"); // utilisation 1 on the scale, where failure starts
+  oneMark.style.position = "absolute";
+  oneMark.textContent = "1";
+  function drawLegend() {
+    const byUse = mode === "utilisation", low = byUse ? 0 : lowT, high = byUse ? usage.high : highT;
+    for (let i = 0; i < legend.height; i++) {
+      const value = low + (1 - i / (legend.height - 1)) * (high - low);
+      if (byUse) utilisationColor(value, rgb, 0);
+      else colorOf(value, low, high, rgb, 0);
+      g.fillStyle = `rgb(${255 * rgb[0]},${255 * rgb[1]},${255 * rgb[2]})`;
+      g.fillRect(0, i, legend.width, 1);
+    }
+    legendTitle.textContent = byUse ? "member utilisation" : "tendon tension";
+    document.getElementById("t-high").textContent = byUse ? high.toPrecision(3) : `${high.toPrecision(4)} N`;
+    document.getElementById("t-low").textContent = byUse ? "0" : `${low.toPrecision(4)} N`;
+    failureKey.style.display = byUse ? "" : "none";
+    oneMark.style.display = byUse && high > 1.15 ? "" : "none"; // (apart from the top's label)
+    if (byUse) oneMark.style.top = `${(1 - 1 / high) * legend.height - 8}px`;
   }
-  document.getElementById("t-high").textContent = `${highT.toPrecision(4)} N`;
-  document.getElementById("t-low").textContent = `${lowT.toPrecision(4)} N`;
+  function setColorMode(name) {
+    if (name !== "tension" && !(name === "utilisation" && usage)) throw new Error(`no colour mode ${name}`);
+    mode = name;
+    modeBox.value = name;
+    drawLegend();
+    setFrame(current);
+  }
+  const modeBox = document.createElement("select");
+  if (usage) { // the switch, the failure key: only with a design
+    modeBox.id = "color-mode";
+    for (const name of ["tension", "utilisation"]) modeBox.add(new Option(name, name));
+    modeBox.addEventListener("change", () => setColorMode(modeBox.value));
+    const label = document.createElement("label");
+    label.append("colour ", modeBox);
+    slider.before(label);
+    failureKey.innerHTML = `<span class="key" style="border-top:5px solid ${data.colors.failure}"></span>utilisation &gt; 1 (fails)<br>`;
+    legend.parentElement.querySelector("br:nth-of-type(2)").after(failureKey);
+    document.getElementById("t-high").parentElement.append(oneMark);
+  }
+  drawLegend();
 
   controls.addEventListener("change", () => renderer.render(scene, camera));
   function resize() {
@@ -279,6 +337,19 @@
     pause: () => { if (playing) playButton.click(); },
     nodePositions: (k) => Array.from(positions.subarray(k * N * 3, (k + 1) * N * 3)),
     tensions: (k) => Array.from(tensions.subarray(k * S, (k + 1) * S)),
+    colorMode: () => mode,
+    setColorMode, // "tension" or (with a design) "utilisation"
+    // the members' utilisation in frame k, or null without a design
+    utilisation: (k) => usage && {
+      rods: Array.from(usage.rods.subarray(k * R, (k + 1) * R)),
+      tendons: Array.from(usage.tendons.subarray(k * S, (k + 1) * S)),
+    },
+    // the drawn colour [r, g, b] of rod i: the rod colour, or its utilisation's
+    rodColor: (i) => {
+      if (!rodMesh.instanceColor) return null; // (no design: the material's colour)
+      const c = rodMesh.getColorAt(i, drawnColor).getRGB({ r: 0, g: 0, b: 0 }, "srgb");
+      return [c.r, c.g, c.b];
+    },
     // the drawn colour [r, g, b] of tendon j in this frame, or null if it is slack (dashed)
     tendonColor: (j) => {
       const t = taut.geometry.drawRange.count / 2;

@@ -13,6 +13,14 @@ light spheres and point masses as dark spheres.  Drag to orbit, scroll to zoom, 
 pan; play, pause, speed and a time slider; hover a member to read its name, length [m] and
 tension [N], click it to keep that in the corner.
 
+A run whose members have a design (materials and sections: :class:`~.motion.MemberCheck`)
+also carries each member's utilisation at each frame (base64 Float32, rods and tendons,
+:mod:`tensegrity.design.utilisation`), and the page offers a colour mode: "tension" (the
+above) or "utilisation": rods and taut tendons on the tension colour map over the fixed scale
+``0 .. max(1, largest utilisation of the run)``, members above 1 in the failure colour
+(:data:`~.figures.FAILURE_COLOR`); hovering a member shows its utilisation too.  Without a
+design the page has neither the data nor the switch.
+
 A long or large run is decimated to at most ``max_frames`` frames and ``max_bytes`` of positions
 and tensions (:func:`frame_budget`), the frames spread evenly over the run.
 """
@@ -30,12 +38,19 @@ import numpy as np
 
 from tensegrity.io.files import PathLike, atomic_path
 from tensegrity.model.structure import Structure
-from tensegrity.plots.figures import FIXED_COLOR, ROD_COLOR, SLACK_COLOR, tension_colormap
+from tensegrity.plots.figures import (
+    FAILURE_COLOR,
+    FIXED_COLOR,
+    ROD_COLOR,
+    SLACK_COLOR,
+    tension_colormap,
+)
 from tensegrity.plots.motion import (
     MAX_BYTES,
     MAX_FRAMES,
     MAX_REAL_TIME,
     Frames,
+    MemberCheck,
     decimated_indices,
     frame_budget,
     make_frames,
@@ -66,11 +81,13 @@ def _base64(array: np.ndarray, dtype: str) -> str:
 def viewer_data(frames: Frames) -> dict[str, Any]:
     """The JSON the page reads: ``frames`` with positions ``(F, N, 3)`` [m] and tensions
     ``(F, S)`` [N] as base64 little-endian Float32, rod and tendon node pairs as base64 Int32,
-    and the names, markers, colours and ranges the page draws with."""
+    and the names, markers, colours and ranges the page draws with; with the members'
+    utilisation (``frames.utilisation``), ``"utilisation"``: ``"rods"`` ``(F, R)`` and
+    ``"tendons"`` ``(F, S)`` as base64 Float32 and ``"high"``, the top of its scale."""
     structure = frames.structure
     span = float(np.max(frames.bounds[1] - frames.bounds[0])) or 1.0
     rod_length = float(np.median(structure.rod_length)) if structure.n_rods else span
-    return {
+    data = {
         "format": "tensegrity-viewer",
         "version": 1,
         "title": frames.title,
@@ -102,17 +119,33 @@ def viewer_data(frames: Frames) -> dict[str, Any]:
         },
         "max_real_time": MAX_REAL_TIME,
     }
+    if frames.utilisation is not None:
+        data["utilisation"] = {
+            "rods": _base64(frames.utilisation.rod, "<f4"),
+            "tendons": _base64(frames.utilisation.tendon, "<f4"),
+            "high": frames.utilisation.high,
+        }
+        data["colors"]["failure"] = FAILURE_COLOR
+    return data
 
 
 def _frames(
-    what: SimulationResult | Structure | Frames, *, max_frames: int, max_bytes: int
+    what: SimulationResult | Structure | Frames,
+    *,
+    max_frames: int,
+    max_bytes: int,
+    check: MemberCheck | None,
 ) -> Frames:
+    if check is not None and isinstance(what, Structure | Frames):
+        raise ValueError("check: the design of a run's members, for a run only")
     if isinstance(what, Frames):
         return what
     if isinstance(what, Structure):
         return structure_frames(what)
-    budget = frame_budget(what.structure, max_frames=max_frames, max_bytes=max_bytes)
-    return make_frames(what, decimated_indices(what.t.size, budget))
+    budget = frame_budget(
+        what.structure, max_frames=max_frames, max_bytes=max_bytes, utilisation=check is not None
+    )
+    return make_frames(what, decimated_indices(what.t.size, budget), check=check)
 
 
 def _asset(name: str) -> str:
@@ -139,6 +172,7 @@ def html(
     max_frames: int = MAX_FRAMES,
     max_bytes: int = MAX_BYTES,
     title: str | None = None,
+    check: MemberCheck | None = None,
 ) -> str:
     """The viewer page of a run, a structure (at rest) or frames, as one HTML text.
 
@@ -151,16 +185,20 @@ def html(
     max_frames : int
         Most frames in the page.
     max_bytes : int
-        Most bytes of Float32 positions and tensions in the page (before base64).
+        Most bytes of Float32 positions and tensions (and utilisations) in the page (before
+        base64).
     title : str, optional
         The page's title; default: the counts of the structure.
+    check : MemberCheck, optional
+        For a run whose members have a design: the page colours them by utilisation too
+        (frames made with :func:`~.motion.make_frames`'s ``check`` carry it already).
 
     Returns
     -------
     str
         A complete HTML document, self-contained (no network needed to view it).
     """
-    frames = _frames(what, max_frames=max_frames, max_bytes=max_bytes)
+    frames = _frames(what, max_frames=max_frames, max_bytes=max_bytes, check=check)
     structure = frames.structure
     if title is None:
         title = (
@@ -183,10 +221,11 @@ def view(
     max_frames: int = MAX_FRAMES,
     max_bytes: int = MAX_BYTES,
     title: str | None = None,
+    check: MemberCheck | None = None,
 ) -> Path:
     """Write the viewer page of ``result`` (see :func:`html`) to ``path``, atomically; the
     folder must exist.  Returns ``path``."""
-    text = html(result, max_frames=max_frames, max_bytes=max_bytes, title=title)
+    text = html(result, max_frames=max_frames, max_bytes=max_bytes, title=title, check=check)
     path = Path(path)
     with atomic_path(path) as tmp:
         tmp.write_text(text, encoding="utf-8")
@@ -199,10 +238,12 @@ def notebook_html(
     max_frames: int = 100,
     max_bytes: int = 8_000_000,
     height: int = 520,
+    check: MemberCheck | None = None,
 ) -> str:
     """The viewer inside an ``<iframe srcdoc>``, for Jupyter (``_repr_html_``): the page of
-    :func:`html`, with smaller default limits, ``height`` pixels high."""
-    page = html(what, max_frames=max_frames, max_bytes=max_bytes)
+    :func:`html` (``check``: a run's members by utilisation too), with smaller default limits,
+    ``height`` pixels high."""
+    page = html(what, max_frames=max_frames, max_bytes=max_bytes, check=check)
     return (
         f'<iframe srcdoc="{html_text.escape(page, quote=True)}" '
         f'style="width:100%;height:{int(height)}px;border:1px solid #ddd" '
@@ -212,18 +253,23 @@ def notebook_html(
 
 def read_viewer_data(text: str) -> dict[str, Any]:
     """The data of a viewer page (:func:`html`), its arrays decoded: ``positions`` (F, N, 3)
-    and ``tensions`` (F, S) as float32, ``rods`` (R, 2) and ``tendons`` (S, 2) as int32."""
+    and ``tensions`` (F, S) as float32, ``rods`` (R, 2) and ``tendons`` (S, 2) as int32, and
+    (a run whose members have a design) ``utilisation["rods"]`` (F, R) and
+    ``utilisation["tendons"]`` (F, S) as float32."""
     start = text.index(_DATA_OPEN) + len(_DATA_OPEN)
     data = json.loads(text[start : text.index("</script>", start)])
-    F, N, S = data["n_frames"], data["n_nodes"], data["n_tendons"]
-    decoded = {
-        "positions": ("<f4", (F, N, 3)),
-        "tensions": ("<f4", (F, S)),
-        "rods": ("<i4", (data["n_rods"], 2)),
-        "tendons": ("<i4", (S, 2)),
-    }
-    for key, (dtype, shape) in decoded.items():
-        data[key] = np.frombuffer(base64.b64decode(data[key]), dtype=dtype).reshape(shape)
+    F, N, R, S = data["n_frames"], data["n_nodes"], data["n_rods"], data["n_tendons"]
+    decoded = [
+        (data, "positions", "<f4", (F, N, 3)),
+        (data, "tensions", "<f4", (F, S)),
+        (data, "rods", "<i4", (R, 2)),
+        (data, "tendons", "<i4", (S, 2)),
+    ]
+    if "utilisation" in data:
+        u = data["utilisation"]
+        decoded += [(u, "rods", "<f4", (F, R)), (u, "tendons", "<f4", (F, S))]
+    for where, key, dtype, shape in decoded:
+        where[key] = np.frombuffer(base64.b64decode(where[key]), dtype=dtype).reshape(shape)
     return data
 
 
