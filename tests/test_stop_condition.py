@@ -71,24 +71,30 @@ def test_a_streamed_run_stops_in_a_later_segment_and_its_file_says_so(tmp_path):
 
 
 # ----------------------------------------------------------------------------- design
+def _designed_prism(rod_diameter: float, tendon: str, tendon_diameter: float):
+    """A prism of 20 N prestress with solid steel rods and ``tendon`` cables (diameters [m]),
+    the tensions kept: the structure and its members' properties."""
+    design = MemberDesign.of(
+        prism(tension=20.0),
+        rod_material=material("steel"),
+        rod_section=SolidRod(rod_diameter),
+        tendon_material=material(tendon),
+        tendon_section=Cable(tendon_diameter),
+    )
+    structure = design.apply(prism(tension=20.0), keep_tension=True)
+    return structure, design.properties(structure)
+
+
 def _pulled_prism():
     """A prism (20 N prestress) of steel rods and 0.8 mm nylon cables (utilisation 0.93 at the
     start) whose bottom nodes 0 and 1 are pulled apart by a force ramp to 20 N over 0.2 s: a
     tendon yields near the end."""
-    s = prism(tension=20.0)
-    p = s.node_position
+    structure, members = _designed_prism(0.01, "nylon", 0.8e-3)
+    p = structure.node_position
     pull = (p[1] - p[0]) / np.linalg.norm(p[1] - p[0]) * 20.0
-    force = np.zeros((2, s.n_nodes, 3))
+    force = np.zeros((2, structure.n_nodes, 3))
     force[1, 0], force[1, 1] = -pull, pull
-    design = MemberDesign.of(
-        s,
-        rod_material=material("steel"),
-        rod_section=SolidRod(0.01),
-        tendon_material=material("nylon"),
-        tendon_section=Cable(0.8e-3),
-    )
-    structure = design.apply(s, keep_tension=True)
-    return structure, design.properties(structure), ForceTable(np.array([0.0, 0.2]), force)
+    return structure, members, ForceTable(np.array([0.0, 0.2]), force)
 
 
 def test_stop_at_failure_stops_where_the_utilisation_first_exceeds_one():
@@ -115,16 +121,7 @@ def test_stop_at_failure_stops_where_the_utilisation_first_exceeds_one():
 def test_stop_at_failure_names_a_buckling_rod_with_the_safety_factor():
     # The same prism with 5 mm steel rods and strong steel cables: its rods at 0.64 of their
     # Euler load, no tendon near its limit; with a safety factor of 10 the rods buckle at once.
-    s = prism(tension=20.0)
-    design = MemberDesign.of(
-        s,
-        rod_material=material("steel"),
-        rod_section=SolidRod(0.005),
-        tendon_material=material("steel"),
-        tendon_section=Cable(2e-3),
-    )
-    structure = design.apply(s, keep_tension=True)
-    members = design.properties(structure)
+    structure, members = _designed_prism(0.005, "steel", 2e-3)
     assert (
         simulate(structure, (0.0, 0.01), stop=stop_at_failure(structure, members)).status == 0
     )  # (the factor 1: the rods hold)
