@@ -358,3 +358,17 @@ def test_simulate_writes_the_viewer_from_the_samples_it_kept(tmp_path):
     np.testing.assert_array_equal(frames.tension, trajectory.tendon_tension[frames.index])
     assert main([*run, "--no-view", "--out", str(tmp_path / "bare")]) == 0
     assert not (tmp_path / "bare" / "view.html").exists()
+
+
+def test_simulate_writes_its_video_on_request(tmp_path, capsys):
+    """``tensegrity simulate --animation gif`` writes ``motion.gif`` beside the other files:
+    the run in real time at 30 fps (0.5 s: 15 frames), moving; without the option none."""
+    run = ["simulate", "--t-end", "0.5", "--no-steady-state", "--damping", "none"]
+    assert main([*run, "--animation", "gif", "--out", str(tmp_path / "a")]) == 0
+    assert "a/motion.gif" in capsys.readouterr().out
+    frames = video_frames(tmp_path / "a" / "motion.gif")
+    assert len(frames) == 15
+    first, last = (f[..., :3].astype(int) for f in (frames[0], frames[-1]))
+    assert (np.abs(first - last).max(axis=-1) > 40).mean() > 0.01
+    assert main([*run, "--out", str(tmp_path / "b")]) == 0
+    assert not list((tmp_path / "b").glob("motion.*"))

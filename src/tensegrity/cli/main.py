@@ -702,6 +702,7 @@ def _write_run(
             ),
             *([] if frames is None else [view(frames, staging / "view.html")]),
             *(_vtk_files(staging / "vtk", read_trajectory(work)) if args.vtk else []),
+            *([] if args.animation is None else [_video(work, staging, args.animation)]),
         ]
         # Last, so that the finished run stays in ``work`` if anything before fails.
         target = staging / "trajectory.h5"
@@ -711,6 +712,14 @@ def _write_run(
     written = _write_all(files.out, write)
     work.unlink(missing_ok=True)  # a second name of trajectory.h5, if linked
     return trajectory, balance, written, peaks
+
+
+def _video(trajectory: Path, folder: Path, kind: str) -> Path:
+    """``folder / motion.<kind>``: the run in ``trajectory`` as a video
+    (:func:`tensegrity.cli.visual.write_video`, its defaults; a progress bar on a terminal)."""
+    path = folder / f"motion.{kind}"
+    visual.write_video(trajectory, path, fps=30.0)
+    return path
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
@@ -1428,6 +1437,12 @@ def _add_simulate_parser(sub: _Commands) -> None:
         action="store_true",
         help="do not write OUT/view.html, the run in an interactive 3-D viewer (one offline "
         "HTML file; `tensegrity view` makes one from trajectory.h5 later)",
+    )
+    sim.add_argument(
+        "--animation",
+        choices=("mp4", "webm", "gif"),
+        help="also write OUT/motion.mp4 (or .webm, .gif): the run as a video at 30 fps in real "
+        "time (at most a minute; `tensegrity animate` makes others later)",
     )
     design = sim.add_argument_group("design checks (members with a material and section)")
     arguments.add_safety_factor(design)

@@ -67,23 +67,50 @@ def _read(verb: str, path: Path, frames_wanted: int) -> Any:
         return read_trajectory(path, every=every), n_samples
 
 
-def _cmd_animate(args: argparse.Namespace) -> int:
-    from tensegrity.plots.animation import VIDEO_FORMATS, animate
+def write_video(
+    trajectory: Path,
+    output: Path,
+    *,
+    fps: float,
+    duration: float | None = None,
+    speed: float | None = None,
+    size: tuple[int, int] = (800, 640),
+    view: tuple[float, float] | None = None,
+    progress: bool | None = None,
+) -> int:
+    """The animation of the run in the file ``trajectory`` written to ``output`` (its suffix
+    the format; :func:`tensegrity.plots.animation.animate`), reading about twice the samples
+    its frames show; returns the number of frames.  One line naming the file if it cannot be
+    read."""
+    from tensegrity.io.trajectory import read_dataset
+    from tensegrity.plots.animation import animate
     from tensegrity.plots.motion import playback_times
+
+    with blame("animate", trajectory):
+        time = read_dataset(trajectory, "time")
+    wanted = playback_times(time[0], time[-1], fps=fps, duration=duration, speed=speed).size
+    result, _ = _read("animate", trajectory, 2 * wanted)
+    animate(
+        result,
+        output,
+        fps=fps,
+        duration=duration,
+        speed=speed,
+        size=size,
+        view=view,
+        progress=progress,
+    )
+    return int(wanted)
+
+
+def _cmd_animate(args: argparse.Namespace) -> int:
+    from tensegrity.plots.animation import VIDEO_FORMATS
 
     _check_output(args.output, tuple(VIDEO_FORMATS))
     if args.duration is not None and args.speed is not None:
         raise CommandError("animate: give --duration or --speed, not both")
-    from tensegrity.io.trajectory import read_dataset
-
-    with blame("animate", args.trajectory):
-        time = read_dataset(args.trajectory, "time")
-    wanted = playback_times(
-        time[0], time[-1], fps=args.fps, duration=args.duration, speed=args.speed
-    ).size
-    result, _ = _read("animate", args.trajectory, 2 * wanted)
-    animate(
-        result,
+    frames = write_video(
+        args.trajectory,
         args.output,
         fps=args.fps,
         duration=args.duration,
@@ -93,7 +120,7 @@ def _cmd_animate(args: argparse.Namespace) -> int:
         progress=None if args.progress else False,
     )
     size = byte_text(args.output.stat().st_size)
-    print(f"wrote {args.output} ({wanted} frames at {args.fps:g} fps, {size})")
+    print(f"wrote {args.output} ({frames} frames at {args.fps:g} fps, {size})")
     return 0
 
 
