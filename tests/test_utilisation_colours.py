@@ -247,3 +247,32 @@ def test_view_colours_a_trajectory_by_the_design_given(tmp_path, capsys):
     for given, words in ((other, "is not the structure of"), (plain, "no materials")):
         assert main(["view", trajectory, "-o", str(page), "--structure", str(given)]) == 2
         assert words in capsys.readouterr().err
+
+
+def test_a_designed_run_writes_its_structure_by_material_for_view(tmp_path, capsys):
+    """``simulate --material ... --section ...`` writes ``structure-material.json``: the run's
+    structure in the material form (read back: the structure of ``structure.json`` and its
+    design), with which ``tensegrity view --structure`` gives the page ``simulate`` wrote; a run
+    without a design writes none."""
+    from tensegrity.design.files import read_design
+    from tensegrity.io.formats import read_structure
+
+    out = tmp_path / "designed"
+    design = ["--material", "steel,nylon", "--section", "rod:5,cable:0.6"]
+    assert main([*ARGS, *design, "--out", str(out)]) == 0
+    structure, members = read_design(out / "structure-material.json")
+    plain = read_structure(out / "structure.json")
+    assert members is not None
+    for name in ("node_position", "rod_mass", "tendon_stiffness", "tendon_rest_length"):
+        np.testing.assert_allclose(getattr(structure, name), getattr(plain, name), rtol=1e-14)
+    page = tmp_path / "again.html"
+    trajectory = str(out / "trajectory.h5")
+    files = ["--structure", str(out / "structure-material.json")]
+    assert main(["view", trajectory, "-o", str(page), *files]) == 0
+    written = read_viewer_data((out / "view.html").read_text())["utilisation"]
+    again = read_viewer_data(page.read_text())["utilisation"]
+    np.testing.assert_array_equal(again["rods"], written["rods"])
+    np.testing.assert_array_equal(again["tendons"], written["tendons"])
+    assert main([*ARGS, "--out", str(tmp_path / "plain")]) == 0
+    assert not (tmp_path / "plain" / "structure-material.json").exists()
+    capsys.readouterr()

@@ -631,6 +631,11 @@ def _stream_run(
     return summary
 
 
+#: ``simulate``'s file of the run's structure in the material form, beside ``structure.json``
+#: (members with a design only).
+MATERIAL_STRUCTURE = "structure-material.json"
+
+
 def _write_run(
     args: argparse.Namespace,
     structure: Structure,
@@ -645,6 +650,7 @@ def _write_run(
     viewer's frames are ``keeper``'s, or (a resumed run, or members with a design:
     ``designed``, their utilisation in the frames and in utilisation.png, drawn at the last
     sample) read from the file."""
+    from tensegrity.design.files import write_design
     from tensegrity.io.formats import write_structure
     from tensegrity.io.trajectory import read_dataset, read_trajectory
     from tensegrity.plots.figures import FIGURE_DPI, figure_utilisation, save_figures, save_png
@@ -681,6 +687,11 @@ def _write_run(
     def write(staging: Path) -> list[Path]:
         outputs = [
             write_structure(staging / "structure.json", structure),
+            *(  # the same structure by material and section (`tensegrity view --structure`)
+                []
+                if designed is None
+                else [write_design(staging / MATERIAL_STRUCTURE, structure, designed.members)]
+            ),
             *save_figures(trajectory, staging, history=history),
             *(
                 []
