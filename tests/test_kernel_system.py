@@ -2,11 +2,12 @@
 reference (``dynamics.evaluate``, ``project_to_constraints``, the energies), which shares no code
 with it.
 
-Structures: a free class 1 shell (bit for bit the existing kernel), free and fixed-base class 2
-shells (joints, fixed rod nodes), a pinned rod, a point mass between anchors, the README's crane
-(a pinned rod, a tendon to an anchor, a payload joined to its tip), the hanging chain (a joint to
-an anchor), a tripod on planes, rods and a point mass on lines, a rod held at both ends (redundant
-rows, a singular ``K``) tied to a free one, and planar structures through ``embed_planar``.
+Structures: a free class 1 shell (the existing kernel, to its last ulps), free and fixed-base
+class 2 shells (joints, fixed rod nodes), a pinned rod, a point mass between anchors, the
+README's crane (a pinned rod, a tendon to an anchor, a payload joined to its tip), the hanging
+chain (a joint to an anchor), a tripod on planes, rods and a point mass on lines, a rod held at
+both ends (redundant rows, a singular ``K``) tied to a free one, and planar structures through
+``embed_planar``.
 States are off the constraints (positions perturbed), with random velocities, tendon and rod
 damping, a third of the tendons slack, gravity and external forces.
 """
