@@ -61,9 +61,7 @@ def make_model(
     )
     scale = max(float(structure.rod_length.max(initial=0.0)), 1.0)
     limits = (max_rod_length_error, max_rod_length_error * scale, np.inf)
-    m, n = system.m, system.n
-    work_step = (np.zeros(m), np.zeros(m), np.zeros(n), np.zeros(m))
-    return Model(structure, system, limits, (work_step, np.empty(m)))
+    return Model(structure, system, limits, (system.rk4_work(), np.empty(system.m)))
 
 
 def step(model: Model, state: State, dt: float, *, project: bool = False) -> State:

@@ -207,7 +207,7 @@ class RK4:
         m = system.m
         #: a step's scratch (:func:`compiled.rk4_step`); ``first`` = ``f(t, y)`` at the start of
         #: the last step taken with ``keep_first``
-        self.work_step = (np.zeros(m), np.zeros(m), np.zeros(system.n), np.zeros(m))
+        self.work_step = system.rk4_work()
         self.first = self.work_step[3]
         self.y_end = np.empty(m)
         self.t = float(t0)

@@ -204,6 +204,13 @@ class CompiledSystem:
         n = self.n
         return bool(system_project(y[:n], y[n : 2 * n], self.system[0][1], self.system[1])[2])
 
+    def rk4_work(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """New scratch of :func:`compiled.rk4_step` (its ``work_step``): the sum of the stages
+        and a stage's state (m,), its accelerations (n,), and ``f(t, y)`` at the step's start
+        (m,)."""
+        m = self.m
+        return np.zeros(m), np.zeros(m), np.zeros(self.n), np.zeros(m)
+
     def coordinates(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(q, qdot)`` of ``y`` in the structure's coordinates (new arrays)."""
         q, qdot = y[: self.n].copy(), y[self.n : 2 * self.n].copy()
