@@ -150,6 +150,33 @@ def test_each_frame_draws_its_own_sample(shell31):
     assert (pictures[0] != pictures[2]).any()
 
 
+def test_a_frame_leaves_nothing_on_the_next(shell31):
+    """Each frame is drawn over the figure's kept background, not over the frame before: frame
+    0 after frame 150 is frame 0 as first drawn."""
+    frames = make_frames(shell31, np.array([0, 150, 0]))
+    pictures = list(render_frames(frames, size=(320, 256), progress=False))
+    np.testing.assert_array_equal(pictures[0], pictures[2])
+    assert (pictures[0] != pictures[1]).any()
+
+
+def test_a_blitted_frame_is_the_whole_figure_drawn(shell31):
+    """A frame drawn over the kept background is, pixel for pixel, the figure drawn whole with
+    the frame's rods, tendons and nodes (and the same text over it)."""
+    from tensegrity.plots.animation import _Scene
+
+    frames = make_frames(shell31, np.array([0, 30, 150]))
+    scene = _Scene(frames, size=(320, 256), view=None)
+    for k in range(frames.n_frames):
+        blitted = scene.show(k)
+        for artist in scene.moving:
+            artist.set_animated(False)  # part of the figure's own drawing again
+        scene.figure.canvas.draw()
+        whole = scene.labelled(k)
+        for artist in scene.moving:
+            artist.set_animated(True)
+        np.testing.assert_array_equal(blitted, whole)
+
+
 def test_progress_bar_on_request(shell31, capsys):
     frames = make_frames(shell31, np.array([0, 10, 20]))
     assert len(list(render_frames(frames, size=(320, 256), progress=True))) == 3

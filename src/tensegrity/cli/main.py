@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING, NoReturn, TypeAlias
 import numpy as np
 
 from tensegrity.cli import arguments, design, visual
+from tensegrity.cli.drawing import Drawing, worker_count
 from tensegrity.cli.errors import (
     EXIT_FAILED,
     CommandError,
@@ -58,7 +59,7 @@ if TYPE_CHECKING:
     from tensegrity.engine.result import SimulationResult
     from tensegrity.io.stream import StreamSummary
     from tensegrity.model.loads import ForceTable
-    from tensegrity.plots.motion import FrameKeeper
+    from tensegrity.plots.motion import FrameKeeper, Frames
 
 #: The command's name: the ``prog`` of its parser, which the verbs' parsers extend.
 PROG = "tensegrity"
@@ -643,19 +644,19 @@ def _write_run(
     files: _RunFiles,
     keeper: FrameKeeper | None,
     designed: _DesignedRun | None,
+    drawing: Drawing,
 ) -> tuple[SimulationResult, float, list[Path], TrajectoryUtilisation | None]:
     """Write the finished run's files to ``--out`` together; the trajectory read back for the
     figures and the summary, the largest energy balance error [J], the files written and the
     members' largest utilisation over the run (members with a design: ``designed``).  The
-    viewer's frames are ``keeper``'s, or (a resumed run, or members with a design:
-    ``designed``, their utilisation in the frames and in utilisation.png, drawn at the last
-    sample) read from the file."""
+    figures, the viewer's page and the video are ``drawing``'s jobs, drawn while this process
+    writes the rest.  The viewer's frames are ``keeper``'s, or (a resumed run, or members with
+    a design: ``designed``, their utilisation in the frames and in utilisation.png, drawn at
+    the last sample) read from the file."""
     from tensegrity.design.files import write_design
     from tensegrity.io.formats import write_structure
     from tensegrity.io.trajectory import read_dataset, read_trajectory
-    from tensegrity.plots.figures import FIGURE_DPI, figure_utilisation, save_figures, save_png
     from tensegrity.plots.motion import MAX_BYTES, MAX_FRAMES, MemberCheck, read_frames
-    from tensegrity.plots.viewer import view
 
     work = files.work
     # the first and last samples for the structure figures and the summary, the tendon lengths
@@ -682,55 +683,91 @@ def _write_run(
         read_dataset(work, "time", every=every),
         read_dataset(work, "tendon_length", every=every),
     )
-    balance = _energy_balance_error(work)
 
     def write(staging: Path) -> list[Path]:
-        outputs = [
-            write_structure(staging / "structure.json", structure),
-            *(  # the same structure by material and section (`tensegrity view --structure`)
-                []
-                if designed is None
-                else [write_design(staging / MATERIAL_STRUCTURE, structure, designed.members)]
-            ),
-            *save_figures(trajectory, staging, history=history),
-            *(
-                []
-                if peaks is None
-                else [
-                    save_png(
-                        figure_utilisation(
-                            structure,
-                            trajectory.node_position[-1],
-                            peaks.rod_peak,
-                            peaks.tendon_peak,
-                            title="Largest member utilisation over the run, t = "
-                            f"{trajectory.t[0]:.4g} .. {trajectory.t[-1]:.4g} s",
-                        ),
-                        staging / "utilisation.png",
-                        dpi=FIGURE_DPI,
-                    )
-                ]
-            ),
-            *([] if frames is None else [view(frames, staging / "view.html")]),
-            *(_vtk_files(staging / "vtk", read_trajectory(work)) if args.vtk else []),
-            *([] if args.animation is None else [_video(work, staging, args.animation)]),
-        ]
+        try:
+            # the longest first, each to the next free worker
+            video = args.animation
+            jobs = [
+                *([] if video is None else [drawing.submit(_video, work, staging, video)]),
+                *(  # (the names of plots.figures.FIGURE_NAMES: not imported here, the workers draw)
+                    drawing.submit(_figures, trajectory, staging, history, (name,))
+                    for name in ("initial.png", "equilibrium.png", "tendon_lengths.png")
+                ),
+                *([] if frames is None else [drawing.submit(_view, frames, staging)]),
+                *(
+                    []
+                    if peaks is None
+                    else [drawing.submit(_utilisation_figure, trajectory, peaks, staging)]
+                ),
+            ]
+            outputs = [
+                write_structure(staging / "structure.json", structure),
+                *(  # the same structure by material and section (`tensegrity view --structure`)
+                    []
+                    if designed is None
+                    else [write_design(staging / MATERIAL_STRUCTURE, structure, designed.members)]
+                ),
+                *(_vtk_files(staging / "vtk", read_trajectory(work)) if args.vtk else []),
+            ]
+            drawn = [job.result() for job in jobs]
+        except BaseException:
+            drawing.cancel()  # nothing writes into staging once it is removed
+            raise
         # Last, so that the finished run stays in ``work`` if anything before fails.
         target = staging / "trajectory.h5"
         _link_or_move(work, target)
-        return [target, *outputs]
+        return [target, *outputs, *[path for paths in drawn for path in paths]]
 
+    balance = _energy_balance_error(work)
     written = _write_all(files.out, write)
     work.unlink(missing_ok=True)  # a second name of trajectory.h5, if linked
     return trajectory, balance, written, peaks
 
 
-def _video(trajectory: Path, folder: Path, kind: str) -> Path:
+def _figures(
+    trajectory: SimulationResult,
+    folder: Path,
+    history: tuple[np.ndarray, np.ndarray],
+    names: Sequence[str],
+) -> list[Path]:
+    """The run's figures ``names`` in ``folder`` (:func:`tensegrity.plots.figures.save_figures`)."""
+    from tensegrity.plots.figures import save_figures
+
+    return save_figures(trajectory, folder, history=history, names=names)
+
+
+def _view(frames: Frames, folder: Path) -> list[Path]:
+    """``folder / view.html``: the viewer's page of ``frames``."""
+    from tensegrity.plots.viewer import view
+
+    return [view(frames, folder / "view.html")]
+
+
+def _utilisation_figure(
+    trajectory: SimulationResult, peaks: TrajectoryUtilisation, folder: Path
+) -> list[Path]:
+    """``folder / utilisation.png``: every member coloured by its largest utilisation over the
+    run (``peaks``), drawn at the run's last sample."""
+    from tensegrity.plots.figures import FIGURE_DPI, figure_utilisation, save_png
+
+    figure = figure_utilisation(
+        trajectory.structure,
+        trajectory.node_position[-1],
+        peaks.rod_peak,
+        peaks.tendon_peak,
+        title="Largest member utilisation over the run, t = "
+        f"{trajectory.t[0]:.4g} .. {trajectory.t[-1]:.4g} s",
+    )
+    return [save_png(figure, folder / "utilisation.png", dpi=FIGURE_DPI)]
+
+
+def _video(trajectory: Path, folder: Path, kind: str) -> list[Path]:
     """``folder / motion.<kind>``: the run in ``trajectory`` as a video
     (:func:`tensegrity.cli.visual.write_video`, its defaults; a progress bar on a terminal)."""
     path = folder / f"motion.{kind}"
     visual.write_video(trajectory, path, fps=30.0)
-    return path
+    return [path]
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
@@ -746,10 +783,12 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         budget = frame_budget(structure, max_frames=MAX_FRAMES, max_bytes=MAX_BYTES)
         keeper = FrameKeeper(structure, t0=0.0, sample_dt=args.sample_dt, max_frames=budget)
     try:
-        summary = _stream_run(args, structure, force, gravity, files, keeper, designed)
-        trajectory, balance, written, peaks = _write_run(
-            args, structure, summary, files, keeper, designed
-        )
+        # the drawing's workers import matplotlib while the run goes on
+        with Drawing(worker_count(2)) as drawing:
+            summary = _stream_run(args, structure, force, gravity, files, keeper, designed)
+            trajectory, balance, written, peaks = _write_run(
+                args, structure, summary, files, keeper, designed, drawing
+            )
     except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM/SIGHUP (signals_as_interrupts)
         return files.interrupted(exc)
     _print_summary(

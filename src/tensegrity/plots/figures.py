@@ -20,7 +20,7 @@ SI units throughout: positions and lengths in m, tensions in N, time in s.
 from __future__ import annotations
 
 import re
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -685,12 +685,17 @@ def _mark_rest_length(ax: Axes, rest_length: Any, S: int) -> None:
         )
 
 
+#: The files of :func:`save_figures`.
+FIGURE_NAMES = ("initial.png", "equilibrium.png", "tendon_lengths.png")
+
+
 def save_figures(
     result: SimulationResult,
     out_dir: str | Path,
     *,
     dpi: int = FIGURE_DPI,
     history: tuple[np.ndarray, np.ndarray] | None = None,
+    names: Collection[str] = FIGURE_NAMES,
 ) -> list[Path]:
     """Write the figures of a simulation as PNG files in ``out_dir``, each atomically.
 
@@ -713,12 +718,20 @@ def save_figures(
         The series of the tendon-length figure, if not the result's own samples: a long run's
         figures from its first and last samples (``result``) and its tendon lengths alone
         (:func:`tensegrity.io.trajectory.read_dataset`).
+    names : collection of str
+        Which of the three files to write (:data:`FIGURE_NAMES`; e.g. some in one process,
+        the others in another).
 
     Returns
     -------
     list of pathlib.Path
-        The three files, in the order above.
+        The files, in the order above.
     """
+    unknown = set(names) - set(FIGURE_NAMES)
+    if unknown:
+        raise ValueError(
+            f"names: unknown figures {sorted(unknown)}, expected some of {FIGURE_NAMES}"
+        )
     structure, time = result.structure, result.t
     nodes, tension = result.node_position, result.tendon_tension
     out = Path(out_dir)
@@ -731,12 +744,14 @@ def save_figures(
         final_title = f"Final configuration (t = {time[-1]:.4g} s)"
     rest = None if (result.settings or {}).get("control") else structure.tendon_rest_length
     series_t, series_length = (time, result.tendon_length) if history is None else history
-    figures = {
-        "initial.png": figure_structure(
+    figures = {  # each drawn only if asked for
+        "initial.png": lambda: figure_structure(
             structure, nodes[0], tension[0], title=f"Initial configuration (t = {time[0]:.4g} s)"
         ),
-        "equilibrium.png": figure_structure(structure, nodes[-1], tension[-1], title=final_title),
-        "tendon_lengths.png": figure_tendon_lengths(
+        "equilibrium.png": lambda: figure_structure(
+            structure, nodes[-1], tension[-1], title=final_title
+        ),
+        "tendon_lengths.png": lambda: figure_tendon_lengths(
             series_t,
             series_length,
             structure.tendon_name,
@@ -745,7 +760,9 @@ def save_figures(
             subtitle=_first_upper(result.message),
         ),
     }
-    return [save_png(figure, out / name, dpi=dpi) for name, figure in figures.items()]
+    return [
+        save_png(draw(), out / name, dpi=dpi) for name, draw in figures.items() if name in names
+    ]
 
 
 #: zlib level of the PNG files: 3 instead of Pillow's 6 takes 0.035 s off each (10,10)

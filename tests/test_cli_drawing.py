@@ -1,0 +1,175 @@
+"""The drawing of ``simulate``'s figures, page and video in worker processes
+(:mod:`tensegrity.cli.drawing`): the same files as drawn in one process; a failed, killed or
+interrupted job stops the command without hanging and leaves no worker behind; a worker's
+warnings reach the command; a killed command takes its workers with it."""
+
+from __future__ import annotations
+
+import importlib
+import os
+import signal
+import subprocess
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import pytest
+
+from tensegrity.cli.drawing import Drawing, worker_count
+from tensegrity.cli.main import main
+
+cli_main = importlib.import_module("tensegrity.cli.main")  # (the module: `main` is its function)
+
+RUN = ["simulate", "--n", "3", "--m", "1", "--t-end", "0.3", "--no-steady-state"]
+DRAWN = ("initial.png", "equilibrium.png", "tendon_lengths.png", "view.html", "motion.gif")
+
+needs_workers = pytest.mark.skipif(
+    worker_count(2) < 2, reason="workers need Linux and two processors"
+)
+
+
+def _gone(pid: int, within: float) -> bool:
+    """Whether the process ``pid`` has ended (or is a zombie) within ``within`` seconds."""
+    end = time.monotonic() + within
+    while time.monotonic() < end:
+        try:
+            with open(f"/proc/{pid}/stat") as stat:
+                if stat.read().rsplit(")", 1)[1].split()[0] == "Z":
+                    return True
+        except FileNotFoundError:
+            return True
+        time.sleep(0.02)
+    return False
+
+
+# jobs (module level: a worker finds them by name)
+def _pid() -> int:
+    return os.getpid()
+
+
+def _sleep(seconds: float) -> None:
+    time.sleep(seconds)
+
+
+def _warn(text: str) -> str:
+    warnings.warn(text, UserWarning, stacklevel=1)
+    return text
+
+
+def _fail(*_: object) -> list[Path]:
+    raise ValueError("the drawing failed on purpose")
+
+
+def _killed(*_: object) -> list[Path]:
+    os.kill(os.getpid(), signal.SIGKILL)
+    return []
+
+
+@needs_workers
+def test_workers_draw_the_same_files_as_one_process(tmp_path, monkeypatch, capsys):
+    """Every figure, the page and the video are byte for byte those the command draws alone."""
+    args = [*RUN, "--animation", "gif"]
+    assert main([*args, "--out", str(tmp_path / "workers")]) == 0
+    monkeypatch.setattr(cli_main, "worker_count", lambda wanted: 0)
+    assert main([*args, "--out", str(tmp_path / "alone")]) == 0
+    for name in DRAWN:
+        drawn, alone = (tmp_path / folder / name for folder in ("workers", "alone"))
+        assert drawn.read_bytes() == alone.read_bytes(), name
+
+
+@needs_workers
+def test_jobs_run_in_the_workers_and_return_their_values():
+    with Drawing(2) as drawing:
+        pids = {drawing.submit(_pid).result() for _ in range(8)}
+    assert os.getpid() not in pids and 1 <= len(pids) <= 2
+    alone = Drawing(0)
+    assert alone.submit(_pid).result() == os.getpid()
+
+
+def test_a_failed_drawing_fails_the_run_in_one_line(tmp_path, monkeypatch, capsys):
+    """The job's error ends the command as its own would (one line, exit 2) and no figure is
+    written under a final name; with workers or without."""
+    monkeypatch.setattr(cli_main, "_view", _fail)
+    for workers in (2, 0):
+        monkeypatch.setattr(cli_main, "worker_count", lambda wanted, n=workers: min(wanted, n))
+        out = tmp_path / f"run{workers}"
+        assert main([*RUN, "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert err.strip().splitlines() == ["tensegrity: error: the drawing failed on purpose"]
+        assert not any(p.suffix in (".png", ".html") for p in out.rglob("*")), workers
+
+
+@needs_workers
+def test_a_killed_worker_fails_the_run_without_hanging(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(cli_main, "_figures", _killed)
+    start = time.monotonic()
+    assert main([*RUN, "--out", str(tmp_path / "run")]) == 1
+    assert time.monotonic() - start < 60
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "drawing worker process ended abruptly" in err[0]
+
+
+@needs_workers
+def test_an_interrupt_while_waiting_stops_the_workers():
+    """Ctrl-C (here an alarm) while the command waits for a job: the workers are stopped, and
+    gone, when the interrupt leaves the block."""
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGALRM, interrupt)
+    try:
+        with pytest.raises(KeyboardInterrupt), Drawing(2) as drawing:
+            pids = [drawing.submit(_pid).result() for _ in range(2)]
+            job = drawing.submit(_sleep, 60.0)
+            signal.setitimer(signal.ITIMER_REAL, 0.3)
+            start = time.monotonic()
+            job.result()
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
+    assert time.monotonic() - start < 10
+    assert all(_gone(pid, within=5.0) for pid in pids)
+
+
+@needs_workers
+def test_a_workers_warning_is_raised_in_the_command():
+    with Drawing(1) as drawing, pytest.warns(UserWarning, match="from a worker"):
+        assert drawing.submit(_warn, "from a worker").result() == "from a worker"
+
+
+@needs_workers
+def test_a_killed_command_takes_its_workers_with_it(tmp_path):
+    script = (
+        "import os, sys, time\n"
+        "from tensegrity.cli.drawing import Drawing\n"
+        "from test_cli_drawing import _pid, _sleep\n"
+        "drawing = Drawing(1)\n"
+        "print(drawing.submit(_pid).result(), flush=True)\n"
+        "drawing.submit(_sleep, 60.0)\n"
+        "time.sleep(60)\n"
+    )
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(Path(__file__).parent), *sys.path])}
+    command = subprocess.Popen(
+        [sys.executable, "-c", script], stdout=subprocess.PIPE, text=True, env=env
+    )
+    try:
+        worker = int(command.stdout.readline())
+        command.send_signal(signal.SIGKILL)
+        command.wait()
+        assert _gone(worker, within=5.0)
+    finally:
+        command.kill()
+        command.wait()
+        command.stdout.close()
+
+
+def test_worker_count_follows_the_processors(monkeypatch):
+    monkeypatch.setattr(sys, "platform", "linux")
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0})
+    assert worker_count(2) == 0
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1})
+    assert (worker_count(1), worker_count(2), worker_count(3)) == (1, 2, 2)
+    monkeypatch.setattr(sys, "platform", "darwin")
+    assert worker_count(2) == 0
