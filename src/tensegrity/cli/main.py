@@ -773,6 +773,14 @@ def _video(trajectory: Path, folder: Path, kind: str) -> list[Path]:
 def _cmd_simulate(args: argparse.Namespace) -> int:
     _check_output_folder(args.out, "--out")
     _check_samples(args.t_end, args.sample_dt)
+    # the drawing's workers start now: they import matplotlib while the run is set up and goes on
+    with Drawing(worker_count(2)) as drawing:
+        return _simulate_and_write(args, drawing)
+
+
+def _simulate_and_write(args: argparse.Namespace, drawing: Drawing) -> int:
+    """``tensegrity simulate`` once its options are checked: the run, its files (the figures,
+    page and video drawn by ``drawing``) and its summary."""
     structure, force, gravity, designed = _simulation_inputs(args)
     files = _RunFiles.prepare(args.out, args.resume)
     _announce_large_run(structure, args.t_end, args.sample_dt, files.out)
@@ -783,13 +791,12 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         budget = frame_budget(structure, max_frames=MAX_FRAMES, max_bytes=MAX_BYTES)
         keeper = FrameKeeper(structure, t0=0.0, sample_dt=args.sample_dt, max_frames=budget)
     try:
-        # the drawing's workers import matplotlib while the run goes on
-        with Drawing(worker_count(2)) as drawing:
-            summary = _stream_run(args, structure, force, gravity, files, keeper, designed)
-            trajectory, balance, written, peaks = _write_run(
-                args, structure, summary, files, keeper, designed, drawing
-            )
+        summary = _stream_run(args, structure, force, gravity, files, keeper, designed)
+        trajectory, balance, written, peaks = _write_run(
+            args, structure, summary, files, keeper, designed, drawing
+        )
     except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM/SIGHUP (signals_as_interrupts)
+        drawing.cancel()
         return files.interrupted(exc)
     _print_summary(
         trajectory,

@@ -61,7 +61,7 @@ VIEW_3D = (22.0, -58.0)
 VIEW_PLANAR = (90.0, -90.0)
 #: Size of a frame's text [points] (matplotlib's "small"), and the grey of its counts.
 TEXT_POINTS = 10 / 1.2
-TEXT_GREY = (77, 77, 77)
+TEXT_GREY = 77
 
 
 def _video_format(path: Path) -> str:
@@ -191,13 +191,36 @@ class _Scene:
             f"{n_slack} slack" + (" (dashed)" if n_slack else "")
         )
         canvas: Any = self.figure.canvas
-        picture = Image.fromarray(np.asarray(canvas.buffer_rgba())[..., :3])  # (a copy)
-        draw = ImageDraw.Draw(picture)
-        draw.multiline_text(
-            self.text_at, "\n".join(lines), font=self.fonts["monospace"], fill="black"
+        rgba = np.asarray(canvas.buffer_rgba())
+        picture = np.empty((*rgba.shape[:2], 3), dtype=np.uint8)
+        for channel in range(3):  # (5x faster than copying rgba[..., :3] at once: 0.4 ms)
+            picture[..., channel] = rgba[..., channel]
+        _write(picture, "\n".join(lines), self.text_at, font=self.fonts["monospace"], fill=0)
+        right, top = self.count_at
+        count_box = self.fonts["sans-serif"].getbbox(count)
+        _write(
+            picture,
+            count,
+            (right - count_box[2], top),
+            font=self.fonts["sans-serif"],
+            fill=TEXT_GREY,
         )
-        draw.text(self.count_at, count, font=self.fonts["sans-serif"], fill=TEXT_GREY, anchor="ra")
-        return np.asarray(picture)
+        return picture
+
+
+def _write(
+    picture: np.ndarray, text: str, at: tuple[int, int], *, font: ImageFont.FreeTypeFont, fill: int
+) -> None:
+    """Write ``text`` into ``picture`` (height, width, 3) in the grey ``fill`` (0-255), its box's
+    top left at pixel ``at``: Pillow draws it into a mask of the text's size only (converting
+    the whole frame to an image and back took 3 ms)."""
+    box = ImageDraw.Draw(Image.new("L", (1, 1))).multiline_textbbox((0, 0), text, font=font)
+    mask = Image.new("L", (box[2], box[3]))
+    ImageDraw.Draw(mask).multiline_text((0, 0), text, font=font, fill=255)
+    x, y = at
+    region = picture[y : y + box[3], x : x + box[2]]
+    alpha = np.asarray(mask)[: region.shape[0], : region.shape[1], None] / 255.0
+    region[...] = np.rint(region * (1.0 - alpha) + fill * alpha)
 
 
 def _font(family: str, *, pixels: int) -> ImageFont.FreeTypeFont:
@@ -308,7 +331,11 @@ def _encode(tmp: Path, suffix: str, pictures: Iterator[np.ndarray], fps: float) 
     if first is None:
         raise ValueError("no frames to encode")
     height, width = first.shape[:2]
-    extra = ["-b:v", "2M", "-deadline", "realtime", "-cpu-used", "8"] if suffix == ".webm" else []
+    extra = (
+        ["-b:v", "2M", "-deadline", "realtime", "-cpu-used", "8"]
+        if suffix == ".webm"
+        else ["-preset", "veryfast"]
+    )
     writer = imageio_ffmpeg.write_frames(
         str(tmp),
         (width, height),
