@@ -177,6 +177,25 @@ def test_a_blitted_frame_is_the_whole_figure_drawn(shell31):
         np.testing.assert_array_equal(blitted, whole)
 
 
+def test_text_beyond_the_picture_is_cut_off():
+    """A text wider than the picture, or placed left of or above it, is written where it falls
+    inside and nowhere else (a negative start must not wrap to the other edge)."""
+    from tensegrity.plots.animation import _font, _write
+
+    font = _font("sans-serif", pixels=12)
+    whole = np.full((40, 400, 3), 255, dtype=np.uint8)
+    _write(whole, "6 rods, 24 tendons, 3 slack (dashed)", (100, 10), font=font, fill=0)
+    inked = np.nonzero(whole.min(axis=(0, 2)) < 128)[0]
+    assert inked.min() >= 100 and inked.max() - inked.min() > 150
+    for shift in (160, 30):  # the text starts 160 or 30 pixels left of the picture
+        cut = np.full((40, 120, 3), 255, dtype=np.uint8)
+        _write(cut, "6 rods, 24 tendons, 3 slack (dashed)", (-shift, 10), font=font, fill=0)
+        np.testing.assert_array_equal(cut, whole[:, 100 + shift : 220 + shift])
+    above = np.full((40, 400, 3), 255, dtype=np.uint8)
+    _write(above, "6 rods, 24 tendons, 3 slack (dashed)", (100, -5), font=font, fill=0)
+    np.testing.assert_array_equal(above[:25], whole[15:40])
+
+
 def test_progress_bar_on_request(shell31, capsys):
     frames = make_frames(shell31, np.array([0, 10, 20]))
     assert len(list(render_frames(frames, size=(320, 256), progress=True))) == 3

@@ -141,7 +141,7 @@ class Drawing:
         """Stop the workers, their jobs unfinished, and wait until they are gone."""
         if self._pool is not None:
             # (Python 3.14: ProcessPoolExecutor.terminate_workers)
-            for process in list(self._pool._processes.values()):  # type: ignore[attr-defined]
+            for process in list(self._pool._processes.values()):
                 process.terminate()
             self._pool.shutdown(wait=True, cancel_futures=True)
             self._pool = None

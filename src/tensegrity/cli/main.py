@@ -688,8 +688,8 @@ def _write_run(
         try:
             # the longest first, each to the next free worker
             video = args.animation
+            videos = [] if video is None else [drawing.submit(_video, work, staging, video)]
             jobs = [
-                *([] if video is None else [drawing.submit(_video, work, staging, video)]),
                 *(  # (the names of plots.figures.FIGURE_NAMES: not imported here, the workers draw)
                     drawing.submit(_figures, trajectory, staging, history, (name,))
                     for name in ("initial.png", "equilibrium.png", "tendon_lengths.png")
@@ -710,7 +710,7 @@ def _write_run(
                 ),
                 *(_vtk_files(staging / "vtk", read_trajectory(work)) if args.vtk else []),
             ]
-            drawn = [job.result() for job in jobs]
+            drawn = [job.result() for job in [*jobs, *videos]]
         except BaseException:
             drawing.cancel()  # nothing writes into staging once it is removed
             raise

@@ -17,6 +17,7 @@ SI units: m, s, N, J.
 
 from __future__ import annotations
 
+import math
 import sys
 from collections.abc import Iterator
 from pathlib import Path
@@ -77,7 +78,8 @@ def _video_format(path: Path) -> str:
 class _Scene:
     """The figure of a run: what stays the same over the run (axes, colour bar, title) drawn
     once and kept as pixels; :meth:`show` puts them back and draws a frame's rods, tendons,
-    nodes and text over them (blitting: 5x faster than drawing the whole figure each frame)."""
+    nodes and text over them (blitting: 12 times faster than drawing the whole figure for each
+    frame, ``benchmarks/bench_animation.py``)."""
 
     def __init__(
         self, frames: Frames, *, size: tuple[int, int], view: tuple[float, float] | None
@@ -126,8 +128,7 @@ class _Scene:
         )
         for nodes, style in styles:
             if nodes.size:
-                (line,) = ax.plot([], [], [], ls="")
-                line.set(**style)
+                (line,) = ax.plot([], [], [], ls="", **style)
                 self.markers.append((line, nodes))
         colour_axes = figure.add_axes((0.86, 0.2, 0.025, 0.6))
         mappable = ScalarMappable(Normalize(*frames.tension_range), tension_colormap())
@@ -197,11 +198,11 @@ class _Scene:
             picture[..., channel] = rgba[..., channel]
         _write(picture, "\n".join(lines), self.text_at, font=self.fonts["monospace"], fill=0)
         right, top = self.count_at
-        count_box = self.fonts["sans-serif"].getbbox(count)
+        count_width = math.ceil(self.fonts["sans-serif"].getlength(count))
         _write(
             picture,
             count,
-            (right - count_box[2], top),
+            (right - count_width, top),
             font=self.fonts["sans-serif"],
             fill=TEXT_GREY,
         )
@@ -212,15 +213,17 @@ def _write(
     picture: np.ndarray, text: str, at: tuple[int, int], *, font: ImageFont.FreeTypeFont, fill: int
 ) -> None:
     """Write ``text`` into ``picture`` (height, width, 3) in the grey ``fill`` (0-255), its box's
-    top left at pixel ``at``: Pillow draws it into a mask of the text's size only (converting
-    the whole frame to an image and back took 3 ms)."""
+    top left at pixel ``at`` (what falls outside the picture cut off): Pillow draws it into a
+    mask of the text's size only (converting the whole frame to an image and back took 3 ms)."""
     box = ImageDraw.Draw(Image.new("L", (1, 1))).multiline_textbbox((0, 0), text, font=font)
-    mask = Image.new("L", (box[2], box[3]))
+    width, height = math.ceil(box[2]), math.ceil(box[3])
+    mask = Image.new("L", (width, height))
     ImageDraw.Draw(mask).multiline_text((0, 0), text, font=font, fill=255)
     x, y = at
-    region = picture[y : y + box[3], x : x + box[2]]
-    alpha = np.asarray(mask)[: region.shape[0], : region.shape[1], None] / 255.0
-    region[...] = np.rint(region * (1.0 - alpha) + fill * alpha)
+    left, top = max(0, -x), max(0, -y)  # the mask's part left or above the picture
+    region = picture[y + top : y + height, x + left : x + width]
+    alpha = np.asarray(mask)[top : top + region.shape[0], left : left + region.shape[1], None]
+    region[...] = np.rint(region * (1.0 - alpha / 255.0) + fill * (alpha / 255.0))
 
 
 def _font(family: str, *, pixels: int) -> ImageFont.FreeTypeFont:
