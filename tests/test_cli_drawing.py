@@ -173,3 +173,21 @@ def test_worker_count_follows_the_processors(monkeypatch):
     assert (worker_count(1), worker_count(2), worker_count(3)) == (1, 2, 2)
     monkeypatch.setattr(sys, "platform", "darwin")
     assert worker_count(2) == 0
+
+
+@needs_workers
+def test_workers_stopped_as_they_start_print_nothing():
+    """Workers stopped at once (bad input found just after they were forked) end silently: a
+    signal that comes before a worker has set its own handlers waits for them, instead of
+    running the command's (which raised in the worker and printed a traceback)."""
+    script = (
+        "from tensegrity.cli.drawing import Drawing\n"
+        "from tensegrity.cli.errors import signals_as_interrupts\n"
+        "with signals_as_interrupts():\n"
+        "    for _ in range(30):\n"
+        "        Drawing(2).cancel()\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=300
+    )
+    assert done.returncode == 0 and done.stderr == ""

@@ -50,18 +50,25 @@ def worker_count(wanted: int) -> int:
 PR_SET_PDEATHSIG = 1
 
 
+#: The signals a command handles (Ctrl-C; SIGTERM and SIGHUP as interrupts): blocked while
+#: the workers are forked, until each has set its own dispositions for them.
+HANDLED_SIGNALS = tuple(
+    getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name)
+)
+
+
 def _start_worker(command: int) -> None:
     """A worker's start: killed when the command's process ``command`` ends, however it ends
-    (so that a killed command leaves no worker drawing into its folder); the command's signal
-    handlers undone (it stops its workers itself); the drawing modules imported while the
-    command goes on."""
+    (so that a killed command leaves no worker drawing into its folder); Ctrl-C ignored and the
+    termination signals' default actions restored (the command stops its workers itself), then
+    those signals let through (one sent meanwhile waited, instead of running the command's
+    handler here); the drawing modules imported while the command goes on."""
     ctypes.CDLL(None).prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
     if os.getppid() != command:  # it ended before the request
         os._exit(1)
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    for name in ("SIGTERM", "SIGHUP"):
-        if hasattr(signal, name):
-            signal.signal(getattr(signal, name), signal.SIG_DFL)
+    for number in HANDLED_SIGNALS:
+        signal.signal(number, signal.SIG_IGN if number == signal.SIGINT else signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, HANDLED_SIGNALS)
     for module in ("tensegrity.plots.animation", "tensegrity.plots.viewer"):  # (matplotlib)
         importlib.import_module(module)
 
@@ -121,13 +128,17 @@ class Drawing:
         self.workers = workers
         self._pool: ProcessPoolExecutor | None = None
         if workers > 0:
-            self._pool = ProcessPoolExecutor(
-                workers,
-                mp_context=multiprocessing.get_context("fork"),
-                initializer=_start_worker,
-                initargs=(os.getpid(),),
-            )
-            self._pool.submit(int)  # forks the workers now, which import while the command goes on
+            blocked = signal.pthread_sigmask(signal.SIG_BLOCK, HANDLED_SIGNALS)
+            try:  # (the workers inherit the mask: see _start_worker)
+                self._pool = ProcessPoolExecutor(
+                    workers,
+                    mp_context=multiprocessing.get_context("fork"),
+                    initializer=_start_worker,
+                    initargs=(os.getpid(),),
+                )
+                self._pool.submit(int)  # forks the workers now: they import meanwhile
+            finally:
+                signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
 
     def submit(self, fn: Callable[..., T], /, *args: Any, **kwargs: Any) -> Job[T]:
         """Run ``fn(*args, **kwargs)`` in a free worker, in the order submitted (``fn`` a
