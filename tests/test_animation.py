@@ -7,6 +7,7 @@ from __future__ import annotations
 import h5py
 import numpy as np
 import pytest
+from matplotlib.colors import to_rgb
 
 from tensegrity import class1_shell, critical_damping, simulate
 from tensegrity.cli.main import main
@@ -140,6 +141,37 @@ def test_animation_has_its_frames_size_and_motion(tmp_path, shell31, suffix):
     drawn = first.min(axis=-1) < 200  # dark pixels: rods, tendons, labels
     assert drawn.mean() > 0.02
     assert sorted(p.name for p in tmp_path.iterdir()) == [f"motion{suffix}"]
+
+
+def test_a_gif_keeps_the_frames_colours(tmp_path, shell31):
+    """All frames of a GIF share one palette made from the first (which shows no slack
+    tendon) and the members' special colours: the frames read back are the frames drawn to
+    within a few levels, the background stays white and the slack tendons red."""
+    from PIL import Image
+
+    from tensegrity.plots.animation import _encode
+    from tensegrity.plots.figures import SLACK_COLOR
+
+    frames = make_frames(shell31, np.arange(0, 40, 2))
+    assert frames.slack[0].sum() == 0 and frames.slack.sum() > 0
+    pictures = list(render_frames(frames, size=(320, 256), progress=False))
+    _encode(tmp_path / "motion.gif", ".gif", iter(pictures), 10.0)
+    with Image.open(tmp_path / "motion.gif") as gif:
+        assert gif.n_frames == len(pictures)
+        read = []
+        for k in range(gif.n_frames):
+            gif.seek(k)
+            read.append(np.asarray(gif.convert("RGB")).astype(int))
+    red = np.rint(np.array(to_rgb(SLACK_COLOR)) * 255)
+    slack_pixels = 0
+    for drawn, back in zip(pictures, read, strict=True):
+        error = np.abs(drawn.astype(int) - back).max(axis=-1)
+        assert error.mean() < 3 and (error > 40).mean() < 0.005
+        assert (back[drawn.min(axis=-1) == 255] == 255).all()  # white stays white
+        slack = (drawn == red).all(axis=-1)
+        slack_pixels += slack.sum()
+        assert (np.abs(back[slack] - red) <= 10).all()
+    assert slack_pixels > 0
 
 
 def test_each_frame_draws_its_own_sample(shell31):
