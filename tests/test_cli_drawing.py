@@ -1,7 +1,7 @@
-"""The drawing of ``simulate``'s figures, page and video in worker processes
-(:mod:`tensegrity.cli.drawing`): the same files as drawn in one process; a failed, killed or
-interrupted job stops the command without hanging and leaves no worker behind; a worker's
-warnings reach the command; a killed command takes its workers with it."""
+"""The drawing of ``simulate``'s (and ``equilibrium``'s, ``modes``') figures, pages and video in
+worker processes (:mod:`tensegrity.cli.drawing`): the same files as drawn in one process; a
+failed, killed or interrupted job stops the command without hanging and leaves no worker behind;
+a worker's warnings reach the command; a killed command takes its workers with it."""
 
 from __future__ import annotations
 
@@ -79,6 +79,22 @@ def test_workers_draw_the_same_files_as_one_process(tmp_path, monkeypatch, capsy
 
 
 @needs_workers
+@pytest.mark.parametrize("verb", ["equilibrium", "modes"])
+def test_analysis_verbs_draw_the_same_files_in_workers(tmp_path, monkeypatch, capsys, verb):
+    """The analysis verbs that draw in workers write every figure and page byte for byte as
+    drawn in the command alone."""
+    assert main([verb, "--out", str(tmp_path / "workers")]) == 0
+    monkeypatch.setattr(cli_main, "worker_count", lambda wanted: 0)
+    assert main([verb, "--out", str(tmp_path / "alone")]) == 0
+    drawn = sorted(p.name for p in (tmp_path / "workers").iterdir())
+    assert drawn == sorted(p.name for p in (tmp_path / "alone").iterdir())
+    assert any(name.endswith(".png") for name in drawn) and any(".html" in n for n in drawn)
+    for name in drawn:
+        workers, alone = (tmp_path / folder / name for folder in ("workers", "alone"))
+        assert workers.read_bytes() == alone.read_bytes(), name
+
+
+@needs_workers
 def test_jobs_run_in_the_workers_and_return_their_values():
     with Drawing(2) as drawing:
         pids = {drawing.submit(_pid).result() for _ in range(8)}
@@ -90,7 +106,7 @@ def test_jobs_run_in_the_workers_and_return_their_values():
 def test_a_failed_drawing_fails_the_run_in_one_line(tmp_path, monkeypatch, capsys):
     """The job's error ends the command as its own would (one line, exit 2) and no figure is
     written under a final name; with workers or without."""
-    monkeypatch.setattr(cli_main, "_view", _fail)
+    monkeypatch.setattr(cli_main, "viewer_page", _fail)
     for workers in (2, 0):
         monkeypatch.setattr(cli_main, "worker_count", lambda wanted, n=workers: min(wanted, n))
         out = tmp_path / f"run{workers}"

@@ -42,8 +42,9 @@ from tensegrity.analysis.equilibrium import (
     find_equilibrium,
     with_damping,
 )
+from tensegrity.cli.drawing import Drawing, Job, figure_png, viewer_page
+from tensegrity.cli.tables import key_values, table, write_json
 from tensegrity.model.structure import Structure
-from tensegrity.plots import report
 
 if TYPE_CHECKING:
     from tensegrity.analysis.controllability import ReachResult
@@ -56,8 +57,10 @@ class Output(NamedTuple):
     """What a verb computed."""
 
     text: str  #: tables and verdicts to print
-    #: ``write(folder)`` writes the verb's files into ``folder`` (which exists) and returns them
-    write: Callable[[Path], list[Path]]
+    #: ``write(folder, drawing=None)`` writes the verb's files into ``folder`` (which exists) and
+    #: returns them: the JSON itself, the figures and pages as ``drawing``'s jobs
+    #: (:class:`~tensegrity.cli.drawing.Drawing`; None: drawn here, one after the other)
+    write: Callable[[Path, Drawing | None], list[Path]]
     problem: str | None  #: why the analysis did not succeed (None if it did)
 
 
@@ -97,8 +100,6 @@ def run_equilibrium(
     """``tensegrity equilibrium``: the equilibrium by least squares, by damped simulation, or
     both (``method``: ``"least_squares"``, ``"simulation"``, ``"both"``) and their agreement,
     under ``gravity`` [m/s^2] (a number: down the last axis; or a vector), if given."""
-    from tensegrity.plots.figures import figure_structure
-
     if method not in ("both", "least_squares", "simulation"):
         raise ValueError(
             f"method: expected 'both', 'least_squares' or 'simulation', got {method!r}"
@@ -129,30 +130,36 @@ def run_equilibrium(
     simulated = results.get("simulation")
     settling = structure if simulated is None else (simulated.trajectory or structure)
 
-    def write(out: Path) -> list[Path]:
-        from tensegrity.plots.viewer import view
-
-        fig = figure_structure(
-            structure,
-            main.node_position,
-            main.tension,
-            title=f"Equilibrium ({main.method.replace('_', ' ')})",
-        )
-        return [
-            report.write_json(out / "equilibrium.json", data),
-            report.save_figure(fig, out / "equilibrium.png"),
-            view(settling, out / "settling.html"),
+    def write(out: Path, drawing: Drawing | None = None) -> list[Path]:
+        drawing = drawing or Drawing(0)
+        jobs = [
+            drawing.submit(
+                figure_png,
+                "figures.figure_structure",
+                out / "equilibrium.png",
+                structure,
+                main.node_position,
+                main.tension,
+                title=f"Equilibrium ({main.method.replace('_', ' ')})",
+            ),
+            drawing.submit(viewer_page, settling, out / "settling.html"),
         ]
+        return [write_json(out / "equilibrium.json", data), *_results(jobs)]
 
     failed = [f"{name}: {r.message}" for name, r in results.items() if not r.converged]
     return Output("\n\n".join(text), write, "; ".join(failed) or None)
+
+
+def _results(jobs: Sequence[Job[list[Path]]]) -> list[Path]:
+    """The files ``jobs`` wrote, once they are done, in their order."""
+    return [path for job in jobs for path in job.result()]
 
 
 def _route_text(name: str, r: EquilibriumResult) -> list[str]:
     """The heading and the key values (convergence, residuals, tensions) of one route."""
     return [
         f"[{name}] {r.message}",
-        report.key_values(
+        key_values(
             [
                 ("converged", r.converged),
                 ("residual force max |Q|", f"{r.residual_force:.3e} N"),
@@ -171,7 +178,7 @@ def _route_text(name: str, r: EquilibriumResult) -> list[str]:
 
 def _agreement_text(agreement: dict[str, Any]) -> str:
     """How far apart the two routes' equilibria are (:func:`compare_equilibria`)."""
-    return report.key_values(
+    return key_values(
         [
             (
                 "routes agree: node distance",
@@ -187,7 +194,7 @@ def _agreement_text(agreement: dict[str, Any]) -> str:
 
 def _tendon_table(structure: Structure, eq: EquilibriumResult) -> str:
     """Per tendon of ``eq``: tension, length, rest length and whether it is slack."""
-    return report.table(
+    return table(
         ["tendon", "tension [N]", "length [m]", "rest length [m]", "slack"],
         [
             (n, T, length, r, "yes" if sl else "")
@@ -231,7 +238,7 @@ def run_modes(
         (i, modes.kind[i], modes.frequency_hz[i], modes.omega_squared[i])
         for i in range(len(modes.kind))
     ]
-    text.append(report.table(["mode", "kind", "frequency [Hz]", "omega^2 [1/s^2]"], rows))
+    text.append(table(["mode", "kind", "frequency [Hz]", "omega^2 [1/s^2]"], rows))
     if check_fft:
         check = measure_frequency(modes)
         data["fft_check"] = check.to_dict()
@@ -247,18 +254,26 @@ def run_modes(
     chosen = [int(i) for i in modes.elastic_indices()[:shapes]]
     clips = {i: mode_clip(modes, i) for i in chosen}
 
-    def write(out: Path) -> list[Path]:
-        from tensegrity.plots.viewer import view
-
-        written = [report.write_json(out / "modes.json", data)]
-        written.append(
-            report.save_figure(report.figure_frequencies(modes), out / "frequencies.png")
+    def write(out: Path, drawing: Drawing | None = None) -> list[Path]:
+        drawing = drawing or Drawing(0)
+        shapes = (  # the longest first
+            [
+                drawing.submit(
+                    figure_png, "report.figure_mode_shapes", out / "mode_shapes.png", modes, chosen
+                )
+            ]
+            if chosen
+            else []
         )
-        if chosen:
-            figure = report.figure_mode_shapes(modes, chosen)
-            written.append(report.save_figure(figure, out / "mode_shapes.png"))
-        written += [view(clip, out / f"mode_{i}.html") for i, clip in clips.items()]
-        return written
+        jobs = [
+            drawing.submit(figure_png, "report.figure_frequencies", out / "frequencies.png", modes),
+            *(
+                drawing.submit(viewer_page, clip, out / f"mode_{i}.html")
+                for i, clip in clips.items()
+            ),
+        ]
+        written = [write_json(out / "modes.json", data)]
+        return written + _results([jobs[0], *shapes, *jobs[1:]])
 
     return Output("\n\n".join(text), write, None)
 
@@ -326,14 +341,14 @@ def run_controllability(
 
     text.append(
         "Controllability (inputs: rest-length changes)\n"
-        + report.table(
+        + table(
             ["input set", "tendons", "rank", "non-rigid rank", "modes not reached", "Gramian eig"],
             _reach_rows(ctrl),
         )
     )
     text.append(
         "Observability\n"
-        + report.table(
+        + table(
             ["output set", "outputs", "rank", "non-rigid rank", "modes not seen", "Gramian eig"],
             _reach_rows(obs),
         )
@@ -351,12 +366,13 @@ def run_controllability(
         "observability": [r.to_dict() for r in obs],
     }
 
-    def write(out: Path) -> list[Path]:
-        return [
-            report.write_json(out / "controllability.json", data),
-            report.save_figure(report.figure_reach(ctrl, modes), out / "controllability.png"),
-            report.save_figure(report.figure_reach(obs, modes), out / "observability.png"),
+    def write(out: Path, drawing: Drawing | None = None) -> list[Path]:
+        drawing = drawing or Drawing(0)
+        jobs = [
+            drawing.submit(figure_png, "report.figure_reach", out / f"{name}.png", results, modes)
+            for name, results in (("controllability", ctrl), ("observability", obs))
         ]
+        return [write_json(out / "controllability.json", data), *_results(jobs)]
 
     return Output("\n\n".join(text), write, None)
 
@@ -458,20 +474,20 @@ def run_control(
     if closed is not None:
         pages["control.html"] = _closed_loop_frames(closed)
 
-    def write(out: Path) -> list[Path]:
-        from tensegrity.plots.viewer import view
-
-        return [
-            *(view(frames, out / name) for name, frames in pages.items()),
-            report.write_json(out / "control.json", data),
-            report.save_figure(
-                report.figure_shape_motion(plan, closed), out / "control_motion.png"
-            ),
-            report.save_figure(
-                report.figure_shape_controls(plan, closed), out / "control_inputs.png"
-            ),
-            report.save_figure(report.figure_shape_structures(plan), out / "control_shapes.png"),
+    def write(out: Path, drawing: Drawing | None = None) -> list[Path]:
+        drawing = drawing or Drawing(0)
+        views = [drawing.submit(viewer_page, frames, out / name) for name, frames in pages.items()]
+        here = Drawing(0)  # (the plan holds its outputs' functions, closures: they do not pickle)
+        figures = [
+            here.submit(figure_png, f"report.{maker}", out / name, *arguments)
+            for maker, name, arguments in (
+                ("figure_shape_motion", "control_motion.png", (plan, closed)),
+                ("figure_shape_controls", "control_inputs.png", (plan, closed)),
+                ("figure_shape_structures", "control_shapes.png", (plan,)),
+            )
         ]
+        json_file = write_json(out / "control.json", data)
+        return [*_results(views), json_file, *_results(figures)]
 
     missed = [
         f"{name}: {r.message}"
@@ -604,7 +620,7 @@ def _open_loop_plan(
 def _plan_table(plan: QuasiStatic) -> str:
     """The plan's steps: phase, outputs, smallest tension [N] and largest ``|u|`` [m]."""
     output = plan.output
-    return report.table(
+    return table(
         [
             "step",
             "phase",

@@ -29,9 +29,10 @@ import warnings
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
+from pathlib import Path
 from typing import Any, Generic, TypeVar
 
-__all__ = ["Drawing", "Job", "worker_count"]
+__all__ = ["Drawing", "Job", "figure_png", "viewer_page", "worker_count"]
 
 T = TypeVar("T")
 
@@ -148,6 +149,20 @@ class Drawing:
             return Job(lambda: done)
         return Job(self._pool.submit(_call, fn, args, kwargs).result)
 
+    def writing(self, write: Callable[[Path, Drawing], T]) -> Callable[[Path], T]:
+        """``write(folder, self)`` as a writer of one folder (for
+        :func:`tensegrity.io.files.write_staged`): on any failure or interrupt the workers are
+        stopped before it returns, so none writes into the folder once it is removed."""
+
+        def write_folder(folder: Path) -> T:
+            try:
+                return write(folder, self)
+            except BaseException:
+                self.cancel()
+                raise
+
+        return write_folder
+
     def cancel(self) -> None:
         """Stop the workers, their jobs unfinished, and wait until they are gone."""
         if self._pool is not None:
@@ -171,3 +186,24 @@ class Drawing:
             self.close()
         else:
             self.cancel()
+
+
+# ------------------------------------------------------------------ jobs
+def figure_png(maker: str, path: Path, *args: Any, **kwargs: Any) -> list[Path]:
+    """Draw ``maker(*args, **kwargs)``, a figure function named ``"report.<name>"``
+    (:mod:`tensegrity.plots.report`) or ``"figures.<name>"`` (:mod:`tensegrity.plots.figures`),
+    and save it as the PNG file ``path`` (:func:`tensegrity.plots.report.save_figure`).  The
+    command names the function instead of passing it, so as not to import matplotlib itself."""
+    from tensegrity.plots import figures, report
+
+    module, name = maker.split(".")
+    make = getattr({"figures": figures, "report": report}[module], name)
+    return [report.save_figure(make(*args, **kwargs), path)]
+
+
+def viewer_page(source: Any, path: Path) -> list[Path]:
+    """The viewer's page of ``source`` (frames, a result or a structure:
+    :func:`tensegrity.plots.viewer.view`) at ``path``."""
+    from tensegrity.plots.viewer import view
+
+    return [view(source, path)]
