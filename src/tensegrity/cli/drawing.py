@@ -3,18 +3,20 @@ command's own work.
 
 Drawing needs matplotlib, 0.3 s to import, and each figure takes 0.1-0.2 s more: on a machine
 with two or more processors, :class:`Drawing` forks its workers when the command starts (Linux,
-``fork``), so that they import matplotlib while the command simulates, and then draw while the
-command reads its results and writes its other files.  Elsewhere (one processor, another
-platform) each job runs in the command's own process when it is submitted: the same files, one
-after the other.
+``fork``), so that they import matplotlib while the command simulates or computes, and then
+draw while the command reads its results and writes its other files.  Elsewhere (one
+processor, another platform) each job runs in the command's own process when it is submitted:
+the same files, one after the other.
 
 A job is a module-level function and its arguments, pickled to the worker; what it returns and
 the warnings it raised come back (the warnings are raised again in the command, so that they
 are shown as the command's own).  A failed job raises its exception in the command at
-:meth:`Job.result`.  On any failure or interrupt, :meth:`Drawing.cancel` stops the workers and
-waits for them: nothing writes into a folder after the command has removed it.  The workers
-ignore Ctrl-C and SIGTERM's handlers of the command (the command stops them itself), and
-Linux kills them when the command's process ends, even by SIGKILL.
+:meth:`Job.result` (without workers: at :meth:`Drawing.submit`).  On any failure or interrupt,
+:meth:`Drawing.cancel` stops the workers and waits for them (:meth:`Drawing.writing` does so
+before a staging folder is removed): nothing writes into a folder after the command has removed
+it.  The workers are forked with the command's signals blocked, then ignore Ctrl-C and take
+SIGTERM's and SIGHUP's default actions (the command stops them itself), and Linux kills them
+when the command's process ends, even by SIGKILL.
 """
 
 from __future__ import annotations
@@ -77,7 +79,8 @@ def _start_worker(command: int) -> None:
 def _call(
     fn: Callable[..., T], args: tuple, kwargs: dict[str, Any]
 ) -> tuple[T, list[tuple[str, type[Warning], str, int]]]:
-    """Run a job in a worker; its value and the warnings it raised."""
+    """Run a job (in a worker, or in the command without workers); its value and the warnings
+    it raised."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("default")
         value = fn(*args, **kwargs)
