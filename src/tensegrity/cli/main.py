@@ -1121,8 +1121,9 @@ def _cmd_analysis(args: argparse.Namespace) -> int:
 #: The analysis verbs whose figures and pages are drawn in workers: it paid for these
 #: (whole processes paired with drawing in the command, 2026-11-26: equilibrium 0.91x, modes
 #: 0.85x), not for ``controllability`` (python-control imports matplotlib into the command
-#: anyway) nor ``control`` (its figures' plan holds closures, which do not pickle): there the
-#: workers' imports only competed with the computation (1.14x, 1.11x).
+#: anyway) nor ``control`` (its figures' plan holds closures, which do not pickle; made
+#: picklable, the verb was still 1.06x with workers: its LQR design imports python-control, and
+#: so matplotlib): there the workers' imports only competed with the computation (1.14x, 1.11x).
 _DRAWN_IN_WORKERS = ("equilibrium", "modes")
 
 
