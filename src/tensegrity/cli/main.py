@@ -689,9 +689,14 @@ def _write_run(
         video = args.animation
         videos = [] if video is None else [drawing.submit(_video, work, staging, video)]
         jobs = [
-            *(  # (the names of plots.figures.FIGURE_NAMES: not imported here, the workers draw)
-                drawing.submit(_figures, trajectory, staging, history, (name,))
-                for name in ("initial.png", "equilibrium.png", "tendon_lengths.png")
+            *(  # (the names of plots.figures.FIGURE_NAMES: not imported here, the workers draw;
+                # the tendon-length series, up to 8 MB at (10,10), sent only to its own figure)
+                drawing.submit(_figures, trajectory, staging, series, (name,))
+                for name, series in (
+                    ("initial.png", None),
+                    ("equilibrium.png", None),
+                    ("tendon_lengths.png", history),
+                )
             ),
             *(
                 []
@@ -728,10 +733,11 @@ def _write_run(
 def _figures(
     trajectory: SimulationResult,
     folder: Path,
-    history: tuple[np.ndarray, np.ndarray],
+    history: tuple[np.ndarray, np.ndarray] | None,
     names: Sequence[str],
 ) -> list[Path]:
-    """The run's figures ``names`` in ``folder`` (:func:`tensegrity.plots.figures.save_figures`)."""
+    """The run's figures ``names`` in ``folder`` (:func:`tensegrity.plots.figures.save_figures`;
+    ``history`` its tendon-length series, needed by ``tendon_lengths.png`` only)."""
     from tensegrity.plots.figures import save_figures
 
     return save_figures(trajectory, folder, history=history, names=names)
