@@ -10,6 +10,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 import warnings
 from pathlib import Path
@@ -66,6 +67,15 @@ def _killed(*_: object) -> list[Path]:
     return []
 
 
+def _family() -> tuple[int, int, bool]:
+    """A worker's process, its parent, and whether it has matplotlib."""
+    return os.getpid(), os.getppid(), "matplotlib.figure" in sys.modules
+
+
+def _lock() -> threading.Lock:
+    return threading.Lock()  # (does not pickle)
+
+
 @needs_workers
 def test_workers_draw_the_same_files_as_one_process(tmp_path, monkeypatch, capsys):
     """Every figure, the page and the video are byte for byte those the command draws alone."""
@@ -101,6 +111,34 @@ def test_jobs_run_in_the_workers_and_return_their_values():
     assert os.getpid() not in pids and 1 <= len(pids) <= 2
     alone = Drawing(0)
     assert alone.submit(_pid).result() == os.getpid()
+
+
+@needs_workers
+def test_the_first_worker_forks_the_others_once_it_has_imported_matplotlib():
+    """matplotlib is imported once: the second worker is the first's child, and has it."""
+    with Drawing(3) as drawing:
+        jobs = [drawing.submit(_family) for _ in range(3)]  # (one each: all free at first)
+        family = {job.result() for job in jobs}
+    first = [pid for pid, parent, _ in family if parent == os.getpid()]
+    assert len(family) == 3 and len(first) == 1
+    assert all(parent == first[0] for pid, parent, _ in family if pid != first[0])
+    assert all(has for _, _, has in family)
+    assert all(_gone(pid, within=5.0) for pid, _, _ in family)  # (closed: all gone)
+
+
+@needs_workers
+def test_a_jobs_error_comes_back_with_the_workers_traceback():
+    """A job's exception is raised in the command, the worker's traceback in a note (shown
+    by ``--debug``); an outcome that does not pickle is one line that says so; the workers
+    go on with the next jobs."""
+    with Drawing(2) as drawing:
+        with pytest.raises(ValueError, match="failed on purpose") as raised:
+            drawing.submit(_fail).result()
+        assert "in a drawing worker" in raised.value.__notes__[0]
+        assert "_fail" in raised.value.__notes__[0]
+        with pytest.raises(RuntimeError, match="a drawing job's outcome"):
+            drawing.submit(_lock).result()
+        assert drawing.submit(_pid).result() != os.getpid()
 
 
 def test_a_failed_drawing_fails_the_run_in_one_line(tmp_path, monkeypatch, capsys):
@@ -161,8 +199,10 @@ def test_a_killed_command_takes_its_workers_with_it(tmp_path):
         "import os, sys, time\n"
         "from tensegrity.cli.drawing import Drawing\n"
         "from test_cli_drawing import _pid, _sleep\n"
-        "drawing = Drawing(1)\n"
-        "print(drawing.submit(_pid).result(), flush=True)\n"
+        "drawing = Drawing(2)\n"
+        "jobs = [drawing.submit(_pid), drawing.submit(_pid)]\n"
+        "print(*(job.result() for job in jobs), flush=True)\n"
+        "drawing.submit(_sleep, 60.0)\n"
         "drawing.submit(_sleep, 60.0)\n"
         "time.sleep(60)\n"
     )
@@ -171,10 +211,11 @@ def test_a_killed_command_takes_its_workers_with_it(tmp_path):
         [sys.executable, "-c", script], stdout=subprocess.PIPE, text=True, env=env
     )
     try:
-        worker = int(command.stdout.readline())
+        workers = [int(pid) for pid in command.stdout.readline().split()]
+        assert len(set(workers)) == 2  # (the first worker and its child)
         command.send_signal(signal.SIGKILL)
         command.wait()
-        assert _gone(worker, within=5.0)
+        assert all(_gone(worker, within=5.0) for worker in workers)
     finally:
         command.kill()
         command.wait()
