@@ -4,6 +4,8 @@ browser: tests/test_viewer_browser.py."""
 
 from __future__ import annotations
 
+import importlib
+
 import h5py
 import numpy as np
 import pytest
@@ -212,19 +214,19 @@ def test_a_blitted_frame_is_the_whole_figure_drawn(shell31):
 def test_text_beyond_the_picture_is_cut_off():
     """A text wider than the picture, or placed left of or above it, is written where it falls
     inside and nowhere else (a negative start must not wrap to the other edge)."""
-    from tensegrity.plots.animation import _font, _write
+    from tensegrity.plots.animation import _font, _text_mask, _write
 
-    font = _font("sans-serif", pixels=12)
+    mask = _text_mask("6 rods, 24 tendons, 3 slack (dashed)", _font("sans-serif", pixels=12))
     whole = np.full((40, 400, 3), 255, dtype=np.uint8)
-    _write(whole, "6 rods, 24 tendons, 3 slack (dashed)", (100, 10), font=font, fill=0)
+    _write(whole, mask, (100, 10), fill=0)
     inked = np.nonzero(whole.min(axis=(0, 2)) < 128)[0]
     assert inked.min() >= 100 and inked.max() - inked.min() > 150
     for shift in (160, 30):  # the text starts 160 or 30 pixels left of the picture
         cut = np.full((40, 120, 3), 255, dtype=np.uint8)
-        _write(cut, "6 rods, 24 tendons, 3 slack (dashed)", (-shift, 10), font=font, fill=0)
+        _write(cut, mask, (-shift, 10), fill=0)
         np.testing.assert_array_equal(cut, whole[:, 100 + shift : 220 + shift])
     above = np.full((40, 400, 3), 255, dtype=np.uint8)
-    _write(above, "6 rods, 24 tendons, 3 slack (dashed)", (100, -5), font=font, fill=0)
+    _write(above, mask, (100, -5), fill=0)
     np.testing.assert_array_equal(above[:25], whole[15:40])
 
 
@@ -438,15 +440,60 @@ def test_simulate_writes_the_viewer_from_the_samples_it_kept(tmp_path):
     assert not (tmp_path / "bare" / "view.html").exists()
 
 
-def test_simulate_writes_its_video_on_request(tmp_path, capsys):
-    """``tensegrity simulate --animation gif`` writes ``motion.gif`` beside the other files:
-    the run in real time at 30 fps (0.5 s: 15 frames), moving; without the option none."""
+def gif_delays(path):
+    """The delay of each frame of the GIF at ``path`` [ms]."""
+    from PIL import Image
+
+    with Image.open(path) as gif:
+        delays = []
+        for k in range(gif.n_frames):
+            gif.seek(k)
+            delays.append(gif.info["duration"])
+    return delays
+
+
+def test_simulate_writes_a_gif_by_default(tmp_path, capsys, monkeypatch):
+    """``tensegrity simulate`` writes ``motion.gif`` beside the other files unasked: the run in
+    real time at 20 fps (0.5 s: 10 frames of 640 x 512, 5 hundredths of a second each),
+    moving; ``--animation mp4`` an MP4 instead, ``--no-animation`` none, both at once is a
+    one-line error; a video over the default's drawing budget is left out with a line that
+    says so, and drawn when asked for."""
+    cli = importlib.import_module("tensegrity.cli.main")  # (the package's ``main`` is the function)
     run = ["simulate", "--t-end", "0.5", "--no-steady-state", "--damping", "none"]
-    assert main([*run, "--animation", "gif", "--out", str(tmp_path / "a")]) == 0
+    assert main([*run, "--out", str(tmp_path / "a")]) == 0
     assert "a/motion.gif" in capsys.readouterr().out
     frames = video_frames(tmp_path / "a" / "motion.gif")
-    assert len(frames) == 15
+    assert len(frames) == 10 and frames[0].shape[:2] == (512, 640)
+    assert gif_delays(tmp_path / "a" / "motion.gif") == [50] * 10
     first, last = (f[..., :3].astype(int) for f in (frames[0], frames[-1]))
     assert (np.abs(first - last).max(axis=-1) > 40).mean() > 0.01
-    assert main([*run, "--out", str(tmp_path / "b")]) == 0
-    assert not list((tmp_path / "b").glob("motion.*"))
+
+    assert main([*run, "--animation", "mp4", "--out", str(tmp_path / "b")]) == 0
+    assert [p.name for p in (tmp_path / "b").glob("motion.*")] == ["motion.mp4"]
+    assert len(video_frames(tmp_path / "b" / "motion.mp4")) == 10
+    assert main([*run, "--no-animation", "--out", str(tmp_path / "c")]) == 0
+    assert not list((tmp_path / "c").glob("motion.*"))
+    capsys.readouterr()
+    assert main([*run, "--animation", "gif", "--no-animation", "--out", str(tmp_path / "x")]) == 2
+    err = capsys.readouterr().err
+    assert "--no-animation" in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "x").exists()
+
+    monkeypatch.setattr(cli, "DEFAULT_VIDEO_SECONDS", 0.01)  # (10 frames: about 0.06 s)
+    assert main([*run, "--out", str(tmp_path / "d")]) == 0
+    assert not list((tmp_path / "d").glob("motion.*"))
+    err = capsys.readouterr().err
+    assert "motion.gif not drawn: 10 frames of 30 members" in err and "--animation gif" in err
+    assert main([*run, "--animation", "gif", "--out", str(tmp_path / "e")]) == 0
+    assert len(video_frames(tmp_path / "e" / "motion.gif")) == 10
+
+
+@pytest.mark.parametrize(("fps", "delay", "count"), [(30, 3, 33), (25, 4, 25), (7, 14, 7)])
+def test_a_gif_plays_in_the_time_its_frames_show(tmp_path, shell31, fps, delay, count):
+    """A GIF's frame delays are whole hundredths of a second: asked for 30 fps, it is written
+    at 33.3 (delays of 3 hundredths) with as many frames more, so that 1 s of the run plays in
+    1 s, not in 0.9 (30 frames of 30 ms); the frames show the run's times at that rate."""
+    path = animate(shell31, tmp_path / "m.gif", fps=fps, duration=1.0, size=(320, 256))
+    delays = gif_delays(path)
+    assert delays == [10 * delay] * count
+    assert abs(sum(delays) / 1000 - 1.0) <= delay / 100

@@ -39,6 +39,7 @@ FINAL_NAMES = {
     "equilibrium.png",
     "tendon_lengths.png",
     "view.html",
+    "motion.gif",
 }
 PARTIAL = ".trajectory.h5.partial"
 DATASETS = (

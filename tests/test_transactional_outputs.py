@@ -5,6 +5,7 @@ at any moment leaves every file under a final name either as it was or complete.
 
 from __future__ import annotations
 
+import io
 import json
 import os
 import signal
@@ -15,6 +16,7 @@ from pathlib import Path
 from xml.etree import ElementTree
 
 import pytest
+from PIL import Image
 
 from tensegrity.cli.main import main
 from tensegrity.io import files
@@ -209,6 +211,12 @@ def _check_complete(path: Path, content: bytes) -> None:
         ElementTree.fromstring(content)
     elif path.suffix == ".nc":
         assert read_sweep(path).sizes["case"] == 8, path
+    elif path.suffix == ".gif":  # (the trailer ends the file; every frame decodes)
+        assert content.startswith(b"GIF89a") and content.endswith(b"\x3b"), path
+        with Image.open(io.BytesIO(content)) as gif:
+            for k in range(gif.n_frames):
+                gif.seek(k)
+                gif.load()
     elif path.suffix == ".html":
         text = content.decode("utf-8")
         assert text.rstrip().endswith("</html>"), path

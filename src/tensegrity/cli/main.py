@@ -635,6 +635,22 @@ def _stream_run(
 #: ``simulate``'s file of the run's structure in the material form, beside ``structure.json``
 #: (members with a design only).
 MATERIAL_STRUCTURE = "structure-material.json"
+#: ``simulate``'s video: frames per second (a GIF frame's delay is a whole number of hundredths
+#: of a second; at 20 fps, 5 of them, so that the video plays in real time) and its width and
+#: height [pixels].  ``tensegrity animate`` draws others.
+VIDEO_FPS = 20.0
+VIDEO_SIZE = (640, 512)
+#: The time [s] to draw and encode a frame of ``simulate``'s GIF: a part per frame and a part
+#: per member (rod or tendon), fitted to measurements on a 2-core machine (2026-11-26,
+#: ``cli.visual.write_video`` in one process: 5.9, 12.4 and 105 ms a frame for the (3,1),
+#: (10,10) and (30,30) shells, their 30, 1,180 and 10,740 members, the set-up included).
+VIDEO_FRAME_SECONDS = 5e-3
+VIDEO_MEMBER_SECONDS = 7e-6
+#: ``simulate`` draws its GIF unasked when that takes at most this long [s] by the estimate
+#: above (the paper's (3,1) example, 81 frames, about 0.4 s; the (10,10) shell's 60 s run, 400
+#: frames, about 5 s, over it), so that a default run stays quick; ``--animation`` draws it
+#: always.
+DEFAULT_VIDEO_SECONDS = 3.0
 
 
 def _write_run(
@@ -684,9 +700,10 @@ def _write_run(
         read_dataset(work, "tendon_length", every=every),
     )
 
+    video = _video_format(args, structure, summary)
+
     def write(staging: Path, drawing: Drawing) -> list[Path]:
         # the longest first, each to the next free worker
-        video = args.animation
         videos = [] if video is None else [drawing.submit(_video, work, staging, video)]
         jobs = [
             *(  # (the names of plots.figures.FIGURE_NAMES: not imported here, the workers draw;
@@ -761,11 +778,37 @@ def _utilisation_figure(
     return [save_png(figure, folder / "utilisation.png", dpi=FIGURE_DPI)]
 
 
+def _video_format(
+    args: argparse.Namespace, structure: Structure, summary: StreamSummary
+) -> str | None:
+    """The format of ``simulate``'s video of the finished run ``summary`` (``--animation``), or
+    None for none (``--no-animation``); unasked, a GIF if drawing it takes at most
+    :data:`DEFAULT_VIDEO_SECONDS` by the estimate of :data:`VIDEO_FRAME_SECONDS` and
+    :data:`VIDEO_MEMBER_SECONDS`, else none, and a line on stderr that says so."""
+    if args.no_animation or args.animation is not None:
+        return None if args.no_animation else args.animation
+    from tensegrity.plots.motion import playback_times
+
+    frames = playback_times(summary.t_first, summary.t_last, fps=VIDEO_FPS).size
+    members = structure.n_rods + structure.n_tendons
+    seconds = frames * (VIDEO_FRAME_SECONDS + members * VIDEO_MEMBER_SECONDS)
+    if seconds <= DEFAULT_VIDEO_SECONDS:
+        return "gif"
+    print(
+        f"tensegrity: motion.gif not drawn: {frames:,} frames of {members:,} members would take "
+        f"about {seconds:.0f} s (--animation gif draws it; `tensegrity animate` draws any part "
+        "of trajectory.h5)",
+        file=sys.stderr,
+    )
+    return None
+
+
 def _video(trajectory: Path, folder: Path, kind: str) -> list[Path]:
-    """``folder / motion.<kind>``: the run in ``trajectory`` as a video
-    (:func:`tensegrity.cli.visual.write_video`, its defaults; a progress bar on a terminal)."""
+    """``folder / motion.<kind>``: the run in ``trajectory`` as a video of :data:`VIDEO_SIZE`
+    at :data:`VIDEO_FPS` (:func:`tensegrity.cli.visual.write_video`; a progress bar on a
+    terminal)."""
     path = folder / f"motion.{kind}"
-    visual.write_video(trajectory, path, fps=30.0)
+    visual.write_video(trajectory, path, fps=VIDEO_FPS, size=VIDEO_SIZE)
     return [path]
 
 
@@ -1459,8 +1502,9 @@ def _add_simulate_parser(sub: _Commands) -> None:
     sim = sub.add_parser(
         "simulate",
         help="simulate a structure (default: the paper's damped (3,1) shell, until steady state)",
-        description="Simulate a structure and write trajectory.h5, structure.json, figures "
-        "and view.html (the run in an interactive 3-D viewer). "
+        description="Simulate a structure and write trajectory.h5, structure.json, figures, "
+        "view.html (the run in an interactive 3-D viewer) and motion.gif (the run as a "
+        "video). "
         "Samples are streamed to OUT/.trajectory.h5.partial as the run goes, with "
         "checkpoints; an interrupted run continues with --resume.",
     )
@@ -1512,11 +1556,20 @@ def _add_simulate_parser(sub: _Commands) -> None:
         help="do not write OUT/view.html, the run in an interactive 3-D viewer (one offline "
         "HTML file; `tensegrity view` makes one from trajectory.h5 later)",
     )
-    sim.add_argument(
+    video = sim.add_mutually_exclusive_group()
+    video.add_argument(
         "--animation",
-        choices=("mp4", "webm", "gif"),
-        help="also write OUT/motion.mp4 (or .webm, .gif): the run as a video at 30 fps in real "
-        "time (at most a minute; `tensegrity animate` makes others later)",
+        choices=("gif", "mp4", "webm"),
+        help="the format of OUT/motion.gif (or .mp4, .webm): the run as a video at "
+        f"{VIDEO_FPS:g} fps in real time (at most 20 s of video; `tensegrity animate` makes "
+        "others later). Default gif, drawn unasked when that takes about "
+        f"{DEFAULT_VIDEO_SECONDS:g} s or less (frames x members; the run says when not); "
+        "given, always drawn",
+    )
+    video.add_argument(
+        "--no-animation",
+        action="store_true",
+        help="do not write OUT/motion.gif",
     )
     design = sim.add_argument_group("design checks (members with a material and section)")
     arguments.add_safety_factor(design)

@@ -84,8 +84,9 @@ def write_video(
     read."""
     from tensegrity.io.trajectory import read_dataset
     from tensegrity.plots.animation import animate
-    from tensegrity.plots.motion import playback_times
+    from tensegrity.plots.motion import frame_rate, playback_times
 
+    fps = frame_rate(output, fps)
     with blame("animate", trajectory):
         time = read_dataset(trajectory, "time")
     wanted = playback_times(time[0], time[-1], fps=fps, duration=duration, speed=speed).size
@@ -105,6 +106,7 @@ def write_video(
 
 def _cmd_animate(args: argparse.Namespace) -> int:
     from tensegrity.plots.animation import VIDEO_FORMATS
+    from tensegrity.plots.motion import frame_rate
 
     _check_output(args.output, tuple(VIDEO_FORMATS))
     if args.duration is not None and args.speed is not None:
@@ -120,7 +122,8 @@ def _cmd_animate(args: argparse.Namespace) -> int:
         progress=None if args.progress else False,
     )
     size = byte_text(args.output.stat().st_size)
-    print(f"wrote {args.output} ({frames} frames at {args.fps:g} fps, {size})")
+    fps = frame_rate(args.output, args.fps)
+    print(f"wrote {args.output} ({frames} frames at {fps:.3g} fps, {size})")
     return 0
 
 
@@ -202,7 +205,10 @@ def add_parsers(sub: Any) -> None:
         "-o", "--output", type=arguments.name, required=True, help="the video: .mp4, .webm or .gif"
     )
     animate.add_argument(
-        "--fps", type=arguments.positive, default=30.0, help="frames per second (30)"
+        "--fps",
+        type=arguments.positive,
+        default=30.0,
+        help="frames per second (30; a GIF's delays are whole hundredths of a second: 33.3 for 30)",
     )
     animate.add_argument("--duration", type=arguments.positive, help="length of the video [s]")
     animate.add_argument(

@@ -17,6 +17,7 @@ SI units: m, s, N, J.
 
 from __future__ import annotations
 
+import functools
 import math
 import sys
 from collections.abc import Iterator
@@ -45,6 +46,8 @@ from tensegrity.plots.figures import (
 from tensegrity.plots.motion import (
     Frames,
     frame_indices,
+    frame_rate,
+    gif_delay,
     make_frames,
     playback_times,
     tension_colors,
@@ -197,33 +200,36 @@ class _Scene:
         picture = np.empty((*rgba.shape[:2], 3), dtype=np.uint8)
         for channel in range(3):  # (5x faster than copying rgba[..., :3] at once: 0.4 ms)
             picture[..., channel] = rgba[..., channel]
-        _write(picture, "\n".join(lines), self.text_at, font=self.fonts["monospace"], fill=0)
+        _write(picture, _text_mask("\n".join(lines), self.fonts["monospace"]), self.text_at, fill=0)
         right, top = self.count_at
-        count_width = math.ceil(self.fonts["sans-serif"].getlength(count))
-        _write(
-            picture,
-            count,
-            (right - count_width, top),
-            font=self.fonts["sans-serif"],
-            fill=TEXT_GREY,
-        )
+        mask = _text_mask(count, self.fonts["sans-serif"])  # (the same over many frames)
+        _write(picture, mask, (right - mask.shape[1], top), fill=TEXT_GREY)
         return picture
 
 
-def _write(
-    picture: np.ndarray, text: str, at: tuple[int, int], *, font: ImageFont.FreeTypeFont, fill: int
-) -> None:
-    """Write ``text`` into ``picture`` (height, width, 3) in the grey ``fill`` (0-255), its box's
-    top left at pixel ``at`` (what falls outside the picture cut off): Pillow draws it into a
-    mask of the text's size only (converting the whole frame to an image and back took 3 ms)."""
+@functools.lru_cache(maxsize=256)
+def _text_mask(text: str, font: ImageFont.FreeTypeFont) -> np.ndarray:
+    """The coverage (0-255) of ``text`` drawn by Pillow in ``font``, its box's top left at the
+    origin: shape (height, width), uint8.  Cached: a frame's counts repeat over many frames
+    (drawing them took 0.26 ms of a frame's 5)."""
     box = ImageDraw.Draw(Image.new("L", (1, 1))).multiline_textbbox((0, 0), text, font=font)
-    width, height = math.ceil(box[2]), math.ceil(box[3])
-    mask = Image.new("L", (width, height))
+    mask = Image.new("L", (math.ceil(box[2]), math.ceil(box[3])))
     ImageDraw.Draw(mask).multiline_text((0, 0), text, font=font, fill=255)
+    coverage = np.array(mask)
+    coverage.flags.writeable = False  # (shared by the cache)
+    return coverage
+
+
+def _write(picture: np.ndarray, mask: np.ndarray, at: tuple[int, int], *, fill: int) -> None:
+    """Write the text of ``mask`` (its coverage, 0-255: :func:`_text_mask`) into ``picture``
+    (height, width, 3) in the grey ``fill`` (0-255), its top left at pixel ``at`` (what falls
+    outside the picture cut off): only the text's box is blended (converting the whole frame to
+    an image and back took 3 ms)."""
+    height, width = mask.shape
     x, y = at
     left, top = max(0, -x), max(0, -y)  # the mask's part left or above the picture
     region = picture[y + top : y + height, x + left : x + width]
-    alpha = np.asarray(mask)[top : top + region.shape[0], left : left + region.shape[1], None]
+    alpha = mask[top : top + region.shape[0], left : left + region.shape[1], None]
     region[...] = np.rint(region * (1.0 - alpha / 255.0) + fill * (alpha / 255.0))
 
 
@@ -291,7 +297,8 @@ def animate(
         The video file; its suffix picks the format (:data:`VIDEO_FORMATS`).  Its folder must
         exist.
     fps : float
-        Frames per second of the video.
+        Frames per second of the video; a GIF's is :func:`~.motion.frame_rate`'s (its frame
+        delays are whole hundredths of a second: 33.3 for 30, 25 for 25).
     duration, speed : float, optional
         Length of the video [s], or simulated seconds per second of video (one of them; default:
         real time, at most :data:`tensegrity.plots.motion.MAX_REAL_TIME` s of video).  Each
@@ -310,6 +317,7 @@ def animate(
     """
     path = Path(path)
     suffix = _video_format(path)
+    fps = frame_rate(path, fps)
     times = playback_times(result.t[0], result.t[-1], fps=fps, duration=duration, speed=speed)
     frames = make_frames(result, frame_indices(result.t, times))
     pictures = render_frames(frames, size=size, view=view, progress=progress)
@@ -342,9 +350,13 @@ def _encode(tmp: Path, suffix: str, pictures: Iterator[np.ndarray], fps: float) 
             Image.fromarray(picture).quantize(palette=palette, dither=Image.Dither.NONE)
             for picture in pictures
         )
-        # (GIF frame times are whole hundredths of a second)
         Image.fromarray(first).quantize(palette=palette, dither=Image.Dither.NONE).save(
-            tmp, format="GIF", save_all=True, append_images=indexed, duration=1000 / fps, loop=0
+            tmp,
+            format="GIF",
+            save_all=True,
+            append_images=indexed,
+            duration=10 * gif_delay(fps),  # [ms], whole hundredths of a second
+            loop=0,
         )
         return
     import imageio_ffmpeg

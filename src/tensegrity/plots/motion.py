@@ -19,8 +19,9 @@ a structure at rest):
   joints, point masses.
 
 :func:`playback_times` turns a video's length (``duration``, ``fps`` or ``speed``) into frame
-times; :func:`frame_indices` finds the samples they show; :func:`decimated_indices` picks at most
-a number of samples spread evenly over a run (the viewer's frames).
+times (:func:`frame_rate`: the rate a format can play); :func:`frame_indices` finds the samples
+they show; :func:`decimated_indices` picks at most a number of samples spread evenly over a run
+(the viewer's frames).
 
 SI units throughout: m, s, N, J.
 """
@@ -50,6 +51,8 @@ __all__ = [
     "MemberCheck",
     "decimated_indices",
     "frame_indices",
+    "frame_rate",
+    "gif_delay",
     "make_frames",
     "motion_frames",
     "playback_times",
@@ -213,6 +216,24 @@ def playback_times(
     if count == 1:
         return np.array([float(t_end)])
     return np.linspace(float(t_start), float(t_end), count)
+
+
+def gif_delay(fps: float) -> int:
+    """A GIF frame's delay [hundredths of a second] for ``fps`` (> 0) frames per second: GIF
+    delays are whole hundredths, and browsers show delays under 2 as 10, so at least 2."""
+    if not (np.isfinite(fps) and fps > 0):
+        raise ValueError(f"fps: must be a finite number > 0, got {fps!r}")
+    return max(2, round(100.0 / fps))
+
+
+def frame_rate(path: PathLike, fps: float) -> float:
+    """The frame rate [1/s] a video file at ``path`` is written at when ``fps`` is asked:
+    ``fps``, except for a GIF (suffix ``.gif``), whose rate is ``100 / gif_delay(fps)`` (e.g.
+    33.3 for 30, at most 50), so that it plays in the time its frames show: a GIF written at 30
+    fps with delays of 3 hundredths would play 10% fast."""
+    if str(path).lower().endswith(".gif"):
+        return 100.0 / gif_delay(fps)
+    return float(fps)
 
 
 def frame_indices(t: np.ndarray, times: np.ndarray) -> np.ndarray:
