@@ -188,6 +188,19 @@ def test_an_interrupt_while_waiting_stops_the_workers():
 
 
 @needs_workers
+def test_a_worker_killed_while_the_block_ends_stops_the_others():
+    """A worker killed in a job nobody waited for: leaving the block raises the one-line
+    error, and the other worker is gone too (not left waiting for jobs)."""
+    drawing = Drawing(2)
+    pids = [drawing.submit(_pid).result() for _ in range(2)]
+    drawing.submit(_sleep, 0.5)
+    drawing.submit(_killed)
+    with pytest.raises(RuntimeError, match="ended abruptly"):
+        drawing.close()
+    assert all(_gone(pid, within=5.0) for pid in pids)
+
+
+@needs_workers
 def test_a_workers_warning_is_raised_in_the_command():
     with Drawing(1) as drawing, pytest.warns(UserWarning, match="from a worker"):
         assert drawing.submit(_warn, "from a worker").result() == "from a worker"

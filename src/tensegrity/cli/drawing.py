@@ -273,10 +273,15 @@ class Drawing:
             self._forget()
 
     def close(self) -> None:
-        """Let the workers finish their jobs and wait until they are gone."""
+        """Let the workers finish their jobs and wait until they are gone (stopped, if one
+        of them has died or this is interrupted meanwhile)."""
         if self._first is not None:
-            while self._running:  # (and those waiting, sent as workers become free)
-                self._receive()
+            try:
+                while self._running:  # (and those waiting, sent as workers become free)
+                    self._receive()
+            except BaseException:
+                self.cancel()
+                raise
             for end in self._idle:
                 end.close()  # the workers end: the first waits for the others
             self._first.join()
