@@ -1556,12 +1556,15 @@ def _add_simulate_parser(sub: _Commands) -> None:
         help="do not write OUT/view.html, the run in an interactive 3-D viewer (one offline "
         "HTML file; `tensegrity view` makes one from trajectory.h5 later)",
     )
+    from tensegrity.plots.motion import MAX_REAL_TIME  # (light: no matplotlib)
+
     video = sim.add_mutually_exclusive_group()
     video.add_argument(
         "--animation",
         choices=("gif", "mp4", "webm"),
         help="the format of OUT/motion.gif (or .mp4, .webm): the run as a video at "
-        f"{VIDEO_FPS:g} fps in real time (at most 20 s of video; `tensegrity animate` makes "
+        f"{VIDEO_FPS:g} fps in real time (at most {MAX_REAL_TIME:g} s of video; `tensegrity "
+        "animate` makes "
         "others later). Default gif, drawn unasked when that takes about "
         f"{DEFAULT_VIDEO_SECONDS:g} s or less (frames x members; the run says when not); "
         "given, always drawn",

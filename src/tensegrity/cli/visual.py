@@ -189,14 +189,14 @@ def _cmd_view(args: argparse.Namespace) -> int:
 
 def add_parsers(sub: Any) -> None:
     """Add the verbs ``animate`` and ``view`` to the subparsers ``sub`` of ``tensegrity``."""
-    from tensegrity.plots.motion import MAX_BYTES, MAX_FRAMES  # light: no matplotlib
+    from tensegrity.plots.motion import MAX_BYTES, MAX_FRAMES, MAX_REAL_TIME  # (no matplotlib)
 
     animate = sub.add_parser(
         "animate",
         help="a video of a trajectory (.mp4, .webm or .gif)",
         description="Write a video of a trajectory file: rods, tendons coloured by tension "
         "(slack ones dashed), supports, joints, point masses; time and energy. By default "
-        "real time, at most 20 s of video.",
+        f"real time, at most {MAX_REAL_TIME:g} s of video.",
     )
     animate.add_argument(
         "trajectory", type=arguments.name, help="a trajectory.h5 written by simulate"
