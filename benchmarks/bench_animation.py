@@ -19,7 +19,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from tensegrity import class1_shell, critical_damping, simulate
+from tensegrity import artificial_damping, class1_shell, simulate
 from tensegrity.cli.main import VIDEO_FPS, VIDEO_SIZE
 from tensegrity.plots.animation import _Scene, animate
 from tensegrity.plots.motion import frame_indices, frame_rate, make_frames, playback_times
@@ -51,9 +51,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="the (3,1) cases only")
     quick = parser.parse_args().quick
-    small = simulate(critical_damping(class1_shell(3, 1)), (0.0, 10.0), sample_dt=0.01)
+    small = simulate(artificial_damping(class1_shell(3, 1)), (0.0, 10.0), sample_dt=0.01)
     rest = simulate(  # (what `tensegrity simulate` runs)
-        critical_damping(class1_shell(3, 1)), (0.0, 60.0), sample_dt=0.01, steady_state=True
+        artificial_damping(class1_shell(3, 1)), (0.0, 60.0), sample_dt=0.01, steady_state=True
     )
     cases = [  # name, run, suffix, frames per second, duration [s] (None: real time), size
         ("(3,1) shell, 10 s at 30 fps, MP4", small, ".mp4", 30.0, 10.0, SIZE),
@@ -70,7 +70,7 @@ def main() -> None:
         ),
     ]
     if not quick:
-        big = simulate(critical_damping(class1_shell(30, 30)), (0.0, 0.2), sample_dt=0.01)
+        big = simulate(artificial_damping(class1_shell(30, 30)), (0.0, 0.2), sample_dt=0.01)
         cases.append(("(30,30) shell, 2 s at 30 fps, MP4", big, ".mp4", 30.0, 2.0, SIZE))
     print("| what | frames | animate | file | ms a frame: blitted | whole figure | ratio |")
     print("|---|---|---|---|---|---|---|")

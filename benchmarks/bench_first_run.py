@@ -66,7 +66,7 @@ def viewer() -> None:
     from tensegrity.io.stream import simulate_to_file
     from tensegrity.io.trajectory import read_trajectory
     from tensegrity.model.shell import class1_shell
-    from tensegrity.physics.dynamics import critical_damping
+    from tensegrity.physics.dynamics import artificial_damping
     from tensegrity.plots.motion import (
         MAX_BYTES,
         MAX_FRAMES,
@@ -87,7 +87,7 @@ def viewer() -> None:
 
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / "run.h5"
-        shell = critical_damping(class1_shell(10, 10))
+        shell = artificial_damping(class1_shell(10, 10))
         summary = simulate_to_file(shell, (0.0, 60.0), path, sample_dt=0.01, steady_state=True)
         run = read_trajectory(path)
         budget = frame_budget(shell, max_frames=MAX_FRAMES, max_bytes=MAX_BYTES)

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from tensegrity import Structure, critical_damping, simulate
+from tensegrity import Structure, artificial_damping, simulate
 from tensegrity.analysis.coordinates import Chart, planar_coordinates, spatial_coordinates
 from tensegrity.analysis.equilibrium import (
     compare_equilibria,
@@ -294,7 +294,7 @@ def test_linearization_is_the_derivative_of_the_constrained_dynamics(case):
         loads = {"gravity": np.array([0.0, -G])}
     eq = find_equilibrium(s, **loads)
     assert eq.converged, eq.message
-    s = critical_damping(s)
+    s = artificial_damping(s)
     errors = finite_difference_check(linearize(s, eq))
     assert max(errors.values()) < 1e-7, errors
 
@@ -583,7 +583,7 @@ def test_default_input_sets_for_tendon_names_without_families():
     from tensegrity.analysis.controllability import controllability_table, default_input_sets
 
     s = fixed_base_prism()
-    lin = linearize(critical_damping(s), find_equilibrium(s))
+    lin = linearize(artificial_damping(s), find_equilibrium(s))
     sets = default_input_sets(lin)
     assert {name: len(v) for name, v in sets.items()} == {
         "all": 9,

@@ -6,7 +6,7 @@ import control
 import numpy as np
 import pytest
 
-from tensegrity import class1_shell, critical_damping
+from tensegrity import artificial_damping, class1_shell
 from tensegrity.analysis.controllability import (
     controllability,
     controllability_table,
@@ -119,7 +119,7 @@ def test_paper_example_facts(undamped, shell, equilibrium):
 def test_gramians_need_damping_and_solve_the_lyapunov_equation(shell, equilibrium, undamped):
     lin, modes = undamped
     assert controllability(lin, modes, "all").gramian_eigenvalues is None
-    damped = linearize(critical_damping(shell), equilibrium)
+    damped = linearize(artificial_damping(shell), equilibrium)
     dmodes = modal_analysis(damped)
     result = controllability(damped, dmodes, "all")
     g = result.gramian_eigenvalues
@@ -142,7 +142,7 @@ def test_gramian_equals_the_time_integral(shell, equilibrium):
 
     from tensegrity.analysis.coordinates import mass_complement
 
-    lin = linearize(critical_damping(shell), equilibrium)
+    lin = linearize(artificial_damping(shell), equilibrium)
     result = controllability(lin, modal_analysis(lin), "t1_*")
     B = lin.B[:, lin.input_indices(result.signals)]
     n, dt = lin.A.shape[0], 0.005

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from matplotlib.colors import to_rgb
 
-from tensegrity import class1_shell, critical_damping, simulate
+from tensegrity import artificial_damping, class1_shell, simulate
 from tensegrity.cli.main import main
 from tensegrity.io.trajectory import write_trajectory
 from tensegrity.model.planar import planar_two_rod
@@ -34,7 +34,7 @@ iio = pytest.importorskip("imageio.v2")
 @pytest.fixture(scope="module")
 def shell31():
     """The README's example, 2 s sampled every 10 ms: it moves a lot, then settles."""
-    return simulate(critical_damping(class1_shell(3, 1)), (0.0, 2.0), sample_dt=0.01)
+    return simulate(artificial_damping(class1_shell(3, 1)), (0.0, 2.0), sample_dt=0.01)
 
 
 @pytest.fixture(scope="module")
@@ -243,7 +243,7 @@ def test_planar_and_constrained_structures_animate(tmp_path, planar):
     animate(planar, tmp_path / "planar.gif", fps=5, duration=1.0, size=(320, 256))
     assert len(video_frames(tmp_path / "planar.gif")) == 5
     shell = class2_shell(3, 2, fixed_base=True)
-    run = simulate(critical_damping(shell), (0.0, 0.2), sample_dt=0.02, gravity=[0, 0, -9.81])
+    run = simulate(artificial_damping(shell), (0.0, 0.2), sample_dt=0.02, gravity=[0, 0, -9.81])
     animate(run, tmp_path / "class2.mp4", fps=10, duration=0.5, size=(320, 256))
     assert len(video_frames(tmp_path / "class2.mp4")) == 5
 

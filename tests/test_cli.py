@@ -280,7 +280,7 @@ def test_simulate_a_planar_structure_writes_its_files(tmp_path, capsys):
                 "--rest-length",
                 "0.3",
                 "--damping",
-                "critical",
+                "artificial",
                 "--out",
                 str(out),
             ]
@@ -305,8 +305,12 @@ def test_simulate_a_planar_structure_writes_its_files(tmp_path, capsys):
         ),
         (["info", "--kind", "class2-shell", "--m", "1"], "m: a class 2 shell needs m >= 2"),
         (
-            ["simulate", "--kind", "rod", "--damping", "critical"],
-            "critical damping needs at least one rod and one tendon",
+            ["simulate", "--kind", "rod", "--damping", "artificial"],
+            "artificial damping needs at least one rod and one tendon",
+        ),
+        (
+            ["simulate", "--damping", "critical"],
+            "--damping: 'critical' is now 'artificial' (the paper's damping, to ground",
         ),
         (
             ["matrices", "--kind", "class2-shell"],

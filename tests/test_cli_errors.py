@@ -76,7 +76,7 @@ def _assert_one_error_line(err: str) -> None:
         (
             ["simulate", "--stiffness", "1e308", "--t-end", "0.1", "--out", "r"],
             2,
-            ["--damping critical", "stiffness up to 1e+308 N/m"],
+            ["--damping internal", "stiffness up to 1e+308 N/m"],
         ),
     ],
 )

@@ -70,7 +70,7 @@ def test_existing_export_options_still_work(tmp_path):
                 "--rest-length",
                 "0.2",
                 "--damping",
-                "critical",
+                "artificial",
                 "-o",
                 str(path),
             ]
@@ -170,7 +170,8 @@ def test_simulate_with_a_force_table(tmp_path):
             ["export", "--kind", "prism", "--format", "vtk", "-o", "x.json"],
             "--format: invalid choice",
         ),
-        (["export", "--damping", "critical", "-o", "x.xml"], "rods[0].damping"),
+        (["export", "--damping", "artificial", "-o", "x.xml"], "rods[0].damping"),
+        (["export", "--damping", "internal", "-o", "x.xml"], "rods[0].relative_damping"),
         (["info", "--structure", "x.yaml", "--kind", "prism"], "--kind: generator options cannot"),
         (["info", "--structure", "missing.toml"], "missing.toml: no such file"),
         (["info", "--structure", "s.txt"], "unknown structure file suffix '.txt'"),

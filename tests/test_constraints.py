@@ -560,10 +560,10 @@ def test_free_class1_only_parts_reject_supported_structures():
             call(s)
 
 
-def test_critical_damping_treats_anchors_as_infinitely_heavy():
+def test_artificial_damping_treats_anchors_as_infinitely_heavy():
     """A tendon to an anchor is critically damped for the mass at its other end, ``2 sqrt(k m)``;
     one between two rods' nodes for their reduced mass, as before."""
-    from tensegrity import critical_damping
+    from tensegrity import artificial_damping
 
     s = hanging_chain(damped=False).replace(
         tendon_nodes=[[3, 5], [1, 7], [0, 3]],
@@ -572,7 +572,7 @@ def test_critical_damping_treats_anchors_as_infinitely_heavy():
         tendon_name=None,
         tendon_damping=None,
     )
-    damped = critical_damping(s)
+    damped = artificial_damping(s)
     half = s.rod_mass / 2  # node 3 is rod 1's end (1.5 kg), nodes 1 and 0 rod 0's (1 kg)
     np.testing.assert_allclose(
         damped.tendon_damping,
@@ -583,9 +583,9 @@ def test_critical_damping_treats_anchors_as_infinitely_heavy():
         ],
     )
     with pytest.raises(
-        ValueError, match=r"^structure: critical damping needs at least one rod and one tendon"
+        ValueError, match=r"^structure: artificial damping needs at least one rod and one tendon"
     ):
-        critical_damping(pendulum(support="fixed"))
+        artificial_damping(pendulum(support="fixed"))
 
 
 def test_tripod_on_a_frictionless_floor_matches_its_closed_form():
@@ -598,7 +598,7 @@ def test_tripod_on_a_frictionless_floor_matches_its_closed_form():
     ``m g`` (the apex joint passes no net vertical force by symmetry)."""
     from scipy.optimize import brentq
 
-    from tensegrity import critical_damping
+    from tensegrity import artificial_damping
 
     m, L, k, rest = 1.2, 1.0, 80.0, 0.9
     rho0 = 0.5
@@ -606,7 +606,7 @@ def test_tripod_on_a_frictionless_floor_matches_its_closed_form():
     feet = rho0 * np.stack([np.cos(angles), np.sin(angles), np.zeros(3)], axis=1)
     apex = np.array([0, 0, np.sqrt(L**2 - rho0**2)])
     position = np.array([feet[0], apex, feet[1], apex, feet[2], apex])
-    s = critical_damping(
+    s = artificial_damping(
         Structure(
             node_position=position,
             rod_nodes=[[0, 1], [2, 3], [4, 5]],

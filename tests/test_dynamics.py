@@ -17,7 +17,7 @@ import zlib
 import numpy as np
 import pytest
 
-from tensegrity import Structure, accelerations, class1_shell, critical_damping
+from tensegrity import Structure, accelerations, artificial_damping, class1_shell
 from tensegrity.physics.dynamics import (
     elastic_energy,
     kinetic_energy,
@@ -193,7 +193,7 @@ def test_accelerations_with_tendon_and_rod_damping_match_lagrangian(shell):
     """Damped structure (tendon damping only while taut, mass-proportional rod damping):
     the damping forces enter the same KKT reference as generalized forces."""
     rng = np.random.default_rng(7)
-    structure = critical_damping(class1_shell(**shell))
+    structure = artificial_damping(class1_shell(**shell))
     # Random, unequal damping values so that a wrong index would show.
     structure = structure.replace(
         tendon_damping=rng.uniform(0.5, 15.0, structure.n_tendons),

@@ -10,7 +10,7 @@ import h5py
 import numpy as np
 import pytest
 
-from tensegrity import class1_shell, critical_damping, simulate
+from tensegrity import artificial_damping, class1_shell, simulate
 from tensegrity.engine.result import SimulationResult
 from tensegrity.io.files import atomic_path
 from tensegrity.io.formats import read_structure, write_structure
@@ -25,7 +25,7 @@ from tensegrity.io.trajectory import (
 @pytest.fixture(scope="module")
 def result():
     """A short damped (3,1) shell run (a few samples, a few slack switches)."""
-    return simulate(critical_damping(class1_shell(3, 1)), (0.0, 0.2), sample_dt=0.05)
+    return simulate(artificial_damping(class1_shell(3, 1)), (0.0, 0.2), sample_dt=0.05)
 
 
 def leftovers(directory):
@@ -42,7 +42,7 @@ def assert_one_line_naming(exc_info, path, *words):
 
 # ----------------------------------------------------------------------------- structures
 def test_structure_json_round_trip_is_exact(tmp_path):
-    structure = critical_damping(class1_shell(4, 2, rod_mass=1.3, stiffness=123.456))
+    structure = artificial_damping(class1_shell(4, 2, rod_mass=1.3, stiffness=123.456))
     path = tmp_path / "s.json"
     assert write_structure(path, structure) == path
     text = path.read_text()
@@ -344,7 +344,7 @@ def test_trajectory_keeps_the_joint_error_and_marks_older_files_unknown(tmp_path
 def test_trajectory_read_back_is_the_result_written(tmp_path):
     """One type in memory and on disk: every array field of the result read back equals the one
     written (same names, shapes and values); ``every`` reads every k-th sample and the last."""
-    result = simulate(critical_damping(class1_shell(3, 1)), (0.0, 0.3), sample_dt=0.01)
+    result = simulate(artificial_damping(class1_shell(3, 1)), (0.0, 0.3), sample_dt=0.01)
     path = write_trajectory(tmp_path / "run.h5", result)
     back = read_trajectory(path)
     for name in (

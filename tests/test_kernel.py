@@ -63,12 +63,14 @@ def random_general_structure(rng, n_rods: int = 9, n_tendons: int = 40) -> Struc
 
 
 def with_random_parameters(structure: Structure, rng: np.random.Generator) -> Structure:
-    """Unequal masses, stiffnesses and (large enough to clip some tensions) damping values."""
+    """Unequal masses, stiffnesses and (large enough to clip some tensions) damping values, the
+    rods damped both to ground and relative to the rigid-body motion."""
     return structure.replace(
         rod_mass=rng.uniform(0.3, 3.0, structure.n_rods),
         tendon_stiffness=rng.uniform(10.0, 500.0, structure.n_tendons),
         tendon_damping=rng.uniform(0.5, 40.0, structure.n_tendons),
         rod_damping=rng.uniform(0.1, 5.0, structure.n_rods),
+        rod_relative_damping=rng.uniform(0.1, 5.0, structure.n_rods),
     )
 
 

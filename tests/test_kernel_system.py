@@ -179,7 +179,8 @@ def _seed(*key) -> int:
 
 def randomized(name: str, rng: np.random.Generator, damped: bool = True) -> Structure:
     """The named structure with unequal masses and stiffnesses, and (``damped``) tendon damping
-    large enough to clip some tensions and rod damping."""
+    large enough to clip some tensions and rod damping, to ground and relative to the
+    rigid-body motion (which a supported structure applies to ground)."""
     s = STRUCTURES[name]()
     R, S = s.n_rods, s.n_tendons
     return s.replace(
@@ -188,6 +189,7 @@ def randomized(name: str, rng: np.random.Generator, damped: bool = True) -> Stru
         tendon_stiffness=rng.uniform(10.0, 500.0, S),
         tendon_damping=rng.uniform(0.5, 40.0, S) if damped else np.zeros(S),
         rod_damping=rng.uniform(0.1, 5.0, R) if damped else np.zeros(R),
+        rod_relative_damping=rng.uniform(0.1, 5.0, R) if damped else np.zeros(R),
     )
 
 

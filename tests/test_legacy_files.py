@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tensegrity import class1_shell, critical_damping, simulate
+from tensegrity import artificial_damping, class1_shell, simulate
 from tensegrity.io import read_network, read_structure, read_trajectory, write_network
 from tensegrity.model.shell import class2_shell
 
@@ -31,13 +31,13 @@ def test_old_trajectory_reads_with_the_values_it_was_written_with():
         "external_work",
         "control_work",
     }
-    assert trajectory.structure.to_dict() == critical_damping(class1_shell(3, 1)).to_dict()
+    assert trajectory.structure.to_dict() == artificial_damping(class1_shell(3, 1)).to_dict()
 
 
 def test_old_structure_json_reads():
     assert (
         read_structure(LEGACY / "shell31.json").to_dict()
-        == critical_damping(class1_shell(3, 1)).to_dict()
+        == artificial_damping(class1_shell(3, 1)).to_dict()
     )
 
 
@@ -54,7 +54,7 @@ def test_old_network_files_read_as_the_same_files_written_now(tmp_path, name):
     [
         # the main job; arithmetic changed only in where a switch is located (regula falsi
         # against bisection, both to 1e-13 s): measured 3.7e-14 m
-        ("shell31-v1.h5", critical_damping(class1_shell(3, 1)), 0.2, {}, 1e-12),
+        ("shell31-v1.h5", artificial_damping(class1_shell(3, 1)), 0.2, {}, 1e-12),
         # a class 2 shell under gravity with 7 switches: within the integration tolerance
         # (rtol 1e-9, nodes moving up to 0.94 m): measured 1.2e-10 m
         (

@@ -28,7 +28,6 @@ from tensegrity.physics.matrix_form import (
     control_names,
     shell_size,
     shell_topology,
-    undamped,
 )
 
 #: (n, m, primal): the issue's sizes and their primal variants.
@@ -758,8 +757,8 @@ def test_h_kr_d_are_block_diagonal():
 # ------------------------------------------------------------------------------ errors
 def test_rejects_what_the_matrix_model_cannot_represent():
     with pytest.raises(ValueError, match="damping"):
-        ShellMatrixModel(dynamics.critical_damping(class1_shell(3, 1)))
-    assert ShellMatrixModel(undamped(dynamics.critical_damping(class1_shell(3, 1))))
+        ShellMatrixModel(dynamics.artificial_damping(class1_shell(3, 1)))
+    assert ShellMatrixModel(dynamics.undamped(dynamics.artificial_damping(class1_shell(3, 1))))
     shell = class1_shell(4, 2)
     with pytest.raises(ValueError, match="tendons"):
         ShellMatrixModel(shell.replace(tendon_name=tuple(f"s{k}" for k in range(shell.n_tendons))))

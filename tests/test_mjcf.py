@@ -23,7 +23,7 @@ import os
 import numpy as np
 import pytest
 
-from tensegrity import class1_shell, critical_damping, simulate
+from tensegrity import artificial_damping, class1_shell, simulate
 from tensegrity.io.mjcf import (
     SPIN_INERTIA_MIN,
     SPIN_INERTIA_RATIO,
@@ -238,7 +238,7 @@ def test_bad_options_name_the_field(options, field):
 
 def test_rod_damping_is_refused():
     with pytest.raises(ValueError, match=r"^rods\[0\]\.damping:"):
-        to_mjcf(critical_damping(class1_shell(3, 1)))
+        to_mjcf(artificial_damping(class1_shell(3, 1)))
 
 
 def test_rods_too_light_for_mujoco_are_refused():

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import yaml
 
-from tensegrity import class1_shell, critical_damping
+from tensegrity import artificial_damping, class1_shell
 from tensegrity.io.formats import network_from_dict, network_to_dict, read_network, write_network
 from tensegrity.model.connectivity import from_connectivity, to_connectivity
 from tensegrity.physics import dynamics
@@ -18,7 +18,7 @@ from tensegrity.physics import dynamics
 def varied_shell():
     """A damped (3,2) shell with per-member masses, stiffnesses, rest lengths and velocities."""
     rng = np.random.default_rng(4)
-    shell = critical_damping(class1_shell(3, 2))
+    shell = artificial_damping(class1_shell(3, 2))
     return shell.replace(
         rod_mass=rng.uniform(0.5, 2.0, shell.n_rods),
         tendon_stiffness=rng.uniform(50, 150, shell.n_tendons),

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tensegrity import Structure, critical_damping, simulate
+from tensegrity import Structure, artificial_damping, simulate
 from tensegrity.model.planar import (
     EXAMPLE2_TENDONS,
     planar_rod,
@@ -98,7 +98,7 @@ def test_example2_settles_at_the_closed_form_symmetric_equilibrium(rest_a, rest_
         rod_length=lengths, stiffness=k, rest_length=[rest_b, rest_a, rest_b, rest_a]
     )
     r = simulate(
-        critical_damping(s),
+        artificial_damping(s),
         (0.0, 30.0),
         steady_state=True,
         velocity_tol=1e-8,

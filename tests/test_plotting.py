@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from matplotlib.figure import Figure
 
-from tensegrity import class1_shell, critical_damping, simulate
+from tensegrity import artificial_damping, class1_shell, simulate
 from tensegrity.io.trajectory import read_trajectory, write_trajectory
 from tensegrity.plots.figures import (
     draw_structure,
@@ -24,7 +24,7 @@ PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
 @pytest.fixture(scope="module")
 def result():
-    return simulate(critical_damping(class1_shell(3, 1)), (0.0, 0.3), sample_dt=0.05)
+    return simulate(artificial_damping(class1_shell(3, 1)), (0.0, 0.3), sample_dt=0.05)
 
 
 def png_size(path):

@@ -16,7 +16,7 @@ import re
 import numpy as np
 import pytest
 
-from tensegrity import Structure, class1_shell, critical_damping, simulate
+from tensegrity import Structure, artificial_damping, class1_shell, simulate
 from tensegrity.physics.dynamics import State, initial_state
 
 # --------------------------------------------------------------------------- helpers
@@ -148,7 +148,7 @@ def free_shell_run():
 @pytest.fixture(scope="module")
 def damped_run():
     """The critically damped (3,1) shell released from its cylinder layout, 2 s."""
-    structure = critical_damping(class1_shell(3, 1))
+    structure = artificial_damping(class1_shell(3, 1))
     result = simulate(structure, (0.0, 2.0), rtol=1e-10, atol=1e-12, sample_dt=0.001)
     assert result.status == 0, result.message
     return result
@@ -394,7 +394,7 @@ def test_dissipated_energy_is_monotone_and_matches_own_power_integral(damped_run
 
 def test_damped_shell_reaches_taut_steady_state():
     """The paper's example: the critically damped (3,1) shell settles before t = 20 s."""
-    structure = critical_damping(class1_shell(3, 1))
+    structure = artificial_damping(class1_shell(3, 1))
     r = simulate(structure, (0.0, 20.0), steady_state=True)
     assert r.status == 1, r.message
     assert r.t[-1] < 20.0

@@ -11,7 +11,7 @@ import h5py
 import numpy as np
 import pytest
 
-from tensegrity import class1_shell, critical_damping, simulate
+from tensegrity import artificial_damping, class1_shell, simulate
 from tensegrity.engine.system import CompiledSystem
 from tensegrity.io import stream as stream_module
 from tensegrity.io.stream import (
@@ -313,7 +313,7 @@ def test_unstable_segment_stops_the_run_and_records_the_failure(tmp_path):
 
 def test_steady_state_stops_the_run(tmp_path):
     path = tmp_path / "run.h5"
-    structure = critical_damping(class1_shell(3, 1))
+    structure = artificial_damping(class1_shell(3, 1))
     summary = simulate_to_file(
         structure,
         (0.0, 20.0),

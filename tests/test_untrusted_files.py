@@ -25,7 +25,7 @@ import h5py
 import numpy as np
 import pytest
 
-from tensegrity import class1_shell, critical_damping, simulate
+from tensegrity import artificial_damping, class1_shell, simulate
 from tensegrity.cli.main import main
 from tensegrity.io.files import file_error
 from tensegrity.io.formats import read_network, read_structure, write_network
@@ -105,7 +105,7 @@ def assert_refused(read, path: Path, *words: str) -> None:
 @pytest.fixture(scope="module")
 def result():
     """A short damped (3,1) shell run: 3 samples, 12 nodes, 24 tendons, 36 coordinates."""
-    return simulate(critical_damping(class1_shell(3, 1)), (0.0, 0.1), sample_dt=0.05)
+    return simulate(artificial_damping(class1_shell(3, 1)), (0.0, 0.1), sample_dt=0.05)
 
 
 @pytest.fixture

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from matplotlib.colors import to_rgb
 
-from tensegrity import class1_shell, critical_damping, simulate
+from tensegrity import artificial_damping, class1_shell, simulate
 from tensegrity.model.planar import planar_two_rod
 from tensegrity.model.shell import class2_shell
 from tensegrity.plots.figures import ROD_COLOR, tension_colormap, utilisation_colors
@@ -88,7 +88,7 @@ def drawn(picture):
 
 @pytest.fixture(scope="module")
 def shell31():
-    return simulate(critical_damping(class1_shell(3, 1)), (0.0, 2.0), sample_dt=0.01)
+    return simulate(artificial_damping(class1_shell(3, 1)), (0.0, 2.0), sample_dt=0.01)
 
 
 @pytest.fixture(scope="module")
@@ -222,7 +222,7 @@ def test_planar_structure_loads_cleanly(browser, tmp_path):
 
 
 def test_class2_shell_with_fixed_base_loads_cleanly(browser, tmp_path):
-    shell = critical_damping(class2_shell(4, 2, fixed_base=True))
+    shell = artificial_damping(class2_shell(4, 2, fixed_base=True))
     run = simulate(shell, (0.0, 0.1), sample_dt=0.01, gravity=[0, 0, -9.81])
     load_clean(browser, tmp_path, run)
 

@@ -7,7 +7,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from tensegrity import critical_damping, simulate
+from tensegrity import artificial_damping, simulate
 from tensegrity.cli.main import main
 from tensegrity.design.catalogue import prism
 from tensegrity.io import vtk as vtk_export
@@ -54,7 +54,7 @@ def run():
     """A kicked simplex, some tendons going slack (a hard kick), damped: 0.5 s."""
     s = prism(3)
     rng = np.random.default_rng(5)
-    s = critical_damping(s.replace(node_velocity=2.0 * rng.normal(size=(s.n_nodes, 3))))
+    s = artificial_damping(s.replace(node_velocity=2.0 * rng.normal(size=(s.n_nodes, 3))))
     result = simulate(s, (0.0, 0.5), sample_dt=0.05)
     assert result.success and result.slack_count.max() > 0
     return result

@@ -15,13 +15,15 @@ from tensegrity.model.structure import Structure
 from tensegrity.physics.dynamics import (
     State,
     accelerations,
-    critical_damping,
+    artificial_damping,
     elastic_energy,
     initial_state,
+    internal_damping,
     kinetic_energy,
     nodes_from_coordinates,
     tendon_lengths,
     tendon_tensions,
+    undamped,
 )
 
 __all__ = [
@@ -29,15 +31,17 @@ __all__ = [
     "State",
     "Structure",
     "accelerations",
+    "artificial_damping",
     "class1_shell",
-    "critical_damping",
     "elastic_energy",
     "initial_state",
+    "internal_damping",
     "kinetic_energy",
     "nodes_from_coordinates",
     "simulate",
     "tendon_lengths",
     "tendon_tensions",
+    "undamped",
 ]
 __version__ = "0.1.0"
 

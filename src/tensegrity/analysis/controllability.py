@@ -23,7 +23,7 @@ Tests, each with its tolerance stated in the result:
   tests check that the two agree where the staircase is reliable.
 - **Gramians** of the non-rigid part (the ``M``-orthogonal complement of the rigid-body motions)
   with the linearization's own damping, by ``control.lyap``; undamped, the infinite-horizon
-  Gramians do not exist and are not reported (linearize ``critical_damping(structure)``).
+  Gramians do not exist and are not reported (linearize ``artificial_damping(structure)``).
 """
 
 from __future__ import annotations

@@ -303,9 +303,7 @@ def has_supports(structure: Structure) -> bool:
     """True if some node is fixed or held on a plane or line: the supports then hold the
     structure against (some) rigid-body motion, and configurations are compared as they are,
     not after a rigid alignment."""
-    return bool(
-        structure.node_fixed.any() or structure.plane_nodes.size or structure.line_nodes.size
-    )
+    return structure.is_supported
 
 
 @overload

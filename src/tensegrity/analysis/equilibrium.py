@@ -12,7 +12,7 @@ Two routes, which agree (``tests/test_analysis_equilibrium.py``):
   forces or gravity fix the orientation themselves; then only the mass centre is gauged (and a
   free structure under a net force has no equilibrium: the solver reports its residual).
 - :func:`equilibrium_by_simulation` runs the paper's route: the structure with artificial
-  critical damping (:func:`tensegrity.physics.dynamics.critical_damping`) is simulated until it
+  critical damping (:func:`tensegrity.physics.dynamics.artificial_damping`) is simulated until it
   is at rest.  Convergence test: every node speed below ``velocity_tol`` [m/s] *and* every node
   acceleration below ``acceleration_tol`` [m/s^2] at a sample (``simulate(steady_state=True)``).
 
@@ -746,7 +746,7 @@ def equilibrium_by_simulation(
     *,
     control: np.ndarray | None = None,
     initial: dynamics.State | None = None,
-    damping: str = "critical",
+    damping: str = "artificial",
     t_end: float = 60.0,
     velocity_tol: float = 1e-6,
     acceleration_tol: float = 1e-6,
@@ -761,8 +761,8 @@ def equilibrium_by_simulation(
 
     Parameters
     ----------
-    damping : ``"critical"`` (default: :func:`tensegrity.physics.dynamics.critical_damping`, the
-        paper's "artificial critical damping") or ``"as-is"`` (the structure's own damping).
+    damping : ``"artificial"`` (default: :func:`tensegrity.physics.dynamics.artificial_damping`,
+        the paper's "artificial critical damping") or ``"as-is"`` (the structure's own damping).
     """
     from tensegrity.engine.simulate import STATUS_STEADY, simulate
 
@@ -803,13 +803,13 @@ def equilibrium_by_simulation(
 
 
 def with_damping(structure: Structure, damping: str) -> Structure:
-    """``"critical"``: :func:`tensegrity.physics.dynamics.critical_damping` (the paper's artificial
-    critical damping); ``"as-is"``: the structure's own damping."""
-    if damping == "critical":
-        return dynamics.critical_damping(structure)
+    """``"artificial"``: :func:`tensegrity.physics.dynamics.artificial_damping` (the paper's
+    artificial critical damping); ``"as-is"``: the structure's own damping."""
+    if damping == "artificial":
+        return dynamics.artificial_damping(structure)
     if damping == "as-is":
         return structure
-    raise ValueError(f"damping: expected 'critical' or 'as-is', got {damping!r}")
+    raise ValueError(f"damping: expected 'artificial' or 'as-is', got {damping!r}")
 
 
 def compare_equilibria(a: EquilibriumResult, b: EquilibriumResult) -> dict[str, float]:

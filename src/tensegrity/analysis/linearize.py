@@ -45,6 +45,7 @@ from tensegrity.analysis.coordinates import (
     mass_complement,
     mass_matrix,
     planar_coordinates,
+    rigid_body_basis,
     spatial,
     spatial_coordinates,
     spatial_vector,
@@ -61,6 +62,7 @@ from tensegrity.analysis.statics import (
 )
 from tensegrity.model.structure import Structure
 from tensegrity.physics import dynamics
+from tensegrity.physics.coordinates import rod_damping_rates
 
 #: Output groups of :class:`Linearization`, in the order of ``C``'s rows.
 OUTPUT_GROUPS = ("position", "length", "tension")
@@ -245,8 +247,8 @@ def linearize(
     """Linearize about an equilibrium (an :class:`EquilibriumResult`, or its ``q``).
 
     ``control`` (with a bare ``q``) is the rest-length change ``u`` of the equilibrium.  The
-    structure's own damping enters ``C``; pass ``critical_damping(structure)`` for a damped
-    model.  External forces and gravity of an :class:`EquilibriumResult` are taken into account.
+    structure's own damping enters ``C``; pass ``internal_damping(structure)`` (or
+    ``artificial_damping``) for a damped model.  External forces and gravity of an :class:`EquilibriumResult` are taken into account.
     A planar structure is linearized as its 3-D form (``equilibrium`` in 2-D).
     """
     eq = _spatial_equilibrium(structure, equilibrium, control)
@@ -260,7 +262,7 @@ def linearize(
     J = chart.jacobian_matrix(x0)
     K = _tangent_stiffness(chart, st, J, include_threshold)
     mass = mass_matrix(s)
-    damping = _damping_matrix(s, tendons._replace(taut=active), J, mass)
+    damping = _damping_matrix(chart, tendons._replace(taut=active), J, mass)
     A_eq = equilibrium_matrix(chart, tendons.direction, x0)
     Z = chart.admitted_motions()
     rigid = admitted_rigid_motions(chart, Z)
@@ -363,14 +365,26 @@ def _tangent_stiffness(
 
 
 def _damping_matrix(
-    structure: Structure, tendons: TendonState, J: np.ndarray, mass: np.ndarray
+    chart: Chart, tendons: TendonState, J: np.ndarray, mass: np.ndarray
 ) -> np.ndarray:
     """``C`` (n, n): the damping of the tendons flagged taut in ``tendons`` (``c t t^T`` through
-    ``J = dp/dx`` (3N, n)) plus the rods' mass-proportional ``alpha M`` (``mass`` (n,))."""
-    s = structure
+    ``J = dp/dx`` (3N, n)), the rods' mass-proportional damping to ground ``alpha M`` (``mass``
+    (n,)) and relative to the rigid-body motion ``D - D Phi (Phi^T D Phi)^+ Phi^T D``, ``D =
+    beta M`` and ``Phi`` the rigid-body motions (:func:`rigid_body_basis`): the force ``-beta M
+    (x' - rigid)`` of :func:`tensegrity.physics.coordinates.rod_damping_acceleration`, whose
+    rigid fit is linear in ``x'`` (its change with ``x`` multiplies ``x' = 0``)."""
+    s = chart.structure
     C_node = node_stiffness(s, tendons, include_threshold=False, damping=True)
-    alpha = np.concatenate([np.repeat(s.rod_damping, 5), np.zeros(mass.size - 5 * s.n_rods)])
-    return J.T @ C_node @ J + np.diag(alpha * mass)
+    alpha, beta = rod_damping_rates(s)
+    per_rod = np.zeros(mass.size - 5 * s.n_rods)
+    C = J.T @ C_node @ J + np.diag(np.concatenate([np.repeat(alpha, 5), per_rod]) * mass)
+    if np.any(beta):
+        D = np.concatenate([np.repeat(beta, 5), per_rod]) * mass
+        Phi = rigid_body_basis(chart)
+        D_Phi = D[:, None] * Phi
+        fit = D_Phi @ np.linalg.pinv(Phi.T @ D_Phi, rcond=1e-12) @ D_Phi.T
+        C = C + np.diag(D) - 0.5 * (fit + fit.T)
+    return C
 
 
 def _state_equation(

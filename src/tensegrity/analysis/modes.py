@@ -269,7 +269,7 @@ def measure_frequency(
     if modes.kind[mode] != ELASTIC:
         raise ValueError(f"mode {mode} is {modes.kind[mode]}, not elastic")
     s = lin.structure
-    undamped = s.replace(tendon_damping=np.zeros(s.n_tendons), rod_damping=np.zeros(s.n_rods))
+    undamped = dynamics.undamped(s)
     shape = modes.shapes[:, mode]
     initial = mode_initial_state(lin, shape, amplitude)
     f_lin = float(modes.frequency_hz[mode])
@@ -381,8 +381,8 @@ def stability_by_simulation(
         sample_dt=sample_dt,
         **simulate_options,
     )
-    run_d = simulate(dynamics.critical_damping(s), (0.0, damped_time), **common)
-    undamped = s.replace(tendon_damping=np.zeros(s.n_tendons), rod_damping=np.zeros(s.n_rods))
+    run_d = simulate(dynamics.artificial_damping(s), (0.0, damped_time), **common)
+    undamped = dynamics.undamped(s)
     run_u = simulate(undamped, (0.0, undamped_time), **common)
     dd = deformation(run_d.node_position, p0, w, rigid=lin.aligned)
     du = deformation(run_u.node_position, p0, w, rigid=lin.aligned)
@@ -408,7 +408,7 @@ def _damped_time(lin: Linearization) -> float:
     """Default damped run [s]: until the damped linearization has shrunk 1000-fold, at most
     20 s (5 s if it does not decay)."""
     s, eq = lin.structure, lin.equilibrium
-    damped = dynamics.critical_damping(s)
+    damped = dynamics.artificial_damping(s)
     decay = _slowest_decay(linearize(damped, eq))
     return 5.0 if decay <= 0 else min(np.log(1e3) / decay, 20.0)
 

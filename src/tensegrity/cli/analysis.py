@@ -315,13 +315,13 @@ def run_controllability(
     *,
     inputs: Sequence[str] | None = None,
     outputs: Sequence[str] | None = None,
-    damping: str = "critical",
+    damping: str = "artificial",
     gravity: float | Sequence[float] | None = None,
 ) -> Output:
     """``tensegrity controllability``: ranks, PBH per mode and Gramians for each input set
     (tendon-name patterns; default all tendons, each family, one tendon) and observability for
     each output set (default node positions, tendon lengths, tensions, node 0).  Gramians use
-    ``damping`` (``"critical"``: the paper's artificial critical damping; ``"as-is"``)."""
+    ``damping`` (``"artificial"``: the paper's artificial critical damping; ``"as-is"``)."""
     from tensegrity.analysis.controllability import controllability_table
     from tensegrity.analysis.linearize import linearize
     from tensegrity.analysis.modes import modal_analysis

@@ -76,13 +76,19 @@ _Commands: TypeAlias = "argparse._SubParsersAction[_Parser]"
 
 
 def _damping(text: str) -> str | float:
-    if text in ("none", "critical"):
+    if text in dynamics.DAMPING_KINDS:
         return text
+    if text == "critical":  # the name before internal damping existed
+        raise argparse.ArgumentTypeError(
+            "'critical' is now 'artificial' (the paper's damping, to ground: it drags the "
+            "structure) or 'internal' (the same rates on deformation only, the default)"
+        )
     try:
         return arguments.non_negative(text)
     except argparse.ArgumentTypeError:
         raise argparse.ArgumentTypeError(
-            f"expected 'none', 'critical' or a damping >= 0 in N s/m, got {text!r}"
+            f"expected {', '.join(map(repr, dynamics.DAMPING_KINDS))} or a damping >= 0 in "
+            f"N s/m, got {text!r}"
         ) from None
 
 
@@ -311,29 +317,25 @@ def _generated(
 
 
 def _apply_damping(structure: Structure, damping: str | float | None) -> Structure:
+    """``structure`` with the damping ``--damping`` names (None: its own); an error names the
+    option."""
     if damping is None:
         return structure
-    if damping == "critical":
-        return _critically_damped(structure)
-    tendon = 0.0 if damping == "none" else float(damping)
-    return structure.replace(
-        tendon_damping=np.full(structure.n_tendons, tendon), rod_damping=np.zeros(structure.n_rods)
-    )
-
-
-def _critically_damped(structure: Structure) -> Structure:
-    """:func:`~tensegrity.physics.dynamics.critical_damping`; an error names ``--damping``."""
+    if isinstance(damping, float):
+        return dynamics.undamped(structure).replace(
+            tendon_damping=np.full(structure.n_tendons, damping)
+        )
     try:
         with np.errstate(over="raise"):
-            return dynamics.critical_damping(structure)
+            return dynamics.DAMPING_KINDS[damping](structure)
     except FloatingPointError:
         raise CommandError(
-            "--damping critical: overflows for tendon stiffness up to "
+            f"--damping {damping}: overflows for tendon stiffness up to "
             f"{structure.tendon_stiffness.max():g} N/m and rod mass up to "
             f"{structure.rod_mass.max():g} kg: lower them or give --damping VALUE"
         ) from None
     except ValueError as exc:
-        raise CommandError(f"--damping critical: {describe(exc)}") from exc
+        raise CommandError(f"--damping {damping}: {describe(exc)}") from exc
 
 
 # ------------------------------------------------------------------------------ commands
@@ -425,7 +427,7 @@ def _simulation_inputs(
     structure, members = _designed(args)
     damping = args.damping
     if damping is None and getattr(args, "structure", None) is None:
-        damping = "critical"  # the paper's example
+        damping = next(iter(dynamics.DAMPING_KINDS))  # a generated structure: internal
     structure = _apply_damping(structure, damping)
     if args.method in FIXED_STEP_METHODS and args.dt is None:
         raise CommandError(f"--dt: method {args.method!r} is fixed-step and needs --dt")
@@ -908,6 +910,7 @@ def _print_summary(
     rows = [
         ("status", trajectory.message),
         ("samples", f"{summary.n_samples} from t = {summary.t_first:g} to {summary.t_last:.6g} s"),
+        ("damping", dynamics.describe_damping(structure)),
         ("final residual acceleration", f"{trajectory.residual_acceleration[-1]:.3e} m/s^2"),
         ("final largest node speed", f"{np.abs(trajectory.node_velocity[-1]).max():.3e} m/s"),
         ("largest rod-length error", f"{summary.max_rod_length_error:.3e} (relative)"),
@@ -1099,15 +1102,14 @@ def _cmd_vtk(args: argparse.Namespace) -> int:
 def _cmd_matrices(args: argparse.Namespace) -> int:
     from tensegrity.engine.simulate import simulate
     from tensegrity.io.matrices import write_matrices
-    from tensegrity.physics.matrix_form import undamped
 
     _check_output_folder(args.out, "--out")
-    structure = undamped(_structure(args))
+    structure = dynamics.undamped(_structure(args))
     _check_matrix_size(structure)
     if args.at == "equilibrium":
         # Tight rest tolerances: with the damping removed, K_p q = q'' is then below ~1e-8.
         result = simulate(
-            dynamics.critical_damping(structure),
+            dynamics.artificial_damping(structure),
             (0.0, args.t_end),
             steady_state=True,
             velocity_tol=1e-9,
@@ -1297,9 +1299,10 @@ def _add_controllability_options(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--damping",
-        choices=("critical", "as-is"),
-        default="critical",
-        help="damping of the linearization used for the Gramians (default critical)",
+        choices=("artificial", "as-is"),
+        default="artificial",
+        help="damping of the linearization used for the Gramians: the paper's artificial "
+        "critical damping (default) or the structure's own",
     )
 
 
@@ -1512,9 +1515,12 @@ def _add_simulate_parser(sub: _Commands) -> None:
     sim.add_argument(
         "--damping",
         type=_damping,
-        metavar="none|critical|VALUE",
-        help="tendon damping: 'critical' (default for a shell; see docs), 'none', or "
-        "c in N s/m for every tendon (default for --structure: as in the file)",
+        metavar="internal|artificial|none|VALUE",
+        help="'internal' (default for a generated structure: each tendon and the rods' "
+        "motion relative to the rigid-body motion critically damped; a free fall is not "
+        "slowed), 'artificial' (the paper's: the same rates, the rods damped to ground), "
+        "'none', or c in N s/m for every tendon and no rod damping (default for --structure: "
+        "as in the file). The summary names the damping used; see docs/simulation.md",
     )
     sim.add_argument(
         "--t-end", type=arguments.positive, default=60.0, help="end time [s] (default 60)"
@@ -1639,8 +1645,9 @@ def _add_export_parser(sub: _Commands) -> None:
     export.add_argument(
         "--damping",
         type=_damping,
-        metavar="none|critical|VALUE",
-        help="tendon damping to store (default none)",
+        metavar="internal|artificial|none|VALUE",
+        help="damping to store, as for simulate (default: none for a generated structure, "
+        "as in the file for --structure)",
     )
     export.add_argument(
         "--format",

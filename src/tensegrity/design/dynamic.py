@@ -11,7 +11,7 @@ each member in motion, and whether any member exceeds its limits.
 
 Damping: each tendon gets ``damping_ratio`` (default 2 %) of the critical damping of its own
 axial vibration, ``c = zeta 2 sqrt(k mu)`` [N s/m] (``mu`` the reduced mass of its ends, as
-:func:`tensegrity.physics.dynamics.critical_damping` defines it), and the rods none (no damping
+:func:`tensegrity.physics.dynamics.artificial_damping` defines it), and the rods none (no damping
 to ground).  The structure's own damping is replaced.  A few per cent of critical is typical of
 bolted and cable structures; 0 gives the undamped bound.
 
@@ -38,7 +38,7 @@ from tensegrity.design.sizing import LoadCase
 from tensegrity.design.utilisation import RunUtilisation, run_utilisation
 from tensegrity.engine.simulate import simulate
 from tensegrity.model.structure import Structure
-from tensegrity.physics.dynamics import critical_damping
+from tensegrity.physics.dynamics import artificial_damping
 
 __all__ = ["DAMPING_RATIO", "DynamicCase", "dynamic_check", "suddenly_loaded"]
 
@@ -71,7 +71,7 @@ def suddenly_loaded(structure: Structure, *, damping_ratio: float = DAMPING_RATI
     critical damping (module docstring), no rod damping."""
     if not (math.isfinite(damping_ratio) and 0 <= damping_ratio < 1):
         raise ValueError(f"damping_ratio: must be in [0, 1), got {damping_ratio!r}")
-    critical = critical_damping(structure)
+    critical = artificial_damping(structure)
     return structure.replace(
         tendon_damping=damping_ratio * critical.tendon_damping,
         rod_damping=np.zeros(structure.n_rods),

@@ -80,7 +80,11 @@ NPZ_ARRAYS = {
     "C_s": (True, "(S, n) string connectivity, same rule"),
     "rod_mass": (False, f"(R,) [kg], default {DEFAULT_ROD_MASS}"),
     "rod_length": (False, "(R,) [m], default the bar's length in N"),
-    "rod_damping": (False, "(R,) mass-proportional damping [1/s], default 0"),
+    "rod_damping": (False, "(R,) mass-proportional damping to ground [1/s], default 0"),
+    "rod_relative_damping": (
+        False,
+        "(R,) mass-proportional damping relative to the rigid-body motion [1/s], default 0",
+    ),
     "tendon_stiffness": (False, f"(S,) [N/m], default {DEFAULT_STIFFNESS}"),
     "tendon_rest_length": (False, "(S,) [m]; this or tendon_prestrain is required"),
     "tendon_prestrain": (False, "(S,) strain (l - L0) / L0 in N"),
@@ -112,7 +116,7 @@ NPZ_KINDS = {
     "tendon_name": ArrayKind("U", "text"),
 }
 
-_ROD_KEYS = ("mass", "length", "damping")
+_ROD_KEYS = ("mass", "length", "damping", "relative_damping")
 _TENDON_KEYS = ("stiffness", "rest_length", "prestrain", "damping")
 #: Keys of the material form (members and ``defaults``: ``material``, ``section``; the top
 #: level: ``tendon_mass``), read by :func:`tensegrity.design.files.read_design`, not here.
@@ -186,6 +190,7 @@ def network_to_dict(structure: Structure, *, keep_joints: bool = False) -> dict[
             "mass": structure.rod_mass,
             "length": structure.rod_length,
             "damping": structure.rod_damping,
+            "relative_damping": structure.rod_relative_damping,
         },
         "tendon": {
             "stiffness": structure.tendon_stiffness,
@@ -259,6 +264,7 @@ def network_from_dict(data: Any) -> Structure:
         rod_mass=_column(rods, "rods", "mass", rod_default, np.full(len(rods), DEFAULT_ROD_MASS)),
         rod_length=_column(rods, "rods", "length", rod_default, rod_distance),
         rod_damping=_column(rods, "rods", "damping", rod_default, zeros[0]),
+        rod_relative_damping=_column(rods, "rods", "relative_damping", rod_default, zeros[0]),
         tendon_stiffness=_column(
             tendons,
             "tendons",
@@ -746,6 +752,7 @@ def _npz_arrays(structure: Structure, keep_joints: bool) -> dict[str, np.ndarray
         "rod_mass": structure.rod_mass,
         "rod_length": structure.rod_length,
         "rod_damping": structure.rod_damping,
+        "rod_relative_damping": structure.rod_relative_damping,
         "tendon_stiffness": structure.tendon_stiffness,
         "tendon_rest_length": structure.tendon_rest_length,
         "tendon_damping": structure.tendon_damping,
@@ -805,7 +812,8 @@ def read_structure(path: PathLike) -> Structure:
     ----------
     path : str or os.PathLike
         A UTF-8 JSON file: ``{"nodes": [[x, y, z], ...] (N, 3) [m], "velocities": (N, 3) [m/s],
-        "rods": [{"nodes", "mass" [kg], "length" [m], "damping" [1/s]}, ...],
+        "rods": [{"nodes", "mass" [kg], "length" [m], "damping" [1/s], "relative_damping"
+        [1/s]}, ...],
         "tendons": [{"name", "nodes", "stiffness" [N/m], "rest_length" [m],
         "damping" [N s/m]}, ...]}``.
 

@@ -77,8 +77,9 @@ Differences from :mod:`tensegrity.physics.dynamics` that matter when comparing
   (``T = max(k (l - Lbar) + c l', 0)`` while ``l > Lbar``).  Compare trajectories with damping 0:
   with damped tendons the two models really differ (a released (3,1) shell with ``c = 10 N s/m``
   differs by 5 cm after 0.05 s, as contracting tendons would push in MuJoCo).
-- **Rod damping** (``Structure.rod_damping``, mass-proportional damping to ground) has no
-  counterpart in the exported model; a structure with nonzero rod damping is refused.
+- **Rod damping** (``Structure.rod_damping``, mass-proportional damping to ground, and
+  ``rod_relative_damping``, relative to the rigid-body motion) has no counterpart in the exported
+  model; a structure with nonzero rod damping of either kind is refused.
 - **Spin.**  Our rods have no spin degree of freedom; a MuJoCo free body does.  Since every tendon
   attaches on the rod's axis, tendons exert no torque about it, and with the inertia symmetric
   about the axis Euler's equations keep the spin rate at zero (``I3 w3' = (I1 - I2) w1 w2 = 0``)
@@ -282,7 +283,8 @@ def to_mjcf(
     Parameters
     ----------
     structure : Structure
-        A structure without rod damping (``rod_damping`` must be all zero); 3-D or planar.
+        A structure without rod damping (``rod_damping`` and ``rod_relative_damping`` all
+        zero); 3-D or planar.
     timestep : float
         MuJoCo time step [s], > 0.
     integrator : str
@@ -377,16 +379,21 @@ def _checked_rod_inertias(structure: Structure) -> tuple[np.ndarray, np.ndarray]
     Raises
     ------
     ValueError
-        ``rods[r].damping`` if a rod has damping (MuJoCo has no counterpart); ``rods[r].mass`` if
+        ``rods[r].damping`` or ``rods[r].relative_damping`` if a rod has damping (MuJoCo has no
+        counterpart); ``rods[r].mass`` if
         its mass or transverse inertia is below MuJoCo's minimum.
     """
-    damped = np.flatnonzero(structure.rod_damping != 0)
-    if damped.size:
-        r = damped[0]
-        raise ValueError(
-            f"rods[{r}].damping: is {structure.rod_damping[r]!r} 1/s; mass-proportional rod "
-            "damping has no MuJoCo counterpart, export the structure with rod_damping = 0"
-        )
+    for field, values in (
+        ("damping", structure.rod_damping),
+        ("relative_damping", structure.rod_relative_damping),
+    ):
+        damped = np.flatnonzero(values != 0)
+        if damped.size:
+            r = damped[0]
+            raise ValueError(
+                f"rods[{r}].{field}: is {values[r]!r} 1/s; mass-proportional rod damping has "
+                f"no MuJoCo counterpart, export the structure with rod_{field} = 0"
+            )
     mass, length = structure.rod_mass, structure.rod_length
     transverse = mass * length**2 / 12.0
     light = np.flatnonzero((mass <= _MUJOCO_MINVAL) | (transverse <= _MUJOCO_MINVAL))

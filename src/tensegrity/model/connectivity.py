@@ -126,6 +126,7 @@ def from_connectivity(
     rod_mass: Any = DEFAULT_ROD_MASS,
     rod_length: Any = None,
     rod_damping: Any = 0.0,
+    rod_relative_damping: Any = 0.0,
     tendon_stiffness: Any = DEFAULT_STIFFNESS,
     tendon_rest_length: Any = None,
     tendon_prestrain: Any = None,
@@ -152,8 +153,9 @@ def from_connectivity(
         Bar connectivity: row ``k`` has ``-1`` at the tail node, ``+1`` at the head node.
     C_s : array_like, shape (S, n)
         String (tendon) connectivity, the same rule; the string vector is head minus tail.
-    rod_mass, rod_damping : float or (R,)
-        Bar masses [kg] (default 1) and mass-proportional damping rates [1/s] (default 0).
+    rod_mass, rod_damping, rod_relative_damping : float or (R,)
+        Bar masses [kg] (default 1) and mass-proportional damping rates [1/s] (default 0), to
+        ground and relative to the rigid-body motion (:class:`Structure`).
     rod_length : float or (R,), optional
         Bar lengths [m]; default the lengths of ``N C_b^T`` (given, they must agree with ``N``).
     tendon_stiffness, tendon_damping : float or (S,)
@@ -213,6 +215,7 @@ def from_connectivity(
             rod_mass=rod_mass,
             rod_length=rod_length,
             rod_damping=rod_damping,
+            rod_relative_damping=rod_relative_damping,
             tendon_stiffness=tendon_stiffness,
             tendon_damping=tendon_damping,
             tendon_name=tendon_name,
@@ -390,6 +393,7 @@ def _member_fields(
     rod_mass: Any,
     rod_length: Any,
     rod_damping: Any,
+    rod_relative_damping: Any,
     tendon_stiffness: Any,
     tendon_damping: Any,
     tendon_name: Sequence[str] | None,
@@ -403,6 +407,7 @@ def _member_fields(
             network.length if rod_length is None else _per_member(rod_length, R, "rod_length")
         ),
         rod_damping=_per_member(rod_damping, R, "rod_damping"),
+        rod_relative_damping=_per_member(rod_relative_damping, R, "rod_relative_damping"),
         tendon_stiffness=_per_member(tendon_stiffness, S, "tendon_stiffness"),
         tendon_rest_length=rest,
         tendon_damping=_per_member(tendon_damping, S, "tendon_damping"),

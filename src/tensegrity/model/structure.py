@@ -199,7 +199,16 @@ class Structure:
     rod_damping : array_like, shape (R,), optional
         Mass-proportional ("artificial", to ground) damping rate ``alpha`` [1/s], >= 0: adds
         ``-alpha q'`` to the rod's accelerations, i.e. a force ``-alpha dm v`` on every mass
-        element.  Default 0.
+        element.  It drags the structure against the world frame (a free fall settles at
+        ``g / alpha``).  Default 0.
+    rod_relative_damping : array_like, shape (R,), optional
+        Mass-proportional damping rate ``beta`` [1/s], >= 0, of each rod's motion *relative to
+        the structure's rigid-body motion*: a force ``-beta dm (v - v_rigid)`` on every mass
+        element, ``v_rigid`` the rigid-body velocity field that best fits the damped rods'
+        motion (weights ``beta m``), so that it removes deformation only: it conserves linear and
+        angular momentum, and a free fall or a spin goes on undamped.  A structure held by
+        supports (fixed nodes, plane or line nodes) is damped relative to the ground instead
+        (``physics.coordinates.rod_damping_rates``).  Default 0.
     node_fixed : array_like of bool, shape (N,), optional
         Nodes held at their ``node_position`` (supports; anchors of tendons).  Default none.
     node_point_mass : array_like, shape (N,), optional
@@ -233,6 +242,7 @@ class Structure:
     tendon_name: tuple[str, ...] = _NOT_GIVEN
     node_velocity: npt.NDArray[np.float64] = _NOT_GIVEN
     rod_damping: npt.NDArray[np.float64] = _NOT_GIVEN
+    rod_relative_damping: npt.NDArray[np.float64] = _NOT_GIVEN
     node_fixed: npt.NDArray[np.bool_] = _NOT_GIVEN
     node_point_mass: npt.NDArray[np.float64] = _NOT_GIVEN
     joint_nodes: npt.NDArray[np.int64] = _NOT_GIVEN
@@ -258,6 +268,7 @@ class Structure:
             tendon_name: Sequence[str] | None = None,
             node_velocity: npt.ArrayLike | None = None,
             rod_damping: npt.ArrayLike | None = None,
+            rod_relative_damping: npt.ArrayLike | None = None,
             node_fixed: npt.ArrayLike | None = None,
             node_point_mass: npt.ArrayLike | None = None,
             joint_nodes: npt.ArrayLike | None = None,
@@ -272,7 +283,9 @@ class Structure:
         # or None for an optional one): the ``_check*`` methods read them as such.
         position, velocity = self._checked_positions()
         n_nodes = position.shape[0]
-        rod_nodes, rod_mass, rod_length, rod_damping = self._checked_rods(n_nodes)
+        rod_nodes, rod_mass, rod_length, rod_damping, rod_relative_damping = self._checked_rods(
+            n_nodes
+        )
         fixed, point_mass = self._check_nodes(rod_nodes, n_nodes)
         _check_rod_lengths(position, rod_nodes, rod_length)
         tendon_nodes = _index_array(self.tendon_nodes, "tendons", n_nodes)
@@ -290,6 +303,7 @@ class Structure:
             ("rod_mass", rod_mass),
             ("rod_length", rod_length),
             ("rod_damping", rod_damping),
+            ("rod_relative_damping", rod_relative_damping),
             ("tendon_nodes", tendon_nodes),
             ("tendon_stiffness", stiffness),
             ("tendon_rest_length", rest_length),
@@ -320,25 +334,29 @@ class Structure:
         )
         return position, velocity
 
-    def _checked_rods(self, n_nodes: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """``(rod_nodes (R, 2), rod_mass [kg], rod_length [m], rod_damping [1/s])``, checked:
-        nodes in range, masses and lengths > 0, damping >= 0 (default 0)."""
+    def _checked_rods(self, n_nodes: int) -> tuple[np.ndarray, ...]:
+        """``(rod_nodes (R, 2), rod_mass [kg], rod_length [m], rod_damping [1/s],
+        rod_relative_damping [1/s])``, checked: nodes in range, masses and lengths > 0, damping
+        rates >= 0 (default 0)."""
         rod_nodes = _index_array(self.rod_nodes, "rods", n_nodes)
         n_rods = rod_nodes.shape[0]
         rod_mass = _float_array(self.rod_mass, "rods.mass", (n_rods,))
         rod_length = _float_array(self.rod_length, "rods.length", (n_rods,))
-        rod_damping = _float_array(
-            np.zeros(n_rods) if self.rod_damping is None else self.rod_damping,
-            "rods.damping",
-            (n_rods,),
+        rod_damping, rod_relative_damping = (
+            _float_array(np.zeros(n_rods) if given is None else given, f"rods.{field}", (n_rods,))
+            for given, field in (
+                (self.rod_damping, "damping"),
+                (self.rod_relative_damping, "relative_damping"),
+            )
         )
         for field, values, strict in (
             ("mass", rod_mass, True),
             ("length", rod_length, True),
             ("damping", rod_damping, False),
+            ("relative_damping", rod_relative_damping, False),
         ):
             _check_sign(lambda r: f"rods[{r}]", field, values, strict=strict)
-        return rod_nodes, rod_mass, rod_length, rod_damping
+        return rod_nodes, rod_mass, rod_length, rod_damping, rod_relative_damping
 
     def _checked_tendon_names(self, n_tendons: int) -> tuple[str, ...]:
         """The tendon names (default ``s0``, ``s1``, ...), checked: one non-empty string per
@@ -562,6 +580,12 @@ class Structure:
         )
 
     @cached_property
+    def is_supported(self) -> bool:
+        """True if some node is fixed or held on a plane or line: the supports then hold the
+        structure against (some) rigid-body motion, the ground being its reference."""
+        return bool(self.node_fixed.any() or self.plane_nodes.size or self.line_nodes.size)
+
+    @cached_property
     def has_constraints(self) -> bool:
         """True if some node is fixed to a rod's end, joined, or held on a plane or line."""
         return bool(
@@ -655,12 +679,14 @@ class Structure:
                         "mass": float(m),
                         "length": float(L),
                         "damping": float(c),
+                        "relative_damping": float(beta),
                     }
-                    for (a, b), m, L, c in zip(
+                    for (a, b), m, L, c, beta in zip(
                         self.rod_nodes,
                         self.rod_mass,
                         self.rod_length,
                         self.rod_damping,
+                        self.rod_relative_damping,
                         strict=True,
                     )
                 ],
@@ -720,6 +746,7 @@ class Structure:
             rod_mass=_numbers(rod_items, "rods", "mass"),
             rod_length=_numbers(rod_items, "rods", "length"),
             rod_damping=_numbers(rod_items, "rods", "damping", default=0.0),
+            rod_relative_damping=_numbers(rod_items, "rods", "relative_damping", default=0.0),
             tendon_nodes=_node_pairs(tendon_items, "tendons"),
             tendon_stiffness=_numbers(tendon_items, "tendons", "stiffness"),
             tendon_rest_length=_numbers(tendon_items, "tendons", "rest_length"),
@@ -742,7 +769,7 @@ _JSON_KEYS: dict[str, tuple[str, ...]] = {
         "planes",
         "lines",
     ),
-    "rods": ("nodes", "mass", "length", "damping"),
+    "rods": ("nodes", "mass", "length", "damping", "relative_damping"),
     "tendons": ("name", "nodes", "stiffness", "rest_length", "damping"),
     "point_masses": ("node", "mass"),
     "planes": ("node", "normal"),

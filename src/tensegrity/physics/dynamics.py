@@ -35,6 +35,8 @@ from tensegrity.physics.coordinates import (  # the coordinates are part of this
     nodes_from_coordinates,
     point_mass_coordinates as point_mass_coordinates,
     rod_coordinates,
+    rod_damping_acceleration,
+    rod_damping_rates,
     rods_view as rods_view,
 )
 
@@ -170,7 +172,22 @@ def tendon_tensions(
     return tendon_forces(structure, p, v, rest_lengths(structure, control)).tension
 
 
-def critical_damping(structure: Structure) -> Structure:
+def _critical_rates(structure: Structure, what: str) -> tuple[np.ndarray, float]:
+    """``(c, alpha)``: each tendon's critical damping ``c = 2 sqrt(k mu)`` [N s/m] (S,) and the
+    rate ``alpha = 2 sqrt(k_mean / m_mean)`` [1/s] of :func:`artificial_damping`."""
+    if not isinstance(structure, Structure):
+        raise TypeError(f"structure: expected a Structure, got {type(structure).__name__}")
+    if not (structure.n_rods and structure.n_tendons):
+        raise ValueError(f"structure: {what} damping needs at least one rod and one tendon")
+    m = structure.node_mass[structure.tendon_nodes]
+    ma, mb = m[:, 0], m[:, 1]
+    both = np.divide(ma * mb, ma + mb, out=np.zeros_like(ma), where=(ma > 0) & (mb > 0))
+    reduced = np.where(ma == 0, mb, np.where(mb == 0, ma, both))
+    rate = 2.0 * np.sqrt(structure.tendon_stiffness.mean() / structure.rod_mass.mean())
+    return 2.0 * np.sqrt(structure.tendon_stiffness * reduced), float(rate)
+
+
+def artificial_damping(structure: Structure) -> Structure:
     """The structure with the "artificial critical damping" of the paper's example (§18.5).
 
     The paper does not define it; ours has two parts (see ``docs/paper-notes.md``):
@@ -178,35 +195,107 @@ def critical_damping(structure: Structure) -> Structure:
     - each tendon gets ``c = 2 sqrt(k mu)`` [N s/m], with ``mu = m_a m_b / (m_a + m_b)`` the
       reduced mass of its end nodes (half a rod's mass each): critical damping of the tendon's own
       axial vibration between two such point masses;
-    - each rod gets mass-proportional damping ``alpha = 2 sqrt(k_mean / m_mean)`` [1/s]: critical
-      damping of a rod of mean mass on a tendon of mean stiffness.  Tendon damping alone cannot
-      remove the motion of a tensegrity's mechanisms (modes that change no tendon length to first
-      order, stiffened only by prestress), so without this part a shell rocks for minutes.
+    - each rod gets mass-proportional damping *to ground* ``alpha = 2 sqrt(k_mean / m_mean)``
+      [1/s] (``rod_damping``): critical damping of a rod of mean mass on a tendon of mean
+      stiffness.  Tendon damping alone cannot remove the motion of a tensegrity's mechanisms
+      (modes that change no tendon length to first order, stiffened only by prestress), so
+      without this part a shell rocks for minutes.
+
+    The second part drags the structure against the world frame: under gravity alone it falls
+    at ``g / alpha`` instead of accelerating.  :func:`internal_damping` has the same rates but
+    damps only deformation.
 
     An anchor (a fixed node of no rod) counts as infinitely heavy: a tendon to it gets the mass of
     its other end.  A point mass is its own mass; point masses get no mass-proportional damping.
 
     Raises
     ------
+    TypeError
+        If ``structure`` is not a :class:`Structure`.
     ValueError
         If the structure has no rod or no tendon (nothing to scale the damping with).
     """
-    if not (structure.n_rods and structure.n_tendons):
-        raise ValueError("structure: critical damping needs at least one rod and one tendon")
-    m = structure.node_mass[structure.tendon_nodes]
-    ma, mb = m[:, 0], m[:, 1]
-    both = np.divide(ma * mb, ma + mb, out=np.zeros_like(ma), where=(ma > 0) & (mb > 0))
-    reduced = np.where(ma == 0, mb, np.where(mb == 0, ma, both))
-    rate = 2.0 * np.sqrt(structure.tendon_stiffness.mean() / structure.rod_mass.mean())
+    tendon, rate = _critical_rates(structure, "artificial")
     return structure.replace(
-        tendon_damping=2.0 * np.sqrt(structure.tendon_stiffness * reduced),
+        tendon_damping=tendon,
         rod_damping=np.full(structure.n_rods, rate),
+        rod_relative_damping=np.zeros(structure.n_rods),
     )
 
 
+def internal_damping(structure: Structure) -> Structure:
+    """The structure with critical *internal* damping: the default of ``tensegrity simulate``.
+
+    The rates of :func:`artificial_damping`, acting on deformation only:
+
+    - each tendon gets ``c = 2 sqrt(k mu)`` [N s/m] (as there);
+    - each rod gets ``alpha = 2 sqrt(k_mean / m_mean)`` [1/s] of mass-proportional damping
+      *relative to the structure's rigid-body motion* (``rod_relative_damping``;
+      :func:`tensegrity.physics.coordinates.rigid_body_rates`).
+
+    It conserves linear and angular momentum: a free structure falls at ``g`` and a spinning one
+    keeps spinning while its deformation dies out.  A structure that starts at rest with no
+    external force (the paper's example) has no rigid-body motion to keep, and moves exactly as
+    with :func:`artificial_damping` (to round-off).  A structure held by supports is damped
+    relative to the ground (:func:`tensegrity.physics.coordinates.rod_damping_rates`), as with
+    :func:`artificial_damping`.
+
+    Raises
+    ------
+    TypeError
+        If ``structure`` is not a :class:`Structure`.
+    ValueError
+        If the structure has no rod or no tendon.
+    """
+    tendon, rate = _critical_rates(structure, "internal")
+    return structure.replace(
+        tendon_damping=tendon,
+        rod_damping=np.zeros(structure.n_rods),
+        rod_relative_damping=np.full(structure.n_rods, rate),
+    )
+
+
+def undamped(structure: Structure) -> Structure:
+    """``structure`` without tendon or rod damping of any kind."""
+    return structure.replace(
+        tendon_damping=np.zeros(structure.n_tendons),
+        rod_damping=np.zeros(structure.n_rods),
+        rod_relative_damping=np.zeros(structure.n_rods),
+    )
+
+
+def describe_damping(structure: Structure) -> str:
+    """One line naming the damping of ``structure`` as the equations apply it, e.g.
+    ``"internal: tendons 0.707..1 N s/m, rods 40 1/s relative to the rigid-body motion"``."""
+    alpha, beta = rod_damping_rates(structure)
+    c = structure.tendon_damping
+    parts = [
+        *([f"tendons {_span(c)} N s/m"] if np.any(c) else []),
+        *([f"rods {_span(beta)} 1/s relative to the rigid-body motion"] if np.any(beta) else []),
+        *([f"rods {_span(alpha)} 1/s to ground"] if np.any(alpha) else []),
+    ]
+    if not parts:
+        return "none"
+    if np.any(structure.rod_damping):
+        return "artificial (drags the structure against the world frame): " + ", ".join(parts)
+    supported = " (the supports are the reference)" if np.any(alpha) else ""
+    return f"internal{supported}: " + ", ".join(parts)
+
+
+def _span(values: np.ndarray) -> str:
+    """``"40"`` or ``"0.707..1"``: the range of the non-zero ``values``, 3 significant digits."""
+    values = values[values != 0]
+    low, high = f"{values.min():.3g}", f"{values.max():.3g}"
+    return low if low == high else f"{low}..{high}"
+
+
+#: The named kinds of damping (``tensegrity simulate --damping``); the first is the default.
+DAMPING_KINDS = {"internal": internal_damping, "artificial": artificial_damping, "none": undamped}
+
+
 # --------------------------------------------------------------------------- accelerations
-#: Kinetic energy is ``sum m (|q1'|^2 / 8 + |q2'|^2 / 24)``; the rate ``alpha`` of mass-proportional
-#: damping then dissipates ``alpha m (|q1'|^2 / 4 + |q2'|^2 / 12)``: these are the weights x 2.
+#: Kinetic energy is ``sum m (|q1'|^2 / 8 + |q2'|^2 / 24)``; a rod's damping term ``a`` of ``q''``
+#: (subtracted) then dissipates ``m (q1' . a1 / 4 + q2' . a2 / 12)``: these are the weights x 2.
 _INERTIA_WEIGHT = np.array([[1 / 4], [1 / 12]])
 
 
@@ -262,10 +351,10 @@ def evaluate(
     if constraints is not None:
         reaction = constraints.constraint_force(q, qddot)
         qddot += force_response(structure, q, reaction)
-    alpha = structure.rod_damping[:, None, None]
+    rod_damping = rod_damping_acceleration(structure, rod_coordinates(structure, q), rates)
     dissipated = float(
         np.sum((tendons.tension - tendons.elastic_tension) * tendons.length_rate)
-        + np.sum(alpha * structure.rod_mass[:, None, None] * _INERTIA_WEIGHT * rates**2)
+        + np.sum(structure.rod_mass[:, None, None] * _INERTIA_WEIGHT * rates * rod_damping)
     )
     return Evaluation(qddot, tendons, dissipated, external_power, reaction)
 

@@ -5,10 +5,12 @@ reference):
 
 - tendon tension ``T = max(k (l - Lbar) + c l', 0)`` while taut (``l > Lbar``), else 0;
 - nodal forces from tendons, external forces ``w`` and gravity (half a rod's weight per end);
-- accelerations (eqs. 18.17, 18.20) plus mass-proportional rod damping ``-alpha q'``::
+- accelerations (eqs. 18.17, 18.20) plus mass-proportional rod damping to ground ``-alpha q'``
+  and relative to the rigid-body motion ``-beta (q' - rigid)`` (:func:`_rigid_motion`)::
 
-      q1'' = (2/m) (f_a + f_b) - alpha q1'
+      q1'' = (2/m) (f_a + f_b) - alpha q1' - beta (q1' - rigid1)
       q2'' = -(|q2'|^2 / L^2) q2 + (6 / (m L^2)) skew(q2)^2 (f_a - f_b) - alpha q2'
+             - beta (q2' - rigid2)
 
 - the power removed by tendon and rod damping and the power of ``w``.
 
@@ -68,6 +70,7 @@ from numba import njit, prange
 from numba.core.registry import CPUDispatcher
 
 from tensegrity.model.structure import Structure
+from tensegrity.physics.coordinates import rod_damping_rates
 
 __all__ = [
     "FastKernel",
@@ -135,7 +138,8 @@ def compiled_only(py_func: Callable) -> CPUDispatcher:
 # The kernel keeps the nodes in a *slot* layout and the tendons in a *kernel order* of its own
 # (see :func:`pack` and docs/performance.md, "The stencil layout"):
 #   rod_slots (R, 2) uint64       slots of the end nodes (a, b) of each rod
-#   rod_param (R, 5) float64      m, L, alpha, 2/m, 6/(m L^2)
+#   rod_param (R, 6) float64      m, L, alpha, 2/m, 6/(m L^2), beta (alpha and beta as
+#       physics.coordinates.rod_damping_rates gives them)
 #   tendon_slots (S, 2) uint64    slots of (tail, head), tendons in kernel order
 #   tendon_runs (G, 4) int64      runs of the kernel order: (first position, length, tail slot,
 #       head slot of the first tendon); along a run both slots step by one
@@ -155,7 +159,11 @@ def compiled_only(py_func: Callable) -> CPUDispatcher:
 # Slots are unsigned (uint64): numba wraps every signed index that the compiler cannot prove
 # >= 0 (one read from an array) around the array's length.  Never add a signed integer to a
 # slot: in numba ``uint64 + int64`` is a float64.
-ROD_MASS, ROD_LENGTH, ROD_DAMPING, ROD_C1, ROD_C2 = range(5)
+ROD_MASS, ROD_LENGTH, ROD_DAMPING, ROD_C1, ROD_C2, ROD_RELATIVE_DAMPING = range(6)
+#: A rigid-body fit whose inertia has ``det <= SINGULAR_INERTIA (trace / 3)^3`` (rods nearly on
+#: one line) is solved with ``trace * SINGULAR_INERTIA / 3`` added to the diagonal: a turn about
+#: that line moves no mass, so the turn it gets there does not matter.
+SINGULAR_INERTIA = 1e-10
 
 
 @njit(inline="always", **JIT_OPTIONS)
@@ -456,6 +464,74 @@ def _take_force(force, slot):  # pragma: no cover - compiled
     return fx, fy, fz
 
 
+@njit(**JIT_OPTIONS)
+def _rigid_motion(q, qdot, rod_param):  # pragma: no cover - compiled
+    """The rigid-body motion that best fits the rods' motion with weights ``beta m``, as
+    :func:`tensegrity.physics.coordinates.rigid_body_rates`: ``(V, omega, c)``, each a tuple
+    of 3 floats (velocity [m/s] of the point ``c`` [m], angular velocity [1/s]); all zero when
+    no rod has relative damping."""
+    total = 0.0
+    cx = cy = cz = vx = vy = vz = 0.0
+    for r in range(rod_param.shape[0]):
+        w = rod_param[r, ROD_RELATIVE_DAMPING] * rod_param[r, ROD_MASS]
+        if w == 0.0:
+            continue
+        o = 6 * r
+        total += w
+        cx += w * q[o]
+        cy += w * q[o + 1]
+        cz += w * q[o + 2]
+        vx += w * qdot[o]
+        vy += w * qdot[o + 1]
+        vz += w * qdot[o + 2]
+    if not total > 0.0:
+        zero = (0.0, 0.0, 0.0)
+        return zero, zero, zero
+    half = 0.5 / total  # centres are q1 / 2
+    cx, cy, cz, vx, vy, vz = cx * half, cy * half, cz * half, vx * half, vy * half, vz * half
+    hx = hy = hz = 0.0
+    ixx = iyy = izz = ixy = ixz = iyz = 0.0
+    for r in range(rod_param.shape[0]):
+        w = rod_param[r, ROD_RELATIVE_DAMPING] * rod_param[r, ROD_MASS]
+        if w == 0.0:
+            continue
+        o = 6 * r
+        rx, ry, rz = 0.5 * q[o] - cx, 0.5 * q[o + 1] - cy, 0.5 * q[o + 2] - cz
+        ux, uy, uz = 0.5 * qdot[o], 0.5 * qdot[o + 1], 0.5 * qdot[o + 2]
+        x, y, z = q[o + 3], q[o + 4], q[o + 5]
+        dx, dy, dz = qdot[o + 3], qdot[o + 4], qdot[o + 5]
+        w12 = w / 12.0
+        hx += w * (ry * uz - rz * uy) + w12 * (y * dz - z * dy)
+        hy += w * (rz * ux - rx * uz) + w12 * (z * dx - x * dz)
+        hz += w * (rx * uy - ry * ux) + w12 * (x * dy - y * dx)
+        ixx += w * (ry * ry + rz * rz) + w12 * (y * y + z * z)
+        iyy += w * (rx * rx + rz * rz) + w12 * (x * x + z * z)
+        izz += w * (rx * rx + ry * ry) + w12 * (x * x + y * y)
+        ixy -= w * rx * ry + w12 * x * y
+        ixz -= w * rx * rz + w12 * x * z
+        iyz -= w * ry * rz + w12 * y * z
+    # omega = I^-1 H by the adjugate (I symmetric)
+    a00 = iyy * izz - iyz * iyz
+    a01 = ixz * iyz - ixy * izz
+    a02 = ixy * iyz - ixz * iyy
+    det = ixx * a00 + ixy * a01 + ixz * a02
+    third = (ixx + iyy + izz) / 3.0
+    if not det > SINGULAR_INERTIA * third * third * third:
+        shift = SINGULAR_INERTIA * third
+        ixx, iyy, izz = ixx + shift, iyy + shift, izz + shift
+        a00 = iyy * izz - iyz * iyz
+        a01 = ixz * iyz - ixy * izz
+        a02 = ixy * iyz - ixz * iyy
+        det = ixx * a00 + ixy * a01 + ixz * a02
+    a11 = ixx * izz - ixz * ixz
+    a12 = ixy * ixz - ixx * iyz
+    a22 = ixx * iyy - ixy * ixy
+    wx = (a00 * hx + a01 * hy + a02 * hz) / det
+    wy = (a01 * hx + a11 * hy + a12 * hz) / det
+    wz = (a02 * hx + a12 * hy + a22 * hz) / det
+    return (vx, vy, vz), (wx, wy, wz), (cx, cy, cz)
+
+
 @njit(inline="always", **JIT_OPTIONS)
 def _rod_pass(
     q,
@@ -467,6 +543,7 @@ def _rod_pass(
     has_gravity,
     gravity,
     force,
+    rigid,
     qddot,
     first,
     last,
@@ -474,8 +551,10 @@ def _rod_pass(
     """Rods ``first:last``: eqs. 18.17, 18.20 and mass-proportional damping into ``qddot``, from
     the tendon forces ``force`` (3, n_slots; left zero, :func:`_take_force`), half the rod's
     weight at each end if ``has_gravity``, and ``w`` (``external_force``, same layout) if
-    ``has_external``; the power of ``w`` uses ``p' = P q'``.  Returns ``(rod_dissipation,
-    external_power)``."""
+    ``has_external``; the power of ``w`` uses ``p' = P q'``.  ``rigid`` is
+    :func:`_rigid_motion`'s ``(V, omega, c)``, the reference of the relative damping.  Returns
+    ``(rod_dissipation, external_power)``."""
+    (vx, vy, vz), (wx, wy, wz), (cx, cy, cz) = rigid
     rod_slots = rod_slots[first:last]
     rod_param = rod_param[first:last]
     q = q[6 * first : 6 * last]
@@ -544,6 +623,30 @@ def _rod_pass(
         if alpha != 0.0:
             v1_sq = u1x * u1x + u1y * u1y + u1z * u1z
             rod_dissipation += alpha * rod_param[r, ROD_MASS] * (v1_sq / 4.0 + v2_sq / 12.0)
+        beta = rod_param[r, ROD_RELATIVE_DAMPING]
+        if beta != 0.0:
+            # rates relative to the rigid motion: q1' - 2 (V + omega x (q1/2 - c)), q2' - omega x q2
+            rx, ry, rz = 0.5 * q[o] - cx, 0.5 * q[o + 1] - cy, 0.5 * q[o + 2] - cz
+            d1x = u1x - 2.0 * (vx + wy * rz - wz * ry)
+            d1y = u1y - 2.0 * (vy + wz * rx - wx * rz)
+            d1z = u1z - 2.0 * (vz + wx * ry - wy * rx)
+            d2x = ux - (wy * z - wz * y)
+            d2y = uy - (wz * x - wx * z)
+            d2z = uz - (wx * y - wy * x)
+            qddot[o] -= beta * d1x
+            qddot[o + 1] -= beta * d1y
+            qddot[o + 2] -= beta * d1z
+            qddot[o + 3] -= beta * d2x
+            qddot[o + 4] -= beta * d2y
+            qddot[o + 5] -= beta * d2z
+            rod_dissipation += (
+                beta
+                * rod_param[r, ROD_MASS]
+                * (
+                    (u1x * d1x + u1y * d1y + u1z * d1z) / 4.0
+                    + (ux * d2x + uy * d2y + uz * d2z) / 12.0
+                )
+            )
     return rod_dissipation, external_power
 
 
@@ -607,6 +710,7 @@ def _rhs_threaded(
             first,
             last,
         )
+    rigid = _rigid_motion(q, qdot, rod_param)
     rod_power = np.empty((n_blocks, 2))
     for k in prange(n_blocks):
         first, last = _block(k, n_blocks, n_rods)
@@ -629,6 +733,7 @@ def _rhs_threaded(
             has_gravity,
             gravity,
             force0,
+            rigid,
             qddot,
             first,
             last,
@@ -726,6 +831,7 @@ def rhs(
         has_gravity,
         gravity,
         force,
+        _rigid_motion(q, qdot, rod_param),
         qddot,
         0,
         n_rods,
@@ -1028,7 +1134,7 @@ class PackedStructure(NamedTuple):
     tendon arrays in kernel order, node arrays by slot (see :class:`StencilLayout`)."""
 
     rod_slots: np.ndarray  #: (R, 2) uint64
-    rod_param: np.ndarray  #: (R, 5) float64: m, L, alpha, 2/m, 6/(m L^2)
+    rod_param: np.ndarray  #: (R, 6) float64: m, L, alpha, 2/m, 6/(m L^2), beta
     tendon_slots: np.ndarray  #: (S, 2) uint64, kernel order
     tendon_runs: np.ndarray  #: (G, 4) int64
     tendon_stiffness: np.ndarray  #: (S,) float64, kernel order
@@ -1066,10 +1172,10 @@ def pack(structure: Structure, *, general: bool = False) -> PackedStructure:
             "planar one with tensegrity.physics.kernel_system.embed_planar)"
         )
     m, L = structure.rod_mass, structure.rod_length
-    rod_param = np.empty((structure.n_rods, 5))
+    rod_param = np.empty((structure.n_rods, 6))
     rod_param[:, ROD_MASS] = m
     rod_param[:, ROD_LENGTH] = L
-    rod_param[:, ROD_DAMPING] = structure.rod_damping
+    rod_param[:, ROD_DAMPING], rod_param[:, ROD_RELATIVE_DAMPING] = rod_damping_rates(structure)
     rod_param[:, ROD_C1] = 2.0 / m
     rod_param[:, ROD_C2] = 6.0 / (m * L**2)
     tendon_nodes = structure.tendon_nodes.reshape(-1, 2)

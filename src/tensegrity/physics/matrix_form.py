@@ -504,13 +504,6 @@ def shell_size(structure: Structure) -> tuple[int, int, bool]:
     return n, m, primal
 
 
-def undamped(structure: Structure) -> Structure:
-    """``structure`` without tendon or rod damping (the matrix model (18.59) is undamped)."""
-    return structure.replace(
-        tendon_damping=np.zeros(structure.n_tendons), rod_damping=np.zeros(structure.n_rods)
-    )
-
-
 @dataclasses.dataclass(frozen=True, eq=False)
 class StateMatrices:
     """The state-dependent matrices of (18.59) at one ``(q, q', u)`` (CSR, no explicit zeros).
@@ -583,14 +576,21 @@ class ShellMatrixModel:
     ------
     ValueError
         If ``structure`` is not a class 1 shell (see :func:`shell_size`) or has damping (the
-        paper's matrix model is undamped; see :func:`undamped`).
+        paper's matrix model is undamped; see :func:`tensegrity.physics.dynamics.undamped`).
     """
 
     def __init__(self, structure: Structure) -> None:
-        if np.any(structure.tendon_damping != 0) or np.any(structure.rod_damping != 0):
+        if any(
+            np.any(values != 0)
+            for values in (
+                structure.tendon_damping,
+                structure.rod_damping,
+                structure.rod_relative_damping,
+            )
+        ):
             raise ValueError(
                 "structure has tendon or rod damping, which the matrix model (18.59) does not "
-                "represent; use tensegrity.physics.matrix_form.undamped(structure)"
+                "represent; use tensegrity.physics.dynamics.undamped(structure)"
             )
         n, m, primal = shell_size(structure)
         self.structure = structure
