@@ -238,3 +238,10 @@ def test_the_field_is_validated_and_kept_by_every_file_form(tmp_path):
         write_network(path, damped)
         assert read_network(path).rod_relative_damping.tolist() == [1, 2, 3], suffix
     assert not np.any(undamped(damped).rod_relative_damping)
+
+
+@pytest.mark.parametrize("damp", [artificial_damping, internal_damping])
+def test_the_damping_functions_name_a_wrong_argument(damp):
+    """The issue's ``critical_damping('x')`` raised AttributeError."""
+    with pytest.raises(TypeError, match=r"^structure: expected a Structure, got str$"):
+        damp("x")

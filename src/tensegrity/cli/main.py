@@ -1041,7 +1041,7 @@ def _cmd_info(args: argparse.Namespace) -> int:
         ("rod length", _range(s.rod_length, "m")),
         ("tendon stiffness", _range(s.tendon_stiffness, "N/m")),
         ("tendon rest length", _range(s.tendon_rest_length, "m")),
-        ("tendon damping", _range(s.tendon_damping, "N s/m")),
+        ("damping", dynamics.describe_damping(s)),
         ("initial tendon length", _range(lengths, "m")),
         ("initially slack tendons", slack),
         (

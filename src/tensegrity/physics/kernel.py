@@ -552,9 +552,11 @@ def _rod_pass(
     the tendon forces ``force`` (3, n_slots; left zero, :func:`_take_force`), half the rod's
     weight at each end if ``has_gravity``, and ``w`` (``external_force``, same layout) if
     ``has_external``; the power of ``w`` uses ``p' = P q'``.  ``rigid`` is
-    :func:`_rigid_motion`'s ``(V, omega, c)``, the reference of the relative damping.  Returns
-    ``(rod_dissipation, external_power)``."""
-    (vx, vy, vz), (wx, wy, wz), (cx, cy, cz) = rigid
+    :func:`_rigid_motion`'s ``(V, omega, c)`` (or those rows of a (3, 3) array), the reference
+    of the relative damping.  Returns ``(rod_dissipation, external_power)``."""
+    vx, vy, vz = rigid[0][0], rigid[0][1], rigid[0][2]
+    wx, wy, wz = rigid[1][0], rigid[1][1], rigid[1][2]
+    cx, cy, cz = rigid[2][0], rigid[2][1], rigid[2][2]
     rod_slots = rod_slots[first:last]
     rod_param = rod_param[first:last]
     q = q[6 * first : 6 * last]
@@ -710,7 +712,11 @@ def _rhs_threaded(
             first,
             last,
         )
-    rigid = _rigid_motion(q, qdot, rod_param)
+    # the rigid motion as a (3, 3) array: a tuple cannot enter the prange body (numba's parfor)
+    rigid = np.empty((3, 3))
+    for i, row in enumerate(_rigid_motion(q, qdot, rod_param)):
+        for j in range(3):
+            rigid[i, j] = row[j]
     rod_power = np.empty((n_blocks, 2))
     for k in prange(n_blocks):
         first, last = _block(k, n_blocks, n_rods)
