@@ -250,7 +250,8 @@ BASE = {
         ),
         (
             {"rods": [{"nodes": ["a", "b"]}, {"nodes": ["c", "d"], "mas": 1}]},
-            r"^rods\[1\]: unknown key 'mas' \(expected one of nodes, mass, length, damping\)",
+            r"^rods\[1\]: unknown key 'mas' \(expected one of nodes, mass, length, damping, "
+            r"relative_damping\)",
         ),
         (
             {"tendons": [{"name": "s", "nodes": ["a", "c"]}]},

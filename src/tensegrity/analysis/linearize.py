@@ -248,8 +248,9 @@ def linearize(
 
     ``control`` (with a bare ``q``) is the rest-length change ``u`` of the equilibrium.  The
     structure's own damping enters ``C``; pass ``internal_damping(structure)`` (or
-    ``artificial_damping``) for a damped model.  External forces and gravity of an :class:`EquilibriumResult` are taken into account.
-    A planar structure is linearized as its 3-D form (``equilibrium`` in 2-D).
+    ``artificial_damping``) for a damped model.  External forces and gravity of an
+    :class:`EquilibriumResult` are taken into account.  A planar structure is linearized as its
+    3-D form (``equilibrium`` in 2-D).
     """
     eq = _spatial_equilibrium(structure, equilibrium, control)
     s = eq.structure

@@ -228,7 +228,8 @@ def network_from_dict(data: Any) -> Structure:
     ------
     ValueError
         Naming the key: ``tendons[3] ('s3').nodes: no node named 'x7'``,
-        ``rods[0]: unknown key 'mas' (expected one of nodes, mass, length, damping)``, ...
+        ``rods[0]: unknown key 'mas' (expected one of nodes, mass, length, damping,
+        relative_damping)``, ...
     """
     _refuse_material_form(data)
     _check_header(data)

@@ -779,7 +779,7 @@ _JSON_KEYS: dict[str, tuple[str, ...]] = {
 
 def check_keys(data: Mapping[Any, Any], allowed: Sequence[str], where: str) -> None:
     """``ValueError`` naming the first key of ``data`` not in ``allowed``: ``"<where>: unknown
-    key 'mas' (expected one of nodes, mass, length, damping)"``."""
+    key 'mas' (expected one of nodes, mass, length, damping, relative_damping)"``."""
     for key in data:
         if key not in allowed:
             raise ValueError(
