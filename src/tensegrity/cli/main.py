@@ -47,6 +47,7 @@ from tensegrity.engine.options import (
     DEFAULT_MAX_SAMPLES,
     DEFAULT_MAX_STEPS,
     FIXED_STEP_METHODS,
+    sample_count,
 )
 from tensegrity.io.files import byte_text, shown_path, write_staged as _write_all
 from tensegrity.model.structure import Structure
@@ -381,7 +382,7 @@ def _announce_large_run(structure: Structure, t_end: float, sample_dt: float, ou
     from tensegrity.io.stream import sample_bytes, samples_per_segment
 
     row = sample_bytes(structure)
-    samples = math.floor(t_end / sample_dt + 1e-9) + 1
+    samples = sample_count(0.0, t_end, sample_dt)
     if samples * row < LARGE_RUN_BYTES:
         return
     held = 2 * samples_per_segment(structure, _segment(structure, t_end, sample_dt), sample_dt)
@@ -412,7 +413,7 @@ def _segment(structure: Structure, t_end: float, sample_dt: float) -> float:
     from tensegrity.io.stream import samples_per_segment
 
     default = samples_per_segment(structure, None, sample_dt)
-    tenth = max(1, math.ceil(t_end / sample_dt / MIN_SEGMENTS - 1e-9))
+    tenth = max(1, math.ceil((sample_count(0.0, t_end, sample_dt) - 1) / MIN_SEGMENTS))
     return min(default, tenth) * sample_dt
 
 

@@ -88,7 +88,7 @@ import numpy as np
 
 from tensegrity.engine.inputs import Inputs
 from tensegrity.engine.loop import Checkpointing, LoopState, StopCondition, run
-from tensegrity.engine.options import Options
+from tensegrity.engine.options import Options, sample_count, sample_time
 from tensegrity.engine.result import RunSummary, Samples
 from tensegrity.engine.simulate import STATUS_END, options_and_inputs, simulate
 from tensegrity.io import trajectory as tio
@@ -377,20 +377,25 @@ def _differences(
 def segment_grid(
     t_span: tuple[float, float], sample_dt: float, samples_per_segment: int
 ) -> np.ndarray:
-    """Segment boundaries [s]: ``t0 + k K sample_dt`` for ``k = 0 .. n-1``, then ``t_end``.
+    """Segment boundaries [s]: the times of samples ``0, K, 2K, ..`` of the run, then ``t_end``.
 
-    A last segment shorter than ``1e-9 sample_dt`` is merged into the one before.
+    The run's samples are those of the engine (:func:`tensegrity.engine.options.sample_count`,
+    a last one within ``1e-9 sample_dt`` of ``t_end`` taken as ``t_end``), ``K`` to a segment.
 
     Returns
     -------
     ndarray, shape (n_segments + 1,)
     """
     t0, t1 = (float(x) for x in t_span)
-    length = samples_per_segment * sample_dt
-    n_segments = max(1, math.ceil((t1 - t0 - 1e-9 * sample_dt) / length))
-    bounds = t0 + np.arange(n_segments + 1) * length
-    bounds[-1] = t1
-    return bounds
+    n_segments = segments_of(sample_count(t0, t1, sample_dt), samples_per_segment)
+    index = np.arange(n_segments) * samples_per_segment
+    return np.array([*(sample_time(t0, t1, sample_dt, int(k)) for k in index), t1])
+
+
+def segments_of(n_samples: int, samples_per_segment: int) -> int:
+    """Segments of a run of ``n_samples`` samples, ``samples_per_segment`` to a segment (each
+    segment's first sample the last of the one before; a last one may be shorter)."""
+    return max(1, math.ceil((n_samples - 1) / samples_per_segment))
 
 
 def sample_bytes(structure: Structure) -> int:
@@ -829,7 +834,7 @@ class FileSink:
         n_samples = c.n_samples + sum(len(block.t) for block in blocks)
         segments = (n_samples - 1) // self.K
         if ended:
-            segments = max(c.next_segment + 1, math.ceil((n_samples - 1) / self.K))
+            segments = max(c.next_segment + 1, segments_of(n_samples, self.K))
         else:
             message = f"running: {segments} of {c.n_segments} segments"
         return Checkpoint(
@@ -1169,5 +1174,6 @@ __all__ = [
     "StreamSummary",
     "read_checkpoint",
     "segment_grid",
+    "segments_of",
     "simulate_to_file",
 ]
