@@ -106,9 +106,19 @@ def write_trajectory(path: PathLike, result: SimulationResult) -> Path:
     -------
     pathlib.Path
         ``path``.
+
+    Raises
+    ------
+    TypeError
+        ``result`` is not a :class:`SimulationResult`.
     """
     import h5py
 
+    if not isinstance(result, SimulationResult):
+        raise TypeError(
+            f"result: expected a SimulationResult (what simulate returns), got "
+            f"{type(result).__name__}"
+        )
     structure = result.structure
     energy_names = list(result.energy)
     arrays = {
@@ -173,7 +183,7 @@ def read_trajectory(path: PathLike, *, every: int = 1) -> SimulationResult:
     ValueError
         One line starting with the file name, if the file is missing, is not HDF5, is not a
         tensegrity trajectory (``format`` attribute), is of a newer version, misses a dataset or
-        an attribute, or holds arrays whose shapes do not fit its structure.
+        an attribute, holds no samples, or holds arrays whose shapes do not fit its structure.
     """
     _check_every(every)
     with _open(path) as f:
@@ -309,8 +319,11 @@ class _Attributes:
 def _check_shapes(
     shapes: dict[str, tuple[int, ...]], structure: Structure, n_energy: int, path: PathLike
 ) -> None:
-    """``ValueError`` naming the first dataset whose shape does not fit ``structure``."""
+    """``ValueError`` naming the first dataset whose shape does not fit ``structure``, or if
+    the file holds no sample (a run has at least its initial one)."""
     T = shapes["time"][0] if len(shapes["time"]) == 1 else -1
+    if T == 0:
+        raise file_error(path, "holds no samples (a trajectory has at least its first state)")
     N, S, n, d = structure.n_nodes, structure.n_tendons, structure.n_coordinates, structure.dim
     expected = {
         "time": (T,),
