@@ -417,3 +417,29 @@ def test_write_trajectory_of_something_else_is_a_type_error_naming_the_argument(
     with pytest.raises(TypeError, match=r"^result: expected a SimulationResult"):
         write_trajectory(path, value)
     assert not path.exists() and leftovers(tmp_path) == []
+
+
+def flip_bytes_in_first_row(path, name):
+    """Change 8 bytes of the first row of dataset ``name`` in the file (XOR 0x5A: Fletcher-32
+    cannot tell a 16-bit word 0x0000 from 0xFFFF, so not an XOR with 0xFF)."""
+    with h5py.File(path, "r") as f:
+        offset = f[name].id.get_chunk_info(0).byte_offset
+    with open(path, "r+b") as handle:
+        handle.seek(offset + 8)
+        data = bytearray(handle.read(8))
+        handle.seek(offset + 8)
+        handle.write(bytes(b ^ 0x5A for b in data))
+
+
+def test_a_corrupted_trajectory_is_an_error_not_wrong_numbers(tmp_path, result, capsys):
+    path = tmp_path / "run.h5"
+    write_trajectory(path, result)
+    with h5py.File(path, "r") as f:
+        assert all(f[name].fletcher32 for name in ("time", "nodes", "q", "energy"))
+    flip_bytes_in_first_row(path, "q")
+    with pytest.raises(ValueError) as exc_info:
+        read_trajectory(path)
+    assert_one_line_naming(exc_info, path, "dataset 'q': corrupted", "damaged")
+    assert main(["vtk", str(path), "-o", str(tmp_path / "vtk")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"{path}: dataset 'q': corrupted" in err, err

@@ -26,6 +26,7 @@ from tensegrity.io.stream import (
     simulate_to_file,
 )
 from tensegrity.io.trajectory import ENERGY_COLUMNS, read_trajectory
+from test_io import flip_bytes_in_first_row
 
 #: A damped (3,1) shell: tendons go slack and taut, energy is dissipated from the start.
 SHELL = class1_shell(3, 1, damping=0.5)
@@ -173,6 +174,16 @@ def test_times_with_a_shorter_last_segment_and_t0_not_zero(tmp_path):
     assert summary.n_segments == 3 and t.size == 26
     assert t[0] == 1.0 and t[-1] == 1.25
     assert np.allclose(np.diff(t), 0.01, rtol=1e-9, atol=0)
+
+
+def test_a_corrupted_streamed_file_is_an_error_not_wrong_numbers(tmp_path, reference):
+    """The streamed file's datasets carry Fletcher-32 checksums: bytes changed in a stored row
+    (uncompressed, so nothing else would notice) make the read fail, naming the file."""
+    path = tmp_path / "run.h5"
+    path.write_bytes(reference[0].read_bytes())
+    flip_bytes_in_first_row(path, "nodes")
+    with pytest.raises(ValueError, match=r"run.h5: dataset 'nodes': corrupted \(.*damaged\)$"):
+        read_trajectory(path)
 
 
 # ----------------------------------------------------------------------------- resuming

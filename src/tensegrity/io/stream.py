@@ -40,7 +40,9 @@ complete, and :func:`tensegrity.io.trajectory.read_trajectory` reads it: the dat
 and layout of :func:`tensegrity.io.trajectory.write_trajectory` (module docstring of
 :mod:`tensegrity.io.trajectory`), stored exactly (float64, uncompressed: trajectories of moving
 structures shrink by ~10% under gzip, which cost 60 times the write time, measured on a (10,10)
-segment) in chunks of about 1 MiB.  Extra root attributes: ``complete``, ``stream_settings`` (JSON)
+segment) in chunks of about 1 MiB, each with a Fletcher-32 checksum (a damaged file is an error
+when read, not wrong numbers; 4 bytes a chunk, and about half the time of an uncompressed write
+more: 44 -> 68 ms for 48 MB, h5py alone on a 2-core machine).  Extra root attributes: ``complete``, ``stream_settings`` (JSON)
 and ``stream_settings_hash``; an extra group ``checkpoint`` (see :class:`Checkpoint`).
 
 A segment is stored in this order: its rows are appended to every dataset; the new checkpoint is
@@ -471,6 +473,7 @@ def _create_partial(
                 dtype="f8",
                 maxshape=(None, *(d if d > 0 else None for d in shape)),
                 chunks=(_chunk_rows(shape, samples_per_segment), *(max(d, 1) for d in shape)),
+                fletcher32=True,
             )
         f["energy"].attrs["columns"] = np.array(tio.ENERGY_COLUMNS, dtype=h5py.string_dtype())
         group = f.create_group("checkpoint")

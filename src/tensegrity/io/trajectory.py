@@ -90,7 +90,8 @@ def write_trajectory(path: PathLike, result: SimulationResult) -> Path:
     """Write a simulation result to an HDF5 trajectory file, atomically.
 
     Arrays are stored exactly (float64, gzip level 4 with byte shuffle, ``h5py``'s automatic
-    chunking); see the module docstring for the layout.  The file uses the HDF5 1.8 format, which
+    chunking) with a Fletcher-32 checksum per chunk, so that a damaged file is an error when
+    read rather than wrong numbers; see the module docstring for the layout.  The file uses the HDF5 1.8 format, which
     allows attributes larger than 64 KiB (the structure of a large shell).
 
     Parameters
@@ -155,7 +156,13 @@ def write_trajectory(path: PathLike, result: SimulationResult) -> Path:
             compress = (
                 {}
                 if value.size == 0
-                else dict(compression="gzip", compression_opts=4, shuffle=True, chunks=True)
+                else dict(
+                    compression="gzip",
+                    compression_opts=4,
+                    shuffle=True,
+                    chunks=True,
+                    fletcher32=True,
+                )
             )
             f.create_dataset(name, data=value, **compress)
         f["energy"].attrs["columns"] = np.array(energy_names, dtype=h5py.string_dtype())
