@@ -49,7 +49,7 @@ from tensegrity.engine.options import (
     FIXED_STEP_METHODS,
     sample_count,
 )
-from tensegrity.io.files import byte_text, shown_path, write_staged as _write_all
+from tensegrity.io.files import DISK_FULL, byte_text, shown_path, write_staged as _write_all
 from tensegrity.model.structure import Structure
 from tensegrity.physics import dynamics
 
@@ -522,6 +522,16 @@ class _RunFiles:
                 self.partial.unlink(missing_ok=True)
         _remove_empty(self.created)
 
+    def kept(self) -> str:
+        """The end of a failed run's message: where the run so far is kept and how to continue
+        it (``--resume``), or that nothing was written."""
+        if self.partial.exists():
+            return (
+                f"; the run so far is in {shown_path(self.partial)}: continue it with the same "
+                "options and --resume"
+            )
+        return " (nothing written)"
+
     def interrupted(self, exc: KeyboardInterrupt) -> int:
         """Report an interrupted run (what it left, if anything); its exit code."""
         code = interrupt_code(exc)
@@ -611,13 +621,15 @@ def _stream_run(
         raise
     except OutOfTimeError as exc:  # the finished segments stay in the partial file, for --resume
         files.discard()
-        kept = (
-            f"; the run so far is in {shown_path(exc.partial)}: continue it with the same "
-            "options and --resume"
-            if exc.partial.exists()
-            else " (nothing written)"
-        )
-        raise CommandError(f"simulation {_in_cli_words(str(exc))}{kept}", EXIT_FAILED) from None
+        raise CommandError(
+            f"simulation {_in_cli_words(str(exc))}{files.kept()}", EXIT_FAILED
+        ) from None
+    except OSError as exc:
+        if exc.errno not in DISK_FULL:
+            files.discard()
+            raise
+        files.discard()  # (the partial file is at its last checkpoint: kept if it holds any)
+        raise CommandError(f"{describe(exc)}{files.kept()}", EXIT_FAILED) from None
     except ValueError as exc:
         files.discard()
         raise CommandError(_in_cli_words(exc)) from None

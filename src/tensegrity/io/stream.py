@@ -42,8 +42,9 @@ and layout of :func:`tensegrity.io.trajectory.write_trajectory` (module docstrin
 structures shrink by ~10% under gzip, which cost 60 times the write time, measured on a (10,10)
 segment) in chunks of about 1 MiB, each with a Fletcher-32 checksum (a damaged file is an error
 when read, not wrong numbers; 4 bytes a chunk, and about half the time of an uncompressed write
-more: 44 -> 68 ms for 48 MB, h5py alone on a 2-core machine).  Extra root attributes: ``complete``, ``stream_settings`` (JSON)
-and ``stream_settings_hash``; an extra group ``checkpoint`` (see :class:`Checkpoint`).
+more: 44 -> 68 ms for 48 MB, h5py alone on a 2-core machine).  Extra root attributes:
+``complete``, ``stream_settings`` (JSON) and ``stream_settings_hash``; an extra group
+``checkpoint`` (see :class:`Checkpoint`).
 
 A segment is stored in this order: its rows are appended to every dataset; the new checkpoint is
 written into whichever of the two slots ``checkpoint/a``, ``checkpoint/b`` is not current; one
@@ -111,6 +112,7 @@ from tensegrity.io.files import (
     fsync_directory,
     new_file_mode,
     regular_file,
+    reserve_space,
 )
 from tensegrity.model.structure import Structure
 from tensegrity.physics.dynamics import State
@@ -450,52 +452,72 @@ def _create_partial(
     """Create the partial file (atomically: it appears only once it holds its empty layout)."""
     import h5py
 
-    with atomic_path(partial) as tmp, h5py.File(tmp, "w", libver=("v108", "v108")) as f:
-        f.attrs["format"] = PARTIAL_FORMAT
-        f.attrs["version"] = tio.TRAJECTORY_VERSION
-        f.attrs["complete"] = False
-        f.attrs["structure"] = json.dumps(structure.to_dict(), allow_nan=False)
-        f.attrs["settings"] = _settings_json(settings)
-        f.attrs["stream_settings"] = _settings_json(settings)
-        f.attrs["stream_settings_hash"] = settings_hash
-        f.attrs["status"] = STATUS_END
-        f.attrs["message"] = "running"
-        for name in _COUNTERS:
-            f.attrs[name] = 0
-        f.attrs["max_rod_length_error"] = 0.0
-        f.attrs["max_constraint_error"] = 0.0
-        f.attrs["wall_time"] = 0.0
-        f.attrs["tendon_names"] = np.array(structure.tendon_name, dtype=h5py.string_dtype())
-        for name, shape in _row_shapes(structure).items():
-            f.create_dataset(
-                name,
-                shape=(0, *shape),
-                dtype="f8",
-                maxshape=(None, *(d if d > 0 else None for d in shape)),
-                chunks=(_chunk_rows(shape, samples_per_segment), *(max(d, 1) for d in shape)),
-                fletcher32=True,
+    text = json.dumps(structure.to_dict(), allow_nan=False)
+    with atomic_path(partial) as tmp:
+        reserve_space(tmp, METADATA_BYTES + 4 * len(text) + 64 * structure.n_coordinates)
+        with h5py.File(tmp, "w", libver=("v108", "v108")) as f:
+            _write_layout(
+                f, structure, text, settings, settings_hash, samples_per_segment, n_segments
             )
-        f["energy"].attrs["columns"] = np.array(tio.ENERGY_COLUMNS, dtype=h5py.string_dtype())
-        group = f.create_group("checkpoint")
-        group.attrs["version"] = STREAM_VERSION
-        for slot in _SLOTS:
-            group.create_group(slot)
-        n = structure.n_coordinates
-        _write_checkpoint(
-            group["a"],
-            Checkpoint(
-                next_segment=0,
-                n_segments=n_segments,
-                n_samples=0,
-                state=State(t=math.nan, q=np.zeros(n), qdot=np.zeros(n)),
-                loop=None,
-                counts=dict.fromkeys(_COUNTERS, 0),
-                max_rod_length_error=0.0,
-                wall_time=0.0,
-                settings_hash=settings_hash,
-            ),
+
+
+def _write_layout(
+    f,
+    structure: Structure,
+    structure_text: str,
+    settings: dict[str, Any],
+    settings_hash: str,
+    samples_per_segment: int,
+    n_segments: int,
+) -> None:
+    """The attributes, empty datasets and first checkpoint of a new partial file ``f``."""
+    import h5py
+
+    f.attrs["format"] = PARTIAL_FORMAT
+    f.attrs["version"] = tio.TRAJECTORY_VERSION
+    f.attrs["complete"] = False
+    f.attrs["structure"] = structure_text
+    f.attrs["settings"] = _settings_json(settings)
+    f.attrs["stream_settings"] = _settings_json(settings)
+    f.attrs["stream_settings_hash"] = settings_hash
+    f.attrs["status"] = STATUS_END
+    f.attrs["message"] = "running"
+    for name in _COUNTERS:
+        f.attrs[name] = 0
+    f.attrs["max_rod_length_error"] = 0.0
+    f.attrs["max_constraint_error"] = 0.0
+    f.attrs["wall_time"] = 0.0
+    f.attrs["tendon_names"] = np.array(structure.tendon_name, dtype=h5py.string_dtype())
+    for name, shape in _row_shapes(structure).items():
+        f.create_dataset(
+            name,
+            shape=(0, *shape),
+            dtype="f8",
+            maxshape=(None, *(d if d > 0 else None for d in shape)),
+            chunks=(_chunk_rows(shape, samples_per_segment), *(max(d, 1) for d in shape)),
+            fletcher32=True,
         )
-        group.attrs["current"] = np.int64(0)
+    f["energy"].attrs["columns"] = np.array(tio.ENERGY_COLUMNS, dtype=h5py.string_dtype())
+    group = f.create_group("checkpoint")
+    group.attrs["version"] = STREAM_VERSION
+    for slot in _SLOTS:
+        group.create_group(slot)
+    n = structure.n_coordinates
+    _write_checkpoint(
+        group["a"],
+        Checkpoint(
+            next_segment=0,
+            n_segments=n_segments,
+            n_samples=0,
+            state=State(t=math.nan, q=np.zeros(n), qdot=np.zeros(n)),
+            loop=None,
+            counts=dict.fromkeys(_COUNTERS, 0),
+            max_rod_length_error=0.0,
+            wall_time=0.0,
+            settings_hash=settings_hash,
+        ),
+    )
+    group.attrs["current"] = np.int64(0)
 
 
 #: The two checkpoint slots; the group attribute ``current`` (0 or 1) names the valid one.
@@ -671,6 +693,28 @@ def _append(f, arrays: Mapping[str, np.ndarray], start: int) -> int:
         if count:
             dataset[start : start + count] = value
     return start + count
+
+
+#: Bytes reserved for HDF5's own records (object headers, chunk indexes, attributes) in a write
+#: to a streamed file.
+METADATA_BYTES = 2**20
+
+
+def _write_bytes(
+    arrays: Mapping[str, np.ndarray], start: int, samples_per_segment: int, checkpoint: Checkpoint
+) -> int:
+    """At most the bytes HDF5 adds to a streamed file when it appends ``arrays`` at row
+    ``start`` and stores ``checkpoint``: each chunk the rows touch, twice (a rewritten chunk
+    with its checksum may move), the checkpoint's arrays twice, and :data:`METADATA_BYTES`."""
+    total = METADATA_BYTES + 16 * (checkpoint.state.q.size + checkpoint.state.qdot.size)
+    if checkpoint.loop is not None:
+        total += 2 * sum(np.asarray(a).nbytes for a in checkpoint.loop.to_arrays().values())
+    for value in arrays.values():
+        if len(value):
+            rows = _chunk_rows(value.shape[1:], samples_per_segment)
+            chunks = (start + len(value) - 1) // rows - start // rows + 1
+            total += 2 * chunks * rows * 8 * max(1, math.prod(value.shape[1:]))
+    return total
 
 
 def _truncate(f, n_samples: int, path: Path) -> None:
@@ -852,9 +896,14 @@ class FileSink:
         )
 
     def _store(self, checkpoint: Checkpoint, *, settings: dict[str, Any] | None = None) -> None:
-        """Append the samples held to the file and make ``checkpoint`` its current one."""
+        """Append the samples held to the file and make ``checkpoint`` its current one (the
+        disk space for it reserved first: a full disk leaves the file at its last checkpoint)."""
+        columns = _columns(self.blocks)
+        reserve_space(
+            self.partial, _write_bytes(columns, self.checkpoint.n_samples, self.K, checkpoint)
+        )
         with _open_h5(self.partial, "a") as f:
-            _append(f, _columns(self.blocks), self.checkpoint.n_samples)
+            _append(f, columns, self.checkpoint.n_samples)
             _store_checkpoint(f, checkpoint)
             f.attrs["message"] = checkpoint.message
             f.attrs["status"] = int(checkpoint.status)
@@ -1090,6 +1139,7 @@ def _resumable_checkpoint(
     ``ValueError`` naming the differing settings, or what in the file is not the layout the run
     appends to, otherwise."""
     regular_file(partial)
+    reserve_space(partial, METADATA_BYTES)
     with _open_h5(partial, "a") as f:
         if not _has_text(f, "format", PARTIAL_FORMAT):
             raise file_error(
@@ -1151,6 +1201,7 @@ def _rename_finished(
 ) -> StreamSummary:
     """Give the ended partial file the attributes of a complete trajectory, then its final name
     (an atomic rename)."""
+    reserve_space(partial, METADATA_BYTES)
     with _open_h5(partial, "a") as f:
         checkpoint = _read_checkpoint_open(f, partial)
         f.attrs["status"] = int(checkpoint.status)

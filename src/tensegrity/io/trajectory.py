@@ -91,8 +91,9 @@ def write_trajectory(path: PathLike, result: SimulationResult) -> Path:
 
     Arrays are stored exactly (float64, gzip level 4 with byte shuffle, ``h5py``'s automatic
     chunking) with a Fletcher-32 checksum per chunk, so that a damaged file is an error when
-    read rather than wrong numbers; see the module docstring for the layout.  The file uses the HDF5 1.8 format, which
-    allows attributes larger than 64 KiB (the structure of a large shell).
+    read rather than wrong numbers; see the module docstring for the layout.  The file uses
+    the HDF5 1.8 format, which allows attributes larger than 64 KiB (the structure of a large
+    shell).
 
     Parameters
     ----------
