@@ -525,9 +525,10 @@ class _RunFiles:
     def kept(self) -> str:
         """The end of a failed run's message: where the run so far is kept and how to continue
         it (``--resume``), or that nothing was written."""
-        if self.partial.exists():
+        kept = next((p for p in (self.partial, self.work) if p.exists()), None)
+        if kept is not None:
             return (
-                f"; the run so far is in {shown_path(self.partial)}: continue it with the same "
+                f"; the run so far is in {shown_path(kept)}: continue it with the same "
                 "options and --resume"
             )
         return " (nothing written)"
@@ -837,6 +838,7 @@ def _simulate_and_write(args: argparse.Namespace, drawing: Drawing) -> int:
     """``tensegrity simulate`` once its options are checked: the run, its files (the figures,
     page and video drawn by ``drawing``) and its summary."""
     structure, force, gravity, designed = _simulation_inputs(args)
+    _check_outputs(args, designed is not None)
     files = _RunFiles.prepare(args.out, args.resume)
     _announce_large_run(structure, args.t_end, args.sample_dt, files.out)
     keeper = None
@@ -847,9 +849,13 @@ def _simulate_and_write(args: argparse.Namespace, drawing: Drawing) -> int:
         keeper = FrameKeeper(structure, t0=0.0, sample_dt=args.sample_dt, max_frames=budget)
     try:
         summary = _stream_run(args, structure, force, gravity, files, keeper, designed)
-        trajectory, balance, written, peaks = _write_run(
-            args, structure, summary, files, keeper, designed, drawing
-        )
+        try:
+            trajectory, balance, written, peaks = _write_run(
+                args, structure, summary, files, keeper, designed, drawing
+            )
+        except (ValueError, OSError) as exc:  # the finished run stays, for --resume
+            code = EXIT_FAILED if isinstance(exc, OSError) and exc.errno in DISK_FULL else 2
+            raise CommandError(f"{describe(exc)}{files.kept()}", code) from None
     except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM/SIGHUP (signals_as_interrupts)
         drawing.cancel()
         return files.interrupted(exc)
@@ -862,6 +868,24 @@ def _simulate_and_write(args: argparse.Namespace, drawing: Drawing) -> int:
         peaks,
     )
     return 0
+
+
+def _check_outputs(args: argparse.Namespace, designed: bool) -> None:
+    """Fail before the run if a folder stands where one of ``simulate``'s files goes in
+    ``--out`` (or a file where its ``vtk`` folder goes): the rule :func:`write_staged` applies
+    at the end (:func:`tensegrity.io.files.check_targets`)."""
+    from tensegrity.io.files import check_targets
+
+    names = ["trajectory.h5", "structure.json", "initial.png", "equilibrium.png"]
+    names += ["tendon_lengths.png"]
+    names += [] if args.no_view else ["view.html"]
+    names += [] if args.no_animation else [f"motion.{args.animation or 'gif'}"]
+    names += [MATERIAL_STRUCTURE, "utilisation.png"] if designed else []
+    names += ["vtk/tensegrity.pvd"] if args.vtk else []
+    try:
+        check_targets(args.out, [args.out / name for name in names])
+    except ValueError as exc:
+        raise CommandError(f"--out: {exc}") from None
 
 
 def _link_or_move(source: Path, target: Path) -> None:

@@ -260,24 +260,28 @@ def write_staged(out: Path, write: Callable[[Path], list[Path]]) -> list[Path]:
             moves = [
                 (Path(path), out / Path(path).relative_to(staging)) for path in write(Path(staging))
             ]
-            _check_targets(out, moves)
+            check_targets(out, [target for _, target in moves])
             return _move_all(moves, Path(staging) / ".replaced", out, created)
     except BaseException:
         _remove_folders(created)
         raise
 
 
-def _check_targets(out: Path, moves: list[tuple[Path, Path]]) -> None:
-    """``ValueError`` naming the first target a file cannot be moved to: a folder stands there,
-    or a file where one of its folders goes."""
-    for _, target in moves:
+def check_targets(out: Path, targets: list[Path]) -> None:
+    """``ValueError`` naming the first of ``targets`` (files in ``out`` or its subfolders) a file
+    cannot be written to: a folder stands there, or a file where one of its folders goes.
+    :func:`write_staged` checks its files so before it moves any; a verb checks its outputs so
+    before its work, to fail at once."""
+    for target in targets:
         if target.is_dir() and not target.is_symlink():
-            raise file_error(target, "is a folder, where an output file goes; nothing was written")
+            raise file_error(
+                target, "is a folder, where an output file goes; none of the outputs was written"
+            )
         for folder in target.relative_to(out).parents:
             path = out / folder
             if path.exists() and not path.is_dir():
                 raise file_error(
-                    path, "is a file, where an output folder goes; nothing was written"
+                    path, "is a file, where an output folder goes; none of the outputs was written"
                 )
 
 
