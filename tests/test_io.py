@@ -3,6 +3,7 @@ files give one-line ValueErrors that start with the file name."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 
@@ -11,6 +12,7 @@ import numpy as np
 import pytest
 
 from tensegrity import artificial_damping, class1_shell, simulate
+from tensegrity.cli.main import main
 from tensegrity.engine.result import SimulationResult
 from tensegrity.io.files import atomic_path
 from tensegrity.io.formats import read_structure, write_structure
@@ -375,3 +377,69 @@ def test_trajectory_read_back_is_the_result_written(tmp_path):
         read_dataset(path, "tension")
     with pytest.raises(ValueError, match="no such file"):
         read_dataset(tmp_path / "missing.h5", "time")
+
+
+def _without_samples(result):
+    """``result`` cut to no samples (what a trajectory never holds: a run has its first state)."""
+    rows = dict(
+        t=result.t[:0],
+        node_position=result.node_position[:0],
+        node_velocity=result.node_velocity[:0],
+        tendon_length=result.tendon_length[:0],
+        tendon_tension=result.tendon_tension[:0],
+        q=result.q[:0],
+        qdot=result.qdot[:0],
+        residual_acceleration=result.residual_acceleration[:0],
+    )
+    return dataclasses.replace(
+        result, energy={name: e[:0] for name, e in result.energy.items()}, **rows
+    )
+
+
+def test_a_trajectory_without_samples_is_refused_by_the_reader_and_the_cli(
+    tmp_path, result, capsys
+):
+    path = tmp_path / "empty.h5"
+    write_trajectory(path, _without_samples(result))
+    with pytest.raises(ValueError) as exc_info:
+        read_trajectory(path)
+    assert_one_line_naming(exc_info, path, "holds no samples")
+    out = tmp_path / "vtk"
+    assert main(["vtk", str(path), "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"{path}: holds no samples" in err, err
+    assert "internal error" not in err and not out.exists()
+
+
+@pytest.mark.parametrize("value", ["some string", None, {"t": [0.0]}])
+def test_write_trajectory_of_something_else_is_a_type_error_naming_the_argument(tmp_path, value):
+    path = tmp_path / "run.h5"
+    with pytest.raises(TypeError, match=r"^result: expected a SimulationResult"):
+        write_trajectory(path, value)
+    assert not path.exists() and leftovers(tmp_path) == []
+
+
+def flip_bytes_in_first_row(path, name):
+    """Change 8 bytes of the first row of dataset ``name`` in the file (XOR 0x5A: Fletcher-32
+    cannot tell a 16-bit word 0x0000 from 0xFFFF, so not an XOR with 0xFF)."""
+    with h5py.File(path, "r") as f:
+        offset = f[name].id.get_chunk_info(0).byte_offset
+    with open(path, "r+b") as handle:
+        handle.seek(offset + 8)
+        data = bytearray(handle.read(8))
+        handle.seek(offset + 8)
+        handle.write(bytes(b ^ 0x5A for b in data))
+
+
+def test_a_corrupted_trajectory_is_an_error_not_wrong_numbers(tmp_path, result, capsys):
+    path = tmp_path / "run.h5"
+    write_trajectory(path, result)
+    with h5py.File(path, "r") as f:
+        assert all(f[name].fletcher32 for name in ("time", "nodes", "q", "energy"))
+    flip_bytes_in_first_row(path, "q")
+    with pytest.raises(ValueError) as exc_info:
+        read_trajectory(path)
+    assert_one_line_naming(exc_info, path, "dataset 'q': corrupted", "damaged")
+    assert main(["vtk", str(path), "-o", str(tmp_path / "vtk")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"{path}: dataset 'q': corrupted" in err, err

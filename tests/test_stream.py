@@ -5,13 +5,17 @@ with other settings is refused."""
 
 from __future__ import annotations
 
+import tempfile
 import tracemalloc
+from pathlib import Path
 
 import h5py
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, example, given, settings, strategies as st
 
 from tensegrity import artificial_damping, class1_shell, simulate
+from tensegrity.engine.options import sample_count
 from tensegrity.engine.system import CompiledSystem
 from tensegrity.io import stream as stream_module
 from tensegrity.io.stream import (
@@ -22,6 +26,7 @@ from tensegrity.io.stream import (
     simulate_to_file,
 )
 from tensegrity.io.trajectory import ENERGY_COLUMNS, read_trajectory
+from test_io import flip_bytes_in_first_row
 
 #: A damped (3,1) shell: tendons go slack and taut, energy is dissipated from the start.
 SHELL = class1_shell(3, 1, damping=0.5)
@@ -73,6 +78,46 @@ def test_segment_grid_is_aligned_with_samples():
     assert np.allclose(segment_grid((1.0, 1.55), 0.01, 20), [1.0, 1.2, 1.4, 1.55])
     assert np.allclose(segment_grid((0.0, 0.4 + 1e-13), 0.01, 10), [0, 0.1, 0.2, 0.3, 0.4 + 1e-13])
     assert segment_grid((0.0, 0.05), 0.01, 10).tolist() == [0.0, 0.05]
+
+
+@settings(max_examples=20, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@example(t0=0.0, span=0.2, intervals=6, digits=12, per_segment=6)  # 30 Hz rounded, as issue 27
+@example(t0=0.0, span=0.4 + 1e-13, intervals=40, digits=3, per_segment=10)
+@given(
+    t0=st.sampled_from([0.0, 1.0, -0.3]),
+    span=st.floats(0.02, 0.2),
+    intervals=st.integers(1, 25),
+    digits=st.integers(2, 14),
+    per_segment=st.integers(1, 7),
+)
+def test_a_sampling_interval_that_does_not_divide_the_span(
+    tmp_path, t0, span, intervals, digits, per_segment
+):
+    """Any sampling interval (the span's divisors rounded to a few digits, as a user types
+    them): the streamed run ends with the samples of one ``simulate`` call, as many segments as
+    the grid says, and a run interrupted after its first segment resumes to the same file."""
+    sample_dt = float(f"{span / intervals:.{digits}g}")
+    t_span = (t0, t0 + span)
+    options = dict(FAST, sample_dt=sample_dt, segment=per_segment * sample_dt)
+    folder = Path(tempfile.mkdtemp(dir=tmp_path))  # (one per example)
+    path, resumed = folder / "run.h5", folder / "resumed.h5"
+    summary = simulate_to_file(SHELL, t_span, path, **options)
+    whole = simulate(SHELL, t_span, sample_dt=sample_dt, rtol=1e-6, atol=1e-9)
+    t = read_trajectory(path).t
+    assert np.array_equal(t, whole.t) and t[-1] == t_span[1]
+    assert summary.n_samples == t.size == sample_count(*t_span, sample_dt)
+    assert (
+        summary.segments_stored
+        == summary.n_segments
+        == len(segment_grid(t_span, sample_dt, summary.samples_per_segment)) - 1
+    )
+    if summary.n_segments > 1:
+        with pytest.raises(KeyboardInterrupt):
+            simulate_to_file(SHELL, t_span, resumed, progress=stop_after(1)[0], **options)
+        assert simulate_to_file(SHELL, t_span, resumed, **options).resumed_from == 1
+        got, want = datasets(resumed), datasets(path)
+        for name in DATASETS:
+            assert np.array_equal(got[name], want[name]), name
 
 
 # ----------------------------------------------------------------------------- a whole run
@@ -129,6 +174,16 @@ def test_times_with_a_shorter_last_segment_and_t0_not_zero(tmp_path):
     assert summary.n_segments == 3 and t.size == 26
     assert t[0] == 1.0 and t[-1] == 1.25
     assert np.allclose(np.diff(t), 0.01, rtol=1e-9, atol=0)
+
+
+def test_a_corrupted_streamed_file_is_an_error_not_wrong_numbers(tmp_path, reference):
+    """The streamed file's datasets carry Fletcher-32 checksums: bytes changed in a stored row
+    (uncompressed, so nothing else would notice) make the read fail, naming the file."""
+    path = tmp_path / "run.h5"
+    path.write_bytes(reference[0].read_bytes())
+    flip_bytes_in_first_row(path, "nodes")
+    with pytest.raises(ValueError, match=r"run.h5: dataset 'nodes': corrupted \(.*damaged\)$"):
+        read_trajectory(path)
 
 
 # ----------------------------------------------------------------------------- resuming

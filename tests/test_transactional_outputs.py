@@ -289,3 +289,59 @@ def test_a_verb_killed_at_any_moment_leaves_each_file_old_or_complete(tmp_path, 
     left = [p for p in out.rglob("*") if p.name.startswith(".staging") or ".tmp" in p.name]
     assert left == []
     assert _contents(out).keys() >= old.keys()
+
+
+SIMULATE = ["simulate", "--t-end", "0.5", "--no-steady-state", "--no-view", "--no-animation"]
+
+
+@pytest.mark.parametrize(
+    "obstacle, extra",
+    [("trajectory.h5", []), ("equilibrium.png", []), ("vtk/tensegrity.pvd", ["--vtk"])],
+)
+def test_simulate_refuses_an_output_obstacle_before_the_run(
+    tmp_path, capsys, monkeypatch, obstacle, extra
+):
+    """A folder where one of ``simulate``'s files goes is refused at once: no run, no partial
+    file (before, the run went to its end and then said 'nothing was written')."""
+    import tensegrity.io.stream
+
+    def no_run(*args, **kwargs):
+        raise AssertionError("the run started")
+
+    monkeypatch.setattr(tensegrity.io.stream, "simulate_to_file", no_run)
+    out = tmp_path / "out"
+    (out / obstacle).mkdir(parents=True)
+    assert main([*SIMULATE, *extra, "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"--out: {out / obstacle}: is a folder" in err, err
+    assert sorted(p.relative_to(out).as_posix() for p in out.rglob("*")) == sorted(
+        {obstacle, *[str(p.as_posix()) for p in Path(obstacle).parents if str(p) != "."]}
+    )
+
+
+def test_an_obstacle_found_after_the_run_names_the_kept_run_and_resume(
+    tmp_path, capsys, monkeypatch
+):
+    """An obstacle that appears while the run goes on: the finished run is kept, and the line
+    says where and names --resume, which then writes the files without running again."""
+    import tensegrity.io.stream
+
+    out = tmp_path / "out"
+    run = tensegrity.io.stream.simulate_to_file
+
+    def run_then_block(*args, **kwargs):
+        summary = run(*args, **kwargs)
+        (out / "structure.json").mkdir()  # after the check, before the files are written
+        return summary
+
+    monkeypatch.setattr(tensegrity.io.stream, "simulate_to_file", run_then_block)
+    assert main([*SIMULATE, "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    kept = out / ".trajectory.h5"
+    assert err.count("\n") == 1 and f"{out / 'structure.json'}: is a folder" in err, err
+    assert f"the run so far is in {kept}" in err and "--resume" in err, err
+    assert "nothing was written" not in err and kept.exists()
+    monkeypatch.setattr(tensegrity.io.stream, "simulate_to_file", run)
+    (out / "structure.json").rmdir()
+    assert main([*SIMULATE, "--out", str(out), "--resume"]) == 0
+    assert (out / "trajectory.h5").exists() and not kept.exists()

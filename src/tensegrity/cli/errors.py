@@ -6,8 +6,9 @@ code  when
 ====  ========================================================================================
 0     success
 1     the computation failed: an unstable run, no equilibrium, failed sweep cases, out of
-      memory, an arithmetic or linear-algebra failure; or an internal error (a bug, or an input
-      no check caught: the line says so and asks for a rerun with ``--debug``)
+      memory or disk space, an arithmetic or linear-algebra failure; or an internal error (a
+      bug, or an input no check caught: the line says so and asks for a rerun with
+      ``--debug``)
 2     bad input: an option, a file or a folder (:class:`CommandError`, ``ValueError``,
       ``KeyError``, ``OSError``, and any error raised while reading an input file or building
       the structure the options describe, :func:`blame`)
@@ -35,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from tensegrity.io.files import shown_path
+from tensegrity.io.files import DISK_FULL, shown_path
 
 EXIT_FAILED, EXIT_USAGE = 1, 2
 #: Exit code of a command interrupted by Ctrl-C (128 + SIGINT, as a shell reports it).
@@ -170,6 +171,8 @@ def exit_status(exc: BaseException) -> tuple[int, str]:
     if isinstance(exc, RuntimeError) and not isinstance(exc, RecursionError):
         code = EXIT_USAGE if isinstance(exc, NotImplementedError) else EXIT_FAILED
         return code, f"error: {describe(exc)}"
+    if isinstance(exc, OSError) and exc.errno in DISK_FULL:  # a failed run, not bad input
+        return EXIT_FAILED, f"error: {describe(exc)}"
     if isinstance(exc, (ValueError, KeyError, OSError)):
         return EXIT_USAGE, f"error: {describe(exc)}"
     return (

@@ -47,8 +47,9 @@ from tensegrity.engine.options import (
     DEFAULT_MAX_SAMPLES,
     DEFAULT_MAX_STEPS,
     FIXED_STEP_METHODS,
+    sample_count,
 )
-from tensegrity.io.files import byte_text, shown_path, write_staged as _write_all
+from tensegrity.io.files import DISK_FULL, byte_text, shown_path, write_staged as _write_all
 from tensegrity.model.structure import Structure
 from tensegrity.physics import dynamics
 
@@ -383,7 +384,7 @@ def _announce_large_run(structure: Structure, t_end: float, sample_dt: float, ou
     from tensegrity.io.stream import sample_bytes, samples_per_segment
 
     row = sample_bytes(structure)
-    samples = math.floor(t_end / sample_dt + 1e-9) + 1
+    samples = sample_count(0.0, t_end, sample_dt)
     if samples * row < LARGE_RUN_BYTES:
         return
     held = 2 * samples_per_segment(structure, _segment(structure, t_end, sample_dt), sample_dt)
@@ -414,7 +415,7 @@ def _segment(structure: Structure, t_end: float, sample_dt: float) -> float:
     from tensegrity.io.stream import samples_per_segment
 
     default = samples_per_segment(structure, None, sample_dt)
-    tenth = max(1, math.ceil(t_end / sample_dt / MIN_SEGMENTS - 1e-9))
+    tenth = max(1, math.ceil((sample_count(0.0, t_end, sample_dt) - 1) / MIN_SEGMENTS))
     return min(default, tenth) * sample_dt
 
 
@@ -523,6 +524,17 @@ class _RunFiles:
                 self.partial.unlink(missing_ok=True)
         _remove_empty(self.created)
 
+    def kept(self) -> str:
+        """The end of a failed run's message: where the run so far is kept and how to continue
+        it (``--resume``), or that nothing was written."""
+        kept = next((p for p in (self.partial, self.work) if p.exists()), None)
+        if kept is not None:
+            return (
+                f"; the run so far is in {shown_path(kept)}: continue it with the same "
+                "options and --resume"
+            )
+        return " (nothing written)"
+
     def interrupted(self, exc: KeyboardInterrupt) -> int:
         """Report an interrupted run (what it left, if anything); its exit code."""
         code = interrupt_code(exc)
@@ -612,13 +624,15 @@ def _stream_run(
         raise
     except OutOfTimeError as exc:  # the finished segments stay in the partial file, for --resume
         files.discard()
-        kept = (
-            f"; the run so far is in {shown_path(exc.partial)}: continue it with the same "
-            "options and --resume"
-            if exc.partial.exists()
-            else " (nothing written)"
-        )
-        raise CommandError(f"simulation {_in_cli_words(str(exc))}{kept}", EXIT_FAILED) from None
+        raise CommandError(
+            f"simulation {_in_cli_words(str(exc))}{files.kept()}", EXIT_FAILED
+        ) from None
+    except OSError as exc:
+        if exc.errno not in DISK_FULL:
+            files.discard()
+            raise
+        files.discard()  # (the partial file is at its last checkpoint: kept if it holds any)
+        raise CommandError(f"{describe(exc)}{files.kept()}", EXIT_FAILED) from None
     except ValueError as exc:
         files.discard()
         raise CommandError(_in_cli_words(exc)) from None
@@ -826,6 +840,7 @@ def _simulate_and_write(args: argparse.Namespace, drawing: Drawing) -> int:
     """``tensegrity simulate`` once its options are checked: the run, its files (the figures,
     page and video drawn by ``drawing``) and its summary."""
     structure, force, gravity, designed = _simulation_inputs(args)
+    _check_outputs(args, designed is not None)
     files = _RunFiles.prepare(args.out, args.resume)
     _announce_large_run(structure, args.t_end, args.sample_dt, files.out)
     keeper = None
@@ -836,9 +851,13 @@ def _simulate_and_write(args: argparse.Namespace, drawing: Drawing) -> int:
         keeper = FrameKeeper(structure, t0=0.0, sample_dt=args.sample_dt, max_frames=budget)
     try:
         summary = _stream_run(args, structure, force, gravity, files, keeper, designed)
-        trajectory, balance, written, peaks = _write_run(
-            args, structure, summary, files, keeper, designed, drawing
-        )
+        try:
+            trajectory, balance, written, peaks = _write_run(
+                args, structure, summary, files, keeper, designed, drawing
+            )
+        except (ValueError, OSError) as exc:  # the finished run stays, for --resume
+            code = EXIT_FAILED if isinstance(exc, OSError) and exc.errno in DISK_FULL else 2
+            raise CommandError(f"{describe(exc)}{files.kept()}", code) from None
     except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM/SIGHUP (signals_as_interrupts)
         drawing.cancel()
         return files.interrupted(exc)
@@ -851,6 +870,24 @@ def _simulate_and_write(args: argparse.Namespace, drawing: Drawing) -> int:
         peaks,
     )
     return 0
+
+
+def _check_outputs(args: argparse.Namespace, designed: bool) -> None:
+    """Fail before the run if a folder stands where one of ``simulate``'s files goes in
+    ``--out`` (or a file where its ``vtk`` folder goes): the rule :func:`write_staged` applies
+    at the end (:func:`tensegrity.io.files.check_targets`)."""
+    from tensegrity.io.files import check_targets
+
+    names = ["trajectory.h5", "structure.json", "initial.png", "equilibrium.png"]
+    names += ["tendon_lengths.png"]
+    names += [] if args.no_view else ["view.html"]
+    names += [] if args.no_animation else [f"motion.{args.animation or 'gif'}"]
+    names += [MATERIAL_STRUCTURE, "utilisation.png"] if designed else []
+    names += ["vtk/tensegrity.pvd"] if args.vtk else []
+    try:
+        check_targets(args.out, [args.out / name for name in names])
+    except ValueError as exc:
+        raise CommandError(f"--out: {exc}") from None
 
 
 def _link_or_move(source: Path, target: Path) -> None:

@@ -365,7 +365,7 @@ def _dop853_loop(clock, tally, buffers, flags, switch_times, system, rows, point
                 return RUN_CHECK_FAILED, check, value
             clock[DRIFT] = value
             tally[PENDING] = 1
-            if next_sample_t > clock[T] * (1.0 + 1e-14):
+            if next_sample_t > clock[T] + 1e-14 * abs(clock[T]):  # (options.reaches)
                 continue
 
         # ---- the step's dense output: for its samples, or to locate the switch

@@ -34,7 +34,7 @@ import numpy as np
 from tensegrity.engine import compiled, dop853
 from tensegrity.engine.dop853 import DOP853, SWITCH_RTOL
 from tensegrity.engine.inputs import Inputs
-from tensegrity.engine.options import Options
+from tensegrity.engine.options import Options, reaches, sample_count, sample_time, short_of
 from tensegrity.engine.result import (
     STATUS_END,
     STATUS_FAILED,
@@ -312,13 +312,13 @@ class _Run:
             self.block, self.rows = Samples.empty(self.block_rows, self.structure), 0
 
     def sample_time(self, index: int) -> float:
-        """Time of sample ``index`` [s] (the one formula for every sample and boundary)."""
-        return self.t0 + index * self.sample_dt
+        """Time of sample ``index`` [s] (:func:`tensegrity.engine.options.sample_time`)."""
+        return sample_time(self.t0, self.t_end, self.sample_dt, index)
 
     def sample_times(self, t_new: float) -> list[float]:
         """The sample times not yet recorded up to ``t_new``."""
         times = []
-        while (t := self.sample_time(self.next_sample)) <= t_new * (1 + 1e-14):
+        while reaches(t_new, t := self.sample_time(self.next_sample)):
             times.append(min(t, t_new))
             self.next_sample += 1
         return times
@@ -501,7 +501,7 @@ def _block_rows(
     more than the run can make."""
     if checkpoint is not None:
         return checkpoint.every + 1
-    most = math.floor((t_end - t0) / options.sample_spacing(t0, t_end) * (1 + 1e-12)) + 2
+    most = sample_count(t0, t_end, options.sample_spacing(t0, t_end))
     return max(1, min(most, BLOCK_BYTES // Samples.row_bytes(structure)))
 
 
@@ -903,9 +903,7 @@ def run(
             _adaptive(r, stepper, resume)
     except (IntegrationError, ValueError, FloatingPointError) as exc:
         r.status, r.message = STATUS_FAILED, str(exc)
-    if r.status not in (STATUS_STEADY, STATUS_STOPPED) and r.last_sample_t < stepper.t * (
-        1 - 1e-14
-    ):
+    if r.status not in (STATUS_STEADY, STATUS_STOPPED) and short_of(r.last_sample_t, stepper.t):
         r.record(stepper.t, stepper.y)  # the end, or the last state before a failure
     r.flush()
     return RunSummary(

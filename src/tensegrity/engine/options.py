@@ -24,6 +24,51 @@ DEFAULT_MAX_STEPS = 10_000_000
 DEFAULT_MAX_SAMPLES = 10_000_000
 
 
+#: A sample time within this fraction of ``sample_dt`` of the end time is the end time: the
+#: round-off of a ``sample_dt`` given in decimals (2 s at 0.0333333333333 s falls 2e-12 s
+#: short of 2 s) makes no second sample, nor a segment of a streamed run, a sliver before the end.
+END_SNAP = 1e-9
+#: A step's end reaches a sample time within this relative round-off of it (the sample is
+#: then recorded at the step's end), and the run's last sample falls short of its end time
+#: only by more (:func:`reaches`, :func:`short_of`).
+REACH_RTOL = 1e-14
+
+
+def reaches(t_now: float, t: float) -> bool:
+    """Whether time ``t_now`` [s] has reached time ``t`` [s], to :data:`REACH_RTOL`."""
+    return t <= t_now + REACH_RTOL * abs(t_now)
+
+
+def short_of(t: float, t_now: float) -> bool:
+    """Whether time ``t`` [s] falls short of ``t_now`` [s] by more than :data:`REACH_RTOL`."""
+    return t < t_now - REACH_RTOL * abs(t_now)
+
+
+def sample_time(t0: float, t_end: float, sample_dt: float, index: int) -> float:
+    """Time [s] of sample ``index`` of a run over ``(t0, t_end)`` sampled every ``sample_dt``
+    [s]: ``t0 + index sample_dt``, or ``t_end`` within ``END_SNAP sample_dt`` of it.  The one
+    formula for every sample and checkpoint boundary of a run."""
+    t = t0 + index * sample_dt
+    return t_end if abs(t - t_end) <= END_SNAP * sample_dt else t
+
+
+def sample_count(t0: float, t_end: float, sample_dt: float) -> int:
+    """Samples a run over ``(t0, t_end)`` [s] makes when it runs to ``t_end``: those of
+    :func:`sample_time` up to ``t_end``, and ``t_end`` itself if the last of them falls short of
+    it (by more than :data:`REACH_RTOL`).  A streamed run's segments are counted from it."""
+    guess = math.floor((t_end - t0) / sample_dt)  # (off by round-off: one either way)
+    k = max(
+        (
+            j
+            for j in range(max(0, guess - 2), guess + 3)
+            if reaches(t_end, sample_time(t0, t_end, sample_dt, j))
+        ),
+        default=0,
+    )
+    last = min(sample_time(t0, t_end, sample_dt, k), t_end)
+    return k + 1 + (1 if short_of(last, t_end) else 0)
+
+
 def _count(n: int) -> str:
     """A count for a message: ``1,000``, or ``6e+10`` when too long to read."""
     return f"{n:,}" if n < 10**12 else f"{n:.3g}"

@@ -226,7 +226,8 @@ def read_datasets(
     Raises
     ------
     ValueError
-        Over the limit, or a dataset HDF5 cannot read (e.g. an unknown compression filter).
+        Over the limit, or a dataset HDF5 cannot read (e.g. an unknown compression filter), or
+        whose data fail their Fletcher-32 checksum (corrupted).
     """
     check_read_bytes(datasets.values(), path, every=every)
     return {name: _rows(dataset, every, path) for name, dataset in datasets.items()}
@@ -259,6 +260,12 @@ def _rows(dataset: Any, every: int, path: PathLike) -> np.ndarray:
             rows = np.concatenate([rows, dataset[-1:]])
         return np.asarray(rows, dtype=dtype)
     except OSError as exc:
+        if dataset.fletcher32 and "filter returned failure" in str(exc):
+            raise file_error(
+                path,
+                f"{_dataset_name(dataset)}: corrupted (its data do not match their checksum: "
+                "the file is damaged)",
+            ) from exc
         raise file_error(path, f"{_dataset_name(dataset)}: cannot read ({exc})") from exc
 
 

@@ -20,6 +20,7 @@ variable                           default  what it bounds
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import shutil
 import stat
@@ -73,10 +74,13 @@ def atomic_path(path: PathLike, *, fsync: bool = True) -> Iterator[Path]:
     """
     final = Path(path)
     remove_stale(final.parent, final.name)
-    with tempfile.NamedTemporaryFile(
-        dir=final.parent, prefix=f"{final.name}.{os.getpid()}.", suffix=".tmp", delete=False
-    ) as handle:
-        tmp = Path(handle.name)
+    try:
+        with tempfile.NamedTemporaryFile(
+            dir=final.parent, prefix=f"{final.name}.{os.getpid()}.", suffix=".tmp", delete=False
+        ) as handle:
+            tmp = Path(handle.name)
+    except OSError as exc:
+        raise naming(exc, final) from exc
     try:
         yield tmp
         os.chmod(tmp, new_file_mode(final))
@@ -87,12 +91,20 @@ def atomic_path(path: PathLike, *, fsync: bool = True) -> Iterator[Path]:
             finally:
                 os.close(fd)
         os.replace(tmp, final)
-    except BaseException:
+    except BaseException as exc:
         with contextlib.suppress(OSError):
             tmp.unlink()
+        if isinstance(exc, OSError) and exc.filename in (None, str(tmp), tmp):
+            raise naming(exc, final) from exc
         raise
     if fsync:
         fsync_directory(final.parent)
+
+
+def naming(exc: OSError, path: PathLike) -> OSError:
+    """``exc`` about ``path``: the same error (type and ``errno``) naming the file the user
+    asked for rather than a temporary one, or none (a full disk)."""
+    return type(exc)(exc.errno, exc.strerror or str(exc), os.fspath(path))
 
 
 def new_file_mode(final: Path) -> int:
@@ -129,6 +141,51 @@ def fsync_directory(directory: Path) -> None:
         pass
     finally:
         os.close(fd)
+
+
+#: ``errno`` values of a full disk (no space, or the user's quota used up).
+DISK_FULL = frozenset({errno.ENOSPC, errno.EDQUOT})
+
+
+def reserve_space(path: PathLike, size: int) -> None:
+    """Allocate on disk ``size`` [bytes] past the end of the file ``path`` (and any holes in it),
+    so that writes there cannot meet a full disk.
+
+    For writers that cannot fail in the middle (HDF5 cannot close a file after a failed write:
+    the process then crashes): a full disk shows here, before they start.  The file's size
+    grows by ``size``; HDF5 cuts it back to its data when it closes the file.  A file system
+    that cannot allocate ahead (some network ones) is left as it is.
+
+    Raises
+    ------
+    OSError
+        ``ENOSPC`` or ``EDQUOT``, naming ``path``, the disk and its free space.
+    """
+    fd = os.open(path, os.O_RDWR)
+    try:
+        os.posix_fallocate(fd, 0, os.fstat(fd).st_size + size)
+    except OSError as exc:
+        if exc.errno in DISK_FULL:
+            raise disk_full(exc, path, needed=size) from None
+        if exc.errno not in (errno.EINVAL, errno.EOPNOTSUPP, errno.ENOSYS):
+            raise
+    finally:
+        os.close(fd)
+
+
+def disk_full(exc: OSError, path: PathLike, *, needed: int | None = None) -> OSError:
+    """The ``OSError`` of a full disk (``exc``) while writing ``path``: the file, the disk (its
+    mount point) and its free space."""
+    folder = Path(os.path.abspath(path)).parent
+    disk = next((p for p in (folder, *folder.parents) if os.path.ismount(p)), folder)
+    figures = [] if needed is None else [f"about {byte_text(needed)} needed"]
+    with contextlib.suppress(OSError):
+        figures.insert(0, f"{byte_text(shutil.disk_usage(disk).free)} free")
+    what = "no space left" if exc.errno == errno.ENOSPC else "disk quota exceeded"
+    where = f"{what} on the disk {shown_path(disk)}"
+    if figures:
+        where += f" ({', '.join(figures)})"
+    return OSError(exc.errno, where, os.fspath(path))
 
 
 def file_error(path: PathLike, problem: str) -> ValueError:
@@ -203,24 +260,28 @@ def write_staged(out: Path, write: Callable[[Path], list[Path]]) -> list[Path]:
             moves = [
                 (Path(path), out / Path(path).relative_to(staging)) for path in write(Path(staging))
             ]
-            _check_targets(out, moves)
+            check_targets(out, [target for _, target in moves])
             return _move_all(moves, Path(staging) / ".replaced", out, created)
     except BaseException:
         _remove_folders(created)
         raise
 
 
-def _check_targets(out: Path, moves: list[tuple[Path, Path]]) -> None:
-    """``ValueError`` naming the first target a file cannot be moved to: a folder stands there,
-    or a file where one of its folders goes."""
-    for _, target in moves:
+def check_targets(out: Path, targets: list[Path]) -> None:
+    """``ValueError`` naming the first of ``targets`` (files in ``out`` or its subfolders) a file
+    cannot be written to: a folder stands there, or a file where one of its folders goes.
+    :func:`write_staged` checks its files so before it moves any; a verb checks its outputs so
+    before its work, to fail at once."""
+    for target in targets:
         if target.is_dir() and not target.is_symlink():
-            raise file_error(target, "is a folder, where an output file goes; nothing was written")
+            raise file_error(
+                target, "is a folder, where an output file goes; none of the outputs was written"
+            )
         for folder in target.relative_to(out).parents:
             path = out / folder
             if path.exists() and not path.is_dir():
                 raise file_error(
-                    path, "is a file, where an output folder goes; nothing was written"
+                    path, "is a file, where an output folder goes; none of the outputs was written"
                 )
 
 

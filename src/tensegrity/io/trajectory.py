@@ -90,8 +90,10 @@ def write_trajectory(path: PathLike, result: SimulationResult) -> Path:
     """Write a simulation result to an HDF5 trajectory file, atomically.
 
     Arrays are stored exactly (float64, gzip level 4 with byte shuffle, ``h5py``'s automatic
-    chunking); see the module docstring for the layout.  The file uses the HDF5 1.8 format, which
-    allows attributes larger than 64 KiB (the structure of a large shell).
+    chunking) with a Fletcher-32 checksum per chunk, so that a damaged file is an error when
+    read rather than wrong numbers; see the module docstring for the layout.  The file uses
+    the HDF5 1.8 format, which allows attributes larger than 64 KiB (the structure of a large
+    shell).
 
     Parameters
     ----------
@@ -106,9 +108,19 @@ def write_trajectory(path: PathLike, result: SimulationResult) -> Path:
     -------
     pathlib.Path
         ``path``.
+
+    Raises
+    ------
+    TypeError
+        ``result`` is not a :class:`SimulationResult`.
     """
     import h5py
 
+    if not isinstance(result, SimulationResult):
+        raise TypeError(
+            f"result: expected a SimulationResult (what simulate returns), got "
+            f"{type(result).__name__}"
+        )
     structure = result.structure
     energy_names = list(result.energy)
     arrays = {
@@ -145,7 +157,13 @@ def write_trajectory(path: PathLike, result: SimulationResult) -> Path:
             compress = (
                 {}
                 if value.size == 0
-                else dict(compression="gzip", compression_opts=4, shuffle=True, chunks=True)
+                else dict(
+                    compression="gzip",
+                    compression_opts=4,
+                    shuffle=True,
+                    chunks=True,
+                    fletcher32=True,
+                )
             )
             f.create_dataset(name, data=value, **compress)
         f["energy"].attrs["columns"] = np.array(energy_names, dtype=h5py.string_dtype())
@@ -173,7 +191,7 @@ def read_trajectory(path: PathLike, *, every: int = 1) -> SimulationResult:
     ValueError
         One line starting with the file name, if the file is missing, is not HDF5, is not a
         tensegrity trajectory (``format`` attribute), is of a newer version, misses a dataset or
-        an attribute, or holds arrays whose shapes do not fit its structure.
+        an attribute, holds no samples, or holds arrays whose shapes do not fit its structure.
     """
     _check_every(every)
     with _open(path) as f:
@@ -309,8 +327,11 @@ class _Attributes:
 def _check_shapes(
     shapes: dict[str, tuple[int, ...]], structure: Structure, n_energy: int, path: PathLike
 ) -> None:
-    """``ValueError`` naming the first dataset whose shape does not fit ``structure``."""
+    """``ValueError`` naming the first dataset whose shape does not fit ``structure``, or if
+    the file holds no sample (a run has at least its initial one)."""
     T = shapes["time"][0] if len(shapes["time"]) == 1 else -1
+    if T == 0:
+        raise file_error(path, "holds no samples (a trajectory has at least its first state)")
     N, S, n, d = structure.n_nodes, structure.n_tendons, structure.n_coordinates, structure.dim
     expected = {
         "time": (T,),
