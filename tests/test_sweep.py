@@ -7,6 +7,7 @@ from __future__ import annotations
 import errno
 import json
 import re
+import time
 from pathlib import Path
 
 import numpy as np
@@ -685,4 +686,50 @@ def test_sweep_onto_a_full_disk_fails_in_one_line_and_leaves_nothing(tmp_path):
     assert child.stderr.strip().splitlines() == [f"tensegrity: error: {out}: File too large"], (
         child.stderr[-2000:]
     )
+    assert list(tmp_path.iterdir()) == []
+
+
+#: A child that runs ``tensegrity sweep ARGS`` and prints ``started`` once every case is sent to
+#: the workers.
+STARTED_CHILD = """
+import sys
+import distributed
+as_completed = distributed.as_completed
+def announced(futures):
+    print("started", flush=True)
+    return as_completed(futures)
+distributed.as_completed = announced
+from tensegrity.cli.main import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def test_ctrl_c_during_a_sweep_is_one_line_and_exit_130(tmp_path):
+    """Ctrl-C reaches the terminal's whole process group, the local workers too: one line, exit
+    code 130, nothing written (before: each worker printed the tracebacks of its interrupted
+    event loop, 77 lines in all, and Dask logged warnings as it stopped them)."""
+    import os
+    import signal
+    import subprocess
+    import sys
+
+    out = tmp_path / "s.nc"
+    args = ["sweep", "--param", "stiffness=100,200,300,400", "--t-end", "200", "--workers", "2"]
+    child = subprocess.Popen(
+        [sys.executable, "-c", STARTED_CHILD, *args, "-o", str(out)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,  # its own process group, as a terminal's foreground job
+    )
+    try:
+        assert child.stdout is not None and child.stdout.readline() == "started\n"
+        time.sleep(1.0)  # the cases are running on the workers
+        os.killpg(child.pid, signal.SIGINT)  # what Ctrl-C in a terminal does
+        _, err = child.communicate(timeout=120)
+    finally:
+        if child.poll() is None:
+            os.killpg(child.pid, signal.SIGKILL)
+    assert child.returncode == 130, err[-2000:]
+    assert err == "tensegrity: interrupted (nothing written)\n", err[-3000:]
     assert list(tmp_path.iterdir()) == []

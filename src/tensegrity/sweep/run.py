@@ -61,13 +61,16 @@ reads it back, checked first as a file from someone else (:mod:`tensegrity.io.ch
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import itertools
 import json
+import logging
 import math
 import os
+import signal
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -692,6 +695,25 @@ def _dataset(
     return ds
 
 
+@contextlib.contextmanager
+def _interrupts_ignored() -> Iterator[None]:
+    """Ignore Ctrl-C (SIGINT) within the block, in the main thread (elsewhere signals cannot be
+    set); processes started in it inherit that, and Python then leaves it so.
+
+    Ctrl-C reaches every process of the terminal's process group: the sweep's local worker
+    processes would each print the tracebacks of their interrupted event loops.  They ignore it
+    instead, and this process, which the interrupt still reaches, stops them."""
+    try:
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except ValueError:  # not the main thread
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
 class _Cluster:
     """A Dask client: the given one, one connected to ``scheduler``, or a new LocalCluster."""
 
@@ -714,12 +736,15 @@ class _Cluster:
         if self.scheduler is not None:
             self.client = Client(self.scheduler)
         else:
-            cluster = LocalCluster(
-                n_workers=self.n_workers or os.cpu_count() or 1,
-                threads_per_worker=1,
-                processes=self.processes,
-                dashboard_address=":0",  # any free port
-            )
+            with _interrupts_ignored():  # (inherited by the worker processes started here)
+                cluster = LocalCluster(
+                    n_workers=self.n_workers or os.cpu_count() or 1,
+                    threads_per_worker=1,
+                    processes=self.processes,
+                    dashboard_address=":0",  # any free port
+                    # errors only: stopping busy workers (Ctrl-C) logs warnings, a page of them
+                    silence_logs=logging.ERROR,
+                )
             self._own.append(cluster)
             self.client = Client(cluster)
         self._own.insert(0, self.client)
