@@ -274,6 +274,11 @@ def test_monte_carlo_cases_are_reproducible_and_in_range():
         (dict(method="euler"), "method"),
         (dict(mode="random"), "mode"),
         (dict(mode="monte-carlo", samples=2, seed=-1), "seed: must be >= 0, got -1"),
+        # before: OverflowError; a ValueError only from run_sweep; a sweep of failed cases
+        (dict(t_end=1e308), "t_end: 1e[+]308 s is too long to count its samples"),
+        (dict(parameters={"n": [0]}), r"case 0 \(n=0, m=1, .*\): n: "),
+        (dict(dt=1e-300), r"dt: 1e-300 s does not advance the time"),
+        (dict(t_end=10.0, dt=1e-9), r"dt: 1e-09 s over 10 s is 10,000,000,000 steps, more than"),
     ],
 )
 def test_bad_specs_name_the_field(changes, field):
@@ -301,6 +306,21 @@ def test_bad_specs_name_the_field(changes, field):
         (["--param", "stiffness=1:2", "--samples", "5"], "--samples: 5 cases, more than the "),
         (["--param", "stiffness=1,2", "--param", "n=3,4"], "--param: 4 cases, more than the "),
         (["--param", "stiffness=1", "--workers", "0"], "--workers: must be >= 1, got 0"),
+        # a range without --samples, a grid's list with it (before: both silently a grid / a
+        # range), a range of three numbers (before: a grid), a step as simulate refuses it
+        # (before: exit 1 after every case had failed, an empty dataset written)
+        (["--param", "stiffness=5:1"], "--param stiffness: LOW:HIGH is a range to draw from and "),
+        (["--param", "stiffness=1:2"], "--param stiffness: LOW:HIGH is a range to draw from and "),
+        (["--param", "stiffness=1,2", "--samples", "2"], "--param stiffness: V1,V2,... are a g"),
+        (
+            ["--param", "stiffness=1:2:3"],
+            "sweep: argument --param: expected NAME=V1,V2,... or NAME=LOW:HIGH, got 'stiffness=1:",
+        ),
+        (
+            ["--param", "stiffness=1", "--dt", "1e-300"],
+            "--dt: 1e-300 s does not advance the time (at t = 0.1 s a step must be at least its "
+            "rounding); use a larger --dt",
+        ),
     ],
 )
 def test_cli_sweep_errors_name_the_option(args, line, tmp_path, capsys, monkeypatch):

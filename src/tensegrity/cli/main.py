@@ -1390,16 +1390,39 @@ def _add_closed_loop_options(p: argparse.ArgumentParser) -> None:
     )
 
 
-def _sweep_parameter(text: str) -> tuple[str, list[float]]:
+def _sweep_parameter(text: str) -> tuple[str, list[float], bool]:
+    """``--param NAME=V1,V2,...`` (a grid's values, or one value) or ``NAME=LOW:HIGH`` (a Monte
+    Carlo range): ``(name, values, whether a range)``."""
     name, sep, values = text.partition("=")
-    parts = values.split(":") if ":" in values else values.split(",")
+    is_range = ":" in values
+    parts = values.split(":") if is_range else values.split(",")
     try:
         numbers = [float(v) for v in parts]
     except ValueError:
         numbers = []
-    if not sep or not numbers:
+    if not sep or not numbers or (is_range and len(numbers) != 2):
         raise argparse.ArgumentTypeError(f"expected NAME=V1,V2,... or NAME=LOW:HIGH, got {text!r}")
-    return name, numbers
+    return name, numbers, is_range
+
+
+def _sweep_parameters(
+    params: Sequence[tuple[str, list[float], bool]], monte_carlo: bool
+) -> dict[str, list[float]]:
+    """The values of the ``--param`` options, each in the form of the sweep's mode: ranges
+    ``LOW:HIGH`` for a Monte Carlo sample (``--samples``), lists ``V1,V2,...`` for a grid (one
+    value fits both)."""
+    for name, values, is_range in params:
+        if is_range and not monte_carlo:
+            raise CommandError(
+                f"--param {name}: LOW:HIGH is a range to draw from and needs --samples N (a "
+                "Monte Carlo sample); a grid takes the values V1,V2,..."
+            )
+        if not is_range and len(values) > 1 and monte_carlo:
+            raise CommandError(
+                f"--param {name}: V1,V2,... are a grid's values; with --samples give a range "
+                "LOW:HIGH or one value"
+            )
+    return {name: values for name, values, _ in params}
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
@@ -1435,7 +1458,9 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         if args.structure is not None:
             options["structure"] = _read_structure(args.structure, "--structure")
         with _in_sweep_options():
-            spec = SweepSpec(dict(args.param), mode=mode, **options)
+            spec = SweepSpec(
+                _sweep_parameters(args.param, args.samples is not None), mode=mode, **options
+            )
     with _in_sweep_options():
         result = run_sweep(
             spec, scheduler=args.scheduler, n_workers=args.workers, progress=sys.stderr.isatty()
@@ -1480,7 +1505,7 @@ def _in_sweep_options() -> Iterator[None]:
         if parameter is not None:
             message = f"--param {parameter.group(1)}: {problem}"
         elif sep and field in _SWEEP_OPTIONS:
-            problem = re.sub(r"\b(t_end|sample_dt)\b", lambda m: _SWEEP_OPTIONS[m[1]], problem)
+            problem = re.sub(r"\b(t_end|sample_dt|dt)\b", lambda m: _SWEEP_OPTIONS[m[1]], problem)
             message = f"{_SWEEP_OPTIONS[field]}: {problem}"
         raise CommandError(message) from exc
 

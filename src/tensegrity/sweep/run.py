@@ -76,7 +76,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from tensegrity.engine.options import ADAPTIVE_METHODS, FIXED_STEP_METHODS
+from tensegrity.engine.options import ADAPTIVE_METHODS, FIXED_STEP_METHODS, Options
 from tensegrity.engine.simulate import SimulationResult, simulate
 from tensegrity.io.checked import (
     FLOATS,
@@ -171,7 +171,9 @@ def _check_case_count(cases: int, field: str) -> None:
 
 @dataclasses.dataclass(frozen=True)
 class SweepSpec:
-    """What to sweep and how to run each case (validated at construction).
+    """What to sweep and how to run each case (validated at construction: the fields, the limits
+    of a run (:meth:`tensegrity.engine.options.Options.check_span`) and the cases' parameters'
+    ranges, :func:`check_cases`).
 
     Parameters
     ----------
@@ -268,18 +270,34 @@ class SweepSpec:
                 f"method: expected one of "
                 f"{', '.join([*FIXED_STEP_METHODS, *ADAPTIVE_METHODS])}, got {self.method!r}"
             )
-        intervals = round(self.t_end / self.sample_dt)
+        ratio = self.t_end / self.sample_dt
+        if not math.isfinite(ratio):
+            raise ValueError(
+                f"t_end: {self.t_end:g} s is too long to count its samples at sample_dt = "
+                f"{self.sample_dt:g} s; use a shorter t_end or a larger sample_dt"
+            )
+        intervals = round(ratio)
         if intervals < 1 or abs(intervals * self.sample_dt - self.t_end) > 1e-9 * self.t_end:
             raise ValueError(
                 f"t_end: must be a whole multiple of sample_dt = {self.sample_dt:g} s, "
                 f"got {self.t_end:g} s"
             )
+        # the limits every case's simulate() checks before it starts (a dt too small to advance
+        # the time, too many steps or samples), checked once here
+        Options(
+            method=self.method,
+            dt=self.dt if self.method in FIXED_STEP_METHODS else None,
+            sample_dt=self.sample_dt,
+            rtol=self.rtol,
+            atol=self.atol,
+        ).check_span(0.0, self.t_end)
         if not isinstance(self.batch, bool):
             raise ValueError(f"batch: expected true or false, got {self.batch!r}")
         if self.structure is not None and not isinstance(self.structure, Structure):
             raise ValueError(
                 f"structure: expected a Structure, got {type(self.structure).__name__}"
             )
+        check_cases(self.cases(), self.structure)
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], *, folder: PathLike = ".") -> SweepSpec:
@@ -792,8 +810,7 @@ def run_sweep(
         raise ValueError("scheduler: give a client or a scheduler address, not both")
     if n_workers is not None and n_workers < 1:
         raise ValueError(f"n_workers: must be >= 1, got {n_workers!r}")
-    cases = spec.cases()
-    check_cases(cases, spec.structure)
+    cases = spec.cases()  # (checked by SweepSpec: check_cases)
     rows: dict[int, dict] = {}  # case index: summary (every case is in one task)
     wall0 = time.perf_counter()
     bar = None
