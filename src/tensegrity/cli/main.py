@@ -1266,7 +1266,12 @@ def _add_equilibrium_options(p: argparse.ArgumentParser) -> None:
 
 def _add_modes_options(p: argparse.ArgumentParser) -> None:
     """``modes``: the shapes drawn and the optional checks."""
-    p.add_argument("--shapes", type=int, default=6, help="mode shapes to draw (default 6)")
+    p.add_argument(
+        "--shapes",
+        type=arguments.whole_non_negative,
+        default=6,
+        help="mode shapes to draw, the lowest non-rigid modes (default 6)",
+    )
     p.add_argument(
         "--check-fft",
         action="store_true",
@@ -1279,11 +1284,23 @@ def _add_modes_options(p: argparse.ArgumentParser) -> None:
     )
 
 
+def _patterns(text: str) -> str:
+    """``--inputs`` / ``--outputs``: one set, comma-separated names or patterns (none empty)."""
+    from tensegrity.analysis.controllability import split_patterns
+
+    try:
+        split_patterns(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
+
+
 def _add_controllability_options(p: argparse.ArgumentParser) -> None:
     """``controllability``: the input and output sets and the damping."""
     p.add_argument(
         "--inputs",
         nargs="+",
+        type=_patterns,
         metavar="PATTERN",
         help="sets of actuated tendons, each 'all' or comma-separated name patterns "
         "(default: all, each family, the first tendon)",
@@ -1291,6 +1308,7 @@ def _add_controllability_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--outputs",
         nargs="+",
+        type=_patterns,
         metavar="PATTERN",
         help="sets of outputs: position, length, tension, all or name patterns like "
         "'p0_*' (default: position, length, tension, p0_*)",
