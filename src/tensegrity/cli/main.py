@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, NoReturn, TypeAlias
 
 import numpy as np
 
-from tensegrity.cli import arguments, design, visual
+from tensegrity.cli import arguments, design, outputs, visual
 from tensegrity.cli.drawing import Drawing, viewer_page, worker_count
 from tensegrity.cli.errors import (
     EXIT_FAILED,
@@ -48,7 +48,7 @@ from tensegrity.engine.options import (
     DEFAULT_MAX_STEPS,
     FIXED_STEP_METHODS,
 )
-from tensegrity.io.files import byte_text, shown_path, write_staged as _write_all
+from tensegrity.io.files import byte_text, folders_made, shown_path, write_staged as _write_all
 from tensegrity.model.structure import Structure
 from tensegrity.physics import dynamics
 
@@ -813,7 +813,7 @@ def _video(trajectory: Path, folder: Path, kind: str) -> list[Path]:
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
-    _check_output_folder(args.out, "--out")
+    outputs.check_folder(args.out, "--out")
     _check_samples(args.t_end, args.sample_dt)
     # the drawing's workers start now: they import matplotlib while the run is set up and goes on
     with Drawing(worker_count(2)) as drawing:
@@ -864,15 +864,6 @@ def _remove_empty(folders: Sequence[Path]) -> None:
     for folder in sorted(folders, key=lambda f: len(f.parts), reverse=True):
         with contextlib.suppress(OSError):
             folder.rmdir()
-
-
-def _check_output_folder(folder: Path, option: str) -> None:
-    """Fail up front, before any work, if ``folder`` cannot be (or become) a folder."""
-    for path in (folder, *folder.parents):
-        if path.exists():
-            if not path.is_dir():
-                raise CommandError(f"{option}: {shown_path(path)} exists and is not a folder")
-            return
 
 
 def _vtk_files(folder: Path, result) -> list[Path]:
@@ -1071,12 +1062,10 @@ def _cmd_export(args: argparse.Namespace) -> int:
     from tensegrity.io.formats import FORMATS, write_network
 
     structure = _apply_damping(_structure(args), args.damping)
-    if args.output.is_dir():
-        raise CommandError(f"--output: {shown_path(args.output)} is a folder, expected a file name")
-    if not args.output.parent.is_dir():
-        raise CommandError(f"--output: folder {args.output.parent} does not exist")
+    outputs.check_file(args.output, "--output")
     fmt = args.format or FORMATS.get(args.output.suffix.lower(), "json")
-    write_network(args.output, structure, format=fmt, keep_joints=args.keep_joints)
+    with folders_made(args.output.parent):
+        write_network(args.output, structure, format=fmt, keep_joints=args.keep_joints)
     print(
         f"wrote {args.output} ({fmt}: {structure.n_nodes} nodes, {structure.n_rods} rods, "
         f"{structure.n_tendons} tendons)"
@@ -1088,7 +1077,7 @@ def _cmd_vtk(args: argparse.Namespace) -> int:
     from tensegrity.io.trajectory import read_trajectory
     from tensegrity.io.vtk import write_vtk
 
-    _check_output_folder(args.output, "--output")
+    outputs.check_folder(args.output, "--output")
     with blame("vtk", args.trajectory):
         trajectory = read_trajectory(args.trajectory)
     written = write_vtk(args.output, trajectory, every=args.every, name=args.name)
@@ -1101,7 +1090,7 @@ def _cmd_matrices(args: argparse.Namespace) -> int:
     from tensegrity.io.matrices import write_matrices
     from tensegrity.physics.matrix_form import undamped
 
-    _check_output_folder(args.out, "--out")
+    outputs.check_folder(args.out, "--out")
     structure = undamped(_structure(args))
     _check_matrix_size(structure)
     if args.at == "equilibrium":
@@ -1160,7 +1149,7 @@ def _cmd_analysis(args: argparse.Namespace) -> int:
     from tensegrity.cli import analysis as commands
 
     run = getattr(commands, f"run_{args.command}")
-    _check_output_folder(args.out, "--out")
+    outputs.check_folder(args.out, "--out")
     # the drawing's workers start now: they import matplotlib while the analysis computes
     workers = worker_count(2) if args.command in _DRAWN_IN_WORKERS else 0
     with Drawing(workers) as drawing:
@@ -1446,9 +1435,7 @@ def _sweep_parameters(
 def _cmd_sweep(args: argparse.Namespace) -> int:
     from tensegrity.sweep.run import SweepSpec, run_sweep
 
-    _check_output_folder(args.output.parent, "--output")
-    if args.output.is_dir():
-        raise CommandError(f"--output: {shown_path(args.output)} is a folder, expected a file name")
+    outputs.check_file(args.output, "--output")
     options = {
         name: getattr(args, name)
         for name in ("samples", "seed", "t_end", "sample_dt", "method", "dt")
@@ -1483,7 +1470,8 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         result = run_sweep(
             spec, scheduler=args.scheduler, n_workers=args.workers, progress=sys.stderr.isatty()
         )
-    path = _save_sweep(result, args.output)
+    with folders_made(args.output.parent):
+        path = result.save(args.output)
     n = result.dataset.sizes["case"]
     print(
         f"{n - len(result.failed)} of {n} cases reached t_end in {result.wall_time:.1f} s; "
@@ -1526,18 +1514,6 @@ def _in_sweep_options() -> Iterator[None]:
             problem = re.sub(r"\b(t_end|sample_dt|dt)\b", lambda m: _SWEEP_OPTIONS[m[1]], problem)
             message = f"{_SWEEP_OPTIONS[field]}: {problem}"
         raise CommandError(message) from exc
-
-
-def _save_sweep(result, path: Path) -> Path:
-    """Write the sweep's dataset to ``path``, making its missing folders first (as the other
-    verbs make their output folders); those are removed again if the writing fails."""
-    created = [folder for folder in path.parents if not folder.exists()]
-    path.parent.mkdir(parents=True, exist_ok=True)
-    try:
-        return result.save(path)
-    except BaseException:
-        _remove_empty(created)
-        raise
 
 
 def _add_simulate_parser(sub: _Commands) -> None:
@@ -1798,7 +1774,7 @@ def _add_sweep_parser(sub: _Commands) -> None:
         "--output",
         type=arguments.name,
         required=True,
-        help="output .nc file (missing folders are made)",
+        help="output .nc file (missing folders are made, as for every verb's outputs)",
     )
     sweep.set_defaults(run=_cmd_sweep)
 
