@@ -187,5 +187,5 @@ def test_equilibrium_with_control_and_balanced_external_forces(shell, both_route
 def test_find_equilibrium_of_something_not_a_structure_is_a_type_error_naming_it(given):
     """At the call, naming the argument (before: ``AttributeError: 'str' object has no
     attribute 'dim'``)."""
-    with pytest.raises(TypeError, match="^structure: expected a Structure, got "):
+    with pytest.raises(TypeError, match=r"^structure: expected a Structure, got "):
         find_equilibrium(given)

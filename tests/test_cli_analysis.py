@@ -329,8 +329,9 @@ def test_modes_of_zero_frequency_are_reported_without_warnings(tmp_path, capsys)
         code, text, err = _run([*argv, "--out", str(out), "--debug"], capsys)
     assert code == 0 and err == "", err
     assert "FFT check: not done, no elastic mode (no non-zero frequency to measure)" in text
-    modes = _check_files(out, ["modes.json", "frequencies.png", "mode_shapes.png",
-                               "mode_6.html", "mode_7.html"])["modes.json"]["modes"]
+    modes = _check_files(
+        out, ["modes.json", "frequencies.png", "mode_shapes.png", "mode_6.html", "mode_7.html"]
+    )["modes.json"]["modes"]
     assert [m["kind"] for m in modes[6:]] == ["mechanism"] * 9
     page = read_viewer_data((out / "mode_6.html").read_text())
     assert page["title"] == "mode 6: mechanism, zero frequency (no period): its shape over 1 s"

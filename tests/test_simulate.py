@@ -692,5 +692,5 @@ def test_control_exactly_at_zero_rest_length_is_accepted():
 @pytest.mark.parametrize("given", [{}, "x", None, np.zeros((6, 3))])
 def test_simulate_of_something_not_a_structure_is_a_type_error_naming_it(given):
     """At the call, naming the argument (before: an ``AttributeError`` from deep inside)."""
-    with pytest.raises(TypeError, match="^structure: expected a Structure, got "):
+    with pytest.raises(TypeError, match=r"^structure: expected a Structure, got "):
         simulate(given, (0.0, 0.1))

@@ -298,7 +298,7 @@ def test_tendon_name_must_be_non_empty_string(bad):
 
 def test_tendon_names_as_one_text_are_refused():
     """Nine one-letter names given as one text (before: the names ``a``, ..., ``i``)."""
-    with pytest.raises(ValueError, match="^tendon_name: expected a sequence of names, got the"):
+    with pytest.raises(ValueError, match=r"^tendon_name: expected a sequence of names, got the"):
         build(tendon_name="".join(TENDON_NAMES))
 
 

@@ -95,8 +95,7 @@ class ModalAnalysis:
         idx = [i for i, k in enumerate(self.kind) if k == ELASTIC]
         if not idx:
             raise ValueError(
-                "no elastic mode: every non-rigid mode has zero frequency (a mechanism or "
-                "unstable)"
+                "no elastic mode: every non-rigid mode has zero frequency (a mechanism or unstable)"
             )
         f = self.frequency_hz[idx]
         gaps = []

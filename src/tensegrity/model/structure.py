@@ -358,9 +358,8 @@ class Structure:
         """The tendon names (default ``s0``, ``s1``, ...), checked: one non-empty string per
         tendon, no two alike."""
         if isinstance(self.tendon_name, (str, bytes)):  # (not a sequence of one-letter names)
-            raise ValueError(
-                f"tendon_name: expected a sequence of names, got the text {_shown(self.tendon_name)}"
-            )
+            given = _shown(self.tendon_name)
+            raise ValueError(f"tendon_name: expected a sequence of names, got the text {given}")
         try:
             names = (
                 tuple(f"s{k}" for k in range(n_tendons))
