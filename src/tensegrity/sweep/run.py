@@ -760,8 +760,9 @@ class _Cluster:
                     threads_per_worker=1,
                     processes=self.processes,
                     dashboard_address=":0",  # any free port
-                    # errors only: stopping busy workers (Ctrl-C) logs warnings, a page of them
-                    silence_logs=logging.ERROR,
+                    # quiet: a case's failure is reported in the dataset, and stopping busy
+                    # workers (Ctrl-C) logs pages of warnings and errors (lost heartbeats)
+                    silence_logs=logging.CRITICAL,
                 )
             self._own.append(cluster)
             self.client = Client(cluster)
@@ -794,7 +795,8 @@ def run_sweep(
     n_workers : int, optional
         Workers of the default ``LocalCluster`` (default: the CPU count), one thread each.
     processes : bool
-        LocalCluster workers as processes (default) or threads of this process.
+        LocalCluster workers as processes (default) or threads of this process.  Its worker
+        processes ignore Ctrl-C (this process stops them) and its Dask logging is silenced.
     progress : bool or callable
         True: a ``tqdm`` bar over cases on stderr; a callable receives ``(cases_done, cases)``.
 
