@@ -181,3 +181,11 @@ def test_equilibrium_with_control_and_balanced_external_forces(shell, both_route
     qddot = dynamics.accelerations(shell, eq.q, np.zeros_like(eq.q), control=u, external_force=w)
     assert np.max(np.abs(qddot)) < 1e-9
     np.testing.assert_allclose(eq.rest_length, shell.tendon_rest_length - u)
+
+
+@pytest.mark.parametrize("given", [{}, "x", None])
+def test_find_equilibrium_of_something_not_a_structure_is_a_type_error_naming_it(given):
+    """At the call, naming the argument (before: ``AttributeError: 'str' object has no
+    attribute 'dim'``)."""
+    with pytest.raises(TypeError, match=r"^structure: expected a Structure, got "):
+        find_equilibrium(given)

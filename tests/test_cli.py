@@ -162,8 +162,8 @@ def test_bad_input_is_one_line_exit_2_and_writes_nothing(
         (["simulate", "--out", "afile"], "--out: afile exists and is not a folder"),
         (["simulate", "--out", "afile/sub"], "--out: afile exists and is not a folder"),
         (["matrices", "--at", "equilibrium", "--out", "afile"], "--out: afile exists"),
-        (["export", "-o", "afile/s.json"], "--output: folder afile does not exist"),
-        (["export", "-o", "missing/s.json"], "--output: folder missing does not exist"),
+        (["export", "-o", "afile/s.json"], "--output: afile exists and is not a folder"),
+        (["export", "-o", "afile/sub/s.json"], "--output: afile exists and is not a folder"),
         (["export", "-o", "."], "--output: . is a folder"),
     ],
 )
@@ -188,6 +188,26 @@ def test_unusable_output_path_fails_before_any_work(argv, words, tmp_path, capsy
     assert words in err and "Errno" not in err and ".tmp" not in err, err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["afile"]
     assert (tmp_path / "afile").read_text() == "keep me"
+
+
+def test_export_makes_the_folders_of_its_output(tmp_path, capsys, monkeypatch):
+    """As every verb (``sweep``, ``animate``, ``view``, the output folders): the missing
+    folders of ``-o`` are made (before: refused, ``folder ... does not exist``), and removed
+    again if the file cannot be written."""
+    import errno
+
+    out = tmp_path / "new" / "deeper" / "s.yaml"
+    assert main(["export", "--kind", "prism", "-o", str(out)]) == 0
+    assert out.is_file() and f"wrote {out}" in capsys.readouterr().out
+
+    def full_disk(path, *args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device", str(path))
+
+    monkeypatch.setattr("tensegrity.io.formats.write_network", full_disk)
+    other = tmp_path / "other" / "s.yaml"
+    assert main(["export", "--kind", "prism", "-o", str(other)]) == 2
+    assert capsys.readouterr().err == f"tensegrity: error: {other}: No space left on device\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["new"]
 
 
 def test_bad_structure_file_names_the_element(tmp_path, capsys):

@@ -286,6 +286,11 @@ def test_default_rings_of_a_shell_are_its_bottom_and_top_rings(n_m):
         (["equilibrium", "--structure", "missing.json"], "missing.json"),
         (["modes", "--structure", "x.json", "--m", "2"], "--m"),
         (["modes", "--n", "2"], "n"),
+        # before: modes 6 to 28 drawn; an empty name or pattern silently dropped
+        (["modes", "--shapes", "-1"], "modes: argument --shapes: must be >= 0, got '-1'"),
+        (["controllability", "--inputs", "all,"], "argument --inputs: an empty name or pattern"),
+        (["controllability", "--inputs", "b*,,s*"], "argument --inputs: an empty name or pattern"),
+        (["controllability", "--outputs", ","], "argument --outputs: an empty name or pattern"),
     ],
 )
 def test_bad_input_is_one_line_exit_2_and_writes_nothing(
@@ -297,3 +302,38 @@ def test_bad_input_is_one_line_exit_2_and_writes_nothing(
     assert err.count("\n") == 1 and err.startswith("tensegrity: error:"), err
     assert words in err and "Traceback" not in err
     assert not list(tmp_path.iterdir())
+
+
+def _without_tendons(path):
+    from tensegrity import Structure
+    from tensegrity.design.catalogue import generate
+    from tensegrity.io.formats import write_structure
+
+    data = generate("prism").to_dict()
+    write_structure(path, Structure.from_dict({**data, "tendons": []}))
+    return path
+
+
+def test_modes_of_zero_frequency_are_reported_without_warnings(tmp_path, capsys):
+    """A structure without tendons: every non-rigid mode is a mechanism of zero frequency.
+    No RuntimeWarning (before: division by zero for the period of each mode's page); each
+    page says it shows a shape of zero frequency, not a period; the FFT check says it has
+    nothing to measure (before: ``attempt to get argmax of an empty sequence``, exit 2)."""
+    import warnings
+
+    out = tmp_path / "m"
+    structure = _without_tendons(tmp_path / "bare.json")
+    argv = ["modes", "--structure", str(structure), "--shapes", "2", "--check-fft"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        code, text, err = _run([*argv, "--out", str(out), "--debug"], capsys)
+    assert code == 0 and err == "", err
+    assert "FFT check: not done, no elastic mode (no non-zero frequency to measure)" in text
+    modes = _check_files(
+        out, ["modes.json", "frequencies.png", "mode_shapes.png", "mode_6.html", "mode_7.html"]
+    )["modes.json"]["modes"]
+    assert [m["kind"] for m in modes[6:]] == ["mechanism"] * 9
+    page = read_viewer_data((out / "mode_6.html").read_text())
+    assert page["title"] == "mode 6: mechanism, zero frequency (no period): its shape over 1 s"
+    np.testing.assert_allclose(page["time"], np.arange(48) / 48, rtol=1e-12)
+    assert np.all(np.isfinite(page["positions"]))

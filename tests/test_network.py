@@ -339,3 +339,20 @@ def test_io_read_structure_reads_every_format(tmp_path):
     for suffix in ("yaml", "toml", "npz"):
         write_network(tmp_path / f"s.{suffix}", s)
         assert read_structure(tmp_path / f"s.{suffix}").to_dict() == s.to_dict()
+
+
+@pytest.mark.parametrize(
+    "name, text",
+    [
+        ("deep.yaml", "a: " + "[" * 5000 + "]" * 5000 + "\n"),
+        ("deep.toml", "a = " + "[" * 5000 + "]" * 5000 + "\n"),
+        ("deep.json", '{"a": ' + "[" * 5000 + "]" * 5000 + "}\n"),
+    ],
+)
+def test_a_document_nested_too_deeply_is_a_value_error_naming_the_file(tmp_path, name, text):
+    """Deeper than the parsers recurse: a one-line ``ValueError`` from the reader itself
+    (before: ``RecursionError`` for YAML and TOML; only the CLI named the problem)."""
+    path = tmp_path / name
+    path.write_text(text)
+    with pytest.raises(ValueError, match=f"^{path}: nested too deeply$"):
+        read_network(path)

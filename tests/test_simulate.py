@@ -687,3 +687,10 @@ def test_control_exactly_at_zero_rest_length_is_accepted():
         structure, (0.0, 0.01), control=structure.tendon_rest_length.copy(), sample_dt=0.005
     )
     assert r.status == 0, r.message
+
+
+@pytest.mark.parametrize("given", [{}, "x", None, np.zeros((6, 3))])
+def test_simulate_of_something_not_a_structure_is_a_type_error_naming_it(given):
+    """At the call, naming the argument (before: an ``AttributeError`` from deep inside)."""
+    with pytest.raises(TypeError, match=r"^structure: expected a Structure, got "):
+        simulate(given, (0.0, 0.1))

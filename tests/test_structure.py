@@ -296,6 +296,35 @@ def test_tendon_name_must_be_non_empty_string(bad):
         Structure(**kwargs)
 
 
+def test_tendon_names_as_one_text_are_refused():
+    """Nine one-letter names given as one text (before: the names ``a``, ..., ``i``)."""
+    with pytest.raises(ValueError, match=r"^tendon_name: expected a sequence of names, got the"):
+        build(tendon_name="".join(TENDON_NAMES))
+
+
+@pytest.mark.parametrize(
+    "field, name",
+    [
+        ("node_position", "nodes"),
+        ("node_velocity", "velocities"),
+        ("rod_mass", "rods.mass"),
+        ("rod_length", "rods.length"),
+        ("rod_damping", "rods.damping"),
+        ("tendon_stiffness", "tendons.stiffness"),
+        ("tendon_rest_length", "tendons.rest_length"),
+        ("tendon_damping", "tendons.damping"),
+    ],
+)
+@pytest.mark.parametrize("imaginary", [0.0, 1e-3])
+def test_complex_numbers_are_refused_naming_the_field(field, name, imaginary):
+    """A complex array (before: its imaginary part silently dropped, a ComplexWarning at
+    most), even one whose imaginary parts are all zero."""
+    kwargs = base_kwargs()
+    kwargs[field] = np.asarray(kwargs[field], dtype=complex) + 1j * imaginary
+    with pytest.raises(ValueError, match=f"^{re.escape(name)}: expected real numbers, got complex"):
+        Structure(**kwargs)
+
+
 # ------------------------------------------------------------------- shapes
 SHAPE_CASES = [
     ("node_position", [[0.0, 0.0, 0.0, 0.0]] * 6, "nodes"),  # (2 columns would be planar)

@@ -7,6 +7,7 @@ from __future__ import annotations
 import errno
 import json
 import re
+import time
 from pathlib import Path
 
 import numpy as np
@@ -273,6 +274,11 @@ def test_monte_carlo_cases_are_reproducible_and_in_range():
         (dict(method="euler"), "method"),
         (dict(mode="random"), "mode"),
         (dict(mode="monte-carlo", samples=2, seed=-1), "seed: must be >= 0, got -1"),
+        # before: OverflowError; a ValueError only from run_sweep; a sweep of failed cases
+        (dict(t_end=1e308), "t_end: 1e[+]308 s is too long to count its samples"),
+        (dict(parameters={"n": [0]}), r"case 0 \(n=0, m=1, .*\): n: "),
+        (dict(dt=1e-300), r"dt: 1e-300 s does not advance the time"),
+        (dict(t_end=10.0, dt=1e-9), r"dt: 1e-09 s over 10 s is 10,000,000,000 steps, more than"),
     ],
 )
 def test_bad_specs_name_the_field(changes, field):
@@ -300,6 +306,21 @@ def test_bad_specs_name_the_field(changes, field):
         (["--param", "stiffness=1:2", "--samples", "5"], "--samples: 5 cases, more than the "),
         (["--param", "stiffness=1,2", "--param", "n=3,4"], "--param: 4 cases, more than the "),
         (["--param", "stiffness=1", "--workers", "0"], "--workers: must be >= 1, got 0"),
+        # a range without --samples, a grid's list with it (before: both silently a grid / a
+        # range), a range of three numbers (before: a grid), a step as simulate refuses it
+        # (before: exit 1 after every case had failed, an empty dataset written)
+        (["--param", "stiffness=5:1"], "--param stiffness: LOW:HIGH is a range to draw from and "),
+        (["--param", "stiffness=1:2"], "--param stiffness: LOW:HIGH is a range to draw from and "),
+        (["--param", "stiffness=1,2", "--samples", "2"], "--param stiffness: V1,V2,... are a g"),
+        (
+            ["--param", "stiffness=1:2:3"],
+            "sweep: argument --param: expected NAME=V1,V2,... or NAME=LOW:HIGH, got 'stiffness=1:",
+        ),
+        (
+            ["--param", "stiffness=1", "--dt", "1e-300"],
+            "--dt: 1e-300 s does not advance the time (at t = 0.1 s a step must be at least its "
+            "rounding); use a larger --dt",
+        ),
     ],
 )
 def test_cli_sweep_errors_name_the_option(args, line, tmp_path, capsys, monkeypatch):
@@ -685,4 +706,50 @@ def test_sweep_onto_a_full_disk_fails_in_one_line_and_leaves_nothing(tmp_path):
     assert child.stderr.strip().splitlines() == [f"tensegrity: error: {out}: File too large"], (
         child.stderr[-2000:]
     )
+    assert list(tmp_path.iterdir()) == []
+
+
+#: A child that runs ``tensegrity sweep ARGS`` and prints ``started`` once every case is sent to
+#: the workers.
+STARTED_CHILD = """
+import sys
+import distributed
+as_completed = distributed.as_completed
+def announced(futures):
+    print("started", flush=True)
+    return as_completed(futures)
+distributed.as_completed = announced
+from tensegrity.cli.main import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def test_ctrl_c_during_a_sweep_is_one_line_and_exit_130(tmp_path):
+    """Ctrl-C reaches the terminal's whole process group, the local workers too: one line, exit
+    code 130, nothing written (before: each worker printed the tracebacks of its interrupted
+    event loop, 77 lines in all, and Dask logged warnings as it stopped them)."""
+    import os
+    import signal
+    import subprocess
+    import sys
+
+    out = tmp_path / "s.nc"
+    args = ["sweep", "--param", "stiffness=100,200,300,400", "--t-end", "200", "--workers", "2"]
+    child = subprocess.Popen(
+        [sys.executable, "-c", STARTED_CHILD, *args, "-o", str(out)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,  # its own process group, as a terminal's foreground job
+    )
+    try:
+        assert child.stdout is not None and child.stdout.readline() == "started\n"
+        time.sleep(1.0)  # the cases are running on the workers
+        os.killpg(child.pid, signal.SIGINT)  # what Ctrl-C in a terminal does
+        _, err = child.communicate(timeout=120)
+    finally:
+        if child.poll() is None:
+            os.killpg(child.pid, signal.SIGKILL)
+    assert child.returncode == 130, err[-2000:]
+    assert err == "tensegrity: interrupted (nothing written)\n", err[-3000:]
     assert list(tmp_path.iterdir()) == []

@@ -149,7 +149,7 @@ def match_tendons(structure: Structure, pattern: str | Sequence[str]) -> tuple[s
     """Names of ``structure``'s tendons matching ``pattern`` (see :func:`resolve_inputs`);
     ``KeyError`` if none does."""
     names = structure.tendon_name
-    parts = _parts(pattern)
+    parts = split_patterns(pattern)
     if parts == ["all"]:
         return tuple(names)
     chosen = [n for n in names if any(fnmatch.fnmatchcase(n, p) for p in parts)]
@@ -160,7 +160,7 @@ def match_tendons(structure: Structure, pattern: str | Sequence[str]) -> tuple[s
 
 def resolve_outputs(lin: Linearization, pattern: str | Sequence[str]) -> tuple[str, ...]:
     """Output names matching ``pattern``: group names, ``"all"`` or fnmatch patterns."""
-    parts = _parts(pattern)
+    parts = split_patterns(pattern)
     chosen: list[str] = []
     for p in parts:
         if p == "all":
@@ -175,10 +175,14 @@ def resolve_outputs(lin: Linearization, pattern: str | Sequence[str]) -> tuple[s
     return tuple(chosen)
 
 
-def _parts(pattern: str | Sequence[str]) -> list[str]:
-    if isinstance(pattern, str):
-        return [p.strip() for p in pattern.split(",") if p.strip()]
-    return list(pattern)
+def split_patterns(pattern: str | Sequence[str]) -> list[str]:
+    """The names and patterns of ``pattern``: comma-separated text (spaces around each item
+    ignored) or a list; ``ValueError`` naming ``pattern`` if an item is empty (``"all,"``,
+    ``"a,,b"``)."""
+    parts = [p.strip() for p in pattern.split(",")] if isinstance(pattern, str) else list(pattern)
+    if not parts or not all(isinstance(p, str) and p.strip() for p in parts):
+        raise ValueError(f"an empty name or pattern in {pattern!r}")
+    return parts
 
 
 def default_input_sets(lin: Linearization) -> dict[str, tuple[str, ...]]:

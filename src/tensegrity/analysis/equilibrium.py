@@ -54,7 +54,7 @@ from tensegrity.analysis.statics import (
     statics,
     with_reactions,
 )
-from tensegrity.model.structure import Structure
+from tensegrity.model.structure import Structure, require_structure
 from tensegrity.physics import dynamics
 from tensegrity.physics.constraints import constraints_of
 
@@ -382,6 +382,7 @@ def find_equilibrium(
         ``converged`` False (with a message) if the tolerance was not met; the residual is
         reported either way.
     """
+    require_structure(structure)
     solve = _find_planar_equilibrium if structure.dim == 2 else _find_spatial_equilibrium
     return solve(
         structure,

@@ -91,8 +91,12 @@ class ModalAnalysis:
 
     def best_separated(self) -> int:
         """Index of the elastic mode with the largest relative gap to its neighbours (a single,
-        well-separated frequency: the one to check by FFT)."""
+        well-separated frequency: the one to check by FFT); ``ValueError`` if there is none."""
         idx = [i for i, k in enumerate(self.kind) if k == ELASTIC]
+        if not idx:
+            raise ValueError(
+                "no elastic mode: every non-rigid mode has zero frequency (a mechanism or unstable)"
+            )
         f = self.frequency_hz[idx]
         gaps = []
         for j in range(len(idx)):

@@ -223,7 +223,12 @@ def run_modes(
     and the stability verdict at the equilibrium (least squares); optionally the FFT check of
     the best-separated mode and the perturbed nonlinear simulations."""
     from tensegrity.analysis.linearize import linearize
-    from tensegrity.analysis.modes import measure_frequency, modal_analysis, stability_by_simulation
+    from tensegrity.analysis.modes import (
+        ELASTIC,
+        measure_frequency,
+        modal_analysis,
+        stability_by_simulation,
+    )
 
     eq = _equilibrium(structure, _gravity(structure, gravity))
     lin = linearize(structure, eq)
@@ -239,7 +244,9 @@ def run_modes(
         for i in range(len(modes.kind))
     ]
     text.append(table(["mode", "kind", "frequency [Hz]", "omega^2 [1/s^2]"], rows))
-    if check_fft:
+    if check_fft and not modes.count(ELASTIC):
+        text.append("FFT check: not done, no elastic mode (no non-zero frequency to measure)")
+    elif check_fft:
         check = measure_frequency(modes)
         data["fft_check"] = check.to_dict()
         text.append(
@@ -290,7 +297,8 @@ def mode_clip(modes: ModalAnalysis, i: int, *, n_frames: int = MODE_CLIP_FRAMES)
     n_frames - 1`` at times ``j T / n_frames``, ``T`` the mode's period [s]), the largest node
     displacement ``a |phi_i|_max`` :data:`MODE_CLIP_AMPLITUDE` of the structure's size; tendon
     tensions exact at each displaced configuration (:func:`~tensegrity.physics.dynamics.
-    tendon_tensions`, at rest: no damping)."""
+    tendon_tensions`, at rest: no damping).  A mode of zero frequency (a mechanism, an unstable
+    mode) has no period: its shape is shown the same way over 1 s, and the title says so."""
     from tensegrity.physics.dynamics import tendon_tensions
     from tensegrity.plots.motion import motion_frames
 
@@ -302,8 +310,13 @@ def mode_clip(modes: ModalAnalysis, i: int, *, n_frames: int = MODE_CLIP_FRAMES)
     phase = 2 * np.pi * np.arange(n_frames) / n_frames
     position = p0 + amplitude * np.sin(phase)[:, None, None] * shape
     tension = np.stack([tendon_tensions(lin.structure, p) for p in position])
-    period = 1.0 / modes.frequency_hz[i]
-    title = f"mode {i}: {modes.frequency_hz[i]:.4g} Hz (period {period:.4g} s), linearized"
+    frequency = float(modes.frequency_hz[i])
+    if frequency > 0:
+        period = 1.0 / frequency
+        title = f"mode {i}: {frequency:.4g} Hz (period {period:.4g} s), linearized"
+    else:  # a mechanism or an unstable mode: a shape that does not oscillate
+        period = 1.0
+        title = f"mode {i}: {modes.kind[i]}, zero frequency (no period): its shape over 1 s"
     return motion_frames(
         lin.structure, phase / (2 * np.pi) * period, position, tension, title=title
     )

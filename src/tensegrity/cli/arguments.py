@@ -17,6 +17,8 @@ __all__ = [
     "name",
     "non_negative",
     "positive",
+    "whole_at_least",
+    "whole_non_negative",
     "whole_positive",
 ]
 
@@ -52,15 +54,27 @@ positive = at_least(0.0, strict=True)
 non_negative = at_least(0.0, strict=False)
 
 
-def whole_positive(text: str) -> int:
-    """A whole number >= 1."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be > 0, got {text!r}")
-    return value
+def whole_at_least(low: int, *, strict: bool) -> Callable[[str], int]:
+    """The type of a whole number ``>= low`` (``> low`` if ``strict``)."""
+
+    def number(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+        if value < low or (strict and value == low):
+            raise argparse.ArgumentTypeError(
+                f"must be {'>' if strict else '>='} {low}, got {text!r}"
+            )
+        return value
+
+    return number
+
+
+#: A whole number >= 1.
+whole_positive = whole_at_least(0, strict=True)
+#: A whole number >= 0.
+whole_non_negative = whole_at_least(0, strict=False)
 
 
 def name(text: str) -> Path:

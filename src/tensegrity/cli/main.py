@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, NoReturn, TypeAlias
 
 import numpy as np
 
-from tensegrity.cli import arguments, design, visual
+from tensegrity.cli import arguments, design, outputs, visual
 from tensegrity.cli.drawing import Drawing, viewer_page, worker_count
 from tensegrity.cli.errors import (
     EXIT_FAILED,
@@ -49,7 +49,13 @@ from tensegrity.engine.options import (
     FIXED_STEP_METHODS,
     sample_count,
 )
-from tensegrity.io.files import DISK_FULL, byte_text, shown_path, write_staged as _write_all
+from tensegrity.io.files import (
+    DISK_FULL,
+    byte_text,
+    folders_made,
+    shown_path,
+    write_staged as _write_all,
+)
 from tensegrity.model.structure import Structure
 from tensegrity.physics import dynamics
 
@@ -829,7 +835,7 @@ def _video(trajectory: Path, folder: Path, kind: str) -> list[Path]:
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
-    _check_output_folder(args.out, "--out")
+    outputs.check_folder(args.out, "--out")
     _check_samples(args.t_end, args.sample_dt)
     # the drawing's workers start now: they import matplotlib while the run is set up and goes on
     with Drawing(worker_count(2)) as drawing:
@@ -903,15 +909,6 @@ def _remove_empty(folders: Sequence[Path]) -> None:
     for folder in sorted(folders, key=lambda f: len(f.parts), reverse=True):
         with contextlib.suppress(OSError):
             folder.rmdir()
-
-
-def _check_output_folder(folder: Path, option: str) -> None:
-    """Fail up front, before any work, if ``folder`` cannot be (or become) a folder."""
-    for path in (folder, *folder.parents):
-        if path.exists():
-            if not path.is_dir():
-                raise CommandError(f"{option}: {shown_path(path)} exists and is not a folder")
-            return
 
 
 def _vtk_files(folder: Path, result) -> list[Path]:
@@ -1111,12 +1108,10 @@ def _cmd_export(args: argparse.Namespace) -> int:
     from tensegrity.io.formats import FORMATS, write_network
 
     structure = _apply_damping(_structure(args), args.damping)
-    if args.output.is_dir():
-        raise CommandError(f"--output: {shown_path(args.output)} is a folder, expected a file name")
-    if not args.output.parent.is_dir():
-        raise CommandError(f"--output: folder {args.output.parent} does not exist")
+    outputs.check_file(args.output, "--output")
     fmt = args.format or FORMATS.get(args.output.suffix.lower(), "json")
-    write_network(args.output, structure, format=fmt, keep_joints=args.keep_joints)
+    with folders_made(args.output.parent):
+        write_network(args.output, structure, format=fmt, keep_joints=args.keep_joints)
     print(
         f"wrote {args.output} ({fmt}: {structure.n_nodes} nodes, {structure.n_rods} rods, "
         f"{structure.n_tendons} tendons)"
@@ -1128,7 +1123,7 @@ def _cmd_vtk(args: argparse.Namespace) -> int:
     from tensegrity.io.trajectory import read_trajectory
     from tensegrity.io.vtk import write_vtk
 
-    _check_output_folder(args.output, "--output")
+    outputs.check_folder(args.output, "--output")
     with blame("vtk", args.trajectory):
         trajectory = read_trajectory(args.trajectory)
     written = write_vtk(args.output, trajectory, every=args.every, name=args.name)
@@ -1140,7 +1135,7 @@ def _cmd_matrices(args: argparse.Namespace) -> int:
     from tensegrity.engine.simulate import simulate
     from tensegrity.io.matrices import write_matrices
 
-    _check_output_folder(args.out, "--out")
+    outputs.check_folder(args.out, "--out")
     structure = dynamics.undamped(_structure(args))
     _check_matrix_size(structure)
     if args.at == "equilibrium":
@@ -1199,7 +1194,7 @@ def _cmd_analysis(args: argparse.Namespace) -> int:
     from tensegrity.cli import analysis as commands
 
     run = getattr(commands, f"run_{args.command}")
-    _check_output_folder(args.out, "--out")
+    outputs.check_folder(args.out, "--out")
     # the drawing's workers start now: they import matplotlib while the analysis computes
     workers = worker_count(2) if args.command in _DRAWN_IN_WORKERS else 0
     with Drawing(workers) as drawing:
@@ -1305,7 +1300,12 @@ def _add_equilibrium_options(p: argparse.ArgumentParser) -> None:
 
 def _add_modes_options(p: argparse.ArgumentParser) -> None:
     """``modes``: the shapes drawn and the optional checks."""
-    p.add_argument("--shapes", type=int, default=6, help="mode shapes to draw (default 6)")
+    p.add_argument(
+        "--shapes",
+        type=arguments.whole_non_negative,
+        default=6,
+        help="mode shapes to draw, the lowest non-rigid modes (default 6)",
+    )
     p.add_argument(
         "--check-fft",
         action="store_true",
@@ -1318,11 +1318,23 @@ def _add_modes_options(p: argparse.ArgumentParser) -> None:
     )
 
 
+def _patterns(text: str) -> str:
+    """``--inputs`` / ``--outputs``: one set, comma-separated names or patterns (none empty)."""
+    from tensegrity.analysis.controllability import split_patterns
+
+    try:
+        split_patterns(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
+
+
 def _add_controllability_options(p: argparse.ArgumentParser) -> None:
     """``controllability``: the input and output sets and the damping."""
     p.add_argument(
         "--inputs",
         nargs="+",
+        type=_patterns,
         metavar="PATTERN",
         help="sets of actuated tendons, each 'all' or comma-separated name patterns "
         "(default: all, each family, the first tendon)",
@@ -1330,6 +1342,7 @@ def _add_controllability_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--outputs",
         nargs="+",
+        type=_patterns,
         metavar="PATTERN",
         help="sets of outputs: position, length, tension, all or name patterns like "
         "'p0_*' (default: position, length, tension, p0_*)",
@@ -1430,24 +1443,45 @@ def _add_closed_loop_options(p: argparse.ArgumentParser) -> None:
     )
 
 
-def _sweep_parameter(text: str) -> tuple[str, list[float]]:
+def _sweep_parameter(text: str) -> tuple[str, list[float], bool]:
+    """``--param NAME=V1,V2,...`` (a grid's values, or one value) or ``NAME=LOW:HIGH`` (a Monte
+    Carlo range): ``(name, values, whether a range)``."""
     name, sep, values = text.partition("=")
-    parts = values.split(":") if ":" in values else values.split(",")
+    is_range = ":" in values
+    parts = values.split(":") if is_range else values.split(",")
     try:
         numbers = [float(v) for v in parts]
     except ValueError:
         numbers = []
-    if not sep or not numbers:
+    if not sep or not numbers or (is_range and len(numbers) != 2):
         raise argparse.ArgumentTypeError(f"expected NAME=V1,V2,... or NAME=LOW:HIGH, got {text!r}")
-    return name, numbers
+    return name, numbers, is_range
+
+
+def _sweep_parameters(
+    params: Sequence[tuple[str, list[float], bool]], monte_carlo: bool
+) -> dict[str, list[float]]:
+    """The values of the ``--param`` options, each in the form of the sweep's mode: ranges
+    ``LOW:HIGH`` for a Monte Carlo sample (``--samples``), lists ``V1,V2,...`` for a grid (one
+    value fits both)."""
+    for name, values, is_range in params:
+        if is_range and not monte_carlo:
+            raise CommandError(
+                f"--param {name}: LOW:HIGH is a range to draw from and needs --samples N (a "
+                "Monte Carlo sample); a grid takes the values V1,V2,..."
+            )
+        if not is_range and len(values) > 1 and monte_carlo:
+            raise CommandError(
+                f"--param {name}: V1,V2,... are a grid's values; with --samples give a range "
+                "LOW:HIGH or one value"
+            )
+    return {name: values for name, values, _ in params}
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
     from tensegrity.sweep.run import SweepSpec, run_sweep
 
-    _check_output_folder(args.output.parent, "--output")
-    if args.output.is_dir():
-        raise CommandError(f"--output: {shown_path(args.output)} is a folder, expected a file name")
+    outputs.check_file(args.output, "--output")
     options = {
         name: getattr(args, name)
         for name in ("samples", "seed", "t_end", "sample_dt", "method", "dt")
@@ -1475,12 +1509,15 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         if args.structure is not None:
             options["structure"] = _read_structure(args.structure, "--structure")
         with _in_sweep_options():
-            spec = SweepSpec(dict(args.param), mode=mode, **options)
+            spec = SweepSpec(
+                _sweep_parameters(args.param, args.samples is not None), mode=mode, **options
+            )
     with _in_sweep_options():
         result = run_sweep(
             spec, scheduler=args.scheduler, n_workers=args.workers, progress=sys.stderr.isatty()
         )
-    path = _save_sweep(result, args.output)
+    with folders_made(args.output.parent):
+        path = result.save(args.output)
     n = result.dataset.sizes["case"]
     print(
         f"{n - len(result.failed)} of {n} cases reached t_end in {result.wall_time:.1f} s; "
@@ -1520,21 +1557,9 @@ def _in_sweep_options() -> Iterator[None]:
         if parameter is not None:
             message = f"--param {parameter.group(1)}: {problem}"
         elif sep and field in _SWEEP_OPTIONS:
-            problem = re.sub(r"\b(t_end|sample_dt)\b", lambda m: _SWEEP_OPTIONS[m[1]], problem)
+            problem = re.sub(r"\b(t_end|sample_dt|dt)\b", lambda m: _SWEEP_OPTIONS[m[1]], problem)
             message = f"{_SWEEP_OPTIONS[field]}: {problem}"
         raise CommandError(message) from exc
-
-
-def _save_sweep(result, path: Path) -> Path:
-    """Write the sweep's dataset to ``path``, making its missing folders first (as the other
-    verbs make their output folders); those are removed again if the writing fails."""
-    created = [folder for folder in path.parents if not folder.exists()]
-    path.parent.mkdir(parents=True, exist_ok=True)
-    try:
-        return result.save(path)
-    except BaseException:
-        _remove_empty(created)
-        raise
 
 
 def _add_simulate_parser(sub: _Commands) -> None:
@@ -1799,7 +1824,7 @@ def _add_sweep_parser(sub: _Commands) -> None:
         "--output",
         type=arguments.name,
         required=True,
-        help="output .nc file (missing folders are made)",
+        help="output .nc file (missing folders are made, as for every verb's outputs)",
     )
     sweep.set_defaults(run=_cmd_sweep)
 

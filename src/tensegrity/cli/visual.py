@@ -18,9 +18,9 @@ from typing import Any
 
 import numpy as np
 
-from tensegrity.cli import arguments
+from tensegrity.cli import arguments, outputs
 from tensegrity.cli.errors import CommandError, blame
-from tensegrity.io.files import byte_text, shown_path
+from tensegrity.io.files import byte_text, folders_made, shown_path
 
 __all__ = ["add_parsers"]
 
@@ -44,16 +44,13 @@ def _view(text: str) -> tuple[float, float]:
 
 
 def _check_output(path: Path, suffixes: tuple[str, ...]) -> None:
-    """Fail before any work if ``path`` cannot be written: a folder, a missing folder, or a
-    suffix not among ``suffixes``."""
+    """Fail before any work if ``path`` cannot be written (:func:`tensegrity.cli.outputs.
+    check_file`) or its suffix is not among ``suffixes``."""
     if path.suffix.lower() not in suffixes:
         raise CommandError(
             f"--output: {shown_path(path)}: expected a name ending in {', '.join(suffixes)}"
         )
-    if path.is_dir():
-        raise CommandError(f"--output: {shown_path(path)} is a folder, expected a file name")
-    if not path.parent.is_dir():
-        raise CommandError(f"--output: folder {shown_path(path.parent)} does not exist")
+    outputs.check_file(path, "--output")
 
 
 def _read(verb: str, path: Path, frames_wanted: int) -> Any:
@@ -111,16 +108,17 @@ def _cmd_animate(args: argparse.Namespace) -> int:
     _check_output(args.output, tuple(VIDEO_FORMATS))
     if args.duration is not None and args.speed is not None:
         raise CommandError("animate: give --duration or --speed, not both")
-    frames = write_video(
-        args.trajectory,
-        args.output,
-        fps=args.fps,
-        duration=args.duration,
-        speed=args.speed,
-        size=args.size,
-        view=args.view,
-        progress=None if args.progress else False,
-    )
+    with folders_made(args.output.parent):
+        frames = write_video(
+            args.trajectory,
+            args.output,
+            fps=args.fps,
+            duration=args.duration,
+            speed=args.speed,
+            size=args.size,
+            view=args.view,
+            progress=None if args.progress else False,
+        )
     size = byte_text(args.output.stat().st_size)
     fps = frame_rate(args.output, args.fps)
     print(f"wrote {args.output} ({frames} frames at {fps:.3g} fps, {size})")
@@ -181,7 +179,8 @@ def _cmd_view(args: argparse.Namespace) -> int:
             max_bytes=int(args.max_mb * 1e6),
             check=check,
         )
-    view(frames, args.output, title=args.title)
+    with folders_made(args.output.parent):
+        view(frames, args.output, title=args.title)
     size = byte_text(args.output.stat().st_size)
     print(f"wrote {args.output} ({size}; {frames.n_frames} frames of {n_samples} samples)")
     return 0

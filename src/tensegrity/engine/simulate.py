@@ -28,7 +28,7 @@ from tensegrity.engine.result import (
     MemorySink,
     SimulationResult,
 )
-from tensegrity.model.structure import Structure
+from tensegrity.model.structure import Structure, require_structure
 from tensegrity.physics.dynamics import State
 
 if TYPE_CHECKING:
@@ -184,7 +184,9 @@ def options_and_inputs(
     **options: Any,
 ) -> tuple[Options, Inputs]:
     """:func:`simulate`'s keyword options as the engine takes them: the :class:`Options` of the
-    run and its :class:`Inputs` (``TypeError`` names an unknown option)."""
+    run and its :class:`Inputs` (``TypeError`` names an unknown option, or ``structure`` if it
+    is not a :class:`Structure`)."""
+    require_structure(structure)
     unknown = sorted(set(options) - {f.name for f in dataclasses.fields(Options)})
     if unknown:
         raise TypeError(f"unknown option {unknown[0]!r}")

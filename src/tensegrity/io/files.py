@@ -250,10 +250,8 @@ def write_staged(out: Path, write: Callable[[Path], list[Path]]) -> list[Path]:
         One line naming the target that is in the way (nothing moved).
     """
     out = Path(out)
-    created = [folder for folder in (out, *out.parents) if not folder.exists()]
-    out.mkdir(parents=True, exist_ok=True)
-    remove_stale(out)
-    try:
+    with folders_made(out) as created:
+        remove_stale(out)
         with tempfile.TemporaryDirectory(
             dir=out, prefix=f"{STAGING_PREFIX}{os.getpid()}-"
         ) as staging:
@@ -262,6 +260,19 @@ def write_staged(out: Path, write: Callable[[Path], list[Path]]) -> list[Path]:
             ]
             check_targets(out, [target for _, target in moves])
             return _move_all(moves, Path(staging) / ".replaced", out, created)
+
+
+@contextlib.contextmanager
+def folders_made(folder: PathLike) -> Iterator[list[Path]]:
+    """Make ``folder`` and its missing parents for the block, which gets the list of the
+    folders made (it may add more); if the block fails or is interrupted, those of them that
+    are empty are removed again, deepest first.  The one rule of the command's outputs: a
+    verb makes its missing output folders and removes them if it writes nothing there."""
+    folder = Path(folder)
+    created = [path for path in (folder, *folder.parents) if not path.exists()]
+    folder.mkdir(parents=True, exist_ok=True)
+    try:
+        yield created
     except BaseException:
         _remove_folders(created)
         raise

@@ -581,9 +581,12 @@ def read_network(path: PathLike, *, format: str | None = None) -> Structure:
 
 @contextlib.contextmanager
 def _blamed(path: PathLike) -> Iterator[None]:
-    """Errors of reading ``path`` as one-line ``ValueError``s that start with its name."""
+    """Errors of reading ``path`` as one-line ``ValueError``s that start with its name (a
+    document nested deeper than the parsers recurse: ``nested too deeply``)."""
     try:
         yield
+    except RecursionError as exc:
+        raise file_error(path, "nested too deeply") from exc
     except ValueError as exc:
         raise file_error(path, str(exc)) from exc
     except (TypeError, KeyError, OverflowError) as exc:
@@ -621,8 +624,6 @@ def _parse_json(raw: bytes) -> Any:
         raise ValueError(
             f"invalid JSON at line {exc.lineno}, column {exc.colno}: {exc.msg}"
         ) from exc
-    except RecursionError as exc:
-        raise ValueError("invalid JSON: nested too deeply") from exc
     except ValueError as exc:  # an integer of more digits than Python converts (4300)
         raise ValueError(f"invalid JSON: {exc}") from exc
 
@@ -844,12 +845,10 @@ def read_structure(path: PathLike) -> Structure:
 
 
 def _structure_from_dict(data: Any, path: PathLike) -> Structure:
-    try:
+    # (TypeError/KeyError/OverflowError: a malformed value that slipped past from_dict's own
+    # checks, e.g. a string or a huge integer as a node index)
+    with _blamed(path):
         return Structure.from_dict(data)
-    except (ValueError, TypeError, KeyError, OverflowError) as exc:
-        # TypeError/KeyError/OverflowError: a malformed value that slipped past from_dict's own
-        # checks (e.g. a string or a huge integer as a node index).
-        raise file_error(path, str(exc) or type(exc).__name__) from exc
 
 
 def write_structure(path: PathLike, structure: Structure) -> Path:

@@ -58,7 +58,14 @@ def _readonly(array: np.ndarray) -> np.ndarray:
 
 
 def _float_array(value: Any, field: str, shape: tuple[int | None, ...]) -> np.ndarray:
-    """Convert ``value`` to a finite float array of the given shape (``None`` = any length)."""
+    """Convert ``value`` to a finite float array of the given shape (``None`` = any length);
+    complex numbers are refused (NumPy would drop their imaginary parts)."""
+    try:
+        complex_ = np.iscomplexobj(value)
+    except (TypeError, ValueError):  # a ragged list: refused below
+        complex_ = False
+    if complex_:
+        raise ValueError(f"{field}: expected real numbers, got complex {_shown(value)}")
     try:
         array = np.array(value, dtype=float)
     except (TypeError, ValueError, OverflowError) as exc:
@@ -137,6 +144,13 @@ def _check_tendon_pairs(tendon_nodes: np.ndarray, names: Sequence[str]) -> None:
                 f"tendons[{pairs[key]}] ({names[pairs[key]]!r})"
             )
         pairs[key] = k
+
+
+def require_structure(value: Any, argument: str = "structure") -> None:
+    """Raise ``TypeError`` naming ``argument`` unless ``value`` is a :class:`Structure`: at the
+    call of a function that takes one, not as an ``AttributeError`` deep inside it."""
+    if not isinstance(value, Structure):
+        raise TypeError(f"{argument}: expected a Structure, got {type(value).__name__}")
 
 
 #: Environment variable: the most members (rods + tendons) a generator builds.
@@ -361,6 +375,9 @@ class Structure:
     def _checked_tendon_names(self, n_tendons: int) -> tuple[str, ...]:
         """The tendon names (default ``s0``, ``s1``, ...), checked: one non-empty string per
         tendon, no two alike."""
+        if isinstance(self.tendon_name, (str, bytes)):  # (not a sequence of one-letter names)
+            given = _shown(self.tendon_name)
+            raise ValueError(f"tendon_name: expected a sequence of names, got the text {given}")
         try:
             names = (
                 tuple(f"s{k}" for k in range(n_tendons))

@@ -61,19 +61,22 @@ reads it back, checked first as a file from someone else (:mod:`tensegrity.io.ch
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import itertools
 import json
+import logging
 import math
 import os
+import signal
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from tensegrity.engine.options import ADAPTIVE_METHODS, FIXED_STEP_METHODS
+from tensegrity.engine.options import ADAPTIVE_METHODS, FIXED_STEP_METHODS, Options
 from tensegrity.engine.simulate import SimulationResult, simulate
 from tensegrity.io.checked import (
     FLOATS,
@@ -168,7 +171,9 @@ def _check_case_count(cases: int, field: str) -> None:
 
 @dataclasses.dataclass(frozen=True)
 class SweepSpec:
-    """What to sweep and how to run each case (validated at construction).
+    """What to sweep and how to run each case (validated at construction: the fields, the limits
+    of a run (:meth:`tensegrity.engine.options.Options.check_span`) and the cases' parameters'
+    ranges, :func:`check_cases`).
 
     Parameters
     ----------
@@ -265,18 +270,34 @@ class SweepSpec:
                 f"method: expected one of "
                 f"{', '.join([*FIXED_STEP_METHODS, *ADAPTIVE_METHODS])}, got {self.method!r}"
             )
-        intervals = round(self.t_end / self.sample_dt)
+        ratio = self.t_end / self.sample_dt
+        if not math.isfinite(ratio):
+            raise ValueError(
+                f"t_end: {self.t_end:g} s is too long to count its samples at sample_dt = "
+                f"{self.sample_dt:g} s; use a shorter t_end or a larger sample_dt"
+            )
+        intervals = round(ratio)
         if intervals < 1 or abs(intervals * self.sample_dt - self.t_end) > 1e-9 * self.t_end:
             raise ValueError(
                 f"t_end: must be a whole multiple of sample_dt = {self.sample_dt:g} s, "
                 f"got {self.t_end:g} s"
             )
+        # the limits every case's simulate() checks before it starts (a dt too small to advance
+        # the time, too many steps or samples), checked once here
+        Options(
+            method=self.method,
+            dt=self.dt if self.method in FIXED_STEP_METHODS else None,
+            sample_dt=self.sample_dt,
+            rtol=self.rtol,
+            atol=self.atol,
+        ).check_span(0.0, self.t_end)
         if not isinstance(self.batch, bool):
             raise ValueError(f"batch: expected true or false, got {self.batch!r}")
         if self.structure is not None and not isinstance(self.structure, Structure):
             raise ValueError(
                 f"structure: expected a Structure, got {type(self.structure).__name__}"
             )
+        check_cases(self.cases(), self.structure)
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], *, folder: PathLike = ".") -> SweepSpec:
@@ -692,6 +713,25 @@ def _dataset(
     return ds
 
 
+@contextlib.contextmanager
+def _interrupts_ignored() -> Iterator[None]:
+    """Ignore Ctrl-C (SIGINT) within the block, in the main thread (elsewhere signals cannot be
+    set); processes started in it inherit that, and Python then leaves it so.
+
+    Ctrl-C reaches every process of the terminal's process group: the sweep's local worker
+    processes would each print the tracebacks of their interrupted event loops.  They ignore it
+    instead, and this process, which the interrupt still reaches, stops them."""
+    try:
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except ValueError:  # not the main thread
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
 class _Cluster:
     """A Dask client: the given one, one connected to ``scheduler``, or a new LocalCluster."""
 
@@ -714,12 +754,16 @@ class _Cluster:
         if self.scheduler is not None:
             self.client = Client(self.scheduler)
         else:
-            cluster = LocalCluster(
-                n_workers=self.n_workers or os.cpu_count() or 1,
-                threads_per_worker=1,
-                processes=self.processes,
-                dashboard_address=":0",  # any free port
-            )
+            with _interrupts_ignored():  # (inherited by the worker processes started here)
+                cluster = LocalCluster(
+                    n_workers=self.n_workers or os.cpu_count() or 1,
+                    threads_per_worker=1,
+                    processes=self.processes,
+                    dashboard_address=":0",  # any free port
+                    # quiet: a case's failure is reported in the dataset, and stopping busy
+                    # workers (Ctrl-C) logs pages of warnings and errors (lost heartbeats)
+                    silence_logs=logging.CRITICAL,
+                )
             self._own.append(cluster)
             self.client = Client(cluster)
         self._own.insert(0, self.client)
@@ -751,7 +795,8 @@ def run_sweep(
     n_workers : int, optional
         Workers of the default ``LocalCluster`` (default: the CPU count), one thread each.
     processes : bool
-        LocalCluster workers as processes (default) or threads of this process.
+        LocalCluster workers as processes (default) or threads of this process.  Its worker
+        processes ignore Ctrl-C (this process stops them) and its Dask logging is silenced.
     progress : bool or callable
         True: a ``tqdm`` bar over cases on stderr; a callable receives ``(cases_done, cases)``.
 
@@ -767,8 +812,7 @@ def run_sweep(
         raise ValueError("scheduler: give a client or a scheduler address, not both")
     if n_workers is not None and n_workers < 1:
         raise ValueError(f"n_workers: must be >= 1, got {n_workers!r}")
-    cases = spec.cases()
-    check_cases(cases, spec.structure)
+    cases = spec.cases()  # (checked by SweepSpec: check_cases)
     rows: dict[int, dict] = {}  # case index: summary (every case is in one task)
     wall0 = time.perf_counter()
     bar = None
