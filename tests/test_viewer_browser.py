@@ -207,9 +207,9 @@ def tendon_pixels(page, data, frame):
         n = max(int(0.2 * np.linalg.norm(b - a)), 1)
         points = a + np.linspace(0.3, 0.7, n)[:, None] * (b - a)
         others = np.delete(tendons, j, axis=0)
-        clear = (_distances(points, others[:, 0], others[:, 1]).min(axis=1, initial=np.inf) >= 4) & (
-            _distances(points, rods[:, 0], rods[:, 1]).min(axis=1, initial=np.inf) >= 8
-        )
+        clear = (
+            _distances(points, others[:, 0], others[:, 1]).min(axis=1, initial=np.inf) >= 4
+        ) & (_distances(points, rods[:, 0], rods[:, 1]).min(axis=1, initial=np.inf) >= 8)
         found = []
         for x, y in np.floor(points[clear]).astype(int):
             around = picture[y - 1 : y + 2, x - 1 : x + 2].reshape(-1, 3)
