@@ -162,3 +162,25 @@ def test_statespace_is_named(shell, equilibrium):
     assert sys.output_labels[0] == "tension_t1_1_1" and sys.output_labels[-1] == "p0_x"
     # a rest-length step shows in the tension at once: T = k (l - L0 + u)
     assert sys.D[0, 0] == pytest.approx(shell.tendon_stiffness[0])
+
+
+@pytest.mark.parametrize("size", [(3, 1), (6, 5)])
+def test_reprs_are_short_summaries(size):
+    """An equilibrium, its linearization and its modes print as one short line each (they
+    printed their arrays: 3,000, 65,000 and 87,000 characters at (3,1); issue 27).  (6,5), not
+    (10,10): its equilibrium takes minutes."""
+    s = class1_shell(*size)
+    eq = find_equilibrium(s)
+    lin = linearize(s, eq)
+    modes = modal_analysis(lin)
+    for text in (repr(eq), repr(lin), repr(modes)):
+        assert len(text) < 300 and "\n" not in text, text
+    assert repr(eq).startswith("<EquilibriumResult: converged by least_squares (")
+    assert f"{int(eq.slack.sum())} of {s.n_tendons} tendons slack" in repr(eq)
+    assert repr(s) in repr(eq) and repr(s) in repr(lin)
+    k = lin.n_dof
+    assert f"{k} degrees of freedom, A ({2 * k}, {2 * k}), B ({2 * k}, {s.n_tendons})" in repr(lin)
+    assert repr(modes).startswith(
+        f"<ModalAnalysis: {k} modes (6 rigid, 0 mechanisms, {k - 6} elastic, 0 unstable), "
+    )
+    assert repr(modes).endswith(", stable (Definition 18.1)>")

@@ -93,6 +93,34 @@ def test_default_example_prints_a_summary(tmp_path, capsys):
         assert words in printed
 
 
+@pytest.mark.parametrize(
+    "t_end, sample_dt, shown",
+    [("0.01", "0.01", "1 segment of 1 sample"), ("0.5", "0.05", "10 segments of 1 sample")],
+)
+def test_the_summary_counts_checkpoints_in_the_singular_and_plural(
+    t_end, sample_dt, shown, tmp_path, capsys
+):
+    """Not "1 segments" (issue 27)."""
+    argv = ["simulate", "--out", str(tmp_path), "--t-end", t_end, "--sample-dt", sample_dt]
+    assert main(argv) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert next(x for x in lines if x.startswith("checkpoints")).split(None, 1)[1] == shown
+
+
+def test_the_command_s_help_says_what_it_does_in_whole_sentences(capsys):
+    """Not the module docstring's first line, cut in the middle of its list of verbs (issue
+    27)."""
+    with pytest.raises(SystemExit) as exit_:
+        main(["--help"])
+    assert exit_.value.code == 0
+    printed = " ".join(capsys.readouterr().out.split())
+    assert (
+        "Nonlinear dynamics of tensegrity structures (rigid rods, elastic tendons): simulate, "
+        "analyse, design, view and export them. 'tensegrity VERB --help' describes a verb. "
+        "positional arguments:" in printed
+    )
+
+
 def test_export_then_simulate_and_info_a_structure_file(tmp_path, capsys):
     path = tmp_path / "s.json"
     assert main(["export", "--n", "4", "--m", "2", "-o", str(path)]) == 0

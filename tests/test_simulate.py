@@ -694,3 +694,21 @@ def test_simulate_of_something_not_a_structure_is_a_type_error_naming_it(given):
     """At the call, naming the argument (before: an ``AttributeError`` from deep inside)."""
     with pytest.raises(TypeError, match=r"^structure: expected a Structure, got "):
         simulate(given, (0.0, 0.1))
+
+
+@pytest.mark.parametrize("size", [(3, 1), (10, 10)])
+def test_repr_is_a_short_summary(size):
+    """``print(result)``: status, samples, the structure's counts; not the arrays (19,000
+    characters for a (3,1) shell's second; issue 27), however long the message."""
+    import dataclasses
+
+    s = class1_shell(*size)
+    r = simulate(s, (0.0, 0.02), sample_dt=0.01)
+    text = repr(r)
+    assert text == (
+        f"<SimulationResult: status 0 (reached t_end = 0.02 s), 3 samples t = 0..0.02 s, "
+        f"{s!r}, {r.slack_count[-1]} of {s.n_tendons} tendons slack at the end>"
+    )
+    assert len(text) < 300
+    failed = dataclasses.replace(r, status=-1, message="blow-up " * 1000)
+    assert len(repr(failed)) < 400 and "status -1 (blow-up blow-up" in repr(failed)

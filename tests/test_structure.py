@@ -678,3 +678,36 @@ def test_from_dict_wrong_node_row_names_the_node():
     d["nodes"][4] = [1.0, 2.0]
     with pytest.raises(ValueError, match=names("nodes", r"\[4\b")):
         Structure.from_dict(d)
+
+
+# ------------------------------------------------------------------------------ repr
+@pytest.mark.parametrize("size", [(3, 1), (10, 10)])
+def test_repr_is_one_short_line_of_counts(size):
+    """Not the arrays (a (10,10) shell's dataclass repr was 46,000 characters; issue 27)."""
+    from tensegrity.model.shell import class1_shell
+
+    s = class1_shell(*size)
+    text = repr(s)
+    assert len(text) < 200 and "\n" not in text
+    assert text == (
+        f"Structure(dim=3, {s.n_nodes} nodes, {s.n_rods} rods, {s.n_tendons} tendons, "
+        f"mass {s.total_mass:.4g} kg)"
+    )
+
+
+def test_repr_counts_supports_joints_and_point_masses_in_the_singular_and_plural():
+    from tensegrity.model.shell import class2_shell
+    from test_kernel_system import crane, point_mass_between_anchors
+
+    shell = class2_shell(4, 2, fixed_base=True)
+    assert repr(shell) == (
+        "Structure(dim=3, 32 nodes, 16 rods, 56 tendons, 8 fixed nodes, 8 joints, mass 16 kg)"
+    )
+    mass = point_mass_between_anchors()
+    assert repr(mass) == (
+        "Structure(dim=3, 3 nodes, 0 rods, 2 tendons, 2 fixed nodes, 1 point mass, mass 0.3 kg)"
+    )
+    assert repr(crane()) == (
+        "Structure(dim=3, 4 nodes, 1 rod, 1 tendon, 2 fixed nodes, 1 point mass, 1 joint, "
+        "mass 1.5 kg)"
+    )

@@ -173,6 +173,117 @@ def test_tendon_colour_follows_its_tension(page31, shell31):
     assert np.abs(colours[tension.argmax()] - colours[tension.argmin()]).sum() > 0.5
 
 
+def _distances(points, a, b):
+    """Distances (P, M) from the points (P, 2) to the segments from ``a`` (M, 2) to ``b``."""
+    ab = b - a
+    along = ((points[:, None] - a) * ab).sum(-1) / np.maximum((ab**2).sum(-1), 1e-12)
+    nearest = a + np.clip(along, 0.0, 1.0)[..., None] * ab
+    return np.linalg.norm(points[:, None] - nearest, axis=-1)
+
+
+def tendon_pixels(page, data, frame):
+    """``{j: pixels (n, 3)}``: for each taut tendon ``j`` of ``frame`` as drawn now, the colour
+    (0..255) of its most covered pixel at points every 2 px along the middle of its drawn
+    segment (40 %), at the points 4 px or more clear of every other tendon and 8 px or more of
+    every rod; a tendon without such a point is left out.
+
+    Tendons are unlit 1 px lines (``LineBasicMaterial``): a pixel the line covers has its colour
+    exactly (to 8-bit rounding); antialiasing blends a partly covered pixel with the white
+    background, ``alpha * colour + (1 - alpha) * white``, lighter in every channel, so the
+    darkest pixel of the 3 x 3 around a point is the one the line covers most."""
+    box = page.page.locator("#view canvas").bounding_box()
+    picture = page.picture()
+    screen = np.array(
+        page.page.evaluate(
+            "ps => ps.map(p => tensegrityViewer.toScreen(...p))",
+            data["positions"][frame].tolist(),
+        )
+    ) - [box["x"], box["y"]]
+    rods, tendons = screen[data["rods"]], screen[data["tendons"]]  # (M, 2 ends, 2)
+    taut = np.flatnonzero(data["tensions"][frame] > 0)
+    pixels = {}
+    for j in taut:
+        a, b = tendons[j]
+        n = max(int(0.2 * np.linalg.norm(b - a)), 1)
+        points = a + np.linspace(0.3, 0.7, n)[:, None] * (b - a)
+        others = np.delete(tendons, j, axis=0)
+        clear = (
+            _distances(points, others[:, 0], others[:, 1]).min(axis=1, initial=np.inf) >= 4
+        ) & (_distances(points, rods[:, 0], rods[:, 1]).min(axis=1, initial=np.inf) >= 8)
+        found = []
+        for x, y in np.floor(points[clear]).astype(int):
+            around = picture[y - 1 : y + 2, x - 1 : x + 2].reshape(-1, 3)
+            found.append(around[around.sum(axis=1).argmin()])
+        if found:
+            pixels[int(j)] = np.array(found)
+    return pixels
+
+
+def legend_colours(page):
+    """The legend's colour bar as drawn, row by row: (rows, 3), 0..255."""
+    rgba = page.call(
+        "(() => { const c = document.getElementById('colorbar');"
+        " return Array.from(c.getContext('2d').getImageData(0, 0, c.width, c.height).data); })()"
+    )
+    width = page.call("document.getElementById('colorbar').width")
+    return np.array(rgba).reshape(-1, width, 4)[:, width // 2, :3]
+
+
+def check_tendon_pixels(page, data, frame, expected):
+    """The drawn tendons of ``frame`` (:func:`tendon_pixels`, two thirds of the taut ones seen)
+    in ``expected`` (S, 3) (0..255), the colours the legend gives them.  Every pixel read is a
+    blend of its tendon's colour with white (antialiasing), at least half covered; three
+    quarters of the tendons seen cover a pixel fully somewhere (the others, at some slopes,
+    cover 3 of its 4 samples at most), and that pixel is their colour to 8-bit rounding, a
+    colour of the legend (whose rows are every second entry or so of the 256-colour map:
+    within one entry)."""
+    pixels = tendon_pixels(page, data, frame)
+    taut = int((data["tensions"][frame] > 0).sum())
+    assert len(pixels) >= 2 / 3 * taut, f"{len(pixels)} of {taut} tendons seen clear of the others"
+    legend = legend_colours(page)
+    white = np.full(3, 255.0)
+    exact = 0
+    for j, found in pixels.items():
+        colour = expected[j]
+        alpha = ((found - white) @ (colour - white)) / max((colour - white) @ (colour - white), 1)
+        blend = alpha[:, None] * colour + (1 - alpha[:, None]) * white
+        assert np.abs(found - blend).max() <= 3 and alpha.min() >= 0.45, (
+            f"tendon {j}: pixels {found.tolist()} are not its colour {colour} blended with white"
+        )
+        darkest = found[found.sum(axis=1).argmin()]
+        if np.abs(darkest - colour).max() <= 2:
+            exact += 1
+            assert np.abs(legend - darkest).max(axis=1).min() <= 4, (j, darkest)
+    assert exact >= 3 / 4 * len(pixels), f"{exact} of {len(pixels)} tendons in their colour"
+    return pixels
+
+
+def page_colours(data, value, low, high):
+    """The colours (..., 3) (0..255) the page's colour map gives ``value`` on ``low .. high``:
+    ``viewer.js``'s ``colorOf``, the legend's rule."""
+    x = np.clip((np.asarray(value, dtype=float) - low) / (high - low), 0.0, 1.0)
+    table = np.array(data["colormap"])
+    return np.round(255 * table[np.round(x * (len(table) - 1)).astype(int)])
+
+
+def test_drawn_tendons_have_the_legend_s_colours(page31):
+    """The pixels of the tendons on the screen (not the colours the page meant to draw: issue
+    27, where they were sRGB-encoded twice, (141, 15, 155) for the map's (68, 1, 84))."""
+    page, data = page31
+    tensions = np.where(data["tensions"] > 0, data["tensions"], np.inf)
+    lowest = int(tensions.min(axis=1).argmin())  # the frame of the bottom of the colour map
+    low, high = data["tension_range"]
+    seen = []
+    for frame in (0, lowest):  # 0: all taut, 30 to 99 N (the top of the map)
+        page.call(f"tensegrityViewer.setFrame({frame})")
+        expected = page_colours(data, data["tensions"][frame], low, high)
+        pixels = check_tendon_pixels(page, data, frame, expected)
+        seen += [data["tensions"][frame, j] for j in pixels]
+    # the tendons seen span the map, from its first few colours to its last
+    assert min(seen) < low + 0.02 * (high - low) and max(seen) > high - 1e-6 * high
+    page.check_clean()
+
+
 def test_hovering_a_member_names_it(page31):
     page, _ = page31
     page.call("tensegrityViewer.setFrame(0)")
@@ -339,6 +450,12 @@ def test_a_designed_run_s_page_colours_members_by_utilisation(browser, tmp_path)
         failure = utilisation_colors(np.array([2.0]), high)[0, :3]
         for j in np.flatnonzero(tendon > 1):
             np.testing.assert_allclose(drawn_tendons[j], failure, atol=1e-6)
+        # and on the screen: safe tendons on the map, failing ones in the failure colour
+        expected = np.where(
+            (tendon > 1)[:, None], np.round(255 * failure), page_colours(data, tendon, 0, high)
+        )
+        seen = check_tendon_pixels(page, data, frame, expected)
+        assert any(tendon[j] > 1 for j in seen) and any(tendon[j] <= 1 for j in seen)
 
         # hovering a member shows its utilisation
         px, py, info = _member_under_pointer(
@@ -363,6 +480,7 @@ def test_a_designed_run_s_page_colours_members_by_utilisation(browser, tmp_path)
             tension_colormap()((tension - low) / (top - low))[:, :3],
             atol=0.02,
         )
+        check_tendon_pixels(page, data, frame, page_colours(data, tension, low, top))
         rod_colour = page.call("tensegrityViewer.rodColor(0)")
         np.testing.assert_allclose(rod_colour, to_rgb(ROD_COLOR), atol=1e-3)
         assert np.abs(page.picture() - by_tension).max() < 60

@@ -54,6 +54,7 @@ from tensegrity.analysis.statics import (
     statics,
     with_reactions,
 )
+from tensegrity.engine.result import shortened
 from tensegrity.model.structure import Structure, require_structure
 from tensegrity.physics import dynamics
 from tensegrity.physics.constraints import constraints_of
@@ -109,6 +110,19 @@ class EquilibriumResult:
     reaction_force: np.ndarray | None = None
     #: the damped run that settled (:func:`equilibrium_by_simulation`; None for least squares)
     trajectory: SimulationResult | None = None
+
+    def __repr__(self) -> str:
+        """A few hundred characters at most whatever the size: converged or not, the method and
+        the start of its message, the residual force, slack tendons, the tension range and the
+        structure (its ``repr``)."""
+        S = self.structure.n_tendons
+        tensions = f", tensions {self.tension.min():.4g}..{self.tension.max():.4g} N" if S else ""
+        return (
+            f"<EquilibriumResult: {'converged' if self.converged else 'not converged'} by "
+            f"{self.method} ({shortened(self.message)}), residual force "
+            f"{self.residual_force:.3g} N, {int(np.count_nonzero(self.slack))} of {S} tendons "
+            f"slack{tensions}, {self.structure!r}>"
+        )
 
     @property
     def slack_names(self) -> list[str]:

@@ -126,6 +126,15 @@ class Linearization:
         """``k``: ``5 R`` for a free class 1 structure."""
         return self.mass.size
 
+    def __repr__(self) -> str:
+        """One short line whatever the size: the degrees of freedom, the shapes of ``A``, ``B``
+        and ``C``, the taut tendons and the structure (its ``repr``)."""
+        return (
+            f"<Linearization: {self.n_dof} degrees of freedom, A {self.A.shape}, B "
+            f"{self.B.shape}, C {self.C.shape}, {int(np.count_nonzero(self.taut))} of "
+            f"{self.taut.size} tendons taut, {self.source!r}>"
+        )
+
     @property
     def aligned(self) -> bool:
         """True if the structure is free of supports: deformations are then measured after a

@@ -73,6 +73,20 @@ class ModalAnalysis:
         """Number of modes of a kind."""
         return sum(k == kind for k in self.kind)
 
+    def __repr__(self) -> str:
+        """One short line whatever the size: the modes by kind, the range of the elastic
+        frequencies and the verdict's first words (up to its colon)."""
+        m = self.n_mechanisms
+        kinds = (
+            f"{self.n_rigid} rigid, {m} mechanism{'' if m == 1 else 's'}, "
+            f"{self.count(ELASTIC)} elastic, {self.n_unstable} unstable"
+        )
+        elastic = self.frequency_hz[[k == ELASTIC for k in self.kind]]
+        hz = f", {elastic.min():.4g}..{elastic.max():.4g} Hz" if elastic.size else ""
+        return (
+            f"<ModalAnalysis: {len(self.kind)} modes ({kinds}){hz}, {self.verdict.split(':')[0]}>"
+        )
+
     @property
     def n_rigid(self) -> int:
         return self.count(RIGID)

@@ -1,5 +1,5 @@
-"""Command-line interface: ``tensegrity simulate | info | export | vtk | matrices | equilibrium
-| modes | controllability | control | sweep``.
+"""Command-line interface: ``tensegrity VERB``, one verb a subcommand (:func:`build_parser`;
+``--help`` says what it does: :data:`DESCRIPTION`).
 
 A thin layer over the library.  Every error is one line on stderr with exit code 2 (bad
 input), 1 (the computation failed, or an internal error: rerun with ``--debug`` for the trace) or
@@ -70,6 +70,11 @@ if TYPE_CHECKING:
 
 #: The command's name: the ``prog`` of its parser, which the verbs' parsers extend.
 PROG = "tensegrity"
+#: What ``tensegrity --help`` says the command does, above its verbs.
+DESCRIPTION = (
+    "Nonlinear dynamics of tensegrity structures (rigid rods, elastic tendons): simulate, "
+    f"analyse, design, view and export them.  '{PROG} VERB --help' describes a verb."
+)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -969,7 +974,8 @@ def _print_summary(
         ),
         (
             "checkpoints",
-            f"{summary.segments_stored} segments of {summary.samples_per_segment} samples",
+            f"{_counted(summary.segments_stored, 'segment')} of "
+            f"{_counted(summary.samples_per_segment, 'sample')}",
         ),
         *([("resumed", _resumed(summary))] if resume else []),
         ("wall time", f"{summary.wall_time:.2f} s"),
@@ -1026,6 +1032,11 @@ def _utilisation_rows(
         ),
     ]
     return rows, u.failures(s)
+
+
+def _counted(n: int, noun: str) -> str:
+    """``n`` and ``noun``, in the plural unless ``n`` is 1: ``1 segment``, ``2 segments``."""
+    return f"{n} {noun}{'' if n == 1 else 's'}"
 
 
 def _resumed(summary) -> str:
@@ -1831,7 +1842,7 @@ def _add_sweep_parser(sub: _Commands) -> None:
 
 def build_parser() -> argparse.ArgumentParser:
     """The parser of the ``tensegrity`` command: one subcommand per verb, and ``--debug``."""
-    parser = _Parser(prog=PROG, description=__doc__.splitlines()[0])
+    parser = _Parser(prog=PROG, description=DESCRIPTION)
     _add_debug_option(parser, default=False)
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     _add_simulate_parser(sub)

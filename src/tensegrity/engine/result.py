@@ -22,6 +22,7 @@ __all__ = [
     "RunSummary",
     "Samples",
     "SimulationResult",
+    "shortened",
     "total_energy",
 ]
 
@@ -113,6 +114,12 @@ class RunSummary:
         return self.nfev / max(self.nsteps, 1)
 
 
+def shortened(text: str, limit: int = 80) -> str:
+    """``text``, cut to ``limit`` characters (its end replaced by ``…``) if longer: a message
+    in a ``repr``."""
+    return text if len(text) <= limit else text[: limit - 1] + "…"
+
+
 def total_energy(energy: Mapping[str, np.ndarray]) -> np.ndarray:
     """``E_kin + E_el + E_grav + E_d - W_w - W_u`` [J] of energies by :data:`ENERGY_NAMES`
     (arrays of one shape): the balance a run conserves up to integration error."""
@@ -174,6 +181,22 @@ class SimulationResult:
     settings: dict[str, Any]
     max_constraint_error: float = 0.0
     switch_times: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
+
+    def __repr__(self) -> str:
+        """A few hundred characters at most whatever the run's size, as NumPy's and xarray's:
+        how it ended (``status`` and the start of ``message``), the samples and their times, the
+        structure (its ``repr``) and the slack tendons at the end."""
+        T, S = self.t.size, self.structure.n_tendons
+        samples = f"{T} sample{'' if T == 1 else 's'}"
+        if T:
+            samples += f" t = {self.t[0]:.6g}..{self.t[-1]:.6g} s"
+            slack = f", {int(self.slack_count[-1])} of {S} tendons slack at the end"
+        else:
+            slack = ""
+        return (
+            f"<SimulationResult: status {self.status} ({shortened(self.message)}), {samples}, "
+            f"{self.structure!r}{slack}>"
+        )
 
     @property
     def success(self) -> bool:

@@ -661,6 +661,27 @@ class Structure:
         """A copy with some fields changed, validated again (``dataclasses.replace``)."""
         return dataclasses.replace(self, **changes)
 
+    def __repr__(self) -> str:
+        """One short line whatever the size, as NumPy's and xarray's: the dimension, the counts
+        of nodes, rods and tendons, of supports, joints and point masses (those present) and the
+        total mass, e.g. ``Structure(dim=3, 6 nodes, 3 rods, 9 tendons, mass 3 kg)``."""
+        counts = [
+            (self.n_nodes, "node", "nodes"),
+            (self.n_rods, "rod", "rods"),
+            (self.n_tendons, "tendon", "tendons"),
+            (int(np.count_nonzero(self.node_fixed)), "fixed node", "fixed nodes"),
+            (self.point_mass_nodes.size, "point mass", "point masses"),
+            (self.joint_nodes.shape[0], "joint", "joints"),
+            (self.plane_nodes.size, "node on a plane", "nodes on planes"),
+            (self.line_nodes.size, "node on a line", "nodes on lines"),
+        ]
+        shown = [
+            f"{n} {one if n == 1 else many}"
+            for i, (n, one, many) in enumerate(counts)
+            if n or i < 3  # (nodes, rods and tendons always)
+        ]
+        return f"Structure(dim={self.dim}, {', '.join(shown)}, mass {self.total_mass:.4g} kg)"
+
     # -------------------------------------------------------------- JSON form
     def to_dict(self) -> dict[str, Any]:
         """The JSON form: ``{"nodes", "velocities", "rods", "tendons"}`` with 0-based indices,

@@ -4,6 +4,10 @@
 // Float32 (frame after frame), members as base64 Int32 pairs, and, when the members have a
 // design, their utilisation (base64 Float32, rods and tendons frame after frame) with a colour
 // mode switch "tension" / "utilisation".  SI units: m, s, N, J.
+// Colours: the colour map, the legend and data.colors are sRGB, as CSS and matplotlib's; three.js
+// keeps colours in its linear working space and encodes them to sRGB when it draws.  A material's
+// colour, and a colour set with setRGB(..., "srgb"), is converted on the way in; a vertex colour
+// attribute is not: it must hold linear values (drawnRGB), or it is encoded to sRGB twice.
 // window.tensegrityViewer is its interface for scripts and tests.
 (function () {
   "use strict";
@@ -123,6 +127,16 @@
     if (u > 1) { out[at] = usage.failure[0]; out[at + 1] = usage.failure[1]; out[at + 2] = usage.failure[2]; }
     else colorOf(u, 0, usage.high, out, at);
   }
+  // tendon j's colour in frame k by the colour mode (sRGB, the legend's), in rgb
+  function tendonRGB(k, j) {
+    if (mode === "utilisation") utilisationColor(usage.tendons[k * S + j], rgb, 0);
+    else colorOf(tensions[k * S + j], lowT, highT, rgb, 0);
+    return rgb;
+  }
+  // srgb ([r, g, b], 0..1) as three.js draws it (in its linear working space), in drawnColor
+  function drawnRGB(srgb) {
+    return drawnColor.setRGB(srgb[0], srgb[1], srgb[2], "srgb");
+  }
 
   function setFrame(k) {
     k = Math.min(Math.max(Math.round(k), 0), F - 1);
@@ -142,7 +156,7 @@
       rodMesh.setMatrixAt(i, matrix);
       if (usage && mode === "utilisation") {
         utilisationColor(usage.rods[k * R + i], rgb, 0);
-        rodMesh.setColorAt(i, drawnColor.setRGB(rgb[0], rgb[1], rgb[2], "srgb")); // (as a material's)
+        rodMesh.setColorAt(i, drawnRGB(rgb));
       } else if (usage) rodMesh.setColorAt(i, rodColor);
     }
     rodMesh.instanceMatrix.needsUpdate = true;
@@ -155,9 +169,8 @@
       if (t[j] > 0) {
         const o = 6 * nt;
         for (let c = 0; c < 3; c++) { tp[o + c] = p[u + c]; tp[o + 3 + c] = p[v + c]; }
-        if (mode === "utilisation") utilisationColor(usage.tendons[k * S + j], tc, o);
-        else colorOf(t[j], lowT, highT, tc, o);
-        for (let c = 0; c < 3; c++) tc[o + 3 + c] = tc[o + c];
+        drawnRGB(tendonRGB(k, j)).toArray(tc, o);
+        drawnColor.toArray(tc, o + 3);
         tautIds[nt++] = j;
       } else {
         const o = 6 * ns;
@@ -350,13 +363,15 @@
       const c = rodMesh.getColorAt(i, drawnColor).getRGB({ r: 0, g: 0, b: 0 }, "srgb");
       return [c.r, c.g, c.b];
     },
-    // the drawn colour [r, g, b] of tendon j in this frame, or null if it is slack (dashed)
-    tendonColor: (j) => {
-      const t = taut.geometry.drawRange.count / 2;
-      for (let i = 0; i < t; i++) if (tautIds[i] === j) return Array.from(taut.geometry.attributes.color.array.subarray(6 * i, 6 * i + 3));
-      return null;
-    },
+    // the colour [r, g, b] (sRGB, the legend's) of tendon j in this frame, or null if it is slack
+    // (dashed)
+    tendonColor: (j) => (tensions[current * S + j] > 0 ? Array.from(tendonRGB(current, j)) : null),
     pickAt: (x, y) => { const w = pickAt(x, y); return w && member(w.kind, w.id); },
+    // where the point (x, y, z) [m] is drawn: [x, y] in the page's CSS pixels, as pickAt's
+    toScreen: (x, y, z) => {
+      const box = renderer.domElement.getBoundingClientRect(), q = new T.Vector3(x, y, z).project(camera);
+      return [box.left + 0.5 * (q.x + 1) * box.width, box.top + 0.5 * (1 - q.y) * box.height];
+    },
     ready: true,
   };
 })();
