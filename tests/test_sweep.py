@@ -168,7 +168,8 @@ def test_cli_sweep_makes_the_folders_of_its_output(tmp_path, capsys, monkeypatch
         raise OSError(errno.ENOSPC, "No space left on device", str(path))
 
     monkeypatch.setattr(SweepResult, "save", full_disk)
-    assert main(["sweep", *QUICK_SWEEP, "-o", str(out)]) == 2
+    # a full disk fails the command (exit 1, as everywhere), it is not bad input
+    assert main(["sweep", *QUICK_SWEEP, "-o", str(out)]) == 1
     assert capsys.readouterr().err == f"tensegrity: error: {out}: No space left on device\n"
     assert list(tmp_path.iterdir()) == []
     monkeypatch.setattr(SweepResult, "save", save)
