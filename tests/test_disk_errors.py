@@ -14,6 +14,7 @@ import pytest
 
 from tensegrity import class1_shell
 from tensegrity.io.formats import write_structure
+from test_cli_resume import cli
 
 #: A (10,10) shell for 1 s, 101 samples in 10 segments: a trajectory file of about 5 MB.
 RUN = [
@@ -52,17 +53,6 @@ def small_disk(tmp_path):
 
     yield disk, remount
     subprocess.run(["umount", "-l", str(disk)], check=True)
-
-
-def cli(*argv: str, cwd: Path) -> subprocess.CompletedProcess:
-    """The command in a child process (a crash must not take the test run with it)."""
-    return subprocess.run(
-        [sys.executable, "-m", "tensegrity.cli", *argv],
-        cwd=cwd,
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
 
 
 def assert_one_disk_line(child: subprocess.CompletedProcess, disk: Path) -> str:

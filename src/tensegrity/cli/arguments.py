@@ -9,6 +9,7 @@ import argparse
 import math
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 __all__ = [
     "add_safety_factor",
@@ -17,7 +18,7 @@ __all__ = [
     "name",
     "non_negative",
     "positive",
-    "whole_at_least",
+    "whole",
     "whole_non_negative",
     "whole_positive",
 ]
@@ -34,11 +35,22 @@ def finite(text: str) -> float:
     return value
 
 
-def at_least(low: float, *, strict: bool) -> Callable[[str], float]:
-    """The type of a finite number ``>= low`` (``> low`` if ``strict``)."""
+def whole(text: str) -> int:
+    """A whole number."""
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
 
-    def number(text: str) -> float:
-        value = finite(text)
+
+def at_least(
+    low: float, *, strict: bool, parse: Callable[[str], Any] = finite
+) -> Callable[[str], Any]:
+    """The type of a number ``>= low`` (``> low`` if ``strict``), read by ``parse`` (default
+    :func:`finite`; :func:`whole` for a whole number)."""
+
+    def number(text: str) -> Any:
+        value = parse(text)
         if value < low or (strict and value == low):
             raise argparse.ArgumentTypeError(
                 f"must be {'>' if strict else '>='} {low:g}, got {text!r}"
@@ -52,29 +64,10 @@ def at_least(low: float, *, strict: bool) -> Callable[[str], float]:
 positive = at_least(0.0, strict=True)
 #: A finite number >= 0.
 non_negative = at_least(0.0, strict=False)
-
-
-def whole_at_least(low: int, *, strict: bool) -> Callable[[str], int]:
-    """The type of a whole number ``>= low`` (``> low`` if ``strict``)."""
-
-    def number(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-        if value < low or (strict and value == low):
-            raise argparse.ArgumentTypeError(
-                f"must be {'>' if strict else '>='} {low}, got {text!r}"
-            )
-        return value
-
-    return number
-
-
 #: A whole number >= 1.
-whole_positive = whole_at_least(0, strict=True)
+whole_positive = at_least(0, strict=True, parse=whole)
 #: A whole number >= 0.
-whole_non_negative = whole_at_least(0, strict=False)
+whole_non_negative = at_least(0, strict=False, parse=whole)
 
 
 def name(text: str) -> Path:

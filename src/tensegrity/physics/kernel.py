@@ -160,9 +160,9 @@ def compiled_only(py_func: Callable) -> CPUDispatcher:
 # >= 0 (one read from an array) around the array's length.  Never add a signed integer to a
 # slot: in numba ``uint64 + int64`` is a float64.
 ROD_MASS, ROD_LENGTH, ROD_DAMPING, ROD_C1, ROD_C2, ROD_RELATIVE_DAMPING = range(6)
-#: A rigid-body fit whose inertia has ``det <= SINGULAR_INERTIA (trace / 3)^3`` (rods nearly on
-#: one line) is solved with ``trace * SINGULAR_INERTIA / 3`` added to the diagonal: a turn about
-#: that line moves no mass, so the turn it gets there does not matter.
+#: A rigid-body fit whose inertia has ``det <= SINGULAR_INERTIA (trace / 3)^3`` has its rods on
+#: one line (to about 1e-5 of their size), about which they have no inertia: it is solved with
+#: ``trace / 3`` of inertia added about that line (:func:`_rigid_motion`).
 SINGULAR_INERTIA = 1e-10
 
 
@@ -464,6 +464,17 @@ def _take_force(force, slot):  # pragma: no cover - compiled
     return fx, fy, fz
 
 
+@njit(inline="always", **JIT_OPTIONS)
+def _line_direction(q, rod_param):  # pragma: no cover - compiled
+    """The unit vector ``q2 / |q2|`` of the first rod with relative damping."""
+    for r in range(rod_param.shape[0]):
+        if rod_param[r, ROD_RELATIVE_DAMPING] != 0.0:
+            o = 6 * r + 3
+            norm = np.sqrt(q[o] * q[o] + q[o + 1] * q[o + 1] + q[o + 2] * q[o + 2])
+            return q[o] / norm, q[o + 1] / norm, q[o + 2] / norm
+    return 1.0, 0.0, 0.0
+
+
 @njit(**JIT_OPTIONS)
 def _rigid_motion(q, qdot, rod_param):  # pragma: no cover - compiled
     """The rigid-body motion that best fits the rods' motion with weights ``beta m``, as
@@ -511,18 +522,21 @@ def _rigid_motion(q, qdot, rod_param):  # pragma: no cover - compiled
         ixz -= w * rx * rz + w12 * x * z
         iyz -= w * ry * rz + w12 * y * z
     # omega = I^-1 H by the adjugate (I symmetric)
-    a00 = iyy * izz - iyz * iyz
-    a01 = ixz * iyz - ixy * izz
-    a02 = ixy * iyz - ixz * iyy
-    det = ixx * a00 + ixy * a01 + ixz * a02
     third = (ixx + iyy + izz) / 3.0
-    if not det > SINGULAR_INERTIA * third * third * third:
-        shift = SINGULAR_INERTIA * third
-        ixx, iyy, izz = ixx + shift, iyy + shift, izz + shift
-        a00 = iyy * izz - iyz * iyz
-        a01 = ixz * iyz - ixy * izz
-        a02 = ixy * iyz - ixz * iyy
-        det = ixx * a00 + ixy * a01 + ixz * a02
+    for shift in (0.0, third):
+        # singular: the rods on one line (along the first damped rod's e) have no inertia about
+        # it and H has no part along it; adding shift e e^T makes I invertible and leaves
+        # omega = I^+ H as it is
+        ex, ey, ez = _line_direction(q, rod_param) if shift else (0.0, 0.0, 0.0)
+        jxx, jyy, jzz = ixx + shift * ex * ex, iyy + shift * ey * ey, izz + shift * ez * ez
+        jxy, jxz, jyz = ixy + shift * ex * ey, ixz + shift * ex * ez, iyz + shift * ey * ez
+        a00 = jyy * jzz - jyz * jyz
+        a01 = jxz * jyz - jxy * jzz
+        a02 = jxy * jyz - jxz * jyy
+        det = jxx * a00 + jxy * a01 + jxz * a02
+        if det > SINGULAR_INERTIA * third * third * third:
+            break
+    ixx, iyy, izz, ixy, ixz, iyz = jxx, jyy, jzz, jxy, jxz, jyz
     a11 = ixx * izz - ixz * ixz
     a12 = ixy * ixz - ixx * iyz
     a22 = ixx * iyy - ixy * ixy
