@@ -42,6 +42,7 @@ from tensegrity.cli.errors import (
     signals_as_interrupts,
     warnings_on_success,
 )
+from tensegrity.cli.startup import announce_compiling, seconds_since_start
 from tensegrity.engine.options import (
     ADAPTIVE_METHODS,
     DEFAULT_MAX_SAMPLES,
@@ -823,6 +824,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 def _simulate_and_write(args: argparse.Namespace, drawing: Drawing) -> int:
     """``tensegrity simulate`` once its options are checked: the run, its files (the figures,
     page and video drawn by ``drawing``) and its summary."""
+    announce_compiling()
     structure, force, gravity, designed = _simulation_inputs(args)
     files = _RunFiles.prepare(args.out, args.resume)
     _announce_large_run(structure, args.t_end, args.sample_dt, files.out)
@@ -935,7 +937,8 @@ def _print_summary(
             f"{summary.segments_stored} segments of {summary.samples_per_segment} samples",
         ),
         *([("resumed", _resumed(summary))] if resume else []),
-        ("wall time", f"{summary.wall_time:.2f} s"),
+        ("simulation wall time", f"{summary.wall_time:.2f} s"),
+        ("time to result", f"{seconds_since_start():.2f} s since the command started"),
     ]
     failures: list[str] = []
     if peaks is not None:
@@ -1105,6 +1108,7 @@ def _cmd_matrices(args: argparse.Namespace) -> int:
     structure = undamped(_structure(args))
     _check_matrix_size(structure)
     if args.at == "equilibrium":
+        announce_compiling()
         # Tight rest tolerances: with the damping removed, K_p q = q'' is then below ~1e-8.
         result = simulate(
             dynamics.critical_damping(structure),
@@ -1181,6 +1185,7 @@ def _analysis_and_write(args: argparse.Namespace, run: Callable, drawing: Drawin
     ``args``, its files (the figures and pages drawn by ``drawing``) and its tables."""
     import inspect
 
+    announce_compiling()
     structure = _structure(args)
     options = {
         name: getattr(args, name)
