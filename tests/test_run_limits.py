@@ -9,12 +9,14 @@ from __future__ import annotations
 import resource
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
 
-from tensegrity import class1_shell, simulate
+from tensegrity import class1_shell, critical_damping, simulate
 from tensegrity.cli.main import main
+from tensegrity.design.catalogue import prism
 
 #: Address space of a child process [bytes]: numba and its compiled code fit in well under this.
 _MEMORY_CAP = 6 * 2**30
@@ -235,3 +237,101 @@ def test_cli_budget_and_signals_reach_a_run_of_tiny_steps(tmp_path):
     assert "stopped after --max-wall-time 0.5 s of wall-clock time" in line
     assert "raise --max-wall-time" in line and "(nothing written)" in line
     assert not (tmp_path / "b").exists()
+
+
+# ------------------------------------------------------------------ the cost of a run, up front
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["simulate", "--stiffness", "1e12"],
+        ["equilibrium", "--stiffness", "1e12"],
+        ["matrices", "--at", "equilibrium", "--stiffness", "1e12"],
+    ],
+)
+def test_a_run_too_stiff_for_its_step_budget_is_refused_at_once(argv, tmp_path):
+    """Before: 170 s of steps until ``--max-steps``, then exit 1.  Now one line, exit 2, in
+    seconds (the child's imports included), saying what to change."""
+    started = time.perf_counter()
+    child = subprocess.run(
+        [sys.executable, "-m", "tensegrity.cli", *argv, "--out", "out"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        cwd=tmp_path,
+    )
+    assert time.perf_counter() - started < 15
+    line = child.stderr.strip()
+    assert child.returncode == 2 and "\n" not in line, child.stderr
+    assert "a run to 60 s needs at least 3.6e+07 DOP853 steps (highest rate 2e+06 1/s" in line
+    assert "so it cannot come to rest" in line and "softer tendons" in line
+    if argv[0] == "simulate":
+        assert "more than --max-steps 10,000,000" in line and "--method Radau or BDF" in line
+    assert list(tmp_path.iterdir()) == []
+
+
+def _simulate_args(*argv: str):
+    from tensegrity.cli.main import _simulation_inputs, build_parser
+
+    args = build_parser().parse_args(["simulate", *argv])
+    return args, _simulation_inputs(args)[0]
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        [],
+        ["--n", "10", "--m", "10"],
+        ["--n", "10", "--m", "10", "--no-steady-state"],
+        ["--kind", "prism", "--no-steady-state"],
+        ["--kind", "octahedron", "--no-steady-state"],
+        ["--method", "rk4", "--dt", "1e-4"],
+        ["--t-end", "1e308"],
+    ],
+)
+def test_ordinary_runs_are_neither_refused_nor_announced(argv, capsys):
+    from tensegrity.cli.main import _check_simulation_cost
+
+    args, structure = _simulate_args(*argv)
+    _check_simulation_cost(args, structure)
+    assert capsys.readouterr().err == ""
+
+
+def test_an_unstable_rk4_step_is_refused_and_a_risky_one_announced(capsys):
+    from tensegrity.cli.errors import CommandError
+    from tensegrity.cli.main import _check_simulation_cost
+
+    with pytest.raises(CommandError, match=r"^--dt: 0.2 s is beyond RK4's stability limit"):
+        _check_simulation_cost(*_simulate_args("--method", "rk4", "--dt", "0.2"))
+    _check_simulation_cost(*_simulate_args("--method", "rk4", "--dt", "0.015"))
+    assert "--dt 0.015 s is near RK4's stability limit" in capsys.readouterr().err
+    # (measured: that run fails, "energy grew by 65.4 J", at t = 0.555 s)
+
+
+def test_a_long_run_is_announced_in_seconds(capsys):
+    from tensegrity.cli.main import _check_simulation_cost
+
+    _check_simulation_cost(*_simulate_args("--stiffness", "1e10"))
+    err = capsys.readouterr().err
+    assert err.startswith("tensegrity: a long run: about 3.76e+08 DOP853 steps, more than ")
+    assert "--max-steps 10,000,000: it would stop there after about " in err
+
+
+@pytest.mark.parametrize(
+    ("make", "t_end"),
+    [
+        (lambda: prism(3), 100.0),  # undamped, at rest: the fewest steps per radian (0.32)
+        (lambda: critical_damping(class1_shell(3, 1)), 100.0),  # settling: 1.6
+        (lambda: critical_damping(class1_shell(3, 1, stiffness=1e10)), 2e-3),  # at rest
+    ],
+)
+def test_the_step_estimate_bounds_real_runs(make, t_end):
+    """The estimate's lower bound holds for real runs, and its expected count is within a
+    factor of 3 of theirs."""
+    from tensegrity.engine.budget import estimate
+
+    structure = make()
+    cost = estimate(structure, t_end)
+    run = simulate(structure, (0.0, t_end), sample_dt=t_end / 10)
+    assert run.status == 0
+    assert cost.least_steps <= run.nsteps
+    assert run.nsteps / 3 <= cost.steps <= run.nsteps * 3 or cost.steps == cost.least_steps

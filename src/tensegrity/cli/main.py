@@ -404,6 +404,97 @@ def _announce_large_run(structure: Structure, t_end: float, sample_dt: float, ou
     )
 
 
+#: A run estimated to take longer than this [s] is announced on stderr before it starts.
+LONG_RUN_SECONDS = 30.0
+
+
+def _check_run_cost(
+    structure: Structure,
+    t_end: float,
+    *,
+    method: str = "DOP853",
+    dt: float | None = None,
+    atol: float = 1e-12,
+    steady_state: bool = False,
+    acceleration_tol: float = 1e-6,
+    max_steps: int = DEFAULT_MAX_STEPS,
+    max_wall_time: float = math.inf,
+    remedy: str = "softer tendons, a shorter --t-end, a larger --max-steps or an implicit "
+    "method (--method Radau or BDF)",
+) -> None:
+    """Before a run of ``structure`` to ``t_end`` [s], by
+    :func:`tensegrity.engine.budget.estimate`: refuse it if it needs more than ``max_steps``
+    steps or (``"rk4"``) its ``dt`` [s] is unstable, naming ``remedy`` (what to change); say on
+    stderr if its ``dt`` is near the limit, or if it takes longer than
+    :data:`LONG_RUN_SECONDS` and ``max_wall_time`` [s] (a steady-state run that may come to rest
+    early: not)."""
+    from tensegrity.engine.budget import RK4_STABLE, estimate
+
+    cost = estimate(
+        structure,
+        t_end,
+        method=method,
+        dt=dt,
+        atol=atol,
+        steady_state=steady_state,
+        acceleration_tol=acceleration_tol,
+    )
+    if cost is None:
+        return
+    stiffest = structure.tendon_stiffness.max(initial=0.0)
+    why = f"highest rate {cost.rate:.3g} 1/s, tendons up to {stiffest:g} N/m"
+    if not cost.stable:
+        raise CommandError(
+            f"--dt: {dt:g} s is beyond RK4's stability limit for this structure (about "
+            f"{RK4_STABLE / cost.rate:.2g} s; {why}); use --dt {cost.stable_dt:.2g} or less, or an "
+            "adaptive --method"
+        )
+    if not cost.careful:
+        print(
+            f"tensegrity: --dt {dt:g} s is near RK4's stability limit for this structure ({why}): "
+            f"--dt {cost.stable_dt:.2g} or less is safe",
+            file=sys.stderr,
+        )
+    if cost.settles:
+        return
+    if steady_state:
+        why += (
+            f"; round-off of its forces keeps its accelerations above {acceleration_tol:g} m/s^2, "
+            "so it cannot come to rest"
+        )
+    if method not in FIXED_STEP_METHODS and cost.least_steps > max_steps:
+        raise CommandError(
+            f"a run to {t_end:g} s needs at least {cost.least_steps:.3g} {method} steps ({why}), "
+            f"more than --max-steps {max_steps:,}; use {remedy}"
+        )
+    seconds = min(cost.steps, max_steps) * cost.step_seconds
+    if min(seconds, max_wall_time) > LONG_RUN_SECONDS:
+        stops = (
+            f", more than --max-steps {max_steps:,}: it would stop there after"
+            if cost.steps > max_steps
+            else ","
+        )
+        print(
+            f"tensegrity: a long run: about {cost.steps:.3g} {method} steps{stops} about "
+            f"{seconds:,.0f} s ({why}); quicker: {remedy}",
+            file=sys.stderr,
+        )
+
+
+def _check_simulation_cost(args: argparse.Namespace, structure: Structure) -> None:
+    """:func:`_check_run_cost` of ``simulate``'s run of ``structure`` with the options ``args``."""
+    _check_run_cost(
+        structure,
+        args.t_end,
+        method=args.method,
+        dt=args.dt,
+        atol=args.atol,
+        steady_state=not args.no_steady_state,
+        max_steps=args.max_steps,
+        max_wall_time=args.max_wall_time,
+    )
+
+
 def _segment(structure: Structure, t_end: float, sample_dt: float) -> float:
     """Segment duration [s] of a ``simulate`` run: at most a tenth of it, rounded to samples.
 
@@ -826,6 +917,7 @@ def _simulate_and_write(args: argparse.Namespace, drawing: Drawing) -> int:
     page and video drawn by ``drawing``) and its summary."""
     announce_compiling()
     structure, force, gravity, designed = _simulation_inputs(args)
+    _check_simulation_cost(args, structure)
     files = _RunFiles.prepare(args.out, args.resume)
     _announce_large_run(structure, args.t_end, args.sample_dt, files.out)
     keeper = None
@@ -1099,6 +1191,11 @@ def _cmd_vtk(args: argparse.Namespace) -> int:
     return 0
 
 
+#: ``matrices --at equilibrium`` is at rest when node speeds [m/s] and accelerations [m/s^2]
+#: are below this.
+MATRICES_REST_TOL = 1e-9
+
+
 def _cmd_matrices(args: argparse.Namespace) -> int:
     from tensegrity.engine.simulate import simulate
     from tensegrity.io.matrices import write_matrices
@@ -1109,13 +1206,20 @@ def _cmd_matrices(args: argparse.Namespace) -> int:
     _check_matrix_size(structure)
     if args.at == "equilibrium":
         announce_compiling()
+        _check_run_cost(
+            structure,
+            args.t_end,
+            steady_state=True,
+            acceleration_tol=MATRICES_REST_TOL,
+            remedy="softer tendons or a shorter --t-end",
+        )
         # Tight rest tolerances: with the damping removed, K_p q = q'' is then below ~1e-8.
         result = simulate(
             dynamics.critical_damping(structure),
             (0.0, args.t_end),
             steady_state=True,
-            velocity_tol=1e-9,
-            acceleration_tol=1e-9,
+            velocity_tol=MATRICES_REST_TOL,
+            acceleration_tol=MATRICES_REST_TOL,
             rtol=1e-10,
             sample_dt=0.1,
             progress=sys.stderr.isatty(),
@@ -1187,6 +1291,14 @@ def _analysis_and_write(args: argparse.Namespace, run: Callable, drawing: Drawin
 
     announce_compiling()
     structure = _structure(args)
+    if args.command == "equilibrium" and args.method != "least_squares":
+        _check_run_cost(
+            structure,
+            args.t_end,
+            steady_state=True,
+            acceleration_tol=args.acceleration_tol,
+            remedy="softer tendons, a shorter --t-end or --method least_squares",
+        )
     options = {
         name: getattr(args, name)
         for name in inspect.signature(run).parameters
