@@ -371,6 +371,22 @@ def _check_samples(
         )
 
 
+def _run_end(t_end: float, sample_dt: float, *, steady_state: bool) -> float:
+    """The end [s] of ``simulate``'s run: ``--t-end``, checked by :func:`_check_samples`; for a
+    steady-state run, which stops when it comes to rest, ``--t-end`` only bounds it: beyond the
+    end of the samples limit (``1e308`` too), that end, said on stderr."""
+    end = (DEFAULT_MAX_SAMPLES - 1) * sample_dt
+    if not (steady_state and t_end > end):
+        _check_samples(t_end, sample_dt)
+        return t_end
+    print(
+        f"tensegrity: --t-end {t_end:g} s: the run stops when it comes to rest, at the latest at "
+        f"{end:g} s ({DEFAULT_MAX_SAMPLES:,} samples at --sample-dt {sample_dt:g} s)",
+        file=sys.stderr,
+    )
+    return end
+
+
 #: ``simulate`` says before a run that writes at least this many bytes what it will write.
 LARGE_RUN_BYTES = 2**30
 
@@ -425,9 +441,8 @@ def _check_run_cost(
     """Before a run of ``structure`` to ``t_end`` [s], by
     :func:`tensegrity.engine.budget.estimate`: refuse it if it needs more than ``max_steps``
     steps or (``"rk4"``) its ``dt`` [s] is unstable, naming ``remedy`` (what to change); say on
-    stderr if its ``dt`` is near the limit, or if it takes longer than
-    :data:`LONG_RUN_SECONDS` and ``max_wall_time`` [s] (a steady-state run that may come to rest
-    early: not)."""
+    stderr if it takes longer than :data:`LONG_RUN_SECONDS` and ``max_wall_time`` [s] (a
+    steady-state run that may come to rest early: not)."""
     from tensegrity.engine.budget import RK4_STABLE, estimate
 
     cost = estimate(
@@ -446,14 +461,8 @@ def _check_run_cost(
     if not cost.stable:
         raise CommandError(
             f"--dt: {dt:g} s is beyond RK4's stability limit for this structure (about "
-            f"{RK4_STABLE / cost.rate:.2g} s; {why}); use --dt {cost.stable_dt:.2g} or less, or an "
+            f"{RK4_STABLE / cost.rate:.2g} s; {why}); use --dt {cost.safe_dt:.2g} or less, or an "
             "adaptive --method"
-        )
-    if not cost.careful:
-        print(
-            f"tensegrity: --dt {dt:g} s is near RK4's stability limit for this structure ({why}): "
-            f"--dt {cost.stable_dt:.2g} or less is safe",
-            file=sys.stderr,
         )
     if cost.settles:
         return
@@ -906,7 +915,7 @@ def _video(trajectory: Path, folder: Path, kind: str) -> list[Path]:
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
     _check_output_folder(args.out, "--out")
-    _check_samples(args.t_end, args.sample_dt)
+    args.t_end = _run_end(args.t_end, args.sample_dt, steady_state=not args.no_steady_state)
     # the drawing's workers start now: they import matplotlib while the run is set up and goes on
     with Drawing(worker_count(2)) as drawing:
         return _simulate_and_write(args, drawing)

@@ -25,8 +25,8 @@ STEPS_PER_RADIAN = 0.3
 #: ``"rk4"`` with ``dt * highest_rate`` above this is unstable (measured: 1.65 for an undamped
 #: prism at rest, 0.3-0.5 for damped shells and prisms in motion).
 RK4_STABLE = 2.0
-#: ... and from this on it may be (a damped (3,1) shell fails at 0.3).
-RK4_CAREFUL = 0.2
+#: ... and a step below this over it is suggested instead (a damped (3,1) shell fails at 0.3).
+RK4_SAFE = 0.2
 #: The residual accelerations of a run at rest stay at about this times
 #: :func:`acceleration_floor` (measured 1.8-2.3); a steady-state run whose floor exceeds its
 #: ``acceleration_tol`` cannot come to rest.
@@ -55,7 +55,6 @@ class RunEstimate:
     settles : True if a steady-state run may come to rest before its end (then ``steps`` and
         ``least_steps`` bound a run that may stop much earlier).
     stable : False if ``"rk4"``'s ``dt`` is beyond its stability limit (the run blows up).
-    careful : False if ``"rk4"``'s ``dt`` is near that limit.
     """
 
     least_steps: float
@@ -64,12 +63,11 @@ class RunEstimate:
     rate: float
     settles: bool = False
     stable: bool = True
-    careful: bool = True
 
     @property
-    def stable_dt(self) -> float:
-        """The largest ``"rk4"`` step [s] counted as careful."""
-        return RK4_CAREFUL / self.rate
+    def safe_dt(self) -> float:
+        """A ``"rk4"`` step [s] well within the stability limit (:data:`RK4_SAFE`)."""
+        return RK4_SAFE / self.rate
 
 
 def _tendon_masses(structure: Structure) -> np.ndarray:
@@ -158,7 +156,6 @@ def estimate(
             rate,
             settles,
             stable=dt * rate <= RK4_STABLE,
-            careful=dt * rate <= RK4_CAREFUL,
         )
     least = t_end * rate * STEPS_PER_RADIAN
     damped = bool(np.any(structure.tendon_damping > 0) or np.any(structure.rod_damping > 0))
