@@ -6,6 +6,7 @@ grinding on."""
 
 from __future__ import annotations
 
+import importlib
 import resource
 import subprocess
 import sys
@@ -353,3 +354,35 @@ def test_a_steady_state_run_takes_a_huge_t_end_as_a_bound(tmp_path, capsys):
     assert (out / "trajectory.h5").exists()
     code = main(["simulate", "--t-end", "1e308", "--no-steady-state", "--out", str(tmp_path / "b")])
     assert code == 2 and "is inf samples, more than 10,000,000" in capsys.readouterr().err
+
+
+def test_a_structure_too_large_for_the_memory_is_refused_before_any_work(
+    tmp_path, capsys, monkeypatch
+):
+    """(Cheaply: the threshold lowered to the (3,1) shell's 30 members, 1 MiB available.)  Before:
+    a structure of 10^6 members ran for minutes at 2.5-3.6 GB with no word of it."""
+    cli = importlib.import_module("tensegrity.cli.main")
+
+    monkeypatch.setattr(cli, "LARGE_STRUCTURE_MEMBERS", 30)
+    monkeypatch.setattr(cli, "_available_memory", lambda: 2**20)
+    out = tmp_path / "out"
+    assert main(["simulate", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == (
+        "tensegrity: error: a structure of 30 members needs about 204.2 MiB of memory to "
+        "simulate, more than the 1.0 MiB available; simulate a smaller one"
+    )
+    assert not out.exists()
+
+
+def test_a_large_structure_is_announced_with_its_memory_and_time(monkeypatch, capsys):
+    cli = importlib.import_module("tensegrity.cli.main")
+
+    monkeypatch.setattr(cli, "_available_memory", lambda: 2**40)
+    cli._check_structure_size(class1_shell(10000, 1))  # 100,000 members
+    assert capsys.readouterr().err == (
+        "tensegrity: a large structure: 100,000 members, about 471.1 MiB of memory, 9 s to set "
+        "up and write and 0.036 s a step\n"
+    )
+    cli._check_structure_size(class1_shell(30, 30))  # 10,620 members: quick, said nothing
+    assert capsys.readouterr().err == ""

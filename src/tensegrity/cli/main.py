@@ -490,6 +490,55 @@ def _check_run_cost(
         )
 
 
+#: ``simulate``'s memory [bytes]: a part per member (rod or tendon) and the rest, fitted to the
+#: peak resident memory of runs of 10,000, 100,000 and 300,000 members (2026-11-27, 2-core
+#: machine: 224, 494 and 1,054 MB; the issue's 10^6 members: 2.5-3.6 GB).
+MEMBER_BYTES = 2800
+BASE_BYTES = 214 * 10**6
+#: ... and its time [s] beside the steps (building, checking, writing, drawing) per member
+#: (the 300,000 members' run: 27 s of its 35 s).
+MEMBER_SECONDS = 90e-6
+#: ``simulate`` says what a structure of at least this many members will cost before it starts.
+LARGE_STRUCTURE_MEMBERS = 100_000
+
+
+def _available_memory() -> int | None:
+    """The memory available to a new process [bytes] (Linux ``MemAvailable``), or None."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as file:
+            for line in file:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
+
+
+def _check_structure_size(structure: Structure) -> None:
+    """Before ``simulate``'s run of a structure of :data:`LARGE_STRUCTURE_MEMBERS` members or
+    more: refuse it if its memory (:data:`MEMBER_BYTES`) exceeds the memory available, else say
+    on stderr how much memory and time it takes before its steps."""
+    from tensegrity.engine.budget import STEP_SECONDS
+
+    members = structure.n_rods + structure.n_tendons
+    if members < LARGE_STRUCTURE_MEMBERS:
+        return
+    needed = BASE_BYTES + MEMBER_BYTES * members
+    available = _available_memory()
+    if available is not None and needed > available:
+        raise CommandError(
+            f"a structure of {members:,} members needs about {byte_text(needed)} of memory to "
+            f"simulate, more than the {byte_text(available)} available; simulate a smaller one"
+        )
+    fixed, per_member = STEP_SECONDS["DOP853"]
+    print(
+        f"tensegrity: a large structure: {members:,} members, about {byte_text(needed)} of "
+        f"memory, {members * MEMBER_SECONDS:,.0f} s to set up and write and "
+        f"{fixed + per_member * members:.2g} s a step",
+        file=sys.stderr,
+    )
+
+
 def _check_simulation_cost(args: argparse.Namespace, structure: Structure) -> None:
     """:func:`_check_run_cost` of ``simulate``'s run of ``structure`` with the options ``args``."""
     _check_run_cost(
@@ -926,6 +975,7 @@ def _simulate_and_write(args: argparse.Namespace, drawing: Drawing) -> int:
     page and video drawn by ``drawing``) and its summary."""
     announce_compiling()
     structure, force, gravity, designed = _simulation_inputs(args)
+    _check_structure_size(structure)
     _check_simulation_cost(args, structure)
     files = _RunFiles.prepare(args.out, args.resume)
     _announce_large_run(structure, args.t_end, args.sample_dt, files.out)
