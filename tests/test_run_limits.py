@@ -386,3 +386,10 @@ def test_a_large_structure_is_announced_with_its_memory_and_time(monkeypatch, ca
     )
     cli._check_structure_size(class1_shell(30, 30))  # 10,620 members: quick, said nothing
     assert capsys.readouterr().err == ""
+
+
+def test_a_span_of_inf_samples_is_refused_in_one_line():
+    """Before: ``OverflowError: cannot convert float infinity to integer`` (``equilibrium`` and
+    ``matrices --at equilibrium --t-end 1e308``: "the computation failed")."""
+    with pytest.raises(ValueError, match=r"^sample_dt: 0.01 s over 1e\+308 s is inf samples, more"):
+        simulate(class1_shell(3, 1), (0.0, 1e308), sample_dt=0.01, steady_state=True)
