@@ -393,3 +393,27 @@ def test_a_span_of_inf_samples_is_refused_in_one_line():
     ``matrices --at equilibrium --t-end 1e308``: "the computation failed")."""
     with pytest.raises(ValueError, match=r"^sample_dt: 0.01 s over 1e\+308 s is inf samples, more"):
         simulate(class1_shell(3, 1), (0.0, 1e308), sample_dt=0.01, steady_state=True)
+
+
+def test_a_sweep_too_large_for_the_memory_is_refused_before_any_work(tmp_path, capsys, monkeypatch):
+    """A 100 x 100 grid with 1 GiB available (before: a 1000 x 1000 grid, 92 GiB by the same
+    estimate, ran for minutes with no word of it)."""
+    cli = importlib.import_module("tensegrity.cli.main")
+    monkeypatch.setattr(cli, "_available_memory", lambda: 2**30)
+    values = ",".join(str(k) for k in range(1, 101))
+    argv = ["sweep", "--param", f"stiffness={values}", "--param", f"load={values}"]
+    assert main([*argv, "-o", str(tmp_path / "s.nc")]) == 2
+    assert capsys.readouterr().err.strip() == (
+        "tensegrity: error: a sweep of 10,000 cases needs about 1.1 GiB of memory for its "
+        "results, more than the 1.0 GiB available; sweep fewer cases"
+    )
+    assert list(tmp_path.iterdir()) == []
+    monkeypatch.setattr(cli, "_available_memory", lambda: 2**40)
+    from tensegrity.sweep.run import SweepSpec
+
+    cli._check_sweep_size(SweepSpec({"stiffness": list(range(1, 101)), "load": list(range(100))}))
+    assert capsys.readouterr().err == (
+        "tensegrity: a large sweep: 10,000 cases, about 1.1 GiB of memory\n"
+    )
+    cli._check_sweep_size(SweepSpec({"stiffness": list(range(1, 100)), "load": list(range(100))}))
+    assert capsys.readouterr().err == ""  # 9,900 cases: said nothing
