@@ -61,6 +61,7 @@ if TYPE_CHECKING:
     from tensegrity.io.stream import StreamSummary
     from tensegrity.model.loads import ForceTable
     from tensegrity.plots.motion import FrameKeeper
+    from tensegrity.sweep.run import SweepSpec
 
 #: The command's name: the ``prog`` of its parser, which the verbs' parsers extend.
 PROG = "tensegrity"
@@ -1637,7 +1638,7 @@ SWEEP_BASE_BYTES = 207 * 10**6
 LARGE_SWEEP_CASES = 10_000
 
 
-def _check_sweep_size(spec) -> None:
+def _check_sweep_size(spec: SweepSpec) -> None:
     """Before a sweep of :data:`LARGE_SWEEP_CASES` cases or more (``spec``, a
     :class:`tensegrity.sweep.run.SweepSpec`): refuse it if its memory exceeds the memory
     available, else say on stderr how much it takes."""
