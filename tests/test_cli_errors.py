@@ -71,7 +71,11 @@ def _assert_one_error_line(err: str) -> None:
             2,
             ["--structure", "deep.toml", "nested too deeply"],
         ),
-        (["simulate", "--t-end", "1e308", "--out", "r"], 2, ["--t-end", "--sample-dt"]),
+        (  # (a steady-state run, the default, takes it as a bound: test_run_limits.py)
+            ["simulate", "--t-end", "1e308", "--no-steady-state", "--out", "r"],
+            2,
+            ["--t-end", "--sample-dt"],
+        ),
         (["sweep", "--t-end", "1e308", "--param", "n=3", "-o", "s.nc"], 2, ["--t-end"]),
         (
             ["simulate", "--stiffness", "1e308", "--t-end", "0.1", "--out", "r"],

@@ -6,15 +6,18 @@ grinding on."""
 
 from __future__ import annotations
 
+import importlib
 import resource
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
 
-from tensegrity import class1_shell, simulate
+from tensegrity import class1_shell, critical_damping, simulate
 from tensegrity.cli.main import main
+from tensegrity.design.catalogue import prism
 
 #: Address space of a child process [bytes]: numba and its compiled code fit in well under this.
 _MEMORY_CAP = 6 * 2**30
@@ -235,3 +238,182 @@ def test_cli_budget_and_signals_reach_a_run_of_tiny_steps(tmp_path):
     assert "stopped after --max-wall-time 0.5 s of wall-clock time" in line
     assert "raise --max-wall-time" in line and "(nothing written)" in line
     assert not (tmp_path / "b").exists()
+
+
+# ------------------------------------------------------------------ the cost of a run, up front
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["simulate", "--stiffness", "1e12"],
+        ["equilibrium", "--stiffness", "1e12"],
+        ["matrices", "--at", "equilibrium", "--stiffness", "1e12"],
+    ],
+)
+def test_a_run_too_stiff_for_its_step_budget_is_refused_at_once(argv, tmp_path):
+    """Before: 170 s of steps until ``--max-steps``, then exit 1.  Now one line, exit 2, in
+    seconds (the child's imports included), saying what to change."""
+    started = time.perf_counter()
+    child = subprocess.run(
+        [sys.executable, "-m", "tensegrity.cli", *argv, "--out", "out"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        cwd=tmp_path,
+    )
+    assert time.perf_counter() - started < 15
+    line = child.stderr.strip()
+    assert child.returncode == 2 and "\n" not in line, child.stderr
+    assert "a run to 60 s needs at least 3.6e+07 DOP853 steps (highest rate 2e+06 1/s" in line
+    assert "so it cannot come to rest" in line and "softer tendons" in line
+    if argv[0] == "simulate":
+        assert "more than --max-steps 10,000,000" in line and "--method Radau or BDF" in line
+    assert list(tmp_path.iterdir()) == []
+
+
+def _simulate_args(*argv: str):
+    from tensegrity.cli.main import _simulation_inputs, build_parser
+
+    args = build_parser().parse_args(["simulate", *argv])
+    return args, _simulation_inputs(args)[0]
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        [],
+        ["--n", "10", "--m", "10"],
+        ["--n", "10", "--m", "10", "--no-steady-state"],
+        ["--kind", "prism", "--no-steady-state"],
+        ["--kind", "octahedron", "--no-steady-state"],
+        ["--method", "rk4", "--dt", "1e-4"],
+        ["--t-end", "1e308"],
+    ],
+)
+def test_ordinary_runs_are_neither_refused_nor_announced(argv, capsys):
+    from tensegrity.cli.main import _check_simulation_cost
+
+    args, structure = _simulate_args(*argv)
+    _check_simulation_cost(args, structure)
+    assert capsys.readouterr().err == ""
+
+
+def test_an_unstable_rk4_step_is_refused():
+    """(Measured: that run fails with a rod-length error at its first step.)"""
+    from tensegrity.cli.errors import CommandError
+    from tensegrity.cli.main import _check_simulation_cost
+
+    with pytest.raises(CommandError, match=r"^--dt: 0.2 s is beyond RK4's stability limit"):
+        _check_simulation_cost(*_simulate_args("--method", "rk4", "--dt", "0.2"))
+
+
+def test_a_long_run_is_announced_in_seconds(capsys):
+    from tensegrity.cli.main import _check_simulation_cost
+
+    _check_simulation_cost(*_simulate_args("--stiffness", "1e10"))
+    err = capsys.readouterr().err
+    assert err.startswith("tensegrity: a long run: about 3.76e+08 DOP853 steps, more than ")
+    assert "--max-steps 10,000,000: it would stop there after about " in err
+
+
+@pytest.mark.parametrize(
+    ("make", "t_end"),
+    [
+        (lambda: prism(3), 100.0),  # undamped, at rest: the fewest steps per radian (0.32)
+        (lambda: critical_damping(class1_shell(3, 1)), 100.0),  # settling: 1.6
+        (lambda: critical_damping(class1_shell(3, 1, stiffness=1e10)), 2e-3),  # at rest
+    ],
+)
+def test_the_step_estimate_bounds_real_runs(make, t_end):
+    """The estimate's lower bound holds for real runs, and its expected count is within a
+    factor of 3 of theirs."""
+    from tensegrity.engine.budget import estimate
+
+    structure = make()
+    cost = estimate(structure, t_end)
+    run = simulate(structure, (0.0, t_end), sample_dt=t_end / 10)
+    assert run.status == 0
+    assert cost.least_steps <= run.nsteps
+    assert run.nsteps / 3 <= cost.steps <= run.nsteps * 3 or cost.steps == cost.least_steps
+
+
+def test_a_steady_state_run_takes_a_huge_t_end_as_a_bound(tmp_path, capsys):
+    """Before: refused as "inf samples".  A steady-state run stops when it comes to rest; a
+    --t-end beyond the samples limit bounds it at that limit's end, said on stderr.  A run to
+    --t-end itself (--no-steady-state) is still refused."""
+    out = tmp_path / "out"
+    assert (
+        main(["simulate", "--t-end", "1e308", "--no-view", "--no-animation", "--out", str(out)])
+        == 0
+    )
+    printed = capsys.readouterr()
+    assert "steady state at t = 4.03 s" in printed.out
+    assert (
+        "tensegrity: --t-end 1e+308 s: the run stops when it comes to rest, at the latest at "
+        "100000 s (10,000,000 samples at --sample-dt 0.01 s)" in printed.err
+    )
+    assert (out / "trajectory.h5").exists()
+    code = main(["simulate", "--t-end", "1e308", "--no-steady-state", "--out", str(tmp_path / "b")])
+    assert code == 2 and "is inf samples, more than 10,000,000" in capsys.readouterr().err
+
+
+def test_a_structure_too_large_for_the_memory_is_refused_before_any_work(
+    tmp_path, capsys, monkeypatch
+):
+    """(Cheaply: the threshold lowered to the (3,1) shell's 30 members, 1 MiB available.)  Before:
+    a structure of 10^6 members ran for minutes at 2.5-3.6 GB with no word of it."""
+    cli = importlib.import_module("tensegrity.cli.main")
+
+    monkeypatch.setattr(cli, "LARGE_STRUCTURE_MEMBERS", 30)
+    monkeypatch.setattr(cli, "_available_memory", lambda: 2**20)
+    out = tmp_path / "out"
+    assert main(["simulate", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == (
+        "tensegrity: error: a structure of 30 members needs about 204.2 MiB of memory to "
+        "simulate, more than the 1.0 MiB available; simulate a smaller one"
+    )
+    assert not out.exists()
+
+
+def test_a_large_structure_is_announced_with_its_memory_and_time(monkeypatch, capsys):
+    cli = importlib.import_module("tensegrity.cli.main")
+
+    monkeypatch.setattr(cli, "_available_memory", lambda: 2**40)
+    cli._check_structure_size(class1_shell(10000, 1))  # 100,000 members
+    assert capsys.readouterr().err == (
+        "tensegrity: a large structure: 100,000 members, about 471.1 MiB of memory, 9 s to set "
+        "up and write and 0.036 s a step\n"
+    )
+    cli._check_structure_size(class1_shell(30, 30))  # 10,620 members: quick, said nothing
+    assert capsys.readouterr().err == ""
+
+
+def test_a_span_of_inf_samples_is_refused_in_one_line():
+    """Before: ``OverflowError: cannot convert float infinity to integer`` (``equilibrium`` and
+    ``matrices --at equilibrium --t-end 1e308``: "the computation failed")."""
+    with pytest.raises(ValueError, match=r"^sample_dt: 0.01 s over 1e\+308 s is inf samples, more"):
+        simulate(class1_shell(3, 1), (0.0, 1e308), sample_dt=0.01, steady_state=True)
+
+
+def test_a_sweep_too_large_for_the_memory_is_refused_before_any_work(tmp_path, capsys, monkeypatch):
+    """A 100 x 100 grid with 1 GiB available (before: a 1000 x 1000 grid, 92 GiB by the same
+    estimate, ran for minutes with no word of it)."""
+    cli = importlib.import_module("tensegrity.cli.main")
+    monkeypatch.setattr(cli, "_available_memory", lambda: 2**30)
+    values = ",".join(str(k) for k in range(1, 101))
+    argv = ["sweep", "--param", f"stiffness={values}", "--param", f"load={values}"]
+    assert main([*argv, "-o", str(tmp_path / "s.nc")]) == 2
+    assert capsys.readouterr().err.strip() == (
+        "tensegrity: error: a sweep of 10,000 cases needs about 1.1 GiB of memory for its "
+        "results, more than the 1.0 GiB available; sweep fewer cases"
+    )
+    assert list(tmp_path.iterdir()) == []
+    monkeypatch.setattr(cli, "_available_memory", lambda: 2**40)
+    from tensegrity.sweep.run import SweepSpec
+
+    cli._check_sweep_size(SweepSpec({"stiffness": list(range(1, 101)), "load": list(range(100))}))
+    assert capsys.readouterr().err == (
+        "tensegrity: a large sweep: 10,000 cases, about 1.1 GiB of memory\n"
+    )
+    cli._check_sweep_size(SweepSpec({"stiffness": list(range(1, 100)), "load": list(range(100))}))
+    assert capsys.readouterr().err == ""  # 9,900 cases: said nothing

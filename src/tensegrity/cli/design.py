@@ -23,6 +23,7 @@ import numpy as np
 
 from tensegrity.cli import arguments
 from tensegrity.cli.errors import EXIT_FAILED, CommandError, blame
+from tensegrity.cli.startup import announce_compiling
 from tensegrity.io.files import atomic_path, shown_path, write_staged
 
 if TYPE_CHECKING:
@@ -292,6 +293,7 @@ def _dynamic(args: argparse.Namespace, sizing: Any, cases: list[Any]) -> dict[st
         raise CommandError(f"--damping-ratio: must be < 1, got {ratio:g}")
     if not cases:
         raise CommandError("--check-dynamics: give a load case (--load or --gravity)")
+    announce_compiling()
     try:
         runs = dynamic_check(
             sizing.structure,

@@ -42,6 +42,7 @@ from tensegrity.cli.errors import (
     signals_as_interrupts,
     warnings_on_success,
 )
+from tensegrity.cli.startup import announce_compiling, seconds_since_start
 from tensegrity.engine.options import (
     ADAPTIVE_METHODS,
     DEFAULT_MAX_SAMPLES,
@@ -67,6 +68,7 @@ if TYPE_CHECKING:
     from tensegrity.io.stream import StreamSummary
     from tensegrity.model.loads import ForceTable
     from tensegrity.plots.motion import FrameKeeper
+    from tensegrity.sweep.run import SweepSpec
 
 #: The command's name: the ``prog`` of its parser, which the verbs' parsers extend.
 PROG = "tensegrity"
@@ -384,6 +386,22 @@ def _check_samples(
         )
 
 
+def _run_end(t_end: float, sample_dt: float, *, steady_state: bool) -> float:
+    """The end [s] of ``simulate``'s run: ``--t-end``, checked by :func:`_check_samples`; for a
+    steady-state run, which stops when it comes to rest, ``--t-end`` only bounds it: beyond the
+    end of the samples limit (``1e308`` too), that end, said on stderr."""
+    end = (DEFAULT_MAX_SAMPLES - 1) * sample_dt
+    if not (steady_state and t_end > end):
+        _check_samples(t_end, sample_dt)
+        return t_end
+    print(
+        f"tensegrity: --t-end {t_end:g} s: the run stops when it comes to rest, at the latest at "
+        f"{end:g} s ({DEFAULT_MAX_SAMPLES:,} samples at --sample-dt {sample_dt:g} s)",
+        file=sys.stderr,
+    )
+    return end
+
+
 #: ``simulate`` says before a run that writes at least this many bytes what it will write.
 LARGE_RUN_BYTES = 2**30
 
@@ -414,6 +432,139 @@ def _announce_large_run(structure: Structure, t_end: float, sample_dt: float, ou
         f"{byte_text(held * row)} of samples in memory at a time); a larger --sample-dt "
         "writes less",
         file=sys.stderr,
+    )
+
+
+#: A run estimated to take longer than this [s] is announced on stderr before it starts.
+LONG_RUN_SECONDS = 30.0
+
+
+def _check_run_cost(
+    structure: Structure,
+    t_end: float,
+    *,
+    method: str = "DOP853",
+    dt: float | None = None,
+    atol: float = 1e-12,
+    steady_state: bool = False,
+    acceleration_tol: float = 1e-6,
+    max_steps: int = DEFAULT_MAX_STEPS,
+    max_wall_time: float = math.inf,
+    remedy: str = "softer tendons, a shorter --t-end, a larger --max-steps or an implicit "
+    "method (--method Radau or BDF)",
+) -> None:
+    """Before a run of ``structure`` to ``t_end`` [s], by
+    :func:`tensegrity.engine.budget.estimate`: refuse it if it needs more than ``max_steps``
+    steps or (``"rk4"``) its ``dt`` [s] is unstable, naming ``remedy`` (what to change); say on
+    stderr if it takes longer than :data:`LONG_RUN_SECONDS` and ``max_wall_time`` [s] (a
+    steady-state run that may come to rest early: not)."""
+    from tensegrity.engine.budget import RK4_STABLE, estimate
+
+    cost = estimate(
+        structure,
+        t_end,
+        method=method,
+        dt=dt,
+        atol=atol,
+        steady_state=steady_state,
+        acceleration_tol=acceleration_tol,
+    )
+    if cost is None:
+        return
+    stiffest = structure.tendon_stiffness.max(initial=0.0)
+    why = f"highest rate {cost.rate:.3g} 1/s, tendons up to {stiffest:g} N/m"
+    if not cost.stable:
+        raise CommandError(
+            f"--dt: {dt:g} s is beyond RK4's stability limit for this structure (about "
+            f"{RK4_STABLE / cost.rate:.2g} s; {why}); use --dt {cost.safe_dt:.2g} or less, or an "
+            "adaptive --method"
+        )
+    if cost.settles:
+        return
+    if steady_state:
+        why += (
+            f"; round-off of its forces keeps its accelerations above {acceleration_tol:g} m/s^2, "
+            "so it cannot come to rest"
+        )
+    if method not in FIXED_STEP_METHODS and cost.least_steps > max_steps:
+        raise CommandError(
+            f"a run to {t_end:g} s needs at least {cost.least_steps:.3g} {method} steps ({why}), "
+            f"more than --max-steps {max_steps:,}; use {remedy}"
+        )
+    seconds = min(cost.steps, max_steps) * cost.step_seconds
+    if min(seconds, max_wall_time) > LONG_RUN_SECONDS:
+        stops = (
+            f", more than --max-steps {max_steps:,}: it would stop there after"
+            if cost.steps > max_steps
+            else ","
+        )
+        print(
+            f"tensegrity: a long run: about {cost.steps:.3g} {method} steps{stops} about "
+            f"{seconds:,.0f} s ({why}); quicker: {remedy}",
+            file=sys.stderr,
+        )
+
+
+#: ``simulate``'s memory [bytes]: a part per member (rod or tendon) and the rest, fitted to the
+#: peak resident memory of runs of 10,000, 100,000 and 300,000 members (2026-11-27, 2-core
+#: machine: 224, 494 and 1,054 MB; the issue's 10^6 members: 2.5-3.6 GB).
+MEMBER_BYTES = 2800
+BASE_BYTES = 214 * 10**6
+#: ... and its time [s] beside the steps (building, checking, writing, drawing) per member
+#: (the 300,000 members' run: 27 s of its 35 s).
+MEMBER_SECONDS = 90e-6
+#: ``simulate`` says what a structure of at least this many members will cost before it starts.
+LARGE_STRUCTURE_MEMBERS = 100_000
+
+
+def _available_memory() -> int | None:
+    """The memory available to a new process [bytes] (Linux ``MemAvailable``), or None."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as file:
+            for line in file:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
+
+
+def _check_structure_size(structure: Structure) -> None:
+    """Before ``simulate``'s run of a structure of :data:`LARGE_STRUCTURE_MEMBERS` members or
+    more: refuse it if its memory (:data:`MEMBER_BYTES`) exceeds the memory available, else say
+    on stderr how much memory and time it takes before its steps."""
+    from tensegrity.engine.budget import STEP_SECONDS
+
+    members = structure.n_rods + structure.n_tendons
+    if members < LARGE_STRUCTURE_MEMBERS:
+        return
+    needed = BASE_BYTES + MEMBER_BYTES * members
+    available = _available_memory()
+    if available is not None and needed > available:
+        raise CommandError(
+            f"a structure of {members:,} members needs about {byte_text(needed)} of memory to "
+            f"simulate, more than the {byte_text(available)} available; simulate a smaller one"
+        )
+    fixed, per_member = STEP_SECONDS["DOP853"]
+    print(
+        f"tensegrity: a large structure: {members:,} members, about {byte_text(needed)} of "
+        f"memory, {members * MEMBER_SECONDS:,.0f} s to set up and write and "
+        f"{fixed + per_member * members:.2g} s a step",
+        file=sys.stderr,
+    )
+
+
+def _check_simulation_cost(args: argparse.Namespace, structure: Structure) -> None:
+    """:func:`_check_run_cost` of ``simulate``'s run of ``structure`` with the options ``args``."""
+    _check_run_cost(
+        structure,
+        args.t_end,
+        method=args.method,
+        dt=args.dt,
+        atol=args.atol,
+        steady_state=not args.no_steady_state,
+        max_steps=args.max_steps,
+        max_wall_time=args.max_wall_time,
     )
 
 
@@ -841,7 +992,7 @@ def _video(trajectory: Path, folder: Path, kind: str) -> list[Path]:
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
     outputs.check_folder(args.out, "--out")
-    _check_samples(args.t_end, args.sample_dt)
+    args.t_end = _run_end(args.t_end, args.sample_dt, steady_state=not args.no_steady_state)
     # the drawing's workers start now: they import matplotlib while the run is set up and goes on
     with Drawing(worker_count(2)) as drawing:
         return _simulate_and_write(args, drawing)
@@ -850,8 +1001,11 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 def _simulate_and_write(args: argparse.Namespace, drawing: Drawing) -> int:
     """``tensegrity simulate`` once its options are checked: the run, its files (the figures,
     page and video drawn by ``drawing``) and its summary."""
+    announce_compiling()
     structure, force, gravity, designed = _simulation_inputs(args)
     _check_outputs(args, designed is not None)
+    _check_structure_size(structure)
+    _check_simulation_cost(args, structure)
     files = _RunFiles.prepare(args.out, args.resume)
     _announce_large_run(structure, args.t_end, args.sample_dt, files.out)
     keeper = None
@@ -978,7 +1132,8 @@ def _print_summary(
             f"{_counted(summary.samples_per_segment, 'sample')}",
         ),
         *([("resumed", _resumed(summary))] if resume else []),
-        ("wall time", f"{summary.wall_time:.2f} s"),
+        ("simulation wall time", f"{summary.wall_time:.2f} s"),
+        ("time to result", f"{seconds_since_start():.2f} s since the command started"),
     ]
     failures: list[str] = []
     if peaks is not None:
@@ -1142,6 +1297,11 @@ def _cmd_vtk(args: argparse.Namespace) -> int:
     return 0
 
 
+#: ``matrices --at equilibrium`` is at rest when node speeds [m/s] and accelerations [m/s^2]
+#: are below this.
+MATRICES_REST_TOL = 1e-9
+
+
 def _cmd_matrices(args: argparse.Namespace) -> int:
     from tensegrity.engine.simulate import simulate
     from tensegrity.io.matrices import write_matrices
@@ -1150,13 +1310,21 @@ def _cmd_matrices(args: argparse.Namespace) -> int:
     structure = dynamics.undamped(_structure(args))
     _check_matrix_size(structure)
     if args.at == "equilibrium":
+        announce_compiling()
+        _check_run_cost(
+            structure,
+            args.t_end,
+            steady_state=True,
+            acceleration_tol=MATRICES_REST_TOL,
+            remedy="softer tendons or a shorter --t-end",
+        )
         # Tight rest tolerances: with the damping removed, K_p q = q'' is then below ~1e-8.
         result = simulate(
             dynamics.artificial_damping(structure),
             (0.0, args.t_end),
             steady_state=True,
-            velocity_tol=1e-9,
-            acceleration_tol=1e-9,
+            velocity_tol=MATRICES_REST_TOL,
+            acceleration_tol=MATRICES_REST_TOL,
             rtol=1e-10,
             sample_dt=0.1,
             progress=sys.stderr.isatty(),
@@ -1226,7 +1394,16 @@ def _analysis_and_write(args: argparse.Namespace, run: Callable, drawing: Drawin
     ``args``, its files (the figures and pages drawn by ``drawing``) and its tables."""
     import inspect
 
+    announce_compiling()
     structure = _structure(args)
+    if args.command == "equilibrium" and args.method != "least_squares":
+        _check_run_cost(
+            structure,
+            args.t_end,
+            steady_state=True,
+            acceleration_tol=args.acceleration_tol,
+            remedy="softer tendons, a shorter --t-end or --method least_squares",
+        )
     options = {
         name: getattr(args, name)
         for name in inspect.signature(run).parameters
@@ -1523,6 +1700,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
             spec = SweepSpec(
                 _sweep_parameters(args.param, args.samples is not None), mode=mode, **options
             )
+    _check_sweep_size(spec)
     with _in_sweep_options():
         result = run_sweep(
             spec, scheduler=args.scheduler, n_workers=args.workers, progress=sys.stderr.isatty()
@@ -1537,6 +1715,42 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     for i in result.failed:
         print(f"{result.describe_case(i)}: {result.dataset['message'].values[i]}", file=sys.stderr)
     return EXIT_FAILED if result.failed else 0
+
+
+#: ``sweep``'s memory [bytes]: a part per case (with its series' own bytes per sample) and the
+#: rest, fitted to the peak resident memory of default grids of 1,000 and 4,000 cases (2026-11-27,
+#: 2-core machine: 306 and 604 MB at 101 samples a case: 99 kB a case).
+SWEEP_CASE_BYTES = 94_000
+SWEEP_BASE_BYTES = 207 * 10**6
+#: ``sweep`` says how much memory a sweep of at least this many cases takes before it starts.
+LARGE_SWEEP_CASES = 10_000
+
+
+def _check_sweep_size(spec: SweepSpec) -> None:
+    """Before a sweep of :data:`LARGE_SWEEP_CASES` cases or more (``spec``, a
+    :class:`tensegrity.sweep.run.SweepSpec`): refuse it if its memory exceeds the memory
+    available, else say on stderr how much it takes."""
+    from tensegrity.sweep.run import SERIES
+
+    cases = (
+        math.prod(len(values) for values in spec.parameters.values())
+        if spec.mode == "grid"
+        else spec.samples
+    )
+    if cases < LARGE_SWEEP_CASES:
+        return
+    per_case = SWEEP_CASE_BYTES + 8 * len(SERIES) * spec.times.size
+    needed = SWEEP_BASE_BYTES + cases * per_case
+    available = _available_memory()
+    if available is not None and needed > available:
+        raise CommandError(
+            f"a sweep of {cases:,} cases needs about {byte_text(needed)} of memory for its "
+            f"results, more than the {byte_text(available)} available; sweep fewer cases"
+        )
+    print(
+        f"tensegrity: a large sweep: {cases:,} cases, about {byte_text(needed)} of memory",
+        file=sys.stderr,
+    )
 
 
 #: The sweep's arguments (``SweepSpec`` fields, ``run_sweep`` keywords) the options set.

@@ -69,7 +69,7 @@ def sample_count(t0: float, t_end: float, sample_dt: float) -> int:
     return k + 1 + (1 if short_of(last, t_end) else 0)
 
 
-def _count(n: int) -> str:
+def _count(n: float) -> str:
     """A count for a message: ``1,000``, or ``6e+10`` when too long to read."""
     return f"{n:,}" if n < 10**12 else f"{n:.3g}"
 
@@ -174,8 +174,9 @@ class Options:
                     f"dt: {self.dt:g} s over {span:g} s is {_count(steps)} steps, more than "
                     f"max_steps = {self.max_steps:,}; use a larger dt, or raise max_steps"
                 )
-        samples = math.floor(span / self.sample_spacing(t0, t_end) + 1e-9) + 1
-        if samples > self.max_samples:
+        intervals = span / self.sample_spacing(t0, t_end)
+        if not intervals + 1e-9 < self.max_samples:  # (inf for a huge span: no integer)
+            samples = math.floor(intervals + 1e-9) + 1 if math.isfinite(intervals) else math.inf
             raise ValueError(
                 f"sample_dt: {self.sample_spacing(t0, t_end):g} s over {span:g} s is "
                 f"{_count(samples)} samples, more than max_samples = {self.max_samples:,}; use a "
