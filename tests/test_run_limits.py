@@ -15,7 +15,7 @@ import time
 import numpy as np
 import pytest
 
-from tensegrity import class1_shell, critical_damping, simulate
+from tensegrity import artificial_damping, class1_shell, simulate
 from tensegrity.cli.main import main
 from tensegrity.design.catalogue import prism
 
@@ -319,8 +319,8 @@ def test_a_long_run_is_announced_in_seconds(capsys):
     ("make", "t_end"),
     [
         (lambda: prism(3), 100.0),  # undamped, at rest: the fewest steps per radian (0.32)
-        (lambda: critical_damping(class1_shell(3, 1)), 100.0),  # settling: 1.6
-        (lambda: critical_damping(class1_shell(3, 1, stiffness=1e10)), 2e-3),  # at rest
+        (lambda: artificial_damping(class1_shell(3, 1)), 100.0),  # settling: 1.6
+        (lambda: artificial_damping(class1_shell(3, 1, stiffness=1e10)), 2e-3),  # at rest
     ],
 )
 def test_the_step_estimate_bounds_real_runs(make, t_end):

@@ -17,6 +17,7 @@ import numpy as np
 
 from tensegrity.engine.options import COMPILED_ADAPTIVE_METHODS, FIXED_STEP_METHODS, Options
 from tensegrity.model.structure import Structure
+from tensegrity.physics.coordinates import rod_damping_rates
 
 #: Explicit adaptive methods take at least this many steps per radian of the highest rate
 #: (``t_end * highest_rate``): the fewest measured, DOP853 on an undamped prism at rest (0.32;
@@ -86,7 +87,8 @@ def highest_rate(structure: Structure) -> float:
     Per tendon: ``sqrt(k / mu)``, ``mu`` the reduced mass of its end nodes (half a rod's mass
     each, or a point mass; an anchor infinitely heavy), or with its damping ``c`` beyond
     critical the overdamped rate ``(c + sqrt(c^2 - 4 k mu)) / (2 mu)``; per rod its
-    mass-proportional damping rate.  The largest of these (0 for a structure with neither).
+    mass-proportional damping rates (to ground and relative to the rigid-body motion).  The
+    largest of these (0 for a structure with neither).
     Rods are rigid and tendons the only elastic members, so this is cheap; the true highest
     rate is within a small factor of it (several tendons at a node, the rods' rotation), which
     the constants of :func:`estimate` absorb.
@@ -101,7 +103,13 @@ def highest_rate(structure: Structure) -> float:
         (c + np.sqrt(np.maximum(c * c - 4 * k * mu, 0.0))) / (2 * np.where(over, mu, 1.0)),
         np.sqrt(k / mu),
     )
-    return float(max(rate.max(initial=0.0), structure.rod_damping.max(initial=0.0)))
+    return float(max(rate.max(initial=0.0), _rod_rates(structure).max(initial=0.0)))
+
+
+def _rod_rates(structure: Structure) -> np.ndarray:
+    """Each rod's damping rate [1/s] (R,), to ground plus relative to the rigid motion."""
+    alpha, beta = rod_damping_rates(structure)
+    return alpha + beta
 
 
 def acceleration_floor(structure: Structure) -> float:
@@ -158,6 +166,6 @@ def estimate(
             stable=dt * rate <= RK4_STABLE,
         )
     least = t_end * rate * STEPS_PER_RADIAN
-    damped = bool(np.any(structure.tendon_damping > 0) or np.any(structure.rod_damping > 0))
+    damped = bool(np.any(structure.tendon_damping > 0) or np.any(_rod_rates(structure) > 0))
     at_rest = t_end * floor / (NOISE_STEP * atol) if damped else 0.0
     return RunEstimate(least, max(least, at_rest), step_seconds, rate, settles)
