@@ -350,7 +350,8 @@ def test_cli_animate_and_view_make_the_folders_of_their_output(tmp_path, traject
 
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(target[argv[0]], full_disk)
-        assert main([*argv, "-o", str(tmp_path / "other" / name)]) == 2
+        # a full disk fails the command (exit 1, as everywhere), it is not bad input
+        assert main([*argv, "-o", str(tmp_path / "other" / name)]) == 1
     assert sorted(p.name for p in tmp_path.iterdir()) == ["new"]
 
 

@@ -142,15 +142,19 @@ def test_a_jobs_error_comes_back_with_the_workers_traceback():
 
 
 def test_a_failed_drawing_fails_the_run_in_one_line(tmp_path, monkeypatch, capsys):
-    """The job's error ends the command as its own would (one line, exit 2) and no figure is
-    written under a final name; with workers or without."""
+    """The job's error ends the command as its own would (one line, exit 2, saying where the
+    run is kept for ``--resume``) and no figure is written under a final name; with workers or
+    without."""
     monkeypatch.setattr(cli_main, "viewer_page", _fail)
     for workers in (2, 0):
         monkeypatch.setattr(cli_main, "worker_count", lambda wanted, n=workers: min(wanted, n))
         out = tmp_path / f"run{workers}"
         assert main([*RUN, "--out", str(out)]) == 2
         err = capsys.readouterr().err
-        assert err.strip().splitlines() == ["tensegrity: error: the drawing failed on purpose"]
+        kept = f"the run so far is in {out / '.trajectory.h5'}: continue it with the same options"
+        assert err.strip().splitlines() == [
+            f"tensegrity: error: the drawing failed on purpose; {kept} and --resume"
+        ]
         assert not any(p.suffix in (".png", ".html") for p in out.rglob("*")), workers
 
 

@@ -146,6 +146,7 @@ def test_the_size_limits_can_be_set(monkeypatch):
         class1_shell(3, 1)
     from tensegrity.sweep import SweepSpec
 
+    monkeypatch.delenv("TENSEGRITY_MAX_MEMBERS")  # (a SweepSpec builds its cases' structures)
     monkeypatch.setenv("TENSEGRITY_MAX_CASES", "3")
     with pytest.raises(ValueError, match=r"^parameters: 4 cases, more than the limit of 3;"):
         SweepSpec({"stiffness": [1.0, 2.0], "load": [0.0, 1.0]})
