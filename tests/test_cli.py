@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib
 import json
 import subprocess
 import sys
@@ -14,6 +15,7 @@ from tensegrity.io.formats import read_structure
 from tensegrity.io.trajectory import read_trajectory
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+cli_main = importlib.import_module("tensegrity.cli.main")  # (the module: `main` is its function)
 
 
 @pytest.fixture(scope="module")
@@ -105,6 +107,20 @@ def test_the_summary_counts_checkpoints_in_the_singular_and_plural(
     assert main(argv) == 0
     lines = capsys.readouterr().out.splitlines()
     assert next(x for x in lines if x.startswith("checkpoints")).split(None, 1)[1] == shown
+
+
+def test_the_summary_counts_steps_and_switches_in_the_singular_and_plural(tmp_path, capsys):
+    """Not "1 steps" (issue 27): one RK4 step of four evaluations, no switch."""
+    argv = ["simulate", "--method", "rk4", "--dt", "0.001", "--t-end", "0.001"]
+    argv += ["--sample-dt", "0.001", "--no-steady-state", "--no-view", "--no-animation"]
+    assert main([*argv, "--out", str(tmp_path)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert next(x for x in lines if x.startswith("integration")).split(None, 1)[1] == (
+        "rk4: 1 step, 4 evaluations, 0 slack/taut switches located"
+    )
+    assert cli_main._counted(1, "slack/taut switch", "slack/taut switches") == (
+        "1 slack/taut switch"
+    )
 
 
 def test_the_command_s_help_says_what_it_does_in_whole_sentences(capsys):

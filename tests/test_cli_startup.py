@@ -51,7 +51,10 @@ def test_the_announcement_is_made_at_most_once_per_process(capsys, monkeypatch):
 
     from tensegrity.cli import startup
 
-    # as in a new process (an earlier test's command may have announced in this one already)
+    # as in a new process: an earlier test's command may have registered its announcer already
+    earlier = startup._announcer
+    if earlier is not None:
+        event.unregister("numba:compile", earlier)
     monkeypatch.setattr(startup, "_announcer", None)
     announce_compiling()
     announce_compiling()
@@ -61,6 +64,8 @@ def test_the_announcement_is_made_at_most_once_per_process(capsys, monkeypatch):
         assert njit(lambda x: x * 2.0)(1.5) == 3.0
     finally:
         event.unregister("numba:compile", startup._announcer)
+        if earlier is not None:
+            event.register("numba:compile", earlier)
     assert capsys.readouterr().err.count(COMPILING_MESSAGE) == 1
 
 

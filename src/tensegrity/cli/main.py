@@ -1123,8 +1123,9 @@ def _print_summary(
         ),
         (
             "integration",
-            f"{trajectory.settings['method']}: {summary.nsteps} steps, {summary.nfev} "
-            f"evaluations, {summary.nswitches} slack/taut switches located",
+            f"{trajectory.settings['method']}: {_counted(summary.nsteps, 'step')}, "
+            f"{_counted(summary.nfev, 'evaluation')}, "
+            f"{_counted(summary.nswitches, 'slack/taut switch', 'slack/taut switches')} located",
         ),
         (
             "checkpoints",
@@ -1189,9 +1190,10 @@ def _utilisation_rows(
     return rows, u.failures(s)
 
 
-def _counted(n: int, noun: str) -> str:
-    """``n`` and ``noun``, in the plural unless ``n`` is 1: ``1 segment``, ``2 segments``."""
-    return f"{n} {noun}{'' if n == 1 else 's'}"
+def _counted(n: int, noun: str, plural: str | None = None) -> str:
+    """``n`` and ``noun``, in the plural (default ``noun + "s"``) unless ``n`` is 1: ``1
+    segment``, ``2 segments``, ``3 switches``."""
+    return f"{n} {noun if n == 1 else plural or noun + 's'}"
 
 
 def _resumed(summary) -> str:
