@@ -481,46 +481,57 @@ def _rigid_motion(q, qdot, rod_param):  # pragma: no cover - compiled
     :func:`tensegrity.physics.coordinates.rigid_body_rates`: ``(V, omega, c)``, each a tuple
     of 3 floats (velocity [m/s] of the point ``c`` [m], angular velocity [1/s]); all zero when
     no rod has relative damping."""
-    total = 0.0
-    cx = cy = cz = vx = vy = vz = 0.0
-    for r in range(rod_param.shape[0]):
-        w = rod_param[r, ROD_RELATIVE_DAMPING] * rod_param[r, ROD_MASS]
-        if w == 0.0:
-            continue
-        o = 6 * r
-        total += w
-        cx += w * q[o]
-        cy += w * q[o + 1]
-        cz += w * q[o + 2]
-        vx += w * qdot[o]
-        vy += w * qdot[o + 1]
-        vz += w * qdot[o + 2]
-    if not total > 0.0:
-        zero = (0.0, 0.0, 0.0)
-        return zero, zero, zero
-    half = 0.5 / total  # centres are q1 / 2
-    cx, cy, cz, vx, vy, vz = cx * half, cy * half, cz * half, vx * half, vy * half, vz * half
-    hx = hy = hz = 0.0
+    # One pass about the first rod's centre p0 (within the structure: no cancellation), then
+    # moved to the weighted centre c = p0 + d (parallel axes).  Rods of weight 0 add zeros.
+    px, py, pz = 0.5 * q[0], 0.5 * q[1], 0.5 * q[2]
+    total = dx_ = dy_ = dz_ = vx = vy = vz = hx = hy = hz = 0.0
     ixx = iyy = izz = ixy = ixz = iyz = 0.0
     for r in range(rod_param.shape[0]):
         w = rod_param[r, ROD_RELATIVE_DAMPING] * rod_param[r, ROD_MASS]
-        if w == 0.0:
-            continue
         o = 6 * r
-        rx, ry, rz = 0.5 * q[o] - cx, 0.5 * q[o + 1] - cy, 0.5 * q[o + 2] - cz
+        rx, ry, rz = 0.5 * q[o] - px, 0.5 * q[o + 1] - py, 0.5 * q[o + 2] - pz
         ux, uy, uz = 0.5 * qdot[o], 0.5 * qdot[o + 1], 0.5 * qdot[o + 2]
         x, y, z = q[o + 3], q[o + 4], q[o + 5]
-        dx, dy, dz = qdot[o + 3], qdot[o + 4], qdot[o + 5]
+        sx, sy, sz = qdot[o + 3], qdot[o + 4], qdot[o + 5]
         w12 = w / 12.0
-        hx += w * (ry * uz - rz * uy) + w12 * (y * dz - z * dy)
-        hy += w * (rz * ux - rx * uz) + w12 * (z * dx - x * dz)
-        hz += w * (rx * uy - ry * ux) + w12 * (x * dy - y * dx)
+        total += w
+        dx_ += w * rx
+        dy_ += w * ry
+        dz_ += w * rz
+        vx += w * ux
+        vy += w * uy
+        vz += w * uz
+        hx += w * (ry * uz - rz * uy) + w12 * (y * sz - z * sy)
+        hy += w * (rz * ux - rx * uz) + w12 * (z * sx - x * sz)
+        hz += w * (rx * uy - ry * ux) + w12 * (x * sy - y * sx)
         ixx += w * (ry * ry + rz * rz) + w12 * (y * y + z * z)
         iyy += w * (rx * rx + rz * rz) + w12 * (x * x + z * z)
         izz += w * (rx * rx + ry * ry) + w12 * (x * x + y * y)
         ixy -= w * rx * ry + w12 * x * y
         ixz -= w * rx * rz + w12 * x * z
         iyz -= w * ry * rz + w12 * y * z
+    if not total > 0.0:
+        zero = (0.0, 0.0, 0.0)
+        return zero, zero, zero
+    dx_, dy_, dz_, vx, vy, vz = (
+        dx_ / total,
+        dy_ / total,
+        dz_ / total,
+        vx / total,
+        vy / total,
+        vz / total,
+    )
+    # H about c: H - W d x V; I about c: I - W (|d|^2 1 - d d^T)
+    hx -= total * (dy_ * vz - dz_ * vy)
+    hy -= total * (dz_ * vx - dx_ * vz)
+    hz -= total * (dx_ * vy - dy_ * vx)
+    ixx -= total * (dy_ * dy_ + dz_ * dz_)
+    iyy -= total * (dx_ * dx_ + dz_ * dz_)
+    izz -= total * (dx_ * dx_ + dy_ * dy_)
+    ixy += total * dx_ * dy_
+    ixz += total * dx_ * dz_
+    iyz += total * dy_ * dz_
+    cx, cy, cz = px + dx_, py + dy_, pz + dz_
     # omega = I^-1 H by the adjugate (I symmetric)
     third = (ixx + iyy + izz) / 3.0
     for shift in (0.0, third):
