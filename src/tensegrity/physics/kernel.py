@@ -481,6 +481,12 @@ def _rigid_motion(q, qdot, rod_param):  # pragma: no cover - compiled
     :func:`tensegrity.physics.coordinates.rigid_body_rates`: ``(V, omega, c)``, each a tuple
     of 3 floats (velocity [m/s] of the point ``c`` [m], angular velocity [1/s]); all zero when
     no rod has relative damping."""
+    zero = (0.0, 0.0, 0.0)
+    for r in range(rod_param.shape[0]):  # (without relative damping, a pass of reads only)
+        if rod_param[r, ROD_RELATIVE_DAMPING] != 0.0:
+            break
+    else:
+        return zero, zero, zero
     # One pass about the first rod's centre p0 (within the structure: no cancellation), then
     # moved to the weighted centre c = p0 + d (parallel axes).  Rods of weight 0 add zeros.
     px, py, pz = 0.5 * q[0], 0.5 * q[1], 0.5 * q[2]
@@ -511,7 +517,6 @@ def _rigid_motion(q, qdot, rod_param):  # pragma: no cover - compiled
         ixz -= w * rx * rz + w12 * x * z
         iyz -= w * ry * rz + w12 * y * z
     if not total > 0.0:
-        zero = (0.0, 0.0, 0.0)
         return zero, zero, zero
     dx_, dy_, dz_, vx, vy, vz = (
         dx_ / total,
