@@ -687,8 +687,8 @@ class _RunFiles:
         _remove_empty(self.created)
 
     def kept(self) -> str:
-        """The end of a failed run's message: where the run so far is kept and how to continue
-        it (``--resume``), or that nothing was written."""
+        """The end of a failed or interrupted run's message: where the run so far is kept and
+        how to continue it (``--resume``), or that nothing was written."""
         kept = next((p for p in (self.partial, self.work) if p.exists()), None)
         if kept is not None:
             return (
@@ -699,18 +699,11 @@ class _RunFiles:
 
     def interrupted(self, exc: KeyboardInterrupt) -> int:
         """Report an interrupted run (what it left, if anything); its exit code."""
-        code = interrupt_code(exc)
-        kept = next((p for p in (self.partial, self.work) if p.exists()), None)
-        if kept is None:
+        left = self.kept()
+        if not (self.partial.exists() or self.work.exists()):
             _remove_empty(self.created)
-            print("tensegrity: interrupted (nothing written)", file=sys.stderr)
-        else:
-            print(
-                f"tensegrity: interrupted; the run so far is in {shown_path(kept)}: continue it "
-                "with the same options and --resume",
-                file=sys.stderr,
-            )
-        return code
+        print(f"tensegrity: interrupted{left}", file=sys.stderr)
+        return interrupt_code(exc)
 
 
 #: The library's words for its options, as the CLI's (messages of ``simulate``).
