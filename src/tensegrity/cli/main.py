@@ -529,6 +529,18 @@ def _available_memory() -> int | None:
     return None
 
 
+def _refuse_beyond_memory(needed: int, what: str, purpose: str, instead: str) -> None:
+    """``CommandError`` if ``needed`` [bytes] exceeds the memory available (when it can be read):
+    ``"<what> needs about <needed> of memory <purpose>, more than the <available> available;
+    <instead>"``."""
+    available = _available_memory()
+    if available is not None and needed > available:
+        raise CommandError(
+            f"{what} needs about {byte_text(needed)} of memory {purpose}, more than the "
+            f"{byte_text(available)} available; {instead}"
+        )
+
+
 def _check_structure_size(structure: Structure) -> None:
     """Before ``simulate``'s run of a structure of :data:`LARGE_STRUCTURE_MEMBERS` members or
     more: refuse it if its memory (:data:`MEMBER_BYTES`) exceeds the memory available, else say
@@ -539,12 +551,9 @@ def _check_structure_size(structure: Structure) -> None:
     if members < LARGE_STRUCTURE_MEMBERS:
         return
     needed = BASE_BYTES + MEMBER_BYTES * members
-    available = _available_memory()
-    if available is not None and needed > available:
-        raise CommandError(
-            f"a structure of {members:,} members needs about {byte_text(needed)} of memory to "
-            f"simulate, more than the {byte_text(available)} available; simulate a smaller one"
-        )
+    _refuse_beyond_memory(
+        needed, f"a structure of {members:,} members", "to simulate", "simulate a smaller one"
+    )
     fixed, per_member = STEP_SECONDS["DOP853"]
     print(
         f"tensegrity: a large structure: {members:,} members, about {byte_text(needed)} of "
@@ -1727,21 +1736,14 @@ def _check_sweep_size(spec: SweepSpec) -> None:
     available, else say on stderr how much it takes."""
     from tensegrity.sweep.run import SERIES
 
-    cases = (
-        math.prod(len(values) for values in spec.parameters.values())
-        if spec.mode == "grid"
-        else spec.samples
-    )
+    cases = spec.n_cases
     if cases < LARGE_SWEEP_CASES:
         return
     per_case = SWEEP_CASE_BYTES + 8 * len(SERIES) * spec.times.size
     needed = SWEEP_BASE_BYTES + cases * per_case
-    available = _available_memory()
-    if available is not None and needed > available:
-        raise CommandError(
-            f"a sweep of {cases:,} cases needs about {byte_text(needed)} of memory for its "
-            f"results, more than the {byte_text(available)} available; sweep fewer cases"
-        )
+    _refuse_beyond_memory(
+        needed, f"a sweep of {cases:,} cases", "for its results", "sweep fewer cases"
+    )
     print(
         f"tensegrity: a large sweep: {cases:,} cases, about {byte_text(needed)} of memory",
         file=sys.stderr,

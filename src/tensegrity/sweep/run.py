@@ -254,12 +254,7 @@ class SweepSpec:
             raise ValueError(f"samples: must be >= 1 for Monte Carlo, got {self.samples}")
         if self.seed < 0:  # (numpy's default_rng: "expected non-negative integer")
             raise ValueError(f"seed: must be >= 0, got {self.seed}")
-        _check_case_count(
-            self.samples
-            if self.mode == "monte-carlo"
-            else math.prod(len(values) for values in clean.values()),
-            "samples" if self.mode == "monte-carlo" else "parameters",
-        )
+        _check_case_count(self.n_cases, "samples" if self.mode == "monte-carlo" else "parameters")
         for field in ("t_end", "sample_dt", "dt", "rtol", "atol"):
             value = _number(getattr(self, field), field, integer=False)
             if value <= 0:
@@ -357,6 +352,13 @@ class SweepSpec:
     def times(self) -> np.ndarray:
         """The sample times ``0, sample_dt, ..., t_end`` [s]."""
         return np.arange(round(self.t_end / self.sample_dt) + 1) * self.sample_dt
+
+    @property
+    def n_cases(self) -> int:
+        """The number of cases: ``samples`` (Monte Carlo) or the grid's size."""
+        if self.mode == "monte-carlo":
+            return int(self.samples)
+        return math.prod(len(values) for values in self.parameters.values())
 
     def cases(self) -> list[dict[str, float | int]]:
         """Every case: a dict with a value for each parameter of :data:`DEFAULTS` (for a
