@@ -589,11 +589,7 @@ class Structure:
         """True for a 3-D class 1 structure without supports, joints or point masses: every
         node the end of exactly one rod, ``q`` the rods' coordinates only."""
         return self.dim == 3 and not (
-            self.node_fixed.any()
-            or self.point_mass_nodes.size
-            or self.joint_nodes.size
-            or self.plane_nodes.size
-            or self.line_nodes.size
+            self.is_supported or self.point_mass_nodes.size or self.joint_nodes.size
         )
 
     @cached_property
