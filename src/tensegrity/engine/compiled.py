@@ -8,24 +8,15 @@ Constant arguments go to compiled callees as runtime values (``np.int64(0)``,
 
 Every function here evaluates the physics through :mod:`tensegrity.physics.kernel_system`
 (``system_rhs``, ``system_project``, ...), so that one code path serves every structure
-``simulate`` accepts.  The arguments come in a few tuples, built once per run by
-:class:`tensegrity.engine.system.CompiledSystem`:
-
-``system`` = ``(arrays, extras)``
-    :func:`kernel_system.pack_system`'s model arrays (a tuple of six) and constraint data (None
-    for a free class 1 structure).
-``inputs`` = ``(rest, rate, has_rate, has_external, force, has_gravity, gravity)``
-    Per-stage inputs: ``rest`` (K, S) rest lengths ``Lbar = L0 - u`` [m] and ``rate`` (K, S)
-    the control rates ``du/dt`` [m/s] (read if ``has_rate``), in kernel order, ``force``
-    (K, 3, n_slots) external nodal forces [N] in the kernel's node layout, ``gravity`` (3,)
-    [m/s^2].  Stage ``s`` of a step reads row ``s``
-    when K > 1 and row 0 when K = 1 (inputs constant over the step).  Tabulated inputs
-    (:class:`~tensegrity.model.loads.ForceTable`, :class:`~tensegrity.model.loads.ControlTable`)
-    are interpolated here (:func:`fill_stage_inputs`), inside a compiled stretch of RK4 steps
-    too; only a Python callable makes the engine step from Python.
-``work`` = ``(node_work, block_force, tension, elastic_tension, damping_power)``
-    Scratch buffers of the kernel (see :func:`tensegrity.physics.kernel.rhs`); after an evaluation
-    ``tension`` and ``elastic_tension`` hold that state's values, in kernel order.
+``simulate`` accepts, and takes its two records (:mod:`tensegrity.physics.records`), made once
+per run by :class:`tensegrity.engine.system.CompiledSystem`: ``model`` (read-only: the packed
+structure, gravity, the input tables, the limits) and ``data`` (the inputs' stage rows, the
+scratch, the blow-up monitor).  Stage ``s`` of a step reads row ``s`` of ``data.rest``,
+``data.rate`` and ``data.force`` when they have more than one row, and row 0 otherwise (inputs
+constant over the step).  Tabulated inputs (:class:`~tensegrity.model.loads.ForceTable`,
+:class:`~tensegrity.model.loads.ControlTable`) are interpolated here into those rows
+(:func:`fill_stage_inputs`), inside a compiled stretch of steps too; only a Python callable makes
+the engine step from Python.
 
 The DOP853 coefficients, step-size law and error norm are those of ``scipy.integrate.DOP853``
 (Hairer, Norsett and Wanner, *Solving Ordinary Differential Equations I*, II.10), so that the
@@ -34,18 +25,16 @@ engine follows the trajectories of the adaptive path it replaces.
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-from types import ModuleType
-
 import numpy as np
 from numba import njit
 
+from tensegrity.engine import dop853_tableau
 from tensegrity.physics.kernel import (
     JIT_OPTIONS,
     JitOptions,
     compiled_only,
     copy_values,
+    stage_row,
     tendon_vector,
 )
 from tensegrity.physics.kernel_system import (
@@ -57,33 +46,17 @@ from tensegrity.physics.kernel_system import (
     system_rhs,
 )
 
-
-def _scipy_dop853_tableau() -> ModuleType:
-    """``scipy.integrate._ivp.dop853_coefficients``, loaded from its file alone: importing it as
-    a module imports ``scipy.integrate`` and with it ``scipy.optimize`` first, 0.15 s of every
-    run's start (measured) that a simulation does not otherwise need."""
-    scipy_spec = importlib.util.find_spec("scipy")
-    assert scipy_spec is not None and scipy_spec.origin is not None, "scipy is a dependency"
-    path = Path(scipy_spec.origin).parent / "integrate" / "_ivp" / "dop853_coefficients.py"
-    spec = importlib.util.spec_from_file_location("_scipy_dop853_coefficients", path)
-    assert spec is not None and spec.loader is not None, f"no DOP853 tableau at {path}"
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-_dop853 = _scipy_dop853_tableau()
-#: DOP853 tableau (scipy's): 12 stages, the 13th is f at the new point (first same as last),
-#: then 3 extra stages for the dense output.
-DOP853_STAGES = _dop853.N_STAGES
-DOP853_A = np.ascontiguousarray(_dop853.A)  # (16, 16)
-DOP853_B = np.ascontiguousarray(_dop853.B)  # (12,)
-DOP853_C = np.ascontiguousarray(_dop853.C)  # (16,)
-DOP853_E3 = np.ascontiguousarray(_dop853.E3)  # (13,)
-DOP853_E5 = np.ascontiguousarray(_dop853.E5)  # (13,)
-DOP853_D = np.ascontiguousarray(_dop853.D)  # (4, 16)
+#: DOP853 tableau (:mod:`tensegrity.engine.dop853_tableau`, scipy's): 12 stages, the 13th is f at
+#: the new point (first same as last), then 3 extra stages for the dense output.
+DOP853_STAGES = dop853_tableau.N_STAGES
+DOP853_A = dop853_tableau.A  # (16, 16)
+DOP853_B = dop853_tableau.B  # (12,)
+DOP853_C = dop853_tableau.C  # (16,)
+DOP853_E3 = dop853_tableau.E3  # (13,)
+DOP853_E5 = dop853_tableau.E5  # (13,)
+DOP853_D = dop853_tableau.D  # (4, 16)
 #: Rows of the dense-output polynomial.
-DOP853_DENSE_ROWS = _dop853.INTERPOLATOR_POWER
+DOP853_DENSE_ROWS = dop853_tableau.INTERPOLATOR_POWER
 #: Stage times of one RK4 step, as fractions of the step.
 RK4_C = np.array([0.0, 0.5, 0.5, 1.0])
 
@@ -147,13 +120,17 @@ def rk4_stage_times(t, k, h, out):  # pragma: no cover - compiled
 
 
 @njit(**EXACT_JIT_OPTIONS)
-def fill_stage_inputs(tables, times, rest, rate, force):  # pragma: no cover - compiled
-    """The rows of the tabulated inputs at the stage ``times`` (K,) [s]: with a control table,
-    ``rest`` (K, S) the rest lengths ``Lbar = L0 - u`` [m] and ``rate`` (K, S) ``du/dt`` [m/s];
-    with a force table, ``force`` (K, 3, n_slots) [N].  ``tables`` = ``(control_time,
-    control (Tc, S) [m], control_zero_outside, L0 (S,) [m], force_time, force (Tf, 3 * n_slots)
-    [N], force_zero_outside)``, kernel order and slot layout; an empty time array: no such
-    table.  Returns the first row holding a negative rest length, or -1."""
+def fill_stage_inputs(tables, times, data):  # pragma: no cover - compiled
+    """The rows of the tabulated inputs at the stage ``times`` (K,) [s] into ``data``: with a
+    control table, ``data.rest`` (K, S) the rest lengths ``Lbar = L0 - u`` [m] and ``data.rate``
+    (K, S) ``du/dt`` [m/s]; with a force table, ``data.force`` (K, 3, n_slots) [N].  ``tables``
+    (``model.tables``) = ``(control_time, control (Tc, S) [m], control_zero_outside, L0 (S,)
+    [m], force_time, force (Tf, 3 * n_slots) [N], force_zero_outside)``, kernel order and slot
+    layout; an empty time array: no such table; None: no tables (nothing to fill).  Returns the
+    first row holding a negative rest length, or -1."""
+    if tables is None:
+        return -1
+    rest, rate, force = data.rest, data.rate, data.force
     control_time, control, control_zero, rest0, force_time, force_values, force_zero = tables
     first_negative = -1
     if control_time.shape[0] > 0:
@@ -170,55 +147,31 @@ def fill_stage_inputs(tables, times, rest, rate, force):  # pragma: no cover - c
 
 
 # --------------------------------------------------------------------------- right-hand side
-@njit(inline="always", **JIT_OPTIONS)
-def _row(values, s):  # pragma: no cover - compiled
-    """Row ``s`` of per-stage inputs, or row 0 when they are constant (one row)."""
-    return values[s] if values.shape[0] > 1 else values[0]
-
-
 @compiled_only
-def accelerations(q, qdot, qddot, s, system, inputs, work):  # pragma: no cover - compiled
+def accelerations(model, data, s, q, qdot, qddot):  # pragma: no cover - compiled
     """``qddot`` = the accelerations of Theorem 18.1 (eqs. 18.17, 18.20, constraint forces
     included) at ``(q, q')`` with the inputs' row ``s``; returns the powers ``(dissipated,
     external, control)`` [W]: damping, external forces, and ``sum_i T_el,i du_i/dt`` (``Lbar =
     L0 - u``), the rates of ``E_d``, ``W_w`` and ``W_u``."""
-    arrays, extras = system
-    rest, rate, has_rate, has_external, force, has_gravity, gravity = inputs
-    node_work, block_force, tension, elastic, damping_power = work
-    dissipated, external = system_rhs(
-        q,
-        qdot,
-        arrays,
-        extras,
-        _row(rest, s),
-        has_external,
-        _row(force, s),
-        has_gravity,
-        gravity,
-        node_work,
-        block_force,
-        qddot,
-        tension,
-        elastic,
-        damping_power,
-    )
+    dissipated, external = system_rhs(model, data, s, q, qdot, qddot)
     control = 0.0
-    if has_rate:
-        rate_s = _row(rate, s)
+    if data.has_rate:
+        rate_s = stage_row(data.rate, s)
+        elastic = data.elastic_tension
         for i in range(elastic.shape[0]):
             control += elastic[i] * rate_s[i]
     return dissipated, external, control
 
 
 @njit(**JIT_OPTIONS)
-def ode_rhs(y, dy, s, system, inputs, work):  # pragma: no cover - compiled
+def ode_rhs(model, data, s, y, dy):  # pragma: no cover - compiled
     """``dy = f(t_s, y)`` for ``y = [q, q', E_d, W_w, W_u]`` (length ``2n + 3``): ``q'``, the
     accelerations and the three powers of :func:`accelerations`; ``s`` selects the stage's row
     of the inputs."""
     n = (y.shape[0] - 3) // 2
     qdot = y[n : 2 * n]
     dy[2 * n], dy[2 * n + 1], dy[2 * n + 2] = accelerations(
-        y[:n], qdot, dy[n : 2 * n], s, system, inputs, work
+        model, data, s, y[:n], qdot, dy[n : 2 * n]
     )
     copy_values(qdot, dy, n)
 
@@ -237,17 +190,18 @@ def _combine(y, K, row, stages, h, out):  # pragma: no cover - compiled
 
 
 @compiled_only
-def dop853_attempt(y, h, K, y_new, stage, rtol, atol, system, inputs, work):  # pragma: no cover
+def dop853_attempt(model, data, y, h, K, y_new, stage, tol):  # pragma: no cover - compiled
     """One DOP853 step of ``h`` [s] from ``y`` with ``K[0] = f(y)`` given; fills ``K[1:13]``
-    (``K[12] = f(y_new)``, after which ``work`` holds the tensions at ``y_new``) and ``y_new``.
-    ``stage`` (len(y),) is scratch.  Returns the error norm of ``scipy.integrate.DOP853``
-    (accept the step when < 1)."""
+    (``K[12] = f(y_new)``, after which ``data`` holds the tensions at ``y_new``) and ``y_new``.
+    ``stage`` (len(y),) is scratch; ``tol`` = ``(rtol, atol)``.  Returns the error norm of
+    ``scipy.integrate.DOP853`` (accept the step when < 1)."""
+    rtol, atol = tol
     for s in range(1, DOP853_STAGES):
         _combine(y, K, DOP853_A[s], s, h, stage)
-        ode_rhs(stage, K[s], s, system, inputs, work)
+        ode_rhs(model, data, s, stage, K[s])
     last = np.int64(DOP853_STAGES)
     _combine(y, K, DOP853_B, last, h, y_new)
-    ode_rhs(y_new, K[last], last, system, inputs, work)
+    ode_rhs(model, data, last, y_new, K[last])
     err5 = 0.0
     err3 = 0.0
     m = y.shape[0]
@@ -268,13 +222,13 @@ def dop853_attempt(y, h, K, y_new, stage, rtol, atol, system, inputs, work):  # 
 
 
 @compiled_only
-def dop853_dense(y_old, y, h, K, F, stage, system, inputs, work):  # pragma: no cover - compiled
+def dop853_dense(model, data, y_old, y, h, K, F, stage):  # pragma: no cover - compiled
     """The step's dense-output polynomial into ``F`` (7, len(y)), as ``scipy``'s DOP853: three
     more stages (rows 13-15 of ``K`` and of the inputs).  ``K[0]`` and ``K[12]`` are f at the
     step's two ends."""
     for s in range(DOP853_STAGES + 1, DOP853_A.shape[0]):
         _combine(y_old, K, DOP853_A[s], s, h, stage)
-        ode_rhs(stage, K[s], s, system, inputs, work)
+        ode_rhs(model, data, s, stage, K[s])
     for i in range(y.shape[0]):
         delta = y[i] - y_old[i]
         F[0, i] = delta
@@ -300,7 +254,7 @@ def dop853_interpolate(F, y_old, x, out):  # pragma: no cover - compiled
 
 # --------------------------------------------------------------------------- RK4
 @njit(**JIT_OPTIONS)
-def rk4_step(y, h, work_step, keep_first, system, inputs, work, y_end):  # pragma: no cover
+def rk4_step(model, data, y, h, work_step, keep_first, y_end):  # pragma: no cover - compiled
     """One classical RK4 step of ``h`` [s] on ``y`` in place, ``y + h/6 (k1 + 2 k2 + 2 k3 +
     k4)``, the result also written to ``y_end``.  Stage rows of the inputs: 0, 1, 2, 3 at ``t,
     t + h/2, t + h/2, t + h``.
@@ -316,7 +270,7 @@ def rk4_step(y, h, work_step, keep_first, system, inputs, work, y_end):  # pragm
     q, qdot = y[:n], y[n : 2 * n]
     q_stage, qdot_stage = stage[:n], stage[n : 2 * n]
     # k1 = f(y): the sum starts with it, and stage 2 is y + h/2 k1
-    powers = accelerations(q, qdot, qddot, np.int64(0), system, inputs, work)
+    powers = accelerations(model, data, np.int64(0), q, qdot, qddot)
     c = h * RK4_C[1]
     for i in range(n):
         total[i] = qdot[i]
@@ -330,7 +284,7 @@ def rk4_step(y, h, work_step, keep_first, system, inputs, work, y_end):  # pragm
         copy_values(total, first, y.shape[0])
     # k2 and k3 (weight 2), each making the next stage, y + c k
     for s in range(1, 3):
-        powers = accelerations(q_stage, qdot_stage, qddot, s, system, inputs, work)
+        powers = accelerations(model, data, s, q_stage, qdot_stage, qddot)
         c = h * RK4_C[s + 1]
         for i in range(n):  # (q_stage is made from qdot_stage before that is overwritten)
             total[i] = total[i] + 2.0 * qdot_stage[i]
@@ -341,7 +295,7 @@ def rk4_step(y, h, work_step, keep_first, system, inputs, work, y_end):  # pragm
         for j in range(3):
             total[2 * n + j] = total[2 * n + j] + 2.0 * powers[j]
     # k4 (weight 1) goes straight into the step's end
-    powers = accelerations(q_stage, qdot_stage, qddot, np.int64(3), system, inputs, work)
+    powers = accelerations(model, data, np.int64(3), q_stage, qdot_stage, qddot)
     h6 = h / 6.0
     for i in range(n):
         y_end[i] = q[i] + h6 * (total[i] + qdot_stage[i])
@@ -355,14 +309,12 @@ def rk4_step(y, h, work_step, keep_first, system, inputs, work, y_end):  # pragm
 
 
 @njit(**JIT_OPTIONS)
-def rk4_segment(
-    y, t, h, n_steps, work_step, keep_first, y_end, system, inputs, tables, work, limits, monitor
-):  # pragma: no cover
+def rk4_segment(model, data, y, y_end, work_step, keep_first, t, h, n_steps):  # pragma: no cover
     """Up to ``n_steps`` RK4 steps of ``h`` [s] from time ``t`` [s], each followed by
     :func:`check_state` and the projection onto the rod and joint constraints (as
-    ``simulate(method="rk4")``).  Inputs constant over the stretch (``tables`` None: one row or
-    the 4 stage rows of a single step), or tabulated (``tables`` as :func:`fill_stage_inputs`'s,
-    whose 4 stage rows are filled here before each step).  The energy balance is checked every
+    ``simulate(method="rk4")``).  Inputs constant over the stretch (``model.tables`` None: one
+    row or the 4 stage rows of a single step in ``data``), or tabulated (their 4 stage rows
+    filled into ``data`` before each step).  The energy balance is checked every
     :data:`ENERGY_CHECK_EVERY` steps and after the last one (it costs about one evaluation; the
     other checks are cheap); it reads the inputs at the step's end.  ``y_end`` receives the
     state at the end of the last step before its projection (what a sample records, and the
@@ -370,33 +322,20 @@ def rk4_segment(
     first failed check, and before a step whose control table makes a rest length negative
     (:data:`CHECK_INPUT`, that step not taken)."""
     n = (y.shape[0] - 3) // 2
-    step_end = min(RK4_C.shape[0], inputs[0].shape[0]) - 1
-    rest, rate, _, _, force, _, _ = inputs
+    step_end = min(RK4_C.shape[0], data.rest.shape[0]) - 1
     times = np.empty(RK4_C.shape[0])
     for k in range(n_steps):
-        if tables is not None:
-            rk4_stage_times(t, k, h, times)
-            if fill_stage_inputs(tables, times, rest, rate, force) >= 0:
-                return k, CHECK_INPUT, np.nan
-        rk4_step(y, h, work_step, keep_first, system, inputs, work, y_end)
+        rk4_stage_times(t, k, h, times)
+        if fill_stage_inputs(model.tables, times, data) >= 0:
+            return k, CHECK_INPUT, np.nan
+        rk4_step(model, data, y, h, work_step, keep_first, y_end)
         # The projection measures the errors it removes: they are the checks' (one pass less).
-        rod_error, constraint_error, ok = system_project(
-            y[:n], y[n : 2 * n], system[0][1], system[1]
-        )
+        rod_error, constraint_error, ok = system_project(model, data, y[:n], y[n : 2 * n])
         if not all_finite(y_end[2 * n :]):
             rod_error = np.nan
         with_energy = k == n_steps - 1 or (k + 1) % ENERGY_CHECK_EVERY == 0
         code, value = judge_state(
-            y_end,
-            rod_error,
-            constraint_error,
-            step_end,
-            system,
-            inputs,
-            work,
-            limits,
-            monitor,
-            with_energy,
+            model, data, step_end, y_end, (rod_error, constraint_error), model.limits, with_energy
         )
         if code != CHECK_OK:
             return k + 1, code, value
@@ -407,15 +346,13 @@ def rk4_segment(
 
 # --------------------------------------------------------------------------- checks and outputs
 @njit(**JIT_OPTIONS)
-def energy_balance(y, s, system, inputs, work):  # pragma: no cover - compiled
+def energy_balance(model, data, s, y):  # pragma: no cover - compiled
     """``(kinetic, elastic, gravity, total, scale)`` [J] at ``y`` with the inputs' row ``s``:
     ``total = E_kin + E_el + E_grav + E_d - W_w - W_u`` (constant up to integration error) and a
     magnitude to judge its drift by."""
-    arrays, extras = system
-    rest, _, _, _, _, has_gravity, gravity = inputs
     n = (y.shape[0] - 3) // 2
     kinetic, elastic, potential = system_energies(
-        y[:n], y[n : 2 * n], arrays, extras, _row(rest, s), has_gravity, gravity, work[0]
+        model, data, stage_row(data.rest, s), y[:n], y[n : 2 * n]
     )
     d, w, u = y[2 * n], y[2 * n + 1], y[2 * n + 2]
     total = kinetic + elastic + potential + d - w - u
@@ -424,32 +361,30 @@ def energy_balance(y, s, system, inputs, work):  # pragma: no cover - compiled
 
 
 @njit(**JIT_OPTIONS)
-def check_state(y, s, system, inputs, work, limits, monitor, with_energy):  # pragma: no cover
+def check_state(model, data, s, y, limits, with_energy):  # pragma: no cover - compiled
     """The blow-up checks after a step ending at ``y`` (inputs' row ``s``): ``(code, value)``
     with ``code`` one of ``CHECK_*``; ``value`` the offending number, or on success the larger
     of the rod-length error (relative) and the constraint error [m].  The energy balance is
     checked only ``with_energy``.
 
-    ``limits`` = ``(max_rod_length_error, max_constraint_error [m], max_energy_growth)``;
-    ``monitor`` (4,) float64 is updated in place: ``[energy0, largest scale seen, largest rod
-    error, largest constraint error]`` (``energy0`` NaN: set to this state's energy).  The
-    energy balance may not grow by more than ``max_energy_growth`` times the largest energy
-    magnitude seen so far."""
+    ``limits`` (3,) = ``(max_rod_length_error, max_constraint_error [m], max_energy_growth)``
+    (``model.limits``, or infinite for the start's check); ``data.monitor`` (4,) is updated in
+    place: ``[energy0, largest scale seen, largest rod error, largest constraint error]``
+    (``energy0`` NaN: set to this state's energy).  The energy balance may not grow by more
+    than ``max_energy_growth`` times the largest energy magnitude seen so far."""
     n = (y.shape[0] - 3) // 2
-    rod_error, constraint_error = system_errors(y[:n], system[0][1], system[1])
+    rod_error, constraint_error = system_errors(model, data, y[:n])
     if not all_finite(y):
         rod_error = np.nan
-    return judge_state(
-        y, rod_error, constraint_error, s, system, inputs, work, limits, monitor, with_energy
-    )
+    return judge_state(model, data, s, y, (rod_error, constraint_error), limits, with_energy)
 
 
 @compiled_only
-def judge_state(
-    y, rod_error, constraint_error, s, system, inputs, work, limits, monitor, with_energy
-):  # pragma: no cover - compiled
-    """:func:`check_state` from the state's errors, measured by the caller: ``rod_error`` NaN
-    if the state is not finite."""
+def judge_state(model, data, s, y, errors, limits, with_energy):  # pragma: no cover - compiled
+    """:func:`check_state` from the state's ``errors`` = ``(rod_error, constraint_error)``,
+    measured by the caller: ``rod_error`` NaN if the state is not finite."""
+    rod_error, constraint_error = errors
+    monitor = data.monitor
     if np.isnan(rod_error):
         return CHECK_NOT_FINITE, np.nan
     monitor[2] = max(monitor[2], rod_error)
@@ -460,7 +395,7 @@ def judge_state(
         return CHECK_CONSTRAINT, constraint_error
     if not with_energy:
         return CHECK_OK, max(rod_error, constraint_error)
-    _, _, _, total, scale = energy_balance(y, s, system, inputs, work)
+    _, _, _, total, scale = energy_balance(model, data, s, y)
     if np.isnan(monitor[0]):  # (the first check of a run: its energy is the reference)
         monitor[0] = total
     monitor[1] = max(monitor[1], scale)
@@ -480,29 +415,29 @@ def tendon_lengths(p, tendon_slots, out):  # pragma: no cover - compiled
 
 
 @njit(**JIT_OPTIONS)
-def switch_indicator(y, system, rest, work, p, v, out):  # pragma: no cover - compiled
+def switch_indicator(model, rest, y, p, v, out):  # pragma: no cover - compiled
     """Per tendon (kernel order), positive while it pulls and <= 0 while it does not:
-    ``min(k d, k d + c l')`` with ``d = l - Lbar``; its sign changes exactly at the kinks of the
-    tension law (eqs. 18.39-18.40).  ``p``, ``v`` (3, n_slots) are scratch."""
-    arrays, extras = system
-    rod_slots, _, tendon_slots, _, stiffness, damping = arrays
+    ``min(k d, k d + c l')`` with ``d = l - Lbar`` (``rest`` (S,) the rest lengths [m]); its sign
+    changes exactly at the kinks of the tension law (eqs. 18.39-18.40).  ``p``, ``v``
+    (3, n_slots) are scratch."""
+    damping = model.tendon_damping
     n = (y.shape[0] - 3) // 2
-    system_nodes(y[:n], y[n : 2 * n], rod_slots, extras, p, v, damping is not None)
-    _indicator(p, v, tendon_slots, stiffness, damping, rest, out)
+    system_nodes(model, y[:n], y[n : 2 * n], p, v, damping is not None)
+    _indicator(damping, model, rest, p, v, out)
 
 
 @compiled_only
-def switch_distance(
-    F, y_old, x, y, system, rest, work, p, v, indicator, candidates, was_taut, out
-):  # pragma: no cover - compiled
+def switch_distance(model, rest, F, y_old, x, scratch, candidates, was_taut):  # pragma: no cover
     """How far each of the tendons ``candidates`` (kernel positions) is from leaving its state
     ``was_taut`` at the fraction ``x`` of a DOP853 step (its dense polynomial ``F`` from
-    ``y_old``): ``out[k]`` is :func:`switch_indicator` of ``candidates[k]``, negated for a
-    tendon that was slack, so ``out[k] <= 0`` once it has switched.  Returns ``min(out)``: the
-    earliest switch in the step is the first root of this continuous function.  ``y``
-    (len(y_old),) and ``indicator`` (S,) are scratch."""
+    ``y_old``), with the rest lengths ``rest`` (S,) [m] there: ``out[k]`` is
+    :func:`switch_indicator` of ``candidates[k]``, negated for a tendon that was slack, so
+    ``out[k] <= 0`` once it has switched.  Returns ``min(out)``: the earliest switch in the
+    step is the first root of this continuous function.  ``scratch`` = ``(y (len(y_old),),
+    p, v (3, n_slots), indicator (S,), out (>= len(candidates),))``."""
+    y, p, v, indicator, out = scratch
     dop853_interpolate(F, y_old, x, y)
-    switch_indicator(y, system, rest, work, p, v, indicator)
+    switch_indicator(model, rest, y, p, v, indicator)
     least = np.inf
     for k in range(candidates.shape[0]):
         value = indicator[candidates[k]]
@@ -575,9 +510,10 @@ def bracket_next(b, t, g):  # pragma: no cover - compiled
 
 
 @compiled_only
-def _indicator(p, v, tendon_slots, stiffness, damping, rest, out):  # pragma: no cover
+def _indicator(damping, model, rest, p, v, out):  # pragma: no cover - compiled
     """:func:`switch_indicator` from the node positions ``p`` and velocities ``v``; ``damping``
-    None: undamped tendons (decided at compile time)."""
+    (``model.tendon_damping``) None: undamped tendons (decided at compile time)."""
+    tendon_slots, stiffness = model.tendon_slots, model.tendon_stiffness
     for s in range(tendon_slots.shape[0]):
         a, b, tx, ty, tz = tendon_vector(p, tendon_slots, s)
         length = np.sqrt(tx * tx + ty * ty + tz * tz)
@@ -592,9 +528,9 @@ def _indicator(p, v, tendon_slots, stiffness, damping, rest, out):  # pragma: no
 
 
 @njit(**JIT_OPTIONS)
-def record_sample(y, system, inputs, work, scratch, maps, columns, row):  # pragma: no cover
+def record_sample(model, data, y, scratch, maps, columns, row):  # pragma: no cover - compiled
     """Sample ``row`` of ``columns`` (:class:`tensegrity.engine.result.Samples`' fields after
-    ``t``) at ``y``, from one evaluation with the inputs' row 0: coordinates, node positions
+    ``t``) at ``y``, from one evaluation with the inputs' row 0 of ``data``: coordinates, node positions
     and velocities, tendon lengths and tensions, the energies, and the largest node
     acceleration [m/s^2] and speed [m/s] over the moving slots (rod ends and point masses).
 
@@ -608,15 +544,13 @@ def record_sample(y, system, inputs, work, scratch, maps, columns, row):  # prag
     )
     dy, p, v, accel, lengths, moving = scratch
     kept, node_slot, position = maps
-    arrays, extras = system
-    rod_slots = arrays[0]
     n = (y.shape[0] - 3) // 2
     first = np.int64(0)
-    ode_rhs(y, dy, first, system, inputs, work)
-    kinetic, elastic, potential, _, _ = energy_balance(y, first, system, inputs, work)
-    system_nodes(y[:n], y[n : 2 * n], rod_slots, extras, p, v, np.bool_(True))
-    tendon_lengths(p, arrays[2], lengths)
-    system_nodes(dy[n : 2 * n], dy[n : 2 * n], rod_slots, extras, accel, accel, np.bool_(False))
+    ode_rhs(model, data, first, y, dy)
+    kinetic, elastic, potential, _, _ = energy_balance(model, data, first, y)
+    system_nodes(model, y[:n], y[n : 2 * n], p, v, np.bool_(True))
+    tendon_lengths(p, model.tendon_slots, lengths)
+    system_nodes(model, dy[n : 2 * n], dy[n : 2 * n], accel, accel, np.bool_(False))
     for i in range(kept.shape[0]):
         q[row, i] = y[kept[i]]
         qdot[row, i] = y[n + kept[i]]
@@ -624,7 +558,7 @@ def record_sample(y, system, inputs, work, scratch, maps, columns, row):  # prag
         for k in range(nodes.shape[2]):
             nodes[row, i, k] = p[k, node_slot[i]]
             velocities[row, i, k] = v[k, node_slot[i]]
-    tensions = work[2]
+    tensions = data.tension
     for j in range(position.shape[0]):
         tendon_length[row, j] = lengths[position[j]]
         tension[row, j] = tensions[position[j]]

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import types
 from collections.abc import Callable
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -118,16 +119,41 @@ _COUNTS = {"nsteps": NSTEPS, "nswitches": NSWITCHES, "nprojections": NPROJECTION
 ) = range(8)
 
 
+class LoopWork(NamedTuple):
+    """The loop's own state and scratch (:func:`dop853_run`'s ``loop``), held by
+    :class:`DOP853` between calls."""
+
+    clock: np.ndarray  #: (N_CLOCK,) float64, indices ``T``...
+    tally: np.ndarray  #: (N_TALLY,) int64, indices ``NFEV``...
+    y: np.ndarray  #: (m,) the state
+    y_old: np.ndarray  #: (m,) the state at the last step's start
+    K: np.ndarray  #: (16, m) the stages
+    F: np.ndarray  #: (7, m) the last step's dense-output polynomial
+    y_new: np.ndarray  #: (m,) scratch
+    stage: np.ndarray  #: (m,) scratch
+    y_at: np.ndarray  #: (m,) scratch
+    taut: np.ndarray  #: (S,) bool, kernel order: the tendons taut at the state
+    landing_mask: np.ndarray  #: (S,) bool: the tendons of the switch headed for
+    landing_after: np.ndarray  #: (S,) bool: their side after it
+    switch_times: np.ndarray  #: (SWITCH_BUFFER,) [s]: switches located by this call
+    p: np.ndarray  #: (3, n_slots) scratch
+    v: np.ndarray  #: (3, n_slots) scratch
+    indicator: np.ndarray  #: (S,) scratch
+    distance: np.ndarray  #: (S,) scratch
+    candidates: np.ndarray  #: (S,) int64 scratch
+    #: ``(rtol, atol, t_end [s], projection_tol, max_steps, locate, attempts)``: the call
+    #: returns (``RUN_YIELD``) once it has made ``attempts`` attempts
+    settings: tuple
+
+
 @register_jitable
-def _inputs_at(times, inputs, tables, provider):  # pragma: no cover - compiled
-    """The inputs at ``times`` and the first row holding a negative rest length (-1: none):
-    from the ``provider`` (a new tuple), or filled into ``inputs`` from the ``tables``, or the
-    constant ``inputs``."""
+def _inputs_at(times, data, tables, provider):  # pragma: no cover - compiled
+    """The data record with the inputs at ``times`` and the first row holding a negative rest
+    length (-1: none): from the ``provider`` (a new record), or filled into ``data`` from the
+    ``tables`` (``model.tables``), or the constant ``data``."""
     if provider is not None:
         return provider(times), -1
-    if tables is not None:
-        return inputs, fill_stage_inputs(tables, times, inputs[0], inputs[1], inputs[4])
-    return inputs, -1
+    return data, fill_stage_inputs(tables, times, data)
 
 
 @register_jitable
@@ -137,20 +163,15 @@ def _point(t, point, tables, provider, times1):  # pragma: no cover - compiled
     return _inputs_at(times1, point, tables, provider)
 
 
-def _dop853_loop(clock, tally, buffers, flags, switch_times, system, rows, point, tables,
-                 provider, work, scratch, settings, limits, monitor, bound,
-                 next_sample_t):  # pragma: no cover - compiled (dop853_run)  # fmt: skip
-    """The adaptive loop from ``clock[T]`` until the samples of a step are due, the step
+def _dop853_loop(model, rows, point, provider, loop, bound, next_sample_t):  # pragma: no cover
+    """The adaptive loop from ``loop.clock[T]`` until the samples of a step are due, the step
     reaches ``bound`` [s], or the run must stop (see the module doc); ``(code, check code,
     check value)``.
 
-    ``buffers`` = ``(y, y_old, K (16, m), F (7, m), y_new, stage, y_at)``; ``flags`` = ``(taut,
-    landing_mask, landing_after)`` (S,) bool, kernel order; ``switch_times`` (SWITCH_BUFFER,)
-    [s]; ``rows`` and ``point`` the inputs tuples for a step's 16 stages and for one time;
-    ``scratch`` = ``(p, v (3, n_slots), indicator (S,), distance (S,), candidates (S,) int64)``;
-    ``settings`` = ``(rtol, atol, t_end [s], projection_tol, max_steps, locate, attempts)``:
-    the call returns (``RUN_YIELD``) once it has made ``attempts`` attempts; ``limits`` and
-    ``monitor`` as :func:`compiled.check_state`'s.
+    ``rows`` and ``point`` are data records (:class:`tensegrity.physics.records.Data`) for a
+    step's 16 stages and for one time (filled from ``model.tables``), ``provider`` None or a
+    Python function making them (the loop then runs as Python); ``loop`` the
+    :class:`LoopWork`.
 
     The whole loop is one function, its heavy callees (the stages, the dense output, the switch
     distance, the checks, the projection) called from here only: numba compiles every function
@@ -158,9 +179,20 @@ def _dop853_loop(clock, tally, buffers, flags, switch_times, system, rows, point
     about a second of the first run's compile.  Its small helpers are closures, which numba
     inlines (a compiled function of its own costs about 0.1 s of that compile each).
     """
-    y, y_old, K, F, y_new, stage, y_at = buffers
-    taut, landing_mask, landing_after = flags
-    p, v, indicator, distance, candidates = scratch
+    clock, tally, switch_times, settings = loop.clock, loop.tally, loop.switch_times, loop.settings
+    y, y_old, K, F, y_new, stage, y_at = (
+        loop.y,
+        loop.y_old,
+        loop.K,
+        loop.F,
+        loop.y_new,
+        loop.stage,
+        loop.y_at,
+    )
+    taut, landing_mask, landing_after = loop.taut, loop.landing_mask, loop.landing_after
+    distance, candidates = loop.distance, loop.candidates
+    scratch = (y_at, loop.p, loop.v, loop.indicator, distance)
+    tables, tension, limits = model.tables, point.tension, model.limits
     rtol, atol, t_end, projection_tol = settings[0], settings[1], settings[2], settings[3]
     max_steps, locate, attempts_per_call = settings[4], settings[5], settings[6]
     attempts = 0
@@ -199,7 +231,7 @@ def _dop853_loop(clock, tally, buffers, flags, switch_times, system, rows, point
     def any_switched():
         """Whether a tendon's tension at the last stage disagrees with its taut flag."""
         for s in range(taut.shape[0]):  # noqa: SIM110 - (a loop numba compiles)
-            if (work[2][s] > 0.0) != taut[s]:
+            if (tension[s] > 0.0) != taut[s]:
                 return True
         return False
 
@@ -208,7 +240,7 @@ def _dop853_loop(clock, tally, buffers, flags, switch_times, system, rows, point
         (a landing located exactly) keep the side they switched to (the state retaken up to a
         switch may sit a round-off short of it)."""
         for s in range(taut.shape[0]):
-            taut[s] = work[2][s] > 0.0
+            taut[s] = tension[s] > 0.0
             if landed_exact and landing_mask[s]:
                 taut[s] = landing_after[s]
 
@@ -221,9 +253,8 @@ def _dop853_loop(clock, tally, buffers, flags, switch_times, system, rows, point
             return np.nan, True
         x = (t - clock[T_OLD]) / (clock[T] - clock[T_OLD])
         least = switch_distance(
-            F, y_old, x, y_at, system, inputs[0][0], work, p, v, indicator,
-            candidates[:count], taut, distance[:count],
-        )  # fmt: skip
+            model, inputs.rest[0], F, y_old, x, scratch, candidates[:count], taut
+        )
         return least, False
 
     def initial_step(f0, f1):
@@ -248,7 +279,7 @@ def _dop853_loop(clock, tally, buffers, flags, switch_times, system, rows, point
         if bad >= 0:
             clock[INPUT_TIME] = t + h0
             return np.nan
-        ode_rhs(y_new, f1, np.int64(0), system, inputs, work)
+        ode_rhs(model, inputs, np.int64(0), y_new, f1)
         tally[NFEV] += 1
         d2 = 0.0
         for i in range(m):
@@ -271,7 +302,7 @@ def _dop853_loop(clock, tally, buffers, flags, switch_times, system, rows, point
                 tally[ALLOW_PROVISIONAL] = tally[LANDING_EXACT]
                 tally[LANDING] = 0
             if clock[DRIFT] > projection_tol:
-                if not system_project(y[:n], y[n : 2 * n], system[0][1], system[1])[2]:
+                if not system_project(model, point, y[:n], y[n : 2 * n])[2]:
                     return RUN_CHECK_FAILED, compiled.CHECK_PROJECTION, np.nan
                 tally[NPROJECTIONS] += 1
                 tally[RESTART] = 1
@@ -285,15 +316,15 @@ def _dop853_loop(clock, tally, buffers, flags, switch_times, system, rows, point
             if bad >= 0:
                 clock[INPUT_TIME] = clock[T]
                 return RUN_INPUT, CHECK_OK, 0.0
-            ode_rhs(y, K[0], np.int64(0), system, point, work)
+            ode_rhs(model, point, np.int64(0), y, K[0])
             tally[NFEV] += 1
             if locate or tally[START]:
                 exact = bool(tally[LANDED]) and bool(tally[LANDING_EXACT])
                 set_taut_flags(exact)
             if tally[START]:  # and the monitor at the start, the initial step
                 tally[START] = 0
-                no_limits = (np.inf, np.inf, np.inf)
-                check_state(y, np.int64(0), system, point, work, no_limits, monitor, np.bool_(True))
+                no_limits = np.full(3, np.inf)
+                check_state(model, point, np.int64(0), y, no_limits, np.bool_(True))
                 clock[STEP] = initial_step(K[0], K[1])
                 if np.isnan(clock[STEP]):
                     return RUN_INPUT, CHECK_OK, 0.0
@@ -319,7 +350,7 @@ def _dop853_loop(clock, tally, buffers, flags, switch_times, system, rows, point
             if bad >= 0:
                 clock[INPUT_TIME] = times[bad]
                 return RUN_INPUT, CHECK_OK, 0.0
-            error = dop853_attempt(y, h, K, y_new, stage, rtol, atol, system, rows, work)
+            error = dop853_attempt(model, rows, y, h, K, y_new, stage, (rtol, atol))
             tally[NFEV] += DOP853_STAGES
             attempts += 1
             if error < 1.0:
@@ -344,7 +375,7 @@ def _dop853_loop(clock, tally, buffers, flags, switch_times, system, rows, point
         count = 0
         if detect:
             for s in range(taut.shape[0]):
-                if (work[2][s] > 0.0) != taut[s]:
+                if (tension[s] > 0.0) != taut[s]:
                     candidates[count] = s
                     count += 1
         if count == 0:  # the step stands: the checks, then the next step or the samples
@@ -358,9 +389,7 @@ def _dop853_loop(clock, tally, buffers, flags, switch_times, system, rows, point
             if bad >= 0:
                 clock[INPUT_TIME] = clock[T]
                 return RUN_INPUT, CHECK_OK, 0.0
-            check, value = check_state(
-                y, np.int64(0), system, point, work, limits, monitor, np.bool_(True)
-            )
+            check, value = check_state(model, point, np.int64(0), y, limits, np.bool_(True))
             if check != CHECK_OK:
                 return RUN_CHECK_FAILED, check, value
             clock[DRIFT] = value
@@ -375,7 +404,7 @@ def _dop853_loop(clock, tally, buffers, flags, switch_times, system, rows, point
         if bad >= 0:
             clock[INPUT_TIME] = times[bad]
             return RUN_INPUT, CHECK_OK, 0.0
-        dop853_dense(y_old, y, h, K, F, stage, system, rows, work)
+        dop853_dense(model, rows, y_old, y, h, K, F, stage)
         tally[NFEV] += 3
         tally[DENSE_READY] = 1
         if count == 0:
@@ -481,23 +510,43 @@ class DOP853:
         checkpoint) exactly as the stepper that made it would have."""
         self.system, self.rtol, self.atol = system, rtol, atol
         m, S = system.m, system.structure.n_tendons
-        self.clock, self.tally = np.zeros(N_CLOCK), np.zeros(N_TALLY, np.int64)
-        self.clock[T] = self.clock[T_OLD] = float(t0)
-        y = np.array(y0, dtype=float)
-        K = np.zeros((DOP853_C.size, m))
-        self.buffers = (y, y.copy(), K, np.empty((compiled.DOP853_DENSE_ROWS, m)),
-                        np.empty(m), np.empty(m), np.empty(m))  # fmt: skip
-        self.flags = (np.zeros(S, bool), np.zeros(S, bool), np.zeros(S, bool))
-        self.switch_times = np.zeros(SWITCH_BUFFER)
-        self.scratch = (system.scratch_p, system.scratch_v, np.empty(S), np.empty(S),
-                        np.empty(S, np.int64))  # fmt: skip
         attempts = steps_per_turn(system, DOP853_STAGES)
-        self.settings = (float(rtol), float(atol), float(t_end), float(projection_tol),
-                         np.int64(max_steps), np.bool_(locate), np.int64(attempts))  # fmt: skip
+        y = np.array(y0, dtype=float)
+        self.loop = loop = LoopWork(
+            clock=np.zeros(N_CLOCK),
+            tally=np.zeros(N_TALLY, np.int64),
+            y=y,
+            y_old=y.copy(),
+            K=np.zeros((DOP853_C.size, m)),
+            F=np.empty((compiled.DOP853_DENSE_ROWS, m)),
+            y_new=np.empty(m),
+            stage=np.empty(m),
+            y_at=np.empty(m),
+            taut=np.zeros(S, bool),
+            landing_mask=np.zeros(S, bool),
+            landing_after=np.zeros(S, bool),
+            switch_times=np.zeros(SWITCH_BUFFER),
+            p=system.scratch_p,
+            v=system.scratch_v,
+            indicator=np.empty(S),
+            distance=np.empty(S),
+            candidates=np.empty(S, np.int64),
+            settings=(
+                float(rtol),
+                float(atol),
+                float(t_end),
+                float(projection_tol),
+                np.int64(max_steps),
+                np.bool_(locate),
+                np.int64(attempts),
+            ),
+        )
+        self.clock, self.tally = loop.clock, loop.tally
+        self.clock[T] = self.clock[T_OLD] = float(t0)
         if memory is None:  # (the first call makes the first stage and the initial step)
             self.tally[START] = 1
         else:
-            K[0] = memory.first_stage
+            loop.K[0] = memory.first_stage
             self.clock[STEP], self.clock[STEP_BEFORE] = memory.step, memory.step_before
 
     # ------------------------------------------------------------------ the state
@@ -509,7 +558,7 @@ class DOP853:
     @property
     def y(self) -> np.ndarray:
         """The current state (m,), the engine's ``[q, q', E_d, W_w, W_u]`` (a buffer)."""
-        return self.buffers[0]
+        return self.loop.y
 
     @property
     def nfev(self) -> int:
@@ -519,19 +568,19 @@ class DOP853:
     @property
     def taut(self) -> np.ndarray:
         """Taut flags (S,), kernel order."""
-        return self.flags[0]
+        return self.loop.taut
 
     def memory(self) -> StepperMemory:
         """What a checkpoint keeps to continue from the current state exactly."""
         return StepperMemory(
-            self.buffers[2][0].copy(), float(self.clock[STEP]), float(self.clock[STEP_BEFORE])
+            self.loop.K[0].copy(), float(self.clock[STEP]), float(self.clock[STEP_BEFORE])
         )
 
     def landing(self) -> tuple[float, np.ndarray, np.ndarray, bool] | None:
         """The switch headed for: ``(time, tendons, taut after, exact)``, or None."""
         if not self.tally[LANDING]:
             return None
-        _, mask, after = self.flags
+        mask, after = self.loop.landing_mask, self.loop.landing_after
         tendons = np.flatnonzero(mask)
         return (
             float(self.clock[LANDING_TIME]),
@@ -547,16 +596,16 @@ class DOP853:
         allow_provisional: bool,
     ) -> None:
         """The taut flags, the landing and the provisional flag of a checkpoint."""
-        flags = self.flags
-        flags[0][:] = taut
-        flags[1][:] = False
+        loop = self.loop
+        loop.taut[:] = taut
+        loop.landing_mask[:] = False
         self.tally[ALLOW_PROVISIONAL] = allow_provisional
         self.tally[LANDING] = landing is not None
         if landing is not None:
             time, tendons, after, exact = landing
             self.clock[LANDING_TIME] = time
-            flags[1][tendons] = True
-            flags[2][tendons] = after
+            loop.landing_mask[tendons] = True
+            loop.landing_after[tendons] = after
             self.tally[LANDING_EXACT] = exact
 
     def counts(self) -> dict[str, int]:
@@ -569,32 +618,37 @@ class DOP853:
             self.tally[i] = counts[name]
 
     # ------------------------------------------------------------------ stepping
-    def run(
-        self, bound: float, next_sample_t: float, limits: tuple, monitor: np.ndarray
-    ) -> tuple[int, int, float]:
+    def run(self, bound: float, next_sample_t: float) -> tuple[int, int, float]:
         """:func:`dop853_run` up to ``bound`` [s] or the step whose samples are due from
-        ``next_sample_t`` [s]: ``(code, check code, check value)``.  The located switches it
-        returns are in :meth:`new_switch_times`."""
+        ``next_sample_t`` [s], with the system's limits and blow-up monitor: ``(code, check
+        code, check value)``.  The located switches it returns are in
+        :meth:`new_switch_times`."""
         system = self.system
         self.tally[NEW_SWITCHES] = 0
-        args = (self.clock, self.tally, self.buffers, self.flags, self.switch_times,
-                system.system)  # fmt: skip
-        tail = (system.work, self.scratch, self.settings, limits, monitor, float(bound),
-                float(next_sample_t))  # fmt: skip
         rows, point = system.input_buffers(DOP853_C.size), system.input_buffers(1)
         if rows is None:  # a Python function among the inputs: the loop as Python, every
-            # input made by the provider where it is used (no buffers to fill)
-            return _dop853_loop_in_python(*args, None, None, None, system.stage_inputs, *tail)
-        return dop853_run(*args, rows, point, system.tables, None, *tail)
+            # input made by the provider where it is used (``system.data`` holds the scratch)
+            return _dop853_loop_in_python(
+                system.model,
+                system.data,
+                system.data,
+                system.stage_inputs,
+                self.loop,
+                float(bound),
+                float(next_sample_t),
+            )
+        return dop853_run(
+            system.model, rows, point, None, self.loop, float(bound), float(next_sample_t)
+        )
 
     def new_switch_times(self) -> list[float]:
         """The switches located by the last :meth:`run` [s]."""
-        return self.switch_times[: self.tally[NEW_SWITCHES]].tolist()
+        return self.loop.switch_times[: self.tally[NEW_SWITCHES]].tolist()
 
     def dense(self) -> Callable[[float], np.ndarray]:
         """``y(t)`` inside the last step (its dense output made by :meth:`run`)."""
         assert self.tally[DENSE_READY], "dense: the last step's dense output was not made"
-        _, y_old, _, F, _, _, _ = self.buffers
+        y_old, F = self.loop.y_old, self.loop.F
         t_old, h = self.clock[T_OLD], self.clock[T] - self.clock[T_OLD]
 
         def at(t: float) -> np.ndarray:

@@ -259,16 +259,17 @@ class _Run:
         self.progress, self.stop = progress, stop
         self.controller, self.checkpointing = controller, checkpoint
         self.t0, self.t_end = t0, t_end
-        self.system = CompiledSystem(structure, inputs)
-        self.sample_dt = options.sample_spacing(t0, t_end)
-        self.next_sample = 1
         length_scale = max(float(structure.rod_length.max(initial=0.0)), 1.0)
-        self.limits = (
+        limits = (
             options.max_rod_length_error,
             options.max_rod_length_error * length_scale,
             options.max_energy_growth,
         )
-        self.monitor = np.zeros(4)
+        self.system = CompiledSystem(structure, inputs, limits=limits)
+        #: the blow-up monitor (4,) (``system.data.monitor``, the compiled checks update it)
+        self.monitor = self.system.monitor
+        self.sample_dt = options.sample_spacing(t0, t_end)
+        self.next_sample = 1
         self.counts = dict(nsteps=0, nswitches=0, nprojections=0)
         self.nfev_before = 0  # of the runs before a resume
         self.switch_times: list[float] = []
@@ -288,11 +289,8 @@ class _Run:
         self.monitor[:] = (np.nan, 0.0, 0.0, 0.0)
         if not isinstance(stepper, DOP853):
             system = self.system
-            inputs0 = system.stage_inputs(np.array([self.t0]))
-            no_limits = (np.inf, np.inf, np.inf)
-            compiled.check_state(
-                y, 0, system.system, inputs0, system.work, no_limits, self.monitor, True
-            )
+            data = system.stage_inputs(np.array([self.t0]))
+            compiled.check_state(system.model, data, 0, y, np.full(3, np.inf), True)
 
     # ------------------------------------------------------------------ samples
     def record(self, t: float, y: np.ndarray) -> int:
@@ -384,10 +382,8 @@ class _Run:
     def check(self, y: np.ndarray, t: float) -> float | None:
         """The compiled blow-up checks at the end of a step; the drift, or None on failure."""
         system = self.system
-        inputs = system.stage_inputs(np.array([t]))
-        code, value = compiled.check_state(
-            y, 0, system.system, inputs, system.work, self.limits, self.monitor, True
-        )
+        data = system.stage_inputs(np.array([t]))
+        code, value = compiled.check_state(system.model, data, 0, y, system.model.limits, True)
         if code != compiled.CHECK_OK:
             self.fail(code, value, t)
             return None
@@ -473,7 +469,8 @@ class _Run:
         )
 
     def restore(self, state: LoopState) -> None:
-        self.next_sample, self.monitor = state.next_sample, state.monitor.copy()
+        self.next_sample = state.next_sample
+        self.monitor[:] = state.monitor
         self.counts = {name: state.counts[name] for name in ("nsteps", "nswitches", "nprojections")}
         self.nfev_before = state.counts["nfev"]
         self.switch_times = list(state.switch_times)
@@ -655,9 +652,7 @@ def _compiled_adaptive(run: _Run, stepper: DOP853, resume: LoopState | None) -> 
         stepper.set_counts(resume.counts)
     bound = run.next_boundary(stepper.t)  # (kept until reached: a step may end past samples)
     while True:
-        code, check, value = stepper.run(
-            bound, run.sample_time(run.next_sample), run.limits, run.monitor
-        )
+        code, check, value = stepper.run(bound, run.sample_time(run.next_sample))
         run.counts.update(stepper.counts())
         run.switch_times.extend(stepper.new_switch_times())
         if code == dop853.RUN_CHECK_FAILED:
@@ -695,7 +690,7 @@ def _compiled_adaptive(run: _Run, stepper: DOP853, resume: LoopState | None) -> 
             run.update_control(stepper.t, stepper.y)
             stepper.restart()
         if run.checkpoint_due():
-            stepper.run(stepper.t, math.inf, run.limits, run.monitor)  # (the restart, if due)
+            stepper.run(stepper.t, math.inf)  # (the restart, if due)
             run.save(
                 stepper.t,
                 stepper.y,
@@ -754,14 +749,8 @@ def _fixed_step(run: _Run, stepper: RK4) -> None:
             y = stepper.y_end
             if abs(t - stepper.t) > 1e-9 * dt:
                 f_new = np.empty_like(y_old)
-                compiled.ode_rhs(
-                    stepper.y_end,
-                    f_new,
-                    0,
-                    run.system.system,
-                    run.system.stage_inputs(np.array([stepper.t])),
-                    run.system.work,
-                )
+                data = run.system.stage_inputs(np.array([stepper.t]))
+                compiled.ode_rhs(run.system.model, data, 0, stepper.y_end, f_new)
                 stepper.nfev += 1
                 y = _hermite(t, t_old, y_old, stepper.first, stepper.t, stepper.y_end, f_new)
             if run.ends_at(run.record(t, y)):
@@ -786,9 +775,7 @@ def _rk4_steps(run: _Run, stepper: RK4, n: int, h: float, *, keep_first: bool = 
     per_call = max(1, dop853.steps_per_turn(run.system, 4) // every) * every
     t_start, done = stepper.t, 0
     while done < n:
-        steps, code, value = stepper.advance(
-            min(n - done, per_call), h, run.limits, run.monitor, keep_first=keep_first
-        )
+        steps, code, value = stepper.advance(min(n - done, per_call), h, keep_first=keep_first)
         done += steps
         stepper.t = t_start + done * h
         run.steps_done += steps

@@ -36,8 +36,7 @@ class Model:
     """A structure with its inputs, packed for the compiled physics (:func:`make_model`)."""
 
     structure: Structure
-    system: CompiledSystem
-    limits: tuple[float, float, float]
+    system: CompiledSystem  #: its ``model.limits`` are the step's checks
     #: scratch of a step (:func:`compiled.rk4_step`'s ``work_step``) and the end before
     #: projection (m,)
     scratch: tuple[tuple[np.ndarray, ...], np.ndarray]
@@ -55,13 +54,13 @@ def make_model(
     them: ``control`` (S,) [m], ``external_force`` (N, dim) [N] or functions of time,
     ``gravity`` (dim,) [m/s^2]).  A step fails when a relative rod-length error exceeds
     ``max_rod_length_error`` (joints and supports: that times the longest rod, >= 1 m)."""
+    scale = max(float(structure.rod_length.max(initial=0.0)), 1.0)
     system = CompiledSystem(
         structure,
         Inputs(structure, control=control, external_force=external_force, gravity=gravity),
+        limits=(max_rod_length_error, max_rod_length_error * scale, np.inf),
     )
-    scale = max(float(structure.rod_length.max(initial=0.0)), 1.0)
-    limits = (max_rod_length_error, max_rod_length_error * scale, np.inf)
-    return Model(structure, system, limits, (system.rk4_work(), np.empty(system.m)))
+    return Model(structure, system, (system.rk4_work(), np.empty(system.m)))
 
 
 def step(model: Model, state: State, dt: float, *, project: bool = False) -> State:
@@ -74,21 +73,9 @@ def step(model: Model, state: State, dt: float, *, project: bool = False) -> Sta
     system = model.system
     y = system.state_vector(state, project=project)
     work_step, y_end = model.scratch
-    inputs = system.stage_inputs(state.t + compiled.RK4_C * dt)
+    data = system.stage_inputs(state.t + compiled.RK4_C * dt)
     _, code, value = compiled.rk4_segment(
-        y,
-        state.t,
-        dt,
-        1,
-        work_step,
-        False,
-        y_end,
-        system.system,
-        inputs,
-        None,
-        system.work,
-        model.limits,
-        np.zeros(4),
+        system.model, data, y, y_end, work_step, False, state.t, dt, 1
     )
     if code != compiled.CHECK_OK:
         raise StepError(

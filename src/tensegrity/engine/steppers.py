@@ -112,14 +112,8 @@ class ScipyMethod:
 
     def _rhs(self, t: float, y: np.ndarray) -> np.ndarray:
         dy = np.empty_like(y)
-        compiled.ode_rhs(
-            np.ascontiguousarray(y),
-            dy,
-            0,
-            self.system.system,
-            self.system.stage_inputs(np.array([t])),
-            self.system.work,
-        )
+        data = self.system.stage_inputs(np.array([t]))
+        compiled.ode_rhs(self.system.model, data, 0, np.ascontiguousarray(y), dy)
         return dy
 
     def _new_solver(self, t0: float, y0: np.ndarray, bound: float) -> OdeSolver:
@@ -175,10 +169,9 @@ class ScipyMethod:
         system = self.system
         indicator = np.empty(system.structure.n_tendons)
         compiled.switch_indicator(
-            np.ascontiguousarray(self.dense()(t)),
-            system.system,
+            system.model,
             system.rest_row(t),
-            system.work,
+            np.ascontiguousarray(self.dense()(t)),
             system.scratch_p,
             system.scratch_v,
             indicator,
@@ -195,7 +188,7 @@ class ScipyMethod:
             self._rhs(self.t, self.y)
             self._nfev_before += 1
             self._tensions_here = True
-        return self.system.work[2]
+        return self.system.data.tension
 
 
 class RK4:
@@ -216,11 +209,9 @@ class RK4:
         #: why the last :meth:`advance` stopped with ``CHECK_INPUT`` (the inputs' ValueError)
         self.input_error = ""
 
-    def advance(
-        self, n_steps: int, h: float, limits: tuple, monitor: np.ndarray, *, keep_first: bool
-    ) -> tuple[int, int, float]:
+    def advance(self, n_steps: int, h: float, *, keep_first: bool) -> tuple[int, int, float]:
         """Up to ``n_steps`` steps of ``h`` [s] from ``t``, each checked
-        (:func:`compiled.check_state`) and projected.  Returns ``(steps, check code, check
+        (:func:`compiled.check_state`, with the system's limits and monitor) and projected.  Returns ``(steps, check code, check
         value)``; ``self.y_end`` is the last step's end before projection.  Constant or
         tabulated inputs: one compiled call; a Python callable among them: one per step, with
         the inputs at its stage times.  Inputs that cannot be used (a rest length would be
@@ -229,56 +220,45 @@ class RK4:
         each step."""
         system = self.system
         if system.inputs.constant or system.tables is not None:
-            return self._stretch(n_steps, h, limits, monitor, keep_first)
+            return self._stretch(n_steps, h, keep_first)
         steps, code, value = 0, compiled.CHECK_OK, 0.0
         while steps < n_steps and code == compiled.CHECK_OK:
             stages = self.t + steps * h + compiled.RK4_C * h
             try:
-                inputs = system.stage_inputs(stages)
+                data = system.stage_inputs(stages)
             except ValueError as exc:
                 self.input_error = str(exc)
                 code, value = compiled.CHECK_INPUT, np.nan
                 break
             one, code, value = compiled.rk4_segment(
+                system.model,
+                data,
                 self.y,
+                self.y_end,
+                self.work_step,
+                keep_first,
                 self.t + steps * h,
                 h,
                 1,
-                self.work_step,
-                keep_first,
-                self.y_end,
-                system.system,
-                inputs,
-                None,
-                system.work,
-                limits,
-                monitor,
             )
             steps += one
         self.nfev += 4 * steps
         return steps, code, value
 
-    def _stretch(
-        self, n_steps: int, h: float, limits: tuple, monitor: np.ndarray, keep_first: bool
-    ) -> tuple[int, int, float]:
+    def _stretch(self, n_steps: int, h: float, keep_first: bool) -> tuple[int, int, float]:
         """:meth:`advance` in one compiled call (the inputs constant or tabulated)."""
         system = self.system
-        tables = system.tables
         stages = self.t + compiled.RK4_C * h
         steps, code, value = compiled.rk4_segment(
+            system.model,
+            system.stage_inputs(stages if system.tables is not None else stages[:1]),
             self.y,
+            self.y_end,
+            self.work_step,
+            keep_first,
             self.t,
             h,
             n_steps,
-            self.work_step,
-            keep_first,
-            self.y_end,
-            system.system,
-            system.stage_inputs(stages if tables is not None else stages[:1]),
-            tables,
-            system.work,
-            limits,
-            monitor,
         )
         self.nfev += 4 * steps
         if code == compiled.CHECK_INPUT:

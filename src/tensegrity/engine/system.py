@@ -16,35 +16,51 @@ from tensegrity.physics.kernel_system import (
     drop_coordinates,
     embed_planar,
     lift_coordinates,
+    make_records,
     pack_system,
     system_nodes,
     system_project,
 )
+from tensegrity.physics.records import Data
 
 
 class CompiledSystem:
-    """``structure`` with ``inputs``, packed for :mod:`tensegrity.engine.compiled`.
+    """``structure`` with ``inputs``, packed for :mod:`tensegrity.engine.compiled`: the two
+    records every compiled function takes, :attr:`model` (read-only) and :attr:`data`
+    (mutable; :mod:`tensegrity.physics.records`).
 
     ``y`` vectors are the engine's ODE state ``[q, q', E_d, W_w, W_u]`` in 3-D coordinates
-    (length ``m = 2n + 3``).
+    (length ``m = 2n + 3``).  ``limits`` = ``(max_rod_length_error, max_constraint_error [m],
+    max_energy_growth)``, the blow-up checks' (``Model.limits``).
     """
 
-    def __init__(self, structure: Structure, inputs: Inputs) -> None:
+    def __init__(
+        self,
+        structure: Structure,
+        inputs: Inputs,
+        *,
+        limits: tuple[float, float, float] = (np.inf, np.inf, np.inf),
+    ) -> None:
         self.structure, self.inputs = structure, inputs
         self.planar = structure.dim == 2
-        self.model = embed_planar(structure) if self.planar else structure
-        packed_system = pack_system(self.model)
-        packed = self.packed = packed_system.packed
-        self.system = (tuple(packed[:6]), packed_system.extras)
-        self.n = packed_system.n_coordinates
+        spatial = embed_planar(structure) if self.planar else structure
+        self.packed_system = pack_system(spatial)
+        packed = self.packed = self.packed_system.packed
+        self.n = self.packed_system.n_coordinates
         self.m = 2 * self.n + 3
         S, n_slots = structure.n_tendons, packed.layout.n_slots
-        self.work = (np.zeros((3, 3, n_slots)), None, np.zeros(S), np.zeros(S), np.zeros(S))
+        gravity = None if inputs.gravity is None else self._spatial(inputs.gravity)
+        rest0 = packed.to_kernel_order(structure.tendon_rest_length)[None]
+        self.model, self.data = make_records(
+            self.packed_system, rest=rest0, gravity=gravity, limits=limits
+        )
+        #: the blow-up monitor (4,), ``data.monitor`` (see :func:`compiled.check_state`)
+        self.monitor = self.data.monitor
         self.tendon_position = np.argsort(packed.layout.tendon_order)
         slot = packed.layout.node_slot
         self.moving_slots = np.ascontiguousarray(
             np.concatenate(
-                [slot[self.model.rod_nodes.ravel()], slot[self.model.point_mass_nodes]]
+                [slot[spatial.rod_nodes.ravel()], slot[spatial.point_mass_nodes]]
             ).astype(np.uint64)
         )
         self.node_slot = slot
@@ -60,13 +76,12 @@ class CompiledSystem:
 
     # ------------------------------------------------------------------ inputs
     def _prepare_inputs(self) -> None:
-        """What :meth:`stage_inputs` reuses: the inputs tuple if every input is constant; with
-        tables (and constants, no callable) the compiled tables (:attr:`tables`)."""
+        """What :meth:`stage_inputs` reuses: the data record if every input is constant; with
+        tables (and constants, no callable) the compiled tables (``model.tables``)."""
         inputs, packed = self.inputs, self.packed
-        self._constant: tuple | None = None
-        #: :func:`compiled.fill_stage_inputs`'s tables, or None (constant inputs, or a callable)
-        self.tables: tuple | None = None
-        self._buffers: dict[int, tuple] = {}
+        self._constant: Data | None = None
+        self._buffers: dict[int, Data] = {}
+        self.model = self.model._replace(tables=None)
         if inputs.constant:
             self._constant = self._numpy_inputs(np.zeros(1))
             return
@@ -87,20 +102,26 @@ class CompiledSystem:
             values = packed.to_slots(self._spatial(table.values)).reshape(len(table.time), -1)
             force_table = (np.array(table.time), values, table.outside == "zero")
         rest0 = packed.to_kernel_order(self.structure.tendon_rest_length)
-        self.tables = (*control_table, rest0, *force_table)
+        self.model = self.model._replace(tables=(*control_table, rest0, *force_table))
 
-    def stage_inputs(self, times: np.ndarray) -> tuple:
-        """The compiled inputs tuple at the stage ``times`` (K,) [s]: one row for a constant
-        input, K new rows for one that varies.  ``ValueError`` naming the control if a rest
-        length would be negative."""
+    @property
+    def tables(self) -> tuple | None:
+        """:func:`compiled.fill_stage_inputs`'s tables (``model.tables``), or None (constant
+        inputs, or a callable among them)."""
+        return self.model.tables
+
+    def stage_inputs(self, times: np.ndarray) -> Data:
+        """The data record with the inputs at the stage ``times`` (K,) [s]: one row for a
+        constant input, K new rows for one that varies.  ``ValueError`` naming the control if a
+        rest length would be negative."""
         if self._constant is not None:
             return self._constant
         if self.tables is not None:
             return self._table_inputs(times)
         return self._numpy_inputs(times)
 
-    def input_buffers(self, k: int) -> tuple | None:
-        """An inputs tuple for compiled code to fill with ``k`` stages' rows of the tables
+    def input_buffers(self, k: int) -> Data | None:
+        """A data record for compiled code to fill with ``k`` stages' rows of the tables
         (:func:`compiled.fill_stage_inputs`; kept until the inputs change), the constant inputs,
         or None if a Python function is among the inputs."""
         if self._constant is not None:
@@ -111,8 +132,8 @@ class CompiledSystem:
             self._buffers[k] = self._table_buffers(k)
         return self._buffers[k]
 
-    def _table_buffers(self, k: int) -> tuple:
-        """An inputs tuple of ``k`` rows for the tables to fill, the constants' rows made."""
+    def _table_buffers(self, k: int) -> Data:
+        """A data record of ``k`` input rows for the tables to fill, the constants' rows made."""
         t0 = np.zeros(1)
         if self.inputs.control.kind == "table":
             S = self.structure.n_tendons
@@ -123,22 +144,26 @@ class CompiledSystem:
             force, has_external = np.empty((k, 3, self.packed.layout.n_slots)), True
         else:
             force, has_external = self._force_rows(t0)
-        return (rest, rate, has_rate, has_external, force, *self._gravity())
+        return self.data._replace(
+            rest=rest, rate=rate, has_rate=has_rate, force=force, has_external=has_external
+        )
 
-    def _table_inputs(self, times: np.ndarray) -> tuple:
+    def _table_inputs(self, times: np.ndarray) -> Data:
         """:meth:`stage_inputs` with tables and constants: the tables' rows made by compiled
         code, the constants' as by NumPy."""
         times = np.ascontiguousarray(times, dtype=float)
-        inputs = self._table_buffers(times.size)
-        if compiled.fill_stage_inputs(self.tables, times, inputs[0], inputs[1], inputs[4]) >= 0:
+        data = self._table_buffers(times.size)
+        if compiled.fill_stage_inputs(self.tables, times, data) >= 0:
             self.inputs.rest_length(times)  # raises the ValueError naming the tendon
-        return inputs
+        return data
 
-    def _numpy_inputs(self, times: np.ndarray) -> tuple:
+    def _numpy_inputs(self, times: np.ndarray) -> Data:
         """:meth:`stage_inputs` evaluated by NumPy and the Python callables."""
         rest, rate, has_rate = self._control_rows(times)
         force, has_external = self._force_rows(times)
-        return (rest, rate, has_rate, has_external, force, *self._gravity())
+        return self.data._replace(
+            rest=rest, rate=rate, has_rate=has_rate, force=force, has_external=has_external
+        )
 
     def _control_rows(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
         """Rest lengths and control rates (K or 1, S) in kernel order, and whether there are
@@ -157,13 +182,6 @@ class CompiledSystem:
             return np.zeros((1, 3, 1)), False
         return self.packed.to_slots(self._spatial(force)), True
 
-    def _gravity(self) -> tuple[bool, np.ndarray]:
-        """Whether there is gravity, and its (3,) vector [m/s^2]."""
-        gravity = self.inputs.gravity
-        if gravity is None:
-            return False, np.zeros(3)
-        return True, np.ascontiguousarray(self._spatial(gravity))
-
     def _spatial(self, x: np.ndarray) -> np.ndarray:
         """Vectors (..., dim) as (..., 3)."""
         if not self.planar:
@@ -178,15 +196,12 @@ class CompiledSystem:
 
     def elastic_energy(self, t: float, y: np.ndarray) -> float:
         """Elastic energy of the tendons [J] at ``y`` with the rest lengths at ``t``."""
-        return float(
-            compiled.energy_balance(y, 0, self.system, self.stage_inputs(np.array([t])), self.work)[
-                1
-            ]
-        )
+        data = self.stage_inputs(np.array([t]))
+        return float(compiled.energy_balance(self.model, data, 0, y)[1])
 
     def rest_row(self, t: float) -> np.ndarray:
         """Rest lengths (S,) at ``t`` in kernel order."""
-        return self.stage_inputs(np.array([t]))[0][0]
+        return self.stage_inputs(np.array([t])).rest[0]
 
     # ------------------------------------------------------------------ states
     def state_vector(self, state: dynamics.State, *, project: bool = True) -> np.ndarray:
@@ -202,7 +217,7 @@ class CompiledSystem:
     def project(self, y: np.ndarray) -> bool:
         """Project ``y`` in place onto the constraints; False if that failed."""
         n = self.n
-        return bool(system_project(y[:n], y[n : 2 * n], self.system[0][1], self.system[1])[2])
+        return bool(system_project(self.model, self.data, y[:n], y[n : 2 * n])[2])
 
     def rk4_work(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """New scratch of :func:`compiled.rk4_step` (its ``work_step``): the sum of the stages
@@ -220,22 +235,14 @@ class CompiledSystem:
 
     def nodes(self, y: np.ndarray) -> np.ndarray:
         """Node positions (N, dim) [m] at ``y``."""
-        system_nodes(
-            y[: self.n],
-            y[self.n : 2 * self.n],
-            self.system[0][0],
-            self.system[1],
-            self.scratch_p,
-            self.scratch_v,
-            False,
-        )
+        n = self.n
+        system_nodes(self.model, y[:n], y[n : 2 * n], self.scratch_p, self.scratch_v, False)
         return self.scratch_p[: self.structure.dim, self.node_slot].T.copy()
 
-    def record(self, samples: Samples, row: int, t: float, y: np.ndarray, inputs: tuple) -> None:
-        """Sample ``row`` of ``samples`` at ``(t, y)`` with the inputs at ``t`` (one row), from
-        one evaluation (:func:`compiled.record_sample`)."""
+    def record(self, samples: Samples, row: int, t: float, y: np.ndarray, data: Data) -> None:
+        """Sample ``row`` of ``samples`` at ``(t, y)`` with ``data`` holding the inputs at ``t``
+        (one row), from one evaluation (:func:`compiled.record_sample`)."""
         samples.t[row] = t
         compiled.record_sample(
-            y, self.system, inputs, self.work, self._sample_scratch, self._sample_maps,
-            samples[1:], row,
-        )  # fmt: skip
+            self.model, data, y, self._sample_scratch, self._sample_maps, samples[1:], row
+        )

@@ -1,4 +1,4 @@
-"""A compiled (numba) right-hand side and fixed-step RK4 loop for Theorem 18.1.
+"""The compiled (numba) right-hand side of Theorem 18.1 for free class 1 structures.
 
 The physics is exactly that of :func:`tensegrity.physics.dynamics.evaluate` (the readable NumPy
 reference):
@@ -20,70 +20,48 @@ fused multiply-adds); the kernel is compiled with ``fastmath={"contract"}`` only
 become one FMA instruction; no reassociation, no approximate square roots or reciprocals, NaN and
 infinity kept), so that the two agree to ~1e-15 relative.  When no tendon is damped (all
 ``c = 0``, :func:`pack` then gives ``tendon_damping=None``) the same functions are compiled
-without the node velocities and the length rates (numba specializes on None, as for
-``block_force``): the same numbers as with zero damping, a quarter less time per evaluation on
-large shells.  As in the reference, rest lengths must be ``>= 0`` (``dynamics.rest_lengths``
-checks them); they are not checked again here, for speed.
+without the node velocities and the length rates (numba specializes on None): the same numbers
+as with zero damping, a quarter less time per evaluation on large shells.  As in the reference,
+rest lengths must be ``>= 0`` (``dynamics.rest_lengths`` checks them); they are not checked again
+here, for speed.
+
+Every compiled function takes the two records of :mod:`tensegrity.physics.records`: ``model``
+(read-only: the packed structure, gravity) and ``data`` (the inputs' stage rows and the scratch
+the evaluation writes).  :mod:`tensegrity.physics.kernel_system` adds point masses, anchors,
+joints and supports around these passes, and makes the records
+(:func:`~tensegrity.physics.kernel_system.make_records`).
 
 The kernel keeps its own layout (:func:`stencil_layout`, :func:`pack`): nodes in *slots*, grouped
 by class (node index modulo K) and stored by coordinate, and tendons in a *kernel order* whose
 first part is *runs*, tendons whose tails and heads sit at consecutive slots.  A run is evaluated
 by a loop without indirection that compiles to 4-wide vector code (:func:`_tendon_run`): on the
 (100,100) shell 99.5% of the tendons are in runs and an RK4 step takes ~0.75x the time of the
-one-tendon-at-a-time loop (docs/performance.md).  :class:`FastKernel` takes and returns tendon
-values in the structure's order; the compiled functions take them in kernel order.
+one-tendon-at-a-time loop (docs/performance.md).
 
-The loops over rods and tendons run inside one compiled function writing into preallocated
-buffers, and :func:`rk4_steps` runs a whole fixed-step RK4 integration (with projection onto the
-rod constraints ``|q2| = L``, ``q2 . q2' = 0`` after every step, as ``simulate(method="rk4")``
-does) in compiled code, so that small structures are not dominated by Python call overhead.
-:func:`energies` gives the kinetic, elastic and gravity energies (the engine's blow-up
-checks, through :mod:`tensegrity.physics.kernel_system`).
-
-This module imports numba; import it lazily (``from tensegrity.physics.kernel import
-FastKernel`` inside the function that needs it) so that ``import tensegrity`` stays fast.
-Compiled code is cached on disk (``cache=True``): the first use on a machine compiles for a few
-seconds, later processes load the cache in well under a second.
-
-Usage::
-
-    from tensegrity.physics.kernel import FastKernel
-
-    kernel = FastKernel(structure)
-    qddot, tension, dissipated, external = kernel.evaluate(q, qdot, rest_length)
-    q, qdot = kernel.rk4(q, qdot, dt=1e-4, n_steps=1000, rest_length=rest_length)
-
-A :class:`FastKernel` owns scratch buffers and is therefore not thread-safe: use one per thread.
-``FastKernel(structure, threads=2)`` evaluates large structures on two cores (see
-:class:`FastKernel`).
+This module imports numba; import it lazily (inside the function that needs it) so that
+``import tensegrity`` stays fast.  Compiled code is cached on disk (``cache=True``): the first use
+on a machine compiles for a few seconds, later processes load the cache in well under a second.
 """
 
 from __future__ import annotations
 
-import os
 from collections.abc import Callable
 from typing import Any, Literal, NamedTuple, TypedDict
 
 import numpy as np
-import numpy.typing as npt
-from numba import njit, prange
+from numba import njit
 from numba.core.registry import CPUDispatcher
 
 from tensegrity.model.structure import Structure
 from tensegrity.physics.coordinates import rod_damping_rates
 
 __all__ = [
-    "FastKernel",
-    "KernelEvaluation",
     "PackedStructure",
-    "RK4Result",
     "StencilLayout",
     "energies",
     "pack",
     "project",
     "rhs",
-    "rk4_step",
-    "rk4_steps",
     "stencil_layout",
     "tendon_vector",
 ]
@@ -134,31 +112,11 @@ def compiled_only(py_func: Callable) -> CPUDispatcher:
 
 
 # --------------------------------------------------------------------------- compiled code
-# Packed model arrays (built by :func:`pack`), few arguments being cheaper to pass from Python.
-# The kernel keeps the nodes in a *slot* layout and the tendons in a *kernel order* of its own
-# (see :func:`pack` and docs/performance.md, "The stencil layout"):
-#   rod_slots (R, 2) uint64       slots of the end nodes (a, b) of each rod
-#   rod_param (R, 6) float64      m, L, alpha, 2/m, 6/(m L^2), beta (alpha and beta as
-#       physics.coordinates.rod_damping_rates gives them)
-#   tendon_slots (S, 2) uint64    slots of (tail, head), tendons in kernel order
-#   tendon_runs (G, 4) int64      runs of the kernel order: (first position, length, tail slot,
-#       head slot of the first tendon); along a run both slots step by one
-#   tendon_stiffness (S,) float64 k, kernel order
-#   tendon_damping None or (S,) float64   c, kernel order; None when every c is 0 (the common
-#       case): the tendon pass is then compiled without the node velocities and the length rates
-#       (a separate specialization of the same code, chosen at compile time like ``block_force``)
-#   rest_length, tension, elastic_tension (S,) float64   kernel order
-#   damping_power (S,) float64    kernel order: power removed by each tendon's damping [W]
-#       (written only when ``tendon_damping`` is not None; summed into the returned power)
-#   external_force (3, n_slots) float64   w by coordinate and slot (read only if has_external)
-#   node_work (3, 3, n_slots) float64   scratch: node positions, velocities (written only when
-#       ``tendon_damping`` is not None) and tendon forces, each by coordinate and slot; the
-#       forces (node_work[2]) must be zero on entry, and are left zero (allocate with np.zeros)
-#   block_force None or (B - 1, 3, n_slots) float64   scratch of the threaded evaluation, zero
-#       on entry and left zero like node_work[2]
-# Slots are unsigned (uint64): numba wraps every signed index that the compiler cannot prove
-# >= 0 (one read from an array) around the array's length.  Never add a signed integer to a
-# slot: in numba ``uint64 + int64`` is a float64.
+# The layout of the records' arrays (:mod:`tensegrity.physics.records`): nodes in *slots*, tendons
+# in a *kernel order* of their own (see :func:`pack` and docs/performance.md, "The stencil
+# layout").  Slots are unsigned (uint64): numba wraps every signed index that the compiler cannot
+# prove >= 0 (one read from an array) around the array's length.  Never add a signed integer to a
+# slot: in numba ``uint64 + int64`` is a float64.  Columns of ``Model.rod_param``:
 ROD_MASS, ROD_LENGTH, ROD_DAMPING, ROD_C1, ROD_C2, ROD_RELATIVE_DAMPING = range(6)
 #: A rigid-body fit whose inertia has ``det <= SINGULAR_INERTIA (trace / 3)^3`` has its rods on
 #: one line (to about 1e-5 of their size), about which they have no inertia: it is solved with
@@ -197,21 +155,24 @@ def tendon_vector(p, tendon_slots, s):  # pragma: no cover - compiled
 
 
 @njit(inline="always", **JIT_OPTIONS)
-def _node_pass(q, qdot, rod_slots, tendon_damping, p, v, first, last):  # pragma: no cover
-    """Rods ``first:last``: node positions ``p = P q`` (eq. 18.26) into ``p`` (3, n_slots) and,
-    if ``tendon_damping`` is not None (the tendon pass needs them only then), the node
-    velocities into ``v``.  One loop per array: a rod's ends are in two classes, so a loop
-    writing both arrays would write 24 streams of slots at once (with the forces, which
-    this pass set before, 36 streams took twice the time beyond the L3 cache, measured at
-    (300,300)).  The nodal forces need no start: the rod pass leaves them zero
-    (:func:`_take_force`)."""
-    # Every pass loops over slices, from 0 to their length: with ``range(first, last)`` the
-    # compiler cannot prove an index >= 0 when ``first`` is not known at compile time (the
-    # threaded blocks), and keeps numba's negative-index wrap-around on every access.
-    rod_slots = rod_slots[first:last]
-    end_values(q[6 * first : 6 * last], rod_slots, p)
+def stage_row(values, s):  # pragma: no cover - compiled
+    """Row ``s`` of per-stage inputs (``Data.rest``, ``rate``, ``force``), or row 0 when they
+    are constant over the step (one row)."""
+    return values[s] if values.shape[0] > 1 else values[0]
+
+
+@njit(inline="always", **JIT_OPTIONS)
+def _node_pass(tendon_damping, model, data, q, qdot):  # pragma: no cover - compiled
+    """Node positions ``p = P q`` (eq. 18.26) into ``data.node_position`` and, if
+    ``tendon_damping`` (``model.tendon_damping``) is not None (the tendon pass needs them only
+    then), the node velocities into ``data.node_velocity``.  One loop per array: a rod's ends
+    are in two classes, so a loop writing both arrays would write 24 streams of slots at once
+    (with the forces, which this pass set before, 36 streams took twice the time beyond the L3
+    cache, measured at (300,300)).  The nodal forces need no start: the rod pass leaves them
+    zero (:func:`_take_force`)."""
+    end_values(q, model.rod_slots, data.node_position)
     if tendon_damping is not None:
-        end_values(qdot[6 * first : 6 * last], rod_slots, v)
+        end_values(qdot, model.rod_slots, data.node_velocity)
 
 
 @njit(inline="always", **JIT_OPTIONS)
@@ -241,37 +202,27 @@ def _tendon_force(tx, ty, tz, length, rest, stiffness, c, t_dot_dv):  # pragma: 
 
 
 @njit(inline="always", **JIT_OPTIONS)
-def _store_tendon(
-    tension,
-    elastic_tension,
-    force,
-    s,
-    tail,
-    head,
-    total,
-    elastic,
-    fx,
-    fy,
-    fz,
-):  # pragma: no cover - compiled
-    """Tendon ``s``'s tension and elastic tension, and its force ``f`` added at the tail slot
-    and ``-f`` at the head slot of ``force`` (3, n_slots)."""
-    tension[s] = total
-    elastic_tension[s] = elastic
-    force[0, tail] += fx
-    force[1, tail] += fy
-    force[2, tail] += fz
-    force[0, head] -= fx
-    force[1, head] -= fy
-    force[2, head] -= fz
+def _store_tendon(data, s, tail, head, total, elastic, f):  # pragma: no cover - compiled
+    """Tendon ``s``'s tension and elastic tension into ``data``, and its force ``f`` (fx, fy,
+    fz) added at the tail slot and ``-f`` at the head slot of ``data.node_force``."""
+    data.tension[s] = total
+    data.elastic_tension[s] = elastic
+    force = data.node_force
+    force[0, tail] += f[0]
+    force[1, tail] += f[1]
+    force[2, tail] += f[2]
+    force[0, head] -= f[0]
+    force[1, head] -= f[1]
+    force[2, head] -= f[2]
 
 
 @njit(**JIT_OPTIONS)
-def _tendon_rates(p, v, a, b, first, n, out):  # pragma: no cover - compiled
-    """``out[first + e] = t . (v_b - v_a)`` along a run of ``n`` tendons (offsets as in
-    :func:`_tendon_run`), in a loop of its own: with the velocities in it, :func:`_tendon_run`
-    would touch more memory ranges than the compiler checks for overlap at run time, and stay
-    scalar."""
+def _tendon_rates(data, a, b, first, n):  # pragma: no cover - compiled
+    """``data.damping_power[first + e] = t . (v_b - v_a)`` along a run of ``n`` tendons
+    (offsets as in :func:`_tendon_run`), in a loop of its own: with the velocities in it,
+    :func:`_tendon_run` would touch more memory ranges than the compiler checks for overlap at
+    run time, and stay scalar."""
+    p, v, out = data.node_position, data.node_velocity, data.damping_power
     for e in range(n):
         ia = a + e
         ib = b + e
@@ -283,31 +234,22 @@ def _tendon_rates(p, v, a, b, first, n, out):  # pragma: no cover - compiled
 
 
 @njit(**JIT_OPTIONS)
-def _tendon_run(
-    p,
-    force,
-    a,
-    b,
-    first,
-    n,
-    stiffness,
-    damping,
-    rest,
-    tension,
-    elastic_tension,
-    damping_power,
-):  # pragma: no cover - compiled
+def _tendon_run(tendon_damping, model, data, rest, a, b, first, n):  # pragma: no cover
     """A run of ``n`` tendons whose tails and heads sit at consecutive slots: tendon ``e`` of the
     run is at kernel position ``first + e``, its tail at slot ``a + e`` and its head at
-    ``b + e`` of the node arrays ``p`` (positions) and ``force`` (3, n_slots).  The offsets
-    are unsigned (uint64), so that every index is a base plus the loop counter, without
-    numba's negative-index wrap-around: the loop compiles to 4-wide vector code.  (Slices of
-    the arrays would do the same, but each slice takes and releases a reference count: 116 ns a
-    run, 15% of the tendon pass on the (100,100) shell.)  The compiler checks at run
-    time that the force ranges do not overlap (they may, when tails and heads share a node
-    class) and otherwise runs the scalar loop.  With damping, ``damping_power`` holds
-    ``t . (v_b - v_a)`` on entry (:func:`_tendon_rates`) and each tendon's dissipated power on
-    return (a sum here would keep the loop scalar: the compiler may not reorder it)."""
+    ``b + e`` of ``data.node_position`` and ``data.node_force``; ``rest`` (S,) the rest lengths.
+    The offsets are unsigned (uint64), so that every index is a base plus the loop counter,
+    without numba's negative-index wrap-around: the loop compiles to 4-wide vector code.
+    (Slices of the arrays would do the same, but each slice takes and releases a reference
+    count: 116 ns a run, 15% of the tendon pass on the (100,100) shell.)  The compiler checks
+    at run time that the force ranges do not overlap (they may, when tails and heads share a
+    node class) and otherwise runs the scalar loop.  With damping (``tendon_damping``, which is
+    ``model.tendon_damping``), ``data.damping_power`` holds ``t . (v_b - v_a)`` on entry
+    (:func:`_tendon_rates`) and each tendon's dissipated power on return (a sum here would keep
+    the loop scalar: the compiler may not reorder it)."""
+    p = data.node_position
+    stiffness = model.tendon_stiffness
+    damping_power = data.damping_power
     for e in range(n):
         ia = a + e
         ib = b + e
@@ -316,16 +258,16 @@ def _tendon_run(
         ty = p[1, ib] - p[1, ia]
         tz = p[2, ib] - p[2, ia]
         length = np.sqrt(tx * tx + ty * ty + tz * tz)
-        if damping is None:
+        if tendon_damping is None:
             total, elastic, fx, fy, fz, _ = _tendon_force(
                 tx, ty, tz, length, rest[s], stiffness[s], None, 0.0
             )
         else:
             total, elastic, fx, fy, fz, power = _tendon_force(
-                tx, ty, tz, length, rest[s], stiffness[s], damping[s], damping_power[s]
+                tx, ty, tz, length, rest[s], stiffness[s], tendon_damping[s], damping_power[s]
             )
             damping_power[s] = power
-        _store_tendon(tension, elastic_tension, force, s, ia, ib, total, elastic, fx, fy, fz)
+        _store_tendon(data, s, ia, ib, total, elastic, (fx, fy, fz))
 
 
 @njit(inline="always", **JIT_OPTIONS)
@@ -345,91 +287,47 @@ def _sum(values):  # pragma: no cover - compiled
 
 
 @njit(inline="always", **JIT_OPTIONS)
-def _tendon_pass(
-    p,
-    v,
-    force,
-    tendon_slots,
-    tendon_runs,
-    tendon_stiffness,
-    tendon_damping,
-    rest_length,
-    tension,
-    elastic_tension,
-    damping_power,
-    first,
-    last,
-):  # pragma: no cover - compiled
-    """Tendons at kernel positions ``first:last``: tension and elastic tension, nodal forces
-    added to ``force`` (3, n_slots), the tail pulled toward the head and the head toward the
-    tail.  The runs (:func:`_tendon_run`) first, clipped to ``first:last``, then the tendons
-    outside runs, one by one through ``tendon_slots``.  Returns the power removed by tendon
-    damping.  With ``tendon_damping`` None (all ``c = 0``) the node velocities ``v`` are not
-    read and the tension is the elastic tension: the same numbers as with zero damping, for
-    finite velocities."""
+def _tendon_pass(tendon_damping, model, data, rest):  # pragma: no cover - compiled
+    """Every tendon: tension and elastic tension into ``data``, nodal forces added to
+    ``data.node_force``, the tail pulled toward the head and the head toward the tail;
+    ``rest`` (S,) the rest lengths.  The runs (:func:`_tendon_run`) first, then the tendons
+    outside runs, one by one through ``model.tendon_slots``.  Returns the power removed by
+    tendon damping.  With ``tendon_damping`` (``model.tendon_damping``) None (all ``c = 0``)
+    the node velocities are not read and the tension is the elastic tension: the same numbers
+    as with zero damping, for finite velocities."""
     dissipation = 0.0
     in_runs = 0
+    tendon_runs = model.tendon_runs
     for g in range(tendon_runs.shape[0]):
         start = tendon_runs[g, 0]
         length = tendon_runs[g, 1]
         in_runs = start + length
-        lo = max(first, start)
-        hi = min(last, in_runs)
-        if hi <= lo:
-            continue
-        a = np.uint64(tendon_runs[g, 2] + (lo - start))
-        b = np.uint64(tendon_runs[g, 3] + (lo - start))
-        first_run = np.uint64(lo)
-        n = np.uint64(hi - lo)
-        if tendon_damping is None:
-            _tendon_run(
-                p,
-                force,
-                a,
-                b,
-                first_run,
-                n,
-                tendon_stiffness,
-                None,
-                rest_length,
-                tension,
-                elastic_tension,
-                None,
-            )
-        else:
-            _tendon_rates(p, v, a, b, first_run, n, damping_power)
-            _tendon_run(
-                p,
-                force,
-                a,
-                b,
-                first_run,
-                n,
-                tendon_stiffness,
-                tendon_damping,
-                rest_length,
-                tension,
-                elastic_tension,
-                damping_power,
-            )
-            dissipation += _sum(damping_power[lo:hi])
+        a = np.uint64(tendon_runs[g, 2])
+        b = np.uint64(tendon_runs[g, 3])
+        first_run = np.uint64(start)
+        n = np.uint64(length)
+        if tendon_damping is not None:
+            _tendon_rates(data, a, b, first_run, n)
+        _tendon_run(tendon_damping, model, data, rest, a, b, first_run, n)
+        if tendon_damping is not None:
+            dissipation += _sum(data.damping_power[start:in_runs])
     # The tendons outside runs (kernel positions in_runs:S), one by one.
-    lo = max(first, in_runs)
-    tendon_slots = tendon_slots[lo:last]
-    tendon_stiffness = tendon_stiffness[lo:last]
-    rest_length = rest_length[lo:last]
-    tension = tension[lo:last]
-    elastic_tension = elastic_tension[lo:last]
+    p, v = data.node_position, data.node_velocity
+    tendon_slots = model.tendon_slots[in_runs:]
+    stiffness = model.tendon_stiffness[in_runs:]
+    rest = rest[in_runs:]
+    tension = data.tension[in_runs:]
+    elastic_tension = data.elastic_tension[in_runs:]
     for s in range(tendon_slots.shape[0]):
         tail, head, tx, ty, tz = tendon_vector(p, tendon_slots, s)
         length = np.sqrt(tx * tx + ty * ty + tz * tz)
-        if not length > rest_length[s]:  # slack: skip the work (one by one, a branch is cheap)
+        if not length > rest[s]:  # slack: skip the work (one by one, a branch is cheap)
             tension[s] = 0.0
             elastic_tension[s] = 0.0
             continue
         if tendon_damping is None:
             total, elastic, fx, fy, fz, _ = _tendon_force(
-                tx, ty, tz, length, rest_length[s], tendon_stiffness[s], None, 0.0
+                tx, ty, tz, length, rest[s], stiffness[s], None, 0.0
             )
         else:
             t_dot_dv = (
@@ -438,17 +336,10 @@ def _tendon_pass(
                 + tz * (v[2, head] - v[2, tail])
             )
             total, elastic, fx, fy, fz, d = _tendon_force(
-                tx,
-                ty,
-                tz,
-                length,
-                rest_length[s],
-                tendon_stiffness[s],
-                tendon_damping[lo + s],
-                t_dot_dv,
+                tx, ty, tz, length, rest[s], stiffness[s], tendon_damping[in_runs + s], t_dot_dv
             )
             dissipation += d
-        _store_tendon(tension, elastic_tension, force, s, tail, head, total, elastic, fx, fy, fz)
+        _store_tendon(data, in_runs + s, tail, head, total, elastic, (fx, fy, fz))
     return dissipation
 
 
@@ -563,35 +454,20 @@ def _rigid_motion(q, qdot, rod_param):  # pragma: no cover - compiled
 
 
 @njit(inline="always", **JIT_OPTIONS)
-def _rod_pass(
-    q,
-    qdot,
-    rod_slots,
-    rod_param,
-    has_external,
-    external_force,
-    has_gravity,
-    gravity,
-    force,
-    rigid,
-    qddot,
-    first,
-    last,
-):  # pragma: no cover - compiled
-    """Rods ``first:last``: eqs. 18.17, 18.20 and mass-proportional damping into ``qddot``, from
-    the tendon forces ``force`` (3, n_slots; left zero, :func:`_take_force`), half the rod's
-    weight at each end if ``has_gravity``, and ``w`` (``external_force``, same layout) if
-    ``has_external``; the power of ``w`` uses ``p' = P q'``.  ``rigid`` is
-    :func:`_rigid_motion`'s ``(V, omega, c)`` (or those rows of a (3, 3) array), the reference
-    of the relative damping.  Returns ``(rod_dissipation, external_power)``."""
+def _rod_pass(model, data, q, qdot, qddot, external_force, rigid):  # pragma: no cover - compiled
+    """Every rod: eqs. 18.17, 18.20 and mass-proportional damping into ``qddot``, from the
+    tendon forces ``data.node_force`` (left zero, :func:`_take_force`), half the rod's weight at
+    each end if ``model.has_gravity``, and ``w`` (``external_force`` (3, n_slots), the stage's
+    row of ``data.force``) if ``data.has_external``; the power of ``w`` uses ``p' = P q'``.
+    ``rigid`` is :func:`_rigid_motion`'s ``(V, omega, c)``, the reference of the relative
+    damping.  Returns ``(rod_dissipation, external_power)``."""
     vx, vy, vz = rigid[0][0], rigid[0][1], rigid[0][2]
     wx, wy, wz = rigid[1][0], rigid[1][1], rigid[1][2]
     cx, cy, cz = rigid[2][0], rigid[2][1], rigid[2][2]
-    rod_slots = rod_slots[first:last]
-    rod_param = rod_param[first:last]
-    q = q[6 * first : 6 * last]
-    qdot = qdot[6 * first : 6 * last]
-    qddot = qddot[6 * first : 6 * last]
+    rod_slots, rod_param = model.rod_slots, model.rod_param
+    has_gravity, gravity = model.has_gravity, model.gravity
+    has_external = data.has_external
+    force = data.node_force
     external_power = 0.0
     rod_dissipation = 0.0
     for r in range(rod_slots.shape[0]):
@@ -683,194 +559,27 @@ def _rod_pass(
 
 
 @njit(**JIT_OPTIONS)
-def _block(k, n_blocks, n):  # pragma: no cover - compiled
-    """Bounds ``(first, last)`` of block ``k`` of ``n_blocks`` nearly equal blocks of
-    ``range(n)``."""
-    return k * n // n_blocks, (k + 1) * n // n_blocks
+def rhs(model, data, s, q, qdot, qddot):  # pragma: no cover - compiled
+    """Theorem 18.1 for all rods of a free class 1 structure: fills ``qddot`` (6R,)
+    [m/s^2], ``data.tension`` and ``data.elastic_tension`` (S,) [N], and with tendon damping
+    ``data.damping_power`` (S,) [W], tendons in kernel order; the inputs are row ``s`` of
+    ``data.rest`` and ``data.force`` (:class:`tensegrity.physics.records.Data`).  Returns
+    ``(dissipated_power, external_power)`` [W].
 
-
-@njit(parallel=True, **JIT_OPTIONS)
-def _rhs_threaded(
-    q,
-    qdot,
-    rod_slots,
-    rod_param,
-    tendon_slots,
-    tendon_runs,
-    tendon_stiffness,
-    tendon_damping,
-    rest_length,
-    has_external,
-    external_force,
-    has_gravity,
-    gravity,
-    node_work,
-    block_force,
-    qddot,
-    tension,
-    elastic_tension,
-    damping_power,
-):  # pragma: no cover - compiled
-    """:func:`rhs` on ``B = block_force.shape[0] + 1`` threads: each pass is cut into B blocks run
-    in parallel (``prange``).  Tendon block 0 adds its forces to ``node_work[2]``, block
-    ``k > 0`` to its own ``block_force[k - 1]`` (no two threads write the same memory), and the
-    rod pass sums the blocks in order (leaving them zero), so the result does not depend on the
-    scheduling; it differs from the one-block sum by round-off."""
-    n_blocks = block_force.shape[0] + 1
-    n_rods = rod_slots.shape[0]
-    n_tendons = tendon_slots.shape[0]
-    p, v, force0 = node_work[0], node_work[1], node_work[2]
-    for k in prange(n_blocks):
-        first, last = _block(k, n_blocks, n_rods)
-        _node_pass(q, qdot, rod_slots, tendon_damping, p, v, first, last)
-    tendon_power = np.empty(n_blocks)
-    for k in prange(n_blocks):
-        force = force0 if k == 0 else block_force[k - 1]
-        first, last = _block(k, n_blocks, n_tendons)
-        tendon_power[k] = _tendon_pass(
-            p,
-            v,
-            force,
-            tendon_slots,
-            tendon_runs,
-            tendon_stiffness,
-            tendon_damping,
-            rest_length,
-            tension,
-            elastic_tension,
-            damping_power,
-            first,
-            last,
-        )
-    # the rigid motion as a (3, 3) array: a tuple cannot enter the prange body (numba's parfor)
-    rigid = np.empty((3, 3))
-    for i, row in enumerate(_rigid_motion(q, qdot, rod_param)):
-        for j in range(3):
-            rigid[i, j] = row[j]
-    rod_power = np.empty((n_blocks, 2))
-    for k in prange(n_blocks):
-        first, last = _block(k, n_blocks, n_rods)
-        for r in range(first, last):  # the blocks' forces summed into force0, in order
-            a = rod_slots[r, 0]
-            b = rod_slots[r, 1]
-            for j in range(n_blocks - 1):  # (no view of block_force[j]: each takes a refcount)
-                for i in range(3):
-                    force0[i, a] += block_force[j, i, a]
-                    force0[i, b] += block_force[j, i, b]
-                    block_force[j, i, a] = 0.0
-                    block_force[j, i, b] = 0.0
-        rod_power[k, 0], rod_power[k, 1] = _rod_pass(
-            q,
-            qdot,
-            rod_slots,
-            rod_param,
-            has_external,
-            external_force,
-            has_gravity,
-            gravity,
-            force0,
-            rigid,
-            qddot,
-            first,
-            last,
-        )
-    dissipated = 0.0
-    external = 0.0
-    for k in range(n_blocks):  # fixed order: deterministic
-        dissipated += tendon_power[k]
-    for k in range(n_blocks):
-        dissipated += rod_power[k, 0]
-        external += rod_power[k, 1]
-    return dissipated, external
-
-
-@njit(**JIT_OPTIONS)
-def rhs(
-    q,
-    qdot,
-    rod_slots,
-    rod_param,
-    tendon_slots,
-    tendon_runs,
-    tendon_stiffness,
-    tendon_damping,
-    rest_length,
-    has_external,
-    external_force,
-    has_gravity,
-    gravity,
-    node_work,
-    block_force,
-    qddot,
-    tension,
-    elastic_tension,
-    damping_power,
-):  # pragma: no cover - compiled
-    """Theorem 18.1 for all rods: fills ``qddot`` (6R,), ``tension`` and ``elastic_tension``
-    (S,), and with tendon damping ``damping_power`` (S,), all in kernel order.
-
-    The model arrays are :func:`pack`'s (see the comment above :func:`_node_pass` for their
-    shapes and layouts); ``tendon_damping`` is None when every ``c`` is 0 (the undamped
-    specialization).  ``external_force`` is read only if ``has_external``, ``gravity`` (3,)
-    only if ``has_gravity``.  ``node_work`` is scratch whose forces ``node_work[2]`` are zero on
-    entry and left zero.  ``block_force`` is None (one thread) or (B - 1, 3, n_slots) zeros,
-    left zero: the evaluation runs on B threads (:func:`_rhs_threaded`; the choice is made at
-    compile time).  Returns ``(dissipated_power, external_power)``.
+    ``model.tendon_damping`` is None when every ``c`` is 0 (the undamped specialization,
+    chosen at compile time); ``data.node_force`` is zero on entry and left zero.
     """
-    if block_force is not None:
-        return _rhs_threaded(
-            q,
-            qdot,
-            rod_slots,
-            rod_param,
-            tendon_slots,
-            tendon_runs,
-            tendon_stiffness,
-            tendon_damping,
-            rest_length,
-            has_external,
-            external_force,
-            has_gravity,
-            gravity,
-            node_work,
-            block_force,
-            qddot,
-            tension,
-            elastic_tension,
-            damping_power,
-        )
-    n_rods = rod_slots.shape[0]
-    p, v, force = node_work[0], node_work[1], node_work[2]
-    _node_pass(q, qdot, rod_slots, tendon_damping, p, v, 0, n_rods)
-    tendon_dissipation = _tendon_pass(
-        p,
-        v,
-        force,
-        tendon_slots,
-        tendon_runs,
-        tendon_stiffness,
-        tendon_damping,
-        rest_length,
-        tension,
-        elastic_tension,
-        damping_power,
-        0,
-        tendon_slots.shape[0],
-    )
+    rest = stage_row(data.rest, s)
+    _node_pass(model.tendon_damping, model, data, q, qdot)
+    tendon_dissipation = _tendon_pass(model.tendon_damping, model, data, rest)
     rod_dissipation, external_power = _rod_pass(
+        model,
+        data,
         q,
         qdot,
-        rod_slots,
-        rod_param,
-        has_external,
-        external_force,
-        has_gravity,
-        gravity,
-        force,
-        _rigid_motion(q, qdot, rod_param),
         qddot,
-        0,
-        n_rods,
+        stage_row(data.force, s),
+        _rigid_motion(q, qdot, model.rod_param),
     )
     return tendon_dissipation + rod_dissipation, external_power
 
@@ -903,139 +612,14 @@ def project(q, qdot, rod_param):  # pragma: no cover - compiled
 
 
 @njit(**JIT_OPTIONS)
-def rk4_step(
-    q,
-    qdot,
-    h,
-    model,
-    tension,
-    elastic_tension,
-    damping_power,
-    stage_work,
-):  # pragma: no cover - compiled
-    """One classical RK4 step of ``h`` on ``y = [q, q']`` in place (no projection); ``model`` is
-    the tuple of :func:`rhs`'s model arguments.  The stage arithmetic is that of
-    :func:`tensegrity.engine.compiled.rk4_step`: ``y + h/6 (k1 + 2 k2 + 2 k3 + k4)``.
-    ``stage_work`` is (5, 6R) scratch.  Returns the step's increments of dissipated energy and
-    external work, ``h/6 (P1 + 2 P2 + 2 P3 + P4)``."""
-    n = q.shape[0]
-    q_stage = stage_work[0]
-    v_stage = stage_work[1]
-    accel = stage_work[2]
-    acc_q = stage_work[3]
-    acc_v = stage_work[4]
-    hh = h / 2
-    h6 = h / 6
-    # k1 = [v, a(q, v)]
-    d_sum, w_sum = rhs(q, qdot, *model, accel, tension, elastic_tension, damping_power)
-    for i in range(n):
-        acc_q[i] = qdot[i]
-        acc_v[i] = accel[i]
-        q_stage[i] = q[i] + hh * qdot[i]
-        v_stage[i] = qdot[i] + hh * accel[i]
-    # k2 at y + h/2 k1, then k3 at y + h/2 k2 (and the stage for k4, at y + h k3)
-    for step in (hh, h):
-        d, w = rhs(q_stage, v_stage, *model, accel, tension, elastic_tension, damping_power)
-        d_sum = d_sum + 2.0 * d
-        w_sum = w_sum + 2.0 * w
-        for i in range(n):
-            acc_q[i] = acc_q[i] + 2.0 * v_stage[i]
-            acc_v[i] = acc_v[i] + 2.0 * accel[i]
-            q_stage[i] = q[i] + step * v_stage[i]
-            v_stage[i] = qdot[i] + step * accel[i]
-    # k4 at y + h k3
-    d, w = rhs(q_stage, v_stage, *model, accel, tension, elastic_tension, damping_power)
-    for i in range(n):
-        q[i] = q[i] + h6 * (acc_q[i] + v_stage[i])
-        qdot[i] = qdot[i] + h6 * (acc_v[i] + accel[i])
-    return h6 * (d_sum + d), h6 * (w_sum + w)
-
-
-@njit(**JIT_OPTIONS)
-def rk4_steps(
-    q,
-    qdot,
-    dt,
-    n_steps,
-    max_rod_length_error,
-    rod_slots,
-    rod_param,
-    tendon_slots,
-    tendon_runs,
-    tendon_stiffness,
-    tendon_damping,
-    rest_length,
-    has_external,
-    external_force,
-    has_gravity,
-    gravity,
-    node_work,
-    block_force,
-    tension,
-    elastic_tension,
-    damping_power,
-    stage_work,
-):  # pragma: no cover - compiled
-    """Advance ``(q, qdot)`` in place by ``n_steps`` classical RK4 steps of ``dt``
-    (:func:`rk4_step`), projecting onto the rod constraints after every step; inputs are constant
-    over the call.  ``stage_work`` is (5, 6R) scratch.
-
-    Stops early, after the step (already projected), if a step ends with a relative rod-length
-    error above ``max_rod_length_error`` or a non-finite rod vector or rate (blow-up).
-
-    Returns ``(steps_taken, dissipated_energy, external_work, worst_rod_length_error)``: the
-    energies integrated over the steps with the RK4 weights, and the largest relative rod-length
-    error seen at the end of a step before its projection (NaN if the state became non-finite).
-    """
-    dissipated = 0.0
-    external = 0.0
-    worst = 0.0
-    taken = 0
-    model = (
-        rod_slots,
-        rod_param,
-        tendon_slots,
-        tendon_runs,
-        tendon_stiffness,
-        tendon_damping,
-        rest_length,
-        has_external,
-        external_force,
-        has_gravity,
-        gravity,
-        node_work,
-        block_force,
-    )
-    while taken < n_steps:
-        d, w = rk4_step(q, qdot, dt, model, tension, elastic_tension, damping_power, stage_work)
-        dissipated = dissipated + d
-        external = external + w
-        error = project(q, qdot, rod_param)
-        taken += 1
-        if not error <= worst:
-            worst = error
-        if not error <= max_rod_length_error:
-            break
-    return taken, dissipated, external, worst
-
-
-@njit(**JIT_OPTIONS)
-def energies(
-    q,
-    qdot,
-    rod_slots,
-    rod_param,
-    tendon_slots,
-    tendon_stiffness,
-    rest_length,
-    has_gravity,
-    gravity,
-    node_work,
-):  # pragma: no cover - compiled
-    """``(kinetic, elastic, gravity)`` energies [J], as ``dynamics.kinetic_energy``,
-    ``elastic_energy`` and ``gravity_energy``; ``node_work[0]`` receives the node positions
-    (by coordinate and slot; tendons in kernel order, see :func:`pack`)."""
-    p = node_work[0]
+def energies(model, data, rest, q, qdot):  # pragma: no cover - compiled
+    """``(kinetic, elastic, gravity)`` energies [J] of the rods and tendons, as
+    ``dynamics.kinetic_energy``, ``elastic_energy`` and ``gravity_energy``, with the rest
+    lengths ``rest`` (S,) [m], kernel order; ``data.node_position`` receives the node
+    positions."""
+    p = data.node_position
+    rod_slots, rod_param = model.rod_slots, model.rod_param
+    has_gravity, gravity = model.has_gravity, model.gravity
     end_values(q, rod_slots, p)
     kinetic = 0.0
     potential = 0.0
@@ -1051,27 +635,13 @@ def energies(
                 potential -= m * gravity[i] * 0.5 * q[o + i]
         kinetic += m * (v1 / 8 + v2 / 24)
     elastic = 0.0
+    tendon_slots, stiffness = model.tendon_slots, model.tendon_stiffness
     for s in range(tendon_slots.shape[0]):
         _, _, tx, ty, tz = tendon_vector(p, tendon_slots, s)
-        stretch = np.sqrt(tx * tx + ty * ty + tz * tz) - rest_length[s]
+        stretch = np.sqrt(tx * tx + ty * ty + tz * tz) - rest[s]
         if stretch > 0.0:
-            elastic += tendon_stiffness[s] * stretch * stretch
+            elastic += stiffness[s] * stretch * stretch
     return kinetic, 0.5 * elastic, potential
-
-
-@njit(**JIT_OPTIONS)
-def _reorder(values, position, out, to_kernel_order):  # pragma: no cover - compiled
-    """Per-tendon values between the structure's order and kernel order, into ``out``:
-    ``out[position[s]] = values[s]`` (``to_kernel_order``) or ``out[s] = values[position[s]]``
-    (back), ``position[s]`` being tendon ``s``'s kernel position.  Both walk ``position`` in
-    order, so the kernel-order side is touched along the runs, a few sequential streams (3x
-    faster than walking the kernel order: measured 0.05 against 0.15 ms at (100,100))."""
-    if to_kernel_order:
-        for s in range(position.shape[0]):
-            out[position[s]] = values[s]
-    else:
-        for s in range(position.shape[0]):
-            out[s] = values[position[s]]
 
 
 #: Longest piece of a run (:func:`stencil_layout`), evaluated in one call: small enough that a
@@ -1229,318 +799,3 @@ def pack(structure: Structure, *, general: bool = False) -> PackedStructure:
         ),
         layout=layout,
     )
-
-
-# --------------------------------------------------------------------------- Python wrapper
-class KernelEvaluation(NamedTuple):
-    """One evaluation by :meth:`FastKernel.evaluate`."""
-
-    qddot: np.ndarray  #: accelerations (6R,) [m/s^2]
-    tension: np.ndarray  #: tendon tensions (S,) [N], damping included
-    dissipated_power: float  #: [W], >= 0
-    external_power: float  #: power of the external nodal forces [W]
-
-
-class RK4Result(NamedTuple):
-    """The end of :meth:`FastKernel.rk4_with_work`."""
-
-    q: np.ndarray
-    qdot: np.ndarray
-    dissipated_energy: float  #: energy removed by damping over the steps taken [J]
-    external_work: float  #: work of the external forces over the steps taken [J]
-    n_steps: int  #: steps taken (fewer than asked if it stopped on a blow-up)
-    #: largest relative rod-length error at the end of a step, before its projection (NaN: the
-    #: state was not finite)
-    max_rod_length_error: float
-
-
-_F64 = np.dtype(np.float64)
-
-#: :func:`rhs`'s model arguments, ``rod_slots`` to ``rest_length`` (:meth:`FastKernel._model`).
-ModelArrays = tuple[
-    np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray | None, np.ndarray
-]
-
-
-def _float_input(value: npt.ArrayLike, shape: tuple[int, ...], field: str) -> np.ndarray:
-    """``value`` as a writable C-contiguous float64 array of ``shape``, copied only if needed.
-
-    (Writable, because numba compiles a separate specialization for read-only arrays.)
-    """
-    if type(value) is np.ndarray and value.dtype == _F64 and value.flags.carray:
-        array = value
-    else:
-        array = np.array(value, dtype=np.float64, order="C")
-    if array.shape != shape:
-        raise ValueError(f"{field}: expected shape {shape}, got {array.shape}")
-    return array
-
-
-def _check_buffer(array: np.ndarray, shape: tuple[int, ...], field: str) -> None:
-    if not (
-        type(array) is np.ndarray
-        and array.dtype == _F64
-        and array.flags.carray
-        and array.shape == shape
-    ):
-        raise ValueError(
-            f"{field}: expected a writable C-contiguous float64 array of shape {shape}"
-        )
-
-
-class FastKernel:
-    """The compiled equations of motion of one :class:`Structure`.
-
-    ``__init__`` packs the structure's data into contiguous, writable arrays in the kernel's
-    layout (see :func:`pack`) and allocates scratch buffers; compilation happens (or the disk
-    cache is loaded) on first use, or at :meth:`warm_up`.
-
-    ``threads`` (keyword-only, default 1): split every evaluation into that many blocks of rods
-    and of tendons run in parallel (numba ``prange``, on up to ``NUMBA_NUM_THREADS`` threads),
-    each block of tendons adding its nodal forces to its own buffer.  The result is deterministic
-    (it does not depend on the scheduling) and differs from ``threads=1`` by round-off only (the
-    order in which the forces on a node are summed).  Worth it for large structures only (the
-    parallel sections cost ~10 microseconds per evaluation), and only when the cores are not busy
-    with other work.  With ``threads > 1`` the constructor sets the environment variable
-    ``OMP_WAIT_POLICY=PASSIVE`` unless it is already set (see the comment there).
-    """
-
-    def __init__(self, structure: Structure, *, threads: int = 1) -> None:
-        if isinstance(threads, bool) or int(threads) != threads or threads < 1:
-            raise ValueError(f"threads: must be an integer >= 1, got {threads!r}")
-        self.structure = structure
-        self.threads = int(threads)
-        if self.threads > 1:
-            # numba's OpenMP layer spins at its barriers by default; on a machine whose cores are
-            # busy with other work a spinning thread can hold a core the other block is waiting
-            # for (measured: ~8 ms per parallel section).  Waiting passively costs nothing
-            # measurable here.  Read when the OpenMP runtime loads (the first threaded call);
-            # a value set by the user wins.
-            os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
-        self.n_rods, self.n_tendons, self.n_nodes = (
-            structure.n_rods,
-            structure.n_tendons,
-            structure.n_nodes,
-        )
-        self.n_coordinates = 6 * self.n_rods
-        packed = pack(structure)
-        self._packed = packed
-        self._rod_param, self._tendon_damping = packed.rod_param, packed.tendon_damping
-        # Tendon values cross the boundary in the structure's order; inside they are in kernel
-        # order: position[s] is tendon s's kernel position (uint32: half the bytes to read).
-        order = packed.layout.tendon_order
-        self._position = (
-            None
-            if np.array_equal(order, np.arange(self.n_tendons))
-            else np.argsort(order).astype(np.uint32)
-        )
-        n_slots = packed.layout.n_slots
-        self._node_work = np.zeros((3, 3, n_slots))
-        self._block_force = None if self.threads == 1 else np.zeros((self.threads - 1, 3, n_slots))
-        self._rest_length = np.zeros(self.n_tendons)  # kernel order
-        self._tension = np.zeros(self.n_tendons)  # kernel order
-        self._elastic = np.zeros(self.n_tendons)  # kernel order
-        self._damping_power = np.zeros(self.n_tendons)  # kernel order
-        self._no_external = np.zeros((3, 1))
-        self._no_gravity = np.zeros(3)
-        # (source, its copy in kernel order) of the last read-only rest lengths (see _rest)
-        self._last_rest: tuple[np.ndarray, np.ndarray] | None = None
-
-    def _model(self, rest: np.ndarray) -> ModelArrays:
-        """:func:`rhs`'s model arguments up to ``rest_length`` (kernel order)."""
-        p = self._packed
-        return (
-            p.rod_slots,
-            p.rod_param,
-            p.tendon_slots,
-            p.tendon_runs,
-            p.tendon_stiffness,
-            p.tendon_damping,
-            rest,
-        )
-
-    # ------------------------------------------------------------------ inputs
-    def _rest(self, rest_length: np.ndarray) -> np.ndarray:
-        """``rest_length`` (S,), checked, in kernel order."""
-        # The common case passes the same read-only array (structure.tendon_rest_length) again and
-        # again: keep its reordered copy instead of reordering on every call.
-        last = self._last_rest
-        if last is not None and rest_length is last[0] and not rest_length.flags.writeable:
-            return last[1]
-        rest = _float_input(rest_length, (self.n_tendons,), "rest_length")
-        read_only = type(rest_length) is np.ndarray and not rest_length.flags.writeable
-        if self._position is not None:
-            # Into the kernel's own buffer (a new 7 MB array per call at (300,300) cost 0.16 ms
-            # in page faults), or a new array to keep.
-            rest, checked = (np.empty(self.n_tendons) if read_only else self._rest_length), rest
-            _reorder(checked, self._position, rest, True)
-        if rest is not rest_length and read_only:
-            self._last_rest = (rest_length, rest)
-        return rest
-
-    def _loads(
-        self, external_force: np.ndarray | None, gravity: np.ndarray | None
-    ) -> tuple[bool, np.ndarray, bool, np.ndarray]:
-        """``(has_w, w, has_g, g)`` as :func:`rhs` takes them (``w`` by slot)."""
-        if external_force is None:
-            has_w, w = False, self._no_external
-        else:
-            has_w, w = (
-                True,
-                self._packed.to_slots(
-                    _float_input(external_force, (self.n_nodes, 3), "external_force")
-                ),
-            )
-        if gravity is None:
-            has_g, g = False, self._no_gravity
-        else:
-            has_g, g = True, _float_input(gravity, (3,), "gravity")
-        return has_w, w, has_g, g
-
-    # ------------------------------------------------------------------ API
-    def evaluate(
-        self,
-        q: np.ndarray,
-        qdot: np.ndarray,
-        rest_length: np.ndarray,
-        external_force: np.ndarray | None = None,
-        gravity: np.ndarray | None = None,
-        out: tuple[np.ndarray, np.ndarray] | None = None,
-        elastic_tension_out: np.ndarray | None = None,
-    ) -> KernelEvaluation:
-        """``(qddot, tension, dissipated_power, external_power)``, as ``dynamics.evaluate``.
-
-        Parameters
-        ----------
-        q, qdot : (6R,) coordinates and rates.
-        rest_length : (S,) controlled rest lengths ``Lbar >= 0`` (see ``dynamics.rest_lengths``).
-        external_force : (N, 3), optional.  gravity : (3,), optional.
-        out : ``(qddot, tension)`` float64 C-contiguous buffers of shapes (6R,), (S,) to fill
-            (and return) instead of allocating new arrays.
-        elastic_tension_out : (S,), optional buffer that receives ``k max(l - Lbar, 0)`` (for
-            the power of a time-varying control).
-        """
-        n = self.n_coordinates
-        q = _float_input(q, (n,), "q")
-        qdot = _float_input(qdot, (n,), "qdot")
-        rest = self._rest(rest_length)
-        has_w, w, has_g, g = self._loads(external_force, gravity)
-        if out is None:
-            qddot, tension = np.empty(n), np.empty(self.n_tendons)
-        else:
-            qddot, tension = out
-            _check_buffer(qddot, (n,), "out[0]")
-            _check_buffer(tension, (self.n_tendons,), "out[1]")
-        if elastic_tension_out is not None:
-            _check_buffer(elastic_tension_out, (self.n_tendons,), "elastic_tension_out")
-        # Without runs the kernel order is the structure's (small structures): no reordering.
-        reorder = self._position is not None
-        dissipated, external = rhs(
-            q,
-            qdot,
-            *self._model(rest),
-            has_w,
-            w,
-            has_g,
-            g,
-            self._node_work,
-            self._block_force,
-            qddot,
-            self._tension if reorder else tension,
-            self._elastic if reorder or elastic_tension_out is None else elastic_tension_out,
-            self._damping_power,
-        )
-        if reorder:
-            _reorder(self._tension, self._position, tension, False)
-            if elastic_tension_out is not None:
-                _reorder(self._elastic, self._position, elastic_tension_out, False)
-        return KernelEvaluation(qddot, tension, dissipated, external)
-
-    def rk4_with_work(
-        self,
-        q: np.ndarray,
-        qdot: np.ndarray,
-        dt: float,
-        n_steps: int,
-        rest_length: np.ndarray,
-        external_force: np.ndarray | None = None,
-        gravity: np.ndarray | None = None,
-        *,
-        max_rod_length_error: float = np.inf,
-    ) -> RK4Result:
-        """``n_steps`` RK4 steps of ``dt`` (projection after each), inputs constant over the call.
-
-        Returns new arrays ``q``, ``qdot`` (the inputs are not modified), the dissipated energy
-        and external work over the steps (RK4-integrated like ``simulate``'s ODE state), the
-        number of steps taken and the largest relative rod-length error seen at the end of a step
-        before its projection.  The loop stops early, after the offending step, when that error
-        exceeds ``max_rod_length_error`` or the state is not finite (error NaN): blow-up checks
-        as in ``simulate`` without leaving compiled code.
-        """
-        n = self.n_coordinates
-        dt = float(dt)
-        if not (np.isfinite(dt) and dt > 0):
-            raise ValueError(f"dt: must be > 0, got {dt!r}")
-        if int(n_steps) != n_steps or n_steps < 0:
-            raise ValueError(f"n_steps: must be an integer >= 0, got {n_steps!r}")
-        q = np.array(q, dtype=np.float64, order="C", copy=True)
-        qdot = np.array(qdot, dtype=np.float64, order="C", copy=True)
-        for name, x in (("q", q), ("qdot", qdot)):
-            if x.shape != (n,):
-                raise ValueError(f"{name}: expected shape {(n,)}, got {x.shape}")
-        rest = self._rest(rest_length)
-        has_w, w, has_g, g = self._loads(external_force, gravity)
-        taken, dissipated, external, worst = rk4_steps(
-            q,
-            qdot,
-            dt,
-            int(n_steps),
-            float(max_rod_length_error),
-            *self._model(rest),
-            has_w,
-            w,
-            has_g,
-            g,
-            self._node_work,
-            self._block_force,
-            self._tension,
-            self._elastic,
-            self._damping_power,
-            np.empty((5, n)),
-        )
-        return RK4Result(q, qdot, dissipated, external, taken, worst)
-
-    def rk4(
-        self,
-        q: np.ndarray,
-        qdot: np.ndarray,
-        dt: float,
-        n_steps: int,
-        rest_length: np.ndarray,
-        external_force: np.ndarray | None = None,
-        gravity: np.ndarray | None = None,
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """``(q, qdot)`` after ``n_steps`` RK4 steps of ``dt``; see :meth:`rk4_with_work`."""
-        result = self.rk4_with_work(q, qdot, dt, n_steps, rest_length, external_force, gravity)
-        return result.q, result.qdot
-
-    def project(self, q: np.ndarray, qdot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """New arrays projected onto ``|q2| = L``, ``q2 . q2' = 0`` (as
-        ``dynamics.project_to_constraints``)."""
-        n = self.n_coordinates
-        q = np.array(q, dtype=np.float64, order="C", copy=True)
-        qdot = np.array(qdot, dtype=np.float64, order="C", copy=True)
-        for name, x in (("q", q), ("qdot", qdot)):
-            if x.shape != (n,):
-                raise ValueError(f"{name}: expected shape {(n,)}, got {x.shape}")
-        project(q, qdot, self._rod_param)
-        return q, qdot
-
-    def warm_up(self) -> None:
-        """Compile (or load from the disk cache) every compiled function now."""
-        q = np.zeros(self.n_coordinates)
-        q[3::6] = self._rod_param[:, ROD_LENGTH]
-        qdot = np.zeros(self.n_coordinates)
-        rest = np.zeros(self.n_tendons)
-        self.evaluate(q, qdot, rest)
-        self.rk4(q, qdot, 1e-3, 1, rest)

@@ -21,23 +21,19 @@ their sparsity (two rows couple only through a rod or point mass that both touch
 factorization of ``K + delta I`` with two refinements against ``K``, as
 :func:`tensegrity.physics.constraints.solve_psd` does.
 
-A free class 1 structure has ``extras = None``; every function here then compiles to exactly the
-existing kernel code (:func:`kernel.rhs`, :func:`kernel.project`, :func:`kernel.energies`): the
-same numbers bit for bit.  Otherwise ``extras`` is a :class:`SystemExtras`, which holds scratch
-buffers: one ``extras`` per thread.
+Every compiled function takes the records of :mod:`tensegrity.physics.records` (made by
+:func:`make_records`).  A free class 1 structure has ``model.constraints = None``; every function
+here then compiles to exactly the kernel's code (:func:`kernel.rhs`, :func:`kernel.project`,
+:func:`kernel.energies`): the same numbers bit for bit.
 
 Usage::
 
-    from tensegrity.physics.kernel_system import pack_system, system_rhs
+    from tensegrity.physics.kernel_system import make_records, pack_system, system_rhs
 
     system = pack_system(structure)          # 3-D; planar: pack_system(embed_planar(structure))
-    packed = system.packed
-    arrays = (packed.rod_slots, packed.rod_param, packed.tendon_slots, packed.tendon_runs,
-              packed.tendon_stiffness, packed.tendon_damping)
-    node_work = np.zeros((3, 3, packed.layout.n_slots))
-    system_rhs(q, qdot, arrays, system.extras, packed.to_kernel_order(rest), False,
-               np.zeros((3, 1)), True, gravity, node_work, None, qddot, tension, elastic,
-               damping_power)
+    model, data = make_records(system, rest=system.packed.to_kernel_order(rest)[None],
+                               gravity=gravity)
+    dissipated, external = system_rhs(model, data, 0, q, qdot, qddot)
 
 Like :mod:`tensegrity.physics.kernel`, import this module lazily (it imports numba).
 """
@@ -72,16 +68,18 @@ from tensegrity.physics.kernel import (
     pack,
     project,
     rhs,
+    stage_row,
 )
+from tensegrity.physics.records import Constraints, ConstraintWork, Data, Model
 
 __all__ = [
     "MAX_ITER",
     "SystemArrays",
-    "SystemExtras",
     "all_finite",
     "drop_coordinates",
     "embed_planar",
     "lift_coordinates",
+    "make_records",
     "pack_system",
     "system_energies",
     "system_errors",
@@ -151,43 +149,14 @@ def drop_coordinates(structure2d: Structure, x: np.ndarray) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------- packing
-class SystemExtras(NamedTuple):
-    """What a structure has beyond free rods and tendons, as compiled code takes it.
-
-    Bodies are the rods ``0..R-1`` then the point masses ``R..R+M-1``.  A constraint row's
-    *entries* are its nodes on bodies (anchors are in ``constraint_rhs``), grouped by body.
-    Rows are numbered in the reverse Cuthill-McKee order of the projection rows (constraint rows
-    and one rod-length row per rod), which keeps the envelopes of ``K`` and ``J W^-1 J^T`` narrow.
-    The last six fields are scratch (written by every call): one ``SystemExtras`` per thread.
-    """
-
-    mass_slots: np.ndarray  #: (M,) uint64: slots of the point masses (kernel layout)
-    point_mass: np.ndarray  #: (M,) float64: their masses [kg]
-    anchor_slots: np.ndarray  #: (F,) uint64: slots of the anchors
-    anchor_position: np.ndarray  #: (3, F) float64: anchor positions [m]
-    body_start: np.ndarray  #: (R + M + 1,) int64: entries of body k are body_start[k]:[k + 1]
-    entry_row: np.ndarray  #: (E,) int64: constraint row of each entry (0..c-1)
-    entry_sign: np.ndarray  #: (E,) float64: -1 at a rod's end a, +1 at end b, 0 (point mass)
-    entry_coef: np.ndarray  #: (E, 3) float64: the row's coefficients ``A_n`` at that node
-    constraint_rhs: np.ndarray  #: (c,) float64: ``b`` [m] (anchor terms included)
-    constraint_prow: np.ndarray  #: (c,) int64: projection row of each constraint row
-    rod_prow: np.ndarray  #: (R,) int64: projection row of each rod's length (if c > 0)
-    k_first: np.ndarray  #: (c,) int64: first column of each row's envelope in K
-    k_offset: np.ndarray  #: (c + 1,) int64: start of each row's envelope in k_values
-    n_first: np.ndarray  #: (P,) int64: the same for ``J W^-1 J^T`` (P = c + R, or 0 if c = 0)
-    n_offset: np.ndarray  #: (P + 1,) int64
-    k_values: np.ndarray  #: scratch: K's lower envelope
-    k_factor: np.ndarray  #: scratch: its Cholesky factor
-    n_values: np.ndarray  #: scratch: ``J W^-1 J^T``'s lower envelope
-    n_factor: np.ndarray  #: scratch: its Cholesky factor
-    work: np.ndarray  #: scratch: (4, max(P, 1)) vectors
-
-
 class SystemArrays(NamedTuple):
     """:func:`pack_system`'s result."""
 
     packed: PackedStructure  #: ``kernel.pack(structure, general=True)``
-    extras: SystemExtras | None  #: None for a free class 1 structure
+    constraints: Constraints | None  #: None for a free class 1 structure
+    #: lengths of the envelopes of ``K`` and ``J W^-1 J^T`` and of the solver's vectors (the
+    #: sizes of its :class:`~tensegrity.physics.records.ConstraintWork`)
+    work_sizes: tuple[int, int, int]
     n_coordinates: int  #: ``6R + 3M``
 
 
@@ -242,7 +211,7 @@ def _row_order(
 
 
 def _constraint_rows(structure: Structure) -> dict[str, np.ndarray]:
-    """The :class:`SystemExtras` fields of the joints and supports: the independent rows of
+    """The :class:`~tensegrity.physics.records.Constraints` fields of the joints and supports: the independent rows of
     ``constraints_of(structure)`` renumbered in the order of :func:`_row_order`, entries grouped by
     body, and the envelopes of ``K`` and ``J W^-1 J^T``."""
     R, M = structure.n_rods, structure.point_mass_nodes.size
@@ -289,8 +258,9 @@ def _constraint_rows(structure: Structure) -> dict[str, np.ndarray]:
 
 def pack_system(structure: Structure) -> SystemArrays:
     """The arrays of :func:`system_rhs` and the other compiled functions for a 3-D structure:
-    ``kernel.pack(structure, general=True)``, and the :class:`SystemExtras` (None for a free
-    class 1 structure, which the existing kernel simulates alone).
+    ``kernel.pack(structure, general=True)``, and the
+    :class:`~tensegrity.physics.records.Constraints` (None for a free class 1 structure, which
+    the kernel simulates alone).
 
     Raises
     ------
@@ -305,33 +275,101 @@ def pack_system(structure: Structure) -> SystemArrays:
     packed = pack(structure, general=True)
     n_coordinates = 6 * structure.n_rods + 3 * structure.point_mass_nodes.size
     if structure.is_free_class1:
-        return SystemArrays(packed, None, n_coordinates)
+        return SystemArrays(packed, None, (0, 0, 0), n_coordinates)
     slot = packed.layout.node_slot
     masses, anchors = structure.point_mass_nodes, structure.anchor_nodes
     rows = _constraint_rows(structure)
-    k_size, n_size = rows["k_offset"][-1], rows["n_offset"][-1]
-    extras = SystemExtras(
+    constraints = Constraints(
         mass_slots=np.array(slot[masses], dtype=np.uint64),
         point_mass=np.array(structure.node_point_mass[masses], dtype=np.float64),
         anchor_slots=np.array(slot[anchors], dtype=np.uint64),
         anchor_position=np.array(structure.node_position[anchors].T, dtype=np.float64, order="C"),
-        k_values=np.zeros(k_size),
-        k_factor=np.zeros(k_size),
-        n_values=np.zeros(n_size),
-        n_factor=np.zeros(n_size),
-        work=np.zeros((4, max(rows["n_first"].size, 1))),
         **rows,
     )
-    return SystemArrays(packed, extras, n_coordinates)
+    sizes = (int(rows["k_offset"][-1]), int(rows["n_offset"][-1]), max(rows["n_first"].size, 1))
+    return SystemArrays(packed, constraints, sizes, n_coordinates)
+
+
+def make_records(
+    system: SystemArrays,
+    *,
+    rest: np.ndarray,
+    rate: np.ndarray | None = None,
+    force: np.ndarray | None = None,
+    gravity: np.ndarray | None = None,
+    tables: object = None,
+    limits: tuple[float, float, float] = (np.inf, np.inf, np.inf),
+) -> tuple[Model, Data]:
+    """The :class:`~tensegrity.physics.records.Model` and a
+    :class:`~tensegrity.physics.records.Data` of a packed structure, with zeroed scratch.
+
+    Parameters
+    ----------
+    rest : (K, S) array
+        Rest lengths [m] per stage row, kernel order.
+    rate : (K, S) array, optional
+        Control rates [m/s], kernel order (None: no control rates).
+    force : (K, 3, n_slots) array, optional
+        External nodal forces [N] by slot (None: none).
+    gravity : (3,) array, optional
+        [m/s^2] (None: no gravity).
+    tables : optional
+        The engine's input tables (``tensegrity.engine.compiled.fill_stage_inputs``).
+    limits : (3,) floats
+        Max relative rod-length error, max constraint error [m], max energy growth.
+    """
+    packed = system.packed
+    n_slots, n_tendons = packed.layout.n_slots, packed.tendon_slots.shape[0]
+    model = Model(
+        rod_slots=packed.rod_slots,
+        rod_param=packed.rod_param,
+        tendon_slots=packed.tendon_slots,
+        tendon_runs=packed.tendon_runs,
+        tendon_stiffness=packed.tendon_stiffness,
+        tendon_damping=packed.tendon_damping,
+        constraints=system.constraints,
+        has_gravity=gravity is not None,
+        gravity=np.zeros(3) if gravity is None else np.array(gravity, dtype=np.float64),
+        tables=tables,
+        limits=np.array(limits, dtype=np.float64),
+    )
+    constraint_work = None
+    if system.constraints is not None:
+        k_size, n_size, n_vectors = system.work_sizes
+        constraint_work = ConstraintWork(
+            k_values=np.zeros(k_size),
+            k_factor=np.zeros(k_size),
+            n_values=np.zeros(n_size),
+            n_factor=np.zeros(n_size),
+            vectors=np.zeros((4, n_vectors)),
+        )
+    data = Data(
+        rest=rest,
+        rate=np.zeros((1, 1)) if rate is None else rate,
+        has_rate=rate is not None,
+        force=np.zeros((1, 3, 1)) if force is None else force,
+        has_external=force is not None,
+        node_position=np.zeros((3, n_slots)),
+        node_velocity=np.zeros((3, n_slots)),
+        node_force=np.zeros((3, n_slots)),
+        tension=np.zeros(n_tendons),
+        elastic_tension=np.zeros(n_tendons),
+        damping_power=np.zeros(n_tendons),
+        constraint_work=constraint_work,
+        monitor=np.array([np.nan, 0.0, 0.0, 0.0]),
+    )
+    return model, data
 
 
 # --------------------------------------------------------------------------- compiled: nodes
 @njit(**JIT_OPTIONS)
-def _extra_nodes(q, qdot, n_rods, extras, p, v, with_velocity):  # pragma: no cover - compiled
+def _extra_nodes(constraints, q, qdot, n_rods, p, v, with_velocity):  # pragma: no cover
     """Point-mass positions ``x`` (from ``q`` after the rods' ``6R``) and anchor positions into
     ``p`` (3, n_slots) [m]; with ``with_velocity`` the point-mass velocities and zero (anchors)
-    into ``v`` [m/s]."""
-    mass_slots = extras.mass_slots
+    into ``v`` [m/s].  Nothing when ``constraints`` (``model.constraints``) is None."""
+    if constraints is None:
+        return
+    mass_slots = constraints.mass_slots
     for k in range(mass_slots.shape[0]):
         s = mass_slots[k]
         o = 6 * n_rods + 3 * k
@@ -339,26 +377,25 @@ def _extra_nodes(q, qdot, n_rods, extras, p, v, with_velocity):  # pragma: no co
             p[i, s] = q[o + i]
             if with_velocity:
                 v[i, s] = qdot[o + i]
-    anchor_slots = extras.anchor_slots
+    anchor_slots = constraints.anchor_slots
     for k in range(anchor_slots.shape[0]):
         s = anchor_slots[k]
         for i in range(3):
-            p[i, s] = extras.anchor_position[i, k]
+            p[i, s] = constraints.anchor_position[i, k]
             if with_velocity:
                 v[i, s] = 0.0
 
 
 @njit(**JIT_OPTIONS)
-def system_nodes(q, qdot, rod_slots, extras, p, v, with_velocity):  # pragma: no cover - compiled
+def system_nodes(model, q, qdot, p, v, with_velocity):  # pragma: no cover - compiled
     """Node positions ``p = P q`` (eq. 18.26) of every slot holding a node (rod ends, point
     masses, anchors) into ``p`` (3, n_slots) [m], and with ``with_velocity`` the node
     velocities into ``v`` (anchors at rest) [m/s], as ``dynamics.nodes_from_coordinates``.
     Slots that hold no node are not written."""
-    end_values(q, rod_slots, p)
+    end_values(q, model.rod_slots, p)
     if with_velocity:
-        end_values(qdot, rod_slots, v)
-    if extras is not None:
-        _extra_nodes(q, qdot, rod_slots.shape[0], extras, p, v, with_velocity)
+        end_values(qdot, model.rod_slots, v)
+    _extra_nodes(model.constraints, q, qdot, model.rod_slots.shape[0], p, v, with_velocity)
 
 
 # --------------------------------------------------------------------------- compiled: rows
@@ -373,11 +410,11 @@ def _entry_value(x, n_rods, body, sign, i):  # pragma: no cover - compiled
 
 
 @njit(**JIT_OPTIONS)
-def _rows_times(x, n_rods, extras, out):  # pragma: no cover - compiled
+def _rows_times(x, n_rods, constraints, out):  # pragma: no cover - compiled
     """``out = A x`` (c,) for ``x`` = ``q``, ``q'`` or ``q''`` (``A = A_n P``), row by entry."""
     out[:] = 0.0
-    start, rows = extras.body_start, extras.entry_row
-    sign, coef = extras.entry_sign, extras.entry_coef
+    start, rows = constraints.body_start, constraints.entry_row
+    sign, coef = constraints.entry_sign, constraints.entry_coef
     for body in range(start.shape[0] - 1):
         for e in range(start[body], start[body + 1]):
             total = 0.0
@@ -387,12 +424,12 @@ def _rows_times(x, n_rods, extras, out):  # pragma: no cover - compiled
 
 
 @njit(**JIT_OPTIONS)
-def _add_response(q, multiplier, rod_param, extras, qddot):  # pragma: no cover - compiled
+def _add_response(q, multiplier, rod_param, constraints, qddot):  # pragma: no cover - compiled
     """``qddot += G(q) A_n^T multiplier``: the constraint forces ``A_n^T lambda`` [N] applied by
     Theorem 18.1 (eqs. 18.17, 18.20: ``q1'' = (2/m)(f_a + f_b)``, ``q2'' = (6/(m L^2))
     skew(q2)^2 (f_a - f_b)``; ``x'' = f / m``); forces on anchors move nothing."""
-    start, rows = extras.body_start, extras.entry_row
-    sign, coef = extras.entry_sign, extras.entry_coef
+    start, rows = constraints.body_start, constraints.entry_row
+    sign, coef = constraints.entry_sign, constraints.entry_coef
     n_rods = rod_param.shape[0]
     fa = np.zeros(3)
     fb = np.zeros(3)
@@ -421,7 +458,7 @@ def _add_response(q, multiplier, rod_param, extras, qddot):  # pragma: no cover 
         else:
             o = 6 * n_rods + 3 * (body - n_rods)
             for i in range(3):
-                qddot[o + i] += fa[i] / extras.point_mass[body - n_rods]
+                qddot[o + i] += fa[i] / constraints.point_mass[body - n_rods]
 
 
 # --------------------------------------------------------------------------- compiled: envelope
@@ -510,15 +547,18 @@ def _solve_psd(values, factor, first, offset, rhs, x, scratch):  # pragma: no co
 
 # --------------------------------------------------------------------------- compiled: dynamics
 @njit(**JIT_OPTIONS)
-def _assemble_coupling(q, rod_param, extras):  # pragma: no cover - compiled
-    """``K = A G(q) A_n^T`` (c, c) into ``extras.k_values``: rows ``i``, ``j`` couple through
+def _assemble_coupling(model, data, q):  # pragma: no cover - compiled
+    """``K = A G(q) A_n^T`` (c, c) into ``data.constraint_work.k_values``: rows ``i``, ``j`` couple through
     each body both touch, by the node accelerations per unit node force (eqs. 18.17, 18.20,
     18.26): ``(1/m) I - (sigma_i sigma_j / 2) (6/(m L^2)) skew(q2)^2`` on a rod (``sigma`` = -1
     at end a, +1 at end b), ``I / m`` on a point mass."""
-    start, rows = extras.body_start, extras.entry_row
-    sign, coef = extras.entry_sign, extras.entry_coef
-    values, first, offset = extras.k_values, extras.k_first, extras.k_offset
+    constraints = model.constraints
+    start, rows = constraints.body_start, constraints.entry_row
+    sign, coef = constraints.entry_sign, constraints.entry_coef
+    first, offset = constraints.k_first, constraints.k_offset
+    values = data.constraint_work.k_values
     values[:] = 0.0
+    rod_param = model.rod_param
     n_rods = rod_param.shape[0]
     for body in range(start.shape[0] - 1):
         x = y = z = q2_sq = half_c2 = 0.0
@@ -529,7 +569,7 @@ def _assemble_coupling(q, rod_param, extras):  # pragma: no cover - compiled
             inv_m = 0.5 * rod_param[body, ROD_C1]
             half_c2 = 0.5 * rod_param[body, ROD_C2]
         else:
-            inv_m = 1.0 / extras.point_mass[body - n_rods]
+            inv_m = 1.0 / constraints.point_mass[body - n_rods]
         for e1 in range(start[body], start[body + 1]):
             c1q = coef[e1, 0] * x + coef[e1, 1] * y + coef[e1, 2] * z
             for e2 in range(e1, start[body + 1]):
@@ -546,17 +586,20 @@ def _assemble_coupling(q, rod_param, extras):  # pragma: no cover - compiled
 
 
 @njit(**JIT_OPTIONS)
-def _point_mass_pass(
-    qdot, n_rods, extras, has_external, external_force, has_gravity, gravity, force, qddot
-):  # pragma: no cover - compiled
-    """``x'' = (f + w) / m + g`` for every point mass from the tendon forces ``force``
-    (3, n_slots), which it leaves zero, as it leaves the anchors' (kernel.rhs's contract).
-    Returns the power of ``w`` on the point masses [W]."""
+def _point_mass_pass(model, data, qdot, qddot, external_force):  # pragma: no cover - compiled
+    """``x'' = (f + w) / m + g`` for every point mass from the tendon forces
+    ``data.node_force``, which it leaves zero, as it leaves the anchors' (kernel.rhs's
+    contract); ``external_force`` (3, n_slots) is the stage's row of ``data.force``.  Returns
+    the power of ``w`` on the point masses [W]."""
+    constraints = model.constraints
+    has_external, has_gravity, gravity = data.has_external, model.has_gravity, model.gravity
+    force = data.node_force
+    n_rods = model.rod_slots.shape[0]
     power = 0.0
-    for k in range(extras.mass_slots.shape[0]):
-        s = extras.mass_slots[k]
+    for k in range(constraints.mass_slots.shape[0]):
+        s = constraints.mass_slots[k]
         o = 6 * n_rods + 3 * k
-        m = extras.point_mass[k]
+        m = constraints.point_mass[k]
         for i in range(3):
             f = force[i, s]
             force[i, s] = 0.0
@@ -566,108 +609,64 @@ def _point_mass_pass(
             qddot[o + i] = f / m
             if has_gravity:
                 qddot[o + i] += gravity[i]
-    for k in range(extras.anchor_slots.shape[0]):
+    for k in range(constraints.anchor_slots.shape[0]):
         for i in range(3):
-            force[i, extras.anchor_slots[k]] = 0.0
+            force[i, constraints.anchor_slots[k]] = 0.0
     return power
 
 
 @njit(**JIT_OPTIONS)
-def _constraint_pass(q, rod_param, extras, qddot):  # pragma: no cover - compiled
+def _constraint_pass(model, data, q, qddot):  # pragma: no cover - compiled
     """``qddot += G(q) A_n^T lambda`` with ``K lambda = -A qddot`` (``K = A G(q) A_n^T``): the
     joint and support forces that make ``A q'' = 0``, as ``LinearConstraints.constraint_force``."""
-    c = extras.constraint_rhs.shape[0]
-    work = extras.work
-    rhs_, multiplier, scratch = work[0, :c], work[1, :c], work[2, :c]
-    _rows_times(qddot, rod_param.shape[0], extras, rhs_)
+    constraints, work = model.constraints, data.constraint_work
+    rod_param = model.rod_param
+    c = constraints.constraint_rhs.shape[0]
+    vectors = work.vectors
+    rhs_, multiplier, scratch = vectors[0, :c], vectors[1, :c], vectors[2, :c]
+    _rows_times(qddot, rod_param.shape[0], constraints, rhs_)
     for i in range(c):
         rhs_[i] = -rhs_[i]
-    _assemble_coupling(q, rod_param, extras)
+    _assemble_coupling(model, data, q)
     _solve_psd(
-        extras.k_values, extras.k_factor, extras.k_first, extras.k_offset, rhs_, multiplier, scratch
+        work.k_values,
+        work.k_factor,
+        constraints.k_first,
+        constraints.k_offset,
+        rhs_,
+        multiplier,
+        scratch,
     )
-    _add_response(q, multiplier, rod_param, extras, qddot)
+    _add_response(q, multiplier, rod_param, constraints, qddot)
 
 
 @njit(**JIT_OPTIONS)
-def system_rhs(
-    q,
-    qdot,
-    arrays,
-    extras,
-    rest_length,
-    has_external,
-    external_force,
-    has_gravity,
-    gravity,
-    node_work,
-    block_force,
-    qddot,
-    tension,
-    elastic_tension,
-    damping_power,
-):  # pragma: no cover - compiled
-    """Theorem 18.1 for any 3-D structure: fills ``qddot`` (6R + 3M,) [m/s^2], ``tension`` and
-    ``elastic_tension`` (S,) [N] and, with tendon damping, ``damping_power`` (S,) [W] (tendons in
-    kernel order); returns ``(dissipated_power, external_power)`` [W], as
-    ``dynamics.evaluate``.
+def system_rhs(model, data, s, q, qdot, qddot):  # pragma: no cover - compiled
+    """Theorem 18.1 for any 3-D structure: fills ``qddot`` (6R + 3M,) [m/s^2],
+    ``data.tension`` and ``data.elastic_tension`` (S,) [N] and, with tendon damping,
+    ``data.damping_power`` (S,) [W] (tendons in kernel order), with row ``s`` of the inputs in
+    ``data``; returns ``(dissipated_power, external_power)`` [W], as ``dynamics.evaluate``.
 
-    ``arrays`` is ``(rod_slots, rod_param, tendon_slots, tendon_runs, tendon_stiffness,
-    tendon_damping)`` (:func:`kernel.pack`); the other arguments as :func:`kernel.rhs`
-    (``external_force`` (3, n_slots) [N], ``gravity`` (3,) [m/s^2], ``node_work`` (3, 3,
-    n_slots) with ``node_work[2]`` zero on entry and on return).  With ``extras`` None this is
-    :func:`kernel.rhs`.  Otherwise (``block_force`` None): point masses and anchors join the
-    tendon pass, point masses accelerate as ``x'' = (f + w) / m + g``, and the joint and support
-    forces are added (:func:`_constraint_pass`).
+    With ``model.constraints`` None this is :func:`kernel.rhs`.  Otherwise point masses and
+    anchors join the tendon pass, point masses accelerate as ``x'' = (f + w) / m + g``, and the
+    joint and support forces are added (:func:`_constraint_pass`).
     """
-    if extras is None:
-        return rhs(
-            q,
-            qdot,
-            *arrays,
-            rest_length,
-            has_external,
-            external_force,
-            has_gravity,
-            gravity,
-            node_work,
-            block_force,
-            qddot,
-            tension,
-            elastic_tension,
-            damping_power,
-        )
-    n_rods = arrays[0].shape[0]
-    _extra_nodes(q, qdot, n_rods, extras, node_work[0], node_work[1], arrays[5] is not None)
-    dissipated, external = rhs(
-        q,
-        qdot,
-        *arrays,
-        rest_length,
-        has_external,
-        external_force,
-        has_gravity,
-        gravity,
-        node_work,
-        None,
-        qddot,
-        tension,
-        elastic_tension,
-        damping_power,
-    )
-    external += _point_mass_pass(
-        qdot,
-        n_rods,
-        extras,
-        has_external,
-        external_force,
-        has_gravity,
-        gravity,
-        node_work[2],
-        qddot,
-    )
-    if extras.constraint_rhs.shape[0]:
-        _constraint_pass(q, arrays[1], extras, qddot)
+    return _system_rhs(model.constraints, model, data, s, q, qdot, qddot)
+
+
+@njit(**JIT_OPTIONS)
+def _system_rhs(constraints, model, data, s, q, qdot, qddot):  # pragma: no cover - compiled
+    """:func:`system_rhs`, with ``constraints`` (``model.constraints``) an argument, so that
+    numba compiles the free class 1 structure (None) without the rest."""
+    if constraints is None:
+        return rhs(model, data, s, q, qdot, qddot)
+    damped = model.tendon_damping is not None
+    n_rods = model.rod_slots.shape[0]
+    _extra_nodes(constraints, q, qdot, n_rods, data.node_position, data.node_velocity, damped)
+    dissipated, external = rhs(model, data, s, q, qdot, qddot)
+    external += _point_mass_pass(model, data, qdot, qddot, stage_row(data.force, s))
+    if constraints.constraint_rhs.shape[0]:
+        _constraint_pass(model, data, q, qddot)
     return dissipated, external
 
 
@@ -687,12 +686,12 @@ def _rod_error(q, rod_param):  # pragma: no cover - compiled
 
 
 @njit(**JIT_OPTIONS)
-def _constraint_error(q, n_rods, extras, residual):  # pragma: no cover - compiled
+def _constraint_error(q, n_rods, constraints, residual):  # pragma: no cover - compiled
     """``residual = A q - b`` (c,) [m]; returns ``max |A q - b|`` (NaN if not finite)."""
-    _rows_times(q, n_rods, extras, residual)
+    _rows_times(q, n_rods, constraints, residual)
     worst = 0.0
     for i in range(residual.shape[0]):
-        residual[i] -= extras.constraint_rhs[i]
+        residual[i] -= constraints.constraint_rhs[i]
         error = abs(residual[i])
         if not np.isfinite(error):
             return np.nan
@@ -701,15 +700,22 @@ def _constraint_error(q, n_rods, extras, residual):  # pragma: no cover - compil
 
 
 @njit(**JIT_OPTIONS)
-def system_errors(q, rod_param, extras):  # pragma: no cover - compiled
+def system_errors(model, data, q):  # pragma: no cover - compiled
     """``(rod_error, constraint_error)``: the largest relative rod-length error ``| |q2|/L - 1 |``
     (NaN if not finite) and ``max |A q - b|`` [m] (0 without joints and supports), as
     ``dynamics.rod_length_error`` and ``dynamics.constraint_error``."""
-    rod_error = _rod_error(q, rod_param)
-    if extras is None or extras.constraint_rhs.shape[0] == 0:
+    return _errors(model.constraints, model, data, q)
+
+
+@njit(**JIT_OPTIONS)
+def _errors(constraints, model, data, q):  # pragma: no cover - compiled
+    """:func:`system_errors` with ``constraints`` (``model.constraints``) an argument."""
+    rod_error = _rod_error(q, model.rod_param)
+    if constraints is None or constraints.constraint_rhs.shape[0] == 0:
         return rod_error, 0.0
-    c = extras.constraint_rhs.shape[0]
-    return rod_error, _constraint_error(q, rod_param.shape[0], extras, extras.work[0, :c])
+    c = constraints.constraint_rhs.shape[0]
+    residual = data.constraint_work.vectors[0, :c]
+    return rod_error, _constraint_error(q, model.rod_param.shape[0], constraints, residual)
 
 
 #: The exponent bits of a float64: all set in an infinity or a NaN, and only there.
@@ -729,34 +735,37 @@ def all_finite(x):  # pragma: no cover - compiled
 
 
 @njit(**JIT_OPTIONS)
-def _violation(q, rod_param, extras, out):  # pragma: no cover - compiled
+def _violation(model, data, q, out):  # pragma: no cover - compiled
     """``out`` (P,) = ``[A q - b; (|q2|^2 - L^2) / 2]`` in projection rows; returns the largest
     of ``|A q - b|`` and ``| |q2| - L |`` [m] (NaN if not finite)."""
-    c = extras.constraint_rhs.shape[0]
-    residual = extras.work[3, :c]
-    error = _constraint_error(q, rod_param.shape[0], extras, residual)
+    constraints, rod_param = model.constraints, model.rod_param
+    c = constraints.constraint_rhs.shape[0]
+    residual = data.constraint_work.vectors[3, :c]
+    error = _constraint_error(q, rod_param.shape[0], constraints, residual)
     for i in range(c):
-        out[extras.constraint_prow[i]] = residual[i]
+        out[constraints.constraint_prow[i]] = residual[i]
     for r in range(rod_param.shape[0]):
         o = 6 * r + 3
         L = rod_param[r, ROD_LENGTH]
         q2_sq = q[o] * q[o] + q[o + 1] * q[o + 1] + q[o + 2] * q[o + 2]
-        out[extras.rod_prow[r]] = 0.5 * (q2_sq - L * L)
+        out[constraints.rod_prow[r]] = 0.5 * (q2_sq - L * L)
         gap = abs(np.sqrt(q2_sq) - L)
         error = max(error, gap) if np.isfinite(gap) else np.nan
     return error
 
 
 @njit(**JIT_OPTIONS)
-def _assemble_normal(q, rod_param, extras):  # pragma: no cover - compiled
-    """``J W^-1 J^T`` (P, P) into ``extras.n_values``, ``J = [A; q2^T per rod]`` (the gradient
+def _assemble_normal(model, data, q):  # pragma: no cover - compiled
+    """``J W^-1 J^T`` (P, P) into ``data.constraint_work.n_values``, ``J = [A; q2^T per rod]`` (the gradient
     of ``|q2|^2 / 2``), ``W^-1`` = ``4/m`` on ``q1``, ``12/m`` on ``q2``, ``1/m`` on a point
     mass.  Two entries on a rod give ``(1 + 3 sigma_i sigma_j) (c_i . c_j) / m``, an entry and
     the rod's length row ``6 sigma (c . q2) / m``, the length row itself ``12 |q2|^2 / m``."""
-    start, rows = extras.body_start, extras.entry_row
-    sign, coef = extras.entry_sign, extras.entry_coef
-    prow = extras.constraint_prow
-    values, first, offset = extras.n_values, extras.n_first, extras.n_offset
+    constraints, rod_param = model.constraints, model.rod_param
+    start, rows = constraints.body_start, constraints.entry_row
+    sign, coef = constraints.entry_sign, constraints.entry_coef
+    prow = constraints.constraint_prow
+    first, offset = constraints.n_first, constraints.n_offset
+    values = data.constraint_work.n_values
     values[:] = 0.0
     n_rods = rod_param.shape[0]
     for body in range(start.shape[0] - 1):
@@ -766,10 +775,10 @@ def _assemble_normal(q, rod_param, extras):  # pragma: no cover - compiled
             o = 6 * body + 3
             x, y, z = q[o], q[o + 1], q[o + 2]
             inv_m = 1.0 / rod_param[body, ROD_MASS]
-            own = extras.rod_prow[body]
+            own = constraints.rod_prow[body]
             _env_add(values, first, offset, own, own, 12.0 * inv_m * (x * x + y * y + z * z))
         else:
-            inv_m = 1.0 / extras.point_mass[body - n_rods]
+            inv_m = 1.0 / constraints.point_mass[body - n_rods]
         for e1 in range(start[body], start[body + 1]):
             if body < n_rods:
                 c1q = coef[e1, 0] * x + coef[e1, 1] * y + coef[e1, 2] * z
@@ -787,13 +796,14 @@ def _assemble_normal(q, rod_param, extras):  # pragma: no cover - compiled
 
 
 @njit(**JIT_OPTIONS)
-def _subtract_step(target, q, y, rod_param, extras):  # pragma: no cover - compiled
+def _subtract_step(model, target, q, y):  # pragma: no cover - compiled
     """``target -= W^-1 J(q)^T y`` (``y`` in projection rows): per rod ``q1 -= (2/m) sum c
     y``, ``q2 -= (6/m) sum sigma c y + (12/m) q2 y_length``; per point mass ``x -= sum c y / m``.
     ``target`` may be ``q`` itself (each rod's ``q2`` is read before it is written)."""
-    start, rows = extras.body_start, extras.entry_row
-    sign, coef = extras.entry_sign, extras.entry_coef
-    prow = extras.constraint_prow
+    constraints, rod_param = model.constraints, model.rod_param
+    start, rows = constraints.body_start, constraints.entry_row
+    sign, coef = constraints.entry_sign, constraints.entry_coef
+    prow = constraints.constraint_prow
     n_rods = rod_param.shape[0]
     d1 = np.zeros(3)
     d2 = np.zeros(3)
@@ -808,7 +818,7 @@ def _subtract_step(target, q, y, rod_param, extras):  # pragma: no cover - compi
         if body < n_rods:
             o = 6 * body
             m = rod_param[body, ROD_MASS]
-            length_y = y[extras.rod_prow[body]]
+            length_y = y[constraints.rod_prow[body]]
             for i in range(3):
                 step2 = (6.0 / m) * d2[i] + (12.0 / m) * q[o + 3 + i] * length_y
                 target[o + i] -= (2.0 / m) * d1[i]
@@ -816,69 +826,72 @@ def _subtract_step(target, q, y, rod_param, extras):  # pragma: no cover - compi
         else:
             o = 6 * n_rods + 3 * (body - n_rods)
             for i in range(3):
-                target[o + i] -= d1[i] / extras.point_mass[body - n_rods]
+                target[o + i] -= d1[i] / constraints.point_mass[body - n_rods]
 
 
 @njit(**JIT_OPTIONS)
-def _normal_solve(q, rod_param, extras, violation, y):  # pragma: no cover - compiled
+def _normal_solve(model, data, q, violation, y):  # pragma: no cover - compiled
     """``y = (J W^-1 J^T)^-1 violation`` at ``q``."""
-    _assemble_normal(q, rod_param, extras)
+    _assemble_normal(model, data, q)
+    work = data.constraint_work
     _solve_psd(
-        extras.n_values,
-        extras.n_factor,
-        extras.n_first,
-        extras.n_offset,
+        work.n_values,
+        work.n_factor,
+        model.constraints.n_first,
+        model.constraints.n_offset,
         violation,
         y,
-        extras.work[2],
+        work.vectors[2],
     )
 
 
 @njit(**JIT_OPTIONS)
-def _project_constrained(q, qdot, rod_param, extras):  # pragma: no cover - compiled
+def _project_constrained(model, data, q, qdot):  # pragma: no cover - compiled
     """``LinearConstraints.project`` in place: Gauss-Newton steps ``q -= W^-1 J^T (J W^-1
     J^T)^-1 c(q)`` until every error is below ``PROJECTION_RTOL`` times the length scale, or below
     ``PROJECTION_FLOOR_RTOL`` times it once the error stops halving; then ``q' -= W^-1 J^T
     (J W^-1 J^T)^-1 J q'``.  Returns False if it does not converge in :data:`MAX_ITER` steps."""
+    constraints, rod_param = model.constraints, model.rod_param
+    vectors = data.constraint_work.vectors
     n_rods = rod_param.shape[0]
     scale = 1.0
     for r in range(n_rods):
         scale = max(scale, rod_param[r, ROD_LENGTH])
     tol = PROJECTION_RTOL * scale
     floor = PROJECTION_FLOOR_RTOL * scale
-    n = extras.n_first.shape[0]
-    violation, y = extras.work[0, :n], extras.work[1, :n]
+    n = constraints.n_first.shape[0]
+    violation, y = vectors[0, :n], vectors[1, :n]
     previous = np.inf
     converged = False
     for _ in range(MAX_ITER):
-        error = _violation(q, rod_param, extras, violation)
+        error = _violation(model, data, q, violation)
         if not np.isfinite(error):
             return False
         if error <= tol or (error <= floor and error > 0.5 * previous):
             converged = True
             break
         previous = error
-        _normal_solve(q, rod_param, extras, violation, y)
-        _subtract_step(q, q, y, rod_param, extras)
+        _normal_solve(model, data, q, violation, y)
+        _subtract_step(model, q, q, y)
     if not converged:
         return False
-    c = extras.constraint_rhs.shape[0]
-    rates = extras.work[3, :c]
-    _rows_times(qdot, n_rods, extras, rates)
+    c = constraints.constraint_rhs.shape[0]
+    rates = vectors[3, :c]
+    _rows_times(qdot, n_rods, constraints, rates)
     for i in range(c):
-        violation[extras.constraint_prow[i]] = rates[i]
+        violation[constraints.constraint_prow[i]] = rates[i]
     for r in range(n_rods):
         o = 6 * r + 3
-        violation[extras.rod_prow[r]] = (
+        violation[constraints.rod_prow[r]] = (
             q[o] * qdot[o] + q[o + 1] * qdot[o + 1] + q[o + 2] * qdot[o + 2]
         )
-    _normal_solve(q, rod_param, extras, violation, y)
-    _subtract_step(qdot, q, y, rod_param, extras)
+    _normal_solve(model, data, q, violation, y)
+    _subtract_step(model, qdot, q, y)
     return all_finite(q) and all_finite(qdot)
 
 
 @njit(**JIT_OPTIONS)
-def system_project(q, qdot, rod_param, extras):  # pragma: no cover - compiled
+def system_project(model, data, q, qdot):  # pragma: no cover - compiled
     """Project ``(q, q')`` in place onto the rod constraints ``|q2| = L``, ``q2 . q2' = 0`` and
     the joints and supports ``A q = b``, ``A q' = 0``, as ``dynamics.project_to_constraints``.
 
@@ -889,69 +902,51 @@ def system_project(q, qdot, rod_param, extras):  # pragma: no cover - compiled
     |A q - b|`` [m], and False if the state is not finite or the projection did not converge (then
     ``q``, ``q'`` hold whatever the last step left).
     """
-    if extras is None:
-        error = project(q, qdot, rod_param)
+    return _project(model.constraints, model, data, q, qdot)
+
+
+@njit(**JIT_OPTIONS)
+def _project(constraints, model, data, q, qdot):  # pragma: no cover - compiled
+    """:func:`system_project` with ``constraints`` (``model.constraints``) an argument."""
+    if constraints is None:
+        error = project(q, qdot, model.rod_param)
         finite = all_finite(q) and all_finite(qdot)
         return (error if finite else np.nan), 0.0, finite
     finite = all_finite(q) and all_finite(qdot)
-    if extras.constraint_rhs.shape[0] == 0:
-        error = project(q, qdot, rod_param)
+    if constraints.constraint_rhs.shape[0] == 0:
+        error = project(q, qdot, model.rod_param)
         return (error if finite else np.nan), 0.0, finite
-    rod_error, constraint_error = system_errors(q, rod_param, extras)
+    rod_error, constraint_error = _errors(constraints, model, data, q)
     if not finite:
         return np.nan, constraint_error, False
-    return rod_error, constraint_error, _project_constrained(q, qdot, rod_param, extras)
+    return rod_error, constraint_error, _project_constrained(model, data, q, qdot)
 
 
 # --------------------------------------------------------------------------- compiled: energy
 @njit(**JIT_OPTIONS)
-def system_energies(
-    q,
-    qdot,
-    arrays,
-    extras,
-    rest_length,
-    has_gravity,
-    gravity,
-    node_work,
-):  # pragma: no cover - compiled
+def system_energies(model, data, rest, q, qdot):  # pragma: no cover - compiled
     """``(kinetic, elastic, gravity)`` energies [J], as ``dynamics.kinetic_energy``,
-    ``elastic_energy`` and ``gravity_energy``: :func:`kernel.energies` (which it is, with
-    ``extras`` None) plus ``m |x'|^2 / 2`` and ``-m g . x`` per point mass, anchors and point
-    masses taking part in the tendons' energy.  ``node_work[0]`` receives the node positions."""
-    rod_slots, rod_param, tendon_slots, _, tendon_stiffness, _ = arrays
-    if extras is None:
-        return energies(
-            q,
-            qdot,
-            rod_slots,
-            rod_param,
-            tendon_slots,
-            tendon_stiffness,
-            rest_length,
-            has_gravity,
-            gravity,
-            node_work,
-        )
-    n_rods = rod_slots.shape[0]
-    _extra_nodes(q, qdot, n_rods, extras, node_work[0], node_work[1], False)
-    kinetic, elastic, potential = energies(
-        q,
-        qdot,
-        rod_slots,
-        rod_param,
-        tendon_slots,
-        tendon_stiffness,
-        rest_length,
-        has_gravity,
-        gravity,
-        node_work,
-    )
-    for k in range(extras.point_mass.shape[0]):
+    ``elastic_energy`` and ``gravity_energy``, with the rest lengths ``rest`` (S,) [m]:
+    :func:`kernel.energies` (which it is, with ``model.constraints`` None) plus ``m |x'|^2 / 2``
+    and ``-m g . x`` per point mass, anchors and point masses taking part in the tendons'
+    energy.  ``data.node_position`` receives the node positions."""
+    return _energies(model.constraints, model, data, rest, q, qdot)
+
+
+@njit(**JIT_OPTIONS)
+def _energies(constraints, model, data, rest, q, qdot):  # pragma: no cover - compiled
+    """:func:`system_energies` with ``constraints`` (``model.constraints``) an argument."""
+    if constraints is None:
+        return energies(model, data, rest, q, qdot)
+    n_rods = model.rod_slots.shape[0]
+    _extra_nodes(constraints, q, qdot, n_rods, data.node_position, data.node_velocity, False)
+    kinetic, elastic, potential = energies(model, data, rest, q, qdot)
+    gravity = model.gravity
+    for k in range(constraints.point_mass.shape[0]):
         o = 6 * n_rods + 3 * k
-        m = extras.point_mass[k]
+        m = constraints.point_mass[k]
         speed_sq = qdot[o] * qdot[o] + qdot[o + 1] * qdot[o + 1] + qdot[o + 2] * qdot[o + 2]
         kinetic += 0.5 * m * speed_sq
-        if has_gravity:
+        if model.has_gravity:
             potential -= m * (q[o] * gravity[0] + q[o + 1] * gravity[1] + q[o + 2] * gravity[2])
     return kinetic, elastic, potential

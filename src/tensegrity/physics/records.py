@@ -1,0 +1,128 @@
+"""The two records every compiled function of the engine takes: a read-only :class:`Model` (the
+packed structure, its parameters, gravity, the input tables, the limits) and a mutable
+:class:`Data` (the inputs' rows at the stages of a step, and the scratch the evaluations write),
+as MuJoCo passes ``(m, d)``.
+
+Compiled code reads them by field name (``model.tendon_stiffness[s]``, ``data.tension[s]``);
+numba compiles a record as a struct, so reading a field costs nothing.  A new parameter of the
+physics (a tendon's, a rod's, a contact's) is one field here, filled where the records are made
+(:func:`tensegrity.physics.kernel_system.make_records`), and read where it acts.
+
+Optional parts are ``None`` (tendon damping when every ``c`` is 0, the constraints of a free
+class 1 structure, the tables of constant inputs): numba compiles a separate specialization for
+each, with the absent part's code left out.  Compiled code tests such a field by passing it as an
+argument to a function of its own (``_pass(model.tendon_damping, model, data)``), where numba
+can decide ``x is None`` at compile time; a field read inside a function cannot be tested so.
+
+Shapes: ``R`` rods, ``S`` tendons, ``M`` point masses, ``n_slots`` node slots of the kernel
+layout (:func:`tensegrity.physics.kernel.stencil_layout`), ``K`` stage rows (1 when the inputs
+are constant over a step).  Tendon arrays are in *kernel order*, node arrays by coordinate and
+slot (:class:`tensegrity.physics.kernel.PackedStructure`).
+"""
+
+from __future__ import annotations
+
+from typing import Any, NamedTuple
+
+import numpy as np
+
+__all__ = ["ConstraintWork", "Constraints", "Data", "Model"]
+
+
+class Constraints(NamedTuple):
+    """What a structure has beyond free rods and tendons (read-only; ``Model.constraints``).
+
+    Bodies are the rods ``0..R-1`` then the point masses ``R..R+M-1``.  A constraint row's
+    *entries* are its nodes on bodies (anchors are in ``constraint_rhs``), grouped by body.  Rows
+    are numbered in the reverse Cuthill-McKee order of the projection rows (constraint rows and
+    one rod-length row per rod), which keeps the envelopes of ``K`` and ``J W^-1 J^T`` narrow
+    (:mod:`tensegrity.physics.kernel_system`).
+    """
+
+    mass_slots: np.ndarray  #: (M,) uint64: slots of the point masses
+    point_mass: np.ndarray  #: (M,) float64: their masses [kg]
+    anchor_slots: np.ndarray  #: (F,) uint64: slots of the anchors
+    anchor_position: np.ndarray  #: (3, F) float64: anchor positions [m]
+    body_start: np.ndarray  #: (R + M + 1,) int64: entries of body k are body_start[k]:[k + 1]
+    entry_row: np.ndarray  #: (E,) int64: constraint row of each entry (0..c-1)
+    entry_sign: np.ndarray  #: (E,) float64: -1 at a rod's end a, +1 at end b, 0 (point mass)
+    entry_coef: np.ndarray  #: (E, 3) float64: the row's coefficients ``A_n`` at that node
+    constraint_rhs: np.ndarray  #: (c,) float64: ``b`` [m] (anchor terms included)
+    constraint_prow: np.ndarray  #: (c,) int64: projection row of each constraint row
+    rod_prow: np.ndarray  #: (R,) int64: projection row of each rod's length (if c > 0)
+    k_first: np.ndarray  #: (c,) int64: first column of each row's envelope in K
+    k_offset: np.ndarray  #: (c + 1,) int64: start of each row's envelope in the values
+    n_first: np.ndarray  #: (P,) int64: the same for ``J W^-1 J^T`` (P = c + R, or 0 if c = 0)
+    n_offset: np.ndarray  #: (P + 1,) int64
+
+
+class ConstraintWork(NamedTuple):
+    """Scratch of the joint and support forces and of the projection (``Data.constraint_work``;
+    written by every call)."""
+
+    k_values: np.ndarray  #: K's lower envelope
+    k_factor: np.ndarray  #: its Cholesky factor
+    n_values: np.ndarray  #: ``J W^-1 J^T``'s lower envelope
+    n_factor: np.ndarray  #: its Cholesky factor
+    vectors: np.ndarray  #: (4, max(P, 1)) vectors
+
+
+class Model(NamedTuple):
+    """The read-only record: a structure packed for compiled code, with what a run holds
+    constant (gravity, the input tables, the limits)."""
+
+    rod_slots: np.ndarray  #: (R, 2) uint64: slots of each rod's end nodes (a, b)
+    #: (R, 6) float64: m [kg], L [m], alpha [1/s], 2/m, 6/(m L^2), beta [1/s]
+    #: (columns ``kernel.ROD_*``)
+    rod_param: np.ndarray
+    tendon_slots: np.ndarray  #: (S, 2) uint64: slots of (tail, head)
+    #: (G, 4) int64: runs of the kernel order (first position, length, tail slot, head slot)
+    tendon_runs: np.ndarray
+    tendon_stiffness: np.ndarray  #: (S,) float64: k [N/m]
+    tendon_damping: np.ndarray | None  #: (S,) float64: c [N s/m]; None when every c is 0
+    constraints: Constraints | None  #: None for a free class 1 structure
+    has_gravity: bool
+    gravity: np.ndarray  #: (3,) float64 [m/s^2] (read if ``has_gravity``)
+    #: the engine's input tables (``tensegrity.engine.compiled.fill_stage_inputs``), or None
+    tables: Any
+    #: (3,) float64: max relative rod-length error, max constraint error [m], max energy growth
+    limits: np.ndarray
+
+
+class Data(NamedTuple):
+    """The mutable record: the inputs' rows at the stages of a step, and scratch.
+
+    Row ``s`` of the inputs is the stage ``s`` of a step, or row 0 for all stages when the
+    array has one row (inputs constant over the step).  After an evaluation ``tension`` and
+    ``elastic_tension`` hold that state's values.
+    """
+
+    rest: np.ndarray  #: (K, S) rest lengths ``Lbar = L0 - u`` [m]
+    rate: np.ndarray  #: (K, S) control rates ``du/dt`` [m/s] (read if ``has_rate``)
+    has_rate: bool
+    force: np.ndarray  #: (K, 3, n_slots) external nodal forces [N] (read if ``has_external``)
+    has_external: bool
+    node_position: np.ndarray  #: (3, n_slots) scratch [m]
+    #: (3, n_slots) scratch [m/s] (written only with tendon damping)
+    node_velocity: np.ndarray
+    #: (3, n_slots) tendon forces [N]: zero on entry to an evaluation, and left zero
+    node_force: np.ndarray
+    tension: np.ndarray  #: (S,) [N]
+    elastic_tension: np.ndarray  #: (S,) ``k (l - Lbar)`` while taut [N]
+    damping_power: np.ndarray  #: (S,) power removed by each tendon's damping [W]
+    constraint_work: ConstraintWork | None  #: None when ``Model.constraints`` is None
+    #: (4,) the blow-up monitor: energy at the start [J], largest energy scale [J], largest rod
+    #: error, largest constraint error [m]
+    monitor: np.ndarray
+
+
+def empty_work(n_slots: int, n_tendons: int) -> dict[str, np.ndarray]:
+    """The scratch fields of a :class:`Data` (zeros), by name."""
+    return {
+        "node_position": np.zeros((3, n_slots)),
+        "node_velocity": np.zeros((3, n_slots)),
+        "node_force": np.zeros((3, n_slots)),
+        "tension": np.zeros(n_tendons),
+        "elastic_tension": np.zeros(n_tendons),
+        "damping_power": np.zeros(n_tendons),
+    }
