@@ -549,13 +549,13 @@ def test_json_round_trip_keeps_supports_and_names_bad_keys():
 
 
 def test_free_class1_only_parts_reject_supported_structures():
-    from tensegrity.physics.kernel import FastKernel
+    from tensegrity.physics.kernel import pack
     from tensegrity.physics.matrix_form import shell_size
 
     s = class2_shell(3, 2)
     assert not s.is_free_class1
     # (the analysis package takes these structures now: tests/test_analysis_constrained.py)
-    for what, call in (("the compiled kernel", FastKernel), ("the matrix model", shell_size)):
+    for what, call in (("the compiled kernel", pack), ("the matrix model", shell_size)):
         with pytest.raises(ValueError, match=f"^{what}: supports only free 3-D class 1"):
             call(s)
 

@@ -188,8 +188,9 @@ def test_compiled_table_rows_equal_numpy_bit_for_bit(outside, planar):
     for control in controls:
         system = CompiledSystem(structure, Inputs(structure, control=control, external_force=force))
         assert system.tables is not None  # the compiled path
-        rest, rate, has_rate, has_external, slots, _, _ = system.stage_inputs(times)
-        assert has_rate and has_external == (force is not None)
+        data = system.stage_inputs(times)
+        rest, rate, slots = data.rest, data.rate, data.force
+        assert data.has_rate and data.has_external == (force is not None)
         packed = system.packed
         expected_rest = packed.to_kernel_order(structure.tendon_rest_length - control.at(times))
         np.testing.assert_array_equal(rest, expected_rest)
@@ -210,7 +211,7 @@ def test_rk4_with_tables_runs_compiled_stretches_and_equals_the_functions(monkey
     segment = compiled.rk4_segment
 
     def counting(*args):
-        calls.append(args[3])  # n_steps
+        calls.append(args[8])  # n_steps
         return segment(*args)
 
     monkeypatch.setattr(compiled, "rk4_segment", counting)

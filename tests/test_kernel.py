@@ -5,9 +5,8 @@ Random consistent states (every rod exactly ``L`` long, no rod-stretching veloci
 lengths with a third of the tendons slack and one at zero, random tendon and rod damping (so that
 some taut tendons have their tension clipped at zero), random external forces and gravity.  The
 compiled RK4 loop is compared with a classical RK4 (``python_rk4``) driven by ``dynamics.evaluate``
-and projected after every step, as ``simulate(method="rk4")`` does.  The threaded evaluation
-(``FastKernel(..., threads=B)``) is held to the same tolerance, and its RK4 loop to the one-thread
-loop.
+and projected after every step, as ``simulate(method="rk4")`` does.  Both go through the
+engine's records (:mod:`tensegrity.physics.records`; ``kernel_harness.CompiledKernel``).
 """
 
 from __future__ import annotations
@@ -19,12 +18,14 @@ import pytest
 
 pytest.importorskip("numba")
 
+from kernel_harness import CompiledKernel
 from tensegrity import Structure, class1_shell, simulate
 from tensegrity.physics import (
     dynamics,
     kernel as kernel_module,
 )
-from tensegrity.physics.kernel import FastKernel, stencil_layout
+from tensegrity.physics.kernel import stencil_layout
+from tensegrity.physics.kernel_system import system_rhs
 from test_dynamics import (
     mixed_controls,
     random_consistent_state as random_consistent_nodes,
@@ -130,13 +131,13 @@ def min_run(request, monkeypatch):
     return request.param
 
 
-@pytest.mark.parametrize("threads", [1, 2, 3])
 @pytest.mark.parametrize("loads", ["none", "gravity", "external", "both"])
 @pytest.mark.parametrize("case", CASES)
-def test_evaluate_matches_numpy_reference(case, loads, threads, min_run):
+def test_evaluate_matches_numpy_reference(case, loads, min_run):
     rng = np.random.default_rng(_seed(case, loads))
     structure = _structure(case, rng)
-    kernel = FastKernel(structure, threads=threads)
+    kernel = CompiledKernel(structure)
+    model, data = kernel.records(structure.tendon_rest_length)
     clipped_seen = 0
     for trial in range(4):
         q, qdot = random_consistent_state(structure, rng, speed=[0.5, 2.0, 5.0, 10.0][trial])
@@ -146,6 +147,15 @@ def test_evaluate_matches_numpy_reference(case, loads, threads, min_run):
         g = rng.standard_normal(3) * [1, 1, 10] if loads in ("gravity", "both") else None
         ref = dynamics.evaluate(structure, q, qdot, rest_length=rest, external_force=w, gravity=g)
         got = kernel.evaluate(q, qdot, rest, external_force=w, gravity=g)
+        # the same evaluation into one data record, twice: the force scratch is left zero for
+        # the next evaluation's tendon pass (no pass clears it)
+        again = np.empty_like(got.qddot)
+        for _ in range(2):
+            model, data = kernel.records(rest, w, g)
+            data.node_force[:] = 0.0
+            system_rhs(model, data, 0, q, qdot, again)
+            assert not np.any(data.node_force)
+        assert np.array_equal(again, got.qddot)
 
         assert got.qddot.shape == (structure.n_coordinates,)
         assert _rel(got.qddot, ref.qddot) < TOL, f"trial {trial}: qddot"
@@ -163,9 +173,6 @@ def test_evaluate_matches_numpy_reference(case, loads, threads, min_run):
         # Taut tendons whose damping term made the tension negative (clipped to zero).
         taut = np.setdiff1d(np.arange(structure.n_tendons), slack)
         clipped_seen += int(np.sum(got.tension[taut] == 0.0))
-        # The force scratch is left zero for the next trial's tendon pass (no pass clears it).
-        assert not np.any(kernel._node_work[2])
-        assert kernel._block_force is None or not np.any(kernel._block_force)
     assert clipped_seen > 0, "no taut tendon had its tension clipped: the test lost coverage"
 
 
@@ -173,10 +180,9 @@ def _undamped(structure: Structure) -> Structure:
     return structure.replace(tendon_damping=np.zeros(structure.n_tendons))
 
 
-@pytest.mark.parametrize("threads", [1, 2])
 @pytest.mark.parametrize("loads", ["none", "both"])
 @pytest.mark.parametrize("case", CASES)
-def test_undamped_specialization_matches_reference_and_generic_path(case, loads, threads):
+def test_undamped_specialization_matches_reference_and_generic_path(case, loads):
     """All ``c = 0``: ``pack`` selects the specialization without node velocities and length
     rates; it agrees with the reference (1e-12) and bit for bit with the generic (damped) path
     run on explicit zero damping.  One damped tendon selects the generic path."""
@@ -184,8 +190,8 @@ def test_undamped_specialization_matches_reference_and_generic_path(case, loads,
 
     rng = np.random.default_rng(_seed(case, loads, "undamped"))
     structure = _undamped(_structure(case, rng))
-    kernel = FastKernel(structure, threads=threads)
-    assert kernel._tendon_damping is None and pack(structure).tendon_damping is None
+    kernel = CompiledKernel(structure)
+    assert kernel.packed.tendon_damping is None and pack(structure).tendon_damping is None
     one_damped = structure.replace(tendon_damping=np.eye(1, structure.n_tendons, 3)[0])
     packed = pack(one_damped)
     assert np.array_equal(packed.tendon_damping, packed.to_kernel_order(one_damped.tendon_damping))
@@ -205,35 +211,11 @@ def test_undamped_specialization_matches_reference_and_generic_path(case, loads,
         assert abs(got.external_power - ref.external_power) < TOL * scale
 
         # The generic path on the same structure, forced with an explicit zero damping array.
-        qddot, tension, elastic = (
-            np.empty_like(got.qddot),
-            np.empty_like(got.tension),
-            np.empty_like(got.tension),
-        )
-        has_w = w is not None
-        p = pack(structure)
-        generic = rhs(
-            q,
-            qdot,
-            p.rod_slots,
-            p.rod_param,
-            p.tendon_slots,
-            p.tendon_runs,
-            p.tendon_stiffness,
-            np.zeros(structure.n_tendons),
-            p.to_kernel_order(rest),
-            has_w,
-            p.to_slots(w) if has_w else np.zeros((3, 1)),
-            g is not None,
-            np.zeros(3) if g is None else g,
-            np.zeros((3, 3, p.layout.n_slots)),
-            kernel._block_force,
-            qddot,
-            tension,
-            elastic,
-            np.empty(structure.n_tendons),
-        )
-        tension = tension[np.argsort(p.layout.tendon_order)]  # kernel order -> tendon order
+        qddot = np.empty_like(got.qddot)
+        model, data = kernel.records(rest, w, g)
+        model = model._replace(tendon_damping=np.zeros(structure.n_tendons))
+        generic = rhs(model, data, 0, q, qdot, qddot)
+        tension = data.tension[kernel.position]  # kernel order -> tendon order
         assert np.array_equal(qddot, got.qddot) and np.array_equal(tension, got.tension)
         assert generic == (got.dissipated_power, got.external_power)
 
@@ -241,7 +223,7 @@ def test_undamped_specialization_matches_reference_and_generic_path(case, loads,
 def test_undamped_rk4_loop_matches_python_rk4():
     rng = np.random.default_rng(_seed(None, "undamped rk4"))
     structure = _undamped(_structure(dict(n=4, m=2), rng))  # rods still damped
-    kernel = FastKernel(structure)
+    kernel = CompiledKernel(structure)
     q0, qdot0 = random_consistent_state(structure, rng, speed=3.0)
     rest, _ = random_rest_lengths(structure, q0, rng)
     w = 5.0 * rng.standard_normal((structure.n_nodes, 3))
@@ -250,56 +232,12 @@ def test_undamped_rk4_loop_matches_python_rk4():
     q_ref, qdot_ref, dissipated_ref, work_ref, _ = python_rk4(
         structure, q0, qdot0, 1e-4, 100, rest, w, g
     )
-    assert kernel._tendon_damping is None
+    assert kernel.packed.tendon_damping is None
     assert _rel(got.q, q_ref) < TOL and _rel(got.qdot, qdot_ref) < TOL
     assert dissipated_ref > 0.0  # the rods' damping
     assert abs(got.dissipated_energy - dissipated_ref) < TOL * abs(dissipated_ref)
     assert abs(got.external_work - work_ref) < TOL * (abs(work_ref) + 1e-3)
     assert _rel(got.q, q0) > 1e-6
-
-
-def test_evaluate_buffers_and_input_forms():
-    """``out`` buffers are filled and returned; read-only, non-contiguous, list and float32
-    inputs give the same answer as plain arrays; the elastic tension can be asked for."""
-    rng = np.random.default_rng(3)
-    structure = with_random_parameters(class1_shell(4, 2), rng)
-    kernel = FastKernel(structure)
-    q, qdot = random_consistent_state(structure, rng)
-    rest, _ = random_rest_lengths(structure, q, rng)
-    g = np.array([0.0, 0.0, -9.81])
-    w = rng.standard_normal((structure.n_nodes, 3))
-    ref = dynamics.evaluate(structure, q, qdot, rest_length=rest, external_force=w, gravity=g)
-
-    qddot, tension, elastic = (
-        np.full(structure.n_coordinates, np.nan),
-        np.full(structure.n_tendons, np.nan),
-        np.full(structure.n_tendons, np.nan),
-    )
-    got = kernel.evaluate(q, qdot, rest, w, g, out=(qddot, tension), elastic_tension_out=elastic)
-    assert got.qddot is qddot and got.tension is tension
-    assert _rel(qddot, ref.qddot) < TOL
-    assert _rel(elastic, ref.tendons.elastic_tension) < TOL
-
-    ro = [np.array(x) for x in (q, qdot, rest)]
-    for x in ro:
-        x.setflags(write=False)
-    strided = np.repeat(q, 2)[::2]
-    assert not strided.flags.c_contiguous
-    for args in (ro, (strided, qdot, rest), (q.tolist(), qdot, list(rest))):
-        again = kernel.evaluate(*args, w, g)
-        assert np.array_equal(again.qddot, got.qddot)
-    # The structure's own (read-only) rest lengths, twice: a cached copy, same answer.
-    a = kernel.evaluate(q, qdot, structure.tendon_rest_length).qddot
-    b = kernel.evaluate(q, qdot, structure.tendon_rest_length).qddot
-    ref0 = dynamics.evaluate(structure, q, qdot, rest_length=structure.tendon_rest_length).qddot
-    assert np.array_equal(a, b) and _rel(a, ref0) < TOL
-
-    with pytest.raises(ValueError, match="q: expected shape"):
-        kernel.evaluate(q[:-1], qdot, rest)
-    with pytest.raises(ValueError, match="external_force"):
-        kernel.evaluate(q, qdot, rest, external_force=np.zeros((3, 3)))
-    with pytest.raises(ValueError, match="out"):
-        kernel.evaluate(q, qdot, rest, out=(np.empty(3), tension))
 
 
 # --------------------------------------------------------------------------- RK4
@@ -335,7 +273,7 @@ def python_rk4(structure, q, qdot, dt, n_steps, rest, w, g):
 def test_rk4_loop_matches_python_rk4(case, min_run):
     rng = np.random.default_rng(_seed(case, "rk4"))
     structure = _structure(case, rng)
-    kernel = FastKernel(structure)
+    kernel = CompiledKernel(structure)
     q0, qdot0 = random_consistent_state(structure, rng, speed=3.0)
     rest, _ = random_rest_lengths(structure, q0, rng)
     w = 5.0 * rng.standard_normal((structure.n_nodes, 3))
@@ -367,62 +305,11 @@ def test_rk4_loop_matches_python_rk4(case, min_run):
     assert np.array_equal(q_b, got.q) and np.array_equal(qdot_b, got.qdot)
 
 
-def _nodes_shared_between_blocks(structure, n_blocks) -> int:
-    """How many nodes get forces from tendons of more than one of the threaded path's blocks."""
-    S = structure.n_tendons
-    owners = [set() for _ in range(structure.n_nodes)]
-    for k in range(n_blocks):
-        for node in structure.tendon_nodes[k * S // n_blocks : (k + 1) * S // n_blocks].ravel():
-            owners[node].add(k)
-    return sum(len(o) > 1 for o in owners)
-
-
-@pytest.mark.parametrize("threads", [2, 3])
-@pytest.mark.parametrize("case", [CASES[2], CASES[5]])
-def test_threaded_rk4_matches_one_thread(case, threads):
-    """The threaded path (tendon forces summed per block, blocks summed in order) follows the
-    one-thread trajectory to round-off, and repeats itself bit for bit (no scheduling effect)."""
-    rng = np.random.default_rng(_seed(case, "threads"))
-    structure = _structure(case, rng)
-    assert _nodes_shared_between_blocks(structure, threads) > 0, "blocks do not overlap: no test"
-    q0, qdot0 = random_consistent_state(structure, rng, speed=3.0)
-    rest, _ = random_rest_lengths(structure, q0, rng)
-    w = 5.0 * rng.standard_normal((structure.n_nodes, 3))
-    g = np.array([0.2, -0.4, -9.81])
-    one = FastKernel(structure).rk4_with_work(q0, qdot0, 1e-4, 100, rest, w, g)
-    threaded = FastKernel(structure, threads=threads)
-    got = threaded.rk4_with_work(q0, qdot0, 1e-4, 100, rest, w, g)
-    again = threaded.rk4_with_work(q0, qdot0, 1e-4, 100, rest, w, g)
-
-    assert _rel(got.q, one.q) < TOL and _rel(got.qdot, one.qdot) < TOL
-    assert abs(got.dissipated_energy - one.dissipated_energy) < TOL * abs(one.dissipated_energy)
-    assert abs(got.external_work - one.external_work) < TOL * (abs(one.external_work) + 1e-3)
-    assert got.n_steps == one.n_steps == 100 and _rel(got.q, q0) > 1e-6
-    assert np.array_equal(again.q, got.q) and np.array_equal(again.qdot, got.qdot)
-    assert again.dissipated_energy == got.dissipated_energy
-
-
-def test_rk4_zero_steps_and_bad_arguments():
-    structure = class1_shell(3, 1)
-    kernel = FastKernel(structure)
-    state = dynamics.initial_state(structure)
-    q, _ = kernel.rk4(state.q, state.qdot, 1e-4, 0, structure.tendon_rest_length)
-    assert np.array_equal(q, state.q) and q is not state.q
-    for dt in (0.0, -1e-4, np.nan):
-        with pytest.raises(ValueError, match="dt"):
-            kernel.rk4(state.q, state.qdot, dt, 1, structure.tendon_rest_length)
-    with pytest.raises(ValueError, match="n_steps"):
-        kernel.rk4(state.q, state.qdot, 1e-4, -1, structure.tendon_rest_length)
-    for threads in (0, 1.5, True):
-        with pytest.raises(ValueError, match="threads"):
-            FastKernel(structure, threads=threads)
-
-
 def test_rk4_stops_on_blow_up():
     """Too large a step stretches the rods: the loop stops after the first step whose rod-length
     error exceeds the limit; a non-finite state stops it at once with error NaN."""
     structure = class1_shell(3, 1, stiffness=1e4)
-    kernel = FastKernel(structure)
+    kernel = CompiledKernel(structure)
     state = dynamics.initial_state(structure)
     rest = structure.tendon_rest_length
     fine = kernel.rk4_with_work(state.q, state.qdot, 1e-4, 20, rest, max_rod_length_error=1e-3)
@@ -444,7 +331,7 @@ def test_rk4_stops_on_blow_up():
     for k in (3, 0):  # in q2, in q2' (first rod)
         q_, qdot_ = state.q.copy(), state.qdot.copy()
         (q_ if k == 3 else qdot_)[3] = np.nan
-        assert np.isnan(project(q_, qdot_, kernel._rod_param))
+        assert np.isnan(project(q_, qdot_, kernel.packed.rod_param))
 
 
 def test_project_matches_reference():
@@ -454,7 +341,7 @@ def test_project_matches_reference():
     q = q * (1 + 1e-3 * rng.standard_normal(q.size))
     qdot = qdot + rng.standard_normal(q.size)
     expected = dynamics.project_to_constraints(structure, q, qdot)
-    got = FastKernel(structure).project(q, qdot)
+    got = CompiledKernel(structure).project(q, qdot)
     assert _rel(got[0], expected[0]) < TOL and _rel(got[1], expected[1]) < TOL
 
 
@@ -519,8 +406,7 @@ def test_large_shell_is_nearly_all_runs():
     assert layout.tendon_runs[:, 1].sum() >= 0.99 * structure.n_tendons
 
 
-@pytest.mark.parametrize("threads", [1, 2])
-def test_long_runs_match_reference(threads):
+def test_long_runs_match_reference():
     """Runs longer than ``kernel.RUN_CHUNK`` are cut into pieces, ordered by cell: the (100,50)
     shell (runs of ~5,000 tendons), damped and undamped, against the reference."""
     rng = np.random.default_rng(_seed(None, "long runs"))
@@ -537,7 +423,7 @@ def test_long_runs_match_reference(threads):
     rest, _ = random_rest_lengths(structure, q, rng)
     for s in (structure, _undamped(structure)):
         ref = dynamics.evaluate(s, q, qdot, rest_length=rest)
-        got = FastKernel(s, threads=threads).evaluate(q, qdot, rest)
+        got = CompiledKernel(s).evaluate(q, qdot, rest)
         assert _rel(got.qddot, ref.qddot) < TOL
         assert _rel(got.tension, ref.tendons.tension) < TOL
         assert abs(got.dissipated_power - ref.dissipated_power) < TOL * (

@@ -36,6 +36,7 @@ from tensegrity.physics.kernel_system import (
     drop_coordinates,
     embed_planar,
     lift_coordinates,
+    make_records,
     pack_system,
     system_energies,
     system_errors,
@@ -235,18 +236,26 @@ class Compiled:
         self.structure = structure
         self.planar = structure.dim == 2
         self.system = pack_system(embed_planar(structure) if self.planar else structure)
-        p = self.packed = self.system.packed
-        self.arrays = (
-            p.rod_slots,
-            p.rod_param,
-            p.tendon_slots,
-            p.tendon_runs,
-            p.tendon_stiffness,
-            p.tendon_damping,
+        self.packed = self.system.packed
+        self.model, self.data = self.records(self.structure.tendon_rest_length)
+
+    def records(self, rest, w=None, g=None):
+        """The records with rest lengths ``rest`` (S,), nodal forces ``w`` (N, dim) and gravity
+        ``g`` (dim,), or NaN where they are absent: not to be read without ``has_external`` /
+        ``has_gravity`` (NaN would show)."""
+        has_w, has_g = w is not None, g is not None
+        p = self.packed
+        model, data = make_records(
+            self.system,
+            rest=p.to_kernel_order(np.asarray(rest, dtype=float))[None],
+            force=p.to_slots(self.nodes3(w))[None] if has_w else None,
+            gravity=np.pad(np.asarray(g, float), (0, 3 - len(g))) if has_g else None,
         )
-        self.node_work = np.zeros((3, 3, p.layout.n_slots))
-        S = structure.n_tendons
-        self.tension, self.elastic, self.power = np.empty(S), np.empty(S), np.empty(S)
+        if not has_w:
+            data = data._replace(force=np.full((1, 3, 1), np.nan))
+        if not has_g:
+            model = model._replace(gravity=np.full(3, np.nan))
+        return model, data
 
     def lift(self, x):
         return lift_coordinates(self.structure, x) if self.planar else np.array(x, dtype=float)
@@ -265,29 +274,12 @@ class Compiled:
 
     def rhs(self, q, qdot, rest, w=None, g=None):
         """``(qddot (lifted), tension, elastic_tension, dissipated, external)``."""
-        has_w, has_g = w is not None, g is not None
-        # Not to be read without has_external / has_gravity: NaN would show.
-        w = self.packed.to_slots(self.nodes3(w)) if has_w else np.full((3, 1), np.nan)
-        g = np.pad(np.asarray(g, float), (0, 3 - len(g))) if has_g else np.full(3, np.nan)
+        model, data = self.records(rest, w, g)
+        self.data = data
         qddot = np.full(self.system.n_coordinates, np.nan)
-        d, e = system_rhs(
-            self.lift(q),
-            self.lift(qdot),
-            self.arrays,
-            self.system.extras,
-            self.packed.to_kernel_order(rest),
-            has_w,
-            w,
-            has_g,
-            g,
-            self.node_work,
-            None,
-            qddot,
-            self.tension,
-            self.elastic,
-            self.power,
-        )
-        return (qddot, self.structure_order(self.tension), self.structure_order(self.elastic), d, e)
+        d, e = system_rhs(model, data, 0, self.lift(q), self.lift(qdot), qddot)
+        tension, elastic = data.tension, data.elastic_tension
+        return (qddot, self.structure_order(tension), self.structure_order(elastic), d, e)
 
 
 # --------------------------------------------------------------------------- rhs
@@ -299,7 +291,7 @@ def test_rhs_matches_numpy_reference(name, loads, damped):
     s = randomized(name, rng, damped)
     compiled = Compiled(s)
     free = name in ("class1(3,1)", "planar two-rod")  # (embedded: a free 3-D class 1 structure)
-    assert (compiled.system.extras is None) == free
+    assert (compiled.system.constraints is None) == free
     assert (compiled.packed.tendon_damping is None) == (not damped or s.n_tendons == 0)
     for trial in range(3):
         q, qdot = perturbed_state(
@@ -322,7 +314,7 @@ def test_rhs_matches_numpy_reference(name, loads, damped):
         if compiled.planar:  # no force out of the plane: z accelerations exactly 0
             assert np.all(qddot.reshape(-1, 3)[:, 2] == 0.0)
         # kernel.rhs's contract: the force scratch is left zero (anchors and point masses too)
-        assert not np.any(compiled.node_work[2])
+        assert not np.any(compiled.data.node_force)
         if s.has_constraints:  # the constraint forces are really there
             accel = np.max(np.abs(ref.qddot))
             assert np.max(np.abs(constraints_of(s).matrix @ ref.qddot)) < 1e-9 * accel
@@ -344,55 +336,40 @@ def _same_code(got, expected):
 
 
 def test_free_class1_is_the_existing_kernel():
-    """``extras`` None: system_rhs, system_project, system_energies and system_errors give
-    kernel.rhs's, kernel.project's and kernel.energies's numbers (the same code; to the last
-    ulps of :data:`COPIES_ULP`)."""
+    """``model.constraints`` None: system_rhs, system_project, system_energies and
+    system_errors give kernel.rhs's, kernel.project's and kernel.energies's numbers (the same
+    code; to the last ulps of :data:`COPIES_ULP`)."""
     for damped in (True, False):
         rng = np.random.default_rng(_seed("bitwise", damped))
         s = randomized("class1(3,1)", rng, damped)
         compiled = Compiled(s)
         p = compiled.packed
-        assert compiled.system.extras is None and compiled.system.n_coordinates == s.n_coordinates
+        assert compiled.system.constraints is None
+        assert compiled.system.n_coordinates == s.n_coordinates
         q, qdot = perturbed_state(s, rng)
-        rest = p.to_kernel_order(random_rest(s, q, rng))
-        w, g = p.to_slots(rng.standard_normal((s.n_nodes, 3))), np.array([0.3, -0.2, -9.81])
-        S, n = s.n_tendons, s.n_coordinates
-        outs = [[np.empty(n), np.empty(S), np.empty(S), np.zeros(S)] for _ in range(2)]
-        work = [np.zeros((3, 3, p.layout.n_slots)) for _ in range(2)]
-        got = system_rhs(
-            q, qdot, compiled.arrays, None, rest, True, w, True, g, work[0], None, *outs[0]
-        )
-        expected = kernel.rhs(
-            q, qdot, *compiled.arrays, rest, True, w, True, g, work[1], None, *outs[1]
-        )
+        rest = random_rest(s, q, rng)
+        w, g = rng.standard_normal((s.n_nodes, 3)), np.array([0.3, -0.2, -9.81])
+        records = [compiled.records(rest, w, g) for _ in range(2)]
+        n = s.n_coordinates
+        qddots = [np.empty(n), np.empty(n)]
+        got = system_rhs(*records[0], 0, q, qdot, qddots[0])
+        expected = kernel.rhs(*records[1], 0, q, qdot, qddots[1])
         _same_code(got, expected)
-        for a, b in zip(*outs, strict=True):
-            _same_code(a, b)
-        assert not np.any(work[0][2])
+        _same_code(qddots[0], qddots[1])
+        for field in ("tension", "elastic_tension", "damping_power"):
+            _same_code(getattr(records[0][1], field), getattr(records[1][1], field))
+        assert not np.any(records[0][1].node_force)
 
-        energy = system_energies(q, qdot, compiled.arrays, None, rest, True, g, work[0])
-        _same_code(
-            energy,
-            kernel.energies(
-                q,
-                qdot,
-                p.rod_slots,
-                p.rod_param,
-                p.tendon_slots,
-                p.tendon_stiffness,
-                rest,
-                True,
-                g,
-                work[1],
-            ),
-        )
+        kernel_rest = records[0][1].rest[0]
+        energy = system_energies(*records[0], kernel_rest, q, qdot)
+        _same_code(energy, kernel.energies(*records[1], kernel_rest, q, qdot))
         states = [(q.copy(), qdot.copy()) for _ in range(2)]
-        rod_error, constraint_error, ok = system_project(*states[0], p.rod_param, None)
+        rod_error, constraint_error, ok = system_project(*records[0], *states[0])
         _same_code(rod_error, kernel.project(*states[1], p.rod_param))
         assert ok and constraint_error == 0.0
         _same_code(states[0][0], states[1][0])
         _same_code(states[0][1], states[1][1])
-        assert system_errors(q, p.rod_param, None) == (rod_error, 0.0)
+        assert system_errors(*records[0], q) == (rod_error, 0.0)
 
 
 # --------------------------------------------------------------------------- projection
@@ -401,14 +378,14 @@ def test_projection_matches_reference(name):
     rng = np.random.default_rng(_seed(name, "project"))
     s = randomized(name, rng)
     compiled = Compiled(s)
-    rod_param, extras = compiled.packed.rod_param, compiled.system.extras
+    records = compiled.model, compiled.data
     floor = PROJECTION_FLOOR_RTOL * max(float(s.rod_length.max(initial=0.0)), 1.0)
     for jitter in (1e-3, 3e-2):
         q, qdot = perturbed_state(s, rng, jitter=jitter)
         ref_q, ref_qdot = dynamics.project_to_constraints(s, q, qdot)
         got_q, got_qdot = compiled.lift(q), compiled.lift(qdot)
-        before = system_errors(got_q, rod_param, extras)
-        rod_error, constraint_error, ok = system_project(got_q, got_qdot, rod_param, extras)
+        before = system_errors(*records, got_q)
+        rod_error, constraint_error, ok = system_project(*records, got_q, got_qdot)
         assert ok
         assert (rod_error, constraint_error) == before
         rod_ref = np.max(np.abs(dynamics.rod_length_error(s, q)), initial=0.0)
@@ -421,7 +398,7 @@ def test_projection_matches_reference(name):
             assert np.all(got_qdot.reshape(-1, 3)[:, 2] == 0.0)
         # on the constraints, to the projection's tolerance
         q_2d, qdot_2d = compiled.drop(got_q), compiled.drop(got_qdot)
-        rods_after, constraints_after = system_errors(got_q, rod_param, extras)
+        rods_after, constraints_after = system_errors(*records, got_q)
         assert np.all(np.abs(dynamics.rod_length_error(s, q_2d)) * s.rod_length <= floor)
         assert rods_after <= floor and constraints_after <= floor
         assert dynamics.constraint_error(s, q_2d) <= floor
@@ -435,7 +412,7 @@ def test_projection_matches_reference(name):
             assert np.max(np.abs(constraints_of(s).matrix @ qdot_2d)) < TOL * v_scale
         # a state on the constraints is (nearly) a fixed point
         again_q, again_qdot = got_q.copy(), got_qdot.copy()
-        assert system_project(again_q, again_qdot, rod_param, extras)[2]
+        assert system_project(*records, again_q, again_qdot)[2]
         assert _rel(again_q, got_q) < TOL and _rel(again_qdot, got_qdot) < TOL
 
 
@@ -447,20 +424,18 @@ def test_projection_reports_a_non_finite_state(name):
     for where, value in ((0, np.nan), (1, np.inf)):
         q, qdot = state.q.copy(), state.qdot.copy()
         (q if where == 0 else qdot)[-1] = value
-        rod_error, _, ok = system_project(
-            q, qdot, compiled.packed.rod_param, compiled.system.extras
-        )
+        rod_error, _, ok = system_project(compiled.model, compiled.data, q, qdot)
         assert not ok
         if s.n_rods and where == 0 and s.is_free_class1:
             assert np.isnan(rod_error)
     q = state.q.copy()
     if s.n_rods:
         q[3] = np.nan
-        assert np.isnan(system_errors(q, compiled.packed.rod_param, compiled.system.extras)[0])
+        assert np.isnan(system_errors(compiled.model, compiled.data, q)[0])
     if s.has_constraints:
         q = state.q.copy()
         q[0] = np.nan
-        assert np.isnan(system_errors(q, compiled.packed.rod_param, compiled.system.extras)[1])
+        assert np.isnan(system_errors(compiled.model, compiled.data, q)[1])
 
 
 # --------------------------------------------------------------------------- energies, nodes
@@ -474,15 +449,9 @@ def test_energies_errors_and_nodes_match_reference(name):
         q, qdot = perturbed_state(s, rng, jitter=0.05)
         rest = random_rest(s, q, rng)
         g = rng.standard_normal(s.dim) * 5
+        model, data = compiled.records(rest, g=g if with_gravity else None)
         kinetic, elastic, potential = system_energies(
-            compiled.lift(q),
-            compiled.lift(qdot),
-            compiled.arrays,
-            compiled.system.extras,
-            p.to_kernel_order(rest),
-            with_gravity,
-            np.pad(g, (0, 3 - s.dim)),
-            compiled.node_work,
+            model, data, data.rest[0], compiled.lift(q), compiled.lift(qdot)
         )
         nodes = dynamics.nodes_from_coordinates(s, q)
         expected = (
@@ -493,40 +462,22 @@ def test_energies_errors_and_nodes_match_reference(name):
         scale = sum(abs(x) for x in expected) + 1e-300
         for got, want in zip((kinetic, elastic, potential), expected, strict=True):
             assert abs(got - want) < TOL * scale
-        assert not np.any(compiled.node_work[2])
+        assert not np.any(data.node_force)
 
-        rod_error, constraint_error = system_errors(
-            compiled.lift(q), p.rod_param, compiled.system.extras
-        )
+        rod_error, constraint_error = system_errors(model, data, compiled.lift(q))
         assert abs(rod_error - np.max(np.abs(dynamics.rod_length_error(s, q)), initial=0.0)) < 1e-15
         assert abs(constraint_error - dynamics.constraint_error(s, q)) < 1e-14
         if s.has_constraints:
             assert constraint_error > 1e-4  # the perturbation is seen
 
         positions, velocities = (np.full((3, p.layout.n_slots), np.nan) for _ in range(2))
-        system_nodes(
-            compiled.lift(q),
-            compiled.lift(qdot),
-            p.rod_slots,
-            compiled.system.extras,
-            positions,
-            velocities,
-            True,
-        )
+        system_nodes(model, compiled.lift(q), compiled.lift(qdot), positions, velocities, True)
         slot = p.layout.node_slot
         assert np.array_equal(positions[:, slot].T, compiled.nodes3(nodes))
         rates = compiled.nodes3(dynamics.nodes_from_coordinates(s, qdot, rates=True))
         assert np.array_equal(velocities[:, slot].T, rates)
         untouched = np.full((3, p.layout.n_slots), 7.0)
-        system_nodes(
-            compiled.lift(q),
-            compiled.lift(qdot),
-            p.rod_slots,
-            compiled.system.extras,
-            positions,
-            untouched,
-            False,
-        )
+        system_nodes(model, compiled.lift(q), compiled.lift(qdot), positions, untouched, False)
         assert np.all(untouched == 7.0)
 
 
@@ -585,11 +536,11 @@ def test_constraint_rows_are_the_references():
     for name in CONSTRAINED:
         s = STRUCTURES[name]()
         s3 = embed_planar(s) if s.dim == 2 else s
-        extras = pack_system(s3).extras
+        constraints = pack_system(s3).constraints
         c = constraints_of(s3).matrix.shape[0]
-        assert extras.constraint_rhs.shape == (c,)
-        assert np.bincount(extras.entry_row, minlength=c).max() <= 2
-        assert sorted(extras.constraint_rhs) == pytest.approx(
+        assert constraints.constraint_rhs.shape == (c,)
+        assert np.bincount(constraints.entry_row, minlength=c).max() <= 2
+        assert sorted(constraints.constraint_rhs) == pytest.approx(
             sorted(constraints_of(s3).rhs), abs=1e-15
         )
-    assert pack_system(held_and_free()).extras.constraint_rhs.size == 6
+    assert pack_system(held_and_free()).constraints.constraint_rhs.size == 6

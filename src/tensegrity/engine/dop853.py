@@ -104,7 +104,9 @@ _COUNTS = {"nsteps": NSTEPS, "nswitches": NSWITCHES, "nprojections": NPROJECTION
 #: What :func:`dop853_run` returns: the samples up to the last step's end are due (its dense
 #: output ready); the step reached ``bound``; ``max_steps`` steps were taken; the switch buffer
 #: is full; a blow-up check failed; the step size fell below its minimum; an input could not be
-#: made (a control table makes a rest length negative at ``clock[INPUT_TIME]``); the call has
+#: made (a control table makes a rest length negative at ``clock[INPUT_TIME]``, which the call
+#: also returns as its value: a store just before that return was lost when the loop took its
+#: state as one record, seen with numba 0.68.1, so the caller reads the value); the call has
 #: made its share of attempts (``settings[6]``: Python gets its turn, for signals and the
 #: wall-clock budget, at least that often).
 (
@@ -315,7 +317,7 @@ def _dop853_loop(model, rows, point, provider, loop, bound, next_sample_t):  # p
             point, bad = _point(clock[T], point, tables, provider, times1)
             if bad >= 0:
                 clock[INPUT_TIME] = clock[T]
-                return RUN_INPUT, CHECK_OK, 0.0
+                return RUN_INPUT, CHECK_OK, clock[INPUT_TIME]
             ode_rhs(model, point, np.int64(0), y, K[0])
             tally[NFEV] += 1
             if locate or tally[START]:
@@ -327,7 +329,7 @@ def _dop853_loop(model, rows, point, provider, loop, bound, next_sample_t):  # p
                 check_state(model, point, np.int64(0), y, no_limits, np.bool_(True))
                 clock[STEP] = initial_step(K[0], K[1])
                 if np.isnan(clock[STEP]):
-                    return RUN_INPUT, CHECK_OK, 0.0
+                    return RUN_INPUT, CHECK_OK, clock[INPUT_TIME]
                 tally[ALLOW_PROVISIONAL] = locate
         tally[LANDED] = 0
         if clock[T] >= bound:
@@ -349,7 +351,7 @@ def _dop853_loop(model, rows, point, provider, loop, bound, next_sample_t):  # p
             rows, bad = _inputs_at(times, rows, tables, provider)
             if bad >= 0:
                 clock[INPUT_TIME] = times[bad]
-                return RUN_INPUT, CHECK_OK, 0.0
+                return RUN_INPUT, CHECK_OK, clock[INPUT_TIME]
             error = dop853_attempt(model, rows, y, h, K, y_new, stage, (rtol, atol))
             tally[NFEV] += DOP853_STAGES
             attempts += 1
@@ -388,7 +390,7 @@ def _dop853_loop(model, rows, point, provider, loop, bound, next_sample_t):  # p
             point, bad = _point(clock[T], point, tables, provider, times1)
             if bad >= 0:
                 clock[INPUT_TIME] = clock[T]
-                return RUN_INPUT, CHECK_OK, 0.0
+                return RUN_INPUT, CHECK_OK, clock[INPUT_TIME]
             check, value = check_state(model, point, np.int64(0), y, limits, np.bool_(True))
             if check != CHECK_OK:
                 return RUN_CHECK_FAILED, check, value
@@ -403,7 +405,7 @@ def _dop853_loop(model, rows, point, provider, loop, bound, next_sample_t):  # p
         rows, bad = _inputs_at(times, rows, tables, provider)
         if bad >= 0:
             clock[INPUT_TIME] = times[bad]
-            return RUN_INPUT, CHECK_OK, 0.0
+            return RUN_INPUT, CHECK_OK, clock[INPUT_TIME]
         dop853_dense(model, rows, y_old, y, h, K, F, stage)
         tally[NFEV] += 3
         tally[DENSE_READY] = 1
@@ -430,7 +432,7 @@ def _dop853_loop(model, rows, point, provider, loop, bound, next_sample_t):  # p
                 t_switch = hi
                 g, failed = switch_distance_at(t_switch, count)
         if failed:
-            return RUN_INPUT, CHECK_OK, 0.0
+            return RUN_INPUT, CHECK_OK, clock[INPUT_TIME]
         exact = not tally[PROVISIONAL]
         landing_mask[:] = False
         for k in range(count):  # the tendons switched by then (distance <= 0 there)

@@ -666,7 +666,7 @@ def _compiled_adaptive(run: _Run, stepper: DOP853, resume: LoopState | None) -> 
                 "spacing between numbers"
             )
         if code == dop853.RUN_INPUT:  # (raises the ValueError naming the tendon and time)
-            run.system.inputs.rest_length(np.array([stepper.clock[dop853.INPUT_TIME]]))
+            run.system.inputs.rest_length(np.array([value]))  # (value: the input's time)
             raise AssertionError("RUN_INPUT: the inputs were made")  # pragma: no cover
         if code == dop853.RUN_MAX_STEPS:
             run.stop_at_max_steps(stepper.t)

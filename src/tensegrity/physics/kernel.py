@@ -569,9 +569,16 @@ def rhs(model, data, s, q, qdot, qddot):  # pragma: no cover - compiled
     ``model.tendon_damping`` is None when every ``c`` is 0 (the undamped specialization,
     chosen at compile time); ``data.node_force`` is zero on entry and left zero.
     """
+    return _rhs(model.tendon_damping, model, data, s, q, qdot, qddot)
+
+
+@njit(**JIT_OPTIONS)
+def _rhs(tendon_damping, model, data, s, q, qdot, qddot):  # pragma: no cover - compiled
+    """:func:`rhs` with ``tendon_damping`` (``model.tendon_damping``) an argument: the passes
+    inlined here test it for None, which numba decides at compile time only for an argument."""
     rest = stage_row(data.rest, s)
-    _node_pass(model.tendon_damping, model, data, q, qdot)
-    tendon_dissipation = _tendon_pass(model.tendon_damping, model, data, rest)
+    _node_pass(tendon_damping, model, data, q, qdot)
+    tendon_dissipation = _tendon_pass(tendon_damping, model, data, rest)
     rod_dissipation, external_power = _rod_pass(
         model,
         data,
@@ -653,8 +660,8 @@ RUN_CHUNK = 1024
 #: 128 it is within 3% of the one-by-one loop.  96 keeps the (100,100) shell's runs of 99.)
 MIN_RUN = 96
 #: Fewest tendons in runs worth the layout: below it :func:`stencil_layout` makes no runs, so that
-#: the tendons keep the structure's order and ``FastKernel.evaluate`` does not reorder (~1 us
-#: per call each way, more than runs save on a (10,10) shell).
+#: the tendons keep the structure's order and the engine's reordering of per-tendon values is the
+#: identity (~1 us per call each way otherwise, more than runs save on a (10,10) shell).
 MIN_TENDONS_IN_RUNS = 2048
 #: Node classes tried by :func:`stencil_layout` (nodes per cell; 4 for the class 1 shell).
 MAX_NODE_CLASSES = 8
