@@ -7,6 +7,7 @@ from __future__ import annotations
 import importlib
 import subprocess
 import sys
+import types
 
 import h5py
 import numpy as np
@@ -418,11 +419,8 @@ def test_view_writes_a_structure_page_atomically(tmp_path):
 
 
 def test_results_and_structures_are_shown_by_the_plots_functions(tmp_path):
-    """``tensegrity.plots.view(result, path)``, ``plots.animate(result, path)``,
-    ``plots.view(structure, path)`` and the inline view in Jupyter (``plots.show_inline``, on
-    IPython's HTML formatter): the same files and page as the functions they call."""
-    from IPython.core.interactiveshell import InteractiveShell
-
+    """``tensegrity.plots.view(result, path)``, ``plots.animate(result, path)`` and
+    ``plots.view(structure, path)``: the same files and page as the functions they call."""
     from tensegrity import class1_shell, plots, simulate
     from tensegrity.plots.viewer import html, read_viewer_data
 
@@ -435,8 +433,17 @@ def test_results_and_structures_are_shown_by_the_plots_functions(tmp_path):
     assert read_viewer_data(plots.view(shell, tmp_path / "shell.html").read_text())["n_frames"] == 1
     video = plots.animate(result, tmp_path / "run.gif", fps=10)
     assert video.stat().st_size > 0
-    ipython = InteractiveShell.instance()
-    plots.show_inline(ipython)
+
+
+def test_results_and_structures_are_shown_inline():
+    """The inline view in Jupyter (``plots.show_inline``, on IPython's HTML formatter)."""
+    formatters = pytest.importorskip("IPython.core.formatters")
+    from tensegrity import class1_shell, plots, simulate
+
+    shell = class1_shell(3, 1)
+    result = simulate(shell, (0.0, 0.2), sample_dt=0.02)
+    ipython = types.SimpleNamespace(display_formatter=formatters.DisplayFormatter())
+    plots.show_inline(ipython)  # (the part of a shell it uses)
     for shown in (result, shell):
         inline = ipython.display_formatter.format(shown)[0]["text/html"]
         assert inline.startswith("<iframe srcdoc=") and "tensegrity-data" in inline
@@ -446,6 +453,7 @@ def test_the_package_shows_results_inline_under_ipython():
     """Imported in a running IPython (as in a Jupyter kernel), the package registers the inline
     view itself; the model and the engine are not given methods for it, and matplotlib is not
     loaded until a page is shown."""
+    pytest.importorskip("IPython")
     code = (
         "import sys\n"
         "from IPython.core.interactiveshell import InteractiveShell\n"
