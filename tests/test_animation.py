@@ -5,6 +5,9 @@ browser: tests/test_viewer_browser.py."""
 from __future__ import annotations
 
 import importlib
+import subprocess
+import sys
+import types
 
 import h5py
 import numpy as np
@@ -415,24 +418,55 @@ def test_view_writes_a_structure_page_atomically(tmp_path):
     assert read_viewer_data(path.read_text())["n_frames"] == 1
 
 
-def test_results_and_structures_show_themselves(tmp_path):
-    """``result.view(path)``, ``result.animate(path)``, ``structure.view(path)`` and the inline
-    view in Jupyter (``_repr_html_``): the same files and page as the functions they call."""
-    from tensegrity import class1_shell, simulate
+def test_results_and_structures_are_shown_by_the_plots_functions(tmp_path):
+    """``tensegrity.plots.view(result, path)``, ``plots.animate(result, path)`` and
+    ``plots.view(structure, path)``: the same files and page as the functions they call."""
+    from tensegrity import class1_shell, plots, simulate
     from tensegrity.plots.viewer import html, read_viewer_data
 
     shell = class1_shell(3, 1)
     result = simulate(shell, (0.0, 0.2), sample_dt=0.02)
-    page = result.view(tmp_path / "run.html").read_text()
+    page = plots.view(result, tmp_path / "run.html").read_text()
     assert page == html(result)
     data = read_viewer_data(page)
     np.testing.assert_array_equal(data["positions"], result.node_position.astype(np.float32))
-    assert read_viewer_data(shell.view(tmp_path / "shell.html").read_text())["n_frames"] == 1
-    video = result.animate(tmp_path / "run.gif", fps=10)
+    assert read_viewer_data(plots.view(shell, tmp_path / "shell.html").read_text())["n_frames"] == 1
+    video = plots.animate(result, tmp_path / "run.gif", fps=10)
     assert video.stat().st_size > 0
+
+
+def test_results_and_structures_are_shown_inline():
+    """The inline view in Jupyter (``plots.show_inline``, on IPython's HTML formatter)."""
+    formatters = pytest.importorskip("IPython.core.formatters")
+    from tensegrity import class1_shell, plots, simulate
+
+    shell = class1_shell(3, 1)
+    result = simulate(shell, (0.0, 0.2), sample_dt=0.02)
+    ipython = types.SimpleNamespace(display_formatter=formatters.DisplayFormatter())
+    plots.show_inline(ipython)  # (the part of a shell it uses)
     for shown in (result, shell):
-        inline = shown._repr_html_()
+        inline = ipython.display_formatter.format(shown)[0]["text/html"]
         assert inline.startswith("<iframe srcdoc=") and "tensegrity-data" in inline
+
+
+def test_the_package_shows_results_inline_under_ipython():
+    """Imported in a running IPython (as in a Jupyter kernel), the package registers the inline
+    view itself; the model and the engine are not given methods for it, and matplotlib is not
+    loaded until a page is shown."""
+    pytest.importorskip("IPython")
+    code = (
+        "import sys\n"
+        "from IPython.core.interactiveshell import InteractiveShell\n"
+        "ipython = InteractiveShell.instance()\n"
+        "import tensegrity\n"
+        "assert 'matplotlib' not in sys.modules\n"
+        "shell = tensegrity.class1_shell(3, 1)\n"
+        "assert not hasattr(tensegrity.Structure, '_repr_html_')\n"
+        "assert not hasattr(tensegrity.SimulationResult, '_repr_html_')\n"
+        "inline = ipython.display_formatter.format(shell)[0]['text/html']\n"
+        "assert inline.startswith('<iframe srcdoc=') and 'tensegrity-data' in inline\n"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True)
 
 
 def test_simulate_writes_the_viewer_from_the_samples_it_kept(tmp_path):

@@ -2,29 +2,60 @@
 
 Rigid rods and elastic tendons, modelled with the explicit end-point formulation of Skelton,
 Pinaud and Mingori ("The Dynamics of the Class 1 Shell Tensegrity Structure", Theorem 18.1).
+
+The names below are imported when first used (PEP 562), so that ``import tensegrity`` and the
+command line load no more of the package, SciPy or NumPy than they need.  In Jupyter (IPython
+running when the package is imported) a result or a structure shows the viewer inline
+(:func:`tensegrity.plots.show_inline`).
 """
 
 from __future__ import annotations
 
-from pathlib import Path
+import importlib
+import sys
 from typing import TYPE_CHECKING, Any
 
-from tensegrity.engine.simulate import SimulationResult, simulate
-from tensegrity.model.shell import class1_shell
-from tensegrity.model.structure import Structure
-from tensegrity.physics.dynamics import (
-    State,
-    accelerations,
-    artificial_damping,
-    elastic_energy,
-    initial_state,
-    internal_damping,
-    kinetic_energy,
-    nodes_from_coordinates,
-    tendon_lengths,
-    tendon_tensions,
-    undamped,
-)
+if TYPE_CHECKING:
+    from tensegrity.engine.simulate import SimulationResult, simulate
+    from tensegrity.model.shell import class1_shell
+    from tensegrity.model.structure import Structure
+    from tensegrity.physics.dynamics import (
+        State,
+        accelerations,
+        artificial_damping,
+        elastic_energy,
+        initial_state,
+        internal_damping,
+        kinetic_energy,
+        nodes_from_coordinates,
+        tendon_lengths,
+        tendon_tensions,
+        undamped,
+    )
+
+#: Each name the package re-exports -> the module that defines it.
+_ORIGIN = {
+    "SimulationResult": "tensegrity.engine.simulate",
+    "simulate": "tensegrity.engine.simulate",
+    "class1_shell": "tensegrity.model.shell",
+    "Structure": "tensegrity.model.structure",
+    **dict.fromkeys(
+        (
+            "State",
+            "accelerations",
+            "artificial_damping",
+            "elastic_energy",
+            "initial_state",
+            "internal_damping",
+            "kinetic_energy",
+            "nodes_from_coordinates",
+            "tendon_lengths",
+            "tendon_tensions",
+            "undamped",
+        ),
+        "tensegrity.physics.dynamics",
+    ),
+}
 
 __all__ = [
     "SimulationResult",
@@ -45,39 +76,22 @@ __all__ = [
 ]
 __version__ = "0.1.0"
 
-if TYPE_CHECKING:
-    from tensegrity.io.files import PathLike
+
+def __getattr__(name: str) -> Any:
+    """A re-exported name, imported from its module when first used (then kept here)."""
+    origin = _ORIGIN.get(name)
+    if origin is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(origin), name)
+    globals()[name] = value
+    return value
 
 
-# ----------------------------------------------------------------------------- showing a run
-# The engine and the model sit below the plots layer and do not import it
-# (docs/architecture.md), so the methods that show a result or a structure are attached here,
-# at the package's root; matplotlib and the viewer's page are loaded when one is called.
-def _animate(self: SimulationResult, path: PathLike, **options: Any) -> Path:
-    """Write an animation of the run to ``path`` (``.mp4``, ``.webm`` or ``.gif``), atomically
-    (:func:`tensegrity.plots.animation.animate`, whose keyword options it takes)."""
-    from tensegrity.plots.animation import animate
-
-    return animate(self, path, **options)
+def __dir__() -> list[str]:
+    return sorted({*globals(), *__all__})
 
 
-def _view(self: SimulationResult | Structure, path: PathLike, **options: Any) -> Path:
-    """Write the interactive viewer page (one offline HTML file) to ``path``, atomically
-    (:func:`tensegrity.plots.viewer.view`, whose keyword options it takes)."""
-    from tensegrity.plots.viewer import view
+if "IPython" in sys.modules:  # a notebook or an IPython shell (never imported here otherwise)
+    from tensegrity.plots import show_inline
 
-    return view(self, path, **options)
-
-
-def _repr_html_(self: SimulationResult | Structure) -> str:
-    """The viewer inline in Jupyter (:func:`tensegrity.plots.viewer.notebook_html`)."""
-    from tensegrity.plots.viewer import notebook_html
-
-    return notebook_html(self)
-
-
-SimulationResult.animate = _animate  # type: ignore[attr-defined]
-SimulationResult.view = _view  # type: ignore[attr-defined]
-SimulationResult._repr_html_ = _repr_html_  # type: ignore[attr-defined]
-Structure.view = _view  # type: ignore[attr-defined]
-Structure._repr_html_ = _repr_html_  # type: ignore[attr-defined]
+    show_inline()

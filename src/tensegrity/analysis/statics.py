@@ -48,7 +48,7 @@ def tendon_state(structure: Structure, p: np.ndarray, rest_length: np.ndarray) -
     stretch = length - rest_length
     at_threshold = np.abs(stretch) <= THRESHOLD_RTOL * np.maximum(length, rest_length)
     taut = (stretch > 0) & ~at_threshold
-    tension = np.where(stretch > 0, structure.tendon_stiffness * stretch, 0.0)
+    tension = dynamics.elastic_tensions(structure, length, rest_length)
     return TendonState(length, direction, tension, taut, at_threshold)
 
 

@@ -28,6 +28,7 @@ from typing import Any, NamedTuple, TypeAlias
 import numpy as np
 
 from tensegrity.model.structure import Structure
+from tensegrity.physics.dynamics import elastic_tensions, tendon_lengths
 
 __all__ = [
     "MATERIALS",
@@ -477,10 +478,8 @@ class MemberDesign:
         tendons keep their rest length."""
         members = self.properties(structure)
         if keep_tension and structure.n_tendons:
-            p = structure.node_position
-            ends = structure.tendon_nodes
-            length = np.linalg.norm(p[ends[:, 1]] - p[ends[:, 0]], axis=1)
-            tension = structure.tendon_stiffness * (length - structure.tendon_rest_length)
+            length = tendon_lengths(structure, structure.node_position)
+            tension = elastic_tensions(structure, length)
             EA = members.tendon_modulus * members.tendon_area
             rest = np.where(tension > 0, length * EA / (EA + tension), structure.tendon_rest_length)
             structure = structure.replace(tendon_rest_length=rest)

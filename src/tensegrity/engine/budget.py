@@ -18,6 +18,7 @@ import numpy as np
 from tensegrity.engine.options import COMPILED_ADAPTIVE_METHODS, FIXED_STEP_METHODS, Options
 from tensegrity.model.structure import Structure
 from tensegrity.physics.coordinates import rod_damping_rates
+from tensegrity.physics.dynamics import elastic_tensions, tendon_lengths
 
 #: Explicit adaptive methods take at least this many steps per radian of the highest rate
 #: (``t_end * highest_rate``): the fewest measured, DOP853 on an undamped prism at rest (0.32;
@@ -116,10 +117,7 @@ def acceleration_floor(structure: Structure) -> float:
     """The round-off of the nodes' accelerations [m/s^2] in the structure's initial state: the
     largest initial tendon tension over the lightest moving node, times the machine epsilon.
     At rest a run's residual accelerations stay near :data:`FLOOR_FACTOR` times this."""
-    p = structure.node_position
-    ends = structure.tendon_nodes
-    length = np.linalg.norm(p[ends[:, 1]] - p[ends[:, 0]], axis=-1)
-    tension = structure.tendon_stiffness * np.maximum(length - structure.tendon_rest_length, 0.0)
+    tension = elastic_tensions(structure, tendon_lengths(structure, structure.node_position))
     mass = structure.node_mass[structure.node_mass > 0]
     if not (tension.size and mass.size):
         return 0.0

@@ -5,12 +5,14 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Mapping, Sequence
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
 from tensegrity.model.structure import Structure
-from tensegrity.physics.dynamics import State
+
+if TYPE_CHECKING:  # (physics loads SciPy: a reader of results need not)
+    from tensegrity.physics.dynamics import State
 
 __all__ = [
     "ENERGY_NAMES",
@@ -212,6 +214,8 @@ class SimulationResult:
     @property
     def final_state(self) -> State:
         """The state at the last sample."""
+        from tensegrity.physics.dynamics import State
+
         return State(t=float(self.t[-1]), q=self.q[-1], qdot=self.qdot[-1])
 
     @property

@@ -29,9 +29,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
-import scipy.sparse as sp
 
 from tensegrity.model.limits import environment_limit
+
+if TYPE_CHECKING:
+    import scipy.sparse as sp
 
 #: Relative tolerance on ``| |p_b - p_a| - L | / L`` accepted for the node positions of a rod.
 ROD_LENGTH_RTOL = 1e-6
@@ -621,6 +623,8 @@ class Structure:
     @cached_property
     def tendon_incidence(self) -> sp.csr_matrix:
         """Sparse incidence ``C`` (S, N) with ``t = C p``: +1 at the head, -1 at the tail."""
+        import scipy.sparse as sp  # (0.15 s to import: only for the structures that need it)
+
         s = np.arange(self.n_tendons)
         rows = np.concatenate([s, s])
         cols = np.concatenate([self.tendon_nodes[:, 1], self.tendon_nodes[:, 0]])

@@ -131,6 +131,27 @@ def tendon_lengths(structure: Structure, p: np.ndarray) -> np.ndarray:
     return np.linalg.norm(tendon_vectors(structure, p), axis=-1)
 
 
+def elastic_tensions(
+    structure: Structure, length: np.ndarray, rest_length: np.ndarray | None = None
+) -> np.ndarray:
+    """The tension law's elastic part ``k max(l - Lbar, 0)`` [N], shape (..., S) (eq. 18.40 with
+    the slack rule): a taut tendon (``l > Lbar``) pulls with ``k (l - Lbar)``, a slack one not
+    at all.  Every tension of the package outside the compiled kernel is this function.
+
+    Parameters
+    ----------
+    structure : Structure
+        The tendons' stiffnesses ``k`` [N/m], shape (S,), and their rest lengths ``L0`` [m].
+    length : ndarray, shape (..., S)
+        Tendon lengths ``l`` [m] (:func:`tendon_lengths`).
+    rest_length : ndarray, shape (..., S), optional
+        Rest lengths ``Lbar`` [m] (:func:`rest_lengths`); default ``L0``.
+    """
+    rest = structure.tendon_rest_length if rest_length is None else rest_length
+    stretch = length - rest
+    return np.where(stretch > 0, structure.tendon_stiffness * stretch, 0.0)
+
+
 class TendonForces(NamedTuple):
     """Tendon quantities at one instant, each of shape (..., S) unless stated."""
 
@@ -153,9 +174,8 @@ def tendon_forces(
     length = np.linalg.norm(t, axis=-1)
     direction = np.divide(t, length[..., None], out=np.zeros_like(t), where=length[..., None] > 0)
     length_rate = np.sum(direction * tendon_vectors(structure, v), axis=-1)
-    stretch = length - rest_length
-    taut = stretch > 0
-    elastic = np.where(taut, structure.tendon_stiffness * stretch, 0.0)
+    taut = length - rest_length > 0
+    elastic = elastic_tensions(structure, length, rest_length)
     tension = np.where(taut, np.maximum(elastic + structure.tendon_damping * length_rate, 0.0), 0.0)
     return TendonForces(length, length_rate, direction, tension, elastic)
 

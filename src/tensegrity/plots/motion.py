@@ -36,6 +36,7 @@ import numpy as np
 
 from tensegrity.engine.result import ENERGY_NAMES, total_energy
 from tensegrity.model.structure import Structure
+from tensegrity.physics.dynamics import elastic_tensions, tendon_lengths
 
 if TYPE_CHECKING:
     from tensegrity.design.materials import MemberProperties
@@ -550,14 +551,11 @@ def motion_frames(
 
 def structure_frames(structure: Structure, position: np.ndarray | None = None) -> Frames:
     """One frame of ``structure`` at rest: at ``position`` (N, dim) [m] (default its
-    ``node_position``), its tendons' tensions from their stretch, ``k (L - L0)`` [N], where
-    positive (a structure's view before any run; damping and control left out)."""
+    ``node_position``), its tendons' tensions from their stretch, ``k max(l - L0, 0)`` [N]
+    (:func:`~tensegrity.physics.dynamics.elastic_tensions`: a structure's view before any run;
+    damping and control left out)."""
     p = _padded(structure, structure.node_position if position is None else position)[None]
-    pairs = structure.tendon_nodes
-    length = np.linalg.norm(p[0][pairs[:, 1]] - p[0][pairs[:, 0]], axis=-1) if pairs.size else 0
-    tension = np.maximum(
-        structure.tendon_stiffness * (length - structure.tendon_rest_length), 0.0
-    ).reshape(1, structure.n_tendons)
+    tension = elastic_tensions(structure, tendon_lengths(structure, p[0]))[None]
     return Frames(
         structure=structure,
         time=np.zeros(1),

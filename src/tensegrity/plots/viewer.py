@@ -240,9 +240,9 @@ def notebook_html(
     height: int = 520,
     check: MemberCheck | None = None,
 ) -> str:
-    """The viewer inside an ``<iframe srcdoc>``, for Jupyter (``_repr_html_``): the page of
-    :func:`html` (``check``: a run's members by utilisation too), with smaller default limits,
-    ``height`` pixels high."""
+    """The viewer inside an ``<iframe srcdoc>``, for Jupyter (:func:`tensegrity.plots.show_inline`):
+    the page of :func:`html` (``check``: a run's members by utilisation too), with smaller default
+    limits, ``height`` pixels high."""
     page = html(what, max_frames=max_frames, max_bytes=max_bytes, check=check)
     return (
         f'<iframe srcdoc="{html_text.escape(page, quote=True)}" '

@@ -1,0 +1,56 @@
+"""What importing the package costs (issue 28): ``import tensegrity`` loads none of its modules
+until a name is used (PEP 562), and the modules that read and describe a run load neither SciPy
+nor the compiled engine."""
+
+from __future__ import annotations
+
+import importlib
+import subprocess
+import sys
+
+import pytest
+
+import tensegrity
+
+#: Loaded only by what needs them: the compiled engine, SciPy, the plots, the HDF5 files.
+HEAVY = ("numba", "scipy", "matplotlib", "h5py")
+
+
+def loaded_after(code: str) -> set[str]:
+    """The top-level packages loaded by a fresh interpreter after ``code``."""
+    shown = subprocess.run(
+        [sys.executable, "-c", f"{code}\nimport sys\nprint(' '.join(sys.modules))"],
+        check=True,
+        capture_output=True,
+        text=True,
+    ).stdout.split()
+    return set(shown)
+
+
+def test_importing_the_package_loads_none_of_it():
+    loaded = loaded_after("import tensegrity")
+    assert not {m for m in loaded if m.startswith("tensegrity.")}
+    assert not loaded & {*HEAVY, "numpy"}
+
+
+@pytest.mark.parametrize(
+    "module", ["tensegrity.model.structure", "tensegrity.engine.result", "tensegrity.io.trajectory"]
+)
+def test_the_model_and_a_run_read_back_load_no_heavy_package(module):
+    assert not {m.split(".")[0] for m in loaded_after(f"import {module}")} & set(HEAVY)
+
+
+@pytest.mark.parametrize("name", tensegrity.__all__)
+def test_each_name_of_the_package_is_its_module_s(name):
+    """Each name of ``__all__`` resolves, on first use, to the object of the module that
+    defines it, and is listed by ``dir``."""
+    value = getattr(tensegrity, name)
+    assert value is getattr(importlib.import_module(value.__module__), name)
+    assert name in dir(tensegrity)
+
+
+def test_an_unknown_name_is_an_attribute_error():
+    with pytest.raises(AttributeError, match="no attribute 'simulation'"):
+        tensegrity.simulation  # noqa: B018
+    with pytest.raises(ImportError):
+        exec("from tensegrity import simulation", {})
