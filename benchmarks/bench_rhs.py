@@ -5,15 +5,14 @@ a mass-matrix formulation of the same physics, and MuJoCo, side by side on class
 Usage::
 
     python benchmarks/bench_rhs.py [--sizes 3x1,10x10,30x30,100x100] [--quick]
-                                   [--mujoco-max 30x30] [--threads 2]
+                                   [--mujoco-max 30x30]
                                    [--output benchmarks/results.md]
 
 Every (size, method) pair runs in its own subprocess, so that its peak memory (``ru_maxrss``) is
 its own and one method's caches or allocations do not slow another.  Timings are the best of
 three repeats of wall-clock time (the machine may be shared).
 
-Methods (all one thread, the same structure, the same state; the kernel also with
-``threads=T``):
+Methods (all one thread, the same structure, the same state):
 
 - ``numpy``: ``tensegrity.physics.dynamics.evaluate`` (the readable reference), and a plain RK4 loop
   of it with projection onto the rod constraints after every step.
@@ -23,9 +22,12 @@ Methods (all one thread, the same structure, the same state; the kernel also wit
   structure and making the result, is reported apart), and the
   default DOP853 over ``SPAN`` = 0.02 s (steps, evaluations per step, time), each with its
   largest node deviation at 0.02 s from a DOP853 run at rtol 1e-12.
-- ``kernel``: ``tensegrity.physics.kernel.FastKernel``: ``evaluate()`` called from Python, and the
-  compiled RK4 loop ``rk4()`` (its cost per step / 4 is the in-loop cost of one evaluation);
-  the same with ``FastKernel(structure, threads=T)`` (``--threads``, default 2).
+- ``kernel``: the engine's compiled physics, through the tests' harness
+  (``tests/kernel_harness.py``, ``CompiledKernel``): ``evaluate()`` called from Python (the
+  records made and the tendons reordered at every call), the engine's evaluation ``system_rhs``
+  called from Python on records made once (into an array made once), and ``rk4()``, the engine's
+  compiled RK4 stretch (``simulate(method="rk4")``'s checked, projected steps; its cost per
+  step / 4 is the in-loop cost of one evaluation).
 - ``massmatrix``: end-point (node) coordinates with the consistent mass matrix of a uniform rod,
   ``(m/6) [[2I, I], [I, 2I]]``, and the rod lengths held by Lagrange multipliers: every evaluation
   assembles the sparse KKT system ``[[M, G^T], [G, 0]]`` and solves it with
@@ -44,8 +46,7 @@ random rod-consistent initial velocities (about 0.3 m/s), no gravity.
 The memory-traffic lower bound of one evaluation counts the bytes the kernel must read or write
 once (``q``, ``q'``, rod and tendon parameters and indices, rest lengths, ``q''``, tensions) and
 divides by the bandwidth of a NumPy copy, both of a large (DRAM) array and of an array the size of
-the data (a cache-resident copy, the relevant bound when the data fit in cache); for the threaded
-kernel, by the bandwidth of T such copies of 1/T of the array each, run at once in T threads.
+the data (a cache-resident copy, the relevant bound when the data fit in cache).
 """
 
 from __future__ import annotations
@@ -65,6 +66,10 @@ import time
 from pathlib import Path
 
 import numpy as np
+
+# The compiled kernel is timed through the tests' harness (tests/kernel_harness.py), which calls
+# the engine's compiled functions on its records; the library has no public kernel object.
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 HERE = Path(__file__).resolve().parent
 DT = 1e-4
@@ -365,7 +370,18 @@ def time_simulate(structure, q, qdot, rest, budget: float) -> dict:
     return out
 
 
-def worker(method: str, n: int, m: int, budget: float, cold: bool, threads: int = 2) -> dict:
+def evaluation(kernel, q: np.ndarray, qdot: np.ndarray, rest: np.ndarray):
+    """One evaluation as the engine's loop makes it, called from Python: a callable without
+    arguments running ``system_rhs`` on ``kernel``'s records made once (rest lengths ``rest``
+    [m], structure order), into an acceleration array made once."""
+    from tensegrity.physics.kernel_system import system_rhs
+
+    model, data = kernel.records(rest)
+    qddot = np.empty(q.size)
+    return lambda: system_rhs(model, data, 0, q, qdot, qddot)
+
+
+def worker(method: str, n: int, m: int, budget: float, cold: bool) -> dict:
     """Time one method on one size in this (fresh) process; returns a JSON-able dict."""
     import tensegrity  # noqa: F401  (import cost outside the measurement)
     from tensegrity.physics import dynamics
@@ -413,39 +429,23 @@ def worker(method: str, n: int, m: int, budget: float, cold: bool, threads: int 
         out.update(time_simulate(structure, q, qdot, rest, budget))
 
     elif method == "kernel":
-        from tensegrity.physics.kernel import FastKernel
+        from kernel_harness import CompiledKernel
 
+        # first call: compile (or load from numba's cache) the evaluation and the RK4 stretch
         t0 = time.perf_counter()
-        kernel = FastKernel(structure)
-        kernel.warm_up()
+        kernel = CompiledKernel(structure)
+        kernel.evaluate(q, qdot, rest)
+        kernel.rk4(q, qdot, DT, 1, rest)
         out["first_call_s"] = time.perf_counter() - t0
         out["first_call_kind"] = "cold compile" if cold else "disk cache"
         out["rhs_s"] = best_time(lambda: kernel.evaluate(q, qdot, rest), budget)
-        qddot, tension = np.empty(q.size), np.empty(structure.n_tendons)
-        out["rhs_out_s"] = best_time(
-            lambda: kernel.evaluate(q, qdot, rest, out=(qddot, tension)), budget
-        )
+        out["rhs_out_s"] = best_time(evaluation(kernel, q, qdot, rest), budget)
         k = steps_for(budget, 4 * out["rhs_out_s"])
         out["rk4_step_s"] = best_time(lambda: kernel.rk4(q, qdot, DT, k, rest), budget) / k
         out["rk4_steps_per_call"] = k
         ref = dynamics.evaluate(structure, q, qdot, rest_length=rest).qddot
         got = kernel.evaluate(q, qdot, rest).qddot
         out["max_rel_diff_vs_numpy"] = float(np.max(np.abs(got - ref)) / np.max(np.abs(ref)))
-        # The same on `threads` threads (blocks of rods and tendons, numba prange).
-        threaded = FastKernel(structure, threads=threads)
-        threaded.warm_up()
-        out["threads"] = threads
-        out["rhs_out_threaded_s"] = best_time(
-            lambda: threaded.evaluate(q, qdot, rest, out=(qddot, tension)), budget
-        )
-        k = steps_for(budget, 4 * out["rhs_out_threaded_s"])
-        out["rk4_step_threaded_s"] = (
-            best_time(lambda: threaded.rk4(q, qdot, DT, k, rest), budget) / k
-        )
-        got = threaded.evaluate(q, qdot, rest).qddot
-        out["max_rel_diff_threaded_vs_numpy"] = float(
-            np.max(np.abs(got - ref)) / np.max(np.abs(ref))
-        )
 
     elif method == "massmatrix":
         model = MassMatrixModel(structure)
@@ -508,9 +508,9 @@ def worker(method: str, n: int, m: int, budget: float, cold: bool, threads: int 
         mujoco.mj_step(model, data, nstep=steps_check)
         p_mj = mujoco_nodes(model, data, structure)
         try:
-            from tensegrity.physics.kernel import FastKernel
+            from kernel_harness import CompiledKernel
 
-            qk, _ = FastKernel(structure).rk4(q, qdot, DT, steps_check, rest)
+            qk, _ = CompiledKernel(structure).rk4(q, qdot, DT, steps_check, rest)
             p_k = dynamics.nodes_from_coordinates(structure, qk)
             out["trajectory_diff_0.02s"] = float(np.max(np.abs(p_mj - p_k)))
             out["trajectory_moved_0.02s"] = float(np.max(np.abs(p_k - p0)))
@@ -529,7 +529,6 @@ def run_worker(
     budget: float,
     cold: bool = False,
     timeout: float | None = None,
-    threads: int = 2,
 ) -> dict:
     env = dict(os.environ)
     tmp = None
@@ -545,8 +544,6 @@ def run_worker(
         f"{size[0]}x{size[1]}",
         "--budget",
         str(budget),
-        "--threads",
-        str(threads),
     ] + (["--cold"] if cold else [])
     try:
         proc = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=timeout)
@@ -566,43 +563,13 @@ def run_worker(
 
 
 # =========================================================================== machine facts
-def copy_bandwidth(nbytes: int, budget: float = 0.3, threads: int = 1) -> float:
-    """Bytes per second moved by ``np.copyto`` of an array of ``nbytes`` (read + write counted);
-    with ``threads > 1``, that many threads copy one slice each at the same time (``copyto``
-    releases the GIL)."""
-    import threading
-
-    n = max(threads, nbytes // 8)
+def copy_bandwidth(nbytes: int, budget: float = 0.3) -> float:
+    """Bytes per second moved by ``np.copyto`` of an array of ``nbytes`` (read + write counted),
+    on one thread."""
+    n = max(1, nbytes // 8)
     src, dst = np.random.default_rng().random(n), np.empty(n)  # any values: only copied
     np.copyto(dst, src)  # fault the pages in first: not part of the bandwidth
-    if threads == 1:
-        t = best_time(lambda: np.copyto(dst, src), budget, repeats=5)
-        return 2 * n * 8 / t
-    cuts = [k * n // threads for k in range(threads + 1)]
-    go, done = threading.Barrier(threads + 1), threading.Barrier(threads + 1)
-    rounds = max(1, int(budget / 5 / max(2 * n * 8 / 20e9, 1e-7)))
-    stop = False
-
-    def copier(k):
-        while True:
-            go.wait()
-            if stop:
-                return
-            for _ in range(rounds):
-                np.copyto(dst[cuts[k] : cuts[k + 1]], src[cuts[k] : cuts[k + 1]])
-            done.wait()
-
-    workers = [threading.Thread(target=copier, args=(k,), daemon=True) for k in range(threads)]
-    for w in workers:
-        w.start()
-
-    def once():
-        go.wait()
-        done.wait()
-
-    t = best_time(once, budget, repeats=5) / rounds
-    stop = True
-    go.wait()
+    t = best_time(lambda: np.copyto(dst, src), budget, repeats=5)
     return 2 * n * 8 / t
 
 
@@ -720,28 +687,24 @@ def report(results: dict, sizes, info: dict, bw: dict, command: str, notes: list
     )
     out(
         f"- Copy bandwidth (NumPy `copyto`, read + write): {bw['dram'] / 1e9:.1f} GB/s for a "
-        f"{bw['dram_bytes'] / 2**20:.0f} MiB array (DRAM); with {bw['threads']} threads copying "
-        f"one slice each (or one thread if that is faster) {bw['dram_threads'] / 1e9:.1f} GB/s"
+        f"{bw['dram_bytes'] / 2**20:.0f} MiB array (DRAM)"
     )
     out(
         "- Structure: `class1_shell(n, m)` (rods 1 kg, 1 m; tendons 100 N/m, undamped), "
         "rest lengths "
         "0.95 × initial lengths, random rod-consistent velocities (~0.3 m/s), no gravity. "  # noqa: RUF001 - the report's multiplication sign, U+00D7
-        f"One thread everywhere, except the kernel's columns marked {bw['threads']} threads "
-        f"(`FastKernel(structure, threads={bw['threads']})`). "
-        "Rates are the best of 3 timed batches (wall clock)."
+        "One thread everywhere. Rates are the best of 3 timed batches (wall clock)."
     )
     out("")
     out("## Right-hand-side evaluations per second\n")
-    T = bw["threads"]
     out(
         "| shell | rods R | tendons S | NumPy `dynamics.evaluate` "
         "| kernel `evaluate()` (Python call) "
-        f"| kernel `evaluate(out=)` | same, {T} threads "
+        "| kernel `system_rhs` (records made once) "
         "| kernel, in the RK4 loop (step/4) | mass matrix + sparse KKT | MuJoCo `mj_forward` "
         "| kernel call / NumPy |"
     )
-    out("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    out("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for s in sizes:
         r = results.get((s, "numpy"), {})
         k_loop = get(s, "kernel", "rk4_step_s")
@@ -749,7 +712,6 @@ def report(results: dict, sizes, info: dict, bw: dict, command: str, notes: list
             f"| {label(s)} | {r.get('R', '')} | {r.get('S', '')} "
             f"| {fmt_rate(get(s, 'numpy', 'rhs_s'))} "
             f"| {fmt_rate(get(s, 'kernel', 'rhs_s'))} | {fmt_rate(get(s, 'kernel', 'rhs_out_s'))} "
-            f"| {fmt_rate(get(s, 'kernel', 'rhs_out_threaded_s'))} "
             f"| {fmt_rate(k_loop / 4 if k_loop else None)} "
             f"| {fmt_rate(get(s, 'massmatrix', 'rhs_s'))} | {fmt_rate(get(s, 'mujoco', 'rhs_s'))} "
             f"| {fmt_ratio(get(s, 'kernel', 'rhs_s'), get(s, 'numpy', 'rhs_s'))} |"
@@ -761,21 +723,18 @@ def report(results: dict, sizes, info: dict, bw: dict, command: str, notes: list
     out(
         '| shell | NumPy loop | `simulate(method="rk4")` (a sample per 100 steps) '
         "| kernel `rk4()` (compiled loop) "
-        f"| same, {T} threads | {T} threads / 1 "
         "| mass matrix + KKT | MuJoCo `mj_step` | kernel / MuJoCo | kernel / NumPy loop "
         "| kernel / mass matrix | mass matrix / MuJoCo | `simulate` / kernel "
         "| `simulate` / MuJoCo |"
     )
-    out("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    out("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for s in sizes:
         k = get(s, "kernel", "rk4_step_s")
-        kt = get(s, "kernel", "rk4_step_threaded_s")
         mj = get(s, "mujoco", "rk4_step_s")
         mm = get(s, "massmatrix", "rk4_step_s")
         out(
             f"| {label(s)} | {fmt_rate(get(s, 'numpy', 'rk4_step_s'))} "
-            f"| {fmt_rate(get(s, 'simulate', 'rk4_step_s'))} | {fmt_rate(k)} | {fmt_rate(kt)} "
-            f"| {fmt_ratio(kt, k)} | {fmt_rate(mm)} "
+            f"| {fmt_rate(get(s, 'simulate', 'rk4_step_s'))} | {fmt_rate(k)} | {fmt_rate(mm)} "
             f"| {fmt_rate(mj)} | {fmt_ratio(k, mj)} "
             f"| {fmt_ratio(k, get(s, 'numpy', 'rk4_step_s'))} "
             f"| {fmt_ratio(k, mm)} | {fmt_ratio(mm, mj)} "
@@ -832,45 +791,35 @@ def report(results: dict, sizes, info: dict, bw: dict, command: str, notes: list
         "so neither the kernel nor the bound reads their damping) over the bandwidth of a "
         "NumPy copy: of a DRAM-sized array, and of a copy of the same number of bytes (at least "
         "1 MiB, so as not to time NumPy's call overhead; caches: "
-        f"{info.get('caches', '?')}), on one thread and on {T} threads (one slice each; the "
-        "better of the two for the threaded bound). "
-        "Kernel times are one `evaluate(out=...)` call (Python call included).\n"
+        f"{info.get('caches', '?')}), on one thread. Kernel times are one `system_rhs` call on "
+        "records made once (Python call included).\n"
     )
     out(
         "| shell | bytes / eval | bound: DRAM | bound: same-size copy | kernel | / DRAM bound "
-        f"| / same-size bound | bound, {T} threads: DRAM | same-size | kernel, {T} threads "
-        "| / DRAM bound | / same-size bound |"
+        "| / same-size bound |"
     )
-    out("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    out("|---|---:|---:|---:|---:|---:|---:|")
     for s, R, S in measured_sizes():
         nbytes = kernel_bytes(R, S, tendon_damping=False)
         key = f"{s[0]}x{s[1]}"
-        bounds = (
-            nbytes / bw["dram"],
-            nbytes / bw["by_size"][key],
-            nbytes / bw["dram_threads"],
-            nbytes / bw["by_size_threads"][key],
-        )
-        k1, kt = get(s, "kernel", "rhs_out_s"), get(s, "kernel", "rhs_out_threaded_s")
+        bounds = (nbytes / bw["dram"], nbytes / bw["by_size"][key])
+        k1 = get(s, "kernel", "rhs_out_s")
 
         def x(t, b):
             return f"{t / b:.1f}×" if t else "—"  # noqa: RUF001 - the report's multiplication sign, U+00D7
 
         out(
             f"| {label(s)} | {nbytes / 1e6:.3f} MB | {fmt_time(bounds[0])} | {fmt_time(bounds[1])} "
-            f"| {fmt_time(k1)} | {x(k1, bounds[0])} | {x(k1, bounds[1])} "
-            f"| {fmt_time(bounds[2])} | {fmt_time(bounds[3])} | {fmt_time(kt)} "
-            f"| {x(kt, bounds[2])} | {x(kt, bounds[3])} |"
+            f"| {fmt_time(k1)} | {x(k1, bounds[0])} | {x(k1, bounds[1])} |"
         )
     out("")
     out("## Cost per element\n")
     out("Per-evaluation cost divided by (rods + tendons), in ns, for linearity.\n")
     out(
-        "| shell | kernel `evaluate(out=)` | kernel in the RK4 loop (step/4) "
-        f"| same, {T} threads | NumPy | mass matrix | MuJoCo step / 4 "
-        "| MuJoCo µs per (dof+tendon) per step |"
+        "| shell | kernel `system_rhs` (records made once) | kernel in the RK4 loop (step/4) "
+        "| NumPy | mass matrix | MuJoCo step / 4 | MuJoCo µs per (dof+tendon) per step |"
     )
-    out("|---|---:|---:|---:|---:|---:|---:|---:|")
+    out("|---|---:|---:|---:|---:|---:|---:|")
     for s, R, S in measured_sizes():
 
         def per(t, R=R, S=S):
@@ -883,7 +832,6 @@ def report(results: dict, sizes, info: dict, bw: dict, command: str, notes: list
         out(
             f"| {label(s)} | {per(get(s, 'kernel', 'rhs_out_s'))} "
             f"| {per(quarter(get(s, 'kernel', 'rk4_step_s')))} "
-            f"| {per(quarter(get(s, 'kernel', 'rk4_step_threaded_s')))} "
             f"| {per(get(s, 'numpy', 'rhs_s'))} | {per(get(s, 'massmatrix', 'rhs_s'))} "
             f"| {per(quarter(mj))} "
             f"| {'—' if not mj else f'{mj / (6 * R + S) * 1e6:.2f}'} |"
@@ -930,9 +878,6 @@ def report(results: dict, sizes, info: dict, bw: dict, command: str, notes: list
         v = get(s, "kernel", "max_rel_diff_vs_numpy")
         if v is not None:
             parts.append(f"kernel vs NumPy accelerations {v:.1e} (relative)")
-        v = get(s, "kernel", "max_rel_diff_threaded_vs_numpy")
-        if v is not None:
-            parts.append(f"kernel on {T} threads vs NumPy {v:.1e}")
         v = get(s, "massmatrix", "max_rel_diff_vs_numpy")
         if v is not None:
             parts.append(f"mass matrix vs NumPy {v:.1e}")
@@ -980,12 +925,6 @@ def main(argv=None) -> int:
         help="comma-separated subset of " + ",".join(METHODS),
     )
     parser.add_argument(
-        "--threads",
-        type=int,
-        default=2,
-        help="threads of the kernel's threaded columns (default %(default)s)",
-    )
-    parser.add_argument(
         "--output",
         default=str(HERE / "results.md"),
         help="markdown report to write (default %(default)s); '-' for none",
@@ -998,7 +937,7 @@ def main(argv=None) -> int:
     sizes = [parse_size(x) for x in args.sizes.split(",") if x.strip()]
     budget = args.budget if args.budget is not None else (0.3 if args.quick else 1.5)
     if args.worker:
-        print(json.dumps(worker(args.worker, *sizes[0], budget, args.cold, args.threads)))
+        print(json.dumps(worker(args.worker, *sizes[0], budget, args.cold)))
         return 0
 
     methods = [x.strip() for x in args.methods.split(",") if x.strip()]
@@ -1013,20 +952,10 @@ def main(argv=None) -> int:
         f"machine: {info['cpu']}, {info['cpus']} CPUs, load {info.get('load_before', '?')}",
         flush=True,
     )
-    if args.threads < 1:
-        parser.error("--threads: must be >= 1")
-    bw = {"dram_bytes": 512 * 2**20, "threads": args.threads}
+    bw = {"dram_bytes": 512 * 2**20}
     bw["dram"] = copy_bandwidth(bw["dram_bytes"] // 2)
-    # (a bound on T threads may use one thread's bandwidth when T copies at once do worse)
-    bw["dram_threads"] = max(
-        bw["dram"], copy_bandwidth(bw["dram_bytes"] // 2, threads=args.threads)
-    )
-    bw["by_size"], bw["by_size_threads"] = {}, {}
-    print(
-        f"copy bandwidth (DRAM): {bw['dram'] / 1e9:.1f} GB/s, {args.threads} threads "
-        f"{bw['dram_threads'] / 1e9:.1f} GB/s",
-        flush=True,
-    )
+    bw["by_size"] = {}
+    print(f"copy bandwidth (DRAM): {bw['dram'] / 1e9:.1f} GB/s", flush=True)
 
     results: dict = {}
     notes: list[str] = []
@@ -1037,9 +966,6 @@ def main(argv=None) -> int:
         # (at least 1 MiB: smaller copies measure NumPy's call overhead, not the memory)
         same_size = max(kernel_bytes(R, S, tendon_damping=False) // 2, 2**20 // 2)
         bw["by_size"][f"{n}x{m}"] = copy_bandwidth(same_size)
-        bw["by_size_threads"][f"{n}x{m}"] = max(
-            bw["by_size"][f"{n}x{m}"], copy_bandwidth(same_size, threads=args.threads)
-        )
         for method in methods:
             if method == "mujoco" and (
                 mujoco_max is None or 2 * n * m > 2 * mujoco_max[0] * mujoco_max[1]
@@ -1048,7 +974,7 @@ def main(argv=None) -> int:
             cold = method == "kernel" and not cold_done
             print(f"({n},{m}) {method} ...", end=" ", flush=True)
             t0 = time.perf_counter()
-            r = run_worker(method, size, budget, cold=cold, threads=args.threads)
+            r = run_worker(method, size, budget, cold=cold)
             cold_done |= cold and "error" not in r
             results[(size, method)] = r
             if "error" in r:
