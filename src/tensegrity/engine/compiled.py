@@ -530,7 +530,8 @@ def _indicator(damping, model, rest, p, v, out):  # pragma: no cover - compiled
 @njit(**JIT_OPTIONS)
 def record_sample(model, data, y, scratch, maps, columns, row):  # pragma: no cover - compiled
     """Sample ``row`` of ``columns`` (:class:`tensegrity.engine.result.Samples`' fields after
-    ``t``) at ``y``, from one evaluation with the inputs' row 0 of ``data``: coordinates, node positions
+    ``t``) at ``y``, from one evaluation with the inputs' row 0 of ``data``: coordinates, node
+    positions
     and velocities, tendon lengths and tensions, the energies, and the largest node
     acceleration [m/s^2] and speed [m/s] over the moving slots (rod ends and point masses).
 

@@ -211,7 +211,8 @@ class RK4:
 
     def advance(self, n_steps: int, h: float, *, keep_first: bool) -> tuple[int, int, float]:
         """Up to ``n_steps`` steps of ``h`` [s] from ``t``, each checked
-        (:func:`compiled.check_state`, with the system's limits and monitor) and projected.  Returns ``(steps, check code, check
+        (:func:`compiled.check_state`, with the system's limits and monitor) and projected.
+        Returns ``(steps, check code, check
         value)``; ``self.y_end`` is the last step's end before projection.  Constant or
         tabulated inputs: one compiled call; a Python callable among them: one per step, with
         the inputs at its stage times.  Inputs that cannot be used (a rest length would be

@@ -211,7 +211,8 @@ def _row_order(
 
 
 def _constraint_rows(structure: Structure) -> dict[str, np.ndarray]:
-    """The :class:`~tensegrity.physics.records.Constraints` fields of the joints and supports: the independent rows of
+    """The :class:`~tensegrity.physics.records.Constraints` fields of the joints and supports:
+    the independent rows of
     ``constraints_of(structure)`` renumbered in the order of :func:`_row_order`, entries grouped by
     body, and the envelopes of ``K`` and ``J W^-1 J^T``."""
     R, M = structure.n_rods, structure.point_mass_nodes.size
@@ -548,7 +549,8 @@ def _solve_psd(values, factor, first, offset, rhs, x, scratch):  # pragma: no co
 # --------------------------------------------------------------------------- compiled: dynamics
 @njit(**JIT_OPTIONS)
 def _assemble_coupling(model, data, q):  # pragma: no cover - compiled
-    """``K = A G(q) A_n^T`` (c, c) into ``data.constraint_work.k_values``: rows ``i``, ``j`` couple through
+    """``K = A G(q) A_n^T`` (c, c) into ``data.constraint_work.k_values``: rows ``i``, ``j``
+    couple through
     each body both touch, by the node accelerations per unit node force (eqs. 18.17, 18.20,
     18.26): ``(1/m) I - (sigma_i sigma_j / 2) (6/(m L^2)) skew(q2)^2`` on a rod (``sigma`` = -1
     at end a, +1 at end b), ``I / m`` on a point mass."""
@@ -756,7 +758,8 @@ def _violation(model, data, q, out):  # pragma: no cover - compiled
 
 @njit(**JIT_OPTIONS)
 def _assemble_normal(model, data, q):  # pragma: no cover - compiled
-    """``J W^-1 J^T`` (P, P) into ``data.constraint_work.n_values``, ``J = [A; q2^T per rod]`` (the gradient
+    """``J W^-1 J^T`` (P, P) into ``data.constraint_work.n_values``, ``J = [A; q2^T per rod]``
+    (the gradient
     of ``|q2|^2 / 2``), ``W^-1`` = ``4/m`` on ``q1``, ``12/m`` on ``q2``, ``1/m`` on a point
     mass.  Two entries on a rod give ``(1 + 3 sigma_i sigma_j) (c_i . c_j) / m``, an entry and
     the rod's length row ``6 sigma (c . q2) / m``, the length row itself ``12 |q2|^2 / m``."""
