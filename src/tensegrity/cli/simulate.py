@@ -41,10 +41,12 @@ from tensegrity.cli.structures import (
     designed_of,
 )
 from tensegrity.engine.options import (
-    ADAPTIVE_METHODS,
+    ALL_METHODS,
     DEFAULT_MAX_SAMPLES,
-    DEFAULT_MAX_STEPS,
     FIXED_STEP_METHODS,
+    OPTION_FIELDS,
+    Options,
+    option_help,
     sample_count,
 )
 from tensegrity.io.files import DISK_FULL, byte_text, shown_path
@@ -150,10 +152,6 @@ def _simulation_inputs(
     if damping is None and getattr(args, "structure", None) is None:
         damping = next(iter(dynamics.DAMPING_KINDS))  # a generated structure: internal
     structure = apply_damping(structure, damping)
-    if args.method in FIXED_STEP_METHODS and args.dt is None:
-        raise CommandError(f"--dt: method {args.method!r} is fixed-step and needs --dt")
-    if args.method not in FIXED_STEP_METHODS and args.dt is not None:
-        raise CommandError(f"--dt: only for fixed-step methods ({', '.join(FIXED_STEP_METHODS)})")
     force = None
     if args.force_table is not None:
         from tensegrity.io.tables import read_force_table
@@ -182,10 +180,11 @@ def _simulation_inputs(
     return structure, force, gravity, DesignedRun(structure, members, force, args.safety_factor)
 
 
-#: The library's words for its options, as the CLI's (messages of ``simulate``).
+#: The words of the messages of ``engine/loop.py`` (a run stopped by ``max_steps`` or
+#: ``max_wall_time``) and of :meth:`tensegrity.engine.options.Options.check_span` (``max_steps =
+#: N``), as the CLI's; the other library messages name both the keyword and the option at the
+#: source (e.g. ``resume=False (run without --resume)``).
 _CLI_WORDS = (
-    ("pass resume=False to start again", "run without --resume to start again"),
-    ("start again with resume=False", "run without --resume to start again"),
     ("max_wall_time = ", "--max-wall-time "),
     ("max_steps = ", "--max-steps "),
     ("raise max_wall_time", "raise --max-wall-time"),
@@ -280,6 +279,7 @@ def _stream_run(
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
+    _run_options(args)
     outputs.check_folder(args.out, "--out")
     args.t_end = _run_end(args.t_end, args.sample_dt, steady_state=not args.no_steady_state)
     # the drawing's workers start now: they import matplotlib while the run is set up and goes on
@@ -436,38 +436,48 @@ def add_parser(sub: Any) -> None:
     sim.set_defaults(run=_cmd_simulate)
 
 
+#: ``simulate``'s integration options: the fields of :class:`~tensegrity.engine.options.Options`
+#: each sets (``--max-steps`` sets ``max_steps``), with its default, help and check, and how
+#: its text is read (the check is the field's, made once, when the run's options are made).
+_INTEGRATION_OPTIONS = {
+    "method": None,
+    "dt": float,
+    "rtol": float,
+    "atol": float,
+    "sample_dt": float,
+    "max_steps": int,
+    "max_wall_time": float,
+}
+#: ``simulate``'s own default of ``--sample-dt`` [s] (the library's: a thousandth of the span).
+SAMPLE_DT = 0.01
+
+
 def _add_integration_options(parser: argparse.ArgumentParser) -> None:
-    """``simulate``'s integration options (method, step, tolerances, sampling)."""
+    """``simulate``'s integration options (method, step, tolerances, sampling, limits), made
+    from the fields of :class:`~tensegrity.engine.options.Options`."""
     integration = parser.add_argument_group("integration")
-    integration.add_argument(
-        "--method",
-        default="DOP853",
-        choices=[*ADAPTIVE_METHODS, *FIXED_STEP_METHODS],
-        help="adaptive scipy method or fixed-step 'rk4' (default DOP853)",
-    )
-    integration.add_argument("--dt", type=arguments.positive, help="fixed step [s] (rk4 only)")
-    integration.add_argument(
-        "--rtol", type=arguments.positive, default=1e-9, help="relative tolerance (default 1e-9)"
-    )
-    integration.add_argument(
-        "--atol", type=arguments.positive, default=1e-12, help="absolute tolerance (default 1e-12)"
-    )
-    integration.add_argument(
-        "--sample-dt",
-        type=arguments.positive,
-        default=0.01,
-        help="output spacing [s] (default 0.01)",
-    )
-    integration.add_argument(
-        "--max-steps",
-        type=arguments.whole_positive,
-        default=DEFAULT_MAX_STEPS,
-        help=f"stop (exit 1) after this many steps (default {DEFAULT_MAX_STEPS:,})",
-    )
-    integration.add_argument(
-        "--max-wall-time",
-        type=arguments.positive,
-        default=math.inf,
-        metavar="SECONDS",
-        help="stop (exit 1) after this much wall-clock time (default: none)",
-    )
+    for name, kind in _INTEGRATION_OPTIONS.items():
+        field = OPTION_FIELDS[name]
+        default = SAMPLE_DT if name == "sample_dt" else field.default
+        integration.add_argument(
+            "--" + name.replace("_", "-"),
+            **({"choices": ALL_METHODS} if kind is None else {"type": kind}),
+            default=default,
+            metavar="SECONDS" if name == "max_wall_time" else None,
+            help=option_help(name, default),
+        )
+
+
+def _run_options(args: argparse.Namespace) -> Options:
+    """The :class:`~tensegrity.engine.options.Options` of ``simulate``'s run: its integration
+    options, checked (an error names the option)."""
+    if args.method not in FIXED_STEP_METHODS and args.dt is not None:
+        raise CommandError(f"--dt: only for fixed-step methods ({', '.join(FIXED_STEP_METHODS)})")
+    try:
+        return Options(
+            steady_state=not args.no_steady_state,
+            **{name: getattr(args, name) for name in _INTEGRATION_OPTIONS},
+        )
+    except ValueError as exc:
+        name, _, problem = str(exc).partition(": ")
+        raise CommandError(f"--{name.replace('_', '-')}: {problem}") from None
