@@ -20,7 +20,7 @@ import time
 from pathlib import Path
 
 from tensegrity import artificial_damping, class1_shell, simulate
-from tensegrity.cli.main import VIDEO_FPS, VIDEO_SIZE
+from tensegrity.cli.simulate_files import VIDEO_FPS, VIDEO_SIZE
 from tensegrity.plots.animation import _Scene, animate
 from tensegrity.plots.motion import frame_indices, frame_rate, make_frames, playback_times
 

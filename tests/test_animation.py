@@ -523,7 +523,7 @@ def test_simulate_writes_a_gif_by_default(tmp_path, capsys, monkeypatch):
     moving; ``--animation mp4`` an MP4 instead, ``--no-animation`` none, both at once is a
     one-line error; a video over the default's drawing budget is left out with a line that
     says so, and drawn when asked for."""
-    cli = importlib.import_module("tensegrity.cli.main")  # (the package's ``main`` is the function)
+    cli = importlib.import_module("tensegrity.cli.simulate_files")
     run = ["simulate", "--t-end", "0.5", "--no-steady-state", "--damping", "none"]
     assert main([*run, "--out", str(tmp_path / "a")]) == 0
     assert "a/motion.gif" in capsys.readouterr().out

@@ -15,7 +15,7 @@ from tensegrity.io.formats import read_structure
 from tensegrity.io.trajectory import read_trajectory
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
-cli_main = importlib.import_module("tensegrity.cli.main")  # (the module: `main` is its function)
+cli_main = importlib.import_module("tensegrity.cli.simulate_files")
 
 
 @pytest.fixture(scope="module")
@@ -434,3 +434,27 @@ def test_a_reader_that_closes_the_pipe_early_stops_the_command_quietly():
     child.stdout.close()  # long before the child has imported anything
     _, err = child.communicate(timeout=120)
     assert child.returncode == 141 and err == b"", err.decode()
+
+
+def test_the_integration_options_are_made_from_the_fields_of_options(capsys):
+    """``simulate``'s integration options take their defaults and help from the fields of
+    ``Options``, and their check is the field's, made once (issue 28: before, argparse checked
+    ``--rtol`` and ``Options`` again, and the help restated each default)."""
+    from tensegrity.engine.options import OPTION_FIELDS, option_help
+
+    parser = cli_main_parser()
+    actions = {action.dest: action for action in parser._actions}
+    for name in ("method", "dt", "rtol", "atol", "max_steps", "max_wall_time"):
+        assert actions[name].default == OPTION_FIELDS[name].default, name
+        assert actions[name].help == option_help(name), name
+    assert actions["sample_dt"].help == "output spacing [s] (default 0.01)"
+    assert main(["simulate", "--rtol", "0", "--out", "unused"]) == 2
+    assert capsys.readouterr().err == "tensegrity: error: --rtol: must be > 0, got 0.0\n"
+
+
+def cli_main_parser():
+    """The ``simulate`` verb's parser."""
+    from tensegrity.cli.main import build_parser
+
+    commands = next(a for a in build_parser()._actions if a.dest == "command")
+    return commands.choices["simulate"]

@@ -20,7 +20,9 @@ import pytest
 from tensegrity.cli.drawing import Drawing, worker_count
 from tensegrity.cli.main import main
 
-cli_main = importlib.import_module("tensegrity.cli.main")  # (the module: `main` is its function)
+cli_simulate = importlib.import_module("tensegrity.cli.simulate")
+cli_files = importlib.import_module("tensegrity.cli.simulate_files")
+cli_analysis = importlib.import_module("tensegrity.cli.analysis_verbs")
 
 RUN = ["simulate", "--n", "3", "--m", "1", "--t-end", "0.3", "--no-steady-state"]
 DRAWN = ("initial.png", "equilibrium.png", "tendon_lengths.png", "view.html", "motion.gif")
@@ -81,7 +83,7 @@ def test_workers_draw_the_same_files_as_one_process(tmp_path, monkeypatch, capsy
     """Every figure, the page and the video are byte for byte those the command draws alone."""
     args = [*RUN, "--animation", "gif"]
     assert main([*args, "--out", str(tmp_path / "workers")]) == 0
-    monkeypatch.setattr(cli_main, "worker_count", lambda wanted: 0)
+    monkeypatch.setattr(cli_simulate, "worker_count", lambda wanted: 0)
     assert main([*args, "--out", str(tmp_path / "alone")]) == 0
     for name in DRAWN:
         drawn, alone = (tmp_path / folder / name for folder in ("workers", "alone"))
@@ -94,7 +96,7 @@ def test_analysis_verbs_draw_the_same_files_in_workers(tmp_path, monkeypatch, ca
     """The analysis verbs that draw in workers write every figure and page byte for byte as
     drawn in the command alone."""
     assert main([verb, "--out", str(tmp_path / "workers")]) == 0
-    monkeypatch.setattr(cli_main, "worker_count", lambda wanted: 0)
+    monkeypatch.setattr(cli_analysis, "worker_count", lambda wanted: 0)
     assert main([verb, "--out", str(tmp_path / "alone")]) == 0
     drawn = sorted(p.name for p in (tmp_path / "workers").iterdir())
     assert drawn == sorted(p.name for p in (tmp_path / "alone").iterdir())
@@ -145,9 +147,9 @@ def test_a_failed_drawing_fails_the_run_in_one_line(tmp_path, monkeypatch, capsy
     """The job's error ends the command as its own would (one line, exit 2, saying where the
     run is kept for ``--resume``) and no figure is written under a final name; with workers or
     without."""
-    monkeypatch.setattr(cli_main, "viewer_page", _fail)
+    monkeypatch.setattr(cli_files, "viewer_page", _fail)
     for workers in (2, 0):
-        monkeypatch.setattr(cli_main, "worker_count", lambda wanted, n=workers: min(wanted, n))
+        monkeypatch.setattr(cli_simulate, "worker_count", lambda wanted, n=workers: min(wanted, n))
         out = tmp_path / f"run{workers}"
         assert main([*RUN, "--out", str(out)]) == 2
         err = capsys.readouterr().err
@@ -160,7 +162,7 @@ def test_a_failed_drawing_fails_the_run_in_one_line(tmp_path, monkeypatch, capsy
 
 @needs_workers
 def test_a_killed_worker_fails_the_run_without_hanging(tmp_path, monkeypatch, capsys):
-    monkeypatch.setattr(cli_main, "_figures", _killed)
+    monkeypatch.setattr(cli_files, "_figures", _killed)
     start = time.monotonic()
     assert main([*RUN, "--out", str(tmp_path / "run")]) == 1
     assert time.monotonic() - start < 60

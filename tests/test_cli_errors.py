@@ -276,7 +276,7 @@ def test_a_large_run_says_before_it_starts_what_it_will_write(tmp_path, monkeypa
     import importlib
     import re
 
-    cli = importlib.import_module("tensegrity.cli.main")  # (the package's ``main`` is the function)
+    cli = importlib.import_module("tensegrity.cli.simulate")
 
     monkeypatch.setattr(cli, "LARGE_RUN_BYTES", 0)
     out = tmp_path / "out"

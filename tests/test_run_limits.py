@@ -272,7 +272,8 @@ def test_a_run_too_stiff_for_its_step_budget_is_refused_at_once(argv, tmp_path):
 
 
 def _simulate_args(*argv: str):
-    from tensegrity.cli.main import _simulation_inputs, build_parser
+    from tensegrity.cli.main import build_parser
+    from tensegrity.cli.simulate import _simulation_inputs
 
     args = build_parser().parse_args(["simulate", *argv])
     return args, _simulation_inputs(args)[0]
@@ -291,7 +292,7 @@ def _simulate_args(*argv: str):
     ],
 )
 def test_ordinary_runs_are_neither_refused_nor_announced(argv, capsys):
-    from tensegrity.cli.main import _check_simulation_cost
+    from tensegrity.cli.simulate import _check_simulation_cost
 
     args, structure = _simulate_args(*argv)
     _check_simulation_cost(args, structure)
@@ -301,14 +302,14 @@ def test_ordinary_runs_are_neither_refused_nor_announced(argv, capsys):
 def test_an_unstable_rk4_step_is_refused():
     """(Measured: that run fails with a rod-length error at its first step.)"""
     from tensegrity.cli.errors import CommandError
-    from tensegrity.cli.main import _check_simulation_cost
+    from tensegrity.cli.simulate import _check_simulation_cost
 
     with pytest.raises(CommandError, match=r"^--dt: 0.2 s is beyond RK4's stability limit"):
         _check_simulation_cost(*_simulate_args("--method", "rk4", "--dt", "0.2"))
 
 
 def test_a_long_run_is_announced_in_seconds(capsys):
-    from tensegrity.cli.main import _check_simulation_cost
+    from tensegrity.cli.simulate import _check_simulation_cost
 
     _check_simulation_cost(*_simulate_args("--stiffness", "1e10"))
     err = capsys.readouterr().err
@@ -362,10 +363,10 @@ def test_a_structure_too_large_for_the_memory_is_refused_before_any_work(
 ):
     """(Cheaply: the threshold lowered to the (3,1) shell's 30 members, 1 MiB available.)  Before:
     a structure of 10^6 members ran for minutes at 2.5-3.6 GB with no word of it."""
-    cli = importlib.import_module("tensegrity.cli.main")
+    cli = importlib.import_module("tensegrity.cli.limits")
 
     monkeypatch.setattr(cli, "LARGE_STRUCTURE_MEMBERS", 30)
-    monkeypatch.setattr(cli, "_available_memory", lambda: 2**20)
+    monkeypatch.setattr(cli, "available_memory", lambda: 2**20)
     out = tmp_path / "out"
     assert main(["simulate", "--out", str(out)]) == 2
     err = capsys.readouterr().err.strip()
@@ -377,15 +378,15 @@ def test_a_structure_too_large_for_the_memory_is_refused_before_any_work(
 
 
 def test_a_large_structure_is_announced_with_its_memory_and_time(monkeypatch, capsys):
-    cli = importlib.import_module("tensegrity.cli.main")
+    cli = importlib.import_module("tensegrity.cli.limits")
 
-    monkeypatch.setattr(cli, "_available_memory", lambda: 2**40)
-    cli._check_structure_size(class1_shell(10000, 1))  # 100,000 members
+    monkeypatch.setattr(cli, "available_memory", lambda: 2**40)
+    cli.check_structure_size(class1_shell(10000, 1))  # 100,000 members
     assert capsys.readouterr().err == (
         "tensegrity: a large structure: 100,000 members, about 471.1 MiB of memory, 9 s to set "
         "up and write and 0.036 s a step\n"
     )
-    cli._check_structure_size(class1_shell(30, 30))  # 10,620 members: quick, said nothing
+    cli.check_structure_size(class1_shell(30, 30))  # 10,620 members: quick, said nothing
     assert capsys.readouterr().err == ""
 
 
@@ -399,8 +400,8 @@ def test_a_span_of_inf_samples_is_refused_in_one_line():
 def test_a_sweep_too_large_for_the_memory_is_refused_before_any_work(tmp_path, capsys, monkeypatch):
     """A 100 x 100 grid with 1 GiB available (before: a 1000 x 1000 grid, 92 GiB by the same
     estimate, ran for minutes with no word of it)."""
-    cli = importlib.import_module("tensegrity.cli.main")
-    monkeypatch.setattr(cli, "_available_memory", lambda: 2**30)
+    cli = importlib.import_module("tensegrity.cli.limits")
+    monkeypatch.setattr(cli, "available_memory", lambda: 2**30)
     values = ",".join(str(k) for k in range(1, 101))
     argv = ["sweep", "--param", f"stiffness={values}", "--param", f"load={values}"]
     assert main([*argv, "-o", str(tmp_path / "s.nc")]) == 2
@@ -409,12 +410,12 @@ def test_a_sweep_too_large_for_the_memory_is_refused_before_any_work(tmp_path, c
         "results, more than the 1.0 GiB available; sweep fewer cases"
     )
     assert list(tmp_path.iterdir()) == []
-    monkeypatch.setattr(cli, "_available_memory", lambda: 2**40)
+    monkeypatch.setattr(cli, "available_memory", lambda: 2**40)
     from tensegrity.sweep.run import SweepSpec
 
-    cli._check_sweep_size(SweepSpec({"stiffness": list(range(1, 101)), "load": list(range(100))}))
+    cli.check_sweep_size(SweepSpec({"stiffness": list(range(1, 101)), "load": list(range(100))}))
     assert capsys.readouterr().err == (
         "tensegrity: a large sweep: 10,000 cases, about 1.1 GiB of memory\n"
     )
-    cli._check_sweep_size(SweepSpec({"stiffness": list(range(1, 100)), "load": list(range(100))}))
+    cli.check_sweep_size(SweepSpec({"stiffness": list(range(1, 100)), "load": list(range(100))}))
     assert capsys.readouterr().err == ""  # 9,900 cases: said nothing

@@ -462,3 +462,27 @@ def test_joint_error_is_kept_across_segments_and_a_resume(tmp_path, monkeypatch)
     assert summary.segments_run == 3 and summary.segments_stored == 5
     assert summary.max_constraint_error == whole.max_constraint_error < 1e-9
     assert read_trajectory(path).max_constraint_error == whole.max_constraint_error
+
+
+def test_a_refused_resume_names_the_keyword_and_the_option(tmp_path):
+    """The library's message reads right from Python and from the shell (issue 28: before, the
+    CLI rewrote ``pass resume=False`` by string replacement)."""
+    path = tmp_path / "run.h5"
+    callback, _ = stop_after(1)
+    with pytest.raises(KeyboardInterrupt):
+        simulate_to_file(SHELL, (0.0, 0.5), path, segment=0.1, progress=callback, **FAST)
+    with pytest.raises(ValueError, match="cannot resume") as info:
+        simulate_to_file(SHELL, (0.0, 0.6), path, segment=0.1, **FAST)
+    assert str(info.value).endswith("; start again with resume=False (run without --resume)")
+
+
+def test_the_streamed_options_are_the_fields_of_options():
+    """The options a streamed run takes (and hashes into its settings) are its inputs and the
+    fields of ``Options``, not read from a function's signature (issue 28)."""
+    import dataclasses
+
+    from tensegrity.engine.options import Options
+
+    fields = {f.name: f.default for f in dataclasses.fields(Options)}
+    inputs = {"initial", "control", "external_force", "gravity", "controller", "stop"}
+    assert stream_module._SIMULATE_PARAMETERS == {**dict.fromkeys(inputs), **fields}

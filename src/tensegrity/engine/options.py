@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -22,6 +23,76 @@ FIXED_STEP_METHODS = ("rk4",)
 DEFAULT_MAX_STEPS = 10_000_000
 #: :attr:`Options.max_samples` by default (a (10,10) shell's sample holds 51 kB).
 DEFAULT_MAX_SAMPLES = 10_000_000
+
+
+ALL_METHODS = ADAPTIVE_METHODS + FIXED_STEP_METHODS
+
+
+def _number(value: object) -> float | None:
+    """``value`` as a float if it is a real number (not a bool, not text), else None."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        return None
+    return float(value)
+
+
+def _positive(value: object) -> str | None:
+    """The problem of a tolerance or limit that must be a number > 0, or None."""
+    number = _number(value)
+    return None if number is not None and number > 0 else f"must be > 0, got {value!r}"
+
+
+def _seconds(value: object) -> str | None:
+    """The problem of a time [s] that must be a number > 0 (``inf`` too), or None."""
+    number = _number(value)
+    if number is not None and number > 0:
+        return None
+    return f"must be a number > 0 in s, got {value!r}"
+
+
+def _optional_seconds(value: object) -> str | None:
+    """The problem of a step or spacing [s]: None (not given) or a finite number > 0."""
+    number = _number(value)
+    if value is None or (number is not None and math.isfinite(number) and number > 0):
+        return None
+    return f"must be a number > 0 in s, got {value!r}"
+
+
+def _whole_positive(value: object) -> str | None:
+    """The problem of a count that must be a whole number > 0, or None."""
+    if isinstance(value, int) and not isinstance(value, bool) and value > 0:
+        return None
+    return f"must be a whole number > 0, got {value!r}"
+
+
+def _option(
+    default: Any, unit: str, help: str, check: Callable[[Any], str | None] | None = None
+) -> Any:
+    """A field of :class:`Options`: its default, its unit (SI, ``""`` for none), a line of
+    help (the CLI's help is made from it: :func:`option_help`) and its check (the problem of a
+    value as text, or None), the one check of that option."""
+    return dataclasses.field(default=default, metadata={"unit": unit, "help": help, "check": check})
+
+
+def option_help(name: str, default: Any = dataclasses.MISSING) -> str:
+    """The help of option ``name`` of :class:`Options`: its line, unit and default
+    (``default`` instead of its own if given, e.g. a CLI's), as ``--help`` shows it:
+    ``"fixed step [s] (rk4 only)"``, ``"relative tolerance ... (default 1e-09)"``."""
+    field = OPTION_FIELDS[name]
+    unit = field.metadata["unit"]
+    text = field.metadata["help"] + (f" [{unit}]" if unit else "")
+    value = field.default if default is dataclasses.MISSING else default
+    if value is None or isinstance(value, bool):
+        return text
+    if value == math.inf:
+        return f"{text} (default: none)"
+    shown = (
+        f"{value:,}"
+        if isinstance(value, int)
+        else f"{value:g}"
+        if isinstance(value, float)
+        else value
+    )
+    return f"{text} (default {shown})"
 
 
 #: A sample time within this fraction of ``sample_dt`` of the end time is the end time: the
@@ -108,54 +179,58 @@ class Options:
         part of the run's ``settings``: a resumed run may have another budget.
     """
 
-    method: str = "DOP853"
-    rtol: float = 1e-9
-    atol: float = 1e-12
-    dt: float | None = None
-    sample_dt: float | None = None
-    locate_switches: bool = True
-    steady_state: bool = False
-    velocity_tol: float = 1e-6
-    acceleration_tol: float = 1e-6
-    projection_tol: float = 1e-12
-    max_rod_length_error: float = 1e-3
-    max_energy_growth: float = 0.1
-    max_steps: int = DEFAULT_MAX_STEPS
-    max_samples: int = DEFAULT_MAX_SAMPLES
-    max_wall_time: float = math.inf
+    method: str = _option(
+        "DOP853",
+        "",
+        "the integration method: adaptive (DOP853 compiled, or a scipy.integrate method) or "
+        "fixed-step 'rk4' (needs dt)",
+        lambda v: (
+            None
+            if v in ALL_METHODS
+            else f"unknown method {v!r}; choose one of {', '.join(ALL_METHODS)}"
+        ),
+    )
+    rtol: float = _option(1e-9, "", "relative tolerance of the adaptive methods", _positive)
+    atol: float = _option(1e-12, "", "absolute tolerance of the adaptive methods", _positive)
+    dt: float | None = _option(None, "s", "fixed step, rk4 only", _optional_seconds)
+    sample_dt: float | None = _option(None, "s", "output spacing", _optional_seconds)
+    locate_switches: bool = _option(
+        True, "", "adaptive methods: end a step at each slack/taut switch of a tendon"
+    )
+    steady_state: bool = _option(False, "", "stop at the first sample at rest")
+    velocity_tol: float = _option(
+        1e-6, "m/s", "at rest when every node's speed is below this", _positive
+    )
+    acceleration_tol: float = _option(
+        1e-6, "m/s^2", "... and every node's acceleration below this", _positive
+    )
+    projection_tol: float = _option(
+        1e-12, "", "adaptive methods: project onto the constraints beyond this error", _positive
+    )
+    max_rod_length_error: float = _option(
+        1e-3, "", "the run fails beyond this relative rod-length error", _positive
+    )
+    max_energy_growth: float = _option(
+        0.1, "", "the run fails beyond this growth of the energy balance", _positive
+    )
+    max_steps: int = _option(
+        DEFAULT_MAX_STEPS, "", "stop (failed) after this many steps", _whole_positive
+    )
+    max_samples: int = _option(
+        DEFAULT_MAX_SAMPLES, "", "refuse a run of more samples than this", _whole_positive
+    )
+    max_wall_time: float = _option(
+        math.inf, "s", "stop (failed) after this much wall-clock time", _seconds
+    )
 
     def __post_init__(self) -> None:
-        if self.method not in ADAPTIVE_METHODS + FIXED_STEP_METHODS:
-            raise ValueError(
-                f"method: unknown method {self.method!r}; choose one of "
-                f"{', '.join(ADAPTIVE_METHODS + FIXED_STEP_METHODS)}"
-            )
+        for field in dataclasses.fields(self):
+            check = field.metadata["check"]
+            problem = None if check is None else check(getattr(self, field.name))
+            if problem is not None:
+                raise ValueError(f"{field.name}: {problem}")
         if self.fixed_step and self.dt is None:
             raise ValueError(f"dt: method {self.method!r} is fixed-step and needs a step dt")
-        for field in ("dt", "sample_dt"):
-            value = getattr(self, field)
-            if value is not None and not (_is_number(value) and math.isfinite(value) and value > 0):
-                raise ValueError(f"{field}: must be a number > 0 in s, got {value!r}")
-        for field in (
-            "rtol",
-            "atol",
-            "velocity_tol",
-            "acceleration_tol",
-            "projection_tol",
-            "max_rod_length_error",
-            "max_energy_growth",
-        ):
-            value = getattr(self, field)
-            if not (_is_number(value) and value > 0):
-                raise ValueError(f"{field}: must be > 0, got {value!r}")
-        if not (_is_number(self.max_wall_time) and self.max_wall_time > 0):
-            raise ValueError(
-                f"max_wall_time: must be a number > 0 in s, got {self.max_wall_time!r}"
-            )
-        for field in ("max_steps", "max_samples"):
-            value = getattr(self, field)
-            if not (isinstance(value, int) and not isinstance(value, bool) and value > 0):
-                raise ValueError(f"{field}: must be a whole number > 0, got {value!r}")
 
     def check_span(self, t0: float, t_end: float) -> None:
         """``ValueError`` if a run over ``(t0, t_end)`` [s] would take more than ``max_steps``
@@ -211,6 +286,5 @@ class Options:
         )
 
 
-def _is_number(value: object) -> bool:
-    """Whether ``value`` is a real number (not a bool, not text)."""
-    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
+#: The fields of :class:`Options` by name: each option's default, unit, help and check.
+OPTION_FIELDS = {field.name: field for field in dataclasses.fields(Options)}

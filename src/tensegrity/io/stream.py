@@ -79,7 +79,6 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
-import inspect
 import json
 import math
 import os
@@ -91,9 +90,9 @@ import numpy as np
 
 from tensegrity.engine.inputs import Inputs
 from tensegrity.engine.loop import Checkpointing, LoopState, StopCondition, run
-from tensegrity.engine.options import Options, sample_count, sample_time
+from tensegrity.engine.options import OPTION_FIELDS, Options, sample_count, sample_time
 from tensegrity.engine.result import RunSummary, Samples
-from tensegrity.engine.simulate import STATUS_END, options_and_inputs, simulate
+from tensegrity.engine.simulate import STATUS_END, options_and_inputs
 from tensegrity.io import trajectory as tio
 from tensegrity.io.checked import (
     FLOATS,
@@ -131,10 +130,14 @@ DEFAULT_SEGMENT_SAMPLES = 1000
 #: Target size [bytes] of one HDF5 chunk.
 CHUNK_BYTES = 2**20
 
+#: A run's inputs beside its options (keywords of :func:`tensegrity.engine.simulate.simulate`),
+#: none by default.
+_INPUTS = ("initial", "control", "external_force", "gravity", "controller", "stop")
+#: The options a streamed run takes and their defaults: its inputs and the fields of
+#: :class:`~tensegrity.engine.options.Options`.
 _SIMULATE_PARAMETERS = {
-    name: p.default
-    for name, p in inspect.signature(simulate).parameters.items()
-    if p.kind is inspect.Parameter.KEYWORD_ONLY
+    **dict.fromkeys(_INPUTS),
+    **{name: field.default for name, field in OPTION_FIELDS.items()},
 }
 #: ``simulate`` options handled here rather than passed through.
 _OWN_OPTIONS = ("sample_dt", "progress")
@@ -662,7 +665,7 @@ def _open_h5(path: Path, mode: str):
         raise file_error(
             path,
             f"cannot open as HDF5 ({exc}); if the run was killed while writing, start "
-            "again with resume=False",
+            "again with resume=False (run without --resume)",
         ) from exc
 
 
@@ -1156,7 +1159,7 @@ def _resumable_checkpoint(
                 partial,
                 "cannot resume: the checkpoint was made with other settings ("
                 + "; ".join(diff)
-                + "); pass resume=False to start again",
+                + "); start again with resume=False (run without --resume)",
             )
         _check_partial_layout(f, partial, settings["structure"], checkpoint)
         _truncate(f, checkpoint.n_samples, partial)

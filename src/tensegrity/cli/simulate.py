@@ -1,0 +1,483 @@
+"""``tensegrity simulate``: its parser, the checks before the run and the streamed run
+(:func:`tensegrity.io.stream.simulate_to_file`); the files it writes and its summary are
+:mod:`tensegrity.cli.simulate_files`'s.
+
+The samples stream, with checkpoints, to ``OUT/.trajectory.h5.partial`` as the run goes; an
+interrupted run (Ctrl-C, SIGTERM, SIGHUP, a killed process) leaves only that file, and
+``--resume`` continues it.  The final names (``trajectory.h5``, ``structure.json``, the figures)
+appear together when the run has ended."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import shutil
+import sys
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from tensegrity.cli import arguments, outputs
+from tensegrity.cli.drawing import Drawing, worker_count
+from tensegrity.cli.errors import EXIT_FAILED, CommandError, blame, describe
+from tensegrity.cli.limits import check_run_cost, check_samples, check_structure_size
+from tensegrity.cli.simulate_files import (
+    DEFAULT_VIDEO_SECONDS,
+    MATERIAL_STRUCTURE,
+    VIDEO_FPS,
+    DesignedRun,
+    RunFiles,
+    print_summary,
+    remove_empty,
+    write_run,
+)
+from tensegrity.cli.startup import announce_compiling
+from tensegrity.cli.structures import (
+    add_gravity_option,
+    add_structure_options,
+    apply_damping,
+    damping_kind,
+    designed_of,
+)
+from tensegrity.engine.options import (
+    ALL_METHODS,
+    DEFAULT_MAX_SAMPLES,
+    FIXED_STEP_METHODS,
+    OPTION_FIELDS,
+    Options,
+    option_help,
+    sample_count,
+)
+from tensegrity.io.files import DISK_FULL, byte_text, shown_path
+from tensegrity.physics import dynamics
+
+if TYPE_CHECKING:
+    from tensegrity.io.stream import StreamSummary
+    from tensegrity.model.loads import ForceTable
+    from tensegrity.model.structure import Structure
+    from tensegrity.plots.motion import FrameKeeper
+
+
+#: ``simulate`` checkpoints a run at least this many times (segments of at most this fraction of
+#: it), and at least every 1000 samples (or about 64 MiB of samples: the default of
+#: :func:`tensegrity.io.stream.simulate_to_file`).
+MIN_SEGMENTS = 10
+
+
+def _run_end(t_end: float, sample_dt: float, *, steady_state: bool) -> float:
+    """The end [s] of ``simulate``'s run: ``--t-end``, checked by :func:`check_samples`; for a
+    steady-state run, which stops when it comes to rest, ``--t-end`` only bounds it: beyond the
+    end of the samples limit (``1e308`` too), that end, said on stderr."""
+    end = (DEFAULT_MAX_SAMPLES - 1) * sample_dt
+    if not (steady_state and t_end > end):
+        check_samples(t_end, sample_dt)
+        return t_end
+    print(
+        f"tensegrity: --t-end {t_end:g} s: the run stops when it comes to rest, at the latest at "
+        f"{end:g} s ({DEFAULT_MAX_SAMPLES:,} samples at --sample-dt {sample_dt:g} s)",
+        file=sys.stderr,
+    )
+    return end
+
+
+#: ``simulate`` says before a run that writes at least this many bytes what it will write.
+LARGE_RUN_BYTES = 2**30
+
+
+def _announce_large_run(structure: Structure, t_end: float, sample_dt: float, out: Path) -> None:
+    """Before a run whose trajectory file would reach :data:`LARGE_RUN_BYTES`, say on stderr
+    how large it will be, how much of it is held in memory at a time, and whether the disk of
+    ``out`` has room for it (a run stopped at a steady state writes less)."""
+    from tensegrity.io.stream import sample_bytes, samples_per_segment
+
+    row = sample_bytes(structure)
+    samples = sample_count(0.0, t_end, sample_dt)
+    if samples * row < LARGE_RUN_BYTES:
+        return
+    held = 2 * samples_per_segment(structure, _segment(structure, t_end, sample_dt), sample_dt)
+    try:
+        free = shutil.disk_usage(out).free
+    except OSError:
+        free = None
+    room = (
+        f" - more than the {byte_text(free)} free there"
+        if free is not None and free < samples * row
+        else ""
+    )
+    print(
+        f"tensegrity: a large run: up to {samples:,} samples of {row / 2**20:.3g} MiB, about "
+        f"{byte_text(samples * row)} in trajectory.h5{room}, written as the run goes (at most "
+        f"{byte_text(held * row)} of samples in memory at a time); a larger --sample-dt "
+        "writes less",
+        file=sys.stderr,
+    )
+
+
+def _check_simulation_cost(args: argparse.Namespace, structure: Structure) -> None:
+    """:func:`check_run_cost` of ``simulate``'s run of ``structure`` with the options ``args``."""
+    check_run_cost(
+        structure,
+        args.t_end,
+        method=args.method,
+        dt=args.dt,
+        atol=args.atol,
+        steady_state=not args.no_steady_state,
+        max_steps=args.max_steps,
+        max_wall_time=args.max_wall_time,
+    )
+
+
+def _segment(structure: Structure, t_end: float, sample_dt: float) -> float:
+    """Segment duration [s] of a ``simulate`` run: at most a tenth of it, rounded to samples.
+
+    Depends only on the structure and the options, so that a resumed run has the segment grid of
+    the interrupted one.
+    """
+    from tensegrity.io.stream import samples_per_segment
+
+    default = samples_per_segment(structure, None, sample_dt)
+    tenth = max(1, math.ceil((sample_count(0.0, t_end, sample_dt) - 1) / MIN_SEGMENTS))
+    return min(default, tenth) * sample_dt
+
+
+def _simulation_inputs(
+    args: argparse.Namespace,
+) -> tuple[Structure, ForceTable | None, np.ndarray | None, DesignedRun | None]:
+    """The structure (damped as the options say), the force table and the gravity of a run,
+    and, if its members have a design, what :func:`print_summary`'s utilisation report
+    needs."""
+    structure, members = designed_of(args)
+    damping = args.damping
+    if damping is None and getattr(args, "structure", None) is None:
+        damping = next(iter(dynamics.DAMPING_KINDS))  # a generated structure: internal
+    structure = apply_damping(structure, damping)
+    force = None
+    if args.force_table is not None:
+        from tensegrity.io.tables import read_force_table
+
+        with blame("--force-table", args.force_table):
+            force = read_force_table(args.force_table)
+        if force.n_nodes != structure.n_nodes:
+            raise CommandError(
+                f"--force-table: {shown_path(args.force_table)} has forces for {force.n_nodes} "
+                f"nodes, the structure has {structure.n_nodes}"
+            )
+    gravity = None
+    if args.gravity is not None:
+        from tensegrity.model.loads import gravity_vector
+
+        gravity = gravity_vector(args.gravity, structure.dim)
+    if members is None:
+        for option, value in (("--safety-factor", args.safety_factor != 1.0),
+                              ("--stop-on-failure", args.stop_on_failure)):  # fmt: skip
+            if value:
+                raise CommandError(
+                    f"{option}: needs members with a design (--material and --section, or a "
+                    "structure file in the material form)"
+                )
+        return structure, force, gravity, None
+    return structure, force, gravity, DesignedRun(structure, members, force, args.safety_factor)
+
+
+#: The words of the messages of ``engine/loop.py`` (a run stopped by ``max_steps`` or
+#: ``max_wall_time``) and of :meth:`tensegrity.engine.options.Options.check_span` (``max_steps =
+#: N``), as the CLI's; the other library messages name both the keyword and the option at the
+#: source (e.g. ``resume=False (run without --resume)``).
+_CLI_WORDS = (
+    ("max_wall_time = ", "--max-wall-time "),
+    ("max_steps = ", "--max-steps "),
+    ("raise max_wall_time", "raise --max-wall-time"),
+    ("raise max_steps", "raise --max-steps"),
+    ("loosen rtol and atol", "loosen --rtol and --atol"),
+    ("method='Radau'", "--method Radau"),
+)
+
+
+def _in_cli_words(exc: ValueError | str) -> str:
+    """The library's error (or message) as one line, in the CLI's words."""
+    message = " ".join(str(exc).split())
+    for library, cli in _CLI_WORDS:
+        message = message.replace(library, cli)
+    return message
+
+
+def _stream_run(
+    args: argparse.Namespace,
+    structure: Structure,
+    force: ForceTable | None,
+    gravity: np.ndarray | None,
+    files: RunFiles,
+    keeper: FrameKeeper | None,
+    designed: DesignedRun | None,
+) -> StreamSummary:
+    """Simulate into ``files.work`` (through its partial file), the viewer's frames into
+    ``keeper`` as they come, stopping at a member's failure with ``--stop-on-failure``; a
+    rejected or failed run leaves nothing of this call's making behind, an interrupted one its
+    partial file."""
+    from tensegrity.io.stream import OutOfTimeError, simulate_to_file
+
+    stop = None
+    if designed is not None and args.stop_on_failure:
+        from tensegrity.design.utilisation import stop_at_failure
+
+        stop = stop_at_failure(
+            structure,
+            designed.members.properties(structure),
+            safety_factor=designed.safety_factor,
+            external_force=force,
+            gravity=gravity,
+        )
+
+    try:
+        summary = simulate_to_file(
+            structure,
+            (0.0, args.t_end),
+            files.work,
+            segment=_segment(structure, args.t_end, args.sample_dt),
+            resume=args.resume,
+            progress=sys.stderr.isatty(),
+            external_force=force,
+            gravity=gravity,
+            method=args.method,
+            rtol=args.rtol,
+            atol=args.atol,
+            dt=args.dt,
+            sample_dt=args.sample_dt,
+            steady_state=not args.no_steady_state,
+            max_steps=args.max_steps,
+            max_wall_time=args.max_wall_time,
+            observe=None if keeper is None else keeper.add,
+            stop=stop,
+        )
+    except KeyboardInterrupt:
+        raise
+    except OutOfTimeError as exc:  # the finished segments stay in the partial file, for --resume
+        files.discard()
+        raise CommandError(
+            f"simulation {_in_cli_words(str(exc))}{files.kept()}", EXIT_FAILED
+        ) from None
+    except OSError as exc:
+        if exc.errno not in DISK_FULL:
+            files.discard()
+            raise
+        files.discard()  # (the partial file is at its last checkpoint: kept if it holds any)
+        raise CommandError(f"{describe(exc)}{files.kept()}", EXIT_FAILED) from None
+    except ValueError as exc:
+        files.discard()
+        raise CommandError(_in_cli_words(exc)) from None
+    except BaseException:
+        files.discard()
+        raise
+    if not summary.success:
+        files.work.unlink(missing_ok=True)
+        remove_empty(files.created)
+        raise CommandError(
+            f"simulation failed: {_in_cli_words(summary.message)} (nothing written)", EXIT_FAILED
+        )
+    return summary
+
+
+def _cmd_simulate(args: argparse.Namespace) -> int:
+    _run_options(args)
+    outputs.check_folder(args.out, "--out")
+    args.t_end = _run_end(args.t_end, args.sample_dt, steady_state=not args.no_steady_state)
+    # the drawing's workers start now: they import matplotlib while the run is set up and goes on
+    with Drawing(worker_count(2)) as drawing:
+        return _simulate_and_write(args, drawing)
+
+
+def _simulate_and_write(args: argparse.Namespace, drawing: Drawing) -> int:
+    """``tensegrity simulate`` once its options are checked: the run, its files (the figures,
+    page and video drawn by ``drawing``) and its summary."""
+    announce_compiling()
+    structure, force, gravity, designed = _simulation_inputs(args)
+    _check_outputs(args, designed is not None)
+    check_structure_size(structure)
+    _check_simulation_cost(args, structure)
+    files = RunFiles.prepare(args.out, args.resume)
+    _announce_large_run(structure, args.t_end, args.sample_dt, files.out)
+    keeper = None
+    if not args.no_view and designed is None:  # (a design's frames are read with their forces)
+        from tensegrity.plots.motion import MAX_BYTES, MAX_FRAMES, FrameKeeper, frame_budget
+
+        budget = frame_budget(structure, max_frames=MAX_FRAMES, max_bytes=MAX_BYTES)
+        keeper = FrameKeeper(structure, t0=0.0, sample_dt=args.sample_dt, max_frames=budget)
+    try:
+        summary = _stream_run(args, structure, force, gravity, files, keeper, designed)
+        try:
+            trajectory, balance, written, peaks = write_run(
+                args, structure, summary, files, keeper, designed, drawing
+            )
+        except (ValueError, OSError) as exc:  # the finished run stays, for --resume
+            code = EXIT_FAILED if isinstance(exc, OSError) and exc.errno in DISK_FULL else 2
+            raise CommandError(f"{describe(exc)}{files.kept()}", code) from None
+    except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM/SIGHUP (signals_as_interrupts)
+        drawing.cancel()
+        return files.interrupted(exc)
+    print_summary(
+        trajectory,
+        summary,
+        balance,
+        args.resume,
+        [f for f in written if f.parent == files.out or f.suffix == ".pvd"],
+        peaks,
+    )
+    return 0
+
+
+def _check_outputs(args: argparse.Namespace, designed: bool) -> None:
+    """Fail before the run if a folder stands where one of ``simulate``'s files goes in
+    ``--out`` (or a file where its ``vtk`` folder goes): the rule :func:`write_staged` applies
+    at the end (:func:`tensegrity.io.files.check_targets`)."""
+    from tensegrity.io.files import check_targets
+
+    names = ["trajectory.h5", "structure.json", "initial.png", "equilibrium.png"]
+    names += ["tendon_lengths.png"]
+    names += [] if args.no_view else ["view.html"]
+    names += [] if args.no_animation else [f"motion.{args.animation or 'gif'}"]
+    names += [MATERIAL_STRUCTURE, "utilisation.png"] if designed else []
+    names += ["vtk/tensegrity.pvd"] if args.vtk else []
+    try:
+        check_targets(args.out, [args.out / name for name in names])
+    except ValueError as exc:
+        raise CommandError(f"--out: {exc}") from None
+
+
+def add_parser(sub: Any) -> None:
+    """``simulate``: run a structure and write its trajectory, structure and figures."""
+    sim = sub.add_parser(
+        "simulate",
+        help="simulate a structure (default: the paper's damped (3,1) shell, until steady state)",
+        description="Simulate a structure and write trajectory.h5, structure.json, figures, "
+        "view.html (the run in an interactive 3-D viewer) and motion.gif (the run as a "
+        "video). "
+        "Samples are streamed to OUT/.trajectory.h5.partial as the run goes, with "
+        "checkpoints; an interrupted run continues with --resume.",
+    )
+    add_structure_options(sim)
+    sim.add_argument(
+        "--damping",
+        type=damping_kind,
+        metavar="internal|artificial|none|VALUE",
+        help="'internal' (default for a generated structure: each tendon and the rods' "
+        "motion relative to the rigid-body motion critically damped; a free fall is not "
+        "slowed), 'artificial' (the paper's: the same rates, the rods damped to ground), "
+        "'none', or c in N s/m for every tendon and no rod damping (default for --structure: "
+        "as in the file). The summary names the damping used; see docs/simulation.md",
+    )
+    sim.add_argument(
+        "--t-end", type=arguments.positive, default=60.0, help="end time [s] (default 60)"
+    )
+    sim.add_argument(
+        "--no-steady-state",
+        action="store_true",
+        help="run to --t-end even after the structure has come to rest",
+    )
+    sim.add_argument(
+        "--out",
+        type=arguments.name,
+        default=Path("results"),
+        help="output folder (default ./results)",
+    )
+    sim.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue an interrupted run in --out from its last checkpoint (same "
+        "structure and options; without it a run starts afresh)",
+    )
+    sim.add_argument(
+        "--force-table",
+        type=arguments.name,
+        metavar="FILE.npz|FILE.csv",
+        help="external nodal forces [N] from a time table, linear in between, held "
+        "after its end (.npz: time (T,), force (T, N, 3); .csv: rows t, f0x, "
+        "f0y, f0z, f1x, ...)",
+    )
+    add_gravity_option(sim)
+    sim.add_argument(
+        "--vtk",
+        action="store_true",
+        help="also write the run for ParaView: OUT/vtk/tensegrity.pvd + .vtp files",
+    )
+    sim.add_argument(
+        "--no-view",
+        action="store_true",
+        help="do not write OUT/view.html, the run in an interactive 3-D viewer (one offline "
+        "HTML file; `tensegrity view` makes one from trajectory.h5 later)",
+    )
+    from tensegrity.plots.motion import MAX_REAL_TIME  # (light: no matplotlib)
+
+    video = sim.add_mutually_exclusive_group()
+    video.add_argument(
+        "--animation",
+        choices=("gif", "mp4", "webm"),
+        help="the format of OUT/motion.gif (or .mp4, .webm): the run as a video at "
+        f"{VIDEO_FPS:g} fps in real time (at most {MAX_REAL_TIME:g} s of video; `tensegrity "
+        "animate` makes "
+        "others later). Default gif, drawn unasked when that takes about "
+        f"{DEFAULT_VIDEO_SECONDS:g} s or less (frames x members; the run says when not); "
+        "given, always drawn",
+    )
+    video.add_argument(
+        "--no-animation",
+        action="store_true",
+        help="do not write OUT/motion.gif",
+    )
+    design = sim.add_argument_group("design checks (members with a material and section)")
+    arguments.add_safety_factor(design)
+    design.add_argument(
+        "--stop-on-failure",
+        action="store_true",
+        help="stop the run at the first sample where a member is over its limits "
+        "(utilisation > 1); the files hold the run up to there",
+    )
+    _add_integration_options(sim)
+    sim.set_defaults(run=_cmd_simulate)
+
+
+#: ``simulate``'s integration options: the fields of :class:`~tensegrity.engine.options.Options`
+#: each sets (``--max-steps`` sets ``max_steps``), with its default, help and check, and how
+#: its text is read (the check is the field's, made once, when the run's options are made).
+_INTEGRATION_OPTIONS = {
+    "method": None,
+    "dt": float,
+    "rtol": float,
+    "atol": float,
+    "sample_dt": float,
+    "max_steps": int,
+    "max_wall_time": float,
+}
+#: ``simulate``'s own default of ``--sample-dt`` [s] (the library's: a thousandth of the span).
+SAMPLE_DT = 0.01
+
+
+def _add_integration_options(parser: argparse.ArgumentParser) -> None:
+    """``simulate``'s integration options (method, step, tolerances, sampling, limits), made
+    from the fields of :class:`~tensegrity.engine.options.Options`."""
+    integration = parser.add_argument_group("integration")
+    for name, kind in _INTEGRATION_OPTIONS.items():
+        field = OPTION_FIELDS[name]
+        default = SAMPLE_DT if name == "sample_dt" else field.default
+        integration.add_argument(
+            "--" + name.replace("_", "-"),
+            **({"choices": ALL_METHODS} if kind is None else {"type": kind}),
+            default=default,
+            metavar="SECONDS" if name == "max_wall_time" else None,
+            help=option_help(name, default),
+        )
+
+
+def _run_options(args: argparse.Namespace) -> Options:
+    """The :class:`~tensegrity.engine.options.Options` of ``simulate``'s run: its integration
+    options, checked (an error names the option)."""
+    if args.method not in FIXED_STEP_METHODS and args.dt is not None:
+        raise CommandError(f"--dt: only for fixed-step methods ({', '.join(FIXED_STEP_METHODS)})")
+    try:
+        return Options(
+            steady_state=not args.no_steady_state,
+            **{name: getattr(args, name) for name in _INTEGRATION_OPTIONS},
+        )
+    except ValueError as exc:
+        name, _, problem = str(exc).partition(": ")
+        raise CommandError(f"--{name.replace('_', '-')}: {problem}") from None
