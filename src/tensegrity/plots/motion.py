@@ -435,7 +435,7 @@ def read_frames(
     from tensegrity.io.trajectory import read_dataset, read_trajectory
 
     ends = read_trajectory(path, every=2**62)  # the structure, the message: two samples
-    n_samples = read_dataset(path, "time").size
+    n_samples = read_dataset(path, "t").size
     budget = frame_budget(
         ends.structure,
         max_frames=max_frames,
@@ -450,8 +450,8 @@ def read_frames(
     energy = read_dataset(path, "energy", every=every)
     frames = _frames(
         ends.structure,
-        read_dataset(path, "time", every=every),
-        read_dataset(path, "nodes", every=every),
+        read_dataset(path, "t", every=every),
+        read_dataset(path, "node_position", every=every),
         read_dataset(path, "tendon_tension", every=every),
         {name: energy[:, k] for k, name in enumerate(ENERGY_NAMES)},
         None,
