@@ -475,7 +475,7 @@ def test_sweep_reads_the_dataset_it_was_saved_with(sweep_file):
     dataset = read_sweep(sweep_file)
     with xr.open_dataset(sweep_file, engine="h5netcdf") as direct:
         assert dataset.identical(direct)
-    assert dataset.sizes == {"case": 4, "time": 3}
+    assert dataset.sizes == {"case": 4, "t": 3}
 
 
 def test_sweep_arrays_and_attributes_count_against_the_limit(tmp_path, sweep_file, monkeypatch):
