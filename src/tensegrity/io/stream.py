@@ -402,12 +402,12 @@ def segments_of(n_samples: int, samples_per_segment: int) -> int:
     return max(1, math.ceil((n_samples - 1) / samples_per_segment))
 
 
-def sample_bytes(structure: Structure) -> int:
-    """Bytes of one sample of ``structure`` in a trajectory file (its datasets' rows)."""
-    return _row_bytes(tio.sample_rows(structure))
-
-
-def _row_bytes(rows: Mapping[str, tuple[int, ...]]) -> int:
+def sample_bytes(structure: Structure, *, held: bool = False) -> int:
+    """Bytes of one sample of ``structure`` in a trajectory file (its datasets' rows), or with
+    ``held`` as a segment holds it in memory (the arrays computed on read too)."""
+    rows = tio.sample_rows(structure)
+    if held:
+        rows |= dict.fromkeys(tio.DERIVED, (structure.n_nodes, structure.dim))
     return 8 * sum(max(1, math.prod(shape)) for shape in rows.values())
 
 
@@ -415,9 +415,8 @@ def samples_per_segment(structure: Structure, segment: float | None, sample_dt: 
     """Samples of one segment: ``segment`` [s] in samples, or by default as many as fit
     :data:`DEFAULT_SEGMENT_BYTES` (held twice while a segment is written), at most
     :data:`DEFAULT_SEGMENT_SAMPLES`."""
-    if segment is None:  # (held as the engine records them: the derived arrays too)
-        derived = dict.fromkeys(tio.DERIVED, (structure.n_nodes, structure.dim))
-        row_bytes = _row_bytes(tio.sample_rows(structure) | derived)
+    if segment is None:
+        row_bytes = sample_bytes(structure, held=True)
         return int(max(1, min(DEFAULT_SEGMENT_SAMPLES, DEFAULT_SEGMENT_BYTES // (2 * row_bytes))))
     segment = float(segment)
     if not (math.isfinite(segment) and segment > 0):

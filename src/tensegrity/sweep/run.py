@@ -47,11 +47,11 @@ The dataset
 -----------
 Dimension ``case`` (coordinates: one per parameter -- for a structure file, one per varied
 parameter -- so ``ds.where(ds.stiffness == 100)`` works)
-and ``t`` (``0, sample_dt, ..., t_end`` [s]; ``t`` as in
-:class:`~tensegrity.engine.result.SimulationResult`).  Per case: ``status`` (``0`` reached ``t_end``,
-``-1`` unstable, ``-2`` error: the case could not be built or run), ``message``, ``t_final`` [s],
-``nsteps``, ``nfev``, ``wall_time`` [s], ``max_rod_length_error`` (relative),
-``max_constraint_error`` [m] (joints and supports; 0 without them), ``batched`` (0/1).
+and ``t`` (``0, sample_dt, ..., t_end`` [s], as ``SimulationResult.t``).  Per case: ``status``
+(``0`` reached ``t_end``, ``-1`` unstable, ``-2`` error: the case could not be built or run),
+``message``, ``t_final`` [s], ``nsteps``, ``nfev``, ``wall_time`` [s], ``max_rod_length_error``
+(relative), ``max_constraint_error`` [m] (joints and supports; 0 without them), ``batched``
+(0/1).
 Per case and time (NaN after a run stopped): ``kinetic_energy``, ``elastic_energy``,
 ``energy_error`` (energy balance minus its initial value) [J], ``max_tension`` [N],
 ``slack_count``, ``max_displacement`` (largest node displacement from the initial layout) [m].
