@@ -42,9 +42,11 @@ and layout of :func:`tensegrity.io.trajectory.write_trajectory` (module docstrin
 structures shrink by ~10% under gzip, which cost 60 times the write time, measured on a (10,10)
 segment) in chunks of about 1 MiB, each with a Fletcher-32 checksum (a damaged file is an error
 when read, not wrong numbers; 4 bytes a chunk, and about half the time of an uncompressed write
-more: 44 -> 68 ms for 48 MB, h5py alone on a 2-core machine).  Extra root attributes:
-``complete``, ``stream_settings`` (JSON) and ``stream_settings_hash``; an extra group
-``checkpoint`` (see :class:`Checkpoint`).
+more: 44 -> 68 ms for 48 MB, h5py alone on a 2-core machine).  The file's ``settings`` is the
+run's record (``SimulationResult.settings``, written when the file is created) with the segment
+grid under ``stream``; ``switch_times`` is written when the run ends.  Extra root attributes:
+``complete``, ``stream_settings`` (JSON: what a resumed run must match) and
+``stream_settings_hash``; an extra group ``checkpoint`` (see :class:`Checkpoint`).
 
 A segment is stored in this order: its rows are appended to every dataset; the new checkpoint is
 written into whichever of the two slots ``checkpoint/a``, ``checkpoint/b`` is not current; one
