@@ -6,6 +6,7 @@ run that was in memory, field by field."""
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import h5py
 import numpy as np
@@ -125,3 +126,15 @@ def test_node_arrays_computed_on_read_are_those_recorded(tmp_path, structure, op
     result = simulate(structure, (0.0, 0.1), sample_dt=0.01, **options)
     back = read_trajectory(write_trajectory(tmp_path / "run.h5", result))
     assert_same_run(back, result)
+
+
+def test_a_file_of_version_1_reads_by_the_new_names():
+    """An old file (datasets ``time``, ``nodes``, ``velocities``) gives its arrays under the
+    result's names, alone as in the whole result; it stored no switch times."""
+    old = Path(__file__).parent / "data" / "legacy" / "shell31-v1.h5"
+    with h5py.File(old, "r") as f:
+        assert f.attrs["version"] == 1 and {"time", "nodes", "velocities"} <= set(f)
+    whole = read_trajectory(old)
+    assert whole.switch_times.size == 0 < whole.nswitches
+    for name in ("t", "node_position", "node_velocity", "q"):
+        assert np.array_equal(read_dataset(old, name, every=4), getattr(whole, name)[[0, 4, 8, 10]])
