@@ -143,7 +143,7 @@ _OWN_OPTIONS = ("sample_dt", "progress")
 #: ``simulate`` options left out of the settings a resumed run must match: a budget (a run
 #: may be resumed with more time).
 _BUDGETS = ("max_wall_time",)
-_COUNTERS = ("nfev", "nsteps", "nswitches", "nprojections")
+_COUNTERS = tio.COUNT_ATTRIBUTES
 
 
 # ----------------------------------------------------------------------------- results
@@ -457,13 +457,19 @@ def _write_layout(f, structure: Structure, structure_text: str, plan: _Plan) -> 
     f.attrs["settings"] = tio.settings_json(plan.record)
     f.attrs["stream_settings"] = _settings_json(plan.settings)
     f.attrs["stream_settings_hash"] = plan.settings_hash
-    f.attrs["status"] = STATUS_END
-    f.attrs["message"] = "running"
-    for name in _COUNTERS:
-        f.attrs[name] = 0
-    f.attrs["max_rod_length_error"] = 0.0
-    f.attrs["max_constraint_error"] = 0.0
-    f.attrs["wall_time"] = 0.0
+    n = structure.n_coordinates
+    first = Checkpoint(
+        next_segment=0,
+        n_segments=plan.n_segments,
+        n_samples=0,
+        state=State(t=math.nan, q=np.zeros(n), qdot=np.zeros(n)),
+        loop=None,
+        counts=dict.fromkeys(_COUNTERS, 0),
+        max_rod_length_error=0.0,
+        wall_time=0.0,
+        settings_hash=plan.settings_hash,
+    )
+    _write_run_attributes(f, first)
     rows = tio.sample_rows(structure) | {"switch_times": ()}
     for name, shape in rows.items():
         f.create_dataset(
@@ -479,22 +485,21 @@ def _write_layout(f, structure: Structure, structure_text: str, plan: _Plan) -> 
     group.attrs["version"] = STREAM_VERSION
     for slot in _SLOTS:
         group.create_group(slot)
-    n = structure.n_coordinates
-    _write_checkpoint(
-        group["a"],
-        Checkpoint(
-            next_segment=0,
-            n_segments=plan.n_segments,
-            n_samples=0,
-            state=State(t=math.nan, q=np.zeros(n), qdot=np.zeros(n)),
-            loop=None,
-            counts=dict.fromkeys(_COUNTERS, 0),
-            max_rod_length_error=0.0,
-            wall_time=0.0,
-            settings_hash=plan.settings_hash,
-        ),
-    )
+    _write_checkpoint(group["a"], first)
     group.attrs["current"] = np.int64(0)
+
+
+def _write_run_attributes(f, checkpoint: Checkpoint) -> None:
+    """The root attributes of how the run ended (so far), from ``checkpoint``."""
+    tio.write_run_attributes(
+        f,
+        status=checkpoint.status,
+        message=checkpoint.message,
+        counts=checkpoint.counts,
+        max_rod_length_error=checkpoint.max_rod_length_error,
+        max_constraint_error=checkpoint.max_constraint_error,
+        wall_time=checkpoint.wall_time,
+    )
 
 
 #: The two checkpoint slots; the group attribute ``current`` (0 or 1) names the valid one.
@@ -880,13 +885,7 @@ class FileSink:
         with _open_h5(self.partial, "a") as f:
             _append(f, columns, self.checkpoint.n_samples)
             _store_checkpoint(f, checkpoint)
-            f.attrs["message"] = checkpoint.message
-            f.attrs["status"] = int(checkpoint.status)
-            for name in _COUNTERS:
-                f.attrs[name] = checkpoint.counts[name]
-            f.attrs["max_rod_length_error"] = checkpoint.max_rod_length_error
-            f.attrs["max_constraint_error"] = checkpoint.max_constraint_error
-            f.attrs["wall_time"] = checkpoint.wall_time
+            _write_run_attributes(f, checkpoint)
             if switch_times is not None:
                 _append(f, {"switch_times": np.array(switch_times, dtype=float)}, 0)
             f.flush()

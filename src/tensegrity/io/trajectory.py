@@ -91,7 +91,8 @@ DERIVED = {"node_position": ("q", False), "node_velocity": ("qdot", True)}
 SAMPLE_NAMES = (*SAMPLE_DATASETS, *DERIVED)
 #: The result's names stored under other names in files of version 1, read only.
 VERSION1_NAMES = {"t": "time", "node_position": "nodes", "node_velocity": "velocities"}
-_COUNT_ATTRIBUTES = ("nfev", "nsteps", "nswitches", "nprojections")
+#: The run's counts, as root attributes: evaluations, steps, switches, projections.
+COUNT_ATTRIBUTES = ("nfev", "nsteps", "nswitches", "nprojections")
 
 
 # --------------------------------------------------------------------------- the layout
@@ -208,7 +209,15 @@ def write_trajectory(path: PathLike, result: SimulationResult) -> Path:
         structure = result.structure
         write_layout_attributes(f, structure, json.dumps(structure.to_dict(), allow_nan=False))
         f.attrs["settings"] = settings_json(result.settings)
-        write_run_attributes(f, result)
+        write_run_attributes(
+            f,
+            status=result.status,
+            message=result.message,
+            counts={name: getattr(result, name) for name in COUNT_ATTRIBUTES},
+            max_rod_length_error=result.max_rod_length_error,
+            max_constraint_error=result.max_constraint_error,
+            wall_time=result.wall_time,
+        )
         for name, value in arrays.items():
             value = np.asarray(value, dtype=float)
             compress = (
@@ -227,16 +236,26 @@ def write_trajectory(path: PathLike, result: SimulationResult) -> Path:
     return Path(path)
 
 
-def write_run_attributes(f: Any, run: Any) -> None:
-    """How the run ended: ``status``, ``message``, the counts, the errors and the wall time of
-    ``run`` (a :class:`SimulationResult`, or anything with these names)."""
-    f.attrs["status"] = int(run.status)
-    f.attrs["message"] = str(run.message)
-    for name in _COUNT_ATTRIBUTES:
-        f.attrs[name] = int(getattr(run, name))
-    f.attrs["max_rod_length_error"] = float(run.max_rod_length_error)
-    f.attrs["max_constraint_error"] = float(run.max_constraint_error)
-    f.attrs["wall_time"] = float(run.wall_time)
+def write_run_attributes(
+    f: Any,
+    *,
+    status: int,
+    message: str,
+    counts: Mapping[str, int],
+    max_rod_length_error: float,
+    max_constraint_error: float,
+    wall_time: float,
+) -> None:
+    """The attributes of how the run ended (so far): ``status``, ``message``, the counts of
+    :data:`COUNT_ATTRIBUTES` (``counts``), the largest relative rod-length error, the largest
+    constraint violation [m] and the wall time [s]."""
+    f.attrs["status"] = int(status)
+    f.attrs["message"] = str(message)
+    for name in COUNT_ATTRIBUTES:
+        f.attrs[name] = int(counts[name])
+    f.attrs["max_rod_length_error"] = float(max_rod_length_error)
+    f.attrs["max_constraint_error"] = float(max_constraint_error)
+    f.attrs["wall_time"] = float(wall_time)
 
 
 def read_trajectory(path: PathLike, *, every: int = 1) -> SimulationResult:
@@ -421,7 +440,7 @@ class _Attributes:
     def run_figures(self, structure: Structure) -> dict[str, Any]:
         """``status``, the counts and the errors of the run, as :class:`SimulationResult`
         takes them."""
-        figures: dict[str, Any] = {name: self.integer(name) for name in _COUNT_ATTRIBUTES}
+        figures: dict[str, Any] = {name: self.integer(name) for name in COUNT_ATTRIBUTES}
         figures["status"] = self.integer("status")
         figures["max_rod_length_error"] = self.number("max_rod_length_error")
         figures["wall_time"] = self.number("wall_time")
