@@ -143,7 +143,9 @@ def main() -> None:
             structure = read_structure(structure_file)
             reference = simulate(structure, (0.0, span), rtol=1e-12, atol=1e-12).node_position[-1]
             deviations = [
-                _deviation(read_dataset(out / kind / "trajectory.h5", "nodes")[-1], reference)
+                _deviation(
+                    read_dataset(out / kind / "trajectory.h5", "node_position")[-1], reference
+                )
                 for kind in ("dop853", "rk4")
             ]
             deviations += [_deviation(np.load(out / f"{p}.npy"), reference) for p in peers]

@@ -83,8 +83,8 @@ def test_frames_show_the_last_sample_at_or_before_their_time():
 def test_frames_hold_the_samples_and_a_fixed_tension_range(shell31):
     index = np.array([0, 50, 200])
     frames = make_frames(shell31, index)
-    np.testing.assert_array_equal(frames.position, shell31.node_position[index])
-    np.testing.assert_array_equal(frames.tension, shell31.tendon_tension[index])
+    np.testing.assert_array_equal(frames.node_position, shell31.node_position[index])
+    np.testing.assert_array_equal(frames.tendon_tension, shell31.tendon_tension[index])
     taut = shell31.tendon_tension[shell31.tendon_tension > 0]
     assert frames.tension_range == (taut.min(), taut.max())  # over every sample, not 3
     assert np.all(frames.bounds[0] <= shell31.node_position.min(axis=(0, 1)))
@@ -93,9 +93,9 @@ def test_frames_hold_the_samples_and_a_fixed_tension_range(shell31):
 
 def test_planar_frames_lie_in_the_plane_z_0(planar):
     frames = make_frames(planar)
-    assert frames.position.shape == (planar.t.size, 4, 3)
-    np.testing.assert_array_equal(frames.position[..., :2], planar.node_position)
-    assert not frames.position[..., 2].any()
+    assert frames.node_position.shape == (planar.t.size, 4, 3)
+    np.testing.assert_array_equal(frames.node_position[..., :2], planar.node_position)
+    assert not frames.node_position[..., 2].any()
 
 
 def test_a_structure_at_rest_is_one_frame_with_tensions_from_its_stretch():
@@ -103,7 +103,7 @@ def test_a_structure_at_rest_is_one_frame_with_tensions_from_its_stretch():
     frames = structure_frames(s)
     length = np.linalg.norm(np.diff(s.node_position[s.tendon_nodes], axis=1)[:, 0], axis=1)
     expected = np.maximum(s.tendon_stiffness * (length - s.tendon_rest_length), 0)
-    np.testing.assert_allclose(frames.tension[0], expected)
+    np.testing.assert_allclose(frames.tendon_tension[0], expected)
     slack = structure_frames(s.replace(tendon_rest_length=np.full(s.n_tendons, 5.0)))
     assert slack.slack.all() and slack.tension_range == (0.0, 1.0)
 
@@ -297,13 +297,13 @@ def test_page_data_hold_the_positions_to_float32_precision(shell31):
     index = np.array(data["sample_index"])
     assert data["n_frames"] == index.size == 25 and index[0] == 0 and index[-1] == 200
     np.testing.assert_array_equal(
-        data["positions"], shell31.node_position[index].astype(np.float32)
+        data["node_position"], shell31.node_position[index].astype(np.float32)
     )
     np.testing.assert_array_equal(
-        data["tensions"], shell31.tendon_tension[index].astype(np.float32)
+        data["tendon_tension"], shell31.tendon_tension[index].astype(np.float32)
     )
-    np.testing.assert_array_equal(data["tendons"], class1_shell(3, 1).tendon_nodes)
-    assert data["tendon_names"] == list(shell31.structure.tendon_name)
+    np.testing.assert_array_equal(data["tendon_nodes"], class1_shell(3, 1).tendon_nodes)
+    assert data["tendon_name"] == list(shell31.structure.tendon_name)
     assert "<script src" not in page and "<link" not in page  # everything inline
 
 
@@ -320,7 +320,7 @@ def test_a_name_cannot_end_the_data_script(shell31):
     s = shell31.structure.replace(tendon_name=names)
     page = html(s)
     assert page.count("</script>") == 3  # data, three.js, viewer
-    assert read_viewer_data(page)["tendon_names"] == list(names)
+    assert read_viewer_data(page)["tendon_name"] == list(names)
 
 
 # ------------------------------------------------------------------ the verbs
@@ -429,7 +429,7 @@ def test_results_and_structures_are_shown_by_the_plots_functions(tmp_path):
     page = plots.view(result, tmp_path / "run.html").read_text()
     assert page == html(result)
     data = read_viewer_data(page)
-    np.testing.assert_array_equal(data["positions"], result.node_position.astype(np.float32))
+    np.testing.assert_array_equal(data["node_position"], result.node_position.astype(np.float32))
     assert read_viewer_data(plots.view(shell, tmp_path / "shell.html").read_text())["n_frames"] == 1
     video = plots.animate(result, tmp_path / "run.gif", fps=10)
     assert video.stat().st_size > 0
@@ -488,19 +488,19 @@ def test_simulate_writes_the_viewer_from_the_samples_it_kept(tmp_path):
     numbers = np.array(data["sample_index"])
     assert 100 <= numbers.size <= MAX_FRAMES and numbers[0] == 0
     assert numbers[-1] == trajectory.t.size - 1 and np.all(np.diff(numbers) > 0)
-    np.testing.assert_array_equal(data["time"], trajectory.t[numbers])
+    np.testing.assert_array_equal(data["t"], trajectory.t[numbers])
     np.testing.assert_array_equal(
-        data["positions"], trajectory.node_position[numbers].astype(np.float32)
+        data["node_position"], trajectory.node_position[numbers].astype(np.float32)
     )
     np.testing.assert_array_equal(
-        data["tensions"], trajectory.tendon_tension[numbers].astype(np.float32)
+        data["tendon_tension"], trajectory.tendon_tension[numbers].astype(np.float32)
     )
     # (a resumed run's frames are read from the file: the datasets they show, one row in k)
     frames, n_samples = read_frames(out / "trajectory.h5", max_frames=50, max_bytes=10**9)
     assert n_samples == trajectory.t.size and frames.n_frames <= 50 and frames.index[-1] == 800
-    np.testing.assert_array_equal(frames.time, trajectory.t[frames.index])
-    np.testing.assert_array_equal(frames.position, trajectory.node_position[frames.index])
-    np.testing.assert_array_equal(frames.tension, trajectory.tendon_tension[frames.index])
+    np.testing.assert_array_equal(frames.t, trajectory.t[frames.index])
+    np.testing.assert_array_equal(frames.node_position, trajectory.node_position[frames.index])
+    np.testing.assert_array_equal(frames.tendon_tension, trajectory.tendon_tension[frames.index])
     assert main([*run, "--no-view", "--out", str(tmp_path / "bare")]) == 0
     assert not (tmp_path / "bare" / "view.html").exists()
 

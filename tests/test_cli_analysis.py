@@ -77,13 +77,15 @@ def _check_settling(path, settled):
 
     page = read_viewer_data(path.read_text())
     run = equilibrium_by_simulation(class1_shell(3, 1), t_end=60.0).trajectory
-    assert 1 < page["n_frames"] <= 300 and np.all(np.diff(page["time"]) > 0)
+    assert 1 < page["n_frames"] <= 300 and np.all(np.diff(page["t"]) > 0)
     index = np.array(page["sample_index"])
-    np.testing.assert_allclose(page["time"], run.t[index], rtol=1e-12)
-    np.testing.assert_allclose(page["positions"], run.node_position[index], atol=1e-6)
-    np.testing.assert_allclose(page["tensions"], run.tendon_tension[index], rtol=1e-5, atol=1e-4)
+    np.testing.assert_allclose(page["t"], run.t[index], rtol=1e-12)
+    np.testing.assert_allclose(page["node_position"], run.node_position[index], atol=1e-6)
+    np.testing.assert_allclose(
+        page["tendon_tension"], run.tendon_tension[index], rtol=1e-5, atol=1e-4
+    )
     assert index[0] == 0 and index[-1] == run.t.size - 1
-    np.testing.assert_allclose(page["positions"][-1], settled, atol=1e-6)
+    np.testing.assert_allclose(page["node_position"][-1], settled, atol=1e-6)
 
 
 def test_equilibrium_of_a_structure_file_matches_the_shell_options(tmp_path, capsys, shell_file):
@@ -105,7 +107,9 @@ def test_equilibrium_of_a_structure_file_matches_the_shell_options(tmp_path, cap
     assert "simulation" not in data and "agreement" not in data
     page = read_viewer_data((out / "settling.html").read_text())  # no run: the structure at rest
     assert page["n_frames"] == 1
-    np.testing.assert_allclose(page["positions"][0], class1_shell(3, 1).node_position, atol=1e-6)
+    np.testing.assert_allclose(
+        page["node_position"][0], class1_shell(3, 1).node_position, atol=1e-6
+    )
     reference = find_equilibrium(class1_shell(3, 1))
     np.testing.assert_allclose(
         [t["tension_N"] for t in data["least_squares"]["tendons"]], reference.tension, rtol=1e-9
@@ -160,12 +164,12 @@ def _check_mode_clip(path, mode, i):
     j = np.arange(48)
     expected = p0 + a * np.sin(2 * np.pi * j / 48)[:, None, None] * phi
     assert page["n_frames"] == 48 and f"mode {i}" in page["title"]
-    np.testing.assert_allclose(page["time"], j / 48 / mode["frequency_hz"], rtol=1e-12)
-    np.testing.assert_allclose(page["positions"], expected, rtol=0, atol=1e-6)
-    displacement = np.linalg.norm(page["positions"] - p0, axis=-1).max()
+    np.testing.assert_allclose(page["t"], j / 48 / mode["frequency_hz"], rtol=1e-12)
+    np.testing.assert_allclose(page["node_position"], expected, rtol=0, atol=1e-6)
+    displacement = np.linalg.norm(page["node_position"] - p0, axis=-1).max()
     assert displacement == pytest.approx(0.1 * np.ptp(p0, axis=0).max(), rel=1e-3)
     tension = tendon_tensions(structure, expected[12])
-    np.testing.assert_allclose(page["tensions"][12], tension, rtol=1e-5)
+    np.testing.assert_allclose(page["tendon_tension"][12], tension, rtol=1e-5)
 
 
 def test_controllability_ranks_per_input_set(tmp_path, capsys):
@@ -218,12 +222,12 @@ def test_control_reaches_the_targets_open_and_closed_loop(tmp_path, capsys):
     # samples from t = 0 to its end, taut throughout
     steps = read_viewer_data((out / "open_loop.html").read_text())
     p0 = find_equilibrium(class1_shell(3, 1)).node_position
-    assert steps["n_frames"] >= 7 and steps["time"] == list(range(steps["n_frames"]))
-    np.testing.assert_allclose(steps["positions"][0], p0, atol=1e-5)
+    assert steps["n_frames"] >= 7 and steps["t"] == list(range(steps["n_frames"]))
+    np.testing.assert_allclose(steps["node_position"][0], p0, atol=1e-5)
     run = read_viewer_data((out / "control.html").read_text())
-    assert 1 < run["n_frames"] <= 300 and run["time"][0] == 0 and np.all(np.diff(run["time"]) > 0)
-    np.testing.assert_allclose(run["positions"][0], p0, atol=1e-5)
-    assert run["tensions"].min() > 0 and f"{run['time'][-1]:.3g} s" in text
+    assert 1 < run["n_frames"] <= 300 and run["t"][0] == 0 and np.all(np.diff(run["t"]) > 0)
+    np.testing.assert_allclose(run["node_position"][0], p0, atol=1e-5)
+    assert run["tendon_tension"].min() > 0 and f"{run['t'][-1]:.3g} s" in text
     h0 = plan["initial_outputs"][0]
     assert plan["reached"] and closed["reached"]
     assert plan["final_outputs"][0] == pytest.approx(0.8 * h0, abs=1e-6)
@@ -335,5 +339,5 @@ def test_modes_of_zero_frequency_are_reported_without_warnings(tmp_path, capsys)
     assert [m["kind"] for m in modes[6:]] == ["mechanism"] * 9
     page = read_viewer_data((out / "mode_6.html").read_text())
     assert page["title"] == "mode 6: mechanism, zero frequency (no period): its shape over 1 s"
-    np.testing.assert_allclose(page["time"], np.arange(48) / 48, rtol=1e-12)
-    assert np.all(np.isfinite(page["positions"]))
+    np.testing.assert_allclose(page["t"], np.arange(48) / 48, rtol=1e-12)
+    assert np.all(np.isfinite(page["node_position"]))

@@ -43,15 +43,14 @@ FINAL_NAMES = {
 }
 PARTIAL = ".trajectory.h5.partial"
 DATASETS = (
-    "time",
-    "nodes",
-    "velocities",
+    "t",
+    "q",
+    "qdot",
     "tendon_length",
     "tendon_tension",
     "energy",
-    "q",
-    "qdot",
     "residual_acceleration",
+    "switch_times",
 )
 
 pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")

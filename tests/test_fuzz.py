@@ -54,7 +54,7 @@ from tensegrity.io.formats import (
     write_structure,
 )
 from tensegrity.io.tables import read_force_table
-from tensegrity.io.trajectory import ARRAY_DATASETS, read_trajectory, write_trajectory
+from tensegrity.io.trajectory import SAMPLE_DATASETS, read_trajectory, write_trajectory
 from tensegrity.model.structure import Structure
 from tensegrity.physics.dynamics import State
 
@@ -575,9 +575,9 @@ ROOT_ATTRIBUTES = (
     "max_rod_length_error",
     "max_constraint_error",
     "wall_time",
-    "tendon_names",
+    "tendon_name",
 )
-DATASETS = ARRAY_DATASETS
+DATASETS = (*SAMPLE_DATASETS, "switch_times")
 #: Values an attribute may be replaced by: numbers, text, bytes, arrays, JSON documents.
 ATTRIBUTE_VALUES = st.one_of(
     st.integers(-(2**63), 2**63 - 1),

@@ -205,23 +205,21 @@ def test_trajectory_round_trip_is_exact(tmp_path, result):
         "wall_time",
     ):
         assert getattr(tr, name) == getattr(result, name), name
-    assert tr.success and tr.tendon_names == result.structure.tendon_name
+    assert tr.success and tr.tendon_name == result.structure.tendon_name
 
 
 def test_trajectory_file_layout(tmp_path, result):
     path = tmp_path / "run.h5"
     write_trajectory(path, result)
-    T, N, S, R = result.t.size, result.structure.n_nodes, result.structure.n_tendons, 6
+    T, S, R = result.t.size, result.structure.n_tendons, 6
     with h5py.File(path, "r") as f:
-        assert f.attrs["format"] == "tensegrity-trajectory" and f.attrs["version"] == 1
+        assert f.attrs["format"] == "tensegrity-trajectory" and f.attrs["version"] == 2
         assert json.loads(f.attrs["structure"]) == result.structure.to_dict()
         assert json.loads(f.attrs["settings"]) == result.settings
-        assert list(f.attrs["tendon_names"]) == list(result.structure.tendon_name)
+        assert list(f.attrs["tendon_name"]) == list(result.structure.tendon_name)
         assert list(f["energy"].attrs["columns"]) == list(ENERGY_COLUMNS)
         shapes = {
-            "time": (T,),
-            "nodes": (T, N, 3),
-            "velocities": (T, N, 3),
+            "t": (T,),
             "tendon_length": (T, S),
             "tendon_tension": (T, S),
             "energy": (T, 6),
@@ -231,7 +229,9 @@ def test_trajectory_file_layout(tmp_path, result):
         }
         for name, shape in shapes.items():
             assert f[name].shape == shape, name
-        for name in ("nodes", "velocities", "q", "qdot", "tendon_length", "tendon_tension"):
+        assert "node_position" not in f and "node_velocity" not in f  # (computed from q, qdot)
+        assert f["switch_times"].shape == (result.nswitches,)
+        for name in ("q", "qdot", "tendon_length", "tendon_tension"):
             assert f[name].compression == "gzip" and f[name].chunks is not None, name
 
 
@@ -270,7 +270,7 @@ def test_failed_trajectory_write_keeps_the_older_file(tmp_path, result, monkeypa
     older = simulate(class1_shell(3, 1), (0.0, 0.1), sample_dt=0.05)
     write_trajectory(path, older)
     before = path.read_bytes()
-    _fail_on(monkeypatch, "nodes")
+    _fail_on(monkeypatch, "q")
     with pytest.raises(OSError, match="simulated failure"):
         write_trajectory(path, result)
     assert path.read_bytes() == before
@@ -310,13 +310,14 @@ def _edited_copy(tmp_path, result, edit):
 @pytest.mark.parametrize(
     "edit, words",
     [
-        (lambda f: f.__delitem__("velocities"), ["missing dataset 'velocities'"]),
-        (lambda f: f.attrs.__setitem__("version", 2), ["version 2", "newer"]),
+        (lambda f: f.__delitem__("qdot"), ["missing dataset 'qdot'"]),
+        (lambda f: f.__delitem__("switch_times"), ["missing dataset 'switch_times'"]),
+        (lambda f: f.attrs.__setitem__("version", 3), ["version 3", "newer"]),
         (lambda f: f.attrs.__delitem__("settings"), ["missing attribute 'settings'"]),
         (lambda f: f.attrs.__setitem__("structure", "{oops"), ["'structure'", "invalid JSON"]),
         (
-            lambda f: (f.__delitem__("nodes"), f.create_dataset("nodes", data=np.zeros((2, 3)))),
-            ["'nodes'", "shape"],
+            lambda f: (f.__delitem__("q"), f.create_dataset("q", data=np.zeros((2, 3)))),
+            ["'q'", "shape"],
         ),
     ],
 )
@@ -372,11 +373,12 @@ def test_trajectory_read_back_is_the_result_written(tmp_path):
         read_trajectory(path, every=0)
     # one dataset alone, the same rows
     assert np.array_equal(read_dataset(path, "tendon_length", every=7), result.tendon_length[rows])
-    assert np.array_equal(read_dataset(path, "time"), result.t)
-    with pytest.raises(ValueError, match=r"^name: expected one of time, nodes"):
+    assert np.array_equal(read_dataset(path, "t"), result.t)
+    assert np.array_equal(read_dataset(path, "node_position", every=7), result.node_position[rows])
+    with pytest.raises(ValueError, match=r"^name: expected one of t, q, qdot"):
         read_dataset(path, "tension")
     with pytest.raises(ValueError, match="no such file"):
-        read_dataset(tmp_path / "missing.h5", "time")
+        read_dataset(tmp_path / "missing.h5", "t")
 
 
 def _without_samples(result):
@@ -435,7 +437,7 @@ def test_a_corrupted_trajectory_is_an_error_not_wrong_numbers(tmp_path, result, 
     path = tmp_path / "run.h5"
     write_trajectory(path, result)
     with h5py.File(path, "r") as f:
-        assert all(f[name].fletcher32 for name in ("time", "nodes", "q", "energy"))
+        assert all(f[name].fletcher32 for name in ("t", "q", "qdot", "energy"))
     flip_bytes_in_first_row(path, "q")
     with pytest.raises(ValueError) as exc_info:
         read_trajectory(path)

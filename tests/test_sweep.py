@@ -90,7 +90,7 @@ def failing_sweep(client):
 
 def test_failing_cases_are_reported_and_the_others_finish(failing_sweep):
     ds = failing_sweep.dataset
-    assert ds.sizes["case"] == 8 and ds.sizes["time"] == round(T_END / SAMPLE_DT) + 1
+    assert ds.sizes["case"] == 8 and ds.sizes["t"] == round(T_END / SAMPLE_DT) + 1
     status = ds["status"].values
     k = ds["stiffness"].values
     # k = 3e7 at this step blows up.
@@ -577,7 +577,7 @@ def test_structure_sweep_cases_equal_direct_simulate(client, supported):
     result = run_sweep(spec, client=client)
     ds = result.dataset
     assert result.success and ds.sizes["case"] == 4
-    assert set(ds.coords) == {"case", "time", "stiffness", "load"}  # no n, m for a file
+    assert set(ds.coords) == {"case", "t", "stiffness", "load"}  # no n, m for a file
     # the compiled (batched) path takes the free prism only; the supported one runs simulate
     assert np.all(ds["batched"].values == (0 if supported else 1))
     for i in range(4):

@@ -137,33 +137,33 @@ def replace(f, name: str, **dataset) -> None:
 
 # ------------------------------------------------------------------ not the documented layout
 def _external_storage(f, secret, other):
-    replace(f, "nodes", shape=(3, 12, 3), dtype="<f8", external=[(str(secret), 0, 864)])
+    replace(f, "q", shape=(3, 36), dtype="<f8", external=[(str(secret), 0, 864)])
 
 
 def _external_link(f, secret, other):
-    del f["nodes"]
-    f["nodes"] = h5py.ExternalLink(str(other), "/data")
+    del f["q"]
+    f["q"] = h5py.ExternalLink(str(other), "/data")
 
 
 def _soft_link_out(f, secret, other):
     f["elsewhere"] = h5py.ExternalLink(str(other), "/data")
-    del f["nodes"]
-    f["nodes"] = h5py.SoftLink("/elsewhere")
+    del f["q"]
+    f["q"] = h5py.SoftLink("/elsewhere")
 
 
 def _virtual(f, secret, other):
-    layout = h5py.VirtualLayout(shape=(3, 12, 3), dtype="<f8")
-    layout[...] = h5py.VirtualSource(str(other), "data", shape=(3, 12, 3))
-    del f["nodes"]
-    f.create_virtual_dataset("nodes", layout)
+    layout = h5py.VirtualLayout(shape=(3, 36), dtype="<f8")
+    layout[:, :12] = h5py.VirtualSource(str(other), "data", shape=(3, 12, 3))[:, :, 0]
+    del f["q"]
+    f.create_virtual_dataset("q", layout)
 
 
 def _complex(f, secret, other):
-    replace(f, "nodes", data=np.zeros((3, 12, 3), complex))
+    replace(f, "q", data=np.zeros((3, 36), complex))
 
 
 def _compound(f, secret, other):
-    replace(f, "time", data=np.zeros(3, dtype=[("t", "<f8"), ("u", "<f8")]))
+    replace(f, "t", data=np.zeros(3, dtype=[("t", "<f8"), ("u", "<f8")]))
 
 
 def _text(f, secret, other):
@@ -179,12 +179,12 @@ def _integer(f, secret, other):
 @pytest.mark.parametrize(
     "edit, name, words",
     [
-        (_external_storage, "nodes", ["external storage"]),
-        (_external_link, "nodes", ["external link"]),
-        (_soft_link_out, "nodes", ["soft link"]),
-        (_virtual, "nodes", ["virtual"]),
-        (_complex, "nodes", ["complex"]),
-        (_compound, "time", ["compound"]),
+        (_external_storage, "q", ["external storage"]),
+        (_external_link, "q", ["external link"]),
+        (_soft_link_out, "q", ["soft link"]),
+        (_virtual, "q", ["virtual"]),
+        (_complex, "q", ["complex"]),
+        (_compound, "t", ["compound"]),
         (_text, "tendon_tension", ["floating-point"]),
         (_integer, "q", ["floating-point", "int64"]),
     ],
@@ -211,8 +211,8 @@ def test_names_in_messages_are_one_line_with_control_characters_escaped(tmp_path
     assert str(info.value) == f"{tmp_path}/two\\nlines\\x1b[2J.json: no such file"
 
     def link(f):
-        del f["nodes"]
-        f["nodes"] = h5py.ExternalLink(f"{secret[1]}\n\x1b[2J", "/data")
+        del f["q"]
+        f["q"] = h5py.ExternalLink(f"{secret[1]}\n\x1b[2J", "/data")
 
     path = crafted(tmp_path, result, link)
     with pytest.raises(ValueError) as info:
@@ -227,20 +227,20 @@ def test_a_torn_copy_is_refused_in_one_line(tmp_path, result):
     object past end of allocation") from the checks themselves; now one line naming the file and
     the dataset.  (``tests/test_cli_resume.py`` reads such copies of a running partial file.)"""
     before = write_trajectory(tmp_path / "before.h5", result).read_bytes()
-    path = crafted(tmp_path, result, lambda f: replace(f, "nodes", data=np.zeros((3, 12, 3))))
+    path = crafted(tmp_path, result, lambda f: replace(f, "q", data=np.zeros((3, 36))))
     path.write_bytes(before[:48] + path.read_bytes()[48:])  # the superblock of before the write
-    for read in (read_trajectory, lambda p: read_dataset(p, "nodes")):
-        assert_refused(read, path, "dataset 'nodes'", "damaged")
+    for read in (read_trajectory, lambda p: read_dataset(p, "q")):
+        assert_refused(read, path, "dataset 'q'", "damaged")
 
 
 def test_vtk_command_does_not_copy_local_files_into_its_output(tmp_path, result, secret, capsys):
-    """``tensegrity vtk`` on a trajectory whose nodes are stored in another local file: one line,
-    exit 2, and no ``.vtp`` file carrying that file's bytes."""
+    """``tensegrity vtk`` on a trajectory whose coordinates are stored in another local file: one
+    line, exit 2, and no ``.vtp`` file carrying that file's bytes."""
     path = crafted(tmp_path, result, lambda f: _external_storage(f, *secret))
     out = tmp_path / "vtk"
     assert main(["vtk", str(path), "-o", str(out)]) == 2
     error = capsys.readouterr().err.strip()
-    assert "\n" not in error and str(path) in error and "'nodes'" in error, error
+    assert "\n" not in error and str(path) in error and "'q'" in error, error
     assert not out.exists() or not list(out.iterdir())
 
 
@@ -475,7 +475,7 @@ def test_sweep_reads_the_dataset_it_was_saved_with(sweep_file):
     dataset = read_sweep(sweep_file)
     with xr.open_dataset(sweep_file, engine="h5netcdf") as direct:
         assert dataset.identical(direct)
-    assert dataset.sizes == {"case": 4, "time": 3}
+    assert dataset.sizes == {"case": 4, "t": 3}
 
 
 def test_sweep_arrays_and_attributes_count_against_the_limit(tmp_path, sweep_file, monkeypatch):
@@ -564,15 +564,15 @@ def test_checkpoint_outside_the_layout_is_refused(tmp_path, secret):
 
 
 def test_resume_does_not_write_into_a_file_a_dataset_points_at(tmp_path, secret):
-    """A partial file whose ``time`` is stored in another file: resuming refuses it, and the other
+    """A partial file whose ``t`` is stored in another file: resuming refuses it, and the other
     file is unchanged (the run would append its samples there)."""
     partial, args = _partial(tmp_path)
     before = secret[0].read_bytes()
     with h5py.File(partial, "a") as f:
-        rows = f["time"].shape[0]
+        rows = f["t"].shape[0]
         replace(
             f,
-            "time",
+            "t",
             shape=(rows,),
             maxshape=(None,),
             dtype="<f8",
@@ -580,7 +580,7 @@ def test_resume_does_not_write_into_a_file_a_dataset_points_at(tmp_path, secret)
         )
     with pytest.raises(ValueError) as info:
         simulate_to_file(**args)
-    assert_one_line(str(info.value), partial, "dataset 'time'", "external storage")
+    assert_one_line(str(info.value), partial, "dataset 't'", "external storage")
     assert secret[0].read_bytes() == before
 
 
@@ -598,7 +598,7 @@ def _huge_time(path: Path, rows: int) -> Path:
 @pytest.mark.parametrize("size", [7 * GiB, 21 * 2**40], ids=["7GiB", "21TiB"])
 def test_dataset_larger_than_the_limit_is_refused_before_reading(tmp_path, size):
     path = _huge_time(tmp_path / "huge.h5", size // 8)
-    message = run_capped("read_dataset(path, 'time')", path)
+    message = run_capped("read_dataset(path, 't')", path)
     assert_one_line(message, path, "dataset 'time'", "TENSEGRITY_MAX_ARRAY_BYTES", "4294967296")
 
 
@@ -635,7 +635,7 @@ def test_a_huge_chunk_is_refused(tmp_path):
             "time", shape=(3,), maxshape=(None,), chunks=(rows,), dtype="<f8", compression="gzip"
         )
         time.id.write_direct_chunk((0,), data)
-    message = run_capped("read_dataset(path, 'time', every=2)", path)
+    message = run_capped("read_dataset(path, 't', every=2)", path)
     assert_one_line(message, path, "dataset 'time'", "chunk")
 
 

@@ -136,7 +136,7 @@ def test_the_slider_moves_the_time(page31):
     page.page.mouse.click(box["x"] + 0.75 * box["width"], box["y"] + box["height"] / 2)
     frame = page.call("tensegrityViewer.frame()")
     assert 30 <= frame <= 45
-    t = data["time"][frame]
+    t = data["t"][frame]
     assert page.call("tensegrityViewer.time()") == t > 1.0
     assert f"t = {t:.3f} s" in page.page.inner_text("#clock")
     page.check_clean()
@@ -164,7 +164,7 @@ def test_tendon_colour_follows_its_tension(page31, shell31):
     page, data = page31
     frame = 0  # all taut, tensions from 4.5 to 99 N
     page.call(f"tensegrityViewer.setFrame({frame})")
-    tension = data["tensions"][frame].astype(float)
+    tension = data["tendon_tension"][frame].astype(float)
     low, high = data["tension_range"]
     colours = np.array([page.call(f"tensegrityViewer.tendonColor({j})") for j in range(24)])
     expected = tension_colormap()((tension - low) / (high - low))[:, :3]
@@ -196,11 +196,11 @@ def tendon_pixels(page, data, frame):
     screen = np.array(
         page.page.evaluate(
             "ps => ps.map(p => tensegrityViewer.toScreen(...p))",
-            data["positions"][frame].tolist(),
+            data["node_position"][frame].tolist(),
         )
     ) - [box["x"], box["y"]]
-    rods, tendons = screen[data["rods"]], screen[data["tendons"]]  # (M, 2 ends, 2)
-    taut = np.flatnonzero(data["tensions"][frame] > 0)
+    rods, tendons = screen[data["rod_nodes"]], screen[data["tendon_nodes"]]  # (M, 2 ends, 2)
+    taut = np.flatnonzero(data["tendon_tension"][frame] > 0)
     pixels = {}
     for j in taut:
         a, b = tendons[j]
@@ -238,7 +238,7 @@ def check_tendon_pixels(page, data, frame, expected):
     colour of the legend (whose rows are every second entry or so of the 256-colour map:
     within one entry)."""
     pixels = tendon_pixels(page, data, frame)
-    taut = int((data["tensions"][frame] > 0).sum())
+    taut = int((data["tendon_tension"][frame] > 0).sum())
     assert len(pixels) >= 2 / 3 * taut, f"{len(pixels)} of {taut} tendons seen clear of the others"
     legend = legend_colours(page)
     white = np.full(3, 255.0)
@@ -270,15 +270,15 @@ def test_drawn_tendons_have_the_legend_s_colours(page31):
     """The pixels of the tendons on the screen (not the colours the page meant to draw: issue
     27, where they were sRGB-encoded twice, (141, 15, 155) for the map's (68, 1, 84))."""
     page, data = page31
-    tensions = np.where(data["tensions"] > 0, data["tensions"], np.inf)
+    tensions = np.where(data["tendon_tension"] > 0, data["tendon_tension"], np.inf)
     lowest = int(tensions.min(axis=1).argmin())  # the frame of the bottom of the colour map
     low, high = data["tension_range"]
     seen = []
     for frame in (0, lowest):  # 0: all taut, 30 to 99 N (the top of the map)
         page.call(f"tensegrityViewer.setFrame({frame})")
-        expected = page_colours(data, data["tensions"][frame], low, high)
+        expected = page_colours(data, data["tendon_tension"][frame], low, high)
         pixels = check_tendon_pixels(page, data, frame, expected)
-        seen += [data["tensions"][frame, j] for j in pixels]
+        seen += [data["tendon_tension"][frame, j] for j in pixels]
     # the tendons seen span the map, from its first few colours to its last
     assert min(seen) < low + 0.02 * (high - low) and max(seen) > high - 1e-6 * high
     page.check_clean()
@@ -474,7 +474,7 @@ def test_a_designed_run_s_page_colours_members_by_utilisation(browser, tmp_path)
         page.call("tensegrityViewer.setColorMode('tension')")
         assert page.page.input_value("#color-mode") == "tension"
         low, top = data["tension_range"]
-        tension = data["tensions"][frame].astype(float)
+        tension = data["tendon_tension"][frame].astype(float)
         np.testing.assert_allclose(
             [page.call(f"tensegrityViewer.tendonColor({j})") for j in range(9)],
             tension_colormap()((tension - low) / (top - low))[:, :3],

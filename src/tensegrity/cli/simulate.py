@@ -108,8 +108,8 @@ def _announce_large_run(structure: Structure, t_end: float, sample_dt: float, ou
     print(
         f"tensegrity: a large run: up to {samples:,} samples of {row / 2**20:.3g} MiB, about "
         f"{byte_text(samples * row)} in trajectory.h5{room}, written as the run goes (at most "
-        f"{byte_text(held * row)} of samples in memory at a time); a larger --sample-dt "
-        "writes less",
+        f"{byte_text(held * sample_bytes(structure, held=True))} of samples in memory at a "
+        "time); a larger --sample-dt writes less",
         file=sys.stderr,
     )
 

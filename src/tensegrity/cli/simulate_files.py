@@ -207,7 +207,7 @@ def write_run(
         frames, _ = read_frames(work, max_frames=MAX_FRAMES, max_bytes=MAX_BYTES, check=check)
     every = max(1, -(-summary.n_samples // FIGURE_SAMPLES))
     history = (
-        read_dataset(work, "time", every=every),
+        read_dataset(work, "t", every=every),
         read_dataset(work, "tendon_length", every=every),
     )
 

@@ -59,7 +59,7 @@ def _read(verb: str, path: Path, frames_wanted: int) -> Any:
     from tensegrity.io.trajectory import read_dataset, read_trajectory
 
     with blame(verb, path):
-        n_samples = read_dataset(path, "time").size
+        n_samples = read_dataset(path, "t").size
         every = max(1, (n_samples - 1) // max(frames_wanted - 1, 1))
         return read_trajectory(path, every=every), n_samples
 
@@ -85,7 +85,7 @@ def write_video(
 
     fps = frame_rate(output, fps)
     with blame("animate", trajectory):
-        time = read_dataset(trajectory, "time")
+        time = read_dataset(trajectory, "t")
     wanted = playback_times(time[0], time[-1], fps=fps, duration=duration, speed=speed).size
     result, _ = _read("animate", trajectory, 2 * wanted)
     animate(
@@ -147,7 +147,7 @@ def _member_check(args: argparse.Namespace) -> Any:
         )
     with blame("view", args.trajectory):
         structure = read_trajectory(args.trajectory, every=2**62).structure
-        n_samples = read_dataset(args.trajectory, "time").size
+        n_samples = read_dataset(args.trajectory, "t").size
     same = (
         given.structure.n_nodes == structure.n_nodes
         and np.array_equal(given.structure.rod_nodes, structure.rod_nodes)

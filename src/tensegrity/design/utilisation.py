@@ -360,7 +360,7 @@ def trajectory_utilisation(
     rods = run_utilisation(run, members, safety_factor=safety_factor, external_force=external_force)
     S = run.structure.n_tendons
     tendon_every = max(1, -(-n_samples * S * 8 // tension_bytes))
-    t = read_dataset(path, "time", every=tendon_every)
+    t = read_dataset(path, "t", every=tendon_every)
     tension = read_dataset(path, "tendon_tension", every=tendon_every)
     tendon = utilisation(
         run.structure,

@@ -225,8 +225,9 @@ class SimulationResult:
         return total_energy(self.energy)
 
     @property
-    def tendon_names(self) -> tuple[str, ...]:
-        """Tendon names (S,), as in the trajectory file's ``tendon_names`` attribute."""
+    def tendon_name(self) -> tuple[str, ...]:
+        """Tendon names (S,): the structure's ``tendon_name``, as in the trajectory file's
+        ``tendon_name`` attribute."""
         return self.structure.tendon_name
 
     @property

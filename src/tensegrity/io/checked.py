@@ -217,10 +217,16 @@ def _check_chunks(dataset: Any, where: str, path: PathLike) -> None:
 
 
 def read_datasets(
-    datasets: Mapping[str, Any], path: PathLike, *, every: int = 1
+    datasets: Mapping[str, Any],
+    path: PathLike,
+    *,
+    every: int = 1,
+    computed: Mapping[str, int] | None = None,
 ) -> dict[str, np.ndarray]:
     """Checked datasets (:func:`hdf5_dataset`) read as arrays: every ``every``-th row and the last
-    row of each (all of it for ``every`` 1), float64 for floats; their sizes are counted against
+    row of each (all of it for ``every`` 1), float64 for floats; their sizes, and the bytes of
+    the arrays the reader will compute from them (``computed``: bytes by a description of the
+    array, e.g. ``"array 'node_position'"``), are counted against
     ``TENSEGRITY_MAX_ARRAY_BYTES`` before any is read.
 
     Raises
@@ -229,19 +235,29 @@ def read_datasets(
         Over the limit, or a dataset HDF5 cannot read (e.g. an unknown compression filter), or
         whose data fail their Fletcher-32 checksum (corrupted).
     """
-    check_read_bytes(datasets.values(), path, every=every)
+    check_read_bytes(datasets.values(), path, every=every, computed=computed)
     return {name: _rows(dataset, every, path) for name, dataset in datasets.items()}
 
 
-def check_read_bytes(datasets: Iterable[Any], path: PathLike, *, every: int = 1) -> None:
+def check_read_bytes(
+    datasets: Iterable[Any],
+    path: PathLike,
+    *,
+    every: int = 1,
+    computed: Mapping[str, int] | None = None,
+) -> None:
     """``ValueError`` naming the file and the first dataset over ``TENSEGRITY_MAX_ARRAY_BYTES``,
     counted over ``datasets`` (every ``every``-th row and the last of each) as
-    :func:`read_datasets` reads them, at least 8 bytes an element; nothing of them is read."""
+    :func:`read_datasets` reads them, at least 8 bytes an element, then ``computed`` (bytes by
+    a description of the array); nothing of them is read."""
+    sizes = [
+        (_dataset_name(d), math.prod(selected_shape(d.shape, every)) * max(8, d.dtype.itemsize))
+        for d in datasets
+    ]
     total = 0
-    for dataset in datasets:
-        size = math.prod(_selected_shape(dataset.shape, every)) * max(8, dataset.dtype.itemsize)
+    for what, size in [*sizes, *(computed or {}).items()]:
         try:
-            total = _within_limit(total, size, _dataset_name(dataset))
+            total = _within_limit(total, size, what)
         except ValueError as exc:
             raise file_error(path, str(exc)) from None
 
@@ -269,7 +285,7 @@ def _rows(dataset: Any, every: int, path: PathLike) -> np.ndarray:
         raise file_error(path, f"{_dataset_name(dataset)}: cannot read ({exc})") from exc
 
 
-def _selected_shape(shape: tuple[int, ...], every: int) -> tuple[int, ...]:
+def selected_shape(shape: tuple[int, ...], every: int) -> tuple[int, ...]:
     """The shape :func:`read_datasets` returns for a dataset of ``shape``."""
     if every == 1 or not shape or shape[0] <= 1:
         return shape

@@ -42,9 +42,11 @@ and layout of :func:`tensegrity.io.trajectory.write_trajectory` (module docstrin
 structures shrink by ~10% under gzip, which cost 60 times the write time, measured on a (10,10)
 segment) in chunks of about 1 MiB, each with a Fletcher-32 checksum (a damaged file is an error
 when read, not wrong numbers; 4 bytes a chunk, and about half the time of an uncompressed write
-more: 44 -> 68 ms for 48 MB, h5py alone on a 2-core machine).  Extra root attributes:
-``complete``, ``stream_settings`` (JSON) and ``stream_settings_hash``; an extra group
-``checkpoint`` (see :class:`Checkpoint`).
+more: 44 -> 68 ms for 48 MB, h5py alone on a 2-core machine).  The file's ``settings`` is the
+run's record (``SimulationResult.settings``, written when the file is created) with the segment
+grid under ``stream``; ``switch_times`` is written when the run ends.  Extra root attributes:
+``complete``, ``stream_settings`` (JSON: what a resumed run must match) and
+``stream_settings_hash``; an extra group ``checkpoint`` (see :class:`Checkpoint`).
 
 A segment is stored in this order: its rows are appended to every dataset; the new checkpoint is
 written into whichever of the two slots ``checkpoint/a``, ``checkpoint/b`` is not current; one
@@ -122,7 +124,7 @@ PARTIAL_SUFFIX = ".partial"
 #: (:func:`tensegrity.io.trajectory.read_trajectory` refuses it).
 PARTIAL_FORMAT = "tensegrity-trajectory-partial"
 #: Version of the checkpoint layout and of the settings hash.
-STREAM_VERSION = 1
+STREAM_VERSION = 2
 #: Default budget [bytes] for the samples of one segment when ``segment`` is not given.
 DEFAULT_SEGMENT_BYTES = 64 * 2**20
 #: Most samples per segment when ``segment`` is not given.
@@ -144,7 +146,7 @@ _OWN_OPTIONS = ("sample_dt", "progress")
 #: ``simulate`` options left out of the settings a resumed run must match: a budget (a run
 #: may be resumed with more time).
 _BUDGETS = ("max_wall_time",)
-_COUNTERS = ("nfev", "nsteps", "nswitches", "nprojections")
+_COUNTERS = tio.COUNT_ATTRIBUTES
 
 
 # ----------------------------------------------------------------------------- results
@@ -405,9 +407,13 @@ def segments_of(n_samples: int, samples_per_segment: int) -> int:
     return max(1, math.ceil((n_samples - 1) / samples_per_segment))
 
 
-def sample_bytes(structure: Structure) -> int:
-    """Bytes of one sample of ``structure`` in a trajectory file (its datasets' rows)."""
-    return 8 * sum(max(1, math.prod(shape)) for shape in _row_shapes(structure).values())
+def sample_bytes(structure: Structure, *, held: bool = False) -> int:
+    """Bytes of one sample of ``structure`` in a trajectory file (its datasets' rows), or with
+    ``held`` as a segment holds it in memory (the arrays computed on read too)."""
+    rows = tio.sample_rows(structure)
+    if held:
+        rows |= dict.fromkeys(tio.DERIVED, (structure.n_nodes, structure.dim))
+    return 8 * sum(max(1, math.prod(shape)) for shape in rows.values())
 
 
 def samples_per_segment(structure: Structure, segment: float | None, sample_dt: float) -> int:
@@ -415,7 +421,7 @@ def samples_per_segment(structure: Structure, segment: float | None, sample_dt: 
     :data:`DEFAULT_SEGMENT_BYTES` (held twice while a segment is written), at most
     :data:`DEFAULT_SEGMENT_SAMPLES`."""
     if segment is None:
-        row_bytes = sample_bytes(structure)
+        row_bytes = sample_bytes(structure, held=True)
         return int(max(1, min(DEFAULT_SEGMENT_SAMPLES, DEFAULT_SEGMENT_BYTES // (2 * row_bytes))))
     segment = float(segment)
     if not (math.isfinite(segment) and segment > 0):
@@ -429,28 +435,10 @@ def _chunk_rows(row_shape: tuple[int, ...], samples_per_segment: int) -> int:
     return int(max(1, min(samples_per_segment + 1, CHUNK_BYTES // row_bytes)))
 
 
-def _row_shapes(structure: Structure) -> dict[str, tuple[int, ...]]:
-    N, S, n = structure.n_nodes, structure.n_tendons, structure.n_coordinates
-    return {
-        "time": (),
-        "nodes": (N, structure.dim),
-        "velocities": (N, structure.dim),
-        "tendon_length": (S,),
-        "tendon_tension": (S,),
-        "energy": (len(tio.ENERGY_COLUMNS),),
-        "q": (n,),
-        "qdot": (n,),
-        "residual_acceleration": (),
-    }
-
-
 def _create_partial(
     partial: Path,
     structure: Structure,
-    settings: dict[str, Any],
-    settings_hash: str,
-    samples_per_segment: int,
-    n_segments: int,
+    plan: _Plan,
 ) -> None:
     """Create the partial file (atomically: it appears only once it holds its empty layout)."""
     import h5py
@@ -459,45 +447,40 @@ def _create_partial(
     with atomic_path(partial) as tmp:
         reserve_space(tmp, METADATA_BYTES + 4 * len(text) + 64 * structure.n_coordinates)
         with h5py.File(tmp, "w", libver=("v108", "v108")) as f:
-            _write_layout(
-                f, structure, text, settings, settings_hash, samples_per_segment, n_segments
-            )
+            _write_layout(f, structure, text, plan)
 
 
-def _write_layout(
-    f,
-    structure: Structure,
-    structure_text: str,
-    settings: dict[str, Any],
-    settings_hash: str,
-    samples_per_segment: int,
-    n_segments: int,
-) -> None:
+def _write_layout(f, structure: Structure, structure_text: str, plan: _Plan) -> None:
     """The attributes, empty datasets and first checkpoint of a new partial file ``f``."""
     import h5py
 
     f.attrs["format"] = PARTIAL_FORMAT
-    f.attrs["version"] = tio.TRAJECTORY_VERSION
     f.attrs["complete"] = False
-    f.attrs["structure"] = structure_text
-    f.attrs["settings"] = _settings_json(settings)
-    f.attrs["stream_settings"] = _settings_json(settings)
-    f.attrs["stream_settings_hash"] = settings_hash
-    f.attrs["status"] = STATUS_END
-    f.attrs["message"] = "running"
-    for name in _COUNTERS:
-        f.attrs[name] = 0
-    f.attrs["max_rod_length_error"] = 0.0
-    f.attrs["max_constraint_error"] = 0.0
-    f.attrs["wall_time"] = 0.0
-    f.attrs["tendon_names"] = np.array(structure.tendon_name, dtype=h5py.string_dtype())
-    for name, shape in _row_shapes(structure).items():
+    tio.write_layout_attributes(f, structure, structure_text)
+    f.attrs["settings"] = tio.settings_json(plan.record)
+    f.attrs["stream_settings"] = _settings_json(plan.settings)
+    f.attrs["stream_settings_hash"] = plan.settings_hash
+    n = structure.n_coordinates
+    first = Checkpoint(
+        next_segment=0,
+        n_segments=plan.n_segments,
+        n_samples=0,
+        state=State(t=math.nan, q=np.zeros(n), qdot=np.zeros(n)),
+        loop=None,
+        counts=dict.fromkeys(_COUNTERS, 0),
+        max_rod_length_error=0.0,
+        wall_time=0.0,
+        settings_hash=plan.settings_hash,
+    )
+    _write_run_attributes(f, first)
+    rows = tio.sample_rows(structure) | {"switch_times": ()}
+    for name, shape in rows.items():
         f.create_dataset(
             name,
             shape=(0, *shape),
             dtype="f8",
             maxshape=(None, *(d if d > 0 else None for d in shape)),
-            chunks=(_chunk_rows(shape, samples_per_segment), *(max(d, 1) for d in shape)),
+            chunks=(_chunk_rows(shape, plan.K), *(max(d, 1) for d in shape)),
             fletcher32=True,
         )
     f["energy"].attrs["columns"] = np.array(tio.ENERGY_COLUMNS, dtype=h5py.string_dtype())
@@ -505,22 +488,21 @@ def _write_layout(
     group.attrs["version"] = STREAM_VERSION
     for slot in _SLOTS:
         group.create_group(slot)
-    n = structure.n_coordinates
-    _write_checkpoint(
-        group["a"],
-        Checkpoint(
-            next_segment=0,
-            n_segments=n_segments,
-            n_samples=0,
-            state=State(t=math.nan, q=np.zeros(n), qdot=np.zeros(n)),
-            loop=None,
-            counts=dict.fromkeys(_COUNTERS, 0),
-            max_rod_length_error=0.0,
-            wall_time=0.0,
-            settings_hash=settings_hash,
-        ),
-    )
+    _write_checkpoint(group["a"], first)
     group.attrs["current"] = np.int64(0)
+
+
+def _write_run_attributes(f, checkpoint: Checkpoint) -> None:
+    """The root attributes of how the run ended (so far), from ``checkpoint``."""
+    tio.write_run_attributes(
+        f,
+        status=checkpoint.status,
+        message=checkpoint.message,
+        counts=checkpoint.counts,
+        max_rod_length_error=checkpoint.max_rod_length_error,
+        max_constraint_error=checkpoint.max_constraint_error,
+        wall_time=checkpoint.wall_time,
+    )
 
 
 #: The two checkpoint slots; the group attribute ``current`` (0 or 1) names the valid one.
@@ -689,7 +671,7 @@ def read_checkpoint(path: PathLike) -> Checkpoint:
 
 def _append(f, arrays: Mapping[str, np.ndarray], start: int) -> int:
     """Write ``arrays`` (rows ``start ..``) into the resizable datasets; return the new length."""
-    count = len(arrays["time"])
+    count = len(next(iter(arrays.values())))
     for name, value in arrays.items():
         dataset = f[name]
         dataset.resize(start + count, axis=0)
@@ -721,7 +703,7 @@ def _write_bytes(
 
 
 def _truncate(f, n_samples: int, path: Path) -> None:
-    for name in tio.ARRAY_DATASETS:
+    for name in tio.SAMPLE_DATASETS:
         if name not in f:
             raise file_error(path, f"missing dataset {name!r}")
         rows = f[name].shape[0]
@@ -750,9 +732,9 @@ def _summary(
     segments_run: int,
     resumed_from: int | None,
 ) -> StreamSummary:
-    time_ = hdf5_dataset(f, "time", path)
+    time_ = hdf5_dataset(f, "t", path)
     if time_ is None or time_.ndim != 1:
-        raise file_error(path, "missing dataset 'time' (or not of shape (T,))")
+        raise file_error(path, "missing dataset 't' (or not of shape (T,))")
     n = time_.shape[0]
     return StreamSummary(
         path=path,
@@ -870,12 +852,7 @@ class FileSink:
             max_constraint_error=run.max_constraint_error,
             wall_time=run.wall_time,
         )
-        stream = dict(
-            segment=self.K * run.settings["sample_dt"],
-            samples_per_segment=self.K,
-            n_segments=checkpoint.n_segments,
-        )
-        self._store(checkpoint, settings=dict(run.settings, stream=stream))
+        self._store(checkpoint, switch_times=run.switch_times)
 
     def _next_checkpoint(self, *, ended: bool, message: str, **fields: Any) -> Checkpoint:
         """The checkpoint after the samples held now: their count, the last of them, the
@@ -898,9 +875,12 @@ class FileSink:
             **fields,
         )
 
-    def _store(self, checkpoint: Checkpoint, *, settings: dict[str, Any] | None = None) -> None:
+    def _store(
+        self, checkpoint: Checkpoint, *, switch_times: tuple[float, ...] | None = None
+    ) -> None:
         """Append the samples held to the file and make ``checkpoint`` its current one (the
-        disk space for it reserved first: a full disk leaves the file at its last checkpoint)."""
+        disk space for it reserved first: a full disk leaves the file at its last checkpoint);
+        at the run's end, ``switch_times`` [s] with them."""
         columns = _columns(self.blocks)
         reserve_space(
             self.partial, _write_bytes(columns, self.checkpoint.n_samples, self.K, checkpoint)
@@ -908,15 +888,9 @@ class FileSink:
         with _open_h5(self.partial, "a") as f:
             _append(f, columns, self.checkpoint.n_samples)
             _store_checkpoint(f, checkpoint)
-            f.attrs["message"] = checkpoint.message
-            f.attrs["status"] = int(checkpoint.status)
-            for name in _COUNTERS:
-                f.attrs[name] = checkpoint.counts[name]
-            f.attrs["max_rod_length_error"] = checkpoint.max_rod_length_error
-            f.attrs["max_constraint_error"] = checkpoint.max_constraint_error
-            f.attrs["wall_time"] = checkpoint.wall_time
-            if settings is not None:
-                f.attrs["settings"] = json.dumps(settings, default=tio.json_default)
+            _write_run_attributes(f, checkpoint)
+            if switch_times is not None:
+                _append(f, {"switch_times": np.array(switch_times, dtype=float)}, 0)
             f.flush()
         _fsync(self.partial)
         self.blocks, self.checkpoint = [], checkpoint
@@ -929,21 +903,10 @@ def _last_state(samples: Samples) -> State:
 
 
 def _columns(blocks: list[Samples]) -> dict[str, np.ndarray]:
-    """The samples as the file's datasets (rows of :data:`tensegrity.io.trajectory` layout)."""
+    """The samples as the file's datasets (:func:`tensegrity.io.trajectory.sample_columns`)."""
     if not blocks:  # (nothing to append)
-        return {"time": np.zeros(0)}
-    s = Samples.join(blocks)
-    return {
-        "time": s.t,
-        "nodes": s.node_position,
-        "velocities": s.node_velocity,
-        "tendon_length": s.tendon_length,
-        "tendon_tension": s.tendon_tension,
-        "energy": s.energy,
-        "q": s.q,
-        "qdot": s.qdot,
-        "residual_acceleration": s.residual_acceleration,
-    }
+        return {"t": np.zeros(0)}
+    return tio.sample_columns(Samples.join(blocks))
 
 
 # ----------------------------------------------------------------------------- the run
@@ -1037,9 +1000,7 @@ def simulate_to_file(
         checkpoint = _resumable_checkpoint(partial, plan.settings, plan.settings_hash)
         resumed_from = checkpoint.next_segment
     else:
-        _create_partial(
-            partial, structure, plan.settings, plan.settings_hash, plan.K, plan.n_segments
-        )
+        _create_partial(partial, structure, plan)
         with _open_h5(partial, "r") as f:
             checkpoint = _read_checkpoint_open(f, partial)
     report, close = _reporter(progress, plan.n_segments, checkpoint.next_segment)
@@ -1079,6 +1040,7 @@ class _Plan(NamedTuple):
     n_segments: int
     settings: dict[str, Any]
     settings_hash: str
+    record: dict[str, Any]
 
 
 def _plan(
@@ -1102,15 +1064,18 @@ def _plan(
     K = samples_per_segment(structure, segment, sample_dt)
     settings = _stream_settings(structure, t0, t1, sample_dt, K, {**options, "initial": initial})
     run_options, inputs = options_and_inputs(structure, sample_dt=sample_dt, **options)
+    n_segments = len(segment_grid((t0, t1), sample_dt, K)) - 1
+    stream = dict(segment=K * sample_dt, samples_per_segment=K, n_segments=n_segments)
     return _Plan(
         (t0, t1),
         initial,
         run_options,
         inputs,
         K,
-        len(segment_grid((t0, t1), sample_dt, K)) - 1,
+        n_segments,
         settings,
         _digest(_settings_json(settings).encode()),
+        {**run_options.settings(t0, t1, **inputs.settings()), "stream": stream},
     )
 
 
@@ -1178,7 +1143,7 @@ def _check_partial_layout(f, path: Path, structure_digest: str, checkpoint: Chec
         structure = Structure.from_dict(data)
     except (ValueError, TypeError, KeyError, OverflowError) as exc:
         raise file_error(path, f"attribute 'structure': {exc}") from exc
-    for name, row in _row_shapes(structure).items():
+    for name, row in tio.sample_rows(structure).items():
         dataset = hdf5_dataset(f, name, path)
         if dataset is None:
             raise file_error(path, f"missing dataset {name!r}")

@@ -1,7 +1,8 @@
 """The trajectory file: a :class:`~tensegrity.engine.result.SimulationResult` as HDF5
 (:func:`write_trajectory`, atomic) and back (:func:`read_trajectory`, the same type with the
-same names, shapes and units).  The layout below is defined here once; the streamed writer
-(:mod:`tensegrity.io.stream`) writes the same datasets.
+same names, shapes and units).  The layout below is defined here once (:func:`sample_rows`,
+:func:`sample_columns`, :data:`DERIVED`); the streamed writer (:mod:`tensegrity.io.stream`)
+writes the same datasets.
 
 Every reader raises ``ValueError`` with a one-line message that starts with the file name and
 names the problem (missing file, not HDF5, not a trajectory, a missing dataset, a shape that
@@ -9,36 +10,42 @@ does not fit the structure, ...).
 
 SI units throughout: m, kg, s, N, J.
 
-The trajectory file (``format = "tensegrity-trajectory"``, ``version = 1``) holds, for ``T``
-samples, ``N`` nodes, ``R`` rods and ``S`` tendons:
+The trajectory file (``format = "tensegrity-trajectory"``, ``version = 2``) holds, for ``T``
+samples, ``n`` coordinates, ``S`` tendons and ``k`` switches, one dataset per sampled array of
+:class:`SimulationResult`, under its name there:
 
-=========================  ===========  ============================  ========================
-dataset                    shape        content                       ``SimulationResult``
-=========================  ===========  ============================  ========================
-``time``                   (T,)         sample times [s]              ``t``
-``nodes``                  (T, N, 3)    node positions [m]            ``node_position``
-``velocities``             (T, N, 3)    node velocities [m/s]         ``node_velocity``
-``tendon_length``          (T, S)       tendon lengths [m]            ``tendon_length``
-``tendon_tension``         (T, S)       tensions [N] (damping         ``tendon_tension``
-                                        included; 0 when slack)
-``energy``                 (T, 6)       energies and works [J];       ``energy`` (a dict by
-                                        attribute ``columns`` names   column name)
-                                        the columns
-``q``, ``qdot``            (T, 6R)      coordinates [m], rates [m/s]  ``q``, ``qdot``
-``residual_acceleration``  (T,)         largest node acceleration     ``residual_acceleration``
-                                        [m/s^2]
-=========================  ===========  ============================  ========================
+=========================  ===========  ==============================================
+dataset                    shape        content
+=========================  ===========  ==============================================
+``t``                      (T,)         sample times [s]
+``q``, ``qdot``            (T, n)       coordinates [m], rates [m/s]
+``tendon_length``          (T, S)       tendon lengths [m]
+``tendon_tension``         (T, S)       tensions [N] (damping included; 0 when slack)
+``energy``                 (T, 6)       energies and works [J]; its attribute
+                                        ``columns`` names the columns (the keys of the
+                                        result's ``energy`` dict)
+``residual_acceleration``  (T,)         largest node acceleration [m/s^2]
+``switch_times``           (k,)         times of the located slack/taut switches [s]
+=========================  ===========  ==============================================
 
-(``(T, N, 2)`` node arrays for a planar structure; point masses add 3 coordinates each to
-``q``.) and the root attributes ``format``, ``version``, ``structure`` (JSON form of the structure),
-``settings`` (JSON), ``status``, ``message``, ``nfev``, ``nsteps``, ``nswitches``,
-``nprojections``, ``max_rod_length_error``, ``max_constraint_error`` [m] (joints and supports;
-0 without them), ``wall_time`` [s] and ``tendon_names``.
+``node_position`` and ``node_velocity`` (T, N, dim) are not stored: they are ``P q`` and
+``P q'`` (:func:`tensegrity.physics.dynamics.nodes_from_coordinates`), computed on read from
+``q`` and ``qdot`` (:data:`DERIVED`), bit for bit the arrays the engine records.  The root
+attributes are ``format``, ``version``, ``structure`` (JSON form of the structure), ``settings``
+(JSON: the result's ``settings``), ``status``, ``message``, ``nfev``, ``nsteps``,
+``nswitches``, ``nprojections``, ``max_rod_length_error``, ``max_constraint_error`` [m]
+(joints and supports; 0 without them), ``wall_time`` [s] and ``tendon_name``.
+
+Files of version 1 still read: they stored ``time``, ``nodes`` and ``velocities`` for ``t``,
+``node_position`` and ``node_velocity`` (:data:`VERSION1_NAMES`), and no switch times (read as
+none).
 """
 
 from __future__ import annotations
 
 import json
+import math
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -53,32 +60,90 @@ from tensegrity.io.checked import (
     hdf5_dataset,
     open_hdf5,
     read_datasets,
+    selected_shape,
 )
 from tensegrity.io.files import PathLike, atomic_path, file_error
 from tensegrity.model.structure import Structure
+from tensegrity.physics.coordinates import nodes_from_coordinates
 
 #: ``format`` attribute of a trajectory file.
 TRAJECTORY_FORMAT = "tensegrity-trajectory"
 #: ``version`` attribute written; files of a higher version are refused.
-TRAJECTORY_VERSION = 1
+TRAJECTORY_VERSION = 2
 #: Energy columns in the order :func:`tensegrity.engine.simulate.simulate` produces them [J].
 ENERGY_COLUMNS = ENERGY_NAMES
 
-ARRAY_DATASETS = (
-    "time",
-    "nodes",
-    "velocities",
+#: The sampled datasets a file stores, one row per sample, by their names in
+#: :class:`SimulationResult` (and :class:`tensegrity.engine.result.Samples`).
+SAMPLE_DATASETS = (
+    "t",
+    "q",
+    "qdot",
     "tendon_length",
     "tendon_tension",
     "energy",
-    "q",
-    "qdot",
     "residual_acceleration",
 )
-_COUNT_ATTRIBUTES = ("nfev", "nsteps", "nswitches", "nprojections")
+#: The sampled arrays of a result computed on read rather than stored: name -> (the stored
+#: dataset it is computed from, whether it is a rate).
+DERIVED = {"node_position": ("q", False), "node_velocity": ("qdot", True)}
+#: Every sampled array a file gives (:func:`read_dataset`).
+SAMPLE_NAMES = (*SAMPLE_DATASETS, *DERIVED)
+#: The result's names stored under other names in files of version 1, read only.
+VERSION1_NAMES = {"t": "time", "node_position": "nodes", "node_velocity": "velocities"}
+#: The run's counts, as root attributes: evaluations, steps, switches, projections.
+COUNT_ATTRIBUTES = ("nfev", "nsteps", "nswitches", "nprojections")
 
 
-# --------------------------------------------------------------------------- trajectories
+# --------------------------------------------------------------------------- the layout
+def sample_rows(structure: Structure) -> dict[str, tuple[int, ...]]:
+    """The shape of one row (one sample) of each of :data:`SAMPLE_DATASETS` for ``structure``."""
+    n, S = structure.n_coordinates, structure.n_tendons
+    return {
+        "t": (),
+        "q": (n,),
+        "qdot": (n,),
+        "tendon_length": (S,),
+        "tendon_tension": (S,),
+        "energy": (len(ENERGY_COLUMNS),),
+        "residual_acceleration": (),
+    }
+
+
+def sample_columns(samples: Any) -> dict[str, np.ndarray]:
+    """The rows of :data:`SAMPLE_DATASETS` that ``samples`` hold: a :class:`SimulationResult`
+    or a block of :class:`tensegrity.engine.result.Samples`, which have these names.  Energy is
+    the (T, 6) array of the block, or the result's ``energy`` dict as columns in its order."""
+    energy = samples.energy
+    if isinstance(energy, Mapping):
+        energy = (
+            np.column_stack([energy[name] for name in energy])
+            if energy
+            else np.zeros((len(samples.t), 0))
+        )
+    return {
+        name: energy if name == "energy" else getattr(samples, name) for name in SAMPLE_DATASETS
+    }
+
+
+def derived(structure: Structure, name: str, source: np.ndarray) -> np.ndarray:
+    """The derived array ``name`` of :data:`DERIVED` from its stored ``source`` (T, n)."""
+    _, rates = DERIVED[name]
+    return nodes_from_coordinates(structure, source, rates=rates)
+
+
+def _derived_bytes(
+    structure: Structure, names: Iterable[str], n_samples: int, every: int
+) -> dict[str, int]:
+    """The bytes of the derived arrays ``names`` of ``n_samples`` samples read one in
+    ``every`` (:func:`tensegrity.io.checked.read_datasets`' ``computed``)."""
+    shape = selected_shape((n_samples, structure.n_nodes, structure.dim), every)
+    return {
+        f"array {name!r} (computed from {DERIVED[name][0]!r})": 8 * math.prod(shape)
+        for name in names
+    }
+
+
 def json_default(value: Any) -> Any:
     """JSON for NumPy scalars and arrays in ``settings``; ``str`` for anything else."""
     if isinstance(value, (np.generic, np.ndarray)):
@@ -86,6 +151,23 @@ def json_default(value: Any) -> Any:
     return str(value)
 
 
+def settings_json(settings: Mapping[str, Any]) -> str:
+    """The ``settings`` attribute of a file: a run's settings record as JSON, whatever writes
+    it."""
+    return json.dumps(settings, default=json_default)
+
+
+def write_layout_attributes(f: Any, structure: Structure, structure_json: str) -> None:
+    """The attributes every trajectory file has from its start: ``version``, ``structure``
+    (``structure_json``, the JSON text of ``structure``) and ``tendon_name``."""
+    import h5py
+
+    f.attrs["version"] = TRAJECTORY_VERSION
+    f.attrs["structure"] = structure_json
+    f.attrs["tendon_name"] = np.array(structure.tendon_name, dtype=h5py.string_dtype())
+
+
+# --------------------------------------------------------------------------- trajectories
 def write_trajectory(path: PathLike, result: SimulationResult) -> Path:
     """Write a simulation result to an HDF5 trajectory file, atomically.
 
@@ -121,37 +203,21 @@ def write_trajectory(path: PathLike, result: SimulationResult) -> Path:
             f"result: expected a SimulationResult (what simulate returns), got "
             f"{type(result).__name__}"
         )
-    structure = result.structure
-    energy_names = list(result.energy)
-    arrays = {
-        "time": result.t,
-        "nodes": result.node_position,
-        "velocities": result.node_velocity,
-        "tendon_length": result.tendon_length,
-        "tendon_tension": result.tendon_tension,
-        "energy": np.column_stack([result.energy[name] for name in energy_names])
-        if energy_names
-        else np.zeros((len(result.t), 0)),
-        "q": result.q,
-        "qdot": result.qdot,
-        "residual_acceleration": result.residual_acceleration,
-    }
-    attributes = {
-        "format": TRAJECTORY_FORMAT,
-        "version": TRAJECTORY_VERSION,
-        "structure": json.dumps(structure.to_dict(), allow_nan=False),
-        "settings": json.dumps(result.settings, default=json_default),
-        "status": int(result.status),
-        "message": str(result.message),
-        **{name: int(getattr(result, name)) for name in _COUNT_ATTRIBUTES},
-        "max_rod_length_error": float(result.max_rod_length_error),
-        "max_constraint_error": float(result.max_constraint_error),
-        "wall_time": float(result.wall_time),
-        "tendon_names": np.array(structure.tendon_name, dtype=h5py.string_dtype()),
-    }
+    arrays = sample_columns(result) | {"switch_times": result.switch_times}
     with atomic_path(path) as tmp, h5py.File(tmp, "w", libver=("v108", "v108")) as f:
-        for name, value in attributes.items():
-            f.attrs[name] = value
+        f.attrs["format"] = TRAJECTORY_FORMAT
+        structure = result.structure
+        write_layout_attributes(f, structure, json.dumps(structure.to_dict(), allow_nan=False))
+        f.attrs["settings"] = settings_json(result.settings)
+        write_run_attributes(
+            f,
+            status=result.status,
+            message=result.message,
+            counts={name: getattr(result, name) for name in COUNT_ATTRIBUTES},
+            max_rod_length_error=result.max_rod_length_error,
+            max_constraint_error=result.max_constraint_error,
+            wall_time=result.wall_time,
+        )
         for name, value in arrays.items():
             value = np.asarray(value, dtype=float)
             compress = (
@@ -166,12 +232,34 @@ def write_trajectory(path: PathLike, result: SimulationResult) -> Path:
                 )
             )
             f.create_dataset(name, data=value, **compress)
-        f["energy"].attrs["columns"] = np.array(energy_names, dtype=h5py.string_dtype())
+        f["energy"].attrs["columns"] = np.array(list(result.energy), dtype=h5py.string_dtype())
     return Path(path)
 
 
+def write_run_attributes(
+    f: Any,
+    *,
+    status: int,
+    message: str,
+    counts: Mapping[str, int],
+    max_rod_length_error: float,
+    max_constraint_error: float,
+    wall_time: float,
+) -> None:
+    """The attributes of how the run ended (so far): ``status``, ``message``, the counts of
+    :data:`COUNT_ATTRIBUTES` (``counts``), the largest relative rod-length error, the largest
+    constraint violation [m] and the wall time [s]."""
+    f.attrs["status"] = int(status)
+    f.attrs["message"] = str(message)
+    for name in COUNT_ATTRIBUTES:
+        f.attrs[name] = int(counts[name])
+    f.attrs["max_rod_length_error"] = float(max_rod_length_error)
+    f.attrs["max_constraint_error"] = float(max_constraint_error)
+    f.attrs["wall_time"] = float(wall_time)
+
+
 def read_trajectory(path: PathLike, *, every: int = 1) -> SimulationResult:
-    """Read a trajectory file written by :func:`write_trajectory`.
+    """Read a trajectory file written by :func:`write_trajectory` or the streamed writer.
 
     Parameters
     ----------
@@ -184,7 +272,7 @@ def read_trajectory(path: PathLike, *, every: int = 1) -> SimulationResult:
     -------
     SimulationResult
         The same type, names, shapes and units as the result in memory that was written
-        (``switch_times``, not stored, is empty).
+        (``switch_times`` empty for a file of version 1, which did not store them).
 
     Raises
     ------
@@ -199,15 +287,30 @@ def read_trajectory(path: PathLike, *, every: int = 1) -> SimulationResult:
 
 
 def read_dataset(path: PathLike, name: str, *, every: int = 1) -> np.ndarray:
-    """One dataset of a trajectory file (a name of the layout above, e.g. ``"tendon_length"``),
-    one sample in ``every`` and the last as in :func:`read_trajectory`: a long run's series
-    without the rest of the file in memory.  ``ValueError`` names the file and the problem."""
+    """One sampled array of a trajectory file by its name in :class:`SimulationResult` (one of
+    :data:`SAMPLE_NAMES`, e.g. ``"tendon_length"``; ``energy`` as its (T, 6) dataset), one
+    sample in ``every`` and the last as in :func:`read_trajectory`: a long run's series without
+    the rest of the file in memory.  ``ValueError`` names the file and the problem."""
     _check_every(every)
-    if name not in ARRAY_DATASETS:
-        raise ValueError(f"name: expected one of {', '.join(ARRAY_DATASETS)}, got {name!r}")
+    if name not in SAMPLE_NAMES:
+        raise ValueError(f"name: expected one of {', '.join(SAMPLE_NAMES)}, got {name!r}")
     with _open(path) as f:
-        _check_format(f, path)
-        return read_datasets({name: _dataset(f, name, path)}, path, every=every)[name]
+        version = _check_format(f, path)
+        if version >= 2 and name in DERIVED:
+            source = DERIVED[name][0]
+            structure = _structure(f, path)
+            dataset = _dataset(f, source, path)
+            _check_shapes({source: dataset.shape}, structure, len(ENERGY_COLUMNS), path)
+            computed = _derived_bytes(structure, [name], dataset.shape[0], every)
+            rows = read_datasets({source: dataset}, path, every=every, computed=computed)
+            return derived(structure, name, rows[source])
+        stored = _stored_name(name, version)
+        return read_datasets({stored: _dataset(f, stored, path)}, path, every=every)[stored]
+
+
+def _stored_name(name: str, version: int) -> str:
+    """The dataset that holds the result's array ``name`` in a file of ``version``."""
+    return VERSION1_NAMES.get(name, name) if version < 2 else name
 
 
 def _check_every(every: int) -> None:
@@ -221,8 +324,9 @@ def _open(path: PathLike) -> Any:
     return open_hdf5(path, "a tensegrity trajectory is HDF5")
 
 
-def _check_format(f: Any, path: PathLike) -> None:
-    """``ValueError`` unless ``f`` is a tensegrity trajectory this library reads."""
+def _check_format(f: Any, path: PathLike) -> int:
+    """The version of ``f``; ``ValueError`` unless it is a tensegrity trajectory this library
+    reads."""
     fmt = attribute_text(f, "format", path) if "format" in f.attrs else None
     if fmt != TRAJECTORY_FORMAT:
         found = "no 'format' attribute" if fmt is None else f"format {fmt!r}"
@@ -236,6 +340,7 @@ def _check_format(f: Any, path: PathLike) -> None:
             f"trajectory format version {version} is newer than this "
             f"library reads ({TRAJECTORY_VERSION}); upgrade tensegrity",
         )
+    return version
 
 
 def _dataset(f: Any, name: str, path: PathLike) -> Any:
@@ -246,17 +351,23 @@ def _dataset(f: Any, name: str, path: PathLike) -> Any:
     return dataset
 
 
+def _structure(f: Any, path: PathLike) -> Structure:
+    """The structure of the trajectory in ``f``."""
+    data = _Attributes(f, path).json("structure")
+    try:
+        return Structure.from_dict(data)
+    except (ValueError, TypeError, KeyError, OverflowError) as exc:
+        raise file_error(path, f"attribute 'structure': {exc}") from exc
+
+
 def _read_open_trajectory(f: Any, path: PathLike, every: int = 1) -> SimulationResult:
     """The trajectory in the open file ``f``: its layout, attributes and shapes are checked
     before any array is read."""
-    _check_format(f, path)
-    datasets = {name: _dataset(f, name, path) for name in ARRAY_DATASETS}
+    version = _check_format(f, path)
+    names = SAMPLE_DATASETS if version >= 2 else (*SAMPLE_DATASETS, *DERIVED)
+    datasets = {name: _dataset(f, _stored_name(name, version), path) for name in names}
     attrs = _Attributes(f, path)
-    structure_data = attrs.json("structure")
-    try:
-        structure = Structure.from_dict(structure_data)
-    except (ValueError, TypeError, KeyError, OverflowError) as exc:
-        raise file_error(path, f"attribute 'structure': {exc}") from exc
+    structure = _structure(f, path)
     settings = attrs.json("settings")
     figures, message = attrs.run_figures(structure), attrs.text("message")
     energy = datasets["energy"]
@@ -265,23 +376,41 @@ def _read_open_trajectory(f: Any, path: PathLike, every: int = 1) -> SimulationR
         if "columns" in energy.attrs
         else list(ENERGY_COLUMNS)
     )
-    _check_shapes({name: d.shape for name, d in datasets.items()}, structure, len(columns), path)
-    arrays = read_datasets(datasets, path, every=every)
+    shapes = {name: d.shape for name, d in datasets.items()}
+    _check_shapes(shapes, structure, len(columns), path, version)
+    switch_times = _switch_times(f, path, version)
+    computing = [name for name in DERIVED if name not in datasets]
+    computed = _derived_bytes(structure, computing, shapes["t"][0], every)
+    arrays = read_datasets(datasets, path, every=every, computed=computed)
+    for name in computing:
+        arrays[name] = derived(structure, name, arrays[DERIVED[name][0]])
     return SimulationResult(
-        t=arrays["time"],
-        node_position=arrays["nodes"],
-        node_velocity=arrays["velocities"],
-        tendon_length=arrays["tendon_length"],
-        tendon_tension=arrays["tendon_tension"],
-        energy={name: arrays["energy"][:, k] for k, name in enumerate(columns)},
+        t=arrays["t"],
         q=arrays["q"],
         qdot=arrays["qdot"],
+        node_position=arrays["node_position"],
+        node_velocity=arrays["node_velocity"],
+        tendon_length=arrays["tendon_length"],
+        tendon_tension=arrays["tendon_tension"],
         residual_acceleration=arrays["residual_acceleration"],
+        energy={name: arrays["energy"][:, k] for k, name in enumerate(columns)},
+        switch_times=switch_times,
         structure=structure,
         settings=settings,
         **figures,
         message=message,
     )
+
+
+def _switch_times(f: Any, path: PathLike, version: int) -> np.ndarray:
+    """The times of the run's located switches [s] (k,): none in a file of version 1, which did
+    not store them."""
+    if version < 2:
+        return np.zeros(0)
+    dataset = _dataset(f, "switch_times", path)
+    if dataset.ndim != 1:
+        raise file_error(path, f"dataset 'switch_times': expected shape (k,), got {dataset.shape}")
+    return read_datasets({"switch_times": dataset}, path)["switch_times"]
 
 
 class _Attributes:
@@ -311,7 +440,7 @@ class _Attributes:
     def run_figures(self, structure: Structure) -> dict[str, Any]:
         """``status``, the counts and the errors of the run, as :class:`SimulationResult`
         takes them."""
-        figures: dict[str, Any] = {name: self.integer(name) for name in _COUNT_ATTRIBUTES}
+        figures: dict[str, Any] = {name: self.integer(name) for name in COUNT_ATTRIBUTES}
         figures["status"] = self.integer("status")
         figures["max_rod_length_error"] = self.number("max_rod_length_error")
         figures["wall_time"] = self.number("wall_time")
@@ -325,30 +454,28 @@ class _Attributes:
 
 
 def _check_shapes(
-    shapes: dict[str, tuple[int, ...]], structure: Structure, n_energy: int, path: PathLike
+    shapes: dict[str, tuple[int, ...]],
+    structure: Structure,
+    n_energy: int,
+    path: PathLike,
+    version: int = TRAJECTORY_VERSION,
 ) -> None:
-    """``ValueError`` naming the first dataset whose shape does not fit ``structure``, or if
-    the file holds no sample (a run has at least its initial one)."""
-    T = shapes["time"][0] if len(shapes["time"]) == 1 else -1
+    """``ValueError`` naming the first dataset of ``shapes`` (by the result's names, of a file
+    of ``version``) whose shape does not fit ``structure``, or if the file holds no sample (a
+    run has at least its initial one)."""
+    rows = sample_rows(structure) | dict.fromkeys(DERIVED, (structure.n_nodes, structure.dim))
+    rows["energy"] = (n_energy,)
+    lead = "t" if "t" in shapes else next(iter(shapes))  # (the samples' count)
+    T = shapes[lead][0] if len(shapes[lead]) == 1 + len(rows[lead]) else -1
     if T == 0:
         raise file_error(path, "holds no samples (a trajectory has at least its first state)")
-    N, S, n, d = structure.n_nodes, structure.n_tendons, structure.n_coordinates, structure.dim
-    expected = {
-        "time": (T,),
-        "nodes": (T, N, d),
-        "velocities": (T, N, d),
-        "tendon_length": (T, S),
-        "tendon_tension": (T, S),
-        "energy": (T, n_energy),
-        "q": (T, n),
-        "qdot": (T, n),
-        "residual_acceleration": (T,),
-    }
-    for name, shape in expected.items():
-        if shapes[name] != shape:
+    for name, shape in shapes.items():
+        expected = (T, *rows[name])
+        if shape != expected:
             raise file_error(
                 path,
-                f"dataset {name!r}: expected shape {shape} for this structure, got {shapes[name]}",
+                f"dataset {_stored_name(name, version)!r}: expected shape {expected} for this "
+                f"structure, got {shape}",
             )
 
 

@@ -166,11 +166,13 @@ class _Scene:
         slack = frames.slack[k]
         pairs = structure.tendon_nodes
         self.tendons.set_segments(frames.segments(k, pairs[~slack]))
-        self.tendons.set_colors(tension_colors(frames.tension[k][~slack], frames.tension_range))
+        self.tendons.set_colors(
+            tension_colors(frames.tendon_tension[k][~slack], frames.tension_range)
+        )
         self.slack.set_segments(frames.segments(k, pairs[slack]))
         self.rods.set_segments(frames.segments(k, structure.rod_nodes))
         for line, nodes in self.markers:
-            line.set_data_3d(*frames.position[k][nodes].T)
+            line.set_data_3d(*frames.node_position[k][nodes].T)
         canvas: Any = self.figure.canvas
         canvas.restore_region(self.background)
         for collection in (self.tendons, self.slack, self.rods):
@@ -183,7 +185,7 @@ class _Scene:
         """The figure's pixels as drawn now, shape (height, width, 3), uint8, with frame ``k``'s
         time, energies and counts written over them."""
         frames = self.frames
-        lines = [f"t = {frames.time[k]:8.3f} s"]
+        lines = [f"t = {frames.t[k]:8.3f} s"]
         if frames.energy:
             lines += [
                 f"E       = {frames.energy['total'][k]:.5g} J",

@@ -114,13 +114,13 @@ class Frames:
     ----------
     structure : Structure
         ``N`` nodes, ``R`` rods, ``S`` tendons.
-    time : ndarray, shape (F,)
+    t : ndarray, shape (F,)
         Simulation time of each frame [s] (the time of the sample it shows).
     index : ndarray of int, shape (F,)
         The sample of the run each frame shows.
-    position : ndarray, shape (F, N, 3)
+    node_position : ndarray, shape (F, N, 3)
         Node positions [m]; ``z = 0`` for a planar structure.
-    tension : ndarray, shape (F, S)
+    tendon_tension : ndarray, shape (F, S)
         Tendon tensions [N].
     slack : ndarray of bool, shape (F, S)
         Slack tendons (tension ``<= 0``).
@@ -140,10 +140,10 @@ class Frames:
     """
 
     structure: Structure
-    time: np.ndarray
+    t: np.ndarray
     index: np.ndarray
-    position: np.ndarray
-    tension: np.ndarray
+    node_position: np.ndarray
+    tendon_tension: np.ndarray
     slack: np.ndarray
     energy: dict[str, np.ndarray]
     tension_range: tuple[float, float]
@@ -154,7 +154,7 @@ class Frames:
     @property
     def n_frames(self) -> int:
         """Number of frames ``F``."""
-        return int(self.time.size)
+        return int(self.t.size)
 
     @property
     def joint_nodes(self) -> np.ndarray:
@@ -174,7 +174,7 @@ class Frames:
 
     def segments(self, k: int, pairs: np.ndarray) -> np.ndarray:
         """The line segments (K, 2, 3) [m] between node ``pairs`` (K, 2) at frame ``k``."""
-        return self.position[k][pairs] if len(pairs) else np.zeros((0, 2, 3))
+        return self.node_position[k][pairs] if len(pairs) else np.zeros((0, 2, 3))
 
 
 def playback_times(
@@ -436,7 +436,7 @@ def read_frames(
     from tensegrity.io.trajectory import read_dataset, read_trajectory
 
     ends = read_trajectory(path, every=2**62)  # the structure, the message: two samples
-    n_samples = read_dataset(path, "time").size
+    n_samples = read_dataset(path, "t").size
     budget = frame_budget(
         ends.structure,
         max_frames=max_frames,
@@ -451,8 +451,8 @@ def read_frames(
     energy = read_dataset(path, "energy", every=every)
     frames = _frames(
         ends.structure,
-        read_dataset(path, "time", every=every),
-        read_dataset(path, "nodes", every=every),
+        read_dataset(path, "t", every=every),
+        read_dataset(path, "node_position", every=every),
         read_dataset(path, "tendon_tension", every=every),
         {name: energy[:, k] for k, name in enumerate(ENERGY_NAMES)},
         None,
@@ -495,10 +495,10 @@ def _frames(
     bounds = np.stack([every.min(axis=(0, 1)), every.max(axis=(0, 1))])
     return Frames(
         structure=structure,
-        time=np.asarray(t[index], dtype=float),
+        t=np.asarray(t[index], dtype=float),
         index=index if numbers is None else np.asarray(numbers, dtype=np.int64)[index],
-        position=position,
-        tension=tension,
+        node_position=position,
+        tendon_tension=tension,
         slack=tension <= 0,
         energy=energies,
         tension_range=_tension_range(np.asarray(tendon_tension)),
@@ -558,10 +558,10 @@ def structure_frames(structure: Structure, position: np.ndarray | None = None) -
     tension = elastic_tensions(structure, tendon_lengths(structure, p[0]))[None]
     return Frames(
         structure=structure,
-        time=np.zeros(1),
+        t=np.zeros(1),
         index=np.zeros(1, np.int64),
-        position=p,
-        tension=tension,
+        node_position=p,
+        tendon_tension=tension,
         slack=tension <= 0,
         energy={},
         tension_range=_tension_range(tension),

@@ -21,11 +21,11 @@
     return out.buffer;
   }
   const F = data.n_frames, N = data.n_nodes, R = data.n_rods, S = data.n_tendons;
-  const positions = new Float32Array(bytes(data.positions)); // F * N * 3
-  const tensions = new Float32Array(bytes(data.tensions)); // F * S
-  const rods = new Int32Array(bytes(data.rods)); // R * 2
-  const tendons = new Int32Array(bytes(data.tendons)); // S * 2
-  const times = data.time;
+  const positions = new Float32Array(bytes(data.node_position)); // F * N * 3
+  const tensions = new Float32Array(bytes(data.tendon_tension)); // F * S
+  const rods = new Int32Array(bytes(data.rod_nodes)); // R * 2
+  const tendons = new Int32Array(bytes(data.tendon_nodes)); // S * 2
+  const times = data.t;
   const [lowT, highT] = data.tension_range;
   const lut = data.colormap; // 256 [r, g, b] in 0..1
   const usage = data.utilisation ? { // the members' utilisation, or null without a design
@@ -207,7 +207,7 @@
     const pair = kind === "rod" ? rods : tendons;
     const u = 3 * pair[2 * id], v = 3 * pair[2 * id + 1];
     const length = Math.hypot(p[v] - p[u], p[v + 1] - p[u + 1], p[v + 2] - p[u + 2]);
-    const info = { kind, id, name: kind === "rod" ? `rod ${id}` : data.tendon_names[id],
+    const info = { kind, id, name: kind === "rod" ? `rod ${id}` : data.tendon_name[id],
       nodes: [pair[2 * id], pair[2 * id + 1]], length };
     if (kind === "tendon") info.tension = tensions[k * S + id];
     if (usage) info.utilisation = kind === "rod" ? usage.rods[k * R + id] : usage.tendons[k * S + id];

@@ -79,8 +79,10 @@ def _base64(array: np.ndarray, dtype: str) -> str:
 
 
 def viewer_data(frames: Frames) -> dict[str, Any]:
-    """The JSON the page reads: ``frames`` with positions ``(F, N, 3)`` [m] and tensions
-    ``(F, S)`` [N] as base64 little-endian Float32, rod and tendon node pairs as base64 Int32,
+    """The JSON the page reads, under the names of :class:`~.motion.Frames` and
+    :class:`SimulationResult`: ``t`` (F,) [s], ``node_position`` ``(F, N, 3)`` [m] and
+    ``tendon_tension`` ``(F, S)`` [N] as base64 little-endian Float32, ``rod_nodes`` and
+    ``tendon_nodes`` as base64 Int32, ``tendon_name``,
     and the names, markers, colours and ranges the page draws with; with the members'
     utilisation (``frames.utilisation``), ``"utilisation"``: ``"rods"`` ``(F, R)`` and
     ``"tendons"`` ``(F, S)`` as base64 Float32 and ``"high"``, the top of its scale."""
@@ -89,21 +91,21 @@ def viewer_data(frames: Frames) -> dict[str, Any]:
     rod_length = float(np.median(structure.rod_length)) if structure.n_rods else span
     data = {
         "format": "tensegrity-viewer",
-        "version": 1,
+        "version": 2,
         "title": frames.title,
         "dim": structure.dim,
         "n_frames": frames.n_frames,
         "n_nodes": structure.n_nodes,
         "n_rods": structure.n_rods,
         "n_tendons": structure.n_tendons,
-        "time": frames.time.tolist(),
+        "t": frames.t.tolist(),
         "sample_index": frames.index.tolist(),
         "energy": {name: values.tolist() for name, values in frames.energy.items()},
-        "positions": _base64(frames.position, "<f4"),
-        "tensions": _base64(frames.tension, "<f4"),
-        "rods": _base64(structure.rod_nodes, "<i4"),
-        "tendons": _base64(structure.tendon_nodes, "<i4"),
-        "tendon_names": list(structure.tendon_name),
+        "node_position": _base64(frames.node_position, "<f4"),
+        "tendon_tension": _base64(frames.tendon_tension, "<f4"),
+        "rod_nodes": _base64(structure.rod_nodes, "<i4"),
+        "tendon_nodes": _base64(structure.tendon_nodes, "<i4"),
+        "tendon_name": list(structure.tendon_name),
         "fixed": frames.fixed_nodes.tolist(),
         "joints": frames.joint_nodes.tolist(),
         "point_masses": frames.point_mass_nodes.tolist(),
@@ -252,18 +254,19 @@ def notebook_html(
 
 
 def read_viewer_data(text: str) -> dict[str, Any]:
-    """The data of a viewer page (:func:`html`), its arrays decoded: ``positions`` (F, N, 3)
-    and ``tensions`` (F, S) as float32, ``rods`` (R, 2) and ``tendons`` (S, 2) as int32, and
+    """The data of a viewer page (:func:`html`), its arrays decoded: ``node_position`` (F, N, 3)
+    and ``tendon_tension`` (F, S) as float32, ``rod_nodes`` (R, 2) and ``tendon_nodes`` (S, 2)
+    as int32, and
     (a run whose members have a design) ``utilisation["rods"]`` (F, R) and
     ``utilisation["tendons"]`` (F, S) as float32."""
     start = text.index(_DATA_OPEN) + len(_DATA_OPEN)
     data = json.loads(text[start : text.index("</script>", start)])
     F, N, R, S = data["n_frames"], data["n_nodes"], data["n_rods"], data["n_tendons"]
     decoded = [
-        (data, "positions", "<f4", (F, N, 3)),
-        (data, "tensions", "<f4", (F, S)),
-        (data, "rods", "<i4", (R, 2)),
-        (data, "tendons", "<i4", (S, 2)),
+        (data, "node_position", "<f4", (F, N, 3)),
+        (data, "tendon_tension", "<f4", (F, S)),
+        (data, "rod_nodes", "<i4", (R, 2)),
+        (data, "tendon_nodes", "<i4", (S, 2)),
     ]
     if "utilisation" in data:
         u = data["utilisation"]

@@ -47,10 +47,11 @@ The dataset
 -----------
 Dimension ``case`` (coordinates: one per parameter -- for a structure file, one per varied
 parameter -- so ``ds.where(ds.stiffness == 100)`` works)
-and ``time`` (``0, sample_dt, ..., t_end`` [s]).  Per case: ``status`` (``0`` reached ``t_end``,
-``-1`` unstable, ``-2`` error: the case could not be built or run), ``message``, ``t_final`` [s],
-``nsteps``, ``nfev``, ``wall_time`` [s], ``max_rod_length_error`` (relative),
-``max_constraint_error`` [m] (joints and supports; 0 without them), ``batched`` (0/1).
+and ``t`` (``0, sample_dt, ..., t_end`` [s], as ``SimulationResult.t``).  Per case: ``status``
+(``0`` reached ``t_end``, ``-1`` unstable, ``-2`` error: the case could not be built or run),
+``message``, ``t_final`` [s], ``nsteps``, ``nfev``, ``wall_time`` [s], ``max_rod_length_error``
+(relative), ``max_constraint_error`` [m] (joints and supports; 0 without them), ``batched``
+(0/1).
 Per case and time (NaN after a run stopped): ``kinetic_energy``, ``elastic_energy``,
 ``energy_error`` (energy balance minus its initial value) [J], ``max_tension`` [N],
 ``slack_count``, ``max_displacement`` (largest node displacement from the initial layout) [m].
@@ -608,7 +609,7 @@ class SweepResult:
 #: The kinds of data of the sweep dataset's variables, as its netCDF-4/HDF5 datasets hold them
 #: (:func:`tensegrity.io.checked.hdf5_dataset`); any other variable: real numbers.
 SWEEP_KINDS = {
-    **dict.fromkeys(("time", *SERIES, "t_final", "wall_time"), FLOATS),
+    **dict.fromkeys(("t", *SERIES, "t_final", "wall_time"), FLOATS),
     **dict.fromkeys(("max_rod_length_error", "max_constraint_error"), FLOATS),
     "message": TEXT,
 }
@@ -688,9 +689,9 @@ def _dataset(
         name: ("case", np.array([c[name] for c in cases])) for name in cases[0]
     }
     coords["case"] = np.arange(len(cases))
-    coords["time"] = ("time", spec.times, {"units": "s"})
+    coords["t"] = ("t", spec.times, {"units": "s"})
     data: dict[str, tuple[str | tuple[str, ...], np.ndarray]] = {
-        name: (("case", "time"), np.array([r[name] for r in rows])) for name in SERIES
+        name: (("case", "t"), np.array([r[name] for r in rows])) for name in SERIES
     }
     for name in SCALARS:
         values = [r[name] for r in rows]
