@@ -202,7 +202,8 @@ def test_compiled_table_rows_equal_numpy_bit_for_bit(outside, planar):
 def test_rk4_with_tables_runs_compiled_stretches_and_equals_the_functions(monkeypatch):
     """``simulate(method="rk4")`` with a control table and a force table steps in compiled
     stretches between samples (a few calls, not one per step), and gives the trajectory of the
-    same tables called as Python functions of time (stepped one call per step) bit for bit."""
+    same tables called as Python functions of time bit for bit; the functions, called back from
+    the compiled loop (``compiled.make_inputs``), step in the same stretches."""
     from tensegrity.engine import compiled
 
     shell = class1_shell(3, 1)
@@ -224,7 +225,7 @@ def test_rk4_with_tables_runs_compiled_stretches_and_equals_the_functions(monkey
     assert tables.status == functions.status == 0
     assert tables.nsteps == functions.nsteps == 3000
     assert n_table_calls <= 2 * tables.t.size < 100  # stretches up to each sample
-    assert len(calls) - n_table_calls == 3000  # the functions: one call per step
+    assert len(calls) - n_table_calls == n_table_calls  # the functions: the same stretches
     np.testing.assert_array_equal(tables.q, functions.q)
     np.testing.assert_array_equal(tables.qdot, functions.qdot)
     # (the control's work differs: a function's rate is a central difference, a table's exact)
@@ -254,8 +255,9 @@ def test_dop853_runs_compiled_between_samples_and_equals_its_python_twin(monkeyp
     """The default method's whole loop (steps, error control, located switches, checks,
     projections) runs compiled from one sample to the next: a (4,2) shell with switches and a
     force table returns to Python about once per sample, not once per step.  The same force
-    given as a Python function runs the same loop as Python (the function called from it), and
-    the two runs agree bit for bit: trajectories, switch times and counts."""
+    given as a Python function runs the same compiled loop (the function called back from it,
+    ``compiled.make_inputs``), and the two runs agree bit for bit: trajectories, switch times
+    and counts."""
     from tensegrity.engine import dop853
 
     shell = class1_shell(4, 2)
@@ -263,17 +265,19 @@ def test_dop853_runs_compiled_between_samples_and_equals_its_python_twin(monkeyp
     calls = []
     compiled_run = dop853.dop853_run
 
-    def counting(*args):
-        calls.append(args[0][0])  # clock[T]
-        return compiled_run(*args)
+    def counting(model, rows, point, loop, *args):
+        calls.append(loop.clock[0])  # clock[T]
+        return compiled_run(model, rows, point, loop, *args)
 
     monkeypatch.setattr(dop853, "dop853_run", counting)
     kwargs = dict(sample_dt=0.01, initial=_perturbed(shell, 2, 0.03, 1.0))
     table = simulate(shell, (0.0, 0.3), external_force=force, **kwargs)
+    n_table_calls = len(calls)
     function = simulate(shell, (0.0, 0.3), external_force=lambda t: force(t), **kwargs)
     assert table.status == function.status == 0
     assert table.nswitches > 50 and table.nsteps > 200  # switches located, many steps
-    assert len(calls) <= table.t.size + 1 < table.nsteps / 5  # one call per sample
+    assert n_table_calls <= table.t.size + 1 < table.nsteps / 5  # one call per sample
+    assert len(calls) - n_table_calls == n_table_calls  # the function's run: the same calls
     assert (table.nsteps, table.nswitches, table.nprojections, table.nfev) == (
         function.nsteps,
         function.nswitches,

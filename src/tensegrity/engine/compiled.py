@@ -15,8 +15,9 @@ scratch, the blow-up monitor).  Stage ``s`` of a step reads row ``s`` of ``data.
 ``data.rate`` and ``data.force`` when they have more than one row, and row 0 otherwise (inputs
 constant over the step).  Tabulated inputs (:class:`~tensegrity.model.loads.ForceTable`,
 :class:`~tensegrity.model.loads.ControlTable`) are interpolated here into those rows
-(:func:`fill_stage_inputs`), inside a compiled stretch of steps too; only a Python callable makes
-the engine step from Python.
+(:func:`fill_stage_inputs`), inside a compiled stretch of steps too; Python functions of time
+are called from the compiled loops through a callback (:func:`make_inputs`), so that every input
+drives the same compiled loop.
 
 The DOP853 coefficients, step-size law and error norm are those of ``scipy.integrate.DOP853``
 (Hairer, Norsett and Wanner, *Solving Ordinary Differential Equations I*, II.10), so that the
@@ -25,8 +26,12 @@ engine follows the trajectories of the adaptive path it replaces.
 
 from __future__ import annotations
 
+import warnings
+from collections.abc import Callable
+
 import numpy as np
-from numba import njit
+from numba import njit, objmode
+from numba.core.errors import NumbaWarning
 
 from tensegrity.engine import dop853_tableau
 from tensegrity.physics.kernel import (
@@ -144,6 +149,41 @@ def fill_stage_inputs(tables, times, data):  # pragma: no cover - compiled
         rows = force.reshape((force.shape[0], -1))
         _table_rows(force_time, force_values, force_zero, times, rows, None)
     return first_negative
+
+
+#: Python functions of time among a run's inputs, by handle (``Model.callback``): what
+#: :func:`make_inputs` calls from compiled code.  The engine registers a run's
+#: (:class:`tensegrity.engine.system.CompiledSystem`) and drops it when the run ends.
+INPUT_CALLBACKS: dict[int, Callable[[np.ndarray], int]] = {}
+
+
+def _call_inputs(handle: int, times: np.ndarray) -> int:
+    """Python's side of :func:`make_inputs`: the registered callback at ``times``."""
+    return INPUT_CALLBACKS[int(handle)](times)
+
+
+# The callback's block of object mode runs holding the GIL (it calls Python), in functions compiled
+# ``nogil`` for the rest: numba says so in a warning each time it compiles the block.
+warnings.filterwarnings(
+    "ignore",
+    message="Code running in object mode won't allow parallel execution despite nogil=True",
+    category=NumbaWarning,
+)
+
+
+@njit(**EXACT_JIT_OPTIONS)
+def make_inputs(callback, tables, times, data):  # pragma: no cover - compiled
+    """The inputs' rows at the stage ``times`` (K,) [s] into ``data`` (whose inputs have K rows
+    where they vary): from the tables (:func:`fill_stage_inputs`), or, when some input is a
+    Python function of time, by Python (``callback``, ``model.callback``: a handle of
+    :data:`INPUT_CALLBACKS`, called through numba's object mode; None compiles it out).
+    Returns the first row the inputs could not be made for (a rest length negative, or the
+    function failed: the callback keeps the error), or -1."""
+    if callback is not None:
+        with objmode(bad="int64"):
+            bad = _call_inputs(callback, times)
+        return bad
+    return fill_stage_inputs(tables, times, data)
 
 
 # --------------------------------------------------------------------------- right-hand side
@@ -313,8 +353,8 @@ def rk4_segment(model, data, y, y_end, work_step, keep_first, t, h, n_steps):  #
     """Up to ``n_steps`` RK4 steps of ``h`` [s] from time ``t`` [s], each followed by
     :func:`check_state` and the projection onto the rod and joint constraints (as
     ``simulate(method="rk4")``).  Inputs constant over the stretch (``model.tables`` None: one
-    row or the 4 stage rows of a single step in ``data``), or tabulated (their 4 stage rows
-    filled into ``data`` before each step).  The energy balance is checked every
+    row or the 4 stage rows of a single step in ``data``), or varying (their 4 stage rows made
+    by :func:`make_inputs` into ``data`` before each step).  The energy balance is checked every
     :data:`ENERGY_CHECK_EVERY` steps and after the last one (it costs about one evaluation; the
     other checks are cheap); it reads the inputs at the step's end.  ``y_end`` receives the
     state at the end of the last step before its projection (what a sample records, and the
@@ -326,7 +366,7 @@ def rk4_segment(model, data, y, y_end, work_step, keep_first, t, h, n_steps):  #
     times = np.empty(RK4_C.shape[0])
     for k in range(n_steps):
         rk4_stage_times(t, k, h, times)
-        if fill_stage_inputs(model.tables, times, data) >= 0:
+        if make_inputs(model.callback, model.tables, times, data) >= 0:
             return k, CHECK_INPUT, np.nan
         rk4_step(model, data, y, h, work_step, keep_first, y_end)
         # The projection measures the errors it removes: they are the checks' (one pass less).

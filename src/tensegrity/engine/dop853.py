@@ -14,11 +14,9 @@ switching tendons are marked as switched.  A rejected attempt whose end shows a 
 stand for the step (*provisional*): the switch is located on it instead of shrinking the step
 until the kink falls out of it.  The step size carries over a projection or a located switch.
 
-Inputs: constant, or tabulated (``tables``, interpolated here), or a Python function of time
-(``provider``, :meth:`CompiledSystem.stage_inputs`).  With a provider the same loop runs as
-Python (:func:`_dop853_loop`; the helpers that reach the provider, :func:`_inputs_at` and
-:func:`_point`, are ``register_jitable``: Python there, compiled inside :func:`dop853_run`),
-calling the compiled kernels; the provider is called once per attempt with the attempt's stage
+Inputs: constant, or made where they are used by :func:`compiled.make_inputs` (tabulated ones
+interpolated in compiled code, Python functions of time called through a callback: one loop for
+every kind of input); a Python function is called once per attempt with the attempt's stage
 times.
 
 The loop's state lives in a few arrays (:class:`DOP853`): ``clock`` (float64, indices
@@ -28,7 +26,6 @@ landing (a located switch being headed for) as masks over the tendons (kernel or
 
 from __future__ import annotations
 
-import types
 from collections.abc import Callable
 from typing import NamedTuple
 
@@ -48,7 +45,7 @@ from tensegrity.engine.compiled import (
     dop853_attempt,
     dop853_dense,
     dop853_interpolate,
-    fill_stage_inputs,
+    make_inputs,
     ode_rhs,
     switch_distance,
 )
@@ -104,9 +101,7 @@ _COUNTS = {"nsteps": NSTEPS, "nswitches": NSWITCHES, "nprojections": NPROJECTION
 #: What :func:`dop853_run` returns: the samples up to the last step's end are due (its dense
 #: output ready); the step reached ``bound``; ``max_steps`` steps were taken; the switch buffer
 #: is full; a blow-up check failed; the step size fell below its minimum; an input could not be
-#: made (a control table makes a rest length negative at ``clock[INPUT_TIME]``, which the call
-#: also returns as its value: a store just before that return was lost when the loop took its
-#: state as one record, seen with numba 0.68.1, so the caller reads the value); the call has
+#: made (a control table makes a rest length negative at ``clock[INPUT_TIME]``); the call has
 #: made its share of attempts (``settings[6]``: Python gets its turn, for signals and the
 #: wall-clock budget, at least that often).
 (
@@ -149,31 +144,28 @@ class LoopWork(NamedTuple):
 
 
 @register_jitable
-def _inputs_at(times, data, tables, provider):  # pragma: no cover - compiled
-    """The data record with the inputs at ``times`` and the first row holding a negative rest
-    length (-1: none): from the ``provider`` (a new record), or filled into ``data`` from the
-    ``tables`` (``model.tables``), or the constant ``data``."""
-    if provider is not None:
-        return provider(times), -1
-    return data, fill_stage_inputs(tables, times, data)
-
-
-@register_jitable
-def _point(t, point, tables, provider, times1):  # pragma: no cover - compiled
-    """The inputs at the single time ``t`` [s] (``times1`` (1,) scratch)."""
+def _point(model, t, point, times1):  # pragma: no cover - compiled
+    """The inputs at the single time ``t`` [s] into ``point`` (``times1`` (1,) scratch): the
+    first row they could not be made for, or -1 (:func:`compiled.make_inputs`)."""
     times1[0] = t
-    return _inputs_at(times1, point, tables, provider)
+    return make_inputs(model.callback, model.tables, times1, point)
 
 
-def _dop853_loop(model, rows, point, provider, loop, bound, next_sample_t):  # pragma: no cover
+@njit(**EXACT_JIT_OPTIONS)
+def dop853_run(model, rows, point, loop, bound, next_sample_t):  # pragma: no cover - compiled
     """The adaptive loop from ``loop.clock[T]`` until the samples of a step are due, the step
     reaches ``bound`` [s], or the run must stop (see the module doc); ``(code, check code,
     check value)``.
 
     ``rows`` and ``point`` are data records (:class:`tensegrity.physics.records.Data`) for a
-    step's 16 stages and for one time (filled from ``model.tables``), ``provider`` None or a
-    Python function making them (the loop then runs as Python); ``loop`` the
-    :class:`LoopWork`.
+    step's 16 stages and for one time, their inputs made where they are used
+    (:func:`compiled.make_inputs`: from the tables, or through the callback to Python functions
+    of time); ``loop`` the :class:`LoopWork`.
+
+    The loop reads its state by field name (``loop.clock[T]``), never through a local alias of
+    a field (``clock = loop.clock``): with such aliases captured by the closures below, numba
+    0.68 compiled a store to ``clock`` just before a ``return`` to nothing (the run then failed
+    with its input's time lost: ``test_control_table_bad_input_names_the_field``).
 
     The whole loop is one function, its heavy callees (the stages, the dense output, the switch
     distance, the checks, the projection) called from here only: numba compiles every function
@@ -181,24 +173,13 @@ def _dop853_loop(model, rows, point, provider, loop, bound, next_sample_t):  # p
     about a second of the first run's compile.  Its small helpers are closures, which numba
     inlines (a compiled function of its own costs about 0.1 s of that compile each).
     """
-    clock, tally, switch_times, settings = loop.clock, loop.tally, loop.switch_times, loop.settings
-    y, y_old, K, F, y_new, stage, y_at = (
-        loop.y,
-        loop.y_old,
-        loop.K,
-        loop.F,
-        loop.y_new,
-        loop.stage,
-        loop.y_at,
-    )
-    taut, landing_mask, landing_after = loop.taut, loop.landing_mask, loop.landing_after
-    distance, candidates = loop.distance, loop.candidates
-    scratch = (y_at, loop.p, loop.v, loop.indicator, distance)
-    tables, tension, limits = model.tables, point.tension, model.limits
+    settings = loop.settings
+    scratch = (loop.y_at, loop.p, loop.v, loop.indicator, loop.distance)
+    limits, tension = model.limits, point.tension
     rtol, atol, t_end, projection_tol = settings[0], settings[1], settings[2], settings[3]
     max_steps, locate, attempts_per_call = settings[4], settings[5], settings[6]
     attempts = 0
-    m = y.shape[0]
+    m = loop.y.shape[0]
     n = (m - 3) // 2
     times = np.empty(DOP853_C.shape[0])
     times1 = np.empty(1)
@@ -232,8 +213,8 @@ def _dop853_loop(model, rows, point, provider, loop, bound, next_sample_t):  # p
 
     def any_switched():
         """Whether a tendon's tension at the last stage disagrees with its taut flag."""
-        for s in range(taut.shape[0]):  # noqa: SIM110 - (a loop numba compiles)
-            if (tension[s] > 0.0) != taut[s]:
+        for s in range(loop.taut.shape[0]):  # noqa: SIM110 - (a loop numba compiles)
+            if (tension[s] > 0.0) != loop.taut[s]:
                 return True
         return False
 
@@ -241,21 +222,28 @@ def _dop853_loop(model, rows, point, provider, loop, bound, next_sample_t):  # p
         """Taut flags from the tensions at the last evaluation; tendons that have just switched
         (a landing located exactly) keep the side they switched to (the state retaken up to a
         switch may sit a round-off short of it)."""
-        for s in range(taut.shape[0]):
-            taut[s] = tension[s] > 0.0
-            if landed_exact and landing_mask[s]:
-                taut[s] = landing_after[s]
+        for s in range(loop.taut.shape[0]):
+            loop.taut[s] = tension[s] > 0.0
+            if landed_exact and loop.landing_mask[s]:
+                loop.taut[s] = loop.landing_after[s]
 
     def switch_distance_at(t, count):
         """min_k of the candidates' distances at ``t`` inside the last step, and whether the
         inputs at ``t`` could not be made (then ``clock[INPUT_TIME]`` is ``t``)."""
-        inputs, bad = _point(t, point, tables, provider, times1)
+        bad = _point(model, t, point, times1)
         if bad >= 0:
-            clock[INPUT_TIME] = t
+            loop.clock[INPUT_TIME] = t
             return np.nan, True
-        x = (t - clock[T_OLD]) / (clock[T] - clock[T_OLD])
+        x = (t - loop.clock[T_OLD]) / (loop.clock[T] - loop.clock[T_OLD])
         least = switch_distance(
-            model, inputs.rest[0], F, y_old, x, scratch, candidates[:count], taut
+            model,
+            point.rest[0],
+            loop.F,
+            loop.y_old,
+            x,
+            scratch,
+            loop.candidates[:count],
+            loop.taut,
         )
         return least, False
 
@@ -264,11 +252,11 @@ def _dop853_loop(model, rows, point, provider, loop, bound, next_sample_t):  # p
         stage ``f0`` at ``y`` (``f1`` scratch); derivatives too large to measure (a velocity of
         1e200 m/s) give scipy's fallback ``1e-6`` s: the steps then find the state unusable
         and say so."""
-        t = clock[T]
+        t = loop.clock[T]
         d0, d1 = 0.0, 0.0
         for i in range(m):
-            scale = atol + abs(y[i]) * rtol
-            d0 += (y[i] / scale) ** 2
+            scale = atol + abs(loop.y[i]) * rtol
+            d0 += (loop.y[i] / scale) ** 2
             d1 += (f0[i] / scale) ** 2
         d0, d1 = np.sqrt(d0 / m), np.sqrt(d1 / m)
         h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
@@ -276,16 +264,16 @@ def _dop853_loop(model, rows, point, provider, loop, bound, next_sample_t):  # p
             h0 = 1e-6
         h0 = min(h0, t_end - t)
         for i in range(m):
-            y_new[i] = y[i] + h0 * f0[i]
-        inputs, bad = _point(t + h0, point, tables, provider, times1)
+            loop.y_new[i] = loop.y[i] + h0 * f0[i]
+        bad = _point(model, t + h0, point, times1)
         if bad >= 0:
-            clock[INPUT_TIME] = t + h0
+            loop.clock[INPUT_TIME] = t + h0
             return np.nan
-        ode_rhs(model, inputs, np.int64(0), y_new, f1)
-        tally[NFEV] += 1
+        ode_rhs(model, point, np.int64(0), loop.y_new, f1)
+        loop.tally[NFEV] += 1
         d2 = 0.0
         for i in range(m):
-            d2 += ((f1[i] - f0[i]) / (atol + abs(y[i]) * rtol)) ** 2
+            d2 += ((f1[i] - f0[i]) / (atol + abs(loop.y[i]) * rtol)) ** 2
         d2 = np.sqrt(d2 / m) / h0
         if d1 <= 1e-15 and d2 <= 1e-15:
             h1 = max(1e-6, h0 * 1e-3)
@@ -296,119 +284,123 @@ def _dop853_loop(model, rows, point, provider, loop, bound, next_sample_t):  # p
     while True:
         if attempts >= attempts_per_call:
             return RUN_YIELD, CHECK_OK, 0.0
-        if tally[PENDING]:  # finish the accepted step whose samples were handed out
-            tally[PENDING] = 0
-            copy_values(K[DOP853_STAGES], K[0], m)  # first same as last
-            if tally[LANDED]:
-                clock[STEP] = max(clock[STEP], clock[STEP_BEFORE])
-                tally[ALLOW_PROVISIONAL] = tally[LANDING_EXACT]
-                tally[LANDING] = 0
-            if clock[DRIFT] > projection_tol:
-                if not system_project(model, point, y[:n], y[n : 2 * n])[2]:
+        if loop.tally[PENDING]:  # finish the accepted step whose samples were handed out
+            loop.tally[PENDING] = 0
+            copy_values(loop.K[DOP853_STAGES], loop.K[0], m)  # first same as last
+            if loop.tally[LANDED]:
+                loop.clock[STEP] = max(loop.clock[STEP], loop.clock[STEP_BEFORE])
+                loop.tally[ALLOW_PROVISIONAL] = loop.tally[LANDING_EXACT]
+                loop.tally[LANDING] = 0
+            if loop.clock[DRIFT] > projection_tol:
+                if not system_project(model, point, loop.y[:n], loop.y[n : 2 * n])[2]:
                     return RUN_CHECK_FAILED, compiled.CHECK_PROJECTION, np.nan
-                tally[NPROJECTIONS] += 1
-                tally[RESTART] = 1
-            if clock[T] >= t_end or clock[T] >= bound:
+                loop.tally[NPROJECTIONS] += 1
+                loop.tally[RESTART] = 1
+            if loop.clock[T] >= t_end or loop.clock[T] >= bound:
                 return RUN_BOUNDARY, CHECK_OK, 0.0  # (a controller may change the inputs)
-            if tally[NSTEPS] >= max_steps:
+            if loop.tally[NSTEPS] >= max_steps:
                 return RUN_MAX_STEPS, CHECK_OK, 0.0
-        if tally[RESTART] or tally[START]:  # the state changed, or the run starts: its first
-            tally[RESTART] = 0  # stage and taut flags anew
-            point, bad = _point(clock[T], point, tables, provider, times1)
+        if (
+            loop.tally[RESTART] or loop.tally[START]
+        ):  # the state changed, or the run starts: its first
+            loop.tally[RESTART] = 0  # stage and taut flags anew
+            bad = _point(model, loop.clock[T], point, times1)
             if bad >= 0:
-                clock[INPUT_TIME] = clock[T]
-                return RUN_INPUT, CHECK_OK, clock[INPUT_TIME]
-            ode_rhs(model, point, np.int64(0), y, K[0])
-            tally[NFEV] += 1
-            if locate or tally[START]:
-                exact = bool(tally[LANDED]) and bool(tally[LANDING_EXACT])
+                loop.clock[INPUT_TIME] = loop.clock[T]
+                return RUN_INPUT, CHECK_OK, 0.0
+            ode_rhs(model, point, np.int64(0), loop.y, loop.K[0])
+            loop.tally[NFEV] += 1
+            if locate or loop.tally[START]:
+                exact = bool(loop.tally[LANDED]) and bool(loop.tally[LANDING_EXACT])
                 set_taut_flags(exact)
-            if tally[START]:  # and the monitor at the start, the initial step
-                tally[START] = 0
+            if loop.tally[START]:  # and the monitor at the start, the initial step
+                loop.tally[START] = 0
                 no_limits = np.full(3, np.inf)
-                check_state(model, point, np.int64(0), y, no_limits, np.bool_(True))
-                clock[STEP] = initial_step(K[0], K[1])
-                if np.isnan(clock[STEP]):
-                    return RUN_INPUT, CHECK_OK, clock[INPUT_TIME]
-                tally[ALLOW_PROVISIONAL] = locate
-        tally[LANDED] = 0
-        if clock[T] >= bound:
+                check_state(model, point, np.int64(0), loop.y, no_limits, np.bool_(True))
+                loop.clock[STEP] = initial_step(loop.K[0], loop.K[1])
+                if np.isnan(loop.clock[STEP]):
+                    return RUN_INPUT, CHECK_OK, 0.0
+                loop.tally[ALLOW_PROVISIONAL] = locate
+        loop.tally[LANDED] = 0
+        if loop.clock[T] >= bound:
             return RUN_BOUNDARY, CHECK_OK, 0.0
-        heading = bool(tally[LANDING])
-        detect = locate and not (heading and tally[LANDING_EXACT])
-        target = min(bound, clock[LANDING_TIME]) if heading else bound
-        use_taut = locate and bool(tally[ALLOW_PROVISIONAL]) and not heading
+        heading = bool(loop.tally[LANDING])
+        detect = locate and not (heading and loop.tally[LANDING_EXACT])
+        target = min(bound, loop.clock[LANDING_TIME]) if heading else bound
+        use_taut = locate and bool(loop.tally[ALLOW_PROVISIONAL]) and not heading
 
         # ---- one step not past ``target`` (scipy's step-size law); with ``use_taut`` a
         # rejected attempt whose end shows a tendon switched stands for it (provisional)
-        t, h = clock[T], clock[STEP]
-        tally[PROVISIONAL] = 0
+        t, h = loop.clock[T], loop.clock[STEP]
+        loop.tally[PROVISIONAL] = 0
         min_step = 10.0 * abs(np.nextafter(t, np.inf) - t)
         rejected = False
         while True:
             h = step_within(t, h, target, min_step)
             stage_times(t, h)
-            rows, bad = _inputs_at(times, rows, tables, provider)
+            bad = make_inputs(model.callback, model.tables, times, rows)
             if bad >= 0:
-                clock[INPUT_TIME] = times[bad]
-                return RUN_INPUT, CHECK_OK, clock[INPUT_TIME]
-            error = dop853_attempt(model, rows, y, h, K, y_new, stage, (rtol, atol))
-            tally[NFEV] += DOP853_STAGES
+                loop.clock[INPUT_TIME] = times[bad]
+                return RUN_INPUT, CHECK_OK, 0.0
+            error = dop853_attempt(
+                model, rows, loop.y, h, loop.K, loop.y_new, loop.stage, (rtol, atol)
+            )
+            loop.tally[NFEV] += DOP853_STAGES
             attempts += 1
             if error < 1.0:
                 break
             if use_taut and np.isfinite(error) and any_switched():
-                tally[PROVISIONAL] = 1
+                loop.tally[PROVISIONAL] = 1
                 break
             h *= shrink(error)
             rejected = True
             if not h >= min_step:  # (NaN too: a step size that is not a number never shrinks)
                 return RUN_STEP_FAILED, CHECK_OK, 0.0
-        if not tally[PROVISIONAL]:
-            clock[STEP] = h * grow(error, rejected)
-        clock[T_OLD] = t
-        copy_values(y, y_old, m)
-        clock[T] = target if h == target - t else t + h
-        copy_values(y_new, y, m)
-        tally[DENSE_READY] = 0
-        tally[ALLOW_PROVISIONAL] = locate
+        if not loop.tally[PROVISIONAL]:
+            loop.clock[STEP] = h * grow(error, rejected)
+        loop.clock[T_OLD] = t
+        copy_values(loop.y, loop.y_old, m)
+        loop.clock[T] = target if h == target - t else t + h
+        copy_values(loop.y_new, loop.y, m)
+        loop.tally[DENSE_READY] = 0
+        loop.tally[ALLOW_PROVISIONAL] = locate
 
         # ---- a tendon switched within the step: the candidates
         count = 0
         if detect:
-            for s in range(taut.shape[0]):
-                if (tension[s] > 0.0) != taut[s]:
-                    candidates[count] = s
+            for s in range(loop.taut.shape[0]):
+                if (tension[s] > 0.0) != loop.taut[s]:
+                    loop.candidates[count] = s
                     count += 1
         if count == 0:  # the step stands: the checks, then the next step or the samples
-            tally[NSTEPS] += 1
-            landed = bool(tally[LANDING]) and clock[T] >= clock[LANDING_TIME]
-            tally[LANDED] = landed
+            loop.tally[NSTEPS] += 1
+            landed = bool(loop.tally[LANDING]) and loop.clock[T] >= loop.clock[LANDING_TIME]
+            loop.tally[LANDED] = landed
             if locate:
-                exact = landed and bool(tally[LANDING_EXACT])
+                exact = landed and bool(loop.tally[LANDING_EXACT])
                 set_taut_flags(exact)
-            point, bad = _point(clock[T], point, tables, provider, times1)
+            bad = _point(model, loop.clock[T], point, times1)
             if bad >= 0:
-                clock[INPUT_TIME] = clock[T]
-                return RUN_INPUT, CHECK_OK, clock[INPUT_TIME]
-            check, value = check_state(model, point, np.int64(0), y, limits, np.bool_(True))
+                loop.clock[INPUT_TIME] = loop.clock[T]
+                return RUN_INPUT, CHECK_OK, 0.0
+            check, value = check_state(model, point, np.int64(0), loop.y, limits, np.bool_(True))
             if check != CHECK_OK:
                 return RUN_CHECK_FAILED, check, value
-            clock[DRIFT] = value
-            tally[PENDING] = 1
-            if next_sample_t > clock[T] + 1e-14 * abs(clock[T]):  # (options.reaches)
+            loop.clock[DRIFT] = value
+            loop.tally[PENDING] = 1
+            if next_sample_t > loop.clock[T] + 1e-14 * abs(loop.clock[T]):  # (options.reaches)
                 continue
 
         # ---- the step's dense output: for its samples, or to locate the switch
-        t_old, h = clock[T_OLD], clock[T] - clock[T_OLD]
+        t_old, h = loop.clock[T_OLD], loop.clock[T] - loop.clock[T_OLD]
         stage_times(t_old, h)
-        rows, bad = _inputs_at(times, rows, tables, provider)
+        bad = make_inputs(model.callback, model.tables, times, rows)
         if bad >= 0:
-            clock[INPUT_TIME] = times[bad]
-            return RUN_INPUT, CHECK_OK, clock[INPUT_TIME]
-        dop853_dense(model, rows, y_old, y, h, K, F, stage)
-        tally[NFEV] += 3
-        tally[DENSE_READY] = 1
+            loop.clock[INPUT_TIME] = times[bad]
+            return RUN_INPUT, CHECK_OK, 0.0
+        dop853_dense(model, rows, loop.y_old, loop.y, h, loop.K, loop.F, loop.stage)
+        loop.tally[NFEV] += 3
+        loop.tally[DENSE_READY] = 1
         if count == 0:
             return RUN_SAMPLES, CHECK_OK, 0.0
 
@@ -417,76 +409,45 @@ def _dop853_loop(model, rows, point, provider, loop, bound, next_sample_t):  # p
         # bracket's right end, just past it, so that tendons switching within the bracket (the
         # symmetric twins of a regular shell) switch together instead of one by one
         g_lo, failed = switch_distance_at(t_old, count)
-        g_hi, failed_hi = switch_distance_at(clock[T], count)
+        g_hi, failed_hi = switch_distance_at(loop.clock[T], count)
         failed = failed or failed_hi
-        bracket = bracket_start(t_old, clock[T], g_lo, g_hi, SWITCH_RTOL * max(1.0, abs(clock[T])))
+        bracket = bracket_start(
+            t_old, loop.clock[T], g_lo, g_hi, SWITCH_RTOL * max(1.0, abs(loop.clock[T]))
+        )
         t = bracket_next(bracket, np.nan, np.nan)
         while not failed and not np.isnan(t):
             g, failed = switch_distance_at(t, count)
             t = bracket_next(bracket, t, g)
         lo, hi = bracket[compiled.LO], bracket[compiled.HI]
-        t_switch = min(max(hi, lo + bracket[compiled.TOL]), clock[T])
+        t_switch = min(max(hi, lo + bracket[compiled.TOL]), loop.clock[T])
         if not failed:
             g, failed = switch_distance_at(t_switch, count)
             if not failed and not g <= 0.0:  # (switched back within the bracket: the root)
                 t_switch = hi
                 g, failed = switch_distance_at(t_switch, count)
         if failed:
-            return RUN_INPUT, CHECK_OK, clock[INPUT_TIME]
-        exact = not tally[PROVISIONAL]
-        landing_mask[:] = False
+            return RUN_INPUT, CHECK_OK, 0.0
+        exact = not loop.tally[PROVISIONAL]
+        loop.landing_mask[:] = False
         for k in range(count):  # the tendons switched by then (distance <= 0 there)
-            s = candidates[k]
-            if distance[k] <= 0.0:
-                landing_mask[s] = True
-                landing_after[s] = not taut[s]
-        clock[LANDING_TIME] = t_switch
-        tally[LANDING] = 1
-        tally[LANDING_EXACT] = exact
+            s = loop.candidates[k]
+            if loop.distance[k] <= 0.0:
+                loop.landing_mask[s] = True
+                loop.landing_after[s] = not loop.taut[s]
+        loop.clock[LANDING_TIME] = t_switch
+        loop.tally[LANDING] = 1
+        loop.tally[LANDING_EXACT] = exact
         # retreat: back to the step's start, heading for the switch
-        clock[T] = t_old
-        copy_values(y_old, y, m)
-        tally[DENSE_READY] = 0
-        clock[STEP_BEFORE], clock[STEP] = clock[STEP], t_switch - t_old
+        loop.clock[T] = t_old
+        copy_values(loop.y_old, loop.y, m)
+        loop.tally[DENSE_READY] = 0
+        loop.clock[STEP_BEFORE], loop.clock[STEP] = loop.clock[STEP], t_switch - t_old
         if exact:
-            tally[NSWITCHES] += 1
-            switch_times[tally[NEW_SWITCHES]] = t_switch
-            tally[NEW_SWITCHES] += 1
-            if tally[NEW_SWITCHES] == switch_times.shape[0]:
+            loop.tally[NSWITCHES] += 1
+            loop.switch_times[loop.tally[NEW_SWITCHES]] = t_switch
+            loop.tally[NEW_SWITCHES] += 1
+            if loop.tally[NEW_SWITCHES] == loop.switch_times.shape[0]:
                 return RUN_SWITCHES, CHECK_OK, 0.0
-
-
-#: :func:`_dop853_loop` compiled (constant or tabulated inputs; ``provider`` None).
-dop853_run = njit(**EXACT_JIT_OPTIONS)(_dop853_loop)
-
-
-# The loop run by Python (a Python function among the inputs, the ``provider``): its compiled
-# callees that Python may not call (:func:`tensegrity.physics.kernel.compiled_only`) through
-# entries of their own, compiled (with the wrapper for Python) only when this loop first runs.
-@njit(**EXACT_JIT_OPTIONS)
-def _attempt_from_python(*args):  # pragma: no cover - compiled
-    return dop853_attempt(*args)
-
-
-@njit(**EXACT_JIT_OPTIONS)
-def _dense_from_python(*args):  # pragma: no cover - compiled
-    dop853_dense(*args)
-
-
-@njit(**EXACT_JIT_OPTIONS)
-def _switch_distance_from_python(*args):  # pragma: no cover - compiled
-    return switch_distance(*args)
-
-
-_dop853_loop_in_python = types.FunctionType(
-    _dop853_loop.__code__,
-    {
-        **globals(),
-        "dop853_attempt": _attempt_from_python,
-        "dop853_dense": _dense_from_python,
-        "switch_distance": _switch_distance_from_python,
-    },
-)
 
 
 class DOP853:
@@ -628,20 +589,7 @@ class DOP853:
         system = self.system
         self.tally[NEW_SWITCHES] = 0
         rows, point = system.input_buffers(DOP853_C.size), system.input_buffers(1)
-        if rows is None:  # a Python function among the inputs: the loop as Python, every
-            # input made by the provider where it is used (``system.data`` holds the scratch)
-            return _dop853_loop_in_python(
-                system.model,
-                system.data,
-                system.data,
-                system.stage_inputs,
-                self.loop,
-                float(bound),
-                float(next_sample_t),
-            )
-        return dop853_run(
-            system.model, rows, point, None, self.loop, float(bound), float(next_sample_t)
-        )
+        return dop853_run(system.model, rows, point, self.loop, float(bound), float(next_sample_t))
 
     def new_switch_times(self) -> list[float]:
         """The switches located by the last :meth:`run` [s]."""

@@ -665,8 +665,10 @@ def _compiled_adaptive(run: _Run, stepper: DOP853, resume: LoopState | None) -> 
                 f"DOP853 failed at t = {stepper.t:.9g} s: required step size is less than "
                 "spacing between numbers"
             )
-        if code == dop853.RUN_INPUT:  # (raises the ValueError naming the tendon and time)
-            run.system.inputs.rest_length(np.array([value]))  # (value: the input's time)
+        if code == dop853.RUN_INPUT:  # (raises what a function raised, or the ValueError
+            # naming the tendon and time)
+            run.system.raise_input_error()
+            run.system.inputs.rest_length(np.array([stepper.clock[dop853.INPUT_TIME]]))
             raise AssertionError("RUN_INPUT: the inputs were made")  # pragma: no cover
         if code == dop853.RUN_MAX_STEPS:
             run.stop_at_max_steps(stepper.t)

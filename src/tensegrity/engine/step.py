@@ -73,10 +73,13 @@ def step(model: Model, state: State, dt: float, *, project: bool = False) -> Sta
     system = model.system
     y = system.state_vector(state, project=project)
     work_step, y_end = model.scratch
-    data = system.stage_inputs(state.t + compiled.RK4_C * dt)
+    data = system.input_buffers(compiled.RK4_C.size)
     _, code, value = compiled.rk4_segment(
         system.model, data, y, y_end, work_step, False, state.t, dt, 1
     )
+    if code == compiled.CHECK_INPUT:
+        system.raise_input_error()
+        system.inputs.rest_length(state.t + compiled.RK4_C * dt)  # (raises, naming the tendon)
     if code != compiled.CHECK_OK:
         raise StepError(
             f"the step from t = {state.t:.6g} s blew up (check {code}, value "

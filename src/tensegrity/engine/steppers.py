@@ -211,48 +211,18 @@ class RK4:
 
     def advance(self, n_steps: int, h: float, *, keep_first: bool) -> tuple[int, int, float]:
         """Up to ``n_steps`` steps of ``h`` [s] from ``t``, each checked
-        (:func:`compiled.check_state`, with the system's limits and monitor) and projected.
-        Returns ``(steps, check code, check
-        value)``; ``self.y_end`` is the last step's end before projection.  Constant or
-        tabulated inputs: one compiled call; a Python callable among them: one per step, with
-        the inputs at its stage times.  Inputs that cannot be used (a rest length would be
-        negative) stop it before that step with ``CHECK_INPUT``, the reason in
-        :attr:`input_error`.  ``keep_first``: :attr:`first` receives ``f(t, y)`` at the start of
-        each step."""
+        (:func:`compiled.check_state`, with the system's limits and monitor) and projected, in
+        one compiled call (:func:`compiled.rk4_segment`; inputs that vary are made at each
+        step's stage times, Python functions through the callback).  Returns ``(steps, check
+        code, check value)``; ``self.y_end`` is the last step's end before projection.  Inputs
+        that cannot be used (a rest length would be negative, or a function raised a
+        ``ValueError``) stop it before that step with ``CHECK_INPUT``, the reason in
+        :attr:`input_error`; another exception of a function is raised.  ``keep_first``:
+        :attr:`first` receives ``f(t, y)`` at the start of each step."""
         system = self.system
-        if system.inputs.constant or system.tables is not None:
-            return self._stretch(n_steps, h, keep_first)
-        steps, code, value = 0, compiled.CHECK_OK, 0.0
-        while steps < n_steps and code == compiled.CHECK_OK:
-            stages = self.t + steps * h + compiled.RK4_C * h
-            try:
-                data = system.stage_inputs(stages)
-            except ValueError as exc:
-                self.input_error = str(exc)
-                code, value = compiled.CHECK_INPUT, np.nan
-                break
-            one, code, value = compiled.rk4_segment(
-                system.model,
-                data,
-                self.y,
-                self.y_end,
-                self.work_step,
-                keep_first,
-                self.t + steps * h,
-                h,
-                1,
-            )
-            steps += one
-        self.nfev += 4 * steps
-        return steps, code, value
-
-    def _stretch(self, n_steps: int, h: float, keep_first: bool) -> tuple[int, int, float]:
-        """:meth:`advance` in one compiled call (the inputs constant or tabulated)."""
-        system = self.system
-        stages = self.t + compiled.RK4_C * h
         steps, code, value = compiled.rk4_segment(
             system.model,
-            system.stage_inputs(stages if system.tables is not None else stages[:1]),
+            system.input_buffers(compiled.RK4_C.size),
             self.y,
             self.y_end,
             self.work_step,
@@ -264,8 +234,9 @@ class RK4:
         self.nfev += 4 * steps
         if code == compiled.CHECK_INPUT:
             try:
+                system.raise_input_error()
                 system.inputs.rest_length(self.t + steps * h + compiled.RK4_C * h)
-            except ValueError as exc:  # (it raises: the message names the tendon and time)
+            except ValueError as exc:  # (the message names the tendon and time)
                 self.input_error = str(exc)
         return steps, code, value
 

@@ -5,6 +5,10 @@ always 3-D: a planar structure is simulated embedded at ``z = 0``, where it stay
 
 from __future__ import annotations
 
+import itertools
+import weakref
+from collections.abc import Callable
+
 import numpy as np
 
 from tensegrity.engine import compiled
@@ -22,6 +26,21 @@ from tensegrity.physics.kernel_system import (
     system_project,
 )
 from tensegrity.physics.records import Data
+
+
+def _weakly(method: weakref.WeakMethod) -> Callable[[np.ndarray], int]:
+    """A callback calling ``method`` without keeping its object alive."""
+
+    def call(times: np.ndarray) -> int:
+        bound = method()
+        assert bound is not None, "the system of this input callback is gone"
+        return bound(times)
+
+    return call
+
+
+#: Handles of the input callbacks (``Model.callback``), one per system that needs one.
+_HANDLES = itertools.count()
 
 
 class CompiledSystem:
@@ -64,6 +83,9 @@ class CompiledSystem:
             ).astype(np.uint64)
         )
         self.node_slot = slot
+        #: what the last input callback failed with (:meth:`raise_input_error`), or None
+        self.input_error: BaseException | None = None
+        self._handle: int | None = None
         #: scratch node arrays (3, n_slots): positions, velocities
         self.scratch_p, self.scratch_v = np.zeros((3, n_slots)), np.zeros((3, n_slots))
         self._sample_scratch = (np.empty(self.m), *(np.zeros((3, n_slots)) for _ in range(3)),
@@ -77,16 +99,19 @@ class CompiledSystem:
     # ------------------------------------------------------------------ inputs
     def _prepare_inputs(self) -> None:
         """What :meth:`stage_inputs` reuses: the data record if every input is constant; with
-        tables (and constants, no callable) the compiled tables (``model.tables``)."""
+        tables (and constants, no callable) the compiled tables (``model.tables``); with a
+        Python function among the inputs the callback compiled code calls
+        (``model.callback``, :meth:`_make_inputs`)."""
         inputs, packed = self.inputs, self.packed
         self._constant: Data | None = None
         self._buffers: dict[int, Data] = {}
-        self.model = self.model._replace(tables=None)
+        self.model = self.model._replace(tables=None, callback=None)
         if inputs.constant:
             self._constant = self._numpy_inputs(np.zeros(1))
             return
         control, force = inputs.control, inputs.external_force
         if control.kind == "function" or force.kind == "function":
+            self.model = self.model._replace(callback=np.int64(self._callback_handle()))
             return
         no_table = (np.zeros(0), np.zeros((0, 0)), False)
         control_table, force_table = no_table, no_table
@@ -120,27 +145,25 @@ class CompiledSystem:
             return self._table_inputs(times)
         return self._numpy_inputs(times)
 
-    def input_buffers(self, k: int) -> Data | None:
-        """A data record for compiled code to fill with ``k`` stages' rows of the tables
-        (:func:`compiled.fill_stage_inputs`; kept until the inputs change), the constant inputs,
-        or None if a Python function is among the inputs."""
+    def input_buffers(self, k: int) -> Data:
+        """The data record compiled code fills with ``k`` stages' rows of the inputs that vary
+        (:func:`compiled.make_inputs`; kept until the inputs change), or the constant inputs'."""
         if self._constant is not None:
             return self._constant
-        if self.tables is None:
-            return None
         if k not in self._buffers:
-            self._buffers[k] = self._table_buffers(k)
+            self._buffers[k] = self._varying_buffers(k)
         return self._buffers[k]
 
-    def _table_buffers(self, k: int) -> Data:
-        """A data record of ``k`` input rows for the tables to fill, the constants' rows made."""
+    def _varying_buffers(self, k: int) -> Data:
+        """A data record of ``k`` input rows for the inputs that vary, the constants' rows
+        made."""
         t0 = np.zeros(1)
-        if self.inputs.control.kind == "table":
+        if not self.inputs.control.constant:
             S = self.structure.n_tendons
             rest, rate, has_rate = np.empty((k, S)), np.empty((k, S)), True
         else:
             rest, rate, has_rate = self._control_rows(t0)
-        if self.inputs.external_force.kind == "table":
+        if not self.inputs.external_force.constant:
             force, has_external = np.empty((k, 3, self.packed.layout.n_slots)), True
         else:
             force, has_external = self._force_rows(t0)
@@ -152,10 +175,42 @@ class CompiledSystem:
         """:meth:`stage_inputs` with tables and constants: the tables' rows made by compiled
         code, the constants' as by NumPy."""
         times = np.ascontiguousarray(times, dtype=float)
-        data = self._table_buffers(times.size)
+        data = self._varying_buffers(times.size)
         if compiled.fill_stage_inputs(self.tables, times, data) >= 0:
             self.inputs.rest_length(times)  # raises the ValueError naming the tendon
         return data
+
+    def _callback_handle(self) -> int:
+        """This system's handle in :data:`compiled.INPUT_CALLBACKS` (registered once, dropped
+        when the system is)."""
+        if self._handle is None:
+            self._handle = next(_HANDLES)
+            compiled.INPUT_CALLBACKS[self._handle] = _weakly(weakref.WeakMethod(self._make_inputs))
+            weakref.finalize(self, compiled.INPUT_CALLBACKS.pop, self._handle, None)
+        return self._handle
+
+    def _make_inputs(self, times: np.ndarray) -> int:
+        """The callback compiled code calls (:func:`compiled.make_inputs`): the inputs at the
+        stage ``times`` (K,) [s] made by NumPy and the Python functions, into
+        :meth:`input_buffers` ``(K)``.  Returns -1, or 0 when they could not be made: the
+        exception (a rest length negative, or the function's own) is kept in
+        :attr:`input_error` for :meth:`raise_input_error`."""
+        data = self.input_buffers(times.size)
+        try:
+            made = self._numpy_inputs(times)
+        except BaseException as exc:  # noqa: BLE001 - kept, and re-raised by the loop in Python
+            self.input_error = exc
+            return 0
+        np.copyto(data.rest, made.rest)
+        np.copyto(data.rate, made.rate)
+        np.copyto(data.force, made.force)
+        return -1
+
+    def raise_input_error(self) -> None:
+        """Raise what the last input callback failed with, if anything (then forget it)."""
+        error, self.input_error = self.input_error, None
+        if error is not None:
+            raise error
 
     def _numpy_inputs(self, times: np.ndarray) -> Data:
         """:meth:`stage_inputs` evaluated by NumPy and the Python callables."""

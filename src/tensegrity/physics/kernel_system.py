@@ -299,6 +299,7 @@ def make_records(
     force: np.ndarray | None = None,
     gravity: np.ndarray | None = None,
     tables: object = None,
+    callback: int | None = None,
     limits: tuple[float, float, float] = (np.inf, np.inf, np.inf),
 ) -> tuple[Model, Data]:
     """The :class:`~tensegrity.physics.records.Model` and a
@@ -316,6 +317,9 @@ def make_records(
         [m/s^2] (None: no gravity).
     tables : optional
         The engine's input tables (``tensegrity.engine.compiled.fill_stage_inputs``).
+    callback : int, optional
+        The handle of the Python function making the inputs
+        (``tensegrity.engine.compiled.make_inputs``).
     limits : (3,) floats
         Max relative rod-length error, max constraint error [m], max energy growth.
     """
@@ -332,6 +336,7 @@ def make_records(
         has_gravity=gravity is not None,
         gravity=np.zeros(3) if gravity is None else np.array(gravity, dtype=np.float64),
         tables=tables,
+        callback=None if callback is None else np.int64(callback),
         limits=np.array(limits, dtype=np.float64),
     )
     constraint_work = None

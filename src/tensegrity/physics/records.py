@@ -85,6 +85,9 @@ class Model(NamedTuple):
     gravity: np.ndarray  #: (3,) float64 [m/s^2] (read if ``has_gravity``)
     #: the engine's input tables (``tensegrity.engine.compiled.fill_stage_inputs``), or None
     tables: Any
+    #: None, or the handle (int64) by which compiled code asks Python for inputs that are Python
+    #: functions of time (``tensegrity.engine.compiled.make_inputs``)
+    callback: Any
     #: (3,) float64: max relative rod-length error, max constraint error [m], max energy growth
     limits: np.ndarray
 
