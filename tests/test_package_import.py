@@ -40,6 +40,14 @@ def test_the_model_and_a_run_read_back_load_no_heavy_package(module):
     assert not {m.split(".")[0] for m in loaded_after(f"import {module}")} & set(HEAVY)
 
 
+def test_the_command_line_loads_no_heavy_package_before_a_verb_runs():
+    """Every verb's parser (``--help``, ``info``) comes without SciPy, numba, matplotlib or h5py:
+    a verb imports them when it runs.  Before: SciPy (0.15-0.2 s) through
+    ``physics.constraints``, which ``physics.dynamics`` imports."""
+    loaded = {m.split(".")[0] for m in loaded_after("import tensegrity.cli.main")}
+    assert not loaded & set(HEAVY)
+
+
 @pytest.mark.parametrize("name", tensegrity.__all__)
 def test_each_name_of_the_package_is_its_module_s(name):
     """Each name of ``__all__`` resolves, on first use, to the object of the module that
