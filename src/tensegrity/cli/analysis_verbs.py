@@ -9,6 +9,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from tensegrity.analysis.bounds import Bounds
 from tensegrity.cli import arguments, outputs
 from tensegrity.cli.drawing import Drawing, worker_count
 from tensegrity.cli.errors import EXIT_FAILED, CommandError
@@ -258,20 +259,20 @@ def _add_closed_loop_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--min-rest-length",
         type=arguments.non_negative,
-        default=0.05,
-        help="bound: rest lengths >= this [m] (default 0.05)",
+        default=Bounds.min_rest_length,
+        help="bound: rest lengths >= this [m] (default %(default)g)",
     )
     p.add_argument(
         "--max-change",
         type=arguments.positive,
-        default=0.25,
-        help="bound: |rest-length change| <= this [m] (default 0.25)",
+        default=Bounds.max_change,
+        help="bound: |rest-length change| <= this [m] (default %(default)g)",
     )
     p.add_argument(
         "--min-tension",
         type=arguments.positive,
-        default=1.0,
-        help="bound: every tendon taut with at least this tension [N] (default 1)",
+        default=Bounds.min_tension,
+        help="bound: every tendon taut with at least this tension [N] (default %(default)g)",
     )
     p.add_argument(
         "--tolerance",
