@@ -5,6 +5,7 @@ nor the compiled engine."""
 from __future__ import annotations
 
 import importlib
+import math
 import subprocess
 import sys
 
@@ -62,3 +63,23 @@ def test_an_unknown_name_is_an_attribute_error():
         tensegrity.simulation  # noqa: B018
     with pytest.raises(ImportError):
         exec("from tensegrity import simulation", {})
+
+
+@pytest.mark.parametrize("package", ["tensegrity", "tensegrity.plots"])
+def test_both_packages_serve_their_names_through_one_function(package):
+    """The root and ``tensegrity.plots`` share one ``__getattr__`` body
+    (:func:`tensegrity.model.lazy.imported_name`): a name is imported from its module and kept
+    in the package; an unknown one is an ``AttributeError`` naming the package."""
+    from tensegrity.model.lazy import imported_name
+
+    module = importlib.import_module(package)
+    namespace = {"__name__": package}
+    with pytest.raises(AttributeError, match=f"^module '{package}' has no attribute 'nope'$"):
+        imported_name(namespace, {"pi": "math"}, "nope")
+    assert imported_name(namespace, {"pi": "math"}, "pi") is namespace["pi"] == math.pi
+    with pytest.raises(AttributeError, match=f"^module '{package}' has no attribute 'nope'$"):
+        module.nope  # noqa: B018
+    name = module.__all__[0]
+    value = getattr(module, name)
+    assert vars(module)[name] is value
+    assert value is getattr(importlib.import_module(value.__module__), name)
