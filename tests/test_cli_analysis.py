@@ -105,6 +105,8 @@ def test_equilibrium_of_a_structure_file_matches_the_shell_options(tmp_path, cap
     assert code == 0, err
     data = json.loads((out / "equilibrium.json").read_text())
     assert "simulation" not in data and "agreement" not in data
+    # the structure's vocabulary (``Structure.tendon_name``), as the result's
+    assert data["structure"]["tendon_name"] == list(class1_shell(3, 1).tendon_name)
     page = read_viewer_data((out / "settling.html").read_text())  # no run: the structure at rest
     assert page["n_frames"] == 1
     np.testing.assert_allclose(

@@ -70,7 +70,7 @@ def _structure_summary(s: Structure) -> dict[str, Any]:
         "nodes": s.n_nodes,
         "rods": s.n_rods,
         "tendons": s.n_tendons,
-        "tendon_names": list(s.tendon_name),
+        "tendon_name": list(s.tendon_name),
     }
 
 
