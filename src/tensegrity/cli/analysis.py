@@ -45,6 +45,7 @@ from tensegrity.analysis.equilibrium import (
 )
 from tensegrity.cli.drawing import Drawing, Job, figure_png, viewer_page
 from tensegrity.cli.tables import key_values, table, write_json
+from tensegrity.engine.options import Options
 from tensegrity.model.structure import Structure
 
 if TYPE_CHECKING:
@@ -94,8 +95,8 @@ def run_equilibrium(
     *,
     method: str = "both",
     t_end: float = 60.0,
-    velocity_tol: float = 1e-6,
-    acceleration_tol: float = 1e-6,
+    velocity_tol: float = Options.velocity_tol,
+    acceleration_tol: float = Options.acceleration_tol,
     gravity: float | Sequence[float] | None = None,
 ) -> Output:
     """``tensegrity equilibrium``: the equilibrium by least squares, by damped simulation, or

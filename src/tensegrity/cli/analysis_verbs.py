@@ -16,6 +16,7 @@ from tensegrity.cli.errors import EXIT_FAILED, CommandError
 from tensegrity.cli.limits import check_run_cost
 from tensegrity.cli.startup import announce_compiling
 from tensegrity.cli.structures import add_gravity_option, add_structure_options, structure_of
+from tensegrity.engine.options import Options
 from tensegrity.io.files import write_staged as _write_all
 
 
@@ -126,14 +127,14 @@ def _add_equilibrium_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--velocity-tol",
         type=arguments.positive,
-        default=1e-6,
-        help="at rest when node speeds are below this [m/s] (default 1e-6)",
+        default=Options.velocity_tol,
+        help="at rest when node speeds are below this [m/s] (default %(default)g)",
     )
     p.add_argument(
         "--acceleration-tol",
         type=arguments.positive,
-        default=1e-6,
-        help="... and node accelerations below this [m/s^2] (default 1e-6)",
+        default=Options.acceleration_tol,
+        help="... and node accelerations below this [m/s^2] (default %(default)g)",
     )
 
 
