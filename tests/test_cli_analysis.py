@@ -105,6 +105,8 @@ def test_equilibrium_of_a_structure_file_matches_the_shell_options(tmp_path, cap
     assert code == 0, err
     data = json.loads((out / "equilibrium.json").read_text())
     assert "simulation" not in data and "agreement" not in data
+    # the structure's vocabulary (``Structure.tendon_name``), as the result's
+    assert data["structure"]["tendon_name"] == list(class1_shell(3, 1).tendon_name)
     page = read_viewer_data((out / "settling.html").read_text())  # no run: the structure at rest
     assert page["n_frames"] == 1
     np.testing.assert_allclose(
@@ -341,3 +343,21 @@ def test_modes_of_zero_frequency_are_reported_without_warnings(tmp_path, capsys)
     assert page["title"] == "mode 6: mechanism, zero frequency (no period): its shape over 1 s"
     np.testing.assert_allclose(page["t"], np.arange(48) / 48, rtol=1e-12)
     assert np.all(np.isfinite(page["node_position"]))
+
+
+def test_the_bounds_and_rest_tolerances_default_to_the_library_s():
+    """``control``'s bounds are :class:`~tensegrity.analysis.bounds.Bounds`' defaults and
+    ``equilibrium``'s rest tolerances ``Options``' (one source, shown in ``--help``)."""
+    import dataclasses
+
+    from tensegrity.analysis.bounds import Bounds
+    from tensegrity.cli.main import build_parser
+    from tensegrity.engine.options import Options
+
+    control = vars(build_parser().parse_args(["control"]))
+    assert {k: control[k] for k in ("min_rest_length", "max_change", "min_tension")} == (
+        dataclasses.asdict(Bounds())
+    )
+    equilibrium = vars(build_parser().parse_args(["equilibrium"]))
+    assert equilibrium["velocity_tol"] == Options().velocity_tol
+    assert equilibrium["acceleration_tol"] == Options().acceleration_tol

@@ -272,7 +272,10 @@ def test_a_run_out_of_its_wall_clock_budget_can_be_resumed(tmp_path, capsys):
     run = ["simulate", "--n", "10", "--m", "10", "--t-end", "120", "--no-steady-state"]
     assert main([*run, "--out", str(out), "--max-wall-time", "1.5"]) == 1
     err = capsys.readouterr().err.strip()
-    assert "\n" not in err and "simulation stopped after --max-wall-time 1.5 s" in err, err
+    assert (
+        "\n" not in err
+        and "simulation stopped after max_wall_time (--max-wall-time) = 1.5 s" in err
+    ), err
     assert err.endswith("continue it with the same options and --resume"), err
     assert [p.name for p in out.iterdir()] == [PARTIAL]
     assert read_checkpoint(out / PARTIAL).next_segment >= 1

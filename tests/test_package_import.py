@@ -5,6 +5,7 @@ nor the compiled engine."""
 from __future__ import annotations
 
 import importlib
+import math
 import subprocess
 import sys
 
@@ -40,6 +41,14 @@ def test_the_model_and_a_run_read_back_load_no_heavy_package(module):
     assert not {m.split(".")[0] for m in loaded_after(f"import {module}")} & set(HEAVY)
 
 
+def test_the_command_line_loads_no_heavy_package_before_a_verb_runs():
+    """Every verb's parser (``--help``, ``info``) comes without SciPy, numba, matplotlib or h5py:
+    a verb imports them when it runs.  Before: SciPy (0.15-0.2 s) through
+    ``physics.constraints``, which ``physics.dynamics`` imports."""
+    loaded = {m.split(".")[0] for m in loaded_after("import tensegrity.cli.main")}
+    assert not loaded & set(HEAVY)
+
+
 @pytest.mark.parametrize("name", tensegrity.__all__)
 def test_each_name_of_the_package_is_its_module_s(name):
     """Each name of ``__all__`` resolves, on first use, to the object of the module that
@@ -54,3 +63,23 @@ def test_an_unknown_name_is_an_attribute_error():
         tensegrity.simulation  # noqa: B018
     with pytest.raises(ImportError):
         exec("from tensegrity import simulation", {})
+
+
+@pytest.mark.parametrize("package", ["tensegrity", "tensegrity.plots"])
+def test_both_packages_serve_their_names_through_one_function(package):
+    """The root and ``tensegrity.plots`` share one ``__getattr__`` body
+    (:func:`tensegrity.model.lazy.imported_name`): a name is imported from its module and kept
+    in the package; an unknown one is an ``AttributeError`` naming the package."""
+    from tensegrity.model.lazy import imported_name
+
+    module = importlib.import_module(package)
+    namespace = {"__name__": package}
+    with pytest.raises(AttributeError, match=f"^module '{package}' has no attribute 'nope'$"):
+        imported_name(namespace, {"pi": "math"}, "nope")
+    assert imported_name(namespace, {"pi": "math"}, "pi") is namespace["pi"] == math.pi
+    with pytest.raises(AttributeError, match=f"^module '{package}' has no attribute 'nope'$"):
+        module.nope  # noqa: B018
+    name = module.__all__[0]
+    value = getattr(module, name)
+    assert vars(module)[name] is value
+    assert value is getattr(importlib.import_module(value.__module__), name)

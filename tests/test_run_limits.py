@@ -29,7 +29,8 @@ _MEMORY_CAP = 6 * 2**30
         (dict(method="rk4", dt=1e-300), "dt: 1e-300 s does not advance the time"),
         (
             dict(method="rk4", dt=1e-9),
-            "dt: 1e-09 s over 60 s is 60,000,000,000 steps, more than max_steps = 10,000,000;",
+            "dt: 1e-09 s over 60 s is 60,000,000,000 steps, more than max_steps (--max-steps) = "
+            "10,000,000;",
         ),
         (dict(sample_dt=1e-300), "sample_dt: 1e-300 s over 60 s is 6e+301 samples, more than"),
         (dict(max_steps=0), "max_steps: must be a whole number > 0, got 0"),
@@ -64,7 +65,8 @@ def test_the_limits_are_exact_and_can_be_raised():
     shell = class1_shell(3, 1)
     kwargs = dict(method="rk4", dt=1e-3, sample_dt=0.1)
     with pytest.raises(
-        ValueError, match=r"^dt: 0.001 s over 1 s is 1,000 steps, more than max_steps = 999;"
+        ValueError,
+        match=r"^dt: 0.001 s over 1 s is 1,000 steps, more than max_steps \(--max-steps\) = 999;",
     ):
         simulate(shell, (0.0, 1.0), max_steps=999, **kwargs)
     with pytest.raises(
@@ -81,8 +83,8 @@ def test_a_stiff_adaptive_run_stops_at_its_step_budget():
     stiff = class1_shell(3, 1, stiffness=1e12)
     result = simulate(stiff, (0.0, 1.0), max_steps=2000, sample_dt=1e-5)
     assert result.status == -1 and result.nsteps == 2000
-    assert result.message.startswith("stopped after max_steps = 2,000 steps at t = ")
-    assert "raise max_steps" in result.message
+    assert result.message.startswith("stopped after max_steps (--max-steps) = 2,000 steps at t = ")
+    assert "raise max_steps (--max-steps)" in result.message
     assert 0 < result.t[-1] < 1e-3 and np.all(np.isfinite(result.q))
     assert simulate(stiff, (0.0, 1e-5), max_steps=2000).status == 0  # a short span: within it
 
@@ -167,8 +169,10 @@ def test_a_run_stops_at_its_wall_clock_budget(options):
     stiff = class1_shell(3, 1, stiffness=1e12)
     result = simulate(stiff, (0.0, 1.0), sample_dt=1.0, max_wall_time=0.5, **options)
     assert result.status == -1, result.message
-    assert result.message.startswith("stopped after max_wall_time = 0.5 s of wall-clock time")
-    assert "raise max_wall_time" in result.message
+    assert result.message.startswith(
+        "stopped after max_wall_time (--max-wall-time) = 0.5 s of wall-clock time"
+    )
+    assert "raise max_wall_time (--max-wall-time)" in result.message
     assert 0.5 < result.wall_time < 5.0
     assert result.t[0] == 0.0 and 0 < result.t[-1] < 1.0 and np.all(np.isfinite(result.q))
 
@@ -236,8 +240,8 @@ def test_cli_budget_and_signals_reach_a_run_of_tiny_steps(tmp_path):
     )
     line = child.stderr.strip()
     assert child.returncode == 1 and "\n" not in line, line
-    assert "stopped after --max-wall-time 0.5 s of wall-clock time" in line
-    assert "raise --max-wall-time" in line and "(nothing written)" in line
+    assert "stopped after max_wall_time (--max-wall-time) = 0.5 s of wall-clock time" in line
+    assert "raise max_wall_time (--max-wall-time)" in line and "(nothing written)" in line
     assert not (tmp_path / "b").exists()
 
 

@@ -234,7 +234,9 @@ def test_a_run_out_of_time_keeps_its_segments_and_resumes_bitwise(tmp_path, refe
     def slow(info: StreamProgress) -> None:  # each stored segment costs 0.2 s more
         time.sleep(0.2)
 
-    with pytest.raises(OutOfTimeError, match=r"^stopped after max_wall_time = 0.3 s") as stop:
+    with pytest.raises(
+        OutOfTimeError, match=r"^stopped after max_wall_time \(--max-wall-time\) = 0.3 s"
+    ) as stop:
         simulate_to_file(
             SHELL, (0.0, 0.5), path, segment=0.1, progress=slow, max_wall_time=0.3, **FAST
         )

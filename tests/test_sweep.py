@@ -300,7 +300,7 @@ def test_bad_specs_name_the_field(changes, field):
         (["--param", "stifness=1"], "--param stifness: unknown parameter; choose from n, m"),
         (
             ["--param", "stiffness=1", "--t-end", "0.0015"],
-            "--t-end: must be a whole multiple of --sample-dt = 0.001 s, got 0.0015 s",
+            "--t-end: must be a whole multiple of sample_dt (--sample-dt) = 0.001 s, got 0.0015 s",
         ),
         (["--param", "stiffness=1", "--method", "euler"], "--method: expected one of rk4, "),
         (["--param", "stiffness=1:2", "--samples", "2", "--seed", "-1"], "--seed: must be >= 0"),
@@ -320,7 +320,7 @@ def test_bad_specs_name_the_field(changes, field):
         (
             ["--param", "stiffness=1", "--dt", "1e-300"],
             "--dt: 1e-300 s does not advance the time (at t = 0.1 s a step must be at least its "
-            "rounding); use a larger --dt",
+            "rounding); use a larger dt (--dt)",
         ),
     ],
 )

@@ -11,7 +11,6 @@ running when the package is imported) a result or a structure shows the viewer i
 
 from __future__ import annotations
 
-import importlib
 import sys
 from typing import TYPE_CHECKING, Any
 
@@ -79,12 +78,9 @@ __version__ = "0.1.0"
 
 def __getattr__(name: str) -> Any:
     """A re-exported name, imported from its module when first used (then kept here)."""
-    origin = _ORIGIN.get(name)
-    if origin is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(origin), name)
-    globals()[name] = value
-    return value
+    from tensegrity.model.lazy import imported_name
+
+    return imported_name(globals(), _ORIGIN, name)
 
 
 def __dir__() -> list[str]:

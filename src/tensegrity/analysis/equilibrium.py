@@ -54,6 +54,7 @@ from tensegrity.analysis.statics import (
     statics,
     with_reactions,
 )
+from tensegrity.engine.options import Options
 from tensegrity.engine.result import shortened
 from tensegrity.model.structure import Structure, require_structure
 from tensegrity.physics import dynamics
@@ -763,8 +764,8 @@ def equilibrium_by_simulation(
     initial: dynamics.State | None = None,
     damping: str = "artificial",
     t_end: float = 60.0,
-    velocity_tol: float = 1e-6,
-    acceleration_tol: float = 1e-6,
+    velocity_tol: float = Options.velocity_tol,
+    acceleration_tol: float = Options.acceleration_tol,
     sample_dt: float = 0.01,
     **simulate_options: Any,
 ) -> EquilibriumResult:

@@ -9,9 +9,9 @@ by a mass-weighted Kabsch fit -- the equilibria of the sequence are solved direc
 ``gauge_reference``), and simulated states are aligned the same way before outputs or feedback
 are evaluated.
 
-Control ``u`` is the rest-length change of every tendon (``Lbar = L0 - u``) within bounds:
-``Lbar >= min_rest_length``, ``|u| <= max_change``, and every tendon kept taut with at least
-``min_tension``.
+Control ``u`` is the rest-length change of every tendon (``Lbar = L0 - u``) within bounds
+(:class:`~tensegrity.analysis.bounds.Bounds`): ``Lbar >= min_rest_length``,
+``|u| <= max_change``, and every tendon kept taut with at least ``min_tension``.
 
 - :func:`quasi_static` -- an open-loop sequence of equilibria: per step, the sensitivity
   ``dy/du`` of the equilibrium (from the tangent stiffness with the gauge), a minimum-norm
@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 import scipy.optimize
 
+from tensegrity.analysis.bounds import Bounds
 from tensegrity.analysis.controllability import match_tendons
 from tensegrity.analysis.coordinates import Chart, align, has_supports, kabsch, mass_matrix
 from tensegrity.analysis.equilibrium import EquilibriumResult, find_equilibrium
@@ -119,22 +120,6 @@ def height_twist(reference: np.ndarray, bottom: Sequence[int], top: Sequence[int
         return J.reshape(2, -1)
 
     return ShapeOutput(("height", "twist"), ("m", "rad"), value, jacobian)
-
-
-# ------------------------------------------------------------------------------ bounds
-@dataclasses.dataclass(frozen=True)
-class Bounds:
-    """Limits on the control: ``Lbar = L0 - u >= min_rest_length`` [m], ``|u| <= max_change``
-    [m], and every tendon's tension ``>= min_tension`` [N] (taut, with a margin)."""
-
-    min_rest_length: float = 0.05
-    max_change: float = 0.25
-    min_tension: float = 1.0
-
-    def u_limits(self, structure: Structure) -> tuple[np.ndarray, np.ndarray]:
-        """``(low, high)`` for ``u`` (S,)."""
-        high = np.minimum(self.max_change, structure.tendon_rest_length - self.min_rest_length)
-        return np.full(structure.n_tendons, -self.max_change), high
 
 
 # ------------------------------------------------------------------------------ sensitivities

@@ -35,6 +35,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
+from tensegrity.analysis.bounds import Bounds
 from tensegrity.analysis.equilibrium import (
     EquilibriumResult,
     compare_equilibria,
@@ -44,12 +45,13 @@ from tensegrity.analysis.equilibrium import (
 )
 from tensegrity.cli.drawing import Drawing, Job, figure_png, viewer_page
 from tensegrity.cli.tables import key_values, table, write_json
+from tensegrity.engine.options import Options
 from tensegrity.model.structure import Structure
 
 if TYPE_CHECKING:
     from tensegrity.analysis.controllability import ReachResult
     from tensegrity.analysis.modes import ModalAnalysis
-    from tensegrity.analysis.shape_control import Bounds, ClosedLoop, QuasiStatic
+    from tensegrity.analysis.shape_control import ClosedLoop, QuasiStatic
     from tensegrity.plots.motion import Frames
 
 
@@ -69,7 +71,7 @@ def _structure_summary(s: Structure) -> dict[str, Any]:
         "nodes": s.n_nodes,
         "rods": s.n_rods,
         "tendons": s.n_tendons,
-        "tendon_names": list(s.tendon_name),
+        "tendon_name": list(s.tendon_name),
     }
 
 
@@ -93,8 +95,8 @@ def run_equilibrium(
     *,
     method: str = "both",
     t_end: float = 60.0,
-    velocity_tol: float = 1e-6,
-    acceleration_tol: float = 1e-6,
+    velocity_tol: float = Options.velocity_tol,
+    acceleration_tol: float = Options.acceleration_tol,
     gravity: float | Sequence[float] | None = None,
 ) -> Output:
     """``tensegrity equilibrium``: the equilibrium by least squares, by damped simulation, or
@@ -434,9 +436,9 @@ def run_control(
     closed_loop: bool = True,
     move_time: float = 2.0,
     settle_time: float = 4.0,
-    min_rest_length: float = 0.05,
-    max_change: float = 0.25,
-    min_tension: float = 1.0,
+    min_rest_length: float = Bounds.min_rest_length,
+    max_change: float = Bounds.max_change,
+    min_tension: float = Bounds.min_tension,
     tolerance: float = 1e-6,
 ) -> Output:
     """``tensegrity control``: shorten the structure to ``height`` times its equilibrium height
@@ -444,11 +446,7 @@ def run_control(
     with every tendon, by a quasi-static sequence of equilibria, then (``closed_loop``) play it
     with LQR feedback on the nonlinear model.  ``bottom``/``top``: node indices of the two rings
     (default: the nodes at the lowest and the highest z of the equilibrium)."""
-    from tensegrity.analysis.shape_control import (
-        Bounds,
-        closed_loop as run_closed_loop,
-        describe_plan,
-    )
+    from tensegrity.analysis.shape_control import closed_loop as run_closed_loop, describe_plan
 
     _check_control_options(structure, height=height, steps=steps, bottom=bottom, top=top)
     eq = _equilibrium(structure, None)  # shape control: no gravity

@@ -9,12 +9,14 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from tensegrity.analysis.bounds import Bounds
 from tensegrity.cli import arguments, outputs
 from tensegrity.cli.drawing import Drawing, worker_count
 from tensegrity.cli.errors import EXIT_FAILED, CommandError
 from tensegrity.cli.limits import check_run_cost
 from tensegrity.cli.startup import announce_compiling
 from tensegrity.cli.structures import add_gravity_option, add_structure_options, structure_of
+from tensegrity.engine.options import Options
 from tensegrity.io.files import write_staged as _write_all
 
 
@@ -125,14 +127,14 @@ def _add_equilibrium_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--velocity-tol",
         type=arguments.positive,
-        default=1e-6,
-        help="at rest when node speeds are below this [m/s] (default 1e-6)",
+        default=Options.velocity_tol,
+        help="at rest when node speeds are below this [m/s] (default %(default)g)",
     )
     p.add_argument(
         "--acceleration-tol",
         type=arguments.positive,
-        default=1e-6,
-        help="... and node accelerations below this [m/s^2] (default 1e-6)",
+        default=Options.acceleration_tol,
+        help="... and node accelerations below this [m/s^2] (default %(default)g)",
     )
 
 
@@ -258,20 +260,20 @@ def _add_closed_loop_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--min-rest-length",
         type=arguments.non_negative,
-        default=0.05,
-        help="bound: rest lengths >= this [m] (default 0.05)",
+        default=Bounds.min_rest_length,
+        help="bound: rest lengths >= this [m] (default %(default)g)",
     )
     p.add_argument(
         "--max-change",
         type=arguments.positive,
-        default=0.25,
-        help="bound: |rest-length change| <= this [m] (default 0.25)",
+        default=Bounds.max_change,
+        help="bound: |rest-length change| <= this [m] (default %(default)g)",
     )
     p.add_argument(
         "--min-tension",
         type=arguments.positive,
-        default=1.0,
-        help="bound: every tendon taut with at least this tension [N] (default 1)",
+        default=Bounds.min_tension,
+        help="bound: every tendon taut with at least this tension [N] (default %(default)g)",
     )
     p.add_argument(
         "--tolerance",

@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from tensegrity.cli import arguments
-from tensegrity.cli.errors import EXIT_FAILED, CommandError, blame
+from tensegrity.cli.errors import EXIT_FAILED, CommandError, blame, one_line
 from tensegrity.cli.startup import announce_compiling
 from tensegrity.io.files import atomic_path, shown_path, write_staged
 
@@ -221,7 +221,7 @@ def _cmd_design(args: argparse.Namespace) -> int:
             tendon_mass=args.tendon_mass,
         )
     except ValueError as exc:
-        raise CommandError(" ".join(str(exc).split())) from None
+        raise CommandError(one_line(exc)) from None
     dynamic = _dynamic(args, sizing, cases)
     report = sizing.to_dict() | {
         "settings": dict(

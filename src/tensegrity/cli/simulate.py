@@ -20,7 +20,7 @@ import numpy as np
 
 from tensegrity.cli import arguments, outputs
 from tensegrity.cli.drawing import Drawing, worker_count
-from tensegrity.cli.errors import EXIT_FAILED, CommandError, blame, describe
+from tensegrity.cli.errors import EXIT_FAILED, CommandError, blame, describe, one_line
 from tensegrity.cli.limits import check_run_cost, check_samples, check_structure_size
 from tensegrity.cli.simulate_files import (
     DEFAULT_VIDEO_SECONDS,
@@ -180,28 +180,6 @@ def _simulation_inputs(
     return structure, force, gravity, DesignedRun(structure, members, force, args.safety_factor)
 
 
-#: The words of the messages of ``engine/loop.py`` (a run stopped by ``max_steps`` or
-#: ``max_wall_time``) and of :meth:`tensegrity.engine.options.Options.check_span` (``max_steps =
-#: N``), as the CLI's; the other library messages name both the keyword and the option at the
-#: source (e.g. ``resume=False (run without --resume)``).
-_CLI_WORDS = (
-    ("max_wall_time = ", "--max-wall-time "),
-    ("max_steps = ", "--max-steps "),
-    ("raise max_wall_time", "raise --max-wall-time"),
-    ("raise max_steps", "raise --max-steps"),
-    ("loosen rtol and atol", "loosen --rtol and --atol"),
-    ("method='Radau'", "--method Radau"),
-)
-
-
-def _in_cli_words(exc: ValueError | str) -> str:
-    """The library's error (or message) as one line, in the CLI's words."""
-    message = " ".join(str(exc).split())
-    for library, cli in _CLI_WORDS:
-        message = message.replace(library, cli)
-    return message
-
-
 def _stream_run(
     args: argparse.Namespace,
     structure: Structure,
@@ -254,9 +232,7 @@ def _stream_run(
         raise
     except OutOfTimeError as exc:  # the finished segments stay in the partial file, for --resume
         files.discard()
-        raise CommandError(
-            f"simulation {_in_cli_words(str(exc))}{files.kept()}", EXIT_FAILED
-        ) from None
+        raise CommandError(f"simulation {one_line(exc)}{files.kept()}", EXIT_FAILED) from None
     except OSError as exc:
         if exc.errno not in DISK_FULL:
             files.discard()
@@ -265,7 +241,7 @@ def _stream_run(
         raise CommandError(f"{describe(exc)}{files.kept()}", EXIT_FAILED) from None
     except ValueError as exc:
         files.discard()
-        raise CommandError(_in_cli_words(exc)) from None
+        raise CommandError(one_line(exc)) from None
     except BaseException:
         files.discard()
         raise
@@ -273,7 +249,7 @@ def _stream_run(
         files.work.unlink(missing_ok=True)
         remove_empty(files.created)
         raise CommandError(
-            f"simulation failed: {_in_cli_words(summary.message)} (nothing written)", EXIT_FAILED
+            f"simulation failed: {one_line(summary.message)} (nothing written)", EXIT_FAILED
         )
     return summary
 

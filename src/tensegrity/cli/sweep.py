@@ -121,9 +121,10 @@ _SWEEP_OPTIONS = {
 @contextlib.contextmanager
 def _in_sweep_options() -> Iterator[None]:
     """A sweep's ``ValueError`` raised within the block (``SweepSpec``, ``run_sweep``) as a
-    one-line error naming the options the user typed instead of the library's arguments:
-    ``parameters.n[1]: ...`` -> ``--param n: ...``, ``t_end: ... of sample_dt`` ->
-    ``--t-end: ... of --sample-dt``.  A message that names no argument (a case's) stays."""
+    one-line error led by the option the user typed instead of the library's argument:
+    ``parameters.n[1]: ...`` -> ``--param n: ...``, ``t_end: ...`` -> ``--t-end: ...`` (the
+    message itself names both, e.g. ``sample_dt (--sample-dt)``).  A message that names no
+    argument (a case's) stays."""
     try:
         yield
     except ValueError as exc:
@@ -133,7 +134,6 @@ def _in_sweep_options() -> Iterator[None]:
         if parameter is not None:
             message = f"--param {parameter.group(1)}: {problem}"
         elif sep and field in _SWEEP_OPTIONS:
-            problem = re.sub(r"\b(t_end|sample_dt|dt)\b", lambda m: _SWEEP_OPTIONS[m[1]], problem)
             message = f"{_SWEEP_OPTIONS[field]}: {problem}"
         raise CommandError(message) from exc
 

@@ -348,9 +348,10 @@ class _Run:
     def stop_at_max_steps(self, t: float) -> None:
         self.status = STATUS_FAILED
         self.message = (
-            f"stopped after max_steps = {self.options.max_steps:,} steps at t = {t:.6g} s of "
-            f"{self.t_end:g} s: the steps became tiny (a stiff or unstable structure?); "
-            "raise max_steps, loosen rtol and atol, or try method='Radau'"
+            f"stopped after max_steps (--max-steps) = {self.options.max_steps:,} steps at "
+            f"t = {t:.6g} s of {self.t_end:g} s: the steps became tiny (a stiff or unstable "
+            "structure?); raise max_steps (--max-steps), loosen rtol and atol (--rtol, --atol), "
+            "or try method='Radau' (--method Radau)"
         )
 
     def wall_time(self) -> float:
@@ -366,10 +367,11 @@ class _Run:
         self.stopped_for_time = True
         self.status = STATUS_FAILED
         self.message = (
-            f"stopped after max_wall_time = {budget:g} s of wall-clock time at t = {t:.6g} s of "
-            f"{self.t_end:g} s ({self.counts['nsteps']:,} steps); raise max_wall_time, or make "
-            "the steps larger (a stiff or unstable structure? loosen rtol and atol, or try "
-            "method='Radau')"
+            f"stopped after max_wall_time (--max-wall-time) = {budget:g} s of wall-clock time "
+            f"at t = {t:.6g} s of {self.t_end:g} s ({self.counts['nsteps']:,} steps); raise "
+            "max_wall_time (--max-wall-time), or make the steps larger (a stiff or unstable "
+            "structure? loosen rtol and atol (--rtol, --atol), or try method='Radau' "
+            "(--method Radau))"
         )
         return True
 

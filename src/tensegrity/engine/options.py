@@ -241,13 +241,14 @@ class Options:
             if t_end + self.dt == t_end or t0 + self.dt == t0:
                 raise ValueError(
                     f"dt: {self.dt:g} s does not advance the time (at t = {t_end:g} s a step "
-                    "must be at least its rounding); use a larger dt"
+                    "must be at least its rounding); use a larger dt (--dt)"
                 )
             steps = math.ceil(span / self.dt - 1e-9)
             if steps > self.max_steps:
                 raise ValueError(
                     f"dt: {self.dt:g} s over {span:g} s is {_count(steps)} steps, more than "
-                    f"max_steps = {self.max_steps:,}; use a larger dt, or raise max_steps"
+                    f"max_steps (--max-steps) = {self.max_steps:,}; use a larger dt (--dt), or "
+                    "raise max_steps (--max-steps)"
                 )
         intervals = span / self.sample_spacing(t0, t_end)
         if not intervals + 1e-9 < self.max_samples:  # (inf for a huge span: no integer)
@@ -255,7 +256,7 @@ class Options:
             raise ValueError(
                 f"sample_dt: {self.sample_spacing(t0, t_end):g} s over {span:g} s is "
                 f"{_count(samples)} samples, more than max_samples = {self.max_samples:,}; use a "
-                "larger sample_dt, or raise max_samples"
+                "larger sample_dt (--sample-dt), or raise max_samples"
             )
 
     @property

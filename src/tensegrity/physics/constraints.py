@@ -40,15 +40,15 @@ metric (the closest point in mass-weighted distance), and the rates onto ``A q' 
 from __future__ import annotations
 
 import weakref
+from typing import TYPE_CHECKING
 
 import numpy as np
-import scipy.linalg
-import scipy.sparse as sp
-import scipy.sparse.csgraph
-import scipy.sparse.linalg
 
 from tensegrity.model.structure import Structure
 from tensegrity.physics.coordinates import force_response, rod_coordinates
+
+if TYPE_CHECKING:  # (SciPy is imported where a structure with constraints needs it)
+    import scipy.sparse as sp
 
 #: Structures with at most this many independent constraint rows solve for the constraint forces
 #: with dense arrays (less overhead than sparse matrices), others with sparse ones.  Above it the
@@ -92,8 +92,11 @@ def solve_psd(
         solve = lambda r: np.einsum("ij,j->i", inverse, r)  # noqa: E731 - see above
         product = lambda x: np.einsum("ij,j->i", matrix, x)  # noqa: E731 - see above
     else:
+        import scipy.sparse as sp
+        from scipy.sparse.linalg import splu
+
         matrix = sp.csc_matrix(matrix)
-        solve = sp.linalg.splu(matrix + delta * sp.identity(size, format="csc")).solve
+        solve = splu(matrix + delta * sp.identity(size, format="csc")).solve
         product = matrix.__matmul__
     x = solve(rhs)
     for _ in range(refinements):
@@ -125,6 +128,8 @@ class LinearConstraints:
     """
 
     def __init__(self, structure: Structure) -> None:
+        import scipy.sparse as sp
+
         s = structure
         self.structure = s
         N, d = s.n_nodes, s.dim
@@ -183,6 +188,8 @@ class LinearConstraints:
     @staticmethod
     def _coordinate_map(s: Structure) -> sp.csr_matrix:
         """``P`` (dN, n): stacked node positions from ``q`` (zero rows at anchors; eq. 18.26)."""
+        import scipy.sparse as sp
+
         d, R, M = s.dim, s.n_rods, s.point_mass_nodes.size
         axes = np.arange(d)
         q1 = 2 * d * np.arange(R)[:, None] + axes  # (R, d)
@@ -200,11 +207,14 @@ class LinearConstraints:
     def _independent_rows(matrix: sp.csr_matrix) -> np.ndarray:
         """Indices of a maximal set of independent rows, found group by group (rows coupled
         through shared coordinates) by QR with column pivoting of each group's transpose."""
+        from scipy.linalg import qr
+        from scipy.sparse.csgraph import connected_components
+
         c = matrix.shape[0]
         if c == 0:
             return np.zeros(0, int)
         pattern = abs(matrix)
-        _, labels = sp.csgraph.connected_components(pattern @ pattern.T, directed=False)
+        _, labels = connected_components(pattern @ pattern.T, directed=False)
         order = np.argsort(labels, kind="stable")
         groups = np.split(order, np.flatnonzero(np.diff(labels[order])) + 1)
         keep = []
@@ -214,7 +224,7 @@ class LinearConstraints:
             if columns.size == 0:
                 continue  # rows on anchors only: always satisfied
             dense = sub[:, columns].toarray()
-            _, r, pivot = scipy.linalg.qr(dense.T, mode="economic", pivoting=True)
+            _, r, pivot = qr(dense.T, mode="economic", pivoting=True)
             diag = np.abs(np.diag(r))
             rank = int(np.sum(diag > RANK_RTOL * diag[0]))
             keep.extend(rows[np.sort(pivot[:rank])])
@@ -241,6 +251,7 @@ class LinearConstraints:
     def acceleration_matrix(self, q: np.ndarray) -> sp.csr_matrix:
         """``G(q)`` (n, dN) sparse: ``q''`` per unit nodal force (Theorem 18.1, eqs. 18.17,
         18.20; :func:`tensegrity.physics.dynamics.force_response` applies it without forming it)."""
+        import scipy.sparse as sp
 
         s = self.structure
         eye = np.eye(s.dim)
@@ -283,6 +294,7 @@ class LinearConstraints:
 
     def _jacobian(self, q: np.ndarray) -> sp.csr_matrix:
         """Rows of ``A`` and, per rod, ``q2^T`` on its ``q2`` (the gradient of ``|q2|^2 / 2``)."""
+        import scipy.sparse as sp
 
         s = self.structure
         d, R = s.dim, s.n_rods

@@ -10,7 +10,6 @@ functions of their argument rather than methods of ``SimulationResult`` and ``St
 
 from __future__ import annotations
 
-import importlib
 import sys
 from typing import TYPE_CHECKING, Any
 
@@ -34,12 +33,9 @@ _SHOWN = (
 
 def __getattr__(name: str) -> Any:
     """:func:`view` or :func:`animate`, imported from its module when first used."""
-    origin = _ORIGIN.get(name)
-    if origin is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(origin), name)
-    globals()[name] = value
-    return value
+    from tensegrity.model.lazy import imported_name
+
+    return imported_name(globals(), _ORIGIN, name)
 
 
 def __dir__() -> list[str]:

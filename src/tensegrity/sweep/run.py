@@ -269,14 +269,15 @@ class SweepSpec:
         ratio = self.t_end / self.sample_dt
         if not math.isfinite(ratio):
             raise ValueError(
-                f"t_end: {self.t_end:g} s is too long to count its samples at sample_dt = "
-                f"{self.sample_dt:g} s; use a shorter t_end or a larger sample_dt"
+                f"t_end: {self.t_end:g} s is too long to count its samples at sample_dt "
+                f"(--sample-dt) = {self.sample_dt:g} s; use a shorter t_end (--t-end) or a larger "
+                "sample_dt (--sample-dt)"
             )
         intervals = round(ratio)
         if intervals < 1 or abs(intervals * self.sample_dt - self.t_end) > 1e-9 * self.t_end:
             raise ValueError(
-                f"t_end: must be a whole multiple of sample_dt = {self.sample_dt:g} s, "
-                f"got {self.t_end:g} s"
+                f"t_end: must be a whole multiple of sample_dt (--sample-dt) = "
+                f"{self.sample_dt:g} s, got {self.t_end:g} s"
             )
         # the limits every case's simulate() checks before it starts (a dt too small to advance
         # the time, too many steps or samples), checked once here
