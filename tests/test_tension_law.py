@@ -65,7 +65,7 @@ def test_every_tension_outside_the_kernel_is_the_law(monkeypatch):
     reference = dynamics.tendon_tensions(shell, p)
     assert np.any(reference > 0) and np.any(reference == 0)
 
-    np.testing.assert_array_equal(motion.structure_frames(shell, p).tension[0], reference)
+    np.testing.assert_array_equal(motion.structure_frames(shell, p).tendon_tension[0], reference)
     np.testing.assert_array_equal(
         statics.tendon_state(shell, p, shell.tendon_rest_length).tension, reference
     )
