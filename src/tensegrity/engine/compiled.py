@@ -171,7 +171,7 @@ warnings.filterwarnings(
 )
 
 
-@njit(**EXACT_JIT_OPTIONS)
+@compiled_only
 def make_inputs(callback, tables, times, data):  # pragma: no cover - compiled
     """The inputs' rows at the stage ``times`` (K,) [s] into ``data`` (whose inputs have K rows
     where they vary): from the tables (:func:`fill_stage_inputs`), or, when some input is a
@@ -203,7 +203,7 @@ def accelerations(model, data, s, q, qdot, qddot):  # pragma: no cover - compile
     return dissipated, external, control
 
 
-@njit(**JIT_OPTIONS)
+@compiled_only
 def ode_rhs(model, data, s, y, dy):  # pragma: no cover - compiled
     """``dy = f(t_s, y)`` for ``y = [q, q', E_d, W_w, W_u]`` (length ``2n + 3``): ``q'``, the
     accelerations and the three powers of :func:`accelerations`; ``s`` selects the stage's row
@@ -385,7 +385,7 @@ def rk4_segment(model, data, y, y_end, work_step, keep_first, t, h, n_steps):  #
 
 
 # --------------------------------------------------------------------------- checks and outputs
-@njit(**JIT_OPTIONS)
+@compiled_only
 def energy_balance(model, data, s, y):  # pragma: no cover - compiled
     """``(kinetic, elastic, gravity, total, scale)`` [J] at ``y`` with the inputs' row ``s``:
     ``total = E_kin + E_el + E_grav + E_d - W_w - W_u`` (constant up to integration error) and a
@@ -400,7 +400,7 @@ def energy_balance(model, data, s, y):  # pragma: no cover - compiled
     return kinetic, elastic, potential, total, scale
 
 
-@njit(**JIT_OPTIONS)
+@compiled_only
 def check_state(model, data, s, y, limits, with_energy):  # pragma: no cover - compiled
     """The blow-up checks after a step ending at ``y`` (inputs' row ``s``): ``(code, value)``
     with ``code`` one of ``CHECK_*``; ``value`` the offending number, or on success the larger
@@ -619,6 +619,29 @@ def _largest_at(x, slots):  # pragma: no cover - compiled
     return worst
 
 
+# --------------------------------------------------------------------------- entries for Python
+# The loops call the functions above from compiled code only.  Python calls three of them (the
+# scipy methods' right-hand side, a sample inside an rk4 step, the checks of the loop of the scipy
+# methods, a controller's update) through these entries, compiled with the wrapper that unboxes
+# the records only when Python first calls them: a DOP853 run compiles none of them.
+@njit(**JIT_OPTIONS)
+def ode_rhs_entry(model, data, s, y, dy):  # pragma: no cover - compiled
+    """:func:`ode_rhs`, called from Python."""
+    ode_rhs(model, data, s, y, dy)
+
+
+@njit(**JIT_OPTIONS)
+def energy_balance_entry(model, data, s, y):  # pragma: no cover - compiled
+    """:func:`energy_balance`, called from Python."""
+    return energy_balance(model, data, s, y)
+
+
+@njit(**JIT_OPTIONS)
+def check_state_entry(model, data, s, y, limits, with_energy):  # pragma: no cover - compiled
+    """:func:`check_state`, called from Python."""
+    return check_state(model, data, s, y, limits, with_energy)
+
+
 __all__ = [
     "CHECK_CONSTRAINT",
     "CHECK_ENERGY",
@@ -633,12 +656,15 @@ __all__ = [
     "ENERGY_CHECK_EVERY",
     "RK4_C",
     "check_state",
+    "check_state_entry",
     "dop853_attempt",
     "dop853_dense",
     "dop853_interpolate",
     "energy_balance",
+    "energy_balance_entry",
     "fill_stage_inputs",
     "ode_rhs",
+    "ode_rhs_entry",
     "record_sample",
     "rk4_segment",
     "rk4_step",

@@ -31,7 +31,6 @@ from typing import NamedTuple
 
 import numpy as np
 from numba import njit
-from numba.extending import register_jitable
 
 from tensegrity.engine import compiled
 from tensegrity.engine.compiled import (
@@ -143,14 +142,6 @@ class LoopWork(NamedTuple):
     settings: tuple
 
 
-@register_jitable
-def _point(model, t, point, times1):  # pragma: no cover - compiled
-    """The inputs at the single time ``t`` [s] into ``point`` (``times1`` (1,) scratch): the
-    first row they could not be made for, or -1 (:func:`compiled.make_inputs`)."""
-    times1[0] = t
-    return make_inputs(model.callback, model.tables, times1, point)
-
-
 @njit(**EXACT_JIT_OPTIONS)
 def dop853_run(model, rows, point, loop, bound, next_sample_t):  # pragma: no cover - compiled
     """The adaptive loop from ``loop.clock[T]`` until the samples of a step are due, the step
@@ -183,6 +174,12 @@ def dop853_run(model, rows, point, loop, bound, next_sample_t):  # pragma: no co
     n = (m - 3) // 2
     times = np.empty(DOP853_C.shape[0])
     times1 = np.empty(1)
+
+    def inputs_at(t):
+        """The inputs at the single time ``t`` [s] into ``point``: the first row they could not
+        be made for, or -1 (:func:`compiled.make_inputs`)."""
+        times1[0] = t
+        return make_inputs(model.callback, model.tables, times1, point)
 
     def stage_times(t, h):
         """The 16 stage times of a step of ``h`` [s] from ``t`` [s] into ``times``."""
@@ -230,7 +227,7 @@ def dop853_run(model, rows, point, loop, bound, next_sample_t):  # pragma: no co
     def switch_distance_at(t, count):
         """min_k of the candidates' distances at ``t`` inside the last step, and whether the
         inputs at ``t`` could not be made (then ``clock[INPUT_TIME]`` is ``t``)."""
-        bad = _point(model, t, point, times1)
+        bad = inputs_at(t)
         if bad >= 0:
             loop.clock[INPUT_TIME] = t
             return np.nan, True
@@ -265,7 +262,7 @@ def dop853_run(model, rows, point, loop, bound, next_sample_t):  # pragma: no co
         h0 = min(h0, t_end - t)
         for i in range(m):
             loop.y_new[i] = loop.y[i] + h0 * f0[i]
-        bad = _point(model, t + h0, point, times1)
+        bad = inputs_at(t + h0)
         if bad >= 0:
             loop.clock[INPUT_TIME] = t + h0
             return np.nan
@@ -304,7 +301,7 @@ def dop853_run(model, rows, point, loop, bound, next_sample_t):  # pragma: no co
             loop.tally[RESTART] or loop.tally[START]
         ):  # the state changed, or the run starts: its first
             loop.tally[RESTART] = 0  # stage and taut flags anew
-            bad = _point(model, loop.clock[T], point, times1)
+            bad = inputs_at(loop.clock[T])
             if bad >= 0:
                 loop.clock[INPUT_TIME] = loop.clock[T]
                 return RUN_INPUT, CHECK_OK, 0.0
@@ -379,7 +376,7 @@ def dop853_run(model, rows, point, loop, bound, next_sample_t):  # pragma: no co
             if locate:
                 exact = landed and bool(loop.tally[LANDING_EXACT])
                 set_taut_flags(exact)
-            bad = _point(model, loop.clock[T], point, times1)
+            bad = inputs_at(loop.clock[T])
             if bad >= 0:
                 loop.clock[INPUT_TIME] = loop.clock[T]
                 return RUN_INPUT, CHECK_OK, 0.0

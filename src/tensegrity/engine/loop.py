@@ -290,7 +290,7 @@ class _Run:
         if not isinstance(stepper, DOP853):
             system = self.system
             data = system.stage_inputs(np.array([self.t0]))
-            compiled.check_state(system.model, data, 0, y, np.full(3, np.inf), True)
+            compiled.check_state_entry(system.model, data, 0, y, np.full(3, np.inf), True)
 
     # ------------------------------------------------------------------ samples
     def record(self, t: float, y: np.ndarray) -> int:
@@ -385,7 +385,9 @@ class _Run:
         """The compiled blow-up checks at the end of a step; the drift, or None on failure."""
         system = self.system
         data = system.stage_inputs(np.array([t]))
-        code, value = compiled.check_state(system.model, data, 0, y, system.model.limits, True)
+        code, value = compiled.check_state_entry(
+            system.model, data, 0, y, system.model.limits, True
+        )
         if code != compiled.CHECK_OK:
             self.fail(code, value, t)
             return None
@@ -754,7 +756,7 @@ def _fixed_step(run: _Run, stepper: RK4) -> None:
             if abs(t - stepper.t) > 1e-9 * dt:
                 f_new = np.empty_like(y_old)
                 data = run.system.stage_inputs(np.array([stepper.t]))
-                compiled.ode_rhs(run.system.model, data, 0, stepper.y_end, f_new)
+                compiled.ode_rhs_entry(run.system.model, data, 0, stepper.y_end, f_new)
                 stepper.nfev += 1
                 y = _hermite(t, t_old, y_old, stepper.first, stepper.t, stepper.y_end, f_new)
             if run.ends_at(run.record(t, y)):

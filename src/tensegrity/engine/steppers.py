@@ -113,7 +113,7 @@ class ScipyMethod:
     def _rhs(self, t: float, y: np.ndarray) -> np.ndarray:
         dy = np.empty_like(y)
         data = self.system.stage_inputs(np.array([t]))
-        compiled.ode_rhs(self.system.model, data, 0, np.ascontiguousarray(y), dy)
+        compiled.ode_rhs_entry(self.system.model, data, 0, np.ascontiguousarray(y), dy)
         return dy
 
     def _new_solver(self, t0: float, y0: np.ndarray, bound: float) -> OdeSolver:

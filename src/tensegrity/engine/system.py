@@ -252,7 +252,7 @@ class CompiledSystem:
     def elastic_energy(self, t: float, y: np.ndarray) -> float:
         """Elastic energy of the tendons [J] at ``y`` with the rest lengths at ``t``."""
         data = self.stage_inputs(np.array([t]))
-        return float(compiled.energy_balance(self.model, data, 0, y)[1])
+        return float(compiled.energy_balance_entry(self.model, data, 0, y)[1])
 
     def rest_row(self, t: float) -> np.ndarray:
         """Rest lengths (S,) at ``t`` in kernel order."""

@@ -216,7 +216,7 @@ def _store_tendon(data, s, tail, head, total, elastic, f):  # pragma: no cover -
     force[2, head] -= f[2]
 
 
-@njit(**JIT_OPTIONS)
+@compiled_only
 def _tendon_rates(data, a, b, first, n):  # pragma: no cover - compiled
     """``data.damping_power[first + e] = t . (v_b - v_a)`` along a run of ``n`` tendons
     (offsets as in :func:`_tendon_run`), in a loop of its own: with the velocities in it,
@@ -233,7 +233,7 @@ def _tendon_rates(data, a, b, first, n):  # pragma: no cover - compiled
         )
 
 
-@njit(**JIT_OPTIONS)
+@compiled_only
 def _tendon_run(tendon_damping, model, data, rest, a, b, first, n):  # pragma: no cover
     """A run of ``n`` tendons whose tails and heads sit at consecutive slots: tendon ``e`` of the
     run is at kernel position ``first + e``, its tail at slot ``a + e`` and its head at
@@ -558,7 +558,7 @@ def _rod_pass(model, data, q, qdot, qddot, external_force, rigid):  # pragma: no
     return rod_dissipation, external_power
 
 
-@njit(**JIT_OPTIONS)
+@njit(inline="always", **JIT_OPTIONS)
 def rhs(model, data, s, q, qdot, qddot):  # pragma: no cover - compiled
     """Theorem 18.1 for all rods of a free class 1 structure: fills ``qddot`` (6R,)
     [m/s^2], ``data.tension`` and ``data.elastic_tension`` (S,) [N], and with tendon damping
@@ -572,7 +572,7 @@ def rhs(model, data, s, q, qdot, qddot):  # pragma: no cover - compiled
     return _rhs(model.tendon_damping, model, data, s, q, qdot, qddot)
 
 
-@njit(**JIT_OPTIONS)
+@compiled_only
 def _rhs(tendon_damping, model, data, s, q, qdot, qddot):  # pragma: no cover - compiled
     """:func:`rhs` with ``tendon_damping`` (``model.tendon_damping``) an argument: the passes
     inlined here test it for None, which numba decides at compile time only for an argument."""
@@ -618,7 +618,7 @@ def project(q, qdot, rod_param):  # pragma: no cover - compiled
     return worst if finite else np.nan
 
 
-@njit(**JIT_OPTIONS)
+@njit(inline="always", **JIT_OPTIONS)
 def energies(model, data, rest, q, qdot):  # pragma: no cover - compiled
     """``(kinetic, elastic, gravity)`` energies [J] of the rods and tendons, as
     ``dynamics.kinetic_energy``, ``elastic_energy`` and ``gravity_energy``, with the rest

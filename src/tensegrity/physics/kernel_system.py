@@ -62,6 +62,7 @@ from tensegrity.physics.kernel import (
     ROD_LENGTH,
     ROD_MASS,
     PackedStructure,
+    compiled_only,
     copy_values,
     end_values,
     energies,
@@ -368,7 +369,7 @@ def make_records(
 
 
 # --------------------------------------------------------------------------- compiled: nodes
-@njit(**JIT_OPTIONS)
+@compiled_only
 def _extra_nodes(constraints, q, qdot, n_rods, p, v, with_velocity):  # pragma: no cover
     """Point-mass positions ``x`` (from ``q`` after the rods' ``6R``) and anchor positions into
     ``p`` (3, n_slots) [m]; with ``with_velocity`` the point-mass velocities and zero (anchors)
@@ -415,7 +416,7 @@ def _entry_value(x, n_rods, body, sign, i):  # pragma: no cover - compiled
     return x[6 * n_rods + 3 * (body - n_rods) + i]
 
 
-@njit(**JIT_OPTIONS)
+@compiled_only
 def _rows_times(x, n_rods, constraints, out):  # pragma: no cover - compiled
     """``out = A x`` (c,) for ``x`` = ``q``, ``q'`` or ``q''`` (``A = A_n P``), row by entry."""
     out[:] = 0.0
@@ -429,7 +430,7 @@ def _rows_times(x, n_rods, constraints, out):  # pragma: no cover - compiled
             out[rows[e]] += total
 
 
-@njit(**JIT_OPTIONS)
+@compiled_only
 def _add_response(q, multiplier, rod_param, constraints, qddot):  # pragma: no cover - compiled
     """``qddot += G(q) A_n^T multiplier``: the constraint forces ``A_n^T lambda`` [N] applied by
     Theorem 18.1 (eqs. 18.17, 18.20: ``q1'' = (2/m)(f_a + f_b)``, ``q2'' = (6/(m L^2))
@@ -552,7 +553,7 @@ def _solve_psd(values, factor, first, offset, rhs, x, scratch):  # pragma: no co
 
 
 # --------------------------------------------------------------------------- compiled: dynamics
-@njit(**JIT_OPTIONS)
+@compiled_only
 def _assemble_coupling(model, data, q):  # pragma: no cover - compiled
     """``K = A G(q) A_n^T`` (c, c) into ``data.constraint_work.k_values``: rows ``i``, ``j``
     couple through
@@ -592,7 +593,7 @@ def _assemble_coupling(model, data, q):  # pragma: no cover - compiled
                 _env_add(values, first, offset, rows[e1], rows[e2], value)
 
 
-@njit(**JIT_OPTIONS)
+@compiled_only
 def _point_mass_pass(model, data, qdot, qddot, external_force):  # pragma: no cover - compiled
     """``x'' = (f + w) / m + g`` for every point mass from the tendon forces
     ``data.node_force``, which it leaves zero, as it leaves the anchors' (kernel.rhs's
@@ -622,7 +623,7 @@ def _point_mass_pass(model, data, qdot, qddot, external_force):  # pragma: no co
     return power
 
 
-@njit(**JIT_OPTIONS)
+@compiled_only
 def _constraint_pass(model, data, q, qddot):  # pragma: no cover - compiled
     """``qddot += G(q) A_n^T lambda`` with ``K lambda = -A qddot`` (``K = A G(q) A_n^T``): the
     joint and support forces that make ``A q'' = 0``, as ``LinearConstraints.constraint_force``."""
@@ -647,7 +648,7 @@ def _constraint_pass(model, data, q, qddot):  # pragma: no cover - compiled
     _add_response(q, multiplier, rod_param, constraints, qddot)
 
 
-@njit(**JIT_OPTIONS)
+@njit(inline="always", **JIT_OPTIONS)
 def system_rhs(model, data, s, q, qdot, qddot):  # pragma: no cover - compiled
     """Theorem 18.1 for any 3-D structure: fills ``qddot`` (6R + 3M,) [m/s^2],
     ``data.tension`` and ``data.elastic_tension`` (S,) [N] and, with tendon damping,
@@ -661,7 +662,7 @@ def system_rhs(model, data, s, q, qdot, qddot):  # pragma: no cover - compiled
     return _system_rhs(model.constraints, model, data, s, q, qdot, qddot)
 
 
-@njit(**JIT_OPTIONS)
+@compiled_only
 def _system_rhs(constraints, model, data, s, q, qdot, qddot):  # pragma: no cover - compiled
     """:func:`system_rhs`, with ``constraints`` (``model.constraints``) an argument, so that
     numba compiles the free class 1 structure (None) without the rest."""
@@ -678,7 +679,7 @@ def _system_rhs(constraints, model, data, s, q, qdot, qddot):  # pragma: no cove
 
 
 # --------------------------------------------------------------------------- compiled: drift
-@njit(**JIT_OPTIONS)
+@njit(inline="always", **JIT_OPTIONS)
 def _rod_error(q, rod_param):  # pragma: no cover - compiled
     """Largest ``| |q2| / L - 1 |`` over the rods; NaN if some ``q2`` is not finite."""
     worst = 0.0
@@ -692,7 +693,7 @@ def _rod_error(q, rod_param):  # pragma: no cover - compiled
     return worst
 
 
-@njit(**JIT_OPTIONS)
+@compiled_only
 def _constraint_error(q, n_rods, constraints, residual):  # pragma: no cover - compiled
     """``residual = A q - b`` (c,) [m]; returns ``max |A q - b|`` (NaN if not finite)."""
     _rows_times(q, n_rods, constraints, residual)
@@ -706,7 +707,7 @@ def _constraint_error(q, n_rods, constraints, residual):  # pragma: no cover - c
     return worst
 
 
-@njit(**JIT_OPTIONS)
+@njit(inline="always", **JIT_OPTIONS)
 def system_errors(model, data, q):  # pragma: no cover - compiled
     """``(rod_error, constraint_error)``: the largest relative rod-length error ``| |q2|/L - 1 |``
     (NaN if not finite) and ``max |A q - b|`` [m] (0 without joints and supports), as
@@ -714,7 +715,7 @@ def system_errors(model, data, q):  # pragma: no cover - compiled
     return _errors(model.constraints, model, data, q)
 
 
-@njit(**JIT_OPTIONS)
+@compiled_only
 def _errors(constraints, model, data, q):  # pragma: no cover - compiled
     """:func:`system_errors` with ``constraints`` (``model.constraints``) an argument."""
     rod_error = _rod_error(q, model.rod_param)
@@ -741,7 +742,7 @@ def all_finite(x):  # pragma: no cover - compiled
     return not bad
 
 
-@njit(**JIT_OPTIONS)
+@compiled_only
 def _violation(model, data, q, out):  # pragma: no cover - compiled
     """``out`` (P,) = ``[A q - b; (|q2|^2 - L^2) / 2]`` in projection rows; returns the largest
     of ``|A q - b|`` and ``| |q2| - L |`` [m] (NaN if not finite)."""
@@ -761,7 +762,7 @@ def _violation(model, data, q, out):  # pragma: no cover - compiled
     return error
 
 
-@njit(**JIT_OPTIONS)
+@compiled_only
 def _assemble_normal(model, data, q):  # pragma: no cover - compiled
     """``J W^-1 J^T`` (P, P) into ``data.constraint_work.n_values``, ``J = [A; q2^T per rod]``
     (the gradient
@@ -803,7 +804,7 @@ def _assemble_normal(model, data, q):  # pragma: no cover - compiled
                 _env_add(values, first, offset, prow[rows[e1]], prow[rows[e2]], value)
 
 
-@njit(**JIT_OPTIONS)
+@compiled_only
 def _subtract_step(model, target, q, y):  # pragma: no cover - compiled
     """``target -= W^-1 J(q)^T y`` (``y`` in projection rows): per rod ``q1 -= (2/m) sum c
     y``, ``q2 -= (6/m) sum sigma c y + (12/m) q2 y_length``; per point mass ``x -= sum c y / m``.
@@ -837,7 +838,7 @@ def _subtract_step(model, target, q, y):  # pragma: no cover - compiled
                 target[o + i] -= d1[i] / constraints.point_mass[body - n_rods]
 
 
-@njit(**JIT_OPTIONS)
+@compiled_only
 def _normal_solve(model, data, q, violation, y):  # pragma: no cover - compiled
     """``y = (J W^-1 J^T)^-1 violation`` at ``q``."""
     _assemble_normal(model, data, q)
@@ -853,7 +854,7 @@ def _normal_solve(model, data, q, violation, y):  # pragma: no cover - compiled
     )
 
 
-@njit(**JIT_OPTIONS)
+@compiled_only
 def _project_constrained(model, data, q, qdot):  # pragma: no cover - compiled
     """``LinearConstraints.project`` in place: Gauss-Newton steps ``q -= W^-1 J^T (J W^-1
     J^T)^-1 c(q)`` until every error is below ``PROJECTION_RTOL`` times the length scale, or below
@@ -898,7 +899,7 @@ def _project_constrained(model, data, q, qdot):  # pragma: no cover - compiled
     return all_finite(q) and all_finite(qdot)
 
 
-@njit(**JIT_OPTIONS)
+@njit(inline="always", **JIT_OPTIONS)
 def system_project(model, data, q, qdot):  # pragma: no cover - compiled
     """Project ``(q, q')`` in place onto the rod constraints ``|q2| = L``, ``q2 . q2' = 0`` and
     the joints and supports ``A q = b``, ``A q' = 0``, as ``dynamics.project_to_constraints``.
@@ -913,7 +914,7 @@ def system_project(model, data, q, qdot):  # pragma: no cover - compiled
     return _project(model.constraints, model, data, q, qdot)
 
 
-@njit(**JIT_OPTIONS)
+@compiled_only
 def _project(constraints, model, data, q, qdot):  # pragma: no cover - compiled
     """:func:`system_project` with ``constraints`` (``model.constraints``) an argument."""
     if constraints is None:
@@ -931,7 +932,7 @@ def _project(constraints, model, data, q, qdot):  # pragma: no cover - compiled
 
 
 # --------------------------------------------------------------------------- compiled: energy
-@njit(**JIT_OPTIONS)
+@njit(inline="always", **JIT_OPTIONS)
 def system_energies(model, data, rest, q, qdot):  # pragma: no cover - compiled
     """``(kinetic, elastic, gravity)`` energies [J], as ``dynamics.kinetic_energy``,
     ``elastic_energy`` and ``gravity_energy``, with the rest lengths ``rest`` (S,) [m]:
@@ -941,7 +942,7 @@ def system_energies(model, data, rest, q, qdot):  # pragma: no cover - compiled
     return _energies(model.constraints, model, data, rest, q, qdot)
 
 
-@njit(**JIT_OPTIONS)
+@compiled_only
 def _energies(constraints, model, data, rest, q, qdot):  # pragma: no cover - compiled
     """:func:`system_energies` with ``constraints`` (``model.constraints``) an argument."""
     if constraints is None:
