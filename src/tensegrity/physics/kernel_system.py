@@ -40,12 +40,10 @@ Like :mod:`tensegrity.physics.kernel`, import this module lazily (it imports num
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
-import scipy.sparse as sp
 from numba import njit
-from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from tensegrity.model.structure import Structure
 from tensegrity.physics.constraints import (
@@ -72,6 +70,9 @@ from tensegrity.physics.kernel import (
     stage_row,
 )
 from tensegrity.physics.records import Constraints, ConstraintWork, Data, Model
+
+if TYPE_CHECKING:  # (scipy is imported where a structure with constraints needs it)
+    import scipy.sparse as sp
 
 __all__ = [
     "MAX_ITER",
@@ -163,6 +164,8 @@ class SystemArrays(NamedTuple):
 
 def _envelope(pattern: sp.csr_matrix) -> tuple[np.ndarray, np.ndarray]:
     """``(first, offset)`` of the lower envelope of a symmetric pattern with its diagonal."""
+    import scipy.sparse as sp
+
     pattern = sp.csr_matrix(pattern)
     pattern.sort_indices()
     n = pattern.shape[0]
@@ -195,6 +198,9 @@ def _row_order(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, sp.csr_matrix]:
     """Reverse Cuthill-McKee order of the projection rows (c constraint rows, then R rod rows)
     on the graph of rows sharing a body: ``(constraint_prow, rod_prow, k_rank, pattern)``."""
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import reverse_cuthill_mckee
+
     incidence = sp.csr_matrix(
         (
             np.ones(row.size + R),
