@@ -436,7 +436,7 @@ def test_a_compiled_only_function_called_from_python_is_a_type_error():
     call from Python instead of crashing the interpreter, and still serve compiled callers."""
     from tensegrity.engine import compiled
 
-    for function in (compiled.dop853_attempt, compiled.judge_state, compiled.accelerations):
+    for function in (compiled.dop853_attempt, compiled.judge_state, compiled.make_inputs):
         with pytest.raises(TypeError, match="called from compiled code only"):
             function(np.zeros(3))
     assert simulate(class1_shell(3, 1, damping=0.3), (0.0, 0.05)).success

@@ -171,6 +171,14 @@ warnings.filterwarnings(
 )
 
 
+@njit(inline="always", **JIT_OPTIONS)
+def inputs_vary(data):  # pragma: no cover - compiled
+    """Whether the inputs of ``data`` (a record of a step's stage rows) vary over the step: some
+    input is tabulated or a Python function, whose rows :func:`make_inputs` makes (constant
+    inputs have one row, and are not made again)."""
+    return data.rest.shape[0] > 1 or data.force.shape[0] > 1
+
+
 @compiled_only
 def make_inputs(callback, tables, times, data):  # pragma: no cover - compiled
     """The inputs' rows at the stage ``times`` (K,) [s] into ``data`` (whose inputs have K rows
@@ -187,7 +195,7 @@ def make_inputs(callback, tables, times, data):  # pragma: no cover - compiled
 
 
 # --------------------------------------------------------------------------- right-hand side
-@compiled_only
+@njit(inline="always", **JIT_OPTIONS)
 def accelerations(model, data, s, q, qdot, qddot):  # pragma: no cover - compiled
     """``qddot`` = the accelerations of Theorem 18.1 (eqs. 18.17, 18.20, constraint forces
     included) at ``(q, q')`` with the inputs' row ``s``; returns the powers ``(dissipated,
@@ -293,7 +301,7 @@ def dop853_interpolate(F, y_old, x, out):  # pragma: no cover - compiled
 
 
 # --------------------------------------------------------------------------- RK4
-@njit(**JIT_OPTIONS)
+@njit(inline="always", **JIT_OPTIONS)
 def rk4_step(model, data, y, h, work_step, keep_first, y_end):  # pragma: no cover - compiled
     """One classical RK4 step of ``h`` [s] on ``y`` in place, ``y + h/6 (k1 + 2 k2 + 2 k3 +
     k4)``, the result also written to ``y_end``.  Stage rows of the inputs: 0, 1, 2, 3 at ``t,
@@ -364,10 +372,12 @@ def rk4_segment(model, data, y, y_end, work_step, keep_first, t, h, n_steps):  #
     n = (y.shape[0] - 3) // 2
     step_end = min(RK4_C.shape[0], data.rest.shape[0]) - 1
     times = np.empty(RK4_C.shape[0])
+    varying = inputs_vary(data)
     for k in range(n_steps):
-        rk4_stage_times(t, k, h, times)
-        if make_inputs(model.callback, model.tables, times, data) >= 0:
-            return k, CHECK_INPUT, np.nan
+        if varying:
+            rk4_stage_times(t, k, h, times)
+            if make_inputs(model.callback, model.tables, times, data) >= 0:
+                return k, CHECK_INPUT, np.nan
         rk4_step(model, data, y, h, work_step, keep_first, y_end)
         # The projection measures the errors it removes: they are the checks' (one pass less).
         rod_error, constraint_error, ok = system_project(model, data, y[:n], y[n : 2 * n])

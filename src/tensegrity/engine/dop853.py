@@ -44,6 +44,7 @@ from tensegrity.engine.compiled import (
     dop853_attempt,
     dop853_dense,
     dop853_interpolate,
+    inputs_vary,
     make_inputs,
     ode_rhs,
     switch_distance,
@@ -174,12 +175,13 @@ def dop853_run(model, rows, point, loop, bound, next_sample_t):  # pragma: no co
     n = (m - 3) // 2
     times = np.empty(DOP853_C.shape[0])
     times1 = np.empty(1)
+    varying = inputs_vary(rows)
 
     def inputs_at(t):
         """The inputs at the single time ``t`` [s] into ``point``: the first row they could not
         be made for, or -1 (:func:`compiled.make_inputs`)."""
         times1[0] = t
-        return make_inputs(model.callback, model.tables, times1, point)
+        return make_inputs(model.callback, model.tables, times1, point) if varying else -1
 
     def stage_times(t, h):
         """The 16 stage times of a step of ``h`` [s] from ``t`` [s] into ``times``."""
@@ -335,7 +337,7 @@ def dop853_run(model, rows, point, loop, bound, next_sample_t):  # pragma: no co
         while True:
             h = step_within(t, h, target, min_step)
             stage_times(t, h)
-            bad = make_inputs(model.callback, model.tables, times, rows)
+            bad = make_inputs(model.callback, model.tables, times, rows) if varying else -1
             if bad >= 0:
                 loop.clock[INPUT_TIME] = times[bad]
                 return RUN_INPUT, CHECK_OK, 0.0
@@ -391,7 +393,7 @@ def dop853_run(model, rows, point, loop, bound, next_sample_t):  # pragma: no co
         # ---- the step's dense output: for its samples, or to locate the switch
         t_old, h = loop.clock[T_OLD], loop.clock[T] - loop.clock[T_OLD]
         stage_times(t_old, h)
-        bad = make_inputs(model.callback, model.tables, times, rows)
+        bad = make_inputs(model.callback, model.tables, times, rows) if varying else -1
         if bad >= 0:
             loop.clock[INPUT_TIME] = times[bad]
             return RUN_INPUT, CHECK_OK, 0.0

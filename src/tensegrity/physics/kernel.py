@@ -576,6 +576,14 @@ def rhs(model, data, s, q, qdot, qddot):  # pragma: no cover - compiled
 def _rhs(tendon_damping, model, data, s, q, qdot, qddot):  # pragma: no cover - compiled
     """:func:`rhs` with ``tendon_damping`` (``model.tendon_damping``) an argument: the passes
     inlined here test it for None, which numba decides at compile time only for an argument."""
+    return rhs_passes(tendon_damping, model, data, s, q, qdot, qddot)
+
+
+@njit(inline="always", **JIT_OPTIONS)
+def rhs_passes(tendon_damping, model, data, s, q, qdot, qddot):  # pragma: no cover - compiled
+    """The passes of :func:`rhs`, inlined into a function that has ``tendon_damping``
+    (``model.tendon_damping``) as an argument (:func:`_rhs`, and
+    ``kernel_system._system_rhs``): one call per evaluation takes the records."""
     rest = stage_row(data.rest, s)
     _node_pass(tendon_damping, model, data, q, qdot)
     tendon_dissipation = _tendon_pass(tendon_damping, model, data, rest)

@@ -66,7 +66,7 @@ from tensegrity.physics.kernel import (
     energies,
     pack,
     project,
-    rhs,
+    rhs_passes,
     stage_row,
 )
 from tensegrity.physics.records import Constraints, ConstraintWork, Data, Model
@@ -665,19 +665,21 @@ def system_rhs(model, data, s, q, qdot, qddot):  # pragma: no cover - compiled
     anchors join the tendon pass, point masses accelerate as ``x'' = (f + w) / m + g``, and the
     joint and support forces are added (:func:`_constraint_pass`).
     """
-    return _system_rhs(model.constraints, model, data, s, q, qdot, qddot)
+    return _system_rhs(model.constraints, model.tendon_damping, model, data, s, q, qdot, qddot)
 
 
 @compiled_only
-def _system_rhs(constraints, model, data, s, q, qdot, qddot):  # pragma: no cover - compiled
-    """:func:`system_rhs`, with ``constraints`` (``model.constraints``) an argument, so that
-    numba compiles the free class 1 structure (None) without the rest."""
+def _system_rhs(constraints, tendon_damping, model, data, s, q, qdot, qddot):  # pragma: no cover
+    """:func:`system_rhs`, with the optional parts ``constraints`` and ``tendon_damping``
+    (``model.constraints``, ``model.tendon_damping``) arguments, so that numba compiles a free
+    class 1 structure (None) without the rest, and undamped tendons without the rates; the
+    kernel's passes are inlined here (one call per evaluation takes the records)."""
     if constraints is None:
-        return rhs(model, data, s, q, qdot, qddot)
-    damped = model.tendon_damping is not None
+        return rhs_passes(tendon_damping, model, data, s, q, qdot, qddot)
+    damped = tendon_damping is not None
     n_rods = model.rod_slots.shape[0]
     _extra_nodes(constraints, q, qdot, n_rods, data.node_position, data.node_velocity, damped)
-    dissipated, external = rhs(model, data, s, q, qdot, qddot)
+    dissipated, external = rhs_passes(tendon_damping, model, data, s, q, qdot, qddot)
     external += _point_mass_pass(model, data, qdot, qddot, stage_row(data.force, s))
     if constraints.constraint_rhs.shape[0]:
         _constraint_pass(model, data, q, qddot)
@@ -718,18 +720,18 @@ def system_errors(model, data, q):  # pragma: no cover - compiled
     """``(rod_error, constraint_error)``: the largest relative rod-length error ``| |q2|/L - 1 |``
     (NaN if not finite) and ``max |A q - b|`` [m] (0 without joints and supports), as
     ``dynamics.rod_length_error`` and ``dynamics.constraint_error``."""
-    return _errors(model.constraints, model, data, q)
+    return _errors(model.constraints, data.constraint_work, model.rod_param, q)
 
 
 @compiled_only
-def _errors(constraints, model, data, q):  # pragma: no cover - compiled
-    """:func:`system_errors` with ``constraints`` (``model.constraints``) an argument."""
-    rod_error = _rod_error(q, model.rod_param)
+def _errors(constraints, work, rod_param, q):  # pragma: no cover - compiled
+    """:func:`system_errors` with the constraints and their scratch arguments."""
+    rod_error = _rod_error(q, rod_param)
     if constraints is None or constraints.constraint_rhs.shape[0] == 0:
         return rod_error, 0.0
     c = constraints.constraint_rhs.shape[0]
-    residual = data.constraint_work.vectors[0, :c]
-    return rod_error, _constraint_error(q, model.rod_param.shape[0], constraints, residual)
+    residual = work.vectors[0, :c]
+    return rod_error, _constraint_error(q, rod_param.shape[0], constraints, residual)
 
 
 #: The exponent bits of a float64: all set in an infinity or a NaN, and only there.
@@ -749,12 +751,11 @@ def all_finite(x):  # pragma: no cover - compiled
 
 
 @compiled_only
-def _violation(model, data, q, out):  # pragma: no cover - compiled
+def _violation(constraints, work, rod_param, q, out):  # pragma: no cover - compiled
     """``out`` (P,) = ``[A q - b; (|q2|^2 - L^2) / 2]`` in projection rows; returns the largest
     of ``|A q - b|`` and ``| |q2| - L |`` [m] (NaN if not finite)."""
-    constraints, rod_param = model.constraints, model.rod_param
     c = constraints.constraint_rhs.shape[0]
-    residual = data.constraint_work.vectors[3, :c]
+    residual = work.vectors[3, :c]
     error = _constraint_error(q, rod_param.shape[0], constraints, residual)
     for i in range(c):
         out[constraints.constraint_prow[i]] = residual[i]
@@ -769,18 +770,17 @@ def _violation(model, data, q, out):  # pragma: no cover - compiled
 
 
 @compiled_only
-def _assemble_normal(model, data, q):  # pragma: no cover - compiled
-    """``J W^-1 J^T`` (P, P) into ``data.constraint_work.n_values``, ``J = [A; q2^T per rod]``
+def _assemble_normal(constraints, work, rod_param, q):  # pragma: no cover - compiled
+    """``J W^-1 J^T`` (P, P) into ``work.n_values``, ``J = [A; q2^T per rod]``
     (the gradient
     of ``|q2|^2 / 2``), ``W^-1`` = ``4/m`` on ``q1``, ``12/m`` on ``q2``, ``1/m`` on a point
     mass.  Two entries on a rod give ``(1 + 3 sigma_i sigma_j) (c_i . c_j) / m``, an entry and
     the rod's length row ``6 sigma (c . q2) / m``, the length row itself ``12 |q2|^2 / m``."""
-    constraints, rod_param = model.constraints, model.rod_param
     start, rows = constraints.body_start, constraints.entry_row
     sign, coef = constraints.entry_sign, constraints.entry_coef
     prow = constraints.constraint_prow
     first, offset = constraints.n_first, constraints.n_offset
-    values = data.constraint_work.n_values
+    values = work.n_values
     values[:] = 0.0
     n_rods = rod_param.shape[0]
     for body in range(start.shape[0] - 1):
@@ -811,11 +811,10 @@ def _assemble_normal(model, data, q):  # pragma: no cover - compiled
 
 
 @compiled_only
-def _subtract_step(model, target, q, y):  # pragma: no cover - compiled
+def _subtract_step(constraints, rod_param, target, q, y):  # pragma: no cover - compiled
     """``target -= W^-1 J(q)^T y`` (``y`` in projection rows): per rod ``q1 -= (2/m) sum c
     y``, ``q2 -= (6/m) sum sigma c y + (12/m) q2 y_length``; per point mass ``x -= sum c y / m``.
     ``target`` may be ``q`` itself (each rod's ``q2`` is read before it is written)."""
-    constraints, rod_param = model.constraints, model.rod_param
     start, rows = constraints.body_start, constraints.entry_row
     sign, coef = constraints.entry_sign, constraints.entry_coef
     prow = constraints.constraint_prow
@@ -845,15 +844,15 @@ def _subtract_step(model, target, q, y):  # pragma: no cover - compiled
 
 
 @compiled_only
-def _normal_solve(model, data, q, violation, y):  # pragma: no cover - compiled
+def _normal_solve(constraints, work, rod_param, q, violation, y):  # pragma: no cover - compiled
     """``y = (J W^-1 J^T)^-1 violation`` at ``q``."""
-    _assemble_normal(model, data, q)
-    work = data.constraint_work
+    _assemble_normal(constraints, work, rod_param, q)
+    work = work
     _solve_psd(
         work.n_values,
         work.n_factor,
-        model.constraints.n_first,
-        model.constraints.n_offset,
+        constraints.n_first,
+        constraints.n_offset,
         violation,
         y,
         work.vectors[2],
@@ -861,13 +860,12 @@ def _normal_solve(model, data, q, violation, y):  # pragma: no cover - compiled
 
 
 @compiled_only
-def _project_constrained(model, data, q, qdot):  # pragma: no cover - compiled
+def _project_constrained(constraints, work, rod_param, q, qdot):  # pragma: no cover - compiled
     """``LinearConstraints.project`` in place: Gauss-Newton steps ``q -= W^-1 J^T (J W^-1
     J^T)^-1 c(q)`` until every error is below ``PROJECTION_RTOL`` times the length scale, or below
     ``PROJECTION_FLOOR_RTOL`` times it once the error stops halving; then ``q' -= W^-1 J^T
     (J W^-1 J^T)^-1 J q'``.  Returns False if it does not converge in :data:`MAX_ITER` steps."""
-    constraints, rod_param = model.constraints, model.rod_param
-    vectors = data.constraint_work.vectors
+    vectors = work.vectors
     n_rods = rod_param.shape[0]
     scale = 1.0
     for r in range(n_rods):
@@ -879,15 +877,15 @@ def _project_constrained(model, data, q, qdot):  # pragma: no cover - compiled
     previous = np.inf
     converged = False
     for _ in range(MAX_ITER):
-        error = _violation(model, data, q, violation)
+        error = _violation(constraints, work, rod_param, q, violation)
         if not np.isfinite(error):
             return False
         if error <= tol or (error <= floor and error > 0.5 * previous):
             converged = True
             break
         previous = error
-        _normal_solve(model, data, q, violation, y)
-        _subtract_step(model, q, q, y)
+        _normal_solve(constraints, work, rod_param, q, violation, y)
+        _subtract_step(constraints, rod_param, q, q, y)
     if not converged:
         return False
     c = constraints.constraint_rhs.shape[0]
@@ -900,8 +898,8 @@ def _project_constrained(model, data, q, qdot):  # pragma: no cover - compiled
         violation[constraints.rod_prow[r]] = (
             q[o] * qdot[o] + q[o + 1] * qdot[o + 1] + q[o + 2] * qdot[o + 2]
         )
-    _normal_solve(model, data, q, violation, y)
-    _subtract_step(model, qdot, q, y)
+    _normal_solve(constraints, work, rod_param, q, violation, y)
+    _subtract_step(constraints, rod_param, qdot, q, y)
     return all_finite(q) and all_finite(qdot)
 
 
@@ -917,24 +915,24 @@ def system_project(model, data, q, qdot):  # pragma: no cover - compiled
     |A q - b|`` [m], and False if the state is not finite or the projection did not converge (then
     ``q``, ``q'`` hold whatever the last step left).
     """
-    return _project(model.constraints, model, data, q, qdot)
+    return _project(model.constraints, data.constraint_work, model.rod_param, q, qdot)
 
 
 @compiled_only
-def _project(constraints, model, data, q, qdot):  # pragma: no cover - compiled
-    """:func:`system_project` with ``constraints`` (``model.constraints``) an argument."""
+def _project(constraints, work, rod_param, q, qdot):  # pragma: no cover - compiled
+    """:func:`system_project` with ``constraints`` (``constraints``) an argument."""
     if constraints is None:
-        error = project(q, qdot, model.rod_param)
+        error = project(q, qdot, rod_param)
         finite = all_finite(q) and all_finite(qdot)
         return (error if finite else np.nan), 0.0, finite
     finite = all_finite(q) and all_finite(qdot)
     if constraints.constraint_rhs.shape[0] == 0:
-        error = project(q, qdot, model.rod_param)
+        error = project(q, qdot, rod_param)
         return (error if finite else np.nan), 0.0, finite
-    rod_error, constraint_error = _errors(constraints, model, data, q)
+    rod_error, constraint_error = _errors(constraints, work, rod_param, q)
     if not finite:
         return np.nan, constraint_error, False
-    return rod_error, constraint_error, _project_constrained(model, data, q, qdot)
+    return rod_error, constraint_error, _project_constrained(constraints, work, rod_param, q, qdot)
 
 
 # --------------------------------------------------------------------------- compiled: energy
