@@ -436,8 +436,10 @@ def test_results_and_structures_are_shown_by_the_plots_functions(tmp_path):
 
 
 def test_results_and_structures_are_shown_inline():
-    """The inline view in Jupyter (``plots.show_inline``, on IPython's HTML formatter)."""
-    formatters = pytest.importorskip("IPython.core.formatters")
+    """The inline view in Jupyter (``plots.show_inline``, on IPython's HTML formatter; IPython
+    is a test dependency)."""
+    from IPython.core import formatters
+
     from tensegrity import class1_shell, plots, simulate
 
     shell = class1_shell(3, 1)
@@ -453,7 +455,6 @@ def test_the_package_shows_results_inline_under_ipython():
     """Imported in a running IPython (as in a Jupyter kernel), the package registers the inline
     view itself; the model and the engine are not given methods for it, and matplotlib is not
     loaded until a page is shown."""
-    pytest.importorskip("IPython")
     code = (
         "import sys\n"
         "from IPython.core.interactiveshell import InteractiveShell\n"
