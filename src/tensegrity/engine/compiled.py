@@ -152,8 +152,8 @@ def fill_stage_inputs(tables, times, data):  # pragma: no cover - compiled
 
 
 #: Python functions of time among a run's inputs, by handle (``Model.callback``): what
-#: :func:`make_inputs` calls from compiled code.  The engine registers a run's
-#: (:class:`tensegrity.engine.system.CompiledSystem`) and drops it when the run ends.
+#: :func:`make_inputs` calls from compiled code.  A
+#: :class:`tensegrity.engine.system.CompiledSystem` registers its own, which is dropped with it.
 INPUT_CALLBACKS: dict[int, Callable[[np.ndarray], int]] = {}
 
 
@@ -360,15 +360,14 @@ def rk4_step(model, data, y, h, work_step, keep_first, y_end):  # pragma: no cov
 def rk4_segment(model, data, y, y_end, work_step, keep_first, t, h, n_steps):  # pragma: no cover
     """Up to ``n_steps`` RK4 steps of ``h`` [s] from time ``t`` [s], each followed by
     :func:`check_state` and the projection onto the rod and joint constraints (as
-    ``simulate(method="rk4")``).  Inputs constant over the stretch (``model.tables`` None: one
-    row or the 4 stage rows of a single step in ``data``), or varying (their 4 stage rows made
-    by :func:`make_inputs` into ``data`` before each step).  The energy balance is checked every
-    :data:`ENERGY_CHECK_EVERY` steps and after the last one (it costs about one evaluation; the
-    other checks are cheap); it reads the inputs at the step's end.  ``y_end`` receives the
-    state at the end of the last step before its projection (what a sample records, and the
-    failing state).  Returns ``(steps_taken, check_code, check_value)``; the loop stops at the
-    first failed check, and before a step whose control table makes a rest length negative
-    (:data:`CHECK_INPUT`, that step not taken)."""
+    ``simulate(method="rk4")``). Inputs constant (one row in ``data``), or varying (4 stage
+    rows, made by :func:`make_inputs` into ``data`` before each step). The energy balance is
+    checked every :data:`ENERGY_CHECK_EVERY` steps and after the last one (it costs about one
+    evaluation; the other checks are cheap); it reads the inputs at the step's end. ``y_end``
+    receives the state at the end of the last step before its projection (what a sample records,
+    and the failing state). Returns ``(steps_taken, check_code, check_value)``; the loop stops
+    at the first failed check, and before a step whose control table makes a rest length
+    negative (:data:`CHECK_INPUT`, that step not taken)."""
     n = (y.shape[0] - 3) // 2
     step_end = min(RK4_C.shape[0], data.rest.shape[0]) - 1
     times = np.empty(RK4_C.shape[0])

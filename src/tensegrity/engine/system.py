@@ -63,15 +63,15 @@ class CompiledSystem:
         self.structure, self.inputs = structure, inputs
         self.planar = structure.dim == 2
         spatial = embed_planar(structure) if self.planar else structure
-        self.packed_system = pack_system(spatial)
-        packed = self.packed = self.packed_system.packed
-        self.n = self.packed_system.n_coordinates
+        packed_system = pack_system(spatial)
+        packed = self.packed = packed_system.packed
+        self.n = packed_system.n_coordinates
         self.m = 2 * self.n + 3
         S, n_slots = structure.n_tendons, packed.layout.n_slots
         gravity = None if inputs.gravity is None else self._spatial(inputs.gravity)
         rest0 = packed.to_kernel_order(structure.tendon_rest_length)[None]
         self.model, self.data = make_records(
-            self.packed_system, rest=rest0, gravity=gravity, limits=limits
+            packed_system, rest=rest0, gravity=gravity, limits=limits
         )
         #: the blow-up monitor (4,), ``data.monitor`` (see :func:`compiled.check_state`)
         self.monitor = self.data.monitor
@@ -167,9 +167,7 @@ class CompiledSystem:
             force, has_external = np.empty((k, 3, self.packed.layout.n_slots)), True
         else:
             force, has_external = self._force_rows(t0)
-        return self.data._replace(
-            rest=rest, rate=rate, has_rate=has_rate, force=force, has_external=has_external
-        )
+        return self._with_inputs(rest, rate, has_rate, force, has_external)
 
     def _table_inputs(self, times: np.ndarray) -> Data:
         """:meth:`stage_inputs` with tables and constants: the tables' rows made by compiled
@@ -214,8 +212,17 @@ class CompiledSystem:
 
     def _numpy_inputs(self, times: np.ndarray) -> Data:
         """:meth:`stage_inputs` evaluated by NumPy and the Python callables."""
-        rest, rate, has_rate = self._control_rows(times)
-        force, has_external = self._force_rows(times)
+        return self._with_inputs(*self._control_rows(times), *self._force_rows(times))
+
+    def _with_inputs(
+        self,
+        rest: np.ndarray,
+        rate: np.ndarray,
+        has_rate: bool,
+        force: np.ndarray,
+        has_external: bool,
+    ) -> Data:
+        """:attr:`data` (its scratch shared) with these input rows."""
         return self.data._replace(
             rest=rest, rate=rate, has_rate=has_rate, force=force, has_external=has_external
         )

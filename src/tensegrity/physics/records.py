@@ -117,15 +117,3 @@ class Data(NamedTuple):
     #: (4,) the blow-up monitor: energy at the start [J], largest energy scale [J], largest rod
     #: error, largest constraint error [m]
     monitor: np.ndarray
-
-
-def empty_work(n_slots: int, n_tendons: int) -> dict[str, np.ndarray]:
-    """The scratch fields of a :class:`Data` (zeros), by name."""
-    return {
-        "node_position": np.zeros((3, n_slots)),
-        "node_velocity": np.zeros((3, n_slots)),
-        "node_force": np.zeros((3, n_slots)),
-        "tension": np.zeros(n_tendons),
-        "elastic_tension": np.zeros(n_tendons),
-        "damping_power": np.zeros(n_tendons),
-    }
