@@ -166,7 +166,7 @@ def _call_inputs(handle: int, times: np.ndarray) -> int:
 # ``nogil`` for the rest: numba says so in a warning each time it compiles the block.
 warnings.filterwarnings(
     "ignore",
-    message="Code running in object mode won't allow parallel execution despite nogil=True",
+    message=".*Code running in object mode won't allow parallel execution despite nogil=True",
     category=NumbaWarning,
 )
 
@@ -464,119 +464,6 @@ def tendon_lengths(p, tendon_slots, out):  # pragma: no cover - compiled
 
 
 @njit(**JIT_OPTIONS)
-def switch_indicator(model, rest, y, p, v, out):  # pragma: no cover - compiled
-    """Per tendon (kernel order), positive while it pulls and <= 0 while it does not:
-    ``min(k d, k d + c l')`` with ``d = l - Lbar`` (``rest`` (S,) the rest lengths [m]); its sign
-    changes exactly at the kinks of the tension law (eqs. 18.39-18.40).  ``p``, ``v``
-    (3, n_slots) are scratch."""
-    damping = model.tendon_damping
-    n = (y.shape[0] - 3) // 2
-    system_nodes(model, y[:n], y[n : 2 * n], p, v, damping is not None)
-    _indicator(damping, model, rest, p, v, out)
-
-
-@compiled_only
-def switch_distance(model, rest, F, y_old, x, scratch, candidates, was_taut):  # pragma: no cover
-    """How far each of the tendons ``candidates`` (kernel positions) is from leaving its state
-    ``was_taut`` at the fraction ``x`` of a DOP853 step (its dense polynomial ``F`` from
-    ``y_old``), with the rest lengths ``rest`` (S,) [m] there: ``out[k]`` is
-    :func:`switch_indicator` of ``candidates[k]``, negated for a tendon that was slack, so
-    ``out[k] <= 0`` once it has switched.  Returns ``min(out)``: the earliest switch in the
-    step is the first root of this continuous function.  ``scratch`` = ``(y (len(y_old),),
-    p, v (3, n_slots), indicator (S,), out (>= len(candidates),))``."""
-    y, p, v, indicator, out = scratch
-    dop853_interpolate(F, y_old, x, y)
-    switch_indicator(model, rest, y, p, v, indicator)
-    least = np.inf
-    for k in range(candidates.shape[0]):
-        value = indicator[candidates[k]]
-        out[k] = value if was_taut[candidates[k]] else -value
-        least = min(least, out[k])
-    return least
-
-
-#: Fields of a switch bracket (:func:`bracket_start`): its ends [s], the distances there, which
-#: end stayed put last (-1 lo, +1 hi, 0 none), the width at the round's start [s], whether a
-#: bisection is due, the width to reach [s].
-LO, HI, G_LO, G_HI, KEPT, WIDTH, BISECT, TOL = range(8)
-
-
-@njit(**EXACT_JIT_OPTIONS)
-def bracket_start(lo, hi, g_lo, g_hi, tol):  # pragma: no cover - compiled
-    """A bracket ``[lo, hi]`` [s] of the first root of a distance ``g`` (``g(lo) > 0 >= g(hi)``)
-    for :func:`bracket_next`: regula falsi with the Illinois modification (superlinear on a
-    smooth ``g``), kept shrinking by a bisection whenever a false-position step leaves more than
-    half of the bracket, down to a width of ``tol`` [s].  The caller evaluates ``g`` (reverse
-    communication), so that the compiled DOP853 loop and the loop of scipy's methods locate
-    switches with one solver::
-
-        b = bracket_start(lo, hi, g(lo), g(hi), tol)
-        t = bracket_next(b, nan, nan)  # the first time to evaluate g at; NaN: done
-        while not isnan(t):
-            t = bracket_next(b, t, g(t))
-        # the root is in [b[LO], b[HI]]
-    """
-    b = np.zeros(8)
-    b[LO], b[HI], b[G_LO], b[G_HI], b[TOL] = lo, hi, g_lo, g_hi, tol
-    return b
-
-
-@njit(**EXACT_JIT_OPTIONS)
-def bracket_next(b, t, g):  # pragma: no cover - compiled
-    """The bracket after the distance ``g`` at the time ``t`` [s] it asked for (nothing if ``t``
-    is NaN), and the next time to evaluate the distance at, or NaN once the bracket is within
-    its tolerance."""
-    if not np.isnan(t):
-        if b[BISECT] != 0.0:
-            if g > 0.0:
-                b[LO], b[G_LO] = t, g
-            else:
-                b[HI], b[G_HI] = t, g
-            b[KEPT], b[BISECT] = 0.0, 0.0
-        else:
-            if g > 0.0:
-                b[LO], b[G_LO] = t, g
-                if b[KEPT] == 1.0:
-                    b[G_HI] *= 0.5
-                b[KEPT] = 1.0
-            else:
-                b[HI], b[G_HI] = t, g
-                if b[KEPT] == -1.0:
-                    b[G_LO] *= 0.5
-                b[KEPT] = -1.0
-            if b[HI] - b[LO] > 0.5 * b[WIDTH]:  # false position crawled: bisect
-                b[BISECT] = 1.0
-    lo, hi, tol = b[LO], b[HI], b[TOL]
-    if b[BISECT] != 0.0:
-        return 0.5 * (lo + hi)
-    if not hi - lo > tol:
-        return np.nan
-    b[WIDTH] = hi - lo
-    mid = 0.5 * (lo + hi)
-    if b[G_LO] > 0.0 > b[G_HI]:
-        mid = lo + b[G_LO] * (hi - lo) / (b[G_LO] - b[G_HI])
-    return min(max(mid, lo + 0.25 * tol), hi - 0.25 * tol)
-
-
-@compiled_only
-def _indicator(damping, model, rest, p, v, out):  # pragma: no cover - compiled
-    """:func:`switch_indicator` from the node positions ``p`` and velocities ``v``; ``damping``
-    (``model.tendon_damping``) None: undamped tendons (decided at compile time)."""
-    tendon_slots, stiffness = model.tendon_slots, model.tendon_stiffness
-    for s in range(tendon_slots.shape[0]):
-        a, b, tx, ty, tz = tendon_vector(p, tendon_slots, s)
-        length = np.sqrt(tx * tx + ty * ty + tz * tz)
-        stretch = stiffness[s] * (length - rest[s])
-        if damping is None:
-            out[s] = stretch
-        else:
-            rate = (
-                tx * (v[0, b] - v[0, a]) + ty * (v[1, b] - v[1, a]) + tz * (v[2, b] - v[2, a])
-            ) / length
-            out[s] = min(stretch, stretch + damping[s] * rate)
-
-
-@njit(**JIT_OPTIONS)
 def record_sample(model, data, y, scratch, maps, columns, row):  # pragma: no cover - compiled
     """Sample ``row`` of ``columns`` (:class:`tensegrity.engine.result.Samples`' fields after
     ``t``) at ``y``, from one evaluation with the inputs' row 0 of ``data``: coordinates, node
@@ -677,7 +564,5 @@ __all__ = [
     "record_sample",
     "rk4_segment",
     "rk4_step",
-    "switch_distance",
-    "switch_indicator",
     "tendon_lengths",
 ]

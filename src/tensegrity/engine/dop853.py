@@ -1,18 +1,17 @@
 """DOP853, the default method, with its whole step loop compiled (:func:`dop853_run`): the
-attempts and their error control, the located slack/taut switches, the blow-up checks, the
+attempts and their error control, the located events, the blow-up checks, the
 projection onto the constraints and the step-size law run in compiled code from one output
 sample (or boundary) to the next; :class:`DOP853` holds the loop's state between those calls
 for the run loop (:mod:`tensegrity.engine.loop`), which records the samples, calls a
 controller and saves checkpoints.
 
 The method, coefficients, error norm and step-size law are ``scipy.integrate.DOP853``'s
-(:mod:`tensegrity.engine.compiled`). Per accepted step, as the run loop's docstring says: the
-tensions at the step's end (known from its last stage) are compared with the taut flags at its
-start; if a tendon went slack or taut, the earliest switch is found on the step's dense output
-(:func:`compiled.bracket_start`), the step is discarded and retaken to end exactly there, and the
-switching tendons are marked as switched.  A rejected attempt whose end shows a switch may
-stand for the step (*provisional*): the switch is located on it instead of shrinking the step
-until the kink falls out of it.  The step size carries over a projection or a located switch.
+(:mod:`tensegrity.engine.compiled`). Per accepted step, the events (the tendons' slack/taut
+switches) are found, located on the step's polynomial and landed on by the one mechanism of
+:mod:`tensegrity.engine.events` (its module docstring): the step is discarded and retaken to end
+exactly at the first event.  A rejected attempt whose end shows an event may stand for the step
+(*provisional*): the event is located on it instead of shrinking the step until the kink falls
+out of it.  The step size carries over a projection or a located event.
 
 Inputs: constant, or made where they are used by :func:`compiled.make_inputs` (tabulated ones
 interpolated in compiled code, Python functions of time called through a callback: one loop for
@@ -20,8 +19,9 @@ every kind of input); a Python function is called once per attempt with the atte
 times.
 
 The loop's state lives in a few arrays (:class:`DOP853`): ``clock`` (float64, indices
-``T``...), ``tally`` (int64, indices ``NFEV``...), the state buffers, the taut flags and the
-landing (a located switch being headed for) as masks over the tendons (kernel order).
+``T``...), ``tally`` (int64, indices ``NFEV``...), the state buffers, and the events'
+:class:`~tensegrity.engine.events.EventWork` (their sides, the taut flags, and the landing: a
+located event being headed for).
 """
 
 from __future__ import annotations
@@ -38,8 +38,6 @@ from tensegrity.engine.compiled import (
     DOP853_C,
     DOP853_STAGES,
     EXACT_JIT_OPTIONS,
-    bracket_next,
-    bracket_start,
     check_state,
     dop853_attempt,
     dop853_dense,
@@ -47,15 +45,21 @@ from tensegrity.engine.compiled import (
     inputs_vary,
     make_inputs,
     ode_rhs,
-    switch_distance,
+)
+from tensegrity.engine.events import (
+    EventWork,
+    event_work,
+    events_crossed,
+    landing_of,
+    locate_event,
+    restore_landing,
+    set_sides,
 )
 from tensegrity.engine.steppers import StepperMemory
 from tensegrity.engine.system import CompiledSystem
 from tensegrity.physics.kernel import copy_values
 from tensegrity.physics.kernel_system import system_project
 
-#: Relative width of the final bracket of a located switch.
-SWITCH_RTOL = 1e-13
 #: Step-size law (scipy's): safety factor, smallest and largest factor, error exponent.
 SAFETY, MIN_FACTOR, MAX_FACTOR, EXPONENT = 0.9, 0.2, 10.0, -1.0 / 8.0
 #: Located switches :func:`dop853_run` keeps before it returns them (``RUN_SWITCHES``).
@@ -128,16 +132,10 @@ class LoopWork(NamedTuple):
     F: np.ndarray  #: (7, m) the last step's dense-output polynomial
     y_new: np.ndarray  #: (m,) scratch
     stage: np.ndarray  #: (m,) scratch
-    y_at: np.ndarray  #: (m,) scratch
-    taut: np.ndarray  #: (S,) bool, kernel order: the tendons taut at the state
-    landing_mask: np.ndarray  #: (S,) bool: the tendons of the switch headed for
-    landing_after: np.ndarray  #: (S,) bool: their side after it
+    #: the events (:mod:`tensegrity.engine.events`): their sides (the tendons taut at the
+    #: state), the located event headed for, scratch
+    events: EventWork
     switch_times: np.ndarray  #: (SWITCH_BUFFER,) [s]: switches located by this call
-    p: np.ndarray  #: (3, n_slots) scratch
-    v: np.ndarray  #: (3, n_slots) scratch
-    indicator: np.ndarray  #: (S,) scratch
-    distance: np.ndarray  #: (S,) scratch
-    candidates: np.ndarray  #: (S,) int64 scratch
     #: ``(rtol, atol, t_end [s], projection_tol, max_steps, locate, attempts)``: the call
     #: returns (``RUN_YIELD``) once it has made ``attempts`` attempts
     settings: tuple
@@ -166,8 +164,7 @@ def dop853_run(model, rows, point, loop, bound, next_sample_t):  # pragma: no co
     inlines (a compiled function of its own costs about 0.1 s of that compile each).
     """
     settings = loop.settings
-    scratch = (loop.y_at, loop.p, loop.v, loop.indicator, loop.distance)
-    limits, tension = model.limits, point.tension
+    limits = model.limits
     rtol, atol, t_end, projection_tol = settings[0], settings[1], settings[2], settings[3]
     max_steps, locate, attempts_per_call = settings[4], settings[5], settings[6]
     attempts = 0
@@ -209,42 +206,6 @@ def dop853_run(model, rows, point, loop, bound, next_sample_t):  # pragma: no co
         if error != 0.0:
             factor = min(MAX_FACTOR, SAFETY * error**EXPONENT)
         return min(1.0, factor) if rejected else factor
-
-    def any_switched():
-        """Whether a tendon's tension at the last stage disagrees with its taut flag."""
-        for s in range(loop.taut.shape[0]):  # noqa: SIM110 - (a loop numba compiles)
-            if (tension[s] > 0.0) != loop.taut[s]:
-                return True
-        return False
-
-    def set_taut_flags(landed_exact):
-        """Taut flags from the tensions at the last evaluation; tendons that have just switched
-        (a landing located exactly) keep the side they switched to (the state retaken up to a
-        switch may sit a round-off short of it)."""
-        for s in range(loop.taut.shape[0]):
-            loop.taut[s] = tension[s] > 0.0
-            if landed_exact and loop.landing_mask[s]:
-                loop.taut[s] = loop.landing_after[s]
-
-    def switch_distance_at(t, count):
-        """min_k of the candidates' distances at ``t`` inside the last step, and whether the
-        inputs at ``t`` could not be made (then ``clock[INPUT_TIME]`` is ``t``)."""
-        bad = inputs_at(t)
-        if bad >= 0:
-            loop.clock[INPUT_TIME] = t
-            return np.nan, True
-        x = (t - loop.clock[T_OLD]) / (loop.clock[T] - loop.clock[T_OLD])
-        least = switch_distance(
-            model,
-            point.rest[0],
-            loop.F,
-            loop.y_old,
-            x,
-            scratch,
-            loop.candidates[:count],
-            loop.taut,
-        )
-        return least, False
 
     def initial_step(f0, f1):
         """Hairer, Norsett and Wanner's initial step (II.4), as ``scipy``'s, from the first
@@ -311,7 +272,7 @@ def dop853_run(model, rows, point, loop, bound, next_sample_t):  # pragma: no co
             loop.tally[NFEV] += 1
             if locate or loop.tally[START]:
                 exact = bool(loop.tally[LANDED]) and bool(loop.tally[LANDING_EXACT])
-                set_taut_flags(exact)
+                set_sides(point, loop.events, exact)
             if loop.tally[START]:  # and the monitor at the start, the initial step
                 loop.tally[START] = 0
                 no_limits = np.full(3, np.inf)
@@ -348,7 +309,7 @@ def dop853_run(model, rows, point, loop, bound, next_sample_t):  # pragma: no co
             attempts += 1
             if error < 1.0:
                 break
-            if use_taut and np.isfinite(error) and any_switched():
+            if use_taut and np.isfinite(error) and events_crossed(point, loop.events) > 0:
                 loop.tally[PROVISIONAL] = 1
                 break
             h *= shrink(error)
@@ -364,20 +325,15 @@ def dop853_run(model, rows, point, loop, bound, next_sample_t):  # pragma: no co
         loop.tally[DENSE_READY] = 0
         loop.tally[ALLOW_PROVISIONAL] = locate
 
-        # ---- a tendon switched within the step: the candidates
-        count = 0
-        if detect:
-            for s in range(loop.taut.shape[0]):
-                if (tension[s] > 0.0) != loop.taut[s]:
-                    loop.candidates[count] = s
-                    count += 1
+        # ---- an event within the step: the candidates
+        count = events_crossed(point, loop.events) if detect else 0
         if count == 0:  # the step stands: the checks, then the next step or the samples
             loop.tally[NSTEPS] += 1
             landed = bool(loop.tally[LANDING]) and loop.clock[T] >= loop.clock[LANDING_TIME]
             loop.tally[LANDED] = landed
             if locate:
                 exact = landed and bool(loop.tally[LANDING_EXACT])
-                set_taut_flags(exact)
+                set_sides(point, loop.events, exact)
             bad = inputs_at(loop.clock[T])
             if bad >= 0:
                 loop.clock[INPUT_TIME] = loop.clock[T]
@@ -403,36 +359,20 @@ def dop853_run(model, rows, point, loop, bound, next_sample_t):  # pragma: no co
         if count == 0:
             return RUN_SAMPLES, CHECK_OK, 0.0
 
-        # ---- the earliest switch: the first root of g(t) = min_k d_k(t) on the dense output
-        # (compiled.bracket_start), to a bracket of SWITCH_RTOL (relative); reported at the
-        # bracket's right end, just past it, so that tendons switching within the bracket (the
-        # symmetric twins of a regular shell) switch together instead of one by one
-        g_lo, failed = switch_distance_at(t_old, count)
-        g_hi, failed_hi = switch_distance_at(loop.clock[T], count)
-        failed = failed or failed_hi
-        bracket = bracket_start(
-            t_old, loop.clock[T], g_lo, g_hi, SWITCH_RTOL * max(1.0, abs(loop.clock[T]))
+        # ---- the earliest event (tensegrity.engine.events.locate_event), headed for
+        t_switch, input_time = locate_event(
+            model,
+            point,
+            varying,
+            None,
+            (t_old, loop.clock[T], loop.F, loop.y_old),
+            loop.events,
+            count,
         )
-        t = bracket_next(bracket, np.nan, np.nan)
-        while not failed and not np.isnan(t):
-            g, failed = switch_distance_at(t, count)
-            t = bracket_next(bracket, t, g)
-        lo, hi = bracket[compiled.LO], bracket[compiled.HI]
-        t_switch = min(max(hi, lo + bracket[compiled.TOL]), loop.clock[T])
-        if not failed:
-            g, failed = switch_distance_at(t_switch, count)
-            if not failed and not g <= 0.0:  # (switched back within the bracket: the root)
-                t_switch = hi
-                g, failed = switch_distance_at(t_switch, count)
-        if failed:
+        if np.isnan(t_switch):
+            loop.clock[INPUT_TIME] = input_time
             return RUN_INPUT, CHECK_OK, 0.0
         exact = not loop.tally[PROVISIONAL]
-        loop.landing_mask[:] = False
-        for k in range(count):  # the tendons switched by then (distance <= 0 there)
-            s = loop.candidates[k]
-            if loop.distance[k] <= 0.0:
-                loop.landing_mask[s] = True
-                loop.landing_after[s] = not loop.taut[s]
         loop.clock[LANDING_TIME] = t_switch
         loop.tally[LANDING] = 1
         loop.tally[LANDING_EXACT] = exact
@@ -471,7 +411,7 @@ class DOP853:
         """Start at ``(t0, y0)`` with Hairer's initial step, or continue with ``memory`` (of a
         checkpoint) exactly as the stepper that made it would have."""
         self.system, self.rtol, self.atol = system, rtol, atol
-        m, S = system.m, system.structure.n_tendons
+        m = system.m
         attempts = steps_per_turn(system, DOP853_STAGES)
         y = np.array(y0, dtype=float)
         self.loop = loop = LoopWork(
@@ -483,16 +423,8 @@ class DOP853:
             F=np.empty((compiled.DOP853_DENSE_ROWS, m)),
             y_new=np.empty(m),
             stage=np.empty(m),
-            y_at=np.empty(m),
-            taut=np.zeros(S, bool),
-            landing_mask=np.zeros(S, bool),
-            landing_after=np.zeros(S, bool),
+            events=event_work(system),
             switch_times=np.zeros(SWITCH_BUFFER),
-            p=system.scratch_p,
-            v=system.scratch_v,
-            indicator=np.empty(S),
-            distance=np.empty(S),
-            candidates=np.empty(S, np.int64),
             settings=(
                 float(rtol),
                 float(atol),
@@ -529,8 +461,8 @@ class DOP853:
 
     @property
     def taut(self) -> np.ndarray:
-        """Taut flags (S,), kernel order."""
-        return self.loop.taut
+        """Taut flags (S,), kernel order (the events' sides)."""
+        return self.loop.events.side
 
     def memory(self) -> StepperMemory:
         """What a checkpoint keeps to continue from the current state exactly."""
@@ -542,14 +474,8 @@ class DOP853:
         """The switch headed for: ``(time, tendons, taut after, exact)``, or None."""
         if not self.tally[LANDING]:
             return None
-        mask, after = self.loop.landing_mask, self.loop.landing_after
-        tendons = np.flatnonzero(mask)
-        return (
-            float(self.clock[LANDING_TIME]),
-            tendons,
-            after[tendons],
-            bool(self.tally[LANDING_EXACT]),
-        )
+        tendons, after = landing_of(self.loop.events)
+        return float(self.clock[LANDING_TIME]), tendons, after, bool(self.tally[LANDING_EXACT])
 
     def restore(
         self,
@@ -558,17 +484,14 @@ class DOP853:
         allow_provisional: bool,
     ) -> None:
         """The taut flags, the landing and the provisional flag of a checkpoint."""
-        loop = self.loop
-        loop.taut[:] = taut
-        loop.landing_mask[:] = False
+        events = self.loop.events
+        events.side[:] = taut
         self.tally[ALLOW_PROVISIONAL] = allow_provisional
         self.tally[LANDING] = landing is not None
-        if landing is not None:
-            time, tendons, after, exact = landing
-            self.clock[LANDING_TIME] = time
-            loop.landing_mask[tendons] = True
-            loop.landing_after[tendons] = after
-            self.tally[LANDING_EXACT] = exact
+        none = (0.0, np.zeros(0, np.int64), np.zeros(0, bool), False)
+        time, tendons, after, exact = landing or none
+        restore_landing(events, tendons, after)
+        self.clock[LANDING_TIME], self.tally[LANDING_EXACT] = time, exact
 
     def counts(self) -> dict[str, int]:
         """Accepted steps, located switches and projections so far."""

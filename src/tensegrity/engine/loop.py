@@ -1,19 +1,18 @@
-"""The one integration loop (:func:`run`): stepping, sampling, slack/taut switch location,
-projection onto the constraints, blow-up checks, the steady-state stop and a stop condition's,
-a controller's updates and checkpoints, for every method and every structure, samples handed
-to a sink as they are made.
+"""The one integration loop (:func:`run`): stepping, sampling, event location, projection onto
+the constraints, blow-up checks, the steady-state stop and a stop condition's, a controller's
+updates and checkpoints, for every method and every structure, samples handed to a sink as they
+are made.
 
-Per accepted step of an adaptive method: the tensions at the step's end (known from its last
-stage) are compared with those at its start; if a tendon went slack or taut, the earliest switch
-is found by bisection on the step's dense output (to 1e-13 s relative), the step is discarded
-and retaken to end exactly there, and the switching tendons are marked as switched, so that the
-same switch is not found again a round-off later.  The step size carries over.  Then the blow-up
-checks run (compiled), samples inside the step are interpolated, and the state is projected when
-its drift exceeds ``projection_tol``.  DOP853, the default, does all of this in compiled code
-from one sample or boundary to the next (:mod:`tensegrity.engine.dop853`; :func:`_compiled_adaptive`
-records the samples, calls the controller and saves checkpoints); the other ``scipy`` methods
-run the same procedure here in Python (:func:`_adaptive`).  ``"rk4"`` runs whole stretches of
-steps between samples in one compiled call.
+Per accepted step of an adaptive method: the events (the tendons' slack/taut switches) the step
+crossed are found, the first is located on the step's dense output, and the step is discarded
+and retaken to end exactly there, by the one mechanism of :mod:`tensegrity.engine.events`.  The
+step size carries over.  Then the blow-up checks run (compiled), samples inside the step are
+interpolated, and the state is projected when its drift exceeds ``projection_tol``.  DOP853,
+the default, does all of this in compiled code from one sample or boundary to the next
+(:mod:`tensegrity.engine.dop853`; :func:`_compiled_adaptive` records the samples, calls the
+controller and saves checkpoints); the other ``scipy`` methods step by scipy here
+(:func:`_adaptive`), their events located by the same compiled locator on scipy's dense
+output.  ``"rk4"`` runs whole stretches of steps between samples in one compiled call.
 
 Boundaries: steps end exactly at the times of a controller's updates (zero-order hold, every
 ``controller.period`` from ``t0``) and of checkpoints (every ``checkpoint.every`` samples).  At
@@ -32,7 +31,16 @@ from typing import Any, Protocol
 import numpy as np
 
 from tensegrity.engine import compiled, dop853
-from tensegrity.engine.dop853 import DOP853, SWITCH_RTOL
+from tensegrity.engine.dop853 import DOP853
+from tensegrity.engine.events import (
+    DenseOutputHandle,
+    event_work,
+    events_crossed_entry,
+    landing_of,
+    locate_event_entry,
+    restore_landing,
+    set_sides_entry,
+)
 from tensegrity.engine.inputs import Inputs
 from tensegrity.engine.options import Options, reaches, sample_count, sample_time, short_of
 from tensegrity.engine.result import (
@@ -228,13 +236,12 @@ _FAILURES = {
 
 @dataclasses.dataclass
 class _Landing:
-    """A located switch the stepper is heading for: its time, the tendons that switch there,
-    their flags after it, and whether it was located on an accepted step's dense output (exact)
-    or on a rejected attempt's (approximate: the steps up to it keep looking for switches)."""
+    """A located event the stepper is heading for: its time [s], and whether it was located on
+    an accepted step's dense output (exact) or on a rejected attempt's (approximate: the steps
+    up to it keep looking for events); the events fired there are in the run's
+    :class:`~tensegrity.engine.events.EventWork`."""
 
     time: float
-    tendons: np.ndarray
-    taut_after: np.ndarray
     exact: bool
 
 
@@ -528,83 +535,57 @@ def _stepper(
     return ScipyMethod(run.system, t, y, method=o.method, rtol=o.rtol, atol=o.atol, t_end=run.t_end)
 
 
-def _first_switch(
-    stepper: Stepper, candidates: np.ndarray, was_taut: np.ndarray
-) -> tuple[float, np.ndarray]:
-    """Earliest time in the last step at which one of ``candidates`` (kernel positions) changes
-    taut/slack state, and the tendons that have switched by then.
-
-    The first root of ``g(t) = min_k d_k(t)`` (:meth:`Stepper.switch_distance`: ``d_k <= 0``
-    once tendon ``k`` has switched) on the step's dense output, by the solver the compiled
-    DOP853 loop uses (:func:`compiled.bracket_start`), to a bracket of :data:`SWITCH_RTOL`
-    (relative).  Returns the bracket's right end: just past the switch."""
-
-    def g(t: float) -> float:
-        return float(np.min(stepper.switch_distance(t, candidates, was_taut)))
-
-    lo, hi = stepper.t_old, stepper.t
-    tol = SWITCH_RTOL * max(1.0, abs(hi))
-    bracket = compiled.bracket_start(lo, hi, g(lo), g(hi), tol)
-    t = float(compiled.bracket_next(bracket, math.nan, math.nan))
-    while not math.isnan(t):
-        t = float(compiled.bracket_next(bracket, t, g(t)))
-    lo, hi = float(bracket[compiled.LO]), float(bracket[compiled.HI])
-    # The switch is reported at the end of a bracket of width ``tol``, as by bisection, so that
-    # tendons switching within ``tol`` of it (the symmetric twins of a regular shell) switch
-    # together instead of being located one by one.
-    end = min(max(hi, lo + tol), stepper.t)
-    switched = stepper.switch_distance(end, candidates, was_taut) <= 0
-    if not np.any(switched):  # (a tendon switched back within tol: keep the root found)
-        end, switched = hi, stepper.switch_distance(hi, candidates, was_taut) <= 0
-    return end, candidates[switched]
-
-
-def _taut(stepper: Stepper, landed: _Landing | None) -> np.ndarray:
-    """Taut flags at the stepper's state; tendons that have just switched keep the side they
-    switched to (the state retaken up to a switch may sit a round-off short of it)."""
-    taut = stepper.tensions() > 0
-    if landed is not None and landed.exact:
-        taut[landed.tendons] = landed.taut_after
-    return taut
-
-
 def _adaptive(run: _Run, stepper: Stepper, resume: LoopState | None) -> None:
-    """The loop of an adaptive method."""
+    """The loop of scipy's adaptive methods: the DOP853 loop's (:func:`dop853.dop853_run`)
+    procedure, stepping by scipy, the events located by the same compiled mechanism
+    (:mod:`tensegrity.engine.events`) on scipy's dense output."""
     o, system = run.options, run.system
     locate = o.locate_switches
-    taut: np.ndarray | None = _taut(stepper, None) if locate else None
+    events = event_work(system)
+    point = system.input_buffers(1)
+    varying = not system.inputs.constant
+    if locate:
+        set_sides_entry(stepper.evaluation(), events, False)
     landing: _Landing | None = None
     # A rejected attempt may stand for a step only when no switch is being landed on and the
     # last one was not located approximately (the step after it may find the same switch just
     # ahead: it shrinks as usual instead of locating it again, which could repeat forever).
     allow_provisional = locate
     if resume is not None:
-        taut = resume.taut.copy() if locate else None
-        landing = None if resume.landing is None else _Landing(*resume.landing)
+        events.side[:] = resume.taut if locate else False
+        if resume.landing is not None:
+            time_, fired, side_after, exact = resume.landing
+            landing = _Landing(time_, exact)
+            restore_landing(events, fired, side_after)
         allow_provisional = resume.allow_provisional
     while stepper.t < run.t_end:
         detect = locate and (landing is None or not landing.exact)
         boundary = run.next_boundary(stepper.t)
         stepper.step(
             boundary if landing is None else min(boundary, landing.time),
-            taut if allow_provisional and landing is None else None,
+            events.side if allow_provisional and landing is None else None,
         )
         allow_provisional = locate
         if detect:
-            assert taut is not None  # detecting switches implies locating them: flags are kept
-            changed = np.flatnonzero((stepper.tensions() > 0) != taut)
-            if changed.size:
-                t_switch, tendons = _first_switch(stepper, changed, taut)
+            count = events_crossed_entry(stepper.evaluation(), events)
+            if count:
+                with DenseOutputHandle(stepper.dense()) as dense:
+                    t_switch, input_time = locate_event_entry(
+                        system.model, point, varying, dense, stepper.step_span(), events, count
+                    )
+                if math.isnan(t_switch):
+                    system.raise_input_error()
+                    system.inputs.rest_length(np.array([input_time]))  # (the ValueError)
                 if not stepper.provisional:
                     run.counts["nswitches"] += 1
                     run.switch_times.append(t_switch)
-                landing = _Landing(t_switch, tendons, ~taut[tendons], not stepper.provisional)
+                landing = _Landing(t_switch, not stepper.provisional)
                 stepper.retreat(t_switch)
                 continue
         run.counts["nsteps"] += 1
         landed = landing if landing is not None and stepper.t >= landing.time else None
         if locate:
-            taut = _taut(stepper, landed)
+            set_sides_entry(stepper.evaluation(), events, landed is not None and landed.exact)
         drift = run.check(stepper.y, stepper.t)
         if drift is None:
             run.record(stepper.t, stepper.y)
@@ -635,7 +616,8 @@ def _adaptive(run: _Run, stepper: Stepper, resume: LoopState | None) -> None:
         if restart:
             stepper.restart(stepper.y)
             if locate:
-                taut = _taut(stepper, landed)
+                keep = landed is not None and landed.exact
+                set_sides_entry(stepper.evaluation(), events, keep)
         if stepper.t < run.t_end and run.counts["nsteps"] >= o.max_steps:
             run.stop_at_max_steps(stepper.t)
             return
@@ -644,7 +626,8 @@ def _adaptive(run: _Run, stepper: Stepper, resume: LoopState | None) -> None:
         if stepper.t < run.t_end and run.checkpoint_due():
             kept = None
             if landing is not None:
-                kept = (landing.time, landing.tendons, landing.taut_after, landing.exact)
+                kept = (landing.time, *landing_of(events), landing.exact)
+            taut = events.side if locate else None
             run.save(stepper.t, stepper.y, stepper, taut, kept, allow_provisional)
 
 

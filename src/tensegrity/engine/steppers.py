@@ -2,9 +2,10 @@
 ``step(bound)`` takes one accepted step not past ``bound``, ``dense()`` interpolates inside it,
 ``retreat(to)`` discards it to head for a located switch at ``to``, ``resume()`` goes on at the
 step size of before once there, ``restart(y)`` continues from a changed state (after a
-projection or a controller's update), ``switch_distance(t, ...)`` tells how far tendons are
-from changing taut/slack state at a time inside the last step, and ``memory()`` is what a
-checkpoint must keep to continue exactly (:class:`StepperMemory`).
+projection or a controller's update), ``evaluation()`` is the data record of an evaluation at
+the current state and ``step_span()`` the last step, for the events
+(:mod:`tensegrity.engine.events`), and ``memory()`` is what a checkpoint must keep to continue
+exactly (:class:`StepperMemory`).
 
 The default method, DOP853, runs its whole loop compiled (:mod:`tensegrity.engine.dop853`); here
 are the others:
@@ -24,6 +25,7 @@ import numpy as np
 
 from tensegrity.engine import compiled
 from tensegrity.engine.system import CompiledSystem
+from tensegrity.physics.records import Data
 
 if TYPE_CHECKING:  # (imported when used: scipy.integrate costs 0.15 s of a start, measured)
     from scipy.integrate import OdeSolver
@@ -74,13 +76,14 @@ class Stepper(Protocol):
     def restart(self, y: np.ndarray) -> None:
         """Continue from ``y`` at the current time (after a projection)."""
 
-    def tensions(self) -> np.ndarray:
-        """Tensions (S,) [N] at the current state, kernel order (a view of the work buffer)."""
+    def evaluation(self) -> Data:
+        """The system's data record holding an evaluation at the current state (its tensions:
+        :func:`tensegrity.engine.events.events_crossed`)."""
 
-    def switch_distance(self, t: float, candidates: np.ndarray, was_taut: np.ndarray) -> np.ndarray:
-        """How far each of ``candidates`` (kernel positions) is from leaving its state
-        ``was_taut`` at ``t`` inside the last step (:func:`compiled.switch_distance`; ``<= 0``:
-        it has switched)."""
+    def step_span(self) -> tuple[float, float, np.ndarray, np.ndarray]:
+        """The last step's ``(t_old, t, F, y_old)`` for
+        :func:`tensegrity.engine.events.locate_event` (``F``, ``y_old`` empty: the state inside
+        it comes from :meth:`dense`)."""
 
     def memory(self) -> StepperMemory:
         """What a checkpoint keeps to continue from the current state exactly."""
@@ -165,30 +168,20 @@ class ScipyMethod:
     def restart(self, y: np.ndarray) -> None:
         self._start(self.t, y, self._bound)
 
-    def switch_distance(self, t: float, candidates: np.ndarray, was_taut: np.ndarray) -> np.ndarray:
-        system = self.system
-        indicator = np.empty(system.structure.n_tendons)
-        compiled.switch_indicator(
-            system.model,
-            system.rest_row(t),
-            np.ascontiguousarray(self.dense()(t)),
-            system.scratch_p,
-            system.scratch_v,
-            indicator,
-        )
-        return np.where(was_taut[candidates], indicator[candidates], -indicator[candidates])
+    def step_span(self) -> tuple[float, float, np.ndarray, np.ndarray]:
+        return self.t_old, self.t, np.zeros((0, 0)), np.zeros(0)
 
     def memory(self) -> StepperMemory:
         """Nothing: a ``scipy`` solver restarts at every boundary of a run (checkpoints,
         controller updates) in any case, so ``(t, y)`` is all it needs."""
         return StepperMemory(np.zeros(0), 0.0, 0.0)
 
-    def tensions(self) -> np.ndarray:
+    def evaluation(self) -> Data:
         if not self._tensions_here:  # the solver's last evaluation need not be at its state
             self._rhs(self.t, self.y)
             self._nfev_before += 1
             self._tensions_here = True
-        return self.system.data.tension
+        return self.system.data
 
 
 class RK4:

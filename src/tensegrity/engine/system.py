@@ -261,10 +261,6 @@ class CompiledSystem:
         data = self.stage_inputs(np.array([t]))
         return float(compiled.energy_balance_entry(self.model, data, 0, y)[1])
 
-    def rest_row(self, t: float) -> np.ndarray:
-        """Rest lengths (S,) at ``t`` in kernel order."""
-        return self.stage_inputs(np.array([t])).rest[0]
-
     # ------------------------------------------------------------------ states
     def state_vector(self, state: dynamics.State, *, project: bool = True) -> np.ndarray:
         """The ODE state ``y`` of ``state`` (energy integrals zero), projected onto the rod,

@@ -45,6 +45,7 @@ on a machine compiles for a few seconds, later processes load the cache in well 
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from typing import Any, Literal, NamedTuple, TypedDict
 
@@ -97,15 +98,17 @@ class _CompiledOnly(CPUDispatcher):
         )
 
 
-def compiled_only(py_func: Callable) -> CPUDispatcher:
+def compiled_only(py_func: Callable | None = None, *, jit_options: JitOptions = JIT_OPTIONS) -> Any:
     """``njit(**JIT_OPTIONS)`` for a function only ever called from compiled code: numba makes
     no wrapper that lets Python call it (code that unboxes every argument; the tuples of arrays
     of the engine's steps make it long).  On the engine's seven heaviest callees this takes
     1.1 s off the 19.6 s of compilation of a first ``tensegrity simulate`` (CPU time, numba's
     compile events, 4 runs each alternating with the code before: 18.5 s).  Python calling
     such a function gets a TypeError (through the missing wrapper numba would crash the
-    interpreter)."""
-    options: dict[str, Any] = {**JIT_OPTIONS, "no_cpython_wrapper": True, "no_cfunc_wrapper": True}
+    interpreter).  ``@compiled_only(jit_options=...)`` compiles with other options."""
+    if py_func is None:
+        return functools.partial(compiled_only, jit_options=jit_options)
+    options: dict[str, Any] = {**jit_options, "no_cpython_wrapper": True, "no_cfunc_wrapper": True}
     dispatcher = njit(**options)(py_func)
     dispatcher.__class__ = _CompiledOnly
     return dispatcher

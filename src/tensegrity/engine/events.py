@@ -1,0 +1,364 @@
+"""Events: the instants where the dynamics change form, found by one compiled mechanism that
+every loop locating them calls (the compiled DOP853 loop,
+:func:`tensegrity.engine.dop853.dop853_run`, and the loop of scipy's methods,
+:func:`tensegrity.engine.loop.run`).
+
+An *event* ``e`` (``0 <= e < E``) is
+
+- an **indicator** ``g_e(t, y)``, continuous along a trajectory, whose sign says on which side
+  of the event's switching surface the state is (:func:`event_indicators`);
+- a **direction**: the loop keeps the side the state is on, ``side[e]`` (True where
+  ``g_e > 0``); the event fires when ``g_e`` leaves it, i.e. when its *distance*
+  ``d_e = g_e`` (``side[e]``) or ``-g_e`` (not ``side[e]``) reaches 0 (:func:`event_distance`);
+- an **action** at the located time: ``side[e]`` flips to ``side_after[e]``
+  (:func:`set_sides`), and the kind's own action follows, if it has one.
+
+Kinds, in the order of their events: the tendons' slack/taut switches (``e`` the tendon's
+kernel position, ``E = S``): ``g = min(k d, k d + c l')``, ``d = l - Lbar``, whose sign changes
+exactly at the kinks of the tension law (eqs. 18.39-18.40); the action is the flip alone (the
+law is continuous: the event keeps its kink out of a step's polynomial).  A new kind (contact
+onset and lift-off, stick and slip) adds its rows to :func:`event_indicators` and to
+:func:`events_crossed`, and its action where the loops land on an event.
+
+Per accepted step of an adaptive method:
+
+1. :func:`events_crossed`: the candidates, the events whose sign at the step's end (known from
+   its last stage: a tendon's tension > 0) disagrees with their side;
+2. if there are any, :func:`locate_event`: the first root of ``min_e d_e(t)`` over the candidates
+   on the step's dense output, by regula falsi with the Illinois modification and bisection
+   (:func:`bracket_start`), to a bracket of :data:`EVENT_RTOL` (relative), reported at the
+   bracket's right end, just past the root, so that events firing within the bracket (the
+   symmetric twins of a regular shell) fire together instead of one by one; ``fired`` marks them;
+3. the loop discards the step and retakes it to end exactly there (the *landing*); once there,
+   :func:`set_sides` makes the sides from the evaluation at the new state, the fired events
+   keeping the side they went to (the state retaken up to an event may sit a round-off short).
+
+The dense output is the DOP853 step's polynomial (compiled), or, for scipy's methods, their
+``dense_output()`` called back from compiled code (:data:`DENSE_OUTPUTS`).
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Callable
+from typing import TYPE_CHECKING, NamedTuple
+
+import numpy as np
+from numba import njit, objmode
+
+from tensegrity.engine.compiled import (
+    EXACT_JIT_OPTIONS,
+    dop853_interpolate,
+    make_inputs,
+)
+from tensegrity.physics.kernel import JIT_OPTIONS, compiled_only, tendon_vector
+from tensegrity.physics.kernel_system import system_nodes
+
+if TYPE_CHECKING:
+    from tensegrity.engine.system import CompiledSystem
+
+#: Relative width of the final bracket of a located event.
+EVENT_RTOL = 1e-13
+
+
+class EventWork(NamedTuple):
+    """The events' state and scratch, kept by a loop (:func:`event_work`); ``E`` events,
+    ``m`` the length of the ODE state."""
+
+    side: np.ndarray  #: (E,) bool: the side of each event's surface the state is on (taut)
+    fired: np.ndarray  #: (E,) bool: the events of the located time headed for (the landing)
+    side_after: np.ndarray  #: (E,) bool: the side of a fired event after it
+    candidates: np.ndarray  #: (E,) int64 scratch: the events crossed in the last step
+    distance: np.ndarray  #: (E,) scratch: the candidates' distances
+    indicator: np.ndarray  #: (E,) scratch: every event's indicator
+    y_at: np.ndarray  #: (m,) scratch: the state inside the step
+    p: np.ndarray  #: (3, n_slots) scratch: node positions
+    v: np.ndarray  #: (3, n_slots) scratch: node velocities
+    time: np.ndarray  #: (1,) scratch: the time whose inputs are made
+
+
+def event_work(system: CompiledSystem) -> EventWork:
+    """New :class:`EventWork` for ``system`` (its events: one per tendon)."""
+    E = system.structure.n_tendons
+    return EventWork(
+        side=np.zeros(E, bool),
+        fired=np.zeros(E, bool),
+        side_after=np.zeros(E, bool),
+        candidates=np.zeros(E, np.int64),
+        distance=np.zeros(E),
+        indicator=np.zeros(E),
+        y_at=np.zeros(system.m),
+        p=system.scratch_p,
+        v=system.scratch_v,
+        time=np.zeros(1),
+    )
+
+
+def landing_of(events: EventWork) -> tuple[np.ndarray, np.ndarray]:
+    """The fired events (kernel positions) and their sides after (for a checkpoint)."""
+    fired = np.flatnonzero(events.fired)
+    return fired, events.side_after[fired].copy()
+
+
+def restore_landing(events: EventWork, fired: np.ndarray, side_after: np.ndarray) -> None:
+    """The fired events and their sides after, as :func:`landing_of` gave them."""
+    events.fired[:] = False
+    events.fired[fired] = True
+    events.side_after[fired] = side_after
+
+
+# --------------------------------------------------------------------------- indicators
+@njit(**JIT_OPTIONS)
+def event_indicators(model, rest, y, p, v, out):  # pragma: no cover - compiled
+    """Every event's indicator ``g`` (E,) at the state ``y`` into ``out``, with the rest
+    lengths ``rest`` (S,) [m] (kernel order); ``p``, ``v`` (3, n_slots) scratch.  Tendon ``s``:
+    ``min(k d, k d + c l')`` [N], positive while it pulls and <= 0 while it does not."""
+    damping = model.tendon_damping
+    n = (y.shape[0] - 3) // 2
+    system_nodes(model, y[:n], y[n : 2 * n], p, v, damping is not None)
+    _tendon_indicators(damping, model, rest, p, v, out)
+
+
+@compiled_only
+def _tendon_indicators(damping, model, rest, p, v, out):  # pragma: no cover - compiled
+    """The tendons' rows of :func:`event_indicators` from the node positions ``p`` and
+    velocities ``v``; ``damping`` (``model.tendon_damping``) None: undamped tendons (decided at
+    compile time)."""
+    tendon_slots, stiffness = model.tendon_slots, model.tendon_stiffness
+    for s in range(tendon_slots.shape[0]):
+        a, b, tx, ty, tz = tendon_vector(p, tendon_slots, s)
+        length = np.sqrt(tx * tx + ty * ty + tz * tz)
+        stretch = stiffness[s] * (length - rest[s])
+        if damping is None:
+            out[s] = stretch
+        else:
+            rate = (
+                tx * (v[0, b] - v[0, a]) + ty * (v[1, b] - v[1, a]) + tz * (v[2, b] - v[2, a])
+            ) / length
+            out[s] = min(stretch, stretch + damping[s] * rate)
+
+
+@njit(inline="always", **JIT_OPTIONS)
+def events_crossed(data, events):  # pragma: no cover - compiled
+    """The events whose sign at the last evaluation (``data``: a tendon's tension > 0) disagrees
+    with their side, into ``events.candidates``; their number."""
+    count = 0
+    tension = data.tension
+    for e in range(events.side.shape[0]):
+        if (tension[e] > 0.0) != events.side[e]:
+            events.candidates[count] = e
+            count += 1
+    return count
+
+
+@njit(inline="always", **JIT_OPTIONS)
+def set_sides(data, events, keep_fired):  # pragma: no cover - compiled
+    """The sides from the last evaluation (``data``: a tendon is taut while its tension > 0);
+    with ``keep_fired`` (the loop landed on a located event) the fired events keep the side
+    they went to (the state retaken up to an event may sit a round-off short of it)."""
+    tension = data.tension
+    for e in range(events.side.shape[0]):
+        events.side[e] = tension[e] > 0.0
+        if keep_fired and events.fired[e]:
+            events.side[e] = events.side_after[e]
+
+
+@compiled_only
+def event_distance(model, rest, y, events, count):  # pragma: no cover - compiled
+    """The distances (:mod:`the module docstring <tensegrity.engine.events>`) of the first
+    ``count`` candidates at ``y`` into ``events.distance``, with the rest lengths ``rest`` (S,)
+    [m]; their least (``<= 0``: one has fired)."""
+    event_indicators(model, rest, y, events.p, events.v, events.indicator)
+    least = np.inf
+    for k in range(count):
+        e = events.candidates[k]
+        g = events.indicator[e]
+        events.distance[k] = g if events.side[e] else -g
+        least = min(least, events.distance[k])
+    return least
+
+
+# --------------------------------------------------------------------------- location
+#: Python dense outputs by handle, ``(t, out)`` writing ``y(t)`` into ``out``: what
+#: :func:`locate_event` calls back for scipy's methods (:class:`DenseOutputHandle`).
+DENSE_OUTPUTS: dict[int, Callable[[float, np.ndarray], None]] = {}
+_HANDLES = itertools.count()
+
+
+def _call_dense(handle: int, t: float, out: np.ndarray) -> None:
+    """Python's side of a dense output called from :func:`locate_event`."""
+    DENSE_OUTPUTS[int(handle)](float(t), out)
+
+
+class DenseOutputHandle:
+    """A handle of :data:`DENSE_OUTPUTS` for ``dense`` (``y(t)`` inside the last step), while
+    the ``with`` block lasts."""
+
+    def __init__(self, dense: Callable[[float], np.ndarray]) -> None:
+        self.dense = dense
+        self.handle = next(_HANDLES)
+
+    def _write(self, t: float, out: np.ndarray) -> None:
+        out[:] = self.dense(t)
+
+    def __enter__(self) -> np.int64:
+        DENSE_OUTPUTS[self.handle] = self._write
+        return np.int64(self.handle)
+
+    def __exit__(self, *exc: object) -> None:
+        del DENSE_OUTPUTS[self.handle]
+
+
+@compiled_only(jit_options=EXACT_JIT_OPTIONS)
+def _distance_at(model, point, varying, dense_callback, step, events, count, t):  # pragma: no cover
+    """:func:`event_distance` at the time ``t`` [s] inside the step, its inputs made into
+    ``point`` where they vary; ``(least distance, inputs failed)``."""
+    t_lo, t_hi, F, y_old = step
+    if varying:
+        events.time[0] = t
+        if make_inputs(model.callback, model.tables, events.time, point) >= 0:
+            return np.nan, True
+    if dense_callback is None:
+        dop853_interpolate(F, y_old, (t - t_lo) / (t_hi - t_lo), events.y_at)
+    else:
+        with objmode():
+            _call_dense(dense_callback, t, events.y_at)
+    return event_distance(model, point.rest[0], events.y_at, events, count), False
+
+
+@compiled_only(jit_options=EXACT_JIT_OPTIONS)
+def locate_event(model, point, varying, dense_callback, step, events, count):  # pragma: no cover
+    """The first event among the ``count`` candidates inside the step ``step`` = ``(t_lo, t_hi
+    [s], F, y_old)``: its time [s], the events fired there marked in ``events.fired`` with
+    their sides after in ``events.side_after``.  Returns ``(time, NaN)``, or ``(NaN, t)`` when
+    the inputs at ``t`` [s] could not be made (:func:`compiled.make_inputs`).
+
+    ``point`` is a data record of one input row, made at each time where the inputs vary
+    (``varying``); the state inside the step is the DOP853 polynomial ``F`` from ``y_old``
+    (:func:`compiled.dop853_interpolate`) when ``dense_callback`` is None, else the Python dense
+    output of that handle (:data:`DENSE_OUTPUTS`).  Compiled without fused multiply-adds, as the
+    loops computed these times before the mechanism was shared (Python for scipy's methods, the
+    DOP853 loop's exact options): the switch times are theirs bit for bit."""
+    t_lo, t_hi = step[0], step[1]
+    input_time = np.nan
+    g_lo, failed = _distance_at(model, point, varying, dense_callback, step, events, count, t_lo)
+    if failed:
+        input_time = t_lo
+    g_hi, failed_hi = _distance_at(model, point, varying, dense_callback, step, events, count, t_hi)
+    if failed_hi:
+        input_time = t_hi
+    failed = failed or failed_hi
+    bracket = bracket_start(t_lo, t_hi, g_lo, g_hi, EVENT_RTOL * max(1.0, abs(t_hi)))
+    t = bracket_next(bracket, np.nan, np.nan)
+    while not failed and not np.isnan(t):
+        g, failed = _distance_at(model, point, varying, dense_callback, step, events, count, t)
+        if failed:
+            input_time = t
+        t = bracket_next(bracket, t, g)
+    lo, hi = bracket[LO], bracket[HI]
+    t_event = min(max(hi, lo + bracket[TOL]), t_hi)
+    if not failed:
+        g, failed = _distance_at(
+            model, point, varying, dense_callback, step, events, count, t_event
+        )
+        if not failed and not g <= 0.0:  # (switched back within the bracket: the root)
+            t_event = hi
+            g, failed = _distance_at(
+                model, point, varying, dense_callback, step, events, count, t_event
+            )
+        if failed:
+            input_time = t_event
+    if failed:
+        return np.nan, input_time
+    events.fired[:] = False
+    for k in range(count):  # the events fired by then (distance <= 0 there)
+        e = events.candidates[k]
+        if events.distance[k] <= 0.0:
+            events.fired[e] = True
+            events.side_after[e] = not events.side[e]
+    return t_event, np.nan
+
+
+#: Fields of an event bracket (:func:`bracket_start`): its ends [s], the distances there, which
+#: end stayed put last (-1 lo, +1 hi, 0 none), the width at the round's start [s], whether a
+#: bisection is due, the width to reach [s].
+LO, HI, G_LO, G_HI, KEPT, WIDTH, BISECT, TOL = range(8)
+
+
+@njit(**EXACT_JIT_OPTIONS)
+def bracket_start(lo, hi, g_lo, g_hi, tol):  # pragma: no cover - compiled
+    """A bracket ``[lo, hi]`` [s] of the first root of a distance ``g`` (``g(lo) > 0 >= g(hi)``)
+    for :func:`bracket_next`: regula falsi with the Illinois modification (superlinear on a
+    smooth ``g``), kept shrinking by a bisection whenever a false-position step leaves more than
+    half of the bracket, down to a width of ``tol`` [s].  The caller evaluates ``g`` (reverse
+    communication)::
+
+        b = bracket_start(lo, hi, g(lo), g(hi), tol)
+        t = bracket_next(b, nan, nan)  # the first time to evaluate g at; NaN: done
+        while not isnan(t):
+            t = bracket_next(b, t, g(t))
+        # the root is in [b[LO], b[HI]]
+    """
+    b = np.zeros(8)
+    b[LO], b[HI], b[G_LO], b[G_HI], b[TOL] = lo, hi, g_lo, g_hi, tol
+    return b
+
+
+@njit(**EXACT_JIT_OPTIONS)
+def bracket_next(b, t, g):  # pragma: no cover - compiled
+    """The bracket after the distance ``g`` at the time ``t`` [s] it asked for (nothing if ``t``
+    is NaN), and the next time to evaluate the distance at, or NaN once the bracket is within
+    its tolerance."""
+    if not np.isnan(t):
+        if b[BISECT] != 0.0:
+            if g > 0.0:
+                b[LO], b[G_LO] = t, g
+            else:
+                b[HI], b[G_HI] = t, g
+            b[KEPT], b[BISECT] = 0.0, 0.0
+        else:
+            if g > 0.0:
+                b[LO], b[G_LO] = t, g
+                if b[KEPT] == 1.0:
+                    b[G_HI] *= 0.5
+                b[KEPT] = 1.0
+            else:
+                b[HI], b[G_HI] = t, g
+                if b[KEPT] == -1.0:
+                    b[G_LO] *= 0.5
+                b[KEPT] = -1.0
+            if b[HI] - b[LO] > 0.5 * b[WIDTH]:  # false position crawled: bisect
+                b[BISECT] = 1.0
+    lo, hi, tol = b[LO], b[HI], b[TOL]
+    if b[BISECT] != 0.0:
+        return 0.5 * (lo + hi)
+    if not hi - lo > tol:
+        return np.nan
+    b[WIDTH] = hi - lo
+    mid = 0.5 * (lo + hi)
+    if b[G_LO] > 0.0 > b[G_HI]:
+        mid = lo + b[G_LO] * (hi - lo) / (b[G_LO] - b[G_HI])
+    return min(max(mid, lo + 0.25 * tol), hi - 0.25 * tol)
+
+
+# --------------------------------------------------------------------------- entries for Python
+# The loop of scipy's methods (Python) calls the mechanism through these; the DOP853 loop calls
+# the functions above from compiled code, so a DOP853 run compiles none of them.
+@njit(**JIT_OPTIONS)
+def events_crossed_entry(data, events):  # pragma: no cover - compiled
+    """:func:`events_crossed`, called from Python."""
+    return events_crossed(data, events)
+
+
+@njit(**JIT_OPTIONS)
+def set_sides_entry(data, events, keep_fired):  # pragma: no cover - compiled
+    """:func:`set_sides`, called from Python."""
+    set_sides(data, events, keep_fired)
+
+
+@njit(**JIT_OPTIONS)
+def locate_event_entry(
+    model, point, varying, dense_callback, step, events, count
+):  # pragma: no cover - compiled
+    """:func:`locate_event`, called from Python."""
+    return locate_event(model, point, varying, dense_callback, step, events, count)
