@@ -46,7 +46,6 @@ DATASETS = (
     "t",
     "q",
     "qdot",
-    "tendon_length",
     "tendon_tension",
     "energy",
     "residual_acceleration",

@@ -95,6 +95,7 @@ FIELDS = (
     "plane_normal",
     "line_nodes",
     "line_direction",
+    "tendon_name",
 )
 
 
@@ -501,6 +502,7 @@ OPTIONAL = (
 @example(changes={"node_position": [None, []]})  # numpy's ValueError (inhomogeneous shape)
 @example(changes={"tendon_name": 5})  # TypeError: 'int' object is not iterable
 @example(changes={"plane_nodes": [None, []]})  # numpy's ValueError (inhomogeneous shape)
+@example(changes={"tendon_name": ""})  # a text, not a sequence of names: the keyword is named
 def test_structure_constructor(changes: dict[str, Any]) -> None:
     """The ``Structure`` constructor with the shell's arguments, one to three of them replaced
     by anything: a structure, or a one-line ``ValueError``/``TypeError`` naming the field."""

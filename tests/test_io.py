@@ -213,14 +213,13 @@ def test_trajectory_file_layout(tmp_path, result):
     write_trajectory(path, result)
     T, S, R = result.t.size, result.structure.n_tendons, 6
     with h5py.File(path, "r") as f:
-        assert f.attrs["format"] == "tensegrity-trajectory" and f.attrs["version"] == 2
+        assert f.attrs["format"] == "tensegrity-trajectory" and f.attrs["version"] == 3
         assert json.loads(f.attrs["structure"]) == result.structure.to_dict()
         assert json.loads(f.attrs["settings"]) == result.settings
         assert list(f.attrs["tendon_name"]) == list(result.structure.tendon_name)
         assert list(f["energy"].attrs["columns"]) == list(ENERGY_COLUMNS)
         shapes = {
             "t": (T,),
-            "tendon_length": (T, S),
             "tendon_tension": (T, S),
             "energy": (T, 6),
             "q": (T, 6 * R),
@@ -229,9 +228,10 @@ def test_trajectory_file_layout(tmp_path, result):
         }
         for name, shape in shapes.items():
             assert f[name].shape == shape, name
-        assert "node_position" not in f and "node_velocity" not in f  # (computed from q, qdot)
+        for name in ("node_position", "node_velocity", "tendon_length"):  # (computed from q, qdot)
+            assert name not in f, name
         assert f["switch_times"].shape == (result.nswitches,)
-        for name in ("q", "qdot", "tendon_length", "tendon_tension"):
+        for name in ("q", "qdot", "tendon_tension"):
             assert f[name].compression == "gzip" and f[name].chunks is not None, name
 
 
@@ -312,7 +312,7 @@ def _edited_copy(tmp_path, result, edit):
     [
         (lambda f: f.__delitem__("qdot"), ["missing dataset 'qdot'"]),
         (lambda f: f.__delitem__("switch_times"), ["missing dataset 'switch_times'"]),
-        (lambda f: f.attrs.__setitem__("version", 3), ["version 3", "newer"]),
+        (lambda f: f.attrs.__setitem__("version", 4), ["version 4", "newer"]),
         (lambda f: f.attrs.__delitem__("settings"), ["missing attribute 'settings'"]),
         (lambda f: f.attrs.__setitem__("structure", "{oops"), ["'structure'", "invalid JSON"]),
         (

@@ -1,7 +1,8 @@
 """Files written before the package was reorganised into layers (commit 75dab28, the code of
 2026-11-25 06:00 UTC) still read: a trajectory (HDF5, layout version 1) and structure files
-(JSON, YAML, TOML, connectivity ``.npz``).  ``tests/data/legacy/`` holds them, with the arrays
-the old code had in memory when it wrote the trajectory."""
+(JSON, YAML, TOML, connectivity ``.npz``), and a trajectory of layout version 2.
+``tests/data/legacy/`` holds them, with the arrays the old code had in memory when it wrote the
+trajectories."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ import pytest
 
 from tensegrity import artificial_damping, class1_shell, simulate
 from tensegrity.io import read_network, read_structure, read_trajectory, write_network
+from tensegrity.io.trajectory import read_dataset
 from tensegrity.model.shell import class2_shell
 
 LEGACY = Path(__file__).parent / "data" / "legacy"
@@ -32,6 +34,19 @@ def test_old_trajectory_reads_with_the_values_it_was_written_with():
         "control_work",
     }
     assert trajectory.structure.to_dict() == artificial_damping(class1_shell(3, 1)).to_dict()
+
+
+def test_a_version_2_trajectory_reads_with_its_stored_tendon_lengths():
+    """Version 2 (the code of 2026-11-27 21:00 UTC, commit c0911f2) stored ``tendon_length``;
+    version 3 computes it from ``q``."""
+    trajectory = read_trajectory(LEGACY / "shell31-v2.h5")
+    expected = np.load(LEGACY / "shell31-v2-expected.npz")
+    assert trajectory.status == 0 and trajectory.t.size == 11 and trajectory.nswitches == 2
+    for name in ("t", "q", "node_position", "tendon_length", "tendon_tension", "switch_times"):
+        assert np.array_equal(getattr(trajectory, name), expected[name]), name
+    assert np.array_equal(
+        read_dataset(LEGACY / "shell31-v2.h5", "tendon_length"), expected["tendon_length"]
+    )
 
 
 def test_old_structure_json_reads():

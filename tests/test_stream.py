@@ -37,7 +37,6 @@ DATASETS = (
     "t",
     "q",
     "qdot",
-    "tendon_length",
     "tendon_tension",
     "energy",
     "residual_acceleration",

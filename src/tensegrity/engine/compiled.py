@@ -454,10 +454,12 @@ def judge_state(model, data, s, y, errors, limits, with_energy):  # pragma: no c
     return CHECK_OK, max(rod_error, constraint_error)
 
 
-@njit(**JIT_OPTIONS)
+@njit(**EXACT_JIT_OPTIONS)
 def tendon_lengths(p, tendon_slots, out):  # pragma: no cover - compiled
     """``|p_head - p_tail|`` [m] per tendon (kernel order) from node positions ``p``
-    (3, n_slots)."""
+    (3, n_slots), without fused multiply-adds: bit for bit
+    :func:`tensegrity.physics.dynamics.tendon_lengths`, which a trajectory file's reader
+    computes them with (they are not stored)."""
     for s in range(tendon_slots.shape[0]):
         _, _, tx, ty, tz = tendon_vector(p, tendon_slots, s)
         out[s] = np.sqrt(tx * tx + ty * ty + tz * tz)

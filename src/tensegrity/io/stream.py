@@ -124,7 +124,7 @@ PARTIAL_SUFFIX = ".partial"
 #: (:func:`tensegrity.io.trajectory.read_trajectory` refuses it).
 PARTIAL_FORMAT = "tensegrity-trajectory-partial"
 #: Version of the checkpoint layout and of the settings hash.
-STREAM_VERSION = 2
+STREAM_VERSION = 3
 #: Default budget [bytes] for the samples of one segment when ``segment`` is not given.
 DEFAULT_SEGMENT_BYTES = 64 * 2**20
 #: Most samples per segment when ``segment`` is not given.
@@ -412,7 +412,7 @@ def sample_bytes(structure: Structure, *, held: bool = False) -> int:
     ``held`` as a segment holds it in memory (the arrays computed on read too)."""
     rows = tio.sample_rows(structure)
     if held:
-        rows |= dict.fromkeys(tio.DERIVED, (structure.n_nodes, structure.dim))
+        rows |= tio.derived_rows(structure)
     return 8 * sum(max(1, math.prod(shape)) for shape in rows.values())
 
 

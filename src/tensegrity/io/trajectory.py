@@ -10,7 +10,7 @@ does not fit the structure, ...).
 
 SI units throughout: m, kg, s, N, J.
 
-The trajectory file (``format = "tensegrity-trajectory"``, ``version = 2``) holds, for ``T``
+The trajectory file (``format = "tensegrity-trajectory"``, ``version = 3``) holds, for ``T``
 samples, ``n`` coordinates, ``S`` tendons and ``k`` switches, one dataset per sampled array of
 :class:`SimulationResult`, under its name there:
 
@@ -19,7 +19,6 @@ dataset                    shape        content
 =========================  ===========  ==============================================
 ``t``                      (T,)         sample times [s]
 ``q``, ``qdot``            (T, n)       coordinates [m], rates [m/s]
-``tendon_length``          (T, S)       tendon lengths [m]
 ``tendon_tension``         (T, S)       tensions [N] (damping included; 0 when slack)
 ``energy``                 (T, 6)       energies and works [J]; its attribute
                                         ``columns`` names the columns (the keys of the
@@ -28,17 +27,20 @@ dataset                    shape        content
 ``switch_times``           (k,)         times of the located slack/taut switches [s]
 =========================  ===========  ==============================================
 
-``node_position`` and ``node_velocity`` (T, N, dim) are not stored: they are ``P q`` and
-``P q'`` (:func:`tensegrity.physics.dynamics.nodes_from_coordinates`), computed on read from
-``q`` and ``qdot`` (:data:`DERIVED`), bit for bit the arrays the engine records.  The root
+``node_position`` and ``node_velocity`` (T, N, dim) and ``tendon_length`` (T, S) are not
+stored: they are ``P q``, ``P q'`` (:func:`tensegrity.physics.coordinates.nodes_from_coordinates`)
+and the distances between a tendon's nodes (:func:`tensegrity.physics.dynamics.tendon_lengths`),
+computed on read from ``q`` and ``qdot`` (:data:`DERIVED`), bit for bit the arrays the engine
+records.  The file is then half the size it would be with them (a (10,10) shell: 3,388 of 6,768
+numbers a sample).  The root
 attributes are ``format``, ``version``, ``structure`` (JSON form of the structure), ``settings``
 (JSON: the result's ``settings``), ``status``, ``message``, ``nfev``, ``nsteps``,
 ``nswitches``, ``nprojections``, ``max_rod_length_error``, ``max_constraint_error`` [m]
 (joints and supports; 0 without them), ``wall_time`` [s] and ``tendon_name``.
 
-Files of version 1 still read: they stored ``time``, ``nodes`` and ``velocities`` for ``t``,
-``node_position`` and ``node_velocity`` (:data:`VERSION1_NAMES`), and no switch times (read as
-none).
+Files of earlier versions still read: version 2 stored ``tendon_length``; version 1 too, and
+``time``, ``nodes`` and ``velocities`` for ``t``, ``node_position`` and ``node_velocity``
+(:data:`VERSION1_NAMES`), and no switch times (read as none).
 """
 
 from __future__ import annotations
@@ -65,11 +67,12 @@ from tensegrity.io.checked import (
 from tensegrity.io.files import PathLike, atomic_path, file_error
 from tensegrity.model.structure import Structure
 from tensegrity.physics.coordinates import nodes_from_coordinates
+from tensegrity.physics.dynamics import tendon_lengths
 
 #: ``format`` attribute of a trajectory file.
 TRAJECTORY_FORMAT = "tensegrity-trajectory"
 #: ``version`` attribute written; files of a higher version are refused.
-TRAJECTORY_VERSION = 2
+TRAJECTORY_VERSION = 3
 #: Energy columns in the order :func:`tensegrity.engine.simulate.simulate` produces them [J].
 ENERGY_COLUMNS = ENERGY_NAMES
 
@@ -79,14 +82,13 @@ SAMPLE_DATASETS = (
     "t",
     "q",
     "qdot",
-    "tendon_length",
     "tendon_tension",
     "energy",
     "residual_acceleration",
 )
 #: The sampled arrays of a result computed on read rather than stored: name -> (the stored
-#: dataset it is computed from, whether it is a rate).
-DERIVED = {"node_position": ("q", False), "node_velocity": ("qdot", True)}
+#: dataset it is computed from, the first file version that does not store it).
+DERIVED = {"node_position": ("q", 2), "node_velocity": ("qdot", 2), "tendon_length": ("q", 3)}
 #: Every sampled array a file gives (:func:`read_dataset`).
 SAMPLE_NAMES = (*SAMPLE_DATASETS, *DERIVED)
 #: The result's names stored under other names in files of version 1, read only.
@@ -103,11 +105,21 @@ def sample_rows(structure: Structure) -> dict[str, tuple[int, ...]]:
         "t": (),
         "q": (n,),
         "qdot": (n,),
-        "tendon_length": (S,),
         "tendon_tension": (S,),
         "energy": (len(ENERGY_COLUMNS),),
         "residual_acceleration": (),
     }
+
+
+def derived_rows(structure: Structure) -> dict[str, tuple[int, ...]]:
+    """The shape of one row of each of :data:`DERIVED` for ``structure``."""
+    nodes = (structure.n_nodes, structure.dim)
+    return {"node_position": nodes, "node_velocity": nodes, "tendon_length": (structure.n_tendons,)}
+
+
+def derived_in(version: int) -> tuple[str, ...]:
+    """The arrays of :data:`DERIVED` a file of ``version`` does not store."""
+    return tuple(name for name, (_, since) in DERIVED.items() if version >= since)
 
 
 def sample_columns(samples: Any) -> dict[str, np.ndarray]:
@@ -128,8 +140,8 @@ def sample_columns(samples: Any) -> dict[str, np.ndarray]:
 
 def derived(structure: Structure, name: str, source: np.ndarray) -> np.ndarray:
     """The derived array ``name`` of :data:`DERIVED` from its stored ``source`` (T, n)."""
-    _, rates = DERIVED[name]
-    return nodes_from_coordinates(structure, source, rates=rates)
+    nodes = nodes_from_coordinates(structure, source, rates=name == "node_velocity")
+    return tendon_lengths(structure, nodes) if name == "tendon_length" else nodes
 
 
 def _derived_bytes(
@@ -137,9 +149,10 @@ def _derived_bytes(
 ) -> dict[str, int]:
     """The bytes of the derived arrays ``names`` of ``n_samples`` samples read one in
     ``every`` (:func:`tensegrity.io.checked.read_datasets`' ``computed``)."""
-    shape = selected_shape((n_samples, structure.n_nodes, structure.dim), every)
+    rows = derived_rows(structure)
     return {
-        f"array {name!r} (computed from {DERIVED[name][0]!r})": 8 * math.prod(shape)
+        f"array {name!r} (computed from {DERIVED[name][0]!r})": 8
+        * math.prod(selected_shape((n_samples, *rows[name]), every))
         for name in names
     }
 
@@ -296,7 +309,7 @@ def read_dataset(path: PathLike, name: str, *, every: int = 1) -> np.ndarray:
         raise ValueError(f"name: expected one of {', '.join(SAMPLE_NAMES)}, got {name!r}")
     with _open(path) as f:
         version = _check_format(f, path)
-        if version >= 2 and name in DERIVED:
+        if name in derived_in(version):
             source = DERIVED[name][0]
             structure = _structure(f, path)
             dataset = _dataset(f, source, path)
@@ -364,7 +377,8 @@ def _read_open_trajectory(f: Any, path: PathLike, every: int = 1) -> SimulationR
     """The trajectory in the open file ``f``: its layout, attributes and shapes are checked
     before any array is read."""
     version = _check_format(f, path)
-    names = SAMPLE_DATASETS if version >= 2 else (*SAMPLE_DATASETS, *DERIVED)
+    computing = derived_in(version)
+    names = (*SAMPLE_DATASETS, *(name for name in DERIVED if name not in computing))
     datasets = {name: _dataset(f, _stored_name(name, version), path) for name in names}
     attrs = _Attributes(f, path)
     structure = _structure(f, path)
@@ -379,7 +393,6 @@ def _read_open_trajectory(f: Any, path: PathLike, every: int = 1) -> SimulationR
     shapes = {name: d.shape for name, d in datasets.items()}
     _check_shapes(shapes, structure, len(columns), path, version)
     switch_times = _switch_times(f, path, version)
-    computing = [name for name in DERIVED if name not in datasets]
     computed = _derived_bytes(structure, computing, shapes["t"][0], every)
     arrays = read_datasets(datasets, path, every=every, computed=computed)
     for name in computing:
@@ -463,7 +476,7 @@ def _check_shapes(
     """``ValueError`` naming the first dataset of ``shapes`` (by the result's names, of a file
     of ``version``) whose shape does not fit ``structure``, or if the file holds no sample (a
     run has at least its initial one)."""
-    rows = sample_rows(structure) | dict.fromkeys(DERIVED, (structure.n_nodes, structure.dim))
+    rows = sample_rows(structure) | derived_rows(structure)
     rows["energy"] = (n_energy,)
     lead = "t" if "t" in shapes else next(iter(shapes))  # (the samples' count)
     T = shapes[lead][0] if len(shapes[lead]) == 1 + len(rows[lead]) else -1

@@ -127,8 +127,15 @@ def tendon_vectors(structure: Structure, p: np.ndarray) -> np.ndarray:
 
 
 def tendon_lengths(structure: Structure, p: np.ndarray) -> np.ndarray:
-    """Tendon lengths ``|t|`` [m], shape (..., S) (output ``y_l`` of eq. 18.60)."""
-    return np.linalg.norm(tendon_vectors(structure, p), axis=-1)
+    """Tendon lengths ``|t|`` [m], shape (..., S) (output ``y_l`` of eq. 18.60), from node
+    positions ``p`` (..., N, dim): ``sqrt(t_x t_x + t_y t_y [+ t_z t_z])`` summed in that
+    order, as the engine records them (``tensegrity.engine.compiled.tendon_lengths``), so that
+    lengths computed from a file's ``q`` are bit for bit those of the run."""
+    t = tendon_vectors(structure, p)
+    squares = t[..., 0] * t[..., 0]
+    for k in range(1, t.shape[-1]):
+        squares = squares + t[..., k] * t[..., k]
+    return np.sqrt(squares)
 
 
 def elastic_tensions(
