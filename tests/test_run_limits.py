@@ -283,6 +283,14 @@ def _simulate_args(*argv: str):
     return args, _simulation_inputs(args)[0]
 
 
+def _check_simulation_cost(args, structure):
+    """``simulate``'s check of its run's cost, with the options it makes of ``args``."""
+    from tensegrity.cli.limits import check_run_cost
+    from tensegrity.cli.simulate import _run_options
+
+    check_run_cost(structure, args.t_end, _run_options(args))
+
+
 @pytest.mark.parametrize(
     "argv",
     [
@@ -296,8 +304,6 @@ def _simulate_args(*argv: str):
     ],
 )
 def test_ordinary_runs_are_neither_refused_nor_announced(argv, capsys):
-    from tensegrity.cli.simulate import _check_simulation_cost
-
     args, structure = _simulate_args(*argv)
     _check_simulation_cost(args, structure)
     assert capsys.readouterr().err == ""
@@ -306,15 +312,12 @@ def test_ordinary_runs_are_neither_refused_nor_announced(argv, capsys):
 def test_an_unstable_rk4_step_is_refused():
     """(Measured: that run fails with a rod-length error at its first step.)"""
     from tensegrity.cli.errors import CommandError
-    from tensegrity.cli.simulate import _check_simulation_cost
 
     with pytest.raises(CommandError, match=r"^--dt: 0.2 s is beyond RK4's stability limit"):
         _check_simulation_cost(*_simulate_args("--method", "rk4", "--dt", "0.2"))
 
 
 def test_a_long_run_is_announced_in_seconds(capsys):
-    from tensegrity.cli.simulate import _check_simulation_cost
-
     _check_simulation_cost(*_simulate_args("--stiffness", "1e10"))
     err = capsys.readouterr().err
     assert err.startswith("tensegrity: a long run: about 3.76e+08 DOP853 steps, more than ")

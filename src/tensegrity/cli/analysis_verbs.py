@@ -52,8 +52,7 @@ def _analysis_and_write(args: argparse.Namespace, run: Callable, drawing: Drawin
         check_run_cost(
             structure,
             args.t_end,
-            steady_state=True,
-            acceleration_tol=args.acceleration_tol,
+            Options(steady_state=True, acceleration_tol=args.acceleration_tol),
             remedy="softer tendons, a shorter --t-end or --method least_squares",
         )
     options = {
@@ -144,7 +143,7 @@ def _add_modes_options(p: argparse.ArgumentParser) -> None:
         "--shapes",
         type=arguments.whole_non_negative,
         default=6,
-        help="mode shapes to draw, the lowest non-rigid modes (default 6)",
+        help="mode shapes to draw, the lowest non-rigid modes (default %(default)d)",
     )
     p.add_argument(
         "--check-fft",
@@ -202,7 +201,7 @@ def _add_control_options(p: argparse.ArgumentParser) -> None:
         "--height",
         type=arguments.positive,
         default=0.8,
-        help="target height as a fraction of the equilibrium height (default 0.8)",
+        help="target height as a fraction of the equilibrium height (default %(default)g)",
     )
     p.add_argument(
         "--no-twist-back",
@@ -213,7 +212,7 @@ def _add_control_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--actuators",
         default="t1_*",
-        help="tendons that shorten the structure (default 't1_*'); every tendon "
+        help="tendons that shorten the structure (default '%(default)s'); every tendon "
         "takes part in the twist-back",
     )
     p.add_argument(
@@ -279,5 +278,5 @@ def _add_closed_loop_options(p: argparse.ArgumentParser) -> None:
         "--tolerance",
         type=arguments.positive,
         default=1e-6,
-        help="targets reached within this [m, rad] (default 1e-6)",
+        help="targets reached within this [m, rad] (default %(default)g)",
     )

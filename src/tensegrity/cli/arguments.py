@@ -84,5 +84,5 @@ def add_safety_factor(parser: argparse.ArgumentParser | argparse._ArgumentGroup)
         type=at_least(1.0, strict=False),
         default=1.0,
         metavar="GAMMA",
-        help="divides the rods' Euler buckling load (>= 1, default 1)",
+        help="divides the rods' Euler buckling load (>= 1, default %(default)g)",
     )

@@ -140,21 +140,22 @@ def add_parsers(sub: Any) -> None:
         type=arguments.at_least(0.0, strict=False),
         default=0.0,
         metavar="N",
-        help="the smallest tendon tension [N] of the unloaded, prestressed state (default 0)",
+        help="the smallest tendon tension [N] of the unloaded, prestressed state "
+        "(default %(default)g)",
     )
     arguments.add_safety_factor(p)
     p.add_argument(
         "--strength-factor",
         type=arguments.at_least(1.0, strict=False),
         default=1.0,
-        help="divides the yield strengths (>= 1, default 1)",
+        help="divides the yield strengths (>= 1, default %(default)g)",
     )
     p.add_argument(
         "--min-area",
         type=arguments.at_least(0.0, strict=True),
         default=1e-8,
         metavar="M2",
-        help="the smallest member area [m^2] (default 1e-8)",
+        help="the smallest member area [m^2] (default %(default)g)",
     )
     p.add_argument(
         "--tendon-mass", action="store_true", help="count the tendons' own weight and mass"

@@ -20,6 +20,7 @@ from tensegrity.cli.structures import (
     damping_kind,
     structure_of,
 )
+from tensegrity.engine.options import Options
 from tensegrity.io.files import folders_made, write_staged as _write_all
 from tensegrity.physics import dynamics
 
@@ -136,8 +137,7 @@ def _cmd_matrices(args: argparse.Namespace) -> int:
         check_run_cost(
             structure,
             args.t_end,
-            steady_state=True,
-            acceleration_tol=MATRICES_REST_TOL,
+            Options(steady_state=True, acceleration_tol=MATRICES_REST_TOL),
             remedy="softer tendons or a shorter --t-end",
         )
         # Tight rest tolerances: with the damping removed, K_p q = q'' is then below ~1e-8.
@@ -236,8 +236,10 @@ def _add_vtk_parser(sub: Any) -> None:
     )
     vtk.add_argument("trajectory", type=arguments.name, help="a trajectory.h5 written by simulate")
     vtk.add_argument("-o", "--output", type=arguments.name, required=True, help="output folder")
-    vtk.add_argument("--every", type=int, default=1, help="keep one sample in EVERY (default 1)")
-    vtk.add_argument("--name", default="tensegrity", help="file name stem (default tensegrity)")
+    vtk.add_argument(
+        "--every", type=int, default=1, help="keep one sample in EVERY (default %(default)d)"
+    )
+    vtk.add_argument("--name", default="tensegrity", help="file name stem (default %(default)s)")
     vtk.set_defaults(run=_cmd_vtk)
 
 

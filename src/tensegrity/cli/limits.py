@@ -5,12 +5,11 @@ line on stderr."""
 
 from __future__ import annotations
 
-import math
 import sys
 from typing import TYPE_CHECKING
 
 from tensegrity.cli.errors import CommandError
-from tensegrity.engine.options import DEFAULT_MAX_SAMPLES, DEFAULT_MAX_STEPS, FIXED_STEP_METHODS
+from tensegrity.engine.options import DEFAULT_MAX_SAMPLES, FIXED_STEP_METHODS, Options
 from tensegrity.io.files import byte_text
 
 if TYPE_CHECKING:
@@ -45,30 +44,26 @@ LONG_RUN_SECONDS = 30.0
 def check_run_cost(
     structure: Structure,
     t_end: float,
+    options: Options,
     *,
-    method: str = "DOP853",
-    dt: float | None = None,
-    atol: float = 1e-12,
-    steady_state: bool = False,
-    acceleration_tol: float = 1e-6,
-    max_steps: int = DEFAULT_MAX_STEPS,
-    max_wall_time: float = math.inf,
     remedy: str = "softer tendons, a shorter --t-end, a larger --max-steps or an implicit "
     "method (--method Radau or BDF)",
 ) -> None:
-    """Before a run of ``structure`` to ``t_end`` [s], by
-    :func:`tensegrity.engine.budget.estimate`: refuse it if it needs more than ``max_steps``
-    steps or (``"rk4"``) its ``dt`` [s] is unstable, naming ``remedy`` (what to change); say on
-    stderr if it takes longer than :data:`LONG_RUN_SECONDS` and ``max_wall_time`` [s] (a
-    steady-state run that may come to rest early: not)."""
+    """Before a run of ``structure`` to ``t_end`` [s] with ``options``, by
+    :func:`tensegrity.engine.budget.estimate`: refuse it if it needs more than
+    ``options.max_steps`` steps or (``"rk4"``) its ``dt`` [s] is unstable, naming ``remedy``
+    (what to change); say on stderr if it takes longer than :data:`LONG_RUN_SECONDS` and
+    ``options.max_wall_time`` [s] (a steady-state run that may come to rest early: not)."""
     from tensegrity.engine.budget import RK4_STABLE, estimate
 
+    method, dt, steady_state = options.method, options.dt, options.steady_state
+    acceleration_tol, max_steps = options.acceleration_tol, options.max_steps
     cost = estimate(
         structure,
         t_end,
         method=method,
         dt=dt,
-        atol=atol,
+        atol=options.atol,
         steady_state=steady_state,
         acceleration_tol=acceleration_tol,
     )
@@ -95,7 +90,7 @@ def check_run_cost(
             f"more than --max-steps {max_steps:,}; use {remedy}"
         )
     seconds = min(cost.steps, max_steps) * cost.step_seconds
-    if min(seconds, max_wall_time) > LONG_RUN_SECONDS:
+    if min(seconds, options.max_wall_time) > LONG_RUN_SECONDS:
         stops = (
             f", more than --max-steps {max_steps:,}: it would stop there after"
             if cost.steps > max_steps

@@ -10,6 +10,7 @@ appear together when the run has ended."""
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import shutil
 import sys
@@ -114,20 +115,6 @@ def _announce_large_run(structure: Structure, t_end: float, sample_dt: float, ou
     )
 
 
-def _check_simulation_cost(args: argparse.Namespace, structure: Structure) -> None:
-    """:func:`check_run_cost` of ``simulate``'s run of ``structure`` with the options ``args``."""
-    check_run_cost(
-        structure,
-        args.t_end,
-        method=args.method,
-        dt=args.dt,
-        atol=args.atol,
-        steady_state=not args.no_steady_state,
-        max_steps=args.max_steps,
-        max_wall_time=args.max_wall_time,
-    )
-
-
 def _segment(structure: Structure, t_end: float, sample_dt: float) -> float:
     """Segment duration [s] of a ``simulate`` run: at most a tenth of it, rounded to samples.
 
@@ -182,6 +169,7 @@ def _simulation_inputs(
 
 def _stream_run(
     args: argparse.Namespace,
+    options: Options,
     structure: Structure,
     force: ForceTable | None,
     gravity: np.ndarray | None,
@@ -189,10 +177,10 @@ def _stream_run(
     keeper: FrameKeeper | None,
     designed: DesignedRun | None,
 ) -> StreamSummary:
-    """Simulate into ``files.work`` (through its partial file), the viewer's frames into
-    ``keeper`` as they come, stopping at a member's failure with ``--stop-on-failure``; a
-    rejected or failed run leaves nothing of this call's making behind, an interrupted one its
-    partial file."""
+    """Simulate with ``options`` into ``files.work`` (through its partial file), the viewer's
+    frames into ``keeper`` as they come, stopping at a member's failure with
+    ``--stop-on-failure``; a rejected or failed run leaves nothing of this call's making
+    behind, an interrupted one its partial file."""
     from tensegrity.io.stream import OutOfTimeError, simulate_to_file
 
     stop = None
@@ -215,18 +203,11 @@ def _stream_run(
             segment=_segment(structure, args.t_end, args.sample_dt),
             resume=args.resume,
             progress=sys.stderr.isatty(),
-            external_force=force,
-            gravity=gravity,
-            method=args.method,
-            rtol=args.rtol,
-            atol=args.atol,
-            dt=args.dt,
-            sample_dt=args.sample_dt,
-            steady_state=not args.no_steady_state,
-            max_steps=args.max_steps,
-            max_wall_time=args.max_wall_time,
             observe=None if keeper is None else keeper.add,
             stop=stop,
+            external_force=force,
+            gravity=gravity,
+            **dataclasses.asdict(options),
         )
     except KeyboardInterrupt:
         raise
@@ -255,22 +236,22 @@ def _stream_run(
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
-    _run_options(args)
+    options = _run_options(args)
     outputs.check_folder(args.out, "--out")
     args.t_end = _run_end(args.t_end, args.sample_dt, steady_state=not args.no_steady_state)
     # the drawing's workers start now: they import matplotlib while the run is set up and goes on
     with Drawing(worker_count(2)) as drawing:
-        return _simulate_and_write(args, drawing)
+        return _simulate_and_write(args, options, drawing)
 
 
-def _simulate_and_write(args: argparse.Namespace, drawing: Drawing) -> int:
-    """``tensegrity simulate`` once its options are checked: the run, its files (the figures,
-    page and video drawn by ``drawing``) and its summary."""
+def _simulate_and_write(args: argparse.Namespace, options: Options, drawing: Drawing) -> int:
+    """``tensegrity simulate`` once its options are checked (the run's: ``options``): the run,
+    its files (the figures, page and video drawn by ``drawing``) and its summary."""
     announce_compiling()
     structure, force, gravity, designed = _simulation_inputs(args)
     _check_outputs(args, designed is not None)
     check_structure_size(structure)
-    _check_simulation_cost(args, structure)
+    check_run_cost(structure, args.t_end, options)
     files = RunFiles.prepare(args.out, args.resume)
     _announce_large_run(structure, args.t_end, args.sample_dt, files.out)
     keeper = None
@@ -280,7 +261,7 @@ def _simulate_and_write(args: argparse.Namespace, drawing: Drawing) -> int:
         budget = frame_budget(structure, max_frames=MAX_FRAMES, max_bytes=MAX_BYTES)
         keeper = FrameKeeper(structure, t0=0.0, sample_dt=args.sample_dt, max_frames=budget)
     try:
-        summary = _stream_run(args, structure, force, gravity, files, keeper, designed)
+        summary = _stream_run(args, options, structure, force, gravity, files, keeper, designed)
         try:
             trajectory, balance, written, peaks = write_run(
                 args, structure, summary, files, keeper, designed, drawing
@@ -343,7 +324,7 @@ def add_parser(sub: Any) -> None:
         "as in the file). The summary names the damping used; see docs/simulation.md",
     )
     sim.add_argument(
-        "--t-end", type=arguments.positive, default=60.0, help="end time [s] (default 60)"
+        "--t-end", type=arguments.positive, default=60.0, help="end time [s] (default %(default)g)"
     )
     sim.add_argument(
         "--no-steady-state",
