@@ -275,6 +275,7 @@ class _Run:
         self.system = CompiledSystem(structure, inputs, limits=limits)
         #: the blow-up monitor (4,) (``system.data.monitor``, the compiled checks update it)
         self.monitor = self.system.monitor
+        self.monitor[:] = (np.nan, 0.0, 0.0, 0.0)  # (made at the first state: start_monitor)
         self.sample_dt = options.sample_spacing(t0, t_end)
         self.next_sample = 1
         self.counts = dict(nsteps=0, nswitches=0, nprojections=0)
@@ -290,14 +291,12 @@ class _Run:
         self.block_rows = _block_rows(structure, options, t0, t_end, checkpoint)
         self.block, self.rows = Samples.empty(self.block_rows, structure), 0
 
-    def start(self, y: np.ndarray, stepper: Stepper | DOP853 | RK4) -> None:
-        """The blow-up monitor at the first state ``y`` (its energy the reference, its errors);
-        DOP853 makes it in its first compiled call."""
-        self.monitor[:] = (np.nan, 0.0, 0.0, 0.0)
-        if not isinstance(stepper, DOP853):
-            system = self.system
-            data = system.stage_inputs(np.array([self.t0]))
-            compiled.check_state_entry(system.model, data, 0, y, np.full(3, np.inf), True)
+    def start_monitor(self, y: np.ndarray) -> None:
+        """The blow-up monitor at the first state ``y`` (its energy the reference, its errors),
+        made by the loops that step in Python; DOP853 makes it in its first compiled call."""
+        system = self.system
+        data = system.stage_inputs(np.array([self.t0]))
+        compiled.check_state_entry(system.model, data, 0, y, np.full(3, np.inf), True)
 
     # ------------------------------------------------------------------ samples
     def record(self, t: float, y: np.ndarray) -> int:
@@ -513,14 +512,21 @@ def _block_rows(
     return max(1, min(most, BLOCK_BYTES // Samples.row_bytes(structure)))
 
 
-def _stepper(
+#: A loop of one method family (:func:`_fixed_step`, :func:`_compiled_adaptive`,
+#: :func:`_adaptive`): the run, its stepper, the checkpoint it resumes from (or None).
+_Loop = Callable[[_Run, Any, "LoopState | None"], None]
+
+
+def _method(
     run: _Run, t: float, y: np.ndarray, memory: StepperMemory | None
-) -> Stepper | DOP853 | RK4:
+) -> tuple[Stepper | DOP853 | RK4, _Loop]:
+    """The stepper of the run's method from ``(t, y)`` (and a checkpoint's ``memory``), and the
+    loop that drives it: the one place the method is dispatched on."""
     o = run.options
     if o.method == "rk4":
-        return RK4(run.system, t, y)
+        return RK4(run.system, t, y), _fixed_step
     if o.method == "DOP853":
-        return DOP853(
+        stepper = DOP853(
             run.system,
             t,
             y,
@@ -532,13 +538,19 @@ def _stepper(
             locate=o.locate_switches,
             memory=memory,
         )
-    return ScipyMethod(run.system, t, y, method=o.method, rtol=o.rtol, atol=o.atol, t_end=run.t_end)
+        return stepper, _compiled_adaptive
+    method = ScipyMethod(
+        run.system, t, y, method=o.method, rtol=o.rtol, atol=o.atol, t_end=run.t_end
+    )
+    return method, _adaptive
 
 
 def _adaptive(run: _Run, stepper: Stepper, resume: LoopState | None) -> None:
     """The loop of scipy's adaptive methods: the DOP853 loop's (:func:`dop853.dop853_run`)
     procedure, stepping by scipy, the events located by the same compiled mechanism
     (:mod:`tensegrity.engine.events`) on scipy's dense output."""
+    if resume is None:
+        run.start_monitor(stepper.y)
     o, system = run.options, run.system
     locate = o.locate_switches
     events = event_work(system)
@@ -706,11 +718,14 @@ def _hermite(
     )
 
 
-def _fixed_step(run: _Run, stepper: RK4) -> None:
+def _fixed_step(run: _Run, stepper: RK4, resume: LoopState | None) -> None:
     """The loop of ``"rk4"``: compiled stretches of steps up to each sample or controller update
     (the last step shorter, to land on ``t_end``); a sample inside a step is interpolated (cubic
     Hermite), one on a step's end is that end before projection.  A controller is called at the
-    end of the first step at or after each of its update times."""
+    end of the first step at or after each of its update times.  (A resumed run's steps taken
+    are :attr:`_Run.steps_done`, restored from ``resume``.)"""
+    if resume is None:
+        run.start_monitor(stepper.y)
     t0, dt = run.t0, run.options.dt
     assert dt is not None  # `Options` requires a step for a fixed-step method
     n_full = int(np.floor((run.t_end - t0) / dt + 1e-9))
@@ -862,21 +877,14 @@ def run(
         y0 = r.system.state_vector(state)
         if controller is not None:
             r.update_control(t0, y0)
-        stepper = _stepper(r, t0, y0.copy(), None)
-        r.start(y0, stepper)
+        stepper, loop = _method(r, t0, y0.copy(), None)
         r.stopped_at(r.record(t0, y0))
     else:
         r.restore(resume)
-        stepper = _stepper(r, resume.t, resume.y.copy(), resume.memory)
+        stepper, loop = _method(r, resume.t, resume.y.copy(), resume.memory)
     try:
-        if r.status == STATUS_STOPPED:
-            pass  # (by the stop condition, at the first sample)
-        elif isinstance(stepper, RK4):  # the stepper of the fixed-step method (options.fixed_step)
-            _fixed_step(r, stepper)
-        elif isinstance(stepper, DOP853):
-            _compiled_adaptive(r, stepper, resume)
-        else:
-            _adaptive(r, stepper, resume)
+        if r.status != STATUS_STOPPED:  # (by the stop condition, at the first sample)
+            loop(r, stepper, resume)
     except (IntegrationError, ValueError, FloatingPointError) as exc:
         r.status, r.message = STATUS_FAILED, str(exc)
     if r.status not in (STATUS_STEADY, STATUS_STOPPED) and short_of(r.last_sample_t, stepper.t):
