@@ -34,10 +34,12 @@ from numba import njit, objmode
 from numba.core.errors import NumbaWarning
 
 from tensegrity.engine import dop853_tableau
-from tensegrity.physics.kernel import (
+from tensegrity.physics.compiling import (
     JIT_OPTIONS,
     JitOptions,
     compiled_only,
+)
+from tensegrity.physics.kernel import (
     copy_values,
     stage_row,
     tendon_vector,

@@ -50,10 +50,12 @@ from tensegrity.engine.events import (
     EventWork,
     event_work,
     events_crossed,
+    land_contacts,
     landing_of,
     locate_event,
     restore_landing,
     set_sides,
+    start_contacts,
 )
 from tensegrity.engine.steppers import StepperMemory
 from tensegrity.engine.system import CompiledSystem
@@ -251,6 +253,17 @@ def dop853_run(model, rows, point, loop, bound, next_sample_t):  # pragma: no co
                 loop.clock[STEP] = max(loop.clock[STEP], loop.clock[STEP_BEFORE])
                 loop.tally[ALLOW_PROVISIONAL] = loop.tally[LANDING_EXACT]
                 loop.tally[LANDING] = 0
+                # the events' actions, once the step's samples are out (contacts that change
+                # mode change the right-hand side: the steps start anew)
+                contacts = loop.events.side.shape[0] > model.tendon_stiffness.shape[0]
+                exact = locate and bool(loop.tally[LANDING_EXACT])
+                if (
+                    contacts
+                    and exact
+                    and inputs_at(loop.clock[T]) < 0
+                    and land_contacts(model.contacts, model, point, loop.y, loop.events)
+                ):
+                    loop.tally[RESTART] = 1
             if loop.clock[DRIFT] > projection_tol:
                 if not system_project(model, point, loop.y[:n], loop.y[n : 2 * n])[2]:
                     return RUN_CHECK_FAILED, compiled.CHECK_PROJECTION, np.nan
@@ -268,6 +281,8 @@ def dop853_run(model, rows, point, loop, bound, next_sample_t):  # pragma: no co
             if bad >= 0:
                 loop.clock[INPUT_TIME] = loop.clock[T]
                 return RUN_INPUT, CHECK_OK, 0.0
+            if loop.tally[START]:  # (the contacts' modes at the first state)
+                start_contacts(model.contacts, model, point, loop.y, loop.events)
             ode_rhs(model, point, np.int64(0), loop.y, loop.K[0])
             loop.tally[NFEV] += 1
             if locate or loop.tally[START]:
@@ -331,13 +346,13 @@ def dop853_run(model, rows, point, loop, bound, next_sample_t):  # pragma: no co
             loop.tally[NSTEPS] += 1
             landed = bool(loop.tally[LANDING]) and loop.clock[T] >= loop.clock[LANDING_TIME]
             loop.tally[LANDED] = landed
-            if locate:
-                exact = landed and bool(loop.tally[LANDING_EXACT])
-                set_sides(point, loop.events, exact)
             bad = inputs_at(loop.clock[T])
             if bad >= 0:
                 loop.clock[INPUT_TIME] = loop.clock[T]
                 return RUN_INPUT, CHECK_OK, 0.0
+            if locate:
+                exact = landed and bool(loop.tally[LANDING_EXACT])
+                set_sides(point, loop.events, exact)
             check, value = check_state(model, point, np.int64(0), loop.y, limits, np.bool_(True))
             if check != CHECK_OK:
                 return RUN_CHECK_FAILED, check, value

@@ -51,8 +51,15 @@ from tensegrity.engine.compiled import (
     dop853_interpolate,
     make_inputs,
 )
-from tensegrity.physics.kernel import JIT_OPTIONS, compiled_only, tendon_vector
-from tensegrity.physics.kernel_system import system_nodes
+from tensegrity.physics.compiling import (
+    JIT_OPTIONS,
+    compiled_only,
+)
+from tensegrity.physics.contact import FREE, SLIP, STICK, end_motion, stick_velocities
+from tensegrity.physics.kernel import (
+    tendon_vector,
+)
+from tensegrity.physics.kernel_system import system_nodes, system_rhs
 
 if TYPE_CHECKING:
     from tensegrity.engine.system import CompiledSystem
@@ -75,11 +82,15 @@ class EventWork(NamedTuple):
     p: np.ndarray  #: (3, n_slots) scratch: node positions
     v: np.ndarray  #: (3, n_slots) scratch: node velocities
     time: np.ndarray  #: (1,) scratch: the time whose inputs are made
+    qddot: np.ndarray  #: (n,) scratch: accelerations of an evaluation for the contacts
 
 
 def event_work(system: CompiledSystem) -> EventWork:
-    """New :class:`EventWork` for ``system`` (its events: one per tendon)."""
-    E = system.structure.n_tendons
+    """New :class:`EventWork` for ``system``: its events are one per tendon, then two per
+    contact pair (contact, friction) if it has planes."""
+    contacts = system.model.contacts
+    pairs = 0 if contacts is None else contacts.point_radius.size * contacts.plane_normal.shape[0]
+    E = system.structure.n_tendons + 2 * pairs
     return EventWork(
         side=np.zeros(E, bool),
         fired=np.zeros(E, bool),
@@ -91,6 +102,7 @@ def event_work(system: CompiledSystem) -> EventWork:
         p=system.scratch_p,
         v=system.scratch_v,
         time=np.zeros(1),
+        qddot=np.zeros(system.n),
     )
 
 
@@ -109,14 +121,30 @@ def restore_landing(events: EventWork, fired: np.ndarray, side_after: np.ndarray
 
 # --------------------------------------------------------------------------- indicators
 @njit(**JIT_OPTIONS)
-def event_indicators(model, rest, y, p, v, out):  # pragma: no cover - compiled
-    """Every event's indicator ``g`` (E,) at the state ``y`` into ``out``, with the rest
-    lengths ``rest`` (S,) [m] (kernel order); ``p``, ``v`` (3, n_slots) scratch.  Tendon ``s``:
-    ``min(k d, k d + c l')`` [N], positive while it pulls and <= 0 while it does not."""
+def event_indicators(model, data, y, events):  # pragma: no cover - compiled
+    """Every event's indicator ``g`` (E,) at the state ``y`` into ``events.indicator``, with
+    the inputs' row 0 of ``data``.  Tendon ``s``: ``min(k d, k d + c l')`` [N], positive while
+    it pulls and <= 0 while it does not; contact pairs: an evaluation's
+    (:mod:`tensegrity.physics.contact`)."""
     damping = model.tendon_damping
     n = (y.shape[0] - 3) // 2
-    system_nodes(model, y[:n], y[n : 2 * n], p, v, damping is not None)
-    _tendon_indicators(damping, model, rest, p, v, out)
+    system_nodes(model, y[:n], y[n : 2 * n], events.p, events.v, damping is not None)
+    _tendon_indicators(damping, model, data.rest[0], events.p, events.v, events.indicator)
+    _contact_indicators(model.contacts, model, data, y, events)
+
+
+@compiled_only
+def _contact_indicators(contacts, model, data, y, events):  # pragma: no cover - compiled
+    """The contact pairs' rows of :func:`event_indicators` (after the tendons'), from an
+    evaluation at ``y``; nothing without contacts (``contacts`` None)."""
+    if contacts is None:
+        return
+    n = (y.shape[0] - 3) // 2
+    system_rhs(model, data, np.int64(0), y[:n], y[n : 2 * n], events.qddot)
+    indicator = data.contact_work.indicator
+    first = events.indicator.shape[0] - indicator.shape[0]
+    for i in range(indicator.shape[0]):
+        events.indicator[first + i] = indicator[i]
 
 
 @compiled_only
@@ -144,9 +172,24 @@ def events_crossed(data, events):  # pragma: no cover - compiled
     with their side, into ``events.candidates``; their number."""
     count = 0
     tension = data.tension
-    for e in range(events.side.shape[0]):
+    for e in range(tension.shape[0]):
         if (tension[e] > 0.0) != events.side[e]:
             events.candidates[count] = e
+            count += 1
+    return _contacts_crossed(data.contact_work, events, count)
+
+
+@compiled_only
+def _contacts_crossed(work, events, count):  # pragma: no cover - compiled
+    """:func:`events_crossed` of the contact pairs' rows (``work``: ``data.contact_work``,
+    None without contacts) after the ``count`` candidates found; the new count."""
+    if work is None:
+        return count
+    indicator = work.indicator
+    first = events.side.shape[0] - indicator.shape[0]
+    for i in range(indicator.shape[0]):
+        if (indicator[i] > 0.0) != events.side[first + i]:
+            events.candidates[count] = first + i
             count += 1
     return count
 
@@ -157,18 +200,31 @@ def set_sides(data, events, keep_fired):  # pragma: no cover - compiled
     with ``keep_fired`` (the loop landed on a located event) the fired events keep the side
     they went to (the state retaken up to an event may sit a round-off short of it)."""
     tension = data.tension
-    for e in range(events.side.shape[0]):
+    for e in range(tension.shape[0]):
         events.side[e] = tension[e] > 0.0
         if keep_fired and events.fired[e]:
             events.side[e] = events.side_after[e]
+    _contact_sides(data.contact_work, events)
 
 
 @compiled_only
-def event_distance(model, rest, y, events, count):  # pragma: no cover - compiled
+def _contact_sides(work, events):  # pragma: no cover - compiled
+    """The contact pairs' sides from their modes (in contact; sticking), which the events'
+    actions set (:func:`land_contacts`); nothing without contacts (``work`` None)."""
+    if work is None:
+        return
+    first = events.side.shape[0] - work.indicator.shape[0]
+    for k in range(work.mode.shape[0]):
+        events.side[first + 2 * k] = work.mode[k] != FREE
+        events.side[first + 2 * k + 1] = work.mode[k] == STICK
+
+
+@compiled_only
+def event_distance(model, data, y, events, count):  # pragma: no cover - compiled
     """The distances (:mod:`the module docstring <tensegrity.engine.events>`) of the first
-    ``count`` candidates at ``y`` into ``events.distance``, with the rest lengths ``rest`` (S,)
-    [m]; their least (``<= 0``: one has fired)."""
-    event_indicators(model, rest, y, events.p, events.v, events.indicator)
+    ``count`` candidates at ``y`` into ``events.distance``, with the inputs' row 0 of
+    ``data``; their least (``<= 0``: one has fired)."""
+    event_indicators(model, data, y, events)
     least = np.inf
     for k in range(count):
         e = events.candidates[k]
@@ -223,7 +279,7 @@ def _distance_at(model, point, varying, dense_callback, step, events, count, t):
     else:
         with objmode():
             _call_dense(dense_callback, t, events.y_at)
-    return event_distance(model, point.rest[0], events.y_at, events, count), False
+    return event_distance(model, point, events.y_at, events, count), False
 
 
 @compiled_only(jit_options=EXACT_JIT_OPTIONS)
@@ -362,3 +418,121 @@ def locate_event_entry(
 ):  # pragma: no cover - compiled
     """:func:`locate_event`, called from Python."""
     return locate_event(model, point, varying, dense_callback, step, events, count)
+
+
+# --------------------------------------------------------------------------- contact actions
+#: A contact point whose tangential speed is at most this [m/s] when it lands on the ground or
+#: its slip reverses may stick (the speed left by locating the reversal to EVENT_RTOL is far
+#: below it; a slip that turns keeps a speed far above it).
+STICK_SPEED = 1e-8
+
+
+@compiled_only
+def land_contacts(contacts, model, data, y, events):  # pragma: no cover - compiled
+    """The actions of the contact events fired at the state ``y`` the loop landed on
+    (``events.fired``; ``data`` with the inputs there): a point touching down slips, or sticks
+    if it is still; lifting off frees it; a stick whose force left the friction cone slips
+    against that force; a slip whose velocity reversed sticks if the point is still, or slips
+    on in its new direction.  Sticks are then settled (:func:`settle_sticks`).  Returns whether
+    a mode changed (the right-hand side did: the loop starts its steps anew)."""
+    if contacts is None:
+        return False
+    work = data.contact_work
+    first = events.side.shape[0] - work.indicator.shape[0]
+    changed = False
+    for k in range(work.mode.shape[0]):
+        touch, slide = events.fired[first + 2 * k], events.fired[first + 2 * k + 1]
+        if touch or slide:
+            switch_mode(contacts, work, y, k, touch)
+            changed = True
+    if changed:
+        settle_sticks(contacts, model, data, y, events)
+    return changed
+
+
+@compiled_only
+def start_contacts(contacts, model, data, y, events):  # pragma: no cover - compiled
+    """The pairs' modes at the start of a run at ``y``: those whose law pushes touch down
+    (:func:`switch_mode`), then the sticks are settled; nothing without contacts."""
+    if contacts is None:
+        return
+    work = data.contact_work
+    n = (y.shape[0] - 3) // 2
+    work.mode[:] = FREE
+    system_rhs(model, data, np.int64(0), y[:n], y[n : 2 * n], events.qddot)
+    for k in range(work.mode.shape[0]):
+        if work.indicator[2 * k] > 0.0:
+            switch_mode(contacts, work, y, k, True)
+    settle_sticks(contacts, model, data, y, events)
+
+
+@compiled_only
+def switch_mode(contacts, work, y, k, touch):  # pragma: no cover - compiled
+    """Pair ``k``'s mode after its contact (``touch``) or friction event at ``y``: see
+    :func:`land_contacts`."""
+    P = contacts.plane_normal.shape[0]
+    c, p = k // P, k % P
+    n = (y.shape[0] - 3) // 2
+    v = np.empty(3)
+    end_motion(y[n : 2 * n], c // 2, c % 2, v)
+    normal = contacts.plane_normal[p]
+    along = v[0] * normal[0] + v[1] * normal[1] + v[2] * normal[2]
+    for i in range(3):
+        v[i] -= along * normal[i]
+    speed = np.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+    mode = work.mode[k]
+    if touch and mode != FREE:
+        work.mode[k] = FREE
+        return
+    if mode == STICK:  # the force needed left the cone: slip along the force that is not held
+        _slip_against_force(contacts, work, k, p)
+        return
+    if speed <= STICK_SPEED:  # touching down or reversing while still: stick, if it holds
+        work.mode[k] = STICK
+        return
+    work.mode[k] = SLIP
+    for i in range(3):
+        work.slip_direction[k, i] = v[i] / speed
+
+
+@compiled_only
+def _slip_against_force(contacts, work, k, p):  # pragma: no cover - compiled
+    """Pair ``k`` slips in the direction opposite its last sticking force (the resultant of
+    the other tangential forces), or along the plane's first tangent if that force is zero."""
+    f = work.friction_force[k]
+    size = np.sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2])
+    work.mode[k] = SLIP
+    for i in range(3):
+        work.slip_direction[k, i] = -f[i] / size if size > 0.0 else contacts.plane_tangent[p, 0, i]
+
+
+@compiled_only
+def settle_sticks(contacts, model, data, y, events):  # pragma: no cover - compiled
+    """Hold the sticking points still (:func:`tensegrity.physics.contact.stick_velocities`)
+    and evaluate at ``y``; a stick whose force is outside the friction cone slips, and again
+    until every stick holds (at most once per pair)."""
+    work = data.contact_work
+    P = contacts.plane_normal.shape[0]
+    n = (y.shape[0] - 3) // 2
+    for _ in range(work.mode.shape[0] + 1):
+        stick_velocities(contacts, model, data, y)
+        system_rhs(model, data, np.int64(0), y[:n], y[n : 2 * n], events.qddot)
+        slipped = False
+        for k in range(work.mode.shape[0]):
+            if work.mode[k] == STICK and work.indicator[2 * k + 1] < 0.0:
+                _slip_against_force(contacts, work, k, k % P)
+                slipped = True
+        if not slipped:
+            return
+
+
+@njit(**JIT_OPTIONS)
+def land_contacts_entry(model, data, y, events):  # pragma: no cover - compiled
+    """:func:`land_contacts`, called from Python."""
+    return land_contacts(model.contacts, model, data, y, events)
+
+
+@njit(**JIT_OPTIONS)
+def start_contacts_entry(model, data, y, events):  # pragma: no cover - compiled
+    """:func:`start_contacts`, called from Python."""
+    start_contacts(model.contacts, model, data, y, events)

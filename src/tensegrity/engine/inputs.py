@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from tensegrity.model.ground import planes_of
 from tensegrity.model.loads import ControlTable, ForceTable
 from tensegrity.model.structure import Structure
 
@@ -101,9 +102,11 @@ class _Signal:
 
 
 class Inputs:
-    """Control, external force and gravity of a run on ``structure``, validated.
+    """Control, external force, gravity and ground of a run on ``structure``, validated.
 
-    Attributes ``constant`` (all inputs constant in time) and ``gravity`` ((dim,) or None).
+    Attributes ``constant`` (all inputs constant in time), ``gravity`` ((dim,) or None),
+    ``ground`` (a tuple of :class:`~tensegrity.model.ground.Plane`, empty: none) and
+    ``contact_radius`` (the radius [m] of the rods' ends as contact points).
     """
 
     def __init__(
@@ -113,6 +116,8 @@ class Inputs:
         control: Any = None,
         external_force: Any = None,
         gravity: Any = None,
+        ground: Any = None,
+        contact_radius: Any = 0.0,
     ) -> None:
         self.structure = structure
         self.control = _Signal(control, (structure.n_tendons,), "control")
@@ -128,6 +133,13 @@ class Inputs:
                     f"{gravity.shape}: {shown}"
                 )
         self.gravity = gravity
+        self.ground = () if ground is None else planes_of(ground)
+        radius = _numbers(contact_radius, "contact_radius", "a number >= 0 [m]")
+        if radius.shape != () or not (np.isfinite(radius) and radius >= 0):
+            raise ValueError(f"contact_radius: must be a number >= 0 [m], got {contact_radius!r}")
+        self.contact_radius = float(radius)
+        if self.ground and structure.dim != 3:
+            raise ValueError("ground: contact is for 3-D structures (this one is planar)")
         self.constant = self.control.constant and self.external_force.constant
 
     def rest_length(self, times: np.ndarray) -> np.ndarray:
@@ -159,9 +171,14 @@ class Inputs:
 
     def settings(self) -> dict[str, Any]:
         """``control``, ``external_force`` (False, True, ``"table"``, ``"function"``) and
-        ``gravity`` (a list or None), for a run's settings record."""
-        return dict(
+        ``gravity`` (a list or None), for a run's settings record; with planes, ``ground`` (each
+        plane's fields) and ``contact_radius``."""
+        settings: dict[str, Any] = dict(
             gravity=None if self.gravity is None else self.gravity.tolist(),
             control=self.control.setting(),
             external_force=self.external_force.setting(),
         )
+        if self.ground:
+            settings["ground"] = [plane.settings() for plane in self.ground]
+            settings["contact_radius"] = self.contact_radius
+        return settings

@@ -36,10 +36,12 @@ from tensegrity.engine.events import (
     DenseOutputHandle,
     event_work,
     events_crossed_entry,
+    land_contacts_entry,
     landing_of,
     locate_event_entry,
     restore_landing,
     set_sides_entry,
+    start_contacts_entry,
 )
 from tensegrity.engine.inputs import Inputs
 from tensegrity.engine.options import Options, reaches, sample_count, sample_time, short_of
@@ -556,6 +558,10 @@ def _adaptive(run: _Run, stepper: Stepper, resume: LoopState | None) -> None:
     events = event_work(system)
     point = system.input_buffers(1)
     varying = not system.inputs.constant
+    if resume is None and system.model.contacts is not None:
+        here = system.stage_inputs(np.array([stepper.t]))
+        start_contacts_entry(system.model, here, stepper.y, events)
+        stepper.restart(stepper.y)
     if locate:
         set_sides_entry(stepper.evaluation(), events, False)
     landing: _Landing | None = None
@@ -611,11 +617,14 @@ def _adaptive(run: _Run, stepper: Stepper, resume: LoopState | None) -> None:
         stepper.accept()
         if run.progress is not None:
             run.progress(stepper.t)
+        restart = False
         if landed is not None:
             stepper.resume()
             allow_provisional = landed.exact
             landing = None
-        restart = False
+            if landed.exact and system.model.contacts is not None:  # the events' actions
+                here = system.stage_inputs(np.array([stepper.t]))
+                restart = land_contacts_entry(system.model, here, stepper.y, events)
         if drift > o.projection_tol:
             if not system.project(stepper.y):
                 run.fail(compiled.CHECK_PROJECTION, np.nan, stepper.t)
@@ -869,12 +878,20 @@ def run(
     if checkpoint is not None and not (isinstance(checkpoint.every, int) and checkpoint.every > 0):
         raise ValueError(f"checkpoint.every: must be a whole number > 0, got {checkpoint.every!r}")
     options.check_span(t0, t_end)
+    if inputs.ground and (options.fixed_step or not options.locate_switches):
+        raise ValueError(
+            "ground: contact needs an adaptive method that locates events (not method='rk4', "
+            "not locate_switches=False)"
+        )
+    if inputs.ground and (checkpoint is not None or resume is not None):
+        raise ValueError("ground: runs with contact are not checkpointed or resumed yet")
     inputs.rest_length(np.array([t0]))  # a control making a rest length negative fails here
     r = _Run(structure, t0, t_end, inputs, options, sink, controller, checkpoint, progress, stop)
     if resume is None:
         state = dynamics.initial_state(structure, t=t0) if initial is None else initial
         _check_initial(structure, state)
         y0 = r.system.state_vector(state)
+        r.system.check_contacts(y0)
         if controller is not None:
             r.update_control(t0, y0)
         stepper, loop = _method(r, t0, y0.copy(), None)

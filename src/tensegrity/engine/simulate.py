@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -28,6 +28,7 @@ from tensegrity.engine.result import (
     MemorySink,
     SimulationResult,
 )
+from tensegrity.model.ground import Plane
 from tensegrity.model.structure import Structure, require_structure
 from tensegrity.physics.dynamics import State
 
@@ -55,6 +56,8 @@ def simulate(
     control: np.ndarray | TimeFunction | None = None,
     external_force: np.ndarray | TimeFunction | None = None,
     gravity: np.ndarray | None = None,
+    ground: Plane | Sequence[Plane] | None = None,
+    contact_radius: float = 0.0,
     controller: Controller | None = None,
     stop: StopCondition | None = None,
     method: str = "DOP853",
@@ -86,6 +89,13 @@ def simulate(
         External nodal forces [N].
     gravity : (3,) array, optional (``(2,)`` if planar)
         Uniform gravity [m/s^2], e.g. ``(0, 0, -9.81)``.
+    ground : Plane or sequence of Plane, optional
+        Rigid planes the rods' ends touch (:class:`tensegrity.model.ground.Plane`, e.g.
+        ``ground()`` for ``z = 0``): a compliant normal law and Coulomb friction with exact
+        sticking, onset, lift-off, stick and slip located as events (adaptive methods, a
+        structure of rods and tendons).
+    contact_radius : float
+        Radius [m] of the rods' ends as contact points (spheres); default 0.
     controller : Controller, optional
         State feedback ``u = controller(t, q, qdot)`` held for ``controller.period`` [s] from
         ``t0`` on (zero-order hold; :class:`tensegrity.engine.loop.Feedback` makes one of a
@@ -137,6 +147,8 @@ def simulate(
         control=control,
         external_force=external_force,
         gravity=gravity,
+        ground=ground,
+        contact_radius=contact_radius,
         method=method,
         rtol=rtol,
         atol=atol,
@@ -181,6 +193,8 @@ def options_and_inputs(
     control: Any = None,
     external_force: Any = None,
     gravity: Any = None,
+    ground: Any = None,
+    contact_radius: Any = 0.0,
     **options: Any,
 ) -> tuple[Options, Inputs]:
     """:func:`simulate`'s keyword options as the engine takes them: the :class:`Options` of the
@@ -191,7 +205,12 @@ def options_and_inputs(
     if unknown:
         raise TypeError(f"unknown option {unknown[0]!r}")
     return Options(**options), Inputs(
-        structure, control=control, external_force=external_force, gravity=gravity
+        structure,
+        control=control,
+        external_force=external_force,
+        gravity=gravity,
+        ground=ground,
+        contact_radius=contact_radius,
     )
 
 

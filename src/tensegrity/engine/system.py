@@ -16,6 +16,7 @@ from tensegrity.engine.inputs import Inputs
 from tensegrity.engine.result import Samples
 from tensegrity.model.structure import Structure
 from tensegrity.physics import dynamics
+from tensegrity.physics.contact import pack_contacts
 from tensegrity.physics.kernel_system import (
     drop_coordinates,
     embed_planar,
@@ -70,8 +71,17 @@ class CompiledSystem:
         S, n_slots = structure.n_tendons, packed.layout.n_slots
         gravity = None if inputs.gravity is None else self._spatial(inputs.gravity)
         rest0 = packed.to_kernel_order(structure.tendon_rest_length)[None]
+        contacts = None
+        if inputs.ground:
+            if packed_system.constraints is not None:
+                raise ValueError(
+                    "ground: contact is for structures of rods and tendons only (no joints, "
+                    "supports, anchors or point masses) for now"
+                )
+            radius = np.full(2 * structure.n_rods, inputs.contact_radius)
+            contacts = pack_contacts(inputs.ground, radius)
         self.model, self.data = make_records(
-            packed_system, rest=rest0, gravity=gravity, limits=limits
+            packed_system, rest=rest0, gravity=gravity, limits=limits, contacts=contacts
         )
         #: the blow-up monitor (4,), ``data.monitor`` (see :func:`compiled.check_state`)
         self.monitor = self.data.monitor
@@ -283,6 +293,26 @@ class CompiledSystem:
         (m,)."""
         m = self.m
         return np.zeros(m), np.zeros(m), np.zeros(self.n), np.zeros(m)
+
+    def check_contacts(self, y: np.ndarray) -> None:
+        """``ValueError`` naming ``ground`` if a rod's end starts below one of the planes (its
+        centre on the solid's side of it)."""
+        contacts = self.model.contacts
+        if contacts is None:
+            return
+        q = y[: self.n].reshape(-1, 2, 3)  # (R, (q1, q2), xyz)
+        ends = np.stack([(q[:, 0] - q[:, 1]) / 2, (q[:, 0] + q[:, 1]) / 2], axis=1)  # (R, 2, 3)
+        for p, (point, normal) in enumerate(
+            zip(contacts.plane_point, contacts.plane_normal, strict=True)
+        ):
+            height = (ends - point) @ normal  # (R, 2)
+            if np.any(height < 0):
+                r, end = np.unravel_index(int(np.argmin(height)), height.shape)
+                node = self.structure.rod_nodes[r, end]
+                raise ValueError(
+                    f"ground: node {node} (rod {r}'s end {'ab'[end]}) starts "
+                    f"{-height[r, end]:.3g} m below plane {p}; start the structure above it"
+                )
 
     def coordinates(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(q, qdot)`` of ``y`` in the structure's coordinates (new arrays)."""

@@ -45,15 +45,23 @@ on a machine compiles for a few seconds, later processes load the cache in well 
 
 from __future__ import annotations
 
-import functools
-from collections.abc import Callable
-from typing import Any, Literal, NamedTuple, TypedDict
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
-from numba.core.registry import CPUDispatcher
 
 from tensegrity.model.structure import Structure
+from tensegrity.physics.compiling import (
+    JIT_OPTIONS,
+    ROD_C1,
+    ROD_C2,
+    ROD_DAMPING,
+    ROD_LENGTH,
+    ROD_MASS,
+    ROD_RELATIVE_DAMPING,
+    compiled_only,
+)
+from tensegrity.physics.contact import contact_pass, stick_pass
 from tensegrity.physics.coordinates import rod_damping_rates
 
 __all__ = [
@@ -68,59 +76,13 @@ __all__ = [
 ]
 
 
-class JitOptions(TypedDict):
-    """The keyword arguments of ``numba.njit`` used for all the compiled code (typed, so that
-    ``njit(**JIT_OPTIONS)`` is checked against numba's signature)."""
-
-    cache: bool
-    fastmath: set[str]
-    nogil: bool
-    boundscheck: bool
-    error_model: Literal["python", "numpy"]
-
-
-JIT_OPTIONS: JitOptions = {
-    "cache": True,
-    "fastmath": {"contract"},
-    "nogil": True,
-    "boundscheck": False,
-    "error_model": "numpy",
-}
-
-
-class _CompiledOnly(CPUDispatcher):
-    """A dispatcher that compiled code calls and Python may not (see :func:`compiled_only`)."""
-
-    def __call__(self, *args, **kwargs):
-        raise TypeError(
-            f"{self.py_func.__qualname__} is called from compiled code only (it was compiled "
-            "without the wrapper that lets Python call it)"
-        )
-
-
-def compiled_only(py_func: Callable | None = None, *, jit_options: JitOptions = JIT_OPTIONS) -> Any:
-    """``njit(**JIT_OPTIONS)`` for a function only ever called from compiled code: numba makes
-    no wrapper that lets Python call it (code that unboxes every argument; the tuples of arrays
-    of the engine's steps make it long).  On the engine's seven heaviest callees this takes
-    1.1 s off the 19.6 s of compilation of a first ``tensegrity simulate`` (CPU time, numba's
-    compile events, 4 runs each alternating with the code before: 18.5 s).  Python calling
-    such a function gets a TypeError (through the missing wrapper numba would crash the
-    interpreter).  ``@compiled_only(jit_options=...)`` compiles with other options."""
-    if py_func is None:
-        return functools.partial(compiled_only, jit_options=jit_options)
-    options: dict[str, Any] = {**jit_options, "no_cpython_wrapper": True, "no_cfunc_wrapper": True}
-    dispatcher = njit(**options)(py_func)
-    dispatcher.__class__ = _CompiledOnly
-    return dispatcher
-
-
 # --------------------------------------------------------------------------- compiled code
 # The layout of the records' arrays (:mod:`tensegrity.physics.records`): nodes in *slots*, tendons
 # in a *kernel order* of their own (see :func:`pack` and docs/performance.md, "The stencil
 # layout").  Slots are unsigned (uint64): numba wraps every signed index that the compiler cannot
 # prove >= 0 (one read from an array) around the array's length.  Never add a signed integer to a
-# slot: in numba ``uint64 + int64`` is a float64.  Columns of ``Model.rod_param``:
-ROD_MASS, ROD_LENGTH, ROD_DAMPING, ROD_C1, ROD_C2, ROD_RELATIVE_DAMPING = range(6)
+# slot: in numba ``uint64 + int64`` is a float64.  The columns of ``Model.rod_param`` are
+# ``compiling.ROD_*``.
 #: A rigid-body fit whose inertia has ``det <= SINGULAR_INERTIA (trace / 3)^3`` has its rods on
 #: one line (to about 1e-5 of their size), about which they have no inertia: it is solved with
 #: ``trace / 3`` of inertia added about that line (:func:`_rigid_motion`).
@@ -572,24 +534,29 @@ def rhs(model, data, s, q, qdot, qddot):  # pragma: no cover - compiled
     ``model.tendon_damping`` is None when every ``c`` is 0 (the undamped specialization,
     chosen at compile time); ``data.node_force`` is zero on entry and left zero.
     """
-    return _rhs(model.tendon_damping, model, data, s, q, qdot, qddot)
+    return _rhs(model.tendon_damping, model.contacts, model, data, s, q, qdot, qddot)
 
 
 @compiled_only
-def _rhs(tendon_damping, model, data, s, q, qdot, qddot):  # pragma: no cover - compiled
-    """:func:`rhs` with ``tendon_damping`` (``model.tendon_damping``) an argument: the passes
-    inlined here test it for None, which numba decides at compile time only for an argument."""
-    return rhs_passes(tendon_damping, model, data, s, q, qdot, qddot)
+def _rhs(tendon_damping, contacts, model, data, s, q, qdot, qddot):  # pragma: no cover
+    """:func:`rhs` with ``tendon_damping`` and ``contacts`` (``model.tendon_damping``,
+    ``model.contacts``) arguments: the passes inlined here test them for None, which numba
+    decides at compile time only for an argument."""
+    return rhs_passes(tendon_damping, contacts, model, data, s, q, qdot, qddot)
 
 
 @njit(inline="always", **JIT_OPTIONS)
-def rhs_passes(tendon_damping, model, data, s, q, qdot, qddot):  # pragma: no cover - compiled
-    """The passes of :func:`rhs`, inlined into a function that has ``tendon_damping``
-    (``model.tendon_damping``) as an argument (:func:`_rhs`, and
-    ``kernel_system._system_rhs``): one call per evaluation takes the records."""
+def rhs_passes(tendon_damping, contacts, model, data, s, q, qdot, qddot):  # pragma: no cover
+    """The passes of :func:`rhs`, inlined into a function that has ``tendon_damping`` and
+    ``contacts`` (``model.tendon_damping``, ``model.contacts``) as arguments (:func:`_rhs`, and
+    ``kernel_system._system_rhs``): one call per evaluation takes the records.  With contacts
+    (:mod:`tensegrity.physics.contact`), their normal and sliding forces join the tendons'
+    before the rod pass, and the sticking ends are held after it."""
     rest = stage_row(data.rest, s)
     _node_pass(tendon_damping, model, data, q, qdot)
     tendon_dissipation = _tendon_pass(tendon_damping, model, data, rest)
+    if contacts is not None:
+        tendon_dissipation += contact_pass(contacts, model, data, q, qdot)
     rod_dissipation, external_power = _rod_pass(
         model,
         data,
@@ -599,6 +566,8 @@ def rhs_passes(tendon_damping, model, data, s, q, qdot, qddot):  # pragma: no co
         stage_row(data.force, s),
         _rigid_motion(q, qdot, model.rod_param),
     )
+    if contacts is not None:
+        rod_dissipation += stick_pass(contacts, model, data, q, qdot, qddot)
     return tendon_dissipation + rod_dissipation, external_power
 
 

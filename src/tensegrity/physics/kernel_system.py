@@ -46,6 +46,14 @@ import numpy as np
 from numba import njit
 
 from tensegrity.model.structure import Structure
+from tensegrity.physics.compiling import (
+    JIT_OPTIONS,
+    ROD_C1,
+    ROD_C2,
+    ROD_LENGTH,
+    ROD_MASS,
+    compiled_only,
+)
 from tensegrity.physics.constraints import (
     PROJECTION_FLOOR_RTOL,
     PROJECTION_RTOL,
@@ -53,14 +61,9 @@ from tensegrity.physics.constraints import (
     LinearConstraints,
     constraints_of,
 )
+from tensegrity.physics.contact import contact_energy, contact_work
 from tensegrity.physics.kernel import (
-    JIT_OPTIONS,
-    ROD_C1,
-    ROD_C2,
-    ROD_LENGTH,
-    ROD_MASS,
     PackedStructure,
-    compiled_only,
     copy_values,
     end_values,
     energies,
@@ -69,7 +72,7 @@ from tensegrity.physics.kernel import (
     rhs_passes,
     stage_row,
 )
-from tensegrity.physics.records import Constraints, ConstraintWork, Data, Model
+from tensegrity.physics.records import Constraints, ConstraintWork, Contacts, Data, Model
 
 if TYPE_CHECKING:  # (scipy is imported where a structure with constraints needs it)
     import scipy.sparse as sp
@@ -302,6 +305,7 @@ def make_records(
     system: SystemArrays,
     *,
     rest: np.ndarray,
+    contacts: Contacts | None = None,
     rate: np.ndarray | None = None,
     force: np.ndarray | None = None,
     gravity: np.ndarray | None = None,
@@ -329,6 +333,8 @@ def make_records(
         (``tensegrity.engine.compiled.make_inputs``).
     limits : (3,) floats
         Max relative rod-length error, max constraint error [m], max energy growth.
+    contacts : Contacts, optional
+        Planes the rods' ends touch (:func:`tensegrity.physics.contact.pack_contacts`).
     """
     packed = system.packed
     n_slots, n_tendons = packed.layout.n_slots, packed.tendon_slots.shape[0]
@@ -345,6 +351,7 @@ def make_records(
         tables=tables,
         callback=None if callback is None else np.int64(callback),
         limits=np.array(limits, dtype=np.float64),
+        contacts=contacts,
     )
     constraint_work = None
     if system.constraints is not None:
@@ -370,6 +377,7 @@ def make_records(
         damping_power=np.zeros(n_tendons),
         constraint_work=constraint_work,
         monitor=np.array([np.nan, 0.0, 0.0, 0.0]),
+        contact_work=None if contacts is None else contact_work(contacts),
     )
     return model, data
 
@@ -665,21 +673,27 @@ def system_rhs(model, data, s, q, qdot, qddot):  # pragma: no cover - compiled
     anchors join the tendon pass, point masses accelerate as ``x'' = (f + w) / m + g``, and the
     joint and support forces are added (:func:`_constraint_pass`).
     """
-    return _system_rhs(model.constraints, model.tendon_damping, model, data, s, q, qdot, qddot)
+    return _system_rhs(
+        model.constraints, model.tendon_damping, model.contacts, model, data, s, q, qdot, qddot
+    )
 
 
 @compiled_only
-def _system_rhs(constraints, tendon_damping, model, data, s, q, qdot, qddot):  # pragma: no cover
-    """:func:`system_rhs`, with the optional parts ``constraints`` and ``tendon_damping``
-    (``model.constraints``, ``model.tendon_damping``) arguments, so that numba compiles a free
-    class 1 structure (None) without the rest, and undamped tendons without the rates; the
-    kernel's passes are inlined here (one call per evaluation takes the records)."""
+def _system_rhs(
+    constraints, tendon_damping, contacts, model, data, s, q, qdot, qddot
+):  # pragma: no cover - compiled
+    """:func:`system_rhs`, with the optional parts ``constraints``, ``tendon_damping`` and
+    ``contacts`` (``model.constraints``, ``model.tendon_damping``, ``model.contacts``)
+    arguments, so that numba compiles a free class 1 structure (None) without the rest,
+    undamped tendons without the rates, and a run without planes without contacts; the
+    kernel's passes are inlined here (one call per evaluation takes the records).  Contacts
+    come with a free class 1 structure only (``CompiledSystem`` refuses the rest)."""
     if constraints is None:
-        return rhs_passes(tendon_damping, model, data, s, q, qdot, qddot)
+        return rhs_passes(tendon_damping, contacts, model, data, s, q, qdot, qddot)
     damped = tendon_damping is not None
     n_rods = model.rod_slots.shape[0]
     _extra_nodes(constraints, q, qdot, n_rods, data.node_position, data.node_velocity, damped)
-    dissipated, external = rhs_passes(tendon_damping, model, data, s, q, qdot, qddot)
+    dissipated, external = rhs_passes(tendon_damping, None, model, data, s, q, qdot, qddot)
     external += _point_mass_pass(model, data, qdot, qddot, stage_row(data.force, s))
     if constraints.constraint_rhs.shape[0]:
         _constraint_pass(model, data, q, qddot)
@@ -943,14 +957,18 @@ def system_energies(model, data, rest, q, qdot):  # pragma: no cover - compiled
     :func:`kernel.energies` (which it is, with ``model.constraints`` None) plus ``m |x'|^2 / 2``
     and ``-m g . x`` per point mass, anchors and point masses taking part in the tendons'
     energy.  ``data.node_position`` receives the node positions."""
-    return _energies(model.constraints, model, data, rest, q, qdot)
+    return _energies(model.constraints, model.contacts, model, data, rest, q, qdot)
 
 
 @compiled_only
-def _energies(constraints, model, data, rest, q, qdot):  # pragma: no cover - compiled
-    """:func:`system_energies` with ``constraints`` (``model.constraints``) an argument."""
+def _energies(constraints, contacts, model, data, rest, q, qdot):  # pragma: no cover - compiled
+    """:func:`system_energies` with ``constraints`` and ``contacts`` (``model.constraints``,
+    ``model.contacts``) arguments; the contacts' springs are elastic energy."""
     if constraints is None:
-        return energies(model, data, rest, q, qdot)
+        kinetic, elastic, potential = energies(model, data, rest, q, qdot)
+        if contacts is not None:
+            elastic += contact_energy(contacts, q)
+        return kinetic, elastic, potential
     n_rods = model.rod_slots.shape[0]
     _extra_nodes(constraints, q, qdot, n_rods, data.node_position, data.node_velocity, False)
     kinetic, elastic, potential = energies(model, data, rest, q, qdot)

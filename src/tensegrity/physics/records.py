@@ -26,7 +26,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-__all__ = ["ConstraintWork", "Constraints", "Data", "Model"]
+__all__ = ["ConstraintWork", "Constraints", "ContactWork", "Contacts", "Data", "Model"]
 
 
 class Constraints(NamedTuple):
@@ -67,6 +67,33 @@ class ConstraintWork(NamedTuple):
     vectors: np.ndarray  #: (4, max(P, 1)) vectors
 
 
+class Contacts(NamedTuple):
+    """Rigid planes the rods' ends touch (read-only; ``Model.contacts``; the physics in
+    :mod:`tensegrity.physics.contact`).  Contact point ``c`` is end ``c % 2`` (a, b) of rod
+    ``c // 2``; pair ``k = c P + p`` is point ``c`` against plane ``p``."""
+
+    plane_point: np.ndarray  #: (P, 3) a point of each plane [m]
+    plane_normal: np.ndarray  #: (P, 3) unit normals, out of the solid
+    plane_tangent: np.ndarray  #: (P, 2, 3) unit tangents
+    friction_static: np.ndarray  #: (P,) mu_s
+    friction_kinetic: np.ndarray  #: (P,) mu_k
+    contact_stiffness: np.ndarray  #: (P,) k [N/m]
+    contact_damping: np.ndarray  #: (P,) c [N s/m]
+    point_radius: np.ndarray  #: (2R,) radius of each contact point [m]
+
+
+class ContactWork(NamedTuple):
+    """The contacts' modes and what an evaluation writes of them (``Data.contact_work``);
+    ``CP`` pairs (:class:`Contacts`)."""
+
+    mode: np.ndarray  #: (CP,) int64: ``contact.FREE``, ``SLIP`` or ``STICK``
+    slip_direction: np.ndarray  #: (CP, 3) the sliding direction a slip started in
+    normal_force: np.ndarray  #: (CP,) F_n [N]
+    friction_force: np.ndarray  #: (CP, 3) the tangential force on the point [N]
+    indicator: np.ndarray  #: (2 CP,) the events' indicators (contact, friction) per pair
+    matrix: np.ndarray  #: (4 P, 4 P + 1) scratch of a rod's sticking system
+
+
 class Model(NamedTuple):
     """The read-only record: a structure packed for compiled code, with what a run holds
     constant (gravity, the input tables, the limits)."""
@@ -90,6 +117,7 @@ class Model(NamedTuple):
     callback: Any
     #: (3,) float64: max relative rod-length error, max constraint error [m], max energy growth
     limits: np.ndarray
+    contacts: Contacts | None = None  #: planes the rods' ends touch; None: none
 
 
 class Data(NamedTuple):
@@ -117,3 +145,4 @@ class Data(NamedTuple):
     #: (4,) the blow-up monitor: energy at the start [J], largest energy scale [J], largest rod
     #: error, largest constraint error [m]
     monitor: np.ndarray
+    contact_work: ContactWork | None = None  #: None when ``Model.contacts`` is None

@@ -1,0 +1,344 @@
+"""Contact of the rods' ends with rigid planes, compiled (the law: :mod:`tensegrity.model.ground`).
+
+The records' optional parts ``Model.contacts`` (:class:`~tensegrity.physics.records.Contacts`)
+and ``Data.contact_work`` (:class:`~tensegrity.physics.records.ContactWork`) hold the planes and
+the pairs' modes.  Point ``c`` is end ``c % 2`` of rod ``c // 2`` (``p_a = (q1 - q2) / 2``,
+``p_b = (q1 + q2) / 2``, eq. 18.26), pair ``k = c P + p``; ``delta = r - n . (x - x0)`` its
+penetration [m], ``delta' = -n . v``.
+
+Modes (changed only by the engine's events, :mod:`tensegrity.engine.events`):
+
+- ``FREE``: no force;
+- ``SLIP``: ``F_n = k delta + c delta'`` along ``n`` and kinetic friction ``-mu_k F_n v_t /
+  |v_t|`` (``v_t`` the tangential velocity; the slip's direction while ``v_t = 0``);
+- ``STICK``: ``F_n`` and the tangential force that keeps the point's tangential acceleration
+  zero, solved per rod after the rod pass (:func:`stick_pass`; Theorem 18.1's accelerations are
+  affine in the end forces).
+
+Every evaluation writes the events' indicators (``ContactWork.indicator``, rows ``2k``, ``2k +
+1``): contact ``min(k delta, k delta + c delta')`` (> 0 while the law pushes), friction
+``mu_s F_n - |F_t|`` sticking (> 0 while the force needed is inside the cone), ``-v_t . s``
+slipping (> 0 once the point moves against the slip's direction ``s``: it may stick), ``-1``
+free.  Energy: ``k max(delta, 0)^2 / 2`` per pair is elastic energy, and the power ``(F_n - k
+delta) delta'`` (for ``delta > 0``, else ``F_n delta'``) and ``-F_t . v_t`` is dissipated, so
+that the energy balance holds.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from tensegrity.physics.compiling import ROD_C1, ROD_C2, ROD_MASS, compiled_only
+from tensegrity.physics.records import Contacts, ContactWork
+
+if TYPE_CHECKING:
+    from tensegrity.model.ground import Plane
+
+#: Modes of a pair (``ContactWork.mode``).
+FREE, SLIP, STICK = 0, 1, 2
+#: Regularization of a rod's sticking system, relative to its largest diagonal entry (its null
+#: space, e.g. an axial pair of forces on a rod lying with both ends stuck, moves nothing).
+STICK_REGULARIZATION = 1e-12
+
+
+@compiled_only
+def end_motion(q, r, end, out):  # pragma: no cover - compiled
+    """Position (or velocity, from ``q'``) of end ``end`` (0: a, 1: b) of rod ``r`` into ``out``
+    (3,): ``(q1 -+ q2) / 2``."""
+    o = 6 * r
+    sign = 2.0 * end - 1.0
+    for i in range(3):
+        out[i] = 0.5 * (q[o + i] + sign * q[o + 3 + i])
+
+
+@compiled_only
+def contact_pass(contacts, model, data, q, qdot):  # pragma: no cover - compiled
+    """The normal forces and the sliding friction of every pair into ``data.node_force`` (before
+    the rod pass), the pairs' forces and indicators into ``data.contact_work`` (the friction
+    indicator of sticking pairs: :func:`stick_pass`); returns the power dissipated [W]."""
+    work = data.contact_work
+    normal, point = contacts.plane_normal, contacts.plane_point
+    P = normal.shape[0]
+    x, v = np.empty(3), np.empty(3)
+    dissipated = 0.0
+    for c in range(contacts.point_radius.shape[0]):
+        r, end = c // 2, c % 2
+        end_motion(q, r, end, x)
+        end_motion(qdot, r, end, v)
+        slot = model.rod_slots[r, end]
+        for p in range(P):
+            k = c * P + p
+            height, rate = 0.0, 0.0
+            for i in range(3):
+                height += normal[p, i] * (x[i] - point[p, i])
+                rate -= normal[p, i] * v[i]
+            delta = contacts.point_radius[c] - height
+            stiffness, damping = contacts.contact_stiffness[p], contacts.contact_damping[p]
+            law = stiffness * delta + damping * rate
+            work.indicator[2 * k] = min(stiffness * delta, law)
+            mode = work.mode[k]
+            force = law if mode != FREE else 0.0
+            work.normal_force[k] = force
+            stored = stiffness * delta * rate if delta > 0.0 else 0.0
+            dissipated += force * rate - stored
+            normal_speed = -rate
+            tx, ty, tz = (
+                v[0] - normal_speed * normal[p, 0],
+                v[1] - normal_speed * normal[p, 1],
+                v[2] - normal_speed * normal[p, 2],
+            )
+            friction = work.friction_force[k]
+            friction[0], friction[1], friction[2] = 0.0, 0.0, 0.0
+            if mode == SLIP:
+                s = work.slip_direction[k]
+                speed = np.sqrt(tx * tx + ty * ty + tz * tz)
+                dx, dy, dz = s[0], s[1], s[2]
+                if speed > 0.0:
+                    dx, dy, dz = tx / speed, ty / speed, tz / speed
+                scale = -contacts.friction_kinetic[p] * force
+                friction[0], friction[1], friction[2] = scale * dx, scale * dy, scale * dz
+                work.indicator[2 * k + 1] = -(tx * s[0] + ty * s[1] + tz * s[2])
+                dissipated -= friction[0] * tx + friction[1] * ty + friction[2] * tz
+            elif mode == FREE:
+                work.indicator[2 * k + 1] = -1.0
+            for i in range(3):
+                data.node_force[i, slot] += force * normal[p, i] + friction[i]
+    return dissipated
+
+
+@compiled_only
+def rod_stick(contacts, model, work, r, q, values, correction):  # pragma: no cover - compiled
+    """The tangential forces at rod ``r``'s sticking pairs that cancel the tangential part of
+    its end ``values`` (the rod's 6 coordinates' accelerations, or rates: the same affine map,
+    eqs. 18.17, 18.20) into ``work.friction_force``, and the change of those 6 values they make
+    into ``correction``; returns the number of sticking pairs (0: nothing written)."""
+    P = contacts.plane_normal.shape[0]
+    tangent = contacts.plane_tangent
+    pairs = np.empty(2 * P, np.int64)
+    count = 0
+    for end in range(2):
+        for p in range(P):
+            k = (2 * r + end) * P + p
+            if work.mode[k] == STICK:
+                pairs[count] = k
+                count += 1
+    if count == 0:
+        return 0
+    o = 6 * r
+    c1, c2 = model.rod_param[r, ROD_C1], model.rod_param[r, ROD_C2]
+    x2, y2, z2 = q[o + 3], q[o + 4], q[o + 5]
+    q2_sq = x2 * x2 + y2 * y2 + z2 * z2
+    m = 2 * count
+    matrix = np.zeros((m, m))
+    rhs = np.zeros(m)
+    response = np.zeros((m, 6))  # the 6 values' change per unit tangential force
+    for j in range(m):
+        k = pairs[j // 2]
+        p, sign = k % P, 2.0 * ((k // P) % 2) - 1.0
+        fx, fy, fz = tangent[p, j % 2, 0], tangent[p, j % 2, 1], tangent[p, j % 2, 2]
+        # a force F at end a (sign -1) or b (+1): q1'' += c1 F, q2'' += c2 (q2 (q2.Fd) - |q2|^2
+        # Fd) with Fd = -sign F (the force on a minus that on b)
+        dx, dy, dz = -sign * fx, -sign * fy, -sign * fz
+        along = x2 * dx + y2 * dy + z2 * dz
+        response[j, 0], response[j, 1], response[j, 2] = c1 * fx, c1 * fy, c1 * fz
+        response[j, 3] = c2 * (x2 * along - q2_sq * dx)
+        response[j, 4] = c2 * (y2 * along - q2_sq * dy)
+        response[j, 5] = c2 * (z2 * along - q2_sq * dz)
+    for i in range(m):
+        k = pairs[i // 2]
+        p, sign = k % P, 2.0 * ((k // P) % 2) - 1.0
+        t = tangent[p, i % 2]
+        rhs[i] = -0.5 * sum_end(t, values, sign)
+        for j in range(m):
+            matrix[i, j] = 0.5 * sum_end(t, response[j], sign)
+    force = solve_psd_small(matrix, rhs)
+    for i in range(6):
+        correction[i] = 0.0
+        for j in range(m):
+            correction[i] += force[j] * response[j, i]
+    for a in range(count):
+        k = pairs[a]
+        p = k % P
+        for i in range(3):
+            work.friction_force[k, i] = (
+                force[2 * a] * tangent[p, 0, i] + force[2 * a + 1] * tangent[p, 1, i]
+            )
+    return count
+
+
+@compiled_only
+def sum_end(t, values, sign):  # pragma: no cover - compiled
+    """``t . (v1 + sign v2)`` for the 6 ``values`` ``(v1, v2)`` of a rod (twice an end's)."""
+    total = 0.0
+    for i in range(3):
+        total += t[i] * (values[i] + sign * values[3 + i])
+    return total
+
+
+@compiled_only
+def solve_psd_small(matrix, rhs):  # pragma: no cover - compiled
+    """``x`` with ``matrix x = rhs`` for a small symmetric positive semi-definite ``matrix``:
+    Gaussian elimination of ``matrix + delta I`` (``delta`` :data:`STICK_REGULARIZATION` of its
+    largest diagonal entry) and two refinements against ``matrix`` itself (a solution of least
+    size where ``matrix`` is singular)."""
+    m = rhs.shape[0]
+    largest = 0.0
+    for i in range(m):
+        largest = max(largest, abs(matrix[i, i]))
+    shifted = matrix.copy()
+    for i in range(m):
+        shifted[i, i] += STICK_REGULARIZATION * largest
+    x = np.zeros(m)
+    residual = rhs.copy()
+    for _ in range(3):
+        step = _gauss(shifted.copy(), residual.copy())
+        for i in range(m):
+            x[i] += step[i]
+        for i in range(m):
+            residual[i] = rhs[i]
+            for j in range(m):
+                residual[i] -= matrix[i, j] * x[j]
+    return x
+
+
+@compiled_only
+def _gauss(a, b):  # pragma: no cover - compiled
+    """``a^-1 b`` by Gaussian elimination with partial pivoting (``a``, ``b`` overwritten)."""
+    m = b.shape[0]
+    for col in range(m):
+        pivot = col
+        for i in range(col + 1, m):
+            if abs(a[i, col]) > abs(a[pivot, col]):
+                pivot = i
+        if pivot != col:
+            for j in range(m):
+                a[col, j], a[pivot, j] = a[pivot, j], a[col, j]
+            b[col], b[pivot] = b[pivot], b[col]
+        if a[col, col] == 0.0:
+            continue
+        for i in range(col + 1, m):
+            factor = a[i, col] / a[col, col]
+            for j in range(col, m):
+                a[i, j] -= factor * a[col, j]
+            b[i] -= factor * b[col]
+    x = np.zeros(m)
+    for i in range(m - 1, -1, -1):
+        total = b[i]
+        for j in range(i + 1, m):
+            total -= a[i, j] * x[j]
+        x[i] = total / a[i, i] if a[i, i] != 0.0 else 0.0
+    return x
+
+
+@compiled_only
+def stick_pass(contacts, model, data, q, qdot, qddot):  # pragma: no cover - compiled
+    """After the rod pass: each rod with sticking ends gets the tangential forces that hold
+    them (:func:`rod_stick`) added to its accelerations ``qddot``; the sticking pairs' friction
+    indicators ``mu_s F_n - |F_t|``; returns the power of those forces' (``-F_t . v_t``, zero
+    but for round-off) [W]."""
+    work = data.contact_work
+    P = contacts.plane_normal.shape[0]
+    correction, v = np.empty(6), np.empty(3)
+    dissipated = 0.0
+    for r in range(model.rod_slots.shape[0]):
+        o = 6 * r
+        if rod_stick(contacts, model, work, r, q, qddot[o : o + 6], correction) == 0:
+            continue
+        for i in range(6):
+            qddot[o + i] += correction[i]
+        for end in range(2):
+            end_motion(qdot, r, end, v)
+            for p in range(P):
+                k = (2 * r + end) * P + p
+                if work.mode[k] != STICK:
+                    continue
+                f = work.friction_force[k]
+                size = np.sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2])
+                limit = contacts.friction_static[p] * work.normal_force[k]
+                work.indicator[2 * k + 1] = limit - size
+                dissipated -= f[0] * v[0] + f[1] * v[1] + f[2] * v[2]
+    return dissipated
+
+
+@compiled_only
+def contact_energy(contacts, q):  # pragma: no cover - compiled
+    """The contacts' elastic energy ``sum k max(delta, 0)^2 / 2`` [J]."""
+    normal, point = contacts.plane_normal, contacts.plane_point
+    P = normal.shape[0]
+    x = np.empty(3)
+    energy = 0.0
+    for c in range(contacts.point_radius.shape[0]):
+        end_motion(q, c // 2, c % 2, x)
+        for p in range(P):
+            height = 0.0
+            for i in range(3):
+                height += normal[p, i] * (x[i] - point[p, i])
+            delta = contacts.point_radius[c] - height
+            if delta > 0.0:
+                energy += 0.5 * contacts.contact_stiffness[p] * delta * delta
+    return energy
+
+
+# --------------------------------------------------------------------------- records
+def pack_contacts(planes: Sequence[Plane], point_radius: np.ndarray) -> Contacts:
+    """The :class:`~tensegrity.physics.records.Contacts` of ``planes`` for contact points of
+    radii ``point_radius`` (2R,) [m] (the rods' ends, ``2 r + end``)."""
+    return Contacts(
+        plane_point=np.array([plane.point for plane in planes], dtype=np.float64),
+        plane_normal=np.array([plane.normal for plane in planes], dtype=np.float64),
+        plane_tangent=np.array([plane.tangents() for plane in planes], dtype=np.float64),
+        friction_static=np.array([plane.friction for plane in planes], dtype=np.float64),
+        friction_kinetic=np.array([plane.kinetic_friction for plane in planes], dtype=np.float64),
+        contact_stiffness=np.array([plane.stiffness for plane in planes], dtype=np.float64),
+        contact_damping=np.array([plane.damping for plane in planes], dtype=np.float64),
+        point_radius=np.ascontiguousarray(point_radius, dtype=np.float64),
+    )
+
+
+def contact_work(contacts: Contacts) -> ContactWork:
+    """A :class:`~tensegrity.physics.records.ContactWork` for ``contacts``, every pair free."""
+    P = contacts.plane_normal.shape[0]
+    pairs = contacts.point_radius.shape[0] * P
+    return ContactWork(
+        mode=np.full(pairs, FREE, np.int64),
+        slip_direction=np.zeros((pairs, 3)),
+        normal_force=np.zeros(pairs),
+        friction_force=np.zeros((pairs, 3)),
+        indicator=np.zeros(2 * pairs),
+        matrix=np.zeros((4 * P, 4 * P + 1)),
+    )
+
+
+@compiled_only
+def rod_kinetic(model, r, qdot):  # pragma: no cover - compiled
+    """Kinetic energy of rod ``r`` [J]: ``m (|q1'|^2 / 8 + |q2'|^2 / 24)``."""
+    o = 6 * r
+    v1, v2 = 0.0, 0.0
+    for i in range(3):
+        v1 += qdot[o + i] * qdot[o + i]
+        v2 += qdot[o + 3 + i] * qdot[o + 3 + i]
+    return model.rod_param[r, ROD_MASS] * (v1 / 8.0 + v2 / 24.0)
+
+
+@compiled_only
+def stick_velocities(contacts, model, data, y):  # pragma: no cover - compiled
+    """Zero the tangential velocity of every sticking point of the state ``y`` (m,) (per rod,
+    the impulses :func:`rod_stick` solves for on the rates): the inelastic end of a slip, its
+    kinetic energy added to the dissipated energy ``y[2n]``."""
+    work = data.contact_work
+    n = (y.shape[0] - 3) // 2
+    q, qdot = y[:n], y[n : 2 * n]
+    correction = np.empty(6)
+    removed = 0.0
+    for r in range(model.rod_slots.shape[0]):
+        o = 6 * r
+        if rod_stick(contacts, model, work, r, q, qdot[o : o + 6], correction) == 0:
+            continue
+        before = rod_kinetic(model, r, qdot)
+        for i in range(6):
+            qdot[o + i] += correction[i]
+        removed += before - rod_kinetic(model, r, qdot)
+    y[2 * n] += removed

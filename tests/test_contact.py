@@ -1,0 +1,227 @@
+"""Ground contact (:mod:`tensegrity.model.ground`, :mod:`tensegrity.physics.contact`): a rod on
+planes against closed forms that share no code with the engine: the restitution of the normal
+law, sticking below the friction angle, sliding above it, and the energy balance."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from tensegrity import simulate
+from tensegrity.model.ground import Plane, ground
+from tensegrity.model.structure import Structure
+
+MASS, LENGTH, STIFFNESS, DAMPING, G = 1.0, 1.0, 1e5, 100.0, 9.81
+#: Radius of the rod's ends as contact points [m]: a resting end sinks less than that.
+RADIUS = 0.01
+
+
+def lying_rod(z: float = 0.0, velocity=(0.0, 0.0, 0.0)) -> Structure:
+    """A rod of 1 kg and 1 m along x, its centre at height ``z`` [m], moving at ``velocity``."""
+    ends = [[-LENGTH / 2, 0.0, z], [LENGTH / 2, 0.0, z]]
+    return Structure(
+        node_position=ends,
+        node_velocity=[velocity, velocity],
+        rod_nodes=[[0, 1]],
+        rod_mass=[MASS],
+        rod_length=[LENGTH],
+        tendon_nodes=np.zeros((0, 2), int),
+        tendon_stiffness=[],
+        tendon_rest_length=[],
+    )
+
+
+def energy_total(run) -> np.ndarray:
+    e = run.energy
+    return (
+        e["kinetic"]
+        + e["elastic"]
+        + e["gravity"]
+        + e["dissipated"]
+        - e["external_work"]
+        - e["control_work"]
+    )
+
+
+def test_a_rod_dropped_flat_rebounds_with_the_laws_restitution():
+    """No gravity: each end hits the plane at 1 m/s as a point of half the rod's mass."""
+    plane = ground(stiffness=STIFFNESS, damping=DAMPING, friction=0.5)
+    run = simulate(
+        lying_rod(z=0.01, velocity=(0.0, 0.0, -1.0)),
+        (0.0, 0.05),
+        ground=plane,
+        rtol=1e-11,
+        atol=1e-13,
+        sample_dt=1e-3,
+    )
+    assert run.status == 0, run.message
+    expected = plane.restitution(MASS / 2)
+    assert 0.3 < expected < 0.9
+    assert run.node_velocity[-1, :, 2] == pytest.approx([expected, expected], rel=1e-8)
+    assert np.abs(run.node_velocity[-1, :, :2]).max() < 1e-12  # (no tangential motion)
+    assert len(run.switch_times) == 2  # (onset and lift-off, both ends at once)
+    dissipated = 0.5 * MASS * (1.0 - expected**2)
+    assert run.energy["dissipated"][-1] == pytest.approx(dissipated, rel=1e-8)
+    assert np.ptp(energy_total(run)) < 1e-9
+
+
+def tilted_gravity(theta: float) -> list[float]:
+    """Gravity tilted by ``theta`` [rad] down the +x direction of the plane z = 0."""
+    return [G * math.sin(theta), 0.0, -G * math.cos(theta)]
+
+
+def resting_rod(theta: float, axis: int = 0) -> Structure:
+    """A rod with ends of radius :data:`RADIUS` lying on z = 0 pressed in by its weight's normal
+    part (the law's rest), along x (``axis`` 0) or y (1)."""
+    depth = MASS * G * math.cos(theta) / (2 * STIFFNESS)
+    ends = np.zeros((2, 3))
+    ends[:, axis] = [-LENGTH / 2, LENGTH / 2]
+    ends[:, 2] = RADIUS - depth
+    return Structure(
+        node_position=ends,
+        rod_nodes=[[0, 1]],
+        rod_mass=[MASS],
+        rod_length=[LENGTH],
+        tendon_nodes=np.zeros((0, 2), int),
+        tendon_stiffness=[],
+        tendon_rest_length=[],
+    )
+
+
+@pytest.mark.parametrize("mu", [0.2, 0.5, 1.0])
+@pytest.mark.parametrize("fraction", [0.3, 0.9, 0.99])
+def test_a_rod_on_a_slope_below_the_friction_angle_stays_put(mu, fraction):
+    theta = fraction * math.atan(mu)
+    plane = ground(stiffness=STIFFNESS, damping=DAMPING, friction=mu)
+    structure = resting_rod(theta, axis=int(fraction > 0.5))
+    run = simulate(
+        structure,
+        (0.0, 10.0),
+        gravity=tilted_gravity(theta),
+        ground=plane,
+        contact_radius=RADIUS,
+        sample_dt=0.5,
+    )
+    assert run.status == 0, run.message
+    drift = np.abs(run.node_position - run.node_position[0]).max()
+    assert drift <= 1e-9, drift
+    assert np.ptp(energy_total(run)) < 1e-9
+
+
+@pytest.mark.parametrize("method", ["DOP853", "RK45"])
+@pytest.mark.parametrize(("mu_s", "mu_k", "degrees"), [(0.3, 0.3, 25.0), (0.5, 0.4, 35.0)])
+def test_a_rod_above_the_friction_angle_slides_at_the_closed_form_acceleration(
+    method, mu_s, mu_k, degrees
+):
+    theta = math.radians(degrees)
+    assert math.tan(theta) > mu_s
+    plane = ground(stiffness=STIFFNESS, damping=DAMPING, friction=mu_s, kinetic_friction=mu_k)
+    run = simulate(
+        resting_rod(theta),
+        (0.0, 1.0),
+        gravity=tilted_gravity(theta),
+        ground=plane,
+        contact_radius=RADIUS,
+        method=method,
+        sample_dt=0.1,
+        rtol=1e-10,
+        atol=1e-12,
+    )
+    assert run.status == 0, run.message
+    acceleration = G * (math.sin(theta) - mu_k * math.cos(theta))
+    x = run.node_position[:, :, 0].mean(axis=1) - run.node_position[0, :, 0].mean()
+    assert x[-1] == pytest.approx(0.5 * acceleration, rel=1e-3)
+    dissipated = run.energy["dissipated"]
+    assert np.all(np.diff(dissipated) >= -1e-12)  # (friction never gives energy back)
+    assert np.ptp(energy_total(run)) < 1e-8
+
+
+def test_a_node_below_the_ground_is_refused_naming_it():
+    with pytest.raises(ValueError, match=r"^ground: node 0 \(rod 0's end a\) starts 0.1 m below"):
+        simulate(lying_rod(z=-0.1), (0.0, 0.1), ground=ground())
+
+
+@pytest.mark.parametrize(
+    ("options", "words"),
+    [
+        (dict(method="rk4", dt=1e-4), "ground: contact needs an adaptive method"),
+        (dict(locate_switches=False), "ground: contact needs an adaptive method"),
+        (dict(contact_radius=-1.0), "contact_radius: must be a number >= 0"),
+    ],
+)
+def test_contact_options_that_cannot_work_are_refused(options, words):
+    with pytest.raises(ValueError, match="^" + words):
+        simulate(lying_rod(z=0.1), (0.0, 0.1), ground=ground(), **options)
+
+
+@pytest.mark.parametrize(
+    ("fields", "words"),
+    [
+        (dict(normal=(0, 0, 0)), "normal: must not be zero"),
+        (dict(friction=-0.1), "friction: must be a finite number >= 0"),
+        (dict(friction=0.3, kinetic_friction=0.5), "kinetic_friction: must not exceed friction"),
+        (dict(stiffness=0.0), "stiffness: must be a finite number > 0"),
+        (dict(point=(0, 0)), "point: expected 3 finite numbers"),
+    ],
+)
+def test_a_bad_plane_is_a_one_line_error_naming_the_field(fields, words):
+    with pytest.raises(ValueError, match="^" + words) as info:
+        Plane(**fields)
+    assert "\n" not in str(info.value)
+
+
+def test_ground_must_be_planes():
+    with pytest.raises(TypeError, match="^ground: expected a Plane"):
+        simulate(lying_rod(z=0.1), (0.0, 0.1), ground=0.0)
+
+
+def test_a_sliding_rod_stops_where_kinetic_friction_stops_it_and_stays():
+    """On flat ground, from 1 m/s along its axis: it stops after ``v^2 / (2 mu_k g)`` at ``v /
+    (mu_k g)`` (a located slip-to-stick event), then sticks."""
+    mu, speed = 0.4, 1.0
+    plane = ground(stiffness=STIFFNESS, damping=DAMPING, friction=mu)
+    structure = resting_rod(0.0)
+    structure = Structure.from_dict(
+        {**structure.to_dict(), "velocities": [[speed, 0.0, 0.0], [speed, 0.0, 0.0]]}
+    )
+    run = simulate(
+        structure,
+        (0.0, 2.0),
+        gravity=[0.0, 0.0, -G],
+        ground=plane,
+        contact_radius=RADIUS,
+        sample_dt=0.05,
+        rtol=1e-11,
+        atol=1e-13,
+    )
+    assert run.status == 0, run.message
+    stop = speed / (mu * G)
+    assert min(abs(np.asarray(run.switch_times) - stop)) < 1e-9
+    x = run.node_position[:, :, 0].mean(axis=1)
+    assert x[-1] - x[0] == pytest.approx(speed**2 / (2 * mu * G), rel=1e-7)
+    after = run.t > stop + 0.05
+    assert np.abs(run.node_position[after] - run.node_position[-1]).max() <= 1e-9
+
+
+def test_a_rod_held_by_friction_slips_when_a_ramped_pull_reaches_mu_n():
+    """A horizontal pull on both ends growing at 10 N/s (a Painleve-style ramp, as Drake tests
+    it): the rod sticks until the pull reaches ``mu_s m g``."""
+    mu, ramp = 0.5, 10.0
+    plane = ground(stiffness=STIFFNESS, damping=DAMPING, friction=mu, kinetic_friction=0.4)
+    run = simulate(
+        resting_rod(0.0),
+        (0.0, 0.8),
+        gravity=[0.0, 0.0, -G],
+        ground=plane,
+        contact_radius=RADIUS,
+        external_force=lambda t: np.array([[ramp * t / 2, 0.0, 0.0]] * 2),
+        sample_dt=0.01,
+    )
+    assert run.status == 0, run.message
+    slip = mu * MASS * G / ramp
+    assert run.switch_times[0] == pytest.approx(slip, rel=1e-3)
+    before = run.t < run.switch_times[0]
+    assert np.abs(run.node_position[before] - run.node_position[0]).max() <= 1e-9
+    assert run.node_position[-1, 0, 0] - run.node_position[0, 0, 0] > 1e-3  # (then it slides)
