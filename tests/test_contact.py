@@ -225,3 +225,39 @@ def test_a_rod_held_by_friction_slips_when_a_ramped_pull_reaches_mu_n():
     before = run.t < run.switch_times[0]
     assert np.abs(run.node_position[before] - run.node_position[0]).max() <= 1e-9
     assert run.node_position[-1, 0, 0] - run.node_position[0, 0, 0] > 1e-3  # (then it slides)
+
+
+def test_a_prestressed_six_bar_resting_on_the_ground_does_not_creep():
+    """NTRT's issue 83: an unactuated six-bar on its face. Settled (steady state), then 10 s
+    more: no node moves by more than 1e-9 m (friction holds exactly; no creep)."""
+    from tensegrity.design.catalogue import octahedron
+    from tensegrity.physics.dynamics import State
+
+    robot = octahedron(stiffness=2000.0, tension=100.0, damping=20.0)
+    face = -np.ones(3) / np.sqrt(3)  # (the triangle of nodes nearest (-1, -1, -1))
+    axis = np.cross(face, [0.0, 0.0, -1.0])
+    skew = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    rotation = np.eye(3) + skew + skew @ skew / (1.0 - face[2])
+    nodes = robot.node_position @ rotation.T
+    nodes[:, 2] += RADIUS - nodes[:, 2].min()
+    robot = robot.replace(node_position=nodes)
+    scene = dict(
+        gravity=[0.0, 0.0, -G],
+        ground=ground(friction=0.8, kinetic_friction=0.6),
+        contact_radius=RADIUS,
+    )
+    settled = simulate(
+        robot,
+        (0.0, 200.0),
+        steady_state=True,
+        velocity_tol=1e-10,
+        acceleration_tol=1e-8,
+        sample_dt=0.5,
+        **scene,
+    )
+    assert settled.status == 1, settled.message  # (at rest)
+    assert np.sort(settled.node_position[-1, :, 2])[3] > 0.1  # (on three nodes: a face)
+    start = State(t=0.0, q=settled.q[-1], qdot=settled.qdot[-1])
+    run = simulate(robot, (0.0, 10.0), initial=start, sample_dt=0.5, **scene)
+    assert run.status == 0 and run.nswitches == 0, run.message
+    assert np.abs(run.node_position - run.node_position[0]).max() <= 1e-9

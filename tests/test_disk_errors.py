@@ -16,7 +16,7 @@ from tensegrity import class1_shell
 from tensegrity.io.formats import write_structure
 from test_cli_resume import cli
 
-#: A (10,10) shell for 1 s, 101 samples in 10 segments: a trajectory file of about 5 MB.
+#: A (10,10) shell for 2 s, 201 samples in 10 segments: a trajectory file of about 5.5 MB.
 RUN = [
     "simulate",
     "--n",
@@ -24,7 +24,7 @@ RUN = [
     "--m",
     "10",
     "--t-end",
-    "1",
+    "2",
     "--no-steady-state",
     "--sample-dt",
     "0.01",

@@ -59,6 +59,7 @@ from tensegrity.engine.events import (
 )
 from tensegrity.engine.steppers import StepperMemory
 from tensegrity.engine.system import CompiledSystem
+from tensegrity.physics.contact import refresh_slips
 from tensegrity.physics.kernel import copy_values
 from tensegrity.physics.kernel_system import system_project
 
@@ -353,6 +354,7 @@ def dop853_run(model, rows, point, loop, bound, next_sample_t):  # pragma: no co
             if locate:
                 exact = landed and bool(loop.tally[LANDING_EXACT])
                 set_sides(point, loop.events, exact)
+                refresh_slips(model.contacts, point, loop.y)
             check, value = check_state(model, point, np.int64(0), loop.y, limits, np.bool_(True))
             if check != CHECK_OK:
                 return RUN_CHECK_FAILED, check, value

@@ -55,7 +55,14 @@ from tensegrity.physics.compiling import (
     JIT_OPTIONS,
     compiled_only,
 )
-from tensegrity.physics.contact import FREE, SLIP, STICK, end_motion, stick_velocities
+from tensegrity.physics.contact import (
+    FREE,
+    SLIP,
+    STICK,
+    end_motion,
+    refresh_slips,
+    stick_velocities,
+)
 from tensegrity.physics.kernel import (
     tendon_vector,
 )
@@ -536,3 +543,9 @@ def land_contacts_entry(model, data, y, events):  # pragma: no cover - compiled
 def start_contacts_entry(model, data, y, events):  # pragma: no cover - compiled
     """:func:`start_contacts`, called from Python."""
     start_contacts(model.contacts, model, data, y, events)
+
+
+@njit(**JIT_OPTIONS)
+def refresh_slips_entry(model, data, y):  # pragma: no cover - compiled
+    """:func:`tensegrity.physics.contact.refresh_slips`, called from Python."""
+    refresh_slips(model.contacts, data, y)

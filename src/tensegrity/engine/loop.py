@@ -39,6 +39,7 @@ from tensegrity.engine.events import (
     land_contacts_entry,
     landing_of,
     locate_event_entry,
+    refresh_slips_entry,
     restore_landing,
     set_sides_entry,
     start_contacts_entry,
@@ -604,6 +605,7 @@ def _adaptive(run: _Run, stepper: Stepper, resume: LoopState | None) -> None:
         landed = landing if landing is not None and stepper.t >= landing.time else None
         if locate:
             set_sides_entry(stepper.evaluation(), events, landed is not None and landed.exact)
+            refresh_slips_entry(system.model, stepper.evaluation(), stepper.y)
         drift = run.check(stepper.y, stepper.t)
         if drift is None:
             run.record(stepper.t, stepper.y)

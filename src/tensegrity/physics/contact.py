@@ -342,3 +342,31 @@ def stick_velocities(contacts, model, data, y):  # pragma: no cover - compiled
             qdot[o + i] += correction[i]
         removed += before - rod_kinetic(model, r, qdot)
     y[2 * n] += removed
+
+
+@compiled_only
+def refresh_slips(contacts, data, y):  # pragma: no cover - compiled
+    """After an accepted step ending at ``y``: each slipping point's direction ``s`` becomes
+    that of its tangential velocity (if it moves), so that the next step's friction indicator
+    ``-v_t . s`` crosses zero wherever the point stops, however its velocity turned on the way
+    (in the plane a slip that comes to rest turns ever faster as it slows); nothing without
+    contacts.  The forces use ``s`` only where ``v_t = 0``, so this changes no evaluation."""
+    if contacts is None:
+        return
+    work = data.contact_work
+    P = contacts.plane_normal.shape[0]
+    n = (y.shape[0] - 3) // 2
+    v = np.empty(3)
+    for k in range(work.mode.shape[0]):
+        if work.mode[k] != SLIP:
+            continue
+        c, p = k // P, k % P
+        end_motion(y[n : 2 * n], c // 2, c % 2, v)
+        normal = contacts.plane_normal[p]
+        along = v[0] * normal[0] + v[1] * normal[1] + v[2] * normal[2]
+        for i in range(3):
+            v[i] -= along * normal[i]
+        speed = np.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+        if speed > 0.0:
+            for i in range(3):
+                work.slip_direction[k, i] = v[i] / speed
