@@ -5,6 +5,9 @@
 - :func:`octahedron`: the 6-bar expanded octahedron;
 - :func:`tower`: a tower of stacked, interlaced ``n``-bar prisms (Snelson's Needle Tower,
   the paper's Figure 18.3);
+- :func:`six_bar_robot` and :func:`three_bar_robot`: the octahedron and the simplex as robots,
+  with named cables (:func:`face_cables`), a choice of actuated ones (:func:`actuated_cables`)
+  and, for the six-bar, an optional payload at the centre;
 - the class 1 shell :func:`tensegrity.model.shell.class1_shell` (kind ``shell``).
 
 Every generator returns a validated :class:`~tensegrity.model.structure.Structure` with rods of
