@@ -1,8 +1,8 @@
 """The design layer: structures made with the analysis tools (form-finding, prestress).
 
 - :mod:`~tensegrity.design.catalogue` — the generators by kind (``tensegrity export --kind``):
-  the paper's shells and planar examples and the prestressed prism, expanded octahedron and
-  Needle Tower.
+  the paper's shells and planar examples and the prestressed prism, expanded octahedron,
+  Needle Tower and the six-bar and three-bar robots.
 - :mod:`~tensegrity.design.materials` — materials (a table of common ones) and round sections;
   the structure a choice of them makes (``E A / Lbar``, ``rho A L``).
 - :mod:`~tensegrity.design.utilisation` — how close each member is to yielding, breaking or

@@ -5,6 +5,9 @@
 - :func:`octahedron`: the 6-bar expanded octahedron;
 - :func:`tower`: a tower of stacked, interlaced ``n``-bar prisms (Snelson's Needle Tower,
   the paper's Figure 18.3);
+- :func:`six_bar_robot` and :func:`three_bar_robot`: the octahedron and the simplex as robots,
+  with named cables (:func:`face_cables`), a choice of actuated ones (:func:`actuated_cables`)
+  and, for the six-bar, an optional payload at the centre;
 - the class 1 shell :func:`tensegrity.model.shell.class1_shell` (kind ``shell``).
 
 Every generator returns a validated :class:`~tensegrity.model.structure.Structure` with rods of
@@ -26,6 +29,7 @@ from __future__ import annotations
 
 import importlib
 import inspect
+import itertools
 import math
 from collections.abc import Callable
 from typing import Any, NamedTuple
@@ -330,6 +334,246 @@ def tower(
     return found.structure
 
 
+# -------------------------------------------------------------------------------- robots
+#: Suffix of the name of a tendon that is not actuated (:func:`actuated_cables`).
+PASSIVE = "_passive"
+
+#: The 8 cable triangles of :func:`six_bar_robot`, named by the octant each faces: ``"f"`` and
+#: the signs of ``x``, ``y``, ``z`` (``"f+-+"``: the face towards ``x > 0, y < 0, z > 0``).
+SIX_BAR_FACES: tuple[str, ...] = tuple(
+    "f" + "".join(signs) for signs in itertools.product("-+", repeat=3)
+)
+
+
+#: A face's cable by the axes of the two bars it joins (0, 1, 2: ``x``, ``y``, ``z``).
+_FACE_EDGES = {frozenset((0, 1)): "xy", frozenset((1, 2)): "yz", frozenset((0, 2)): "zx"}
+
+
+def actuated_cables(structure: Structure) -> tuple[str, ...]:
+    """Names of ``structure``'s actuated tendons: those whose name does not end in
+    :data:`PASSIVE`, in the structure's order.
+
+    A control table (:class:`~tensegrity.model.loads.ControlTable`, one column per tendon) moves
+    the rest lengths of these and keeps the other columns zero; the robots of
+    :func:`six_bar_robot` and :func:`three_bar_robot` mark the cables their ``actuated`` keyword
+    leaves out, and any structure (a file too) can mark its passive tendons the same way.
+    """
+    return tuple(name for name in structure.tendon_name if not name.endswith(PASSIVE))
+
+
+def face_cables(structure: Structure, face: str) -> tuple[str, str, str]:
+    """Names ``(xy, yz, zx)`` of the three cables around the triangle ``face`` of a
+    :func:`six_bar_robot` (one of :data:`SIX_BAR_FACES`), actuated or not.
+
+    ``ValueError`` naming ``face`` if it is not a face name or ``structure`` has not its cables.
+    """
+    if face not in SIX_BAR_FACES:
+        raise ValueError(f"face: expected one of {', '.join(SIX_BAR_FACES)}, got {face!r}")
+    names = set(structure.tendon_name)
+    xy, yz, zx = (
+        next((n for n in (f"{face}_{pair}", f"{face}_{pair}{PASSIVE}") if n in names), "")
+        for pair in _FACE_EDGES.values()
+    )
+    if not (xy and yz and zx):
+        raise ValueError(
+            f"face: {structure!r} has no cables of face {face!r} (not a six-bar robot)"
+        )
+    return xy, yz, zx
+
+
+def _actuated(structure: Structure, actuated: Any, default: str) -> Structure:
+    """``structure`` with :data:`PASSIVE` appended to the names of the tendons ``actuated`` (names
+    or fnmatch patterns, comma-separated text or a sequence; ``"all"``: ``default``) does not
+    match; ``ValueError`` naming ``actuated`` for a pattern that matches no tendon."""
+    from tensegrity.analysis.controllability import match_tendons, split_patterns
+
+    try:
+        patterns = split_patterns(default if actuated == "all" else actuated)
+    except (TypeError, AttributeError, ValueError):
+        raise ValueError(f"actuated: expected cable names or patterns, got {actuated!r}") from None
+    chosen: set[str] = set()
+    for pattern in patterns:
+        try:
+            chosen.update(match_tendons(structure, [pattern]))
+        except KeyError:
+            raise ValueError(
+                f"actuated: no cable matches {pattern!r} (cables: "
+                f"{', '.join(structure.tendon_name)})"
+            ) from None
+    names = tuple(n if n in chosen else n + PASSIVE for n in structure.tendon_name)
+    return structure.replace(tendon_name=names)
+
+
+def _payload_offset(L: float, tension: float, payload_tension: float) -> float:
+    """The offset ``a`` [m] of the six-bar's bars from the centre (``L/4`` without payload) at
+    which 12 radial cables of tension ``payload_tension`` balance the shell's of ``tension``.
+
+    At node ``(L/2, 0, a)``, with force densities ``q`` (shell) and ``q_p`` (radial), ``z``
+    balance ``q (L - 4a) = q_p a`` (the bar is along ``x``) gives ``a`` in ``(0, L/4)``.
+    """
+    from scipy.optimize import brentq
+
+    def excess(a: float) -> float:
+        shell = math.sqrt((L / 2 - a) ** 2 + L**2 / 4 + a**2)
+        radial = math.sqrt(L**2 / 4 + a**2)
+        return payload_tension / radial * a - tension / shell * (L - 4 * a)
+
+    return float(brentq(excess, 1e-9 * L, L / 4, xtol=1e-15 * L, rtol=4 * np.finfo(float).eps))
+
+
+def six_bar_robot(
+    *,
+    rod_length: float = 1.0,
+    rod_mass: float = 1.0,
+    stiffness: float = 100.0,
+    tension: float = 5.0,
+    damping: float = 0.0,
+    actuated: str | tuple[str, ...] = "all",
+    payload_mass: float | None = None,
+    payload_stiffness: float | None = None,
+    payload_tension: float | None = None,
+) -> Structure:
+    """The six-bar rolling robot: the expanded :func:`octahedron` with named cables, optionally
+    a payload at its centre held by 12 cables.
+
+    The 24 cables are the edges of the 8 cable triangles (:data:`SIX_BAR_FACES`), one triangle per
+    octant: face ``f<sx><sy><sz>`` joins the ``sx`` end of the ``x`` bar at ``z = sz a``, the
+    ``sy`` end of the ``y`` bar at ``x = sx a`` and the ``sz`` end of the ``z`` bar at
+    ``y = sy a``; its cables are ``<face>_xy``, ``<face>_yz`` and ``<face>_zx`` by the two bars
+    they join (``f+-+_xy``; :func:`face_cables`).  The robot rolls from one such face to the
+    next.  Nodes and rods as :func:`octahedron`'s (nodes ``2r, 2r+1`` the ``-`` and ``+`` ends of
+    rod ``r``; rods: ``x`` bars at ``z = -a, +a``, ``y`` bars at ``x = -a, +a``, ``z`` bars at
+    ``y = -a, +a``), every shell cable at tension ``tension`` [N].
+
+    Parameters
+    ----------
+    rod_length : float
+        [m].  rod_mass : [kg].  stiffness : cable stiffness [N/m].  damping : cable [N s/m].
+    tension : float
+        Tension of every shell cable in the prestress [N].
+    actuated : str or sequence of str
+        The actuated cables: names or ``fnmatch`` patterns, comma-separated text or a sequence
+        (``"f+++_*,f---_*"``: two opposite faces); ``"all"`` (default) is the 24 shell cables.
+        The others' names end in :data:`PASSIVE`; :func:`actuated_cables` lists the actuated.
+    payload_mass : float, optional
+        A point mass [kg] at the centre (node 12), tied to every node ``k`` by a cable
+        ``payload_<k>`` (passive unless ``actuated`` names it).  The bars then move closer to
+        the centre, to the offset ``a < L/4`` at which the radial cables balance the shell (all
+        shell cables still equal), and the rest lengths realize that self-stress.  Default: none
+        (``a = L/4``, cables ``sqrt(6)/4 L``).
+    payload_stiffness : float, optional
+        Payload cable stiffness [N/m], default ``stiffness``; only with ``payload_mass``.
+    payload_tension : float, optional
+        Payload cable tension in the prestress [N], default ``tension``; only with
+        ``payload_mass``.
+
+    Raises
+    ------
+    ValueError
+        Naming the keyword: a value not > 0, a payload keyword without ``payload_mass``, an
+        ``actuated`` pattern that matches no cable.
+    """
+    from tensegrity.analysis.prestress import rest_lengths_for_tensions
+
+    shell = octahedron(
+        rod_length=rod_length,
+        rod_mass=rod_mass,
+        stiffness=stiffness,
+        tension=tension,
+        damping=damping,
+    )
+    p = shell.node_position
+    rod_axis = np.repeat(np.arange(3), 4)  # node -> the axis its bar is parallel to
+    tail, head = shell.tendon_nodes.T
+    octant = np.sign(p[tail] + p[head]).astype(int)  # the face a cable belongs to
+    names = [
+        "f"
+        + "".join("-+"[(sign + 1) // 2] for sign in octant[k])
+        + "_"
+        + _FACE_EDGES[frozenset((rod_axis[tail[k]], rod_axis[head[k]]))]
+        for k in range(shell.n_tendons)
+    ]
+    robot = shell.replace(tendon_name=names)
+    if payload_mass is None:
+        for name, value in (
+            ("payload_stiffness", payload_stiffness),
+            ("payload_tension", payload_tension),
+        ):
+            if value is not None:
+                raise ValueError(f"{name}: only with payload_mass, got {value!r}")
+        return _actuated(robot, actuated, "f*")
+    mass = _positive(payload_mass, "payload_mass")
+    k_p = _positive(
+        stiffness if payload_stiffness is None else payload_stiffness, "payload_stiffness"
+    )
+    T = float(tension)  # checked by octahedron()
+    T_p = _positive(tension if payload_tension is None else payload_tension, "payload_tension")
+    L = float(shell.rod_length[0])
+    offset = np.isclose(np.abs(p), L / 4, rtol=1e-12)  # each node's coordinate across its bar
+    position = np.vstack(
+        [np.where(offset, p * _payload_offset(L, T, T_p) / (L / 4), p), np.zeros(3)]
+    )
+    n = shell.n_nodes
+    radial = _pairs(np.full(n, n), np.arange(n))
+    cables = np.vstack([shell.tendon_nodes, radial])
+    draft = from_connectivity(
+        position.T,
+        incidence(shell.rod_nodes, n + 1),
+        incidence(cables, n + 1),
+        rod_mass=shell.rod_mass,
+        tendon_stiffness=np.concatenate([shell.tendon_stiffness, np.full(n, k_p)]),
+        tendon_prestrain=0.0,
+        tendon_damping=np.concatenate([shell.tendon_damping, np.full(n, shell.tendon_damping[0])]),
+        tendon_name=(*names, *(f"payload_{k}" for k in range(n))),
+        node_point_mass=np.append(np.zeros(n), mass),
+    )
+    rest, _ = rest_lengths_for_tensions(
+        draft, None, np.concatenate([np.full(shell.n_tendons, T), np.full(n, T_p)])
+    )
+    return _actuated(draft.replace(tendon_rest_length=rest), actuated, "f*")
+
+
+#: Tendon names of :func:`three_bar_robot` by the prefix of :func:`prism_members`' names.
+_THREE_BAR_CABLES = {"b": "bottom", "t": "top", "s": "side"}
+
+
+def three_bar_robot(
+    *,
+    rod_length: float = 1.0,
+    rod_mass: float = 1.0,
+    height: float | None = None,
+    stiffness: float = 100.0,
+    tension: float = 5.0,
+    damping: float = 0.0,
+    actuated: str | tuple[str, ...] = "all",
+) -> Structure:
+    """The three-bar robot: the simplex (:func:`prism` ``(3)``) with named cables.
+
+    Cables ``bottom_i`` (bottom ring, node ``i`` -> ``i+1``), ``top_i`` (top ring, node ``3+i``
+    -> ``3+(i+1)``) and ``side_i`` (bottom node ``i`` -> top node ``3+(i-1)``), ``i = 0, 1, 2``
+    mod 3; bar ``i`` joins bottom node ``i`` to top node ``3+i``.  Geometry, prestress and the
+    keywords as :func:`prism`'s.
+
+    Parameters
+    ----------
+    actuated : str or sequence of str
+        The actuated cables: names or ``fnmatch`` patterns, comma-separated text or a sequence
+        (``"side_*"``: the three side cables); ``"all"`` (default) is all nine.  The others'
+        names end in :data:`PASSIVE`; :func:`actuated_cables` lists the actuated.
+    """
+    simplex = prism(
+        3,
+        rod_length=rod_length,
+        rod_mass=rod_mass,
+        height=height,
+        stiffness=stiffness,
+        tension=tension,
+        damping=damping,
+    )
+    names = tuple(f"{_THREE_BAR_CABLES[n[0]]}_{n[1:]}" for n in simplex.tendon_name)
+    return _actuated(simplex.replace(tendon_name=names), actuated, "*")
+
+
 # ------------------------------------------------------------------------------ registry
 class Kind(NamedTuple):
     """A registered generator: the function that builds the structure and a one-line summary."""
@@ -344,6 +588,8 @@ KINDS: dict[str, Kind] = {
     "prism": Kind(prism, "regular n-bar prism (n = 3: simplex), equilibrium twist"),
     "octahedron": Kind(octahedron, "6-bar expanded octahedron"),
     "tower": Kind(tower, "m stacked interlaced n-bar prisms (Needle Tower)"),
+    "six-bar": Kind(six_bar_robot, "six-bar robot: expanded octahedron, named faces, payload"),
+    "three-bar": Kind(three_bar_robot, "three-bar robot: simplex with named actuated cables"),
     "class2-shell": Kind(class2_shell, "the class 2 shell of Lemma 18.1 (ball joints)"),
     "planar": Kind(planar_two_rod, "planar two-rod tensegrity (Appendix A, Example 2)"),
     "rod": Kind(planar_rod, "a single planar rod (Appendix A, Example 1)"),
