@@ -59,9 +59,9 @@ from tensegrity.physics.contact import (
     FREE,
     SLIP,
     STICK,
-    end_motion,
     refresh_slips,
     stick_velocities,
+    tangential_velocity,
 )
 from tensegrity.physics.kernel import (
     tendon_vector,
@@ -477,16 +477,10 @@ def start_contacts(contacts, model, data, y, events):  # pragma: no cover - comp
 def switch_mode(contacts, work, y, k, touch):  # pragma: no cover - compiled
     """Pair ``k``'s mode after its contact (``touch``) or friction event at ``y``: see
     :func:`land_contacts`."""
-    P = contacts.plane_normal.shape[0]
-    c, p = k // P, k % P
+    p = k % contacts.plane_normal.shape[0]
     n = (y.shape[0] - 3) // 2
     v = np.empty(3)
-    end_motion(y[n : 2 * n], c // 2, c % 2, v)
-    normal = contacts.plane_normal[p]
-    along = v[0] * normal[0] + v[1] * normal[1] + v[2] * normal[2]
-    for i in range(3):
-        v[i] -= along * normal[i]
-    speed = np.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+    speed = tangential_velocity(contacts, y[n : 2 * n], k, v)
     mode = work.mode[k]
     if touch and mode != FREE:
         work.mode[k] = FREE

@@ -55,6 +55,20 @@ def end_motion(q, r, end, out):  # pragma: no cover - compiled
 
 
 @compiled_only
+def tangential_velocity(contacts, qdot, k, out):  # pragma: no cover - compiled
+    """The velocity of pair ``k``'s point along its plane into ``out`` (3,) [m/s] from the
+    rates ``qdot``; returns its size."""
+    P = contacts.plane_normal.shape[0]
+    c, p = k // P, k % P
+    end_motion(qdot, c // 2, c % 2, out)
+    normal = contacts.plane_normal[p]
+    along = out[0] * normal[0] + out[1] * normal[1] + out[2] * normal[2]
+    for i in range(3):
+        out[i] -= along * normal[i]
+    return np.sqrt(out[0] * out[0] + out[1] * out[1] + out[2] * out[2])
+
+
+@compiled_only
 def contact_pass(contacts, model, data, q, qdot):  # pragma: no cover - compiled
     """The normal forces and the sliding friction of every pair into ``data.node_force`` (before
     the rod pass), the pairs' forces and indicators into ``data.contact_work`` (the friction
@@ -354,19 +368,12 @@ def refresh_slips(contacts, data, y):  # pragma: no cover - compiled
     if contacts is None:
         return
     work = data.contact_work
-    P = contacts.plane_normal.shape[0]
     n = (y.shape[0] - 3) // 2
     v = np.empty(3)
     for k in range(work.mode.shape[0]):
         if work.mode[k] != SLIP:
             continue
-        c, p = k // P, k % P
-        end_motion(y[n : 2 * n], c // 2, c % 2, v)
-        normal = contacts.plane_normal[p]
-        along = v[0] * normal[0] + v[1] * normal[1] + v[2] * normal[2]
-        for i in range(3):
-            v[i] -= along * normal[i]
-        speed = np.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+        speed = tangential_velocity(contacts, y[n : 2 * n], k, v)
         if speed > 0.0:
             for i in range(3):
                 work.slip_direction[k, i] = v[i] / speed
