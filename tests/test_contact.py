@@ -5,6 +5,7 @@ law, sticking below the friction angle, sliding above it, and the energy balance
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -134,8 +135,8 @@ def test_a_node_below_the_ground_is_refused_naming_it():
 @pytest.mark.parametrize(
     ("options", "words"),
     [
-        (dict(method="rk4", dt=1e-4), "ground: contact needs an adaptive method"),
-        (dict(locate_switches=False), "ground: contact needs an adaptive method"),
+        (dict(method="rk4", dt=1e-4), r"ground \(--ground\): contact needs an adaptive method"),
+        (dict(locate_switches=False), r"ground \(--ground\): contact needs an adaptive method"),
         (dict(contact_radius=-1.0), "contact_radius: must be a number >= 0"),
     ],
 )
@@ -249,3 +250,79 @@ def test_a_prestressed_six_bar_resting_on_the_ground_does_not_creep():
     run = simulate(robot, (0.0, 10.0), initial=start, sample_dt=0.5, **scene)
     assert run.status == 0 and run.nswitches == 0, run.message
     assert np.abs(run.node_position - run.node_position[0]).max() <= 1e-9
+
+
+def test_a_streamed_run_with_contact_resumes_bit_for_bit(tmp_path):
+    """A rod sliding to a stop, streamed in segments: interrupted after the first (its pairs
+    slipping), resumed, it ends as the run that was not interrupted (the checkpoint keeps the
+    contacts' modes and slip directions)."""
+    from tensegrity.io.stream import simulate_to_file
+    from tensegrity.io.trajectory import read_trajectory
+
+    structure = Structure.from_dict(
+        {**resting_rod(0.0).to_dict(), "velocities": [[1.0, 0.2, 0.0], [1.0, 0.2, 0.0]]}
+    )
+    options = dict(
+        gravity=[0.0, 0.0, -G],
+        ground=ground(friction=0.4, stiffness=STIFFNESS, damping=DAMPING),
+        contact_radius=RADIUS,
+        sample_dt=0.01,
+        segment=0.1,
+    )
+
+    def interrupt(info):
+        if info.segment == 1:
+            raise KeyboardInterrupt
+
+    whole = simulate_to_file(structure, (0.0, 0.5), tmp_path / "whole.h5", **options)
+    with pytest.raises(KeyboardInterrupt):
+        simulate_to_file(
+            structure, (0.0, 0.5), tmp_path / "resumed.h5", progress=interrupt, **options
+        )
+    resumed = simulate_to_file(structure, (0.0, 0.5), tmp_path / "resumed.h5", **options)
+    assert resumed.resumed_from == 1 and whole.status == resumed.status == 0
+    a, b = read_trajectory(whole.path), read_trajectory(resumed.path)
+    assert a.nswitches == b.nswitches > 0
+    for name in ("t", "q", "qdot", "switch_times"):
+        assert np.array_equal(getattr(a, name), getattr(b, name)), name
+    assert read_trajectory(whole.path).settings["ground"][0]["friction"] == 0.4
+
+
+def test_the_simulate_command_stands_a_robot_on_the_ground(tmp_path, capsys):
+    """``tensegrity simulate --ground Z``: a six-bar dropped on its nodes' lowest level comes to
+    rest on the plane (none of its ends below it by more than its radius), the file's settings
+    hold the plane, and the summary counts the events."""
+    from tensegrity.cli.main import main
+    from tensegrity.io.trajectory import read_trajectory
+
+    out = tmp_path / "out"
+    argv = ["simulate", "--kind", "six-bar", "--set", "stiffness=2000", "--set", "tension=100"]
+    argv += ["--gravity", "9.81", "--ground", "-0.5", "--friction", "0.8,0.6"]
+    argv += ["--contact-radius", "0.01", "--t-end", "2", "--no-view", "--no-animation"]
+    assert main([*argv, "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "events (slack/taut switches, contacts) located" in printed
+    run = read_trajectory(out / "trajectory.h5")
+    assert run.status == 1  # (at rest)
+    assert run.settings["ground"] == [ground(-0.5, friction=0.8, kinetic_friction=0.6).settings()]
+    lowest = run.node_position[-1, :, 2].min()
+    assert -0.5 < lowest < -0.49  # (resting on the plane, within the ends' radius)
+
+
+@pytest.mark.parametrize(
+    ("argv", "words"),
+    [
+        (["--ground-normal", "0,0,0"], "--ground-normal: must not be zero"),
+        (["--friction", "-1"], "--friction: must be a finite number >= 0"),
+        (["--friction", "0.3,0.5"], "--friction: must not exceed friction"),
+        (["--contact-stiffness", "0"], "--contact-stiffness: must be a finite number > 0"),
+        (["--method", "rk4", "--dt", "1e-4"], r"ground \(--ground\): contact needs"),
+    ],
+)
+def test_a_bad_ground_option_is_one_line_naming_it(tmp_path, capsys, argv, words):
+    from tensegrity.cli.main import main
+
+    code = main(["simulate", "--ground", "-1", *argv, "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1
+    assert re.search(words, err), err

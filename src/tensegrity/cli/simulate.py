@@ -14,6 +14,7 @@ import dataclasses
 import math
 import shutil
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -207,6 +208,7 @@ def _stream_run(
             stop=stop,
             external_force=force,
             gravity=gravity,
+            **_ground_of(args),
             **dataclasses.asdict(options),
         )
     except KeyboardInterrupt:
@@ -352,6 +354,7 @@ def add_parser(sub: Any) -> None:
         "f0y, f0z, f1x, ...)",
     )
     add_gravity_option(sim)
+    _add_ground_options(sim)
     sim.add_argument(
         "--vtk",
         action="store_true",
@@ -407,6 +410,106 @@ _INTEGRATION_OPTIONS = {
 }
 #: ``simulate``'s own default of ``--sample-dt`` [s] (the library's: a thousandth of the span).
 SAMPLE_DT = 0.01
+
+
+def _numbers(count: int) -> Callable[[str], tuple[float, ...]]:
+    """An argparse type: ``count`` comma-separated numbers (or fewer, for ``--friction``)."""
+
+    def parse(text: str) -> tuple[float, ...]:
+        try:
+            values = tuple(float(x) for x in text.split(","))
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected numbers, got {text!r}") from None
+        if not 1 <= len(values) <= count:
+            raise argparse.ArgumentTypeError(f"expected up to {count} numbers, got {text!r}")
+        return values
+
+    return parse
+
+
+#: ``simulate``'s ground options, by the field of :class:`~tensegrity.model.ground.Plane` each
+#: sets (``--ground`` the plane's point, ``(0, 0, Z)``).
+_GROUND_OPTIONS = {
+    "point": "--ground",
+    "normal": "--ground-normal",
+    "friction": "--friction",
+    "kinetic_friction": "--friction",
+    "stiffness": "--contact-stiffness",
+    "damping": "--contact-damping",
+}
+
+
+def _add_ground_options(parser: argparse.ArgumentParser) -> None:
+    """``simulate``'s ground: a plane the rods' ends touch (docs/simulation.md, "Ground
+    contact")."""
+    from tensegrity.model.ground import Plane
+
+    ground = parser.add_argument_group("ground contact")
+    ground.add_argument(
+        "--ground",
+        type=float,
+        metavar="Z",
+        help="a rigid plane through (0, 0, Z) [m] the rods' ends touch, with friction "
+        "(default none)",
+    )
+    ground.add_argument(
+        "--ground-normal",
+        type=_numbers(3),
+        default=Plane.normal,
+        metavar="NX,NY,NZ",
+        help="its normal, out of the ground (default %(default)s)",
+    )
+    ground.add_argument(
+        "--friction",
+        type=_numbers(2),
+        default=(Plane.friction,),
+        metavar="MU[,MU_K]",
+        help="static and kinetic friction coefficients (default %(default)s; MU_K = MU)",
+    )
+    ground.add_argument(
+        "--contact-radius",
+        type=float,
+        default=0.0,
+        metavar="R",
+        help="radius of the rods' ends as contact spheres [m] (default %(default)g)",
+    )
+    ground.add_argument(
+        "--contact-stiffness",
+        type=float,
+        default=Plane.stiffness,
+        metavar="K",
+        help="the contact's normal stiffness [N/m] (default %(default)g)",
+    )
+    ground.add_argument(
+        "--contact-damping",
+        type=float,
+        default=Plane.damping,
+        metavar="C",
+        help="the contact's normal damping [N s/m] (default %(default)g)",
+    )
+
+
+def _ground_of(args: argparse.Namespace) -> dict[str, Any]:
+    """``simulate_to_file``'s ``ground`` and ``contact_radius`` from the options (nothing
+    without ``--ground``); ``CommandError`` naming the option of a bad value."""
+    from tensegrity.model.ground import Plane
+
+    if args.ground is None:
+        return {}
+    friction = args.friction
+    try:
+        plane = Plane(
+            point=(0.0, 0.0, args.ground),
+            normal=args.ground_normal,
+            friction=friction[0],
+            kinetic_friction=friction[-1],
+            stiffness=args.contact_stiffness,
+            damping=args.contact_damping,
+        )
+    except ValueError as exc:
+        field, _, problem = str(exc).partition(": ")
+        raise CommandError(f"{_GROUND_OPTIONS.get(field, '--ground')}: {problem}") from None
+    return {"ground": plane, "contact_radius": args.contact_radius}
 
 
 def _add_integration_options(parser: argparse.ArgumentParser) -> None:

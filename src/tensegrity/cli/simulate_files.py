@@ -386,7 +386,8 @@ def print_summary(
             "integration",
             f"{trajectory.settings['method']}: {_counted(summary.nsteps, 'step')}, "
             f"{_counted(summary.nfev, 'evaluation')}, "
-            f"{_counted(summary.nswitches, 'slack/taut switch', 'slack/taut switches')} located",
+            f"{_counted(summary.nswitches, *_EVENT_NOUNS[bool(trajectory.settings.get('ground'))])}"
+            " located",
         ),
         (
             "checkpoints",
@@ -449,6 +450,13 @@ def _utilisation_rows(
         ),
     ]
     return rows, u.failures(s)
+
+
+#: What ``nswitches`` counts: the tendons' switches, and with a ground the contacts' events.
+_EVENT_NOUNS = {
+    False: ("slack/taut switch", "slack/taut switches"),
+    True: ("event (slack/taut switches, contacts)", "events (slack/taut switches, contacts)"),
+}
 
 
 def _counted(n: int, noun: str, plural: str | None = None) -> str:

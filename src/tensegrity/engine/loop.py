@@ -136,7 +136,9 @@ class LoopState:
     scale, largest rod and constraint errors); ``taut`` the tendons' taut flags (S,) in kernel
     order; ``landing`` a located switch being headed for (``(time, tendons, taut_after,
     exact)``) or None; ``counts`` ``nsteps``, ``nswitches``, ``nprojections``, ``nfev``;
-    ``control`` the controller's last output (S,) [m] (empty without a controller).
+    ``control`` the controller's last output (S,) [m] (empty without a controller);
+    ``contact_mode`` (CP,) and ``slip_direction`` (CP, 3) the contact pairs' modes and slip
+    directions (empty without planes).
     """
 
     t: float
@@ -153,6 +155,8 @@ class LoopState:
     control: np.ndarray
     last_sample_t: float
     wall_time: float
+    contact_mode: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0, np.int64))
+    slip_direction: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 3)))
 
     def to_arrays(self) -> dict[str, np.ndarray | np.generic]:
         """The state as named arrays and NumPy scalars (for a file); :meth:`from_arrays` reads
@@ -178,11 +182,14 @@ class LoopState:
             "control": self.control,
             "last_sample_t": np.float64(self.last_sample_t),
             "wall_time": np.float64(self.wall_time),
+            "contact_mode": self.contact_mode,
+            "slip_direction": self.slip_direction,
         }
 
     @classmethod
     def from_arrays(cls, a: Mapping[str, np.ndarray | np.generic]) -> LoopState:
-        """The state written by :meth:`to_arrays` (``KeyError`` names a missing array)."""
+        """The state written by :meth:`to_arrays` (``KeyError`` names a missing array; a state
+        written before contacts existed has none)."""
         landing_time = float(a["landing_time"])
         landing = (
             None
@@ -211,6 +218,8 @@ class LoopState:
             control=np.asarray(a["control"], dtype=float),
             last_sample_t=float(a["last_sample_t"]),
             wall_time=float(a["wall_time"]),
+            contact_mode=np.asarray(a.get("contact_mode", np.zeros(0)), dtype=np.int64),
+            slip_direction=np.asarray(a.get("slip_direction", np.zeros((0, 3))), dtype=float),
         )
 
 
@@ -478,8 +487,16 @@ class _Run:
                 control=self.control.copy(),
                 last_sample_t=self.last_sample_t,
                 wall_time=self.wall_time(),
+                **self._contact_state(),
             )
         )
+
+    def _contact_state(self) -> dict[str, np.ndarray]:
+        """The contact pairs' modes and slip directions (copies; empty without planes)."""
+        work = self.system.data.contact_work
+        if work is None:
+            return {}
+        return {"contact_mode": work.mode.copy(), "slip_direction": work.slip_direction.copy()}
 
     def restore(self, state: LoopState) -> None:
         self.next_sample = state.next_sample
@@ -493,6 +510,15 @@ class _Run:
         if self.controller is not None and state.control.size:
             self.system.hold_control(state.control, state.t)
             self.control = state.control.copy()
+        work = self.system.data.contact_work
+        if work is not None:
+            if state.contact_mode.shape != work.mode.shape:
+                raise ValueError(
+                    f"resume: the checkpoint holds {state.contact_mode.size} contact pairs, "
+                    f"this run has {work.mode.size} (another ground or structure)"
+                )
+            work.mode[:] = state.contact_mode
+            work.slip_direction[:] = state.slip_direction
 
 
 #: Bytes of samples :func:`run` holds before it hands them to its sink (without checkpoints).
@@ -882,11 +908,9 @@ def run(
     options.check_span(t0, t_end)
     if inputs.ground and (options.fixed_step or not options.locate_switches):
         raise ValueError(
-            "ground: contact needs an adaptive method that locates events (not method='rk4', "
-            "not locate_switches=False)"
+            "ground (--ground): contact needs an adaptive method that locates events (not "
+            "method='rk4' (--method rk4), not locate_switches=False)"
         )
-    if inputs.ground and (checkpoint is not None or resume is not None):
-        raise ValueError("ground: runs with contact are not checkpointed or resumed yet")
     inputs.rest_length(np.array([t0]))  # a control making a rest length negative fails here
     r = _Run(structure, t0, t_end, inputs, options, sink, controller, checkpoint, progress, stop)
     if resume is None:

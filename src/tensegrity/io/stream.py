@@ -115,6 +115,7 @@ from tensegrity.io.files import (
     regular_file,
     reserve_space,
 )
+from tensegrity.model.ground import planes_of
 from tensegrity.model.structure import Structure
 from tensegrity.physics.dynamics import State
 
@@ -134,7 +135,16 @@ CHUNK_BYTES = 2**20
 
 #: A run's inputs beside its options (keywords of :func:`tensegrity.engine.simulate.simulate`),
 #: none by default.
-_INPUTS = ("initial", "control", "external_force", "gravity", "controller", "stop")
+_INPUTS = (
+    "initial",
+    "control",
+    "external_force",
+    "gravity",
+    "ground",
+    "contact_radius",
+    "controller",
+    "stop",
+)
 #: The options a streamed run takes and their defaults: its inputs and the fields of
 #: :class:`~tensegrity.engine.options.Options`.
 _SIMULATE_PARAMETERS = {
@@ -319,6 +329,8 @@ def _option_token(name: str, value: Any) -> Any:
         if not isinstance(value, State):
             raise TypeError(f"initial: expected a State, got {type(value).__name__}")
         return {"q": _array_token(value.q), "qdot": _array_token(value.qdot)}
+    if name == "ground":  # (a Plane or planes: their fields)
+        return {"planes": [plane.settings() for plane in planes_of(value)]}
     if callable(value):
         module = getattr(value, "__module__", None) or "?"
         qualname = getattr(value, "__qualname__", None) or type(value).__qualname__
@@ -959,7 +971,8 @@ def simulate_to_file(
     **simulate_options
         The options of :func:`tensegrity.engine.simulate.simulate`: ``sample_dt`` [s] (default
         ``(t_end - t0) / 1000``), ``initial``, ``control``, ``external_force``, ``gravity``,
-        ``method``, ``rtol``, ``atol``, ``dt``, ``locate_switches``, ``steady_state``,
+        ``ground``, ``contact_radius``, ``method``, ``rtol``, ``atol``, ``dt``,
+        ``locate_switches``, ``steady_state``,
         ``velocity_tol``, ``acceleration_tol``, ``projection_tol``, ``max_rod_length_error``,
         ``max_energy_growth``, ``max_steps``, ``max_samples``, ``max_wall_time`` (a budget for
         this call: see :class:`OutOfTimeError`).  Controls and forces given as functions receive the
