@@ -326,3 +326,27 @@ def test_a_bad_ground_option_is_one_line_naming_it(tmp_path, capsys, argv, words
     err = capsys.readouterr().err.strip()
     assert code == 2 and len(err.splitlines()) == 1
     assert re.search(words, err), err
+
+
+def test_a_six_bar_with_a_payload_rests_on_the_ground_and_a_jointed_structure_is_refused():
+    """Point masses held by cables (the six-bar's payload) take part; joints and supports, whose
+    forces a sticking end would share, are refused naming ``ground``."""
+    from tensegrity.design.catalogue import six_bar_robot
+    from tensegrity.model.shell import class2_shell
+
+    robot = six_bar_robot(stiffness=2000.0, tension=100.0, damping=20.0, payload_mass=0.5)
+    nodes = robot.node_position.copy()
+    nodes[:, 2] += RADIUS - nodes[:, 2].min()
+    run = simulate(
+        robot.replace(node_position=nodes),
+        (0.0, 3.0),
+        gravity=[0.0, 0.0, -G],
+        ground=ground(friction=0.8),
+        contact_radius=RADIUS,
+        sample_dt=0.1,
+    )
+    assert run.status == 0, run.message
+    assert np.ptp(run.total_energy) < 1e-7
+    assert run.node_position[-1, :12, 2].min() > 0.0  # (resting on its ends)
+    with pytest.raises(ValueError, match=r"^ground: contact is for structures without joints"):
+        simulate(class2_shell(3, 2), (0.0, 0.1), ground=ground(-10.0))

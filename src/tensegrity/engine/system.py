@@ -73,10 +73,11 @@ class CompiledSystem:
         rest0 = packed.to_kernel_order(structure.tendon_rest_length)[None]
         contacts = None
         if inputs.ground:
-            if packed_system.constraints is not None:
+            constraints = packed_system.constraints
+            if constraints is not None and constraints.constraint_rhs.size:
                 raise ValueError(
-                    "ground: contact is for structures of rods and tendons only (no joints, "
-                    "supports, anchors or point masses) for now"
+                    "ground: contact is for structures without joints or supports (rods, "
+                    "tendons, point masses and anchors) for now"
                 )
             radius = np.full(2 * structure.n_rods, inputs.contact_radius)
             contacts = pack_contacts(inputs.ground, radius)
@@ -300,7 +301,7 @@ class CompiledSystem:
         contacts = self.model.contacts
         if contacts is None:
             return
-        q = y[: self.n].reshape(-1, 2, 3)  # (R, (q1, q2), xyz)
+        q = y[: 6 * self.structure.n_rods].reshape(-1, 2, 3)  # (R, (q1, q2), xyz)
         ends = np.stack([(q[:, 0] - q[:, 1]) / 2, (q[:, 0] + q[:, 1]) / 2], axis=1)  # (R, 2, 3)
         for p, (point, normal) in enumerate(
             zip(contacts.plane_point, contacts.plane_normal, strict=True)

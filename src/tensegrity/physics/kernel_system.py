@@ -687,13 +687,14 @@ def _system_rhs(
     arguments, so that numba compiles a free class 1 structure (None) without the rest,
     undamped tendons without the rates, and a run without planes without contacts; the
     kernel's passes are inlined here (one call per evaluation takes the records).  Contacts
-    come with a free class 1 structure only (``CompiledSystem`` refuses the rest)."""
+    come with structures without joints or supports only (``CompiledSystem`` refuses the
+    rest: a sticking end is held by its own rod, ``contact.stick_pass``)."""
     if constraints is None:
         return rhs_passes(tendon_damping, contacts, model, data, s, q, qdot, qddot)
     damped = tendon_damping is not None
     n_rods = model.rod_slots.shape[0]
     _extra_nodes(constraints, q, qdot, n_rods, data.node_position, data.node_velocity, damped)
-    dissipated, external = rhs_passes(tendon_damping, None, model, data, s, q, qdot, qddot)
+    dissipated, external = rhs_passes(tendon_damping, contacts, model, data, s, q, qdot, qddot)
     external += _point_mass_pass(model, data, qdot, qddot, stage_row(data.force, s))
     if constraints.constraint_rhs.shape[0]:
         _constraint_pass(model, data, q, qddot)
@@ -972,6 +973,8 @@ def _energies(constraints, contacts, model, data, rest, q, qdot):  # pragma: no 
     n_rods = model.rod_slots.shape[0]
     _extra_nodes(constraints, q, qdot, n_rods, data.node_position, data.node_velocity, False)
     kinetic, elastic, potential = energies(model, data, rest, q, qdot)
+    if contacts is not None:
+        elastic += contact_energy(contacts, q)
     gravity = model.gravity
     for k in range(constraints.point_mass.shape[0]):
         o = 6 * n_rods + 3 * k
