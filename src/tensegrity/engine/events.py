@@ -13,12 +13,20 @@ An *event* ``e`` (``0 <= e < E``) is
 - an **action** at the located time: ``side[e]`` flips to ``side_after[e]``
   (:func:`set_sides`), and the kind's own action follows, if it has one.
 
-Kinds, in the order of their events: the tendons' slack/taut switches (``e`` the tendon's
-kernel position, ``E = S``): ``g = min(k d, k d + c l')``, ``d = l - Lbar``, whose sign changes
-exactly at the kinks of the tension law (eqs. 18.39-18.40); the action is the flip alone (the
-law is continuous: the event keeps its kink out of a step's polynomial).  A new kind (contact
-onset and lift-off, stick and slip) adds its rows to :func:`event_indicators` and to
-:func:`events_crossed`, and its action where the loops land on an event.
+Kinds, in the order of their events:
+
+- the tendons' slack/taut switches (``e`` the tendon's kernel position, ``S`` events): ``g =
+  min(k d, k d + c l')``, ``d = l - Lbar``, whose sign changes exactly at the kinks of the
+  tension law (eqs. 18.39-18.40); the action is the flip alone (the law is continuous: the
+  event keeps its kink out of a step's polynomial);
+- with planes, two per contact pair (:mod:`tensegrity.physics.contact`): contact (touch-down,
+  lift-off) and friction (stick, slip), their indicators written by every evaluation, their
+  sides the pairs' modes; the action changes the pair's mode (:func:`land_contacts`), and with
+  it the right-hand side, so the loops start their steps anew.
+
+A new kind adds its rows to :func:`event_indicators`, :func:`events_crossed` and
+:func:`set_sides`, its count to :func:`event_work`, and its action to what the loops call when
+they land on an event.
 
 Per accepted step of an adaptive method:
 
@@ -31,7 +39,8 @@ Per accepted step of an adaptive method:
    symmetric twins of a regular shell) fire together instead of one by one; ``fired`` marks them;
 3. the loop discards the step and retakes it to end exactly there (the *landing*); once there,
    :func:`set_sides` makes the sides from the evaluation at the new state, the fired events
-   keeping the side they went to (the state retaken up to an event may sit a round-off short).
+   keeping the side they went to (the state retaken up to an event may sit a round-off short),
+   and once that step's samples are out, the actions run (:func:`land_contacts`).
 
 The dense output is the DOP853 step's polynomial (compiled), or, for scipy's methods, their
 ``dense_output()`` called back from compiled code (:data:`DENSE_OUTPUTS`).
