@@ -63,9 +63,27 @@ The model written by :func:`to_mjcf` is the same mechanical system as Theorem 18
   velocity-product term ``J' q'``), not with the impedance or the solver's tolerance
   (measured 1.7 .. 3.9 um over 0.5 s at ``timestep = 1e-4``, falling as ``timestep^2``; see
   ``docs/constraints.md``).  The tendons come after the structure's, which keep their indices.
-- Contacts are disabled, gravity is ``gravity`` (zero by default), the integrator and time step are
-  options; ``<size memory>`` is set explicitly (MuJoCo's own estimate explodes for large models).
-  The energy flag is on, so ``data.energy`` holds (elastic + gravity, kinetic) energy [J].
+- **Ground contact** (``ground=`` planes, ``contact_radius=r``; :mod:`tensegrity.model.ground`):
+  each plane is a world geom ``plane{p}`` (local ``z`` along its normal, the empty side; infinite
+  for collisions) moved ``(1 - CONTACT_SPHERE_FRACTION) r`` out along its normal, and each rod end
+  a sphere geom ``end{i}`` of radius ``CONTACT_SPHERE_FRACTION r``: a sphere penetrates exactly as
+  far as our end of radius ``r``, and MuJoCo's contact point stays on the rod's axis (full-size
+  spheres put it ``r`` off the axis, and friction across a rod then spins it; see
+  ``CONTACT_SPHERE_FRACTION``).  With a ground the spin inertia is the transverse one.  Geoms
+  touch only through the explicit ``<pair>`` ``end{i}_plane{p}`` (``contype`` and
+  ``conaffinity`` 0 everywhere, so rods never touch each other), each with ``condim`` 3 (1 without
+  friction), the sliding ``friction`` ``mu_s``, ``solref="-k/m -c/m"`` (``m`` the rod's mass) and
+  a flat ``solimp`` of ``CONTACT_IMPEDANCE``; elliptic cones, ``impratio`` ``CONTACT_IMPRATIO``.
+  At that impedance MuJoCo's soft contact is a penalty law: the normal force is our ``k delta +
+  c delta'`` plus ``1e-4 m a_free``.  What differs: MuJoCo has one friction coefficient (``mu_s``
+  is exported, so what sticks here holds there; a sliding rod with ``mu_k < mu_s`` slides slower
+  in MuJoCo), and its friction is a regularised soft constraint that never sticks: below the
+  friction angle it creeps (0.17-0.24 mm/s for a rod on a 20 degree slope at ``mu = 0.5``,
+  ``tests/test_mjcf_ground.py``).
+- Contacts are disabled without a ground, gravity is ``gravity`` (zero by default), the integrator
+  and time step are options; ``<size memory>`` is set explicitly (MuJoCo's own estimate explodes
+  for large models).  The energy flag is on, so ``data.energy`` holds (elastic + gravity,
+  kinetic) energy [J].
 - A keyframe ``initial`` holds the initial ``qpos`` and ``qvel``.  The bodies' default pose
   (``qpos0``) is already the initial configuration, but the initial *velocities* are only in the
   keyframe: call ``mujoco.mj_resetDataKeyframe(model, data, 0)`` after creating ``MjData``.
