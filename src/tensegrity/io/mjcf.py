@@ -63,9 +63,27 @@ The model written by :func:`to_mjcf` is the same mechanical system as Theorem 18
   velocity-product term ``J' q'``), not with the impedance or the solver's tolerance
   (measured 1.7 .. 3.9 um over 0.5 s at ``timestep = 1e-4``, falling as ``timestep^2``; see
   ``docs/constraints.md``).  The tendons come after the structure's, which keep their indices.
-- Contacts are disabled, gravity is ``gravity`` (zero by default), the integrator and time step are
-  options; ``<size memory>`` is set explicitly (MuJoCo's own estimate explodes for large models).
-  The energy flag is on, so ``data.energy`` holds (elastic + gravity, kinetic) energy [J].
+- **Ground contact** (``ground=`` planes, ``contact_radius=r``; :mod:`tensegrity.model.ground`):
+  each plane is a world geom ``plane{p}`` (local ``z`` along its normal, the empty side; infinite
+  for collisions) moved ``(1 - CONTACT_SPHERE_FRACTION) r`` out along its normal, and each rod end
+  a sphere geom ``end{i}`` of radius ``CONTACT_SPHERE_FRACTION r``: a sphere penetrates exactly as
+  far as our end of radius ``r``, and MuJoCo's contact point stays on the rod's axis (full-size
+  spheres put it ``r`` off the axis, and friction across a rod then spins it; see
+  ``CONTACT_SPHERE_FRACTION``).  With a ground the spin inertia is the transverse one.  Geoms
+  touch only through the explicit ``<pair>`` ``end{i}_plane{p}`` (``contype`` and
+  ``conaffinity`` 0 everywhere, so rods never touch each other), each with ``condim`` 3 (1 without
+  friction), the sliding ``friction`` ``mu_s``, ``solref="-k/m -c/m"`` (``m`` the rod's mass) and
+  a flat ``solimp`` of ``CONTACT_IMPEDANCE``; elliptic cones, ``impratio`` ``CONTACT_IMPRATIO``.
+  At that impedance MuJoCo's soft contact is a penalty law: the normal force is our ``k delta +
+  c delta'`` plus ``1e-4 m a_free``.  What differs: MuJoCo has one friction coefficient (``mu_s``
+  is exported, so what sticks here holds there; a sliding rod with ``mu_k < mu_s`` slides slower
+  in MuJoCo), and its friction is a regularised soft constraint that never sticks: below the
+  friction angle it creeps (0.17-0.24 mm/s for a rod on a 20 degree slope at ``mu = 0.5``,
+  ``tests/test_mjcf_ground.py``).
+- Contacts are disabled without a ground, gravity is ``gravity`` (zero by default), the integrator
+  and time step are options; ``<size memory>`` is set explicitly (MuJoCo's own estimate explodes
+  for large models).  The energy flag is on, so ``data.energy`` holds (elastic + gravity,
+  kinetic) energy [J].
 - A keyframe ``initial`` holds the initial ``qpos`` and ``qvel``.  The bodies' default pose
   (``qpos0``) is already the initial configuration, but the initial *velocities* are only in the
   keyframe: call ``mujoco.mj_resetDataKeyframe(model, data, 0)`` after creating ``MjData``.
@@ -111,11 +129,13 @@ import math
 import os
 import tempfile
 import xml.etree.ElementTree as ET
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, NamedTuple
 
 import numpy as np
 
+from tensegrity.model.ground import Plane, planes_of
 from tensegrity.model.structure import Structure
 
 #: Inertia about a rod's own axis, as a fraction of its transverse inertia ``m L^2 / 12`` ...
@@ -149,6 +169,27 @@ CONNECT_SOLIMP = "0.9999 0.9999 0.001"
 #: The world sites of a closure row (a node held on a plane by a tendon equality) lie this many
 #: times the longest rod away from the node, on either side of the plane.
 CLOSURE_ARM = 10.0
+
+#: Impedance ``d`` of the ground contacts (``solimp="d d ..."``): MuJoCo's minimum ``mjMINIMP``.
+#: A contact's force is ``(a_ref - a_free) / (A + R)`` with ``R = (1 - d) / d * diagA`` and
+#: ``diagA = 1 / m`` for a free rod of mass ``m``; at ``d = 1e-4``, ``R`` outweighs the exact
+#: ``A`` (at most ``4 / m`` at a rod end) 2500 times, so the force is ``m d (a_ref - a_free)``:
+#: with the direct ``solref="-k/m -c/m"`` (scaled by MuJoCo to ``k/(m d)``, ``c/(m d)``) it is the
+#: penalty law ``k delta + c delta'`` of :class:`tensegrity.model.ground.Plane`, plus
+#: ``d m a_free`` (1e-4 of the free acceleration's force).
+CONTACT_IMPEDANCE = 1e-4
+
+#: ``impratio`` of the exported scene (elliptic cones): friction rows are regularised
+#: ``impratio`` times less than the normal rows (which ``CONTACT_IMPEDANCE`` makes soft on purpose).
+CONTACT_IMPRATIO = 100.0
+
+#: The contact spheres are this fraction of ``contact_radius`` and the planes are moved out along
+#: their normals by the rest of it, so a sphere penetrates a plane exactly as far as our rod end
+#: does, and MuJoCo's contact point lies at the node (to this fraction of the radius plus half
+#: the penetration).  Spheres of the full radius put the contact point ``r`` off the rod's axis:
+#: a friction force across a rod then spins it about its own axis, whose inertia is tiny, and the
+#: run diverges (a rod lying across a 20 degree slope did within 2 ms).
+CONTACT_SPHERE_FRACTION = 1e-3
 
 #: Two planes or lines are parallel (a rod with ends on them has an exact joint tree) when their
 #: unit normals and free directions are orthogonal to within this.
@@ -245,10 +286,11 @@ def rod_frames(structure: Structure) -> tuple[np.ndarray, np.ndarray, np.ndarray
     return centre, quat, velocity, _to_body(quat, omega)
 
 
-def mjcf_memory(structure: Structure) -> int:
+def mjcf_memory(structure: Structure, *, planes: int = 0) -> int:
     """The ``<size memory>`` [bytes] written by :func:`to_mjcf` (see ``MEMORY_PER_ELEMENT``); a
     point mass counts 6 elements (a free body), a joint or support 12 (3 constraint rows), a
-    closure row 6 (its two tendons and a constraint row)."""
+    closure row 6 (its two tendons and a constraint row), and each of the ``2 R planes`` contact
+    pairs of a scene with ``planes`` ground planes 12 (a contact of 3 rows)."""
     closures = sum(
         len(tree.closure)
         for tree in _rod_trees(structure, _held_axes(structure), _rod_motion(structure).axis)
@@ -259,6 +301,7 @@ def mjcf_memory(structure: Structure) -> int:
         + structure.n_tendons
         + 12 * len(_connect_pairs(structure))
         + 6 * closures
+        + 12 * 2 * structure.n_rods * planes
     )
     size = MEMORY_BASE + MEMORY_PER_ELEMENT * elements
     mebibyte = 1 << 20
@@ -272,6 +315,8 @@ def to_mjcf(
     integrator: str = "RK4",
     gravity: Any = None,
     name: str = "tensegrity",
+    ground: Plane | Sequence[Plane] | None = None,
+    contact_radius: float = 0.0,
 ) -> str:
     """MJCF XML of ``structure`` for MuJoCo: rod bodies, spatial deadband-spring tendons.
 
@@ -295,6 +340,13 @@ def to_mjcf(
         default is ``0 0 -9.81``).
     name : str
         The model name.
+    ground : Plane or sequence of Plane, optional
+        Planes the rods' ends touch (:mod:`tensegrity.model.ground`, as ``simulate`` takes them):
+        the scene is exported with contacts on (see the module docstring, "Ground contact").
+        Default none: contacts off.
+    contact_radius : float
+        Radius [m] of the rods' ends as contact spheres, > 0 with a ``ground`` (a MuJoCo sphere
+        needs a positive size), >= 0 without (then unused).
 
     Returns
     -------
@@ -303,20 +355,28 @@ def to_mjcf(
         ... and a hinge ``rod{r}_rz`` (planar), a ball ``rod{r}_ball`` (an end held on a plane
         or line) or hinges ``rod{r}_turn``, ``rod{r}_spin`` (both ends held)), ``mass{k}``,
         sites ``node{i}``, tendons named ``structure.tendon_name`` (then ``hold{j}a``,
-        ``hold{j}b`` of the closure equalities ``hold{j}``), keyframe ``initial`` (index 0).
+        ``hold{j}b`` of the closure equalities ``hold{j}``), keyframe ``initial`` (index 0); with
+        a ``ground``, plane geoms ``plane{p}``, sphere geoms ``end{i}`` at the rod end nodes and
+        contact pairs ``end{i}_plane{p}``.
 
     Raises
     ------
     ValueError
-        Naming the field: ``timestep``, ``integrator``, ``gravity``, ``name``;
+        Naming the field: ``timestep``, ``integrator``, ``gravity``, ``name``,
+        ``contact_radius``;
         ``rods[r].damping`` when a rod has damping MuJoCo cannot represent; ``rods[r].mass`` when
         its mass or inertia ``m L^2 / 12`` is below MuJoCo's minimum ``1e-15``; ``tendons``
         when a tendon is named like a closure tendon (``hold{j}a``, ``hold{j}b``).
+    TypeError
+        Naming ``ground`` if it is not a Plane or a sequence of Planes.
     """
     dt, g = _checked_options(
         structure, timestep=timestep, integrator=integrator, gravity=gravity, name=name
     )
+    planes, radius = _checked_scene(ground, contact_radius)
     transverse, spin = _checked_rod_inertias(structure)
+    if planes:  # a contact's small lever would roll a rod of small spin inertia about its axis
+        spin = transverse
     motion = _rod_motion(structure)
     connects = _connect_pairs(structure)
     held = _held_axes(structure)
@@ -325,14 +385,34 @@ def to_mjcf(
     _check_closure_names(structure, len(closures))
     # refsafe off: the joints' and closures' time constant 2 dt is below MuJoCo's "safe" minimum
     soft = bool(connects or closures)
-    root = _header(structure, name=name, timestep=dt, integrator=integrator, gravity=g, soft=soft)
+    root = _header(
+        structure,
+        name=name,
+        timestep=dt,
+        integrator=integrator,
+        gravity=g,
+        soft=soft,
+        planes=len(planes),
+    )
     world = ET.SubElement(root, "worldbody")
     keyframe = _Keyframe()
-    _rod_bodies(world, structure, trees, motion, keyframe, transverse=transverse, spin=spin)
+    _planes(world, structure, planes, contact_radius=radius)
+    _rod_bodies(
+        world,
+        structure,
+        trees,
+        motion,
+        keyframe,
+        transverse=transverse,
+        spin=spin,
+        contact_radius=radius if planes else None,
+    )
     _point_mass_bodies(world, structure, held, keyframe)
     _world_sites(world, structure, connects, closures)
     if soft:
         _equalities(root, connects, len(closures), timestep=dt)
+    if planes:
+        _contact_pairs(root, structure, planes)
     if structure.n_tendons or closures:
         _tendons(root, structure, closures)
     keyframe.write(root)
@@ -370,6 +450,27 @@ def _checked_options(
     if not isinstance(name, str) or not name:
         raise ValueError(f"name: must be a non-empty string, got {name!r}")
     return dt, g
+
+
+def _checked_scene(ground: Any, contact_radius: Any) -> tuple[tuple[Plane, ...], float]:
+    """:func:`to_mjcf`'s scene, checked: ``(planes, contact radius [m])``.
+
+    Raises
+    ------
+    TypeError
+        Naming ``ground`` if it is not a Plane or a sequence of Planes.
+    ValueError
+        Naming ``contact_radius`` if it is not a finite number >= 0, or 0 with a ground.
+    """
+    planes = () if ground is None else planes_of(ground)
+    ok = isinstance(contact_radius, (int, float, np.integer, np.floating))
+    radius = float(contact_radius) if ok and not isinstance(contact_radius, bool) else math.nan
+    if not (math.isfinite(radius) and (radius > 0 or (radius == 0 and not planes))):
+        need = "> 0 with a ground (a MuJoCo sphere needs a positive size)" if planes else ">= 0"
+        raise ValueError(
+            f"contact_radius: must be a finite number {need} [m], got {contact_radius!r}"
+        )
+    return planes, radius
 
 
 def _checked_rod_inertias(structure: Structure) -> tuple[np.ndarray, np.ndarray]:
@@ -426,9 +527,11 @@ def _header(
     integrator: str,
     gravity: np.ndarray,
     soft: bool,
+    planes: int,
 ) -> ET.Element:
-    """The ``<mujoco>`` root with its compiler, option (``gravity`` (d,) [m/s^2] in 3-D;
-    contacts off, energy on, ``refsafe`` off if there are ``soft`` equalities) and size."""
+    """The ``<mujoco>`` root with its compiler, option (``gravity`` (d,) [m/s^2] in 3-D; contacts
+    off without ``planes``, else on with elliptic cones and ``CONTACT_IMPRATIO``; energy on,
+    ``refsafe`` off if there are ``soft`` equalities) and size."""
     root = ET.Element("mujoco", model=name)
     ET.SubElement(root, "compiler", angle="radian", inertiafromgeom="false", autolimits="true")
     option = ET.SubElement(
@@ -438,9 +541,13 @@ def _header(
         integrator=integrator,
         gravity=_floats(np.pad(gravity, (0, 3 - structure.dim))),
     )
-    flags = dict(contact="disable", energy="enable") | ({"refsafe": "disable"} if soft else {})
+    if planes:
+        option.set("cone", "elliptic")
+        option.set("impratio", _float(CONTACT_IMPRATIO))
+    flags = {"contact": "enable" if planes else "disable", "energy": "enable"}
+    flags |= {"refsafe": "disable"} if soft else {}
     ET.SubElement(option, "flag", flags)
-    ET.SubElement(root, "size", memory=str(mjcf_memory(structure)))
+    ET.SubElement(root, "size", memory=str(mjcf_memory(structure, planes=planes)))
     return root
 
 
@@ -478,10 +585,13 @@ def _rod_bodies(
     *,
     transverse: np.ndarray,
     spin: np.ndarray,
+    contact_radius: float | None,
 ) -> None:
     """Bodies ``rod{r}`` at the rods' centres and orientations: the joints of their ``trees``,
     the inertias ``diag(transverse, transverse, spin)`` (R,) [kg m^2], a capsule geom without
-    contacts and the sites of the end nodes."""
+    contacts, the sites of the end nodes and, given a ``contact_radius`` [m], sphere geoms
+    ``end{i}`` of ``CONTACT_SPHERE_FRACTION`` of it at them (massless; they touch only through
+    the contact pairs)."""
     omega_local = _to_body(motion.quat, motion.omega)
     for r, ((a, b), tree) in enumerate(zip(structure.rod_nodes, trees, strict=True)):
         L = float(structure.rod_length[r])
@@ -511,8 +621,20 @@ def _rod_bodies(
             conaffinity="0",
             group="1",
         )
-        ET.SubElement(body, "site", name=f"node{a}", pos=_floats([0, 0, -L / 2]), size=radius)
-        ET.SubElement(body, "site", name=f"node{b}", pos=_floats([0, 0, L / 2]), size=radius)
+        for node, z in ((a, -L / 2), (b, L / 2)):
+            ET.SubElement(body, "site", name=f"node{node}", pos=_floats([0, 0, z]), size=radius)
+            if contact_radius is not None:
+                ET.SubElement(
+                    body,
+                    "geom",
+                    name=f"end{node}",
+                    type="sphere",
+                    size=_float(CONTACT_SPHERE_FRACTION * contact_radius),
+                    pos=_floats([0, 0, z]),
+                    mass="0",
+                    contype="0",
+                    conaffinity="0",
+                )
 
 
 def _rod_joints(
@@ -599,6 +721,53 @@ def _point_mass_bodies(
             diaginertia=_floats([SPIN_INERTIA_MIN] * 3),
         )
         ET.SubElement(body, "site", name=f"node{k}", pos="0 0 0", size=site_radius)
+
+
+def _planes(
+    world: ET.Element, structure: Structure, planes: tuple[Plane, ...], *, contact_radius: float
+) -> None:
+    """Plane geoms ``plane{p}`` of the world: through ``point`` moved ``(1 -
+    CONTACT_SPHERE_FRACTION) contact_radius`` [m] along ``normal``, local ``z`` along ``normal``
+    (MuJoCo's empty side), drawn infinite; they touch only through the contact pairs."""
+    lift = (1.0 - CONTACT_SPHERE_FRACTION) * contact_radius
+    spacing = _float(float(structure.rod_length.max(initial=1.0)))
+    for p, plane in enumerate(planes):
+        ET.SubElement(
+            world,
+            "geom",
+            name=f"plane{p}",
+            type="plane",
+            size=f"0 0 {spacing}",
+            pos=_floats(plane.point + lift * plane.normal),
+            quat=_floats(_quat_z_to(plane.normal)),
+            contype="0",
+            conaffinity="0",
+            rgba="0.8 0.8 0.8 1",
+        )
+
+
+def _contact_pairs(root: ET.Element, structure: Structure, planes: tuple[Plane, ...]) -> None:
+    """One ``<pair>`` ``end{i}_plane{p}`` per rod end and plane: sliding friction ``mu_s``
+    (``condim`` 3, 1 without friction), the direct ``solref="-k/m -c/m"`` of the rod's mass
+    ``m`` and impedance ``CONTACT_IMPEDANCE`` (see the module docstring, "Ground contact")."""
+    contact = ET.SubElement(root, "contact")
+    solimp = f"{_float(CONTACT_IMPEDANCE)} {_float(CONTACT_IMPEDANCE)} 0.001 0.5 2"
+    for r, ends in enumerate(structure.rod_nodes):
+        m = float(structure.rod_mass[r])
+        for node in ends:
+            for p, plane in enumerate(planes):
+                mu = _float(plane.friction)
+                ET.SubElement(
+                    contact,
+                    "pair",
+                    name=f"end{node}_plane{p}",
+                    geom1=f"end{node}",
+                    geom2=f"plane{p}",
+                    condim="3" if plane.friction > 0 else "1",
+                    friction=f"{mu} {mu} 0 0 0",
+                    solref=f"{_float(-plane.stiffness / m)} {_float(-plane.damping / m)}",
+                    solimp=solimp,
+                )
 
 
 def _world_sites(
