@@ -9,9 +9,10 @@ The method, coefficients, error norm and step-size law are ``scipy.integrate.DOP
 (:mod:`tensegrity.engine.compiled`). Per accepted step, the events (the tendons' slack/taut
 switches, the contacts' touch-down, lift-off, stick and slip) are found, located on the step's
 polynomial and landed on by the one mechanism of :mod:`tensegrity.engine.events` (its module
-docstring): the step is discarded and retaken to end exactly at the first event.  A rejected attempt whose end shows an event may stand for the step
-(*provisional*): the event is located on it instead of shrinking the step until the kink falls
-out of it.  The step size carries over a projection or a located event.
+docstring): the step is discarded and retaken to end exactly at the first event.  A rejected
+attempt whose end shows an event may stand for the step (*provisional*): the event is located
+on it instead of shrinking the step until the kink falls out of it.  The step size carries over
+a projection or a located event.
 
 Inputs: constant, or made where they are used by :func:`compiled.make_inputs` (tabulated ones
 interpolated in compiled code, Python functions of time called through a callback: one loop for
