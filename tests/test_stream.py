@@ -483,5 +483,6 @@ def test_the_streamed_options_are_the_fields_of_options():
     from tensegrity.engine.options import Options
 
     fields = {f.name: f.default for f in dataclasses.fields(Options)}
-    inputs = {"initial", "control", "external_force", "gravity", "controller", "stop"}
+    inputs = {"initial", "control", "external_force", "gravity", "ground", "contact_radius"}
+    inputs |= {"controller", "stop"}
     assert stream_module._SIMULATE_PARAMETERS == {**dict.fromkeys(inputs), **fields}
