@@ -631,7 +631,8 @@ def _adaptive(run: _Run, stepper: Stepper, resume: LoopState | None) -> None:
         landed = landing if landing is not None and stepper.t >= landing.time else None
         if locate:
             set_sides_entry(stepper.evaluation(), events, landed is not None and landed.exact)
-            refresh_slips_entry(system.model, stepper.evaluation(), stepper.y)
+            if system.model.contacts is not None:
+                refresh_slips_entry(system.model, stepper.evaluation(), stepper.y)
         drift = run.check(stepper.y, stepper.t)
         if drift is None:
             run.record(stepper.t, stepper.y)

@@ -301,8 +301,7 @@ class CompiledSystem:
         contacts = self.model.contacts
         if contacts is None:
             return
-        q = y[: 6 * self.structure.n_rods].reshape(-1, 2, 3)  # (R, (q1, q2), xyz)
-        ends = np.stack([(q[:, 0] - q[:, 1]) / 2, (q[:, 0] + q[:, 1]) / 2], axis=1)  # (R, 2, 3)
+        ends = self.nodes(y)[self.structure.rod_nodes]  # (R, 2, 3)
         for p, (point, normal) in enumerate(
             zip(contacts.plane_point, contacts.plane_normal, strict=True)
         ):
