@@ -316,6 +316,7 @@ def test_the_simulate_command_stands_a_robot_on_the_ground(tmp_path, capsys):
         (["--friction", "-1"], "--friction: must be a finite number >= 0"),
         (["--friction", "0.3,0.5"], "--friction: must not exceed friction"),
         (["--contact-stiffness", "0"], "--contact-stiffness: must be a finite number > 0"),
+        (["--contact-radius", "-1"], "--contact-radius: must be >= 0"),
         (["--method", "rk4", "--dt", "1e-4"], r"ground \(--ground\): contact needs"),
     ],
 )

@@ -468,7 +468,7 @@ def _add_ground_options(parser: argparse.ArgumentParser) -> None:
     )
     ground.add_argument(
         "--contact-radius",
-        type=float,
+        type=arguments.non_negative,
         default=0.0,
         metavar="R",
         help="radius of the rods' ends as contact spheres [m] (default %(default)g)",
