@@ -21,6 +21,7 @@ from tensegrity.cli.drawing import Drawing, viewer_page
 from tensegrity.cli.errors import interrupt_code
 from tensegrity.cli.startup import seconds_since_start
 from tensegrity.io.files import shown_path, write_staged as _write_all
+from tensegrity.model.ground import SLIP, STICK
 from tensegrity.physics import dynamics
 
 if TYPE_CHECKING:
@@ -375,6 +376,7 @@ def print_summary(
         ),
         ("energy dissipated", f"{e['dissipated'][-1]:.6g} J"),
         ("energy balance error", f"{balance:.3e} J"),
+        *_contact_rows(trajectory),
         ("slack tendons at the end", f"{int(np.sum(tension <= 0))} of {structure.n_tendons}"),
         (
             "tension range at the end",
@@ -450,6 +452,32 @@ def _utilisation_rows(
         ),
     ]
     return rows, u.failures(s)
+
+
+def _contact_rows(trajectory) -> list[tuple[str, str]]:
+    """The summary's rows of a run with planes: its contact events by kind, the pairs in
+    contact at the end, and the largest penetration over the samples."""
+    if not trajectory.planes:
+        return []
+    counts = trajectory.contact_counts
+    mode = trajectory.contact_mode[-1]
+    return [
+        (
+            "contact events",
+            f"{_counted(counts['touch_down'], 'touch-down')}, "
+            f"{_counted(counts['lift_off'], 'lift-off')}, {_counted(counts['slip'], 'slip')}, "
+            f"{_counted(counts['stick'], 'stick')}",
+        ),
+        (
+            "contacts at the end",
+            f"{int(np.sum(mode == STICK))} sticking, {int(np.sum(mode == SLIP))} slipping "
+            f"of {mode.size} (rod end, plane) pairs",
+        ),
+        (
+            "largest penetration",
+            f"{max(float(trajectory.contact_penetration.max()), 0.0):.3e} m (at the samples)",
+        ),
+    ]
 
 
 #: What ``nswitches`` counts: the tendons' switches, and with a ground the contacts' events.

@@ -39,6 +39,7 @@ from tensegrity.physics.compiling import (
     JitOptions,
     compiled_only,
 )
+from tensegrity.physics.contact import record_contacts
 from tensegrity.physics.kernel import (
     copy_values,
     stage_row,
@@ -471,9 +472,9 @@ def tendon_lengths(p, tendon_slots, out):  # pragma: no cover - compiled
 def record_sample(model, data, y, scratch, maps, columns, row):  # pragma: no cover - compiled
     """Sample ``row`` of ``columns`` (:class:`tensegrity.engine.result.Samples`' fields after
     ``t``) at ``y``, from one evaluation with the inputs' row 0 of ``data``: coordinates, node
-    positions
-    and velocities, tendon lengths and tensions, the energies, and the largest node
-    acceleration [m/s^2] and speed [m/s] over the moving slots (rod ends and point masses).
+    positions and velocities, tendon lengths and tensions, the energies, the largest node
+    acceleration [m/s^2] and speed [m/s] over the moving slots (rod ends and point masses), and
+    the contact pairs' forces and modes.
 
     ``scratch`` = ``(dy (m,), p, v, accel (3, n_slots), lengths (S,), moving slots)``;
     ``maps`` = ``(kept, node_slot, tendon_position)``: the coordinates of ``y`` the structure
@@ -481,8 +482,9 @@ def record_sample(model, data, y, scratch, maps, columns, row):  # pragma: no co
     position in kernel order.
     """
     q, qdot, nodes, velocities, tendon_length, tension, energy, largest_accel, largest_speed = (
-        columns
+        columns[:9]
     )
+    contact_normal, contact_friction, contact_mode = columns[9:]
     dy, p, v, accel, lengths, moving = scratch
     kept, node_slot, position = maps
     n = (y.shape[0] - 3) // 2
@@ -507,6 +509,7 @@ def record_sample(model, data, y, scratch, maps, columns, row):  # pragma: no co
     energy[row, 3], energy[row, 4], energy[row, 5] = y[-3], y[-2], y[-1]
     largest_accel[row] = _largest_at(accel, moving)
     largest_speed[row] = _largest_at(v, moving)
+    record_contacts(data.contact_work, contact_normal, contact_friction, contact_mode, row)
 
 
 @njit(**JIT_OPTIONS)

@@ -54,6 +54,7 @@ from tensegrity.engine.events import (
     land_contacts,
     landing_of,
     locate_event,
+    log_full,
     restore_landing,
     set_sides,
     start_contacts,
@@ -246,8 +247,8 @@ def dop853_run(model, rows, point, loop, bound, next_sample_t):  # pragma: no co
         return min(100.0 * h0, h1, t_end - t)
 
     while True:
-        if attempts >= attempts_per_call:
-            return RUN_YIELD, CHECK_OK, 0.0
+        if attempts >= attempts_per_call or log_full(point.contact_work):
+            return RUN_YIELD, CHECK_OK, 0.0  # (Python takes the log of contact changes)
         if loop.tally[PENDING]:  # finish the accepted step whose samples were handed out
             loop.tally[PENDING] = 0
             copy_values(loop.K[DOP853_STAGES], loop.K[0], m)  # first same as last
@@ -263,7 +264,9 @@ def dop853_run(model, rows, point, loop, bound, next_sample_t):  # pragma: no co
                     contacts
                     and exact
                     and inputs_at(loop.clock[T]) < 0
-                    and land_contacts(model.contacts, model, point, loop.y, loop.events)
+                    and land_contacts(
+                        model.contacts, model, point, loop.clock[T], loop.y, loop.events
+                    )
                 ):
                     loop.tally[RESTART] = 1
             if loop.clock[DRIFT] > projection_tol:
@@ -284,7 +287,7 @@ def dop853_run(model, rows, point, loop, bound, next_sample_t):  # pragma: no co
                 loop.clock[INPUT_TIME] = loop.clock[T]
                 return RUN_INPUT, CHECK_OK, 0.0
             if loop.tally[START]:  # (the contacts' modes at the first state)
-                start_contacts(model.contacts, model, point, loop.y, loop.events)
+                start_contacts(model.contacts, model, point, loop.clock[T], loop.y, loop.events)
             ode_rhs(model, point, np.int64(0), loop.y, loop.K[0])
             loop.tally[NFEV] += 1
             if locate or loop.tally[START]:

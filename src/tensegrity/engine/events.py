@@ -444,17 +444,19 @@ STICK_SPEED = 1e-8
 
 
 @compiled_only
-def land_contacts(contacts, model, data, y, events):  # pragma: no cover - compiled
-    """The actions of the contact events fired at the state ``y`` the loop landed on
-    (``events.fired``; ``data`` with the inputs there): a point touching down slips, or sticks
-    if it is still; lifting off frees it; a stick whose force left the friction cone slips
-    against that force; a slip whose velocity reversed sticks if the point is still, or slips
-    on in its new direction.  Sticks are then settled (:func:`settle_sticks`).  Returns whether
-    a mode changed (the right-hand side did: the loop starts its steps anew)."""
+def land_contacts(contacts, model, data, t, y, events):  # pragma: no cover - compiled
+    """The actions of the contact events fired at the state ``y`` at ``t`` [s] the loop landed
+    on (``events.fired``; ``data`` with the inputs there): a point touching down slips, or
+    sticks if it is still; lifting off frees it; a stick whose force left the friction cone
+    slips against that force; a slip whose velocity reversed sticks if the point is still, or
+    slips on in its new direction.  Sticks are then settled (:func:`settle_sticks`) and the
+    modes' changes logged (:func:`log_changes`).  Returns whether a mode changed (the
+    right-hand side did: the loop starts its steps anew)."""
     if contacts is None:
         return False
     work = data.contact_work
     first = events.side.shape[0] - work.indicator.shape[0]
+    before = work.mode.copy()
     changed = False
     for k in range(work.mode.shape[0]):
         touch, slide = events.fired[first + 2 * k], events.fired[first + 2 * k + 1]
@@ -463,23 +465,48 @@ def land_contacts(contacts, model, data, y, events):  # pragma: no cover - compi
             changed = True
     if changed:
         settle_sticks(contacts, model, data, y, events)
+        log_changes(work, t, before)
     return changed
 
 
 @compiled_only
-def start_contacts(contacts, model, data, y, events):  # pragma: no cover - compiled
-    """The pairs' modes at the start of a run at ``y``: those whose law pushes touch down
-    (:func:`switch_mode`), then the sticks are settled; nothing without contacts."""
+def start_contacts(contacts, model, data, t, y, events):  # pragma: no cover - compiled
+    """The pairs' modes at the start of a run at ``y`` at ``t`` [s]: those whose law pushes
+    touch down (:func:`switch_mode`), then the sticks are settled, and the pairs in contact
+    logged (:func:`log_changes`); nothing without contacts."""
     if contacts is None:
         return
     work = data.contact_work
     n = (y.shape[0] - 3) // 2
     work.mode[:] = FREE
+    before = work.mode.copy()
     system_rhs(model, data, np.int64(0), y[:n], y[n : 2 * n], events.qddot)
     for k in range(work.mode.shape[0]):
         if work.indicator[2 * k] > 0.0:
             switch_mode(contacts, work, y, k, True)
     settle_sticks(contacts, model, data, y, events)
+    log_changes(work, t, before)
+
+
+@compiled_only
+def log_changes(work, t, before):  # pragma: no cover - compiled
+    """Append to ``work.log`` a row ``(t, pair, mode before, mode after)`` for each pair whose
+    mode differs from ``before`` (CP,) (the loops take the rows before the log can fill:
+    :func:`log_full`)."""
+    for k in range(work.mode.shape[0]):
+        if work.mode[k] != before[k]:
+            row = work.log[work.log_count[0]]
+            row[0], row[1], row[2], row[3] = t, k, before[k], work.mode[k]
+            work.log_count[0] += 1
+
+
+@compiled_only
+def log_full(work):  # pragma: no cover - compiled
+    """Whether the log of mode changes may not hold another landing's (every pair's) changes:
+    the loop hands the rows to Python first (False without contacts)."""
+    if work is None:
+        return False
+    return work.log_count[0] + work.mode.shape[0] > work.log.shape[0]
 
 
 @compiled_only
@@ -537,15 +564,15 @@ def settle_sticks(contacts, model, data, y, events):  # pragma: no cover - compi
 
 
 @njit(**JIT_OPTIONS)
-def land_contacts_entry(model, data, y, events):  # pragma: no cover - compiled
+def land_contacts_entry(model, data, t, y, events):  # pragma: no cover - compiled
     """:func:`land_contacts`, called from Python."""
-    return land_contacts(model.contacts, model, data, y, events)
+    return land_contacts(model.contacts, model, data, t, y, events)
 
 
 @njit(**JIT_OPTIONS)
-def start_contacts_entry(model, data, y, events):  # pragma: no cover - compiled
+def start_contacts_entry(model, data, t, y, events):  # pragma: no cover - compiled
     """:func:`start_contacts`, called from Python."""
-    start_contacts(model.contacts, model, data, y, events)
+    start_contacts(model.contacts, model, data, t, y, events)
 
 
 @njit(**JIT_OPTIONS)

@@ -138,7 +138,8 @@ class LoopState:
     exact)``) or None; ``counts`` ``nsteps``, ``nswitches``, ``nprojections``, ``nfev``;
     ``control`` the controller's last output (S,) [m] (empty without a controller);
     ``contact_mode`` (CP,) and ``slip_direction`` (CP, 3) the contact pairs' modes and slip
-    directions (empty without planes).
+    directions, ``contact_events`` (E, 4) the changes of mode so far (time [s], pair, mode
+    before, mode after; :attr:`RunSummary.contact_events`), all empty without planes.
     """
 
     t: float
@@ -157,6 +158,7 @@ class LoopState:
     wall_time: float
     contact_mode: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0, np.int64))
     slip_direction: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 3)))
+    contact_events: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 4)))
 
     def to_arrays(self) -> dict[str, np.ndarray | np.generic]:
         """The state as named arrays and NumPy scalars (for a file); :meth:`from_arrays` reads
@@ -184,6 +186,7 @@ class LoopState:
             "wall_time": np.float64(self.wall_time),
             "contact_mode": self.contact_mode,
             "slip_direction": self.slip_direction,
+            "contact_events": self.contact_events,
         }
 
     @classmethod
@@ -220,6 +223,7 @@ class LoopState:
             wall_time=float(a["wall_time"]),
             contact_mode=np.asarray(a.get("contact_mode", np.zeros(0)), dtype=np.int64),
             slip_direction=np.asarray(a.get("slip_direction", np.zeros((0, 3))), dtype=float),
+            contact_events=np.asarray(a.get("contact_events", np.zeros((0, 4))), dtype=float),
         )
 
 
@@ -293,6 +297,7 @@ class _Run:
         self.counts = dict(nsteps=0, nswitches=0, nprojections=0)
         self.nfev_before = 0  # of the runs before a resume
         self.switch_times: list[float] = []
+        self.contact_events: list[np.ndarray] = []  # blocks of (time, pair, before, after)
         self.status, self.message = STATUS_END, f"reached t_end = {t_end:g} s"
         self.last_sample_t = -np.inf
         self.control = np.zeros(0)
@@ -300,8 +305,10 @@ class _Run:
         self.steps_done = 0  # "rk4"
         self.saved_at = 0  # index of the sample of the last checkpoint
         self.stopped_for_time = False  # by max_wall_time
-        self.block_rows = _block_rows(structure, options, t0, t_end, checkpoint)
-        self.block, self.rows = Samples.empty(self.block_rows, structure), 0
+        work = self.system.data.contact_work
+        self.pairs = 0 if work is None else work.mode.size  # contact pairs
+        self.block_rows = _block_rows(structure, self.pairs, options, t0, t_end, checkpoint)
+        self.block, self.rows = Samples.empty(self.block_rows, structure, self.pairs), 0
 
     def start_monitor(self, y: np.ndarray) -> None:
         """The blow-up monitor at the first state ``y`` (its energy the reference, its errors),
@@ -325,7 +332,7 @@ class _Run:
         """Hand the samples recorded so far to the sink."""
         if self.rows:
             self.sink.add(self.block.head(self.rows))
-            self.block, self.rows = Samples.empty(self.block_rows, self.structure), 0
+            self.block, self.rows = Samples.empty(self.block_rows, self.structure, self.pairs), 0
 
     def sample_time(self, index: int) -> float:
         """Time of sample ``index`` [s] (:func:`tensegrity.engine.options.sample_time`)."""
@@ -492,11 +499,29 @@ class _Run:
         )
 
     def _contact_state(self) -> dict[str, np.ndarray]:
-        """The contact pairs' modes and slip directions (copies; empty without planes)."""
+        """The contact pairs' modes, slip directions and changes so far (copies; empty without
+        planes)."""
         work = self.system.data.contact_work
         if work is None:
             return {}
-        return {"contact_mode": work.mode.copy(), "slip_direction": work.slip_direction.copy()}
+        return {
+            "contact_mode": work.mode.copy(),
+            "slip_direction": work.slip_direction.copy(),
+            "contact_events": self.contact_event_log(),
+        }
+
+    def take_contact_log(self) -> None:
+        """Move the changes of mode the compiled actions logged (``ContactWork.log``) to
+        :attr:`contact_events`, emptying the log."""
+        work = self.system.data.contact_work
+        if work is not None and work.log_count[0]:
+            self.contact_events.append(work.log[: work.log_count[0]].copy())
+            work.log_count[0] = 0
+
+    def contact_event_log(self) -> np.ndarray:
+        """The changes of mode so far (E, 4): time [s], pair, mode before, mode after."""
+        self.take_contact_log()
+        return np.concatenate([np.zeros((0, 4)), *self.contact_events])
 
     def restore(self, state: LoopState) -> None:
         self.next_sample = state.next_sample
@@ -504,6 +529,7 @@ class _Run:
         self.counts = {name: state.counts[name] for name in ("nsteps", "nswitches", "nprojections")}
         self.nfev_before = state.counts["nfev"]
         self.switch_times = list(state.switch_times)
+        self.contact_events = [state.contact_events]
         self.last_sample_t, self.wall_before = state.last_sample_t, state.wall_time
         self.steps_done = state.steps_done
         self.saved_at = state.next_sample - 1
@@ -527,18 +553,19 @@ BLOCK_BYTES = 32 * 2**20
 
 def _block_rows(
     structure: Structure,
+    pairs: int,
     options: Options,
     t0: float,
     t_end: float,
     checkpoint: Checkpointing | None,
 ) -> int:
     """Samples per block handed to the sink: those of a checkpoint (every ``every`` samples,
-    the first one's including the sample at ``t0``), else :data:`BLOCK_BYTES` worth, and not
-    more than the run can make."""
+    the first one's including the sample at ``t0``), else :data:`BLOCK_BYTES` worth (with
+    ``pairs`` contact pairs), and not more than the run can make."""
     if checkpoint is not None:
         return checkpoint.every + 1
     most = sample_count(t0, t_end, options.sample_spacing(t0, t_end))
-    return max(1, min(most, BLOCK_BYTES // Samples.row_bytes(structure)))
+    return max(1, min(most, BLOCK_BYTES // Samples.row_bytes(structure, pairs)))
 
 
 #: A loop of one method family (:func:`_fixed_step`, :func:`_compiled_adaptive`,
@@ -587,7 +614,8 @@ def _adaptive(run: _Run, stepper: Stepper, resume: LoopState | None) -> None:
     varying = not system.inputs.constant
     if resume is None and system.model.contacts is not None:
         here = system.stage_inputs(np.array([stepper.t]))
-        start_contacts_entry(system.model, here, stepper.y, events)
+        start_contacts_entry(system.model, here, stepper.t, stepper.y, events)
+        run.take_contact_log()
         stepper.restart(stepper.y)
     if locate:
         set_sides_entry(stepper.evaluation(), events, False)
@@ -653,7 +681,8 @@ def _adaptive(run: _Run, stepper: Stepper, resume: LoopState | None) -> None:
             landing = None
             if landed.exact and system.model.contacts is not None:  # the events' actions
                 here = system.stage_inputs(np.array([stepper.t]))
-                restart = land_contacts_entry(system.model, here, stepper.y, events)
+                restart = land_contacts_entry(system.model, here, stepper.t, stepper.y, events)
+                run.take_contact_log()
         if drift > o.projection_tol:
             if not system.project(stepper.y):
                 run.fail(compiled.CHECK_PROJECTION, np.nan, stepper.t)
@@ -692,6 +721,7 @@ def _compiled_adaptive(run: _Run, stepper: DOP853, resume: LoopState | None) -> 
         code, check, value = stepper.run(bound, run.sample_time(run.next_sample))
         run.counts.update(stepper.counts())
         run.switch_times.extend(stepper.new_switch_times())
+        run.take_contact_log()
         if code == dop853.RUN_CHECK_FAILED:
             run.fail(check, value, stepper.t)
             if check != compiled.CHECK_PROJECTION:  # (the state before projection was recorded)
@@ -944,6 +974,7 @@ def run(
         wall_time=r.wall_time(),
         settings=options.settings(t0, t_end, **inputs.settings()),
         switch_times=tuple(r.switch_times),
+        contact_events=r.contact_event_log(),
         stopped_for_time=r.stopped_for_time,
         **r.counts,
     )

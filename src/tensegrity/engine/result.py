@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
+from tensegrity.model.ground import FREE, SLIP, STICK
 from tensegrity.model.structure import Structure
 
 if TYPE_CHECKING:  # (physics loads SciPy: a reader of results need not)
@@ -52,10 +53,14 @@ class Samples(NamedTuple):
     energy: np.ndarray  #: (T, 6) [J]: kinetic, elastic, gravity, dissipated, external, control
     residual_acceleration: np.ndarray  #: (T,) largest node acceleration [m/s^2]
     largest_speed: np.ndarray  #: (T,) largest node speed [m/s]
+    contact_normal_force: np.ndarray  #: (T, CP) F_n of each contact pair [N] (CP = 0: none)
+    contact_friction_force: np.ndarray  #: (T, CP, 3) its tangential force [N]
+    contact_mode: np.ndarray  #: (T, CP) int8: its mode, ``FREE`` 0, ``SLIP`` 1, ``STICK`` 2
 
     @classmethod
-    def empty(cls, rows: int, structure: Structure) -> Samples:
-        """Room for ``rows`` samples of ``structure`` (uninitialised)."""
+    def empty(cls, rows: int, structure: Structure, pairs: int = 0) -> Samples:
+        """Room for ``rows`` samples of ``structure`` with ``pairs`` contact pairs
+        (uninitialised)."""
         n, N, S, d = structure.n_coordinates, structure.n_nodes, structure.n_tendons, structure.dim
         return cls(
             np.empty(rows),
@@ -68,13 +73,16 @@ class Samples(NamedTuple):
             np.empty((rows, len(ENERGY_NAMES))),
             np.empty(rows),
             np.empty(rows),
+            np.empty((rows, pairs)),
+            np.empty((rows, pairs, 3)),
+            np.empty((rows, pairs), np.int8),
         )
 
     @staticmethod
-    def row_bytes(structure: Structure) -> int:
-        """Bytes of one sample of ``structure``."""
+    def row_bytes(structure: Structure, pairs: int = 0) -> int:
+        """Bytes of one sample of ``structure`` with ``pairs`` contact pairs."""
         n, N, S, d = structure.n_coordinates, structure.n_nodes, structure.n_tendons, structure.dim
-        return 8 * (1 + 2 * n + 2 * N * d + 2 * S + len(ENERGY_NAMES) + 2)
+        return 8 * (1 + 2 * n + 2 * N * d + 2 * S + len(ENERGY_NAMES) + 2 + 4 * pairs) + pairs
 
     def head(self, rows: int) -> Samples:
         """The first ``rows`` samples (views)."""
@@ -108,6 +116,8 @@ class RunSummary:
     wall_time: float  #: [s]
     settings: dict[str, Any]
     switch_times: tuple[float, ...] = ()  #: times of the located switches [s]
+    #: (E, 4) the contact pairs' changes of mode: time [s], pair, mode before, mode after
+    contact_events: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 4)))
     stopped_for_time: bool = False  #: failed because this call used up ``max_wall_time``
 
     @property
@@ -159,7 +169,16 @@ class SimulationResult:
     max_constraint_error : largest violation ``|A q - b|`` [m] of the joints and supports seen at
         the end of a step (0 without any; see ``docs/constraints.md``).
     wall_time : [s].  settings : the options of the run.
-    switch_times : (nswitches,) times of the located slack/taut switches [s].
+    switch_times : (nswitches,) times of the located events [s]: slack/taut switches and the
+        contact events that changed a pair's mode.
+    contact_normal_force : (T, CP) normal force ``F_n`` [N] of each contact pair (a rod end
+        against a plane, :attr:`contact_node`, :attr:`contact_plane`; CP = 0 without planes).
+    contact_friction_force : (T, CP, 3) its tangential (friction) force [N].
+    contact_mode : (T, CP) int8, its mode: 0 free, 1 slipping, 2 sticking
+        (:data:`tensegrity.model.ground.CONTACT_MODES`).
+    contact_event_time, contact_event_pair, contact_event_mode : (E,) [s], (E,), (E, 2): the
+        changes of a pair's mode, at located events (or at the start, from free): when, which
+        pair, the modes before and after (:attr:`contact_counts` counts them).
     """
 
     structure: Structure
@@ -183,6 +202,28 @@ class SimulationResult:
     settings: dict[str, Any]
     max_constraint_error: float = 0.0
     switch_times: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
+    contact_normal_force: np.ndarray | None = None
+    contact_friction_force: np.ndarray | None = None
+    contact_mode: np.ndarray | None = None
+    contact_event_time: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
+    contact_event_pair: np.ndarray = dataclasses.field(
+        default_factory=lambda: np.zeros(0, np.int64)
+    )
+    contact_event_mode: np.ndarray = dataclasses.field(
+        default_factory=lambda: np.zeros((0, 2), np.int8)
+    )
+
+    def __post_init__(self) -> None:
+        """Contact arrays left out (a run without planes): of width 0."""
+        T = self.t.shape[0]
+        empty = {
+            "contact_normal_force": np.zeros((T, 0)),
+            "contact_friction_force": np.zeros((T, 0, 3)),
+            "contact_mode": np.zeros((T, 0), np.int8),
+        }
+        for name, value in empty.items():
+            if getattr(self, name) is None:
+                object.__setattr__(self, name, value)
 
     def __repr__(self) -> str:
         """A few hundred characters at most whatever the run's size, as NumPy's and xarray's:
@@ -235,6 +276,50 @@ class SimulationResult:
         """Number of slack (zero-tension) tendons at each sample, (T,)."""
         return np.sum(self.tendon_tension <= 0, axis=1)
 
+    @property
+    def planes(self) -> tuple[dict[str, Any], ...]:
+        """The run's planes, each as its fields (``Plane.settings()``), from :attr:`settings`."""
+        return tuple(self.settings.get("ground", ()))
+
+    @property
+    def contact_node(self) -> np.ndarray:
+        """The node of each contact pair (CP,): pair ``k = c P + p`` is end ``c % 2`` of rod
+        ``c // 2`` against plane ``p``."""
+        ends = self.structure.rod_nodes.reshape(-1)
+        return np.repeat(ends, len(self.planes)) if self.planes else np.zeros(0, np.int64)
+
+    @property
+    def contact_plane(self) -> np.ndarray:
+        """The plane of each contact pair (CP,): an index into :attr:`planes`."""
+        P = len(self.planes)
+        return np.tile(np.arange(P), 2 * self.structure.n_rods) if P else np.zeros(0, np.int64)
+
+    @property
+    def contact_penetration(self) -> np.ndarray:
+        """Penetration ``delta = r - n . (x - x0)`` [m] of each contact pair at each sample
+        (T, CP): > 0 where the end's sphere of radius ``settings["contact_radius"]`` reaches
+        into the plane."""
+        if not self.planes:
+            return np.zeros((self.t.size, 0))
+        point = np.array([plane["point"] for plane in self.planes])[self.contact_plane]
+        normal = np.array([plane["normal"] for plane in self.planes])[self.contact_plane]
+        x = self.node_position[:, self.contact_node]
+        height = np.einsum("tkd,kd->tk", x - point, normal)
+        return float(self.settings["contact_radius"]) - height
+
+    @property
+    def contact_counts(self) -> dict[str, int]:
+        """The contact events by kind: ``touch_down`` (free to in contact, the start's contacts
+        included), ``lift_off``, ``slip`` (sticking to slipping), ``stick`` (slipping to
+        sticking)."""
+        before, after = self.contact_event_mode.T
+        return {
+            "touch_down": int(np.sum((before == FREE) & (after != FREE))),
+            "lift_off": int(np.sum((before != FREE) & (after == FREE))),
+            "slip": int(np.sum((before == STICK) & (after == SLIP))),
+            "stick": int(np.sum((before == SLIP) & (after == STICK))),
+        }
+
 
 class MemorySink:
     """Keeps every sample; :meth:`result` assembles the :class:`SimulationResult`."""
@@ -275,4 +360,19 @@ class MemorySink:
             wall_time=summary.wall_time,
             settings=summary.settings,
             switch_times=np.array(summary.switch_times),
+            contact_normal_force=s.contact_normal_force,
+            contact_friction_force=s.contact_friction_force,
+            contact_mode=s.contact_mode,
+            **contact_event_arrays(summary.contact_events),
         )
+
+
+def contact_event_arrays(events: np.ndarray) -> dict[str, np.ndarray]:
+    """A log of contact events (E, 4) (time [s], pair, mode before, mode after) as the
+    result's ``contact_event_time``, ``contact_event_pair`` and ``contact_event_mode``."""
+    events = np.asarray(events, dtype=float).reshape(-1, 4)
+    return {
+        "contact_event_time": events[:, 0].copy(),
+        "contact_event_pair": events[:, 1].astype(np.int64),
+        "contact_event_mode": events[:, 2:].astype(np.int8),
+    }

@@ -485,7 +485,8 @@ def _write_layout(f, structure: Structure, structure_text: str, plan: _Plan) -> 
         settings_hash=plan.settings_hash,
     )
     _write_run_attributes(f, first)
-    rows = tio.sample_rows(structure) | {"switch_times": ()}
+    pairs = tio.contact_pairs(structure, plan.record)
+    rows = tio.sample_rows(structure, pairs) | tio.event_rows(pairs)
     for name, shape in rows.items():
         f.create_dataset(
             name,
@@ -864,7 +865,7 @@ class FileSink:
             max_constraint_error=run.max_constraint_error,
             wall_time=run.wall_time,
         )
-        self._store(checkpoint, switch_times=run.switch_times)
+        self._store(checkpoint, events=tio.event_columns(run))
 
     def _next_checkpoint(self, *, ended: bool, message: str, **fields: Any) -> Checkpoint:
         """The checkpoint after the samples held now: their count, the last of them, the
@@ -888,11 +889,12 @@ class FileSink:
         )
 
     def _store(
-        self, checkpoint: Checkpoint, *, switch_times: tuple[float, ...] | None = None
+        self, checkpoint: Checkpoint, *, events: Mapping[str, np.ndarray] | None = None
     ) -> None:
         """Append the samples held to the file and make ``checkpoint`` its current one (the
         disk space for it reserved first: a full disk leaves the file at its last checkpoint);
-        at the run's end, ``switch_times`` [s] with them."""
+        at the run's end, the run's ``events`` (:func:`tensegrity.io.trajectory.event_columns`)
+        with them."""
         columns = _columns(self.blocks)
         reserve_space(
             self.partial, _write_bytes(columns, self.checkpoint.n_samples, self.K, checkpoint)
@@ -901,8 +903,8 @@ class FileSink:
             _append(f, columns, self.checkpoint.n_samples)
             _store_checkpoint(f, checkpoint)
             _write_run_attributes(f, checkpoint)
-            if switch_times is not None:
-                _append(f, {"switch_times": np.array(switch_times, dtype=float)}, 0)
+            for name, rows in (events or {}).items():
+                _append(f, {name: rows}, 0)
             f.flush()
         _fsync(self.partial)
         self.blocks, self.checkpoint = [], checkpoint

@@ -24,8 +24,14 @@ dataset                    shape        content
                                         ``columns`` names the columns (the keys of the
                                         result's ``energy`` dict)
 ``residual_acceleration``  (T,)         largest node acceleration [m/s^2]
-``switch_times``           (k,)         times of the located slack/taut switches [s]
+``switch_times``           (k,)         times of the located events [s]
 =========================  ===========  ==============================================
+
+A run with planes (``settings["ground"]``, ``CP`` = 2 R x planes contact pairs) also stores
+``contact_normal_force`` (T, CP) [N], ``contact_friction_force`` (T, CP, 3) [N],
+``contact_mode`` (T, CP) (0 free, 1 slip, 2 stick, as float64) and ``contact_events`` (E, 4):
+each change of a pair's mode (time [s], pair, mode before, mode after); files without them
+read as runs without contact.
 
 ``node_position`` and ``node_velocity`` (T, N, dim) and ``tendon_length`` (T, S) are not
 stored: they are ``P q``, ``P q'`` (:func:`tensegrity.physics.coordinates.nodes_from_coordinates`)
@@ -53,7 +59,7 @@ from typing import Any
 
 import numpy as np
 
-from tensegrity.engine.result import ENERGY_NAMES, SimulationResult
+from tensegrity.engine.result import ENERGY_NAMES, SimulationResult, contact_event_arrays
 from tensegrity.io.checked import (
     attribute_json,
     attribute_number,
@@ -86,6 +92,8 @@ SAMPLE_DATASETS = (
     "energy",
     "residual_acceleration",
 )
+#: The sampled datasets of a run with planes, (T, CP, ...), CP its contact pairs.
+CONTACT_DATASETS = ("contact_normal_force", "contact_friction_force", "contact_mode")
 #: The sampled arrays of a result computed on read rather than stored: name -> (the stored
 #: dataset it is computed from, the first file version that does not store it).
 DERIVED = {"node_position": ("q", 2), "node_velocity": ("qdot", 2), "tendon_length": ("q", 3)}
@@ -98,10 +106,11 @@ COUNT_ATTRIBUTES = ("nfev", "nsteps", "nswitches", "nprojections")
 
 
 # --------------------------------------------------------------------------- the layout
-def sample_rows(structure: Structure) -> dict[str, tuple[int, ...]]:
-    """The shape of one row (one sample) of each of :data:`SAMPLE_DATASETS` for ``structure``."""
+def sample_rows(structure: Structure, pairs: int = 0) -> dict[str, tuple[int, ...]]:
+    """The shape of one row (one sample) of each of :data:`SAMPLE_DATASETS` for ``structure``,
+    and of :data:`CONTACT_DATASETS` for ``pairs`` > 0 contact pairs."""
     n, S = structure.n_coordinates, structure.n_tendons
-    return {
+    rows: dict[str, tuple[int, ...]] = {
         "t": (),
         "q": (n,),
         "qdot": (n,),
@@ -109,6 +118,38 @@ def sample_rows(structure: Structure) -> dict[str, tuple[int, ...]]:
         "energy": (len(ENERGY_COLUMNS),),
         "residual_acceleration": (),
     }
+    if pairs:
+        rows |= {
+            "contact_normal_force": (pairs,),
+            "contact_friction_force": (pairs, 3),
+            "contact_mode": (pairs,),
+        }
+    return rows
+
+
+def contact_pairs(structure: Structure, settings: Mapping[str, Any]) -> int:
+    """The contact pairs of a run of ``structure`` with ``settings``: 2 R per plane."""
+    return 2 * structure.n_rods * len(settings.get("ground", ()))
+
+
+def event_rows(pairs: int) -> dict[str, tuple[int, ...]]:
+    """The shape of one row of the datasets of events a run appends as it goes:
+    ``switch_times``, and ``contact_events`` with ``pairs`` > 0."""
+    return {"switch_times": ()} | ({"contact_events": (4,)} if pairs else {})
+
+
+def event_columns(run: Any) -> dict[str, np.ndarray]:
+    """The events of ``run`` (a :class:`SimulationResult` or a ``RunSummary``) as the datasets
+    of :func:`event_rows`."""
+    columns = {"switch_times": np.asarray(run.switch_times, dtype=float)}
+    if isinstance(run, SimulationResult):
+        if run.contact_mode.shape[1]:
+            columns["contact_events"] = np.column_stack(
+                [run.contact_event_time, run.contact_event_pair, run.contact_event_mode]
+            ).reshape(-1, 4)
+    elif len(run.settings.get("ground", ())):
+        columns["contact_events"] = np.asarray(run.contact_events, dtype=float).reshape(-1, 4)
+    return columns
 
 
 def derived_rows(structure: Structure) -> dict[str, tuple[int, ...]]:
@@ -133,9 +174,8 @@ def sample_columns(samples: Any) -> dict[str, np.ndarray]:
             if energy
             else np.zeros((len(samples.t), 0))
         )
-    return {
-        name: energy if name == "energy" else getattr(samples, name) for name in SAMPLE_DATASETS
-    }
+    names = SAMPLE_DATASETS + (CONTACT_DATASETS if samples.contact_mode.shape[1] else ())
+    return {name: energy if name == "energy" else getattr(samples, name) for name in names}
 
 
 def derived(structure: Structure, name: str, source: np.ndarray) -> np.ndarray:
@@ -216,7 +256,7 @@ def write_trajectory(path: PathLike, result: SimulationResult) -> Path:
             f"result: expected a SimulationResult (what simulate returns), got "
             f"{type(result).__name__}"
         )
-    arrays = sample_columns(result) | {"switch_times": result.switch_times}
+    arrays = sample_columns(result) | event_columns(result)
     with atomic_path(path) as tmp, h5py.File(tmp, "w", libver=("v108", "v108")) as f:
         f.attrs["format"] = TRAJECTORY_FORMAT
         structure = result.structure
@@ -393,10 +433,16 @@ def _read_open_trajectory(f: Any, path: PathLike, every: int = 1) -> SimulationR
     shapes = {name: d.shape for name, d in datasets.items()}
     _check_shapes(shapes, structure, len(columns), path, version)
     switch_times = _switch_times(f, path, version)
+    contact = _contact_datasets(f, path, structure, settings, shapes["t"][0])
     computed = _derived_bytes(structure, computing, shapes["t"][0], every)
-    arrays = read_datasets(datasets, path, every=every, computed=computed)
+    arrays = read_datasets(datasets | contact, path, every=every, computed=computed)
     for name in computing:
         arrays[name] = derived(structure, name, arrays[DERIVED[name][0]])
+    if contact:
+        arrays["contact_mode"] = arrays["contact_mode"].astype(np.int8)
+        arrays |= contact_event_arrays(
+            read_datasets({"e": _dataset(f, "contact_events", path)}, path)["e"]
+        )
     return SimulationResult(
         t=arrays["t"],
         q=arrays["q"],
@@ -412,7 +458,32 @@ def _read_open_trajectory(f: Any, path: PathLike, every: int = 1) -> SimulationR
         settings=settings,
         **figures,
         message=message,
+        **{name: arrays[name] for name in arrays if name.startswith("contact_")},
     )
+
+
+def _contact_datasets(
+    f: Any, path: PathLike, structure: Structure, settings: Mapping[str, Any], T: int
+) -> dict[str, Any]:
+    """The contact datasets of a run with planes (checked shapes), or none."""
+    pairs = contact_pairs(structure, settings)
+    if not pairs:
+        return {}
+    rows = sample_rows(structure, pairs)
+    datasets = {name: _dataset(f, name, path) for name in CONTACT_DATASETS}
+    for name, dataset in datasets.items():
+        if dataset.shape != (T, *rows[name]):
+            raise file_error(
+                path,
+                f"dataset {name!r}: expected shape {(T, *rows[name])} for this structure and "
+                f"its {pairs} contact pairs, got {dataset.shape}",
+            )
+    events = _dataset(f, "contact_events", path)
+    if events.ndim != 2 or events.shape[1] != 4:
+        raise file_error(
+            path, f"dataset 'contact_events': expected shape (E, 4), got {events.shape}"
+        )
+    return datasets
 
 
 def _switch_times(f: Any, path: PathLike, version: int) -> np.ndarray:

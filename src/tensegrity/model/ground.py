@@ -30,6 +30,11 @@ from typing import Any
 
 import numpy as np
 
+#: A contact pair's modes: free (no force), slipping (kinetic friction), sticking (held).
+FREE, SLIP, STICK = 0, 1, 2
+#: Their names (``SimulationResult.contact_mode``).
+CONTACT_MODES = {FREE: "free", SLIP: "slip", STICK: "stick"}
+
 __all__ = ["Plane", "ground", "planes_of"]
 
 

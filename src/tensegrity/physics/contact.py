@@ -27,21 +27,19 @@ that the energy balance holds.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
 
 import numpy as np
 
+from tensegrity.model.ground import FREE, SLIP, STICK, Plane
 from tensegrity.physics.compiling import ROD_C1, ROD_C2, ROD_MASS, compiled_only
 from tensegrity.physics.records import Contacts, ContactWork
 
-if TYPE_CHECKING:
-    from tensegrity.model.ground import Plane
-
-#: Modes of a pair (``ContactWork.mode``).
-FREE, SLIP, STICK = 0, 1, 2
 #: Regularization of a rod's sticking system, relative to its largest diagonal entry (its null
 #: space, e.g. an axial pair of forces on a rod lying with both ends stuck, moves nothing).
 STICK_REGULARIZATION = 1e-12
+#: The log of the modes' changes (``ContactWork.log``) holds this many landings' worth (every
+#: pair changing) before the loop must take its rows.
+LOG_LANDINGS = 8
 
 
 @compiled_only
@@ -278,6 +276,19 @@ def stick_pass(contacts, model, data, q, qdot, qddot):  # pragma: no cover - com
 
 
 @compiled_only
+def record_contacts(work, normal_force, friction_force, mode, row):  # pragma: no cover
+    """Row ``row`` of a sample's contact columns (``Samples.contact_*``) from the evaluation
+    that wrote ``work`` (nothing without contacts)."""
+    if work is None:
+        return
+    for k in range(work.mode.shape[0]):
+        normal_force[row, k] = work.normal_force[k]
+        mode[row, k] = work.mode[k]
+        for i in range(3):
+            friction_force[row, k, i] = work.friction_force[k, i]
+
+
+@compiled_only
 def contact_energy(contacts, q):  # pragma: no cover - compiled
     """The contacts' elastic energy ``sum k max(delta, 0)^2 / 2`` [J]."""
     normal, point = contacts.plane_normal, contacts.plane_point
@@ -314,15 +325,15 @@ def pack_contacts(planes: Sequence[Plane], point_radius: np.ndarray) -> Contacts
 
 def contact_work(contacts: Contacts) -> ContactWork:
     """A :class:`~tensegrity.physics.records.ContactWork` for ``contacts``, every pair free."""
-    P = contacts.plane_normal.shape[0]
-    pairs = contacts.point_radius.shape[0] * P
+    pairs = contacts.point_radius.shape[0] * contacts.plane_normal.shape[0]
     return ContactWork(
         mode=np.full(pairs, FREE, np.int64),
         slip_direction=np.zeros((pairs, 3)),
         normal_force=np.zeros(pairs),
         friction_force=np.zeros((pairs, 3)),
         indicator=np.zeros(2 * pairs),
-        matrix=np.zeros((4 * P, 4 * P + 1)),
+        log=np.zeros((LOG_LANDINGS * pairs, 4)),
+        log_count=np.zeros(1, np.int64),
     )
 
 

@@ -91,7 +91,10 @@ class ContactWork(NamedTuple):
     normal_force: np.ndarray  #: (CP,) F_n [N]
     friction_force: np.ndarray  #: (CP, 3) the tangential force on the point [N]
     indicator: np.ndarray  #: (2 CP,) the events' indicators (contact, friction) per pair
-    matrix: np.ndarray  #: (4 P, 4 P + 1) scratch of a rod's sticking system
+    #: (B, 4) the modes' changes since the loop last took them: time [s], pair, mode before,
+    #: mode after (``tensegrity.engine.events.log_changes``)
+    log: np.ndarray
+    log_count: np.ndarray  #: (1,) int64: rows of ``log`` written
 
 
 class Model(NamedTuple):
