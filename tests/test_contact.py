@@ -283,8 +283,10 @@ def test_a_streamed_run_with_contact_resumes_bit_for_bit(tmp_path):
     assert resumed.resumed_from == 1 and whole.status == resumed.status == 0
     a, b = read_trajectory(whole.path), read_trajectory(resumed.path)
     assert a.nswitches == b.nswitches > 0
-    for name in ("t", "q", "qdot", "switch_times"):
+    contact = [name for name in vars(a) if name.startswith("contact_")]
+    for name in ("t", "q", "qdot", "switch_times", *contact):
         assert np.array_equal(getattr(a, name), getattr(b, name)), name
+    assert a.contact_counts["stick"] == 2  # (both ends stop, after the interruption)
     assert read_trajectory(whole.path).settings["ground"][0]["friction"] == 0.4
 
 
@@ -302,6 +304,8 @@ def test_the_simulate_command_stands_a_robot_on_the_ground(tmp_path, capsys):
     assert main([*argv, "--out", str(out)]) == 0
     printed = capsys.readouterr().out
     assert "events (slack/taut switches, contacts) located" in printed
+    counts = read_trajectory(out / "trajectory.h5").contact_counts
+    assert re.search(rf"contact events +{counts['touch_down']} touch-downs, ", printed)
     run = read_trajectory(out / "trajectory.h5")
     assert run.status == 1  # (at rest)
     assert run.settings["ground"] == [ground(-0.5, friction=0.8, kinetic_friction=0.6).settings()]

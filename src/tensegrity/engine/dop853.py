@@ -57,7 +57,6 @@ from tensegrity.engine.events import (
     log_full,
     restore_landing,
     set_sides,
-    start_contacts,
 )
 from tensegrity.engine.steppers import StepperMemory
 from tensegrity.engine.system import CompiledSystem
@@ -286,8 +285,6 @@ def dop853_run(model, rows, point, loop, bound, next_sample_t):  # pragma: no co
             if bad >= 0:
                 loop.clock[INPUT_TIME] = loop.clock[T]
                 return RUN_INPUT, CHECK_OK, 0.0
-            if loop.tally[START]:  # (the contacts' modes at the first state)
-                start_contacts(model.contacts, model, point, loop.clock[T], loop.y, loop.events)
             ode_rhs(model, point, np.int64(0), loop.y, loop.K[0])
             loop.tally[NFEV] += 1
             if locate or loop.tally[START]:

@@ -510,6 +510,15 @@ class _Run:
             "contact_events": self.contact_event_log(),
         }
 
+    def start_contacts(self, t0: float, y0: np.ndarray) -> None:
+        """The contact pairs' modes at the first state ``y0`` (in place: its sticking points
+        held still; :func:`tensegrity.engine.events.start_contacts`), logged; nothing without
+        planes."""
+        if self.system.model.contacts is not None:
+            here = self.system.stage_inputs(np.array([t0]))
+            start_contacts_entry(self.system.model, here, t0, y0, event_work(self.system))
+            self.take_contact_log()
+
     def take_contact_log(self) -> None:
         """Move the changes of mode the compiled actions logged (``ContactWork.log``) to
         :attr:`contact_events`, emptying the log."""
@@ -612,11 +621,6 @@ def _adaptive(run: _Run, stepper: Stepper, resume: LoopState | None) -> None:
     events = event_work(system)
     point = system.input_buffers(1)
     varying = not system.inputs.constant
-    if resume is None and system.model.contacts is not None:
-        here = system.stage_inputs(np.array([stepper.t]))
-        start_contacts_entry(system.model, here, stepper.t, stepper.y, events)
-        run.take_contact_log()
-        stepper.restart(stepper.y)
     if locate:
         set_sides_entry(stepper.evaluation(), events, False)
     landing: _Landing | None = None
@@ -951,6 +955,7 @@ def run(
         r.system.check_contacts(y0)
         if controller is not None:
             r.update_control(t0, y0)
+        r.start_contacts(t0, y0)
         stepper, loop = _method(r, t0, y0.copy(), None)
         r.stopped_at(r.record(t0, y0))
     else:
