@@ -16,9 +16,7 @@ import shutil
 import sys
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
-
-import numpy as np
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 from tensegrity.cli import arguments, outputs
 from tensegrity.cli.drawing import Drawing, worker_count
@@ -56,7 +54,8 @@ from tensegrity.physics import dynamics
 
 if TYPE_CHECKING:
     from tensegrity.io.stream import StreamSummary
-    from tensegrity.model.loads import ForceTable
+    from tensegrity.model.ground import Scene
+    from tensegrity.model.loads import ControlTable, ForceTable
     from tensegrity.model.structure import Structure
     from tensegrity.plots.motion import FrameKeeper
 
@@ -129,12 +128,20 @@ def _segment(structure: Structure, t_end: float, sample_dt: float) -> float:
     return min(default, tenth) * sample_dt
 
 
+class RunInputs(NamedTuple):
+    """What a ``simulate`` run puts on its structure: the force table, the control table and
+    the scene (the ground, the contact radius and gravity)."""
+
+    force: ForceTable | None
+    control: ControlTable | None
+    scene: Scene
+
+
 def _simulation_inputs(
     args: argparse.Namespace,
-) -> tuple[Structure, ForceTable | None, np.ndarray | None, DesignedRun | None]:
-    """The structure (damped as the options say), the force table and the gravity of a run,
-    and, if its members have a design, what :func:`print_summary`'s utilisation report
-    needs."""
+) -> tuple[Structure, RunInputs, DesignedRun | None]:
+    """The structure (damped as the options say) and the inputs of a run, and, if its members
+    have a design, what :func:`print_summary`'s utilisation report needs."""
     structure, members = designed_of(args)
     damping = args.damping
     if damping is None and getattr(args, "structure", None) is None:
@@ -151,11 +158,13 @@ def _simulation_inputs(
                 f"--force-table: {shown_path(args.force_table)} has forces for {force.n_nodes} "
                 f"nodes, the structure has {structure.n_nodes}"
             )
-    gravity = None
-    if args.gravity is not None:
-        from tensegrity.model.loads import gravity_vector
+    control = None
+    if args.control_table is not None:
+        from tensegrity.io.tables import read_control_table
 
-        gravity = gravity_vector(args.gravity, structure.dim)
+        with blame("--control-table", args.control_table):
+            control = read_control_table(args.control_table, structure)
+    inputs = RunInputs(force, control, _scene_of(args, structure))
     if members is None:
         for option, value in (("--safety-factor", args.safety_factor != 1.0),
                               ("--stop-on-failure", args.stop_on_failure)):  # fmt: skip
@@ -164,16 +173,15 @@ def _simulation_inputs(
                     f"{option}: needs members with a design (--material and --section, or a "
                     "structure file in the material form)"
                 )
-        return structure, force, gravity, None
-    return structure, force, gravity, DesignedRun(structure, members, force, args.safety_factor)
+        return structure, inputs, None
+    return structure, inputs, DesignedRun(structure, members, force, args.safety_factor)
 
 
 def _stream_run(
     args: argparse.Namespace,
     options: Options,
     structure: Structure,
-    force: ForceTable | None,
-    gravity: np.ndarray | None,
+    inputs: RunInputs,
     files: RunFiles,
     keeper: FrameKeeper | None,
     designed: DesignedRun | None,
@@ -192,8 +200,8 @@ def _stream_run(
             structure,
             designed.members.properties(structure),
             safety_factor=designed.safety_factor,
-            external_force=force,
-            gravity=gravity,
+            external_force=inputs.force,
+            gravity=inputs.scene.gravity,
         )
 
     try:
@@ -206,9 +214,9 @@ def _stream_run(
             progress=sys.stderr.isatty(),
             observe=None if keeper is None else keeper.add,
             stop=stop,
-            external_force=force,
-            gravity=gravity,
-            **_ground_of(args),
+            external_force=inputs.force,
+            control=inputs.control,
+            **inputs.scene.simulate_options(),
             **dataclasses.asdict(options),
         )
     except KeyboardInterrupt:
@@ -250,7 +258,7 @@ def _simulate_and_write(args: argparse.Namespace, options: Options, drawing: Dra
     """``tensegrity simulate`` once its options are checked (the run's: ``options``): the run,
     its files (the figures, page and video drawn by ``drawing``) and its summary."""
     announce_compiling()
-    structure, force, gravity, designed = _simulation_inputs(args)
+    structure, inputs, designed = _simulation_inputs(args)
     _check_outputs(args, designed is not None)
     check_structure_size(structure)
     check_run_cost(structure, args.t_end, options)
@@ -263,10 +271,10 @@ def _simulate_and_write(args: argparse.Namespace, options: Options, drawing: Dra
         budget = frame_budget(structure, max_frames=MAX_FRAMES, max_bytes=MAX_BYTES)
         keeper = FrameKeeper(structure, t0=0.0, sample_dt=args.sample_dt, max_frames=budget)
     try:
-        summary = _stream_run(args, options, structure, force, gravity, files, keeper, designed)
+        summary = _stream_run(args, options, structure, inputs, files, keeper, designed)
         try:
             trajectory, balance, written, peaks = write_run(
-                args, structure, summary, files, keeper, designed, drawing
+                args, structure, inputs.scene, summary, files, keeper, designed, drawing
             )
         except (ValueError, OSError) as exc:  # the finished run stays, for --resume
             code = EXIT_FAILED if isinstance(exc, OSError) and exc.errno in DISK_FULL else 2
@@ -352,6 +360,15 @@ def add_parser(sub: Any) -> None:
         help="external nodal forces [N] from a time table, linear in between, held "
         "after its end (.npz: time (T,), force (T, N, 3); .csv: rows t, f0x, "
         "f0y, f0z, f1x, ...)",
+    )
+    sim.add_argument(
+        "--control-table",
+        type=arguments.name,
+        metavar="FILE.csv|FILE.npz",
+        help="the tendons' rest-length changes u [m] from a time table (rest length L0 - u: "
+        "u > 0 shortens a tendon), linear in between, held after its end (.csv: a header "
+        "row t, then tendon names, and rows of numbers; tendons not named keep u = 0; .npz: "
+        "time (T,), control (T, S), or time, names (K,), control (T, K))",
     )
     add_gravity_option(sim)
     _add_ground_options(sim)
@@ -444,72 +461,96 @@ def _add_ground_options(parser: argparse.ArgumentParser) -> None:
     contact")."""
     from tensegrity.model.ground import Plane
 
-    ground = parser.add_argument_group("ground contact")
+    ground = parser.add_argument_group(
+        "ground contact",
+        "A --structure file may carry its scene (planes, contact radius, gravity: its 'scene' "
+        "key); these options override it: --ground replaces its planes, --friction, "
+        "--contact-stiffness and --contact-damping without --ground change those of its "
+        "planes, --contact-radius and --gravity replace its own.",
+    )
     ground.add_argument(
         "--ground",
         type=float,
         metavar="Z",
         help="a rigid plane through (0, 0, Z) [m] the rods' ends touch, with friction "
-        "(default none)",
+        "(default: the --structure file's planes, else none)",
     )
     ground.add_argument(
         "--ground-normal",
         type=_numbers(3),
-        default=Plane.normal,
         metavar="NX,NY,NZ",
-        help="its normal, out of the ground (default %(default)s)",
+        help="with --ground: its normal, out of the ground (default "
+        f"{','.join(f'{x:g}' for x in Plane.normal)})",
     )
     ground.add_argument(
         "--friction",
         type=_numbers(2),
-        default=(Plane.friction,),
         metavar="MU[,MU_K]",
-        help="static and kinetic friction coefficients (default %(default)s; MU_K = MU)",
+        help=f"static and kinetic friction coefficients (default {Plane.friction:g}; MU_K = MU)",
     )
     ground.add_argument(
         "--contact-radius",
         type=arguments.non_negative,
-        default=0.0,
         metavar="R",
-        help="radius of the rods' ends as contact spheres [m] (default %(default)g)",
+        help="radius of the rods' ends as contact spheres [m] (default: the file's, else 0)",
     )
     ground.add_argument(
         "--contact-stiffness",
         type=float,
-        default=Plane.stiffness,
         metavar="K",
-        help="the contact's normal stiffness [N/m] (default %(default)g)",
+        help=f"the contact's normal stiffness [N/m] (default {Plane.stiffness:g})",
     )
     ground.add_argument(
         "--contact-damping",
         type=float,
-        default=Plane.damping,
         metavar="C",
-        help="the contact's normal damping [N s/m] (default %(default)g)",
+        help=f"the contact's normal damping [N s/m] (default {Plane.damping:g})",
     )
 
 
-def _ground_of(args: argparse.Namespace) -> dict[str, Any]:
-    """``simulate_to_file``'s ``ground`` and ``contact_radius`` from the options (nothing
-    without ``--ground``); ``CommandError`` naming the option of a bad value."""
-    from tensegrity.model.ground import Plane
+def _scene_of(args: argparse.Namespace, structure: Structure) -> Scene:
+    """The scene of the run: the ``--structure`` file's (:func:`tensegrity.io.formats.read_scene`),
+    overridden by the options given (``--ground`` replaces its planes, ``--friction``,
+    ``--contact-stiffness`` and ``--contact-damping`` alone change its planes', ``--contact-radius``
+    and ``--gravity`` replace its own); ``CommandError`` naming the option of a bad value, or
+    the file of a bad scene."""
+    from tensegrity.io.formats import read_scene
+    from tensegrity.model.ground import Plane, Scene
+    from tensegrity.model.loads import gravity_vector
 
-    if args.ground is None:
-        return {}
-    friction = args.friction
-    try:
-        plane = Plane(
-            point=(0.0, 0.0, args.ground),
-            normal=args.ground_normal,
-            friction=friction[0],
-            kinetic_friction=friction[-1],
-            stiffness=args.contact_stiffness,
-            damping=args.contact_damping,
+    scene = Scene()
+    if getattr(args, "structure", None) is not None:
+        with blame("--structure", args.structure):
+            scene = read_scene(args.structure)
+    given: dict[str, Any] = {
+        field: value
+        for field, value in (
+            ("normal", args.ground_normal),
+            ("friction", None if args.friction is None else args.friction[0]),
+            ("kinetic_friction", None if args.friction is None else args.friction[-1]),
+            ("stiffness", args.contact_stiffness),
+            ("damping", args.contact_damping),
         )
+        if value is not None
+    }
+    try:
+        if args.ground is not None:
+            planes: tuple[Plane, ...] = (Plane(point=(0.0, 0.0, args.ground), **given),)
+        elif "normal" in given:
+            raise CommandError("--ground-normal: only with --ground (a file's planes keep theirs)")
+        elif given and not scene.planes:
+            option = _GROUND_OPTIONS[next(iter(given))]
+            raise CommandError(f"{option}: needs --ground, or a --structure file with planes")
+        else:
+            planes = tuple(dataclasses.replace(plane, **given) for plane in scene.planes)
     except ValueError as exc:
         field, _, problem = str(exc).partition(": ")
         raise CommandError(f"{_GROUND_OPTIONS.get(field, '--ground')}: {problem}") from None
-    return {"ground": plane, "contact_radius": args.contact_radius}
+    radius = scene.contact_radius if args.contact_radius is None else args.contact_radius
+    gravity = scene.gravity
+    if args.gravity is not None:
+        gravity = gravity_vector(args.gravity, structure.dim)
+    return Scene(planes, radius, gravity)
 
 
 def _add_integration_options(parser: argparse.ArgumentParser) -> None:

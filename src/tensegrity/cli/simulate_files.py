@@ -29,6 +29,7 @@ if TYPE_CHECKING:
     from tensegrity.design.utilisation import TrajectoryUtilisation
     from tensegrity.engine.result import SimulationResult
     from tensegrity.io.stream import StreamSummary
+    from tensegrity.model.ground import Scene
     from tensegrity.model.loads import ForceTable
     from tensegrity.model.structure import Structure
     from tensegrity.plots.motion import FrameKeeper
@@ -168,19 +169,21 @@ DEFAULT_VIDEO_SECONDS = 3.0
 def write_run(
     args: argparse.Namespace,
     structure: Structure,
+    scene: Scene,
     summary: StreamSummary,
     files: RunFiles,
     keeper: FrameKeeper | None,
     designed: DesignedRun | None,
     drawing: Drawing,
 ) -> tuple[SimulationResult, float, list[Path], TrajectoryUtilisation | None]:
-    """Write the finished run's files to ``--out`` together; the trajectory read back for the
-    figures and the summary, the largest energy balance error [J], the files written and the
-    members' largest utilisation over the run (members with a design: ``designed``).  The
-    figures, the viewer's page and the video are ``drawing``'s jobs, drawn while this process
-    writes the rest.  The viewer's frames are ``keeper``'s, or (a resumed run, or members with
-    a design: ``designed``, their utilisation in the frames and in utilisation.png, drawn at
-    the last sample) read from the file."""
+    """Write the finished run's files to ``--out`` together (``structure.json`` with the run's
+    ``scene``, so that ``--structure OUT/structure.json`` runs it again); the trajectory read
+    back for the figures and the summary, the largest energy balance error [J], the files
+    written and the members' largest utilisation over the run (members with a design:
+    ``designed``).  The figures, the viewer's page and the video are ``drawing``'s jobs, drawn
+    while this process writes the rest.  The viewer's frames are ``keeper``'s, or (a resumed
+    run, or members with a design: ``designed``, their utilisation in the frames and in
+    utilisation.png, drawn at the last sample) read from the file."""
     from tensegrity.design.files import write_design
     from tensegrity.io.formats import write_structure
     from tensegrity.io.trajectory import read_dataset, read_trajectory
@@ -239,11 +242,15 @@ def write_run(
             ),
         ]
         outputs = [
-            write_structure(staging / "structure.json", structure),
+            write_structure(staging / "structure.json", structure, scene=scene),
             *(  # the same structure by material and section (`tensegrity view --structure`)
                 []
                 if designed is None
-                else [write_design(staging / MATERIAL_STRUCTURE, structure, designed.members)]
+                else [
+                    write_design(
+                        staging / MATERIAL_STRUCTURE, structure, designed.members, scene=scene
+                    )
+                ]
             ),
             *(_vtk_files(staging / "vtk", read_trajectory(work)) if args.vtk else []),
         ]

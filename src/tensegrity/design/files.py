@@ -50,8 +50,10 @@ from tensegrity.io.formats import (
     network_to_dict,
     read_document,
     read_network,
+    with_scene,
     write_document,
 )
+from tensegrity.model.ground import Scene
 from tensegrity.model.structure import Structure, check_keys, parse_number
 
 __all__ = [
@@ -240,12 +242,17 @@ def _section(value: Any, where: str, kind: str) -> Section:
 
 
 def design_to_dict(
-    structure: Structure, design: MemberDesign, *, keep_joints: bool = False
+    structure: Structure,
+    design: MemberDesign,
+    *,
+    keep_joints: bool = False,
+    scene: Scene | None = None,
 ) -> dict[str, Any]:
     """The material form of ``structure`` (built by ``design``, :meth:`MemberDesign.apply`):
     :func:`~tensegrity.io.formats.network_to_dict` with each rod's ``mass`` and tendon's
     ``stiffness`` replaced by its ``material`` and ``section`` (under ``defaults`` when shared),
-    ``tendon_mass`` if set, and the point masses the file gives (less the tendons' share).
+    ``tendon_mass`` if set, and the point masses the file gives (less the tendons' share);
+    ``scene`` (if given and not empty) last, under ``"scene"``.
 
     Raises
     ------
@@ -294,7 +301,7 @@ def design_to_dict(
     if defaults:
         data["defaults"] = defaults
     data["rods"], data["tendons"] = rods, tendons
-    return data
+    return with_scene(data, scene)
 
 
 def _material_value(m: Material) -> str | dict[str, Any]:
@@ -320,12 +327,14 @@ def write_design(
     *,
     format: str | None = None,
     keep_joints: bool = False,
+    scene: Scene | None = None,
 ) -> Path:
     """Write ``structure`` in the material form (:func:`design_to_dict`) as YAML, TOML or JSON
     (by suffix, or ``format``), atomically; :func:`read_design` reads back the same structure
     and design (a tendon's :class:`SolidRod` section is read back as the :class:`Cable` of its
-    diameter: the same area)."""
-    data = design_to_dict(structure, design, keep_joints=keep_joints)
+    diameter: the same area); ``scene`` goes under the file's ``"scene"`` key
+    (:func:`tensegrity.io.formats.read_scene` reads it back)."""
+    data = design_to_dict(structure, design, keep_joints=keep_joints, scene=scene)
     header = (
         f"# {len(data['nodes'])} nodes, {structure.n_rods} rods, {structure.n_tendons} tendons, "
         "members by material and section; SI units\n"

@@ -5,7 +5,7 @@
 - :mod:`~tensegrity.io.checked` — HDF5 datasets and attributes and ``.npz`` arrays checked
   against the documented layout and the limits before they are read (untrusted files);
 - :mod:`~tensegrity.io.formats` — structure files (JSON, YAML, TOML, connectivity ``.npz``,
-  MJCF ``.xml``);
+  MJCF ``.xml``) and the scene they carry;
 - :mod:`~tensegrity.io.trajectory` — the trajectory HDF5 file (its layout is defined there);
 - :mod:`~tensegrity.io.stream` — a run streamed to that file with checkpoints (resumable);
 - :mod:`~tensegrity.io.tables` — force tables from ``.npz``/``.csv``;
@@ -16,7 +16,13 @@ The names below are the common entry points.
 """
 
 from tensegrity.io.files import PathLike, atomic_path, file_error, write_staged
-from tensegrity.io.formats import read_network, read_structure, write_network, write_structure
+from tensegrity.io.formats import (
+    read_network,
+    read_scene,
+    read_structure,
+    write_network,
+    write_structure,
+)
 from tensegrity.io.trajectory import read_trajectory, write_trajectory
 
 __all__ = [
@@ -24,6 +30,7 @@ __all__ = [
     "atomic_path",
     "file_error",
     "read_network",
+    "read_scene",
     "read_structure",
     "read_trajectory",
     "write_network",

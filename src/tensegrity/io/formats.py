@@ -27,6 +27,13 @@ File formats (:func:`read_network`, :func:`write_network`, chosen by the file's 
   ``N, C_b, C_s``, supports and parameters in the layout of :func:`from_connectivity`.
 - ``.xml`` (write only): MuJoCo MJCF (:func:`tensegrity.io.mjcf.to_mjcf`).
 
+The scene (:class:`~tensegrity.model.ground.Scene`: the planes the rods' ends touch, their contact
+radius, gravity) is not part of the structure: a JSON, YAML or TOML file may carry one under its
+optional top-level ``scene`` key (:meth:`Scene.to_dict <tensegrity.model.ground.Scene.to_dict>`),
+which :func:`read_scene` reads (an empty scene without it), the structure readers check and
+pass over, and the writers write when given ``scene=``; the connectivity form carries none, and
+MJCF writes it as MuJoCo's floor and gravity.
+
 SI units throughout: m, kg, s, N.
 """
 
@@ -42,7 +49,7 @@ from typing import Any
 import numpy as np
 
 from tensegrity.io.checked import ArrayKind, npz_arrays, open_npz
-from tensegrity.io.files import PathLike, atomic_path, file_error, read_input
+from tensegrity.io.files import PathLike, atomic_path, file_error, read_input, regular_file
 from tensegrity.model.connectivity import (
     DEFAULT_ROD_MASS,
     DEFAULT_STIFFNESS,
@@ -52,6 +59,7 @@ from tensegrity.model.connectivity import (
     merge_joints,
     rest_from_prestrain,
 )
+from tensegrity.model.ground import Scene
 from tensegrity.model.structure import (
     Structure,
     check_keys,
@@ -132,7 +140,9 @@ _ITEM_KEYS = {"point_masses": "mass", "planes": "normal", "lines": "direction"}
 _SUPPORT_KEYS: dict[str, str | None] = {"fixed": None, **_ITEM_KEYS, "joints": None}
 
 
-def network_to_dict(structure: Structure, *, keep_joints: bool = False) -> dict[str, Any]:
+def network_to_dict(
+    structure: Structure, *, keep_joints: bool = False, scene: Scene | None = None
+) -> dict[str, Any]:
     """The readable form (for YAML and TOML): named nodes, shared parameters under ``defaults``.
 
     ``{"format": "tensegrity-network", "version": 1, "nodes": {"n0": [x, y, z], ...},
@@ -144,7 +154,8 @@ def network_to_dict(structure: Structure, *, keep_joints: bool = False) -> dict[
     :func:`merge_joints`), or with ``keep_joints`` the structure's own nodes and ``"joints":
     [["n1", "n2"], ...]``; a planar structure has ``[x, y]`` nodes.  A parameter shared by every
     rod (tendon) is written once under ``defaults``, the others per member.  Floats keep their
-    shortest round-trip form, so reading it back is exact.
+    shortest round-trip form, so reading it back is exact.  A ``scene`` (not empty) is written
+    last, under ``"scene"`` (:meth:`Scene.to_dict <tensegrity.model.ground.Scene.to_dict>`).
     """
     merged = merge_joints(structure, keep_joints=keep_joints)
     names = [f"n{i}" for i in range(merged.N.shape[1])]
@@ -208,7 +219,28 @@ def network_to_dict(structure: Structure, *, keep_joints: bool = False) -> dict[
     data["defaults"] = {kind: table for kind, table in defaults.items() if table}
     data["rods"] = members["rod"]
     data["tendons"] = members["tendon"]
+    return with_scene(data, scene)
+
+
+def with_scene(data: dict[str, Any], scene: Scene | None) -> dict[str, Any]:
+    """``data`` (a document of a structure file) with ``scene`` under its ``"scene"`` key, last
+    (nothing for None or an empty scene)."""
+    data.pop("scene", None)
+    if scene is not None and scene != Scene():
+        data["scene"] = scene.to_dict()
     return data
+
+
+def scene_from_dict(data: Any) -> Scene:
+    """The scene of a structure file's document: its ``"scene"`` key (absent or null: an empty
+    scene), for a structure of the dimension of its ``nodes`` (``ValueError`` naming the key,
+    :meth:`Scene.from_dict <tensegrity.model.ground.Scene.from_dict>`)."""
+    if not isinstance(data, Mapping) or data.get("scene") is None:
+        return Scene()
+    nodes = data.get("nodes")
+    rows = list(nodes.values()) if isinstance(nodes, Mapping) else nodes
+    dim = node_dimension(rows) if isinstance(rows, Sequence) and not isinstance(rows, str) else 3
+    return Scene.from_dict(data["scene"], dim=dim)
 
 
 def network_from_dict(data: Any) -> Structure:
@@ -221,8 +253,9 @@ def network_from_dict(data: Any) -> Structure:
     ``mass`` 1 kg, ``length`` the distance of its nodes, ``damping`` 0; tendon ``stiffness``
     100 N/m, ``damping`` 0); a tendon needs ``rest_length`` [m] or ``prestrain``
     ``(l - L0) / L0``.  Optional ``fixed`` (nodes), ``point_masses`` (``{node, mass}``),
-    ``planes`` (``{node, normal}``), ``lines`` (``{node, direction}``).  Unknown keys are
-    errors (a typo is not ignored).
+    ``planes`` (``{node, normal}``), ``lines`` (``{node, direction}``).  A ``scene`` is checked
+    (:func:`scene_from_dict`) but not part of the structure.  Unknown keys are errors (a typo is
+    not ignored).
 
     Raises
     ------
@@ -234,6 +267,7 @@ def network_from_dict(data: Any) -> Structure:
     _refuse_material_form(data)
     _check_header(data)
     names, position, dim = _named_points(data["nodes"], "nodes")
+    scene_from_dict(data)
     for key in ("rods", "tendons"):
         if key not in data:
             raise ValueError(f"network: missing key {key!r}")
@@ -319,6 +353,7 @@ def _check_header(data: Any) -> None:
             "defaults",
             "rods",
             "tendons",
+            "scene",
         ),
         "network",
     )
@@ -579,6 +614,31 @@ def read_network(path: PathLike, *, format: str | None = None) -> Structure:
         return network_from_dict(data)
 
 
+def read_scene(path: PathLike, *, format: str | None = None) -> Scene:
+    """The scene a structure file carries (by suffix, or ``format``): its ``scene`` key
+    (:func:`scene_from_dict`); an empty :class:`~tensegrity.model.ground.Scene` for a file
+    without one, and for the connectivity form (``.npz``), which carries none.
+
+    ``simulate(read_network(path), t_span, **read_scene(path).simulate_options())`` runs the
+    structure in its scene.
+
+    Raises
+    ------
+    ValueError
+        One line starting with the file name and naming the key: ``"s.yaml:
+        scene.planes[0].normal: must not be zero, got [0.0, 0.0, 0.0]"``.
+    """
+    kind = file_format(path, format)
+    if kind == "mjcf":
+        raise file_error(path, "MJCF files are written for MuJoCo, not read back")
+    if kind == "connectivity":
+        regular_file(path)
+        return Scene()
+    data = read_document(path, format=kind)
+    with _blamed(path):
+        return scene_from_dict(data)
+
+
 @contextlib.contextmanager
 def _blamed(path: PathLike) -> Iterator[None]:
     """Errors of reading ``path`` as one-line ``ValueError``s that start with its name (a
@@ -704,7 +764,12 @@ def _check_whole(indices: np.ndarray | None, name: str) -> None:
 
 
 def write_network(
-    path: PathLike, structure: Structure, *, format: str | None = None, keep_joints: bool = False
+    path: PathLike,
+    structure: Structure,
+    *,
+    format: str | None = None,
+    keep_joints: bool = False,
+    scene: Scene | None = None,
 ) -> Path:
     """Write ``structure`` in any format (by suffix, or ``format``), atomically.
 
@@ -715,14 +780,23 @@ def write_network(
     or for a structure without joints, reads back to an identical structure; a jointed
     structure written merged reads back with the same ``N, C_b, C_s``, supports and parameters
     in the layout of :func:`from_connectivity` (see ``docs/networks.md``).
+
+    A ``scene`` (:class:`~tensegrity.model.ground.Scene`) goes under the file's ``scene`` key
+    (JSON, YAML, TOML; :func:`read_scene` reads it back equal), or into MJCF as its floor
+    planes and gravity; the connectivity form (``.npz``) carries none (``ValueError`` naming
+    ``scene``).
     """
     kind = file_format(path, format)
     if kind == "json":
-        return write_structure(path, structure)
+        return write_structure(path, structure, scene=scene)
     if kind == "mjcf":
         from tensegrity.io.mjcf import write_mjcf
 
-        return write_mjcf(path, structure)
+        return write_mjcf(path, structure, **({} if scene is None else scene.simulate_options()))
+    if kind == "connectivity" and scene is not None and scene != Scene():
+        raise ValueError(
+            "scene: the connectivity form (.npz) carries no scene; write .json, .yaml or .toml"
+        )
     with atomic_path(path) as tmp:
         if kind == "connectivity":
             with open(tmp, "wb") as f:
@@ -730,7 +804,7 @@ def write_network(
                 # arrays' names (`_npz_arrays`), never that argument's.
                 np.savez(f, **_npz_arrays(structure, keep_joints))  # type: ignore[arg-type]
         else:
-            tmp.write_text(_dump_text(structure, kind, keep_joints), encoding="utf-8")
+            tmp.write_text(_dump_text(structure, kind, keep_joints, scene), encoding="utf-8")
     return Path(path)
 
 
@@ -762,8 +836,8 @@ def _npz_arrays(structure: Structure, keep_joints: bool) -> dict[str, np.ndarray
     } | {name: getattr(merged, name) for name, present in supports.items() if present}
 
 
-def _dump_text(structure: Structure, kind: str, keep_joints: bool) -> str:
-    data = network_to_dict(structure, keep_joints=keep_joints)
+def _dump_text(structure: Structure, kind: str, keep_joints: bool, scene: Scene | None) -> str:
+    data = network_to_dict(structure, keep_joints=keep_joints, scene=scene)
     joined = (
         f" (the structure's {structure.n_nodes}, joined nodes merged: a node of k rods is a "
         "ball joint)"
@@ -817,7 +891,8 @@ def read_structure(path: PathLike) -> Structure:
         "rods": [{"nodes", "mass" [kg], "length" [m], "damping" [1/s], "relative_damping"
         [1/s]}, ...],
         "tendons": [{"name", "nodes", "stiffness" [N/m], "rest_length" [m],
-        "damping" [N s/m]}, ...]}``.
+        "damping" [N s/m]}, ...]}``, and optionally a ``"scene"`` (checked, not returned:
+        :func:`read_scene`).
 
     Returns
     -------
@@ -848,11 +923,15 @@ def _structure_from_dict(data: Any, path: PathLike) -> Structure:
     # (TypeError/KeyError/OverflowError: a malformed value that slipped past from_dict's own
     # checks, e.g. a string or a huge integer as a node index)
     with _blamed(path):
+        if isinstance(data, Mapping) and "scene" in data:
+            scene_from_dict(data)
+            data = {key: value for key, value in data.items() if key != "scene"}
         return Structure.from_dict(data)
 
 
-def write_structure(path: PathLike, structure: Structure) -> Path:
-    """Write ``structure`` as JSON (:meth:`Structure.to_dict`, indent 2), atomically.
+def write_structure(path: PathLike, structure: Structure, *, scene: Scene | None = None) -> Path:
+    """Write ``structure`` as JSON (:meth:`Structure.to_dict`, indent 2), atomically, with
+    ``scene`` (if given and not empty) under its ``"scene"`` key.
 
     Floats are written with Python's shortest round-trip representation, so
     ``read_structure(path).to_dict() == structure.to_dict()`` exactly.
@@ -863,13 +942,17 @@ def write_structure(path: PathLike, structure: Structure) -> Path:
         Output file; its directory must exist.  An existing file is replaced only once the new
         one is complete.
     structure : Structure
+    scene : Scene, optional
+        The planes, contact radius and gravity of a run (:func:`read_scene` reads it back
+        equal).
 
     Returns
     -------
     pathlib.Path
         ``path``.
     """
-    text = json.dumps(structure.to_dict(), indent=2, allow_nan=False) + "\n"
+    data = with_scene(structure.to_dict(), scene)
+    text = json.dumps(data, indent=2, allow_nan=False) + "\n"
     with atomic_path(path) as tmp:
         tmp.write_text(text, encoding="utf-8")
     return Path(path)
