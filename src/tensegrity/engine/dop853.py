@@ -57,6 +57,7 @@ from tensegrity.engine.events import (
     log_full,
     restore_landing,
     set_sides,
+    stick_slow_slips,
 )
 from tensegrity.engine.steppers import StepperMemory
 from tensegrity.engine.system import CompiledSystem
@@ -268,6 +269,14 @@ def dop853_run(model, rows, point, loop, bound, next_sample_t):  # pragma: no co
                     )
                 ):
                     loop.tally[RESTART] = 1
+            if (  # (the rule for slow slips, after every step)
+                loop.events.side.shape[0] > model.tendon_stiffness.shape[0]
+                and inputs_at(loop.clock[T]) < 0
+                and stick_slow_slips(
+                    model.contacts, model, point, loop.clock[T], loop.y, loop.events
+                )
+            ):
+                loop.tally[RESTART] = 1
             if loop.clock[DRIFT] > projection_tol:
                 if not system_project(model, point, loop.y[:n], loop.y[n : 2 * n])[2]:
                     return RUN_CHECK_FAILED, compiled.CHECK_PROJECTION, np.nan

@@ -67,7 +67,9 @@ from tensegrity.physics.compiling import (
 from tensegrity.physics.contact import (
     FREE,
     SLIP,
+    SLOW_SLIP,
     STICK,
+    STICK_SPEED,
     refresh_slips,
     stick_velocities,
     tangential_velocity,
@@ -437,12 +439,6 @@ def locate_event_entry(
 
 
 # --------------------------------------------------------------------------- contact actions
-#: A contact point whose tangential speed is at most this [m/s] when it lands on the ground or
-#: its slip reverses may stick (the speed left by locating the reversal to EVENT_RTOL is far
-#: below it; a slip that turns keeps a speed far above it).
-STICK_SPEED = 1e-8
-
-
 @compiled_only
 def land_contacts(contacts, model, data, t, y, events):  # pragma: no cover - compiled
     """The actions of the contact events fired at the state ``y`` at ``t`` [s] the loop landed
@@ -486,6 +482,42 @@ def start_contacts(contacts, model, data, t, y, events):  # pragma: no cover - c
             switch_mode(contacts, work, y, k, True)
     settle_sticks(contacts, model, data, y, events)
     log_changes(work, t, before)
+
+
+@compiled_only
+def stick_slow_slips(contacts, model, data, t, y, events):  # pragma: no cover - compiled
+    """The rule for slow slips, at the end of an accepted step at ``(t, y)`` (``data`` with the
+    inputs there), once its samples are out: each pair slipping slower than :data:`SLOW_SLIP`
+    sticks if the force it then needs is inside the static cone (a slip that crawls with a
+    turning direction would otherwise be followed one ever shorter step at a time); the sticks
+    are settled (:func:`settle_sticks`, their speed removed by an impulse counted as
+    dissipated) and logged.  Returns whether a mode changed (the loop starts its steps anew);
+    nothing without contacts."""
+    if contacts is None:
+        return False
+    work = data.contact_work
+    n = (y.shape[0] - 3) // 2
+    v = np.empty(3)
+    before = work.mode.copy()
+    tried = False
+    for k in range(work.mode.shape[0]):
+        if work.mode[k] == SLIP and tangential_velocity(contacts, y[n : 2 * n], k, v) <= SLOW_SLIP:
+            work.mode[k] = STICK
+            tried = True
+    if not tried:
+        return False
+    system_rhs(model, data, np.int64(0), y[:n], y[n : 2 * n], events.qddot)
+    changed = False
+    for k in range(work.mode.shape[0]):
+        if before[k] == SLIP and work.mode[k] == STICK:
+            if work.indicator[2 * k + 1] < 0.0:  # the stick would not hold: it slips on
+                work.mode[k] = SLIP
+            else:
+                changed = True
+    if changed:
+        settle_sticks(contacts, model, data, y, events)
+        log_changes(work, t, before)
+    return changed
 
 
 @compiled_only
@@ -545,22 +577,97 @@ def _slip_against_force(contacts, work, k, p):  # pragma: no cover - compiled
 
 @compiled_only
 def settle_sticks(contacts, model, data, y, events):  # pragma: no cover - compiled
-    """Hold the sticking points still (:func:`tensegrity.physics.contact.stick_velocities`)
-    and evaluate at ``y``; a stick whose force is outside the friction cone slips, and again
-    until every stick holds (at most once per pair)."""
+    """Make the pairs' modes at ``y`` consistent: hold the sticking points still
+    (:func:`tensegrity.physics.contact.stick_velocities`) and evaluate; a stick whose force is
+    outside the friction cone slips against that force; a point slipping from rest (speed at
+    most :data:`STICK_SPEED`) takes the direction it can keep (:func:`slip_from_rest`); again
+    until nothing changes (at most ``4 CP + 4`` rounds)."""
     work = data.contact_work
     P = contacts.plane_normal.shape[0]
     n = (y.shape[0] - 3) // 2
-    for _ in range(work.mode.shape[0] + 1):
+    v = np.empty(3)
+    for _ in range(4 * work.mode.shape[0] + 4):
         stick_velocities(contacts, model, data, y)
         system_rhs(model, data, np.int64(0), y[:n], y[n : 2 * n], events.qddot)
-        slipped = False
+        changed = False
         for k in range(work.mode.shape[0]):
             if work.mode[k] == STICK and work.indicator[2 * k + 1] < 0.0:
                 _slip_against_force(contacts, work, k, k % P)
-                slipped = True
-        if not slipped:
+                changed = True
+        if not changed:
+            for k in range(work.mode.shape[0]):
+                at_rest = tangential_velocity(contacts, y[n : 2 * n], k, v) <= STICK_SPEED
+                if work.mode[k] == SLIP and at_rest:
+                    changed |= slip_from_rest(contacts, model, data, y, events, k)
+        if not changed:
             return
+
+
+@compiled_only
+def slip_from_rest(contacts, model, data, y, events, k):  # pragma: no cover - compiled
+    """The direction ``s`` of pair ``k`` slipping from rest at ``y``: the one along which its
+    tangential acceleration points when kinetic friction ``-mu_k F_n s`` opposes it, ``a(s) =
+    lambda s`` with ``lambda > 0`` (a slip from rest keeps no other; on a rod its end's
+    mobility is not isotropic, and with the rod's other end held, the way its rigidity lets
+    the end move).  ``a`` is affine in ``s``, ``a = a0 - mu_k F_n W s`` (2 x 2 in the plane's
+    tangents), made from four evaluations; then ``s = (lambda I + mu_k F_n W)^-1 a0`` of unit
+    length, ``lambda`` by bisection.  Returns whether ``s`` changed (``s`` kept if there is
+    no such direction: the force at rest is inside ``mu_k F_n``)."""
+    work = data.contact_work
+    P = contacts.plane_normal.shape[0]
+    n = (y.shape[0] - 3) // 2
+    tangent = contacts.plane_tangent[k % P]
+    s = work.slip_direction[k]
+    kept = s.copy()
+    a = np.empty(3)
+    probe = np.empty((4, 2))  # a in the tangents' coordinates for s = +t0, -t0, +t1, -t1
+    for j in range(4):
+        sign = 1.0 - 2.0 * (j % 2)
+        for i in range(3):
+            s[i] = sign * tangent[j // 2, i]
+        system_rhs(model, data, np.int64(0), y[:n], y[n : 2 * n], events.qddot)
+        tangential_velocity(contacts, events.qddot, k, a)
+        for c in range(2):
+            probe[j, c] = a[0] * tangent[c, 0] + a[1] * tangent[c, 1] + a[2] * tangent[c, 2]
+    g0, g1 = (
+        0.25 * (probe[0, 0] + probe[1, 0] + probe[2, 0] + probe[3, 0]),
+        0.25 * (probe[0, 1] + probe[1, 1] + probe[2, 1] + probe[3, 1]),
+    )
+    # columns j of mu_k F_n W: (a(-t_j) - a(+t_j)) / 2
+    m00, m10 = 0.5 * (probe[1, 0] - probe[0, 0]), 0.5 * (probe[1, 1] - probe[0, 1])
+    m01, m11 = 0.5 * (probe[3, 0] - probe[2, 0]), 0.5 * (probe[3, 1] - probe[2, 1])
+    lo, hi = 0.0, np.sqrt(g0 * g0 + g1 * g1) + np.sqrt(m00**2 + m01**2 + m10**2 + m11**2)
+    x0, x1 = _solve_shifted(m00, m01, m10, m11, lo, g0, g1)
+    if not x0 * x0 + x1 * x1 > 1.0:  # no slip keeps its direction: keep s
+        for i in range(3):
+            s[i] = kept[i]
+        return False
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        x0, x1 = _solve_shifted(m00, m01, m10, m11, mid, g0, g1)
+        if x0 * x0 + x1 * x1 > 1.0:
+            lo = mid
+        else:
+            hi = mid
+        if hi - lo <= 1e-15 * hi:
+            break
+    x0, x1 = _solve_shifted(m00, m01, m10, m11, hi, g0, g1)
+    size = np.sqrt(x0 * x0 + x1 * x1)
+    moved = 0.0
+    for i in range(3):
+        s[i] = (x0 * tangent[0, i] + x1 * tangent[1, i]) / size
+        moved = max(moved, abs(s[i] - kept[i]))
+    return moved > 1e-9
+
+
+@compiled_only
+def _solve_shifted(m00, m01, m10, m11, shift, g0, g1):  # pragma: no cover - compiled
+    """``(shift I + M)^-1 g`` for the 2 x 2 ``M`` (Cramer's rule; ``(0, 0)`` if singular)."""
+    a, b, c, d = m00 + shift, m01, m10, m11 + shift
+    det = a * d - b * c
+    if det == 0.0:
+        return 0.0, 0.0
+    return (d * g0 - b * g1) / det, (a * g1 - c * g0) / det
 
 
 @njit(**JIT_OPTIONS)
@@ -573,6 +680,12 @@ def land_contacts_entry(model, data, t, y, events):  # pragma: no cover - compil
 def start_contacts_entry(model, data, t, y, events):  # pragma: no cover - compiled
     """:func:`start_contacts`, called from Python."""
     start_contacts(model.contacts, model, data, t, y, events)
+
+
+@njit(**JIT_OPTIONS)
+def stick_slow_slips_entry(model, data, t, y, events):  # pragma: no cover - compiled
+    """:func:`stick_slow_slips`, called from Python."""
+    return stick_slow_slips(model.contacts, model, data, t, y, events)
 
 
 @njit(**JIT_OPTIONS)

@@ -43,6 +43,7 @@ from tensegrity.engine.events import (
     restore_landing,
     set_sides_entry,
     start_contacts_entry,
+    stick_slow_slips_entry,
 )
 from tensegrity.engine.inputs import Inputs
 from tensegrity.engine.options import Options, reaches, sample_count, sample_time, short_of
@@ -686,7 +687,10 @@ def _adaptive(run: _Run, stepper: Stepper, resume: LoopState | None) -> None:
             if landed.exact and system.model.contacts is not None:  # the events' actions
                 here = system.stage_inputs(np.array([stepper.t]))
                 restart = land_contacts_entry(system.model, here, stepper.t, stepper.y, events)
-                run.take_contact_log()
+        if system.model.contacts is not None:  # (the rule for slow slips)
+            here = system.stage_inputs(np.array([stepper.t]))
+            restart |= stick_slow_slips_entry(system.model, here, stepper.t, stepper.y, events)
+            run.take_contact_log()
         if drift > o.projection_tol:
             if not system.project(stepper.y):
                 run.fail(compiled.CHECK_PROJECTION, np.nan, stepper.t)

@@ -10,7 +10,8 @@ Modes (changed only by the engine's events, :mod:`tensegrity.engine.events`):
 
 - ``FREE``: no force;
 - ``SLIP``: ``F_n = k delta + c delta'`` along ``n`` and kinetic friction ``-mu_k F_n v_t /
-  |v_t|`` (``v_t`` the tangential velocity; the slip's direction while ``v_t = 0``);
+  |v_t|`` (``v_t`` the tangential velocity; the slip's direction ``s`` while ``|v_t|`` is
+  at most :data:`STICK_SPEED`, i.e. from rest);
 - ``STICK``: ``F_n`` and the tangential force that keeps the point's tangential acceleration
   zero, solved per rod after the rod pass (:func:`stick_pass`; Theorem 18.1's accelerations are
   affine in the end forces).
@@ -37,6 +38,15 @@ from tensegrity.physics.records import Contacts, ContactWork
 #: Regularization of a rod's sticking system, relative to its largest diagonal entry (its null
 #: space, e.g. an axial pair of forces on a rod lying with both ends stuck, moves nothing).
 STICK_REGULARIZATION = 1e-12
+#: A contact point whose tangential speed is at most this [m/s] is at rest: landing or ending a
+#: slip there, it may stick; slipping, its friction takes the slip's direction rather than
+#: that of its velocity (the speed left by locating a reversal to the events' tolerance is far
+#: below it; a slip that turns keeps a speed far above it).
+STICK_SPEED = 1e-8
+#: A slip slower than this [m/s] at the end of a step sticks if the force it then needs is inside
+#: the static cone (the rule for slow slips: a vanishing velocity turns ever faster, and its
+#: direction field would stall the steps; :func:`tensegrity.engine.events.stick_slow_slips`).
+SLOW_SLIP = 1e-6
 #: The log of the modes' changes (``ContactWork.log``) holds this many landings' worth (every
 #: pair changing) before the loop must take its rows.
 LOG_LANDINGS = 8
@@ -55,7 +65,7 @@ def end_motion(q, r, end, out):  # pragma: no cover - compiled
 @compiled_only
 def tangential_velocity(contacts, qdot, k, out):  # pragma: no cover - compiled
     """The velocity of pair ``k``'s point along its plane into ``out`` (3,) [m/s] from the
-    rates ``qdot``; returns its size."""
+    rates ``qdot`` (or its acceleration [m/s^2] from ``q''``); returns its size."""
     P = contacts.plane_normal.shape[0]
     c, p = k // P, k % P
     end_motion(qdot, c // 2, c % 2, out)
@@ -108,7 +118,7 @@ def contact_pass(contacts, model, data, q, qdot):  # pragma: no cover - compiled
                 s = work.slip_direction[k]
                 speed = np.sqrt(tx * tx + ty * ty + tz * tz)
                 dx, dy, dz = s[0], s[1], s[2]
-                if speed > 0.0:
+                if speed > STICK_SPEED:
                     dx, dy, dz = tx / speed, ty / speed, tz / speed
                 scale = -contacts.friction_kinetic[p] * force
                 friction[0], friction[1], friction[2] = scale * dx, scale * dy, scale * dz
@@ -375,7 +385,8 @@ def refresh_slips(contacts, data, y):  # pragma: no cover - compiled
     that of its tangential velocity (if it moves), so that the next step's friction indicator
     ``-v_t . s`` crosses zero wherever the point stops, however its velocity turned on the way
     (in the plane a slip that comes to rest turns ever faster as it slows); nothing without
-    contacts.  The forces use ``s`` only where ``v_t = 0``, so this changes no evaluation."""
+    contacts.  The forces use ``s`` only at rest (``|v_t| <= STICK_SPEED``), so this changes no
+    evaluation of a moving point."""
     if contacts is None:
         return
     work = data.contact_work
@@ -385,6 +396,6 @@ def refresh_slips(contacts, data, y):  # pragma: no cover - compiled
         if work.mode[k] != SLIP:
             continue
         speed = tangential_velocity(contacts, y[n : 2 * n], k, v)
-        if speed > 0.0:
+        if speed > STICK_SPEED:
             for i in range(3):
                 work.slip_direction[k, i] = v[i] / speed
