@@ -611,8 +611,10 @@ def slip_from_rest(contacts, model, data, y, events, k):  # pragma: no cover - c
     mobility is not isotropic, and with the rod's other end held, the way its rigidity lets
     the end move).  ``a`` is affine in ``s``, ``a = a0 - mu_k F_n W s`` (2 x 2 in the plane's
     tangents), made from four evaluations; then ``s = (lambda I + mu_k F_n W)^-1 a0`` of unit
-    length, ``lambda`` by bisection.  Returns whether ``s`` changed (``s`` kept if there is
-    no such direction: the force at rest is inside ``mu_k F_n``)."""
+    length, ``lambda`` by bisection.  If there is no such direction (the force holding it at
+    rest, ``(mu_k F_n W)^-1 a0``, is inside ``mu_k F_n``: the stick that failed did so with
+    the pair's neighbours held, e.g. the rod's other end), the pair sticks.  Returns whether
+    ``s`` or the mode changed."""
     work = data.contact_work
     P = contacts.plane_normal.shape[0]
     n = (y.shape[0] - 3) // 2
@@ -638,10 +640,11 @@ def slip_from_rest(contacts, model, data, y, events, k):  # pragma: no cover - c
     m01, m11 = 0.5 * (probe[3, 0] - probe[2, 0]), 0.5 * (probe[3, 1] - probe[2, 1])
     lo, hi = 0.0, np.sqrt(g0 * g0 + g1 * g1) + np.sqrt(m00**2 + m01**2 + m10**2 + m11**2)
     x0, x1 = _solve_shifted(m00, m01, m10, m11, lo, g0, g1)
-    if not x0 * x0 + x1 * x1 > 1.0:  # no slip keeps its direction: keep s
+    if not x0 * x0 + x1 * x1 > 1.0:  # kinetic friction holds it: no slip from rest, a stick
         for i in range(3):
             s[i] = kept[i]
-        return False
+        work.mode[k] = STICK
+        return True
     for _ in range(200):
         mid = 0.5 * (lo + hi)
         x0, x1 = _solve_shifted(m00, m01, m10, m11, mid, g0, g1)

@@ -9,9 +9,10 @@ penetration [m], ``delta' = -n . v``.
 Modes (changed only by the engine's events, :mod:`tensegrity.engine.events`):
 
 - ``FREE``: no force;
-- ``SLIP``: ``F_n = k delta + c delta'`` along ``n`` and kinetic friction ``-mu_k F_n v_t /
-  |v_t|`` (``v_t`` the tangential velocity; the slip's direction ``s`` while ``|v_t|`` is
-  at most :data:`STICK_SPEED`, i.e. from rest);
+- ``SLIP``: ``F_n = k delta + c delta'`` along ``n`` and kinetic friction ``-mu_k F_n d``,
+  ``d`` the direction of ``v_t + v_s s`` (``v_t`` the tangential velocity, ``s`` the slip's
+  direction, ``v_s`` :data:`STICK_SPEED`): ``v_t``'s once it moves, ``s`` from rest,
+  continuous in between;
 - ``STICK``: ``F_n`` and the tangential force that keeps the point's tangential acceleration
   zero, solved per rod after the rod pass (:func:`stick_pass`; Theorem 18.1's accelerations are
   affine in the end forces).
@@ -116,10 +117,16 @@ def contact_pass(contacts, model, data, q, qdot):  # pragma: no cover - compiled
             friction[0], friction[1], friction[2] = 0.0, 0.0, 0.0
             if mode == SLIP:
                 s = work.slip_direction[k]
-                speed = np.sqrt(tx * tx + ty * ty + tz * tz)
-                dx, dy, dz = s[0], s[1], s[2]
-                if speed > STICK_SPEED:
-                    dx, dy, dz = tx / speed, ty / speed, tz / speed
+                # the direction of v_t + STICK_SPEED s: of v_t once it moves, s from rest,
+                # continuous in between
+                dx, dy, dz = (
+                    tx + STICK_SPEED * s[0],
+                    ty + STICK_SPEED * s[1],
+                    tz + STICK_SPEED * s[2],
+                )
+                size = np.sqrt(dx * dx + dy * dy + dz * dz)
+                if size > 0.0:
+                    dx, dy, dz = dx / size, dy / size, dz / size
                 scale = -contacts.friction_kinetic[p] * force
                 friction[0], friction[1], friction[2] = scale * dx, scale * dy, scale * dz
                 work.indicator[2 * k + 1] = -(tx * s[0] + ty * s[1] + tz * s[2])
@@ -382,11 +389,12 @@ def stick_velocities(contacts, model, data, y):  # pragma: no cover - compiled
 @compiled_only
 def refresh_slips(contacts, data, y):  # pragma: no cover - compiled
     """After an accepted step ending at ``y``: each slipping point's direction ``s`` becomes
-    that of its tangential velocity (if it moves), so that the next step's friction indicator
-    ``-v_t . s`` crosses zero wherever the point stops, however its velocity turned on the way
-    (in the plane a slip that comes to rest turns ever faster as it slows); nothing without
-    contacts.  The forces use ``s`` only at rest (``|v_t| <= STICK_SPEED``), so this changes no
-    evaluation of a moving point."""
+    that of its tangential velocity if it moves faster than :data:`SLOW_SLIP`, so that the
+    next step's friction indicator ``-v_t . s`` crosses zero wherever the point stops, however
+    its velocity turned on the way (in the plane a slip that comes to rest turns ever faster as
+    it slows); nothing without contacts.  The friction's direction at ``y`` does not change
+    (that of ``v_t + STICK_SPEED s`` is ``v_t``'s when ``s`` is), and elsewhere by at most
+    ``STICK_SPEED / SLOW_SLIP`` of the turn since the last step."""
     if contacts is None:
         return
     work = data.contact_work
@@ -396,6 +404,6 @@ def refresh_slips(contacts, data, y):  # pragma: no cover - compiled
         if work.mode[k] != SLIP:
             continue
         speed = tangential_velocity(contacts, y[n : 2 * n], k, v)
-        if speed > STICK_SPEED:
+        if speed > SLOW_SLIP:
             for i in range(3):
                 work.slip_direction[k, i] = v[i] / speed
