@@ -198,3 +198,74 @@ def test_a_bouncing_rod_settles_into_resting_contact_in_finitely_many_events():
     assert np.all(run.contact_mode[-1] != FREE)
     assert run.contact_normal_force[-1] == pytest.approx([MASS * G / 2] * 2, rel=1e-6)
     assert np.abs(run.node_velocity[-1]).max() < 1e-6
+
+
+def test_a_rod_pulled_at_one_end_pivots_about_the_other_at_the_closed_form_rate():
+    """A rod lying flat on the ground, pulled at end b by a horizontal force with parts
+    ``F_perp`` across it and ``F_ax`` along it (ramped in over 1 ms).  End b cannot hold
+    ``F > mu_s N`` and slips from rest; end a holds, so b can only move across the rod (its
+    rigidity), with kinetic friction against that: b accelerates at ``3 (F_perp - mu_k N) / m``
+    (rotation about a, ``I = m L^2 / 3``, ``N = m g / 2``; over 10 ms the rod turns by 2e-4
+    rad, which changes ``F_perp`` by 2e-4 of it), a stays put, and the slip needs two events,
+    not a chatter of them."""
+    mu, across, along = 0.5, 4.0, 1.5
+    normal = MASS * G / 2
+
+    def pull(t):
+        force = np.zeros((2, 3))
+        force[1, :2] = np.array([along, across]) * min(t / 1e-3, 1.0)
+        return force
+
+    run = simulate(
+        resting_rod(0.0),
+        (0.0, 0.01),
+        gravity=[0.0, 0.0, -G],
+        ground=ground(stiffness=STIFFNESS, damping=DAMPING, friction=mu),
+        contact_radius=RADIUS,
+        external_force=pull,
+        sample_dt=5e-4,
+        rtol=1e-11,
+        atol=1e-13,
+    )
+    assert run.status == 0, run.message
+    assert run.contact_counts == {"touch_down": 2, "lift_off": 0, "slip": 1, "stick": 0}
+    start = float(run.contact_event_time[-1])  # (end b's slip)
+    assert run.contact_event_pair[-1] == 1 and 0.0 < start < 1e-3
+    assert np.abs(run.node_position[:, 0] - run.node_position[0, 0]).max() < 1e-9
+    later = run.t >= 2e-3
+    acceleration = 3 * (across - mu * normal) / MASS
+    y = run.node_position[later, 1, 1]
+    curvature = np.polyfit(run.t[later], y, 2)[0] * 2
+    assert curvature == pytest.approx(acceleration, rel=1e-3)
+    assert run.contact_friction_force[later, 1, 1] == pytest.approx(-mu * normal, rel=1e-6)
+
+
+def test_a_soft_six_bar_collapsing_on_the_ground_runs_to_its_end():
+    """A six-bar too soft to stand (k = 100 N/m, 5 N of prestress, 6 kg) collapses on its face:
+    rods come to lie with both ends on the ground and their ends crawl as the rods rock.  The
+    rules for slips from rest and for slow slips let the run finish (it stalled at max_steps
+    with thousands of events in 0.6 s before them); energy never grows beyond the run's
+    tolerance and it comes to rest."""
+    from tensegrity.design.catalogue import six_bar_robot
+
+    robot = six_bar_robot(stiffness=100.0, tension=5.0)
+    face = -np.ones(3) / np.sqrt(3)
+    axis = np.cross(face, [0.0, 0.0, -1.0])
+    skew = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    rotation = np.eye(3) + skew + skew @ skew / (1.0 - face[2])
+    nodes = robot.node_position @ rotation.T
+    nodes[:, 2] += RADIUS - nodes[:, 2].min()
+    run = simulate(
+        robot.replace(node_position=nodes),
+        (0.0, 2.0),
+        gravity=[0.0, 0.0, -G],
+        ground=ground(friction=0.8, kinetic_friction=0.6),
+        contact_radius=RADIUS,
+        sample_dt=0.01,
+        max_steps=100_000,
+    )
+    assert run.status == 0, run.message
+    assert run.nswitches < 1_000 and run.contact_counts["slip"] > 10
+    total = run.total_energy
+    assert (total - np.minimum.accumulate(total)).max() < 1e-6
+    assert np.abs(run.node_velocity[-1]).max() < 1e-6

@@ -68,6 +68,7 @@ from tensegrity.physics.contact import (
     FREE,
     SLIP,
     SLOW_SLIP,
+    SLOW_STOP,
     STICK,
     STICK_SPEED,
     refresh_slips,
@@ -488,24 +489,34 @@ def start_contacts(contacts, model, data, t, y, events):  # pragma: no cover - c
 def stick_slow_slips(contacts, model, data, t, y, events):  # pragma: no cover - compiled
     """The rule for slow slips, at the end of an accepted step at ``(t, y)`` (``data`` with the
     inputs there), once its samples are out: each pair slipping slower than :data:`SLOW_SLIP`
-    sticks if the force it then needs is inside the static cone (a slip that crawls with a
-    turning direction would otherwise be followed one ever shorter step at a time); the sticks
-    are settled (:func:`settle_sticks`, their speed removed by an impulse counted as
-    dissipated) and logged.  Returns whether a mode changed (the loop starts its steps anew);
-    nothing without contacts."""
+    that is not about to stop on its own (within :data:`SLOW_STOP` at its deceleration: that
+    stop is located as an event) sticks if the force it then needs is inside the static cone.
+    A slip that crawls, its speed set by the structure's motion and its direction turning,
+    would otherwise be followed one ever shorter step at a time (its friction damps the
+    velocity across it by ``mu_k F_n / |v_t|``).  The sticks are settled
+    (:func:`settle_sticks`, their speed removed by an impulse counted as dissipated) and
+    logged.  Returns whether a mode changed (the loop starts its steps anew); nothing without
+    contacts."""
     if contacts is None:
         return False
     work = data.contact_work
     n = (y.shape[0] - 3) // 2
-    v = np.empty(3)
+    v, a = np.empty(3), np.empty(3)
     before = work.mode.copy()
-    tried = False
+    slow = np.zeros(work.mode.shape[0], np.bool_)
     for k in range(work.mode.shape[0]):
-        if work.mode[k] == SLIP and tangential_velocity(contacts, y[n : 2 * n], k, v) <= SLOW_SLIP:
-            work.mode[k] = STICK
-            tried = True
-    if not tried:
+        if work.mode[k] == SLIP:
+            slow[k] = tangential_velocity(contacts, y[n : 2 * n], k, v) <= SLOW_SLIP
+    if not slow.any():
         return False
+    system_rhs(model, data, np.int64(0), y[:n], y[n : 2 * n], events.qddot)
+    for k in range(work.mode.shape[0]):
+        if slow[k]:
+            speed = tangential_velocity(contacts, y[n : 2 * n], k, v)
+            tangential_velocity(contacts, events.qddot, k, a)
+            slowing = -(a[0] * v[0] + a[1] * v[1] + a[2] * v[2])  # |v| d|v|/dt
+            if speed * speed >= slowing * SLOW_STOP:
+                work.mode[k] = STICK
     system_rhs(model, data, np.int64(0), y[:n], y[n : 2 * n], events.qddot)
     changed = False
     for k in range(work.mode.shape[0]):
@@ -517,6 +528,8 @@ def stick_slow_slips(contacts, model, data, t, y, events):  # pragma: no cover -
     if changed:
         settle_sticks(contacts, model, data, y, events)
         log_changes(work, t, before)
+    else:
+        system_rhs(model, data, np.int64(0), y[:n], y[n : 2 * n], events.qddot)
     return changed
 
 

@@ -36,9 +36,9 @@ from tensegrity.model.ground import FREE, SLIP, STICK, Plane
 from tensegrity.physics.compiling import ROD_C1, ROD_C2, ROD_MASS, compiled_only
 from tensegrity.physics.records import Contacts, ContactWork
 
-#: Regularization of a rod's sticking system, relative to its largest diagonal entry (its null
-#: space, e.g. an axial pair of forces on a rod lying with both ends stuck, moves nothing).
-STICK_REGULARIZATION = 1e-12
+#: A rod's sticking system holds its ends only along the directions whose stiffness exceeds this
+#: share of its largest (:func:`solve_stick_system`).
+STICK_NULL = 1e-6
 #: A contact point whose tangential speed is at most this [m/s] is at rest: landing or ending a
 #: slip there, it may stick; slipping, its friction takes the slip's direction rather than
 #: that of its velocity (the speed left by locating a reversal to the events' tolerance is far
@@ -48,6 +48,8 @@ STICK_SPEED = 1e-8
 #: the static cone (the rule for slow slips: a vanishing velocity turns ever faster, and its
 #: direction field would stall the steps; :func:`tensegrity.engine.events.stick_slow_slips`).
 SLOW_SLIP = 1e-6
+#: ... unless its deceleration stops it within this time [s] (then the stop is located).
+SLOW_STOP = 1e-3
 #: The log of the modes' changes (``ContactWork.log``) holds this many landings' worth (every
 #: pair changing) before the loop must take its rows.
 LOG_LANDINGS = 8
@@ -183,7 +185,7 @@ def rod_stick(contacts, model, work, r, q, values, correction):  # pragma: no co
         rhs[i] = -0.5 * sum_end(t, values, sign)
         for j in range(m):
             matrix[i, j] = 0.5 * sum_end(t, response[j], sign)
-    force = solve_psd_small(matrix, rhs)
+    force = solve_stick_system(matrix, rhs)
     for i in range(6):
         correction[i] = 0.0
         for j in range(m):
@@ -208,57 +210,26 @@ def sum_end(t, values, sign):  # pragma: no cover - compiled
 
 
 @compiled_only
-def solve_psd_small(matrix, rhs):  # pragma: no cover - compiled
-    """``x`` with ``matrix x = rhs`` for a small symmetric positive semi-definite ``matrix``:
-    Gaussian elimination of ``matrix + delta I`` (``delta`` :data:`STICK_REGULARIZATION` of its
-    largest diagonal entry) and two refinements against ``matrix`` itself (a solution of least
-    size where ``matrix`` is singular)."""
+def solve_stick_system(matrix, rhs):  # pragma: no cover - compiled
+    """``x`` with ``matrix x = rhs`` on the span of the eigenvectors of the small symmetric
+    positive semi-definite ``matrix`` whose eigenvalues exceed :data:`STICK_NULL` of the
+    largest, and no part along the others: the forces of a rod's sticking ends, which cannot
+    hold what the rod's rigidity moves (a rod lying with both ends stuck: the pair of forces
+    along its axis moves nothing, and with the axis tilted by ``theta`` only ``theta^2`` of it;
+    the ends' distance along the plane then follows the rod, a creep that vanishes with the
+    rod's motion)."""
+    values, vectors = np.linalg.eigh(matrix)
+    floor = STICK_NULL * values[-1]
     m = rhs.shape[0]
-    largest = 0.0
-    for i in range(m):
-        largest = max(largest, abs(matrix[i, i]))
-    shifted = matrix.copy()
-    for i in range(m):
-        shifted[i, i] += STICK_REGULARIZATION * largest
     x = np.zeros(m)
-    residual = rhs.copy()
-    for _ in range(3):
-        step = _gauss(shifted.copy(), residual.copy())
-        for i in range(m):
-            x[i] += step[i]
-        for i in range(m):
-            residual[i] = rhs[i]
-            for j in range(m):
-                residual[i] -= matrix[i, j] * x[j]
-    return x
-
-
-@compiled_only
-def _gauss(a, b):  # pragma: no cover - compiled
-    """``a^-1 b`` by Gaussian elimination with partial pivoting (``a``, ``b`` overwritten)."""
-    m = b.shape[0]
-    for col in range(m):
-        pivot = col
-        for i in range(col + 1, m):
-            if abs(a[i, col]) > abs(a[pivot, col]):
-                pivot = i
-        if pivot != col:
-            for j in range(m):
-                a[col, j], a[pivot, j] = a[pivot, j], a[col, j]
-            b[col], b[pivot] = b[pivot], b[col]
-        if a[col, col] == 0.0:
-            continue
-        for i in range(col + 1, m):
-            factor = a[i, col] / a[col, col]
-            for j in range(col, m):
-                a[i, j] -= factor * a[col, j]
-            b[i] -= factor * b[col]
-    x = np.zeros(m)
-    for i in range(m - 1, -1, -1):
-        total = b[i]
-        for j in range(i + 1, m):
-            total -= a[i, j] * x[j]
-        x[i] = total / a[i, i] if a[i, i] != 0.0 else 0.0
+    for j in range(m):
+        if values[j] > floor:
+            c = 0.0
+            for i in range(m):
+                c += vectors[i, j] * rhs[i]
+            c /= values[j]
+            for i in range(m):
+                x[i] += c * vectors[i, j]
     return x
 
 
