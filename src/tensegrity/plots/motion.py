@@ -38,6 +38,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 
 from tensegrity.engine.result import ENERGY_NAMES, total_energy
+from tensegrity.model.ground import SLIP, STICK
 from tensegrity.model.structure import Structure
 from tensegrity.physics.dynamics import elastic_tensions, tendon_lengths
 
@@ -127,10 +128,22 @@ class FrameContacts(NamedTuple):
     plane: np.ndarray  #: (CP,) its plane, an index into ``patch``
     mode: np.ndarray  #: (F, CP) int8: its mode at each frame, 0 free, 1 slip, 2 stick
 
-    def nodes(self, k: int, mode: int) -> np.ndarray:
-        """The nodes with a contact pair in ``mode`` (:data:`~tensegrity.model.ground.SLIP`
-        or :data:`~tensegrity.model.ground.STICK`) at frame ``k``, shape (K,), ascending."""
-        return np.unique(self.node[self.mode[k] == mode])
+    def ends(self, k: int) -> tuple[np.ndarray, np.ndarray]:
+        """The nodes in contact at frame ``k``: those sticking (a pair of theirs sticks) and
+        those slipping (else a pair slips), each ascending."""
+        stick = np.unique(self.node[self.mode[k] == STICK])
+        return stick, np.setdiff1d(self.node[self.mode[k] == SLIP], stick)
+
+    def grid(self) -> np.ndarray:
+        """The grid lines on the patches, every :attr:`cell` along each side, shape (L, 2, 3)
+        [m]."""
+        lines = []
+        for c0, c1, _, c3 in self.patch:
+            for side, other in ((c1 - c0, c3 - c0), (c3 - c0, c1 - c0)):
+                count = max(1, round(float(np.linalg.norm(side)) / self.cell))
+                start = c0 + np.outer(np.linspace(0.0, 1.0, count + 1), side)
+                lines.append(np.stack([start, start + other], axis=1))
+        return np.concatenate(lines) if lines else np.zeros((0, 2, 3))
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
