@@ -648,7 +648,7 @@ def plane_patches(
         n = np.asarray(plane["normal"], dtype=float)
         n = n / np.linalg.norm(n)
         point = np.asarray(plane["point"], dtype=float)
-        origin = point - (point @ n) * n  # (the plane's point nearest the origin: grid fixed)
+        origin = (point @ n) * n  # (the plane's point nearest the origin: the grid fixed)
         axis = np.eye(3)[np.argmin(np.abs(n))]  # (x on a ground plane)
         u = axis - (axis @ n) * n
         u /= np.linalg.norm(u)
