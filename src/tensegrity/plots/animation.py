@@ -156,7 +156,7 @@ class _Scene:
                 self.markers.append((line, nodes))
         self.contacts: list[Any] = []  # (the sticking and the slipping ends' dots)
         if frames.contacts is not None:
-            keys = [Patch(facecolor=PLANE_COLOR, alpha=PLANE_ALPHA, label="plane")]
+            keys: list[Any] = [Patch(facecolor=PLANE_COLOR, alpha=PLANE_ALPHA, label="plane")]
             for color, name in ((STICK_COLOR, "end sticking"), (SLIP_COLOR, "end slipping")):
                 style = dict(marker="o", ms=7, color=color, mec=ROD_COLOR, mew=0.8, ls="")
                 self.contacts.append(ax.plot([], [], [], **style)[0])

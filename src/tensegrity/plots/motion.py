@@ -403,7 +403,7 @@ def _contact_of(result: SimulationResult, mode: np.ndarray | None = None) -> _Co
     ``contact_mode``), or None for a run without planes."""
     if not result.planes:
         return None
-    mode = result.contact_mode if mode is None else mode
+    mode = np.asarray(result.contact_mode if mode is None else mode, dtype=np.int8)
     return _Contact(result.planes, result.contact_node, result.contact_plane, mode)
 
 
