@@ -487,3 +487,49 @@ def test_a_designed_run_s_page_colours_members_by_utilisation(browser, tmp_path)
         page.check_clean()
     finally:
         page.page.close()
+
+
+def test_a_run_on_the_ground_shows_the_plane_and_its_ends_by_mode(browser, tmp_path):
+    """Issue 29: the plane's patch drawn semi-transparent under the robot, the ends in contact
+    marked in their mode's colour at each frame (the run's modes, as the page holds them), and
+    the legend's key."""
+    from tensegrity.model.ground import SLIP, STICK
+    from tensegrity.plots.figures import PLANE_ALPHA, PLANE_COLOR, SLIP_COLOR, STICK_COLOR
+    from test_contact_view import SCENE, sliding_robot
+
+    run = simulate(sliding_robot(), (0.0, 0.3), sample_dt=0.01, **SCENE.simulate_options())
+    path = view(run, tmp_path / "ground.html")
+    data = read_viewer_data(path.read_text())
+    modes = data["contacts"]["mode"]
+    page = Page(browser, path)
+    try:
+        assert "plane" in page.page.inner_text("#legend")
+        assert "sticking" in page.page.inner_text("#legend")
+        plane = np.array(to_rgb(PLANE_COLOR)) * 255 * PLANE_ALPHA + 255 * (1 - PLANE_ALPHA)
+        canvas = page.page.locator("#view canvas").bounding_box()
+        for mode, color in ((STICK, STICK_COLOR), (SLIP, SLIP_COLOR)):
+            k = int(np.flatnonzero((modes == mode).any(axis=1))[0])
+            page.call(f"tensegrityViewer.setFrame({k})")
+            assert page.call(f"tensegrityViewer.contactModes({k})") == modes[k].tolist()
+            ends = page.call("tensegrityViewer.contactEnds()")
+            nodes = np.unique(run.contact_node[modes[k] == mode])
+            marked = [n for n, m in zip(ends["node"], ends["mode"], strict=True) if m == mode]
+            assert marked == nodes.tolist()
+            picture = page.picture()
+            on_plane = np.all(np.abs(picture - plane) <= 3, axis=-1)
+            assert on_plane.mean() > 0.05
+            lowest = max(
+                page.call(f"tensegrityViewer.toScreen({x}, {y}, {z})")[1]
+                for x, y, z in data["node_position"][k]
+            )
+            assert np.flatnonzero(on_plane.any(axis=1)).max() > lowest - canvas["y"] + 10
+            rgb = np.array(to_rgb(color)) * 255
+            for n in nodes:
+                x, y, z = data["node_position"][k][n]
+                px, py = page.call(f"tensegrityViewer.toScreen({x}, {y}, {z})")
+                column, row = round(px - canvas["x"]), round(py - canvas["y"])
+                near = picture[row - 2 : row + 3, column - 2 : column + 3]
+                assert np.all(np.abs(near - rgb) <= 40, axis=-1).sum() >= 5
+        page.check_clean()
+    finally:
+        page.page.close()

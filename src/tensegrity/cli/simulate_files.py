@@ -206,7 +206,7 @@ def write_run(
         )
     frames = None
     if keeper is not None and summary.resumed_from is None and summary.segments_run:
-        frames = keeper.frames(summary.message)
+        frames = keeper.frames(summary.message, run=trajectory)
     elif not args.no_view:
         frames, _ = read_frames(work, max_frames=MAX_FRAMES, max_bytes=MAX_BYTES, check=check)
     every = max(1, -(-summary.n_samples // FIGURE_SAMPLES))

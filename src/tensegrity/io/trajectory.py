@@ -97,8 +97,8 @@ CONTACT_DATASETS = ("contact_normal_force", "contact_friction_force", "contact_m
 #: The sampled arrays of a result computed on read rather than stored: name -> (the stored
 #: dataset it is computed from, the first file version that does not store it).
 DERIVED = {"node_position": ("q", 2), "node_velocity": ("qdot", 2), "tendon_length": ("q", 3)}
-#: Every sampled array a file gives (:func:`read_dataset`).
-SAMPLE_NAMES = (*SAMPLE_DATASETS, *DERIVED)
+#: Every sampled array a file gives (:func:`read_dataset`; the contact ones: a run with planes).
+SAMPLE_NAMES = (*SAMPLE_DATASETS, *DERIVED, *CONTACT_DATASETS)
 #: The result's names stored under other names in files of version 1, read only.
 VERSION1_NAMES = {"t": "time", "node_position": "nodes", "node_velocity": "velocities"}
 #: The run's counts, as root attributes: evaluations, steps, switches, projections.

@@ -5,9 +5,12 @@ matplotlib (Agg, no ``pyplot``) and encoded: MP4 (H.264) and WebM (VP8) by the f
 Each frame shows the structure as :mod:`tensegrity.plots.figures` draws it: rods thick and dark,
 taut tendons coloured by tension on a colour bar whose range is fixed over the whole run, slack
 tendons thin, dashed and red, fixed nodes as brown triangles, ball joints as open circles, point
-masses as dots; the simulation time and energies in the corner.  The camera and the axis limits
-are fixed over the run (the box of every node in every frame).  A planar structure is seen from
-above (its plane ``z = 0``).
+masses as dots; the simulation time and energies in the corner.  A run with planes (the ground,
+an incline, a wall) shows each as a semi-transparent patch with a grid fixed in space
+(:func:`~.motion.plane_patches`), and the rod ends in contact at each frame as dots, sticking
+(:data:`~.figures.STICK_COLOR`) or slipping (:data:`~.figures.SLIP_COLOR`; free ends unmarked),
+with a key.  The camera and the axis limits are fixed over the run (the box of every node in
+every frame, and of the patches).  A planar structure is seen from above (its plane ``z = 0``).
 
 :func:`animate` writes the file atomically (:func:`tensegrity.io.files.atomic_path`): an
 interrupted or failed animation leaves no file behind (and an older file intact).
@@ -30,15 +33,22 @@ from matplotlib.cm import ScalarMappable
 from matplotlib.colors import Normalize, to_rgb
 from matplotlib.figure import Figure
 from matplotlib.font_manager import FontProperties, findfont
+from matplotlib.lines import Line2D
+from matplotlib.patches import Patch
 from PIL import Image, ImageDraw, ImageFont
 
 from tensegrity.io.files import PathLike, atomic_path
 from tensegrity.plots.figures import (
     FAILURE_COLOR,
     FIXED_COLOR,
+    PLANE_ALPHA,
+    PLANE_COLOR,
+    PLANE_GRID_COLOR,
     ROD_COLOR,
     ROD_WIDTH,
     SLACK_COLOR,
+    SLIP_COLOR,
+    STICK_COLOR,
     TENDON_WIDTH,
     fit_axes,
     tension_colormap,
@@ -88,7 +98,7 @@ class _Scene:
     def __init__(
         self, frames: Frames, *, size: tuple[int, int], view: tuple[float, float] | None
     ) -> None:
-        from mpl_toolkits.mplot3d.art3d import Line3DCollection
+        from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
 
         self.frames = frames
         structure = frames.structure
@@ -103,10 +113,20 @@ class _Scene:
         if view is None:
             view = VIEW_3D if structure.dim == 3 else VIEW_PLANAR
         ax.view_init(elev=view[0], azim=view[1])
-        fit_axes(ax, frames.bounds)
+        fit_axes(ax, frames.scene_bounds)
         if structure.dim == 2:  # seen from above: no z axis to read
             ax.set_zticks([])
             ax.set_zlabel("")
+        self.planes: list[Any] = []  # (the patches and their grid: in the background)
+        if frames.contacts is not None:
+            self.planes = [
+                Poly3DCollection(
+                    frames.contacts.patch, facecolors=PLANE_COLOR, alpha=PLANE_ALPHA, linewidths=0
+                ),
+                Line3DCollection(frames.contacts.grid(), colors=PLANE_GRID_COLOR, linewidths=0.5),
+            ]
+            for collection in self.planes:
+                ax.add_collection3d(collection, autolim=False)
         empty = np.zeros((0, 2, 3))
         tendon_width = _thinned(TENDON_WIDTH, structure.n_tendons, 40)
         self.tendons = Line3DCollection(empty, linewidths=tendon_width)
@@ -134,6 +154,14 @@ class _Scene:
             if nodes.size:
                 (line,) = ax.plot([], [], [], ls="", **style)
                 self.markers.append((line, nodes))
+        self.contacts: list[Any] = []  # (the sticking and the slipping ends' dots)
+        if frames.contacts is not None:
+            keys: list[Any] = [Patch(facecolor=PLANE_COLOR, alpha=PLANE_ALPHA, label="plane")]
+            for color, name in ((STICK_COLOR, "end sticking"), (SLIP_COLOR, "end slipping")):
+                style = dict(marker="o", ms=7, color=color, mec=ROD_COLOR, mew=0.8, ls="")
+                self.contacts.append(ax.plot([], [], [], **style)[0])
+                keys.append(Line2D([], [], label=name, **style))
+            figure.legend(handles=keys, loc="lower left", fontsize="small", frameon=False)
         colour_axes = figure.add_axes((0.86, 0.2, 0.025, 0.6))
         mappable = ScalarMappable(Normalize(*frames.tension_range), tension_colormap())
         figure.colorbar(mappable, cax=colour_axes, label="tendon tension [N]")
@@ -153,6 +181,7 @@ class _Scene:
             self.slack,
             self.rods,
             *(line for line, _ in self.markers),
+            *self.contacts,
         )
         for artist in self.moving:
             artist.set_animated(True)  # left out of the figure's own drawing
@@ -173,6 +202,9 @@ class _Scene:
         self.rods.set_segments(frames.segments(k, structure.rod_nodes))
         for line, nodes in self.markers:
             line.set_data_3d(*frames.node_position[k][nodes].T)
+        if frames.contacts is not None:
+            for line, nodes in zip(self.contacts, frames.contacts.ends(k), strict=True):
+                line.set_data_3d(*frames.node_position[k][nodes].T)
         canvas: Any = self.figure.canvas
         canvas.restore_region(self.background)
         for collection in (self.tendons, self.slack, self.rods):
@@ -197,6 +229,9 @@ class _Scene:
             f"{frames.structure.n_rods} rods, {frames.structure.n_tendons} tendons, "
             f"{n_slack} slack" + (" (dashed)" if n_slack else "")
         )
+        if frames.contacts is not None:
+            stick, slip = frames.contacts.ends(k)
+            count += f", {stick.size} ends sticking, {slip.size} slipping"
         canvas: Any = self.figure.canvas
         rgba = np.asarray(canvas.buffer_rgba())
         picture = np.empty((*rgba.shape[:2], 3), dtype=np.uint8)
@@ -323,31 +358,41 @@ def animate(
     times = playback_times(result.t[0], result.t[-1], fps=fps, duration=duration, speed=speed)
     frames = make_frames(result, frame_indices(result.t, times))
     pictures = render_frames(frames, size=size, view=view, progress=progress)
+    contact_colors = () if frames.contacts is None else (STICK_COLOR, SLIP_COLOR)
     with atomic_path(path) as tmp:
-        _encode(tmp, suffix, pictures, fps)
+        _encode(tmp, suffix, pictures, fps, contact_colors)
     return path
 
 
-def _gif_palette(first: np.ndarray) -> Image.Image:
+def _gif_palette(first: np.ndarray, extra_colors: tuple[str, ...] = ()) -> Image.Image:
     """The 256 colours of every frame of a GIF: those of the first frame (background, axes,
     the whole colour bar, text, rods), with the slack tendons', supports' and failing members'
-    colours, which it may not show, added (Pillow's maximum-coverage quantiser: it keeps the
+    colours and ``extra_colors`` (the contacts' of a run with planes), which it may not show,
+    added (Pillow's maximum-coverage quantiser: it keeps the
     white background white).  One palette for all frames: quantising each frame on its own took
     35 ms of a frame's 42 (mapping onto a given palette takes 1 ms), and the frames' shared
     colours keep the file small."""
-    extra = np.array([to_rgb(c) for c in (SLACK_COLOR, FIXED_COLOR, FAILURE_COLOR)]) * 255
+    colors = (SLACK_COLOR, FIXED_COLOR, FAILURE_COLOR, *extra_colors)
+    extra = np.array([to_rgb(c) for c in colors]) * 255
     swatch = np.repeat(np.rint(extra).astype(np.uint8), first.shape[1], axis=0)
     sample = np.concatenate([first.reshape(-1, 3), swatch])[None]
     return Image.fromarray(sample).quantize(colors=256, method=Image.Quantize.MAXCOVERAGE)
 
 
-def _encode(tmp: Path, suffix: str, pictures: Iterator[np.ndarray], fps: float) -> None:
-    """Encode ``pictures`` into ``tmp`` as the video format of ``suffix``."""
+def _encode(
+    tmp: Path,
+    suffix: str,
+    pictures: Iterator[np.ndarray],
+    fps: float,
+    extra_colors: tuple[str, ...] = (),
+) -> None:
+    """Encode ``pictures`` into ``tmp`` as the video format of ``suffix`` (a GIF's palette with
+    ``extra_colors`` too: :func:`_gif_palette`)."""
     first = next(pictures, None)
     if first is None:
         raise ValueError("no frames to encode")
     if suffix == ".gif":
-        palette = _gif_palette(first)
+        palette = _gif_palette(first, extra_colors)
         indexed = (
             Image.fromarray(picture).quantize(palette=palette, dither=Image.Dither.NONE)
             for picture in pictures

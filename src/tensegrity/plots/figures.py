@@ -49,6 +49,15 @@ FIXED_COLOR = "#8c564b"
 #: Members whose utilisation exceeds 1 (they yield, break or buckle): apart from the colour map
 #: and from the slack tendons' red.
 FAILURE_COLOR = "#ff00d4"
+#: A run's planes (the ground, inclines, walls: semi-transparent patches, :data:`PLANE_ALPHA`
+#: opaque) and the grid drawn on them, so that rolling and sliding show.
+PLANE_COLOR = "#c8b48c"
+PLANE_GRID_COLOR = "#8c7a55"
+PLANE_ALPHA = 0.45
+#: Rod ends in contact with a plane: sticking (held) and slipping (kinetic friction); free ends
+#: are not marked.
+STICK_COLOR = "#ff7f0e"
+SLIP_COLOR = "#1fb6e8"
 #: Colour map of tendon tension; the yellow end is cut off so that every tendon shows on white.
 TENSION_CMAP = "viridis"
 _CMAP_RANGE = (0.0, 0.85)

@@ -16,7 +16,10 @@ a structure at rest):
   member's utilisation at each frame (:mod:`tensegrity.design.utilisation`: a rod's larger of
   yield and buckling, a tendon's yield) and the top of its colour scale, ``max(1, largest)``;
 - what the structure is: rods, tendons and their names, fixed nodes (supports, anchors), ball
-  joints, point masses.
+  joints, point masses;
+- for a run with planes (the ground, an incline, a wall: ``SimulationResult.planes``), each
+  plane's patch to draw and the mode of each contact pair (free, slip, stick) at each frame
+  (:class:`FrameContacts`).
 
 :func:`playback_times` turns a video's length (``duration``, ``fps`` or ``speed``) into frame
 times (:func:`frame_rate`: the rate a format can play); :func:`frame_indices` finds the samples
@@ -29,12 +32,13 @@ SI units throughout: m, s, N, J.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable, Mapping
-from typing import TYPE_CHECKING, NamedTuple
+from collections.abc import Callable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
 from tensegrity.engine.result import ENERGY_NAMES, total_energy
+from tensegrity.model.ground import SLIP, STICK
 from tensegrity.model.structure import Structure
 from tensegrity.physics.dynamics import elastic_tensions, tendon_lengths
 
@@ -47,6 +51,8 @@ __all__ = [
     "MAX_BYTES",
     "MAX_FRAMES",
     "MAX_REAL_TIME",
+    "PLANE_MARGIN",
+    "FrameContacts",
     "FrameUtilisation",
     "Frames",
     "MemberCheck",
@@ -56,6 +62,7 @@ __all__ = [
     "gif_delay",
     "make_frames",
     "motion_frames",
+    "plane_patches",
     "playback_times",
     "structure_frames",
     "tension_colors",
@@ -68,6 +75,9 @@ MAX_FRAMES = 300
 #: Default largest size of a viewer page's positions and tensions [bytes] (before base64, which
 #: adds a third): about 36 frames of the (100, 100) shell.
 MAX_BYTES = 32_000_000
+#: A plane's patch reaches this fraction of the run's size (its box's longest side) beyond the
+#: footprint of the nodes on it (every node of every sample, projected on the plane).
+PLANE_MARGIN = 0.15
 
 
 class MemberCheck(NamedTuple):
@@ -106,6 +116,36 @@ class FrameUtilisation(NamedTuple):
     high: float  #: top of the colour scale: ``max(1, largest utilisation of the run)``
 
 
+class FrameContacts(NamedTuple):
+    """A run's planes as drawn and its contact pairs' modes at each frame
+    (:attr:`SimulationResult.planes <tensegrity.engine.result.SimulationResult.planes>`,
+    ``contact_node``, ``contact_plane``, ``contact_mode``): ``P`` planes, ``CP`` pairs."""
+
+    patch: np.ndarray  #: (P, 4, 3) corners [m] of each plane's patch, in turn around it
+    normal: np.ndarray  #: (P, 3) each plane's unit normal
+    cell: float  #: side [m] of the squares of the grid on the patches (lines at its multiples)
+    node: np.ndarray  #: (CP,) the node of each contact pair
+    plane: np.ndarray  #: (CP,) its plane, an index into ``patch``
+    mode: np.ndarray  #: (F, CP) int8: its mode at each frame, 0 free, 1 slip, 2 stick
+
+    def ends(self, k: int) -> tuple[np.ndarray, np.ndarray]:
+        """The nodes in contact at frame ``k``: those sticking (a pair of theirs sticks) and
+        those slipping (else a pair slips), each ascending."""
+        stick = np.unique(self.node[self.mode[k] == STICK])
+        return stick, np.setdiff1d(self.node[self.mode[k] == SLIP], stick)
+
+    def grid(self) -> np.ndarray:
+        """The grid lines on the patches, every :attr:`cell` along each side, shape (L, 2, 3)
+        [m]."""
+        lines = []
+        for c0, c1, _, c3 in self.patch:
+            for side, other in ((c1 - c0, c3 - c0), (c3 - c0, c1 - c0)):
+                count = max(1, round(float(np.linalg.norm(side)) / self.cell))
+                start = c0 + np.outer(np.linspace(0.0, 1.0, count + 1), side)
+                lines.append(np.stack([start, start + other], axis=1))
+        return np.concatenate(lines) if lines else np.zeros((0, 2, 3))
+
+
 @dataclasses.dataclass(frozen=True, eq=False)
 class Frames:
     """Frames of a run (or of a structure at rest) to draw.
@@ -137,6 +177,9 @@ class Frames:
     utilisation : FrameUtilisation, optional
         The members' utilisation at each frame, for a run whose members have a design
         (:class:`MemberCheck`); None otherwise.
+    contacts : FrameContacts, optional
+        The planes and the contact pairs' modes at each frame, for a run with planes; None
+        otherwise.
     """
 
     structure: Structure
@@ -150,6 +193,7 @@ class Frames:
     bounds: np.ndarray
     title: str = ""
     utilisation: FrameUtilisation | None = None
+    contacts: FrameContacts | None = None
 
     @property
     def n_frames(self) -> int:
@@ -171,6 +215,20 @@ class Frames:
     def point_mass_nodes(self) -> np.ndarray:
         """Nodes with a point mass, shape (M,)."""
         return self.structure.point_mass_nodes
+
+    @property
+    def scene_bounds(self) -> np.ndarray:
+        """Lowest and highest x, y, z [m] of what is drawn, shape (2, 3): :attr:`bounds` and
+        the corners of the planes' patches (:attr:`bounds` without planes)."""
+        if self.contacts is None:
+            return self.bounds
+        corners = self.contacts.patch.reshape(-1, 3)
+        return np.stack(
+            [
+                np.minimum(self.bounds[0], corners.min(axis=0)),
+                np.maximum(self.bounds[1], corners.max(axis=0)),
+            ]
+        )
 
     def segments(self, k: int, pairs: np.ndarray) -> np.ndarray:
         """The line segments (K, 2, 3) [m] between node ``pairs`` (K, 2) at frame ``k``."""
@@ -312,6 +370,7 @@ def make_frames(
         result.energy,
         indices,
         result.message,
+        contact=_contact_of(result),
     )
     if check is None:
         return frames
@@ -327,6 +386,25 @@ def make_frames(
     return dataclasses.replace(
         frames, utilisation=FrameUtilisation(u.samples.rod, u.samples.tendon, high)
     )
+
+
+class _Contact(NamedTuple):
+    """A run's planes (``Plane.settings()`` each) and contact pairs (:class:`FrameContacts`'s
+    ``node`` and ``plane``), and the pairs' modes at each of its T rows, (T, CP)."""
+
+    planes: Sequence[Mapping[str, Any]]
+    node: np.ndarray
+    plane: np.ndarray
+    mode: np.ndarray
+
+
+def _contact_of(result: SimulationResult, mode: np.ndarray | None = None) -> _Contact | None:
+    """The planes and contact pairs of ``result`` with ``mode`` (T, CP) (default its own
+    ``contact_mode``), or None for a run without planes."""
+    if not result.planes:
+        return None
+    mode = np.asarray(result.contact_mode if mode is None else mode, dtype=np.int8)
+    return _Contact(result.planes, result.contact_node, result.contact_plane, mode)
 
 
 def _sample_rows(result: SimulationResult, index: np.ndarray) -> SimulationResult:
@@ -362,8 +440,8 @@ class FrameKeeper:
     """The viewer's frames of a run as its samples come (:func:`tensegrity.io.stream.
     simulate_to_file`'s ``observe``): at most ``max_frames`` evenly spread samples and the last,
     kept as they pass (the spacing doubles whenever twice that many are held; only the times,
-    node positions, tensions and energies), so that a long run's file need not be read again
-    for them.  :meth:`frames` makes them."""
+    node positions, tensions, energies and, with planes, the contact pairs' modes), so that a
+    long run's file need not be read again for them.  :meth:`frames` makes them."""
 
     def __init__(self, structure: Structure, *, t0: float, sample_dt: float, max_frames: int):
         self.structure, self.t0, self.sample_dt = structure, float(t0), float(sample_dt)
@@ -387,25 +465,30 @@ class FrameKeeper:
     @staticmethod
     def _columns(samples: Samples, number: np.ndarray, keep: np.ndarray) -> tuple[np.ndarray, ...]:
         """The rows ``keep`` of what a frame shows: sample number, time, positions, tensions
-        (float32) and energies."""
+        (float32), energies and contact modes (int8, (K, CP))."""
         return (
             number[keep],
             samples.t[keep],
             samples.node_position[keep].astype(np.float32),
             samples.tendon_tension[keep].astype(np.float32),
             samples.energy[keep],
+            samples.contact_mode[keep],
         )
 
-    def frames(self, title: str = "") -> Frames:
-        """The frames kept (at most ``max_frames``, evenly spread, the first and last)."""
+    def frames(self, title: str = "", *, run: SimulationResult | None = None) -> Frames:
+        """The frames kept (at most ``max_frames``, evenly spread, the first and last); for a
+        run with planes, ``run`` is that run (any of its samples, e.g. read back from its file):
+        its planes and contact pairs."""
         assert self.last is not None, "frames: no samples were kept"
-        number, t, position, tension, energy = (
+        number, t, position, tension, energy, mode = (
             np.concatenate(column) for column in zip(*self.kept, self.last, strict=True)
         )
         if number.size > 1 and number[-2] == number[-1]:  # (the last sample was kept already)
-            number, t, position, tension, energy = (
-                c[:-1] for c in (number, t, position, tension, energy)
+            number, t, position, tension, energy, mode = (
+                c[:-1] for c in (number, t, position, tension, energy, mode)
             )
+        if mode.shape[1] and run is None:
+            raise ValueError("run: the run of planes whose frames these are, needed")
         return _frames(
             self.structure,
             t,
@@ -415,6 +498,7 @@ class FrameKeeper:
             decimated_indices(t.size, self.max_frames),
             title,
             number,
+            contact=None if run is None else _contact_of(run, mode),
         )
 
 
@@ -458,6 +542,9 @@ def read_frames(
         None,
         ends.message,
         numbers,
+        contact=_contact_of(ends, read_dataset(path, "contact_mode", every=every).astype(np.int8))
+        if ends.planes
+        else None,
     )
     return frames, n_samples
 
@@ -471,11 +558,13 @@ def _frames(
     indices: np.ndarray | None,
     title: str,
     numbers: np.ndarray | None = None,
+    *,
+    contact: _Contact | None = None,
 ) -> Frames:
     """:func:`make_frames` of a run's arrays (T rows each; ``energy`` by
     :data:`~tensegrity.engine.result.ENERGY_NAMES`, or ``None``: no energies, ``{}`` as
     :func:`structure_frames`); ``numbers`` (T,) the rows' sample numbers in the run (default:
-    the rows are every sample)."""
+    the rows are every sample); ``contact`` its planes and contact modes (T rows), if any."""
     T = t.size
     index = np.arange(T) if indices is None else np.asarray(indices, dtype=np.int64)
     if index.ndim != 1 or not index.size or index.min() < 0 or index.max() >= T:
@@ -504,7 +593,75 @@ def _frames(
         tension_range=_tension_range(np.asarray(tendon_tension)),
         bounds=bounds,
         title=title,
+        contacts=None if contact is None else _frame_contacts(contact, every, index),
     )
+
+
+def _frame_contacts(contact: _Contact, every: np.ndarray, index: np.ndarray) -> FrameContacts:
+    """The :class:`FrameContacts` of the frames ``index`` of a run with planes, its patches
+    around the nodes of every row, ``every`` (T, N, 3) [m]."""
+    patch, normal, cell = plane_patches(contact.planes, every)
+    return FrameContacts(
+        patch=patch,
+        normal=normal,
+        cell=cell,
+        node=np.asarray(contact.node, dtype=np.int64),
+        plane=np.asarray(contact.plane, dtype=np.int64),
+        mode=np.asarray(contact.mode[index], dtype=np.int8),
+    )
+
+
+def plane_patches(
+    planes: Sequence[Mapping[str, Any]], node_position: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, float]:
+    """The finite patches to draw of infinite planes: each the footprint of the nodes on the
+    plane (projected along its normal) widened by :data:`PLANE_MARGIN` of the run's size, its
+    sides on the grid of the returned ``cell``, which is fixed in space (so that rolling and
+    sliding show against it).
+
+    Parameters
+    ----------
+    planes : sequence of mappings
+        Each plane's ``"point"`` (3,) [m] and ``"normal"`` (3,) (``Plane.settings()``, as
+        :attr:`SimulationResult.planes <tensegrity.engine.result.SimulationResult.planes>`).
+    node_position : array_like, shape (..., N, 3)
+        Node positions [m], e.g. of every sample of a run.
+
+    Returns
+    -------
+    patch : ndarray, shape (P, 4, 3)
+        Each plane's patch, its corners [m] in turn around it.
+    normal : ndarray, shape (P, 3)
+        Each plane's unit normal.
+    cell : float
+        Side [m] of the grid's squares: 1, 2 or 5 times a power of ten, near an eighth of the
+        run's size.
+    """
+    x = np.asarray(node_position, dtype=float).reshape(-1, 3)
+    size = float(np.ptp(x, axis=0).max()) or 1.0
+    step = size / 8
+    power = 10.0 ** np.floor(np.log10(step))
+    cell = float(power * min(m for m in (1, 2, 5, 10) if m * power >= step * (1 - 1e-12)))
+    margin = PLANE_MARGIN * size
+    patches, normals = [], []
+    for plane in planes:
+        n = np.asarray(plane["normal"], dtype=float)
+        n = n / np.linalg.norm(n)
+        point = np.asarray(plane["point"], dtype=float)
+        origin = (point @ n) * n  # (the plane's point nearest the origin: the grid fixed)
+        axis = np.eye(3)[np.argmin(np.abs(n))]  # (x on a ground plane)
+        u = axis - (axis @ n) * n
+        u /= np.linalg.norm(u)
+        v = np.cross(n, u)
+        a, b = (x - origin) @ u, (x - origin) @ v
+        (a0, b0), (a1, b1) = (
+            cell * np.floor((np.array([a.min(), b.min()]) - margin) / cell),
+            cell * np.ceil((np.array([a.max(), b.max()]) + margin) / cell),
+        )
+        corners = [(a0, b0), (a1, b0), (a1, b1), (a0, b1)]
+        patches.append([origin + s * u + t * v for s, t in corners])
+        normals.append(n)
+    return np.array(patches).reshape(-1, 4, 3), np.array(normals).reshape(-1, 3), cell
 
 
 def motion_frames(

@@ -3,7 +3,9 @@
 // JSON in <script id="tensegrity-data">: node positions and tensions as base64 little-endian
 // Float32 (frame after frame), members as base64 Int32 pairs, and, when the members have a
 // design, their utilisation (base64 Float32, rods and tendons frame after frame) with a colour
-// mode switch "tension" / "utilisation".  SI units: m, s, N, J.
+// mode switch "tension" / "utilisation"; a run with planes adds data.contacts: each plane's patch
+// (four corners) and grid cell, and each contact pair's node (base64 Int32) and mode at each frame
+// (base64 Int8, frame after frame: 0 free, 1 slip, 2 stick).  SI units: m, s, N, J.
 // Colours: the colour map, the legend and data.colors are sRGB, as CSS and matplotlib's; three.js
 // keeps colours in its linear working space and encodes them to sRGB when it draws.  A material's
 // colour, and a colour set with setRGB(..., "srgb"), is converted on the way in; a vertex colour
@@ -110,6 +112,62 @@
     markers(data.fixed, new T.ConeGeometry(3.0 * r, 6.0 * r, 12).rotateX(Math.PI / 2), data.colors.fixed),
   ];
 
+  // ---------------------------------------------------------------- planes and contacts
+  const SLIP = 1, STICK = 2;
+  const contacts = data.contacts ? { // the planes and contact modes, or null without planes
+    n: data.contacts.n_pairs,
+    node: new Int32Array(bytes(data.contacts.node)), // CP
+    mode: new Int8Array(bytes(data.contacts.mode)), // F * CP
+  } : null;
+  let contactMesh = null, contactNode = null, contactMode = null; // (the marked ends, this frame)
+  if (contacts) {
+    const c = data.colors;
+    const patchMaterial = new T.MeshBasicMaterial({ color: c.plane, transparent: true,
+      opacity: c.plane_alpha, side: 2, depthWrite: false }); // (2: THREE.DoubleSide)
+    const gridMaterial = new T.LineBasicMaterial({ color: c.plane_grid });
+    for (const corners of data.contacts.patch) { // a quad, and its grid: lines every cell
+      const [c0, c1, c2, c3] = corners.map((x) => new T.Vector3(...x));
+      // (one instance of an InstancedMesh: the vendored build has no Mesh)
+      const quad = new T.InstancedMesh(
+        new T.BufferGeometry().setFromPoints([c0, c1, c2, c0, c2, c3]), patchMaterial, 1);
+      quad.setMatrixAt(0, new T.Matrix4());
+      scene.add(quad);
+      const du = c1.clone().sub(c0), dv = c3.clone().sub(c0), points = [];
+      const nu = Math.max(1, Math.round(du.length() / data.contacts.cell));
+      const nv = Math.max(1, Math.round(dv.length() / data.contacts.cell));
+      for (let i = 0; i <= nu; i++) {
+        const o = c0.clone().addScaledVector(du, i / nu);
+        points.push(o, o.clone().add(dv));
+      }
+      for (let j = 0; j <= nv; j++) {
+        const o = c0.clone().addScaledVector(dv, j / nv);
+        points.push(o, o.clone().add(du));
+      }
+      scene.add(new T.LineSegments(new T.BufferGeometry().setFromPoints(points), gridMaterial));
+    }
+    contactMesh = new T.InstancedMesh(new T.SphereGeometry(2.2 * rodRadius, 16, 12),
+      new T.MeshLambertMaterial({ color: 0xffffff }), Math.max(contacts.n, 1)); // (colour per end)
+    contactMesh.count = 0;
+    contactMesh.frustumCulled = false;
+    contactMesh.boundingSphere = everywhere;
+    contactMesh.setColorAt(0, new T.Color(c.stick)); // (makes instanceColor)
+    scene.add(contactMesh);
+    contactNode = new Int32Array(Math.max(contacts.n, 1));
+    contactMode = new Int8Array(Math.max(contacts.n, 1));
+  }
+  const stickColor = new T.Color(data.colors.stick || 0), slipColor = new T.Color(data.colors.slip || 0);
+  // the ends in contact in frame k (a node's mode: stick if any of its pairs sticks), into
+  // contactNode and contactMode; their number
+  function contactsAt(k) {
+    const mode = contacts.mode.subarray(k * contacts.n, (k + 1) * contacts.n), at = new Map();
+    for (let i = 0; i < contacts.n; i++) {
+      if (mode[i] === SLIP || mode[i] === STICK) at.set(contacts.node[i], Math.max(at.get(contacts.node[i]) || 0, mode[i]));
+    }
+    let m = 0;
+    for (const [n, which] of [...at].sort((x, y) => x[0] - y[0])) { contactNode[m] = n; contactMode[m++] = which; }
+    return m;
+  }
+
   // ---------------------------------------------------------------- one frame
   let current = 0;
   const a = new T.Vector3(), b = new T.Vector3(), up = new T.Vector3(0, 1, 0);
@@ -192,11 +250,27 @@
       });
       mesh.instanceMatrix.needsUpdate = true;
     }
+    let marked = "";
+    if (contacts) {
+      const m = contactsAt(k);
+      let sticking = 0;
+      for (let i = 0; i < m; i++) {
+        const n = contactNode[i];
+        matrix.makeTranslation(p[3 * n], p[3 * n + 1], p[3 * n + 2]);
+        contactMesh.setMatrixAt(i, matrix);
+        contactMesh.setColorAt(i, contactMode[i] === STICK ? stickColor : slipColor);
+        if (contactMode[i] === STICK) sticking++;
+      }
+      contactMesh.count = m;
+      contactMesh.instanceMatrix.needsUpdate = true;
+      contactMesh.instanceColor.needsUpdate = true;
+      marked = `, ${sticking} ends sticking, ${m - sticking} slipping`;
+    }
     slider.value = String(k);
     const e = data.energy;
     clock.textContent = `t = ${times[k].toFixed(3)} s` +
       (e.total ? `   E = ${e.total[k].toPrecision(6)} J   E_kin = ${e.kinetic[k].toPrecision(4)} J` : "");
-    counts.textContent = `${R} rods, ${S} tendons, ${ns} slack (dashed)`;
+    counts.textContent = `${R} rods, ${S} tendons, ${ns} slack (dashed)${marked}`;
     if (pinned) showInfo(pinned);
     renderer.render(scene, camera);
   }
@@ -327,6 +401,14 @@
     legend.parentElement.querySelector("br:nth-of-type(2)").after(failureKey);
     document.getElementById("t-high").parentElement.append(oneMark);
   }
+  if (contacts) { // the planes' and the contacts' key
+    const key = document.createElement("span"), c = data.colors;
+    key.innerHTML = `<br><span class="key" style="height:10px;border:1px solid ${c.plane_grid};` +
+      `background:${c.plane};opacity:${c.plane_alpha}"></span>plane<br>` +
+      `<span style="color:${c.stick}">&#9679;</span> end sticking &nbsp;` +
+      `<span style="color:${c.slip}">&#9679;</span> slipping`;
+    document.getElementById("legend").append(key);
+  }
   drawLegend();
 
   controls.addEventListener("change", () => renderer.render(scene, camera));
@@ -366,6 +448,14 @@
     // the colour [r, g, b] (sRGB, the legend's) of tendon j in this frame, or null if it is slack
     // (dashed)
     tendonColor: (j) => (tensions[current * S + j] > 0 ? Array.from(tendonRGB(current, j)) : null),
+    // the contact pairs' modes in frame k (0 free, 1 slip, 2 stick), or null without planes
+    contactModes: (k) => contacts && Array.from(contacts.mode.subarray(k * contacts.n, (k + 1) * contacts.n)),
+    // the ends marked in this frame: {node: [...], mode: [...]} (1 slip, 2 stick), or null
+    contactEnds: () => {
+      if (!contacts) return null;
+      const m = contactsAt(current);
+      return { node: Array.from(contactNode.subarray(0, m)), mode: Array.from(contactMode.subarray(0, m)) };
+    },
     pickAt: (x, y) => { const w = pickAt(x, y); return w && member(w.kind, w.id); },
     // where the point (x, y, z) [m] is drawn: [x, y] in the page's CSS pixels, as pickAt's
     toScreen: (x, y, z) => {

@@ -21,6 +21,13 @@ above) or "utilisation": rods and taut tendons on the tension colour map over th
 (:data:`~.figures.FAILURE_COLOR`); hovering a member shows its utilisation too.  Without a
 design the page has neither the data nor the switch.
 
+A run with planes (the ground, an incline, a wall) shows each plane as a semi-transparent patch
+with a grid fixed in space (:func:`~.motion.plane_patches`: the footprint of the run's nodes on
+it, with a margin), and the rod ends in contact at each frame as spheres coloured by their mode,
+sticking (:data:`~.figures.STICK_COLOR`) or slipping (:data:`~.figures.SLIP_COLOR`; free ends
+unmarked), with a key in the legend.  Its data add ``"contacts"`` (:func:`viewer_data`); a run
+without planes has neither.
+
 A long or large run is decimated to at most ``max_frames`` frames and ``max_bytes`` of positions
 and tensions (:func:`frame_budget`), the frames spread evenly over the run.
 """
@@ -41,8 +48,13 @@ from tensegrity.model.structure import Structure
 from tensegrity.plots.figures import (
     FAILURE_COLOR,
     FIXED_COLOR,
+    PLANE_ALPHA,
+    PLANE_COLOR,
+    PLANE_GRID_COLOR,
     ROD_COLOR,
     SLACK_COLOR,
+    SLIP_COLOR,
+    STICK_COLOR,
     tension_colormap,
 )
 from tensegrity.plots.motion import (
@@ -85,7 +97,11 @@ def viewer_data(frames: Frames) -> dict[str, Any]:
     ``tendon_nodes`` as base64 Int32, ``tendon_name``,
     and the names, markers, colours and ranges the page draws with; with the members'
     utilisation (``frames.utilisation``), ``"utilisation"``: ``"rods"`` ``(F, R)`` and
-    ``"tendons"`` ``(F, S)`` as base64 Float32 and ``"high"``, the top of its scale."""
+    ``"tendons"`` ``(F, S)`` as base64 Float32 and ``"high"``, the top of its scale; with
+    planes (``frames.contacts``), ``"contacts"``: ``"patch"`` ``(P, 4, 3)`` [m] and ``"normal"``
+    ``(P, 3)`` of each plane, ``"cell"`` [m] of their grid, ``"n_pairs"`` (CP), ``"node"``
+    ``(CP,)`` as base64 Int32 and ``"mode"`` ``(F, CP)`` as base64 Int8 (0 free, 1 slip,
+    2 stick) (and ``"bounds"`` takes in the patches)."""
     structure = frames.structure
     span = float(np.max(frames.bounds[1] - frames.bounds[0])) or 1.0
     rod_length = float(np.median(structure.rod_length)) if structure.n_rods else span
@@ -110,7 +126,7 @@ def viewer_data(frames: Frames) -> dict[str, Any]:
         "joints": frames.joint_nodes.tolist(),
         "point_masses": frames.point_mass_nodes.tolist(),
         "tension_range": list(frames.tension_range),
-        "bounds": frames.bounds.tolist(),
+        "bounds": frames.scene_bounds.tolist(),
         "rod_radius": 0.012 * min(rod_length, span),
         "colormap": np.round(tension_colormap()(np.linspace(0, 1, 256))[:, :3], 5).tolist(),
         "colors": {
@@ -128,6 +144,23 @@ def viewer_data(frames: Frames) -> dict[str, Any]:
             "high": frames.utilisation.high,
         }
         data["colors"]["failure"] = FAILURE_COLOR
+    if frames.contacts is not None:
+        contacts = frames.contacts
+        data["contacts"] = {
+            "patch": contacts.patch.tolist(),
+            "normal": contacts.normal.tolist(),
+            "cell": contacts.cell,
+            "n_pairs": int(contacts.node.size),
+            "node": _base64(contacts.node, "<i4"),
+            "mode": _base64(contacts.mode, "i1"),
+        }
+        data["colors"] |= {
+            "plane": PLANE_COLOR,
+            "plane_grid": PLANE_GRID_COLOR,
+            "plane_alpha": PLANE_ALPHA,
+            "stick": STICK_COLOR,
+            "slip": SLIP_COLOR,
+        }
     return data
 
 
@@ -256,9 +289,10 @@ def notebook_html(
 def read_viewer_data(text: str) -> dict[str, Any]:
     """The data of a viewer page (:func:`html`), its arrays decoded: ``node_position`` (F, N, 3)
     and ``tendon_tension`` (F, S) as float32, ``rod_nodes`` (R, 2) and ``tendon_nodes`` (S, 2)
-    as int32, and
+    as int32,
     (a run whose members have a design) ``utilisation["rods"]`` (F, R) and
-    ``utilisation["tendons"]`` (F, S) as float32."""
+    ``utilisation["tendons"]`` (F, S) as float32, and (a run with planes) ``contacts["node"]``
+    (CP,) as int32 and ``contacts["mode"]`` (F, CP) as int8."""
     start = text.index(_DATA_OPEN) + len(_DATA_OPEN)
     data = json.loads(text[start : text.index("</script>", start)])
     F, N, R, S = data["n_frames"], data["n_nodes"], data["n_rods"], data["n_tendons"]
@@ -271,6 +305,9 @@ def read_viewer_data(text: str) -> dict[str, Any]:
     if "utilisation" in data:
         u = data["utilisation"]
         decoded += [(u, "rods", "<f4", (F, R)), (u, "tendons", "<f4", (F, S))]
+    if "contacts" in data:
+        c, CP = data["contacts"], data["contacts"]["n_pairs"]
+        decoded += [(c, "node", "<i4", (CP,)), (c, "mode", "i1", (F, CP))]
     for where, key, dtype, shape in decoded:
         where[key] = np.frombuffer(base64.b64decode(where[key]), dtype=dtype).reshape(shape)
     return data
