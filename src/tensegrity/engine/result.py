@@ -202,9 +202,11 @@ class SimulationResult:
     settings: dict[str, Any]
     max_constraint_error: float = 0.0
     switch_times: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
-    contact_normal_force: np.ndarray | None = None
-    contact_friction_force: np.ndarray | None = None
-    contact_mode: np.ndarray | None = None
+    contact_normal_force: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 0)))
+    contact_friction_force: np.ndarray = dataclasses.field(
+        default_factory=lambda: np.zeros((0, 0, 3))
+    )
+    contact_mode: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 0), np.int8))
     contact_event_time: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
     contact_event_pair: np.ndarray = dataclasses.field(
         default_factory=lambda: np.zeros(0, np.int64)
@@ -214,16 +216,11 @@ class SimulationResult:
     )
 
     def __post_init__(self) -> None:
-        """Contact arrays left out (a run without planes): of width 0."""
-        T = self.t.shape[0]
-        empty = {
-            "contact_normal_force": np.zeros((T, 0)),
-            "contact_friction_force": np.zeros((T, 0, 3)),
-            "contact_mode": np.zeros((T, 0), np.int8),
-        }
-        for name, value in empty.items():
-            if getattr(self, name) is None:
-                object.__setattr__(self, name, value)
+        """Contact arrays left out (a run without planes): (T, 0) of theirs."""
+        for name in ("contact_normal_force", "contact_friction_force", "contact_mode"):
+            value = getattr(self, name)
+            if value.size == 0 and value.shape[0] != self.t.shape[0]:
+                object.__setattr__(self, name, value.reshape(self.t.shape[0], *value.shape[1:]))
 
     def __repr__(self) -> str:
         """A few hundred characters at most whatever the run's size, as NumPy's and xarray's:

@@ -51,6 +51,7 @@ Files of earlier versions still read: version 2 stored ``tendon_length``; versio
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from collections.abc import Iterable, Mapping
@@ -443,7 +444,7 @@ def _read_open_trajectory(f: Any, path: PathLike, every: int = 1) -> SimulationR
         arrays |= contact_event_arrays(
             read_datasets({"e": _dataset(f, "contact_events", path)}, path)["e"]
         )
-    return SimulationResult(
+    result = SimulationResult(
         t=arrays["t"],
         q=arrays["q"],
         qdot=arrays["qdot"],
@@ -458,8 +459,9 @@ def _read_open_trajectory(f: Any, path: PathLike, every: int = 1) -> SimulationR
         settings=settings,
         **figures,
         message=message,
-        **{name: arrays[name] for name in arrays if name.startswith("contact_")},
     )
+    contact = {name: arrays[name] for name in arrays if name.startswith("contact_")}
+    return dataclasses.replace(result, **contact) if contact else result
 
 
 def _contact_datasets(
