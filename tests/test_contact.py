@@ -216,38 +216,51 @@ def test_a_rod_held_by_friction_slips_when_a_ramped_pull_reaches_mu_n():
     assert run.node_position[-1, 0, 0] - run.node_position[0, 0, 0] > 1e-3  # (then it slides)
 
 
-def test_a_prestressed_six_bar_resting_on_the_ground_does_not_creep():
-    """NTRT's issue 83: an unactuated six-bar on its face. Settled (steady state), then 10 s
-    more: no node moves by more than 1e-9 m (friction holds exactly; no creep)."""
-    from tensegrity.design.catalogue import octahedron
-    from tensegrity.physics.dynamics import State
-
-    robot = octahedron(stiffness=2000.0, tension=100.0, damping=20.0)
-    face = -np.ones(3) / np.sqrt(3)  # (the triangle of nodes nearest (-1, -1, -1))
+def on_its_face(robot: Structure, height: float = 0.0) -> Structure:
+    """``robot`` (an expanded octahedron, e.g. the six-bar) turned onto its face ``f---``, the
+    triangle of nodes nearest (-1, -1, -1), those ends ``height`` [m] above resting on z = 0
+    (their centres at :data:`RADIUS` + ``height``)."""
+    face = -np.ones(3) / np.sqrt(3)
     axis = np.cross(face, [0.0, 0.0, -1.0])
     skew = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
     rotation = np.eye(3) + skew + skew @ skew / (1.0 - face[2])
     nodes = robot.node_position @ rotation.T
-    nodes[:, 2] += RADIUS - nodes[:, 2].min()
-    robot = robot.replace(node_position=nodes)
+    nodes[:, 2] += RADIUS + height - nodes[:, 2].min()
+    return robot.replace(node_position=nodes)
+
+
+def settle_and_hold(structure: Structure, scene: dict, settle: float) -> tuple:
+    """``structure`` run in ``scene`` (``simulate``'s gravity, ground, contact radius) to rest
+    (within ``settle`` [s]), then 10 s more from that rest: both runs."""
+    from tensegrity.physics.dynamics import State
+
+    settled = simulate(
+        structure,
+        (0.0, settle),
+        steady_state=True,
+        velocity_tol=1e-10,
+        acceleration_tol=1e-8,
+        sample_dt=0.01,
+        **scene,
+    )
+    start = State(t=0.0, q=settled.q[-1], qdot=settled.qdot[-1])
+    return settled, simulate(structure, (0.0, 10.0), initial=start, sample_dt=0.5, **scene)
+
+
+def test_a_prestressed_six_bar_resting_on_the_ground_does_not_creep():
+    """NTRT's issue 83: an unactuated six-bar on its face. Settled (steady state), then 10 s
+    more: no node moves by more than 1e-9 m (friction holds exactly; no creep)."""
+    from tensegrity.design.catalogue import octahedron
+
+    robot = on_its_face(octahedron(stiffness=2000.0, tension=100.0, damping=20.0))
     scene = dict(
         gravity=[0.0, 0.0, -G],
         ground=ground(friction=0.8, kinetic_friction=0.6),
         contact_radius=RADIUS,
     )
-    settled = simulate(
-        robot,
-        (0.0, 200.0),
-        steady_state=True,
-        velocity_tol=1e-10,
-        acceleration_tol=1e-8,
-        sample_dt=0.5,
-        **scene,
-    )
+    settled, run = settle_and_hold(robot, scene, 200.0)
     assert settled.status == 1, settled.message  # (at rest)
     assert np.sort(settled.node_position[-1, :, 2])[3] > 0.1  # (on three nodes: a face)
-    start = State(t=0.0, q=settled.q[-1], qdot=settled.qdot[-1])
-    run = simulate(robot, (0.0, 10.0), initial=start, sample_dt=0.5, **scene)
     assert run.status == 0 and run.nswitches == 0, run.message
     assert np.abs(run.node_position - run.node_position[0]).max() <= 1e-9
 
@@ -362,10 +375,7 @@ def test_a_rod_dropped_on_one_end_on_a_slope_does_not_spin_or_walk():
     0.8 above the friction angle) topples and comes to rest.  Dropped in the vertical plane of
     the slope it stays in that plane (no spin: every y within the issue's 1e-9 m; measured
     1.1e-12 m, round-off of the sticking solve), and once at rest it stays there: no node moves
-    more than 1e-9 m in 5 s more (no walk)."""
-    from tensegrity.physics.dynamics import State
-
-    tilt = 0.3
+    more than 1e-9 m in 10 s more (no walk)."""
     ends = [[0.0, 0.0, RADIUS + 0.01], [math.sqrt(0.5), 0.0, RADIUS + 0.01 + math.sqrt(0.5)]]
     rod = Structure(
         node_position=ends,
@@ -377,24 +387,14 @@ def test_a_rod_dropped_on_one_end_on_a_slope_does_not_spin_or_walk():
         tendon_rest_length=[],
     )
     scene = dict(
-        gravity=tilted_gravity(tilt),
+        gravity=tilted_gravity(0.3),
         ground=ground(stiffness=STIFFNESS, damping=DAMPING, friction=0.8),
         contact_radius=RADIUS,
     )
-    fall = simulate(
-        rod,
-        (0.0, 5.0),
-        steady_state=True,
-        velocity_tol=1e-9,
-        acceleration_tol=1e-7,
-        sample_dt=0.01,
-        **scene,
-    )
+    fall, rest = settle_and_hold(rod, scene, 5.0)
     assert fall.status == 1, fall.message  # (at rest)
     assert np.abs(fall.node_position[:, :, 1]).max() <= 1e-9
     assert fall.contact_counts["touch_down"] >= 2  # (both ends came down)
     assert np.all(fall.contact_mode[-1] == 2)  # (lying, both ends stuck)
-    start = State(t=0.0, q=fall.q[-1], qdot=fall.qdot[-1])
-    rest = simulate(rod, (0.0, 5.0), initial=start, sample_dt=0.5, **scene)
     assert rest.status == 0 and rest.nswitches == 0, rest.message
     assert np.abs(rest.node_position - rest.node_position[0]).max() <= 1e-9

@@ -32,6 +32,7 @@ from test_contact import (
     STIFFNESS,
     G,
     lying_rod,
+    on_its_face,
     resting_rod,
     tilted_gravity,
 )
@@ -167,14 +168,7 @@ def six_bar_on_its_face(height: float):
     turned onto its face ``f---`` (nodes 0, 4, 8), those ends ``height`` [m] above the ground."""
     from tensegrity.design.catalogue import six_bar_robot
 
-    robot = six_bar_robot(stiffness=2000.0, tension=100.0, damping=20.0)
-    face = -np.ones(3) / np.sqrt(3)  # (the triangle of nodes nearest (-1, -1, -1))
-    axis = np.cross(face, [0.0, 0.0, -1.0])
-    skew = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
-    rotation = np.eye(3) + skew + skew @ skew / (1.0 - face[2])
-    nodes = robot.node_position @ rotation.T
-    nodes[:, 2] += RADIUS + height - nodes[:, 2].min()
-    return robot.replace(node_position=nodes)
+    return on_its_face(six_bar_robot(stiffness=2000.0, tension=100.0, damping=20.0), height)
 
 
 @pytest.mark.parametrize(
