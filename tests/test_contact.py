@@ -19,9 +19,8 @@ MASS, LENGTH, STIFFNESS, DAMPING, G = 1.0, 1.0, 1e5, 100.0, 9.81
 RADIUS = 0.01
 
 
-def lying_rod(z: float = 0.0, velocity=(0.0, 0.0, 0.0)) -> Structure:
-    """A rod of 1 kg and 1 m along x, its centre at height ``z`` [m], moving at ``velocity``."""
-    ends = [[-LENGTH / 2, 0.0, z], [LENGTH / 2, 0.0, z]]
+def one_rod(ends, velocity=(0.0, 0.0, 0.0)) -> Structure:
+    """A rod of 1 kg and 1 m between ``ends`` (2, 3) [m], moving at ``velocity`` [m/s]."""
     return Structure(
         node_position=ends,
         node_velocity=[velocity, velocity],
@@ -32,6 +31,11 @@ def lying_rod(z: float = 0.0, velocity=(0.0, 0.0, 0.0)) -> Structure:
         tendon_stiffness=[],
         tendon_rest_length=[],
     )
+
+
+def lying_rod(z: float = 0.0, velocity=(0.0, 0.0, 0.0)) -> Structure:
+    """A rod of 1 kg and 1 m along x, its centre at height ``z`` [m], moving at ``velocity``."""
+    return one_rod([[-LENGTH / 2, 0.0, z], [LENGTH / 2, 0.0, z]], velocity)
 
 
 def test_a_rod_dropped_flat_rebounds_with_the_laws_restitution():
@@ -68,15 +72,7 @@ def resting_rod(theta: float, axis: int = 0) -> Structure:
     ends = np.zeros((2, 3))
     ends[:, axis] = [-LENGTH / 2, LENGTH / 2]
     ends[:, 2] = RADIUS - depth
-    return Structure(
-        node_position=ends,
-        rod_nodes=[[0, 1]],
-        rod_mass=[MASS],
-        rod_length=[LENGTH],
-        tendon_nodes=np.zeros((0, 2), int),
-        tendon_stiffness=[],
-        tendon_rest_length=[],
-    )
+    return one_rod(ends)
 
 
 @pytest.mark.parametrize("mu", [0.2, 0.5, 1.0])
@@ -376,16 +372,8 @@ def test_a_rod_dropped_on_one_end_on_a_slope_does_not_spin_or_walk():
     the slope it stays in that plane (no spin: every y within the issue's 1e-9 m; measured
     1.1e-12 m, round-off of the sticking solve), and once at rest it stays there: no node moves
     more than 1e-9 m in 10 s more (no walk)."""
-    ends = [[0.0, 0.0, RADIUS + 0.01], [math.sqrt(0.5), 0.0, RADIUS + 0.01 + math.sqrt(0.5)]]
-    rod = Structure(
-        node_position=ends,
-        rod_nodes=[[0, 1]],
-        rod_mass=[MASS],
-        rod_length=[LENGTH],
-        tendon_nodes=np.zeros((0, 2), int),
-        tendon_stiffness=[],
-        tendon_rest_length=[],
-    )
+    low = RADIUS + 0.01
+    rod = one_rod([[0.0, 0.0, low], [math.sqrt(0.5), 0.0, low + math.sqrt(0.5)]])
     scene = dict(
         gravity=tilted_gravity(0.3),
         ground=ground(stiffness=STIFFNESS, damping=DAMPING, friction=0.8),

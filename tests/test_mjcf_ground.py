@@ -25,7 +25,7 @@ from tensegrity.io.mjcf import (
     to_mjcf,
 )
 from tensegrity.model.ground import Plane, ground
-from test_contact import (
+from test_contact import (  # (the same bodies and scenes as there)
     DAMPING,
     MASS,
     RADIUS,
