@@ -271,3 +271,56 @@ def test_a_soft_six_bar_collapsing_on_the_ground_runs_to_its_end():
     total = run.total_energy
     assert (total - np.minimum.accumulate(total)).max() < 1e-6
     assert np.abs(run.node_velocity[-1]).max() < 1e-6
+
+
+def point_mass_above(height: float, velocity=(0.0, 0.0, 0.0)) -> Structure:
+    """A point mass of :data:`MASS` at ``height`` [m] moving at ``velocity``, tied by a slack
+    tendon to an anchor 2 m above it (a structure needs a member)."""
+    return Structure(
+        node_position=[[0.0, 0.0, height], [0.0, 0.0, height + 2.0]],
+        node_velocity=[velocity, (0.0, 0.0, 0.0)],
+        node_point_mass=[MASS, 0.0],
+        node_fixed=[False, True],
+        rod_nodes=np.zeros((0, 2), int),
+        rod_mass=[],
+        rod_length=[],
+        tendon_nodes=[[0, 1]],
+        tendon_stiffness=[10.0],
+        tendon_rest_length=[5.0],
+    )
+
+
+def test_a_point_mass_is_a_contact_point_too():
+    """A point mass hitting the ground at 1 m/s, no gravity, rebounds at the law's restitution
+    for its mass; on a slope tilted below its friction angle it sticks, above it it slides at
+    ``g (sin theta - mu_k cos theta)`` (the closed forms of tests/test_contact.py's rod)."""
+    from test_contact import tilted_gravity
+
+    plane = ground(stiffness=STIFFNESS, damping=DAMPING, friction=0.5)
+    bounce = simulate(
+        point_mass_above(0.0, (0.0, 0.0, -1.0)), (0.0, 0.05), ground=plane, rtol=1e-11, atol=1e-13
+    )
+    assert bounce.status == 0, bounce.message
+    assert list(bounce.contact_node) == [0]
+    assert bounce.node_velocity[-1, 0, 2] == pytest.approx(plane.restitution(MASS), rel=1e-8)
+    assert bounce.contact_counts == {"touch_down": 1, "lift_off": 1, "slip": 0, "stick": 0}
+    for theta, moves in ((0.4, False), (0.6, True)):  # (atan 0.5 = 0.4636 rad)
+        depth = MASS * G * math.cos(theta) / STIFFNESS
+        run = simulate(
+            point_mass_above(RADIUS - depth),
+            (0.0, 1.0),
+            gravity=tilted_gravity(theta),
+            ground=plane,
+            contact_radius=RADIUS,
+            sample_dt=0.1,
+            rtol=1e-11,
+            atol=1e-13,
+        )
+        assert run.status == 0, run.message
+        x = run.node_position[:, 0, 0]
+        if moves:
+            expected = G * (math.sin(theta) - 0.5 * math.cos(theta)) / 2
+            assert x[-1] - x[0] == pytest.approx(expected, rel=1e-3)
+        else:
+            assert np.abs(run.node_position[:, 0] - run.node_position[0, 0]).max() <= 1e-9
+            assert np.all(run.contact_mode[1:] == STICK)

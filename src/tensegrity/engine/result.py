@@ -280,16 +280,18 @@ class SimulationResult:
 
     @property
     def contact_node(self) -> np.ndarray:
-        """The node of each contact pair (CP,): pair ``k = c P + p`` is end ``c % 2`` of rod
-        ``c // 2`` against plane ``p``."""
-        ends = self.structure.rod_nodes.reshape(-1)
-        return np.repeat(ends, len(self.planes)) if self.planes else np.zeros(0, np.int64)
+        """The node of each contact pair (CP,): pair ``k = c P + p`` is point ``c`` against
+        plane ``p``, the points the rods' ends (end ``c % 2`` of rod ``c // 2``), then the point
+        masses."""
+        s = self.structure
+        points = np.concatenate([s.rod_nodes.reshape(-1), s.point_mass_nodes]).astype(np.int64)
+        return np.repeat(points, len(self.planes))
 
     @property
     def contact_plane(self) -> np.ndarray:
         """The plane of each contact pair (CP,): an index into :attr:`planes`."""
-        P = len(self.planes)
-        return np.tile(np.arange(P), 2 * self.structure.n_rods) if P else np.zeros(0, np.int64)
+        s = self.structure
+        return np.tile(np.arange(len(self.planes)), 2 * s.n_rods + s.point_mass_nodes.size)
 
     @property
     def contact_penetration(self) -> np.ndarray:

@@ -79,8 +79,15 @@ class CompiledSystem:
                     "ground: contact is for structures without joints or supports (rods, "
                     "tendons, point masses and anchors) for now"
                 )
-            radius = np.full(2 * structure.n_rods, inputs.contact_radius)
-            contacts = pack_contacts(inputs.ground, radius)
+            slot = packed.layout.node_slot
+            masses = structure.point_mass_nodes
+            contacts = pack_contacts(
+                inputs.ground,
+                inputs.contact_radius,
+                slot[structure.rod_nodes],
+                slot[masses],
+                structure.node_point_mass[masses],
+            )
         self.model, self.data = make_records(
             packed_system, rest=rest0, gravity=gravity, limits=limits, contacts=contacts
         )
@@ -296,22 +303,23 @@ class CompiledSystem:
         return np.zeros(m), np.zeros(m), np.zeros(self.n), np.zeros(m)
 
     def check_contacts(self, y: np.ndarray) -> None:
-        """``ValueError`` naming ``ground`` if a rod's end starts below one of the planes (its
-        centre on the solid's side of it)."""
+        """``ValueError`` naming ``ground`` if a contact point (a rod's end, a point mass) starts
+        below one of the planes (its centre on the solid's side of it)."""
         contacts = self.model.contacts
         if contacts is None:
             return
-        ends = self.nodes(y)[self.structure.rod_nodes]  # (R, 2, 3)
+        s = self.structure
+        points = np.concatenate([s.rod_nodes.reshape(-1), s.point_mass_nodes])
         for p, (point, normal) in enumerate(
             zip(contacts.plane_point, contacts.plane_normal, strict=True)
         ):
-            height = (ends - point) @ normal  # (R, 2)
+            height = (self.nodes(y)[points] - point) @ normal
             if np.any(height < 0):
-                r, end = np.unravel_index(int(np.argmin(height)), height.shape)
-                node = self.structure.rod_nodes[r, end]
+                c = int(np.argmin(height))
+                what = f"rod {c // 2}'s end {'ab'[c % 2]}" if c < 2 * s.n_rods else "a point mass"
                 raise ValueError(
-                    f"ground: node {node} (rod {r}'s end {'ab'[end]}) starts "
-                    f"{-height[r, end]:.3g} m below plane {p}; start the structure above it"
+                    f"ground: node {points[c]} ({what}) starts {-height[c]:.3g} m below plane "
+                    f"{p}; start the structure above it"
                 )
 
     def coordinates(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -27,11 +27,11 @@ dataset                    shape        content
 ``switch_times``           (k,)         times of the located events [s]
 =========================  ===========  ==============================================
 
-A run with planes (``settings["ground"]``, ``CP`` = 2 R x planes contact pairs) also stores
-``contact_normal_force`` (T, CP) [N], ``contact_friction_force`` (T, CP, 3) [N],
-``contact_mode`` (T, CP) (0 free, 1 slip, 2 stick, as float64) and ``contact_events`` (E, 4):
-each change of a pair's mode (time [s], pair, mode before, mode after); files without them
-read as runs without contact.
+A run with planes (``settings["ground"]``; ``CP`` = (2 R + M) x planes contact pairs, M the
+point masses) also stores ``contact_normal_force`` (T, CP) [N], ``contact_friction_force``
+(T, CP, 3) [N], ``contact_mode`` (T, CP) (0 free, 1 slip, 2 stick, as float64) and
+``contact_events`` (E, 4): each change of a pair's mode (time [s], pair, mode before, mode
+after); files without them read as runs without contact.
 
 ``node_position`` and ``node_velocity`` (T, N, dim) and ``tendon_length`` (T, S) are not
 stored: they are ``P q``, ``P q'`` (:func:`tensegrity.physics.coordinates.nodes_from_coordinates`)
@@ -129,8 +129,10 @@ def sample_rows(structure: Structure, pairs: int = 0) -> dict[str, tuple[int, ..
 
 
 def contact_pairs(structure: Structure, settings: Mapping[str, Any]) -> int:
-    """The contact pairs of a run of ``structure`` with ``settings``: 2 R per plane."""
-    return 2 * structure.n_rods * len(settings.get("ground", ()))
+    """The contact pairs of a run of ``structure`` with ``settings``: the rods' ends and the
+    point masses, against each plane."""
+    points = 2 * structure.n_rods + structure.point_mass_nodes.size
+    return points * len(settings.get("ground", ()))
 
 
 def event_rows(pairs: int) -> dict[str, tuple[int, ...]]:

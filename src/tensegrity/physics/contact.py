@@ -1,10 +1,11 @@
-"""Contact of the rods' ends with rigid planes, compiled (the law: :mod:`tensegrity.model.ground`).
+"""Contact of the rods' ends and the point masses with rigid planes, compiled (the law:
+:mod:`tensegrity.model.ground`).
 
 The records' optional parts ``Model.contacts`` (:class:`~tensegrity.physics.records.Contacts`)
 and ``Data.contact_work`` (:class:`~tensegrity.physics.records.ContactWork`) hold the planes and
-the pairs' modes.  Point ``c`` is end ``c % 2`` of rod ``c // 2`` (``p_a = (q1 - q2) / 2``,
-``p_b = (q1 + q2) / 2``, eq. 18.26), pair ``k = c P + p``; ``delta = r - n . (x - x0)`` its
-penetration [m], ``delta' = -n . v``.
+the pairs' modes.  Point ``c < 2R`` is end ``c % 2`` of rod ``c // 2`` (``p_a = (q1 - q2) /
+2``, ``p_b = (q1 + q2) / 2``, eq. 18.26), the next ``M`` the point masses; pair ``k = c P +
+p``; ``delta = r - n . (x - x0)`` its penetration [m], ``delta' = -n . v``.
 
 Modes (changed only by the engine's events, :mod:`tensegrity.engine.events`):
 
@@ -15,7 +16,7 @@ Modes (changed only by the engine's events, :mod:`tensegrity.engine.events`):
   continuous in between;
 - ``STICK``: ``F_n`` and the tangential force that keeps the point's tangential acceleration
   zero, solved per rod after the rod pass (:func:`stick_pass`; Theorem 18.1's accelerations are
-  affine in the end forces).
+  affine in the end forces), per point mass after theirs (:func:`mass_stick_pass`).
 
 Every evaluation writes the events' indicators (``ContactWork.indicator``, rows ``2k``, ``2k +
 1``): contact ``min(k delta, k delta + c delta')`` (> 0 while the law pushes), friction
@@ -66,12 +67,25 @@ def end_motion(q, r, end, out):  # pragma: no cover - compiled
 
 
 @compiled_only
+def point_motion(contacts, q, c, out):  # pragma: no cover - compiled
+    """Position (or velocity, from ``q'``, or acceleration) of contact point ``c`` into ``out``
+    (3,): a rod's end (:func:`end_motion`) or a point mass (its coordinates)."""
+    r = contacts.point_rod[c]
+    if r >= 0:
+        end_motion(q, r, c % 2, out)
+    else:
+        o = contacts.point_offset[c]
+        for i in range(3):
+            out[i] = q[o + i]
+
+
+@compiled_only
 def tangential_velocity(contacts, qdot, k, out):  # pragma: no cover - compiled
     """The velocity of pair ``k``'s point along its plane into ``out`` (3,) [m/s] from the
     rates ``qdot`` (or its acceleration [m/s^2] from ``q''``); returns its size."""
     P = contacts.plane_normal.shape[0]
     c, p = k // P, k % P
-    end_motion(qdot, c // 2, c % 2, out)
+    point_motion(contacts, qdot, c, out)
     normal = contacts.plane_normal[p]
     along = out[0] * normal[0] + out[1] * normal[1] + out[2] * normal[2]
     for i in range(3):
@@ -90,10 +104,9 @@ def contact_pass(contacts, model, data, q, qdot):  # pragma: no cover - compiled
     x, v = np.empty(3), np.empty(3)
     dissipated = 0.0
     for c in range(contacts.point_radius.shape[0]):
-        r, end = c // 2, c % 2
-        end_motion(q, r, end, x)
-        end_motion(qdot, r, end, v)
-        slot = model.rod_slots[r, end]
+        point_motion(contacts, q, c, x)
+        point_motion(contacts, qdot, c, v)
+        slot = contacts.point_slot[c]
         for p in range(P):
             k = c * P + p
             height, rate = 0.0, 0.0
@@ -201,6 +214,41 @@ def rod_stick(contacts, model, work, r, q, values, correction):  # pragma: no co
 
 
 @compiled_only
+def point_stick(contacts, work, c, values, correction):  # pragma: no cover - compiled
+    """:func:`rod_stick` for point mass ``c``: the tangential forces at its sticking pairs that
+    cancel the tangential part of its ``values`` (3,) (acceleration or velocity; a force ``F``
+    changes them by ``F / m``) into ``work.friction_force``, the change into ``correction``
+    (3,); returns the number of sticking pairs (0: nothing written)."""
+    P = contacts.plane_normal.shape[0]
+    tangent, mass = contacts.plane_tangent, contacts.point_mass[c]
+    pairs = np.empty(P, np.int64)
+    count = 0
+    for p in range(P):
+        if work.mode[c * P + p] == STICK:
+            pairs[count] = c * P + p
+            count += 1
+    if count == 0:
+        return 0
+    m = 2 * count
+    matrix, rhs = np.empty((m, m)), np.empty(m)
+    for i in range(m):
+        ti = tangent[pairs[i // 2] % P, i % 2]
+        rhs[i] = -(ti[0] * values[0] + ti[1] * values[1] + ti[2] * values[2])
+        for j in range(m):
+            tj = tangent[pairs[j // 2] % P, j % 2]
+            matrix[i, j] = (ti[0] * tj[0] + ti[1] * tj[1] + ti[2] * tj[2]) / mass
+    force = solve_stick_system(matrix, rhs)
+    correction[:] = 0.0
+    for a in range(count):
+        k = pairs[a]
+        for i in range(3):
+            f = force[2 * a] * tangent[k % P, 0, i] + force[2 * a + 1] * tangent[k % P, 1, i]
+            work.friction_force[k, i] = f
+            correction[i] += f / mass
+    return count
+
+
+@compiled_only
 def sum_end(t, values, sign):  # pragma: no cover - compiled
     """``t . (v1 + sign v2)`` for the 6 ``values`` ``(v1, v2)`` of a rod (twice an end's)."""
     total = 0.0
@@ -240,7 +288,6 @@ def stick_pass(contacts, model, data, q, qdot, qddot):  # pragma: no cover - com
     indicators ``mu_s F_n - |F_t|``; returns the power of those forces' (``-F_t . v_t``, zero
     but for round-off) [W]."""
     work = data.contact_work
-    P = contacts.plane_normal.shape[0]
     correction, v = np.empty(6), np.empty(3)
     dissipated = 0.0
     for r in range(model.rod_slots.shape[0]):
@@ -250,16 +297,45 @@ def stick_pass(contacts, model, data, q, qdot, qddot):  # pragma: no cover - com
         for i in range(6):
             qddot[o + i] += correction[i]
         for end in range(2):
-            end_motion(qdot, r, end, v)
-            for p in range(P):
-                k = (2 * r + end) * P + p
-                if work.mode[k] != STICK:
-                    continue
-                f = work.friction_force[k]
-                size = np.sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2])
-                limit = contacts.friction_static[p] * work.normal_force[k]
-                work.indicator[2 * k + 1] = limit - size
-                dissipated -= f[0] * v[0] + f[1] * v[1] + f[2] * v[2]
+            dissipated += _held(contacts, work, 2 * r + end, qdot, v)
+    return dissipated
+
+
+@compiled_only
+def mass_stick_pass(contacts, data, qdot, qddot):  # pragma: no cover - compiled
+    """After the point masses' pass: each point mass with sticking pairs gets the tangential
+    forces that hold it (:func:`point_stick`) added to its acceleration in ``qddot``; their
+    friction indicators; returns their power [W] (zero but for round-off)."""
+    work = data.contact_work
+    correction, v = np.empty(3), np.empty(3)
+    dissipated = 0.0
+    for c in range(contacts.point_rod.shape[0]):
+        if contacts.point_rod[c] >= 0:
+            continue
+        o = contacts.point_offset[c]
+        if point_stick(contacts, work, c, qddot[o : o + 3], correction) == 0:
+            continue
+        for i in range(3):
+            qddot[o + i] += correction[i]
+        dissipated += _held(contacts, work, c, qdot, v)
+    return dissipated
+
+
+@compiled_only
+def _held(contacts, work, c, qdot, v):  # pragma: no cover - compiled
+    """The friction indicators ``mu_s F_n - |F_t|`` of point ``c``'s sticking pairs; returns
+    the power ``-F_t . v`` of their forces [W] (``v`` (3,) scratch)."""
+    P = contacts.plane_normal.shape[0]
+    point_motion(contacts, qdot, c, v)
+    dissipated = 0.0
+    for p in range(P):
+        k = c * P + p
+        if work.mode[k] != STICK:
+            continue
+        f = work.friction_force[k]
+        size = np.sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2])
+        work.indicator[2 * k + 1] = contacts.friction_static[p] * work.normal_force[k] - size
+        dissipated -= f[0] * v[0] + f[1] * v[1] + f[2] * v[2]
     return dissipated
 
 
@@ -284,7 +360,7 @@ def contact_energy(contacts, q):  # pragma: no cover - compiled
     x = np.empty(3)
     energy = 0.0
     for c in range(contacts.point_radius.shape[0]):
-        end_motion(q, c // 2, c % 2, x)
+        point_motion(contacts, q, c, x)
         for p in range(P):
             height = 0.0
             for i in range(3):
@@ -296,9 +372,17 @@ def contact_energy(contacts, q):  # pragma: no cover - compiled
 
 
 # --------------------------------------------------------------------------- records
-def pack_contacts(planes: Sequence[Plane], point_radius: np.ndarray) -> Contacts:
+def pack_contacts(
+    planes: Sequence[Plane],
+    radius: float,
+    rod_slots: np.ndarray,
+    mass_slots: np.ndarray,
+    point_mass: np.ndarray,
+) -> Contacts:
     """The :class:`~tensegrity.physics.records.Contacts` of ``planes`` for contact points of
-    radii ``point_radius`` (2R,) [m] (the rods' ends, ``2 r + end``)."""
+    ``radius`` [m]: the rods' ends (``rod_slots`` (R, 2), ``2 r + end``), then the point
+    masses (``mass_slots`` (M,), of ``point_mass`` (M,) [kg], coordinates from ``6 R``)."""
+    R, M = rod_slots.shape[0], mass_slots.shape[0]
     return Contacts(
         plane_point=np.array([plane.point for plane in planes], dtype=np.float64),
         plane_normal=np.array([plane.normal for plane in planes], dtype=np.float64),
@@ -307,7 +391,11 @@ def pack_contacts(planes: Sequence[Plane], point_radius: np.ndarray) -> Contacts
         friction_kinetic=np.array([plane.kinetic_friction for plane in planes], dtype=np.float64),
         contact_stiffness=np.array([plane.stiffness for plane in planes], dtype=np.float64),
         contact_damping=np.array([plane.damping for plane in planes], dtype=np.float64),
-        point_radius=np.ascontiguousarray(point_radius, dtype=np.float64),
+        point_radius=np.full(2 * R + M, float(radius)),
+        point_rod=np.concatenate([np.repeat(np.arange(R), 2), np.full(M, -1)]).astype(np.int64),
+        point_offset=np.concatenate([np.zeros(2 * R), 6 * R + 3 * np.arange(M)]).astype(np.int64),
+        point_slot=np.concatenate([rod_slots.reshape(-1), mass_slots]).astype(np.uint64),
+        point_mass=np.concatenate([np.zeros(2 * R), point_mass]).astype(np.float64),
     )
 
 
@@ -354,6 +442,18 @@ def stick_velocities(contacts, model, data, y):  # pragma: no cover - compiled
         for i in range(6):
             qdot[o + i] += correction[i]
         removed += before - rod_kinetic(model, r, qdot)
+    for c in range(contacts.point_rod.shape[0]):
+        o = contacts.point_offset[c]
+        if (
+            contacts.point_rod[c] >= 0
+            or point_stick(contacts, work, c, qdot[o : o + 3], correction) == 0
+        ):
+            continue
+        before = qdot[o] ** 2 + qdot[o + 1] ** 2 + qdot[o + 2] ** 2
+        for i in range(3):
+            qdot[o + i] += correction[i]
+        after = qdot[o] ** 2 + qdot[o + 1] ** 2 + qdot[o + 2] ** 2
+        removed += 0.5 * contacts.point_mass[c] * (before - after)
     y[2 * n] += removed
 
 

@@ -61,7 +61,7 @@ from tensegrity.physics.constraints import (
     LinearConstraints,
     constraints_of,
 )
-from tensegrity.physics.contact import contact_energy, contact_work
+from tensegrity.physics.contact import contact_energy, contact_work, mass_stick_pass
 from tensegrity.physics.kernel import (
     PackedStructure,
     copy_values,
@@ -688,7 +688,8 @@ def _system_rhs(
     undamped tendons without the rates, and a run without planes without contacts; the
     kernel's passes are inlined here (one call per evaluation takes the records).  Contacts
     come with structures without joints or supports only (``CompiledSystem`` refuses the
-    rest: a sticking end is held by its own rod, ``contact.stick_pass``)."""
+    rest: a sticking end is held by its own rod, ``contact.stick_pass``, a sticking point mass
+    by itself, ``contact.mass_stick_pass``)."""
     if constraints is None:
         return rhs_passes(tendon_damping, contacts, model, data, s, q, qdot, qddot)
     damped = tendon_damping is not None
@@ -696,6 +697,8 @@ def _system_rhs(
     _extra_nodes(constraints, q, qdot, n_rods, data.node_position, data.node_velocity, damped)
     dissipated, external = rhs_passes(tendon_damping, contacts, model, data, s, q, qdot, qddot)
     external += _point_mass_pass(model, data, qdot, qddot, stage_row(data.force, s))
+    if contacts is not None:  # (the point masses' sticks, once they have their accelerations)
+        dissipated += mass_stick_pass(contacts, data, qdot, qddot)
     if constraints.constraint_rhs.shape[0]:
         _constraint_pass(model, data, q, qddot)
     return dissipated, external

@@ -68,9 +68,10 @@ class ConstraintWork(NamedTuple):
 
 
 class Contacts(NamedTuple):
-    """Rigid planes the rods' ends touch (read-only; ``Model.contacts``; the physics in
-    :mod:`tensegrity.physics.contact`).  Contact point ``c`` is end ``c % 2`` (a, b) of rod
-    ``c // 2``; pair ``k = c P + p`` is point ``c`` against plane ``p``."""
+    """Rigid planes the rods' ends and the point masses touch (read-only; ``Model.contacts``;
+    the physics in :mod:`tensegrity.physics.contact`).  Contact point ``c < 2R`` is end ``c %
+    2`` (a, b) of rod ``c // 2``, the next ``M`` the point masses; pair ``k = c P + p`` is
+    point ``c`` against plane ``p``."""
 
     plane_point: np.ndarray  #: (P, 3) a point of each plane [m]
     plane_normal: np.ndarray  #: (P, 3) unit normals, out of the solid
@@ -79,7 +80,11 @@ class Contacts(NamedTuple):
     friction_kinetic: np.ndarray  #: (P,) mu_k
     contact_stiffness: np.ndarray  #: (P,) k [N/m]
     contact_damping: np.ndarray  #: (P,) c [N s/m]
-    point_radius: np.ndarray  #: (2R,) radius of each contact point [m]
+    point_radius: np.ndarray  #: (C,) radius of each contact point [m]
+    point_rod: np.ndarray  #: (C,) int64: the rod of a rod's end, -1 for a point mass
+    point_offset: np.ndarray  #: (C,) int64: a point mass's first coordinate in q (6R + 3j)
+    point_slot: np.ndarray  #: (C,) uint64: the point's node slot (its forces)
+    point_mass: np.ndarray  #: (C,) a point mass's mass [kg] (0 for a rod's end)
 
 
 class ContactWork(NamedTuple):
