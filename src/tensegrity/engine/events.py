@@ -528,7 +528,7 @@ def stick_slow_slips(contacts, model, data, t, y, events):  # pragma: no cover -
     if changed:
         settle_sticks(contacts, model, data, y, events)
         log_changes(work, t, before)
-    else:
+    else:  # (the work arrays as the modes kept make them)
         system_rhs(model, data, np.int64(0), y[:n], y[n : 2 * n], events.qddot)
     return changed
 
@@ -547,11 +547,12 @@ def log_changes(work, t, before):  # pragma: no cover - compiled
 
 @compiled_only
 def log_full(work):  # pragma: no cover - compiled
-    """Whether the log of mode changes may not hold another landing's (every pair's) changes:
-    the loop hands the rows to Python first (False without contacts)."""
+    """Whether the log of mode changes may not hold another step's (a landing's and the slow
+    slips', every pair changing in each): the loop hands the rows to Python first (False
+    without contacts)."""
     if work is None:
         return False
-    return work.log_count[0] + work.mode.shape[0] > work.log.shape[0]
+    return work.log_count[0] + 2 * work.mode.shape[0] > work.log.shape[0]
 
 
 @compiled_only
