@@ -13,6 +13,12 @@ of prestress, 20 N s/m; ground ``k = 1e5`` N/m, ``c = 100`` N s/m; ends of radiu
   ``mu = 0.5``, which must stick (``atan 0.5`` = 26.6 degrees): the creep, as MuJoCo's mean speed
   over the second half of the span [mm/s] and our largest node drift over the span [m].  (The
   six-bar on its face tips over on that slope: its tipping angle is about 22 degrees.)
+- ``roll``: the rolling example (``examples/six_bar_roll.json`` and ``.csv``, planned by
+  ``tensegrity.design.rolling.six_bar_roll``): three steps of cable shortenings in 8 s that tip
+  the six-bar over six faces, at ``mu = 0.8`` for static and kinetic friction alike (MuJoCo has
+  one coefficient; the example's ``mu_k = 0.6`` alone moves the centre of mass 17 mm in the
+  first step, ``tests/test_mjcf_ground.py``).  MuJoCo's rest lengths follow the table
+  (``model.tendon_lengthspring[:, 1] = Lbar - u(t)``, set before each step at its midpoint).
 
 For each case and each simulator: the wall-clock time to simulate ``--span`` seconds
 (``simulate`` at its defaults, rtol 1e-9; MuJoCo ``to_mjcf(..., ground=..., contact_radius=...)``
@@ -20,9 +26,7 @@ with RK4 at dt = 1e-4), their ratio, and the largest node deviation over the sam
 s) from a reference run of this engine at rtol 1e-12, atol 1e-14.  ``--quick``: a span of 1 s.
 Each run of this engine has a wall-clock budget (``--budget`` [s], ``max_wall_time``): a run
 that stops short says where (the column ``ours reached``), and its deviations are over the
-samples it made.  The rolling robot is not timed yet: a run of a rolling schedule stalls in tiny
-steps after a slip-to-stick event, as the slope case does (reported in issue 29).  Each
-simulator runs once (a short warm-up run first loads numba's cache).
+samples it made.  Each simulator runs once (a short warm-up run first loads numba's cache).
 """
 
 from __future__ import annotations
@@ -31,6 +35,7 @@ import argparse
 import math
 import os
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -68,24 +73,38 @@ def resting_rod(theta: float):
     )
 
 
+def rolling():
+    """The rolling example's robot on its face and its control table (``examples/``)."""
+    from tensegrity.io.formats import read_structure
+    from tensegrity.io.tables import read_control_table
+
+    path = Path(__file__).resolve().parent.parent / "examples" / "six_bar_roll"
+    robot = read_structure(path.with_suffix(".json"))
+    return robot, read_control_table(path.with_suffix(".csv"), robot)
+
+
 def cases():
+    """name -> (structure, plane, gravity, control table or None)."""
     from tensegrity.model.ground import ground
 
     theta = math.radians(20.0)
     slope = [G * math.sin(theta), 0.0, -G * math.cos(theta)]
+    robot, table = rolling()
     return {
-        "drop": (six_bar(0.5), ground(friction=0.8), [0.0, 0.0, -G]),
-        "slope": (resting_rod(theta), ground(friction=0.5), slope),
+        "drop": (six_bar(0.5), ground(friction=0.8), [0.0, 0.0, -G], None),
+        "slope": (resting_rod(theta), ground(friction=0.5), slope, None),
+        "roll": (robot, ground(friction=0.8), [0.0, 0.0, -G], table),
     }
 
 
-def ours(structure, plane, gravity, span, **tolerances):
+def ours(structure, plane, gravity, control, span, **tolerances):
     from tensegrity import simulate
 
     start = time.perf_counter()
     run = simulate(
         structure,
         (0.0, span),
+        control=control,
         gravity=gravity,
         ground=plane,
         contact_radius=RADIUS,
@@ -95,7 +114,7 @@ def ours(structure, plane, gravity, span, **tolerances):
     return time.perf_counter() - start, run
 
 
-def mujoco_run(structure, plane, gravity, times):
+def mujoco_run(structure, plane, gravity, control, times):
     import mujoco
 
     from tensegrity.io.mjcf import mujoco_node_positions, to_mjcf
@@ -104,10 +123,13 @@ def mujoco_run(structure, plane, gravity, times):
     model = mujoco.MjModel.from_xml_string(xml)
     data = mujoco.MjData(model)
     mujoco.mj_resetDataKeyframe(model, data, 0)
+    rest = model.tendon_lengthspring[:, 1].copy()  # springlength "0 Lbar" of each tendon
     nodes = []
     start = time.perf_counter()
     for t in times:
         while data.time < t - DT / 2:
+            if control is not None:
+                model.tendon_lengthspring[:, 1] = rest - control(data.time + DT / 2)
             mujoco.mj_step(model, data)
         nodes.append(mujoco_node_positions(model, data, structure.n_nodes))
     return time.perf_counter() - start, np.array(nodes)
@@ -123,19 +145,20 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     span = 1.0 if args.quick else args.span
     print(f"load average before: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
-    structure, plane, gravity = cases()["drop"]
-    ours(structure, plane, gravity, 0.05)  # (warm-up: numba's cache loaded)
+    structure, plane, gravity, _ = cases()["drop"]
+    ours(structure, plane, gravity, None, 0.05)  # (warm-up: numba's cache loaded)
     print(f"\n{span:g} s simulated, node deviations from this engine at rtol 1e-12\n")
     print(
         "| case | ours reached | ours [s] | MuJoCo [s] | ours / MuJoCo | ours dev. [m] |"
         " MuJoCo dev. [m] | creep: ours drift [m] | creep: MuJoCo [mm/s] |"
     )
     print("|---|---|---|---|---|---|---|---|---|")
-    for name, (structure, plane, gravity) in cases().items():
+    for name, (structure, plane, gravity, control) in cases().items():
         budget = dict(max_wall_time=args.budget)
-        _, reference = ours(structure, plane, gravity, span, rtol=1e-12, atol=1e-14, **budget)
-        wall, run = ours(structure, plane, gravity, span, **budget)
-        mj_wall, mj_nodes = mujoco_run(structure, plane, gravity, reference.t)
+        scene = (structure, plane, gravity, control)
+        _, reference = ours(*scene, span, rtol=1e-12, atol=1e-14, **budget)
+        wall, run = ours(*scene, span, **budget)
+        mj_wall, mj_nodes = mujoco_run(*scene, reference.t)
         rows = min(len(run.t), len(reference.t))
         ours_dev = np.abs(run.node_position[:rows] - reference.node_position[:rows]).max()
         mj_dev = np.abs(mj_nodes - reference.node_position).max()

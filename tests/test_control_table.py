@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from tensegrity.design.catalogue import three_bar_robot
-from tensegrity.io.tables import read_control_table
+from tensegrity.io.tables import read_control_table, write_control_table
 
 ROBOT = three_bar_robot(actuated="side_*")
 CSV = "# two side cables pulled in and let out\nt,side_0,side_1\n0,0,0\n0.2,0.1,0.05\n0.5,0,0.08\n"
@@ -33,6 +33,21 @@ def test_a_csv_table_names_tendons_and_the_others_keep_u_zero(tmp_path):
         assert np.array_equal(again.control, table.control) and np.array_equal(
             again.time, table.time
         )
+
+
+def test_a_written_table_reads_back_exactly_with_only_its_moving_columns(tmp_path):
+    path = tmp_path / "u.csv"
+    path.write_text(CSV)
+    table = read_control_table(path, ROBOT)
+    table = type(table)(table.time, table.control / 3.0)  # (numbers with many digits)
+    write_control_table(tmp_path / "out.csv", table, ROBOT)
+    assert (tmp_path / "out.csv").read_text().splitlines()[0] == "t,side_0,side_1"
+    again = read_control_table(tmp_path / "out.csv", ROBOT)
+    assert np.array_equal(again.time, table.time)
+    assert np.array_equal(again.control, table.control)
+    with pytest.raises(ValueError, match=r"^table: has 2 columns"):
+        write_control_table(tmp_path / "bad.csv", type(table)([0.0, 1.0], np.zeros((2, 2))), ROBOT)
+    assert not (tmp_path / "bad.csv").exists()
 
 
 def test_the_command_s_table_is_the_library_s_control(tmp_path):

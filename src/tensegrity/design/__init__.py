@@ -3,6 +3,8 @@
 - :mod:`~tensegrity.design.catalogue` — the generators by kind (``tensegrity export --kind``):
   the paper's shells and planar examples and the prestressed prism, expanded octahedron,
   Needle Tower and the six-bar and three-bar robots.
+- :mod:`~tensegrity.design.rolling` — the six-bar's rolling example: the cable shortenings that
+  tip it from face to face, as a control table (``six_bar_roll``).
 - :mod:`~tensegrity.design.materials` — materials (a table of common ones) and round sections;
   the structure a choice of them makes (``E A / Lbar``, ``rho A L``).
 - :mod:`~tensegrity.design.utilisation` — how close each member is to yielding, breaking or

@@ -8,7 +8,7 @@
   MJCF ``.xml``) and the scene they carry;
 - :mod:`~tensegrity.io.trajectory` — the trajectory HDF5 file (its layout is defined there);
 - :mod:`~tensegrity.io.stream` — a run streamed to that file with checkpoints (resumable);
-- :mod:`~tensegrity.io.tables` — force tables from ``.npz``/``.csv``;
+- :mod:`~tensegrity.io.tables` — force and control tables from ``.npz``/``.csv``;
 - :mod:`~tensegrity.io.mjcf`, :mod:`~tensegrity.io.vtk`, :mod:`~tensegrity.io.matrices` —
   MuJoCo models, ParaView time series, the paper's matrices.
 

@@ -8,6 +8,7 @@ A control table's ``.csv`` has a header row, ``t`` and then tendon names (the st
 a tendon not named has ``u = 0``.  Its ``.npz`` has ``time (T,)`` and ``control (T, S)`` (every
 tendon, in the structure's order), or ``time (T,)``, ``names (K,)`` and ``control (T, K)``.
 Lines starting with ``#`` and empty lines of a ``.csv`` are skipped.
+:func:`write_control_table` writes that ``.csv``.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from tensegrity.io.checked import NUMBERS, ArrayKind, npz_arrays, open_npz
-from tensegrity.io.files import PathLike, file_error, read_input
+from tensegrity.io.files import PathLike, atomic_path, file_error, read_input
 from tensegrity.model.loads import ControlTable, ForceTable
 from tensegrity.model.structure import Structure
 
@@ -111,6 +112,29 @@ def read_control_table(
         return ControlTable(time, full, outside)
     except ValueError as exc:
         raise file_error(path, str(exc)) from exc
+
+
+def write_control_table(path: PathLike, table: ControlTable, structure: Structure) -> Path:
+    """Write ``table`` as the ``.csv`` :func:`read_control_table` reads (module doc), atomically:
+    the columns of ``structure``'s tendons whose ``u`` is not zero throughout, numbers in
+    Python's shortest round-trip form.
+
+    ``ValueError`` naming ``table`` if its column count is not ``structure``'s tendon count.
+    """
+    names = structure.tendon_name
+    if table.control.shape[1] != len(names):
+        raise ValueError(
+            f"table: has {table.control.shape[1]} columns, the structure {len(names)} tendons"
+        )
+    used = [s for s in range(len(names)) if np.any(table.control[:, s] != 0.0)]
+    lines = [",".join(["t", *(names[s] for s in used)])]
+    lines += [
+        ",".join(repr(float(v)) for v in (t, *row[used]))
+        for t, row in zip(table.time, table.control, strict=True)
+    ]
+    with atomic_path(path) as tmp:
+        tmp.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return Path(path)
 
 
 def _tendon_columns(
