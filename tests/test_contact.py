@@ -386,3 +386,18 @@ def test_a_rod_dropped_on_one_end_on_a_slope_does_not_spin_or_walk():
     assert np.all(fall.contact_mode[-1] == 2)  # (lying, both ends stuck)
     assert rest.status == 0 and rest.nswitches == 0, rest.message
     assert np.abs(rest.node_position - rest.node_position[0]).max() <= 1e-9
+
+
+def test_a_bad_trial_stage_in_a_sticking_solve_is_rejected_not_fatal():
+    """A trial stage whose state is not finite (a step too long) reaches a rod's sticking solve:
+    it must give NaN, which the step's error control rejects, not stop the run (the rolling
+    example's robot standing on its face at rtol 1e-11 stopped at 0.099 s with "Array must not
+    contain infs or NaNs" from the eigen-solve)."""
+    from pathlib import Path
+
+    from tensegrity.io.formats import read_scene, read_structure
+
+    example = Path(__file__).resolve().parents[1] / "examples" / "six_bar_roll.json"
+    scene = read_scene(example).simulate_options()
+    run = simulate(read_structure(example), (0.0, 0.3), rtol=1e-11, sample_dt=0.01, **scene)
+    assert run.status == 0, run.message

@@ -266,10 +266,13 @@ def solve_stick_system(matrix, rhs):  # pragma: no cover - compiled
     along its axis moves nothing, and with the axis tilted by ``theta`` only ``theta^2`` of it;
     the ends' distance along the plane then follows the rod, a creep that vanishes with the
     rod's motion)."""
-    values, vectors = np.linalg.eigh(matrix)
-    floor = STICK_NULL * values[-1]
     m = rhs.shape[0]
     x = np.zeros(m)
+    if not (np.isfinite(matrix).all() and np.isfinite(rhs).all()):
+        x[:] = np.nan  # (a trial stage gone bad: NaN on, for the step's error control)
+        return x
+    values, vectors = np.linalg.eigh(matrix)
+    floor = STICK_NULL * values[-1]
     for j in range(m):
         if values[j] > floor:
             c = 0.0
