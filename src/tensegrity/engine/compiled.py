@@ -472,9 +472,9 @@ def tendon_lengths(p, tendon_slots, out):  # pragma: no cover - compiled
 def record_sample(model, data, y, scratch, maps, columns, row):  # pragma: no cover - compiled
     """Sample ``row`` of ``columns`` (:class:`tensegrity.engine.result.Samples`' fields after
     ``t``) at ``y``, from one evaluation with the inputs' row 0 of ``data``: coordinates, node
-    positions and velocities, tendon lengths and tensions, the energies, the largest node
-    acceleration [m/s^2] and speed [m/s] over the moving slots (rod ends and point masses), and
-    the contact pairs' forces and modes.
+    positions and velocities, tendon lengths and tensions, the energies, and the largest node
+    acceleration [m/s^2] and speed [m/s] over the moving slots (rod ends and point masses); the
+    contact pairs' columns: :func:`record_contacts_entry`.
 
     ``scratch`` = ``(dy (m,), p, v, accel (3, n_slots), lengths (S,), moving slots)``;
     ``maps`` = ``(kept, node_slot, tendon_position)``: the coordinates of ``y`` the structure
@@ -482,9 +482,8 @@ def record_sample(model, data, y, scratch, maps, columns, row):  # pragma: no co
     position in kernel order.
     """
     q, qdot, nodes, velocities, tendon_length, tension, energy, largest_accel, largest_speed = (
-        columns[:9]
+        columns
     )
-    contact_normal, contact_friction, contact_mode = columns[9:]
     dy, p, v, accel, lengths, moving = scratch
     kept, node_slot, position = maps
     n = (y.shape[0] - 3) // 2
@@ -509,7 +508,6 @@ def record_sample(model, data, y, scratch, maps, columns, row):  # pragma: no co
     energy[row, 3], energy[row, 4], energy[row, 5] = y[-3], y[-2], y[-1]
     largest_accel[row] = _largest_at(accel, moving)
     largest_speed[row] = _largest_at(v, moving)
-    record_contacts(data.contact_work, contact_normal, contact_friction, contact_mode, row)
 
 
 @njit(**JIT_OPTIONS)
@@ -527,6 +525,15 @@ def _largest_at(x, slots):  # pragma: no cover - compiled
 # scipy methods' right-hand side, a sample inside an rk4 step, the checks of the loop of the scipy
 # methods, a controller's update) through these entries, compiled with the wrapper that unboxes
 # the records only when Python first calls them: a DOP853 run compiles none of them.
+@njit(**JIT_OPTIONS)
+def record_contacts_entry(data, columns, row):  # pragma: no cover - compiled
+    """:func:`tensegrity.physics.contact.record_contacts` (the contact columns of ``Samples``,
+    ``columns``) after :func:`record_sample`'s evaluation, called from Python for runs with
+    planes only (a run without them passes no more arrays per sample than before)."""
+    normal, friction, mode = columns
+    record_contacts(data.contact_work, normal, friction, mode, row)
+
+
 @njit(**JIT_OPTIONS)
 def ode_rhs_entry(model, data, s, y, dy):  # pragma: no cover - compiled
     """:func:`ode_rhs`, called from Python."""
@@ -568,6 +575,7 @@ __all__ = [
     "fill_stage_inputs",
     "ode_rhs",
     "ode_rhs_entry",
+    "record_contacts_entry",
     "record_sample",
     "rk4_segment",
     "rk4_step",

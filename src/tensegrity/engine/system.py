@@ -340,5 +340,7 @@ class CompiledSystem:
         (one row), from one evaluation (:func:`compiled.record_sample`)."""
         samples.t[row] = t
         compiled.record_sample(
-            self.model, data, y, self._sample_scratch, self._sample_maps, samples[1:], row
+            self.model, data, y, self._sample_scratch, self._sample_maps, samples[1:10], row
         )
+        if self.model.contacts is not None:
+            compiled.record_contacts_entry(data, samples[10:], row)
