@@ -29,20 +29,9 @@ import numpy as np
 
 from tensegrity import simulate
 from tensegrity.design.catalogue import six_bar_robot
-from tensegrity.design.rolling import six_bar_roll
+from tensegrity.design.rolling import six_bar_roll, support_faces
 from tensegrity.io.formats import write_structure
 from tensegrity.io.tables import write_control_table
-
-
-def support_faces(run) -> list[tuple[float, tuple[int, ...]]]:
-    """``(time, nodes)`` of each support triangle the run stands on, in order: the three nodes
-    in contact (``run.contact_mode`` not free), each change recorded once."""
-    faces: list[tuple[float, tuple[int, ...]]] = []
-    for t, mode in zip(run.t, run.contact_mode, strict=True):
-        nodes = tuple(int(k) for k in run.contact_node[mode != 0])
-        if len(nodes) == 3 and (not faces or faces[-1][1] != nodes):
-            faces.append((float(t), nodes))
-    return faces
 
 
 def main() -> None:

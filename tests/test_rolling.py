@@ -11,7 +11,7 @@ import pytest
 
 from tensegrity import simulate
 from tensegrity.design.catalogue import six_bar_robot
-from tensegrity.design.rolling import six_bar_roll
+from tensegrity.design.rolling import six_bar_roll, support_faces
 from tensegrity.io.formats import read_scene, read_structure
 from tensegrity.io.tables import read_control_table
 
@@ -28,16 +28,6 @@ def robot():
 @pytest.fixture(scope="module")
 def plan(robot):
     return six_bar_roll(robot, steps=3)
-
-
-def support_faces(run) -> list[tuple[float, tuple[int, ...]]]:
-    """``(time, nodes)`` of each support triangle in turn: the three rod ends in contact."""
-    faces: list[tuple[float, tuple[int, ...]]] = []
-    for t, mode in zip(run.t, run.contact_mode, strict=True):
-        nodes = tuple(int(k) for k in run.contact_node[mode != 0])
-        if len(nodes) == 3 and (not faces or faces[-1][1] != nodes):
-            faces.append((float(t), nodes))
-    return faces
 
 
 def test_the_planned_control_rolls_the_six_bar_over_the_predicted_faces_along_its_heading(plan):

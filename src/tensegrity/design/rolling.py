@@ -267,6 +267,18 @@ def _crossed_edge(
     return best[1]
 
 
+def support_faces(run: Any) -> list[tuple[float, tuple[int, ...]]]:
+    """``(time [s], nodes)`` of each support triangle a run (a ``SimulationResult``) stands on,
+    in turn: the samples where exactly three contact points are in contact (``contact_mode``
+    not free), each new triangle recorded once."""
+    faces: list[tuple[float, tuple[int, ...]]] = []
+    for t, mode in zip(run.t, run.contact_mode, strict=True):
+        nodes = tuple(int(k) for k in run.contact_node[mode != 0])
+        if len(nodes) == 3 and (not faces or faces[-1][1] != nodes):
+            faces.append((float(t), nodes))
+    return faces
+
+
 def six_bar_roll(
     robot: Structure,
     *,
