@@ -13,6 +13,7 @@ from scipy.integrate import solve_ivp
 from tensegrity import simulate
 from tensegrity.model.ground import FREE, SLIP, STICK, ground
 from tensegrity.model.structure import Structure
+from tensegrity.physics.contact import REVERSAL_SPEED
 from test_contact import (
     DAMPING,
     MASS,
@@ -93,7 +94,9 @@ def test_a_sliding_rod_reports_kinetic_friction_then_its_stick():
     assert run.status == 0, run.message
     stop = np.linalg.norm(velocity) / (mu * G)
     assert run.contact_event_mode.tolist() == [[FREE, SLIP]] * 2 + [[SLIP, STICK]] * 2
-    assert run.contact_event_time[2:] == pytest.approx([stop] * 2, abs=1e-9)
+    # located where the velocity has turned back to REVERSAL_SPEED
+    stick = stop + REVERSAL_SPEED / (mu * G)
+    assert run.contact_event_time[2:] == pytest.approx([stick] * 2, abs=1e-10)
     slipping = run.t < stop - 1e-6
     assert np.all(run.contact_mode[slipping] == SLIP)
     assert np.all(run.contact_mode[run.t > stop + 1e-6] == STICK)

@@ -66,6 +66,7 @@ from tensegrity.physics.compiling import (
 )
 from tensegrity.physics.contact import (
     FREE,
+    REVERSAL_SPEED,
     SLIP,
     SLOW_SLIP,
     SLOW_STOP,
@@ -489,8 +490,9 @@ def start_contacts(contacts, model, data, t, y, events):  # pragma: no cover - c
 def stick_slow_slips(contacts, model, data, t, y, events):  # pragma: no cover - compiled
     """The rule for slow slips, at the end of an accepted step at ``(t, y)`` (``data`` with the
     inputs there), once its samples are out: each pair slipping slower than :data:`SLOW_SLIP`
-    that is not about to stop on its own (within :data:`SLOW_STOP` at its deceleration: that
-    stop is located as an event) sticks if the force it then needs is inside the static cone.
+    that is not about to stop on its own (its velocity along the slip's direction ``s`` reaching
+    ``-REVERSAL_SPEED`` within :data:`SLOW_STOP` at its deceleration along ``s``: that stop is
+    located as an event) sticks if the force it then needs is inside the static cone.
     A slip that crawls, its speed set by the structure's motion and its direction turning,
     would otherwise be followed one ever shorter step at a time (its friction damps the
     velocity across it by ``mu_k F_n / |v_t|``).  The sticks are settled
@@ -512,10 +514,13 @@ def stick_slow_slips(contacts, model, data, t, y, events):  # pragma: no cover -
     system_rhs(model, data, np.int64(0), y[:n], y[n : 2 * n], events.qddot)
     for k in range(work.mode.shape[0]):
         if slow[k]:
-            speed = tangential_velocity(contacts, y[n : 2 * n], k, v)
+            tangential_velocity(contacts, y[n : 2 * n], k, v)
             tangential_velocity(contacts, events.qddot, k, a)
-            slowing = -(a[0] * v[0] + a[1] * v[1] + a[2] * v[2])  # |v| d|v|/dt
-            if speed * speed >= slowing * SLOW_STOP:
+            s = work.slip_direction[k]
+            # the speed left to the located reversal (v_t . s = -REVERSAL_SPEED), its rate
+            left = v[0] * s[0] + v[1] * s[1] + v[2] * s[2] + REVERSAL_SPEED
+            slowing = -(a[0] * s[0] + a[1] * s[1] + a[2] * s[2])
+            if left >= slowing * SLOW_STOP:
                 work.mode[k] = STICK
     system_rhs(model, data, np.int64(0), y[:n], y[n : 2 * n], events.qddot)
     changed = False

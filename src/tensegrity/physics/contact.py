@@ -20,11 +20,11 @@ Modes (changed only by the engine's events, :mod:`tensegrity.engine.events`):
 
 Every evaluation writes the events' indicators (``ContactWork.indicator``, rows ``2k``, ``2k +
 1``): contact ``min(k delta, k delta + c delta')`` (> 0 while the law pushes), friction
-``mu_s F_n - |F_t|`` sticking (> 0 while the force needed is inside the cone), ``-v_t . s``
-slipping (> 0 once the point moves against the slip's direction ``s``: it may stick), ``-1``
-free.  Energy: ``k max(delta, 0)^2 / 2`` per pair is elastic energy, and the power ``(F_n - k
-delta) delta'`` (for ``delta > 0``, else ``F_n delta'``) and ``-F_t . v_t`` is dissipated, so
-that the energy balance holds.
+``mu_s F_n - |F_t|`` sticking (> 0 while the force needed is inside the cone), ``-v_t . s -
+v_r`` slipping (> 0 once the point moves against the slip's direction ``s`` at ``v_r``
+:data:`REVERSAL_SPEED`: it may stick), ``-1`` free.  Energy: ``k max(delta, 0)^2 / 2`` per
+pair is elastic energy, and the power ``(F_n - k delta) delta'`` (for ``delta > 0``, else
+``F_n delta'``) and ``-F_t . v_t`` is dissipated, so that the energy balance holds.
 """
 
 from __future__ import annotations
@@ -45,6 +45,12 @@ STICK_NULL = 1e-6
 #: that of its velocity (the speed left by locating a reversal to the events' tolerance is far
 #: below it; a slip that turns keeps a speed far above it).
 STICK_SPEED = 1e-8
+#: A slip has reversed once its point moves against the slip's direction at this speed [m/s]
+#: (half :data:`STICK_SPEED`: the point is still at rest, and its friction keeps its direction).
+#: A slip that starts from rest with little to drive it would otherwise "reverse" on the
+#: integrator's error in a velocity of a few 1e-10 m/s: stick, fail, slip again, every 1e-8 s
+#: (measured on a six-bar rolling at ``mu_s = mu_k``).
+REVERSAL_SPEED = 0.5 * STICK_SPEED
 #: A slip slower than this [m/s] at the end of a step sticks if the force it then needs is inside
 #: the static cone (the rule for slow slips: a vanishing velocity turns ever faster, and its
 #: direction field would stall the steps; :func:`tensegrity.engine.events.stick_slow_slips`).
@@ -144,7 +150,7 @@ def contact_pass(contacts, model, data, q, qdot):  # pragma: no cover - compiled
                     dx, dy, dz = dx / size, dy / size, dz / size
                 scale = -contacts.friction_kinetic[p] * force
                 friction[0], friction[1], friction[2] = scale * dx, scale * dy, scale * dz
-                work.indicator[2 * k + 1] = -(tx * s[0] + ty * s[1] + tz * s[2])
+                work.indicator[2 * k + 1] = -(tx * s[0] + ty * s[1] + tz * s[2]) - REVERSAL_SPEED
                 dissipated -= friction[0] * tx + friction[1] * ty + friction[2] * tz
             elif mode == FREE:
                 work.indicator[2 * k + 1] = -1.0
@@ -464,7 +470,7 @@ def stick_velocities(contacts, model, data, y):  # pragma: no cover - compiled
 def refresh_slips(contacts, data, y):  # pragma: no cover - compiled
     """After an accepted step ending at ``y``: each slipping point's direction ``s`` becomes
     that of its tangential velocity if it moves faster than :data:`SLOW_SLIP`, so that the
-    next step's friction indicator ``-v_t . s`` crosses zero wherever the point stops, however
+    next step's friction indicator ``-v_t . s - v_r`` crosses zero wherever the point stops, however
     its velocity turned on the way (in the plane a slip that comes to rest turns ever faster as
     it slows); nothing without contacts.  The friction's direction at ``y`` does not change
     (that of ``v_t + STICK_SPEED s`` is ``v_t``'s when ``s`` is), and elsewhere by at most
