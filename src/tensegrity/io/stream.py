@@ -67,12 +67,15 @@ Resuming
 the structure and every setting (``t_span``, ``sample_dt``, the segment grid and all
 :func:`simulate` options, defaults filled in) are those of the checkpoint: otherwise it raises
 ``ValueError`` naming what differs.  Arrays (``initial``, ``control``, ``external_force``,
-``gravity``) are compared through a SHA-256 of their bytes; a callable ``control`` or
-``external_force`` only through its module and qualified name, so a changed function body under
-the same name is not detected.  If ``path`` already holds a finished streamed run with the same
-settings, nothing is run and its summary is returned.  A finished file with other settings is
-replaced (atomically, at the end of the new run), as every writer of :mod:`tensegrity.io.trajectory`
-does.  ``resume=False`` discards a partial file and starts again.
+``gravity``) and tables (a :class:`~tensegrity.model.loads.ControlTable` or
+:class:`~tensegrity.model.loads.ForceTable` as ``control`` or ``external_force``: their times
+and rows, so a table file changed between the two runs is detected) are compared through a
+SHA-256 of their bytes; any other callable ``control`` or ``external_force`` only through its
+module and qualified name, so a changed function body under the same name is not detected.
+If ``path`` already holds a finished streamed run with the same settings, nothing is run and
+its summary is returned.  A finished file with other settings is replaced (atomically, at the
+end of the new run), as every writer of :mod:`tensegrity.io.trajectory` does.  ``resume=False``
+discards a partial file and starts again.
 
 SI units throughout: m, kg, s, N, J.
 """
@@ -116,6 +119,7 @@ from tensegrity.io.files import (
     reserve_space,
 )
 from tensegrity.model.ground import planes_of
+from tensegrity.model.loads import ControlTable, ForceTable
 from tensegrity.model.structure import Structure
 from tensegrity.physics.dynamics import State
 
@@ -331,6 +335,13 @@ def _option_token(name: str, value: Any) -> Any:
         return {"q": _array_token(value.q), "qdot": _array_token(value.qdot)}
     if name == "ground":  # (a Plane or planes: their fields)
         return {"planes": [plane.settings() for plane in planes_of(value)]}
+    if isinstance(value, (ControlTable, ForceTable)):  # (callable, but compared by content)
+        return {
+            "table": type(value).__name__,
+            "time": _array_token(value.time),
+            "values": _array_token(value.values),
+            "outside": value.outside,
+        }
     if callable(value):
         module = getattr(value, "__module__", None) or "?"
         qualname = getattr(value, "__qualname__", None) or type(value).__qualname__
