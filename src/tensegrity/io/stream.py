@@ -430,21 +430,25 @@ def segments_of(n_samples: int, samples_per_segment: int) -> int:
     return max(1, math.ceil((n_samples - 1) / samples_per_segment))
 
 
-def sample_bytes(structure: Structure, *, held: bool = False) -> int:
-    """Bytes of one sample of ``structure`` in a trajectory file (its datasets' rows), or with
-    ``held`` as a segment holds it in memory (the arrays computed on read too)."""
-    rows = tio.sample_rows(structure)
+def sample_bytes(structure: Structure, *, held: bool = False, planes: int = 0) -> int:
+    """Bytes of one sample of ``structure`` in a trajectory file (its datasets' rows, float64),
+    or with ``held`` as a segment holds it in memory (a row of
+    :class:`~tensegrity.engine.result.Samples`: the arrays computed on read too), in a run with
+    ``planes`` planes (the contact pairs' columns; none without)."""
+    pairs = tio.contact_pairs(structure, planes)
     if held:
-        rows |= tio.derived_rows(structure)
-    return 8 * sum(max(1, math.prod(shape)) for shape in rows.values())
+        return Samples.row_bytes(structure, pairs)
+    return 8 * sum(math.prod(shape) for shape in tio.sample_rows(structure, pairs).values())
 
 
-def samples_per_segment(structure: Structure, segment: float | None, sample_dt: float) -> int:
+def samples_per_segment(
+    structure: Structure, segment: float | None, sample_dt: float, *, planes: int = 0
+) -> int:
     """Samples of one segment: ``segment`` [s] in samples, or by default as many as fit
-    :data:`DEFAULT_SEGMENT_BYTES` (held twice while a segment is written), at most
-    :data:`DEFAULT_SEGMENT_SAMPLES`."""
+    :data:`DEFAULT_SEGMENT_BYTES` (held twice while a segment is written; a run with ``planes``
+    planes holds its contact columns too), at most :data:`DEFAULT_SEGMENT_SAMPLES`."""
     if segment is None:
-        row_bytes = sample_bytes(structure, held=True)
+        row_bytes = sample_bytes(structure, held=True, planes=planes)
         return int(max(1, min(DEFAULT_SEGMENT_SAMPLES, DEFAULT_SEGMENT_BYTES // (2 * row_bytes))))
     segment = float(segment)
     if not (math.isfinite(segment) and segment > 0):
@@ -496,7 +500,7 @@ def _write_layout(f, structure: Structure, structure_text: str, plan: _Plan) -> 
         settings_hash=plan.settings_hash,
     )
     _write_run_attributes(f, first)
-    pairs = tio.contact_pairs(structure, plan.record)
+    pairs = tio.contact_pairs(structure, len(plan.record.get("ground", ())))
     rows = tio.sample_rows(structure, pairs) | tio.event_rows(pairs)
     for name, shape in rows.items():
         f.create_dataset(
@@ -1087,9 +1091,9 @@ def _plan(
     if not (math.isfinite(sample_dt) and sample_dt > 0):
         raise ValueError(f"sample_dt: must be > 0, got {sample_dt!r}")
     initial = options.pop("initial", None)
-    K = samples_per_segment(structure, segment, sample_dt)
-    settings = _stream_settings(structure, t0, t1, sample_dt, K, {**options, "initial": initial})
     run_options, inputs = options_and_inputs(structure, sample_dt=sample_dt, **options)
+    K = samples_per_segment(structure, segment, sample_dt, planes=len(inputs.ground))
+    settings = _stream_settings(structure, t0, t1, sample_dt, K, {**options, "initial": initial})
     n_segments = len(segment_grid((t0, t1), sample_dt, K)) - 1
     stream = dict(segment=K * sample_dt, samples_per_segment=K, n_segments=n_segments)
     return _Plan(
