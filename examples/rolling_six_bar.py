@@ -66,20 +66,19 @@ def main() -> None:
 
     mass = np.full(run.node_position.shape[1], 1.0)  # equal rods: the nodes' mean
     com = np.einsum("n,tnk->tk", mass, run.node_position) / mass.sum()
-    fig, ax = plt.subplots(figsize=(6, 6))
-    for k, (t, nodes) in enumerate(faces):
-        i = int(np.searchsorted(run.t, t))
+    fig, ax = plt.subplots(figsize=(8.5, 6))
+    for k, (t, nodes) in enumerate(faces):  # (named in the legend, beside the plot: the path
+        i = int(np.searchsorted(run.t, t))  # crosses the faces, labels on them would hide it)
         corners = run.node_position[i, list(nodes), :2]
-        ax.fill(*corners.T, alpha=0.25, color=f"C{k % 10}")
-        ax.annotate(f"{nodes}\n{t:.1f} s", corners.mean(axis=0), ha="center", fontsize=7)
+        ax.fill(*corners.T, alpha=0.25, color=f"C{k % 10}", label=f"face {nodes} at {t:.1f} s")
     ax.plot(com[:, 0], com[:, 1], "k-", lw=1.5, label="centre of mass")
     ax.set_aspect("equal")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.set_title("six-bar rolling: centre of mass and support faces")
-    ax.legend(loc="upper right")
+    ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, fontsize=8)
     figure = args.out / "rolling_six_bar.png"
-    fig.savefig(figure, dpi=120)
+    fig.savefig(figure, dpi=120, bbox_inches="tight")
     print("wrote", figure)
 
 

@@ -315,6 +315,30 @@ def test_page_frames_fit_the_byte_budget():
     assert frame_budget(big, max_frames=300, max_bytes=1) == 1
 
 
+def test_the_frame_budget_counts_the_contact_modes_of_a_run_with_planes():
+    """A page's frame of a run with planes holds the contact pairs' int8 modes beside the
+    float32 positions and tensions: the budget counts the bytes of the frames made of a run."""
+    from tensegrity.model.ground import Plane, ground
+    from tensegrity.plots.motion import make_frames
+    from test_contact import lying_rod
+
+    wall = Plane(point=(5.0, 0.0, 0.0), normal=(-1.0, 0.0, 0.0))
+    run = simulate(lying_rod(z=0.5), (0.0, 0.02), ground=[ground(), wall], contact_radius=0.01,
+                   sample_dt=0.01)  # fmt: skip
+    frames = make_frames(run)
+    assert frames.contacts is not None
+    page = (
+        frames.node_position.astype(np.float32).nbytes
+        + frames.tendon_tension.astype(np.float32).nbytes
+        + frames.contacts.mode.nbytes
+    )
+    per_frame = page // frames.n_frames
+    assert page == per_frame * frames.n_frames and frames.contacts.mode.shape[1] == 4
+    budget = {"max_frames": 300, "planes": 2}
+    assert frame_budget(run.structure, max_bytes=7 * per_frame, **budget) == 7
+    assert frame_budget(run.structure, max_bytes=7 * per_frame - 1, **budget) == 6
+
+
 def test_a_name_cannot_end_the_data_script(shell31):
     names = tuple(f"</script><b>{k}" for k in range(shell31.structure.n_tendons))
     s = shell31.structure.replace(tendon_name=names)

@@ -284,3 +284,60 @@ def test_a_run_out_of_its_wall_clock_budget_can_be_resumed(tmp_path, capsys):
     with h5py.File(out / "trajectory.h5", "r") as got, h5py.File(whole / "trajectory.h5") as want:
         for name in DATASETS:
             assert np.array_equal(got[name][()], want[name][()]), name
+
+
+@pytest.mark.parametrize(
+    ("option", "name", "table", "changed"),
+    [
+        (
+            "--control-table",
+            "options.control",
+            "t,side_0,side_1\n0,0,0\n0.2,0.1,0.05\n0.5,0,0.08\n",
+            "t,side_0,side_1\n0,0,0\n0.2,0.1,0.05\n0.5,0,0.09\n",
+        ),
+        (
+            "--force-table",
+            "options.external_force",
+            "0" + ",0" * 18 + "\n1" + ",0.5" * 18 + "\n",
+            "0" + ",0" * 18 + "\n1" + ",0.6" * 18 + "\n",
+        ),
+    ],
+)
+def test_resume_with_a_changed_table_file_is_refused_in_one_line(
+    tmp_path, capsys, monkeypatch, option, name, table, changed
+):
+    """The same options with a table file whose numbers changed since the interrupted run:
+    ``--resume`` refuses, naming the run's option the file gives (the run would go on with other
+    inputs); with the same numbers (the file written again, with a comment), it resumes."""
+    from tensegrity.engine.system import CompiledSystem
+
+    out, path = tmp_path / "out", tmp_path / "table.csv"
+    path.write_text(table)
+    argv = ["simulate", "--kind", "three-bar", "--set", "actuated=side_*", option, str(path)]
+    argv += ["--t-end", "1", "--no-steady-state", "--no-view", "--no-animation", "--out", str(out)]
+    calls = []
+    record = CompiledSystem.record
+
+    def interrupt_in_the_second_segment(system, samples, row, t, y, inputs):
+        calls.append(1)
+        if len(calls) == 15:  # samples 0..10 are the first segment (10 samples each)
+            raise KeyboardInterrupt
+        record(system, samples, row, t, y, inputs)
+
+    monkeypatch.setattr(CompiledSystem, "record", interrupt_in_the_second_segment)
+    assert main(argv) == 130
+    monkeypatch.setattr(CompiledSystem, "record", record)
+    capsys.readouterr()
+    assert read_checkpoint(out / PARTIAL).next_segment == 1
+
+    path.write_text(changed)
+    assert main([*argv, "--resume"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("tensegrity: error:") and err.count("\n") == 1, err
+    assert "cannot resume" in err and name in err and "without --resume" in err, err
+    assert [p.name for p in out.iterdir()] == [PARTIAL]
+    assert read_checkpoint(out / PARTIAL).next_segment == 1
+
+    path.write_text("# the same numbers, written again\n" + table)
+    assert main([*argv, "--resume"]) == 0
+    assert "resumed" in capsys.readouterr().out.lower()

@@ -36,6 +36,7 @@ from test_contact import (  # (the same bodies and scenes as there)
     resting_rod,
     tilted_gravity,
 )
+from test_contact_outputs import point_mass_above
 
 mujoco = pytest.importorskip("mujoco")
 
@@ -104,6 +105,71 @@ def test_a_rod_dropped_flat_rests_at_our_penetration():
     our_depth = RADIUS - ours.node_position[-1, :, 2]
     np.testing.assert_allclose(our_depth, MASS * G / (2 * STIFFNESS), rtol=1e-6)
     np.testing.assert_allclose(depth, our_depth, rtol=1e-3)
+
+
+def test_a_point_mass_gets_a_contact_sphere_and_pairs():
+    """A point mass is a contact point as a rod end is (docs/simulation.md, "Ground contact"):
+    its body ``mass{k}`` carries a massless sphere geom ``mass{k}`` of the same size at its
+    centre, paired with every plane at the point mass's own ``solref``."""
+    floor = ground(0.1, friction=0.6, stiffness=2e5, damping=50.0)
+    wall = Plane(point=(2.0, 0.0, 0.0), normal=(-1.0, 0.0, 1.0), friction=0.0)
+    structure = point_mass_above(0.5).replace(node_point_mass=[4.0, 0.0])
+    model, data = load(structure, ground=[floor, wall], contact_radius=RADIUS, gravity=(0, 0, -G))
+    mujoco.mj_forward(model, data)
+    g = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "mass0")
+    assert g >= 0 and model.geom_type[g] == mujoco.mjtGeom.mjGEOM_SPHERE
+    assert model.geom_bodyid[g] == mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "mass0")
+    assert model.geom_size[g, 0] == pytest.approx(CONTACT_SPHERE_FRACTION * RADIUS, rel=1e-15)
+    assert model.geom_contype[g] == model.geom_conaffinity[g] == 0
+    np.testing.assert_allclose(data.geom_xpos[g], structure.node_position[0], atol=1e-15)
+    assert model.npair == 2  # one point mass, two planes (the anchor touches nothing)
+    pair = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_PAIR, "mass0_plane0")
+    assert model.pair_dim[pair] == 3
+    np.testing.assert_array_equal(model.pair_friction[pair, :2], [0.6, 0.6])
+    np.testing.assert_allclose(model.pair_solref[pair], [-2e5 / 4.0, -50.0 / 4.0], rtol=1e-15)
+    np.testing.assert_array_equal(model.pair_solimp[pair, :2], CONTACT_IMPEDANCE)
+    assert model.pair_dim[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_PAIR, "mass0_plane1")] == 1
+
+
+def test_a_point_mass_dropped_on_the_ground_rests_at_our_penetration():
+    """Ours rests at m g / k (the spring-damper's rest), MuJoCo 1e-4 shallower (its impedance
+    term, as for the rod above): asserted to the rod's 1e-3 of the penetration.  The point mass
+    hangs on a slack tendon from an anchor (a structure needs a member)."""
+    plane = ground(stiffness=STIFFNESS, damping=DAMPING, friction=0.5)
+    structure = point_mass_above(RADIUS + 0.01)
+    model, data = load(structure, ground=plane, contact_radius=RADIUS, gravity=(0, 0, -G))
+    run(model, data, 1.0)
+    assert data.ncon == 1
+    depth = RADIUS - mujoco_node_positions(model, data, 2)[0, 2]
+    ours = simulate(structure, (0.0, 1.0), gravity=(0, 0, -G), ground=plane, contact_radius=RADIUS)
+    assert ours.status == 0, ours.message
+    our_depth = RADIUS - ours.node_position[-1, 0, 2]
+    assert our_depth == pytest.approx(MASS * G / STIFFNESS, rel=1e-6)
+    assert depth == pytest.approx(our_depth, rel=1e-3)
+
+
+def test_a_point_mass_above_the_friction_angle_slides_at_the_closed_form_acceleration():
+    """A point mass resting on a 0.6 rad slope at mu = 0.5 (atan 0.5 = 0.46 rad) slides at
+    g (sin - mu cos) (measured within 4e-5; asserted to the rod's 1e-4).  Its body slides
+    without turning: a free body of negligible inertia spins up from the friction at its
+    sphere's surface and diverges."""
+    theta, mu = 0.6, 0.5
+    plane = ground(stiffness=STIFFNESS, damping=DAMPING, friction=mu)
+    depth = MASS * G * math.cos(theta) / STIFFNESS
+    model, data = load(
+        point_mass_above(RADIUS - depth),
+        ground=plane,
+        contact_radius=RADIUS,
+        gravity=tilted_gravity(theta),
+    )
+    t, x = [], []
+    for _ in range(20):
+        run(model, data, 0.05)
+        t.append(data.time)
+        x.append(mujoco_node_positions(model, data, 2)[0, 0])
+    acceleration = 2 * np.polyfit(t, x, 2)[0]
+    expected = G * (math.sin(theta) - mu * math.cos(theta))
+    assert acceleration == pytest.approx(expected, rel=1e-4)
 
 
 @pytest.mark.parametrize(("mu", "degrees"), [(0.3, 25.0), (0.5, 35.0)])

@@ -486,3 +486,45 @@ def test_the_streamed_options_are_the_fields_of_options():
     inputs = {"initial", "control", "external_force", "gravity", "ground", "contact_radius"}
     inputs |= {"controller", "stop"}
     assert stream_module._SIMULATE_PARAMETERS == {**dict.fromkeys(inputs), **fields}
+
+
+@pytest.mark.parametrize("planes", [0, 2])
+def test_a_samples_size_estimate_is_what_a_run_holds_and_writes(tmp_path, planes):
+    """``sample_bytes`` of a run with ``planes`` planes (a rod and a point mass: ``(2 + 1)
+    planes`` contact pairs) is the bytes of a sample the engine hands over (``held``: every
+    column of a block of ``Samples``, the int8 contact modes included) and the bytes of a row
+    of the file's per-sample datasets (float64)."""
+    from tensegrity.io.stream import sample_bytes
+    from tensegrity.io.trajectory import sample_rows
+    from tensegrity.model.ground import Plane, ground
+    from tensegrity.model.structure import Structure
+
+    structure = Structure(
+        node_position=[[-0.5, 0, 0.3], [0.5, 0, 0.3], [0, 0, 0.2], [0, 0, 2.0]],
+        node_point_mass=[0, 0, 0.5, 0],
+        node_fixed=[False, False, False, True],
+        rod_nodes=[[0, 1]],
+        rod_mass=[1.0],
+        rod_length=[1.0],
+        tendon_nodes=[[0, 2], [1, 2], [2, 3]],
+        tendon_stiffness=[100.0] * 3,
+        tendon_rest_length=[0.6, 0.6, 2.0],
+    )
+    scene = {}
+    if planes:
+        wall = Plane(point=(5.0, 0.0, 0.0), normal=(-1.0, 0.0, 0.0))
+        scene = dict(ground=[ground(), wall], contact_radius=0.01)
+    blocks = []
+    path = tmp_path / "run.h5"
+    simulate_to_file(structure, (0.0, 0.05), path, gravity=(0, 0, -9.81), observe=blocks.append,
+                     **FAST, **scene)  # fmt: skip
+    rows = sum(len(block.t) for block in blocks)
+    assert blocks[0].contact_mode.shape[1] == 3 * planes
+    held = sum(column.nbytes for block in blocks for column in block)
+    assert held == rows * sample_bytes(structure, held=True, planes=planes)
+    with h5py.File(path, "r") as f:
+        T = f["t"].shape[0]
+        names = sample_rows(structure, 3 * planes)
+        assert set(names) <= set(f)
+        written = sum(f[name].size * f[name].dtype.itemsize for name in names)
+    assert written == T * sample_bytes(structure, planes=planes)

@@ -86,17 +86,21 @@ def _run_end(t_end: float, sample_dt: float, *, steady_state: bool) -> float:
 LARGE_RUN_BYTES = 2**30
 
 
-def _announce_large_run(structure: Structure, t_end: float, sample_dt: float, out: Path) -> None:
+def _announce_large_run(
+    structure: Structure, t_end: float, sample_dt: float, out: Path, *, planes: int
+) -> None:
     """Before a run whose trajectory file would reach :data:`LARGE_RUN_BYTES`, say on stderr
     how large it will be, how much of it is held in memory at a time, and whether the disk of
-    ``out`` has room for it (a run stopped at a steady state writes less)."""
+    ``out`` has room for it (a run stopped at a steady state writes less); ``planes`` planes
+    add their contact columns."""
     from tensegrity.io.stream import sample_bytes, samples_per_segment
 
-    row = sample_bytes(structure)
+    row = sample_bytes(structure, planes=planes)
     samples = sample_count(0.0, t_end, sample_dt)
     if samples * row < LARGE_RUN_BYTES:
         return
-    held = 2 * samples_per_segment(structure, _segment(structure, t_end, sample_dt), sample_dt)
+    segment = _segment(structure, t_end, sample_dt, planes=planes)
+    held = 2 * samples_per_segment(structure, segment, sample_dt, planes=planes)
     try:
         free = shutil.disk_usage(out).free
     except OSError:
@@ -109,21 +113,23 @@ def _announce_large_run(structure: Structure, t_end: float, sample_dt: float, ou
     print(
         f"tensegrity: a large run: up to {samples:,} samples of {row / 2**20:.3g} MiB, about "
         f"{byte_text(samples * row)} in trajectory.h5{room}, written as the run goes (at most "
-        f"{byte_text(held * sample_bytes(structure, held=True))} of samples in memory at a "
+        f"{byte_text(held * sample_bytes(structure, held=True, planes=planes))} of samples in "
+        "memory at a "
         "time); a larger --sample-dt writes less",
         file=sys.stderr,
     )
 
 
-def _segment(structure: Structure, t_end: float, sample_dt: float) -> float:
-    """Segment duration [s] of a ``simulate`` run: at most a tenth of it, rounded to samples.
+def _segment(structure: Structure, t_end: float, sample_dt: float, *, planes: int) -> float:
+    """Segment duration [s] of a ``simulate`` run with ``planes`` planes: at most a tenth of it,
+    rounded to samples.
 
     Depends only on the structure and the options, so that a resumed run has the segment grid of
     the interrupted one.
     """
     from tensegrity.io.stream import samples_per_segment
 
-    default = samples_per_segment(structure, None, sample_dt)
+    default = samples_per_segment(structure, None, sample_dt, planes=planes)
     tenth = max(1, math.ceil((sample_count(0.0, t_end, sample_dt) - 1) / MIN_SEGMENTS))
     return min(default, tenth) * sample_dt
 
@@ -209,7 +215,9 @@ def _stream_run(
             structure,
             (0.0, args.t_end),
             files.work,
-            segment=_segment(structure, args.t_end, args.sample_dt),
+            segment=_segment(
+                structure, args.t_end, args.sample_dt, planes=len(inputs.scene.planes)
+            ),
             resume=args.resume,
             progress=sys.stderr.isatty(),
             observe=None if keeper is None else keeper.add,
@@ -263,12 +271,13 @@ def _simulate_and_write(args: argparse.Namespace, options: Options, drawing: Dra
     check_structure_size(structure)
     check_run_cost(structure, args.t_end, options)
     files = RunFiles.prepare(args.out, args.resume)
-    _announce_large_run(structure, args.t_end, args.sample_dt, files.out)
+    planes = len(inputs.scene.planes)
+    _announce_large_run(structure, args.t_end, args.sample_dt, files.out, planes=planes)
     keeper = None
     if not args.no_view and designed is None:  # (a design's frames are read with their forces)
         from tensegrity.plots.motion import MAX_BYTES, MAX_FRAMES, FrameKeeper, frame_budget
 
-        budget = frame_budget(structure, max_frames=MAX_FRAMES, max_bytes=MAX_BYTES)
+        budget = frame_budget(structure, max_frames=MAX_FRAMES, max_bytes=MAX_BYTES, planes=planes)
         keeper = FrameKeeper(structure, t0=0.0, sample_dt=args.sample_dt, max_frames=budget)
     try:
         summary = _stream_run(args, options, structure, inputs, files, keeper, designed)

@@ -18,9 +18,9 @@ The model written by :func:`to_mjcf` is the same mechanical system as Theorem 18
   constant ``2 timestep`` (critically damped, ``refsafe`` off) and impedance ``CONNECT_SOLIMP``
   make them nearly hard (class 2 shells follow ours to ~5e-8 m over 0.3 s).  An anchor (fixed
   node of no rod) is a world site ``node{k}``; a point mass is a body ``mass{k}`` with a free
-  joint, its mass, a negligible isotropic inertia and a site ``node{k}`` at its centre (after the
-  rods in ``qpos``/``qvel``).  Initial velocities are exported as given: give velocities that
-  satisfy the constraints.
+  joint (slides along ``x, y, z`` with a ground, below), its mass, a negligible isotropic
+  inertia and a site ``node{k}`` at its centre (after the rods in ``qpos``/``qvel``).
+  Initial velocities are exported as given: give velocities that satisfy the constraints.
 - **Planar structures** (``Structure.dim == 2``, Appendix A) lie in the plane ``z = 0``.  A rod's
   body (same frame, inertia and sites as above) has, instead of a free joint, two slide joints
   ``rod{r}_0``, ``rod{r}_1`` along the world ``x`` and ``y`` axes and a hinge ``rod{r}_rz`` about
@@ -69,11 +69,15 @@ The model written by :func:`to_mjcf` is the same mechanical system as Theorem 18
   a sphere geom ``end{i}`` of radius ``CONTACT_SPHERE_FRACTION r``: a sphere penetrates exactly as
   far as our end of radius ``r``, and MuJoCo's contact point stays on the rod's axis (full-size
   spheres put it ``r`` off the axis, and friction across a rod then spins it; see
-  ``CONTACT_SPHERE_FRACTION``).  With a ground the spin inertia is the transverse one.  Geoms
-  touch only through the explicit ``<pair>`` ``end{i}_plane{p}`` (``contype`` and
-  ``conaffinity`` 0 everywhere, so rods never touch each other), each with ``condim`` 3 (1 without
-  friction), the sliding ``friction`` ``mu_s``, ``solref="-k/m -c/m"`` (``m`` the rod's mass) and
-  a flat ``solimp`` of ``CONTACT_IMPEDANCE``; elliptic cones, ``impratio`` ``CONTACT_IMPRATIO``.
+  ``CONTACT_SPHERE_FRACTION``).  With a ground the spin inertia is the transverse one.  A point
+  mass is a contact point too (as in :mod:`tensegrity.physics.contact`, of the same radius): its
+  body carries a sphere geom ``mass{k}`` of the same size at its centre, and slides along
+  ``x, y, z`` instead of a free joint (friction at the sphere's surface would spin a body of
+  negligible inertia).  Geoms touch only through the explicit ``<pair>`` ``end{i}_plane{p}``
+  and ``mass{k}_plane{p}`` (``contype`` and ``conaffinity`` 0 everywhere, so rods never touch
+  each other), each with ``condim`` 3 (1 without friction), the sliding ``friction`` ``mu_s``,
+  ``solref="-k/m -c/m"`` (``m`` the rod's mass, or the point mass) and a flat ``solimp`` of
+  ``CONTACT_IMPEDANCE``; elliptic cones, ``impratio`` ``CONTACT_IMPRATIO``.
   At that impedance MuJoCo's soft contact is a penalty law: the normal force is our ``k delta +
   c delta'`` plus ``1e-4 m a_free``.  What differs: MuJoCo has one friction coefficient (``mu_s``
   is exported, so what sticks here holds there; a sliding rod with ``mu_k < mu_s`` slides slower
@@ -289,8 +293,9 @@ def rod_frames(structure: Structure) -> tuple[np.ndarray, np.ndarray, np.ndarray
 def mjcf_memory(structure: Structure, *, planes: int = 0) -> int:
     """The ``<size memory>`` [bytes] written by :func:`to_mjcf` (see ``MEMORY_PER_ELEMENT``); a
     point mass counts 6 elements (a free body), a joint or support 12 (3 constraint rows), a
-    closure row 6 (its two tendons and a constraint row), and each of the ``2 R planes`` contact
-    pairs of a scene with ``planes`` ground planes 12 (a contact of 3 rows)."""
+    closure row 6 (its two tendons and a constraint row), and each of the ``(2 R + M) planes``
+    contact pairs (rod ends and point masses) of a scene with ``planes`` ground planes 12 (a
+    contact of 3 rows)."""
     closures = sum(
         len(tree.closure)
         for tree in _rod_trees(structure, _held_axes(structure), _rod_motion(structure).axis)
@@ -301,7 +306,7 @@ def mjcf_memory(structure: Structure, *, planes: int = 0) -> int:
         + structure.n_tendons
         + 12 * len(_connect_pairs(structure))
         + 6 * closures
-        + 12 * 2 * structure.n_rods * planes
+        + 12 * (2 * structure.n_rods + structure.point_mass_nodes.size) * planes
     )
     size = MEMORY_BASE + MEMORY_PER_ELEMENT * elements
     mebibyte = 1 << 20
@@ -341,12 +346,13 @@ def to_mjcf(
     name : str
         The model name.
     ground : Plane or sequence of Plane, optional
-        Planes the rods' ends touch (:mod:`tensegrity.model.ground`, as ``simulate`` takes them):
+        Planes the rods' ends and point masses touch (:mod:`tensegrity.model.ground`, as
+        ``simulate`` takes them):
         the scene is exported with contacts on (see the module docstring, "Ground contact").
         Default none: contacts off.
     contact_radius : float
-        Radius [m] of the rods' ends as contact spheres, > 0 with a ``ground`` (a MuJoCo sphere
-        needs a positive size), >= 0 without (then unused).
+        Radius [m] of the rods' ends and point masses as contact spheres, > 0 with a
+        ``ground`` (a MuJoCo sphere needs a positive size), >= 0 without (then unused).
 
     Returns
     -------
@@ -357,7 +363,8 @@ def to_mjcf(
         sites ``node{i}``, tendons named ``structure.tendon_name`` (then ``hold{j}a``,
         ``hold{j}b`` of the closure equalities ``hold{j}``), keyframe ``initial`` (index 0); with
         a ``ground``, plane geoms ``plane{p}``, sphere geoms ``end{i}`` at the rod end nodes and
-        contact pairs ``end{i}_plane{p}``.
+        ``mass{k}`` at the point masses, and contact pairs ``end{i}_plane{p}``,
+        ``mass{k}_plane{p}``.
 
     Raises
     ------
@@ -407,7 +414,7 @@ def to_mjcf(
         spin=spin,
         contact_radius=radius if planes else None,
     )
-    _point_mass_bodies(world, structure, held, keyframe)
+    _point_mass_bodies(world, structure, held, keyframe, contact_radius=radius if planes else None)
     _world_sites(world, structure, connects, closures)
     if soft:
         _equalities(root, connects, len(closures), timestep=dt)
@@ -624,17 +631,24 @@ def _rod_bodies(
         for node, z in ((a, -L / 2), (b, L / 2)):
             ET.SubElement(body, "site", name=f"node{node}", pos=_floats([0, 0, z]), size=radius)
             if contact_radius is not None:
-                ET.SubElement(
-                    body,
-                    "geom",
-                    name=f"end{node}",
-                    type="sphere",
-                    size=_float(CONTACT_SPHERE_FRACTION * contact_radius),
-                    pos=_floats([0, 0, z]),
-                    mass="0",
-                    contype="0",
-                    conaffinity="0",
-                )
+                _contact_sphere(body, f"end{node}", [0, 0, z], contact_radius=contact_radius)
+
+
+def _contact_sphere(body: ET.Element, name: str, pos: Any, *, contact_radius: float) -> None:
+    """A massless sphere geom ``name`` of ``body`` at ``pos`` (3,) [m] (body frame), of radius
+    ``CONTACT_SPHERE_FRACTION`` times ``contact_radius`` [m]; it touches only through the
+    contact pairs."""
+    ET.SubElement(
+        body,
+        "geom",
+        name=name,
+        type="sphere",
+        size=_float(CONTACT_SPHERE_FRACTION * contact_radius),
+        pos=_floats(pos),
+        mass="0",
+        contype="0",
+        conaffinity="0",
+    )
 
 
 def _rod_joints(
@@ -696,16 +710,26 @@ def _site_radius(structure: Structure) -> str:
 
 
 def _point_mass_bodies(
-    world: ET.Element, structure: Structure, held: dict[int, np.ndarray], keyframe: _Keyframe
+    world: ET.Element,
+    structure: Structure,
+    held: dict[int, np.ndarray],
+    keyframe: _Keyframe,
+    *,
+    contact_radius: float | None,
 ) -> None:
-    """Bodies ``mass{k}``: a free joint, or slides (planar, or along the free directions
-    ``held[k]`` of a node held on planes or lines), a negligible inertia and a site ``node{k}``."""
+    """Bodies ``mass{k}``: a free joint, or slides (planar, along the free directions
+    ``held[k]`` of a node held on planes or lines, or along ``x, y, z`` in a scene with a
+    ground), a negligible inertia, a site ``node{k}`` and, given a ``contact_radius`` [m], a
+    sphere geom ``mass{k}`` of ``CONTACT_SPHERE_FRACTION`` of it at the centre (as the rods'
+    ends have).  Slides, not a free joint, with a ground: friction at the sphere's surface
+    would spin a free body of negligible inertia (a point mass sliding on a slope diverged
+    within 0.2 ms)."""
     position, node_velocity = _lifted(structure)
     site_radius = _site_radius(structure)
     for k in structure.point_mass_nodes:
         body = ET.SubElement(world, "body", name=f"mass{k}", pos=_floats(position[k]))
-        if structure.dim == 2 or k in held:
-            axes = held.get(int(k), np.eye(3)[:2])
+        if structure.dim == 2 or k in held or contact_radius is not None:
+            axes = held.get(int(k), np.eye(3)[: structure.dim])
             _slides(body, f"mass{k}", axes, axes @ node_velocity[k], keyframe)
         else:
             ET.SubElement(body, "freejoint", name=f"mass{k}")
@@ -721,6 +745,8 @@ def _point_mass_bodies(
             diaginertia=_floats([SPIN_INERTIA_MIN] * 3),
         )
         ET.SubElement(body, "site", name=f"node{k}", pos="0 0 0", size=site_radius)
+        if contact_radius is not None:
+            _contact_sphere(body, f"mass{k}", [0, 0, 0], contact_radius=contact_radius)
 
 
 def _planes(
@@ -747,27 +773,32 @@ def _planes(
 
 
 def _contact_pairs(root: ET.Element, structure: Structure, planes: tuple[Plane, ...]) -> None:
-    """One ``<pair>`` ``end{i}_plane{p}`` per rod end and plane: sliding friction ``mu_s``
-    (``condim`` 3, 1 without friction), the direct ``solref="-k/m -c/m"`` of the rod's mass
-    ``m`` and impedance ``CONTACT_IMPEDANCE`` (see the module docstring, "Ground contact")."""
+    """One ``<pair>`` ``{geom}_plane{p}`` per contact sphere and plane, the spheres the rods'
+    ends ``end{i}`` then the point masses ``mass{k}``: sliding friction ``mu_s`` (``condim`` 3,
+    1 without friction), the direct ``solref="-k/m -c/m"`` of the mass ``m`` of the sphere's body
+    (the rod's, the point mass) and impedance ``CONTACT_IMPEDANCE`` (see the module docstring,
+    "Ground contact")."""
     contact = ET.SubElement(root, "contact")
     solimp = f"{_float(CONTACT_IMPEDANCE)} {_float(CONTACT_IMPEDANCE)} 0.001 0.5 2"
-    for r, ends in enumerate(structure.rod_nodes):
-        m = float(structure.rod_mass[r])
-        for node in ends:
-            for p, plane in enumerate(planes):
-                mu = _float(plane.friction)
-                ET.SubElement(
-                    contact,
-                    "pair",
-                    name=f"end{node}_plane{p}",
-                    geom1=f"end{node}",
-                    geom2=f"plane{p}",
-                    condim="3" if plane.friction > 0 else "1",
-                    friction=f"{mu} {mu} 0 0 0",
-                    solref=f"{_float(-plane.stiffness / m)} {_float(-plane.damping / m)}",
-                    solimp=solimp,
-                )
+    spheres = [
+        (f"end{node}", float(structure.rod_mass[r]))
+        for r, ends in enumerate(structure.rod_nodes)
+        for node in ends
+    ] + [(f"mass{k}", float(structure.node_point_mass[k])) for k in structure.point_mass_nodes]
+    for geom, m in spheres:
+        for p, plane in enumerate(planes):
+            mu = _float(plane.friction)
+            ET.SubElement(
+                contact,
+                "pair",
+                name=f"{geom}_plane{p}",
+                geom1=geom,
+                geom2=f"plane{p}",
+                condim="3" if plane.friction > 0 else "1",
+                friction=f"{mu} {mu} 0 0 0",
+                solref=f"{_float(-plane.stiffness / m)} {_float(-plane.damping / m)}",
+                solimp=solimp,
+            )
 
 
 def _world_sites(

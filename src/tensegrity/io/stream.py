@@ -67,12 +67,15 @@ Resuming
 the structure and every setting (``t_span``, ``sample_dt``, the segment grid and all
 :func:`simulate` options, defaults filled in) are those of the checkpoint: otherwise it raises
 ``ValueError`` naming what differs.  Arrays (``initial``, ``control``, ``external_force``,
-``gravity``) are compared through a SHA-256 of their bytes; a callable ``control`` or
-``external_force`` only through its module and qualified name, so a changed function body under
-the same name is not detected.  If ``path`` already holds a finished streamed run with the same
-settings, nothing is run and its summary is returned.  A finished file with other settings is
-replaced (atomically, at the end of the new run), as every writer of :mod:`tensegrity.io.trajectory`
-does.  ``resume=False`` discards a partial file and starts again.
+``gravity``) and tables (a :class:`~tensegrity.model.loads.ControlTable` or
+:class:`~tensegrity.model.loads.ForceTable` as ``control`` or ``external_force``: their times
+and rows, so a table file changed between the two runs is detected) are compared through a
+SHA-256 of their bytes; any other callable ``control`` or ``external_force`` only through its
+module and qualified name, so a changed function body under the same name is not detected.
+If ``path`` already holds a finished streamed run with the same settings, nothing is run and
+its summary is returned.  A finished file with other settings is replaced (atomically, at the
+end of the new run), as every writer of :mod:`tensegrity.io.trajectory` does.  ``resume=False``
+discards a partial file and starts again.
 
 SI units throughout: m, kg, s, N, J.
 """
@@ -116,6 +119,7 @@ from tensegrity.io.files import (
     reserve_space,
 )
 from tensegrity.model.ground import planes_of
+from tensegrity.model.loads import ControlTable, ForceTable
 from tensegrity.model.structure import Structure
 from tensegrity.physics.dynamics import State
 
@@ -331,6 +335,13 @@ def _option_token(name: str, value: Any) -> Any:
         return {"q": _array_token(value.q), "qdot": _array_token(value.qdot)}
     if name == "ground":  # (a Plane or planes: their fields)
         return {"planes": [plane.settings() for plane in planes_of(value)]}
+    if isinstance(value, (ControlTable, ForceTable)):  # (callable, but compared by content)
+        return {
+            "table": type(value).__name__,
+            "time": _array_token(value.time),
+            "values": _array_token(value.values),
+            "outside": value.outside,
+        }
     if callable(value):
         module = getattr(value, "__module__", None) or "?"
         qualname = getattr(value, "__qualname__", None) or type(value).__qualname__
@@ -419,21 +430,25 @@ def segments_of(n_samples: int, samples_per_segment: int) -> int:
     return max(1, math.ceil((n_samples - 1) / samples_per_segment))
 
 
-def sample_bytes(structure: Structure, *, held: bool = False) -> int:
-    """Bytes of one sample of ``structure`` in a trajectory file (its datasets' rows), or with
-    ``held`` as a segment holds it in memory (the arrays computed on read too)."""
-    rows = tio.sample_rows(structure)
+def sample_bytes(structure: Structure, *, held: bool = False, planes: int = 0) -> int:
+    """Bytes of one sample of ``structure`` in a trajectory file (its datasets' rows, float64),
+    or with ``held`` as a segment holds it in memory (a row of
+    :class:`~tensegrity.engine.result.Samples`: the arrays computed on read too), in a run with
+    ``planes`` planes (the contact pairs' columns; none without)."""
+    pairs = tio.contact_pairs(structure, planes)
     if held:
-        rows |= tio.derived_rows(structure)
-    return 8 * sum(max(1, math.prod(shape)) for shape in rows.values())
+        return Samples.row_bytes(structure, pairs)
+    return 8 * sum(math.prod(shape) for shape in tio.sample_rows(structure, pairs).values())
 
 
-def samples_per_segment(structure: Structure, segment: float | None, sample_dt: float) -> int:
+def samples_per_segment(
+    structure: Structure, segment: float | None, sample_dt: float, *, planes: int = 0
+) -> int:
     """Samples of one segment: ``segment`` [s] in samples, or by default as many as fit
-    :data:`DEFAULT_SEGMENT_BYTES` (held twice while a segment is written), at most
-    :data:`DEFAULT_SEGMENT_SAMPLES`."""
+    :data:`DEFAULT_SEGMENT_BYTES` (held twice while a segment is written; a run with ``planes``
+    planes holds its contact columns too), at most :data:`DEFAULT_SEGMENT_SAMPLES`."""
     if segment is None:
-        row_bytes = sample_bytes(structure, held=True)
+        row_bytes = sample_bytes(structure, held=True, planes=planes)
         return int(max(1, min(DEFAULT_SEGMENT_SAMPLES, DEFAULT_SEGMENT_BYTES // (2 * row_bytes))))
     segment = float(segment)
     if not (math.isfinite(segment) and segment > 0):
@@ -485,7 +500,7 @@ def _write_layout(f, structure: Structure, structure_text: str, plan: _Plan) -> 
         settings_hash=plan.settings_hash,
     )
     _write_run_attributes(f, first)
-    pairs = tio.contact_pairs(structure, plan.record)
+    pairs = tio.contact_pairs(structure, len(plan.record.get("ground", ())))
     rows = tio.sample_rows(structure, pairs) | tio.event_rows(pairs)
     for name, shape in rows.items():
         f.create_dataset(
@@ -1076,9 +1091,9 @@ def _plan(
     if not (math.isfinite(sample_dt) and sample_dt > 0):
         raise ValueError(f"sample_dt: must be > 0, got {sample_dt!r}")
     initial = options.pop("initial", None)
-    K = samples_per_segment(structure, segment, sample_dt)
-    settings = _stream_settings(structure, t0, t1, sample_dt, K, {**options, "initial": initial})
     run_options, inputs = options_and_inputs(structure, sample_dt=sample_dt, **options)
+    K = samples_per_segment(structure, segment, sample_dt, planes=len(inputs.ground))
+    settings = _stream_settings(structure, t0, t1, sample_dt, K, {**options, "initial": initial})
     n_segments = len(segment_grid((t0, t1), sample_dt, K)) - 1
     stream = dict(segment=K * sample_dt, samples_per_segment=K, n_segments=n_segments)
     return _Plan(

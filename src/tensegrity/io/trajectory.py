@@ -128,11 +128,10 @@ def sample_rows(structure: Structure, pairs: int = 0) -> dict[str, tuple[int, ..
     return rows
 
 
-def contact_pairs(structure: Structure, settings: Mapping[str, Any]) -> int:
-    """The contact pairs of a run of ``structure`` with ``settings``: the rods' ends and the
-    point masses, against each plane."""
-    points = 2 * structure.n_rods + structure.point_mass_nodes.size
-    return points * len(settings.get("ground", ()))
+def contact_pairs(structure: Structure, planes: int) -> int:
+    """The contact pairs of a run of ``structure`` with ``planes`` planes (``len`` of its
+    settings' ``"ground"``): the rods' ends and the point masses, against each plane."""
+    return (2 * structure.n_rods + structure.point_mass_nodes.size) * planes
 
 
 def event_rows(pairs: int) -> dict[str, tuple[int, ...]]:
@@ -470,7 +469,7 @@ def _contact_datasets(
     f: Any, path: PathLike, structure: Structure, settings: Mapping[str, Any], T: int
 ) -> dict[str, Any]:
     """The contact datasets of a run with planes (checked shapes), or none."""
-    pairs = contact_pairs(structure, settings)
+    pairs = contact_pairs(structure, len(settings.get("ground", ())))
     if not pairs:
         return {}
     rows = sample_rows(structure, pairs)

@@ -424,15 +424,24 @@ def _sample_rows(result: SimulationResult, index: np.ndarray) -> SimulationResul
 
 
 def frame_budget(
-    structure: Structure, *, max_frames: int, max_bytes: int, utilisation: bool = False
+    structure: Structure,
+    *,
+    max_frames: int,
+    max_bytes: int,
+    utilisation: bool = False,
+    planes: int = 0,
 ) -> int:
     """How many frames a page of ``structure`` holds: at most ``max_frames``, and at most
     ``max_bytes`` of Float32 positions ``(N, 3)`` and tensions ``(S,)`` (and, with
-    ``utilisation``, the members' utilisation ``(R + S,)``) (at least one frame)."""
+    ``utilisation``, the members' utilisation ``(R + S,)``; in a run with ``planes`` planes,
+    the Int8 modes of its ``CP`` contact pairs ``(CP,)``) (at least one frame)."""
     if max_frames < 1 or max_bytes < 1:
         raise ValueError(f"max_frames, max_bytes: must be >= 1, got {max_frames}, {max_bytes}")
+    from tensegrity.io.trajectory import contact_pairs
+
     members = structure.n_rods + structure.n_tendons if utilisation else 0
     per_frame = 4 * (3 * structure.n_nodes + structure.n_tendons + members)
+    per_frame += contact_pairs(structure, planes)
     return max(1, min(max_frames, max_bytes // per_frame))
 
 
@@ -526,6 +535,7 @@ def read_frames(
         max_frames=max_frames,
         max_bytes=max_bytes,
         utilisation=check is not None,
+        planes=len(ends.planes),
     )
     every = max(1, -(-(n_samples - 1) // max(budget - 1, 1)))
     numbers = np.r_[np.arange(0, n_samples - 1, every), n_samples - 1]  # (as read_dataset reads)

@@ -178,7 +178,11 @@ def _frames(
     if isinstance(what, Structure):
         return structure_frames(what)
     budget = frame_budget(
-        what.structure, max_frames=max_frames, max_bytes=max_bytes, utilisation=check is not None
+        what.structure,
+        max_frames=max_frames,
+        max_bytes=max_bytes,
+        utilisation=check is not None,
+        planes=len(what.planes),
     )
     return make_frames(what, decimated_indices(what.t.size, budget), check=check)
 
