@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from tensegrity import simulate
+from tensegrity.design.rolling import stand_on_face
 from tensegrity.model.ground import Plane, ground
 from tensegrity.model.structure import Structure
 from tensegrity.physics.contact import REVERSAL_SPEED
@@ -216,16 +217,11 @@ def test_a_rod_held_by_friction_slips_when_a_ramped_pull_reaches_mu_n():
 
 
 def on_its_face(robot: Structure, height: float = 0.0) -> Structure:
-    """``robot`` (an expanded octahedron, e.g. the six-bar) turned onto its face ``f---``, the
-    triangle of nodes nearest (-1, -1, -1), those ends ``height`` [m] above resting on z = 0
-    (their centres at :data:`RADIUS` + ``height``)."""
-    face = -np.ones(3) / np.sqrt(3)
-    axis = np.cross(face, [0.0, 0.0, -1.0])
-    skew = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
-    rotation = np.eye(3) + skew + skew @ skew / (1.0 - face[2])
-    nodes = robot.node_position @ rotation.T
-    nodes[:, 2] += RADIUS + height - nodes[:, 2].min()
-    return robot.replace(node_position=nodes)
+    """``robot`` (an expanded octahedron, e.g. the six-bar) on its face of the three nodes
+    nearest (-1, -1, -1) (:func:`tensegrity.design.rolling.stand_on_face`), their centres at
+    :data:`RADIUS` + ``height`` [m]."""
+    face = np.argsort(robot.node_position @ np.ones(3))[:3]
+    return stand_on_face(robot, face, contact_radius=RADIUS + height)
 
 
 def settle_and_hold(structure: Structure, scene: dict, settle: float) -> tuple:

@@ -257,7 +257,9 @@ def test_a_soft_six_bar_collapsing_on_the_ground_runs_to_its_end():
     rods come to lie with both ends on the ground and their ends crawl as the rods rock.  The
     rules for slips from rest and for slow slips let the run finish (it stalled at max_steps
     with thousands of events in 0.6 s before them); energy never grows beyond the run's
-    tolerance and it comes to rest."""
+    tolerance and it comes to rest.  (At the default rtol the energy's largest growth is
+    integration error, 1e-7 to 1.5e-6 J, spread by the chaotic collapse: the same structure
+    turned about z gives any value in that range; at rtol 1e-11, 8e-9 to 3e-8 J.)"""
     from tensegrity.design.catalogue import six_bar_robot
 
     run = simulate(
@@ -268,11 +270,12 @@ def test_a_soft_six_bar_collapsing_on_the_ground_runs_to_its_end():
         contact_radius=RADIUS,
         sample_dt=0.01,
         max_steps=100_000,
+        rtol=1e-11,
     )
     assert run.status == 0, run.message
     assert run.nswitches < 1_000 and run.contact_counts["slip"] > 10
     total = run.total_energy
-    assert (total - np.minimum.accumulate(total)).max() < 1e-6
+    assert (total - np.minimum.accumulate(total)).max() < 1e-7
     assert np.abs(run.node_velocity[-1]).max() < 1e-6
 
 

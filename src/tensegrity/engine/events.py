@@ -512,6 +512,7 @@ def stick_slow_slips(contacts, model, data, t, y, events):  # pragma: no cover -
     if not slow.any():
         return False
     system_rhs(model, data, np.int64(0), y[:n], y[n : 2 * n], events.qddot)
+    tried = False
     for k in range(work.mode.shape[0]):
         if slow[k]:
             tangential_velocity(contacts, y[n : 2 * n], k, v)
@@ -522,6 +523,9 @@ def stick_slow_slips(contacts, model, data, t, y, events):  # pragma: no cover -
             slowing = -(a[0] * s[0] + a[1] * s[1] + a[2] * s[2])
             if left >= slowing * SLOW_STOP:
                 work.mode[k] = STICK
+                tried = True
+    if not tried:  # (the work arrays are the kept modes')
+        return False
     system_rhs(model, data, np.int64(0), y[:n], y[n : 2 * n], events.qddot)
     changed = False
     for k in range(work.mode.shape[0]):
