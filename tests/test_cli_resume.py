@@ -189,22 +189,29 @@ def test_terminated_run_leaves_only_its_partial_file(tmp_path):
     assert [p.name for p in out.iterdir()] == [PARTIAL]
 
 
-def test_resume_with_other_options_is_refused_in_one_line(tmp_path, capsys, monkeypatch):
+def interrupted_at_sample(monkeypatch, call: int, argv: list[str]) -> int:
+    """``main(argv)``'s exit code, the run interrupted (Ctrl-C) at its ``call``-th sample."""
     from tensegrity.engine.system import CompiledSystem
 
-    out = tmp_path / "out"
     calls = []
     record = CompiledSystem.record
 
-    def interrupt_in_the_second_segment(system, samples, row, t, y, inputs):
+    def interrupt(system, samples, row, t, y, inputs):
         calls.append(1)
-        if len(calls) == 25:  # samples 0..20 are the first segment (20 samples each)
+        if len(calls) == call:
             raise KeyboardInterrupt
         record(system, samples, row, t, y, inputs)
 
-    monkeypatch.setattr(CompiledSystem, "record", interrupt_in_the_second_segment)
-    assert main([*RUN, "--out", str(out)]) == 130
+    monkeypatch.setattr(CompiledSystem, "record", interrupt)
+    code = main(argv)
     monkeypatch.setattr(CompiledSystem, "record", record)
+    return code
+
+
+def test_resume_with_other_options_is_refused_in_one_line(tmp_path, capsys, monkeypatch):
+    out = tmp_path / "out"
+    # samples 0..20 are the first segment (20 samples each)
+    assert interrupted_at_sample(monkeypatch, 25, [*RUN, "--out", str(out)]) == 130
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--resume" in err, err
     assert [p.name for p in out.iterdir()] == [PARTIAL]
@@ -309,24 +316,12 @@ def test_resume_with_a_changed_table_file_is_refused_in_one_line(
     """The same options with a table file whose numbers changed since the interrupted run:
     ``--resume`` refuses, naming the run's option the file gives (the run would go on with other
     inputs); with the same numbers (the file written again, with a comment), it resumes."""
-    from tensegrity.engine.system import CompiledSystem
-
     out, path = tmp_path / "out", tmp_path / "table.csv"
     path.write_text(table)
     argv = ["simulate", "--kind", "three-bar", "--set", "actuated=side_*", option, str(path)]
     argv += ["--t-end", "1", "--no-steady-state", "--no-view", "--no-animation", "--out", str(out)]
-    calls = []
-    record = CompiledSystem.record
-
-    def interrupt_in_the_second_segment(system, samples, row, t, y, inputs):
-        calls.append(1)
-        if len(calls) == 15:  # samples 0..10 are the first segment (10 samples each)
-            raise KeyboardInterrupt
-        record(system, samples, row, t, y, inputs)
-
-    monkeypatch.setattr(CompiledSystem, "record", interrupt_in_the_second_segment)
-    assert main(argv) == 130
-    monkeypatch.setattr(CompiledSystem, "record", record)
+    # samples 0..10 are the first segment (10 samples each)
+    assert interrupted_at_sample(monkeypatch, 15, argv) == 130
     capsys.readouterr()
     assert read_checkpoint(out / PARTIAL).next_segment == 1
 
