@@ -247,6 +247,8 @@ def test_an_error_escaping_the_trajectory_reader_names_the_file(tmp_path, monkey
 #: A child that runs ``tensegrity matrices`` and receives ``signal.{name}`` while it writes.
 SIGNAL_CHILD = """
 import os, signal, sys, time
+signal.signal(signal.SIGINT, signal.default_int_handler)  # (a foreground job's, even if the
+# tests run in a background job, whose SIGINT is ignored, and its children's with it)
 import tensegrity.io.matrices as matrices
 def interrupted(*args, **kwargs):
     os.kill(os.getpid(), signal.{name})

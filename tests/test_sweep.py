@@ -713,7 +713,9 @@ def test_sweep_onto_a_full_disk_fails_in_one_line_and_leaves_nothing(tmp_path):
 #: A child that runs ``tensegrity sweep ARGS`` and prints ``started`` once every case is sent to
 #: the workers.
 STARTED_CHILD = """
-import sys
+import signal, sys
+signal.signal(signal.SIGINT, signal.default_int_handler)  # (a foreground job's, even if the
+# tests run in a background job, whose SIGINT is ignored, and its children's with it)
 import distributed
 as_completed = distributed.as_completed
 def announced(futures):
