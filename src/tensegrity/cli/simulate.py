@@ -114,8 +114,7 @@ def _announce_large_run(
         f"tensegrity: a large run: up to {samples:,} samples of {row / 2**20:.3g} MiB, about "
         f"{byte_text(samples * row)} in trajectory.h5{room}, written as the run goes (at most "
         f"{byte_text(held * sample_bytes(structure, held=True, planes=planes))} of samples in "
-        "memory at a "
-        "time); a larger --sample-dt writes less",
+        "memory at a time); a larger --sample-dt writes less",
         file=sys.stderr,
     )
 
