@@ -36,12 +36,13 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import scipy.optimize
 import scipy.sparse as sp
 
+from tensegrity.analysis.equilibrium import EquilibriumResult
 from tensegrity.design.materials import (
     Cable,
     HollowTube,
@@ -213,7 +214,16 @@ class Sizing:
         [kg], a tendon's at its length in the geometry.
     rod_compression (K, R), tendon_tension (K, S) : each case's member forces [N].
     utilisation : of every member in every case, arrays (K, S) and (K, R).
-    iterations : linear programs solved.  message : how it ended.
+    iterations : linear programs solved (``statics="linear"``) or sizing iterations
+        (``"equilibrium"``).  message : how it ended.
+    statics : ``"linear"`` (equilibrium at the given geometry, :func:`size_members`) or
+        ``"equilibrium"`` (at each case's loaded equilibrium,
+        :func:`~tensegrity.design.loaded.size_at_equilibrium`).
+    governs, governing_case : (R + S,), rods first: what sets each member's area (``"yield"``,
+        ``"buckling"`` or ``"min_area"``) and in which case (None for ``"min_area"``).
+    equilibria : each load case's loaded equilibrium (``"equilibrium"`` only; the prestress is
+        the given geometry).  displacement : (load cases,) each one's largest node displacement
+        from the given geometry [m] (``"equilibrium"`` only).
     """
 
     structure: Structure
@@ -228,6 +238,11 @@ class Sizing:
     utilisation: Utilisation
     iterations: int
     message: str
+    statics: str = "linear"
+    governs: tuple[str, ...] = ()
+    governing_case: tuple[str | None, ...] = ()
+    equilibria: tuple[EquilibriumResult, ...] = ()
+    displacement: np.ndarray | None = None
 
     @property
     def total_mass(self) -> float:
@@ -245,14 +260,29 @@ class Sizing:
             tendon_mass_kg=float(self.tendon_mass.sum()),
             cases=list(self.cases),
             largest_utilisation=u.largest,
+            statics=self.statics,
             iterations=self.iterations,
             message=self.message,
+            **(
+                {}
+                if self.displacement is None
+                else dict(
+                    largest_displacement_m=dict(
+                        zip(
+                            self.cases[-len(self.displacement) :],
+                            self.displacement.tolist(),
+                            strict=True,
+                        )
+                    )
+                )
+            ),
             rods=[
                 dict(
                     rod=r,
                     section=self.members.rod_label[r],
                     area_m2=float(self.rod_area[r]),
                     mass_kg=float(self.rod_mass[r]),
+                    **self._governing(r),
                     compression_N=u.rod_compression[:, r].tolist(),
                     yield_utilisation=u.rod_yield[:, r].tolist(),
                     buckling_utilisation=u.rod_buckling[:, r].tolist(),
@@ -265,6 +295,7 @@ class Sizing:
                     section=self.members.tendon_label[k],
                     area_m2=float(self.tendon_area[k]),
                     mass_kg=float(self.tendon_mass[k]),
+                    **self._governing(s.n_rods + k),
                     stiffness_N_per_m=float(s.tendon_stiffness[k]),
                     rest_length_m=float(s.tendon_rest_length[k]),
                     tension_N=self.tendon_tension[:, k].tolist(),
@@ -273,6 +304,54 @@ class Sizing:
                 for k in range(s.n_tendons)
             ],
         )
+
+    def _governing(self, member: int) -> dict[str, Any]:
+        """``governed_by`` and ``governing_case`` of member ``member`` (rods first) for
+        :meth:`to_dict`."""
+        if not self.governs:
+            return {}
+        return dict(governed_by=self.governs[member], governing_case=self.governing_case[member])
+
+
+class LeastAreas(NamedTuple):
+    """The least member areas for given forces, and what governs each (:func:`least_areas`)."""
+
+    area: np.ndarray  #: (R + S,) [m^2], rods first
+    governs: tuple[str, ...]  #: (R + S,) ``"yield"``, ``"buckling"`` or ``"min_area"``
+    case: tuple[str | None, ...]  #: (R + S,) the governing case (None for ``"min_area"``)
+
+
+def least_areas(
+    compression: np.ndarray,
+    tension: np.ndarray,
+    *,
+    strength: np.ndarray,
+    beta: np.ndarray,
+    min_area: float,
+    cases: Sequence[str],
+) -> LeastAreas:
+    """The least areas that carry rod compressions ``compression`` (K, R) [N] (> 0 compressed)
+    and tendon tensions ``tension`` (K, S) [N] of ``K`` cases named ``cases``: ``A = max(A_min,
+    max_k |F_k| / strength, max_k beta sqrt(C_k+))``, with ``strength`` (R + S,) the design yield
+    strengths [Pa] (over the strength factor) and ``beta`` (R,) [m^2 / sqrt(N)]
+    (:func:`buckling_coefficient`); and which term governs each member, in which case."""
+    R = compression.shape[1]
+    need = np.concatenate([np.abs(compression), np.maximum(tension, 0.0)], axis=1) / strength
+    buckle = beta * np.sqrt(np.maximum(compression, 0.0))
+    kinds = np.stack([need, np.zeros_like(need)])  # (2, K, R + S): yield, buckling
+    kinds[1, :, :R] = buckle
+    flat = kinds.reshape(-1, kinds.shape[2])
+    best = np.argmax(flat, axis=0)
+    area = flat[best, np.arange(flat.shape[1])] if flat.size else np.zeros(flat.shape[1])
+    K = compression.shape[0]
+    governs = tuple(
+        "min_area" if not a > min_area else ("yield", "buckling")[b // K]
+        for a, b in zip(area, best, strict=True)
+    )
+    case = tuple(
+        None if g == "min_area" else cases[b % K] for g, b in zip(governs, best, strict=True)
+    )
+    return LeastAreas(np.maximum(area, min_area), governs, case)
 
 
 class _Problem:
@@ -341,13 +420,16 @@ class _Problem:
         return f[:, : self.R], f[:, self.R :]
 
     def areas(self, C: np.ndarray, T: np.ndarray, beta: np.ndarray) -> np.ndarray:
-        """The least areas (R + S,) [m^2] that carry forces ``C``, ``T`` (closed form)."""
-        A_ref, F = self.A_ref, self.F
-        strength = self.strength * F / A_ref
-        need = np.concatenate([np.abs(C), np.maximum(T, 0.0)], axis=1) / strength
-        buckle = beta * np.sqrt(np.maximum(C, 0.0))
-        need[:, : self.R] = np.maximum(need[:, : self.R], buckle)
-        return np.maximum(need.max(axis=0, initial=0.0), self.min_area * A_ref)
+        """The least areas (R + S,) [m^2] that carry forces ``C``, ``T`` (:func:`least_areas`)."""
+        strength = self.strength * self.F / self.A_ref
+        return least_areas(
+            C,
+            T,
+            strength=strength,
+            beta=beta,
+            min_area=self.min_area * self.A_ref,
+            cases=self.names,
+        ).area
 
     def solve(self, tangent: np.ndarray | None) -> Any:
         """One linear program; ``tangent`` (K, R): the scaled compressions at which the
@@ -430,6 +512,81 @@ class _Problem:
         )
 
 
+def sized_structure(
+    structure: Structure,
+    *,
+    rod_material: Sequence[Material],
+    tendon_material: Sequence[Material],
+    rod_area: np.ndarray,
+    tendon_area: np.ndarray,
+    wall_ratio: float | None,
+    prestress_tension: np.ndarray,
+    tendon_mass: bool,
+) -> tuple[Structure, MemberProperties]:
+    """The structure of members of areas ``rod_area`` (R,) and ``tendon_area`` (S,) [m^2] and
+    their properties: rods ``SolidRod`` (``wall_ratio`` None) or ``HollowTube(D, wall_ratio D)``,
+    tendons ``Cable``; stiffness ``E A / Lbar``, rod mass ``rho A L``, and rest lengths ``Lbar = l
+    E A / (E A + T)`` that give the tensions ``prestress_tension`` (S,) [N] at the structure's
+    node positions (``l`` the tendons' lengths there)."""
+    s = structure
+    rod_sections: list[SolidRod | HollowTube] = []
+    for A in rod_area:
+        if wall_ratio is None:
+            rod_sections.append(SolidRod(math.sqrt(4 * A / math.pi)))
+        else:
+            xi = 1 - 2 * wall_ratio
+            D = math.sqrt(4 * A / (math.pi * (1 - xi**2)))
+            rod_sections.append(HollowTube(D, wall_ratio * D))
+    cables = [Cable(math.sqrt(4 * A / math.pi)) for A in tendon_area]
+    members = member_properties(
+        s,
+        rod_material=rod_material,
+        rod_section=rod_sections,
+        tendon_material=tendon_material,
+        tendon_section=cables,
+    )
+    length = np.linalg.norm(
+        s.node_position[s.tendon_nodes[:, 1]] - s.node_position[s.tendon_nodes[:, 0]], axis=1
+    )
+    EA = members.tendon_modulus * members.tendon_area
+    rest = length * EA / (EA + prestress_tension)
+    sized = with_members(s.replace(tendon_rest_length=rest), members, tendon_mass=tendon_mass)
+    return sized, members
+
+
+def checked_cases(
+    structure: Structure, load_cases: Sequence[LoadCase], prestress: float
+) -> list[LoadCase]:
+    """The cases to size for: ``"prestress"`` first when ``prestress`` > 0, then ``load_cases``
+    with their loads as float arrays; a one-line ``ValueError`` naming the case otherwise."""
+    d = structure.dim
+    cases = ([LoadCase("prestress")] if prestress > 0 else []) + list(load_cases)
+    if not cases:
+        raise ValueError("load_cases: give at least one load case or a prestress > 0")
+    seen = set()
+    checked = []
+    for case in cases:
+        if case.name in seen:
+            raise ValueError(f"load case {case.name!r}: named twice")
+        seen.add(case.name)
+        force = None if case.force is None else np.asarray(case.force, dtype=float)
+        gravity = None if case.gravity is None else np.asarray(case.gravity, dtype=float)
+        if force is not None and force.shape != (structure.n_nodes, d):
+            raise ValueError(
+                f"load case {case.name!r}: force has shape {force.shape}, expected "
+                f"({structure.n_nodes}, {d})"
+            )
+        if gravity is not None and gravity.shape != (d,):
+            raise ValueError(
+                f"load case {case.name!r}: gravity has shape {gravity.shape}, expected ({d},)"
+            )
+        for loads in (force, gravity):
+            if loads is not None and not np.all(np.isfinite(loads)):
+                raise ValueError(f"load case {case.name!r}: loads must be finite")
+        checked.append(LoadCase(case.name, force, gravity))
+    return checked
+
+
 def size_members(
     structure: Structure,
     *,
@@ -482,7 +639,6 @@ def size_members(
         that load, or a tendon that would have to push, or no self-stress for the prestress).
     """
     s = structure
-    d = s.dim
     for name, value, low in (
         ("safety_factor", safety_factor, 1.0),
         ("strength_factor", strength_factor, 1.0),
@@ -497,30 +653,7 @@ def size_members(
         raise ValueError(f"min_area: must be > 0, got {min_area!r}")
     if not (math.isfinite(prestress) and prestress >= 0):
         raise ValueError(f"prestress: must be >= 0, got {prestress!r}")
-    cases = ([LoadCase("prestress")] if prestress > 0 else []) + list(load_cases)
-    if not cases:
-        raise ValueError("load_cases: give at least one load case or a prestress > 0")
-    seen = set()
-    checked = []
-    for case in cases:
-        if case.name in seen:
-            raise ValueError(f"load case {case.name!r}: named twice")
-        seen.add(case.name)
-        force = None if case.force is None else np.asarray(case.force, dtype=float)
-        gravity = None if case.gravity is None else np.asarray(case.gravity, dtype=float)
-        if force is not None and force.shape != (s.n_nodes, d):
-            raise ValueError(
-                f"load case {case.name!r}: force has shape {force.shape}, expected "
-                f"({s.n_nodes}, {d})"
-            )
-        if gravity is not None and gravity.shape != (d,):
-            raise ValueError(
-                f"load case {case.name!r}: gravity has shape {gravity.shape}, expected ({d},)"
-            )
-        for loads in (force, gravity):
-            if loads is not None and not np.all(np.isfinite(loads)):
-                raise ValueError(f"load case {case.name!r}: loads must be finite")
-        checked.append(LoadCase(case.name, force, gravity))
+    checked = checked_cases(s, load_cases, prestress)
     rm = per_member(rod_material, s.n_rods, "rod_material", Material)
     tm = per_member(tendon_material, s.n_tendons, "tendon_material", Material)
     rod_modulus = np.array([m.youngs_modulus for m in rm])
@@ -581,23 +714,25 @@ def size_members(
     C, T = problem.forces(best_x)
     _, area = mass_of(best_x)
     rod_area, tendon_area = area[: s.n_rods], area[s.n_rods :]
-    rod_sections: list[SolidRod | HollowTube] = []
-    for A in rod_area:
-        if wall_ratio is None:
-            rod_sections.append(SolidRod(math.sqrt(4 * A / math.pi)))
-        else:
-            xi = 1 - 2 * wall_ratio
-            D = math.sqrt(4 * A / (math.pi * (1 - xi**2)))
-            rod_sections.append(HollowTube(D, wall_ratio * D))
-    cables = [Cable(math.sqrt(4 * A / math.pi)) for A in tendon_area]
-    members = member_properties(
-        s, rod_material=rm, rod_section=rod_sections, tendon_material=tm, tendon_section=cables
-    )
     length = problem.length[s.n_rods :]
     pre = T[0] if checked[0].name == "prestress" else np.zeros(s.n_tendons)
-    EA = members.tendon_modulus * members.tendon_area
-    sized = with_members(
-        s.replace(tendon_rest_length=length * EA / (EA + pre)), members, tendon_mass=tendon_mass
+    sized, members = sized_structure(
+        s,
+        rod_material=rm,
+        tendon_material=tm,
+        rod_area=rod_area,
+        tendon_area=tendon_area,
+        wall_ratio=wall_ratio,
+        prestress_tension=pre,
+        tendon_mass=tendon_mass,
+    )
+    least = least_areas(
+        C,
+        T,
+        strength=problem.strength * problem.F / problem.A_ref,
+        beta=beta,
+        min_area=min_area,
+        cases=problem.names,
     )
     return Sizing(
         structure=sized,
@@ -612,4 +747,6 @@ def size_members(
         utilisation=utilisation(s, members, tension=T, compression=C, safety_factor=safety_factor),
         iterations=iterations,
         message=message,
+        governs=least.governs,
+        governing_case=least.case,
     )

@@ -1,0 +1,356 @@
+"""Sizing at the loaded, deformed equilibrium (``docs/design.md``, "Sizing at the loaded
+equilibrium").
+
+Tensegrity prisms, towers and shells are infinitesimal mechanisms stiffened by their prestress:
+a load along a mechanism is carried only after the structure deforms, so the linear sizing of
+:func:`~tensegrity.design.sizing.size_members` (equilibrium at the undeformed geometry) refuses
+it.  :func:`size_at_equilibrium` sizes them where they carry the load:
+
+1. The prestress: the self-stress of the given geometry with every tendon at least
+   ``prestress`` [N] (the lightest, as :func:`size_members` finds it for the prestress alone).
+   The geometry stays the unloaded equilibrium whatever the areas: each tendon's rest length is
+   ``Lbar = l E A / (E A + T0)``.
+2. For each load case, the equilibrium of the structure with the current areas under its
+   prestress and the case's loads, by the nonlinear solver
+   (:func:`~tensegrity.analysis.equilibrium.find_equilibrium`: rods of exact length, material and
+   geometric stiffness), reached by load steps from the unloaded geometry, each step checked
+   stable (:func:`~tensegrity.analysis.modes.modal_analysis`).  A load path that loses stability
+   before the full load (a limit point: the structure would snap through) is refused, naming the
+   case and the load factor reached.
+3. The least areas that carry every case's forces there (yield and buckling with the strength and
+   safety factors, :func:`~tensegrity.design.sizing.least_areas`).  Areas change the stiffness,
+   the weight and so the equilibria: steps 2-3 are repeated until no area changes by more than
+   ``rtol`` (a fully stressed design: each member above the least area is at utilisation 1 in
+   its governing case).
+
+Rods are rigid in the model: their areas change only the weight.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+
+from tensegrity.analysis.equilibrium import EquilibriumResult, find_equilibrium
+from tensegrity.analysis.linearize import linearize
+from tensegrity.analysis.modes import modal_analysis
+from tensegrity.design.materials import Material, per_member
+from tensegrity.design.sizing import (
+    LoadCase,
+    Sizing,
+    buckling_coefficient,
+    checked_cases,
+    least_areas,
+    size_members,
+    sized_structure,
+)
+from tensegrity.design.utilisation import utilisation
+from tensegrity.model.structure import Structure
+
+__all__ = ["LoadPathError", "follow_load", "size_at_equilibrium"]
+
+#: The most a load step may move a node [rod lengths]: a longer jump is taken for a jump to
+#: another branch of equilibria, and the step is halved.
+MAX_STEP_MOVE = 0.05
+
+#: The smallest load step [fraction of the case's load]: a path that needs a smaller one ends at
+#: a limit point.
+MIN_LOAD_STEP = 1e-3
+
+
+class LoadPathError(ValueError):
+    """A load case's path of equilibria ends before the full load: ``case`` (name), ``reached``
+    (the last load factor in [0, 1) with a stable equilibrium) and the reason in the message."""
+
+    def __init__(self, case: str, reached: float, reason: str) -> None:
+        self.case, self.reached = case, reached
+        super().__init__(
+            f"load case {case!r}: {reason} at {reached:.3g} of its load (a limit point: the "
+            "structure would snap through); raise the prestress, or change the geometry"
+        )
+
+
+def _scaled(load: np.ndarray | None, factor: float) -> np.ndarray | None:
+    return None if load is None else factor * load
+
+
+def _stable(structure: Structure, eq: EquilibriumResult) -> bool:
+    return bool(modal_analysis(linearize(structure, eq)).stable)
+
+
+def follow_load(
+    structure: Structure,
+    case: LoadCase,
+    *,
+    start: np.ndarray | None = None,
+    steps: int = 8,
+) -> tuple[EquilibriumResult, int]:
+    """The stable equilibrium of ``structure`` under ``case``'s loads on the path from its
+    unloaded equilibrium (its node positions), and the number of load steps taken.
+
+    From ``start`` (6R,) coordinates of a nearby loaded equilibrium (e.g. of the same structure
+    with other areas) the full load is tried first.  Otherwise, or if that fails, the load grows
+    from 0 in ``steps`` equal steps, each solved from the last (least squares, no descent: the
+    nearest equilibrium) and accepted if it converged, is stable and moved no node more than
+    :data:`MAX_STEP_MOVE` rod lengths; a rejected step is halved, and doubled again after a
+    success.
+
+    Raises
+    ------
+    LoadPathError
+        If a step below :data:`MIN_LOAD_STEP` of the load is rejected (a limit point), or the
+        unloaded structure is not stable.
+    """
+    length = float(np.mean(structure.rod_length)) if structure.n_rods else 1.0
+
+    def solve(q: np.ndarray | None, factor: float) -> EquilibriumResult:
+        return find_equilibrium(
+            structure,
+            q,
+            external_force=_scaled(case.force, factor),
+            gravity=_scaled(case.gravity, factor),
+            descend=False,
+        )
+
+    if start is not None:
+        eq = solve(start, 1.0)
+        if eq.converged and _stable(structure, eq):
+            return eq, 1
+    unloaded = solve(None, 0.0)
+    if not (unloaded.converged and _stable(structure, unloaded)):
+        raise LoadPathError(case.name, 0.0, "the unloaded structure is not stable")
+    reached, step, last, taken = 0.0, 1.0 / steps, unloaded, 0
+    while reached < 1.0:
+        factor = min(1.0, reached + step)
+        eq = solve(last.q, factor)
+        taken += 1
+        moved = float(np.max(np.linalg.norm(eq.node_position - last.node_position, axis=-1)))
+        if eq.converged and moved <= MAX_STEP_MOVE * length and _stable(structure, eq):
+            reached, last, step = factor, eq, 2 * step
+            continue
+        step /= 2
+        if step < MIN_LOAD_STEP:
+            reason = (
+                "no stable equilibrium near the path" if eq.converged else "no equilibrium found"
+            )
+            raise LoadPathError(case.name, reached, reason)
+    return last, taken
+
+
+#: The most doublings of the tendons' areas tried against a limit point (:func:`_stiffened`).
+MAX_DOUBLINGS = 20
+
+
+def _stiffened(
+    equilibria_at: Callable[[np.ndarray], Any],
+    area: np.ndarray,
+    R: int,
+    failure: LoadPathError,
+) -> tuple[np.ndarray, Any]:
+    """The areas ``area`` (R + S,) with the tendons' scaled by the least factor (within
+    ``2^(1/8)``: doublings, then three bisections of its logarithm) for which every case's load
+    path holds, and ``equilibria_at`` of them; ``failure`` again, its message extended, if
+    ``2^MAX_DOUBLINGS`` is not enough."""
+
+    def scaled(factor: float) -> np.ndarray:
+        return np.concatenate([area[:R], factor * area[R:]])
+
+    low, high, found = 1.0, 0.0, None
+    for doubling in range(1, MAX_DOUBLINGS + 1):
+        try:
+            high, found = 2.0**doubling, equilibria_at(scaled(2.0**doubling))
+            break
+        except LoadPathError:
+            low = 2.0**doubling
+    if found is None:
+        raise LoadPathError(
+            failure.case,
+            failure.reached,
+            f"{failure.args[0].split(': ', 1)[1].split(' at ')[0]} even with tendons "
+            f"{2.0**MAX_DOUBLINGS:.3g} times the area",
+        )
+    for _ in range(3):
+        middle = math.sqrt(low * high)
+        try:
+            high, found = middle, equilibria_at(scaled(middle))
+        except LoadPathError:
+            low = middle
+    return scaled(high), found
+
+
+def size_at_equilibrium(
+    structure: Structure,
+    *,
+    rod_material: Material | Sequence[Material],
+    tendon_material: Material | Sequence[Material],
+    load_cases: Sequence[LoadCase],
+    prestress: float = 0.0,
+    wall_ratio: float | None = None,
+    safety_factor: float = 1.0,
+    strength_factor: float = 1.0,
+    min_area: float = 1e-8,
+    tendon_mass: bool = False,
+    rtol: float = 1e-6,
+    max_iterations: int = 50,
+    load_steps: int = 8,
+) -> Sizing:
+    """Members sized at each load case's loaded equilibrium (see the module docstring).
+
+    Parameters as :func:`~tensegrity.design.sizing.size_members`; the structure's node positions
+    are its unloaded, prestressed geometry.
+
+    rtol : float
+        Converged when no area changes by more than ``rtol`` (relative) from one iteration to
+        the next.
+    max_iterations : int
+        The most sizing iterations (each solves every case's equilibrium).
+    load_steps : int
+        Load steps of the first path of each case (:func:`follow_load`).
+
+    Returns
+    -------
+    Sizing
+        With ``statics="equilibrium"``, each load case's equilibrium (``equilibria``) and
+        largest node displacement from the geometry (``displacement``), and what governs each
+        member's area.
+
+    Raises
+    ------
+    ValueError
+        One line: a bad argument, a prestress the geometry cannot hold, a case whose path
+        reaches a limit point (:class:`LoadPathError`), or no convergence.
+    """
+    s = structure
+    if not (isinstance(max_iterations, int) and max_iterations >= 1):
+        raise ValueError(f"max_iterations: must be an integer >= 1, got {max_iterations!r}")
+    if not (isinstance(load_steps, int) and load_steps >= 1):
+        raise ValueError(f"load_steps: must be an integer >= 1, got {load_steps!r}")
+    if not (math.isfinite(rtol) and rtol > 0):
+        raise ValueError(f"rtol: must be > 0, got {rtol!r}")
+    cases = checked_cases(s, load_cases, prestress)
+    loads = [c for c in cases if c.name != "prestress"]
+    if not loads:
+        raise ValueError("load_cases: give at least one load case to size at its equilibrium")
+    options = dict(
+        rod_material=rod_material,
+        tendon_material=tendon_material,
+        wall_ratio=wall_ratio,
+        safety_factor=safety_factor,
+        strength_factor=strength_factor,
+        min_area=min_area,
+        tendon_mass=tendon_mass,
+    )
+    rm = per_member(rod_material, s.n_rods, "rod_material", Material)
+    tm = per_member(tendon_material, s.n_tendons, "tendon_material", Material)
+    strength = np.array([m.yield_strength for m in (*rm, *tm)]) / strength_factor
+    beta = buckling_coefficient(
+        s.rod_length,
+        np.array([m.youngs_modulus for m in rm]),
+        wall_ratio=wall_ratio,
+        safety_factor=safety_factor,
+    )
+    R, S = s.n_rods, s.n_tendons
+    if prestress > 0:
+        pre = size_members(s, load_cases=(), prestress=prestress, **options)  # type: ignore[arg-type]
+        C0, T0 = pre.rod_compression[0], pre.tendon_tension[0]
+        area = np.concatenate([pre.rod_area, pre.tendon_area])
+    else:
+        C0, T0 = np.zeros(R), np.zeros(S)
+        area = np.full(R + S, min_area)
+    names = [c.name for c in cases]
+    starts: list[np.ndarray | None] = [None] * len(loads)
+
+    def equilibria_at(area: np.ndarray) -> tuple[list[EquilibriumResult], Structure, Any]:
+        """Each load case's equilibrium of the structure of members of areas ``area``."""
+        sized, members = sized_structure(
+            s,
+            rod_material=rm,
+            tendon_material=tm,
+            rod_area=area[:R],
+            tendon_area=area[R:],
+            wall_ratio=wall_ratio,
+            prestress_tension=T0,
+            tendon_mass=tendon_mass,
+        )
+        found = [
+            follow_load(sized, case, start=starts[k], steps=load_steps)[0]
+            for k, case in enumerate(loads)
+        ]
+        starts[:] = [eq.q for eq in found]
+        return found, sized, members
+
+    floor = np.zeros(R + S)  # the tendon areas below which a load path reaches a limit point
+    stability_case: str | None = None
+    message = f"stopped after {max_iterations} iterations (max_iterations): areas still change"
+    for iteration in range(1, max_iterations + 2):
+        try:
+            equilibria, sized, members = equilibria_at(area)
+        except LoadPathError as failure:
+            area, (equilibria, sized, members) = _stiffened(equilibria_at, area, R, failure)
+            floor[R:], stability_case = area[R:], failure.case
+        C = np.array(([C0] if prestress > 0 else []) + [eq.rod_compression for eq in equilibria])
+        T = np.array(([T0] if prestress > 0 else []) + [eq.tension for eq in equilibria])
+        least = least_areas(
+            C.reshape(-1, R),
+            T.reshape(-1, S),
+            strength=strength,
+            beta=beta,
+            min_area=min_area,
+            cases=names,
+        )
+        target = np.maximum(least.area, floor)
+        change = float(np.max(np.abs(target - area) / target, initial=0.0))
+        if change <= rtol:
+            message = f"converged after {iteration} iterations (areas within {change:.2g})"
+            break
+        if iteration > max_iterations:
+            break
+        area = target
+    else:  # pragma: no cover - the loop always breaks
+        raise AssertionError
+    if change > rtol:
+        raise ValueError(
+            f"sizing at the loaded equilibrium: {message} by up to {change:.3g} (relative)"
+        )
+    stiffened = floor > least.area
+    governs = tuple("stability" if f else g for f, g in zip(stiffened, least.governs, strict=True))
+    governing_case = tuple(
+        stability_case if f else c for f, c in zip(stiffened, least.case, strict=True)
+    )
+    density = np.array([m.density for m in (*rm, *tm)])
+    tendon_length = np.linalg.norm(
+        s.node_position[s.tendon_nodes[:, 1]] - s.node_position[s.tendon_nodes[:, 0]], axis=1
+    )
+    mass = density * np.concatenate([s.rod_length, tendon_length]) * area
+    moved = [
+        float(np.max(np.linalg.norm(eq.node_position - s.node_position, axis=-1), initial=0.0))
+        for eq in equilibria
+    ]
+    return Sizing(
+        structure=sized,
+        members=members,
+        cases=tuple(names),
+        rod_area=area[:R],
+        tendon_area=area[R:],
+        rod_mass=mass[:R],
+        tendon_mass=mass[R:],
+        rod_compression=C.reshape(-1, R),
+        tendon_tension=T.reshape(-1, S),
+        utilisation=utilisation(
+            s,
+            members,
+            tension=T.reshape(-1, S),
+            compression=C.reshape(-1, R),
+            safety_factor=safety_factor,
+        ),
+        iterations=iteration,
+        message=message,
+        statics="equilibrium",
+        governs=governs,
+        governing_case=governing_case,
+        equilibria=tuple(equilibria),
+        displacement=np.array(moved),
+    )
