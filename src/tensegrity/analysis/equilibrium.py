@@ -732,7 +732,7 @@ def _descend(structure, q, rest, external_force, gravity, eckart, max_iter=500):
         if Z is not None:
             grad, H = Z.T @ grad, Z.T @ H @ Z
         lam, V = np.linalg.eigh(H)
-        floor = 1e-8 * max(np.max(np.abs(lam), initial=0.0), 1e-300)
+        floor = 1e-8 * max(np.max(np.abs(lam), initial=0.0), k_mean * length**2)
         reduced = -V @ ((V.T @ grad) / np.maximum(np.abs(lam), floor))
         step = reduced if Z is None else Z @ reduced
         scale = np.concatenate(

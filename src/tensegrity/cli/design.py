@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from tensegrity.cli import arguments
+from tensegrity.cli import arguments, structures
 from tensegrity.cli.errors import EXIT_FAILED, CommandError, blame, one_line
 from tensegrity.cli.startup import announce_compiling
 from tensegrity.io.files import atomic_path, shown_path, write_staged
@@ -95,6 +95,7 @@ def _shape(text: str) -> float | None:
 
 def add_parsers(sub: Any) -> None:
     """Add the ``design`` verb to the ``tensegrity`` subcommands ``sub``."""
+    from tensegrity.design.loaded import STATICS
     from tensegrity.design.materials import MATERIALS
 
     names = ", ".join(sorted(MATERIALS))
@@ -103,8 +104,22 @@ def add_parsers(sub: Any) -> None:
         help="minimal-mass rods and tendons under yield and buckling for load cases",
         description=__doc__.splitlines()[0] if __doc__ else None,
     )
+    structures.add_source_options(p)
     p.add_argument(
-        "--structure", type=Path, required=True, help="geometry and topology (a structure file)"
+        "--statics",
+        choices=STATICS,
+        default="auto",
+        help="the members' forces: at the given geometry (linear: a statically determinate or "
+        "stiff structure), at each load case's loaded equilibrium (equilibrium: a tensegrity "
+        "stiffened by its prestress), or auto: linear unless the structure has a mechanism "
+        "(default %(default)s)",
+    )
+    p.add_argument(
+        "--form-find",
+        action="store_true",
+        help="size at the structure's own unloaded equilibrium (its rest lengths and "
+        "stiffness; e.g. a generated shell, whose layout is not one) instead of its node "
+        "positions",
     )
     p.add_argument(
         "--material",
@@ -179,17 +194,18 @@ def add_parsers(sub: Any) -> None:
 
 
 def _cmd_design(args: argparse.Namespace) -> int:
-    from tensegrity.design.files import read_design
+    from tensegrity.design.loaded import size
     from tensegrity.design.materials import member_table
-    from tensegrity.design.sizing import LoadCase, size_members
+    from tensegrity.design.sizing import LoadCase
     from tensegrity.io.formats import write_structure
 
     if args.out.exists() and not args.out.is_dir():
         raise CommandError(f"--out: {shown_path(args.out)} is a file, expected a folder")
     with blame("--material", None):
         rod_material, tendon_material = parse_materials(args.material)
-    with blame("--structure", args.structure):
-        structure = read_design(args.structure).structure  # its geometry and topology
+    structure = structures.source_of(args).structure  # its geometry and topology
+    if args.form_find:
+        structure = _form_found(structure)
     d = structure.dim
     forces: dict[str, np.ndarray] = {}
     for case, node, force in args.load:
@@ -209,8 +225,9 @@ def _cmd_design(args: argparse.Namespace) -> int:
     if not cases and not args.prestress:
         raise CommandError("--load: give at least one load case (or --prestress N > 0)")
     try:
-        sizing = size_members(
+        sizing = size(
             structure,
+            statics=args.statics,
             rod_material=rod_material,
             tendon_material=tendon_material,
             load_cases=cases,
@@ -226,7 +243,10 @@ def _cmd_design(args: argparse.Namespace) -> int:
     dynamic = _dynamic(args, sizing, cases)
     report = sizing.to_dict() | {
         "settings": dict(
-            structure=str(args.structure),
+            structure=None if args.structure is None else str(args.structure),
+            kind=None if args.structure is not None else args.kind or "shell",
+            statics=sizing.statics,
+            form_find=args.form_find,
             rod_material=rod_material.name,
             tendon_material=tendon_material.name,
             section="solid" if args.section is None else f"tube, t/D = {args.section:g}",
@@ -254,10 +274,14 @@ def _cmd_design(args: argparse.Namespace) -> int:
         f"total mass {sizing.total_mass:.6g} kg (rods {sizing.rod_mass.sum():.6g} kg, tendons "
         f"{sizing.tendon_mass.sum():.6g} kg); {sizing.message}"
     )
+    moves = [] if sizing.displacement is None else sizing.displacement.tolist()
+    shown = dict(zip(sizing.cases[::-1], moves[::-1], strict=False))
     for k, case in enumerate(sizing.cases):
         rod = u.rod[k].max(initial=0.0)
         tendon = u.tendon[k].max(initial=0.0)
-        print(f"case {case!r}: largest utilisation rods {rod:.4g}, tendons {tendon:.4g}")
+        moved = f", largest displacement {shown[case]:.4g} m" if case in shown else ""
+        print(f"case {case!r}: largest utilisation rods {rod:.4g}, tendons {tendon:.4g}{moved}")
+    print(_governing(sizing))
     failing = []
     dynamic = dynamic or {"cases": []}
     for case in dynamic["cases"]:
@@ -278,6 +302,47 @@ def _cmd_design(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
     return 0
+
+
+def _governing(sizing: Any) -> str:
+    """One line: how many members each constraint governs (``--min-area`` and ``stability``
+    named), and the statics used."""
+    counts: dict[str, int] = {}
+    for what in sizing.governs:
+        counts[what] = counts.get(what, 0) + 1
+    words = {
+        "yield": "yield",
+        "buckling": "buckling",
+        "min_area": "the least area (--min-area)",
+        "stability": "stability (tendons stiffened against a limit point)",
+    }
+    parts = [f"{n} by {words[what]}" for what, n in counts.items()]
+    statics = {
+        "linear": "forces at the given geometry",
+        "equilibrium": "forces at each case's loaded equilibrium",
+    }[sizing.statics]
+    return f"members governed: {', '.join(parts)} ({statics})"
+
+
+def _form_found(structure: Any) -> Any:
+    """``--form-find``: ``structure`` at its own stable unloaded equilibrium, all tendons taut;
+    a one-line error otherwise."""
+    from tensegrity.analysis.equilibrium import find_equilibrium
+    from tensegrity.analysis.linearize import linearize
+    from tensegrity.analysis.modes import modal_analysis
+
+    found = find_equilibrium(structure)
+    if not found.converged:
+        raise CommandError(f"--form-find: no equilibrium found ({found.message})", EXIT_FAILED)
+    if found.slack.any():
+        raise CommandError(
+            "--form-find: the equilibrium found has slack tendons "
+            f"({', '.join(found.slack_names[:5])}): no prestress in them to size",
+            EXIT_FAILED,
+        )
+    if not modal_analysis(linearize(structure, found)).stable:
+        raise CommandError("--form-find: the equilibrium found is not stable", EXIT_FAILED)
+    return structure.replace(node_position=found.node_position)
 
 
 def _dynamic(args: argparse.Namespace, sizing: Any, cases: list[Any]) -> dict[str, Any] | None:

@@ -39,6 +39,32 @@ def damping_kind(text: str) -> str | float:
 
 
 def add_structure_options(parser: argparse.ArgumentParser) -> None:
+    """The structure options: a file or a generated structure (:func:`add_source_options`),
+    and members by material and section."""
+    group = add_source_options(parser)
+    group.add_argument(
+        "--material",
+        metavar="ROD[,TENDON]",
+        help="members of these table materials (with --section): tendon stiffness E A / Lbar, "
+        "rod mass rho A L, each taut tendon's tension at the start kept (its rest length "
+        "changed); a file in the material form gives its own (docs/design.md)",
+    )
+    group.add_argument(
+        "--section",
+        metavar="ROD,TENDON",
+        help="with --material: the rods' rod:D or tube:D:T and the tendons' cable:D, in mm "
+        "(e.g. tube:40:2,cable:3)",
+    )
+    group.add_argument(
+        "--tendon-mass",
+        action="store_true",
+        help="with --material: add the tendons' own mass rho A Lbar to their end nodes",
+    )
+
+
+def add_source_options(parser: argparse.ArgumentParser) -> argparse._ArgumentGroup:
+    """``--structure FILE`` or a generated structure (``--kind``, ``--n``, ``--set``, ...);
+    returns the group they are in."""
     from tensegrity.design.catalogue import KINDS
 
     group = parser.add_argument_group("structure (default: the paper's (3,1) class 1 shell)")
@@ -80,24 +106,7 @@ def add_structure_options(parser: argparse.ArgumentParser) -> None:
         help="any other option of the generator, e.g. tension=8 or overlap=0.2 "
         "(repeatable; see the generator's docstring)",
     )
-    group.add_argument(
-        "--material",
-        metavar="ROD[,TENDON]",
-        help="members of these table materials (with --section): tendon stiffness E A / Lbar, "
-        "rod mass rho A L, each taut tendon's tension at the start kept (its rest length "
-        "changed); a file in the material form gives its own (docs/design.md)",
-    )
-    group.add_argument(
-        "--section",
-        metavar="ROD,TENDON",
-        help="with --material: the rods' rod:D or tube:D:T and the tendons' cable:D, in mm "
-        "(e.g. tube:40:2,cable:3)",
-    )
-    group.add_argument(
-        "--tendon-mass",
-        action="store_true",
-        help="with --material: add the tendons' own mass rho A Lbar to their end nodes",
-    )
+    return group
 
 
 def _assignment(text: str) -> tuple[str, object]:
@@ -142,6 +151,12 @@ def structure_of(args: argparse.Namespace) -> Structure:
 def designed_of(args: argparse.Namespace) -> Designed:
     """The structure the options describe and its members' design (a file in the material
     form, or ``--material`` and ``--section``; None otherwise)."""
+    return _with_materials(args, source_of(args))
+
+
+def source_of(args: argparse.Namespace) -> Designed:
+    """The structure :func:`add_source_options` describe (a file in either form, or a generated
+    one) and its members' design (None unless a file in the material form gives it)."""
     from tensegrity.design.files import Designed
 
     flags = {
@@ -162,7 +177,7 @@ def designed_of(args: argparse.Namespace) -> Designed:
         designed = _read_designed(args.structure, "--structure")
     else:
         designed = Designed(_generated(args.kind or "shell", flags, args.set or ()), None)
-    return _with_materials(args, designed)
+    return designed
 
 
 def _with_materials(args: argparse.Namespace, designed: Designed) -> Designed:

@@ -28,6 +28,7 @@ Rods are rigid in the model: their areas change only the weight.
 
 from __future__ import annotations
 
+import contextlib
 import math
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -43,14 +44,24 @@ from tensegrity.design.sizing import (
     Sizing,
     buckling_coefficient,
     checked_cases,
+    equilibrium_rows,
     least_areas,
+    nodal_equilibrium_matrix,
     size_members,
     sized_structure,
 )
 from tensegrity.design.utilisation import utilisation
 from tensegrity.model.structure import Structure
 
-__all__ = ["LoadPathError", "follow_load", "size_at_equilibrium"]
+__all__ = [
+    "STATICS",
+    "LoadPathError",
+    "follow_load",
+    "mechanism_count",
+    "size",
+    "size_at_equilibrium",
+    "unheld_load",
+]
 
 #: The most a load step may move a node [rod lengths]: a longer jump is taken for a jump to
 #: another branch of equilibria, and the step is halved.
@@ -94,34 +105,42 @@ def follow_load(
     From ``start`` (6R,) coordinates of a nearby loaded equilibrium (e.g. of the same structure
     with other areas) the full load is tried first.  Otherwise, or if that fails, the load grows
     from 0 in ``steps`` equal steps, each solved from the last (least squares, no descent: the
-    nearest equilibrium) and accepted if it converged, is stable and moved no node more than
-    :data:`MAX_STEP_MOVE` rod lengths; a rejected step is halved, and doubled again after a
-    success.
+    nearest equilibrium; if that fails, as from tendons exactly at their rest length, after a
+    descent of the potential energy) and accepted if it converged, is stable and moved no node
+    more than :data:`MAX_STEP_MOVE` rod lengths; a rejected step is halved, and doubled again
+    after a success.
 
     Raises
     ------
     LoadPathError
         If a step below :data:`MIN_LOAD_STEP` of the load is rejected (a limit point), or the
-        unloaded structure is not stable.
+        unloaded structure is not at an equilibrium.  (Its stability is not asked: a structure
+        without prestress may be stiffened by the load itself.)
     """
     length = float(np.mean(structure.rod_length)) if structure.n_rods else 1.0
 
     def solve(q: np.ndarray | None, factor: float) -> EquilibriumResult:
-        return find_equilibrium(
-            structure,
-            q,
-            external_force=_scaled(case.force, factor),
-            gravity=_scaled(case.gravity, factor),
-            descend=False,
-        )
+        found = None
+        for descend in (False, True):  # the nearest root; else down the energy (a slack start)
+            found = find_equilibrium(
+                structure,
+                q,
+                external_force=_scaled(case.force, factor),
+                gravity=_scaled(case.gravity, factor),
+                descend=descend,
+            )
+            if found.converged:
+                break
+        assert found is not None
+        return found
 
     if start is not None:
         eq = solve(start, 1.0)
         if eq.converged and _stable(structure, eq):
             return eq, 1
     unloaded = solve(None, 0.0)
-    if not (unloaded.converged and _stable(structure, unloaded)):
-        raise LoadPathError(case.name, 0.0, "the unloaded structure is not stable")
+    if not unloaded.converged:
+        raise LoadPathError(case.name, 0.0, "the unloaded structure is not at an equilibrium")
     reached, step, last, taken = 0.0, 1.0 / steps, unloaded, 0
     while reached < 1.0:
         factor = min(1.0, reached + step)
@@ -234,15 +253,6 @@ def size_at_equilibrium(
     loads = [c for c in cases if c.name != "prestress"]
     if not loads:
         raise ValueError("load_cases: give at least one load case to size at its equilibrium")
-    options = dict(
-        rod_material=rod_material,
-        tendon_material=tendon_material,
-        wall_ratio=wall_ratio,
-        safety_factor=safety_factor,
-        strength_factor=strength_factor,
-        min_area=min_area,
-        tendon_mass=tendon_mass,
-    )
     rm = per_member(rod_material, s.n_rods, "rod_material", Material)
     tm = per_member(tendon_material, s.n_tendons, "tendon_material", Material)
     strength = np.array([m.yield_strength for m in (*rm, *tm)]) / strength_factor
@@ -253,13 +263,42 @@ def size_at_equilibrium(
         safety_factor=safety_factor,
     )
     R, S = s.n_rods, s.n_tendons
+
+    def linear(cases: Sequence[LoadCase]) -> Sizing:
+        return size_members(
+            s,
+            rod_material=rm,
+            tendon_material=tm,
+            load_cases=cases,
+            prestress=prestress,
+            wall_ratio=wall_ratio,
+            safety_factor=safety_factor,
+            strength_factor=strength_factor,
+            min_area=min_area,
+            tendon_mass=tendon_mass,
+        )
+
+    C0, T0 = np.zeros(R), np.zeros(S)
+    first: Sizing | None = None
     if prestress > 0:
-        pre = size_members(s, load_cases=(), prestress=prestress, **options)  # type: ignore[arg-type]
-        C0, T0 = pre.rod_compression[0], pre.tendon_tension[0]
-        area = np.concatenate([pre.rod_area, pre.tendon_area])
-    else:
-        C0, T0 = np.zeros(R), np.zeros(S)
-        area = np.full(R + S, min_area)
+        first = linear(())
+        C0, T0 = first.rod_compression[0], first.tendon_tension[0]
+    # the first areas: the linear sizing's if it carries the loads, else the prestress's
+    with contextlib.suppress(ValueError):
+        first = linear(loads)
+    area = (
+        np.full(R + S, min_area)
+        if first is None
+        else np.concatenate([first.rod_area, first.tendon_area])
+    )
+    for case in loads:
+        power = unheld_load(s, case)
+        if power > 1e-9 * max(unheld_scale(s, case), 1e-300):
+            raise ValueError(
+                f"load case {case.name!r}: cannot be carried: the supports leave the structure "
+                f"free to move under it ({power:.3g} N net along a rigid-body motion); fix "
+                "nodes (e.g. --fixed-base) or balance the load"
+            )
     names = [c.name for c in cases]
     starts: list[np.ndarray | None] = [None] * len(loads)
 
@@ -354,3 +393,91 @@ def size_at_equilibrium(
         equilibria=tuple(equilibria),
         displacement=np.array(moved),
     )
+
+
+def nodal_load(structure: Structure, case: LoadCase) -> np.ndarray:
+    """``case``'s nodal forces (N, dim) [N]: its forces and the weight of the structure's masses
+    (half of each rod's at each end, and the point masses)."""
+    N, d = structure.node_position.shape
+    load = np.zeros((N, d)) if case.force is None else case.force.copy()
+    if case.gravity is not None:
+        mass = structure.node_point_mass.copy()
+        np.add.at(mass, structure.rod_nodes.ravel(), np.repeat(structure.rod_mass / 2, 2))
+        load += mass[:, None] * case.gravity
+    return load
+
+
+def unheld_scale(structure: Structure, case: LoadCase) -> float:
+    """The size of ``case``'s nodal loads [N] (the sum of their magnitudes) that
+    :func:`unheld_load` is measured against."""
+    return float(np.linalg.norm(nodal_load(structure, case), axis=1).sum())
+
+
+def unheld_load(structure: Structure, case: LoadCase) -> float:
+    """The largest power [W per m/s] of ``case``'s loads (its forces and the weight of the
+    structure's masses) on a rigid-body motion the supports leave free (unit speed of the
+    nodes, root mean square): 0 when the supports hold the structure against the load's net
+    force and moment, > 0 when no equilibrium can exist."""
+    p = structure.node_position
+    N, d = p.shape
+    load = nodal_load(structure, case)
+    centre = p.mean(axis=0)
+    fields = [np.tile(np.eye(d)[a], (N, 1)) for a in range(d)]  # translations
+    for a, b in [(0, 1)] if d == 2 else [(1, 2), (2, 0), (0, 1)]:  # rotations
+        field = np.zeros((N, d))
+        field[:, a], field[:, b] = -(p[:, b] - centre[b]), p[:, a] - centre[a]
+        fields.append(field)
+    B = np.stack([f.ravel() for f in fields], axis=1)  # (N d, rigid motions)
+    P = equilibrium_rows(structure).toarray()
+    if P.shape[0]:
+        Q, _ = np.linalg.qr(P.T)
+        outside = B - Q @ (Q.T @ B)  # the part of each motion the supports forbid
+    else:
+        outside = B
+    _, sv, vt = np.linalg.svd(outside)
+    scale = max(float(np.linalg.norm(B, axis=0).max()), 1e-300)
+    free = vt[np.count_nonzero(sv > 1e-9 * scale) :].T  # combinations the supports allow
+    if free.size == 0:
+        return 0.0
+    U = B @ free
+    U /= np.linalg.norm(U, axis=0) / math.sqrt(N)
+    return float(np.max(np.abs(load.ravel() @ U)))
+
+
+#: The ways :func:`size` finds the members' forces.
+STATICS = ("auto", "linear", "equilibrium")
+
+
+def mechanism_count(structure: Structure) -> int:
+    """The number of independent infinitesimal mechanisms (and rigid-body motions the supports
+    leave) of ``structure`` at its node positions: the load patterns no member forces balance
+    there, ``rows - rank`` of the equilibrium matrix ``P H``
+    (:func:`~tensegrity.design.sizing.equilibrium_rows`, ``nodal_equilibrium_matrix``)."""
+    P = equilibrium_rows(structure)
+    H = np.hstack(nodal_equilibrium_matrix(structure))
+    PH = np.asarray(P @ H)
+    if PH.size == 0:
+        return int(PH.shape[0])
+    sv = np.linalg.svd(PH, compute_uv=False)
+    return int(PH.shape[0] - np.count_nonzero(sv > 1e-9 * sv[0]))
+
+
+def size(structure: Structure, *, statics: str = "auto", **options: Any) -> Sizing:
+    """Members sized under a prestress and load cases, by the linear sizing
+    (:func:`~tensegrity.design.sizing.size_members`, ``statics="linear"``: equilibrium at the
+    given geometry) or at each case's loaded equilibrium (:func:`size_at_equilibrium`,
+    ``"equilibrium"``).  ``"auto"``: linear when the structure has no mechanism
+    (:func:`mechanism_count` 0: every load is balanced at the given geometry, as for a
+    statically determinate or stiff structure), at the loaded equilibrium otherwise (a
+    tensegrity stiffened by its prestress).  ``options``: the keywords of the chosen function
+    (``rtol``, ``load_steps`` for the equilibrium only)."""
+    if statics not in STATICS:
+        raise ValueError(f"statics: expected one of {', '.join(STATICS)}, got {statics!r}")
+    if statics == "auto":
+        statics = "equilibrium" if mechanism_count(structure) else "linear"
+    if statics == "linear":
+        for name in ("rtol", "load_steps"):
+            if name in options:
+                raise ValueError(f"{name}: only for sizing at the loaded equilibrium")
+        return size_members(structure, **options)
+    return size_at_equilibrium(structure, **options)

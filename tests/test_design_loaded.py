@@ -1,0 +1,257 @@
+"""Sizing at the loaded equilibrium (``design.loaded``): a fixed-base prism under top loads and
+its own weight, checked at an equilibrium found independently (a damped simulation to rest); a
+statically determinate structure, whose forces are fixed by the statics of the geometry it
+deforms to; limit points and loads the supports cannot hold refused in one line."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from tensegrity.analysis.equilibrium import equilibrium_by_simulation, find_equilibrium
+from tensegrity.analysis.linearize import linearize
+from tensegrity.analysis.modes import modal_analysis
+from tensegrity.cli.main import main
+from tensegrity.design.catalogue import prism
+from tensegrity.design.loaded import (
+    LoadPathError,
+    _stiffened,
+    follow_load,
+    mechanism_count,
+    size,
+    size_at_equilibrium,
+    unheld_load,
+)
+from tensegrity.design.materials import material
+from tensegrity.design.sizing import LoadCase, size_members
+from tensegrity.design.utilisation import utilisation
+from tensegrity.io.formats import write_structure
+from tensegrity.model.structure import Structure
+
+GRAVITY = np.array([0.0, 0.0, -9.81])
+STEEL, DYNEEMA = material("steel"), material("dyneema")
+RTOL = 1e-6  # size_at_equilibrium's default
+
+
+def _fixed_base_prism(**options) -> Structure:
+    s = prism(3, **options)
+    return s.replace(node_fixed=np.arange(6) < 3)
+
+
+def _top_load(P: float) -> np.ndarray:
+    w = np.zeros((6, 3))
+    w[3:, 2] = -P
+    return w
+
+
+@pytest.fixture(scope="module")
+def sized_prism():
+    s = _fixed_base_prism()
+    case = LoadCase("top", _top_load(100.0), GRAVITY)
+    sizing = size_at_equilibrium(
+        s, rod_material=STEEL, tendon_material=DYNEEMA, load_cases=[case], prestress=50.0
+    )
+    return s, case, sizing
+
+
+def test_the_linear_sizing_refuses_the_loaded_prism_and_counts_its_mechanism():
+    s = _fixed_base_prism()
+    assert mechanism_count(s) == 1  # the twist-and-sink mechanism; free: 6 rigid motions more
+    assert mechanism_count(prism(3)) == 7
+    with pytest.raises(ValueError, match="no member forces balance it"):
+        size_members(
+            s,
+            rod_material=STEEL,
+            tendon_material=DYNEEMA,
+            load_cases=[LoadCase("top", _top_load(100.0), GRAVITY)],
+            prestress=50.0,
+        )
+
+
+def test_the_prism_is_sized_at_its_loaded_equilibrium(sized_prism):
+    s, _, sizing = sized_prism
+    assert sizing.statics == "equilibrium"
+    assert sizing.message.startswith("converged after")
+    assert sizing.cases == ("prestress", "top")
+    u = sizing.utilisation
+    assert u.largest <= 1 + 2 * RTOL
+    for k in range(2):  # a member at its limit in every case
+        assert max(u.rod[k].max(), u.tendon[k].max()) == pytest.approx(1.0, abs=2 * RTOL)
+    # fully stressed: every member is at 1 in the case that governs it
+    governing = np.concatenate([u.rod.max(axis=0), u.tendon.max(axis=0)])
+    np.testing.assert_allclose(governing, 1.0, atol=2 * RTOL)
+    assert set(sizing.governs) == {"yield", "buckling"}
+    assert sizing.governs[:3] == ("buckling",) * 3  # the rods
+    # the prestress is held at the given geometry, which the load moves
+    assert sizing.tendon_tension[0].min() == pytest.approx(50.0, rel=1e-9)
+    top = sizing.equilibria[0].node_position[3:, 2]
+    assert np.all(top < s.node_position[3:, 2] - 0.01)
+    assert sizing.displacement[0] == pytest.approx(
+        np.linalg.norm(sizing.equilibria[0].node_position - s.node_position, axis=1).max()
+    )
+    # the sized structure's rods weigh what their areas make, and carry the weight
+    np.testing.assert_allclose(
+        sizing.structure.rod_mass, 7850.0 * sizing.rod_area * s.rod_length, rtol=1e-12
+    )
+
+
+def test_a_damped_simulation_to_rest_finds_the_same_loaded_state(sized_prism):
+    """The independent check: the sized structure, loaded and damped to rest by the engine
+    (no least squares, no reduced coordinates), is where the sizing put it, and every member
+    is within its limits there, one at its limit."""
+    _, case, sizing = sized_prism
+    rest = equilibrium_by_simulation(
+        sizing.structure, external_force=case.force, gravity=case.gravity, t_end=20.0
+    )
+    assert rest.converged
+    expected = sizing.equilibria[0]
+    assert np.abs(rest.node_position - expected.node_position).max() < 1e-7
+    u = utilisation(
+        sizing.structure, sizing.members, tension=rest.tension, compression=rest.rod_compression
+    )
+    assert u.largest <= 1 + 1e-5
+    assert u.largest >= 1 - 1e-5
+
+
+def test_a_statically_determinate_structure_gets_the_statics_of_its_deformed_geometry():
+    """For the crane (a pinned rod held by two tendons) forces follow from statics alone: the
+    areas sized at the loaded equilibrium are those the linear sizing gives at the geometry
+    the structure deforms to (an LP on the nodal equilibrium matrix, no shared solver); and
+    ``size(statics="auto")`` keeps the linear sizing for it, the same as today."""
+    s = Structure(
+        node_position=[[0, 0, 0], [1, 0, 0], [0, 1, 1], [0, -1, 1]],
+        rod_nodes=[[0, 1]],
+        rod_mass=[1.0],
+        rod_length=[1.0],
+        tendon_nodes=[[1, 2], [1, 3]],
+        tendon_stiffness=[1.0, 1.0],
+        tendon_rest_length=[1.0, 1.0],
+        node_fixed=[True, False, True, True],
+    )
+    w = np.zeros((4, 3))
+    w[1] = [0, 300.0, -1000.0]
+    options = dict(rod_material=STEEL, tendon_material=DYNEEMA, load_cases=[LoadCase("d", w)])
+    assert mechanism_count(s) == 0
+    linear = size_members(s, **options)
+    auto = size(s, **options)
+    assert auto.statics == "linear"
+    np.testing.assert_array_equal(auto.tendon_area, linear.tendon_area)
+    np.testing.assert_array_equal(auto.rod_area, linear.rod_area)
+    loaded = size(s, statics="equilibrium", **options)
+    moved = loaded.equilibria[0].node_position
+    assert np.abs(moved - s.node_position).max() > 1e-3  # the tendons stretch (Dyneema, ~3 %)
+    at_moved = size_members(s.replace(node_position=moved), **options)
+    np.testing.assert_allclose(loaded.tendon_area, at_moved.tendon_area, rtol=3 * RTOL)
+    np.testing.assert_allclose(loaded.rod_area, at_moved.rod_area, rtol=3 * RTOL)
+    # and the deformation matters: at the given geometry the areas differ by more
+    assert np.abs(loaded.tendon_area / linear.tendon_area - 1).max() > 100 * RTOL
+
+
+def test_a_limit_point_ends_the_load_path_where_the_prism_loses_its_prestress():
+    """The default prism (k = 100 N/m, 5 N of mean prestress) under 100 N on each top node
+    snaps through (found at rest inverted, its top below its base).  The path stops where the
+    load has taken the tension out of the side strings, whose prestress is what stiffens the
+    prism's mechanism: a little more load and they go slack, and the equilibrium near the path
+    is unstable."""
+    s = _fixed_base_prism()
+    case = LoadCase("top", _top_load(100.0))
+    with pytest.raises(LoadPathError) as caught:
+        follow_load(s, case)
+    reached = caught.value.reached
+    assert 0.2 < reached < 0.3
+    assert str(caught.value).startswith("load case 'top': no stable equilibrium near the path at")
+    side = [s.tendon_name.index(f"s{i}") for i in range(3)]
+    at_rest, _ = follow_load(s, LoadCase("none", 0 * case.force))
+    at_limit, _ = follow_load(s, LoadCase("limit", reached * case.force))
+    assert np.all(at_rest.tension[side] > 4.0)
+    assert np.all(at_limit.tension[side] < 0.05 * at_rest.tension[side])
+    beyond = find_equilibrium(
+        s, at_limit.q, external_force=(reached + 0.01) * case.force, descend=False
+    )
+    assert np.all(beyond.tension[side] < 1e-3 * at_rest.tension[side])
+    assert not (beyond.converged and modal_analysis(linearize(s, beyond)).stable)
+    # a load a little below the limit is carried, stably
+    follow_load(s, LoadCase("below", 0.9 * reached * case.force))
+
+
+def test_loads_the_supports_cannot_hold_are_refused_in_one_line():
+    free = prism(3)
+    case = LoadCase("top", _top_load(100.0))
+    assert unheld_load(free, case) > 1.0  # its weight-free load pushes it down
+    assert unheld_load(_fixed_base_prism(), case) == 0.0
+    balanced = np.zeros((6, 3))
+    balanced[3], balanced[4] = [0, 0, -100.0], [0, 0, 100.0]  # no net force, a net moment
+    assert unheld_load(free, LoadCase("pair", balanced)) > 1.0
+    with pytest.raises(ValueError, match="the supports leave the structure free to move"):
+        size_at_equilibrium(
+            free, rod_material=STEEL, tendon_material=DYNEEMA, load_cases=[case], prestress=5.0
+        )
+
+
+def test_a_prism_without_prestress_is_stiffened_by_its_load():
+    """Without prestress the prism's mechanism has no stiffness at the given geometry, but a
+    load pressing its top twists it until the strings are taut: the load path is stable, and
+    the strings carry the load there (their tensions balance it, summed over the top)."""
+    s = _fixed_base_prism()
+    w = _top_load(10.0)
+    sizing = size_at_equilibrium(
+        s, rod_material=STEEL, tendon_material=DYNEEMA, load_cases=[LoadCase("top", w)]
+    )
+    eq = sizing.equilibria[0]
+    assert sizing.cases == ("top",) and eq.converged
+    assert np.all(eq.tension[[s.tendon_name.index(f"s{i}") for i in range(3)]] > 1.0)
+    assert modal_analysis(linearize(sizing.structure, eq)).stable
+    assert eq.node_position[3:, 2].max() < s.node_position[3:, 2].min() - 1e-3
+
+
+def test_a_limit_point_no_stiffening_removes_is_one_line():
+    def always_fails(area):
+        raise LoadPathError("top", 0.25, "no stable equilibrium near the path")
+
+    first = LoadPathError("top", 0.5, "no stable equilibrium near the path")
+    with pytest.raises(LoadPathError) as caught:
+        _stiffened(always_fails, np.ones(4), 1, first)
+    assert str(caught.value) == (
+        "load case 'top': no stable equilibrium near the path even with tendons 1.05e+06 times "
+        "the area at 0.5 of its load (a limit point: the structure would snap through); raise "
+        "the prestress, or change the geometry"
+    )
+
+
+def test_the_cli_sizes_the_prism_at_its_loaded_equilibrium(tmp_path, capsys, sized_prism):
+    s, _, sizing = sized_prism
+    path = write_structure(tmp_path / "prism.json", s)
+    out = tmp_path / "out"
+    argv = ["design", "--structure", str(path), "--material", "steel,dyneema"]
+    argv += ["--prestress", "50", "--gravity", "9.81", "-o", str(out)]
+    argv += [f"--load=top:{k}:0,0,-100" for k in (3, 4, 5)]
+    assert main(argv) == 0
+    text = capsys.readouterr().out
+    assert "forces at each case's loaded equilibrium" in text
+    assert "members governed: 3 by buckling, 9 by yield" in text
+    report = json.loads((out / "design.json").read_text())
+    assert report["statics"] == "equilibrium"
+    assert report["settings"]["statics"] == "equilibrium"
+    assert report["largest_displacement_m"]["top"] == pytest.approx(sizing.displacement[0])
+    assert report["total_mass_kg"] == pytest.approx(sizing.total_mass, rel=1e-12)
+    assert [r["governed_by"] for r in report["rods"]] == ["buckling"] * 3
+    # --statics linear refuses it as before: one line, exit 2, nothing written
+    again = tmp_path / "again"
+    linear = [str(again) if a == str(out) else a for a in argv] + ["--statics", "linear"]
+    assert main(linear) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "no member forces balance it" in err
+    assert not again.exists()
+
+
+def test_the_least_area_governing_is_reported(tmp_path, capsys):
+    s = _fixed_base_prism()
+    path = write_structure(tmp_path / "prism.json", s)
+    argv = ["design", "--structure", str(path), "--material", "steel,dyneema"]
+    argv += ["--prestress", "50", "--min-area", "1e-3", "-o", str(tmp_path / "out")]
+    argv += [f"--load=top:{k}:0,0,-100" for k in (3, 4, 5)]
+    assert main(argv) == 0
+    text = capsys.readouterr().out
+    assert "members governed: 12 by the least area (--min-area)" in text
