@@ -14,7 +14,7 @@ from tensegrity.analysis.equilibrium import equilibrium_by_simulation, find_equi
 from tensegrity.analysis.linearize import linearize
 from tensegrity.analysis.modes import modal_analysis
 from tensegrity.cli.main import main
-from tensegrity.design.catalogue import prism
+from tensegrity.design.catalogue import prism, tower
 from tensegrity.design.loaded import (
     LoadPathError,
     _stiffened,
@@ -25,7 +25,7 @@ from tensegrity.design.loaded import (
     unheld_load,
 )
 from tensegrity.design.materials import material
-from tensegrity.design.sizing import LoadCase, size_members
+from tensegrity.design.sizing import LoadCase, size_members, sized_structure
 from tensegrity.design.utilisation import utilisation
 from tensegrity.io.formats import write_structure
 from tensegrity.model.structure import Structure
@@ -204,6 +204,82 @@ def test_a_prism_without_prestress_is_stiffened_by_its_load():
     assert np.all(eq.tension[[s.tendon_name.index(f"s{i}") for i in range(3)]] > 1.0)
     assert modal_analysis(linearize(sizing.structure, eq)).stable
     assert eq.node_position[3:, 2].max() < s.node_position[3:, 2].min() - 1e-3
+
+
+def test_a_path_through_unstable_equilibria_is_refused():
+    """Without prestress and load, the prism stands at an equilibrium (every force is zero)
+    that is not stable (its mechanism meets no stiffness): a path along it is refused."""
+    s = _fixed_base_prism()
+    p = s.node_position
+    s = s.replace(
+        tendon_rest_length=np.linalg.norm(p[s.tendon_nodes[:, 1]] - p[s.tendon_nodes[:, 0]], axis=1)
+    )
+    assert not modal_analysis(linearize(s)).stable
+    with pytest.raises(LoadPathError, match="no stable equilibrium near the path at 0 of"):
+        follow_load(s, LoadCase("none", np.zeros((6, 3))))
+
+
+@pytest.fixture(scope="module")
+def sized_tower():
+    s = tower(3, 3)
+    s = s.replace(node_fixed=np.arange(s.n_nodes) < 3)
+    w = np.zeros((s.n_nodes, 3))
+    w[-3:, 2] = -100.0
+    cases = [LoadCase("gravity", None, GRAVITY), LoadCase("top", w, GRAVITY)]
+    sizing = size_at_equilibrium(
+        s, rod_material=STEEL, tendon_material=DYNEEMA, load_cases=cases, prestress=50.0
+    )
+    return s, cases, sizing
+
+
+def test_tendons_are_stiffened_where_their_force_areas_reach_a_limit_point(sized_tower):
+    """The fixed-base 3-stage tower under its weight and 100 N on each top node: with tendons of
+    the areas their forces need, the top load's path reaches a limit point; the design
+    stiffens them (``stability`` governs) and carries every case on a stable path."""
+    s, cases, sizing = sized_tower
+    assert "stability" in sizing.governs
+    assert {sizing.governing_case[k] for k, g in enumerate(sizing.governs) if g == "stability"} == {
+        "top"
+    }
+    for case in cases:  # the sized structure's paths hold, found afresh
+        follow_load(sizing.structure, case)
+    assert sizing.utilisation.largest <= 1 + 2 * RTOL
+    R = s.n_rods
+    u = np.concatenate([sizing.utilisation.rod.max(axis=0), sizing.utilisation.tendon.max(axis=0)])
+    least = np.maximum(np.concatenate([sizing.rod_area, sizing.tendon_area]) * u, 1e-8)
+    stiffened = np.array([g == "stability" for g in sizing.governs])
+    assert np.all(
+        least[stiffened] < 0.9 * np.concatenate([sizing.rod_area, sizing.tendon_area])[stiffened]
+    )
+    weaker, _ = sized_structure(
+        s,
+        rod_material=[STEEL] * R,
+        tendon_material=[DYNEEMA] * s.n_tendons,
+        rod_area=least[:R],
+        tendon_area=least[R:],
+        wall_ratio=None,
+        prestress_tension=sizing.tendon_tension[0],
+        tendon_mass=False,
+    )
+    follow_load(weaker, cases[0])  # its weight alone is carried
+    with pytest.raises(LoadPathError, match="load case 'top'"):
+        follow_load(weaker, cases[1])
+
+
+def test_a_stiffening_the_final_areas_do_not_need_is_dropped():
+    """The fixed-base prism under 1000 N per top node: the tendons sized for the prestress
+    alone reach a limit point, so the first iteration stiffens them; the areas the forces then
+    need hold the load on their own, and no member is left governed by that first stiffening."""
+    s = _fixed_base_prism()
+    case = LoadCase("top", _top_load(1000.0))
+    options = dict(rod_material=STEEL, tendon_material=DYNEEMA, prestress=50.0)
+    prestressed = size_members(s, **options)
+    with pytest.raises(LoadPathError):
+        follow_load(prestressed.structure, case)
+    sizing = size_at_equilibrium(s, load_cases=[case], **options)
+    assert "stability" not in sizing.governs
+    follow_load(sizing.structure, case)
+    assert sizing.utilisation.largest == pytest.approx(1.0, abs=2 * RTOL)
 
 
 def test_a_limit_point_no_stiffening_removes_is_one_line():

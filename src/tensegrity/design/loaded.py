@@ -163,6 +163,15 @@ def follow_load(
 MAX_DOUBLINGS = 20
 
 
+def _holds(equilibria_at: Callable[[np.ndarray], Any], area: np.ndarray) -> bool:
+    """Whether every load case's path holds (no limit point) with members of areas ``area``."""
+    try:
+        equilibria_at(area)
+    except LoadPathError:
+        return False
+    return True
+
+
 def _stiffened(
     equilibria_at: Callable[[np.ndarray], Any],
     area: np.ndarray,
@@ -342,6 +351,10 @@ def size_at_equilibrium(
         )
         target = np.maximum(least.area, floor)
         change = float(np.max(np.abs(target - area) / target, initial=0.0))
+        if change <= rtol and np.any(floor > least.area) and _holds(equilibria_at, least.area):
+            # the floor came from earlier areas, and the least areas now hold without it
+            floor[:], stability_case = 0.0, None
+            target, change = least.area, math.inf
         if change <= rtol:
             message = f"converged after {iteration} iterations (areas within {change:.2g})"
             break
