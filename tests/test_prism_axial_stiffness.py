@@ -5,10 +5,11 @@ Amendola, J. Mech. Phys. Solids 74 (2015) 136-157, their "rigid-elastic" prism):
 ``n``-bar prism whose bars (length ``b``) and both base polygons (radius ``r``) are rigid, only
 the ``n`` side strings elastic (stiffness ``k``, rest length ``Lbar``); the bottom base held, the
 top free to sink and twist; a total force ``F`` down the axis, shared equally by the top nodes.
-The printed formula could not be read here: the closed form below is derived for exactly this
-model (``docs/design.md``, "Axial stiffness of the prism: a check against the closed form"), and
-checked against the paper's known properties (no load at the twist ``pi/2 - pi/n``; stiffening
-up to the locking height ``sqrt(b^2 - 4 r^2)``, where the bars meet on the axis).
+Only the papers' abstracts could be read here, not their printed formulas: the closed form
+below is derived for exactly this model (``docs/design.md``, "Axial stiffness of the prism: a
+check against the closed form") and has the known properties (no load at the twist
+``pi/2 - pi/n``; stiffening up to the locking height ``sqrt(b^2 - 4 r^2)``, where the bars meet
+on the axis).
 
 The rigid bars and bases leave one motion: the height ``h``, the twist following it.  A bar
 sweeps ``psi`` about the axis, ``cos psi = 1 - (b^2 - h^2) / (2 r^2)``, and a side string
@@ -51,7 +52,7 @@ ROD_LENGTH = 1.0  # b [m]
 HEIGHT = 0.3  # h at no load [m]: a squat prism sinks by up to 48 % before locking
 K_SIDE = 100.0  # side strings [N/m]
 RATIO = 1e6  # ring strings' stiffness over the side strings'
-#: total loads [N]; the top sinks 0, 7, 16, 27 and 33 % (measured)
+#: total loads [N]; the top sinks 0, 7.5, 16, 24 and 33 % (measured)
 LOADS = (0.0, 2.0, 5.0, 10.0, 20.0)
 
 

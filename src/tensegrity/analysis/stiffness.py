@@ -82,7 +82,8 @@ class TangentStiffness:
         source = lin.source
         shape = (source.n_nodes, source.dim)
         if w.shape != shape or not np.all(np.isfinite(w)):
-            raise ValueError(f"{name}: expected finite nodal forces of shape {shape}, got {w.shape}")
+            got = f"shape {w.shape}" if w.shape != shape else "non-finite values"
+            raise ValueError(f"{name}: expected finite nodal forces of shape {shape}, got {got}")
         if not self.modes.stable:
             raise ValueError(
                 f"equilibrium: no unique response to a load increment: {self.modes.verdict}"
