@@ -17,6 +17,7 @@ from tensegrity.cli.main import main
 from tensegrity.design.catalogue import prism, tower
 from tensegrity.design.loaded import (
     LoadPathError,
+    ServiceabilityError,
     _stiffened,
     follow_load,
     mechanism_count,
@@ -244,23 +245,8 @@ def test_tendons_are_stiffened_where_their_force_areas_reach_a_limit_point(sized
     for case in cases:  # the sized structure's paths hold, found afresh
         follow_load(sizing.structure, case)
     assert sizing.utilisation.largest <= 1 + 2 * RTOL
-    R = s.n_rods
-    u = np.concatenate([sizing.utilisation.rod.max(axis=0), sizing.utilisation.tendon.max(axis=0)])
-    least = np.maximum(np.concatenate([sizing.rod_area, sizing.tendon_area]) * u, 1e-8)
-    stiffened = np.array([g == "stability" for g in sizing.governs])
-    assert np.all(
-        least[stiffened] < 0.9 * np.concatenate([sizing.rod_area, sizing.tendon_area])[stiffened]
-    )
-    weaker, _ = sized_structure(
-        s,
-        rod_material=[STEEL] * R,
-        tendon_material=[DYNEEMA] * s.n_tendons,
-        rod_area=least[:R],
-        tendon_area=least[R:],
-        wall_ratio=None,
-        prestress_tension=sizing.tendon_tension[0],
-        tendon_mass=False,
-    )
+    weaker = _at_least_areas(s, sizing)
+    assert np.all(weaker.tendon_stiffness <= sizing.structure.tendon_stiffness * (1 + 2 * RTOL))
     follow_load(weaker, cases[0])  # its weight alone is carried
     with pytest.raises(LoadPathError, match="load case 'top'"):
         follow_load(weaker, cases[1])
@@ -283,6 +269,8 @@ def test_a_stiffening_the_final_areas_do_not_need_is_dropped():
 
 
 def test_a_limit_point_no_stiffening_removes_is_one_line():
+    """The message names the limit as met with the stiffest tendons tried."""
+
     def always_fails(area):
         raise LoadPathError("top", 0.25, "no stable equilibrium near the path")
 
@@ -291,7 +279,7 @@ def test_a_limit_point_no_stiffening_removes_is_one_line():
         _stiffened(always_fails, np.ones(4), 1, first)
     assert str(caught.value) == (
         "load case 'top': no stable equilibrium near the path even with tendons 1.05e+06 times "
-        "the area at 0.5 of its load (a limit point: the structure would snap through); raise "
+        "the area at 0.25 of its load (a limit point: the structure would snap through); raise "
         "the prestress, or change the geometry"
     )
 
@@ -331,3 +319,67 @@ def test_the_least_area_governing_is_reported(tmp_path, capsys):
     assert main(argv) == 0
     text = capsys.readouterr().out
     assert "members governed: 12 by the least area (--min-area)" in text
+
+
+def _at_least_areas(s: Structure, sizing) -> Structure:
+    """The structure of ``sizing``'s members shrunk to the areas their forces need (utilisation
+    1 in their governing case): without the stiffening a limit asked for."""
+    R = s.n_rods
+    area = np.concatenate([sizing.rod_area, sizing.tendon_area])
+    u = np.concatenate([sizing.utilisation.rod.max(axis=0), sizing.utilisation.tendon.max(axis=0)])
+    least = np.maximum(area * u, 1e-8)
+    weaker, _ = sized_structure(
+        s,
+        rod_material=[STEEL] * R,
+        tendon_material=[DYNEEMA] * s.n_tendons,
+        rod_area=least[:R],
+        tendon_area=least[R:],
+        wall_ratio=None,
+        prestress_tension=sizing.tendon_tension[0],
+        tendon_mass=False,
+    )
+    return weaker
+
+
+def test_a_displacement_limit_stiffens_the_tendons_just_enough(sized_prism):
+    """The prism sinks 75 mm under its loads when sized for strength alone; limited to 30 mm,
+    its tendons are stiffened (``displacement`` governs them) to within the search's 2^(1/8)
+    of the limit, and without that stiffening it would sink more than 30 mm."""
+    s, case, strength_only = sized_prism
+    assert strength_only.displacement[0] > 0.07
+    sizing = size_at_equilibrium(
+        s,
+        rod_material=STEEL,
+        tendon_material=DYNEEMA,
+        load_cases=[case],
+        prestress=50.0,
+        max_displacement=0.03,
+    )
+    assert 0.8 * 0.03 < sizing.displacement[0] <= 0.03
+    assert set(sizing.governs[3:]) == {"displacement"} and sizing.governs[:3] == ("buckling",) * 3
+    assert sizing.utilisation.largest <= 1 + 2 * RTOL
+    assert sizing.total_mass > strength_only.total_mass
+    weaker = _at_least_areas(s, sizing)
+    eq, _ = follow_load(weaker, case)
+    assert np.linalg.norm(eq.node_position - s.node_position, axis=1).max() > 0.03
+
+
+def test_a_frequency_limit_needs_prestress_and_the_search_finds_the_least(sized_prism):
+    """The prestressed prism's lowest mode is its mechanism, stiffened only by the prestress:
+    no tendon area raises it (one line saying so), and a prestress range is searched for the
+    lightest design that meets the limit, found at the edge where the limit binds."""
+    s, case, strength_only = sized_prism
+    options = dict(
+        rod_material=STEEL, tendon_material=DYNEEMA, load_cases=[case], min_frequency=14.0
+    )
+    assert strength_only.frequency[0] < 14.0
+    with pytest.raises(ServiceabilityError, match="the prestressed state: lowest natural freq"):
+        size_at_equilibrium(s, prestress=50.0, **options)
+    sizing = size_at_equilibrium(s, prestress=(10.0, 1000.0), **options)
+    assert sizing.frequency.min() >= 14.0
+    assert sizing.frequency.min() < 14.0 * 1.05
+    assert "the lightest of" in sizing.message and 50.0 < sizing.prestress < 1000.0
+    with pytest.raises(ServiceabilityError, match="frequency"):
+        size_at_equilibrium(s, prestress=0.95 * sizing.prestress, **options)
+    heavier = size_at_equilibrium(s, prestress=1.2 * sizing.prestress, **options)
+    assert heavier.total_mass > sizing.total_mass

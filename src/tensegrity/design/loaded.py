@@ -29,15 +29,17 @@ Rods are rigid in the model: their areas change only the weight.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import math
 from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
+import scipy.optimize
 
 from tensegrity.analysis.equilibrium import EquilibriumResult, find_equilibrium
 from tensegrity.analysis.linearize import linearize
-from tensegrity.analysis.modes import modal_analysis
+from tensegrity.analysis.modes import RIGID, modal_analysis
 from tensegrity.design.materials import Material, per_member
 from tensegrity.design.sizing import (
     LoadCase,
@@ -55,8 +57,12 @@ from tensegrity.model.structure import Structure
 
 __all__ = [
     "STATICS",
+    "DesignLimitError",
     "LoadPathError",
+    "ServiceabilityError",
     "follow_load",
+    "largest_displacement",
+    "lowest_frequency",
     "mechanism_count",
     "size",
     "size_at_equilibrium",
@@ -72,16 +78,57 @@ MAX_STEP_MOVE = 0.05
 MIN_LOAD_STEP = 1e-3
 
 
-class LoadPathError(ValueError):
+class DesignLimitError(ValueError):
+    """A design limit that larger members may cure: ``case`` (the load case at fault),
+    ``governs`` (the name of the limit, for the report) and the sentence ``reason``."""
+
+    governs = "limit"
+
+    def __init__(self, case: str, reason: str) -> None:
+        self.case, self.reason = case, reason
+        super().__init__(self.sentence(reason))
+
+    def sentence(self, reason: str) -> str:
+        """The one-line message for ``reason``."""
+        return f"load case {self.case!r}: {reason}"
+
+    def beyond(self, factor: float) -> DesignLimitError:
+        """The same limit, unmet even with the tendons ``factor`` times the area."""
+        failure = type(self).__new__(type(self))
+        failure.__dict__.update(self.__dict__)
+        failure.reason = f"{self.reason} even with tendons {factor:.3g} times the area"
+        ValueError.__init__(failure, failure.sentence(failure.reason))
+        return failure
+
+
+class LoadPathError(DesignLimitError):
     """A load case's path of equilibria ends before the full load: ``case`` (name), ``reached``
     (the last load factor in [0, 1) with a stable equilibrium) and the reason in the message."""
 
+    governs = "stability"
+
     def __init__(self, case: str, reached: float, reason: str) -> None:
-        self.case, self.reached = case, reached
-        super().__init__(
-            f"load case {case!r}: {reason} at {reached:.3g} of its load (a limit point: the "
-            "structure would snap through); raise the prestress, or change the geometry"
+        self.reached = reached
+        super().__init__(case, reason)
+
+    def sentence(self, reason: str) -> str:
+        return (
+            f"load case {self.case!r}: {reason} at {self.reached:.3g} of its load (a limit "
+            "point: the structure would snap through); raise the prestress, or change the geometry"
         )
+
+
+class ServiceabilityError(DesignLimitError):
+    """A serviceability limit unmet: ``governs`` ``"displacement"`` (``max_displacement``) or
+    ``"frequency"`` (``min_frequency``)."""
+
+    def __init__(self, case: str, governs: str, reason: str) -> None:
+        self.governs = governs
+        super().__init__(case, reason)
+
+    def sentence(self, reason: str) -> str:
+        where = "the prestressed state" if self.case == "prestress" else f"load case {self.case!r}"
+        return f"{where}: {reason}; raise the prestress, or relax the limit"
 
 
 def _scaled(load: np.ndarray | None, factor: float) -> np.ndarray | None:
@@ -90,6 +137,21 @@ def _scaled(load: np.ndarray | None, factor: float) -> np.ndarray | None:
 
 def _stable(structure: Structure, eq: EquilibriumResult) -> bool:
     return bool(modal_analysis(linearize(structure, eq)).stable)
+
+
+def largest_displacement(structure: Structure, eq: EquilibriumResult) -> float:
+    """The largest distance [m] of a node of ``eq`` from its place in ``structure``."""
+    moved = np.linalg.norm(eq.node_position - structure.node_position, axis=-1)
+    return float(np.max(moved, initial=0.0))
+
+
+def lowest_frequency(structure: Structure, eq: EquilibriumResult | None = None) -> float:
+    """The lowest natural frequency [Hz] of ``structure`` about the equilibrium ``eq`` (None:
+    its node positions, unloaded): of the modes that are not rigid-body motions, so 0 for a
+    mechanism (:func:`~tensegrity.analysis.modes.modal_analysis`)."""
+    modes = modal_analysis(linearize(structure, eq))
+    free = [f for f, kind in zip(modes.frequency_hz, modes.kind, strict=True) if kind != RIGID]
+    return float(min(free, default=math.inf))
 
 
 def follow_load(
@@ -163,24 +225,25 @@ def follow_load(
 MAX_DOUBLINGS = 20
 
 
-def _holds(equilibria_at: Callable[[np.ndarray], Any], area: np.ndarray) -> bool:
-    """Whether every load case's path holds (no limit point) with members of areas ``area``."""
+def _holds(acceptable: Callable[[np.ndarray], Any], area: np.ndarray) -> bool:
+    """Whether members of areas ``area`` meet every limit :func:`_stiffened` cures."""
     try:
-        equilibria_at(area)
-    except LoadPathError:
+        acceptable(area)
+    except DesignLimitError:
         return False
     return True
 
 
 def _stiffened(
-    equilibria_at: Callable[[np.ndarray], Any],
+    acceptable: Callable[[np.ndarray], Any],
     area: np.ndarray,
     R: int,
-    failure: LoadPathError,
+    failure: DesignLimitError,
 ) -> tuple[np.ndarray, Any]:
     """The areas ``area`` (R + S,) with the tendons' scaled by the least factor (within
-    ``2^(1/8)``: doublings, then three bisections of its logarithm) for which every case's load
-    path holds, and ``equilibria_at`` of them; ``failure`` again, its message extended, if
+    ``2^(1/8)``: doublings, then three bisections of its logarithm) for which ``acceptable``
+    raises no :class:`DesignLimitError` (every load path holds, and the serviceability limits
+    are met), and its result for them; ``failure`` extended (:meth:`DesignLimitError.beyond`) if
     ``2^MAX_DOUBLINGS`` is not enough."""
 
     def scaled(factor: float) -> np.ndarray:
@@ -189,27 +252,73 @@ def _stiffened(
     low, high, found = 1.0, 0.0, None
     for doubling in range(1, MAX_DOUBLINGS + 1):
         try:
-            high, found = 2.0**doubling, equilibria_at(scaled(2.0**doubling))
+            high, found = 2.0**doubling, acceptable(scaled(2.0**doubling))
             break
-        except LoadPathError:
-            low = 2.0**doubling
+        except DesignLimitError as again:
+            low, failure = 2.0**doubling, again
     if found is None:
-        raise LoadPathError(
-            failure.case,
-            failure.reached,
-            f"{failure.args[0].split(': ', 1)[1].split(' at ')[0]} even with tendons "
-            f"{2.0**MAX_DOUBLINGS:.3g} times the area",
-        )
+        raise failure.beyond(2.0**MAX_DOUBLINGS)
     for _ in range(3):
         middle = math.sqrt(low * high)
         try:
-            high, found = middle, equilibria_at(scaled(middle))
-        except LoadPathError:
+            high, found = middle, acceptable(scaled(middle))
+        except DesignLimitError:
             low = middle
     return scaled(high), found
 
 
 def size_at_equilibrium(
+    structure: Structure,
+    *,
+    prestress: float | tuple[float, float] = 0.0,
+    **options: Any,
+) -> Sizing:
+    """Members sized at each load case's loaded equilibrium (see the module docstring).
+
+    ``prestress`` [N] is the smallest tendon tension of the prestressed state, or a range
+    ``(low, high)`` in which the lightest design is found (Brent's bounded search on the
+    logarithm of the prestress to a relative 2 %, each trial a sizing at that prestress, a
+    trial that fails counted infinitely heavy): a higher prestress stiffens the structure's
+    mechanisms (fewer limit points, smaller displacements, higher frequencies) and costs tendon
+    area.  The search finds a local minimum of the mass over the range.  ``options``: as
+    :func:`_size_at_prestress`.  The chosen prestress is ``Sizing.prestress``.
+    """
+    if not isinstance(prestress, tuple):
+        return _size_at_prestress(structure, prestress=prestress, **options)
+    low, high = (float(v) for v in prestress)
+    if not (math.isfinite(low) and math.isfinite(high) and 0 < low < high):
+        raise ValueError(f"prestress: a range must be 0 < low < high, got {prestress!r}")
+    tried: dict[float, Sizing | ValueError] = {}
+
+    def mass(log_prestress: float) -> float:
+        level = float(np.exp(log_prestress))
+        try:
+            tried[level] = _size_at_prestress(structure, prestress=level, **options)
+        except DesignLimitError as exc:
+            tried[level] = exc
+        found = tried[level]
+        return found.total_mass if isinstance(found, Sizing) else math.inf
+
+    with np.errstate(invalid="ignore"):  # Brent's parabola through an infinite trial
+        scipy.optimize.minimize_scalar(
+            mass, bounds=(math.log(low), math.log(high)), method="bounded", options={"xatol": 0.02}
+        )
+    for level in (low, high):  # the ends, which the bounded search does not evaluate
+        mass(math.log(level))
+    feasible = {level: z for level, z in tried.items() if isinstance(z, Sizing)}
+    if not feasible:
+        last = tried[max(tried)]
+        raise ValueError(f"prestress: no level in [{low:g}, {high:g}] N works: {last}")
+    best = min(feasible, key=lambda level: feasible[level].total_mass)
+    chosen = feasible[best]
+    return dataclasses.replace(
+        chosen,
+        message=f"{chosen.message}; prestress {best:.4g} N, the lightest of {len(tried)} "
+        f"levels tried in [{low:g}, {high:g}] N",
+    )
+
+
+def _size_at_prestress(
     structure: Structure,
     *,
     rod_material: Material | Sequence[Material],
@@ -221,15 +330,22 @@ def size_at_equilibrium(
     strength_factor: float = 1.0,
     min_area: float = 1e-8,
     tendon_mass: bool = False,
+    max_displacement: float | None = None,
+    min_frequency: float | None = None,
     rtol: float = 1e-6,
     max_iterations: int = 50,
     load_steps: int = 8,
 ) -> Sizing:
-    """Members sized at each load case's loaded equilibrium (see the module docstring).
+    """:func:`size_at_equilibrium` at one prestress (see the module docstring).
 
     Parameters as :func:`~tensegrity.design.sizing.size_members`; the structure's node positions
     are its unloaded, prestressed geometry.
 
+    max_displacement : float, optional
+        The largest displacement [m] of a node from the given geometry allowed in a load case.
+    min_frequency : float, optional
+        The lowest natural frequency [Hz] allowed, in the prestressed state and at each load
+        case's equilibrium (:func:`lowest_frequency`).
     rtol : float
         Converged when no area changes by more than ``rtol`` (relative) from one iteration to
         the next.
@@ -256,8 +372,13 @@ def size_at_equilibrium(
         raise ValueError(f"max_iterations: must be an integer >= 1, got {max_iterations!r}")
     if not (isinstance(load_steps, int) and load_steps >= 1):
         raise ValueError(f"load_steps: must be an integer >= 1, got {load_steps!r}")
-    if not (math.isfinite(rtol) and rtol > 0):
-        raise ValueError(f"rtol: must be > 0, got {rtol!r}")
+    for name, value in (
+        ("rtol", rtol),
+        ("max_displacement", max_displacement),
+        ("min_frequency", min_frequency),
+    ):
+        if value is not None and not (math.isfinite(value) and value > 0):
+            raise ValueError(f"{name}: must be > 0, got {value!r}")
     cases = checked_cases(s, load_cases, prestress)
     loads = [c for c in cases if c.name != "prestress"]
     if not loads:
@@ -330,15 +451,39 @@ def size_at_equilibrium(
         starts[:] = [eq.q for eq in found]
         return found, sized, members
 
-    floor = np.zeros(R + S)  # the tendon areas below which a load path reaches a limit point
-    stability_case: str | None = None
+    def acceptable(area: np.ndarray) -> tuple[list[EquilibriumResult], Structure, Any]:
+        """:func:`equilibria_at` ``area``, checked against the serviceability limits."""
+        found, sized, members = equilibria_at(area)
+        for case, eq in zip(loads, found, strict=True):
+            moved = largest_displacement(s, eq)
+            if max_displacement is not None and moved > max_displacement:
+                raise ServiceabilityError(
+                    case.name,
+                    "displacement",
+                    f"largest displacement {moved:.4g} m > max_displacement {max_displacement:g} m",
+                )
+        if min_frequency is not None:
+            states: list[EquilibriumResult | None] = [None] * (prestress > 0)
+            for name, state in zip(names, states + list(found), strict=True):
+                hz = lowest_frequency(sized, state)
+                if hz < min_frequency:
+                    raise ServiceabilityError(
+                        name,
+                        "frequency",
+                        f"lowest natural frequency {hz:.4g} Hz < min_frequency "
+                        f"{min_frequency:g} Hz",
+                    )
+        return found, sized, members
+
+    floor = np.zeros(R + S)  # tendon areas below which a load path or a serviceability fails
+    floor_limit: DesignLimitError | None = None
     message = f"stopped after {max_iterations} iterations (max_iterations): areas still change"
     for iteration in range(1, max_iterations + 2):
         try:
-            equilibria, sized, members = equilibria_at(area)
-        except LoadPathError as failure:
-            area, (equilibria, sized, members) = _stiffened(equilibria_at, area, R, failure)
-            floor[R:], stability_case = area[R:], failure.case
+            equilibria, sized, members = acceptable(area)
+        except DesignLimitError as failure:
+            area, (equilibria, sized, members) = _stiffened(acceptable, area, R, failure)
+            floor[R:], floor_limit = area[R:], failure
         C = np.array(([C0] if prestress > 0 else []) + [eq.rod_compression for eq in equilibria])
         T = np.array(([T0] if prestress > 0 else []) + [eq.tension for eq in equilibria])
         least = least_areas(
@@ -351,9 +496,9 @@ def size_at_equilibrium(
         )
         target = np.maximum(least.area, floor)
         change = float(np.max(np.abs(target - area) / target, initial=0.0))
-        if change <= rtol and np.any(floor > least.area) and _holds(equilibria_at, least.area):
-            # the floor came from earlier areas, and the least areas now hold without it
-            floor[:], stability_case = 0.0, None
+        if change <= rtol and np.any(floor > least.area) and _holds(acceptable, least.area):
+            # the floor came from earlier areas, and the least areas now meet every limit
+            floor[:], floor_limit = 0.0, None
             target, change = least.area, math.inf
         if change <= rtol:
             message = f"converged after {iteration} iterations (areas within {change:.2g})"
@@ -368,19 +513,20 @@ def size_at_equilibrium(
             f"sizing at the loaded equilibrium: {message} by up to {change:.3g} (relative)"
         )
     stiffened = floor > least.area
-    governs = tuple("stability" if f else g for f, g in zip(stiffened, least.governs, strict=True))
+    limit = "" if floor_limit is None else floor_limit.governs
+    limit_case = None if floor_limit is None else floor_limit.case
+    governs = tuple(limit if f else g for f, g in zip(stiffened, least.governs, strict=True))
     governing_case = tuple(
-        stability_case if f else c for f, c in zip(stiffened, least.case, strict=True)
+        limit_case if f else c for f, c in zip(stiffened, least.case, strict=True)
     )
     density = np.array([m.density for m in (*rm, *tm)])
     tendon_length = np.linalg.norm(
         s.node_position[s.tendon_nodes[:, 1]] - s.node_position[s.tendon_nodes[:, 0]], axis=1
     )
     mass = density * np.concatenate([s.rod_length, tendon_length]) * area
-    moved = [
-        float(np.max(np.linalg.norm(eq.node_position - s.node_position, axis=-1), initial=0.0))
-        for eq in equilibria
-    ]
+    moved = [largest_displacement(s, eq) for eq in equilibria]
+    states: list[EquilibriumResult | None] = [None] * (prestress > 0)
+    frequency = [lowest_frequency(sized, eq) for eq in states + list(equilibria)]
     return Sizing(
         structure=sized,
         members=members,
@@ -405,6 +551,8 @@ def size_at_equilibrium(
         governing_case=governing_case,
         equilibria=tuple(equilibria),
         displacement=np.array(moved),
+        frequency=np.array(frequency),
+        prestress=prestress,
     )
 
 
@@ -489,7 +637,12 @@ def size(structure: Structure, *, statics: str = "auto", **options: Any) -> Sizi
     if statics == "auto":
         statics = "equilibrium" if mechanism_count(structure) else "linear"
     if statics == "linear":
-        for name in ("rtol", "load_steps"):
+        if isinstance(options.get("prestress"), tuple):
+            raise ValueError(
+                "prestress: a range is searched only at the loaded equilibrium (linear sizing is "
+                "lightest at the least prestress)"
+            )
+        for name in ("rtol", "load_steps", "max_displacement", "min_frequency"):
             if name in options:
                 raise ValueError(f"{name}: only for sizing at the loaded equilibrium")
         return size_members(structure, **options)

@@ -223,7 +223,11 @@ class Sizing:
         ``"buckling"`` or ``"min_area"``) and in which case (None for ``"min_area"``).
     equilibria : each load case's loaded equilibrium (``"equilibrium"`` only; the prestress is
         the given geometry).  displacement : (load cases,) each one's largest node displacement
-        from the given geometry [m] (``"equilibrium"`` only).
+        from the given geometry [m] (``"equilibrium"`` only).  frequency : (K,) the lowest
+        natural frequency [Hz] in each case, the prestressed state's about the given geometry
+        (``"equilibrium"`` only).  prestress : the smallest tendon tension of the prestressed
+        state [N] (chosen, or found in a range by
+        :func:`~tensegrity.design.loaded.size_at_equilibrium`).
     """
 
     structure: Structure
@@ -243,6 +247,8 @@ class Sizing:
     governing_case: tuple[str | None, ...] = ()
     equilibria: tuple[EquilibriumResult, ...] = ()
     displacement: np.ndarray | None = None
+    frequency: np.ndarray | None = None
+    prestress: float = 0.0
 
     @property
     def total_mass(self) -> float:
@@ -261,6 +267,7 @@ class Sizing:
             cases=list(self.cases),
             largest_utilisation=u.largest,
             statics=self.statics,
+            prestress_N=self.prestress,
             iterations=self.iterations,
             message=self.message,
             **(
@@ -273,7 +280,10 @@ class Sizing:
                             self.displacement.tolist(),
                             strict=True,
                         )
-                    )
+                    ),
+                    lowest_frequency_hz=dict(
+                        zip(self.cases, np.asarray(self.frequency).tolist(), strict=True)
+                    ),
                 )
             ),
             rods=[
@@ -749,4 +759,5 @@ def size_members(
         message=message,
         governs=least.governs,
         governing_case=least.case,
+        prestress=prestress,
     )
