@@ -383,3 +383,29 @@ def test_a_frequency_limit_needs_prestress_and_the_search_finds_the_least(sized_
         size_at_equilibrium(s, prestress=0.95 * sizing.prestress, **options)
     heavier = size_at_equilibrium(s, prestress=1.2 * sizing.prestress, **options)
     assert heavier.total_mass > sizing.total_mass
+
+
+def test_the_cli_takes_serviceability_limits_and_a_prestress_range(tmp_path, capsys):
+    path = write_structure(tmp_path / "prism.json", _fixed_base_prism())
+    out = tmp_path / "out"
+    argv = ["design", "--structure", str(path), "--material", "steel,dyneema", "-o", str(out)]
+    argv += ["--gravity", "9.81", "--max-displacement", "0.03", "--prestress", "10:1000"]
+    argv += [f"--load=top:{k}:0,0,-100" for k in (3, 4, 5)]
+    assert main(argv) == 0
+    text = capsys.readouterr().out
+    report = json.loads((out / "design.json").read_text())
+    assert report["largest_displacement_m"]["top"] <= 0.03
+    assert report["settings"]["prestress_N"] == [10.0, 1000.0]
+    assert 10.0 < report["prestress_N"] < 1000.0
+    assert f"prestress {report['prestress_N']:.4g} N, the lightest of" in text
+    assert "lowest frequency" in text
+    for bad, message in (
+        (["--prestress", "5:2"], "a range must be 0 < LOW < HIGH"),
+        (["--max-displacement", "0"], "--max-displacement"),
+        (["--statics", "linear"], "prestress: a range is searched only at the loaded"),
+    ):
+        again = tmp_path / "again"
+        code = main([str(again) if a == str(out) else a for a in argv] + bad)
+        err = capsys.readouterr().err
+        assert code == 2 and err.count("\n") == 1 and message in err
+        assert not again.exists()

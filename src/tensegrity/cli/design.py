@@ -77,6 +77,24 @@ def _load(text: str) -> tuple[str, int, list[float]]:
     return parts[0], node, force
 
 
+def _prestress(text: str) -> float | tuple[float, float]:
+    """``N`` (>= 0) or ``LOW:HIGH`` (0 < LOW < HIGH) [N]."""
+    low, sep, high = text.partition(":")
+    try:
+        values = [float(low)] + ([float(high)] if sep else [])
+    except ValueError:
+        values = [math.nan]
+    if not all(math.isfinite(v) for v in values):
+        raise argparse.ArgumentTypeError(f"expected N or LOW:HIGH (newtons), got {text!r}")
+    if not sep:
+        if values[0] < 0:
+            raise argparse.ArgumentTypeError(f"must be >= 0, got {text!r}")
+        return values[0]
+    if not 0 < values[0] < values[1]:
+        raise argparse.ArgumentTypeError(f"a range must be 0 < LOW < HIGH, got {text!r}")
+    return values[0], values[1]
+
+
 def _shape(text: str) -> float | None:
     """``solid`` (None) or ``tube:RATIO`` (wall thickness over outer diameter)."""
     if text == "solid":
@@ -152,11 +170,26 @@ def add_parsers(sub: Any) -> None:
     )
     p.add_argument(
         "--prestress",
-        type=arguments.at_least(0.0, strict=False),
+        type=_prestress,
         default=0.0,
-        metavar="N",
-        help="the smallest tendon tension [N] of the unloaded, prestressed state "
-        "(default %(default)g)",
+        metavar="N|LOW:HIGH",
+        help="the smallest tendon tension [N] of the unloaded, prestressed state (default "
+        "%(default)g), or a range in which the lightest design is searched (at the loaded "
+        "equilibrium)",
+    )
+    p.add_argument(
+        "--max-displacement",
+        type=arguments.at_least(0.0, strict=True),
+        metavar="M",
+        help="the largest node displacement [m] allowed under each load case (at the loaded "
+        "equilibrium)",
+    )
+    p.add_argument(
+        "--min-frequency",
+        type=arguments.at_least(0.0, strict=True),
+        metavar="HZ",
+        help="the lowest natural frequency [Hz] allowed, prestressed and under each load case "
+        "(at the loaded equilibrium)",
     )
     arguments.add_safety_factor(p)
     p.add_argument(
@@ -237,6 +270,14 @@ def _cmd_design(args: argparse.Namespace) -> int:
             strength_factor=args.strength_factor,
             min_area=args.min_area,
             tendon_mass=args.tendon_mass,
+            **{
+                name: value
+                for name, value in (
+                    ("max_displacement", args.max_displacement),
+                    ("min_frequency", args.min_frequency),
+                )
+                if value is not None
+            },
         )
     except ValueError as exc:
         raise CommandError(one_line(exc)) from None
@@ -251,6 +292,8 @@ def _cmd_design(args: argparse.Namespace) -> int:
             tendon_material=tendon_material.name,
             section="solid" if args.section is None else f"tube, t/D = {args.section:g}",
             prestress_N=args.prestress,
+            max_displacement_m=args.max_displacement,
+            min_frequency_hz=args.min_frequency,
             gravity_m_per_s2=args.gravity,
             safety_factor=args.safety_factor,
             strength_factor=args.strength_factor,
@@ -276,11 +319,16 @@ def _cmd_design(args: argparse.Namespace) -> int:
     )
     moves = [] if sizing.displacement is None else sizing.displacement.tolist()
     shown = dict(zip(sizing.cases[::-1], moves[::-1], strict=False))
+    hz = [] if sizing.frequency is None else sizing.frequency.tolist()
     for k, case in enumerate(sizing.cases):
         rod = u.rod[k].max(initial=0.0)
         tendon = u.tendon[k].max(initial=0.0)
         moved = f", largest displacement {shown[case]:.4g} m" if case in shown else ""
-        print(f"case {case!r}: largest utilisation rods {rod:.4g}, tendons {tendon:.4g}{moved}")
+        lowest = f", lowest frequency {hz[k]:.4g} Hz" if hz else ""
+        print(
+            f"case {case!r}: largest utilisation rods {rod:.4g}, tendons {tendon:.4g}"
+            f"{moved}{lowest}"
+        )
     print(_governing(sizing))
     failing = []
     dynamic = dynamic or {"cases": []}
@@ -315,6 +363,8 @@ def _governing(sizing: Any) -> str:
         "buckling": "buckling",
         "min_area": "the least area (--min-area)",
         "stability": "stability (tendons stiffened against a limit point)",
+        "displacement": "--max-displacement (tendons stiffened)",
+        "frequency": "--min-frequency (tendons stiffened)",
     }
     parts = [f"{n} by {words[what]}" for what, n in counts.items()]
     statics = {
