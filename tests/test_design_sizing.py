@@ -567,3 +567,24 @@ def test_rod_forces_with_a_support_equal_the_equilibrium_solvers():
     np.testing.assert_allclose(C, [1000.0], rtol=1e-6)
     head_only = _hand_compression(loaded, eq.node_position, eq.tension)
     assert abs(head_only[0] - C[0]) > 400.0
+
+
+def test_a_shell_under_its_own_weight_alone_is_sized():
+    """A form-found class 2 shell on a fixed base under gravity, without prestress: the yield
+    program's rods carry almost nothing, and the buckling tangent at that compression is so
+    steep that no rod carries its own weight within it; the first tangents are taken further
+    out, and the sizing ends within every limit, some member at its limit (it failed with
+    'linear program 2 failed: infeasible' before)."""
+    from tensegrity.analysis.equilibrium import find_equilibrium
+    from tensegrity.model.shell import class2_shell
+
+    shell = class2_shell(3, 2, fixed_base=True)
+    shell = shell.replace(node_position=find_equilibrium(shell).node_position)
+    sizing = size_members(
+        shell,
+        rod_material=material("steel"),
+        tendon_material=material("dyneema"),
+        load_cases=[LoadCase("gravity", None, np.array([0.0, 0.0, -9.81]))],
+    )
+    assert sizing.message.startswith("converged")
+    assert sizing.utilisation.largest == pytest.approx(1.0, abs=1e-6)

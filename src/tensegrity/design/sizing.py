@@ -704,8 +704,16 @@ def size_members(
     message = "one linear program (no rods: no buckling)"
     for _ in range(max_iterations if s.n_rods else 0):
         C, _ = problem.forces(fit.x)
-        fit = problem.solve(C / problem.F)
+        tangent = C / problem.F
+        fit = problem.solve(tangent)
         iterations += 1
+        # With gravity, a tangent taken at a compression near zero is so steep that no areas
+        # carry their own weight within it: take the first tangents further out (each one
+        # still lies above the buckling curve) until a program is feasible.
+        lift = 1e-4
+        while fit.status == 2 and best_mass == math.inf and lift <= 1e8:
+            fit = problem.solve(np.maximum(tangent, lift))
+            iterations, lift = iterations + 1, 100 * lift
         if fit.status != 0:
             if best_mass == math.inf:
                 raise ValueError(f"sizing: linear program {iterations} failed: {fit.message}")
