@@ -280,7 +280,10 @@ def _cmd_design(args: argparse.Namespace) -> int:
             },
         )
     except ValueError as exc:
-        raise CommandError(one_line(exc)) from None
+        hint = ""
+        if str(exc).startswith("prestress: no self-stress") and not args.form_find:
+            hint = " at the given geometry (--form-find sizes at the structure's own equilibrium)"
+        raise CommandError(one_line(exc) + hint) from None
     dynamic = _dynamic(args, sizing, cases)
     report = sizing.to_dict() | {
         "settings": dict(
