@@ -5,6 +5,7 @@ generated one (``--kind``, ``--n``, ``--set NAME=VALUE``, ...), ``--material``/`
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -18,6 +19,7 @@ from tensegrity.physics import dynamics
 
 if TYPE_CHECKING:
     from tensegrity.design.files import Designed
+    from tensegrity.design.materials import Factors
     from tensegrity.model.structure import Structure
 
 
@@ -141,7 +143,8 @@ def structure_of(args: argparse.Namespace) -> Structure:
 
 def designed_of(args: argparse.Namespace) -> Designed:
     """The structure the options describe and its members' design (a file in the material
-    form, or ``--material`` and ``--section``; None otherwise)."""
+    form, or ``--material`` and ``--section``; None otherwise), with the factors of
+    :func:`factors_of`."""
     from tensegrity.design.files import Designed
 
     flags = {
@@ -162,7 +165,23 @@ def designed_of(args: argparse.Namespace) -> Designed:
         designed = _read_designed(args.structure, "--structure")
     else:
         designed = Designed(_generated(args.kind or "shell", flags, args.set or ()), None)
-    return _with_materials(args, designed)
+    designed = _with_materials(args, designed)
+    if designed.design is None:
+        return designed
+    factors = factors_of(args, designed.design.factors)
+    return designed._replace(design=dataclasses.replace(designed.design, factors=factors))
+
+
+def factors_of(args: argparse.Namespace, given: Factors) -> Factors:
+    """``given`` (a structure file's factors) with ``--safety-factor`` and ``--strength-factor``
+    (where the verb has them and they are given) in their place."""
+    from tensegrity.design.materials import Factors
+
+    safety, strength = (getattr(args, name, None) for name in ("safety_factor", "strength_factor"))
+    return Factors(
+        given.safety if safety is None else safety,
+        given.strength if strength is None else strength,
+    )
 
 
 def _with_materials(args: argparse.Namespace, designed: Designed) -> Designed:

@@ -609,7 +609,14 @@ def size_members(
         tendon_mass=density[s.n_rods :] * length * tendon_area,
         rod_compression=C,
         tendon_tension=T,
-        utilisation=utilisation(s, members, tension=T, compression=C, safety_factor=safety_factor),
+        utilisation=utilisation(
+            s,
+            members,
+            tension=T,
+            compression=C,
+            safety_factor=safety_factor,
+            strength_factor=strength_factor,
+        ),
         iterations=iterations,
         message=message,
     )
