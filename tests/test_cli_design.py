@@ -14,7 +14,7 @@ from tensegrity.cli.main import main
 from tensegrity.design.files import read_design
 from tensegrity.design.materials import material
 from tensegrity.design.sizing import LoadCase, size_members
-from tensegrity.io.formats import read_structure, write_structure
+from tensegrity.io.formats import write_structure
 from tensegrity.model.structure import Structure
 
 

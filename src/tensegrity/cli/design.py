@@ -244,7 +244,9 @@ def _cmd_design(args: argparse.Namespace) -> int:
     members = _member_design(args, sizing, rod_material, tendon_material)
 
     def write(staging: Path) -> list[Path]:
-        target = write_design(staging / "structure.json", sizing.structure, members, keep_joints=True)
+        target = write_design(
+            staging / "structure.json", sizing.structure, members, keep_joints=True
+        )
         with atomic_path(staging / "design.json") as tmp:
             tmp.write_text(json.dumps(report, indent=2, allow_nan=False) + "\n", "utf-8")
         return [target, staging / "design.json"]

@@ -245,8 +245,12 @@ def write_run(
                 []
                 if designed is None
                 else [
-                    write_design(
-                        staging / MATERIAL_STRUCTURE, structure, designed.members, scene=scene
+                    write_design(  # (the run's own nodes, joints kept: view matches them)
+                        staging / MATERIAL_STRUCTURE,
+                        structure,
+                        designed.members,
+                        keep_joints=True,
+                        scene=scene,
                     )
                 ]
             ),
