@@ -229,38 +229,30 @@ def test_simulate_of_the_design_reports_utilisation_with_its_factors(tmp_path, c
     assert again is not None and again.factors == Factors(1.5, 2.0)
 
 
-def test_view_of_a_designed_run_colours_by_utilisation_without_structure(tmp_path, capsys):
-    """``view run/trajectory.h5`` finds the run's ``structure-material.json`` beside it: the
-    page's tendon utilisation equals the one ``simulate`` wrote (the design's factors; the rods'
-    differ: ``view`` leaves out the run's force table, which the trajectory does not hold),
-    and the rods' are there too; a file there
-    of another structure is ignored; ``--strength-factor`` without any design is refused."""
+def test_view_of_a_designed_run_colours_by_utilisation_with_the_design_factors(tmp_path, capsys):
+    """``simulate`` of the design writes a ``view.html`` coloured by utilisation (no option
+    needed); ``view --structure sized/structure.json`` (the design file, its factors) gives the
+    same tendon utilisation (the rods' differ: ``view`` leaves out the run's force table, which
+    the trajectory does not hold); ``--strength-factor 1`` halves it; without ``--structure``
+    the factors are refused."""
     _, run = _designed_crane_run(tmp_path, capsys)
-    page = tmp_path / "page.html"
-    assert main(["view", str(run / "trajectory.h5"), "-o", str(page)]) == 0
     written = read_viewer_data((run / "view.html").read_text())["utilisation"]
+    page = tmp_path / "page.html"
+    trajectory = str(run / "trajectory.h5")
+    design = ["--structure", str(tmp_path / "sized" / "structure.json")]
+    assert main(["view", trajectory, "-o", str(page), *design]) == 0
     again = read_viewer_data(page.read_text())["utilisation"]
     np.testing.assert_array_equal(again["tendons"], written["tendons"])
     assert np.shape(again["rods"]) == np.shape(written["rods"])
-    # with another design's file beside it (thicker cables): ignored, coloured by tension only
-    s = read_design(run / "structure-material.json")
-    assert s.design is not None
-    other = MemberDesign.of(
-        s.structure,
-        rod_material=material("steel"),
-        rod_section=SolidRod(0.02),
-        tendon_material=material("dyneema"),
-        tendon_section=Cable(0.002),
-    )
-    write_design(run / "structure-material.json", other.apply(s.structure), other)
-    assert main(["view", str(run / "trajectory.h5"), "-o", str(page)]) == 0
-    assert "utilisation" not in read_viewer_data(page.read_text())
-    (run / "structure-material.json").unlink()
+    assert 0.95 < np.max(written["tendons"]) < 1.05
+    assert main(["view", trajectory, "-o", str(page), *design, "--strength-factor", "1"]) == 0
+    half = read_viewer_data(page.read_text())["utilisation"]
+    np.testing.assert_allclose(half["tendons"], np.asarray(written["tendons"]) / 2, rtol=1e-6)
     capsys.readouterr()
-    code = main(["view", str(run / "trajectory.h5"), "-o", str(page), "--strength-factor", "2"])
+    code = main(["view", trajectory, "-o", str(page), "--strength-factor", "2"])
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1
-    assert "--strength-factor: only with the members' design" in err
+    assert "--strength-factor: only with --structure (the members' design)" in err
 
 
 @pytest.mark.parametrize("suffix", [".yaml", ".toml", ".json"])

@@ -7,10 +7,10 @@
 writes ``out/structure.json`` (the sized structure in the material form: its members by
 material and section, and the safety and strength factors it was sized with under ``factors``;
 :func:`tensegrity.design.files.write_design`), so that ``tensegrity simulate --structure
-out/structure.json`` and ``view`` report the members' utilisation with those factors, and
-``out/design.json`` (masses, areas, sections, forces and utilisations per case), together or
-not at all (:func:`tensegrity.io.files.write_staged`), and prints a summary.  No numeric form
-is written: every verb reads the material form (in Python,
+out/structure.json`` and ``view --structure`` report the members' utilisation with those
+factors, and ``out/design.json`` (masses, areas, sections, forces and utilisations per case),
+together or not at all (:func:`tensegrity.io.files.write_staged`), and prints a summary.  No
+numeric form is written: every verb reads the material form (in Python,
 :func:`~tensegrity.design.files.read_design`; ``Structure.to_dict`` of its structure is the
 numeric form).  Bad input and a load case the structure cannot carry are one line with exit
 code 2.

@@ -12,11 +12,7 @@ from pathlib import Path
 from tensegrity.cli.errors import CommandError
 from tensegrity.io.files import shown_path
 
-__all__ = ["MATERIAL_STRUCTURE", "check_file", "check_folder"]
-
-#: ``simulate``'s file of the run's structure in the material form, beside ``structure.json``
-#: (members with a design only); ``view`` finds it there beside ``trajectory.h5``.
-MATERIAL_STRUCTURE = "structure-material.json"
+__all__ = ["check_file", "check_folder"]
 
 
 def check_folder(folder: Path, option: str) -> None:

@@ -24,6 +24,7 @@ from tensegrity.cli.errors import EXIT_FAILED, CommandError, blame, describe, on
 from tensegrity.cli.limits import check_run_cost, check_samples, check_structure_size
 from tensegrity.cli.simulate_files import (
     DEFAULT_VIDEO_SECONDS,
+    MATERIAL_STRUCTURE,
     VIDEO_FPS,
     DesignedRun,
     RunFiles,
@@ -313,7 +314,7 @@ def _check_outputs(args: argparse.Namespace, designed: bool) -> None:
     names += ["tendon_lengths.png"]
     names += [] if args.no_view else ["view.html"]
     names += [] if args.no_animation else [f"motion.{args.animation or 'gif'}"]
-    names += [outputs.MATERIAL_STRUCTURE, "utilisation.png"] if designed else []
+    names += [MATERIAL_STRUCTURE, "utilisation.png"] if designed else []
     names += ["vtk/tensegrity.pvd"] if args.vtk else []
     try:
         check_targets(args.out, [args.out / name for name in names])

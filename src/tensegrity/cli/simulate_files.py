@@ -19,7 +19,6 @@ import numpy as np
 from tensegrity.cli import visual
 from tensegrity.cli.drawing import Drawing, viewer_page
 from tensegrity.cli.errors import interrupt_code
-from tensegrity.cli.outputs import MATERIAL_STRUCTURE
 from tensegrity.cli.startup import seconds_since_start
 from tensegrity.io.files import shown_path, write_staged as _write_all
 from tensegrity.model.ground import SLIP, STICK
@@ -135,6 +134,11 @@ def remove_empty(folders: Sequence[Path]) -> None:
     for folder in sorted(folders, key=lambda f: len(f.parts), reverse=True):
         with contextlib.suppress(OSError):
             folder.rmdir()
+
+
+#: ``simulate``'s file of the run's structure in the material form, beside ``structure.json``
+#: (members with a design only).
+MATERIAL_STRUCTURE = "structure-material.json"
 
 
 #: ``simulate``'s video: frames per second (a GIF frame's delay is a whole number of hundredths

@@ -1,9 +1,9 @@
 """The verbs that show a run: ``tensegrity animate TRAJECTORY.h5 -o motion.mp4|.webm|.gif`` (a
 video, :mod:`tensegrity.plots.animation`) and ``tensegrity view TRAJECTORY.h5 -o view.html``
 (the interactive viewer, :mod:`tensegrity.plots.viewer`; with ``--structure FILE``, a structure
-file in the material form, or the ``structure-material.json`` that ``simulate`` writes beside
-the trajectory, it colours the members by utilisation too: a trajectory file holds its
-structure's stiffness and masses, not its members' materials and sections).
+file in the material form, it colours the members by utilisation too, with the file's factors:
+a trajectory file holds its structure's stiffness and masses, not its members' materials and
+sections).
 
 Both read only as many samples of the trajectory as they show (``read_trajectory(every=)``),
 write their file atomically (nothing is left behind by a failure or an interrupt) and report a
@@ -15,17 +15,13 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from tensegrity.cli import arguments, outputs
 from tensegrity.cli.errors import CommandError, blame
 from tensegrity.io.files import byte_text, folders_made, shown_path
-
-if TYPE_CHECKING:
-    from tensegrity.design.files import Designed
-    from tensegrity.model.structure import Structure
 
 __all__ = ["add_parsers"]
 
@@ -131,47 +127,45 @@ def _cmd_animate(args: argparse.Namespace) -> int:
 
 
 def _member_check(args: argparse.Namespace) -> Any:
-    """The :class:`~tensegrity.plots.motion.MemberCheck` of ``view``: the members' design in
-    ``--structure FILE``, else in the ``structure-material.json`` that ``simulate`` wrote beside
-    the trajectory (if it is the trajectory's structure), with the file's factors or
-    ``--safety-factor``, ``--strength-factor``; the run's largest utilisation as ``simulate``
-    reports it.  None without a design."""
+    """The :class:`~tensegrity.plots.motion.MemberCheck` of ``view --structure FILE`` (the
+    members' design in FILE, for the trajectory's structure, with FILE's factors unless
+    ``--safety-factor`` or ``--strength-factor`` is given; the run's largest utilisation as
+    ``simulate`` reports it), or None without ``--structure``."""
     from tensegrity.cli.structures import factors_of
     from tensegrity.design.files import read_design
     from tensegrity.design.utilisation import trajectory_utilisation
     from tensegrity.io.trajectory import read_dataset, read_trajectory
     from tensegrity.plots.motion import MemberCheck
 
+    if args.structure is None:
+        for option, value in (("--safety-factor", args.safety_factor),
+                              ("--strength-factor", args.strength_factor)):  # fmt: skip
+            if value is not None:
+                raise CommandError(f"{option}: only with --structure (the members' design)")
+        return None
+    with blame("--structure", args.structure):
+        given = read_design(args.structure)
+    if given.design is None:
+        raise CommandError(
+            f"--structure: {shown_path(args.structure)} gives no materials and sections (a "
+            "structure file in the material form, as `tensegrity design` writes)"
+        )
     with blame("view", args.trajectory):
         structure = read_trajectory(args.trajectory, every=2**62).structure
-    given = _design_beside(args.trajectory, structure) if args.structure is None else None
-    if args.structure is None and given is None:
-        for option in ("--safety-factor", "--strength-factor"):
-            if getattr(args, option[2:].replace("-", "_")) is not None:
-                raise CommandError(
-                    f"{option}: only with the members' design (--structure FILE in the material "
-                    f"form, or the {outputs.MATERIAL_STRUCTURE} that simulate writes beside the "
-                    "trajectory)"
-                )
-        return None
-    if given is None:
-        with blame("--structure", args.structure):
-            given = read_design(args.structure)
-        if given.design is None:
-            raise CommandError(
-                f"--structure: {shown_path(args.structure)} gives no materials and sections (a "
-                "structure file in the material form, as `tensegrity design` writes)"
-            )
-        if not _same_members(given.structure, structure):
-            raise CommandError(
-                f"--structure: {shown_path(args.structure)} is not the structure of "
-                f"{shown_path(args.trajectory)} (other nodes, rods or tendons)"
-            )
-    assert given.design is not None
+        n_samples = read_dataset(args.trajectory, "t").size
+    same = (
+        given.structure.n_nodes == structure.n_nodes
+        and np.array_equal(given.structure.rod_nodes, structure.rod_nodes)
+        and np.array_equal(given.structure.tendon_nodes, structure.tendon_nodes)
+    )
+    if not same:
+        raise CommandError(
+            f"--structure: {shown_path(args.structure)} is not the structure of "
+            f"{shown_path(args.trajectory)} (other nodes, rods or tendons)"
+        )
     factors = factors_of(args, given.design.factors)
     members = given.design.properties(structure)
     with blame("view", args.trajectory):
-        n_samples = read_dataset(args.trajectory, "t").size
         peaks = trajectory_utilisation(
             args.trajectory,
             members,
@@ -185,39 +179,6 @@ def _member_check(args: argparse.Namespace) -> Any:
         strength_factor=factors.strength,
         largest=peaks.largest,
     )
-
-
-def _same_members(a: Structure, b: Structure) -> bool:
-    """Whether ``a`` and ``b`` have the same nodes, rods and tendons (by their ends)."""
-    return (
-        a.n_nodes == b.n_nodes
-        and np.array_equal(a.rod_nodes, b.rod_nodes)
-        and np.array_equal(a.tendon_nodes, b.tendon_nodes)
-    )
-
-
-def _design_beside(trajectory: Path, structure: Structure) -> Designed | None:
-    """The structure file in the material form that ``simulate`` wrote beside ``trajectory``
-    (:data:`~tensegrity.cli.outputs.MATERIAL_STRUCTURE`), if there is one, readable, and its
-    structure is ``structure`` (the trajectory's: the same members, tendon stiffness, rest
-    lengths and rod masses to 1e-12); None otherwise (a file left by another run)."""
-    from tensegrity.design.files import read_design
-
-    path = trajectory.parent / outputs.MATERIAL_STRUCTURE
-    if not path.is_file():
-        return None
-    try:
-        given = read_design(path)
-    except ValueError:
-        return None
-    s = given.structure
-    if given.design is None or not _same_members(s, structure):
-        return None
-    same = all(
-        np.allclose(getattr(s, name), getattr(structure, name), rtol=1e-12, atol=0.0)
-        for name in ("tendon_stiffness", "tendon_rest_length", "rod_mass")
-    )
-    return given if same else None
 
 
 def _cmd_view(args: argparse.Namespace) -> int:
@@ -314,9 +275,8 @@ def add_parsers(sub: Any) -> None:
         metavar="FILE",
         help="the run's structure file in the material form (members by material and "
         "section, as `tensegrity design` writes): the page can colour every member by its "
-        "utilisation (the trajectory does not hold the members' design). Default: the "
-        f"{outputs.MATERIAL_STRUCTURE} beside the trajectory, which simulate writes for members "
-        "with a design, if it is the trajectory's structure. Rod forces leave out "
+        "utilisation (the trajectory does not hold the members' design), with the file's "
+        "factors unless the options below are given. Rod forces leave out "
         "a run's --force-table, which the trajectory does not hold either",
     )
     arguments.add_factors(design, from_file=True)
