@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 __all__ = [
-    "add_safety_factor",
+    "add_factors",
     "at_least",
     "finite",
     "name",
@@ -77,12 +77,23 @@ def name(text: str) -> Path:
     return Path(text)
 
 
-def add_safety_factor(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
-    """``--safety-factor GAMMA``: divides the rods' Euler buckling load (>= 1, default 1)."""
-    parser.add_argument(
-        "--safety-factor",
-        type=at_least(1.0, strict=False),
-        default=1.0,
-        metavar="GAMMA",
-        help="divides the rods' Euler buckling load (>= 1, default %(default)g)",
-    )
+def add_factors(
+    parser: argparse.ArgumentParser | argparse._ArgumentGroup, *, from_file: bool
+) -> None:
+    """``--safety-factor GAMMA`` (divides the rods' Euler buckling load) and ``--strength-factor
+    S`` (divides the yield strengths), each >= 1.  With ``from_file``, their default is None:
+    the structure file's ``factors`` (``docs/design.md``), else 1, which an option given
+    overrides; otherwise 1."""
+    default = None if from_file else 1.0
+    where = "the structure file's factors, else 1" if from_file else "1"
+    for option, metavar, divides in (
+        ("--safety-factor", "GAMMA", "the rods' Euler buckling load"),
+        ("--strength-factor", "S", "the yield strengths of rods and tendons"),
+    ):
+        parser.add_argument(
+            option,
+            type=at_least(1.0, strict=False),
+            default=default,
+            metavar=metavar,
+            help=f"divides {divides} (>= 1; default {where})",
+        )

@@ -1,13 +1,20 @@
-"""``tensegrity design``: minimal-mass members for a structure's geometry under load cases
-(:func:`tensegrity.design.sizing.size_members`, ``docs/design.md``)::
+"""``tensegrity design``: minimal-mass members for a structure's geometry under load cases, at
+the given geometry or at each case's loaded equilibrium (:func:`tensegrity.design.loaded.size`,
+``docs/design.md``)::
 
     tensegrity design --structure crane.json --material steel,dyneema \\
         --load down:1:0,0,-1000 --load side:1:0,-1000,-1000 --prestress 0 -o out/
 
-writes ``out/structure.json`` (the sized structure, ready for ``tensegrity simulate
---structure``) and ``out/design.json`` (masses, areas, sections, forces and utilisations per
-case), together or not at all (:func:`tensegrity.io.files.write_staged`), and prints a summary.
-Bad input and a load case the structure cannot carry are one line with exit code 2.
+writes ``out/structure.json`` (the sized structure in the material form: its members by
+material and section, and the safety and strength factors it was sized with under ``factors``;
+:func:`tensegrity.design.files.write_design`), so that ``tensegrity simulate --structure
+out/structure.json`` and ``view --structure`` report the members' utilisation with those
+factors, and ``out/design.json`` (masses, areas, sections, forces and utilisations per case),
+together or not at all (:func:`tensegrity.io.files.write_staged`), and prints a summary.  No
+numeric form is written: every verb reads the material form (in Python,
+:func:`~tensegrity.design.files.read_design`; ``Structure.to_dict`` of its structure is the
+numeric form).  Bad input and a load case the structure cannot carry are one line with exit
+code 2.
 """
 
 from __future__ import annotations
@@ -27,37 +34,9 @@ from tensegrity.cli.startup import announce_compiling
 from tensegrity.io.files import atomic_path, shown_path, write_staged
 
 if TYPE_CHECKING:
-    from tensegrity.design.materials import Material, Section
+    from tensegrity.design.materials import Material, MemberDesign
 
-__all__ = ["add_parsers", "parse_materials", "parse_sections"]
-
-
-def parse_materials(text: str) -> tuple[Material, Material]:
-    """``--material ROD[,TENDON]``: the rods' and the tendons' table materials (the same one
-    if only one is named); a one-line ``ValueError`` otherwise."""
-    from tensegrity.design.materials import material
-
-    names = text.split(",")
-    if len(names) > 2:
-        raise ValueError(f"expected ROD or ROD,TENDON, got {text!r}")
-    return material(names[0]), material(names[-1])
-
-
-def parse_sections(text: str) -> tuple[Section, Section]:
-    """``--section ROD,TENDON`` of ``tensegrity simulate``: the rods' section ``rod:D`` or
-    ``tube:D:T`` and the tendons' ``cable:D``, millimetres
-    (:func:`tensegrity.design.materials.parse_section`); a one-line ``ValueError`` otherwise."""
-    from tensegrity.design.materials import Cable, parse_section
-
-    parts = text.split(",")
-    if len(parts) != 2:
-        raise ValueError(
-            f"expected ROD,TENDON, e.g. rod:20,cable:3 or tube:40:2,cable:3 (mm), got {text!r}"
-        )
-    rod, tendon = parse_section(parts[0]), parse_section(parts[1])
-    if isinstance(rod, Cable):
-        raise ValueError(f"a cable cannot be a rod (no bending stiffness): {parts[0]!r}")
-    return rod, tendon
+__all__ = ["add_parsers"]
 
 
 def _load(text: str) -> tuple[str, int, list[float]]:
@@ -191,13 +170,7 @@ def add_parsers(sub: Any) -> None:
         help="the lowest natural frequency [Hz] allowed, prestressed and under each load case "
         "(at the loaded equilibrium)",
     )
-    arguments.add_safety_factor(p)
-    p.add_argument(
-        "--strength-factor",
-        type=arguments.at_least(1.0, strict=False),
-        default=1.0,
-        help="divides the yield strengths (>= 1, default %(default)g)",
-    )
+    arguments.add_factors(p, from_file=False)
     p.add_argument(
         "--min-area",
         type=arguments.at_least(0.0, strict=True),
@@ -227,15 +200,15 @@ def add_parsers(sub: Any) -> None:
 
 
 def _cmd_design(args: argparse.Namespace) -> int:
+    from tensegrity.design.files import write_design
     from tensegrity.design.loaded import size
     from tensegrity.design.materials import member_table
     from tensegrity.design.sizing import LoadCase
-    from tensegrity.io.formats import write_structure
 
     if args.out.exists() and not args.out.is_dir():
         raise CommandError(f"--out: {shown_path(args.out)} is a file, expected a folder")
     with blame("--material", None):
-        rod_material, tendon_material = parse_materials(args.material)
+        rod_material, tendon_material = structures.parse_materials(args.material)
     structure = structures.source_of(args).structure  # its geometry and topology
     if args.form_find:
         structure = _form_found(structure)
@@ -308,8 +281,12 @@ def _cmd_design(args: argparse.Namespace) -> int:
     if dynamic is not None:
         report["dynamic"] = dynamic
 
+    members = _member_design(args, sizing, rod_material, tendon_material)
+
     def write(staging: Path) -> list[Path]:
-        target = write_structure(staging / "structure.json", sizing.structure)
+        target = write_design(
+            staging / "structure.json", sizing.structure, members, keep_joints=True
+        )
         with atomic_path(staging / "design.json") as tmp:
             tmp.write_text(json.dumps(report, indent=2, allow_nan=False) + "\n", "utf-8")
         return [target, staging / "design.json"]
@@ -420,6 +397,7 @@ def _dynamic(args: argparse.Namespace, sizing: Any, cases: list[Any]) -> dict[st
             cases,
             damping_ratio=ratio,
             safety_factor=args.safety_factor,
+            strength_factor=args.strength_factor,
         )
     except ValueError as exc:
         raise CommandError(f"--check-dynamics: {' '.join(str(exc).split())}", EXIT_FAILED) from None
@@ -447,4 +425,23 @@ def _dynamic(args: argparse.Namespace, sizing: Any, cases: list[Any]) -> dict[st
             )
             for run in runs
         ],
+    )
+
+
+def _member_design(
+    args: argparse.Namespace, sizing: Any, rod_material: Material, tendon_material: Material
+) -> MemberDesign:
+    """The sized members (``sizing``, of ``--material``, ``--section``, ``--tendon-mass``) as a
+    :class:`~tensegrity.design.materials.MemberDesign` with the ``--safety-factor`` and
+    ``--strength-factor`` they were sized with: what ``out/structure.json`` carries."""
+    from tensegrity.design.materials import Cable, Factors, MemberDesign, round_section
+
+    return MemberDesign.of(
+        sizing.structure,
+        rod_material=rod_material,
+        rod_section=[round_section(A, wall_ratio=args.section) for A in sizing.rod_area],
+        tendon_material=tendon_material,
+        tendon_section=[Cable(math.sqrt(4 * A / math.pi)) for A in sizing.tendon_area],
+        tendon_mass=args.tendon_mass,
+        factors=Factors(args.safety_factor, args.strength_factor),
     )

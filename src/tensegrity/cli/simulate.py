@@ -171,7 +171,8 @@ def _simulation_inputs(
             control = read_control_table(args.control_table, structure)
     inputs = RunInputs(force, control, _scene_of(args, structure))
     if members is None:
-        for option, value in (("--safety-factor", args.safety_factor != 1.0),
+        for option, value in (("--safety-factor", args.safety_factor is not None),
+                              ("--strength-factor", args.strength_factor is not None),
                               ("--stop-on-failure", args.stop_on_failure)):  # fmt: skip
             if value:
                 raise CommandError(
@@ -179,7 +180,7 @@ def _simulation_inputs(
                     "structure file in the material form)"
                 )
         return structure, inputs, None
-    return structure, inputs, DesignedRun(structure, members, force, args.safety_factor)
+    return structure, inputs, DesignedRun(structure, members, force)
 
 
 def _stream_run(
@@ -204,7 +205,8 @@ def _stream_run(
         stop = stop_at_failure(
             structure,
             designed.members.properties(structure),
-            safety_factor=designed.safety_factor,
+            safety_factor=designed.members.factors.safety,
+            strength_factor=designed.members.factors.strength,
             external_force=inputs.force,
             gravity=inputs.scene.gravity,
         )
@@ -297,6 +299,7 @@ def _simulate_and_write(args: argparse.Namespace, options: Options, drawing: Dra
         args.resume,
         [f for f in written if f.parent == files.out or f.suffix == ".pvd"],
         peaks,
+        None if designed is None else designed.members.factors,
     )
     return 0
 
@@ -410,7 +413,7 @@ def add_parser(sub: Any) -> None:
         help="do not write OUT/motion.gif",
     )
     design = sim.add_argument_group("design checks (members with a material and section)")
-    arguments.add_safety_factor(design)
+    arguments.add_factors(design, from_file=True)
     design.add_argument(
         "--stop-on-failure",
         action="store_true",

@@ -25,7 +25,7 @@ from tensegrity.model.ground import SLIP, STICK
 from tensegrity.physics import dynamics
 
 if TYPE_CHECKING:
-    from tensegrity.design.materials import MemberDesign
+    from tensegrity.design.materials import Factors, MemberDesign
     from tensegrity.design.utilisation import TrajectoryUtilisation
     from tensegrity.engine.result import SimulationResult
     from tensegrity.io.stream import StreamSummary
@@ -48,13 +48,13 @@ FIGURE_SAMPLES = 1000
 
 @dataclasses.dataclass(frozen=True)
 class DesignedRun:
-    """The structure of a ``simulate`` run whose members have a design, that design and the
-    run's force table (the trajectory file holds neither)."""
+    """The structure of a ``simulate`` run whose members have a design, that design (with the
+    factors its utilisation is computed with) and the run's force table (the trajectory file
+    holds neither)."""
 
     structure: Structure
     members: MemberDesign
     force: ForceTable | None
-    safety_factor: float  #: divides the rods' Euler load
 
     def peaks(self, path: Path, n_samples: int) -> TrajectoryUtilisation:
         """The members' largest utilisation over the run of ``n_samples`` samples in the
@@ -66,7 +66,8 @@ class DesignedRun:
             path,
             self.members.properties(self.structure),
             n_samples=n_samples,
-            safety_factor=self.safety_factor,
+            safety_factor=self.members.factors.safety,
+            strength_factor=self.members.factors.strength,
             external_force=self.force,
         )
 
@@ -200,7 +201,8 @@ def write_run(
         peaks = designed.peaks(work, summary.n_samples)
         check = MemberCheck(
             designed.members.properties(designed.structure),
-            safety_factor=designed.safety_factor,
+            safety_factor=designed.members.factors.safety,
+            strength_factor=designed.members.factors.strength,
             external_force=designed.force,
             largest=peaks.largest,
         )
@@ -247,8 +249,12 @@ def write_run(
                 []
                 if designed is None
                 else [
-                    write_design(
-                        staging / MATERIAL_STRUCTURE, structure, designed.members, scene=scene
+                    write_design(  # (the run's own nodes, joints kept: view matches them)
+                        staging / MATERIAL_STRUCTURE,
+                        structure,
+                        designed.members,
+                        keep_joints=True,
+                        scene=scene,
                     )
                 ]
             ),
@@ -362,10 +368,12 @@ def print_summary(
     resume: bool,
     files: Sequence[Path],
     peaks: TrajectoryUtilisation | None,
+    factors: Factors | None = None,
 ) -> None:
     """The summary of a run: ``trajectory`` read back from its file (its last sample matters),
     the :class:`tensegrity.io.stream.StreamSummary` of the streamed run, the largest energy
-    balance error [J], and the members' largest utilisation if they have a design (``peaks``)."""
+    balance error [J], and the members' largest utilisation if they have a design (``peaks``,
+    computed with ``factors``)."""
     structure = trajectory.structure
     e = trajectory.energy
     tension = trajectory.tendon_tension[-1]
@@ -410,6 +418,15 @@ def print_summary(
     failures: list[str] = []
     if peaks is not None:
         more, failures = _utilisation_rows(peaks, structure)
+        if factors is not None:
+            more.insert(
+                0,
+                (
+                    "utilisation factors",
+                    f"safety {factors.safety:g} (divides the Euler load), strength "
+                    f"{factors.strength:g} (divides the yield strengths)",
+                ),
+            )
         rows += more
     width = max(len(name) for name, _ in rows)
     for name, value in rows:

@@ -5,20 +5,50 @@ generated one (``--kind``, ``--n``, ``--set NAME=VALUE``, ...), ``--material``/`
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from tensegrity.cli import arguments, design
+from tensegrity.cli import arguments
 from tensegrity.cli.errors import CommandError, blame, describe
 from tensegrity.io.files import shown_path
 from tensegrity.physics import dynamics
 
 if TYPE_CHECKING:
     from tensegrity.design.files import Designed
+    from tensegrity.design.materials import Factors, Material, Section
     from tensegrity.model.structure import Structure
+
+
+def parse_materials(text: str) -> tuple[Material, Material]:
+    """``--material ROD[,TENDON]``: the rods' and the tendons' table materials (the same one
+    if only one is named); a one-line ``ValueError`` otherwise."""
+    from tensegrity.design.materials import material
+
+    names = text.split(",")
+    if len(names) > 2:
+        raise ValueError(f"expected ROD or ROD,TENDON, got {text!r}")
+    return material(names[0]), material(names[-1])
+
+
+def parse_sections(text: str) -> tuple[Section, Section]:
+    """``--section ROD,TENDON`` of ``tensegrity simulate``: the rods' section ``rod:D`` or
+    ``tube:D:T`` and the tendons' ``cable:D``, millimetres
+    (:func:`tensegrity.design.materials.parse_section`); a one-line ``ValueError`` otherwise."""
+    from tensegrity.design.materials import Cable, parse_section
+
+    parts = text.split(",")
+    if len(parts) != 2:
+        raise ValueError(
+            f"expected ROD,TENDON, e.g. rod:20,cable:3 or tube:40:2,cable:3 (mm), got {text!r}"
+        )
+    rod, tendon = parse_section(parts[0]), parse_section(parts[1])
+    if isinstance(rod, Cable):
+        raise ValueError(f"a cable cannot be a rod (no bending stiffness): {parts[0]!r}")
+    return rod, tendon
 
 
 def damping_kind(text: str) -> str | float:
@@ -150,8 +180,25 @@ def structure_of(args: argparse.Namespace) -> Structure:
 
 def designed_of(args: argparse.Namespace) -> Designed:
     """The structure the options describe and its members' design (a file in the material
-    form, or ``--material`` and ``--section``; None otherwise)."""
-    return _with_materials(args, source_of(args))
+    form, or ``--material`` and ``--section``; None otherwise), with the factors of
+    :func:`factors_of`."""
+    designed = _with_materials(args, source_of(args))
+    if designed.design is None:
+        return designed
+    factors = factors_of(args, designed.design.factors)
+    return designed._replace(design=dataclasses.replace(designed.design, factors=factors))
+
+
+def factors_of(args: argparse.Namespace, given: Factors) -> Factors:
+    """``given`` (a structure file's factors) with ``--safety-factor`` and ``--strength-factor``
+    (where the verb has them and they are given) in their place."""
+    from tensegrity.design.materials import Factors
+
+    safety, strength = (getattr(args, name, None) for name in ("safety_factor", "strength_factor"))
+    return Factors(
+        given.safety if safety is None else safety,
+        given.strength if strength is None else strength,
+    )
 
 
 def source_of(args: argparse.Namespace) -> Designed:
@@ -206,9 +253,9 @@ def _with_materials(args: argparse.Namespace, designed: Designed) -> Designed:
             "--stiffness: cannot be combined with --material (E A / Lbar is the stiffness)"
         )
     with blame(f"--material {material}"):
-        rod_material, tendon_material = design.parse_materials(material)
+        rod_material, tendon_material = parse_materials(material)
     with blame(f"--section {section}"):
-        rod_section, tendon_section = design.parse_sections(section)
+        rod_section, tendon_section = parse_sections(section)
     with blame(f"--material {material} --section {section}"):
         members = MemberDesign.of(
             designed.structure,

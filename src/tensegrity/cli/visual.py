@@ -1,8 +1,9 @@
 """The verbs that show a run: ``tensegrity animate TRAJECTORY.h5 -o motion.mp4|.webm|.gif`` (a
 video, :mod:`tensegrity.plots.animation`) and ``tensegrity view TRAJECTORY.h5 -o view.html``
 (the interactive viewer, :mod:`tensegrity.plots.viewer`; with ``--structure FILE``, a structure
-file in the material form, it colours the members by utilisation too: a trajectory file holds
-its structure's stiffness and masses, not its members' materials and sections).
+file in the material form, it colours the members by utilisation too, with the file's factors:
+a trajectory file holds its structure's stiffness and masses, not its members' materials and
+sections).
 
 Both read only as many samples of the trajectory as they show (``read_trajectory(every=)``),
 write their file atomically (nothing is left behind by a failure or an interrupt) and report a
@@ -127,16 +128,20 @@ def _cmd_animate(args: argparse.Namespace) -> int:
 
 def _member_check(args: argparse.Namespace) -> Any:
     """The :class:`~tensegrity.plots.motion.MemberCheck` of ``view --structure FILE`` (the
-    members' design in FILE, for the trajectory's structure; the run's largest utilisation as
+    members' design in FILE, for the trajectory's structure, with FILE's factors unless
+    ``--safety-factor`` or ``--strength-factor`` is given; the run's largest utilisation as
     ``simulate`` reports it), or None without ``--structure``."""
+    from tensegrity.cli.structures import factors_of
     from tensegrity.design.files import read_design
     from tensegrity.design.utilisation import trajectory_utilisation
     from tensegrity.io.trajectory import read_dataset, read_trajectory
     from tensegrity.plots.motion import MemberCheck
 
     if args.structure is None:
-        if args.safety_factor != 1.0:
-            raise CommandError("--safety-factor: only with --structure (the members' design)")
+        for option, value in (("--safety-factor", args.safety_factor),
+                              ("--strength-factor", args.strength_factor)):  # fmt: skip
+            if value is not None:
+                raise CommandError(f"{option}: only with --structure (the members' design)")
         return None
     with blame("--structure", args.structure):
         given = read_design(args.structure)
@@ -158,12 +163,22 @@ def _member_check(args: argparse.Namespace) -> Any:
             f"--structure: {shown_path(args.structure)} is not the structure of "
             f"{shown_path(args.trajectory)} (other nodes, rods or tendons)"
         )
+    factors = factors_of(args, given.design.factors)
     members = given.design.properties(structure)
     with blame("view", args.trajectory):
         peaks = trajectory_utilisation(
-            args.trajectory, members, n_samples=n_samples, safety_factor=args.safety_factor
+            args.trajectory,
+            members,
+            n_samples=n_samples,
+            safety_factor=factors.safety,
+            strength_factor=factors.strength,
         )
-    return MemberCheck(members, safety_factor=args.safety_factor, largest=peaks.largest)
+    return MemberCheck(
+        members,
+        safety_factor=factors.safety,
+        strength_factor=factors.strength,
+        largest=peaks.largest,
+    )
 
 
 def _cmd_view(args: argparse.Namespace) -> int:
@@ -260,8 +275,9 @@ def add_parsers(sub: Any) -> None:
         metavar="FILE",
         help="the run's structure file in the material form (members by material and "
         "section, as `tensegrity design` writes): the page can colour every member by its "
-        "utilisation (the trajectory does not hold the members' design). Rod forces leave out "
+        "utilisation (the trajectory does not hold the members' design), with the file's "
+        "factors unless the options below are given. Rod forces leave out "
         "a run's --force-table, which the trajectory does not hold either",
     )
-    arguments.add_safety_factor(design)
+    arguments.add_factors(design, from_file=True)
     viewer.set_defaults(run=_cmd_view)

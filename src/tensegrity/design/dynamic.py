@@ -101,6 +101,7 @@ def dynamic_check(
     sample_dt: float | None = None,
     max_samples: int = 20_000,
     safety_factor: float = 1.0,
+    strength_factor: float = 1.0,
 ) -> list[DynamicCase]:
     """Simulate ``structure`` (e.g. :attr:`Sizing.structure`: its geometry the prestressed
     equilibrium) from rest under each load case applied at ``t = 0`` and held, and compute the
@@ -124,6 +125,9 @@ def dynamic_check(
         The most samples a run keeps (``sample_dt`` is raised to stay within it).
     safety_factor : float
         Divides the Euler load (>= 1).
+    strength_factor : float
+        Divides the yield strengths (>= 1): the sizing's, so that a member sized to its limit
+        has a static utilisation of 1.
 
     Returns
     -------
@@ -157,6 +161,12 @@ def dynamic_check(
         )
         if not result.success:
             raise ValueError(f"load case {case.name!r}: the run failed: {result.message}")
-        u = run_utilisation(result, members, safety_factor=safety_factor, external_force=force)
+        u = run_utilisation(
+            result,
+            members,
+            safety_factor=safety_factor,
+            strength_factor=strength_factor,
+            external_force=force,
+        )
         out.append(DynamicCase(case.name, u, duration, sample_dt, result.message))
     return out

@@ -12,7 +12,10 @@ its kind) gives instead
   ``{diameter: D, wall: t}`` [m] (a round tube);
 
 and the top level may say ``tendon_mass: true`` (the tendons' own mass added to the nodes,
-:func:`~tensegrity.design.materials.with_members`).  The structure is then built by
+:func:`~tensegrity.design.materials.with_members`) and ``factors: {safety: gamma, strength:
+s}`` (each >= 1, default 1: :class:`~tensegrity.design.materials.Factors`, the factors the
+members' utilisation is computed with, as ``tensegrity design`` sized them; only in the
+material form).  The structure is then built by
 :meth:`MemberDesign.apply <tensegrity.design.materials.MemberDesign.apply>`: tendon stiffness
 ``E A / Lbar`` (``Lbar`` the rest length the file gives, or its prestrain's), rod mass
 ``rho A L``.  Every member is in one form: all of them in the material form, or none; a member
@@ -36,6 +39,7 @@ import numpy as np
 from tensegrity.design.materials import (
     MATERIALS,
     Cable,
+    Factors,
     HollowTube,
     Material,
     MemberDesign,
@@ -73,6 +77,8 @@ MATERIAL_KEYS = (
     "ultimate_strength",
     "source",
 )
+#: Keys of the top level's ``factors`` (:class:`~tensegrity.design.materials.Factors`' fields).
+FACTOR_KEYS = ("safety", "strength")
 #: The numeric key each kind of member gives in the other form.
 _NUMERIC = {"rod": "mass", "tendon": "stiffness"}
 
@@ -109,9 +115,17 @@ def read_design(path: PathLike, *, format: str | None = None) -> Designed:
 
 def design_from_dict(data: Any) -> Designed:
     """The structure and member design of a readable-form document (either form)."""
+    factors = data.get("factors") if isinstance(data, Mapping) else None
+    if factors is not None:
+        data = {key: value for key, value in data.items() if key != "factors"}
     numeric, given, tendon_mass = _split(data)
     structure = network_from_dict(numeric)
     if given is None:
+        if factors is not None:
+            raise ValueError(
+                "factors: only with members by material and section (the material form: "
+                "the factors divide their strengths)"
+            )
         return Designed(structure, None)
     if not isinstance(tendon_mass, bool):
         raise ValueError(f"tendon_mass: expected true or false, got {tendon_mass!r:.80}")
@@ -124,8 +138,26 @@ def design_from_dict(data: Any) -> Designed:
         tuple(choice["tendon"][0]),
         tuple(choice["tendon"][1]),
         tendon_mass,
+        _factors(factors),
     )
     return Designed(design.apply(structure), design)
+
+
+def _factors(value: Any) -> Factors:
+    """The file's ``factors``: ``{safety: gamma, strength: s}``, each >= 1 (default 1)."""
+    if value is None:
+        return Factors()
+    if not isinstance(value, Mapping):
+        raise ValueError(
+            f"factors: expected a mapping {{safety: GAMMA, strength: S}}, got "
+            f"{type(value).__name__}"
+        )
+    check_keys(value, FACTOR_KEYS, "factors")
+    numbers = {key: parse_number(value[key], f"factors.{key}") for key in value}
+    try:
+        return Factors(**numbers)
+    except ValueError as exc:
+        raise ValueError(f"factors.{exc}") from None
 
 
 def _split(data: Any) -> tuple[Any, dict[str, Any] | None, Any]:
@@ -259,6 +291,8 @@ def design_to_dict(
     ValueError
         ``structure``'s stiffness or rod masses are not those ``design`` makes (naming the
         first member): the material form would change them.
+
+    ``design``'s factors are written under ``"factors"`` unless they are the default (1, 1).
     """
     base = design.without_tendon_mass(structure)
     built = design.apply(base)
@@ -279,6 +313,8 @@ def design_to_dict(
     rods, tendons = data.pop("rods"), data.pop("tendons")
     if design.tendon_mass:
         data["tendon_mass"] = True
+    if design.factors != Factors():
+        data["factors"] = dataclasses.asdict(design.factors)
     for kind, items, materials, sections in (
         ("rod", rods, design.rod_material, design.rod_section),
         ("tendon", tendons, design.tendon_material, design.tendon_section),
@@ -331,9 +367,9 @@ def write_design(
 ) -> Path:
     """Write ``structure`` in the material form (:func:`design_to_dict`) as YAML, TOML or JSON
     (by suffix, or ``format``), atomically; :func:`read_design` reads back the same structure
-    and design (a tendon's :class:`SolidRod` section is read back as the :class:`Cable` of its
-    diameter: the same area); ``scene`` goes under the file's ``"scene"`` key
-    (:func:`tensegrity.io.formats.read_scene` reads it back)."""
+    and design, its factors too (a tendon's :class:`SolidRod` section is read back as the
+    :class:`Cable` of its diameter: the same area); ``scene`` goes under the file's ``"scene"``
+    key (:func:`tensegrity.io.formats.read_scene` reads it back)."""
     data = design_to_dict(structure, design, keep_joints=keep_joints, scene=scene)
     header = (
         f"# {len(data['nodes'])} nodes, {structure.n_rods} rods, {structure.n_tendons} tendons, "

@@ -543,6 +543,7 @@ def _size_at_prestress(
             tension=T.reshape(-1, S),
             compression=C.reshape(-1, R),
             safety_factor=safety_factor,
+            strength_factor=strength_factor,
         ),
         iterations=iteration,
         message=message,
@@ -627,22 +628,32 @@ def size(structure: Structure, *, statics: str = "auto", **options: Any) -> Sizi
     """Members sized under a prestress and load cases, by the linear sizing
     (:func:`~tensegrity.design.sizing.size_members`, ``statics="linear"``: equilibrium at the
     given geometry) or at each case's loaded equilibrium (:func:`size_at_equilibrium`,
-    ``"equilibrium"``).  ``"auto"``: linear when the structure has no mechanism
-    (:func:`mechanism_count` 0: every load is balanced at the given geometry, as for a
-    statically determinate or stiff structure), at the loaded equilibrium otherwise (a
-    tensegrity stiffened by its prestress).  ``options``: the keywords of the chosen function
-    (``rtol``, ``load_steps`` for the equilibrium only)."""
+    ``"equilibrium"``).  ``"auto"``: the linear sizing where it applies -- every case is balanced
+    at the given geometry, as for a statically determinate or stiff structure, or a load that
+    moves no mechanism -- and the loaded equilibrium where no member forces balance a case at
+    the given geometry (a load on a mechanism, which the prestress stiffens), or when a
+    serviceability limit or a prestress range is asked for.  ``options``: the keywords of the
+    chosen function."""
     if statics not in STATICS:
         raise ValueError(f"statics: expected one of {', '.join(STATICS)}, got {statics!r}")
+    nonlinear = ("rtol", "load_steps", "max_displacement", "min_frequency")
     if statics == "auto":
-        statics = "equilibrium" if mechanism_count(structure) else "linear"
+        if isinstance(options.get("prestress"), tuple) or any(n in options for n in nonlinear):
+            statics = "equilibrium"
+        else:
+            try:
+                return size_members(structure, **options)
+            except ValueError as exc:
+                if "no member forces balance it" not in str(exc):
+                    raise  # a tendon that would push, a bad argument: refused as it is
+            statics = "equilibrium"
     if statics == "linear":
         if isinstance(options.get("prestress"), tuple):
             raise ValueError(
                 "prestress: a range is searched only at the loaded equilibrium (linear sizing is "
                 "lightest at the least prestress)"
             )
-        for name in ("rtol", "load_steps", "max_displacement", "min_frequency"):
+        for name in nonlinear:
             if name in options:
                 raise ValueError(f"{name}: only for sizing at the loaded equilibrium")
         return size_members(structure, **options)

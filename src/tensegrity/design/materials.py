@@ -33,6 +33,7 @@ from tensegrity.physics.dynamics import elastic_tensions, tendon_lengths
 __all__ = [
     "MATERIALS",
     "Cable",
+    "Factors",
     "HollowTube",
     "Material",
     "MemberDesign",
@@ -44,6 +45,7 @@ __all__ = [
     "member_table",
     "parse_section",
     "per_member",
+    "round_section",
     "with_members",
 ]
 
@@ -57,6 +59,31 @@ def _positive(value: float, where: str) -> float:
     if not (math.isfinite(x) and x > 0):
         raise ValueError(f"{where}: must be > 0, got {value!r}")
     return x
+
+
+def check_factor(value: Any, where: str) -> float:
+    """``value`` as a finite float >= 1 (a safety or strength factor), or a one-line
+    ``ValueError`` naming ``where``."""
+    if isinstance(value, bool) or not isinstance(value, int | float | np.floating | np.integer):
+        raise ValueError(f"{where}: must be a number >= 1, got {value!r:.80}")
+    if not (math.isfinite(value) and value >= 1.0):
+        raise ValueError(f"{where}: must be >= 1, got {value!r}")
+    return float(value)
+
+
+@dataclasses.dataclass(frozen=True)
+class Factors:
+    """The factors a design is checked with (``docs/design.md``), each finite and >= 1:
+    ``safety`` (``gamma``) divides the rods' Euler load, ``strength`` the yield strengths of rods
+    and tendons (not the tendons' ultimate strength: ``tendon_ultimate`` stays the raw ratio to
+    the breaking stress)."""
+
+    safety: float = 1.0
+    strength: float = 1.0
+
+    def __post_init__(self) -> None:
+        for field in ("safety", "strength"):
+            object.__setattr__(self, field, check_factor(getattr(self, field), field))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -254,6 +281,17 @@ def parse_section(text: str) -> Section:
     return Cable(mm[0])
 
 
+def round_section(area: float, *, wall_ratio: float | None = None) -> SolidRod | HollowTube:
+    """The round rod section of area ``area`` [m^2]: a solid bar (``wall_ratio`` None) or a
+    tube of wall thickness ``wall_ratio`` times its outer diameter (``0 < wall_ratio <= 1/2``;
+    1/2 is the solid bar as a tube)."""
+    if wall_ratio is None:
+        return SolidRod(math.sqrt(4 * area / math.pi))
+    xi = 1 - 2 * wall_ratio
+    diameter = math.sqrt(4 * area / (math.pi * (1 - xi**2)))
+    return HollowTube(diameter, wall_ratio * diameter)
+
+
 class MemberProperties(NamedTuple):
     """Material and section numbers of every member, as arrays: rods (R,), tendons (S,)."""
 
@@ -421,7 +459,8 @@ def member_table(structure: Structure, members: MemberProperties) -> list[dict[s
 class MemberDesign:
     """The material and section of every member, as objects (what a structure file in the
     material form gives, ``docs/design.md``): tuples of one per rod (R,) and one per tendon
-    (S,), and whether the tendons' own mass is added to the nodes (:func:`with_members`).
+    (S,), whether the tendons' own mass is added to the nodes (:func:`with_members`), and the
+    factors the members are checked with (:class:`Factors`: the file's ``factors``).
 
     :meth:`properties` gives the numbers (:class:`MemberProperties`) that
     :func:`~tensegrity.design.utilisation.utilisation` needs; :meth:`apply` the structure they
@@ -433,6 +472,7 @@ class MemberDesign:
     tendon_material: tuple[Material, ...]
     tendon_section: tuple[Section, ...]
     tendon_mass: bool = False
+    factors: Factors = Factors()
 
     @classmethod
     def of(
@@ -444,15 +484,19 @@ class MemberDesign:
         tendon_material: Material | Sequence[Material],
         tendon_section: Section | Sequence[Section],
         tendon_mass: bool = False,
+        factors: Factors = Factors(),
     ) -> MemberDesign:
         """One material (section) for all rods (tendons) of ``structure``, or one per member;
         checked as :func:`member_properties` checks them."""
+        if not isinstance(factors, Factors):
+            raise TypeError(f"factors: expected a Factors, got {type(factors).__name__}")
         design = cls(
             tuple(per_member(rod_material, structure.n_rods, "rod_material", Material)),
             tuple(per_member(rod_section, structure.n_rods, "rod_section", _SECTIONS)),
             tuple(per_member(tendon_material, structure.n_tendons, "tendon_material", Material)),
             tuple(per_member(tendon_section, structure.n_tendons, "tendon_section", _SECTIONS)),
             tendon_mass,
+            factors,
         )
         design.properties(structure)
         return design

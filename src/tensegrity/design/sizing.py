@@ -45,12 +45,11 @@ import scipy.sparse as sp
 from tensegrity.analysis.equilibrium import EquilibriumResult
 from tensegrity.design.materials import (
     Cable,
-    HollowTube,
     Material,
     MemberProperties,
-    SolidRod,
     member_properties,
     per_member,
+    round_section,
     with_members,
 )
 from tensegrity.design.utilisation import Utilisation, utilisation
@@ -539,19 +538,11 @@ def sized_structure(
     E A / (E A + T)`` that give the tensions ``prestress_tension`` (S,) [N] at the structure's
     node positions (``l`` the tendons' lengths there)."""
     s = structure
-    rod_sections: list[SolidRod | HollowTube] = []
-    for A in rod_area:
-        if wall_ratio is None:
-            rod_sections.append(SolidRod(math.sqrt(4 * A / math.pi)))
-        else:
-            xi = 1 - 2 * wall_ratio
-            D = math.sqrt(4 * A / (math.pi * (1 - xi**2)))
-            rod_sections.append(HollowTube(D, wall_ratio * D))
     cables = [Cable(math.sqrt(4 * A / math.pi)) for A in tendon_area]
     members = member_properties(
         s,
         rod_material=rod_material,
-        rod_section=rod_sections,
+        rod_section=[round_section(A, wall_ratio=wall_ratio) for A in rod_area],
         tendon_material=tendon_material,
         tendon_section=cables,
     )
@@ -762,7 +753,14 @@ def size_members(
         tendon_mass=density[s.n_rods :] * length * tendon_area,
         rod_compression=C,
         tendon_tension=T,
-        utilisation=utilisation(s, members, tension=T, compression=C, safety_factor=safety_factor),
+        utilisation=utilisation(
+            s,
+            members,
+            tension=T,
+            compression=C,
+            safety_factor=safety_factor,
+            strength_factor=strength_factor,
+        ),
         iterations=iterations,
         message=message,
         governs=least.governs,

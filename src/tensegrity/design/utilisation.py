@@ -2,11 +2,15 @@
 
 For the materials and sections of :func:`tensegrity.design.materials.member_properties`:
 
-- a tendon's stress ``sigma = T / A`` against its yield strength (``sigma / sigma_y``) and its
-  ultimate strength (``sigma / sigma_u``, > 1: it breaks); a tendon with ``T = 0`` is slack;
-- a rod's axial force ``C`` (> 0 compressed) against yield (``|C| / (A sigma_y)``) and, in
+- a tendon's stress ``sigma = T / A`` against its yield strength divided by a strength factor
+  ``s`` (``sigma / (sigma_y / s)``) and its ultimate strength (``sigma / sigma_u``, > 1: it
+  breaks; not divided by ``s``: the raw ratio to breaking); a tendon with ``T = 0`` is slack;
+- a rod's axial force ``C`` (> 0 compressed) against yield (``|C| / (A sigma_y / s)``) and, in
   compression, against the Euler load of a pinned-pinned bar divided by a safety factor
   ``gamma``: ``C / (pi^2 E I / (gamma L^2))``.
+
+``gamma`` and ``s`` (each >= 1, default 1) are those of the sizing
+(:func:`~tensegrity.design.sizing.size_members`): a member sized to its limit has utilisation 1.
 
 A member *fails* when a utilisation exceeds 1.  The rods' axial forces are those the library
 computes everywhere (:func:`tensegrity.analysis.statics.rod_compression`): half the difference of
@@ -26,7 +30,7 @@ from typing import TYPE_CHECKING, NamedTuple
 import numpy as np
 
 from tensegrity.analysis.statics import nodal_forces, rod_compression
-from tensegrity.design.materials import MemberProperties
+from tensegrity.design.materials import MemberProperties, check_factor
 from tensegrity.model.structure import Structure
 from tensegrity.physics.constraints import constraints_of
 from tensegrity.physics.coordinates import force_response, nodes_from_coordinates, rod_coordinates
@@ -56,12 +60,12 @@ class Utilisation(NamedTuple):
     leading axes of the forces given (e.g. samples)."""
 
     tendon_stress: np.ndarray  #: ``T / A`` [Pa]
-    tendon_yield: np.ndarray  #: ``sigma / sigma_y``
+    tendon_yield: np.ndarray  #: ``sigma / (sigma_y / s)``
     tendon_ultimate: np.ndarray  #: ``sigma / sigma_u``
     slack: np.ndarray  #: bool, ``T <= 0``
     rod_compression: np.ndarray  #: ``C`` [N], > 0 compressed
     rod_stress: np.ndarray  #: ``C / A`` [Pa], > 0 compressed
-    rod_yield: np.ndarray  #: ``|C| / (A sigma_y)``
+    rod_yield: np.ndarray  #: ``|C| / (A sigma_y / s)``
     rod_buckling: np.ndarray  #: ``max(C, 0) / (pi^2 E I / (gamma L^2))``
 
     @property
@@ -84,9 +88,8 @@ def euler_load(
     structure: Structure, members: MemberProperties, *, safety_factor: float = 1.0
 ) -> np.ndarray:
     """Allowed compression of each rod (R,) [N]: the pinned-pinned Euler load
-    ``pi^2 E I / L^2`` divided by ``safety_factor``."""
-    if not safety_factor >= 1.0:
-        raise ValueError(f"safety_factor: must be >= 1, got {safety_factor!r}")
+    ``pi^2 E I / L^2`` divided by ``safety_factor`` (>= 1)."""
+    safety_factor = check_factor(safety_factor, "safety_factor")
     return np.asarray(
         np.pi**2
         * members.rod_modulus
@@ -102,23 +105,27 @@ def utilisation(
     tension: np.ndarray,
     compression: np.ndarray,
     safety_factor: float = 1.0,
+    strength_factor: float = 1.0,
 ) -> Utilisation:
     """Utilisation of the members under tendon tensions (..., S) [N] and rod compressions
     (..., R) [N] (> 0 compressed), e.g. an equilibrium's ``tension`` and ``rod_compression``
     (:class:`~tensegrity.analysis.equilibrium.EquilibriumResult`), or a run's samples
-    (:func:`run_utilisation`).  ``safety_factor`` (>= 1) divides the Euler load."""
+    (:func:`run_utilisation`).  ``safety_factor`` (>= 1) divides the Euler load,
+    ``strength_factor`` (>= 1) the yield strengths of rods and tendons (not the tendons'
+    ultimate strength)."""
+    strength = check_factor(strength_factor, "strength_factor")
     T = np.asarray(tension, dtype=float)
     C = np.asarray(compression, dtype=float)
     stress = T / members.tendon_area
     rod_stress = C / members.rod_area
     return Utilisation(
         tendon_stress=stress,
-        tendon_yield=stress / members.tendon_yield,
+        tendon_yield=strength * stress / members.tendon_yield,
         tendon_ultimate=stress / members.tendon_ultimate,
         slack=T <= 0,
         rod_compression=C,
         rod_stress=rod_stress,
-        rod_yield=np.abs(rod_stress) / members.rod_yield,
+        rod_yield=strength * np.abs(rod_stress) / members.rod_yield,
         rod_buckling=np.maximum(C, 0.0)
         / euler_load(structure, members, safety_factor=safety_factor),
     )
@@ -171,6 +178,7 @@ def stop_at_failure(
     members: MemberProperties,
     *,
     safety_factor: float = 1.0,
+    strength_factor: float = 1.0,
     external_force: np.ndarray | Callable[[float], np.ndarray] | None = None,
     gravity: np.ndarray | None = None,
 ) -> Callable[[Samples], str | None]:
@@ -178,7 +186,11 @@ def stop_at_failure(
     sample where a member's utilisation exceeds 1 (:func:`utilisation` of the sample's
     tensions and of :func:`rod_axial_forces`), the reason naming the member with the largest.
     ``external_force`` (N, dim) [N] (or ``w(t)``) and ``gravity`` (dim,) [m/s^2]: the run's,
-    for the rods' forces."""
+    for the rods' forces; ``safety_factor`` and ``strength_factor``: :func:`utilisation`'s."""
+    factors = {
+        name: check_factor(value, name)
+        for name, value in (("safety_factor", safety_factor), ("strength_factor", strength_factor))
+    }
     force = _forces_at(external_force)
     g = None if gravity is None else np.asarray(gravity, dtype=float)
 
@@ -192,7 +204,7 @@ def stop_at_failure(
             members,
             tension=tension,
             compression=compression,
-            safety_factor=safety_factor,
+            **factors,
         )
         if u.largest <= 1.0:
             return None
@@ -247,6 +259,7 @@ def run_utilisation(
     members: MemberProperties,
     *,
     safety_factor: float = 1.0,
+    strength_factor: float = 1.0,
     external_force: np.ndarray | Callable[[float], np.ndarray] | None = None,
 ) -> RunUtilisation:
     """The utilisation of every member at every sample of a run, and each member's largest.
@@ -256,7 +269,7 @@ def run_utilisation(
     [N] (constant, or a function ``w(t)`` such as a
     :class:`~tensegrity.model.loads.ForceTable`, as :func:`tensegrity.simulate` takes it; the
     run's own forces are not in the result: give them here), by :func:`rod_axial_forces` at
-    each sample.
+    each sample; ``safety_factor`` and ``strength_factor``: :func:`utilisation`'s.
     """
     s = result.structure
     g = result.settings.get("gravity")
@@ -277,6 +290,7 @@ def run_utilisation(
         tension=result.tendon_tension,
         compression=compression,
         safety_factor=safety_factor,
+        strength_factor=strength_factor,
     )
     tendon_at, rod_at = np.argmax(u.tendon, axis=0), np.argmax(u.rod, axis=0)
     return RunUtilisation(
@@ -318,12 +332,12 @@ class TrajectoryUtilisation(NamedTuple):
     (:func:`trajectory_utilisation`): tendons from one sample in ``tendon_every``, rods from
     one in ``rod_every`` (and always the last)."""
 
-    tendon_peak: np.ndarray  #: largest ``sigma / sigma_y`` of each tendon (S,)
+    tendon_peak: np.ndarray  #: largest ``sigma / (sigma_y / s)`` of each tendon (S,)
     tendon_peak_time: np.ndarray  #: when (S,) [s]
     tendon_yield: Peak | None  #: the largest over tendons
     rod_peak: np.ndarray  #: largest governing utilisation of each rod (R,)
     rod_peak_time: np.ndarray  #: when (R,) [s]
-    rod_yield: Peak | None  #: the largest ``|C| / (A sigma_y)`` over rods
+    rod_yield: Peak | None  #: the largest ``|C| / (A sigma_y / s)`` over rods
     rod_buckling: Peak | None  #: the largest ``C / P_Euler`` over rods
     tendon_every: int
     rod_every: int
@@ -344,6 +358,7 @@ def trajectory_utilisation(
     *,
     n_samples: int,
     safety_factor: float = 1.0,
+    strength_factor: float = 1.0,
     external_force: np.ndarray | Callable[[float], np.ndarray] | None = None,
     rod_samples: int = ROD_SAMPLES,
     tension_bytes: int = TENSION_BYTES,
@@ -352,12 +367,19 @@ def trajectory_utilisation(
     ``n_samples`` samples, reading only what it needs: the tendon tensions (every sample, or
     one in k to stay within ``tension_bytes``) and, for the rods' forces (:func:`run_utilisation`,
     a solve per sample), one sample in k to stay within ``rod_samples``.  ``external_force``:
-    the run's (the file does not hold it).
+    the run's (the file does not hold it); ``safety_factor`` and ``strength_factor``:
+    :func:`utilisation`'s.
     """
     from tensegrity.io.trajectory import read_dataset, read_trajectory
 
     run = read_trajectory(path, every=max(1, -(-n_samples // rod_samples)))
-    rods = run_utilisation(run, members, safety_factor=safety_factor, external_force=external_force)
+    rods = run_utilisation(
+        run,
+        members,
+        safety_factor=safety_factor,
+        strength_factor=strength_factor,
+        external_force=external_force,
+    )
     S = run.structure.n_tendons
     tendon_every = max(1, -(-n_samples * S * 8 // tension_bytes))
     t = read_dataset(path, "t", every=tendon_every)
@@ -367,6 +389,7 @@ def trajectory_utilisation(
         members,
         tension=tension,
         compression=np.zeros((len(t), run.structure.n_rods)),
+        strength_factor=strength_factor,
     ).tendon_yield
     at = np.argmax(tendon, axis=0) if S else np.zeros(0, dtype=int)
     return TrajectoryUtilisation(

@@ -127,8 +127,9 @@ NPZ_KINDS = {
 _ROD_KEYS = ("mass", "length", "damping", "relative_damping")
 _TENDON_KEYS = ("stiffness", "rest_length", "prestrain", "damping")
 #: Keys of the material form (members and ``defaults``: ``material``, ``section``; the top
-#: level: ``tendon_mass``), read by :func:`tensegrity.design.files.read_design`, not here.
-MATERIAL_FORM_KEYS = ("material", "section", "tendon_mass")
+#: level: ``tendon_mass``, ``factors``), read by :func:`tensegrity.design.files.read_design`,
+#: not here.
+MATERIAL_FORM_KEYS = ("material", "section", "tendon_mass", "factors")
 
 
 # -------------------------------------------------------------------- readable form

@@ -91,6 +91,8 @@ class MemberCheck(NamedTuple):
         (:meth:`~tensegrity.design.materials.MemberDesign.properties`).
     safety_factor : float
         Divides the rods' Euler load (>= 1).
+    strength_factor : float
+        Divides the yield strengths of rods and tendons (>= 1).
     external_force : ndarray, shape (N, dim), or callable, optional
         The run's external forces [N] (constant, or ``w(t)`` such as a
         :class:`~tensegrity.model.loads.ForceTable`): neither a result nor a trajectory file
@@ -103,6 +105,7 @@ class MemberCheck(NamedTuple):
 
     members: MemberProperties
     safety_factor: float = 1.0
+    strength_factor: float = 1.0
     external_force: np.ndarray | Callable[[float], np.ndarray] | None = None
     largest: float = 0.0
 
@@ -380,6 +383,7 @@ def make_frames(
         _sample_rows(result, frames.index),
         check.members,
         safety_factor=check.safety_factor,
+        strength_factor=check.strength_factor,
         external_force=check.external_force,
     )
     high = max(1.0, check.largest, u.largest)
