@@ -98,6 +98,7 @@ NPZ_ARRAYS = {
     "tendon_prestrain": (False, "(S,) strain (l - L0) / L0 in N"),
     "tendon_damping": (False, "(S,) [N s/m], default 0"),
     "tendon_name": (False, "(S,) unicode names"),
+    "node_name": (False, "(n,) unicode names, default n0, n1, ..."),
     "node_velocity": (False, "(d, n) [m/s], default 0"),
     "node_fixed": (False, "(n,) bool, nodes held at their position (supports, anchors)"),
     "node_point_mass": (False, "(n,) [kg], a point mass at a node (> 0), default 0"),
@@ -122,6 +123,7 @@ NPZ_KINDS = {
     **{name: ArrayKind("iuf", "node indices") for name in NPZ_INDEX_ARRAYS},
     "node_fixed": ArrayKind("b", "booleans"),
     "tendon_name": ArrayKind("U", "text"),
+    "node_name": ArrayKind("U", "text"),
 }
 
 _ROD_KEYS = ("mass", "length", "damping", "relative_damping")
@@ -158,7 +160,7 @@ def network_to_dict(
     last, under ``"scene"`` (:meth:`Scene.to_dict <tensegrity.model.ground.Scene.to_dict>`).
     """
     merged = merge_joints(structure, keep_joints=keep_joints)
-    names = [f"n{i}" for i in range(merged.N.shape[1])]
+    names = list(merged.node_name or (f"n{i}" for i in range(merged.N.shape[1])))
     data: dict[str, Any] = {
         "format": NETWORK_FORMAT,
         "version": NETWORK_VERSION,
@@ -310,7 +312,15 @@ def network_from_dict(data: Any) -> Structure:
         tendon_rest_length=rest,
         tendon_damping=_column(tendons, "tendons", "damping", tendon_default, zeros[1]),
         tendon_name=tuple(item.get("name", f"s{k}") for k, (_, item) in enumerate(tendons)),
+        node_name=_node_names(names) if isinstance(data["nodes"], Mapping) else None,
     )
+
+
+def _node_names(names: Sequence[Any]) -> tuple[str, ...] | None:
+    """The structure's names of the readable form's named nodes ``names`` (an integer name is
+    its text); ``None`` (the default names) for the names ``n0, n1, ...``."""
+    text = tuple(str(name) for name in names)
+    return None if text == tuple(f"n{i}" for i in range(len(names))) else text
 
 
 def _refuse_material_form(data: Any) -> None:
@@ -740,12 +750,14 @@ def _from_npz(raw: bytes) -> Structure:
     for name in NPZ_INDEX_ARRAYS:
         _check_whole(arrays.get(name), name)
     names = arrays.pop("tendon_name", None)
+    node_names = arrays.pop("node_name", None)
     N, C_b, C_s = arrays.pop("N"), arrays.pop("C_b"), arrays.pop("C_s")
     return from_connectivity(
         N,
         C_b,
         C_s,
         tendon_name=None if names is None else tuple(str(x) for x in names),
+        node_name=None if node_names is None else tuple(str(x) for x in node_names),
         ball_joints=True,
         **arrays,
     )
@@ -833,7 +845,9 @@ def _npz_arrays(structure: Structure, keep_joints: bool) -> dict[str, np.ndarray
         "tendon_rest_length": structure.tendon_rest_length,
         "tendon_damping": structure.tendon_damping,
         "tendon_name": np.array(structure.tendon_name, dtype=str),
-    } | {name: getattr(merged, name) for name, present in supports.items() if present}
+    } | {
+        name: getattr(merged, name) for name, present in supports.items() if present
+    } | ({} if merged.node_name is None else {"node_name": np.array(merged.node_name, dtype=str)})
 
 
 def _dump_text(structure: Structure, kind: str, keep_joints: bool, scene: Scene | None) -> str:
