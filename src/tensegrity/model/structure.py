@@ -686,8 +686,8 @@ class Structure:
             raise TypeError(f"node: expected a node name or index, got {_shown(node)}")
         if not 0 <= number < self.n_nodes:
             raise KeyError(
-                f"no node named {str(node)!r} and node index {number} out of range "
-                f"[0, {self.n_nodes - 1}]"
+                f"node {number} out of range [0, {self.n_nodes - 1}]"
+                + (f" (and no node is named {node!r})" if isinstance(node, str) else "")
             )
         return number
 
