@@ -58,7 +58,7 @@ def test_node_index_prefers_a_name_to_an_index():
     assert s.node_index(5) == 5
     with pytest.raises(KeyError, match=r"no node named 'x' \(the nodes are top, 5, a, b, c, \.\.\.\)"):
         s.node_index("x")
-    with pytest.raises(KeyError, match=r"node index 6 out of range \[0, 5\]"):
+    with pytest.raises(KeyError, match=r"node 6 out of range \[0, 5\] \(and no node is named .6.\)"):
         s.node_index("6")
     with pytest.raises(KeyError, match=r"out of range"):
         s.node_index(-1)
@@ -140,3 +140,46 @@ def test_trajectory_keeps_node_names(tmp_path):
     s = named(prism(3))
     write_trajectory(tmp_path / "t.h5", simulate(s, (0.0, 0.01), sample_dt=0.01))
     assert read_trajectory(tmp_path / "t.h5").structure.node_name == s.node_name
+
+
+def _crane(tmp_path, names):
+    """A 1 m rod pinned at node 0, its head (node 1) held by tendons to anchors (0, +-1, 1)."""
+    s = Structure(
+        node_position=[[0, 0, 0], [1, 0, 0], [0, 1, 1], [0, -1, 1]],
+        rod_nodes=[[0, 1]],
+        rod_mass=[1.0],
+        rod_length=[1.0],
+        tendon_nodes=[[1, 2], [1, 3]],
+        tendon_stiffness=[1.0, 1.0],
+        tendon_rest_length=[1.0, 1.0],
+        node_fixed=[True, False, True, True],
+        node_name=names,
+    )
+    path = tmp_path / "crane.yaml"
+    write_network(path, s)
+    return path
+
+
+def test_design_loads_by_node_name_or_index(tmp_path, capsys):
+    """``design --load CASE:NODE:F``: NODE a name of the file's nodes or an index; digits are
+    the node of that name if there is one ("3" below is node 1, the head), else an index."""
+    from tensegrity.cli.main import main
+
+    path = _crane(tmp_path, ["pin", "3", "left", "right"])
+    reports = []
+    for node in ("3", "1"):  # the node named "3"; index 1 (no node is named "1")
+        out = tmp_path / f"out{node}"
+        argv = ["design", "--structure", str(path), "--material", "steel,dyneema"]
+        assert main([*argv, "--load", f"down:{node}:0,0,-1000", "-o", str(out)]) == 0
+        reports.append(json.loads((out / "design.json").read_text()))
+    capsys.readouterr()
+    assert reports[0]["total_mass_kg"] == reports[1]["total_mass_kg"] > 0
+    for node, message in (
+        ("head", "--load down:head: no node named 'head' (the nodes are pin, 3, left, right)"),
+        ("7", "--load down:7: node 7 out of range [0, 3] (and no node is named '7')"),
+    ):
+        argv = ["design", "--structure", str(path), "--material", "steel,dyneema"]
+        assert main([*argv, "--load", f"down:{node}:0,0,-1", "-o", str(tmp_path / "x")]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and message in err, err
+        assert not (tmp_path / "x").exists()
