@@ -48,7 +48,7 @@ def test_loads_add_to_a_force_table_exactly():
     both = add_force_tables(given, loads)
     for t in np.linspace(-0.2, 1.2, 57):
         np.testing.assert_allclose(both(t), given(t) + loads(t), rtol=1e-14, atol=1e-15)
-    with pytest.raises(ValueError, match="^first: a table zero outside its times"):
+    with pytest.raises(ValueError, match=r"^first: a table zero outside its times"):
         add_force_tables(ForceTable([0.0, 1.0], np.zeros((2, 6, 3)), "zero"), loads)
 
 
@@ -81,8 +81,11 @@ def test_a_fixed_base_prism_under_a_top_load_comes_to_rest_at_the_loaded_equilib
                    atol=1e-12, sample_dt=0.5)  # fmt: skip
     assert run.status == 1, run.message  # at rest
     rest = run.node_position[-1]
-    assert np.ptp(s.node_position[3:, 2] - rest[3:, 2]) < 1e-6 < 0.01 < np.min(
-        s.node_position[3:, 2] - rest[3:, 2]
+    assert (
+        np.ptp(s.node_position[3:, 2] - rest[3:, 2])
+        < 1e-6
+        < 0.01
+        < np.min(s.node_position[3:, 2] - rest[3:, 2])
     )
     np.testing.assert_allclose(rest, eq.node_position, rtol=0, atol=1e-6)
 

@@ -37,7 +37,10 @@ def test_default_names_and_a_given_name_kept_by_replace():
 @pytest.mark.parametrize(
     ("names", "message"),
     [
-        (["a", "b", "c", "d", "e", "a"], r"^node_name\[5\]: 'a' is also the name of node_name\[0\]"),
+        (
+            ["a", "b", "c", "d", "e", "a"],
+            r"^node_name\[5\]: 'a' is also the name of node_name\[0\]",
+        ),
         (["a", "b", "", "d", "e", "f"], r"^node_name\[2\]: must be a non-empty string"),
         (["a", "b", 3, "d", "e", "f"], r"^node_name\[2\]: must be a non-empty string"),
         (["a", "b"], r"^node_name: expected 6 names, got 2"),
@@ -56,9 +59,13 @@ def test_node_index_prefers_a_name_to_an_index():
     assert s.node_index("5") == 1  # the node called "5", not node 5
     assert s.node_index("4") == 4  # no node called "4": index 4
     assert s.node_index(5) == 5
-    with pytest.raises(KeyError, match=r"no node named 'x' \(the nodes are top, 5, a, b, c, \.\.\.\)"):
+    with pytest.raises(
+        KeyError, match=r"no node named 'x' \(the nodes are top, 5, a, b, c, \.\.\.\)"
+    ):
         s.node_index("x")
-    with pytest.raises(KeyError, match=r"node 6 out of range \[0, 5\] \(and no node is named .6.\)"):
+    with pytest.raises(
+        KeyError, match=r"node 6 out of range \[0, 5\] \(and no node is named .6.\)"
+    ):
         s.node_index("6")
     with pytest.raises(KeyError, match=r"out of range"):
         s.node_index(-1)

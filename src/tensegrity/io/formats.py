@@ -832,22 +832,29 @@ def _npz_arrays(structure: Structure, keep_joints: bool) -> dict[str, np.ndarray
         "line_direction": merged.line_nodes.size,
         "joint_nodes": merged.joint_nodes.size,
     }
-    return {
-        "N": N,
-        "C_b": C_b,
-        "C_s": C_s,
-        "node_velocity": merged.node_velocity,
-        "rod_mass": structure.rod_mass,
-        "rod_length": structure.rod_length,
-        "rod_damping": structure.rod_damping,
-        "rod_relative_damping": structure.rod_relative_damping,
-        "tendon_stiffness": structure.tendon_stiffness,
-        "tendon_rest_length": structure.tendon_rest_length,
-        "tendon_damping": structure.tendon_damping,
-        "tendon_name": np.array(structure.tendon_name, dtype=str),
-    } | {
-        name: getattr(merged, name) for name, present in supports.items() if present
-    } | ({} if merged.node_name is None else {"node_name": np.array(merged.node_name, dtype=str)})
+    return (
+        {
+            "N": N,
+            "C_b": C_b,
+            "C_s": C_s,
+            "node_velocity": merged.node_velocity,
+            "rod_mass": structure.rod_mass,
+            "rod_length": structure.rod_length,
+            "rod_damping": structure.rod_damping,
+            "rod_relative_damping": structure.rod_relative_damping,
+            "tendon_stiffness": structure.tendon_stiffness,
+            "tendon_rest_length": structure.tendon_rest_length,
+            "tendon_damping": structure.tendon_damping,
+            "tendon_name": np.array(structure.tendon_name, dtype=str),
+        }
+        | {name: getattr(merged, name) for name, present in supports.items() if present}
+        | _npz_node_names(merged.node_name)
+    )
+
+
+def _npz_node_names(names: tuple[str, ...] | None) -> dict[str, np.ndarray]:
+    """The ``node_name`` array of the connectivity file (none for the default names)."""
+    return {} if names is None else {"node_name": np.array(names, dtype=str)}
 
 
 def _dump_text(structure: Structure, kind: str, keep_joints: bool, scene: Scene | None) -> str:

@@ -349,8 +349,7 @@ def _split_names(names: Sequence[str] | None, split: _SplitNodes) -> tuple[str, 
         return None
     if isinstance(names, (str, bytes)) or len(names) != split.parts.size:
         raise ValueError(
-            f"node_name: expected {split.parts.size} names (one per node of N), got "
-            f"{names!r:.80}"
+            f"node_name: expected {split.parts.size} names (one per node of N), got {names!r:.80}"
         )
     return tuple(
         name if j == 0 else f"{name}.{j}"
@@ -503,9 +502,10 @@ def merge_joints(structure: Structure, *, keep_joints: bool = False) -> MergedNo
     Merged nodes are numbered in the order of each group's lowest node and take that node's
     position and velocity; a group is fixed if any of its nodes is, its point mass is the sum of
     theirs, its name is that node's (``node_name`` ``None`` if the structure has the default
-    names: :func:`from_connectivity` then names the nodes again).  The inverse of the split of :func:`from_connectivity` with ``ball_joints=True``.
-    With ``keep_joints`` nothing is merged (``node_map`` is the identity) and the joints stay
-    in ``joint_nodes``, as :func:`from_connectivity` takes them: the structure's own layout.
+    names: :func:`from_connectivity` then names the nodes again).  The inverse of the split of
+    :func:`from_connectivity` with ``ball_joints=True``.  With ``keep_joints`` nothing is
+    merged (``node_map`` is the identity) and the joints stay in ``joint_nodes``, as
+    :func:`from_connectivity` takes them: the structure's own layout.
 
     Raises
     ------

@@ -148,9 +148,7 @@ def _check_tendon_pairs(tendon_nodes: np.ndarray, names: Sequence[str]) -> None:
         pairs[key] = k
 
 
-def _checked_names(
-    given: Any, count: int, field: str, items: str, prefix: str
-) -> tuple[str, ...]:
+def _checked_names(given: Any, count: int, field: str, items: str, prefix: str) -> tuple[str, ...]:
     """The names ``given`` of ``count`` tendons or nodes (default ``f"{prefix}0"``,
     ``f"{prefix}1"``, ...), checked: one non-empty string each, no two alike, no NUL character.
     Errors name the argument ``field`` (``tendon_name``) or an element ``{items}[k].name``
