@@ -449,7 +449,10 @@ class Structure:
         if self.node_fixed is None:
             fixed = np.zeros(n_nodes, bool)
         else:
-            fixed = np.array(self.node_fixed)
+            try:
+                fixed = np.array(self.node_fixed)
+            except (TypeError, ValueError):  # (ragged: numpy's "inhomogeneous shape")
+                fixed = np.array(None)
             if fixed.shape != (n_nodes,) or fixed.dtype != bool:
                 raise ValueError(
                     f"node_fixed: expected {n_nodes} booleans, got {fixed.dtype} of shape "
