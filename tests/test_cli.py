@@ -365,8 +365,8 @@ def test_simulate_a_planar_structure_writes_its_files(tmp_path, capsys):
             "--n: not an option of --kind rod",
         ),
         (
-            ["export", "--kind", "shell", "--fixed-base", "-o", "x.json"],
-            "--fixed-base: not an option of --kind shell",
+            ["export", "--kind", "six-bar", "--fixed-base", "-o", "x.json"],
+            "--fixed-base: not an option of --kind six-bar",
         ),
         (["info", "--kind", "class2-shell", "--m", "1"], "m: a class 2 shell needs m >= 2"),
         (

@@ -336,3 +336,21 @@ def test_resume_with_a_changed_table_file_is_refused_in_one_line(
     path.write_text("# the same numbers, written again\n" + table)
     assert main([*argv, "--resume"]) == 0
     assert "resumed" in capsys.readouterr().out.lower()
+
+
+def test_resume_with_a_changed_load_is_refused_in_one_line(tmp_path, capsys, monkeypatch):
+    """``--load`` reaches the run as its force table: a resume with another load (or ramp) is
+    refused, naming the run's external force; with the same loads it resumes."""
+    out = tmp_path / "out"
+    argv = ["simulate", "--kind", "three-bar", "--load", "4:0,0,-1@0.5"]
+    argv += ["--t-end", "1", "--no-steady-state", "--no-view", "--no-animation", "--out", str(out)]
+    assert interrupted_at_sample(monkeypatch, 15, argv) == 130
+    capsys.readouterr()
+    for changed in ("4:0,0,-1.5@0.5", "4:0,0,-1@0.6", "3:0,0,-1@0.5"):
+        assert main([*argv[:4], changed, *argv[5:], "--resume"]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("tensegrity: error:") and err.count("\n") == 1, err
+        assert "cannot resume" in err and "options.external_force" in err, err
+    assert [p.name for p in out.iterdir()] == [PARTIAL]
+    assert main([*argv, "--resume"]) == 0
+    assert "resumed" in capsys.readouterr().out.lower()

@@ -96,6 +96,7 @@ FIELDS = (
     "line_nodes",
     "line_direction",
     "tendon_name",
+    "node_name",
 )
 
 
@@ -485,6 +486,7 @@ OPTIONAL = (
     "plane_normal",
     "line_nodes",
     "line_direction",
+    "node_name",
 )
 
 
@@ -503,6 +505,8 @@ OPTIONAL = (
 @example(changes={"tendon_name": 5})  # TypeError: 'int' object is not iterable
 @example(changes={"plane_nodes": [None, []]})  # numpy's ValueError (inhomogeneous shape)
 @example(changes={"tendon_name": ""})  # a text, not a sequence of names: the keyword is named
+@example(changes={"node_fixed": [None, []]})  # numpy's ValueError (inhomogeneous shape)
+@example(changes={"node_name": [None, []]})
 def test_structure_constructor(changes: dict[str, Any]) -> None:
     """The ``Structure`` constructor with the shell's arguments, one to three of them replaced
     by anything: a structure, or a one-line ``ValueError``/``TypeError`` naming the field."""

@@ -16,6 +16,7 @@ __all__ = [
     "at_least",
     "finite",
     "name",
+    "node_force",
     "non_negative",
     "positive",
     "whole",
@@ -75,6 +76,26 @@ def name(text: str) -> Path:
     if not text.strip():
         raise argparse.ArgumentTypeError(f"expected a file or folder name, got {text!r}")
     return Path(text)
+
+
+def node_force(text: str, usage: str, given: str) -> tuple[str, list[float]]:
+    """``NODE:FX,FY[,FZ]`` [N] (the last ``:`` ends the node, which may contain one): the node
+    as written (a name or a 0-based index, :meth:`Structure.node_index
+    <tensegrity.model.structure.Structure.node_index>` resolves it) and the force's
+    components; ``usage`` (``CASE:NODE:FX,FY,FZ``) and ``given`` (the option's whole text) for
+    the message."""
+    node, sep, components = text.rpartition(":")
+    try:
+        force = [float(v) for v in components.split(",")]
+    except ValueError:
+        force = []
+    if not (sep and node and force):
+        raise argparse.ArgumentTypeError(
+            f"expected {usage} with a node name or index and numbers (newtons), got {given!r}"
+        )
+    if not all(math.isfinite(f) for f in force):
+        raise argparse.ArgumentTypeError(f"forces must be finite, got {given!r}")
+    return node, force
 
 
 def add_factors(

@@ -39,21 +39,13 @@ if TYPE_CHECKING:
 __all__ = ["add_parsers"]
 
 
-def _load(text: str) -> tuple[str, int, list[float]]:
-    """``CASE:NODE:FX,FY[,FZ]`` [N]."""
-    parts = text.split(":")
-    if len(parts) != 3 or not parts[0]:
+def _load(text: str) -> tuple[str, str, list[float]]:
+    """``CASE:NODE:FX,FY[,FZ]`` [N], NODE a node name or 0-based index (resolved by
+    :meth:`Structure.node_index <tensegrity.model.structure.Structure.node_index>`)."""
+    case, sep, rest = text.partition(":")
+    if not (sep and case):
         raise argparse.ArgumentTypeError(f"expected CASE:NODE:FX,FY,FZ (newtons), got {text!r}")
-    try:
-        node = int(parts[1])
-        force = [float(v) for v in parts[2].split(",")]
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"expected CASE:NODE:FX,FY,FZ with a node index and numbers, got {text!r}"
-        ) from None
-    if not all(math.isfinite(f) for f in force):
-        raise argparse.ArgumentTypeError(f"forces must be finite, got {text!r}")
-    return parts[0], node, force
+    return (case, *arguments.node_force(rest, "CASE:NODE:FX,FY,FZ", text))
 
 
 def _prestress(text: str) -> float | tuple[float, float]:
@@ -138,7 +130,9 @@ def add_parsers(sub: Any) -> None:
         action="append",
         default=[],
         metavar="CASE:NODE:FX,FY,FZ",
-        help="a nodal force [N] of load case CASE (repeat: forces of one case add up)",
+        help="a nodal force [N] of load case CASE on NODE, a node name of the structure file "
+        "or a 0-based index (digits name a node if one has that name) (repeat: forces of one "
+        "case add up)",
     )
     p.add_argument(
         "--gravity",
@@ -216,11 +210,13 @@ def _cmd_design(args: argparse.Namespace) -> int:
     forces: dict[str, np.ndarray] = {}
     for case, node, force in args.load:
         where = f"--load {case}:{node}"
-        if not 0 <= node < structure.n_nodes:
-            raise CommandError(f"{where}: node {node} out of range [0, {structure.n_nodes - 1}]")
+        try:
+            index = structure.node_index(node)
+        except KeyError as exc:
+            raise CommandError(f"{where}: {exc.args[0]}") from None
         if len(force) != d:
             raise CommandError(f"{where}: expected {d} force components, got {len(force)}")
-        forces.setdefault(case, np.zeros((structure.n_nodes, d)))[node] += force
+        forces.setdefault(case, np.zeros((structure.n_nodes, d)))[index] += force
     gravity = None
     if args.gravity:
         gravity = np.zeros(d)

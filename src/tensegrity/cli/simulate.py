@@ -55,7 +55,7 @@ from tensegrity.physics import dynamics
 if TYPE_CHECKING:
     from tensegrity.io.stream import StreamSummary
     from tensegrity.model.ground import Scene
-    from tensegrity.model.loads import ControlTable, ForceTable
+    from tensegrity.model.loads import ControlTable, ForceTable, NodalLoad
     from tensegrity.model.structure import Structure
     from tensegrity.plots.motion import FrameKeeper
 
@@ -163,6 +163,7 @@ def _simulation_inputs(
                 f"--force-table: {shown_path(args.force_table)} has forces for {force.n_nodes} "
                 f"nodes, the structure has {structure.n_nodes}"
             )
+    force = _with_loads(args.load, structure, force)
     control = None
     if args.control_table is not None:
         from tensegrity.io.tables import read_control_table
@@ -181,6 +182,36 @@ def _simulation_inputs(
                 )
         return structure, inputs, None
     return structure, inputs, DesignedRun(structure, members, force)
+
+
+def _nodal_load(text: str) -> tuple[str, NodalLoad]:
+    """``--load NODE:FX,FY,FZ[@RAMP]``: the text and its :class:`NodalLoad` (a force [N] on a
+    node, a name or a 0-based index, ramped in from 0 over RAMP [s], default 0)."""
+    from tensegrity.model.loads import NodalLoad
+
+    head, at, ramp = text.rpartition("@")
+    if not at or ":" in ramp:  # (no ramp: an '@' in the node's name, or none)
+        head, ramp = text, ""
+    node, force = arguments.node_force(head, "NODE:FX,FY,FZ[@RAMP]", text)
+    try:
+        seconds = arguments.non_negative(ramp) if ramp else 0.0
+    except argparse.ArgumentTypeError as exc:
+        raise argparse.ArgumentTypeError(f"RAMP in {text!r}: {exc}") from None
+    return text, NodalLoad(node, tuple(force), seconds)
+
+
+def _with_loads(
+    loads: list[tuple[str, NodalLoad]], structure: Structure, force: ForceTable | None
+) -> ForceTable | None:
+    """The force table ``force`` (or None) plus the ``--load`` forces on ``structure``
+    (:func:`~tensegrity.model.loads.nodal_load_table`): one table, exactly their sum."""
+    from tensegrity.model.loads import add_force_tables, nodal_load_table
+
+    for text, load in loads:
+        with blame(f"--load {text}"):
+            table = nodal_load_table(structure, [load])
+        force = table if force is None else add_force_tables(force, table)
+    return force
 
 
 def _stream_run(
@@ -371,6 +402,17 @@ def add_parser(sub: Any) -> None:
         help="external nodal forces [N] from a time table, linear in between, held "
         "after its end (.npz: time (T,), force (T, N, 3); .csv: rows t, f0x, "
         "f0y, f0z, f1x, ...)",
+    )
+    sim.add_argument(
+        "--load",
+        type=_nodal_load,
+        action="append",
+        default=[],
+        metavar="NODE:FX,FY,FZ[@RAMP]",
+        help="a constant force [N] on NODE (a node name of the structure, or a 0-based index; "
+        "digits name a node if one has that name) for the whole run, or ramped in linearly "
+        "from 0 over RAMP seconds and then held (@0.5); repeatable, forces add up, and add to "
+        "--force-table's",
     )
     sim.add_argument(
         "--control-table",

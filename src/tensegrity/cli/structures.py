@@ -117,7 +117,10 @@ def add_source_options(parser: argparse.ArgumentParser) -> argparse._ArgumentGro
     )
     group.add_argument("--m", type=int, help="shell or tower stages (default 1 for a shell)")
     group.add_argument(
-        "--fixed-base", action="store_true", help="class 2 shell: fix the base ring to ground"
+        "--fixed-base",
+        action="store_true",
+        help="fix the base to ground: the bottom ring of a prism, tower or shell (class 1 or "
+        "2); the octahedron stood on a string triangle, its three nodes fixed",
     )
     group.add_argument("--primal", action="store_true", help="primal shell: no t9, t10 tendons")
     group.add_argument(

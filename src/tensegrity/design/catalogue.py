@@ -101,6 +101,16 @@ def _prestressed(draft: Structure, tension: Any) -> Structure:
     return draft.replace(tendon_rest_length=rest)
 
 
+def _with_base(structure: Structure, base: Any, fixed_base: bool) -> Structure:
+    """``structure`` with the nodes ``base`` fixed to ground if ``fixed_base`` (the generated
+    layout is an equilibrium of the free structure, so the supports carry no force there)."""
+    if not fixed_base:
+        return structure
+    fixed = np.zeros(structure.n_nodes, bool)
+    fixed[base] = True
+    return structure.replace(node_fixed=fixed)
+
+
 def _pairs(tails: np.ndarray, heads: np.ndarray) -> np.ndarray:
     return np.column_stack([tails, heads]).astype(np.int64)
 
@@ -174,6 +184,7 @@ def prism(
     stiffness: float = 100.0,
     tension: float = 5.0,
     damping: float = 0.0,
+    fixed_base: bool = False,
 ) -> Structure:
     """The regular ``n``-bar prism at its equilibrium twist (``n = 3``: the simplex).
 
@@ -191,12 +202,15 @@ def prism(
         Prism height [m] in ``(0, rod_length)``; default ``rod_length / sqrt(2)``.
     tension : float
         Mean tendon tension of the prestress [N].
+    fixed_base : bool
+        Fix the bottom nodes ``0..n-1`` (at ``z = 0``) to ground; the prestress is that of the
+        free prism, so the layout stays an equilibrium with no reactions.
     """
     layout = prism_layout(n, rod_length=rod_length, height=height)
     draft = _draft(
         layout, *prism_members(n), rod_mass=rod_mass, stiffness=stiffness, damping=damping
     )
-    return _prestressed(draft, tension)
+    return _with_base(_prestressed(draft, tension), np.arange(n), fixed_base)
 
 
 # ---------------------------------------------------------------------------- octahedron
@@ -207,6 +221,7 @@ def octahedron(
     stiffness: float = 100.0,
     tension: float = 5.0,
     damping: float = 0.0,
+    fixed_base: bool = False,
 ) -> Structure:
     """The 6-bar expanded octahedron: three pairs of parallel bars, 24 equal strings.
 
@@ -216,6 +231,13 @@ def octahedron(
     ``docs/networks.md``).  Each node has four strings, to the nearest ends of the two bar pairs
     it is not parallel to: the 24 edges of the 8 triangles around the octahedron's faces.
     Nodes ``2r, 2r+1`` are the ends of rod ``r`` (``-`` end first).
+
+    ``fixed_base`` stands it on the string triangle that faces ``(-1, -1, -1)`` (nodes 0, 4, 8:
+    the ``-`` ends of the bars at ``z = -L/4``, ``x = -L/4``, ``y = -L/4``): the layout is
+    turned so that this face's normal points down (coordinates in the basis
+    ``(1, -1, 0)/sqrt(2)``, ``(1, 1, -2)/sqrt(6)``, ``(1, 1, 1)/sqrt(3)``) and raised to put
+    it at ``z = 0``, and its three nodes are fixed to ground; the prestress is the free
+    structure's, so the layout stays an equilibrium with no reactions.
     """
     L = _positive(rod_length, "rod_length")
     a = L / 4
@@ -228,6 +250,11 @@ def octahedron(
                 p[(axis + 2) % 3] = offset  # x-bars offset in z, y-bars in x, z-bars in y
                 nodes.append(p)
     position = np.array(nodes)
+    base = [0, 4, 8]  # the string triangle facing (-1, -1, -1)
+    if fixed_base:
+        basis = np.array([[1, -1, 0], [1, 1, -2], [1, 1, 1]]) / np.sqrt([[2], [6], [3]])
+        position = position @ basis.T
+        position[:, 2] -= position[base, 2].mean()
     rods = _pairs(np.arange(0, 12, 2), np.arange(1, 12, 2))
     distance = np.linalg.norm(position[:, None] - position[None], axis=2)
     string = math.sqrt(6) / 4 * L
@@ -237,7 +264,7 @@ def octahedron(
     draft = _draft(
         position, rods, tendons, names, rod_mass=rod_mass, stiffness=stiffness, damping=damping
     )
-    return _prestressed(draft, tension)
+    return _with_base(_prestressed(draft, tension), base, fixed_base)
 
 
 # --------------------------------------------------------------------------------- tower
@@ -288,6 +315,7 @@ def tower(
     stiffness: float = 100.0,
     tension: float = 5.0,
     damping: float = 0.0,
+    fixed_base: bool = False,
 ) -> Structure:
     """A tower of ``m`` stacked ``n``-bar prisms (Snelson's Needle Tower, Figure 18.3).
 
@@ -298,7 +326,9 @@ def tower(
     form-finding (:func:`tensegrity.analysis.prestress.form_find`, from rest lengths of 0.9 times
     the initial lengths) moves it to a stable equilibrium with every tendon taut, and the rest
     lengths are set to realize the self-stress of that geometry with mean tension ``tension``
-    [N].  The returned structure's nodes are at that equilibrium.
+    [N].  The returned structure's nodes are at that equilibrium.  ``fixed_base`` then fixes
+    the bottom nodes of stage 0 (``0..n-1``) to ground, where form-finding left them: the
+    equilibrium of the free tower, with no reactions.
 
     Raises
     ------
@@ -331,7 +361,7 @@ def tower(
         raise ValueError(
             f"tower: form-finding found no stable all-taut equilibrium ({found.verdict})"
         )
-    return found.structure
+    return _with_base(found.structure, np.arange(n), fixed_base)
 
 
 # -------------------------------------------------------------------------------- robots

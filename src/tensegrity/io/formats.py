@@ -98,6 +98,7 @@ NPZ_ARRAYS = {
     "tendon_prestrain": (False, "(S,) strain (l - L0) / L0 in N"),
     "tendon_damping": (False, "(S,) [N s/m], default 0"),
     "tendon_name": (False, "(S,) unicode names"),
+    "node_name": (False, "(n,) unicode names, default n0, n1, ..."),
     "node_velocity": (False, "(d, n) [m/s], default 0"),
     "node_fixed": (False, "(n,) bool, nodes held at their position (supports, anchors)"),
     "node_point_mass": (False, "(n,) [kg], a point mass at a node (> 0), default 0"),
@@ -122,6 +123,7 @@ NPZ_KINDS = {
     **{name: ArrayKind("iuf", "node indices") for name in NPZ_INDEX_ARRAYS},
     "node_fixed": ArrayKind("b", "booleans"),
     "tendon_name": ArrayKind("U", "text"),
+    "node_name": ArrayKind("U", "text"),
 }
 
 _ROD_KEYS = ("mass", "length", "damping", "relative_damping")
@@ -159,7 +161,7 @@ def network_to_dict(
     last, under ``"scene"`` (:meth:`Scene.to_dict <tensegrity.model.ground.Scene.to_dict>`).
     """
     merged = merge_joints(structure, keep_joints=keep_joints)
-    names = [f"n{i}" for i in range(merged.N.shape[1])]
+    names = list(merged.node_name or (f"n{i}" for i in range(merged.N.shape[1])))
     data: dict[str, Any] = {
         "format": NETWORK_FORMAT,
         "version": NETWORK_VERSION,
@@ -311,7 +313,15 @@ def network_from_dict(data: Any) -> Structure:
         tendon_rest_length=rest,
         tendon_damping=_column(tendons, "tendons", "damping", tendon_default, zeros[1]),
         tendon_name=tuple(item.get("name", f"s{k}") for k, (_, item) in enumerate(tendons)),
+        node_name=_node_names(names) if isinstance(data["nodes"], Mapping) else None,
     )
+
+
+def _node_names(names: Sequence[Any]) -> tuple[str, ...] | None:
+    """The structure's names of the readable form's named nodes ``names`` (an integer name is
+    its text); ``None`` (the default names) for the names ``n0, n1, ...``."""
+    text = tuple(str(name) for name in names)
+    return None if text == tuple(f"n{i}" for i in range(len(names))) else text
 
 
 def _refuse_material_form(data: Any) -> None:
@@ -741,12 +751,14 @@ def _from_npz(raw: bytes) -> Structure:
     for name in NPZ_INDEX_ARRAYS:
         _check_whole(arrays.get(name), name)
     names = arrays.pop("tendon_name", None)
+    node_names = arrays.pop("node_name", None)
     N, C_b, C_s = arrays.pop("N"), arrays.pop("C_b"), arrays.pop("C_s")
     return from_connectivity(
         N,
         C_b,
         C_s,
         tendon_name=None if names is None else tuple(str(x) for x in names),
+        node_name=None if node_names is None else tuple(str(x) for x in node_names),
         ball_joints=True,
         **arrays,
     )
@@ -821,20 +833,29 @@ def _npz_arrays(structure: Structure, keep_joints: bool) -> dict[str, np.ndarray
         "line_direction": merged.line_nodes.size,
         "joint_nodes": merged.joint_nodes.size,
     }
-    return {
-        "N": N,
-        "C_b": C_b,
-        "C_s": C_s,
-        "node_velocity": merged.node_velocity,
-        "rod_mass": structure.rod_mass,
-        "rod_length": structure.rod_length,
-        "rod_damping": structure.rod_damping,
-        "rod_relative_damping": structure.rod_relative_damping,
-        "tendon_stiffness": structure.tendon_stiffness,
-        "tendon_rest_length": structure.tendon_rest_length,
-        "tendon_damping": structure.tendon_damping,
-        "tendon_name": np.array(structure.tendon_name, dtype=str),
-    } | {name: getattr(merged, name) for name, present in supports.items() if present}
+    return (
+        {
+            "N": N,
+            "C_b": C_b,
+            "C_s": C_s,
+            "node_velocity": merged.node_velocity,
+            "rod_mass": structure.rod_mass,
+            "rod_length": structure.rod_length,
+            "rod_damping": structure.rod_damping,
+            "rod_relative_damping": structure.rod_relative_damping,
+            "tendon_stiffness": structure.tendon_stiffness,
+            "tendon_rest_length": structure.tendon_rest_length,
+            "tendon_damping": structure.tendon_damping,
+            "tendon_name": np.array(structure.tendon_name, dtype=str),
+        }
+        | {name: getattr(merged, name) for name, present in supports.items() if present}
+        | _npz_node_names(merged.node_name)
+    )
+
+
+def _npz_node_names(names: tuple[str, ...] | None) -> dict[str, np.ndarray]:
+    """The ``node_name`` array of the connectivity file (none for the default names)."""
+    return {} if names is None else {"node_name": np.array(names, dtype=str)}
 
 
 def _dump_text(structure: Structure, kind: str, keep_joints: bool, scene: Scene | None) -> str:

@@ -132,6 +132,7 @@ def from_connectivity(
     tendon_prestrain: Any = None,
     tendon_damping: Any = 0.0,
     tendon_name: Sequence[str] | None = None,
+    node_name: Sequence[str] | None = None,
     node_velocity: Any = None,
     node_fixed: Any = None,
     node_point_mass: Any = None,
@@ -165,6 +166,10 @@ def from_connectivity(
         configuration ``N`` (``eps > 0``: taut).
     tendon_name : sequence of str, optional
         Default ``"s0", "s1", ...``.
+    node_name : sequence of str, shape (n,), optional
+        Names of the nodes of ``N``; a node split into ``k`` nodes (``ball_joints``) gives its
+        name to the first and ``"<name>.1"``, ..., ``"<name>.<k-1>"`` to the others.  Default
+        the structure's default names ``"n0", "n1", ...`` (of the split nodes).
     node_velocity : array_like, shape (d, n), optional
         Initial node velocities [m/s], one column per node.
     node_fixed : array_like of bool, shape (n,), optional
@@ -199,6 +204,7 @@ def from_connectivity(
     velocity = _node_velocities(network, node_velocity)
     split = _split_nodes(network, node_fixed, node_point_mass, ball_joints=ball_joints)
     return Structure(
+        node_name=_split_names(node_name, split),
         **_node_fields(
             network,
             split,
@@ -336,6 +342,22 @@ def _split_nodes(
     return _SplitNodes(start, parts, start + anchor, split_fixed, split_mass)
 
 
+def _split_names(names: Sequence[str] | None, split: _SplitNodes) -> tuple[str, ...] | None:
+    """The names of the split nodes: node ``i`` of ``N`` named ``names[i]`` becomes nodes named
+    ``names[i]``, ``names[i].1``, ... (``None``: the default names)."""
+    if names is None:
+        return None
+    if isinstance(names, (str, bytes)) or len(names) != split.parts.size:
+        raise ValueError(
+            f"node_name: expected {split.parts.size} names (one per node of N), got {names!r:.80}"
+        )
+    return tuple(
+        name if j == 0 else f"{name}.{j}"
+        for name, parts in zip(names, split.parts, strict=True)
+        for j in range(parts)
+    )
+
+
 def _supports_and_point_masses(
     node_fixed: Any, node_point_mass: Any, n_nodes: int
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -471,6 +493,7 @@ class MergedNodes(NamedTuple):
     line_nodes: np.ndarray
     line_direction: np.ndarray
     joint_nodes: np.ndarray
+    node_name: tuple[str, ...] | None
 
 
 def merge_joints(structure: Structure, *, keep_joints: bool = False) -> MergedNodes:
@@ -478,9 +501,11 @@ def merge_joints(structure: Structure, *, keep_joints: bool = False) -> MergedNo
 
     Merged nodes are numbered in the order of each group's lowest node and take that node's
     position and velocity; a group is fixed if any of its nodes is, its point mass is the sum of
-    theirs.  The inverse of the split of :func:`from_connectivity` with ``ball_joints=True``.
-    With ``keep_joints`` nothing is merged (``node_map`` is the identity) and the joints stay
-    in ``joint_nodes``, as :func:`from_connectivity` takes them: the structure's own layout.
+    theirs, its name is that node's (``node_name`` ``None`` if the structure has the default
+    names: :func:`from_connectivity` then names the nodes again).  The inverse of the split of
+    :func:`from_connectivity` with ``ball_joints=True``.  With ``keep_joints`` nothing is
+    merged (``node_map`` is the identity) and the joints stay in ``joint_nodes``, as
+    :func:`from_connectivity` takes them: the structure's own layout.
 
     Raises
     ------
@@ -534,6 +559,11 @@ def merge_joints(structure: Structure, *, keep_joints: bool = False) -> MergedNo
         line_nodes=node_map[structure.line_nodes],
         line_direction=structure.line_direction.copy(),
         joint_nodes=(joints if keep_joints else np.zeros((0, 2), np.int64)).copy(),
+        node_name=(
+            None
+            if structure.has_default_node_names
+            else tuple(structure.node_name[k] for k in lead)
+        ),
     )
 
 

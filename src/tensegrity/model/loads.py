@@ -1,5 +1,7 @@
 """Loads: tabulated nodal forces (a time table of forces as the callable
-``simulate(external_force=...)``) and uniform gravity given as a number or a vector.
+``simulate(external_force=...)``), forces on named nodes, constant or ramped in
+(:class:`NodalLoad`, :func:`nodal_load_table`), and uniform gravity given as a number or a
+vector.
 
 A table gives the external force on every node at increasing times ``t_k``; between them the
 force is interpolated linearly, and outside ``[t_0, t_last]`` it is held at the end values
@@ -12,8 +14,12 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from tensegrity.model.structure import Structure
 
 
 def gravity_vector(value: float | Sequence[float], dim: int) -> np.ndarray:
@@ -180,3 +186,84 @@ class ControlTable(_Table):
 
     def __post_init__(self) -> None:
         self._validate("S", 1)
+
+
+@dataclasses.dataclass(frozen=True)
+class NodalLoad:
+    """A force on one node, constant or ramped in.
+
+    Parameters
+    ----------
+    node : str or int
+        The node: a name or a 0-based index (:meth:`Structure.node_index
+        <tensegrity.model.structure.Structure.node_index>`: a name wins over an index).
+    force : sequence of float, shape (3,)
+        The force [N].
+    ramp : float
+        Time [s] over which the force grows linearly from 0 (at ``t = 0``), then held; 0: the
+        whole force from the start.
+    """
+
+    node: str | int
+    force: tuple[float, ...]
+    ramp: float = 0.0
+
+
+def nodal_load_table(structure: Structure, loads: Sequence[NodalLoad]) -> ForceTable:
+    """The :class:`ForceTable` of ``loads`` on ``structure`` (forces on one node add up): rows
+    at ``t = 0`` and at each ramp's end, linear in between, held after (and before ``t = 0``).
+
+    Raises
+    ------
+    KeyError
+        An unknown node (:meth:`Structure.node_index
+        <tensegrity.model.structure.Structure.node_index>`).
+    ValueError
+        A force of the wrong length or not finite, a ramp negative or not finite (naming
+        ``loads[k]``), no loads, or a planar structure (a table's forces are 3-D).
+    """
+    if not loads:
+        raise ValueError("loads: expected at least one load")
+    if structure.dim != 3:
+        raise ValueError("loads: a force table holds 3-D forces; the structure is planar")
+    dim = 3
+    nodes, forces = [], []
+    for k, load in enumerate(loads):
+        force = np.array(load.force, dtype=float)
+        if force.shape != (dim,) or not np.all(np.isfinite(force)):
+            raise ValueError(f"loads[{k}].force: expected {dim} finite components [N], got {force}")
+        if not (np.isfinite(load.ramp) and load.ramp >= 0):
+            raise ValueError(f"loads[{k}].ramp: must be finite and >= 0 [s], got {load.ramp}")
+        nodes.append(structure.node_index(load.node))
+        forces.append(force)
+    time = np.unique([0.0, *(load.ramp for load in loads)])
+    table = np.zeros((time.size, structure.n_nodes, dim))
+    for node, force, load in zip(nodes, forces, loads, strict=True):
+        share = np.ones_like(time) if load.ramp == 0 else np.minimum(time / load.ramp, 1.0)
+        table[:, node] += share[:, None] * force
+    return ForceTable(time, table)
+
+
+def add_force_tables(first: ForceTable, second: ForceTable) -> ForceTable:
+    """The sum of two tables held outside their times (``outside="hold"``), exactly: rows at
+    the times of both (both are linear between them and constant outside them).
+
+    Raises
+    ------
+    ValueError
+        Tables for different numbers of nodes, or one that is zero outside its times (the sum
+        would jump there: not a table), naming the table.
+    """
+    for name, table in (("first", first), ("second", second)):
+        if table.outside != "hold":
+            raise ValueError(
+                f"{name}: a table zero outside its times cannot be added to another (its sum "
+                "jumps at its ends)"
+            )
+    if first.force.shape[1:] != second.force.shape[1:]:
+        raise ValueError(
+            f"second: forces of shape {second.force.shape[1:]}, the first table's are "
+            f"{first.force.shape[1:]}"
+        )
+    time = np.union1d(first.time, second.time)
+    return ForceTable(time, first.at(time) + second.at(time))

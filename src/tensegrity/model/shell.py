@@ -176,13 +176,15 @@ def class1_shell(
     radius: float | None = None,
     stage_height: float | None = None,
     twist: float | None = None,
+    fixed_base: bool = False,
 ) -> Structure:
     """The class 1 shell of ``n x m`` two-rod elements, nodes on a cylinder (Figure 18.10).
 
     All rods share ``rod_mass`` [kg] and ``rod_length`` [m]; all tendons share ``stiffness``
     [N/m], ``rest_length`` [m] and ``damping`` [N s/m], as in the paper's example.  The default
     rest length is half the shortest tendon of the initial layout, so every tendon starts taut.
-    Layout parameters are those of :func:`shell_layout`.
+    Layout parameters are those of :func:`shell_layout`; ``fixed_base`` fixes the base ring
+    (``p1`` of stage 1, at ``z = 0``) to ground.
 
     Returns
     -------
@@ -192,6 +194,9 @@ def class1_shell(
     position = shell_layout(
         n, m, rod_length=rod_length, radius=radius, stage_height=stage_height, twist=twist
     )
+    fixed = np.zeros(len(position), bool)
+    if fixed_base:
+        fixed[[shell_node_index(1, i, 1, n) for i in range(1, n + 1)]] = True
     return _shell_structure(
         position,
         shell_tendons(n, m, primal=primal),
@@ -200,6 +205,7 @@ def class1_shell(
         stiffness=stiffness,
         rest_length=rest_length,
         damping=damping,
+        node_fixed=fixed,
     )
 
 

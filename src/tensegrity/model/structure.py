@@ -148,6 +148,34 @@ def _check_tendon_pairs(tendon_nodes: np.ndarray, names: Sequence[str]) -> None:
         pairs[key] = k
 
 
+def _checked_names(given: Any, count: int, field: str, items: str, prefix: str) -> tuple[str, ...]:
+    """The names ``given`` of ``count`` tendons or nodes (default ``f"{prefix}0"``,
+    ``f"{prefix}1"``, ...), checked: one non-empty string each, no two alike, no NUL character.
+    Errors name the argument ``field`` (``tendon_name``) or an element ``{items}[k].name``
+    (``tendons[3].name``; ``node_name[3]`` for ``items`` ``"node_name"``)."""
+    if isinstance(given, (str, bytes)):  # (not a sequence of one-letter names)
+        raise ValueError(f"{field}: expected a sequence of names, got the text {_shown(given)}")
+    whole = f"{items}.name" if items != field else field
+    try:
+        names = tuple(f"{prefix}{k}" for k in range(count)) if given is None else tuple(given)
+    except TypeError:
+        raise ValueError(f"{whole}: expected {count} names, got {_shown(given)}") from None
+    if len(names) != count:
+        raise ValueError(f"{whole}: expected {count} names, got {len(names)}")
+    seen: dict[str, int] = {}
+    for k, name in enumerate(names):
+        where = f"{items}[{k}]" + (".name" if items != field else "")
+        if not isinstance(name, str) or not name:
+            raise ValueError(f"{where}: must be a non-empty string, got {_shown(name)}")
+        if "\x00" in name:  # .npz and HDF5 text ends at one (the name would not read back)
+            raise ValueError(f"{where}: must not contain a NUL character, got {name!r}")
+        if name in seen:
+            other = f"{items}[{seen[name]}]"
+            raise ValueError(f"{where}: {name!r} is also the name of {other}")
+        seen[name] = k
+    return names
+
+
 def require_structure(value: Any, argument: str = "structure") -> None:
     """Raise ``TypeError`` naming ``argument`` unless ``value`` is a :class:`Structure`: at the
     call of a function that takes one, not as an ``AttributeError`` deep inside it."""
@@ -238,6 +266,9 @@ class Structure:
         (P, 3) (any length, not zero).
     line_nodes : array_like of int, shape (Q,), optional
         Nodes held on the line through their initial position along ``line_direction`` (Q, 3).
+    node_name : sequence of str, shape (N,), optional
+        Unique node names (loads and files refer to nodes by them, :meth:`node_index`).
+        Default ``"n0", "n1", ...``.
 
     Raises
     ------
@@ -266,6 +297,7 @@ class Structure:
     plane_normal: npt.NDArray[np.float64] = _NOT_GIVEN
     line_nodes: npt.NDArray[np.int64] = _NOT_GIVEN
     line_direction: npt.NDArray[np.float64] = _NOT_GIVEN
+    node_name: tuple[str, ...] = _NOT_GIVEN
 
     if TYPE_CHECKING:
         # The signature of the generated ``__init__`` as the caller sees it: the arguments are
@@ -292,6 +324,7 @@ class Structure:
             plane_normal: npt.ArrayLike | None = None,
             line_nodes: npt.ArrayLike | None = None,
             line_direction: npt.ArrayLike | None = None,
+            node_name: Sequence[str] | None = None,
         ) -> None: ...
 
     def __post_init__(self) -> None:
@@ -305,7 +338,10 @@ class Structure:
         fixed, point_mass = self._check_nodes(rod_nodes, n_nodes)
         _check_rod_lengths(position, rod_nodes, rod_length)
         tendon_nodes = _index_array(self.tendon_nodes, "tendons", n_nodes)
-        names = self._checked_tendon_names(tendon_nodes.shape[0])
+        names = _checked_names(
+            self.tendon_name, tendon_nodes.shape[0], "tendon_name", "tendons", "s"
+        )
+        node_names = _checked_names(self.node_name, n_nodes, "node_name", "node_name", "n")
         _check_tendon_pairs(tendon_nodes, names)
         stiffness, rest_length, damping = self._checked_tendon_parameters(names)
 
@@ -329,6 +365,7 @@ class Structure:
         ):
             set_(name, _readonly(value))
         set_("tendon_name", names)
+        set_("node_name", node_names)
         self._set_constraints(position, set_)
 
     def _checked_positions(self) -> tuple[np.ndarray, np.ndarray]:
@@ -374,41 +411,6 @@ class Structure:
             _check_sign(lambda r: f"rods[{r}]", field, values, strict=strict)
         return rod_nodes, rod_mass, rod_length, rod_damping, rod_relative_damping
 
-    def _checked_tendon_names(self, n_tendons: int) -> tuple[str, ...]:
-        """The tendon names (default ``s0``, ``s1``, ...), checked: one non-empty string per
-        tendon, no two alike."""
-        if isinstance(self.tendon_name, (str, bytes)):  # (not a sequence of one-letter names)
-            given = _shown(self.tendon_name)
-            raise ValueError(f"tendon_name: expected a sequence of names, got the text {given}")
-        try:
-            names = (
-                tuple(f"s{k}" for k in range(n_tendons))
-                if self.tendon_name is None
-                else tuple(self.tendon_name)
-            )
-        except TypeError:
-            raise ValueError(
-                f"tendons.name: expected {n_tendons} names, got {_shown(self.tendon_name)}"
-            ) from None
-        if len(names) != n_tendons:
-            raise ValueError(f"tendons.name: expected {n_tendons} names, got {len(names)}")
-        seen: dict[str, int] = {}
-        for k, name in enumerate(names):
-            if not isinstance(name, str) or not name:
-                raise ValueError(
-                    f"tendons[{k}].name: must be a non-empty string, got {_shown(name)}"
-                )
-            if "\x00" in name:  # .npz and HDF5 text ends at one (the name would not read back)
-                raise ValueError(
-                    f"tendons[{k}].name: must not contain a NUL character, got {name!r}"
-                )
-            if name in seen:
-                raise ValueError(
-                    f"tendons[{k}].name: {name!r} is also the name of tendons[{seen[name]}]"
-                )
-            seen[name] = k
-        return names
-
     def _checked_tendon_parameters(
         self, names: tuple[str, ...]
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -447,7 +449,10 @@ class Structure:
         if self.node_fixed is None:
             fixed = np.zeros(n_nodes, bool)
         else:
-            fixed = np.array(self.node_fixed)
+            try:
+                fixed = np.array(self.node_fixed)
+            except (TypeError, ValueError):  # (ragged: numpy's "inhomogeneous shape")
+                fixed = np.array(None)
             if fixed.shape != (n_nodes,) or fixed.dtype != bool:
                 raise ValueError(
                     f"node_fixed: expected {n_nodes} booleans, got {fixed.dtype} of shape "
@@ -657,6 +662,46 @@ class Structure:
         except ValueError:
             raise KeyError(f"no tendon named {name!r}") from None
 
+    def node_index(self, node: str | int) -> int:
+        """Index of a node given by its name or its 0-based index.
+
+        A name wins: ``"3"`` is the node called ``"3"`` if there is one, else node 3 (a string
+        of digits is read as an index only when no node has that name); an ``int`` is an index.
+
+        Raises
+        ------
+        KeyError
+            One line for an unknown name or an index out of range, listing a few names.
+        """
+        if isinstance(node, str):
+            index = self._node_number.get(node)
+            if index is not None:
+                return index
+            if not (node.isascii() and node.isdigit()):
+                shown = ", ".join(self.node_name[:5]) + (", ..." if self.n_nodes > 5 else "")
+                raise KeyError(f"no node named {node!r} (the nodes are {shown})")
+            number = int(node)
+        elif isinstance(node, (int, np.integer)) and not isinstance(node, bool):
+            number = int(node)
+        else:
+            raise TypeError(f"node: expected a node name or index, got {_shown(node)}")
+        if not 0 <= number < self.n_nodes:
+            raise KeyError(
+                f"node {number} out of range [0, {self.n_nodes - 1}]"
+                + (f" (and no node is named {node!r})" if isinstance(node, str) else "")
+            )
+        return number
+
+    @cached_property
+    def _node_number(self) -> dict[str, int]:
+        """The index of each node name."""
+        return {name: k for k, name in enumerate(self.node_name)}
+
+    @cached_property
+    def has_default_node_names(self) -> bool:
+        """True if the nodes have the default names ``n0, n1, ...`` (files then omit them)."""
+        return self.node_name == tuple(f"n{k}" for k in range(self.n_nodes))
+
     def replace(self, **changes: Any) -> Structure:
         """A copy with some fields changed, validated again (``dataclasses.replace``)."""
         return dataclasses.replace(self, **changes)
@@ -685,10 +730,13 @@ class Structure:
     # -------------------------------------------------------------- JSON form
     def to_dict(self) -> dict[str, Any]:
         """The JSON form: ``{"nodes", "velocities", "rods", "tendons"}`` with 0-based indices,
-        and, only when present, ``"fixed"`` (node indices), ``"point_masses"`` (``{"node",
+        and, only when present, ``"node_names"`` (when not the default ``n0, n1, ...``),
+        ``"fixed"`` (node indices), ``"point_masses"`` (``{"node",
         "mass"}``), ``"joints"`` (node pairs), ``"planes"`` (``{"node", "normal"}``) and
         ``"lines"`` (``{"node", "direction"}``)."""
         extra: dict[str, Any] = {}
+        if not self.has_default_node_names:
+            extra["node_names"] = list(self.node_name)
         if self.node_fixed.any():
             extra["fixed"] = np.flatnonzero(self.node_fixed).tolist()
         if self.point_mass_nodes.size:
@@ -790,6 +838,7 @@ class Structure:
             tendon_rest_length=_numbers(tendon_items, "tendons", "rest_length"),
             tendon_damping=_numbers(tendon_items, "tendons", "damping", default=0.0),
             tendon_name=tuple(t.get("name", f"s{k}") for k, t in enumerate(tendon_items)),
+            node_name=_names_from_dict(data, len(points["nodes"])),
             **_supports_from_dict(data, len(points["nodes"]), dim),
         )
 
@@ -801,6 +850,7 @@ _JSON_KEYS: dict[str, tuple[str, ...]] = {
         "velocities",
         "rods",
         "tendons",
+        "node_names",
         "fixed",
         "point_masses",
         "joints",
@@ -823,6 +873,16 @@ def check_keys(data: Mapping[Any, Any], allowed: Sequence[str], where: str) -> N
             raise ValueError(
                 f"{where}: unknown key {_shown(key)} (expected one of {', '.join(allowed)})"
             )
+
+
+def _names_from_dict(data: Mapping[str, Any], n_nodes: int) -> tuple[str, ...] | None:
+    """The optional ``"node_names"`` key of the JSON form (``None``: the default names)."""
+    if data.get("node_names") is None:
+        return None
+    names = _require(data, "node_names", "structure", Sequence)
+    if len(names) != n_nodes:
+        raise ValueError(f"structure.node_names: expected {n_nodes} names, got {len(names)}")
+    return tuple(names)
 
 
 def _supports_from_dict(data: Mapping[str, Any], n_nodes: int, dim: int) -> dict[str, Any]:
