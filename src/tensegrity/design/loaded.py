@@ -475,6 +475,12 @@ def _size_at_prestress(
                     )
         return found, sized, members
 
+    def forces(found: list[EquilibriumResult]) -> tuple[np.ndarray, np.ndarray]:
+        """Rod compressions (K, R) and tendon tensions (K, S) [N] of every case."""
+        C = np.array(([C0] if prestress > 0 else []) + [eq.rod_compression for eq in found])
+        T = np.array(([T0] if prestress > 0 else []) + [eq.tension for eq in found])
+        return C.reshape(-1, R), T.reshape(-1, S)
+
     floor = np.zeros(R + S)  # tendon areas below which a load path or a serviceability fails
     floor_limit: DesignLimitError | None = None
     message = f"stopped after {max_iterations} iterations (max_iterations): areas still change"
@@ -484,16 +490,8 @@ def _size_at_prestress(
         except DesignLimitError as failure:
             area, (equilibria, sized, members) = _stiffened(acceptable, area, R, failure)
             floor[R:], floor_limit = area[R:], failure
-        C = np.array(([C0] if prestress > 0 else []) + [eq.rod_compression for eq in equilibria])
-        T = np.array(([T0] if prestress > 0 else []) + [eq.tension for eq in equilibria])
-        least = least_areas(
-            C.reshape(-1, R),
-            T.reshape(-1, S),
-            strength=strength,
-            beta=beta,
-            min_area=min_area,
-            cases=names,
-        )
+        C, T = forces(equilibria)
+        least = least_areas(C, T, strength=strength, beta=beta, min_area=min_area, cases=names)
         target = np.maximum(least.area, floor)
         change = float(np.max(np.abs(target - area) / target, initial=0.0))
         if change <= rtol and np.any(floor > least.area) and _holds(acceptable, least.area):
@@ -512,6 +510,14 @@ def _size_at_prestress(
         raise ValueError(
             f"sizing at the loaded equilibrium: {message} by up to {change:.3g} (relative)"
         )
+    # Round the areas up by rtol, so that the iteration's tolerance never shows as a utilisation
+    # above 1 (areas that only grow: every limit still holds); the result is these areas' own
+    # equilibria and forces.
+    area = np.where(
+        np.array(least.governs) == "min_area", area, np.maximum(area, target) * (1 + rtol)
+    )
+    equilibria, sized, members = acceptable(area)
+    C, T = forces(equilibria)
     stiffened = floor > least.area
     limit = "" if floor_limit is None else floor_limit.governs
     limit_case = None if floor_limit is None else floor_limit.case
@@ -535,13 +541,13 @@ def _size_at_prestress(
         tendon_area=area[R:],
         rod_mass=mass[:R],
         tendon_mass=mass[R:],
-        rod_compression=C.reshape(-1, R),
-        tendon_tension=T.reshape(-1, S),
+        rod_compression=C,
+        tendon_tension=T,
         utilisation=utilisation(
             s,
             members,
-            tension=T.reshape(-1, S),
-            compression=C.reshape(-1, R),
+            tension=T,
+            compression=C,
             safety_factor=safety_factor,
             strength_factor=strength_factor,
         ),
