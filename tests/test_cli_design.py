@@ -10,27 +10,18 @@ import math
 import numpy as np
 import pytest
 
+import structures
 from tensegrity.cli.main import main
 from tensegrity.design.files import read_design
 from tensegrity.design.materials import material
 from tensegrity.design.sizing import LoadCase, size_members
 from tensegrity.io.formats import write_structure
-from tensegrity.model.structure import Structure
 
 
 @pytest.fixture
 def crane(tmp_path):
     """A 1 m rod pinned at node 0, its head (node 1) held by tendons to anchors (0, +-1, 1)."""
-    s = Structure(
-        node_position=[[0, 0, 0], [1, 0, 0], [0, 1, 1], [0, -1, 1]],
-        rod_nodes=[[0, 1]],
-        rod_mass=[1.0],
-        rod_length=[1.0],
-        tendon_nodes=[[1, 2], [1, 3]],
-        tendon_stiffness=[1.0, 1.0],
-        tendon_rest_length=[1.0, 1.0],
-        node_fixed=[True, False, True, True],
-    )
+    s = structures.crane()
     return s, write_structure(tmp_path / "crane.json", s)
 
 

@@ -17,6 +17,7 @@ import re
 import numpy as np
 import pytest
 
+from structures import crane
 from tensegrity.cli.main import main
 from tensegrity.design.catalogue import prism
 from tensegrity.design.files import read_design, write_design
@@ -29,16 +30,7 @@ from tensegrity.plots.viewer import read_viewer_data
 
 #: The crane of tests/test_cli_design.py: a 1 m rod pinned at node 0, its head (node 1) held
 #: by tendons to anchors (0, +-1, 1).
-CRANE = Structure(
-    node_position=[[0, 0, 0], [1, 0, 0], [0, 1, 1], [0, -1, 1]],
-    rod_nodes=[[0, 1]],
-    rod_mass=[1.0],
-    rod_length=[1.0],
-    tendon_nodes=[[1, 2], [1, 3]],
-    tendon_stiffness=[1.0, 1.0],
-    tendon_rest_length=[1.0, 1.0],
-    node_fixed=[True, False, True, True],
-)
+CRANE = crane()
 DOWN = np.array([[0, 0, 0], [0, 0, -1000.0], [0, 0, 0], [0, 0, 0]])
 
 

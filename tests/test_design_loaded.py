@@ -10,6 +10,7 @@ import json
 import numpy as np
 import pytest
 
+from structures import crane
 from tensegrity.analysis.equilibrium import equilibrium_by_simulation, find_equilibrium
 from tensegrity.analysis.linearize import linearize
 from tensegrity.analysis.modes import modal_analysis
@@ -120,16 +121,7 @@ def test_a_statically_determinate_structure_gets_the_statics_of_its_deformed_geo
     areas sized at the loaded equilibrium are those the linear sizing gives at the geometry
     the structure deforms to (an LP on the nodal equilibrium matrix, no shared solver); and
     ``size(statics="auto")`` keeps the linear sizing for it, the same as today."""
-    s = Structure(
-        node_position=[[0, 0, 0], [1, 0, 0], [0, 1, 1], [0, -1, 1]],
-        rod_nodes=[[0, 1]],
-        rod_mass=[1.0],
-        rod_length=[1.0],
-        tendon_nodes=[[1, 2], [1, 3]],
-        tendon_stiffness=[1.0, 1.0],
-        tendon_rest_length=[1.0, 1.0],
-        node_fixed=[True, False, True, True],
-    )
+    s = crane()
     w = np.zeros((4, 3))
     w[1] = [0, 300.0, -1000.0]
     options = dict(rod_material=STEEL, tendon_material=DYNEEMA, load_cases=[LoadCase("d", w)])

@@ -12,6 +12,7 @@ import math
 import numpy as np
 import pytest
 
+from structures import crane
 from tensegrity.analysis.equilibrium import find_equilibrium
 from tensegrity.design.catalogue import prism
 from tensegrity.design.materials import (
@@ -220,21 +221,6 @@ def _bar(length: float) -> Structure:
     )
 
 
-def _crane() -> Structure:
-    """Statically determinate: a 1 m rod from a pin (node 0) along x, its head (node 1) held by
-    two tendons to anchors at (0, +-1, 1)."""
-    return Structure(
-        node_position=[[0, 0, 0], [1, 0, 0], [0, 1, 1], [0, -1, 1]],
-        rod_nodes=[[0, 1]],
-        rod_mass=[1.0],
-        rod_length=[1.0],
-        tendon_nodes=[[1, 2], [1, 3]],
-        tendon_stiffness=[1.0, 1.0],
-        tendon_rest_length=[1.0, 1.0],
-        node_fixed=[True, False, True, True],
-    )
-
-
 def _load(structure: Structure, node: int, force: list[float]) -> np.ndarray:
     w = np.zeros((structure.n_nodes, 3))
     w[node] = force
@@ -319,7 +305,7 @@ def test_a_single_hollow_bar_buckles_exactly_at_its_load(wall_ratio):
 
 
 def test_a_statically_determinate_structure_is_sized_to_the_closed_form_masses():
-    s = _crane()
+    s = crane()
     P = 1000.0
     r = size_members(
         s,
@@ -399,7 +385,7 @@ def _mass(s: Structure, rod_density: float, rod_area: np.ndarray, tendon_area: n
 
 
 def test_random_feasible_perturbations_of_the_sizes_never_weigh_less():
-    s = _crane()
+    s = crane()
     r = size_members(
         s,
         rod_material=STEEL,
@@ -493,7 +479,7 @@ def test_a_string_asked_to_push_is_refused_in_one_line():
 
 
 def test_a_prestress_without_a_self_stress_is_refused_in_one_line():
-    s = _crane()
+    s = crane()
     with pytest.raises(ValueError, match=r"^prestress: no self-stress puts every tendon in "):
         size_members(
             s,
@@ -505,7 +491,7 @@ def test_a_prestress_without_a_self_stress_is_refused_in_one_line():
 
 
 def test_gravity_counts_the_members_own_weight():
-    s = _crane()
+    s = crane()
     g = np.array([0.0, 0.0, -9.81])
     r = size_members(
         s,
@@ -551,7 +537,7 @@ def test_rod_forces_with_a_support_equal_the_equilibrium_solvers():
     constraint forces (rod_axial_forces) against the statics' reactions (find_equilibrium)."""
     from tensegrity.design.utilisation import rod_axial_forces
 
-    s = _crane()
+    s = crane()
     w = _load(s, 1, [0, 0, -1000.0])
     r = size_members(
         s, rod_material=STEEL, tendon_material=DYNEEMA, load_cases=[LoadCase("down", w)]

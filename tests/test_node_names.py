@@ -10,6 +10,7 @@ import json
 import numpy as np
 import pytest
 
+from structures import crane
 from tensegrity import class1_shell
 from tensegrity.design.catalogue import prism
 from tensegrity.design.files import read_design, write_design
@@ -151,17 +152,7 @@ def test_trajectory_keeps_node_names(tmp_path):
 
 def _crane(tmp_path, names):
     """A 1 m rod pinned at node 0, its head (node 1) held by tendons to anchors (0, +-1, 1)."""
-    s = Structure(
-        node_position=[[0, 0, 0], [1, 0, 0], [0, 1, 1], [0, -1, 1]],
-        rod_nodes=[[0, 1]],
-        rod_mass=[1.0],
-        rod_length=[1.0],
-        tendon_nodes=[[1, 2], [1, 3]],
-        tendon_stiffness=[1.0, 1.0],
-        tendon_rest_length=[1.0, 1.0],
-        node_fixed=[True, False, True, True],
-        node_name=names,
-    )
+    s = crane(node_name=names)
     path = tmp_path / "crane.yaml"
     write_network(path, s)
     return path
