@@ -199,16 +199,27 @@ def test_a_prism_without_prestress_is_stiffened_by_its_load():
 
 
 def test_a_path_through_unstable_equilibria_is_refused():
-    """Without prestress and load, the prism stands at an equilibrium (every force is zero)
-    that is not stable (its mechanism meets no stiffness): a path along it is refused."""
-    s = _fixed_base_prism()
-    p = s.node_position
-    s = s.replace(
-        tendon_rest_length=np.linalg.norm(p[s.tendon_nodes[:, 1]] - p[s.tendon_nodes[:, 0]], axis=1)
+    """A rod standing upright on a pin, pressed down at its top: every load on the path is
+    balanced in place (the rod carries it), but the equilibrium has negative stiffness (an
+    inverted pendulum), so the path is refused at its start; a mechanism the load does not
+    move (zero stiffness: the same rod unloaded) is neutral and accepted."""
+    s = Structure(
+        node_position=[[0, 0, 0], [0, 0, 1]],
+        rod_nodes=[[0, 1]],
+        rod_mass=[1.0],
+        rod_length=[1.0],
+        tendon_nodes=np.zeros((0, 2), int),
+        tendon_stiffness=[],
+        tendon_rest_length=[],
+        node_fixed=[True, False],
     )
-    assert not modal_analysis(linearize(s)).stable
-    with pytest.raises(LoadPathError, match="no stable equilibrium near the path at 0 of"):
-        follow_load(s, LoadCase("none", np.zeros((6, 3))))
+    down = np.array([[0, 0, 0], [0, 0, -10.0]])
+    eq = find_equilibrium(s, external_force=down, descend=False)
+    assert eq.converged and modal_analysis(linearize(s, eq)).n_unstable == 2
+    with pytest.raises(LoadPathError, match="no stable equilibrium near the path at its start"):
+        follow_load(s, LoadCase("down", down))
+    unloaded, _ = follow_load(s, LoadCase("none", 0 * down))
+    assert np.array_equal(unloaded.node_position, s.node_position)
 
 
 @pytest.fixture(scope="module")
@@ -270,8 +281,9 @@ def test_a_limit_point_no_stiffening_removes_is_one_line():
         _stiffened(always_fails, np.ones(4), 1, first)
     assert str(caught.value) == (
         "load case 'top': no stable equilibrium near the path even with tendons 1.05e+06 times "
-        "the area at 0.25 of its load (a limit point: the structure would snap through); raise "
-        "the prestress, or change the geometry"
+        "the area at 0.25 of its load (a limit point, where the structure would snap through, "
+        "or a mechanism the load moves and nothing stiffens); raise the prestress, or change "
+        "the geometry"
     )
 
 
@@ -400,3 +412,33 @@ def test_the_cli_takes_serviceability_limits_and_a_prestress_range(tmp_path, cap
         err = capsys.readouterr().err
         assert code == 2 and err.count("\n") == 1 and message in err
         assert not again.exists()
+
+
+def test_auto_sizes_a_mechanism_at_equilibrium_even_under_a_load_its_geometry_balances():
+    """Two top nodes of the fixed-base prism pulled apart by 500 N: the given geometry balances
+    the load (the linear sizing accepts it), but the prism deforms under it and its forces
+    change, so the linear design is overstressed at its real equilibrium; ``auto`` sizes a
+    structure with a mechanism at the loaded equilibrium, and that design holds there."""
+    s = _fixed_base_prism()
+    w = np.zeros((6, 3))
+    w[3] = (
+        500.0
+        * (s.node_position[3] - s.node_position[4])
+        / np.linalg.norm(s.node_position[3] - s.node_position[4])
+    )
+    w[4] = -w[3]
+    case = LoadCase("apart", w)
+    options = dict(rod_material=STEEL, tendon_material=DYNEEMA, load_cases=[case], prestress=50.0)
+    linear = size_members(s, **options)
+    eq, _ = follow_load(linear.structure, case)
+    at_linear = utilisation(
+        linear.structure, linear.members, tension=eq.tension, compression=eq.rod_compression
+    )
+    assert at_linear.largest > 1.01  # measured 1.084
+    auto = size(s, **options)
+    assert auto.statics == "equilibrium"
+    eq, _ = follow_load(auto.structure, case)
+    held = utilisation(
+        auto.structure, auto.members, tension=eq.tension, compression=eq.rod_compression
+    )
+    assert held.largest <= 1.0

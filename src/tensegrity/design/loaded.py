@@ -112,9 +112,11 @@ class LoadPathError(DesignLimitError):
         super().__init__(case, reason)
 
     def sentence(self, reason: str) -> str:
+        where = "at its start" if self.reached == 0 else f"at {self.reached:.3g} of its load"
         return (
-            f"load case {self.case!r}: {reason} at {self.reached:.3g} of its load (a limit "
-            "point: the structure would snap through); raise the prestress, or change the geometry"
+            f"load case {self.case!r}: {reason} {where} (a limit point, where the structure would "
+            "snap through, or a mechanism the load moves and nothing stiffens); raise the "
+            "prestress, or change the geometry"
         )
 
 
@@ -136,7 +138,10 @@ def _scaled(load: np.ndarray | None, factor: float) -> np.ndarray | None:
 
 
 def _stable(structure: Structure, eq: EquilibriumResult) -> bool:
-    return bool(modal_analysis(linearize(structure, eq)).stable)
+    """No mode of negative stiffness about ``eq``: a mechanism the load does not move (zero
+    stiffness, e.g. a node on a plane held by a slack tendon) is neutral, and at a limit point
+    a stiffness passes through zero to negative."""
+    return modal_analysis(linearize(structure, eq)).n_unstable == 0
 
 
 def largest_displacement(structure: Structure, eq: EquilibriumResult) -> float:
@@ -475,16 +480,22 @@ def _size_at_prestress(
                     )
         return found, sized, members
 
+    held = s.node_fixed[s.rod_nodes].all(axis=1)  # rods between two fixed nodes
+
     def forces(found: list[EquilibriumResult]) -> tuple[np.ndarray, np.ndarray]:
-        """Rod compressions (K, R) and tendon tensions (K, S) [N] of every case."""
+        """Rod compressions (K, R) and tendon tensions (K, S) [N] of every case; a rod between
+        two fixed nodes carries none (the supports take its load; its share is not
+        determined), as in the linear sizing."""
         C = np.array(([C0] if prestress > 0 else []) + [eq.rod_compression for eq in found])
         T = np.array(([T0] if prestress > 0 else []) + [eq.tension for eq in found])
-        return C.reshape(-1, R), T.reshape(-1, S)
+        C = C.reshape(-1, R)
+        C[:, held] = 0.0
+        return C, T.reshape(-1, S)
 
     floor = np.zeros(R + S)  # tendon areas below which a load path or a serviceability fails
     floor_limit: DesignLimitError | None = None
     message = f"stopped after {max_iterations} iterations (max_iterations): areas still change"
-    for iteration in range(1, max_iterations + 2):
+    for iteration in range(1, max_iterations + 1):
         try:
             equilibria, sized, members = acceptable(area)
         except DesignLimitError as failure:
@@ -501,14 +512,13 @@ def _size_at_prestress(
         if change <= rtol:
             message = f"converged after {iteration} iterations (areas within {change:.2g})"
             break
-        if iteration > max_iterations:
-            break
         area = target
     else:  # pragma: no cover - the loop always breaks
         raise AssertionError
     if change > rtol:
         raise ValueError(
-            f"sizing at the loaded equilibrium: {message} by up to {change:.3g} (relative)"
+            f"sizing at the loaded equilibrium: {message} (the last change of an area: "
+            f"{'a stiffening dropped' if math.isinf(change) else f'{change:.3g} relative'})"
         )
     # Round the areas up by rtol, so that the iteration's tolerance never shows as a utilisation
     # above 1 (areas that only grow: every limit still holds); the result is these areas' own
@@ -634,25 +644,18 @@ def size(structure: Structure, *, statics: str = "auto", **options: Any) -> Sizi
     """Members sized under a prestress and load cases, by the linear sizing
     (:func:`~tensegrity.design.sizing.size_members`, ``statics="linear"``: equilibrium at the
     given geometry) or at each case's loaded equilibrium (:func:`size_at_equilibrium`,
-    ``"equilibrium"``).  ``"auto"``: the linear sizing where it applies -- every case is balanced
-    at the given geometry, as for a statically determinate or stiff structure, or a load that
-    moves no mechanism -- and the loaded equilibrium where no member forces balance a case at
-    the given geometry (a load on a mechanism, which the prestress stiffens), or when a
-    serviceability limit or a prestress range is asked for.  ``options``: the keywords of the
-    chosen function."""
+    ``"equilibrium"``).  ``"auto"``: the linear sizing where it applies -- a structure without
+    mechanisms (:func:`mechanism_count` 0: statically determinate or stiff), whose small
+    deformation leaves its forces as they are -- and the loaded equilibrium otherwise (a
+    mechanism, which only the prestress or the load stiffens: even a load the given geometry
+    balances deforms it, and its forces change), or when a serviceability limit or a prestress
+    range is asked for.  ``options``: the keywords of the chosen function."""
     if statics not in STATICS:
         raise ValueError(f"statics: expected one of {', '.join(STATICS)}, got {statics!r}")
     nonlinear = ("rtol", "load_steps", "max_displacement", "min_frequency")
     if statics == "auto":
-        if isinstance(options.get("prestress"), tuple) or any(n in options for n in nonlinear):
-            statics = "equilibrium"
-        else:
-            try:
-                return size_members(structure, **options)
-            except ValueError as exc:
-                if "no member forces balance it" not in str(exc):
-                    raise  # a tendon that would push, a bad argument: refused as it is
-            statics = "equilibrium"
+        asked = isinstance(options.get("prestress"), tuple) or any(n in options for n in nonlinear)
+        statics = "equilibrium" if asked or mechanism_count(structure) else "linear"
     if statics == "linear":
         if isinstance(options.get("prestress"), tuple):
             raise ValueError(
