@@ -230,6 +230,18 @@ def follow_load(
 MAX_DOUBLINGS = 20
 
 
+#: After this many doublings without progress (:func:`_progress`) the stiffening gives up.
+HOPELESS = 4
+
+
+def _progress(first: DesignLimitError, last: DesignLimitError) -> bool:
+    """Whether stiffening moved a limit: a load path that now reaches further, or another
+    limit met (serviceability limits: always, their measure is not compared)."""
+    if isinstance(first, LoadPathError) and isinstance(last, LoadPathError):
+        return last.reached > first.reached
+    return True
+
+
 def _holds(acceptable: Callable[[np.ndarray], Any], area: np.ndarray) -> bool:
     """Whether members of areas ``area`` meet every limit :func:`_stiffened` cures."""
     try:
@@ -248,21 +260,25 @@ def _stiffened(
     """The areas ``area`` (R + S,) with the tendons' scaled by the least factor (within
     ``2^(1/8)``: doublings, then three bisections of its logarithm) for which ``acceptable``
     raises no :class:`DesignLimitError` (every load path holds, and the serviceability limits
-    are met), and its result for them; ``failure`` extended (:meth:`DesignLimitError.beyond`) if
-    ``2^MAX_DOUBLINGS`` is not enough."""
+    are met), and its result for them; the last failure extended
+    (:meth:`DesignLimitError.beyond`) if ``2^MAX_DOUBLINGS`` is not enough, or if a load path
+    reaches no further after ``2^HOPELESS``."""
 
     def scaled(factor: float) -> np.ndarray:
         return np.concatenate([area[:R], factor * area[R:]])
 
     low, high, found = 1.0, 0.0, None
+    first = failure
     for doubling in range(1, MAX_DOUBLINGS + 1):
         try:
             high, found = 2.0**doubling, acceptable(scaled(2.0**doubling))
             break
         except DesignLimitError as again:
             low, failure = 2.0**doubling, again
+        if doubling == HOPELESS and not _progress(first, failure):
+            break  # sixteen times the area moved the limit no further: more will not help
     if found is None:
-        raise failure.beyond(2.0**MAX_DOUBLINGS)
+        raise failure.beyond(low)
     for _ in range(3):
         middle = math.sqrt(low * high)
         try:
