@@ -449,3 +449,45 @@ def test_auto_sizes_a_mechanism_at_equilibrium_even_under_a_load_its_geometry_ba
         auto.structure, auto.members, tension=eq.tension, compression=eq.rod_compression
     )
     assert held.largest <= 1.0
+
+
+def test_the_analysis_verbs_report_the_designed_members_utilisation(tmp_path, capsys):
+    """``tensegrity design`` writes the material form; ``equilibrium`` and ``modes`` of that
+    file report the members' utilisation at the equilibrium with the design's factors: under
+    gravity alone, the sizing's own values for its case ``self`` (the same equilibrium, found
+    again), and with ``--strength-factor 2`` the tendons' twice as much."""
+    path = write_structure(tmp_path / "prism.json", _fixed_base_prism())
+    sized = tmp_path / "sized"
+    argv = ["design", "--structure", str(path), "--material", "steel,dyneema", "-o", str(sized)]
+    argv += ["--prestress", "50", "--gravity", "9.81", "--load", "self:3:0,0,0"]
+    argv += [f"--load=top:{k}:0,0,-100" for k in (3, 4, 5)]
+    assert main(argv) == 0
+    report = json.loads((sized / "design.json").read_text())
+    k = report["cases"].index("self")
+    expected = [t["yield_utilisation"][k] for t in report["tendons"]]
+    capsys.readouterr()
+    structure = str(sized / "structure.json")
+    for verb, extra in (("equilibrium", ["--method", "least_squares"]), ("modes", [])):
+        out = tmp_path / verb
+        assert (
+            main([verb, "--structure", structure, "--gravity", "9.81", "--out", str(out), *extra])
+            == 0
+        )
+        text = capsys.readouterr().out
+        assert "largest tendon utilisation" in text and "utilisation factors" in text
+        found = json.loads((out / f"{verb}.json").read_text())["utilisation"]
+        np.testing.assert_allclose(found["tendon_yield"], expected, rtol=1e-6)
+    out = tmp_path / "doubled"
+    assert main(["equilibrium", "--structure", structure, "--gravity", "9.81", "--method",
+                 "least_squares", "--strength-factor", "2", "--out", str(out)]) == 0  # fmt: skip
+    doubled = json.loads((out / "equilibrium.json").read_text())["utilisation"]
+    np.testing.assert_allclose(doubled["tendon_yield"], 2 * np.array(expected), rtol=1e-6)
+
+
+def test_an_analysis_verb_refuses_factors_without_a_design(tmp_path, capsys):
+    code = main(
+        ["equilibrium", "--kind", "prism", "--safety-factor", "2", "--out", str(tmp_path / "o")]
+    )
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1
+    assert "--safety-factor: needs members with a design" in err

@@ -52,6 +52,7 @@ if TYPE_CHECKING:
     from tensegrity.analysis.controllability import ReachResult
     from tensegrity.analysis.modes import ModalAnalysis
     from tensegrity.analysis.shape_control import ClosedLoop, QuasiStatic
+    from tensegrity.design.materials import MemberDesign
     from tensegrity.plots.motion import Frames
 
 
@@ -98,10 +99,12 @@ def run_equilibrium(
     velocity_tol: float = Options.velocity_tol,
     acceleration_tol: float = Options.acceleration_tol,
     gravity: float | Sequence[float] | None = None,
+    design: MemberDesign | None = None,
 ) -> Output:
     """``tensegrity equilibrium``: the equilibrium by least squares, by damped simulation, or
     both (``method``: ``"least_squares"``, ``"simulation"``, ``"both"``) and their agreement,
-    under ``gravity`` [m/s^2] (a number: down the last axis; or a vector), if given."""
+    under ``gravity`` [m/s^2] (a number: down the last axis; or a vector), if given; with the
+    members' ``design``, their utilisation there (:func:`_utilisation`)."""
     if method not in ("both", "least_squares", "simulation"):
         raise ValueError(
             f"method: expected 'both', 'least_squares' or 'simulation', got {method!r}"
@@ -127,6 +130,9 @@ def run_equilibrium(
         text.append(_agreement_text(agreement))
     main = results.get("least_squares") or results["simulation"]
     text.append(_tendon_table(structure, main))
+    if design is not None:
+        data["utilisation"], lines = _utilisation(structure, design, main)
+        text.append(lines)
     # the page: the damped run's settling if the simulation route ran (the viewer decimates
     # its samples), else the structure at rest
     simulated = results.get("simulation")
@@ -194,6 +200,54 @@ def _agreement_text(agreement: dict[str, Any]) -> str:
     )
 
 
+def _utilisation(
+    structure: Structure, design: MemberDesign, eq: EquilibriumResult
+) -> tuple[dict[str, Any], str]:
+    """The members' utilisation at ``eq`` with the design's factors
+    (:func:`~tensegrity.design.utilisation.utilisation`; the rods' forces with the supports'
+    and joints', ``eq.rod_compression``): the JSON section and the summary's lines."""
+    from tensegrity.design.utilisation import utilisation
+
+    factors = design.factors
+    u = utilisation(
+        structure,
+        design.properties(structure),
+        tension=eq.tension,
+        compression=eq.rod_compression,
+        safety_factor=factors.safety,
+        strength_factor=factors.strength,
+    )
+
+    def largest(values: np.ndarray, names: Sequence[str]) -> str:
+        k = int(np.argmax(values))
+        return f"{values[k]:.4g} ({names[k]})"
+
+    rods = [f"rod {r}" for r in range(structure.n_rods)]
+    tendons = [f"tendon {name!r}" for name in structure.tendon_name]
+    rows = [
+        ("utilisation factors", f"safety {factors.safety:g}, strength {factors.strength:g}"),
+        (
+            "largest rod utilisation",
+            f"buckling {largest(u.rod_buckling, rods)}, yield {largest(u.rod_yield, rods)}"
+            if structure.n_rods
+            else "no rods",
+        ),
+        (
+            "largest tendon utilisation",
+            f"yield {largest(u.tendon_yield, tendons)}" if structure.n_tendons else "no tendons",
+        ),
+    ]
+    section = {
+        "safety_factor": factors.safety,
+        "strength_factor": factors.strength,
+        "tendon_yield": u.tendon_yield.tolist(),
+        "rod_yield": u.rod_yield.tolist(),
+        "rod_buckling": u.rod_buckling.tolist(),
+        "largest": u.largest,
+    }
+    return section, key_values(rows)
+
+
 def _tendon_table(structure: Structure, eq: EquilibriumResult) -> str:
     """Per tendon of ``eq``: tension, length, rest length and whether it is slack."""
     return table(
@@ -220,10 +274,12 @@ def run_modes(
     check_fft: bool = False,
     check_simulation: bool = False,
     gravity: float | Sequence[float] | None = None,
+    design: MemberDesign | None = None,
 ) -> Output:
     """``tensegrity modes``: natural frequencies [Hz], mode shapes, rigid-body modes, mechanisms
     and the stability verdict at the equilibrium (least squares); optionally the FFT check of
-    the best-separated mode and the perturbed nonlinear simulations."""
+    the best-separated mode and the perturbed nonlinear simulations; with the members'
+    ``design``, their utilisation at the equilibrium (:func:`_utilisation`)."""
     from tensegrity.analysis.linearize import linearize
     from tensegrity.analysis.modes import (
         ELASTIC,
@@ -241,6 +297,9 @@ def run_modes(
     }
     data |= modes.to_dict()
     text = [modes.verdict]
+    if design is not None:
+        data["utilisation"], lines = _utilisation(structure, design, eq)
+        text.append(lines)
     rows = [
         (i, modes.kind[i], modes.frequency_hz[i], modes.omega_squared[i])
         for i in range(len(modes.kind))

@@ -15,7 +15,7 @@ from tensegrity.cli.drawing import Drawing, worker_count
 from tensegrity.cli.errors import EXIT_FAILED, CommandError
 from tensegrity.cli.limits import check_run_cost
 from tensegrity.cli.startup import announce_compiling
-from tensegrity.cli.structures import add_gravity_option, add_structure_options, structure_of
+from tensegrity.cli.structures import add_gravity_option, add_structure_options, designed_of
 from tensegrity.engine.options import Options
 from tensegrity.io.files import write_staged as _write_all
 
@@ -47,7 +47,13 @@ def _analysis_and_write(args: argparse.Namespace, run: Callable, drawing: Drawin
     import inspect
 
     announce_compiling()
-    structure = structure_of(args)
+    structure, design = designed_of(args)
+    for option in ("safety_factor", "strength_factor"):
+        if design is None and getattr(args, option) is not None:
+            raise CommandError(
+                f"--{option.replace('_', '-')}: needs members with a design (--material and "
+                "--section, or a structure file in the material form)"
+            )
     if args.command == "equilibrium" and args.method != "least_squares":
         check_run_cost(
             structure,
@@ -58,8 +64,10 @@ def _analysis_and_write(args: argparse.Namespace, run: Callable, drawing: Drawin
     options = {
         name: getattr(args, name)
         for name in inspect.signature(run).parameters
-        if name != "structure" and hasattr(args, name)
+        if name not in ("structure", "design") and hasattr(args, name)
     }
+    if "design" in inspect.signature(run).parameters:
+        options["design"] = design
     # The whole computation first, with nothing in --out; then only the writing is staged.
     try:
         output = run(structure, **options)
@@ -95,6 +103,7 @@ def add_parsers(sub: Any) -> None:
             description=text[0].upper() + text[1:] + f"; writes {verb}.json and figures to --out.",
         )
         add_structure_options(p)
+        arguments.add_factors(p, from_file=True)  # the members' utilisation, with a design
         p.add_argument(
             "--out",
             type=arguments.name,
