@@ -80,7 +80,8 @@ MIN_LOAD_STEP = 1e-3
 
 class DesignLimitError(ValueError):
     """A design limit that larger members may cure: ``case`` (the load case at fault),
-    ``governs`` (the name of the limit, for the report) and the sentence ``reason``."""
+    ``governs`` (the name of the limit, for the report) and the sentence ``reason``; each kind
+    rebuilds itself for another reason (:meth:`with_reason`)."""
 
     governs = "limit"
 
@@ -92,13 +93,13 @@ class DesignLimitError(ValueError):
         """The one-line message for ``reason``."""
         return f"load case {self.case!r}: {reason}"
 
+    def with_reason(self, reason: str) -> DesignLimitError:
+        """The same limit for another ``reason``."""
+        return DesignLimitError(self.case, reason)
+
     def beyond(self, factor: float) -> DesignLimitError:
         """The same limit, unmet even with the tendons ``factor`` times the area."""
-        failure = type(self).__new__(type(self))
-        failure.__dict__.update(self.__dict__)
-        failure.reason = f"{self.reason} even with tendons {factor:.3g} times the area"
-        ValueError.__init__(failure, failure.sentence(failure.reason))
-        return failure
+        return self.with_reason(f"{self.reason} even with tendons {factor:.3g} times the area")
 
 
 class LoadPathError(DesignLimitError):
@@ -110,6 +111,9 @@ class LoadPathError(DesignLimitError):
     def __init__(self, case: str, reached: float, reason: str) -> None:
         self.reached = reached
         super().__init__(case, reason)
+
+    def with_reason(self, reason: str) -> LoadPathError:
+        return LoadPathError(self.case, self.reached, reason)
 
     def sentence(self, reason: str) -> str:
         where = "at its start" if self.reached == 0 else f"at {self.reached:.3g} of its load"
@@ -127,6 +131,9 @@ class ServiceabilityError(DesignLimitError):
     def __init__(self, case: str, governs: str, reason: str) -> None:
         self.governs = governs
         super().__init__(case, reason)
+
+    def with_reason(self, reason: str) -> ServiceabilityError:
+        return ServiceabilityError(self.case, self.governs, reason)
 
     def sentence(self, reason: str) -> str:
         where = "the prestressed state" if self.case == "prestress" else f"load case {self.case!r}"
