@@ -54,6 +54,7 @@ from tensegrity.design.sizing import (
 )
 from tensegrity.design.utilisation import utilisation
 from tensegrity.model.structure import Structure
+from tensegrity.physics import dynamics
 
 __all__ = [
     "STATICS",
@@ -559,9 +560,7 @@ def _size_at_prestress(
         limit_case if f else c for f, c in zip(stiffened, least.case, strict=True)
     )
     density = np.array([m.density for m in (*rm, *tm)])
-    tendon_length = np.linalg.norm(
-        s.node_position[s.tendon_nodes[:, 1]] - s.node_position[s.tendon_nodes[:, 0]], axis=1
-    )
+    tendon_length = dynamics.tendon_lengths(s, s.node_position)
     mass = density * np.concatenate([s.rod_length, tendon_length]) * area
     moved = [largest_displacement(s, eq) for eq in equilibria]
     states: list[EquilibriumResult | None] = [None] * (prestress > 0)
@@ -602,9 +601,7 @@ def nodal_load(structure: Structure, case: LoadCase) -> np.ndarray:
     N, d = structure.node_position.shape
     load = np.zeros((N, d)) if case.force is None else case.force.copy()
     if case.gravity is not None:
-        mass = structure.node_point_mass.copy()
-        np.add.at(mass, structure.rod_nodes.ravel(), np.repeat(structure.rod_mass / 2, 2))
-        load += mass[:, None] * case.gravity
+        load += structure.node_mass[:, None] * case.gravity
     return load
 
 
