@@ -34,6 +34,7 @@ from numba import njit, objmode
 from numba.core.errors import NumbaWarning
 
 from tensegrity.engine import dop853_tableau
+from tensegrity.engine.actuation import actuate, clip_command, hold_command
 from tensegrity.physics.compiling import (
     JIT_OPTIONS,
     JitOptions,
@@ -189,12 +190,23 @@ def make_inputs(callback, tables, times, data):  # pragma: no cover - compiled
     Python function of time, by Python (``callback``, ``model.callback``: a handle of
     :data:`INPUT_CALLBACKS`, called through numba's object mode; None compiles it out).
     Returns the first row the inputs could not be made for (a rest length negative, or the
-    function failed: the callback keeps the error), or -1."""
+    function failed: the callback keeps the error), or -1.  The actuated tendons' rows are the
+    actuators' (:func:`tensegrity.engine.actuation.actuate`)."""
     if callback is not None:
         with objmode(bad="int64"):
             bad = _call_inputs(callback, times)
-        return bad
-    return fill_stage_inputs(tables, times, data)
+    else:
+        bad = fill_stage_inputs(tables, times, data)
+    actuate(data.actuation, times, data)
+    return bad
+
+
+@njit(**JIT_OPTIONS)
+def fill_inputs_entry(tables, times, data):  # pragma: no cover - compiled
+    """:func:`fill_stage_inputs` and the actuators' rows, for Python (no callback)."""
+    bad = fill_stage_inputs(tables, times, data)
+    actuate(data.actuation, times, data)
+    return bad
 
 
 # --------------------------------------------------------------------------- right-hand side
@@ -541,15 +553,94 @@ def ode_rhs_entry(model, data, s, y, dy):  # pragma: no cover - compiled
 
 
 @njit(**JIT_OPTIONS)
-def energy_balance_entry(model, data, s, y):  # pragma: no cover - compiled
-    """:func:`energy_balance`, called from Python."""
-    return energy_balance(model, data, s, y)
-
-
-@njit(**JIT_OPTIONS)
 def check_state_entry(model, data, s, y, limits, with_energy):  # pragma: no cover - compiled
     """:func:`check_state`, called from Python."""
     return check_state(model, data, s, y, limits, with_energy)
+
+
+# --------------------------------------------------------------------------- feedback
+@njit(**JIT_OPTIONS)
+def next_update(law, act):  # pragma: no cover - compiled
+    """The time [s] of a compiled feedback law's next update (inf without one)."""
+    if law is None:
+        return np.inf
+    return law.schedule[0] + act.updates[0] * law.schedule[1]
+
+
+@njit(**JIT_OPTIONS)
+def update_due(law, act, t):  # pragma: no cover - compiled
+    """True if a compiled feedback law's update is due at ``t`` [s] (to 1e-9 of its
+    period); False without one."""
+    if law is None:
+        return False
+    return t >= next_update(law, act) - 1e-9 * law.schedule[1]
+
+
+@njit(**JIT_OPTIONS)
+def feedback_outputs(law, model, data, y):  # pragma: no cover - compiled
+    """The outputs ``law`` reads at ``y`` into ``data.actuation.outputs`` (Y,), from one
+    evaluation with the inputs' row 0 of ``data`` (:class:`tensegrity.engine.feedback
+    .LinearFeedback`'s groups: node positions, node velocities, tendon lengths, tensions)."""
+    act = data.actuation
+    n = (y.shape[0] - 3) // 2
+    ode_rhs(model, data, np.int64(0), y, act.state)  # (the tensions)
+    p, v = data.node_position, data.node_velocity
+    system_nodes(model, y[:n], y[n : 2 * n], p, v, np.bool_(True))
+    out, k = act.outputs, 0
+    for group in range(2):
+        if law.groups[group]:
+            x = p if group == 0 else v
+            for i in range(law.node_slot.shape[0]):
+                for c in range(law.dim):
+                    out[k] = x[c, law.node_slot[i]]
+                    k += 1
+    if law.groups[2]:
+        for j in range(law.tendon_position.shape[0]):
+            _, _, tx, ty, tz = tendon_vector(p, model.tendon_slots, law.tendon_position[j])
+            out[k] = np.sqrt(tx * tx + ty * ty + tz * tz)
+            k += 1
+    if law.groups[3]:
+        for j in range(law.tendon_position.shape[0]):
+            out[k] = data.tension[law.tendon_position[j]]
+            k += 1
+
+
+@njit(**JIT_OPTIONS)
+def feedback_update(law, model, data, t, y):  # pragma: no cover - compiled
+    """A compiled feedback law's update at ``(t, y)``, ``data`` holding the inputs at ``t``
+    (nothing without a law): the command ``u_ref - K (y - y_ref)`` clipped to the bounds, held
+    from ``t`` (:func:`tensegrity.engine.actuation.hold_command`); the inputs at ``t`` made
+    again and the jump of the elastic energy (a command held at once) added to ``W_u``, so
+    that the energy balance holds across it.  False if the log of updates is full (nothing
+    changed)."""
+    if law is None:
+        return False
+    act = data.actuation
+    command = act.proposed
+    feedback_outputs(law, model, data, y)
+    gain, out, ref = law.gain, act.outputs, law.output_ref
+    for a in range(gain.shape[0]):
+        u = law.control_ref[a]
+        for j in range(gain.shape[1]):
+            u -= gain[a, j] * (out[j] - ref[j])
+        command[a] = u
+    clip_command(act, command, command)
+    return held(model, data, t, y, command)
+
+
+@njit(**JIT_OPTIONS)
+def held(model, data, t, y, command):  # pragma: no cover - compiled
+    """Hold ``command`` (A,) [m] (within the bounds) from ``t`` with ``data`` holding the
+    inputs at ``t`` (one row); the elastic energy's jump goes to ``W_u``.  False if the log of
+    updates is full (nothing changed)."""
+    first = np.int64(0)
+    before = energy_balance(model, data, first, y)[1]
+    if not hold_command(data.actuation, t, command):
+        return False
+    times = np.full(1, t)
+    actuate(data.actuation, times, data)
+    y[-1] += energy_balance(model, data, first, y)[1] - before
+    return True
 
 
 __all__ = [
@@ -571,8 +662,12 @@ __all__ = [
     "dop853_dense",
     "dop853_interpolate",
     "energy_balance",
-    "energy_balance_entry",
+    "feedback_outputs",
+    "feedback_update",
+    "fill_inputs_entry",
     "fill_stage_inputs",
+    "held",
+    "next_update",
     "ode_rhs",
     "ode_rhs_entry",
     "record_contacts_entry",
@@ -580,4 +675,5 @@ __all__ = [
     "rk4_segment",
     "rk4_step",
     "tendon_lengths",
+    "update_due",
 ]

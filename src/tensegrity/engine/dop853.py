@@ -34,6 +34,7 @@ import numpy as np
 from numba import njit
 
 from tensegrity.engine import compiled
+from tensegrity.engine.actuation import log_full as actuation_log_full
 from tensegrity.engine.compiled import (
     CHECK_OK,
     DOP853_C,
@@ -43,9 +44,12 @@ from tensegrity.engine.compiled import (
     dop853_attempt,
     dop853_dense,
     dop853_interpolate,
+    feedback_update,
     inputs_vary,
     make_inputs,
+    next_update,
     ode_rhs,
+    update_due,
 )
 from tensegrity.engine.events import (
     EventWork,
@@ -247,8 +251,12 @@ def dop853_run(model, rows, point, loop, bound, next_sample_t):  # pragma: no co
         return min(100.0 * h0, h1, t_end - t)
 
     while True:
-        if attempts >= attempts_per_call or log_full(point.contact_work):
-            return RUN_YIELD, CHECK_OK, 0.0  # (Python takes the log of contact changes)
+        if (
+            attempts >= attempts_per_call
+            or log_full(point.contact_work)
+            or actuation_log_full(point.actuation)
+        ):
+            return RUN_YIELD, CHECK_OK, 0.0  # (Python takes the logs of contacts and updates)
         if loop.tally[PENDING]:  # finish the accepted step whose samples were handed out
             loop.tally[PENDING] = 0
             copy_values(loop.K[DOP853_STAGES], loop.K[0], m)  # first same as last
@@ -286,6 +294,15 @@ def dop853_run(model, rows, point, loop, bound, next_sample_t):  # pragma: no co
                 return RUN_BOUNDARY, CHECK_OK, 0.0  # (a controller may change the inputs)
             if loop.tally[NSTEPS] >= max_steps:
                 return RUN_MAX_STEPS, CHECK_OK, 0.0
+        if not loop.tally[START] and update_due(model.feedback, point.actuation, loop.clock[T]):
+            # a compiled feedback law's update (the step landed on its time)
+            if inputs_at(loop.clock[T]) >= 0:
+                loop.clock[INPUT_TIME] = loop.clock[T]
+                return RUN_INPUT, CHECK_OK, 0.0
+            feedback_update(model.feedback, model, point, loop.clock[T], loop.y)
+            loop.tally[RESTART] = 1
+            loop.tally[LANDING] = 0
+        update = next_update(model.feedback, point.actuation)
         if (
             loop.tally[RESTART] or loop.tally[START]
         ):  # the state changed, or the run starts: its first
@@ -312,7 +329,8 @@ def dop853_run(model, rows, point, loop, bound, next_sample_t):  # pragma: no co
             return RUN_BOUNDARY, CHECK_OK, 0.0
         heading = bool(loop.tally[LANDING])
         detect = locate and not (heading and loop.tally[LANDING_EXACT])
-        target = min(bound, loop.clock[LANDING_TIME]) if heading else bound
+        stop = min(bound, update)  # (a feedback law's update ends a step too)
+        target = min(stop, loop.clock[LANDING_TIME]) if heading else stop
         use_taut = locate and bool(loop.tally[ALLOW_PROVISIONAL]) and not heading
 
         # ---- one step not past ``target`` (scipy's step-size law); with ``use_taut`` a

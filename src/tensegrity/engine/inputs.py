@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from tensegrity.model.actuators import Actuators
 from tensegrity.model.ground import planes_of
 from tensegrity.model.loads import ControlTable, ForceTable
 from tensegrity.model.structure import Structure
@@ -118,6 +119,7 @@ class Inputs:
         gravity: Any = None,
         ground: Any = None,
         contact_radius: Any = 0.0,
+        actuators: Actuators | None = None,
     ) -> None:
         self.structure = structure
         self.control = _Signal(control, (structure.n_tendons,), "control")
@@ -140,7 +142,21 @@ class Inputs:
         self.contact_radius = float(radius)
         if self.ground and structure.dim != 3:
             raise ValueError("ground: contact is for 3-D structures (this one is planar)")
-        self.constant = self.control.constant and self.external_force.constant
+        if actuators is not None:
+            if not isinstance(actuators, Actuators):
+                raise TypeError(
+                    "actuators: expected a tensegrity.model.actuators.Actuators (made by "
+                    f"actuators(structure, ...)), got {type(actuators).__name__}"
+                )
+            if actuators.tendons.size and actuators.tendons.max() >= structure.n_tendons:
+                raise ValueError("actuators: made for another structure (a tendon out of range)")
+            if self.control.kind != "none":
+                raise ValueError(
+                    "control: the actuated tendons follow their commands (a controller's); give "
+                    "actuators or a control, not both"
+                )
+        self.actuators = actuators
+        self.constant = self.control.constant and self.external_force.constant and actuators is None
 
     def rest_length(self, times: np.ndarray) -> np.ndarray:
         """``Lbar = L0 - u`` (K, S) [m] at ``times``; raises ``ValueError`` naming the first
@@ -160,15 +176,6 @@ class Inputs:
             )
         return rest
 
-    def hold_control(self, u: Any, t: float) -> None:
-        """Hold the control at ``u`` (S,) [m] from time ``t`` [s] on (a controller's update):
-        ``ValueError`` naming the controller if ``u`` has the wrong shape, is not finite or makes
-        a rest length negative."""
-        signal = _Signal(np.array(u, dtype=float), (self.structure.n_tendons,), "controller")
-        self.control = signal
-        self.constant = self.external_force.constant
-        self.rest_length(np.array([t]))
-
     def settings(self) -> dict[str, Any]:
         """``control``, ``external_force`` (False, True, ``"table"``, ``"function"``) and
         ``gravity`` (a list or None), for a run's settings record; with planes, ``ground`` (each
@@ -181,4 +188,6 @@ class Inputs:
         if self.ground:
             settings["ground"] = [plane.settings() for plane in self.ground]
             settings["contact_radius"] = self.contact_radius
+        if self.actuators is not None:
+            settings["actuators"] = self.actuators.settings(self.structure)
         return settings

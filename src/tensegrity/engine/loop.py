@@ -45,6 +45,7 @@ from tensegrity.engine.events import (
     start_contacts_entry,
     stick_slow_slips_entry,
 )
+from tensegrity.engine.feedback import LinearFeedback
 from tensegrity.engine.inputs import Inputs
 from tensegrity.engine.options import Options, reaches, sample_count, sample_time, short_of
 from tensegrity.engine.result import (
@@ -137,10 +138,13 @@ class LoopState:
     scale, largest rod and constraint errors); ``taut`` the tendons' taut flags (S,) in kernel
     order; ``landing`` a located switch being headed for (``(time, tendons, taut_after,
     exact)``) or None; ``counts`` ``nsteps``, ``nswitches``, ``nprojections``, ``nfev``;
-    ``control`` the controller's last output (S,) [m] (empty without a controller);
+    ``control`` the actuators' command held (A,) [m] (a controller's; empty without);
     ``contact_mode`` (CP,) and ``slip_direction`` (CP, 3) the contact pairs' modes and slip
     directions, ``contact_events`` (E, 4) the changes of mode so far (time [s], pair, mode
-    before, mode after; :attr:`RunSummary.contact_events`), all empty without planes.
+    before, mode after; :attr:`RunSummary.contact_events`), all empty without planes;
+    ``actuation`` when the actuators' command was held (``start`` [s], the updates so far,
+    the controls applied at ``start`` (A,)) and ``control_updates`` those updates
+    (:attr:`RunSummary.control_updates`), empty without actuators.
     """
 
     t: float
@@ -154,12 +158,14 @@ class LoopState:
     allow_provisional: bool
     counts: dict[str, int]
     switch_times: tuple[float, ...]
-    control: np.ndarray
     last_sample_t: float
     wall_time: float
     contact_mode: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0, np.int64))
     slip_direction: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 3)))
     contact_events: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 4)))
+    control: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
+    actuation: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
+    control_updates: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 1)))
 
     def to_arrays(self) -> dict[str, np.ndarray | np.generic]:
         """The state as named arrays and NumPy scalars (for a file); :meth:`from_arrays` reads
@@ -188,6 +194,8 @@ class LoopState:
             "contact_mode": self.contact_mode,
             "slip_direction": self.slip_direction,
             "contact_events": self.contact_events,
+            "actuation": self.actuation,
+            "control_updates": self.control_updates,
         }
 
     @classmethod
@@ -225,6 +233,8 @@ class LoopState:
             contact_mode=np.asarray(a.get("contact_mode", np.zeros(0)), dtype=np.int64),
             slip_direction=np.asarray(a.get("slip_direction", np.zeros((0, 3))), dtype=float),
             contact_events=np.asarray(a.get("contact_events", np.zeros((0, 4))), dtype=float),
+            actuation=np.asarray(a.get("actuation", np.zeros(0)), dtype=float),
+            control_updates=np.asarray(a.get("control_updates", np.zeros((0, 1))), dtype=float),
         )
 
 
@@ -273,7 +283,7 @@ class _Run:
         inputs: Inputs,
         options: Options,
         sink: Sink,
-        controller: Controller | None,
+        controller: Controller | LinearFeedback | None,
         checkpoint: Checkpointing | None,
         progress: Callable[[float], None] | None,
         stop: StopCondition | None,
@@ -281,7 +291,11 @@ class _Run:
         self.wall0 = time.perf_counter()
         self.structure, self.options, self.sink = structure, options, sink
         self.progress, self.stop = progress, stop
-        self.controller, self.checkpointing = controller, checkpoint
+        law = controller if isinstance(controller, LinearFeedback) else None
+        #: a compiled law is updated inside DOP853's compiled loop; the other loops stop at
+        #: its times and have it updated (:meth:`update_control`)
+        self.controller = None if (law is not None and options.method == "DOP853") else controller
+        self.checkpointing = checkpoint
         self.t0, self.t_end = t0, t_end
         length_scale = max(float(structure.rod_length.max(initial=0.0)), 1.0)
         limits = (
@@ -289,7 +303,9 @@ class _Run:
             options.max_rod_length_error * length_scale,
             options.max_energy_growth,
         )
-        self.system = CompiledSystem(structure, inputs, limits=limits)
+        self.system = CompiledSystem(
+            structure, inputs, limits=limits, feedback=law, t0=t0, controlled=controller is not None
+        )
         #: the blow-up monitor (4,) (``system.data.monitor``, the compiled checks update it)
         self.monitor = self.system.monitor
         self.monitor[:] = (np.nan, 0.0, 0.0, 0.0)  # (made at the first state: start_monitor)
@@ -299,9 +315,9 @@ class _Run:
         self.nfev_before = 0  # of the runs before a resume
         self.switch_times: list[float] = []
         self.contact_events: list[np.ndarray] = []  # blocks of (time, pair, before, after)
+        self.control_log: list[np.ndarray] = []  # blocks of the actuators' updates
         self.status, self.message = STATUS_END, f"reached t_end = {t_end:g} s"
         self.last_sample_t = -np.inf
-        self.control = np.zeros(0)
         self.wall_before = 0.0
         self.steps_done = 0  # "rk4"
         self.saved_at = 0  # index of the sample of the last checkpoint
@@ -446,16 +462,78 @@ class _Run:
         return k >= 0 and abs(self.t0 + k * period - t) <= 1e-9 * period
 
     def update_control(self, t: float, y: np.ndarray) -> None:
-        """Call the controller at ``(t, y)`` and hold its output (the system's inputs change)."""
-        assert self.controller is not None, "update_control: the run has no controller"
-        q, qdot = self.system.coordinates(y)
-        u = np.array(self.controller(t, q, qdot), dtype=float)
-        before = self.system.elastic_energy(t, y)
-        self.system.hold_control(u, t)
-        # The rest lengths jump, and so does the elastic energy at ``y``: the control's work
-        # ``W_u`` takes that jump, so that the energy balance holds across it.
-        y[-1] += self.system.elastic_energy(t, y) - before
-        self.control = u
+        """Update the control at ``(t, y)``: a compiled law's update, or the controller's
+        output held (through the actuators, if any: their command, the energy's jump in
+        ``y``); the system's inputs change."""
+        system = self.system
+        if system.model.feedback is not None:
+            system.feedback_update(t, y)
+            self.take_control_log()
+            return
+        controller = self.controller
+        assert controller is not None and not isinstance(controller, LinearFeedback), (
+            "update_control: the run has no Python controller"
+        )
+        q, qdot = system.coordinates(y)
+        u = np.array(controller(t, q, qdot), dtype=float)
+        system.command(self._command_of(u, t), t, y)
+        self.take_control_log()
+
+    def settings(self, inputs: Inputs) -> dict[str, Any]:
+        """The run's settings record: the options and inputs, and the actuators a controller
+        drove (a compiled law's own if the inputs had none)."""
+        settings = self.options.settings(self.t0, self.t_end, **inputs.settings())
+        if self.system.actuators is not None:
+            settings["actuators"] = self.system.actuators.settings(self.structure)
+        return settings
+
+    def _command_of(self, u: np.ndarray, t: float) -> np.ndarray:
+        """The actuators' command (A,) [m] in a controller's output ``u``: (A,), or (S,) with
+        zero on the tendons that are not actuated; ``ValueError`` naming the controller and
+        the time otherwise."""
+        actuated = self.system.actuators
+        assert actuated is not None, "_command_of: the run has no actuators"
+        S, A = self.structure.n_tendons, actuated.size
+        if u.shape not in ((A,), (S,)):
+            raise ValueError(
+                f"controller: returned shape {u.shape} at t = {t:.6g} s; expected ({A},) (the "
+                f"actuated tendons) or ({S},)"
+            )
+        if not np.all(np.isfinite(u)):
+            raise ValueError(f"controller: returned a value that is not finite at t = {t:.6g} s")
+        command = u if u.shape == (A,) else u[actuated.tendons]
+        rest0 = self.structure.tendon_rest_length[actuated.tendons]
+        if self.system.inputs.actuators is None and np.any(rest0 - command < 0):
+            # (without actuators a controller may not make a rest length negative)
+            a = int(np.flatnonzero(rest0 - command < 0)[0])
+            raise ValueError(
+                f"controller[{actuated.tendons[a]}]: rest length {rest0[a]:g} - {command[a]:g} "
+                f"is negative at t = {t:g} s"
+            )
+        if u.shape == (A,):
+            return command
+        idle = np.ones(S, bool)
+        idle[actuated.tendons] = False
+        if np.any(u[idle] != 0):
+            s = int(np.flatnonzero(idle & (u != 0))[0])
+            raise ValueError(
+                f"controller: returned u = {u[s]:g} m for tendon "
+                f"{self.structure.tendon_name[s]!r} at t = {t:.6g} s, which is not actuated"
+            )
+        return command
+
+    def take_control_log(self) -> None:
+        """Move the actuators' updates logged since the last call to :attr:`control_log`."""
+        if self.system.actuators is not None:
+            self.control_log.append(self.system.take_control_log())
+
+    def control_updates(self) -> np.ndarray:
+        """The actuators' updates so far (U, 1 + 2 A): time [s], commands held [m], controls
+        applied then [m]; (0, 1) without actuators."""
+        self.take_control_log()
+        act = self.system.data.actuation
+        empty = np.zeros((0, 1 if act is None else 1 + 2 * act.position.size))
+        return np.concatenate([empty, *(rows for rows in self.control_log if rows.shape[0])])
 
     def checkpoint_due(self) -> bool:
         """True once per checkpoint: its sample (every ``every``-th) was just recorded."""
@@ -492,12 +570,24 @@ class _Run:
                 allow_provisional=allow_provisional,
                 counts=dict(self.counts, nfev=self.nfev_before + stepper.nfev),
                 switch_times=tuple(self.switch_times),
-                control=self.control.copy(),
                 last_sample_t=self.last_sample_t,
                 wall_time=self.wall_time(),
                 **self._contact_state(),
+                **self._actuation_state(),
             )
         )
+
+    def _actuation_state(self) -> dict[str, np.ndarray]:
+        """The actuators' held command and updates so far (empty without actuators)."""
+        act = self.system.data.actuation
+        if act is None:
+            return {}
+        held = np.concatenate([act.start, act.updates.astype(float), act.applied])
+        return {
+            "control": act.command.copy(),
+            "actuation": held,
+            "control_updates": self.control_updates(),
+        }
 
     def _contact_state(self) -> dict[str, np.ndarray]:
         """The contact pairs' modes, slip directions and changes so far (copies; empty without
@@ -543,9 +633,17 @@ class _Run:
         self.last_sample_t, self.wall_before = state.last_sample_t, state.wall_time
         self.steps_done = state.steps_done
         self.saved_at = state.next_sample - 1
-        if self.controller is not None and state.control.size:
-            self.system.hold_control(state.control, state.t)
-            self.control = state.control.copy()
+        act = self.system.data.actuation
+        if act is not None:
+            A = act.position.size
+            if state.control.shape != (A,) or state.actuation.shape != (2 + A,):
+                raise ValueError(
+                    f"resume: the checkpoint holds no command of {A} actuators (another "
+                    "controller or actuators)"
+                )
+            act.start[0], act.updates[0] = state.actuation[0], int(state.actuation[1])
+            act.applied[:], act.command[:] = state.actuation[2:], state.control
+            self.control_log = [state.control_updates]
         work = self.system.data.contact_work
         if work is not None:
             if state.contact_mode.shape != work.mode.shape:
@@ -621,7 +719,7 @@ def _adaptive(run: _Run, stepper: Stepper, resume: LoopState | None) -> None:
     locate = o.locate_switches
     events = event_work(system)
     point = system.input_buffers(1)
-    varying = not system.inputs.constant
+    varying = not system.constant
     if locate:
         set_sides_entry(stepper.evaluation(), events, False)
     landing: _Landing | None = None
@@ -730,6 +828,7 @@ def _compiled_adaptive(run: _Run, stepper: DOP853, resume: LoopState | None) -> 
         run.counts.update(stepper.counts())
         run.switch_times.extend(stepper.new_switch_times())
         run.take_contact_log()
+        run.take_control_log()
         if code == dop853.RUN_CHECK_FAILED:
             run.fail(check, value, stepper.t)
             if check != compiled.CHECK_PROJECTION:  # (the state before projection was recorded)
@@ -917,7 +1016,7 @@ def run(
     options: Options | None = None,
     sink: Sink,
     progress: Callable[[float], None] | None = None,
-    controller: Controller | None = None,
+    controller: Controller | LinearFeedback | None = None,
     checkpoint: Checkpointing | None = None,
     resume: LoopState | None = None,
     stop: StopCondition | None = None,
@@ -929,8 +1028,10 @@ def run(
     ``inputs`` (:class:`Inputs`) to no control, load or gravity, ``options`` to ``Options()``.
     ``progress``, if given, is called with the time reached after each stretch of steps.
     ``controller``
-    (:class:`Controller`) sets the control at ``t0`` and every ``controller.period`` after (the
-    inputs may then have no control of their own).  ``checkpoint`` saves the loop's state every
+    (:class:`Controller`, or a :class:`~tensegrity.engine.feedback.LinearFeedback` that
+    compiled code runs) sets the control at ``t0`` and every ``controller.period`` after (the
+    inputs may then have no control of their own), through the inputs' actuators if they have
+    any.  ``checkpoint`` saves the loop's state every
     ``checkpoint.every`` samples; ``resume`` continues from such a state (the same structure,
     inputs, options and controller, and no ``initial``; the samples up to it are not handed to
     ``sink`` again).  ``stop`` (:class:`StopCondition`) may end the run at a sample.  Returns a
@@ -981,9 +1082,10 @@ def run(
         max_rod_length_error=float(r.monitor[2]),
         max_constraint_error=float(r.monitor[3]),
         wall_time=r.wall_time(),
-        settings=options.settings(t0, t_end, **inputs.settings()),
+        settings=r.settings(inputs),
         switch_times=tuple(r.switch_times),
         contact_events=r.contact_event_log(),
+        control_updates=r.control_updates(),
         stopped_for_time=r.stopped_for_time,
         **r.counts,
     )

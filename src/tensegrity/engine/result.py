@@ -118,6 +118,9 @@ class RunSummary:
     switch_times: tuple[float, ...] = ()  #: times of the located switches [s]
     #: (E, 4) the contact pairs' changes of mode: time [s], pair, mode before, mode after
     contact_events: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 4)))
+    #: (U, 1 + 2 A) the actuators' updates: time [s], the commands held (after the bounds)
+    #: [m], the controls applied at that time [m]; (0, 1) without actuators
+    control_updates: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 1)))
     stopped_for_time: bool = False  #: failed because this call used up ``max_wall_time``
 
     @property
@@ -179,6 +182,11 @@ class SimulationResult:
     contact_event_time, contact_event_pair, contact_event_mode : (E,) [s], (E,), (E, 2): the
         changes of a pair's mode, at located events (or at the start, from free): when, which
         pair, the modes before and after (:attr:`contact_counts` counts them).
+    control_time, control_command, control_applied : (U,) [s], (U, A) [m], (U, A) [m]: the
+        actuators' updates (a controller's), when, the commands held (after the rest-length
+        bounds), the controls applied at that time; A actuated tendons
+        (:attr:`control_tendons`, ``settings["actuators"]``), U = 0 without a controller.
+        :meth:`saturations` says where the limits bound them.
     """
 
     structure: Structure
@@ -214,6 +222,55 @@ class SimulationResult:
     contact_event_mode: np.ndarray = dataclasses.field(
         default_factory=lambda: np.zeros((0, 2), np.int8)
     )
+    control_time: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
+    control_command: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 0)))
+    control_applied: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 0)))
+
+    @property
+    def control_tendons(self) -> tuple[str, ...]:
+        """The actuated tendons' names (A,), in the order of :attr:`control_command`'s
+        columns (empty without actuators)."""
+        return tuple(self.settings.get("actuators", {}).get("tendons", ()))
+
+    def saturations(self) -> list[Saturation]:
+        """Where the actuators' limits bound the commands: each stretch of time an actuated
+        tendon's command sat on a rest-length bound (``"bound"``), or its control moved at the
+        rate limit (``"rate"``), in time order."""
+        settings = self.settings.get("actuators")
+        if settings is None or self.control_time.size == 0:
+            return []
+        names = self.control_tendons
+        index = [self.structure.tendon_index(name) for name in names]
+        rest0 = self.structure.tendon_rest_length[index]
+
+        def limit(key: str, missing: float) -> np.ndarray:
+            return np.array([missing if v is None else v for v in settings[key]], dtype=float)
+
+        low = rest0 - limit("max_rest_length", np.inf)
+        high = rest0 - limit("min_rest_length", 0.0)
+        rate, tau = limit("max_rate", np.inf), limit("time_constant", 0.0)
+        ends = np.append(self.control_time[1:], self.t[-1] if self.t.size else np.inf)
+        found: list[Saturation] = []
+        for a, name in enumerate(names):
+            command, applied = self.control_command[:, a], self.control_applied[:, a]
+            on_bound = (command <= low[a]) | (command >= high[a])
+            ramp = np.zeros(command.size)
+            if np.isfinite(rate[a]):  # (the time at the rate limit, model.actuators)
+                ramp = np.maximum(np.abs(command - applied) - rate[a] * tau[a], 0.0) / rate[a]
+            for kind, starts, stops in (
+                ("bound", self.control_time[on_bound], ends[on_bound]),
+                (
+                    "rate",
+                    self.control_time[ramp > 0],
+                    np.minimum(self.control_time + ramp, ends)[ramp > 0],
+                ),
+            ):
+                for start, stop in zip(starts, stops, strict=True):
+                    if found and found[-1][:2] == (name, kind) and found[-1].end == start:
+                        found[-1] = found[-1]._replace(end=float(stop))
+                    else:
+                        found.append(Saturation(name, kind, float(start), float(stop)))
+        return sorted(found, key=lambda x: (x.start, x.tendon))
 
     def __post_init__(self) -> None:
         """Contact arrays left out (a run without planes): (T, 0) of theirs."""
@@ -363,7 +420,28 @@ class MemorySink:
             contact_friction_force=s.contact_friction_force,
             contact_mode=s.contact_mode,
             **contact_event_arrays(summary.contact_events),
+            **control_arrays(summary.control_updates),
         )
+
+
+def control_arrays(updates: np.ndarray) -> dict[str, np.ndarray]:
+    """The actuators' updates (U, 1 + 2 A) (:attr:`RunSummary.control_updates`) as a
+    result's ``control_time``, ``control_command`` and ``control_applied``."""
+    A = (updates.shape[1] - 1) // 2
+    return {
+        "control_time": updates[:, 0].copy(),
+        "control_command": updates[:, 1 : 1 + A].copy(),
+        "control_applied": updates[:, 1 + A :].copy(),
+    }
+
+
+class Saturation(NamedTuple):
+    """A stretch of time an actuator's limit bound it (:meth:`SimulationResult.saturations`)."""
+
+    tendon: str  #: the actuated tendon's name
+    kind: str  #: ``"bound"`` (a rest-length bound) or ``"rate"`` (the rate limit)
+    start: float  #: [s]
+    end: float  #: [s]
 
 
 def contact_event_arrays(events: np.ndarray) -> dict[str, np.ndarray]:

@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from tensegrity.engine.feedback import LinearFeedback
 from tensegrity.engine.inputs import Inputs
 from tensegrity.engine.options import DEFAULT_MAX_SAMPLES, DEFAULT_MAX_STEPS, Options
 from tensegrity.engine.result import (
@@ -28,6 +29,7 @@ from tensegrity.engine.result import (
     MemorySink,
     SimulationResult,
 )
+from tensegrity.model.actuators import Actuators
 from tensegrity.model.ground import Plane
 from tensegrity.model.structure import Structure, require_structure
 from tensegrity.physics.dynamics import State
@@ -58,7 +60,8 @@ def simulate(
     gravity: np.ndarray | None = None,
     ground: Plane | Sequence[Plane] | None = None,
     contact_radius: float = 0.0,
-    controller: Controller | None = None,
+    controller: Controller | LinearFeedback | None = None,
+    actuators: Actuators | None = None,
     stop: StopCondition | None = None,
     method: str = "DOP853",
     rtol: float = 1e-9,
@@ -99,7 +102,15 @@ def simulate(
     controller : Controller, optional
         State feedback ``u = controller(t, q, qdot)`` held for ``controller.period`` [s] from
         ``t0`` on (zero-order hold; :class:`tensegrity.engine.loop.Feedback` makes one of a
-        function); instead of ``control``.  Steps end at its update times.
+        function); instead of ``control``.  Steps end at its update times.  A
+        :class:`~tensegrity.engine.feedback.LinearFeedback` (``u = u_ref - K (y - y_ref)``) runs
+        inside the compiled loop, with no Python call per update (DOP853; the other methods
+        stop at its updates).  The commands held are in ``control_time``,
+        ``control_command`` and ``control_applied`` of the result.
+    actuators : Actuators, optional
+        The actuated tendons (:func:`tensegrity.model.actuators.actuators`): a controller's
+        commands go through their rest-length bounds, rate limits and lags; without them a
+        command is held at once, only kept from making a rest length negative.
     stop : StopCondition, optional
         Called with every sample (a :class:`~tensegrity.engine.result.Samples` block of one
         row); the run stops at the first for which it returns a reason (a sentence), with
@@ -149,6 +160,7 @@ def simulate(
         gravity=gravity,
         ground=ground,
         contact_radius=contact_radius,
+        actuators=actuators,
         method=method,
         rtol=rtol,
         atol=atol,
@@ -195,6 +207,7 @@ def options_and_inputs(
     gravity: Any = None,
     ground: Any = None,
     contact_radius: Any = 0.0,
+    actuators: Actuators | None = None,
     **options: Any,
 ) -> tuple[Options, Inputs]:
     """:func:`simulate`'s keyword options as the engine takes them: the :class:`Options` of the
@@ -211,6 +224,7 @@ def options_and_inputs(
         gravity=gravity,
         ground=ground,
         contact_radius=contact_radius,
+        actuators=actuators,
     )
 
 

@@ -12,8 +12,11 @@ from collections.abc import Callable
 import numpy as np
 
 from tensegrity.engine import compiled
+from tensegrity.engine.actuation import actuate, clip_command, pack_actuation, pack_feedback
+from tensegrity.engine.feedback import LinearFeedback
 from tensegrity.engine.inputs import Inputs
 from tensegrity.engine.result import Samples
+from tensegrity.model.actuators import Actuators, actuators
 from tensegrity.model.structure import Structure
 from tensegrity.physics import dynamics
 from tensegrity.physics.contact import pack_contacts
@@ -26,7 +29,7 @@ from tensegrity.physics.kernel_system import (
     system_nodes,
     system_project,
 )
-from tensegrity.physics.records import Data
+from tensegrity.physics.records import Actuation, Data
 
 
 def _weakly(method: weakref.WeakMethod) -> Callable[[np.ndarray], int]:
@@ -51,7 +54,12 @@ class CompiledSystem:
 
     ``y`` vectors are the engine's ODE state ``[q, q', E_d, W_w, W_u]`` in 3-D coordinates
     (length ``m = 2n + 3``).  ``limits`` = ``(max_rod_length_error, max_constraint_error [m],
-    max_energy_growth)``, the blow-up checks' (``Model.limits``).
+    max_energy_growth)``, the blow-up checks' (``Model.limits``).  ``feedback``: a linear law
+    compiled code runs every ``feedback.period`` from ``t0`` [s] (``Model.feedback``), through
+    the inputs' actuators (default: actuators on its tendons without limits); ``controlled``:
+    a controller's commands drive the run (default: actuators on every tendon without limits).
+    With actuators (:attr:`actuators`) the actuated tendons follow the commands held by
+    :meth:`command`.
     """
 
     def __init__(
@@ -60,6 +68,9 @@ class CompiledSystem:
         inputs: Inputs,
         *,
         limits: tuple[float, float, float] = (np.inf, np.inf, np.inf),
+        feedback: LinearFeedback | None = None,
+        t0: float = 0.0,
+        controlled: bool = False,
     ) -> None:
         self.structure, self.inputs = structure, inputs
         self.planar = structure.dim == 2
@@ -91,9 +102,26 @@ class CompiledSystem:
         self.model, self.data = make_records(
             packed_system, rest=rest0, gravity=gravity, limits=limits, contacts=contacts
         )
+        tendon_position = np.argsort(packed.layout.tendon_order)
+        self.actuators = inputs.actuators
+        if controlled and self.actuators is None:
+            self.actuators = actuators(structure)
+        if feedback is not None:
+            self.actuators = self._feedback_actuators(feedback)
+            self.model = self.model._replace(
+                feedback=pack_feedback(
+                    structure, feedback, tendon_position, packed.layout.node_slot, t0
+                )
+            )
+        if self.actuators is not None:
+            outputs = 0 if feedback is None else feedback.y_ref.size
+            actuation = pack_actuation(
+                structure, self.actuators, tendon_position, outputs=outputs, state=self.m
+            )
+            self.data = self.data._replace(actuation=actuation)
         #: the blow-up monitor (4,), ``data.monitor`` (see :func:`compiled.check_state`)
         self.monitor = self.data.monitor
-        self.tendon_position = np.argsort(packed.layout.tendon_order)
+        self.tendon_position = tendon_position
         slot = packed.layout.node_slot
         self.moving_slots = np.ascontiguousarray(
             np.concatenate(
@@ -104,6 +132,7 @@ class CompiledSystem:
         #: what the last input callback failed with (:meth:`raise_input_error`), or None
         self.input_error: BaseException | None = None
         self._handle: int | None = None
+        self._control_log: list[np.ndarray] = []
         #: scratch node arrays (3, n_slots): positions, velocities
         self.scratch_p, self.scratch_v = np.zeros((3, n_slots)), np.zeros((3, n_slots))
         self._sample_scratch = (np.empty(self.m), *(np.zeros((3, n_slots)) for _ in range(3)),
@@ -124,7 +153,7 @@ class CompiledSystem:
         self._constant: Data | None = None
         self._buffers: dict[int, Data] = {}
         self.model = self.model._replace(tables=None, callback=None)
-        if inputs.constant:
+        if self.constant:
             self._constant = self._numpy_inputs(np.zeros(1))
             return
         control, force = inputs.control, inputs.external_force
@@ -146,6 +175,11 @@ class CompiledSystem:
             force_table = (np.array(table.time), values, table.outside == "zero")
         rest0 = packed.to_kernel_order(self.structure.tendon_rest_length)
         self.model = self.model._replace(tables=(*control_table, rest0, *force_table))
+
+    @property
+    def constant(self) -> bool:
+        """True if every input is constant in time (no table, no function, no actuators)."""
+        return self.inputs.constant and self.actuators is None
 
     @property
     def tables(self) -> tuple | None:
@@ -181,6 +215,12 @@ class CompiledSystem:
             rest, rate, has_rate = np.empty((k, S)), np.empty((k, S)), True
         else:
             rest, rate, has_rate = self._control_rows(t0)
+            if self.actuators is not None:  # (their columns made by compiled code)
+                rest, rate, has_rate = (
+                    np.repeat(rest, k, axis=0),
+                    np.zeros((k, rest.shape[1])),
+                    True,
+                )
         if not self.inputs.external_force.constant:
             force, has_external = np.empty((k, 3, self.packed.layout.n_slots)), True
         else:
@@ -192,7 +232,7 @@ class CompiledSystem:
         code, the constants' as by NumPy."""
         times = np.ascontiguousarray(times, dtype=float)
         data = self._varying_buffers(times.size)
-        if compiled.fill_stage_inputs(self.tables, times, data) >= 0:
+        if compiled.fill_inputs_entry(self.tables, times, data) >= 0:
             self.inputs.rest_length(times)  # raises the ValueError naming the tendon
         return data
 
@@ -229,8 +269,17 @@ class CompiledSystem:
             raise error
 
     def _numpy_inputs(self, times: np.ndarray) -> Data:
-        """:meth:`stage_inputs` evaluated by NumPy and the Python callables."""
-        return self._with_inputs(*self._control_rows(times), *self._force_rows(times))
+        """:meth:`stage_inputs` evaluated by NumPy and the Python callables (the actuated
+        tendons' rows by :func:`~tensegrity.engine.actuation.actuate`)."""
+        rest, rate, has_rate = self._control_rows(times)
+        if self.actuators is not None:
+            K = times.size
+            rest = np.array(np.broadcast_to(rest, (K, rest.shape[1])))
+            rate = np.zeros((K, rest.shape[1])) if not has_rate else np.array(rate)
+            has_rate = True
+        data = self._with_inputs(rest, rate, has_rate, *self._force_rows(times))
+        actuate(data.actuation, np.ascontiguousarray(times, dtype=float), data)
+        return data
 
     def _with_inputs(
         self,
@@ -268,16 +317,60 @@ class CompiledSystem:
             return np.asarray(x, dtype=float)
         return np.concatenate([x, np.zeros((*x.shape[:-1], 1))], axis=-1)
 
-    def hold_control(self, u: np.ndarray, t: float) -> None:
-        """Hold the control at ``u`` (S,) [m] from ``t`` [s] on (a controller's update,
-        :meth:`Inputs.hold_control`): the compiled inputs follow."""
-        self.inputs.hold_control(u, t)
-        self._prepare_inputs()
+    def _feedback_actuators(self, feedback: LinearFeedback) -> Actuators:
+        """The actuators a compiled law drives: the inputs' (on the law's tendons, in its
+        order), or actuators without limits on its tendons."""
+        tendons = feedback.check(self.structure)
+        if self.inputs.actuators is None:
+            return actuators(self.structure, tendons.tolist())
+        if not np.array_equal(self.inputs.actuators.tendons, tendons):
+            raise ValueError(
+                "controller.tendons: must be the actuated tendons in their order "
+                f"({self.inputs.actuators.tendons.tolist()}), got {tendons.tolist()}"
+            )
+        return self.inputs.actuators
 
-    def elastic_energy(self, t: float, y: np.ndarray) -> float:
-        """Elastic energy of the tendons [J] at ``y`` with the rest lengths at ``t``."""
+    @property
+    def actuation(self) -> Actuation:
+        """The actuators' record (``data.actuation``; a system with actuators)."""
+        act = self.data.actuation
+        assert act is not None, "actuation: the system has no actuators"
+        return act
+
+    def command(self, u: np.ndarray, t: float, y: np.ndarray) -> np.ndarray:
+        """Hold the command ``u`` (A,) [m] of the actuators from ``t`` [s] at the state ``y``
+        (a Python controller's update): clipped to their bounds, the applied control carrying
+        on from its value at ``t`` (:mod:`tensegrity.engine.actuation`), the elastic energy's
+        jump (a command held at once) added to ``W_u`` in ``y``.  Returns the command held
+        (A,) [m]; the update is in :meth:`take_control_log`."""
+        act = self.actuation
+        held = np.empty(act.position.size)
+        clip_command(act, np.ascontiguousarray(u, dtype=float), held)
+        self._drain_log()  # (room for the update)
+        compiled.held(self.model, self.stage_inputs(np.array([t])), float(t), y, held)
+        return held
+
+    def feedback_update(self, t: float, y: np.ndarray) -> None:
+        """The compiled feedback law's update at ``(t, y)`` (its first, and those of the loops
+        that are not compiled): as compiled code makes it."""
+        self._drain_log()
         data = self.stage_inputs(np.array([t]))
-        return float(compiled.energy_balance_entry(self.model, data, 0, y)[1])
+        compiled.feedback_update(self.model.feedback, self.model, data, float(t), y)
+
+    def _drain_log(self) -> None:
+        """Move the updates logged by compiled code to :meth:`take_control_log`'s list."""
+        act = self.actuation
+        self._control_log.append(act.log[: act.log_count[0]].copy())
+        act.log_count[0] = 0
+
+    def take_control_log(self) -> np.ndarray:
+        """The actuators' updates since the last call (U, 1 + 2 A): time [s], the commands
+        held (after the bounds) [m], the controls applied at that time [m] (in the order of
+        :attr:`actuators`' tendons)."""
+        self._drain_log()
+        rows = np.concatenate(self._control_log)
+        self._control_log = []
+        return rows
 
     # ------------------------------------------------------------------ states
     def state_vector(self, state: dynamics.State, *, project: bool = True) -> np.ndarray:

@@ -26,7 +26,16 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-__all__ = ["ConstraintWork", "Constraints", "ContactWork", "Contacts", "Data", "Model"]
+__all__ = [
+    "Actuation",
+    "ConstraintWork",
+    "Constraints",
+    "ContactWork",
+    "Contacts",
+    "Data",
+    "FeedbackLaw",
+    "Model",
+]
 
 
 class Constraints(NamedTuple):
@@ -102,6 +111,48 @@ class ContactWork(NamedTuple):
     log_count: np.ndarray  #: (1,) int64: rows of ``log`` written
 
 
+class FeedbackLaw(NamedTuple):
+    """Linear output feedback ``u = u_ref - K (y - y_ref)`` run by compiled code every
+    ``period`` (read-only; ``Model.feedback``; :mod:`tensegrity.engine.actuation`).  ``A``
+    actuated tendons (``Data.actuation``), ``Y`` outputs, ``N`` nodes."""
+
+    gain: np.ndarray  #: (A, Y) ``K``
+    output_ref: np.ndarray  #: (Y,) ``y_ref``
+    control_ref: np.ndarray  #: (A,) ``u_ref`` [m]
+    #: (4,) bool: which output groups ``y`` stacks (position, velocity, length, tension)
+    groups: np.ndarray
+    node_slot: np.ndarray  #: (N,) int64: each node's slot
+    dim: int  #: coordinates per node in ``y`` (2 for a planar structure)
+    tendon_position: np.ndarray  #: (S,) int64: each tendon's position in kernel order
+    schedule: np.ndarray  #: (2,) float64: the first update's time [s] and the period [s]
+
+
+class Actuation(NamedTuple):
+    """The actuated tendons and the command they follow (``Data.actuation``;
+    :mod:`tensegrity.engine.actuation`, :mod:`tensegrity.model.actuators`).  ``A`` actuators;
+    the limits are read-only, the last arrays are the held command that updates write, and the
+    log of updates (``L`` rows of ``1 + 2 A``: time [s], the commands after the bounds [m], the
+    controls applied at that time [m])."""
+
+    position: np.ndarray  #: (A,) int64: the actuated tendons' positions in kernel order
+    rest0: np.ndarray  #: (A,) their rest lengths ``L0`` [m]
+    low: np.ndarray  #: (A,) the smallest command ``u`` the rest-length bounds admit [m]
+    high: np.ndarray  #: (A,) the largest [m]
+    max_rate: np.ndarray  #: (A,) [m/s] (inf: none)
+    time_constant: np.ndarray  #: (A,) [s] (0: none)
+    start: np.ndarray  #: (1,) the last command's time [s]
+    applied: np.ndarray  #: (A,) the control at ``start`` [m]
+    command: np.ndarray  #: (A,) the command held since ``start`` [m]
+    updates: (
+        np.ndarray
+    )  #: (1,) int64: updates so far (the next is due at schedule[0] + updates * period)
+    log: np.ndarray  #: (L, 1 + 2 A) the updates not yet taken by Python
+    log_count: np.ndarray  #: (1,) int64: rows of ``log`` written
+    proposed: np.ndarray  #: (A,) scratch: a command before it is held
+    outputs: np.ndarray  #: (Y,) scratch: the outputs a feedback law read
+    state: np.ndarray  #: (m,) scratch: a state's derivative
+
+
 class Model(NamedTuple):
     """The read-only record: a structure packed for compiled code, with what a run holds
     constant (gravity, the input tables, the limits)."""
@@ -126,6 +177,7 @@ class Model(NamedTuple):
     #: (3,) float64: max relative rod-length error, max constraint error [m], max energy growth
     limits: np.ndarray
     contacts: Contacts | None = None  #: planes the rods' ends touch; None: none
+    feedback: FeedbackLaw | None = None  #: linear feedback run by compiled code; None: none
 
 
 class Data(NamedTuple):
@@ -154,3 +206,4 @@ class Data(NamedTuple):
     #: error, largest constraint error [m]
     monitor: np.ndarray
     contact_work: ContactWork | None = None  #: None when ``Model.contacts`` is None
+    actuation: Actuation | None = None  #: the actuated tendons; None: no actuators
