@@ -39,6 +39,7 @@ that of the reduced model plus the modes left out, unchanged.
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from collections.abc import Sequence
 from typing import Any
 
@@ -225,20 +226,17 @@ def _left_out(
     """Why the direction ``v`` (mode ``j``, of the cluster tested by ``t``) is left out."""
     f = float(modes.frequency_hz[j])
     if t.kind == RIGID:
-        reason = "rigid-body motion: tendon forces are internal and move no rigid-body motion"
+        reason = "rigid-body motion: tendon forces are internal"
     else:
         # lengths changed by v, against the largest a unit modal motion can change
         stretch = np.linalg.norm(lin.equilibrium_matrix.T @ v)
         reference = np.linalg.norm(lin.equilibrium_matrix.T / np.sqrt(lin.mass), 2)
         if stretch <= PBH_RTOL * reference:
-            reason = (
-                "changes no tendon length to first order (a mechanism of the rods and tendons"
-                + (", stiffened by the prestress alone" if t.kind != "mechanism" else "")
-                + "): a rest-length change, which acts through the tendons' lengths, cannot "
-                "move it"
+            reason = "changes no tendon length to first order: a mechanism of rods and tendons" + (
+                ", stiffened by the prestress" if t.kind != "mechanism" else ""
             )
         else:
-            reason = "the actuated tendons' forces are orthogonal to it; other tendons would move it"
+            reason = "the actuated tendons' forces do not move it (other tendons would)"
     return LeftOut(int(j), f, str(t.kind), reason)
 
 
@@ -357,22 +355,38 @@ def _weights(
         R = np.diag(lin.structure.tendon_stiffness[lin.input_indices(list(model.tendons))])
     Q, R = np.asarray(Q, dtype=float), np.asarray(R, dtype=float)
     if Q.shape != (2 * r, 2 * r):
-        raise ValueError(f"Q: expected shape ({2 * r}, {2 * r}) (the reduced states), got {Q.shape}")
+        raise ValueError(
+            f"Q: expected shape ({2 * r}, {2 * r}) (the reduced states), got {Q.shape}"
+        )
     if R.shape != (n_in, n_in):
         raise ValueError(f"R: expected shape ({n_in}, {n_in}) (the inputs), got {R.shape}")
     return Q, R
 
 
 def place(model: ReachableModel, poles: Sequence[complex], *, period: float) -> Design:
-    """Pole placement on the reduced model (``control.place``): the closed-loop eigenvalues
-    ``poles`` (2r,) [1/s], complex ones in conjugate pairs, none repeated more often than there
-    are inputs.  ``ValueError`` naming ``poles`` if their number is not the reduced model's
-    state count."""
+    """Pole placement on the reduced model (``control.place``, scipy's ``place_poles``).
+
+    ``poles`` (2r,) are the closed-loop eigenvalues [1/s], complex ones in conjugate pairs, none
+    repeated more often than the rank of the input matrix.  More tendons than the modes they
+    reach give an input matrix without full column rank, which ``place_poles`` refuses: the
+    placement is made with the input directions of its singular value decomposition (its rank's
+    worth) and mapped back to the tendons (the gain of least norm in those directions).
+
+    ``ValueError`` naming ``poles`` if their number is not the reduced model's state count, or
+    python-control's ``ValueError`` if they cannot be placed.  The closed-loop poles reached
+    are in the result (:attr:`Design.closed_loop_poles`); the method's warning that its
+    robustness iterations did not converge is not shown (the poles are placed all the same).
+    """
     import control
 
-    poles = np.asarray(poles, dtype=complex)
+    wanted = np.asarray(poles, dtype=complex)
     n = 2 * model.shapes.shape[1]
-    if poles.shape != (n,):
-        raise ValueError(f"poles: expected {n} (the reduced model's states), got {poles.size}")
-    K = control.place(model.system.A, model.system.B, poles)
-    return _design(model, np.asarray(K), period)
+    if wanted.shape != (n,):
+        raise ValueError(f"poles: expected {n} (the reduced model's states), got {wanted.size}")
+    B = np.asarray(model.system.B)
+    U, sv, Vt = np.linalg.svd(B, full_matrices=False)
+    rank = int(np.sum(sv > PBH_RTOL * sv[0])) if sv.size else 0
+    with warnings.catch_warnings():  # the YT method's robustness iterations, not the placement
+        warnings.filterwarnings("ignore", "Convergence was not reached", UserWarning)
+        K = control.place(model.system.A, U[:, :rank] * sv[:rank], wanted)
+    return _design(model, Vt[:rank].T @ np.asarray(K), period)
