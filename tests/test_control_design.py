@@ -103,6 +103,27 @@ def test_reduced_closed_loop_is_the_whole_closed_loop_on_the_reachable_part(kind
     assert np.abs(position_gain @ rigid_nodes).max() <= 1e-8 * np.abs(position_gain).max()
 
 
+@pytest.mark.parametrize(
+    ("kind", "options"), [("shell", {"n": 3, "m": 1, "fixed_base": True}), ("planar", {})]
+)
+def test_supported_and_planar_structures(kind, options):
+    """Joints and supports (``eta`` the admitted motions) and a planar structure (its node
+    outputs x, y): the law on the structure's own node coordinates closes the loop of the whole
+    model with the reduced model's poles."""
+    s = generate(kind, **options)
+    lin = linearize(s, find_equilibrium(s))
+    design = lqr(reachable(lin), period=0.01)
+    assert design.feedback.check(s).size == s.n_tendons
+    k, dim = lin.n_dof, s.dim
+    J = lin.position_jacobian.reshape(-1, 3, k)[:, :dim].reshape(-1, k)
+    Cy = np.zeros((2 * J.shape[0], 2 * k))
+    Cy[: J.shape[0], :k], Cy[J.shape[0] :, k:] = J, J
+    whole = np.linalg.eigvals(lin.A - lin.B @ design.feedback.K @ Cy)
+    assert np.all(design.closed_loop_poles.real < 0)
+    for pole in design.closed_loop_poles:
+        assert np.min(np.abs(whole - pole)) <= 1e-6 * abs(pole)
+
+
 def test_feedback_reads_node_positions_about_the_equilibrium():
     lin = _linear("prism")
     design = lqr(reachable(lin), period=0.005)
