@@ -53,7 +53,7 @@ from tensegrity.analysis.controllability import (
     resolve_inputs,
 )
 from tensegrity.analysis.linearize import Linearization
-from tensegrity.analysis.modes import RIGID, ModalAnalysis, modal_analysis
+from tensegrity.analysis.modes import ELASTIC, RIGID, ModalAnalysis, modal_analysis
 from tensegrity.engine.feedback import LinearFeedback
 
 __all__ = ["Design", "LeftOut", "ReachableModel", "lqr", "place", "reachable"]
@@ -234,7 +234,7 @@ def _left_out(
         reference = np.linalg.norm(lin.equilibrium_matrix.T / np.sqrt(lin.mass), 2)
         if stretch <= PBH_RTOL * reference:
             reason = "changes no tendon length to first order: a mechanism of rods and tendons" + (
-                ", stiffened by the prestress" if t.kind != "mechanism" else ""
+                ", stiffened by the prestress" if t.kind == ELASTIC else ""
             )
         else:
             reason = "the actuated tendons' forces do not move it (other tendons would)"
