@@ -19,9 +19,9 @@ Control ``u`` is the rest-length change of every tendon (``Lbar = L0 - u``) with
   tension floor (a small QP, SLSQP), then the exact nonlinear equilibrium for the new ``u``;
   the remaining error is corrected by the next step, and the last target by Newton iterations.
 - :func:`closed_loop` -- the sequence played in time as a feed-forward ``u_ff(t)``, ``x_ff(t)``,
-  plus LQR state feedback (``control.lqr`` on the non-rigid part of the linearization at
-  scheduled equilibria of the sequence), simulated on the nonlinear model (Theorem 18.1 with the
-  slack law; DOP853, rod constraints projected at every sample).
+  plus LQR state feedback (:func:`tensegrity.analysis.control_design.lqr` on the modes the
+  tendons reach, at scheduled equilibria of the sequence), simulated on the nonlinear model
+  (Theorem 18.1 with the slack law; DOP853, rod constraints projected at every sample).
 """
 
 from __future__ import annotations
@@ -469,13 +469,20 @@ class ClosedLoop:
 class _Schedule:
     """Feed-forward and LQR gains along the quasi-static sequence, played at ``times``."""
 
-    def __init__(self, plan: QuasiStatic, times: np.ndarray, gain_steps: Sequence[int], weights):
+    def __init__(
+        self,
+        plan: QuasiStatic,
+        times: np.ndarray,
+        gain_steps: Sequence[int],
+        weights: tuple[float, float, float, float],
+        period: float,
+    ):
         self.plan, self.times = plan, times
         s = plan.structure
         self.gain_steps = list(gain_steps)
         self.gains = {}
         for k in self.gain_steps:
-            self.gains[k] = _lqr_gain(s, plan.equilibria[k], plan.output, plan.reference, weights)
+            self.gains[k] = _lqr_gain(s, plan.equilibria[k], plan.output, weights, period)
         self.charts = {k: Chart.at(s, plan.equilibria[k].q) for k in range(len(plan.equilibria))}
         #: the next equilibrium in the chart of each step
         self.x_next = {
@@ -510,30 +517,36 @@ class _Schedule:
         return self.gains[nearest]
 
 
-def _lqr_gain(s: Structure, eq: EquilibriumResult, output: ShapeOutput, reference, weights):
-    """LQR gain on the non-rigid part at ``eq``, as ``(Kx, Kv)`` on the chart coordinates:
-    ``du = -K [Z^T M_eta deta; Z^T M_eta deta'] = -Kx dx - Kv dx'`` with ``deta = Z_c^T M dx``
-    for joints and supports (``Z_c`` their admitted motions), ``deta = dx`` otherwise."""
-    import control
-
+def _lqr_gain(
+    s: Structure,
+    eq: EquilibriumResult,
+    output: ShapeOutput,
+    weights: tuple[float, float, float, float],
+    period: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """LQR gain on the modes the tendons reach at ``eq``
+    (:func:`~tensegrity.analysis.control_design.lqr` on
+    :func:`~tensegrity.analysis.control_design.reachable`), as ``(Kx, Kv)`` on the chart
+    coordinates: ``du = -K [a; a'] = -Kx dx - Kv dx'`` with ``a = W eta`` the reached modes'
+    amplitudes and ``eta = Z_c^T M dx`` for joints and supports (``Z_c`` their admitted motions),
+    ``eta = dx`` otherwise.  Weights ``(q_out, q_state, q_rate, r_u)``: the outputs, the modes'
+    amplitudes and rates, the controls."""
+    from tensegrity.analysis.control_design import lqr, reachable
     from tensegrity.analysis.linearize import linearize
 
     lin = linearize(s, eq)
-    A, Z = lin.elastic_part()
-    n = Z.shape[1]
-    B = np.vstack([np.zeros((n, s.n_tendons)), Z.T @ lin.force_input])
-    Cy = output.jacobian(eq.node_position) @ lin.position_jacobian @ Z
+    model = reachable(lin)
+    r = model.shapes.shape[1]
+    Cy = output.jacobian(eq.node_position) @ lin.position_jacobian @ model.shapes
     q_out, q_state, q_rate, r_u = weights
-    Q = np.zeros((2 * n, 2 * n))
-    Q[:n, :n] = q_out * Cy.T @ Cy + q_state * np.eye(n)
-    Q[n:, n:] = q_rate * np.eye(n)
-    Q = 0.5 * (Q + Q.T)
-    K, _, _ = control.lqr(A, B, Q, r_u * np.eye(s.n_tendons), method="scipy")
-    K = np.asarray(K)
-    T = Z.T * lin.mass
+    Q = np.zeros((2 * r, 2 * r))
+    Q[:r, :r] = q_out * Cy.T @ Cy + q_state * np.eye(r)
+    Q[r:, r:] = q_rate * np.eye(r)
+    K = lqr(model, period=period, Q=0.5 * (Q + Q.T), R=r_u * np.eye(s.n_tendons)).gain
+    T = model.projection
     if lin.basis is not None:
         T = T @ (lin.basis.T * mass_matrix(s))
-    return K[:, :n] @ T, K[:, n:] @ T
+    return K[:, :r] @ T, K[:, r:] @ T
 
 
 def closed_loop(
@@ -551,10 +564,11 @@ def closed_loop(
     """Play the quasi-static plan in time with LQR feedback, on the nonlinear model.
 
     The K - 1 steps of the plan share ``move_time`` [s] per phase equally; then ``settle_time``
-    [s] at the final target.  ``u = u_ff(t) - K_k [Z^T M (x - x_ff(t)); Z^T M (x' - x'_ff(t))]``
+    [s] at the final target.  ``u = u_ff(t) - K_k [W (x - x_ff(t)); W (x' - x'_ff(t))]``
+    (``W``: the reached modes' amplitudes of ``to_eta(x)``, ``ReachableModel.projection``)
     with ``x`` the reduced coordinates of the (aligned) state in the chart of the current step,
-    and ``K_k`` the LQR gain (weights ``(q_out, q_state, q_rate, r_u)``: outputs, elastic
-    coordinates and rates, controls) at the nearest of every ``gain_every``-th equilibrium
+    and ``K_k`` the LQR gain (weights ``(q_out, q_state, q_rate, r_u)``: outputs, the modes'
+    amplitudes and rates, controls) at the nearest of every ``gain_every``-th equilibrium
     (default: one gain, designed at the final equilibrium; ``control.lqr`` costs about 4 s for
     a (4,2) shell).  The controller runs every ``control_dt`` [s] with zero-order hold, through
     the engine's controller hook (:func:`tensegrity.engine.simulate.simulate` with
@@ -571,7 +585,7 @@ def closed_loop(
         if gain_every is None
         else set(range(0, len(plan.equilibria), gain_every)) | {len(plan.equilibria) - 1}
     )
-    law = _FeedbackLaw(plan, _Schedule(plan, times, gain_steps, weights))
+    law = _FeedbackLaw(plan, _Schedule(plan, times, gain_steps, weights, control_dt))
     q0 = plan.equilibria[0].q
     run = simulate(
         plant,

@@ -1,13 +1,13 @@
 """One function per CLI verb: compute, return the tables and a writer of the JSON and figures.
 
-``run_equilibrium``, ``run_modes``, ``run_controllability`` and ``run_control`` each take a
-:class:`~tensegrity.model.structure.Structure`, compute the whole analysis in memory and return
-an :class:`Output`: the readable tables, a function that writes the files into a folder (each
-atomically, :func:`tensegrity.io.files.atomic_path`) and, if the analysis did not succeed (no
-equilibrium, targets missed), a one-line problem.  Nothing is written while they compute: the
-``tensegrity`` command then runs the writer alone in a staging folder and moves all files into
-place together (:mod:`tensegrity.cli.main`, :func:`tensegrity.io.files.write_staged`), so a run
-killed while it computes leaves nothing in its output folder.  Files:
+``run_equilibrium``, ``run_modes``, ``run_controllability``, ``run_lqr`` and ``run_control``
+each take a :class:`~tensegrity.model.structure.Structure`, compute the whole analysis in memory
+and return an :class:`Output`: the readable tables, a function that writes the files into a
+folder (each atomically, :func:`tensegrity.io.files.atomic_path`) and, if the analysis did not
+succeed (no equilibrium, targets missed), a one-line problem.  Nothing is written while they
+compute: the ``tensegrity`` command then runs the writer alone in a staging folder and moves all
+files into place together (:mod:`tensegrity.cli.main`, :func:`tensegrity.io.files.write_staged`),
+so a run killed while it computes leaves nothing in its output folder.  Files:
 
 ==========================  ================================================================
 verb                        files
@@ -20,6 +20,8 @@ verb                        files
 ``controllability``         ``controllability.json`` (ranks per input set and per output set,
                             modes missed, Gramians), ``controllability.png``,
                             ``observability.png``
+``lqr``                     ``controller.npz`` (the gain, :mod:`tensegrity.io.controllers`),
+                            ``lqr.json`` (closed-loop poles, modes left uncontrolled)
 ``control``                 ``control.json`` (plan and closed-loop results),
                             ``control_motion.png``, ``control_inputs.png``,
                             ``control_shapes.png``
@@ -470,6 +472,68 @@ def _reach_rows(results: Sequence[ReachResult]) -> list[tuple[Any, ...]]:
             )
         )
     return out_rows
+
+
+# ------------------------------------------------------------------------------ lqr
+def run_lqr(
+    structure: Structure,
+    *,
+    period: float,
+    inputs: str = "all",
+    gravity: float | Sequence[float] | None = None,
+) -> Output:
+    """``tensegrity lqr``: an LQR gain at the structure's equilibrium on the modes the tendons
+    ``inputs`` (``"all"`` or name patterns) reach (:mod:`tensegrity.analysis.control_design`,
+    default weights), written as the controller file ``controller.npz`` (run every ``period``
+    [s]) with ``lqr.json`` (the closed-loop poles, the modes left uncontrolled and why)."""
+    from tensegrity.analysis.control_design import lqr, reachable
+    from tensegrity.analysis.linearize import linearize
+    from tensegrity.io.controllers import write_controller
+
+    eq = _equilibrium(structure, _gravity(structure, gravity))
+    model = reachable(linearize(structure, eq), inputs)
+    design = lqr(model, period=period)
+    left = [item for item in design.uncontrolled if item.kind != "rigid"]
+    rigid = len(design.uncontrolled) - len(left)
+    text = [
+        f"{model.system.nstates} states: the {model.system.nstates // 2} modes that "
+        f"{len(model.tendons)} tendon(s) reach; left uncontrolled: {rigid} rigid-body motion(s)"
+        + (f" and {len(left)} mode(s):" if left else ", no other mode"),
+    ]
+    if left:
+        text.append(
+            table(
+                ["mode", "kind", "frequency [Hz]", "why"],
+                [(m.mode, m.kind, m.frequency_hz, m.reason) for m in left],
+            )
+        )
+    text.append(
+        key_values(
+            [
+                ("closed loop: slowest decay rate", f"{design.slowest_decay:.6g} 1/s"),
+                ("control period", f"{period:g} s"),
+            ]
+        )
+    )
+    poles = design.closed_loop_poles
+    data = {
+        "structure": _structure_summary(structure),
+        "period_s": period,
+        "tendons": list(model.tendons),
+        "states": list(model.system.state_labels),
+        "slowest_decay_per_s": design.slowest_decay,
+        "closed_loop_poles": {"real": poles.real.tolist(), "imag": poles.imag.tolist()},
+        "uncontrolled": [item.to_dict() for item in design.uncontrolled],
+        "moved_by_damping": list(model.damping_moved),
+    }
+
+    def write(out: Path, drawing: Drawing | None = None) -> list[Path]:
+        return [
+            write_controller(out / "controller.npz", design.feedback, structure),
+            write_json(out / "lqr.json", data),
+        ]
+
+    return Output("\n\n".join(text), write, None)
 
 
 # ------------------------------------------------------------------------------ control

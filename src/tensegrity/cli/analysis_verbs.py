@@ -1,5 +1,5 @@
 """The analysis verbs' parsers and their one command (:func:`run_analysis`): ``equilibrium``,
-``modes``, ``controllability``, ``control``; what each computes and writes is in
+``modes``, ``controllability``, ``lqr``, ``control``; what each computes and writes is in
 :mod:`tensegrity.cli.analysis` (``run_<verb>``, its keywords the options' names)."""
 
 from __future__ import annotations
@@ -21,7 +21,8 @@ from tensegrity.io.files import write_staged as _write_all
 
 
 def _cmd_analysis(args: argparse.Namespace) -> int:
-    """``equilibrium | modes | controllability | control``: :mod:`tensegrity.cli.analysis`."""
+    """``equilibrium | modes | controllability | lqr | control``:
+    :mod:`tensegrity.cli.analysis`."""
     from tensegrity.cli import analysis as commands
 
     run = getattr(commands, f"run_{args.command}")
@@ -92,6 +93,8 @@ def add_parsers(sub: Any) -> None:
         "stability verdict at the equilibrium",
         "controllability": "controllability (observability) ranks, PBH test per mode and "
         "Gramians per set of actuated tendons (measured outputs)",
+        "lqr": "an LQR feedback gain at the equilibrium on the modes the tendons reach, "
+        "written as a controller file (controller.npz) for simulate --controller",
         "control": "shape control: shorten to --height of the equilibrium height, twist back; "
         "open loop (equilibria) and closed loop (LQR on the nonlinear model)",
     }
@@ -100,7 +103,9 @@ def add_parsers(sub: Any) -> None:
         parsers[verb] = p = sub.add_parser(
             verb,
             help=text,
-            description=text[0].upper() + text[1:] + f"; writes {verb}.json and figures to --out.",
+            description=text[0].upper()
+            + text[1:]
+            + f"; writes {verb}.json{_WRITES.get(verb, ' and figures')} to --out.",
         )
         add_structure_options(p)
         arguments.add_factors(p, from_file=True)  # the members' utilisation, with a design
@@ -111,11 +116,13 @@ def add_parsers(sub: Any) -> None:
             help=f"output folder (default ./{verb})",
         )
         p.set_defaults(run=_cmd_analysis)
-    for verb in ("equilibrium", "modes", "controllability"):  # shape control: without gravity
+    # shape control: without gravity
+    for verb in ("equilibrium", "modes", "controllability", "lqr"):
         add_gravity_option(parsers[verb])
     _add_equilibrium_options(parsers["equilibrium"])
     _add_modes_options(parsers["modes"])
     _add_controllability_options(parsers["controllability"])
+    _add_lqr_options(parsers["lqr"])
     _add_control_options(parsers["control"])
     _add_closed_loop_options(parsers["control"])
 
@@ -201,6 +208,27 @@ def _add_controllability_options(p: argparse.ArgumentParser) -> None:
         default="artificial",
         help="damping of the linearization used for the Gramians: the paper's artificial "
         "critical damping (default) or the structure's own",
+    )
+
+
+#: What a verb writes besides its JSON, where that is not figures.
+_WRITES = {"lqr": " and controller.npz"}
+
+
+def _add_lqr_options(p: argparse.ArgumentParser) -> None:
+    """``lqr``: the control period and the actuated tendons."""
+    p.add_argument(
+        "--period",
+        type=arguments.positive,
+        required=True,
+        help="the controller's update period [s] (written into the controller file)",
+    )
+    p.add_argument(
+        "--inputs",
+        type=_patterns,
+        default="all",
+        metavar="PATTERN",
+        help="the actuated tendons: 'all' (default) or comma-separated name patterns",
     )
 
 

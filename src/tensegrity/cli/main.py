@@ -3,7 +3,7 @@
 dispatches to the verbs, each in its own module: :mod:`~tensegrity.cli.simulate`,
 :mod:`~tensegrity.cli.inspection` (``info``, ``export``, ``vtk``, ``matrices``),
 :mod:`~tensegrity.cli.analysis_verbs` (``equilibrium``, ``modes``, ``controllability``,
-``control``), :mod:`~tensegrity.cli.sweep`, :mod:`~tensegrity.cli.visual` (``animate``,
+``lqr``, ``control``), :mod:`~tensegrity.cli.sweep`, :mod:`~tensegrity.cli.visual` (``animate``,
 ``view``) and :mod:`~tensegrity.cli.design`; a verb imports what it needs when it runs.
 
 A thin layer over the library.  Every error is one line on stderr with exit code 2 (bad
@@ -53,7 +53,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     simulate.add_parser(sub)
     inspection.add_parsers(sub)  # info, export, vtk, matrices
-    analysis_verbs.add_parsers(sub)  # equilibrium, modes, controllability, control
+    analysis_verbs.add_parsers(sub)  # equilibrium, modes, controllability, lqr, control
     sweep.add_parser(sub)
     visual.add_parsers(sub)  # animate, view
     design.add_parsers(sub)  # design: minimal-mass members
