@@ -200,7 +200,7 @@ class Sensor:
             raise ValueError(f"expected an object of fields, got {type(fields).__name__}")
         unknown = [key for key in fields if key not in FIELDS]
         if unknown:
-            raise ValueError(f"{unknown[0]!r:.60}: unknown field (expected {', '.join(FIELDS)})")
+            raise ValueError(f"{unknown[0]:.60}: unknown field (expected {', '.join(FIELDS)})")
         if "kind" not in fields:
             raise ValueError(f"kind: missing (one of {', '.join(KINDS)})")
         return cls(**fields)
