@@ -158,7 +158,7 @@ def test_the_same_seed_gives_the_same_measurements_and_another_seed_others(groun
 
 
 def test_an_imu_on_a_spinning_rod_gives_the_closed_form():
-    """A free rod (no gravity, no members) spinning at 3 rad/s about an axis n normal to it
+    """A free rod of 2 m (no gravity, no members) spinning at 3 rad/s about an axis n normal to it
     keeps its angular velocity: the IMU gives ``omega = 3 n`` [rad/s] and the direction
     ``b(t) = cos(3t) b0 + sin(3t) n x b0``, at each sample and at its own rate."""
     b0 = np.array([2.0, -1.0, 2.0]) / 3.0
@@ -166,14 +166,14 @@ def test_an_imu_on_a_spinning_rod_gives_the_closed_form():
     n /= np.linalg.norm(n)
     rate = 3.0
     centre = np.array([0.3, 0.1, 0.5])
-    ends = centre + np.outer([-0.5, 0.5], b0)
-    spin = np.outer([-0.5, 0.5], rate * np.cross(n, b0))
+    ends = centre + np.outer([-1.0, 1.0], b0)
+    spin = np.outer([-1.0, 1.0], rate * np.cross(n, b0))
     rod = Structure(
         node_position=ends,
         node_velocity=spin,
         rod_nodes=[[0, 1]],
         rod_mass=[1.0],
-        rod_length=[1.0],
+        rod_length=[2.0],
         tendon_nodes=np.zeros((0, 2), int),
         tendon_stiffness=[],
         tendon_rest_length=[],
