@@ -325,6 +325,10 @@ def test_a_reader_missing_what_its_sensors_read_or_going_back_in_time_says_so():
     reader(1.0, state.q, state.qdot, tension=np.ones(9))
     with pytest.raises(ValueError, match=r"^t: 0\.5 is before the last time read, 1\.0"):
         reader(0.5, state.q, state.qdot, tension=np.ones(9))
+    with pytest.raises(ValueError, match=r"^seed: expected a whole number >= 0"):
+        reader.reset(-1)
+    with pytest.raises(ValueError, match=r"^q, qdot: expected shape \(18,\)"):
+        reader(2.0, state.q[:3], state.qdot, tension=np.ones(9))
 
 
 @pytest.mark.parametrize(

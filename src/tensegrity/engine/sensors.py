@@ -62,13 +62,16 @@ import bisect
 import dataclasses
 import math
 from collections.abc import Mapping, Sequence
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
 from tensegrity.model.structure import Structure
 from tensegrity.physics.coordinates import nodes_from_coordinates, rod_coordinates
 from tensegrity.physics.dynamics import tendon_lengths
+
+if TYPE_CHECKING:
+    from tensegrity.engine.result import SimulationResult
 
 __all__ = [
     "KINDS",
@@ -260,7 +263,7 @@ class _Bound(NamedTuple):
     and bias per channel, where its signal sits in the reader's signal vector."""
 
     sensor: Sensor
-    index: np.ndarray  # nodes, tendons, rods or contact pairs (one per channel for contacts)
+    selected: np.ndarray  # nodes, tendons, rods or contact pairs (one per channel for contacts)
     items: tuple[str, ...]
     channel: tuple[str, ...]
     noise: np.ndarray
@@ -427,7 +430,7 @@ def _signals(
 
     parts = []
     for b in bound:
-        kind, index = b.sensor.kind, b.index
+        kind, index = b.sensor.kind, b.selected
         if kind in ("position", "velocity"):
             x = nodes(kind == "velocity")[..., index, :]
         elif kind == "length":
@@ -558,7 +561,7 @@ class SensorReader:
             except ValueError as exc:
                 raise ValueError(f"sensors[{j}].{exc}") from None
             if sensor.kind == "position":
-                for node, item in zip(b.index, b.items, strict=True):
+                for node, item in zip(b.selected, b.items, strict=True):
                     if int(node) in markers:
                         raise ValueError(
                             f"sensors[{j}].nodes: node {item!r} is a marker of "
@@ -584,6 +587,10 @@ class SensorReader:
     def reset(self, seed: int | None = None) -> None:
         """Forget every sample and the history; with ``seed``, restart the noise from it (else
         the noise goes on from where it was, as Gymnasium's ``reset(seed=None)``)."""
+        if seed is not None and (
+            isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0
+        ):
+            raise ValueError(f"seed: expected a whole number >= 0 or None, got {seed!r:.60}")
         if seed is not None or not self._clocks:
             streams = np.random.SeedSequence(seed).spawn(len(self.bound))
             generators = [np.random.default_rng(stream) for stream in streams]
@@ -659,7 +666,9 @@ class SensorReader:
         )
 
 
-def measure(result: Any, sensors: Sequence[Sensor], *, seed: int | None = None) -> Measurements:
+def measure(
+    result: SimulationResult, sensors: Sequence[Sensor], *, seed: int | None = None
+) -> Measurements:
     """The measurements of ``sensors`` over a finished run, each at its own sample times: what
     a :class:`SensorReader` (with ``seed``) called at each of the run's samples gives, sample
     for sample.
