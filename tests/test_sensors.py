@@ -420,3 +420,17 @@ def test_simulate_with_a_bad_sensor_file_fails_in_one_line_naming_the_field(
     assert len(err) == 1 and err[0].startswith("tensegrity: error: --sensors: ")
     assert message in err[0] and str(file) in err[0]
     assert not out.exists()
+
+
+def test_markers_need_a_position_sensor_and_names_no_comma(ground_run, tmp_path):
+    run, _ = ground_run
+    lengths = measure(run, [Sensor("length", rate=10.0)])
+    with pytest.raises(ValueError, match=r"^measurements: no position sensor"):
+        write_markers(tmp_path / "markers.csv", lengths)
+    odd = run.structure.replace(node_name=["a,b", *run.structure.node_name[1:]])
+    state = initial_state(odd)
+    reader = SensorReader(odd, [Sensor("position", nodes=(0,))])
+    reader(0.0, state.q, state.qdot)
+    with pytest.raises(ValueError, match=r"^measurements: the name 'a,b' has a comma"):
+        write_markers(tmp_path / "markers.csv", reader.measurements())
+    assert not (tmp_path / "markers.csv").exists()
