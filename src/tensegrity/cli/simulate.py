@@ -53,6 +53,7 @@ from tensegrity.io.files import DISK_FULL, byte_text, shown_path
 from tensegrity.physics import dynamics
 
 if TYPE_CHECKING:
+    from tensegrity.io.measurements import SensorFile
     from tensegrity.io.stream import StreamSummary
     from tensegrity.model.ground import Scene
     from tensegrity.model.loads import ControlTable, ForceTable, NodalLoad
@@ -299,6 +300,7 @@ def _simulate_and_write(args: argparse.Namespace, options: Options, drawing: Dra
     its files (the figures, page and video drawn by ``drawing``) and its summary."""
     announce_compiling()
     structure, inputs, designed = _simulation_inputs(args)
+    sensors = _sensors_of(args, structure, len(inputs.scene.planes))
     _check_outputs(args, designed is not None)
     check_structure_size(structure)
     check_run_cost(structure, args.t_end, options)
@@ -315,7 +317,7 @@ def _simulate_and_write(args: argparse.Namespace, options: Options, drawing: Dra
         summary = _stream_run(args, options, structure, inputs, files, keeper, designed)
         try:
             trajectory, balance, written, peaks = write_run(
-                args, structure, inputs.scene, summary, files, keeper, designed, drawing
+                args, structure, inputs.scene, summary, files, keeper, designed, drawing, sensors
             )
         except (ValueError, OSError) as exc:  # the finished run stays, for --resume
             code = EXIT_FAILED if isinstance(exc, OSError) and exc.errno in DISK_FULL else 2
@@ -335,6 +337,20 @@ def _simulate_and_write(args: argparse.Namespace, options: Options, drawing: Dra
     return 0
 
 
+def _sensors_of(args: argparse.Namespace, structure: Structure, planes: int) -> SensorFile | None:
+    """The sensor file of ``--sensors`` (or None), checked against ``structure`` run with
+    ``planes`` planes before the run: one line naming the file and the field at fault."""
+    if args.sensors is None:
+        return None
+    from tensegrity.engine.sensors import SensorReader
+    from tensegrity.io.measurements import read_sensors
+
+    with blame("--sensors", args.sensors):
+        sensors = read_sensors(args.sensors)
+        SensorReader(structure, sensors.sensors, planes=planes, seed=sensors.seed)
+    return sensors
+
+
 def _check_outputs(args: argparse.Namespace, designed: bool) -> None:
     """Fail before the run if a folder stands where one of ``simulate``'s files goes in
     ``--out`` (or a file where its ``vtk`` folder goes): the rule :func:`write_staged` applies
@@ -347,6 +363,7 @@ def _check_outputs(args: argparse.Namespace, designed: bool) -> None:
     names += [] if args.no_animation else [f"motion.{args.animation or 'gif'}"]
     names += [MATERIAL_STRUCTURE, "utilisation.png"] if designed else []
     names += ["vtk/tensegrity.pvd"] if args.vtk else []
+    names += [] if args.sensors is None else ["measurements.csv", "markers.csv"]
     try:
         check_targets(args.out, [args.out / name for name in names])
     except ValueError as exc:
@@ -422,6 +439,16 @@ def add_parser(sub: Any) -> None:
         "u > 0 shortens a tendon), linear in between, held after its end (.csv: a header "
         "row t, then tendon names, and rows of numbers; tendons not named keep u = 0; .npz: "
         "time (T,), control (T, S), or time, names (K,), control (T, K))",
+    )
+    sim.add_argument(
+        "--sensors",
+        type=arguments.name,
+        metavar="FILE.json",
+        help="sensors measuring the run (a JSON list of sensors: kind position, velocity, "
+        "length, tension, orientation, angular_rate or contact; nodes, tendons or rods by name; "
+        "noise, bias, delay [s], rate [Hz]; and a seed; see docs/sensors.md): their samples in "
+        "OUT/measurements.csv (time,channel,value) and the position sensors' in "
+        "OUT/markers.csv (time,marker,x,y,z)",
     )
     add_gravity_option(sim)
     _add_ground_options(sim)

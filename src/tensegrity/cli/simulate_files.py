@@ -28,6 +28,7 @@ if TYPE_CHECKING:
     from tensegrity.design.materials import Factors, MemberDesign
     from tensegrity.design.utilisation import TrajectoryUtilisation
     from tensegrity.engine.result import SimulationResult
+    from tensegrity.io.measurements import SensorFile
     from tensegrity.io.stream import StreamSummary
     from tensegrity.model.ground import Scene
     from tensegrity.model.loads import ForceTable
@@ -176,6 +177,7 @@ def write_run(
     keeper: FrameKeeper | None,
     designed: DesignedRun | None,
     drawing: Drawing,
+    sensors: SensorFile | None = None,
 ) -> tuple[SimulationResult, float, list[Path], TrajectoryUtilisation | None]:
     """Write the finished run's files to ``--out`` together (``structure.json`` with the run's
     ``scene``, so that ``--structure OUT/structure.json`` runs it again); the trajectory read
@@ -184,7 +186,9 @@ def write_run(
     ``designed``).  The figures, the viewer's page and the video are ``drawing``'s jobs, drawn
     while this process writes the rest.  The viewer's frames are ``keeper``'s, or (a resumed
     run, or members with a design: ``designed``, their utilisation in the frames and in
-    utilisation.png, drawn at the last sample) read from the file."""
+    utilisation.png, drawn at the last sample) read from the file.  With ``sensors`` (the
+    sensor file of ``--sensors``), their measurements of the run: ``measurements.csv``, and
+    ``markers.csv`` if some are position sensors."""
     from tensegrity.design.files import write_design
     from tensegrity.io.formats import write_structure
     from tensegrity.io.trajectory import read_dataset, read_trajectory
@@ -259,6 +263,11 @@ def write_run(
                 ]
             ),
             *(_vtk_files(staging / "vtk", read_trajectory(work)) if args.vtk else []),
+            *(
+                []
+                if sensors is None
+                else _measurement_files(staging, read_trajectory(work), sensors)
+            ),
         ]
         drawn = [path for job in [*jobs, *videos] for path in job.result()]
         # Last, so that the finished run stays in ``work`` if anything before fails.
@@ -349,6 +358,19 @@ def _vtk_files(folder: Path, result) -> list[Path]:
     from tensegrity.io.vtk import write_vtk
 
     return write_vtk(folder, result)  # the .vtp files, then the .pvd collection
+
+
+def _measurement_files(folder: Path, run: SimulationResult, sensors: SensorFile) -> list[Path]:
+    """The measurements of ``sensors`` over ``run`` (:func:`tensegrity.engine.sensors.measure`)
+    in ``folder``: ``measurements.csv``, and ``markers.csv`` if some are position sensors."""
+    from tensegrity.engine.sensors import measure
+    from tensegrity.io.measurements import write_markers, write_measurements
+
+    measured = measure(run, sensors.sensors, seed=sensors.seed)
+    written = [write_measurements(folder / "measurements.csv", measured)]
+    if any(sensor.kind == "position" for sensor in sensors.sensors):
+        written.append(write_markers(folder / "markers.csv", measured))
+    return written
 
 
 def _energy_balance_error(path: Path) -> float:
