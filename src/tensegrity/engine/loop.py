@@ -251,6 +251,25 @@ _FAILURES = {
 }
 
 
+def blow_up_limits(structure: Structure, options: Options) -> tuple[float, float, float]:
+    """The blow-up checks' limits of a run (``CompiledSystem``'s ``limits``): the relative rod
+    length error, the constraint error [m] (the rod error times the longest rod, at least 1 m)
+    and the energy growth."""
+    length_scale = max(float(structure.rod_length.max(initial=0.0)), 1.0)
+    error = options.max_rod_length_error
+    return error, error * length_scale, options.max_energy_growth
+
+
+def failure_message(
+    code: int, value: float, t: float, options: Options, monitor: np.ndarray
+) -> str:
+    """The sentence of a failed blow-up check ``code`` (``compiled.CHECK_*``) with its
+    ``value`` at ``t`` [s], given the run's ``options`` and blow-up ``monitor`` (4,)."""
+    return _FAILURES[code].format(
+        t=t, value=value, limit=options.max_rod_length_error, scale=monitor[1]
+    )
+
+
 @dataclasses.dataclass
 class _Landing:
     """A located event the stepper is heading for: its time [s], and whether it was located on
@@ -283,13 +302,7 @@ class _Run:
         self.progress, self.stop = progress, stop
         self.controller, self.checkpointing = controller, checkpoint
         self.t0, self.t_end = t0, t_end
-        length_scale = max(float(structure.rod_length.max(initial=0.0)), 1.0)
-        limits = (
-            options.max_rod_length_error,
-            options.max_rod_length_error * length_scale,
-            options.max_energy_growth,
-        )
-        self.system = CompiledSystem(structure, inputs, limits=limits)
+        self.system = CompiledSystem(structure, inputs, limits=blow_up_limits(structure, options))
         #: the blow-up monitor (4,) (``system.data.monitor``, the compiled checks update it)
         self.monitor = self.system.monitor
         self.monitor[:] = (np.nan, 0.0, 0.0, 0.0)  # (made at the first state: start_monitor)
@@ -403,9 +416,7 @@ class _Run:
 
     def fail(self, code: int, value: float, t: float) -> None:
         self.status = STATUS_FAILED
-        self.message = _FAILURES[code].format(
-            t=t, value=value, limit=self.options.max_rod_length_error, scale=self.monitor[1]
-        )
+        self.message = failure_message(code, value, t, self.options, self.monitor)
 
     def check(self, y: np.ndarray, t: float) -> float | None:
         """The compiled blow-up checks at the end of a step; the drift, or None on failure."""
@@ -889,7 +900,7 @@ def time_span(t_span: Any) -> tuple[float, float]:
     return t0, t_end
 
 
-def _check_initial(structure: Structure, state: Any) -> None:
+def check_initial(structure: Structure, state: Any) -> None:
     """``TypeError`` unless ``state`` is a :class:`~tensegrity.physics.dynamics.State`,
     ``ValueError`` unless its ``q`` and ``qdot`` are finite and have the structure's
     coordinates."""
@@ -954,7 +965,7 @@ def run(
     r = _Run(structure, t0, t_end, inputs, options, sink, controller, checkpoint, progress, stop)
     if resume is None:
         state = dynamics.initial_state(structure, t=t0) if initial is None else initial
-        _check_initial(structure, state)
+        check_initial(structure, state)
         y0 = r.system.state_vector(state)
         r.system.check_contacts(y0)
         if controller is not None:
