@@ -6,22 +6,20 @@ from __future__ import annotations
 import subprocess
 import sys
 
+import gymnasium
 import numpy as np
 import pytest
+from gymnasium.utils.env_checker import check_env
 
-gymnasium = pytest.importorskip("gymnasium")
-
-from gymnasium.utils.env_checker import check_env  # noqa: E402
-
-import tensegrity.envs  # noqa: E402
-from tensegrity.design.catalogue import six_bar_robot  # noqa: E402
-from tensegrity.design.rolling import stand_on_face  # noqa: E402
-from tensegrity.engine.live import EngineError, Live  # noqa: E402
-from tensegrity.engine.loop import Feedback  # noqa: E402
-from tensegrity.engine.simulate import simulate  # noqa: E402
-from tensegrity.envs.tasks import three_bar_crawl  # noqa: E402
-from tensegrity.model.ground import ground  # noqa: E402
-from tensegrity.physics.dynamics import initial_state  # noqa: E402
+import tensegrity.envs
+from tensegrity.design.catalogue import six_bar_robot
+from tensegrity.design.rolling import stand_on_face
+from tensegrity.engine.live import EngineError, Live
+from tensegrity.engine.loop import Feedback
+from tensegrity.engine.simulate import simulate
+from tensegrity.envs.tasks import three_bar_crawl
+from tensegrity.model.ground import ground
+from tensegrity.physics.dynamics import initial_state
 
 SCENE = dict(
     gravity=(0.0, 0.0, -9.81),
