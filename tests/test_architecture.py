@@ -20,14 +20,14 @@ PACKAGE = Path(__file__).resolve().parents[1] / "src" / "tensegrity"
 
 #: Layers, lowest first; a module may import its own layer and the layers below it.  Modules
 #: of one layer may not import each other across packages of the same rank ("io" and
-#: "analysis" share a rank, as do "sweep" and "plots").
+#: "analysis" share a rank, as do "sweep", "plots" and "envs").
 LAYERS: list[tuple[str, ...]] = [
     ("model",),
     ("physics",),
     ("engine",),
     ("io", "analysis"),
     ("design",),
-    ("sweep", "plots"),
+    ("sweep", "plots", "envs"),
     ("cli",),
 ]
 RANK = {package: rank for rank, packages in enumerate(LAYERS) for package in packages}
@@ -114,7 +114,7 @@ def test_every_package_has_a_layer():
 
 
 def test_imports_follow_the_layers():
-    """model -> physics -> engine -> {io, analysis} -> design -> {sweep, plots} -> cli."""
+    """model -> physics -> engine -> {io, analysis} -> design -> {sweep, plots, envs} -> cli."""
     wrong = []
     for source, target, line in _edges():
         a, b = _package(source), _package(target)

@@ -170,8 +170,8 @@ def test_a_winch_sets_the_rate_limit():
 @pytest.mark.parametrize(
     ("output", "match"),
     [
-        (np.zeros(2), r"controller: returned shape \(2,\) at t = 0 s"),
-        (np.array([np.nan]), r"controller: returned a value that is not finite at t = 0 s"),
+        (np.zeros(2), r"controller: got shape \(2,\) at t = 0 s"),
+        (np.array([np.nan]), r"controller: got a value that is not finite at t = 0 s"),
     ],
 )
 def test_a_bad_controller_output_is_one_line_naming_the_time(output, match):

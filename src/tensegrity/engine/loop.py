@@ -261,6 +261,25 @@ _FAILURES = {
 }
 
 
+def blow_up_limits(structure: Structure, options: Options) -> tuple[float, float, float]:
+    """The blow-up checks' limits of a run (``CompiledSystem``'s ``limits``): the relative rod
+    length error, the constraint error [m] (the rod error times the longest rod, at least 1 m)
+    and the energy growth."""
+    length_scale = max(float(structure.rod_length.max(initial=0.0)), 1.0)
+    error = options.max_rod_length_error
+    return error, error * length_scale, options.max_energy_growth
+
+
+def failure_message(
+    code: int, value: float, t: float, options: Options, monitor: np.ndarray
+) -> str:
+    """The sentence of a failed blow-up check ``code`` (``compiled.CHECK_*``) with its
+    ``value`` at ``t`` [s], given the run's ``options`` and blow-up ``monitor`` (4,)."""
+    return _FAILURES[code].format(
+        t=t, value=value, limit=options.max_rod_length_error, scale=monitor[1]
+    )
+
+
 @dataclasses.dataclass
 class _Landing:
     """A located event the stepper is heading for: its time [s], and whether it was located on
@@ -297,14 +316,13 @@ class _Run:
         self.controller = None if (law is not None and options.method == "DOP853") else controller
         self.checkpointing = checkpoint
         self.t0, self.t_end = t0, t_end
-        length_scale = max(float(structure.rod_length.max(initial=0.0)), 1.0)
-        limits = (
-            options.max_rod_length_error,
-            options.max_rod_length_error * length_scale,
-            options.max_energy_growth,
-        )
         self.system = CompiledSystem(
-            structure, inputs, limits=limits, feedback=law, t0=t0, controlled=controller is not None
+            structure,
+            inputs,
+            limits=blow_up_limits(structure, options),
+            feedback=law,
+            t0=t0,
+            controlled=controller is not None,
         )
         #: the blow-up monitor (4,) (``system.data.monitor``, the compiled checks update it)
         self.monitor = self.system.monitor
@@ -419,9 +437,7 @@ class _Run:
 
     def fail(self, code: int, value: float, t: float) -> None:
         self.status = STATUS_FAILED
-        self.message = _FAILURES[code].format(
-            t=t, value=value, limit=self.options.max_rod_length_error, scale=self.monitor[1]
-        )
+        self.message = failure_message(code, value, t, self.options, self.monitor)
 
     def check(self, y: np.ndarray, t: float) -> float | None:
         """The compiled blow-up checks at the end of a step; the drift, or None on failure."""
@@ -488,39 +504,8 @@ class _Run:
         return settings
 
     def _command_of(self, u: np.ndarray, t: float) -> np.ndarray:
-        """The actuators' command (A,) [m] in a controller's output ``u``: (A,), or (S,) with
-        zero on the tendons that are not actuated; ``ValueError`` naming the controller and
-        the time otherwise."""
-        actuated = self.system.actuators
-        assert actuated is not None, "_command_of: the run has no actuators"
-        S, A = self.structure.n_tendons, actuated.size
-        if u.shape not in ((A,), (S,)):
-            raise ValueError(
-                f"controller: returned shape {u.shape} at t = {t:.6g} s; expected ({A},) (the "
-                f"actuated tendons) or ({S},)"
-            )
-        if not np.all(np.isfinite(u)):
-            raise ValueError(f"controller: returned a value that is not finite at t = {t:.6g} s")
-        command = u if u.shape == (A,) else u[actuated.tendons]
-        rest0 = self.structure.tendon_rest_length[actuated.tendons]
-        if self.system.inputs.actuators is None and np.any(rest0 - command < 0):
-            # (without actuators a controller may not make a rest length negative)
-            a = int(np.flatnonzero(rest0 - command < 0)[0])
-            raise ValueError(
-                f"controller[{actuated.tendons[a]}]: rest length {rest0[a]:g} - {command[a]:g} "
-                f"is negative at t = {t:g} s"
-            )
-        if u.shape == (A,):
-            return command
-        idle = np.ones(S, bool)
-        idle[actuated.tendons] = False
-        if np.any(u[idle] != 0):
-            s = int(np.flatnonzero(idle & (u != 0))[0])
-            raise ValueError(
-                f"controller: returned u = {u[s]:g} m for tendon "
-                f"{self.structure.tendon_name[s]!r} at t = {t:.6g} s, which is not actuated"
-            )
-        return command
+        """The actuators' command in a controller's output ``u`` (:func:`actuator_command`)."""
+        return actuator_command(self.system, u, t, "controller")
 
     def take_control_log(self) -> None:
         """Move the actuators' updates logged since the last call to :attr:`control_log`."""
@@ -973,6 +958,43 @@ def _rk4_steps(run: _Run, stepper: RK4, n: int, h: float, *, keep_first: bool = 
     return True
 
 
+def actuator_command(system: CompiledSystem, u: np.ndarray, t: float, name: str) -> np.ndarray:
+    """The actuators' command (A,) [m] in the output ``u`` of a controller (or the control
+    ``name`` stands for) at ``t`` [s]: (A,), or (S,) with zero on the tendons that are not
+    actuated; ``ValueError`` naming ``name`` and the time if it is neither, is not finite, or
+    (without actuators given) makes a rest length negative."""
+    actuated = system.actuators
+    assert actuated is not None, "actuator_command: the system has no actuators"
+    S, A = system.structure.n_tendons, actuated.size
+    if u.shape not in ((A,), (S,)):
+        raise ValueError(
+            f"{name}: got shape {u.shape} at t = {t:.6g} s; expected ({A},) (the "
+            f"actuated tendons) or ({S},)"
+        )
+    if not np.all(np.isfinite(u)):
+        raise ValueError(f"{name}: got a value that is not finite at t = {t:.6g} s")
+    command = u if u.shape == (A,) else u[actuated.tendons]
+    rest0 = system.structure.tendon_rest_length[actuated.tendons]
+    if system.inputs.actuators is None and np.any(rest0 - command < 0):
+        # (without actuators a controller may not make a rest length negative)
+        a = int(np.flatnonzero(rest0 - command < 0)[0])
+        raise ValueError(
+            f"{name}[{actuated.tendons[a]}]: rest length {rest0[a]:g} - {command[a]:g} "
+            f"is negative at t = {t:g} s"
+        )
+    if u.shape == (A,):
+        return command
+    idle = np.ones(S, bool)
+    idle[actuated.tendons] = False
+    if np.any(u[idle] != 0):
+        s = int(np.flatnonzero(idle & (u != 0))[0])
+        raise ValueError(
+            f"{name}: got u = {u[s]:g} m for tendon "
+            f"{system.structure.tendon_name[s]!r} at t = {t:.6g} s, which is not actuated"
+        )
+    return command
+
+
 def time_span(t_span: Any) -> tuple[float, float]:
     """``(t0, t_end)`` [s] of a run, finite with ``t0 < t_end``; ``ValueError`` naming
     ``t_span`` otherwise."""
@@ -988,7 +1010,7 @@ def time_span(t_span: Any) -> tuple[float, float]:
     return t0, t_end
 
 
-def _check_initial(structure: Structure, state: Any) -> None:
+def check_initial(structure: Structure, state: Any) -> None:
     """``TypeError`` unless ``state`` is a :class:`~tensegrity.physics.dynamics.State`,
     ``ValueError`` unless its ``q`` and ``qdot`` are finite and have the structure's
     coordinates."""
@@ -1055,7 +1077,7 @@ def run(
     r = _Run(structure, t0, t_end, inputs, options, sink, controller, checkpoint, progress, stop)
     if resume is None:
         state = dynamics.initial_state(structure, t=t0) if initial is None else initial
-        _check_initial(structure, state)
+        check_initial(structure, state)
         y0 = r.system.state_vector(state)
         r.system.check_contacts(y0)
         if controller is not None:

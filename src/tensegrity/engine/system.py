@@ -357,6 +357,14 @@ class CompiledSystem:
         data = self.stage_inputs(np.array([t]))
         compiled.feedback_update(self.model.feedback, self.model, data, float(t), y)
 
+    def reset_actuation(self) -> None:
+        """The actuators as at the start of a run: no command yet (zero), no updates, an
+        empty log."""
+        act = self.actuation
+        act.start[0], act.updates[0], act.log_count[0] = -np.inf, 0, 0
+        act.applied[:] = act.command[:] = 0.0
+        self._control_log = []
+
     def _drain_log(self) -> None:
         """Move the updates logged by compiled code to :meth:`take_control_log`'s list."""
         act = self.actuation
