@@ -8,9 +8,9 @@ The structure, its gravity, ground and contact radius are packed once
 command of the actuators (:mod:`tensegrity.model.actuators`: rest-length bounds, rate limits,
 lags; default: every tendon, a control ``u`` (S,) [m] held at once) over a stretch of time and
 returns the state at its end, the events (slack/taut, contact, stick/slip) located and the
-blow-up checks made as in :func:`~tensegrity.engine.simulate.simulate`.  A stretch is what the run loop
-(:mod:`tensegrity.engine.loop`) does between two updates of a controller: the state at its end
-equals ``simulate(..., controller=...)`` with the same controls at the same times, and one
+blow-up checks made as in :func:`~tensegrity.engine.simulate.simulate`.  A stretch is what the
+run loop (:mod:`tensegrity.engine.loop`) does between two updates of a controller: the state at
+its end equals ``simulate(..., controller=...)`` with the same controls at the same times, and one
 stretch equals ``simulate(..., control=u)`` over the same span.  No samples are recorded.
 """
 
@@ -119,8 +119,8 @@ class Live:
     def reset(self, state: State) -> None:
         """Start again from ``state`` (:class:`~tensegrity.physics.dynamics.State`, projected
         onto the rod constraints), the actuators' command and control zero.
-        ``TypeError``/``ValueError`` naming ``initial`` for a state that is not one of this structure, ``ValueError`` naming
-        ``ground`` for a contact point below a plane."""
+        ``TypeError``/``ValueError`` naming ``initial`` for a state that is not one of this
+        structure, ``ValueError`` naming ``ground`` for a contact point below a plane."""
         check_initial(self.structure, state)
         y = self.system.state_vector(state)
         self.system.check_contacts(y)
