@@ -53,8 +53,10 @@ from tensegrity.io.files import DISK_FULL, byte_text, shown_path
 from tensegrity.physics import dynamics
 
 if TYPE_CHECKING:
+    from tensegrity.engine.feedback import LinearFeedback
     from tensegrity.io.measurements import SensorFile
     from tensegrity.io.stream import StreamSummary
+    from tensegrity.model.actuators import Actuators
     from tensegrity.model.ground import Scene
     from tensegrity.model.loads import ControlTable, ForceTable, NodalLoad
     from tensegrity.model.structure import Structure
@@ -135,12 +137,15 @@ def _segment(structure: Structure, t_end: float, sample_dt: float, *, planes: in
 
 
 class RunInputs(NamedTuple):
-    """What a ``simulate`` run puts on its structure: the force table, the control table and
-    the scene (the ground, the contact radius and gravity)."""
+    """What a ``simulate`` run puts on its structure: the force table, the control table, the
+    scene (the ground, the contact radius and gravity), a linear feedback controller and the
+    actuators it drives."""
 
     force: ForceTable | None
     control: ControlTable | None
     scene: Scene
+    controller: LinearFeedback | None = None
+    actuators: Actuators | None = None
 
 
 def _simulation_inputs(
@@ -171,7 +176,10 @@ def _simulation_inputs(
 
         with blame("--control-table", args.control_table):
             control = read_control_table(args.control_table, structure)
-    inputs = RunInputs(force, control, _scene_of(args, structure))
+    controller, driven = _controller_of(args, structure)
+    if controller is not None and control is not None:
+        raise CommandError("--controller: a run takes a controller or --control-table, not both")
+    inputs = RunInputs(force, control, _scene_of(args, structure), controller, driven)
     if members is None:
         for option, value in (("--safety-factor", args.safety_factor is not None),
                               ("--strength-factor", args.strength_factor is not None),
@@ -213,6 +221,39 @@ def _with_loads(
             table = nodal_load_table(structure, [load])
         force = table if force is None else add_force_tables(force, table)
     return force
+
+
+def _controller_of(
+    args: argparse.Namespace, structure: Structure
+) -> tuple[LinearFeedback | None, Actuators | None]:
+    """The linear feedback law of ``--controller`` and the actuators of its tendons with the
+    limits ``--rest-range``, ``--max-rate`` and ``--lag`` set (those need a controller)."""
+    limits = {"--rest-range": args.rest_range, "--max-rate": args.max_rate, "--lag": args.lag}
+    if args.controller is None:
+        for option, value in limits.items():
+            if value is not None:
+                raise CommandError(f"{option}: limits the actuators of a --controller; give one")
+        return None, None
+    from tensegrity.io.controllers import read_controller
+    from tensegrity.model.actuators import actuators
+
+    with blame("--controller", args.controller):
+        law = read_controller(args.controller)
+    try:
+        tendons = law.check(structure)
+    except ValueError as exc:
+        raise CommandError(f"--controller: {one_line(exc)}") from None
+    rest = structure.tendon_rest_length[tendons]
+    low, high = (0.0, math.inf) if args.rest_range is None else args.rest_range
+    driven = actuators(
+        structure,
+        tendons.tolist(),
+        min_rest_length=low * rest,
+        max_rest_length=high * rest,
+        max_rate=math.inf if args.max_rate is None else args.max_rate,
+        time_constant=0.0 if args.lag is None else args.lag,
+    )
+    return law, driven
 
 
 def _stream_run(
@@ -257,6 +298,8 @@ def _stream_run(
             stop=stop,
             external_force=inputs.force,
             control=inputs.control,
+            controller=inputs.controller,
+            actuators=inputs.actuators,
             **inputs.scene.simulate_options(),
             **dataclasses.asdict(options),
         )
@@ -440,6 +483,36 @@ def add_parser(sub: Any) -> None:
         "row t, then tendon names, and rows of numbers; tendons not named keep u = 0; .npz: "
         "time (T,), control (T, S), or time, names (K,), control (T, K))",
     )
+    control = sim.add_argument_group("feedback control")
+    control.add_argument(
+        "--controller",
+        type=arguments.name,
+        metavar="FILE.npz",
+        help="linear feedback u = u_ref - K (y - y_ref) run inside the compiled loop every "
+        "period (a controller file: K, y_ref, u_ref, period, outputs, tendons; `tensegrity lqr` "
+        "writes one); its commands and saturations are in the summary and the trajectory",
+    )
+    control.add_argument(
+        "--rest-range",
+        type=_fractions,
+        metavar="LOW:HIGH",
+        help="the controlled tendons' rest lengths stay within LOW..HIGH times their own "
+        "(e.g. 0.8:1.2; default 0 and no upper bound): commands beyond are clipped",
+    )
+    control.add_argument(
+        "--max-rate",
+        type=arguments.positive,
+        metavar="M_PER_S",
+        help="the controlled tendons' rest lengths change at most this fast [m/s] (a rate "
+        "limit; default none)",
+    )
+    control.add_argument(
+        "--lag",
+        type=arguments.positive,
+        metavar="SECONDS",
+        help="the controlled tendons follow their commands with this first-order lag [s] "
+        "(default none: at once)",
+    )
     sim.add_argument(
         "--sensors",
         type=arguments.name,
@@ -507,6 +580,17 @@ _INTEGRATION_OPTIONS = {
 }
 #: ``simulate``'s own default of ``--sample-dt`` [s] (the library's: a thousandth of the span).
 SAMPLE_DT = 0.01
+
+
+def _fractions(text: str) -> tuple[float, float]:
+    """``LOW:HIGH``, two numbers ``0 <= LOW <= 1 <= HIGH`` (``argparse`` type)."""
+    try:
+        low, high = (float(x) for x in text.split(":"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected LOW:HIGH, two numbers, got {text!r}") from None
+    if not (math.isfinite(low) and math.isfinite(high) and 0 <= low <= 1 <= high):
+        raise argparse.ArgumentTypeError(f"need 0 <= LOW <= 1 <= HIGH, got {text!r}")
+    return low, high
 
 
 def _numbers(count: int) -> Callable[[str], tuple[float, ...]]:

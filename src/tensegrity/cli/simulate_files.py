@@ -414,6 +414,7 @@ def print_summary(
         ("energy dissipated", f"{e['dissipated'][-1]:.6g} J"),
         ("energy balance error", f"{balance:.3e} J"),
         *_contact_rows(trajectory),
+        *_control_rows(trajectory),
         ("slack tendons at the end", f"{int(np.sum(tension <= 0))} of {structure.n_tendons}"),
         (
             "tension range at the end",
@@ -498,6 +499,33 @@ def _utilisation_rows(
         ),
     ]
     return rows, u.failures(s)
+
+
+def _control_rows(trajectory) -> list[tuple[str, str]]:
+    """The summary's rows of a controlled run: its updates, and where the actuators' limits
+    bound the commands (the stretches of each kind, their total time and the tendons)."""
+    if not trajectory.control_tendons:
+        return []
+    rows = [
+        (
+            "control updates",
+            f"{_counted(trajectory.control_time.size, 'update')} of "
+            f"{_counted(len(trajectory.control_tendons), 'actuated tendon')}",
+        )
+    ]
+    for kind, what in (("bound", "at a rest-length bound"), ("rate", "at the rate limit")):
+        found = [x for x in trajectory.saturations() if x.kind == kind]
+        if found:
+            tendons = sorted({x.tendon for x in found})
+            shown = ", ".join(tendons[:4]) + (f" and {len(tendons) - 4} more" * (len(tendons) > 4))
+            total = sum(x.end - x.start for x in found)
+            rows.append(
+                (
+                    f"saturated {what}",
+                    f"{total:.4g} s summed over the tendons, {len(found)} stretches ({shown})",
+                )
+            )
+    return rows
 
 
 def _contact_rows(trajectory) -> list[tuple[str, str]]:

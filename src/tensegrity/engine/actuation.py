@@ -22,7 +22,7 @@ import numpy as np
 from numba import njit
 
 from tensegrity.engine.feedback import OUTPUT_GROUPS, LinearFeedback
-from tensegrity.model.actuators import Actuators
+from tensegrity.model.actuators import Actuators, actuators
 from tensegrity.model.structure import Structure
 from tensegrity.physics.compiling import JIT_OPTIONS
 from tensegrity.physics.records import Actuation, FeedbackLaw
@@ -160,3 +160,28 @@ def pack_feedback(
         tendon_position=np.ascontiguousarray(tendon_position, dtype=np.int64),
         schedule=np.array([float(t0), feedback.period]),
     )
+
+
+def controlled_actuators(
+    structure: Structure,
+    given: Actuators | None,
+    *,
+    feedback: LinearFeedback | None = None,
+    controlled: bool = False,
+) -> Actuators | None:
+    """The actuators of a run: those ``given``; a compiled ``feedback`` law's tendons (without
+    limits, unless given: then they must be its tendons in its order); every tendon without
+    limits for a run ``controlled`` by a Python controller; or None.  ``ValueError`` naming
+    ``controller.tendons`` if the law does not drive the actuators given."""
+    if feedback is not None:
+        tendons = feedback.check(structure)
+        if given is None:
+            return actuators(structure, tendons.tolist())
+        if not np.array_equal(given.tendons, tendons):
+            raise ValueError(
+                "controller.tendons: must be the actuated tendons in their order "
+                f"({given.tendons.tolist()}), got {tendons.tolist()}"
+            )
+    if given is None and controlled:
+        return actuators(structure)
+    return given

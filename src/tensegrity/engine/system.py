@@ -12,11 +12,16 @@ from collections.abc import Callable
 import numpy as np
 
 from tensegrity.engine import compiled
-from tensegrity.engine.actuation import actuate, clip_command, pack_actuation, pack_feedback
+from tensegrity.engine.actuation import (
+    actuate,
+    clip_command,
+    controlled_actuators,
+    pack_actuation,
+    pack_feedback,
+)
 from tensegrity.engine.feedback import LinearFeedback
 from tensegrity.engine.inputs import Inputs
 from tensegrity.engine.result import Samples
-from tensegrity.model.actuators import Actuators, actuators
 from tensegrity.model.structure import Structure
 from tensegrity.physics import dynamics
 from tensegrity.physics.contact import pack_contacts
@@ -103,11 +108,10 @@ class CompiledSystem:
             packed_system, rest=rest0, gravity=gravity, limits=limits, contacts=contacts
         )
         tendon_position = np.argsort(packed.layout.tendon_order)
-        self.actuators = inputs.actuators
-        if controlled and self.actuators is None:
-            self.actuators = actuators(structure)
+        self.actuators = controlled_actuators(
+            structure, inputs.actuators, feedback=feedback, controlled=controlled
+        )
         if feedback is not None:
-            self.actuators = self._feedback_actuators(feedback)
             self.model = self.model._replace(
                 feedback=pack_feedback(
                     structure, feedback, tendon_position, packed.layout.node_slot, t0
@@ -316,19 +320,6 @@ class CompiledSystem:
         if not self.planar:
             return np.asarray(x, dtype=float)
         return np.concatenate([x, np.zeros((*x.shape[:-1], 1))], axis=-1)
-
-    def _feedback_actuators(self, feedback: LinearFeedback) -> Actuators:
-        """The actuators a compiled law drives: the inputs' (on the law's tendons, in its
-        order), or actuators without limits on its tendons."""
-        tendons = feedback.check(self.structure)
-        if self.inputs.actuators is None:
-            return actuators(self.structure, tendons.tolist())
-        if not np.array_equal(self.inputs.actuators.tendons, tendons):
-            raise ValueError(
-                "controller.tendons: must be the actuated tendons in their order "
-                f"({self.inputs.actuators.tendons.tolist()}), got {tendons.tolist()}"
-            )
-        return self.inputs.actuators
 
     @property
     def actuation(self) -> Actuation:

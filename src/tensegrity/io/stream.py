@@ -93,6 +93,8 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from tensegrity.engine.actuation import controlled_actuators
+from tensegrity.engine.feedback import LinearFeedback
 from tensegrity.engine.inputs import Inputs
 from tensegrity.engine.loop import Checkpointing, LoopState, StopCondition, run
 from tensegrity.engine.options import OPTION_FIELDS, Options, sample_count, sample_time
@@ -118,6 +120,7 @@ from tensegrity.io.files import (
     regular_file,
     reserve_space,
 )
+from tensegrity.model.actuators import Actuators
 from tensegrity.model.ground import planes_of
 from tensegrity.model.loads import ControlTable, ForceTable
 from tensegrity.model.structure import Structure
@@ -147,6 +150,7 @@ _INPUTS = (
     "ground",
     "contact_radius",
     "controller",
+    "actuators",
     "stop",
 )
 #: The options a streamed run takes and their defaults: its inputs and the fields of
@@ -335,6 +339,24 @@ def _option_token(name: str, value: Any) -> Any:
         return {"q": _array_token(value.q), "qdot": _array_token(value.qdot)}
     if name == "ground":  # (a Plane or planes: their fields)
         return {"planes": [plane.settings() for plane in planes_of(value)]}
+    if isinstance(value, LinearFeedback):  # (compared by content)
+        return {
+            "linear_feedback": {
+                "K": _array_token(value.K),
+                "y_ref": _array_token(value.y_ref),
+                "u_ref": _array_token(value.u_ref),
+                "period": value.period,
+                "outputs": list(value.outputs),
+                "tendons": None if value.tendons is None else [str(t) for t in value.tendons],
+            }
+        }
+    if isinstance(value, Actuators):
+        return {
+            "actuators": {
+                field.name: _array_token(getattr(value, field.name))
+                for field in dataclasses.fields(value)
+            }
+        }
     if isinstance(value, (ControlTable, ForceTable)):  # (callable, but compared by content)
         return {
             "table": type(value).__name__,
@@ -501,7 +523,8 @@ def _write_layout(f, structure: Structure, structure_text: str, plan: _Plan) -> 
     )
     _write_run_attributes(f, first)
     pairs = tio.contact_pairs(structure, len(plan.record.get("ground", ())))
-    rows = tio.sample_rows(structure, pairs) | tio.event_rows(pairs)
+    actuated = len(plan.record.get("actuators", {}).get("tendons", ()))
+    rows = tio.sample_rows(structure, pairs) | tio.event_rows(pairs, actuated)
     for name, shape in rows.items():
         f.create_dataset(
             name,
@@ -1049,6 +1072,7 @@ def simulate_to_file(
                 checkpoint=Checkpointing(every=plan.K, save=sink.save),
                 resume=checkpoint.loop,
                 stop=stop,
+                controller=plan.controller,
             )
             if summary.stopped_for_time:
                 raise OutOfTimeError(summary.message, partial)
@@ -1071,6 +1095,7 @@ class _Plan(NamedTuple):
     settings: dict[str, Any]
     settings_hash: str
     record: dict[str, Any]
+    controller: Any  #: a Controller or a LinearFeedback, or None
 
 
 def _plan(
@@ -1091,10 +1116,18 @@ def _plan(
     if not (math.isfinite(sample_dt) and sample_dt > 0):
         raise ValueError(f"sample_dt: must be > 0, got {sample_dt!r}")
     initial = options.pop("initial", None)
+    controller = options.pop("controller", None)
     run_options, inputs = options_and_inputs(structure, sample_dt=sample_dt, **options)
     K = samples_per_segment(structure, segment, sample_dt, planes=len(inputs.ground))
-    settings = _stream_settings(structure, t0, t1, sample_dt, K, {**options, "initial": initial})
+    settings = _stream_settings(
+        structure, t0, t1, sample_dt, K, {**options, "initial": initial, "controller": controller}
+    )
     n_segments = len(segment_grid((t0, t1), sample_dt, K)) - 1
+    law = controller if isinstance(controller, LinearFeedback) else None
+    driven = controlled_actuators(
+        structure, inputs.actuators, feedback=law, controlled=controller is not None
+    )
+    actuated = {} if driven is None else {"actuators": driven.settings(structure)}
     stream = dict(segment=K * sample_dt, samples_per_segment=K, n_segments=n_segments)
     return _Plan(
         (t0, t1),
@@ -1105,7 +1138,8 @@ def _plan(
         n_segments,
         settings,
         _digest(_settings_json(settings).encode()),
-        {**run_options.settings(t0, t1, **inputs.settings()), "stream": stream},
+        {**run_options.settings(t0, t1, **inputs.settings()), **actuated, "stream": stream},
+        controller,
     )
 
 

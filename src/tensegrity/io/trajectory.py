@@ -31,7 +31,9 @@ A run with planes (``settings["ground"]``; ``CP`` = (2 R + M) x planes contact p
 point masses) also stores ``contact_normal_force`` (T, CP) [N], ``contact_friction_force``
 (T, CP, 3) [N], ``contact_mode`` (T, CP) (0 free, 1 slip, 2 stick, as float64) and
 ``contact_events`` (E, 4): each change of a pair's mode (time [s], pair, mode before, mode
-after); files without them read as runs without contact.
+after); files without them read as runs without contact.  A controlled run
+(``settings["actuators"]``, A actuators) stores ``control_updates`` (U, 1 + 2 A): each update's
+time [s], the commands held [m] and the controls applied then [m].
 
 ``node_position`` and ``node_velocity`` (T, N, dim) and ``tendon_length`` (T, S) are not
 stored: they are ``P q``, ``P q'`` (:func:`tensegrity.physics.coordinates.nodes_from_coordinates`)
@@ -60,7 +62,12 @@ from typing import Any
 
 import numpy as np
 
-from tensegrity.engine.result import ENERGY_NAMES, SimulationResult, contact_event_arrays
+from tensegrity.engine.result import (
+    ENERGY_NAMES,
+    SimulationResult,
+    contact_event_arrays,
+    control_arrays,
+)
 from tensegrity.io.checked import (
     attribute_json,
     attribute_number,
@@ -134,10 +141,16 @@ def contact_pairs(structure: Structure, planes: int) -> int:
     return (2 * structure.n_rods + structure.point_mass_nodes.size) * planes
 
 
-def event_rows(pairs: int) -> dict[str, tuple[int, ...]]:
+def event_rows(pairs: int, actuated: int = 0) -> dict[str, tuple[int, ...]]:
     """The shape of one row of the datasets of events a run appends as it goes:
-    ``switch_times``, and ``contact_events`` with ``pairs`` > 0."""
-    return {"switch_times": ()} | ({"contact_events": (4,)} if pairs else {})
+    ``switch_times``, ``contact_events`` with ``pairs`` > 0, ``control_updates`` with
+    ``actuated`` > 0 actuators."""
+    rows: dict[str, tuple[int, ...]] = {"switch_times": ()}
+    if pairs:
+        rows["contact_events"] = (4,)
+    if actuated:
+        rows["control_updates"] = (1 + 2 * actuated,)
+    return rows
 
 
 def event_columns(run: Any) -> dict[str, np.ndarray]:
@@ -151,6 +164,14 @@ def event_columns(run: Any) -> dict[str, np.ndarray]:
             ).reshape(-1, 4)
     elif len(run.settings.get("ground", ())):
         columns["contact_events"] = np.asarray(run.contact_events, dtype=float).reshape(-1, 4)
+    actuated = len(run.settings.get("actuators", {}).get("tendons", ()))
+    if actuated:
+        updates = (
+            np.column_stack([run.control_time, run.control_command, run.control_applied])
+            if isinstance(run, SimulationResult)
+            else run.control_updates
+        )
+        columns["control_updates"] = np.asarray(updates, dtype=float).reshape(-1, 1 + 2 * actuated)
     return columns
 
 
@@ -445,6 +466,7 @@ def _read_open_trajectory(f: Any, path: PathLike, every: int = 1) -> SimulationR
         arrays |= contact_event_arrays(
             read_datasets({"e": _dataset(f, "contact_events", path)}, path)["e"]
         )
+    controls = _control_updates(f, path, settings)
     result = SimulationResult(
         t=arrays["t"],
         q=arrays["q"],
@@ -462,7 +484,23 @@ def _read_open_trajectory(f: Any, path: PathLike, every: int = 1) -> SimulationR
         message=message,
     )
     contact = {name: arrays[name] for name in arrays if name.startswith("contact_")}
-    return dataclasses.replace(result, **contact) if contact else result
+    return dataclasses.replace(result, **contact, **controls) if contact or controls else result
+
+
+def _control_updates(f: Any, path: PathLike, settings: Mapping[str, Any]) -> dict[str, Any]:
+    """The result's ``control_time``, ``control_command`` and ``control_applied`` from the
+    dataset ``control_updates`` of a run with actuators (none in a file without)."""
+    actuated = len(settings.get("actuators", {}).get("tendons", ()))
+    if not actuated or "control_updates" not in f:
+        return {}
+    updates = _dataset(f, "control_updates", path)
+    if updates.ndim != 2 or updates.shape[1] != 1 + 2 * actuated:
+        raise file_error(
+            path,
+            f"dataset 'control_updates': expected shape (U, {1 + 2 * actuated}), got "
+            f"{updates.shape}",
+        )
+    return control_arrays(read_datasets({"u": updates}, path)["u"])
 
 
 def _contact_datasets(
