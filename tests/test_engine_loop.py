@@ -11,6 +11,7 @@ import pytest
 
 from states import perturbed_state
 from tensegrity import class1_shell, simulate
+from tensegrity.engine.feedback import LinearFeedback
 from tensegrity.engine.inputs import Inputs
 from tensegrity.engine.loop import Checkpointing, Feedback, run
 from tensegrity.engine.options import Options
@@ -125,6 +126,16 @@ CASES = {
         Feedback(lambda t, q, qd: 0.02 * np.tanh(qd[: SHELL.n_tendons]), 0.015),
     ),
     "joints": (class2_shell(3, 2), Options(sample_dt=0.01, rtol=1e-7), None),
+    "compiled feedback": (
+        SHELL,
+        Options(sample_dt=0.01),
+        LinearFeedback(
+            np.random.default_rng(0).normal(scale=1e-3, size=(SHELL.n_tendons, 72)),
+            np.concatenate([SHELL.node_position.ravel(), np.zeros(36)]),
+            np.full(SHELL.n_tendons, 0.01),
+            0.015,
+        ),
+    ),
 }
 
 
@@ -138,7 +149,7 @@ def test_resumed_run_is_bitwise_the_uninterrupted_one(case):
     if case == "DOP853 with switches":
         assert summary.nswitches > 0  # switches before and after the checkpoints
         assert saved[0].switch_times and len(summary.switch_times) > len(saved[1].switch_times)
-    if case == "controller":
+    if case in ("controller", "compiled feedback"):
         assert np.any(saved[0].control != 0)  # the held control is part of the state
     for state in saved:
         resumed, again, _ = _run(structure, 0.3, options, controller=controller, resume=state)
@@ -153,6 +164,7 @@ def test_resumed_run_is_bitwise_the_uninterrupted_one(case):
             summary.nprojections,
         )
         assert again.switch_times == summary.switch_times
+        assert np.array_equal(again.control_updates, summary.control_updates)
         assert again.max_rod_length_error == summary.max_rod_length_error
 
 

@@ -189,3 +189,52 @@ def test_a_law_that_does_not_fit_the_structure_is_named():
     with pytest.raises(ValueError, match=r"controller\.tendons: must be the actuated tendons"):
         simulate(s, (0, 0.1), controller=LinearFeedback.zero(s, 0.01, tendons=[1]),
                  actuators=actuators(s, [0]))  # fmt: skip
+
+
+def test_the_closed_loop_decays_at_the_rate_of_its_linear_poles():
+    """An LQR law (analysis.control_design) run by the compiled loop on the nonlinear (3,1)
+    shell: a small disturbance along the slowest closed-loop mode decays at that pole's rate,
+    within 1%, measured on the mode's own coordinate (its left eigenvector)."""
+    import scipy.linalg
+
+    from tensegrity.analysis.control_design import lqr, reachable
+    from tensegrity.analysis.equilibrium import find_equilibrium
+    from tensegrity.analysis.linearize import linearize
+
+    s = shell()
+    lin = linearize(s, find_equilibrium(s))
+    model = reachable(lin)
+    design = lqr(model, period=2e-4)
+    closed = model.system.A - model.system.B @ design.gain
+    poles, left, right = scipy.linalg.eig(closed, left=True)
+    j = int(np.argmin(-poles.real))
+    rate = -poles[j].real
+    r = model.shapes.shape[1]
+    start = np.real(right[:, j])
+    eta = model.shapes @ start[:r]
+    scale = 1e-4 / np.abs(lin.position_jacobian @ eta).max()  # (0.1 mm at most)
+    q, qdot = lin.configuration(scale * np.concatenate([eta, model.shapes @ start[r:]]))
+    t_end = 3.0 / rate
+    run = simulate(
+        s, (0, t_end), initial=dynamics.State(0.0, q, qdot), sample_dt=t_end / 60,
+        controller=design.feedback, rtol=1e-10, atol=1e-13,
+    )  # fmt: skip
+    assert run.status == 0, run.message
+    states = zip(run.q, run.qdot, strict=True)
+    coordinate = np.array([left[:, j].conj() @ model.reduce(lin.state(q, v)) for q, v in states])
+    slope = np.polyfit(run.t, np.log(np.abs(coordinate)), 1)[0]
+    assert -slope == pytest.approx(rate, rel=0.01)
+
+
+def test_a_controller_that_raises_fails_the_run_in_one_line_naming_the_time():
+    s = prism()
+
+    def law(t, q, v):
+        if t > 0.05:
+            raise ZeroDivisionError("no gain\nsecond line")
+        return np.zeros(s.n_tendons)
+
+    run = simulate(s, (0, 0.2), sample_dt=0.01, controller=Feedback(law, 0.02))
+    assert run.status == -1
+    assert run.message == "controller: raised ZeroDivisionError at t = 0.06 s: no gain"
+    assert run.t[-1] == pytest.approx(0.06)  # (the samples up to it are kept)

@@ -491,7 +491,13 @@ class _Run:
             "update_control: the run has no Python controller"
         )
         q, qdot = system.coordinates(y)
-        u = np.array(controller(t, q, qdot), dtype=float)
+        try:
+            u = np.array(controller(t, q, qdot), dtype=float)
+        except Exception as exc:  # (the run fails with a message naming the time)
+            first = str(exc).splitlines()[0] if str(exc) else ""
+            raise ValueError(
+                f"controller: raised {type(exc).__name__} at t = {t:.6g} s: {first}"
+            ) from exc
         system.command(self._command_of(u, t), t, y)
         self.take_control_log()
 
