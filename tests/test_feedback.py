@@ -161,10 +161,18 @@ def test_the_energy_balance_closes_through_rate_limits_and_lags():
     assert np.abs(balance - balance[0]).max() < 1e-5 * np.abs(work).max()
 
 
-def test_a_winch_sets_the_rate_limit():
+def test_a_winch_sets_the_rate_limit_and_its_tension_cap_is_refused_for_now():
     s = prism()
-    act = actuators(s, [0], winch=Winch(radius=0.01, max_speed=5.0, max_torque=2.0))
-    assert act.max_rate[0] == pytest.approx(0.05) and act.max_tension[0] == pytest.approx(200.0)
+    act = actuators(s, [0], winch=Winch(radius=0.01, max_speed=5.0))
+    assert act.max_rate[0] == pytest.approx(0.05) and np.isinf(act.max_tension[0])
+    run = simulate(s, (0, 0.3), controller=Feedback(lambda t, q, v: np.array([0.02]), 1.0),
+                   actuators=act, sample_dt=0.01)  # fmt: skip
+    assert np.abs(applied_control(run, [0])[:, 0] - np.minimum(0.05 * run.t, 0.02)).max() < 1e-9
+    capped = actuators(s, [0], winch=Winch(radius=0.01, max_speed=5.0, max_torque=2.0))
+    assert capped.max_tension[0] == pytest.approx(200.0)
+    with pytest.raises(ValueError, match=r"actuators\.max_tension: a tension cap"):
+        simulate(s, (0, 0.1), controller=Feedback(lambda t, q, v: np.zeros(1), 1.0),
+                 actuators=capped)  # fmt: skip
 
 
 @pytest.mark.parametrize(

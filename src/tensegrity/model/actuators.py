@@ -11,7 +11,8 @@ applied control ``u`` toward it:
 - ``u`` follows a first-order lag ``du/dt = (u_cmd - u) / time_constant`` (``time_constant`` 0:
   no lag), its rate clipped to ``max_rate`` [m/s] (infinite: no limit; with neither, ``u`` jumps
   to the command, a zero-order hold);
-- ``max_tension`` [N] caps the tendon's tension (a winch that pays out cable beyond its torque).
+- ``max_tension`` [N] would cap the tendon's tension (a winch that pays out cable beyond its
+  torque): kept with the actuators, but not simulated yet (a run refuses a finite one).
 
 Between two commands the applied control is a closed-form function of time (a ramp at the rate
 limit, then the lag's exponential), so the engine needs no extra state for it.
@@ -41,17 +42,21 @@ class Winch:
         Drum radius [m] (> 0).
     max_speed : float
         Largest drum speed [rad/s] (> 0): the rate limit is ``radius * max_speed`` [m/s].
-    max_torque : float
-        Largest torque [N m] (> 0): the tension cap is ``max_torque / radius`` [N].
+    max_torque : float, optional
+        Largest torque [N m] (> 0): the tension cap is ``max_torque / radius`` [N] (None: no
+        cap; the engine does not simulate a cap yet, :class:`~tensegrity.engine.inputs.Inputs`
+        refuses one).
     """
 
     radius: float
     max_speed: float
-    max_torque: float
+    max_torque: float | None = None
 
     def __post_init__(self) -> None:
         for field in ("radius", "max_speed", "max_torque"):
             value = getattr(self, field)
+            if field == "max_torque" and value is None:
+                continue
             ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(
                 value, bool
             )
@@ -65,8 +70,8 @@ class Winch:
 
     @property
     def max_tension(self) -> float:
-        """Largest tension the motor holds [N]."""
-        return float(self.max_torque / self.radius)
+        """Largest tension the motor holds [N] (inf without ``max_torque``)."""
+        return math.inf if self.max_torque is None else float(self.max_torque / self.radius)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
