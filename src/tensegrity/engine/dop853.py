@@ -575,6 +575,15 @@ class DOP853:
 
         return at
 
+    def start_at(self, t0: float, y0: np.ndarray) -> None:
+        """Start again at ``(t0, y0)`` as a new stepper would (its first call makes the first
+        stage, the blow-up monitor and Hairer's initial step), keeping the buffers."""
+        self.clock[:] = 0.0
+        self.tally[:] = 0
+        self.clock[T] = self.clock[T_OLD] = float(t0)
+        self.loop.y[:] = y0
+        self.tally[START] = 1
+
     def restart(self) -> None:
         """The state changed at the current time (a controller's update): the next
         :meth:`run` evaluates its first stage and taut flags anew; a switch headed for is

@@ -17,12 +17,26 @@ stretch equals ``simulate(..., control=u)`` over the same span.  No samples are 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
+from numba import njit, typed
 
 from tensegrity.engine import dop853
-from tensegrity.engine.dop853 import DOP853
+from tensegrity.engine.actuation import clip_command
+from tensegrity.engine.compiled import DOP853_C, EXACT_JIT_OPTIONS, held, make_inputs
+from tensegrity.engine.dop853 import (
+    DOP853,
+    LANDING,
+    NEW_SWITCHES,
+    NSTEPS,
+    NSWITCHES,
+    RESTART,
+    RUN_SWITCHES,
+    RUN_YIELD,
+    dop853_run,
+)
 from tensegrity.engine.events import event_work, start_contacts_entry
 from tensegrity.engine.loop import (
     actuator_command,
@@ -37,7 +51,7 @@ from tensegrity.model.actuators import Actuators
 from tensegrity.model.structure import Structure
 from tensegrity.physics.dynamics import State
 
-__all__ = ["EngineError", "Live"]
+__all__ = ["EngineError", "Live", "LiveBatch", "advance_stretches"]
 
 
 class EngineError(RuntimeError):
@@ -106,15 +120,27 @@ class Live:
             max_steps=max_steps,
         )
         self.structure = structure
-        self.system = CompiledSystem(
+        self.system = system = CompiledSystem(
             structure, inputs, limits=blow_up_limits(structure, self.options), controlled=True
         )
         self.t = math.nan
-        self.control = np.zeros(self.system.actuation.position.size)
+        self.control = np.zeros(system.actuation.position.size)
         self.nfev = self.nsteps = self.nswitches = 0
-        self._y = np.zeros(self.system.m)  # the state until the stepper is made
-        self._stepper: DOP853 | None = None
+        o = self.options
+        #: the stepper, kept across resets (:meth:`DOP853.start_at`)
+        self.stepper = DOP853(
+            system,
+            0.0,
+            np.zeros(system.m),
+            rtol=o.rtol,
+            atol=o.atol,
+            t_end=math.inf,
+            max_steps=o.max_steps,
+            projection_tol=o.projection_tol,
+            locate=True,
+        )
         self._failure: str | None = "no state yet: call reset(state) first"
+        self._records = _Records([self])
 
     def reset(self, state: State) -> None:
         """Start again from ``state`` (:class:`~tensegrity.physics.dynamics.State`, projected
@@ -122,22 +148,29 @@ class Live:
         ``TypeError``/``ValueError`` naming ``initial`` for a state that is not one of this
         structure, ``ValueError`` naming ``ground`` for a contact point below a plane."""
         check_initial(self.structure, state)
-        y = self.system.state_vector(state)
-        self.system.check_contacts(y)
-        self.t, self._y, self._stepper, self._failure = float(state.t), y, None, None
+        system = self.system
+        y = system.state_vector(state)
+        system.check_contacts(y)
+        self.t, self._failure = float(state.t), None
         self.control = np.zeros_like(self.control)
-        self.system.reset_actuation()
-        self.system.monitor[:] = (np.nan, 0.0, 0.0, 0.0)  # (made by the stepper's first call)
+        system.reset_actuation()
+        system.monitor[:] = (np.nan, 0.0, 0.0, 0.0)  # (made by the stepper's first call)
         self.nfev = self.nsteps = self.nswitches = 0
+        work = system.data.contact_work
+        if work is not None:  # the contacts' modes at the start (their changes not kept)
+            here = system.stage_inputs(np.array([self.t]))
+            start_contacts_entry(system.model, here, self.t, y, event_work(system))
+            work.log_count[0] = 0
+        self.stepper.start_at(self.t, y)
 
     @property
     def y(self) -> np.ndarray:
         """The engine's state ``[q, q', E_d, W_w, W_u]`` (m,) at :attr:`t` (a copy)."""
-        return (self._y if self._stepper is None else self._stepper.y).copy()
+        return self.stepper.y.copy()
 
     def state(self) -> State:
         """The state at :attr:`t`: coordinates [m] and rates [m/s] in the structure's order."""
-        q, qdot = self.system.coordinates(self._y if self._stepper is None else self._stepper.y)
+        q, qdot = self.system.coordinates(self.stepper.y)
         return State(t=self.t, q=q, qdot=qdot)
 
     def advance(self, control: Any, duration: float) -> State:
@@ -152,64 +185,33 @@ class Live:
         EngineError
             The run failed in this stretch (and every call until :meth:`reset` says so).
         """
+        (outcome,) = self._records.advance([control], duration)
+        if isinstance(outcome, EngineError):
+            raise outcome
+        return outcome
+
+    # ------------------------------------------------------------------ internals
+    def _command(self, control: Any) -> np.ndarray:
+        """The command (A,) [m] of ``control`` (checked), or ``EngineError`` if the run has
+        failed."""
         if self._failure is not None:
             raise EngineError(self._failure, self.t)
-        u = actuator_command(self.system, np.array(control, dtype=float), self.t, "control")
-        if not (isinstance(duration, (int, float)) and math.isfinite(duration) and duration > 0):
-            raise ValueError(f"duration: must be a finite number > 0 [s], got {duration!r}")
-        self._hold(u)
-        stepper = self._stepper
-        if stepper is None:
-            stepper = self._stepper = self._start()
-        else:
-            stepper.restart()
-        stepper.set_counts(dict(nsteps=0, nswitches=0, nprojections=0))
-        nfev = stepper.nfev
-        bound = self.t + float(duration)
-        work = self.system.data.contact_work
-        while True:
-            code, check, value = stepper.run(bound, math.inf)
-            if work is not None:  # (the changes of mode are not kept)
-                work.log_count[0] = 0
-            if code == dop853.RUN_BOUNDARY:
-                break
-            if code in (dop853.RUN_SWITCHES, dop853.RUN_YIELD):
-                continue
-            self._fail(code, check, value, stepper.t)
+        return actuator_command(self.system, np.array(control, dtype=float), self.t, "control")
+
+    def _finish(self, code: int, check: int, value: float) -> State:
+        """Book a stretch that ended with ``code`` (:meth:`DOP853.run`'s; ``RUN_BOUNDARY``: it
+        reached its end): counts, time, the command held (after the bounds); the state, or
+        :class:`EngineError`."""
+        stepper = self.stepper
+        self.control = self.system.actuation.command.copy()
         counts = stepper.counts()
         self.nsteps += counts["nsteps"]
         self.nswitches += counts["nswitches"]
-        self.nfev += stepper.nfev - nfev
+        self.nfev = stepper.nfev
         self.t = stepper.t
+        if code != dop853.RUN_BOUNDARY:
+            self._fail(code, check, value, stepper.t)
         return self.state()
-
-    # ------------------------------------------------------------------ internals
-    def _hold(self, u: np.ndarray) -> None:
-        """Hold the command ``u`` (A,) from :attr:`t` on (the control's work ``W_u`` taking
-        the jump of the elastic energy, as the run loop's controller update does)."""
-        y = self._y if self._stepper is None else self._stepper.y
-        self.control = self.system.command(u, self.t, y)
-        self.system.take_control_log()  # (not kept)
-
-    def _start(self) -> DOP853:
-        """The stepper at the first stretch's start, the contacts' modes made there."""
-        system, o = self.system, self.options
-        work = system.data.contact_work
-        if work is not None:
-            here = system.stage_inputs(np.array([self.t]))
-            start_contacts_entry(system.model, here, self.t, self._y, event_work(system))
-            work.log_count[0] = 0
-        return DOP853(
-            system,
-            self.t,
-            self._y.copy(),
-            rtol=o.rtol,
-            atol=o.atol,
-            t_end=math.inf,
-            max_steps=o.max_steps,
-            projection_tol=o.projection_tol,
-            locate=True,
-        )
 
     def _fail(self, code: int, check: int, value: float, t: float) -> None:
         """Raise :class:`EngineError` for the return ``code`` of :meth:`DOP853.run` at ``t``
@@ -230,3 +232,127 @@ class Live:
             message = f"DOP853 returned code {code} at t = {t:.6g} s"
         self._failure = message
         raise EngineError(message, t)
+
+
+class _Records:
+    """The records of some :class:`Live` runs as the compiled stretch takes them (numba typed
+    lists: models, stage rows, points, loops), made once (the steppers are kept)."""
+
+    def __init__(self, lives: Sequence[Live]) -> None:
+        self.lives = list(lives)
+        systems = [live.system for live in self.lives]
+        self.models = typed.List([system.model for system in systems])
+        self.rows = typed.List([system.input_buffers(DOP853_C.size) for system in systems])
+        self.points = typed.List([system.input_buffers(1) for system in systems])
+        self.loops = typed.List([live.stepper.loop for live in self.lives])
+
+    def advance(
+        self, controls: Sequence[Any], duration: float, which: Sequence[int] | None = None
+    ) -> list[State | EngineError]:
+        """The runs ``which`` (indices; default all) holding their commands ``controls`` (one
+        each) for ``duration`` [s], all in one compiled call; each one's state at the end, or
+        its :class:`EngineError`."""
+        if not (isinstance(duration, (int, float)) and math.isfinite(duration) and duration > 0):
+            raise ValueError(f"duration: must be a finite number > 0 [s], got {duration!r}")
+        B = len(self.lives)
+        index = np.arange(B) if which is None else np.asarray(which, dtype=np.int64)
+        if len(controls) != index.size:
+            raise ValueError(f"controls: expected {index.size} commands, got {len(controls)}")
+        active = np.zeros(B, bool)
+        active[index] = True
+        commands = np.zeros((B, self.lives[0].control.size))
+        for b, u in zip(index, controls, strict=True):
+            commands[b] = self.lives[b]._command(u)
+        start = np.array([live.t for live in self.lives])
+        codes = np.zeros((B, 2), np.int64)
+        values = np.zeros(B)
+        advance_stretches(
+            self.models, self.rows, self.points, self.loops, active, commands, start,
+            start + float(duration), codes, values,
+        )  # fmt: skip
+        outcomes: list[State | EngineError] = []
+        for b in index:
+            try:
+                outcomes.append(self.lives[b]._finish(codes[b, 0], codes[b, 1], values[b]))
+            except EngineError as failure:
+                outcomes.append(failure)
+        return outcomes
+
+
+class LiveBatch:
+    """Copies of one structure advanced together (:class:`Live` runs of the same structure and
+    scene, their parameters free): one compiled call advances them all
+    (:func:`advance_stretches`), each exactly as its own :meth:`Live.advance` would."""
+
+    def __init__(self, lives: Sequence[Live]) -> None:
+        lives = list(lives)
+        if not lives:
+            raise ValueError("lives: need at least one Live run")
+        first = lives[0].structure
+        for b, live in enumerate(lives[1:], start=1):
+            s = live.structure
+            if not (
+                s.n_nodes == first.n_nodes
+                and np.array_equal(s.rod_nodes, first.rod_nodes)
+                and np.array_equal(s.tendon_nodes, first.tendon_nodes)
+                and live.control.size == lives[0].control.size
+            ):
+                raise ValueError(
+                    f"lives[{b}]: another structure or actuators than lives[0] (a batch holds "
+                    "copies of one structure)"
+                )
+        self.lives = lives
+        self._records = _Records(lives)
+
+    def advance(
+        self, controls: Sequence[Any], duration: float, which: Sequence[int] | None = None
+    ) -> list[State | EngineError]:
+        """Hold the command ``controls[k]`` (A,) [m] of copy ``which[k]`` (default: every copy,
+        in order) for ``duration`` [s]; each of those copies' state at the end, or the
+        :class:`EngineError` it failed with (the others go on).  ``ValueError`` naming
+        ``controls``, ``control`` or ``duration`` for a bad one."""
+        return self._records.advance(controls, duration, which)
+
+
+@njit(**EXACT_JIT_OPTIONS)
+def _clear_contact_log(work):  # pragma: no cover - compiled
+    """Forget the contacts' changes of mode (a live run does not keep them)."""
+    if work is not None:
+        work.log_count[0] = 0
+
+
+@njit(**EXACT_JIT_OPTIONS)
+def advance_stretches(
+    models, rows, points, loops, active, commands, start, bound, codes, values
+):  # pragma: no cover - compiled
+    """Advance each ``active`` run ``b`` (its records ``models[b]``, ``rows[b]``,
+    ``points[b]``, ``loops[b]``) from ``start[b]`` to ``bound[b]`` [s] holding ``commands[b]``
+    (A,) [m]:
+    the command held (:func:`compiled.held`: clipped to the bounds, the energy's jump booked),
+    the stepper restarted, then :func:`dop853.dop853_run` until it reaches ``bound[b]`` or
+    fails.  ``codes[b]`` = its last return code and check code, ``values[b]`` the check's
+    value."""
+    one = np.empty(1)
+    for b in range(len(models)):
+        if not active[b]:
+            continue
+        model, point, loop = models[b], points[b], loops[b]
+        one[0] = start[b]
+        make_inputs(model.callback, model.tables, one, point)
+        act = point.actuation
+        act.log_count[0] = 0
+        clip_command(act, commands[b], act.proposed)
+        held(model, point, start[b], loop.y, act.proposed)
+        act.log_count[0] = 0
+        loop.tally[RESTART] = 1
+        loop.tally[LANDING] = 0
+        loop.tally[NSTEPS] = 0
+        loop.tally[NSWITCHES] = 0
+        while True:
+            loop.tally[NEW_SWITCHES] = 0
+            code, check, value = dop853_run(model, rows[b], point, loop, bound[b], np.inf)
+            _clear_contact_log(point.contact_work)
+            if code in (RUN_SWITCHES, RUN_YIELD):
+                continue
+            codes[b, 0], codes[b, 1], values[b] = code, check, value
+            break

@@ -129,6 +129,11 @@ class TensegrityEnv(gymnasium.Env):
         self._nodes = np.zeros((N, 3))
         self._observation = np.zeros(6 * N + A, np.float32)
 
+    @property
+    def observation_size(self) -> int:
+        """The length of an observation (6 N + A)."""
+        return self._observation.size
+
     # ------------------------------------------------------------------ gymnasium
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
@@ -147,12 +152,22 @@ class TensegrityEnv(gymnasium.Env):
         terminated, truncated, info)``.  ``ValueError`` naming ``action`` if it has the wrong
         shape or is not finite."""
         command = self.command(action)
-        before = self._nodes
         try:
-            state = self.live.advance(command, self.control_period)
+            outcome: State | EngineError = self.live.advance(command, self.control_period)
         except EngineError as failure:
-            return self._observation.copy(), 0.0, True, False, {"failure": str(failure)}
-        velocity = self._observe(state)
+            outcome = failure
+        return self.outcome(outcome)
+
+    def outcome(
+        self, outcome: State | EngineError
+    ) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        """What :meth:`step` returns once the engine has advanced a control period to the state
+        ``outcome`` (or failed with it: the episode ends, the reason in ``info["failure"]``);
+        the vector environment advances its copies together and calls this for each."""
+        if isinstance(outcome, EngineError):
+            return self._observation.copy(), 0.0, True, False, {"failure": str(outcome)}
+        before = self._nodes
+        velocity = self._observe(outcome)
         motion = Motion(before, self._nodes, velocity, self.control_period, self.live.control)
         reward = float(self.task.reward(motion))
         return self._observation.copy(), reward, bool(self.task.terminated(motion)), False, {}
