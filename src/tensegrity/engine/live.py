@@ -21,7 +21,7 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
-from numba import njit, typed
+from numba import njit, prange, typed
 
 from tensegrity.engine import dop853
 from tensegrity.engine.actuation import clip_command
@@ -238,8 +238,9 @@ class _Records:
     """The records of some :class:`Live` runs as the compiled stretch takes them (numba typed
     lists: models, stage rows, points, loops), made once (the steppers are kept)."""
 
-    def __init__(self, lives: Sequence[Live]) -> None:
+    def __init__(self, lives: Sequence[Live], *, parallel: bool = False) -> None:
         self.lives = list(lives)
+        self.stretches = advance_stretches_parallel if parallel else advance_stretches
         systems = [live.system for live in self.lives]
         self.models = typed.List([system.model for system in systems])
         self.rows = typed.List([system.input_buffers(DOP853_C.size) for system in systems])
@@ -266,7 +267,7 @@ class _Records:
         start = np.array([live.t for live in self.lives])
         codes = np.zeros((B, 2), np.int64)
         values = np.zeros(B)
-        advance_stretches(
+        self.stretches(
             self.models, self.rows, self.points, self.loops, active, commands, start,
             start + float(duration), codes, values,
         )  # fmt: skip
@@ -281,10 +282,11 @@ class _Records:
 
 class LiveBatch:
     """Copies of one structure advanced together (:class:`Live` runs of the same structure and
-    scene, their parameters free): one compiled call advances them all
-    (:func:`advance_stretches`), each exactly as its own :meth:`Live.advance` would."""
+    scene, their parameters free): one compiled call advances them all, spread over numba's
+    threads (``parallel``, default) or one after the other (:func:`advance_stretches`), each
+    exactly as its own :meth:`Live.advance` would."""
 
-    def __init__(self, lives: Sequence[Live]) -> None:
+    def __init__(self, lives: Sequence[Live], *, parallel: bool = True) -> None:
         lives = list(lives)
         if not lives:
             raise ValueError("lives: need at least one Live run")
@@ -302,7 +304,7 @@ class LiveBatch:
                     "copies of one structure)"
                 )
         self.lives = lives
-        self._records = _Records(lives)
+        self._records = _Records(lives, parallel=parallel and len(lives) > 1)
 
     def advance(
         self, controls: Sequence[Any], duration: float, which: Sequence[int] | None = None
@@ -322,37 +324,54 @@ def _clear_contact_log(work):  # pragma: no cover - compiled
 
 
 @njit(**EXACT_JIT_OPTIONS)
+def advance_stretch(model, rows, point, loop, command, start, bound):  # pragma: no cover
+    """Advance one run (its records) from ``start`` to ``bound`` [s] holding ``command`` (A,)
+    [m]: the command held (:func:`compiled.held`: clipped to the bounds, the energy's jump
+    booked), the stepper restarted, then :func:`dop853.dop853_run` until it reaches ``bound``
+    or fails; its last ``(code, check code, check value)``."""
+    one = np.full(1, start)
+    make_inputs(model.callback, model.tables, one, point)
+    act = point.actuation
+    act.log_count[0] = 0
+    clip_command(act, command, act.proposed)
+    held(model, point, start, loop.y, act.proposed)
+    act.log_count[0] = 0
+    loop.tally[RESTART] = 1
+    loop.tally[LANDING] = 0
+    loop.tally[NSTEPS] = 0
+    loop.tally[NSWITCHES] = 0
+    while True:
+        loop.tally[NEW_SWITCHES] = 0
+        code, check, value = dop853_run(model, rows, point, loop, bound, np.inf)
+        _clear_contact_log(point.contact_work)
+        if code not in (RUN_SWITCHES, RUN_YIELD):
+            return code, check, value
+
+
+@njit(**EXACT_JIT_OPTIONS)
 def advance_stretches(
     models, rows, points, loops, active, commands, start, bound, codes, values
 ):  # pragma: no cover - compiled
-    """Advance each ``active`` run ``b`` (its records ``models[b]``, ``rows[b]``,
-    ``points[b]``, ``loops[b]``) from ``start[b]`` to ``bound[b]`` [s] holding ``commands[b]``
-    (A,) [m]:
-    the command held (:func:`compiled.held`: clipped to the bounds, the energy's jump booked),
-    the stepper restarted, then :func:`dop853.dop853_run` until it reaches ``bound[b]`` or
-    fails.  ``codes[b]`` = its last return code and check code, ``values[b]`` the check's
-    value."""
-    one = np.empty(1)
+    """:func:`advance_stretch` for each ``active`` run ``b`` (its records ``models[b]``,
+    ``rows[b]``, ``points[b]``, ``loops[b]``), one after the other: ``codes[b]`` = its last
+    return code and check code, ``values[b]`` the check's value."""
     for b in range(len(models)):
-        if not active[b]:
-            continue
-        model, point, loop = models[b], points[b], loops[b]
-        one[0] = start[b]
-        make_inputs(model.callback, model.tables, one, point)
-        act = point.actuation
-        act.log_count[0] = 0
-        clip_command(act, commands[b], act.proposed)
-        held(model, point, start[b], loop.y, act.proposed)
-        act.log_count[0] = 0
-        loop.tally[RESTART] = 1
-        loop.tally[LANDING] = 0
-        loop.tally[NSTEPS] = 0
-        loop.tally[NSWITCHES] = 0
-        while True:
-            loop.tally[NEW_SWITCHES] = 0
-            code, check, value = dop853_run(model, rows[b], point, loop, bound[b], np.inf)
-            _clear_contact_log(point.contact_work)
-            if code in (RUN_SWITCHES, RUN_YIELD):
-                continue
+        if active[b]:
+            code, check, value = advance_stretch(
+                models[b], rows[b], points[b], loops[b], commands[b], start[b], bound[b]
+            )
             codes[b, 0], codes[b, 1], values[b] = code, check, value
-            break
+
+
+@njit(parallel=True, **EXACT_JIT_OPTIONS)
+def advance_stretches_parallel(
+    models, rows, points, loops, active, commands, start, bound, codes, values
+):  # pragma: no cover - compiled
+    """:func:`advance_stretches` with the runs spread over numba's threads (each run's
+    arithmetic is its own: the results are those of one thread, bit for bit)."""
+    for b in prange(len(models)):
+        if active[b]:
+            code, check, value = advance_stretch(
+                models[b], rows[b], points[b], loops[b], commands[b], start[b], bound[b]
+            )
+            codes[b, 0], codes[b, 1], values[b] = code, check, value
