@@ -27,7 +27,6 @@ from tensegrity.engine import dop853
 from tensegrity.engine.actuation import clip_command
 from tensegrity.engine.compiled import DOP853_C, EXACT_JIT_OPTIONS, held, make_inputs
 from tensegrity.engine.dop853 import (
-    DOP853,
     LANDING,
     NEW_SWITCHES,
     NSTEPS,
@@ -42,6 +41,7 @@ from tensegrity.engine.loop import (
     actuator_command,
     blow_up_limits,
     check_initial,
+    dop853_stepper,
     failure_message,
 )
 from tensegrity.engine.options import DEFAULT_MAX_STEPS
@@ -126,19 +126,8 @@ class Live:
         self.t = math.nan
         self.control = np.zeros(system.actuation.position.size)
         self.nfev = self.nsteps = self.nswitches = 0
-        o = self.options
         #: the stepper, kept across resets (:meth:`DOP853.start_at`)
-        self.stepper = DOP853(
-            system,
-            0.0,
-            np.zeros(system.m),
-            rtol=o.rtol,
-            atol=o.atol,
-            t_end=math.inf,
-            max_steps=o.max_steps,
-            projection_tol=o.projection_tol,
-            locate=True,
-        )
+        self.stepper = dop853_stepper(system, 0.0, np.zeros(system.m), self.options, t_end=math.inf)
         self._failure: str | None = "no state yet: call reset(state) first"
         self._records = _Records([self])
 

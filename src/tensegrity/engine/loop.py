@@ -681,23 +681,38 @@ def _method(
     if o.method == "rk4":
         return RK4(run.system, t, y), _fixed_step
     if o.method == "DOP853":
-        stepper = DOP853(
-            run.system,
-            t,
-            y,
-            rtol=o.rtol,
-            atol=o.atol,
-            t_end=run.t_end,
-            max_steps=o.max_steps,
-            projection_tol=o.projection_tol,
-            locate=o.locate_switches,
-            memory=memory,
+        return dop853_stepper(run.system, t, y, o, t_end=run.t_end, memory=memory), (
+            _compiled_adaptive
         )
-        return stepper, _compiled_adaptive
     method = ScipyMethod(
         run.system, t, y, method=o.method, rtol=o.rtol, atol=o.atol, t_end=run.t_end
     )
     return method, _adaptive
+
+
+def dop853_stepper(
+    system: CompiledSystem,
+    t: float,
+    y: np.ndarray,
+    options: Options,
+    *,
+    t_end: float,
+    memory: StepperMemory | None = None,
+) -> DOP853:
+    """The DOP853 stepper of a run with ``options`` from ``(t, y)`` up to ``t_end`` [s] (and a
+    checkpoint's ``memory``)."""
+    return DOP853(
+        system,
+        t,
+        y,
+        rtol=options.rtol,
+        atol=options.atol,
+        t_end=t_end,
+        max_steps=options.max_steps,
+        projection_tol=options.projection_tol,
+        locate=options.locate_switches,
+        memory=memory,
+    )
 
 
 def _adaptive(run: _Run, stepper: Stepper, resume: LoopState | None) -> None:
