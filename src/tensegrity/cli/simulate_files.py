@@ -513,7 +513,11 @@ def _control_rows(trajectory) -> list[tuple[str, str]]:
             f"{_counted(len(trajectory.control_tendons), 'actuated tendon')}",
         )
     ]
-    for kind, what in (("bound", "at a rest-length bound"), ("rate", "at the rate limit")):
+    for kind, what in (
+        ("bound", "at a rest-length bound"),
+        ("rate", "at the rate limit"),
+        ("force", "at the tension cap"),
+    ):
         found = [x for x in trajectory.saturations() if x.kind == kind]
         if found:
             tendons = sorted({x.tendon for x in found})

@@ -150,11 +150,6 @@ class Inputs:
                 )
             if actuators.tendons.size and actuators.tendons.max() >= structure.n_tendons:
                 raise ValueError("actuators: made for another structure (a tendon out of range)")
-            if np.any(np.isfinite(actuators.max_tension)):
-                raise ValueError(
-                    "actuators.max_tension: a tension cap (a winch's max_torque) is not simulated "
-                    "yet; leave it out"
-                )
             if self.control.kind != "none":
                 raise ValueError(
                     "control: the actuated tendons follow their commands (a controller's); give "

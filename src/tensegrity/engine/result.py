@@ -234,8 +234,9 @@ class SimulationResult:
 
     def saturations(self) -> list[Saturation]:
         """Where the actuators' limits bound the commands: each stretch of time an actuated
-        tendon's command sat on a rest-length bound (``"bound"``), or its control moved at the
-        rate limit (``"rate"``), in time order."""
+        tendon's command sat on a rest-length bound (``"bound"``), its control moved at the
+        rate limit (``"rate"``), or its tension was at its cap (``"force"``, from the first to
+        the last sample of a run of samples at it), in time order."""
         settings = self.settings.get("actuators")
         if settings is None or self.control_time.size == 0:
             return []
@@ -249,6 +250,7 @@ class SimulationResult:
         low = rest0 - limit("max_rest_length", np.inf)
         high = rest0 - limit("min_rest_length", 0.0)
         rate, tau = limit("max_rate", np.inf), limit("time_constant", 0.0)
+        cap = limit("max_tension", np.inf)
         ends = np.append(self.control_time[1:], self.t[-1] if self.t.size else np.inf)
         found: list[Saturation] = []
         for a, name in enumerate(names):
@@ -257,6 +259,9 @@ class SimulationResult:
             ramp = np.zeros(command.size)
             if np.isfinite(rate[a]):  # (the time at the rate limit, model.actuators)
                 ramp = np.maximum(np.abs(command - applied) - rate[a] * tau[a], 0.0) / rate[a]
+            at_cap = self.tendon_tension[:, index[a]] >= cap[a] * (1.0 - 1e-12)
+            edges = np.diff(np.concatenate([[0], at_cap.astype(int), [0]]))
+            first, last = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1
             for kind, starts, stops in (
                 ("bound", self.control_time[on_bound], ends[on_bound]),
                 (
@@ -264,6 +269,7 @@ class SimulationResult:
                     self.control_time[ramp > 0],
                     np.minimum(self.control_time + ramp, ends)[ramp > 0],
                 ),
+                ("force", self.t[first], self.t[last]),
             ):
                 for start, stop in zip(starts, stops, strict=True):
                     if found and found[-1][:2] == (name, kind) and found[-1].end == start:

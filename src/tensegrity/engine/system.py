@@ -117,6 +117,10 @@ class CompiledSystem:
                     structure, feedback, tendon_position, packed.layout.node_slot, t0
                 )
             )
+        if self.actuators is not None and np.any(np.isfinite(self.actuators.max_tension)):
+            caps = np.full(S, np.inf)
+            caps[tendon_position[self.actuators.tendons]] = self.actuators.max_tension
+            self.model = self.model._replace(tendon_max_tension=caps)
         if self.actuators is not None:
             outputs = 0 if feedback is None else feedback.y_ref.size
             actuation = pack_actuation(

@@ -11,8 +11,9 @@ applied control ``u`` toward it:
 - ``u`` follows a first-order lag ``du/dt = (u_cmd - u) / time_constant`` (``time_constant`` 0:
   no lag), its rate clipped to ``max_rate`` [m/s] (infinite: no limit; with neither, ``u`` jumps
   to the command, a zero-order hold);
-- ``max_tension`` [N] would cap the tendon's tension (a winch that pays out cable beyond its
-  torque): kept with the actuators, but not simulated yet (a run refuses a finite one).
+- ``max_tension`` [N] caps the tendon's tension (a motor that cannot hold more, as MuJoCo's
+  ``forcerange``): ``T = min(k (l - Lbar) + c l', max_tension)``, its spring's potential growing
+  linearly beyond ``k x = max_tension`` (``tensegrity.physics.kernel.capped_energy``).
 
 Between two commands the applied control is a closed-form function of time (a ramp at the rate
 limit, then the lag's exponential), so the engine needs no extra state for it.
@@ -44,8 +45,7 @@ class Winch:
         Largest drum speed [rad/s] (> 0): the rate limit is ``radius * max_speed`` [m/s].
     max_torque : float, optional
         Largest torque [N m] (> 0): the tension cap is ``max_torque / radius`` [N] (None: no
-        cap; the engine does not simulate a cap yet, :class:`~tensegrity.engine.inputs.Inputs`
-        refuses one).
+        cap).
     """
 
     radius: float

@@ -141,13 +141,15 @@ def _node_pass(tendon_damping, model, data, q, qdot):  # pragma: no cover - comp
 
 
 @njit(inline="always", **JIT_OPTIONS)
-def _tendon_force(tx, ty, tz, length, rest, stiffness, c, t_dot_dv):  # pragma: no cover
+def _tendon_force(tx, ty, tz, length, rest, stiffness, c, t_dot_dv, cap):  # pragma: no cover
     """One tendon from its vector ``t = p_head - p_tail`` and ``length = |t|``: returns
     ``(tension, elastic_tension, fx, fy, fz, dissipated_power)``, with ``f = T t / l`` the force
     on the tail (the head gets ``-f``).  ``c`` is None (undamped; ``t_dot_dv`` unused) or the
     damping coefficient, and ``t_dot_dv = t . (p'_head - p'_tail)``, so that the length rate is
-    ``t_dot_dv / l``.  A slack tendon (``l <= Lbar``) gives zeros, without branches (so that runs
-    of tendons vectorize); its ``1/l`` is not formed."""
+    ``t_dot_dv / l``.  ``cap`` is None or the largest tension [N] (an actuator's winch): the
+    tension and its elastic part are capped there (the spring's potential grows linearly
+    beyond, :func:`capped_energy`).  A slack tendon (``l <= Lbar``) gives zeros, without
+    branches (so that runs of tendons vectorize); its ``1/l`` is not formed."""
     stretch = length - rest
     taut = stretch > 0.0  # then length > 0: rest lengths are >= 0
     inv = 1.0 / (length if taut else 1.0)  # one division instead of three (an ulp at most)
@@ -162,8 +164,24 @@ def _tendon_force(tx, ty, tz, length, rest, stiffness, c, t_dot_dv):  # pragma: 
         total = elastic + c * rate if taut else 0.0
         if total < 0.0:
             total = 0.0
+        if cap is not None:
+            elastic = min(elastic, cap)
+            total = min(total, cap)
         dissipated = (total - elastic) * rate
+    elif cap is not None:
+        elastic = min(elastic, cap)
+        total = elastic
     return total, elastic, total * ex, total * ey, total * ez, dissipated
+
+
+@njit(inline="always", **JIT_OPTIONS)
+def capped_energy(stiffness, stretch, cap):  # pragma: no cover - compiled
+    """Twice the elastic energy [J] of a taut tendon stretched by ``stretch`` [m] whose tension
+    is capped at ``cap`` [N] (None: no cap): ``k x^2`` while ``k x <= cap``, then
+    ``2 cap x - cap^2 / k`` (the cap's tension times the stretch beyond)."""
+    if cap is not None and stiffness * stretch > cap:
+        return 2.0 * cap * stretch - cap * cap / stiffness
+    return stiffness * stretch * stretch
 
 
 @njit(inline="always", **JIT_OPTIONS)
@@ -199,7 +217,7 @@ def _tendon_rates(data, a, b, first, n):  # pragma: no cover - compiled
 
 
 @compiled_only
-def _tendon_run(tendon_damping, model, data, rest, a, b, first, n):  # pragma: no cover
+def _tendon_run(tendon_damping, tendon_cap, model, data, rest, a, b, first, n):  # pragma: no cover
     """A run of ``n`` tendons whose tails and heads sit at consecutive slots: tendon ``e`` of the
     run is at kernel position ``first + e``, its tail at slot ``a + e`` and its head at
     ``b + e`` of ``data.node_position`` and ``data.node_force``; ``rest`` (S,) the rest lengths.
@@ -223,16 +241,25 @@ def _tendon_run(tendon_damping, model, data, rest, a, b, first, n):  # pragma: n
         ty = p[1, ib] - p[1, ia]
         tz = p[2, ib] - p[2, ia]
         length = np.sqrt(tx * tx + ty * ty + tz * tz)
+        cap = _cap(tendon_cap, s)
         if tendon_damping is None:
             total, elastic, fx, fy, fz, _ = _tendon_force(
-                tx, ty, tz, length, rest[s], stiffness[s], None, 0.0
+                tx, ty, tz, length, rest[s], stiffness[s], None, 0.0, cap
             )
         else:
             total, elastic, fx, fy, fz, power = _tendon_force(
-                tx, ty, tz, length, rest[s], stiffness[s], tendon_damping[s], damping_power[s]
+                tx, ty, tz, length, rest[s], stiffness[s], tendon_damping[s], damping_power[s], cap
             )
             damping_power[s] = power
         _store_tendon(data, s, ia, ib, total, elastic, (fx, fy, fz))
+
+
+@njit(inline="always", **JIT_OPTIONS)
+def _cap(tendon_cap, s):  # pragma: no cover - compiled
+    """Tendon ``s``'s tension cap [N] (``model.tendon_max_tension``), or None without caps."""
+    if tendon_cap is None:
+        return None
+    return tendon_cap[s]
 
 
 @njit(inline="always", **JIT_OPTIONS)
@@ -252,14 +279,15 @@ def _sum(values):  # pragma: no cover - compiled
 
 
 @njit(inline="always", **JIT_OPTIONS)
-def _tendon_pass(tendon_damping, model, data, rest):  # pragma: no cover - compiled
+def _tendon_pass(tendon_damping, tendon_cap, model, data, rest):  # pragma: no cover - compiled
     """Every tendon: tension and elastic tension into ``data``, nodal forces added to
     ``data.node_force``, the tail pulled toward the head and the head toward the tail;
     ``rest`` (S,) the rest lengths.  The runs (:func:`_tendon_run`) first, then the tendons
     outside runs, one by one through ``model.tendon_slots``.  Returns the power removed by
     tendon damping.  With ``tendon_damping`` (``model.tendon_damping``) None (all ``c = 0``)
     the node velocities are not read and the tension is the elastic tension: the same numbers
-    as with zero damping, for finite velocities."""
+    as with zero damping, for finite velocities.  ``tendon_cap`` (``model.tendon_max_tension``)
+    None: no tension caps (compiled without them)."""
     dissipation = 0.0
     in_runs = 0
     tendon_runs = model.tendon_runs
@@ -273,7 +301,7 @@ def _tendon_pass(tendon_damping, model, data, rest):  # pragma: no cover - compi
         n = np.uint64(length)
         if tendon_damping is not None:
             _tendon_rates(data, a, b, first_run, n)
-        _tendon_run(tendon_damping, model, data, rest, a, b, first_run, n)
+        _tendon_run(tendon_damping, tendon_cap, model, data, rest, a, b, first_run, n)
         if tendon_damping is not None:
             dissipation += _sum(data.damping_power[start:in_runs])
     # The tendons outside runs (kernel positions in_runs:S), one by one.
@@ -290,9 +318,10 @@ def _tendon_pass(tendon_damping, model, data, rest):  # pragma: no cover - compi
             tension[s] = 0.0
             elastic_tension[s] = 0.0
             continue
+        cap = _cap(tendon_cap, in_runs + s)
         if tendon_damping is None:
             total, elastic, fx, fy, fz, _ = _tendon_force(
-                tx, ty, tz, length, rest[s], stiffness[s], None, 0.0
+                tx, ty, tz, length, rest[s], stiffness[s], None, 0.0, cap
             )
         else:
             t_dot_dv = (
@@ -301,8 +330,9 @@ def _tendon_pass(tendon_damping, model, data, rest):  # pragma: no cover - compi
                 + tz * (v[2, head] - v[2, tail])
             )
             total, elastic, fx, fy, fz, d = _tendon_force(
-                tx, ty, tz, length, rest[s], stiffness[s], tendon_damping[in_runs + s], t_dot_dv
-            )
+                tx, ty, tz, length, rest[s], stiffness[s], tendon_damping[in_runs + s], t_dot_dv,
+                cap,
+            )  # fmt: skip
             dissipation += d
         _store_tendon(data, in_runs + s, tail, head, total, elastic, (fx, fy, fz))
     return dissipation
@@ -534,27 +564,34 @@ def rhs(model, data, s, q, qdot, qddot):  # pragma: no cover - compiled
     ``model.tendon_damping`` is None when every ``c`` is 0 (the undamped specialization,
     chosen at compile time); ``data.node_force`` is zero on entry and left zero.
     """
-    return _rhs(model.tendon_damping, model.contacts, model, data, s, q, qdot, qddot)
+    return _rhs(
+        model.tendon_damping, model.tendon_max_tension, model.contacts, model, data, s, q, qdot,
+        qddot,
+    )  # fmt: skip
 
 
 @compiled_only
-def _rhs(tendon_damping, contacts, model, data, s, q, qdot, qddot):  # pragma: no cover
-    """:func:`rhs` with ``tendon_damping`` and ``contacts`` (``model.tendon_damping``,
-    ``model.contacts``) arguments: the passes inlined here test them for None, which numba
-    decides at compile time only for an argument."""
-    return rhs_passes(tendon_damping, contacts, model, data, s, q, qdot, qddot)
+def _rhs(tendon_damping, tendon_cap, contacts, model, data, s, q, qdot, qddot):  # pragma: no cover
+    """:func:`rhs` with ``tendon_damping``, ``tendon_cap`` and ``contacts``
+    (``model.tendon_damping``, ``model.tendon_max_tension``, ``model.contacts``) arguments: the
+    passes inlined here test them for None, which numba decides at compile time only for an
+    argument."""
+    return rhs_passes(tendon_damping, tendon_cap, contacts, model, data, s, q, qdot, qddot)
 
 
 @njit(inline="always", **JIT_OPTIONS)
-def rhs_passes(tendon_damping, contacts, model, data, s, q, qdot, qddot):  # pragma: no cover
-    """The passes of :func:`rhs`, inlined into a function that has ``tendon_damping`` and
-    ``contacts`` (``model.tendon_damping``, ``model.contacts``) as arguments (:func:`_rhs`, and
-    ``kernel_system._system_rhs``): one call per evaluation takes the records.  With contacts
+def rhs_passes(
+    tendon_damping, tendon_cap, contacts, model, data, s, q, qdot, qddot
+):  # pragma: no cover
+    """The passes of :func:`rhs`, inlined into a function that has ``tendon_damping``,
+    ``tendon_cap`` and ``contacts`` (``model.tendon_damping``, ``model.tendon_max_tension``,
+    ``model.contacts``) as arguments (:func:`_rhs`, and ``kernel_system._system_rhs``): one
+    call per evaluation takes the records.  With contacts
     (:mod:`tensegrity.physics.contact`), their normal and sliding forces join the tendons'
     before the rod pass, and the sticking ends are held after it."""
     rest = stage_row(data.rest, s)
     _node_pass(tendon_damping, model, data, q, qdot)
-    tendon_dissipation = _tendon_pass(tendon_damping, model, data, rest)
+    tendon_dissipation = _tendon_pass(tendon_damping, tendon_cap, model, data, rest)
     if contacts is not None:
         tendon_dissipation += contact_pass(contacts, model, data, q, qdot)
     rod_dissipation, external_power = _rod_pass(
@@ -602,8 +639,15 @@ def project(q, qdot, rod_param):  # pragma: no cover - compiled
 def energies(model, data, rest, q, qdot):  # pragma: no cover - compiled
     """``(kinetic, elastic, gravity)`` energies [J] of the rods and tendons, as
     ``dynamics.kinetic_energy``, ``elastic_energy`` and ``gravity_energy``, with the rest
-    lengths ``rest`` (S,) [m], kernel order; ``data.node_position`` receives the node
-    positions."""
+    lengths ``rest`` (S,) [m], kernel order (the tensions capped by ``model.tendon_max_tension``:
+    :func:`capped_energy`); ``data.node_position`` receives the node positions."""
+    return _energies(model.tendon_max_tension, model, data, rest, q, qdot)
+
+
+@njit(**JIT_OPTIONS)
+def _energies(tendon_cap, model, data, rest, q, qdot):  # pragma: no cover - compiled
+    """:func:`energies` with ``tendon_cap`` (``model.tendon_max_tension``) an argument, which
+    numba tests for None at compile time."""
     p = data.node_position
     rod_slots, rod_param = model.rod_slots, model.rod_param
     has_gravity, gravity = model.has_gravity, model.gravity
@@ -627,7 +671,7 @@ def energies(model, data, rest, q, qdot):  # pragma: no cover - compiled
         _, _, tx, ty, tz = tendon_vector(p, tendon_slots, s)
         stretch = np.sqrt(tx * tx + ty * ty + tz * tz) - rest[s]
         if stretch > 0.0:
-            elastic += stiffness[s] * stretch * stretch
+            elastic += capped_energy(stiffness[s], stretch, _cap(tendon_cap, s))
     return kinetic, 0.5 * elastic, potential
 
 

@@ -674,13 +674,14 @@ def system_rhs(model, data, s, q, qdot, qddot):  # pragma: no cover - compiled
     joint and support forces are added (:func:`_constraint_pass`).
     """
     return _system_rhs(
-        model.constraints, model.tendon_damping, model.contacts, model, data, s, q, qdot, qddot
-    )
+        model.constraints, model.tendon_damping, model.tendon_max_tension, model.contacts, model,
+        data, s, q, qdot, qddot,
+    )  # fmt: skip
 
 
 @compiled_only
 def _system_rhs(
-    constraints, tendon_damping, contacts, model, data, s, q, qdot, qddot
+    constraints, tendon_damping, tendon_cap, contacts, model, data, s, q, qdot, qddot
 ):  # pragma: no cover - compiled
     """:func:`system_rhs`, with the optional parts ``constraints``, ``tendon_damping`` and
     ``contacts`` (``model.constraints``, ``model.tendon_damping``, ``model.contacts``)
@@ -691,11 +692,13 @@ def _system_rhs(
     rest: a sticking end is held by its own rod, ``contact.stick_pass``, a sticking point mass
     by itself, ``contact.mass_stick_pass``)."""
     if constraints is None:
-        return rhs_passes(tendon_damping, contacts, model, data, s, q, qdot, qddot)
+        return rhs_passes(tendon_damping, tendon_cap, contacts, model, data, s, q, qdot, qddot)
     damped = tendon_damping is not None
     n_rods = model.rod_slots.shape[0]
     _extra_nodes(constraints, q, qdot, n_rods, data.node_position, data.node_velocity, damped)
-    dissipated, external = rhs_passes(tendon_damping, contacts, model, data, s, q, qdot, qddot)
+    dissipated, external = rhs_passes(
+        tendon_damping, tendon_cap, contacts, model, data, s, q, qdot, qddot
+    )
     external += _point_mass_pass(model, data, qdot, qddot, stage_row(data.force, s))
     if contacts is not None:  # (the point masses' sticks, once they have their accelerations)
         dissipated += mass_stick_pass(contacts, data, qdot, qddot)

@@ -178,6 +178,9 @@ class Model(NamedTuple):
     limits: np.ndarray
     contacts: Contacts | None = None  #: planes the rods' ends touch; None: none
     feedback: FeedbackLaw | None = None  #: linear feedback run by compiled code; None: none
+    #: (S,) float64: the tendons' tension caps [N] (an actuator's winch; inf: none); None when
+    #: no tendon has one
+    tendon_max_tension: np.ndarray | None = None
 
 
 class Data(NamedTuple):
