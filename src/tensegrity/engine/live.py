@@ -45,6 +45,7 @@ from tensegrity.engine.loop import (
     failure_message,
 )
 from tensegrity.engine.options import DEFAULT_MAX_STEPS
+from tensegrity.engine.result import Samples
 from tensegrity.engine.simulate import options_and_inputs
 from tensegrity.engine.system import CompiledSystem
 from tensegrity.model.actuators import Actuators
@@ -161,6 +162,16 @@ class Live:
         """The state at :attr:`t`: coordinates [m] and rates [m/s] in the structure's order."""
         q, qdot = self.system.coordinates(self.stepper.y)
         return State(t=self.t, q=q, qdot=qdot)
+
+    def sample(self) -> Samples:
+        """The state at :attr:`t` as one sample (a :class:`Samples` block of one row: node
+        positions and velocities, tendon lengths and tensions, energies, the contact pairs'
+        forces and modes), from one evaluation as a run records its samples."""
+        system = self.system
+        work = system.data.contact_work
+        samples = Samples.empty(1, self.structure, 0 if work is None else work.mode.size)
+        system.record(samples, 0, self.t, self.stepper.y, system.stage_inputs(np.array([self.t])))
+        return samples
 
     def advance(self, control: Any, duration: float) -> State:
         """Hold the actuators' command ``control`` (A,) [m] (rest lengths ``L0 - u``; clipped

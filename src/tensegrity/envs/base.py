@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Sequence
 from typing import Any, Protocol
 
 import gymnasium
@@ -19,6 +20,7 @@ import numpy as np
 from gymnasium import spaces
 
 from tensegrity.engine.live import EngineError, Live
+from tensegrity.engine.sensors import Sensor, SensorReader
 from tensegrity.model.actuators import Actuators
 from tensegrity.model.structure import Structure
 from tensegrity.physics.coordinates import nodes_from_coordinates
@@ -76,9 +78,15 @@ class TensegrityEnv(gymnasium.Env):
     engine : dict, optional
         Options of :class:`~tensegrity.engine.live.Live` (``rtol``, ``atol``,
         ``max_rod_length_error``, ...).
+    sensors : sequence of Sensor, optional
+        What the learner observes, as hardware measures it
+        (:class:`~tensegrity.engine.sensors.Sensor`: markers, IMUs on rods, cable lengths and
+        tensions, contacts, with their noise, bias, delay and rate); their noise seeded from
+        ``self.np_random`` at each reset.
 
-    The observation (float32) is the node positions (3N) [m], their velocities (3N) [m/s] and
-    the actuated cables' lengths (A) [m].  An engine failure (a blow-up check) ends the episode
+    The observation (float32) is, without ``sensors``, the node positions (3N) [m], their
+    velocities (3N) [m/s] and the actuated cables' lengths (A) [m]; with them, their channels
+    (:attr:`observation_channels`).  An engine failure (a blow-up check) ends the episode
     (``terminated``, reward 0, the last good observation) with the reason in
     ``info["failure"]``.
     """
@@ -97,6 +105,7 @@ class TensegrityEnv(gymnasium.Env):
         control_period: float = 0.02,
         reset_noise: float = 0.0,
         engine: dict[str, Any] | None = None,
+        sensors: Sequence[Sensor] | None = None,
     ) -> None:
         if structure.dim != 3:
             raise ValueError("structure: environments are for spatial (3-D) structures")
@@ -128,6 +137,23 @@ class TensegrityEnv(gymnasium.Env):
         self.observation_space = spaces.Box(low_obs, np.float32(np.inf), dtype=np.float32)
         self._nodes = np.zeros((N, 3))
         self._observation = np.zeros(6 * N + A, np.float32)
+        self.reader: SensorReader | None = None
+        if sensors is not None:
+            planes = len(self.live.system.inputs.ground)
+            self.reader = SensorReader(structure, sensors, planes=planes, seed=0)
+            size = len(self.reader.channel)
+            self.observation_space = spaces.Box(-np.inf, np.inf, (size,), np.float32)
+            self._observation = np.zeros(size, np.float32)
+
+    @property
+    def observation_channels(self) -> tuple[str, ...]:
+        """What each entry of an observation is: the sensors' channels, or ``p{i}_x``...,
+        ``v{i}_x``..., ``length_{tendon}``."""
+        if self.reader is not None:
+            return tuple(self.reader.channel)
+        nodes = [f"{i}_{axis}" for i in range(self.structure.n_nodes) for axis in "xyz"]
+        lengths = [f"length_{self.structure.tendon_name[s]}" for s in self.actuators.tendons]
+        return (*(f"p{n}" for n in nodes), *(f"v{n}" for n in nodes), *lengths)
 
     @property
     def observation_size(self) -> int:
@@ -142,6 +168,8 @@ class TensegrityEnv(gymnasium.Env):
         ``reset_noise`` from the seeded ``self.np_random``."""
         super().reset(seed=seed)
         noise = self.np_random.normal(0.0, self.reset_noise, self.start.qdot.shape)
+        if self.reader is not None:
+            self.reader.reset(int(self.np_random.integers(2**31)))
         self.live.reset(State(t=0.0, q=self.start.q, qdot=self.start.qdot + noise))
         self._observe(self.live.state())
         self.task.start(self._nodes)
@@ -190,6 +218,22 @@ class TensegrityEnv(gymnasium.Env):
         s = self.structure
         self._nodes = nodes_from_coordinates(s, state.q)
         velocity = nodes_from_coordinates(s, state.qdot, rates=True)
+        if self.reader is not None:
+            extra: dict[str, np.ndarray] = {}
+            if self.reader.needs:
+                sample = self.live.sample()
+                extra = {
+                    "tension": sample.tendon_tension[0],
+                    "contact_mode": sample.contact_mode[0],
+                }
+            reading = self.reader(
+                state.t,
+                state.q,
+                state.qdot,
+                **{name: extra[name] for name in self.reader.needs},
+            )
+            self._observation = reading.value.astype(np.float32)
+            return velocity
         lengths = tendon_lengths(s, self._nodes)[self.actuators.tendons]
         self._observation = np.concatenate([self._nodes.ravel(), velocity.ravel(), lengths]).astype(
             np.float32
