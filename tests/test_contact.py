@@ -264,7 +264,7 @@ def test_a_stick_that_just_failed_slips_on_instead_of_chattering():
     """The six-bar robot of the learning environments released on its face: a rod end whose
     sticking force leaves the static cone slips at a fraction of 1 um/s, speeding up; the force
     it would need at rest sits a hair inside the cone.  A slow slip that speeds up past
-    ``SLOW_SLIP`` within ``SLOW_STOP`` slips on: the run passes that moment in a few hundred
+    ``SLOW_SLIP`` within ``SLOW_START`` slips on: the run passes that moment in a few hundred
     events (the rule for slow slips stuck it again, and it failed again 4e-13 s later,
     without end: 10^5 events, the run never reached 0.86 s)."""
     from tensegrity.design.catalogue import six_bar_robot
