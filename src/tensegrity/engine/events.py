@@ -500,11 +500,9 @@ def stick_slow_slips(contacts, model, data, t, y, events):  # pragma: no cover -
     velocity across it by ``mu_k F_n / |v_t|``).  A slip that speeds up is one whose stick has
     just failed: the force it would need at rest sits on the cone's edge, a hair inside after
     the sticks' impulses, and stuck again it would fail again a round-off later, without end
-    (a crawl speeds up far slower, and sticks).
-    The sticks are settled
-    (:func:`settle_sticks`, their speed removed by an impulse counted as dissipated) and
-    logged.  Returns whether a mode changed (the loop starts its steps anew); nothing without
-    contacts."""
+    (a crawl speeds up far slower, and sticks).  The sticks are settled (:func:`settle_sticks`,
+    their speed removed by an impulse counted as dissipated) and logged.  Returns whether a
+    mode changed (the loop starts its steps anew); nothing without contacts."""
     if contacts is None:
         return False
     work = data.contact_work
