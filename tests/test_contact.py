@@ -260,6 +260,30 @@ def test_a_prestressed_six_bar_resting_on_the_ground_does_not_creep():
     assert np.abs(run.node_position - run.node_position[0]).max() <= 1e-9
 
 
+def test_a_stick_that_just_failed_slips_on_instead_of_chattering():
+    """The six-bar robot of the learning environments released on its face: a rod end whose
+    sticking force leaves the static cone slips at a fraction of 1 um/s, speeding up; the force
+    it would need at rest sits a hair inside the cone.  A slow slip that speeds up past
+    ``SLOW_SLIP`` within ``SLOW_START`` slips on: the run passes that moment in a few hundred
+    events (the rule for slow slips stuck it again, and it failed again 4e-13 s later,
+    without end: 10^5 events, the run never reached 0.86 s)."""
+    from tensegrity.design.catalogue import six_bar_robot
+
+    robot = stand_on_face(six_bar_robot(damping=1.0), (0, 4, 8), contact_radius=RADIUS)
+    run = simulate(
+        robot,
+        (0.0, 0.86),
+        sample_dt=0.01,
+        gravity=[0.0, 0.0, -G],
+        ground=ground(friction=0.8, kinetic_friction=0.6),
+        contact_radius=RADIUS,
+        max_steps=60_000,
+    )
+    assert run.status == 0, run.message
+    assert run.contact_event_time.size < 1_000
+    assert run.contact_counts["slip"] > 10
+
+
 def test_a_streamed_run_with_contact_resumes_bit_for_bit(tmp_path):
     """A rod sliding to a stop, streamed in segments: interrupted after the first (its pairs
     slipping), resumed, it ends as the run that was not interrupted (the checkpoint keeps the

@@ -69,6 +69,7 @@ from tensegrity.physics.contact import (
     REVERSAL_SPEED,
     SLIP,
     SLOW_SLIP,
+    SLOW_START,
     SLOW_STOP,
     STICK,
     STICK_SPEED,
@@ -492,13 +493,16 @@ def stick_slow_slips(contacts, model, data, t, y, events):  # pragma: no cover -
     inputs there), once its samples are out: each pair slipping slower than :data:`SLOW_SLIP`
     that is not about to stop on its own (its velocity along the slip's direction ``s`` reaching
     ``-REVERSAL_SPEED`` within :data:`SLOW_STOP` at its deceleration along ``s``: that stop is
-    located as an event) sticks if the force it then needs is inside the static cone.
+    located as an event) nor to speed up (past :data:`SLOW_SLIP` along ``s`` within
+    :data:`SLOW_START`) sticks if the force it then needs is inside the static cone.
     A slip that crawls, its speed set by the structure's motion and its direction turning,
     would otherwise be followed one ever shorter step at a time (its friction damps the
-    velocity across it by ``mu_k F_n / |v_t|``).  The sticks are settled
-    (:func:`settle_sticks`, their speed removed by an impulse counted as dissipated) and
-    logged.  Returns whether a mode changed (the loop starts its steps anew); nothing without
-    contacts."""
+    velocity across it by ``mu_k F_n / |v_t|``).  A slip that speeds up is one whose stick has
+    just failed: the force it would need at rest sits on the cone's edge, a hair inside after
+    the sticks' impulses, and stuck again it would fail again a round-off later, without end
+    (a crawl speeds up far slower, and sticks).  The sticks are settled (:func:`settle_sticks`,
+    their speed removed by an impulse counted as dissipated) and logged.  Returns whether a
+    mode changed (the loop starts its steps anew); nothing without contacts."""
     if contacts is None:
         return False
     work = data.contact_work
@@ -518,10 +522,12 @@ def stick_slow_slips(contacts, model, data, t, y, events):  # pragma: no cover -
             tangential_velocity(contacts, y[n : 2 * n], k, v)
             tangential_velocity(contacts, events.qddot, k, a)
             s = work.slip_direction[k]
-            # the speed left to the located reversal (v_t . s = -REVERSAL_SPEED), its rate
-            left = v[0] * s[0] + v[1] * s[1] + v[2] * s[2] + REVERSAL_SPEED
+            # its speed along s, what is left of it to the located reversal (v_t . s =
+            # -REVERSAL_SPEED), the rate it falls at
+            along = v[0] * s[0] + v[1] * s[1] + v[2] * s[2]
+            left = along + REVERSAL_SPEED
             slowing = -(a[0] * s[0] + a[1] * s[1] + a[2] * s[2])
-            if left >= slowing * SLOW_STOP:
+            if left >= slowing * SLOW_STOP and along - slowing * SLOW_START <= SLOW_SLIP:
                 work.mode[k] = STICK
                 tried = True
     if not tried:  # (the work arrays are the kept modes')

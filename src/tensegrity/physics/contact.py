@@ -55,8 +55,11 @@ REVERSAL_SPEED = 0.5 * STICK_SPEED
 #: the static cone (the rule for slow slips: a vanishing velocity turns ever faster, and its
 #: direction field would stall the steps; :func:`tensegrity.engine.events.stick_slow_slips`).
 SLOW_SLIP = 1e-6
-#: ... unless its deceleration stops it within this time [s] (then the stop is located).
+#: ... unless its deceleration stops it within this time [s] (then the stop is located) ...
 SLOW_STOP = 1e-3
+#: ... or its acceleration takes it past :data:`SLOW_SLIP` within this time [s] (a stick that
+#: just failed, which kinetic friction cannot hold: it slips on; a crawl speeds up far slower).
+SLOW_START = 1e-5
 #: The log of the modes' changes (``ContactWork.log``) holds this many landings' worth (every
 #: pair changing) before the loop must take its rows.
 LOG_LANDINGS = 8
