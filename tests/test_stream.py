@@ -484,7 +484,7 @@ def test_the_streamed_options_are_the_fields_of_options():
 
     fields = {f.name: f.default for f in dataclasses.fields(Options)}
     inputs = {"initial", "control", "external_force", "gravity", "ground", "contact_radius"}
-    inputs |= {"controller", "stop"}
+    inputs |= {"controller", "actuators", "stop"}
     assert stream_module._SIMULATE_PARAMETERS == {**dict.fromkeys(inputs), **fields}
 
 
