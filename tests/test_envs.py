@@ -202,3 +202,36 @@ def test_engine_blow_up_ends_the_episode_with_the_reason():
     assert "unstable: a rod's length error" in info["failure"]
     np.testing.assert_array_equal(after, obs)  # the last good observation
     assert env.step(np.zeros(env.action_space.shape))[2]  # and again, not an exception
+
+
+def test_a_policy_run_in_simulate_passes_through_the_states_the_steps_give():
+    """``env.simulate(policy, duration)`` (the whole run, for animations and files) is at the
+    end of each control period where stepping the environment with the same policy is."""
+    env = three_bar_crawl(reset_noise=0.01)
+    A, size = env.action_space.shape[0], env.observation_size
+    gain = np.random.default_rng(2).normal(scale=0.5, size=(A, size)).astype(np.float32)
+
+    def policy(observation):
+        return np.tanh(gain @ (observation - first))
+
+    first, _ = env.reset(seed=4)
+    nodes = [first[: 3 * env.structure.n_nodes]]
+    observation = first
+    for _ in range(8):
+        observation, *_ = env.step(policy(observation))
+        nodes.append(observation[: 3 * env.structure.n_nodes])
+    result = env.simulate(policy, 8 * env.control_period, seed=4)
+    assert result.success, result.message
+    np.testing.assert_allclose(result.t, env.control_period * np.arange(9), rtol=0, atol=1e-12)
+    ran = result.node_position.reshape(9, -1).astype(np.float32)
+    np.testing.assert_allclose(ran, np.array(nodes), rtol=0, atol=1e-6)
+    assert np.abs(ran[-1] - ran[0]).max() > 1e-3  # (the policy moved it)
+    assert np.ptp(result.control_applied, axis=0).max() > 0.01
+
+
+def test_an_environment_with_sensors_is_not_run_in_simulate():
+    from tensegrity.engine.sensors import Sensor
+
+    env = three_bar_crawl(sensors=[Sensor("length", tendons=[0])])
+    with pytest.raises(ValueError, match="simulate: an environment with sensors"):
+        env.simulate(lambda obs: np.zeros(9), 0.1)

@@ -37,7 +37,6 @@ from tensegrity.engine import dop853_tableau
 from tensegrity.engine.actuation import actuate, clip_command, hold_command
 from tensegrity.physics.compiling import (
     JIT_OPTIONS,
-    JitOptions,
     compiled_only,
 )
 from tensegrity.physics.contact import record_contacts
@@ -85,13 +84,12 @@ ENERGY_CHECK_EVERY = 8
 
 
 # --------------------------------------------------------------------------- tables
-#: Options of the tables' code: no fused multiply-adds, so that the rows and stage times are
-#: bit for bit those NumPy computes (:meth:`tensegrity.model.loads.ForceTable.at`): a table
-#: drives a run exactly as the same table called as a function of time does.
-EXACT_JIT_OPTIONS: JitOptions = {**JIT_OPTIONS, "fastmath": set()}
+# (Compiled without fused multiply-adds, as all the package's code: the rows and stage times
+# are bit for bit those NumPy computes, :meth:`tensegrity.model.loads.ForceTable.at`, so that a
+# table drives a run exactly as the same table called as a function of time does.)
 
 
-@njit(**EXACT_JIT_OPTIONS)
+@njit(**JIT_OPTIONS)
 def _table_rows(time, values, zero_outside, times, rows, slopes):  # pragma: no cover
     """Rows (K, X) of a piecewise-linear table at ``times`` (K,) [s] into ``rows``, as
     :meth:`tensegrity.model.loads.ForceTable.at`: ``time`` (T,) strictly increasing,
@@ -120,7 +118,7 @@ def _table_rows(time, values, zero_outside, times, rows, slopes):  # pragma: no 
                 slopes[k, x] = slope
 
 
-@njit(**EXACT_JIT_OPTIONS)
+@njit(**JIT_OPTIONS)
 def rk4_stage_times(t, k, h, out):  # pragma: no cover - compiled
     """The stage times of step ``k`` of ``h`` [s] from ``t`` [s] into ``out`` (4,), as Python
     computes them (``t + k h + RK4_C h``)."""
@@ -128,7 +126,7 @@ def rk4_stage_times(t, k, h, out):  # pragma: no cover - compiled
         out[i] = (t + k * h) + RK4_C[i] * h
 
 
-@njit(**EXACT_JIT_OPTIONS)
+@njit(**JIT_OPTIONS)
 def fill_stage_inputs(tables, times, data):  # pragma: no cover - compiled
     """The rows of the tabulated inputs at the stage ``times`` (K,) [s] into ``data``: with a
     control table, ``data.rest`` (K, S) the rest lengths ``Lbar = L0 - u`` [m] and ``data.rate``
@@ -469,10 +467,10 @@ def judge_state(model, data, s, y, errors, limits, with_energy):  # pragma: no c
     return CHECK_OK, max(rod_error, constraint_error)
 
 
-@njit(**EXACT_JIT_OPTIONS)
+@njit(**JIT_OPTIONS)
 def tendon_lengths(p, tendon_slots, out):  # pragma: no cover - compiled
     """``|p_head - p_tail|`` [m] per tendon (kernel order) from node positions ``p``
-    (3, n_slots), without fused multiply-adds: bit for bit
+    (3, n_slots): bit for bit
     :func:`tensegrity.physics.dynamics.tendon_lengths`, which a trajectory file's reader
     computes them with (they are not stored)."""
     for s in range(tendon_slots.shape[0]):

@@ -39,7 +39,6 @@ from tensegrity.engine.compiled import (
     CHECK_OK,
     DOP853_C,
     DOP853_STAGES,
-    EXACT_JIT_OPTIONS,
     check_state,
     dop853_attempt,
     dop853_dense,
@@ -65,6 +64,7 @@ from tensegrity.engine.events import (
 )
 from tensegrity.engine.steppers import StepperMemory
 from tensegrity.engine.system import CompiledSystem
+from tensegrity.physics.compiling import JIT_OPTIONS
 from tensegrity.physics.contact import refresh_slips
 from tensegrity.physics.kernel import copy_values
 from tensegrity.physics.kernel_system import system_project
@@ -150,7 +150,7 @@ class LoopWork(NamedTuple):
     settings: tuple
 
 
-@njit(**EXACT_JIT_OPTIONS)
+@njit(**JIT_OPTIONS)
 def dop853_run(model, rows, point, loop, bound, next_sample_t):  # pragma: no cover - compiled
     """The adaptive loop from ``loop.clock[T]`` until the samples of a step are due, the step
     reaches ``bound`` [s], or the run must stop (see the module doc); ``(code, check code,

@@ -56,7 +56,6 @@ import numpy as np
 from numba import njit, objmode
 
 from tensegrity.engine.compiled import (
-    EXACT_JIT_OPTIONS,
     dop853_interpolate,
     make_inputs,
 )
@@ -286,7 +285,7 @@ class DenseOutputHandle:
         del DENSE_OUTPUTS[self.handle]
 
 
-@compiled_only(jit_options=EXACT_JIT_OPTIONS)
+@compiled_only
 def _distance_at(model, point, varying, dense_callback, step, events, count, t):  # pragma: no cover
     """:func:`event_distance` at the time ``t`` [s] inside the step, its inputs made into
     ``point`` where they vary; ``(least distance, inputs failed)``."""
@@ -303,7 +302,7 @@ def _distance_at(model, point, varying, dense_callback, step, events, count, t):
     return event_distance(model, point, events.y_at, events, count), False
 
 
-@compiled_only(jit_options=EXACT_JIT_OPTIONS)
+@compiled_only
 def locate_event(model, point, varying, dense_callback, step, events, count):  # pragma: no cover
     """The first event among the ``count`` candidates inside the step ``step`` = ``(t_lo, t_hi
     [s], F, y_old)``: its time [s], the events fired there marked in ``events.fired`` with
@@ -313,9 +312,7 @@ def locate_event(model, point, varying, dense_callback, step, events, count):  #
     ``point`` is a data record of one input row, made at each time where the inputs vary
     (``varying``); the state inside the step is the DOP853 polynomial ``F`` from ``y_old``
     (:func:`compiled.dop853_interpolate`) when ``dense_callback`` is None, else the Python dense
-    output of that handle (:data:`DENSE_OUTPUTS`).  Compiled without fused multiply-adds, as the
-    loops computed these times before the mechanism was shared (Python for scipy's methods, the
-    DOP853 loop's exact options): the switch times are theirs bit for bit."""
+    output of that handle (:data:`DENSE_OUTPUTS`)."""
     t_lo, t_hi = step[0], step[1]
     input_time = np.nan
     g_lo, failed = _distance_at(model, point, varying, dense_callback, step, events, count, t_lo)
@@ -362,7 +359,7 @@ def locate_event(model, point, varying, dense_callback, step, events, count):  #
 LO, HI, G_LO, G_HI, KEPT, WIDTH, BISECT, TOL = range(8)
 
 
-@njit(**EXACT_JIT_OPTIONS)
+@njit(**JIT_OPTIONS)
 def bracket_start(lo, hi, g_lo, g_hi, tol):  # pragma: no cover - compiled
     """A bracket ``[lo, hi]`` [s] of the first root of a distance ``g`` (``g(lo) > 0 >= g(hi)``)
     for :func:`bracket_next`: regula falsi with the Illinois modification (superlinear on a
@@ -381,7 +378,7 @@ def bracket_start(lo, hi, g_lo, g_hi, tol):  # pragma: no cover - compiled
     return b
 
 
-@njit(**EXACT_JIT_OPTIONS)
+@njit(**JIT_OPTIONS)
 def bracket_next(b, t, g):  # pragma: no cover - compiled
     """The bracket after the distance ``g`` at the time ``t`` [s] it asked for (nothing if ``t``
     is NaN), and the next time to evaluate the distance at, or NaN once the bracket is within

@@ -25,7 +25,7 @@ from numba import njit, prange, typed
 
 from tensegrity.engine import dop853
 from tensegrity.engine.actuation import clip_command
-from tensegrity.engine.compiled import DOP853_C, EXACT_JIT_OPTIONS, held, make_inputs
+from tensegrity.engine.compiled import DOP853_C, held, make_inputs
 from tensegrity.engine.dop853 import (
     LANDING,
     NEW_SWITCHES,
@@ -50,6 +50,7 @@ from tensegrity.engine.simulate import options_and_inputs
 from tensegrity.engine.system import CompiledSystem
 from tensegrity.model.actuators import Actuators
 from tensegrity.model.structure import Structure
+from tensegrity.physics.compiling import JIT_OPTIONS
 from tensegrity.physics.dynamics import State
 
 __all__ = ["EngineError", "Live", "LiveBatch", "advance_stretches"]
@@ -316,14 +317,14 @@ class LiveBatch:
         return self._records.advance(controls, duration, which)
 
 
-@njit(**EXACT_JIT_OPTIONS)
+@njit(**JIT_OPTIONS)
 def _clear_contact_log(work):  # pragma: no cover - compiled
     """Forget the contacts' changes of mode (a live run does not keep them)."""
     if work is not None:
         work.log_count[0] = 0
 
 
-@njit(**EXACT_JIT_OPTIONS)
+@njit(**JIT_OPTIONS)
 def advance_stretch(model, rows, point, loop, command, start, bound):  # pragma: no cover
     """Advance one run (its records) from ``start`` to ``bound`` [s] holding ``command`` (A,)
     [m]: the command held (:func:`compiled.held`: clipped to the bounds, the energy's jump
@@ -348,7 +349,7 @@ def advance_stretch(model, rows, point, loop, command, start, bound):  # pragma:
             return code, check, value
 
 
-@njit(**EXACT_JIT_OPTIONS)
+@njit(**JIT_OPTIONS)
 def advance_stretches(
     models, rows, points, loops, active, commands, start, bound, codes, values
 ):  # pragma: no cover - compiled
@@ -363,7 +364,7 @@ def advance_stretches(
             codes[b, 0], codes[b, 1], values[b] = code, check, value
 
 
-@njit(parallel=True, **EXACT_JIT_OPTIONS)
+@njit(parallel=True, **JIT_OPTIONS)
 def advance_stretches_parallel(
     models, rows, points, loops, active, commands, start, bound, codes, values
 ):  # pragma: no cover - compiled

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any, Protocol
 
 import gymnasium
@@ -20,7 +20,10 @@ import numpy as np
 from gymnasium import spaces
 
 from tensegrity.engine.live import EngineError, Live
+from tensegrity.engine.loop import Feedback
+from tensegrity.engine.result import SimulationResult
 from tensegrity.engine.sensors import Sensor, SensorReader
+from tensegrity.engine.simulate import simulate
 from tensegrity.model.actuators import Actuators
 from tensegrity.model.structure import Structure
 from tensegrity.physics.coordinates import nodes_from_coordinates
@@ -122,6 +125,8 @@ class TensegrityEnv(gymnasium.Env):
         self.structure, self.task, self.actuators = structure, task, actuators
         self.control_period, self.reset_noise = float(control_period), float(reset_noise)
         self.command_low, self.command_high = low, high
+        self.scene = {"gravity": gravity, "ground": ground, "contact_radius": contact_radius}
+        self.engine = dict(engine or {})
         self.live = Live(
             structure,
             actuators=actuators,
@@ -199,6 +204,40 @@ class TensegrityEnv(gymnasium.Env):
         motion = Motion(before, self._nodes, velocity, self.control_period, self.live.control)
         reward = float(self.task.reward(motion))
         return self._observation.copy(), reward, bool(self.task.terminated(motion)), False, {}
+
+    def simulate(
+        self,
+        policy: Callable[[np.ndarray], Any],
+        duration: float,
+        *,
+        seed: int | None = None,
+        sample_dt: float | None = None,
+    ) -> SimulationResult:
+        """Run ``policy`` (observation -> action, e.g. a trained agent's ``predict``) from a
+        reset for ``duration`` [s] in :func:`~tensegrity.engine.simulate.simulate`: the whole
+        run (samples every ``sample_dt``, default the control period; energies, tensions,
+        contact modes) for the viewer, animations and files.  Its state at the end of each
+        control period is the one :meth:`step` gives for the same actions.  Environments with
+        ``sensors`` are refused (their readings are made between the engine's periods)."""
+        if self.reader is not None:
+            raise ValueError("simulate: an environment with sensors cannot run in simulate")
+        self.reset(seed=seed)
+        start = self.live.state()
+
+        def law(t: float, q: np.ndarray, qdot: np.ndarray) -> np.ndarray:
+            self._observe(State(t=t, q=q, qdot=qdot))
+            return self.command(policy(self._observation.copy()))
+
+        return simulate(
+            self.structure,
+            (0.0, duration),
+            initial=start,
+            controller=Feedback(law, self.control_period),
+            actuators=self.actuators,
+            sample_dt=self.control_period if sample_dt is None else sample_dt,
+            **self.scene,
+            **self.engine,
+        )
 
     # ------------------------------------------------------------------ the actuators
     def command(self, action: Any) -> np.ndarray:

@@ -38,6 +38,11 @@ GRAVITY = (0.0, 0.0, -STANDARD_GRAVITY)
 #: The actuated cables' largest rate of rest length [m/s] and their drive's lag [s] (a winch
 #: reeling at 10 cm/s behind a 20 ms filter, of the order of the published robots' motors).
 CABLE_RATE, CABLE_LAG = 0.1, 0.02
+#: The six-bar robot's cables: stiffness [N/m] and prestress tension [N], those of
+#: ``examples/rolling_six_bar.py``.  With the catalogue's defaults (100 N/m, 5 N) the 6 kg robot
+#: does not stand: it sags until the ends of all six bars touch the ground (within 0.8 s), its
+#: contacts stick and slip every few microseconds and a 20 ms period took up to 9,159 steps.
+SIX_BAR_STIFFNESS, SIX_BAR_TENSION = 2000.0, 100.0
 
 
 @dataclasses.dataclass
@@ -142,12 +147,13 @@ def _on_ground(structure: Structure, task: Any, change: float, **options: Any) -
 def six_bar_roll(
     *, heading: float = 0.0, change: float = 0.4, damping: float = 1.0, **options: Any
 ) -> TensegrityEnv:
-    """The six-bar robot (:func:`~tensegrity.design.catalogue.six_bar_robot`, its 24 shell
-    cables actuated, rest lengths within ``1 -+ change`` of their own, cable damping
-    ``damping`` [N s/m]) standing on its face ``f---`` on the ground, rewarded for rolling
-    toward ``heading`` [rad] (:class:`Locomotion`).  ``options`` go to
-    :class:`~tensegrity.envs.base.TensegrityEnv`."""
-    robot = stand_on_face(six_bar_robot(damping=damping), (0, 4, 8), contact_radius=CONTACT_RADIUS)
+    """The six-bar robot (:func:`~tensegrity.design.catalogue.six_bar_robot` with cables of
+    :data:`SIX_BAR_STIFFNESS` at :data:`SIX_BAR_TENSION`, cable damping ``damping`` [N s/m]),
+    its 24 shell cables actuated with rest lengths within ``1 -+ change`` of their own,
+    standing on its face ``f---`` on the ground, rewarded for rolling toward ``heading`` [rad]
+    (:class:`Locomotion`).  ``options`` go to :class:`~tensegrity.envs.base.TensegrityEnv`."""
+    robot = six_bar_robot(stiffness=SIX_BAR_STIFFNESS, tension=SIX_BAR_TENSION, damping=damping)
+    robot = stand_on_face(robot, (0, 4, 8), contact_radius=CONTACT_RADIUS)
     return _on_ground(robot, Locomotion(robot.node_mass, heading), change, **options)
 
 
@@ -196,10 +202,16 @@ def payload_hold(
     **options: Any,
 ) -> TensegrityEnv:
     """The six-bar robot carrying a point mass ``payload_mass`` [kg] at its centre on 12
-    passive cables (:func:`~tensegrity.design.catalogue.six_bar_robot`), standing on the ground
+    passive cables (:func:`~tensegrity.design.catalogue.six_bar_robot`, shell cables as
+    :func:`six_bar_roll`'s), standing on the ground
     with its 24 shell cables actuated within ``1 -+ change``, rewarded for keeping the payload
     still and ended when it strays ``radius`` [m] from its start (:class:`PayloadHold`)."""
-    robot = six_bar_robot(damping=damping, payload_mass=payload_mass)
+    robot = six_bar_robot(
+        stiffness=SIX_BAR_STIFFNESS,
+        tension=SIX_BAR_TENSION,
+        damping=damping,
+        payload_mass=payload_mass,
+    )
     robot = stand_on_face(robot, (0, 4, 8), contact_radius=CONTACT_RADIUS)
     task = PayloadHold(int(robot.point_mass_nodes[0]), radius)
     return _on_ground(robot, task, change, **options)

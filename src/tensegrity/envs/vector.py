@@ -4,10 +4,12 @@ call of the engine advances every copy over a control period
 :meth:`~tensegrity.envs.base.TensegrityEnv.step` would; the actions' scaling, the observations,
 rewards and episode ends are each copy's own.
 
-A :class:`gymnasium.vector.VectorEnv` with ``metadata["autoreset_mode"]`` ``NEXT_STEP``
-(Gymnasium's default): the step after a copy's episode ended resets that copy (its action is
-ignored, its reward 0).  Copy ``i`` seeded ``seed + i`` at the first reset (``seed`` a number),
-or ``seed[i]`` (a list).
+A :class:`gymnasium.vector.VectorEnv` whose ``metadata["autoreset_mode"]`` is ``NEXT_STEP``
+(Gymnasium's default: the step after a copy's episode ended resets that copy, its action
+ignored, its reward 0) or ``SAME_STEP`` (the step that ends an episode resets the copy and
+returns its first observation, the last one in ``info["final_obs"]``, as Stable-Baselines3
+expects: :mod:`tensegrity.envs.sb3`).  Copy ``i`` seeded ``seed + i`` at the first reset
+(``seed`` a number), or ``seed[i]`` (a list).
 """
 
 from __future__ import annotations
@@ -38,9 +40,9 @@ class TensegrityVectorEnv(VectorEnv):
         The copies (>= 1).
     max_episode_steps : int, optional
         Episodes are truncated after this many steps (default: none).
+    autoreset_mode : gymnasium.vector.AutoresetMode
+        ``NEXT_STEP`` (default) or ``SAME_STEP``; in ``metadata["autoreset_mode"]``.
     """
-
-    metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP}  # noqa: RUF012 (gymnasium's)
 
     def __init__(
         self,
@@ -48,7 +50,13 @@ class TensegrityVectorEnv(VectorEnv):
         num_envs: int,
         *,
         max_episode_steps: int | None = None,
+        autoreset_mode: AutoresetMode = AutoresetMode.NEXT_STEP,
     ) -> None:
+        if autoreset_mode not in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP):
+            raise ValueError(
+                f"autoreset_mode: must be NEXT_STEP or SAME_STEP, got {autoreset_mode!r}"
+            )
+        self.metadata = {"autoreset_mode": autoreset_mode}
         if not (isinstance(num_envs, int) and num_envs >= 1):
             raise ValueError(f"num_envs: must be a whole number >= 1, got {num_envs!r}")
         if max_episode_steps is not None and not (
@@ -127,18 +135,35 @@ class TensegrityVectorEnv(VectorEnv):
             self._steps[b] += 1
         if self.max_episode_steps is not None:
             truncated[stepping] = self._steps[stepping] >= self.max_episode_steps
-        self._ended = terminated | truncated
+        ended = terminated | truncated
         info: dict[str, Any] = {}
         if failures:
             info["failure"] = np.array([failures.get(b, "") for b in range(B)], dtype=object)
             info["_failure"] = np.array([b in failures for b in range(B)])
+        if self.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP:
+            info["final_obs"] = np.array([None] * B, dtype=object)
+            info["_final_obs"] = ended.copy()
+            for b in np.flatnonzero(ended):
+                info["final_obs"][b] = observations[b].copy()
+                observations[b] = self.envs[b].reset()[0]
+                self._steps[b] = 0
+        else:
+            self._ended = ended
         return observations, rewards, terminated, truncated, info
 
 
-def make_vector(env_id: str, num_envs: int, **options: Any) -> TensegrityVectorEnv:
+def make_vector(
+    env_id: str,
+    num_envs: int,
+    *,
+    autoreset_mode: AutoresetMode = AutoresetMode.NEXT_STEP,
+    max_episode_steps: int | None = None,
+    **options: Any,
+) -> TensegrityVectorEnv:
     """The vector environment of ``num_envs`` copies of the registered ``env_id``
-    (``"tensegrity/SixBarRoll-v0"``...), its episodes truncated at the registered limit;
-    ``options`` go to the task's function (:mod:`tensegrity.envs.tasks`)."""
+    (``"tensegrity/SixBarRoll-v0"``...), its episodes truncated after ``max_episode_steps``
+    (default: the registered limit); ``options`` go to the task's function
+    (:mod:`tensegrity.envs.tasks`)."""
     spec = gymnasium.spec(env_id)
     entry = spec.entry_point
     if not isinstance(entry, str):
@@ -152,5 +177,6 @@ def make_vector(env_id: str, num_envs: int, **options: Any) -> TensegrityVectorE
     return TensegrityVectorEnv(
         lambda: function(**{**spec.kwargs, **options}),
         num_envs,
-        max_episode_steps=spec.max_episode_steps,
+        max_episode_steps=max_episode_steps or spec.max_episode_steps,
+        autoreset_mode=autoreset_mode,
     )

@@ -15,10 +15,9 @@ reference):
 - the power removed by tendon and rod damping and the power of ``w``.
 
 Differences from the reference are round-off only (the summation order of the nodal forces, one
-reciprocal instead of three divisions per tendon, the length rate as ``t . (p'_b - p'_a) / l``,
-fused multiply-adds); the kernel is compiled with ``fastmath={"contract"}`` only (a * b + c may
-become one FMA instruction; no reassociation, no approximate square roots or reciprocals, NaN and
-infinity kept), so that the two agree to ~1e-15 relative.  When no tendon is damped (all
+reciprocal instead of three divisions per tendon, the length rate as ``t . (p'_b - p'_a) / l``),
+so that the two agree to ~1e-15 relative; no fast-math flags, not even fused multiply-adds
+(:data:`~tensegrity.physics.compiling.JIT_OPTIONS` says why).  When no tendon is damped (all
 ``c = 0``, :func:`pack` then gives ``tendon_damping=None``) the same functions are compiled
 without the node velocities and the length rates (numba specializes on None): the same numbers
 as with zero damping, a quarter less time per evaluation on large shells.  As in the reference,
