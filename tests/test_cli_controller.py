@@ -66,3 +66,31 @@ def test_a_controller_for_another_structure_is_refused(controller, tmp_path, cap
     err = capsys.readouterr().err
     assert code == 2 and err.startswith("tensegrity: error: --controller: "), err
     assert err.count("\n") == 1
+
+
+def test_the_example_script_tracks_a_shape_and_regulates_a_load_through_limited_actuators(
+    tmp_path,
+):
+    """``examples/lqr_with_actuator_limits.sh``: the shell's shape reached through actuators
+    whose rate limit is reached; the prism's run stores its updates and saturations."""
+    import json
+    import shutil
+    import subprocess
+    from pathlib import Path
+
+    script = Path(__file__).parents[1] / "examples" / "lqr_with_actuator_limits.sh"
+    shell = shutil.which("sh")
+    assert shell is not None
+    done = subprocess.run(
+        [shell, str(script)], cwd=tmp_path, capture_output=True, text=True, timeout=900
+    )
+    assert done.returncode == 0, done.stderr
+    closed = json.loads((tmp_path / "shape-control" / "control.json").read_text())["closed_loop"]
+    assert closed["reached"] and closed["saturated"]
+    assert closed["actuators"] == {"max_rate_m_per_s": 0.2, "lag_s": 0.005}
+    run = read_trajectory(tmp_path / "prism-run" / "trajectory.h5")
+    assert run.control_time.size == 400 and run.success
+    kinds = {x.kind for x in run.saturations()}
+    assert kinds == {"bound", "rate"}
+    rate = np.abs(np.diff(run.control_applied, axis=0)) / np.diff(run.control_time)[:, None]
+    assert rate.max() <= 0.05 * (1 + 1e-9)

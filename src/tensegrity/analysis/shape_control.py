@@ -40,6 +40,7 @@ from tensegrity.analysis.equilibrium import EquilibriumResult, find_equilibrium
 from tensegrity.analysis.statics import equilibrium_matrix, force_jacobian, statics, with_reactions
 from tensegrity.engine.loop import Feedback
 from tensegrity.engine.simulate import STATUS_END, SimulationResult, simulate
+from tensegrity.model.actuators import Actuators
 from tensegrity.model.structure import Structure
 from tensegrity.physics import dynamics
 
@@ -439,7 +440,8 @@ class ClosedLoop:
     Attributes
     ----------
     t : (T,) [s].  q, qdot : (T, 6R).  node_position : (T, N, 3) aligned onto the reference.
-    control : (T, S) applied ``u`` [m].  tension : (T, S) [N].  outputs : (T, ny).
+    control : (T, S) commanded ``u`` [m] (applied as commanded without actuators).
+    tension : (T, S) [N].  outputs : (T, ny).
     reference_outputs : (T, ny) of the feed-forward path.  final_error : (ny,) vs. the last target.
     min_tension : smallest tension over the run [N].  min_rest_length : smallest ``Lbar`` [m].
     reached : final error within tolerance, no tendon slack at any sample, bounds respected.
@@ -560,6 +562,7 @@ def closed_loop(
     control_dt: float = 0.005,
     rtol: float = 1e-8,
     plant: Structure | None = None,
+    actuators: Actuators | None = None,
 ) -> ClosedLoop:
     """Play the quasi-static plan in time with LQR feedback, on the nonlinear model.
 
@@ -574,7 +577,10 @@ def closed_loop(
     the engine's controller hook (:func:`tensegrity.engine.simulate.simulate` with
     ``controller=``; DOP853 at ``rtol``, steps ending at the updates).  ``u`` is clipped to the
     bounds (``saturated`` tells if it ever was).  ``plant``: the structure simulated (default
-    the plan's; e.g. with damping).
+    the plan's; e.g. with damping).  ``actuators``: between the law and the tendons, as the
+    hardware has them (:func:`tensegrity.model.actuators.actuators`: rate limits [m/s], lags
+    [s]; default none, ``u`` applied as commanded); ``saturated`` then also tells if an
+    actuator ever reached a limit (the run's :meth:`~SimulationResult.saturations`).
     """
     s = plan.structure
     plant = s if plant is None else plant
@@ -592,6 +598,7 @@ def closed_loop(
         (0.0, t_end),
         initial=dynamics.State(0.0, q0, np.zeros_like(q0)),
         controller=Feedback(law, control_dt),
+        actuators=actuators,
         sample_dt=sample_dt,
         rtol=rtol,
         atol=1e-10,
@@ -692,7 +699,7 @@ def _closed_loop_result(
         float(tension.min()),
         float(rest.min()),
         run.max_rod_length_error,
-        law.saturated,
+        law.saturated or bool(run.saturations()),
         reached,
         message,
         gains,

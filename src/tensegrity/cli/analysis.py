@@ -31,6 +31,7 @@ verb                        files
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple
@@ -48,6 +49,7 @@ from tensegrity.analysis.equilibrium import (
 from tensegrity.cli.drawing import Drawing, Job, figure_png, viewer_page
 from tensegrity.cli.tables import key_values, table, write_json
 from tensegrity.engine.options import Options
+from tensegrity.model.actuators import actuators as tendon_actuators
 from tensegrity.model.structure import Structure
 
 if TYPE_CHECKING:
@@ -563,12 +565,16 @@ def run_control(
     max_change: float = Bounds.max_change,
     min_tension: float = Bounds.min_tension,
     tolerance: float = 1e-6,
+    max_rate: float | None = None,
+    lag: float | None = None,
 ) -> Output:
     """``tensegrity control``: shorten the structure to ``height`` times its equilibrium height
     with the ``actuators`` (tendon pattern; twist free), then (``twist_back``) restore the twist
     with every tendon, by a quasi-static sequence of equilibria, then (``closed_loop``) play it
-    with LQR feedback on the nonlinear model.  ``bottom``/``top``: node indices of the two rings
-    (default: the nodes at the lowest and the highest z of the equilibrium)."""
+    with LQR feedback on the nonlinear model, through actuators whose rest lengths change at
+    most ``max_rate`` [m/s] behind a first-order ``lag`` [s] (default: at once).
+    ``bottom``/``top``: node indices of the two rings (default: the nodes at the lowest and the
+    highest z of the equilibrium)."""
     from tensegrity.analysis.shape_control import closed_loop as run_closed_loop, describe_plan
 
     _check_control_options(structure, height=height, steps=steps, bottom=bottom, top=top)
@@ -600,9 +606,22 @@ def run_control(
     ]
     closed = None
     if closed_loop:
-        closed = run_closed_loop(plan, move_time=move_time, settle_time=settle_time)
+        drives = None
+        if max_rate is not None or lag is not None:
+            drives = tendon_actuators(
+                structure, max_rate=max_rate or math.inf, time_constant=lag or 0.0
+            )
+        closed = run_closed_loop(
+            plan, move_time=move_time, settle_time=settle_time, actuators=drives
+        )
         data["closed_loop"] = _closed_loop_summary(closed)
+        data["closed_loop"]["actuators"] = {"max_rate_m_per_s": max_rate, "lag_s": lag}
         text.append(f"closed loop (LQR, nonlinear model, {closed.t[-1]:.3g} s): {closed.message}")
+        if drives is not None:
+            text.append(
+                f"actuators: rate limit {max_rate or math.inf:g} m/s, lag {lag or 0.0:g} s; "
+                + ("a limit was reached" if closed.saturated else "no limit reached")
+            )
 
     pages = {"open_loop.html": _open_loop_frames(plan)}
     if closed is not None:

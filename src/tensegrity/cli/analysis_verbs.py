@@ -317,3 +317,17 @@ def _add_closed_loop_options(p: argparse.ArgumentParser) -> None:
         default=1e-6,
         help="targets reached within this [m, rad] (default %(default)g)",
     )
+    p.add_argument(
+        "--max-rate",
+        type=arguments.positive,
+        metavar="M_PER_S",
+        help="closed loop: the tendons' rest lengths change at most this fast [m/s] (a rate "
+        "limit of their actuators; default none)",
+    )
+    p.add_argument(
+        "--lag",
+        type=arguments.positive,
+        metavar="SECONDS",
+        help="closed loop: the tendons follow the law's commands with this first-order lag [s] "
+        "(default none: at once)",
+    )
