@@ -1,6 +1,6 @@
 """``tensegrity simulate``: its parser, the checks before the run and the streamed run
-(:func:`tensegrity.io.stream.simulate_to_file`); the files it writes and its summary are
-:mod:`tensegrity.cli.simulate_files`'s.
+(:func:`tensegrity.io.stream.simulate_to_file`); the files it writes are
+:mod:`tensegrity.cli.simulate_files`'s, its summary :mod:`tensegrity.cli.simulate_summary`'s.
 
 The samples stream, with checkpoints, to ``OUT/.trajectory.h5.partial`` as the run goes; an
 interrupted run (Ctrl-C, SIGTERM, SIGHUP, a killed process) leaves only that file, and
@@ -28,10 +28,10 @@ from tensegrity.cli.simulate_files import (
     VIDEO_FPS,
     DesignedRun,
     RunFiles,
-    print_summary,
     remove_empty,
     write_run,
 )
+from tensegrity.cli.simulate_summary import print_summary
 from tensegrity.cli.startup import announce_compiling
 from tensegrity.cli.structures import (
     add_gravity_option,
