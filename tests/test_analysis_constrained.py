@@ -499,7 +499,7 @@ def test_shape_sensitivities_with_supports_match_re_solved_equilibria():
     """``dy/du`` and ``dT/du`` of the fixed-base class 2 shell against central differences of
     equilibria solved again with the rest lengths changed."""
     from tensegrity.analysis.shape_control import height_twist, sensitivities
-    from tensegrity.cli.analysis import rings
+    from tensegrity.cli.control import rings
 
     s = class2_shell(3, 2, fixed_base=True)
     eq = find_equilibrium(s)

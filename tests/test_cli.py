@@ -15,7 +15,7 @@ from tensegrity.io.formats import read_structure
 from tensegrity.io.trajectory import read_trajectory
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
-cli_main = importlib.import_module("tensegrity.cli.simulate_files")
+cli_main = importlib.import_module("tensegrity.cli.simulate_summary")
 
 
 @pytest.fixture(scope="module")

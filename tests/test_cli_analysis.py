@@ -16,7 +16,7 @@ import pytest
 from tensegrity import class1_shell
 from tensegrity.analysis.equilibrium import find_equilibrium
 from tensegrity.analysis.shape_control import shell_rings
-from tensegrity.cli.analysis import rings
+from tensegrity.cli.control import rings
 from tensegrity.cli.main import main
 from tensegrity.plots.viewer import read_viewer_data
 

@@ -380,7 +380,7 @@ def test_a_mode_clip_without_energies_loads_cleanly(browser, tmp_path):
     from tensegrity.analysis.equilibrium import find_equilibrium
     from tensegrity.analysis.linearize import linearize
     from tensegrity.analysis.modes import modal_analysis
-    from tensegrity.cli.analysis import mode_clip
+    from tensegrity.cli.modes import mode_clip
 
     s = class1_shell(3, 1)
     modes = modal_analysis(linearize(s, find_equilibrium(s)))
@@ -391,7 +391,8 @@ def test_a_mode_clip_without_energies_loads_cleanly(browser, tmp_path):
 def test_the_analysis_verbs_pages_load_cleanly(browser, tmp_path):
     """``tensegrity equilibrium``'s settling and ``tensegrity control``'s open- and closed-loop
     manoeuvres, as the verbs write them: drawn, no console error."""
-    from tensegrity.cli.analysis import run_control, run_equilibrium
+    from tensegrity.cli.analysis import run_equilibrium
+    from tensegrity.cli.control import run_control
 
     s = class1_shell(3, 1)
     run_equilibrium(s, method="simulation").write(tmp_path)

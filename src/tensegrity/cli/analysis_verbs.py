@@ -1,6 +1,8 @@
 """The analysis verbs' parsers and their one command (:func:`run_analysis`): ``equilibrium``,
-``modes``, ``controllability``, ``lqr``, ``control``; what each computes and writes is in
-:mod:`tensegrity.cli.analysis` (``run_<verb>``, its keywords the options' names)."""
+``modes``, ``controllability``, ``lqr``, ``control``; what each computes and writes is its
+``run_<verb>`` (its keywords the options' names): in :mod:`tensegrity.cli.analysis`
+(``equilibrium``), :mod:`tensegrity.cli.modes` (``modes``, ``controllability``) and
+:mod:`tensegrity.cli.control` (``lqr``, ``control``)."""
 
 from __future__ import annotations
 
@@ -21,11 +23,17 @@ from tensegrity.io.files import write_staged as _write_all
 
 
 def _cmd_analysis(args: argparse.Namespace) -> int:
-    """``equilibrium | modes | controllability | lqr | control``:
-    :mod:`tensegrity.cli.analysis`."""
-    from tensegrity.cli import analysis as commands
+    """``equilibrium | modes | controllability | lqr | control``: its ``run_<verb>``."""
+    from tensegrity.cli import analysis, control, modes
 
-    run = getattr(commands, f"run_{args.command}")
+    runs: dict[str, Callable[..., Any]] = {
+        "equilibrium": analysis.run_equilibrium,
+        "modes": modes.run_modes,
+        "controllability": modes.run_controllability,
+        "lqr": control.run_lqr,
+        "control": control.run_control,
+    }
+    run = runs[args.command]
     outputs.check_folder(args.out, "--out")
     # the drawing's workers start now: they import matplotlib while the analysis computes
     workers = worker_count(2) if args.command in _DRAWN_IN_WORKERS else 0
@@ -85,7 +93,7 @@ def _analysis_and_write(args: argparse.Namespace, run: Callable, drawing: Drawin
 
 
 def add_parsers(sub: Any) -> None:
-    """The analysis verbs (issue 4); option names are the keywords of ``commands.run_<verb>``."""
+    """The analysis verbs (issue 4); option names are the keywords of their ``run_<verb>``."""
     verbs = {
         "equilibrium": "static equilibrium by least squares and by damped simulation: node "
         "positions, tensions, slack tendons, residuals",

@@ -1,4 +1,5 @@
-"""The analysis verbs' tables and JSON files (:mod:`tensegrity.cli.analysis`; their figures:
+"""The analysis verbs' tables and JSON files (:mod:`tensegrity.cli.analysis`,
+:mod:`tensegrity.cli.modes`, :mod:`tensegrity.cli.control`; their figures:
 :mod:`tensegrity.plots.report`).  Nothing here imports matplotlib: the command computes and
 prints while its drawing workers draw (:mod:`tensegrity.cli.drawing`)."""
 
