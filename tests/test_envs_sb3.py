@@ -90,12 +90,12 @@ def test_the_training_example_runs_and_writes_its_curve_policy_and_roll(tmp_path
     from tensegrity.io.trajectory import read_trajectory
 
     script = Path(__file__).parents[1] / "examples" / "train_six_bar.py"
-    argv = ["--steps", "1024", "--copies", "4", "--episode", "40", "--out", str(tmp_path)]
+    argv = ["--steps", "2048", "--copies", "4", "--episode", "40", "--out", str(tmp_path)]
     done = subprocess.run(
         [sys.executable, str(script), *argv], capture_output=True, text=True, timeout=900
     )
     assert done.returncode == 0, done.stderr
-    assert "learned for 1,024 steps; 24 episodes ended" in done.stdout
+    assert "learned for 2,048 steps; 48 episodes ended" in done.stdout
     with Image.open(tmp_path / "learning_curve.png") as curve:
         assert curve.size[0] > 500
     model = PPO.load(tmp_path / "policy.zip", device="cpu")

@@ -58,7 +58,7 @@ class TensegrityVecEnv(VecEnv):
         :meth:`set_options` gave, once)."""
         options = self._options[0] or None
         observations, _ = self.vector.reset(seed=list(self._seeds), options=options)
-        self.reset_infos = [{} for _ in range(self.num_envs)]
+        self.reset_infos: list[dict[str, Any]] = [{} for _ in range(self.num_envs)]
         self._reset_seeds()
         self._reset_options()
         return observations
