@@ -217,8 +217,10 @@ class TensegrityEnv(gymnasium.Env):
         reset for ``duration`` [s] in :func:`~tensegrity.engine.simulate.simulate`: the whole
         run (samples every ``sample_dt``, default the control period; energies, tensions,
         contact modes) for the viewer, animations and files.  Its state at the end of each
-        control period is the one :meth:`step` gives for the same actions.  Environments with
-        ``sensors`` are refused (their readings are made between the engine's periods)."""
+        control period is the one :meth:`step` gives for the same actions.  It resets the
+        environment (with ``seed``) and leaves it mid-way: call :meth:`reset` before stepping it
+        again.  Environments with ``sensors`` are refused (their readings are made between the
+        engine's periods)."""
         if self.reader is not None:
             raise ValueError("simulate: an environment with sensors cannot run in simulate")
         self.reset(seed=seed)
