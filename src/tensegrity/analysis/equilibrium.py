@@ -757,6 +757,93 @@ def _descend(structure, q, rest, external_force, gravity, eckart, max_iter=500):
     return q, nfev
 
 
+@dataclasses.dataclass(frozen=True, eq=False)
+class EquilibriumSensitivity:
+    """How an equilibrium moves when parameters of its structure change
+    (:func:`equilibrium_sensitivity`).
+
+    Attributes
+    ----------
+    chart : the reduced coordinates based at the equilibrium (``x = 0`` there).
+    direction : (n, P) ``dx/dp``: the change of the chart's coordinates per unit change of
+        each of the ``P`` parameters (rod lengths and the joints and supports held to first
+        order).
+    """
+
+    chart: Chart
+    direction: np.ndarray
+
+    def configuration(self, change: np.ndarray) -> np.ndarray:
+        """The configuration ``q`` (6R,) the equilibrium moves to, to first order, when the
+        parameters change by ``change`` (P,): ``x = direction @ change``, retracted onto the
+        rods, joints and supports."""
+        return self.chart.retract(self.direction @ np.asarray(change, dtype=float))
+
+
+def equilibrium_sensitivity(
+    eq: EquilibriumResult, perturbed: list[tuple[Structure, Structure]], step: float
+) -> EquilibriumSensitivity:
+    """The derivatives of the equilibrium ``eq`` with respect to ``P`` parameters of its
+    structure, by the implicit function theorem on :func:`find_equilibrium`'s equations
+    ``r(v, p) = [Q + G^T lambda; k g; gauge] = 0``: ``dv/dp = -J^+ dr/dp``, with ``J = dr/dv``
+    analytic at the equilibrium (one factorisation for every parameter) and ``dr/dp`` by
+    central differences at the fixed state (no equilibrium is solved again).
+
+    Parameters
+    ----------
+    eq : a converged equilibrium of a 3-D structure (``eq.structure``), under its own
+        external forces and gravity.
+    perturbed : for each parameter ``p_j``, the structures at ``p_j - step`` and ``p_j + step``
+        (the same topology and node positions; any of stiffness, rest length or mass changed).
+    step : the parameters' change (the same unit as ``p``).
+
+    Returns
+    -------
+    EquilibriumSensitivity
+        ``dx/dp`` (n, P) in the chart based at ``eq``; the equilibrium's gauge (Eckart's
+        conditions, where the loads and supports leave a rigid-body motion free) refers to
+        ``eq`` itself.
+    """
+    structure = eq.structure
+    if structure.dim != 3:
+        raise ValueError(
+            "equilibrium_sensitivity: a 3-D structure (a planar one: its spatial form)"
+        )
+    if not perturbed:
+        raise ValueError("perturbed: give at least one parameter's pair of structures")
+    if not (np.isfinite(step) and step > 0):
+        raise ValueError(f"step: must be > 0, got {step!r}")
+
+    def problem(s: Structure, gauge: bool) -> _EquilibriumProblem:
+        return _EquilibriumProblem.build(
+            s,
+            eq.q,
+            control=eq.control,
+            external_force=eq.external_force,
+            gravity=eq.gravity,
+            gauge=gauge,
+            gauge_reference=None,
+            force_tol=None,
+        )
+
+    chart = Chart.at(structure, eq.q)
+    base = problem(structure, True)
+    v0 = base.start(chart)
+    J = base.jacobian(chart, v0)
+
+    def residual(s: Structure) -> np.ndarray:
+        """The force and constraint rows at the fixed state ``v0`` (the gauge's do not depend
+        on the parameters)."""
+        return problem(s, False).residual(Chart.at(s, eq.q), v0)
+
+    derivative = np.zeros((J.shape[0], len(perturbed)))
+    for j, (minus, plus) in enumerate(perturbed):
+        change = (residual(plus) - residual(minus)) / (2 * step)
+        derivative[: change.size, j] = change
+    dv, *_ = np.linalg.lstsq(J, -derivative, rcond=None)
+    return EquilibriumSensitivity(chart, dv[: chart.size])
+
+
 def equilibrium_by_simulation(
     structure: Structure,
     *,

@@ -164,6 +164,20 @@ def add_parsers(sub: Any) -> None:
         help="the lowest natural frequency [Hz] allowed, prestressed and under each load case "
         "(at the loaded equilibrium)",
     )
+    p.add_argument(
+        "--least-mass",
+        action="store_true",
+        help="from the fully stressed design, search the least mass under every limit (SLSQP "
+        "with the equilibria's sensitivities; a local minimum; at the loaded equilibrium)",
+    )
+    p.add_argument(
+        "--stability-margin",
+        type=arguments.at_least(0.0, strict=True),
+        default=None,
+        metavar="F",
+        help="with --least-mass: along every load path, the softest mode's omega^2 at least F "
+        "times the fully stressed design's (default 0.25)",
+    )
     arguments.add_factors(p, from_file=False)
     p.add_argument(
         "--min-area",
@@ -203,6 +217,8 @@ def _cmd_design(args: argparse.Namespace) -> int:
         raise CommandError(f"--out: {shown_path(args.out)} is a file, expected a folder")
     with blame("--material", None):
         rod_material, tendon_material = structures.parse_materials(args.material)
+    if args.stability_margin is not None and not args.least_mass:
+        raise CommandError("--stability-margin: only with --least-mass")
     structure = structures.source_of(args).structure  # its geometry and topology
     if args.form_find:
         structure = _form_found(structure)
@@ -244,6 +260,8 @@ def _cmd_design(args: argparse.Namespace) -> int:
                 for name, value in (
                     ("max_displacement", args.max_displacement),
                     ("min_frequency", args.min_frequency),
+                    ("least_mass", args.least_mass or None),
+                    ("stability_margin", args.stability_margin),
                 )
                 if value is not None
             },
@@ -266,6 +284,8 @@ def _cmd_design(args: argparse.Namespace) -> int:
             prestress_N=args.prestress,
             max_displacement_m=args.max_displacement,
             min_frequency_hz=args.min_frequency,
+            least_mass=args.least_mass,
+            stability_margin=args.stability_margin,
             gravity_m_per_s2=args.gravity,
             safety_factor=args.safety_factor,
             strength_factor=args.strength_factor,

@@ -40,6 +40,7 @@ import scipy.optimize
 from tensegrity.analysis.equilibrium import EquilibriumResult, find_equilibrium
 from tensegrity.analysis.linearize import linearize
 from tensegrity.analysis.modes import RIGID, modal_analysis
+from tensegrity.design.least_mass import Lightened, MassProblem, lighten
 from tensegrity.design.materials import Material, per_member
 from tensegrity.design.sizing import (
     LoadCase,
@@ -364,6 +365,8 @@ def _size_at_prestress(
     rtol: float = 1e-6,
     max_iterations: int = 50,
     load_steps: int = 8,
+    least_mass: bool = False,
+    stability_margin: float = 0.25,
 ) -> Sizing:
     """:func:`size_at_equilibrium` at one prestress (see the module docstring).
 
@@ -382,6 +385,13 @@ def _size_at_prestress(
         The most sizing iterations (each solves every case's equilibrium).
     load_steps : int
         Load steps of the first path of each case (:func:`follow_load`).
+    least_mass : bool
+        From the fully stressed design, search the least mass under every limit
+        (:func:`~tensegrity.design.least_mass.lighten`: a local minimum), then round its areas
+        up until every member carries its forces and check every load path afresh.
+    stability_margin : float
+        With ``least_mass``: at every point of every load path, the lowest ``omega^2`` at least
+        this fraction of the fully stressed design's (keeps the paths away from limit points).
 
     Returns
     -------
@@ -405,9 +415,12 @@ def _size_at_prestress(
         ("rtol", rtol),
         ("max_displacement", max_displacement),
         ("min_frequency", min_frequency),
+        ("stability_margin", stability_margin),
     ):
         if value is not None and not (math.isfinite(value) and value > 0):
             raise ValueError(f"{name}: must be > 0, got {value!r}")
+    if least_mass and s.dim != 3:
+        raise ValueError("least_mass: only for a 3-D structure; size a planar one without it")
     cases = checked_cases(s, load_cases, prestress)
     loads = [c for c in cases if c.name != "prestress"]
     if not loads:
@@ -422,6 +435,10 @@ def _size_at_prestress(
         safety_factor=safety_factor,
     )
     R, S = s.n_rods, s.n_tendons
+    density = np.array([m.density for m in (*rm, *tm)])
+    mass_per_area = density * np.concatenate(
+        [s.rod_length, dynamics.tendon_lengths(s, s.node_position)]
+    )
 
     def linear(cases: Sequence[LoadCase]) -> Sizing:
         return size_members(
@@ -461,9 +478,9 @@ def _size_at_prestress(
     names = [c.name for c in cases]
     starts: list[np.ndarray | None] = [None] * len(loads)
 
-    def equilibria_at(area: np.ndarray) -> tuple[list[EquilibriumResult], Structure, Any]:
-        """Each load case's equilibrium of the structure of members of areas ``area``."""
-        sized, members = sized_structure(
+    def members_of(area: np.ndarray) -> tuple[Structure, Any]:
+        """The structure of members of areas ``area`` (R + S,) [m^2], and its members."""
+        return sized_structure(
             s,
             rod_material=rm,
             tendon_material=tm,
@@ -473,6 +490,10 @@ def _size_at_prestress(
             prestress_tension=T0,
             tendon_mass=tendon_mass,
         )
+
+    def equilibria_at(area: np.ndarray) -> tuple[list[EquilibriumResult], Structure, Any]:
+        """Each load case's equilibrium of the structure of members of areas ``area``."""
+        sized, members = members_of(area)
         found = [
             follow_load(sized, case, start=starts[k], steps=load_steps)[0]
             for k, case in enumerate(loads)
@@ -504,7 +525,7 @@ def _size_at_prestress(
                     )
         return found, sized, members
 
-    held = s.node_fixed[s.rod_nodes].all(axis=1)  # rods between two fixed nodes
+    held = np.asarray(s.node_fixed[s.rod_nodes].all(axis=1))  # rods between two fixed nodes
 
     def forces(found: list[EquilibriumResult]) -> tuple[np.ndarray, np.ndarray]:
         """Rod compressions (K, R) and tendon tensions (K, S) [N] of every case; a rod between
@@ -515,6 +536,11 @@ def _size_at_prestress(
         C = C.reshape(-1, R)
         C[:, held] = 0.0
         return C, T.reshape(-1, S)
+
+    def carried(found: list[EquilibriumResult]) -> np.ndarray:
+        """The least areas (R + S,) [m^2] that carry the forces of the equilibria ``found``."""
+        C, T = forces(found)
+        return least_areas(C, T, strength=strength, beta=beta, min_area=min_area, cases=names).area
 
     floor = np.zeros(R + S)  # tendon areas below which a load path or a serviceability fails
     floor_limit: DesignLimitError | None = None
@@ -550,18 +576,40 @@ def _size_at_prestress(
     area = np.where(
         np.array(least.governs) == "min_area", area, np.maximum(area, target) * (1 + rtol)
     )
-    equilibria, sized, members = acceptable(area)
-    C, T = forces(equilibria)
-    stiffened = floor > least.area
     limit = "" if floor_limit is None else floor_limit.governs
     limit_case = None if floor_limit is None else floor_limit.case
+    if least_mass:
+        problem = MassProblem(
+            structure_at=lambda a: members_of(a)[0],
+            geometry=s,
+            loads=loads,
+            strength=strength,
+            beta=beta,
+            held=held,
+            mass_per_area=mass_per_area,
+            lower=least_areas(
+                C0[None], T0[None], strength=strength, beta=beta, min_area=min_area, cases=names
+            ).area,
+            max_displacement=max_displacement,
+            min_frequency=min_frequency,
+            prestressed=prestress > 0,
+            stability_margin=stability_margin,
+        )
+        area, lightened = _lightest(problem, area, acceptable, carried, starts, rtol)
+        message = f"{message}; {lightened.summary()}"
+        # a member above the area its forces need is held there by a limit of the whole
+        limit, limit_case = "+".join(lightened.active) or "stiffness", None
+    equilibria, sized, members = acceptable(area)
+    C, T = forces(equilibria)
+    if least_mass:
+        least = least_areas(C, T, strength=strength, beta=beta, min_area=min_area, cases=names)
+        floor = np.where(area > least.area * (1 + ABOVE), area, 0.0)
+    stiffened = floor > least.area
     governs = tuple(limit if f else g for f, g in zip(stiffened, least.governs, strict=True))
     governing_case = tuple(
         limit_case if f else c for f, c in zip(stiffened, least.case, strict=True)
     )
-    density = np.array([m.density for m in (*rm, *tm)])
-    tendon_length = dynamics.tendon_lengths(s, s.node_position)
-    mass = density * np.concatenate([s.rod_length, tendon_length]) * area
+    mass = mass_per_area * area
     moved = [largest_displacement(s, eq) for eq in equilibria]
     states: list[EquilibriumResult | None] = [None] * (prestress > 0)
     frequency = [lowest_frequency(sized, eq) for eq in states + list(equilibria)]
@@ -592,6 +640,72 @@ def _size_at_prestress(
         displacement=np.array(moved),
         frequency=np.array(frequency),
         prestress=prestress,
+    )
+
+
+#: A member whose area is this much (relative) above what its forces need is reported as set by
+#: a limit of the whole structure (the least-mass design).
+ABOVE = 1e-3
+
+#: The most rounds of rounding a least-mass design's areas up to its forces.
+MAX_ROUNDING = 10
+
+#: The relative stiffenings of the tendons tried when a least-mass design misses a limit by
+#: the search's tolerance.
+BUMPS = (0.0, 1e-6, 1e-5, 1e-4, 1e-3)
+
+#: Bisections of the step from the fully stressed to the least-mass design when the latter
+#: fails its fresh check.
+BACKTRACKS = 6
+
+
+def _lightest(
+    problem: MassProblem,
+    start: np.ndarray,
+    acceptable: Callable[[np.ndarray], Any],
+    carried: Callable[[list[EquilibriumResult]], np.ndarray],
+    starts: list[np.ndarray | None],
+    rtol: float,
+) -> tuple[np.ndarray, Lightened]:
+    """The least-mass areas from the fully stressed ``start`` (:func:`lighten`), rounded up
+    until every member carries its forces (areas over ``rtol`` above them) and checked afresh:
+    every load path followed from its start (``starts`` reset), every limit met
+    (``acceptable``).  If that fails, the largest part of the step from ``start`` (on the log
+    areas, :data:`BACKTRACKS` bisections) that passes."""
+    lightened = lighten(problem, start)
+
+    def checked(area: np.ndarray) -> np.ndarray:
+        for _ in range(MAX_ROUNDING):
+            need = carried(acceptable(area)[0])
+            if np.all(need <= area):
+                break
+            area = np.maximum(area, need * (1 + rtol))
+        starts[:] = [None] * len(starts)
+        acceptable(area)
+        return area
+
+    tendons = np.arange(start.size) >= problem.geometry.n_rods
+    for bump in BUMPS:  # a limit met to the search's tolerance: the tendons a little stiffer
+        try:
+            area = checked(lightened.area * np.where(tendons, 1 + bump, 1.0))
+        except DesignLimitError as failure:
+            reason = failure
+            continue
+        return area, dataclasses.replace(
+            lightened, area=area, mass=float(problem.mass_per_area @ area)
+        )
+    kept, low, high, best = 0.0, 0.0, 1.0, start
+    for _ in range(BACKTRACKS):
+        t = 0.5 * (low + high)
+        try:
+            best, kept, low = checked(start ** (1 - t) * lightened.area**t), t, t
+        except DesignLimitError:
+            high = t
+    return best, dataclasses.replace(
+        lightened,
+        area=best,
+        mass=float(problem.mass_per_area @ best),
+        message=f"{lightened.message}; {kept:.3g} of the step kept (all of it fails: {reason})",
     )
 
 
@@ -672,7 +786,14 @@ def size(structure: Structure, *, statics: str = "auto", **options: Any) -> Sizi
     range is asked for.  ``options``: the keywords of the chosen function."""
     if statics not in STATICS:
         raise ValueError(f"statics: expected one of {', '.join(STATICS)}, got {statics!r}")
-    nonlinear = ("rtol", "load_steps", "max_displacement", "min_frequency")
+    nonlinear = (
+        "rtol",
+        "load_steps",
+        "max_displacement",
+        "min_frequency",
+        "least_mass",
+        "stability_margin",
+    )
     if statics == "auto":
         asked = isinstance(options.get("prestress"), tuple) or any(n in options for n in nonlinear)
         statics = "equilibrium" if asked or mechanism_count(structure) else "linear"
