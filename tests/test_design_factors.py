@@ -224,10 +224,11 @@ def test_simulate_of_the_design_reports_utilisation_with_its_factors(tmp_path, c
 
 def test_view_of_a_designed_run_colours_by_utilisation_with_the_design_factors(tmp_path, capsys):
     """``simulate`` of the design writes a ``view.html`` coloured by utilisation (no option
-    needed); ``view --structure sized/structure.json`` (the design file, its factors) gives the
-    same tendon utilisation (the rods' differ: ``view`` leaves out the run's force table, which
-    the trajectory does not hold); ``--strength-factor 1`` halves it; without ``--structure``
-    the factors are refused."""
+    needed); ``view run/trajectory.h5`` with no option gives the page ``view --structure
+    sized/structure.json`` (the design file, its factors) gives: the trajectory carries the
+    design and its factors; both the run's tendon utilisation (the rods' differ: ``view`` leaves
+    out the run's force table, which the trajectory does not hold); ``--strength-factor 1``
+    halves it, with or without ``--structure``."""
     _, run = _designed_crane_run(tmp_path, capsys)
     written = read_viewer_data((run / "view.html").read_text())["utilisation"]
     page = tmp_path / "page.html"
@@ -238,14 +239,16 @@ def test_view_of_a_designed_run_colours_by_utilisation_with_the_design_factors(t
     np.testing.assert_array_equal(again["tendons"], written["tendons"])
     assert np.shape(again["rods"]) == np.shape(written["rods"])
     assert 0.95 < np.max(written["tendons"]) < 1.05
-    assert main(["view", trajectory, "-o", str(page), *design, "--strength-factor", "1"]) == 0
-    half = read_viewer_data(page.read_text())["utilisation"]
-    np.testing.assert_allclose(half["tendons"], np.asarray(written["tendons"]) / 2, rtol=1e-6)
+    own = tmp_path / "own.html"
+    assert main(["view", trajectory, "-o", str(own)]) == 0
+    carried = read_viewer_data(own.read_text())["utilisation"]
+    for key in ("rods", "tendons", "high"):
+        np.testing.assert_array_equal(carried[key], again[key])
+    for given in (design, []):
+        assert main(["view", trajectory, "-o", str(page), *given, "--strength-factor", "1"]) == 0
+        half = read_viewer_data(page.read_text())["utilisation"]
+        np.testing.assert_allclose(half["tendons"], np.asarray(written["tendons"]) / 2, rtol=1e-6)
     capsys.readouterr()
-    code = main(["view", trajectory, "-o", str(page), "--strength-factor", "2"])
-    err = capsys.readouterr().err
-    assert code == 2 and err.count("\n") == 1
-    assert "--strength-factor: only with --structure (the members' design)" in err
 
 
 @pytest.mark.parametrize("suffix", [".yaml", ".toml", ".json"])
@@ -325,3 +328,58 @@ def test_factors_need_the_material_form(tmp_path):
     path.write_text(numeric)
     with pytest.raises(ValueError, match=r"factors: only with members by material and section"):
         read_design(path)
+
+
+@pytest.mark.parametrize("writer", ["write_trajectory", "simulate_to_file"])
+def test_a_trajectory_carries_the_design_of_its_structure(tmp_path, writer):
+    """A trajectory written with its structure in the material form (``material_form``, in
+    memory or streamed) reads back with the same design: materials, sections (so areas),
+    tendon mass and factors; the structure is the run's own.  Written without it, none."""
+    from tensegrity import simulate
+    from tensegrity.design.files import design_to_dict, trajectory_design
+    from tensegrity.design.materials import HollowTube, Material
+    from tensegrity.io.stream import simulate_to_file
+    from tensegrity.io.trajectory import read_trajectory, write_trajectory
+
+    base = prism()
+    design = MemberDesign.of(
+        base,
+        rod_material=[material("aluminium"), material("cfrp"), material("aluminium")],
+        rod_section=[HollowTube(0.02, 0.002), SolidRod(0.012), SolidRod(0.012)],
+        tendon_material=Material("rope", 5e10, 1100.0, 2e8, 3e8, "a test rope"),
+        tendon_section=Cable(0.003),
+        tendon_mass=True,
+        factors=Factors(1.5, 2.25),
+    )
+    s = design.apply(base, keep_tension=True)
+
+    def written(name, form):
+        path = tmp_path / name
+        if writer == "write_trajectory":
+            write_trajectory(path, simulate(s, (0.0, 0.04), sample_dt=0.01), material_form=form)
+        else:
+            simulate_to_file(s, (0.0, 0.04), path, sample_dt=0.01, material_form=form)
+        return path
+
+    path = written("designed.h5", design_to_dict(s, design, keep_joints=True))
+    structure, back = trajectory_design(path)
+    assert back == design
+    assert structure.to_dict() == read_trajectory(path).structure.to_dict() == s.to_dict()
+    ours, theirs = back.properties(structure), design.properties(s)
+    for name in ("rod_area", "rod_second_moment", "tendon_area", "tendon_yield"):
+        np.testing.assert_array_equal(getattr(ours, name), getattr(theirs, name))
+    plain = trajectory_design(written("plain.h5", None))
+    assert plain.design is None and plain.structure.to_dict() == s.to_dict()
+    # the material form of another structure is a one-line error naming the file
+    square = MemberDesign.of(
+        prism(4),
+        rod_material=material("steel"),
+        rod_section=SolidRod(0.01),
+        tendon_material=material("nylon"),
+        tendon_section=Cable(0.001),
+    )
+    other = written("other.h5", design_to_dict(square.apply(prism(4)), square))
+    with pytest.raises(ValueError) as info:
+        trajectory_design(other)
+    text = str(info.value)
+    assert text.startswith(str(other)) and "structure_material" in text and "\n" not in text

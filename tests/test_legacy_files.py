@@ -49,6 +49,17 @@ def test_a_version_2_trajectory_reads_with_its_stored_tendon_lengths():
     )
 
 
+@pytest.mark.parametrize("name", ["shell31-v1.h5", "shell31-v2.h5"])
+def test_old_trajectories_read_without_a_design(name):
+    """Files written before trajectories carried their members' design read as runs without
+    one, with their structure."""
+    from tensegrity.design.files import trajectory_design
+
+    structure, design = trajectory_design(LEGACY / name)
+    assert design is None
+    assert structure.to_dict() == read_trajectory(LEGACY / name).structure.to_dict()
+
+
 def test_old_structure_json_reads():
     assert (
         read_structure(LEGACY / "shell31.json").to_dict()

@@ -7,6 +7,7 @@ test_viewer_browser.py."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -16,7 +17,7 @@ from matplotlib.colors import to_rgba
 from tensegrity import simulate
 from tensegrity.cli.main import main
 from tensegrity.design.catalogue import prism
-from tensegrity.design.materials import Cable, MemberDesign, SolidRod, material
+from tensegrity.design.materials import Cable, Factors, MemberDesign, SolidRod, material
 from tensegrity.design.utilisation import rod_axial_forces
 from tensegrity.io.trajectory import read_trajectory
 from tensegrity.model.loads import ForceTable
@@ -217,18 +218,30 @@ def test_simulate_with_a_design_writes_the_utilisation(tmp_path, capsys):
     assert "utilisation" not in read_viewer_data((plain / "view.html").read_text())
 
 
-def test_view_colours_a_trajectory_by_the_design_given(tmp_path, capsys):
+@pytest.fixture(scope="module")
+def designed_run(tmp_path_factory):
+    """The prism of :func:`design_of` in the material form, with factors 1.25 (safety) and 1.5
+    (strength), simulated by ``tensegrity simulate --structure FILE``: the file and the run's
+    folder."""
+    from tensegrity.design.files import write_design
+
+    folder = tmp_path_factory.mktemp("designed")
+    base = prism(tension=20)
+    design = dataclasses.replace(design_of(base), factors=Factors(1.25, 1.5))
+    file = write_design(folder / "prism.yaml", design.apply(base, keep_tension=True), design)
+    out = folder / "run"
+    assert main([ARGS[0], "--structure", str(file), *ARGS[5:], "--out", str(out)]) == 0
+    return file, out
+
+
+def test_view_colours_a_trajectory_by_the_design_given(designed_run, tmp_path, capsys):
     """``tensegrity view --structure FILE``: the design of a structure file in the material form
-    (the trajectory holds none) gives the page that ``simulate`` wrote; without it the page has
-    no utilisation; a file of another structure, or without materials, is refused."""
+    gives the page that ``simulate`` wrote; a file of another structure, or without materials,
+    is refused."""
     from tensegrity.design.files import write_design
     from tensegrity.io.formats import write_structure
 
-    base = prism(tension=20)
-    design = design_of(base)
-    file = write_design(tmp_path / "prism.yaml", design.apply(base, keep_tension=True), design)
-    out = tmp_path / "run"
-    assert main([ARGS[0], "--structure", str(file), *ARGS[5:], "--out", str(out)]) == 0
+    file, out = designed_run
     written = read_viewer_data((out / "view.html").read_text())["utilisation"]
     page = tmp_path / "v.html"
     trajectory = str(out / "trajectory.h5")
@@ -237,16 +250,54 @@ def test_view_colours_a_trajectory_by_the_design_given(tmp_path, capsys):
     np.testing.assert_array_equal(again["rods"], written["rods"])
     np.testing.assert_array_equal(again["tendons"], written["tendons"])
     assert again["high"] == written["high"] > 1
-    assert main(["view", trajectory, "-o", str(page)]) == 0
-    assert "utilisation" not in read_viewer_data(page.read_text())
     capsys.readouterr()
 
     square = design_of(prism(4))
     other = write_design(tmp_path / "other.yaml", square.apply(prism(4)), square)
-    plain = write_structure(tmp_path / "plain.json", base)
+    plain = write_structure(tmp_path / "plain.json", prism(tension=20))
     for given, words in ((other, "is not the structure of"), (plain, "no materials")):
         assert main(["view", trajectory, "-o", str(page), "--structure", str(given)]) == 2
         assert words in capsys.readouterr().err
+
+
+def test_view_colours_a_designed_run_with_no_option(designed_run, tmp_path, capsys):
+    """``tensegrity view run/trajectory.h5`` of a designed run, no ``--structure``: the
+    trajectory carries the design and its factors, and the page is coloured as the one
+    ``simulate`` wrote.  A run without a design gives a page without utilisation, and the
+    factor options are refused for it in one line."""
+    _, out = designed_run
+    written = read_viewer_data((out / "view.html").read_text())["utilisation"]
+    page = tmp_path / "v.html"
+    assert main(["view", str(out / "trajectory.h5"), "-o", str(page)]) == 0
+    again = read_viewer_data(page.read_text())["utilisation"]
+    np.testing.assert_array_equal(again["rods"], written["rods"])
+    np.testing.assert_array_equal(again["tendons"], written["tendons"])
+    assert again["high"] == written["high"] > 1
+
+    plain = tmp_path / "plain"
+    assert main([*ARGS, "--no-animation", "--out", str(plain)]) == 0
+    assert main(["view", str(plain / "trajectory.h5"), "-o", str(page)]) == 0
+    assert "utilisation" not in read_viewer_data(page.read_text())
+    capsys.readouterr()
+    code = main(["view", str(plain / "trajectory.h5"), "-o", str(page), "--safety-factor", "2"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "--safety-factor: " in err
+
+
+def test_a_designed_cli_run_s_trajectory_carries_its_design(designed_run):
+    """The trajectory of ``simulate --structure FILE`` (streamed) holds the design of FILE:
+    materials, sections (so areas), factors; the same as ``structure-material.json``."""
+    from tensegrity.design.files import read_design, trajectory_design
+
+    file, out = designed_run
+    given = read_design(file).design
+    structure, carried = trajectory_design(out / "trajectory.h5")
+    assert carried == given == read_design(out / "structure-material.json").design
+    assert carried is not None and carried.factors == Factors(1.25, 1.5)
+    assert structure.to_dict() == read_trajectory(out / "trajectory.h5").structure.to_dict()
+    np.testing.assert_array_equal(
+        carried.properties(structure).tendon_area, np.full(9, math.pi * CABLE_D**2 / 4)
+    )
 
 
 def test_a_designed_run_writes_its_structure_by_material_for_view(tmp_path, capsys):

@@ -265,6 +265,7 @@ def _stream_run(
             progress=sys.stderr.isatty(),
             observe=None if keeper is None else keeper.add,
             stop=stop,
+            material_form=None if designed is None else designed.material_form(inputs.scene),
             external_force=inputs.force,
             control=inputs.control,
             controller=inputs.controller,

@@ -12,7 +12,7 @@ import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -47,12 +47,22 @@ FIGURE_SAMPLES = 1000
 @dataclasses.dataclass(frozen=True)
 class DesignedRun:
     """The structure of a ``simulate`` run whose members have a design, that design (with the
-    factors its utilisation is computed with) and the run's force table (the trajectory file
-    holds neither)."""
+    factors its utilisation is computed with; the trajectory file carries it,
+    :meth:`material_form`) and the run's force table (which the trajectory file does not
+    hold)."""
 
     structure: Structure
     members: MemberDesign
     force: ForceTable | None
+
+    def material_form(self, scene: Scene) -> dict[str, Any]:
+        """The run's structure in the material form with its ``scene``
+        (:func:`tensegrity.design.files.design_to_dict`; the run's own nodes, joints kept, so
+        that ``view`` matches them): the trajectory's ``structure_material`` and
+        :data:`MATERIAL_STRUCTURE`."""
+        from tensegrity.design.files import design_to_dict
+
+        return design_to_dict(self.structure, self.members, keep_joints=True, scene=scene)
 
     def peaks(self, path: Path, n_samples: int) -> TrajectoryUtilisation:
         """The members' largest utilisation over the run of ``n_samples`` samples in the
@@ -135,7 +145,8 @@ def remove_empty(folders: Sequence[Path]) -> None:
 
 
 #: ``simulate``'s file of the run's structure in the material form, beside ``structure.json``
-#: (members with a design only).
+#: (members with a design only): what runs it again with its design (``--structure``); the
+#: trajectory carries the same document (``structure_material``).
 MATERIAL_STRUCTURE = "structure-material.json"
 
 
@@ -186,8 +197,7 @@ def write_run(
     utilisation.png, drawn at the last sample) read from the file.  With ``sensors`` (the
     sensor file of ``--sensors``), their measurements of the run: ``measurements.csv``, and
     ``markers.csv`` if some are position sensors."""
-    from tensegrity.design.files import write_design
-    from tensegrity.io.formats import write_structure
+    from tensegrity.io.formats import write_document, write_structure
     from tensegrity.io.trajectory import read_dataset, read_trajectory
     from tensegrity.plots.motion import MAX_BYTES, MAX_FRAMES, MemberCheck, read_frames
 
@@ -246,18 +256,10 @@ def write_run(
         ]
         outputs = [
             write_structure(staging / "structure.json", structure, scene=scene),
-            *(  # the same structure by material and section (`tensegrity view --structure`)
+            *(  # the same structure by material and section, to run it again with its design
                 []
                 if designed is None
-                else [
-                    write_design(  # (the run's own nodes, joints kept: view matches them)
-                        staging / MATERIAL_STRUCTURE,
-                        structure,
-                        designed.members,
-                        keep_joints=True,
-                        scene=scene,
-                    )
-                ]
+                else [write_document(staging / MATERIAL_STRUCTURE, designed.material_form(scene))]
             ),
             *(_vtk_files(staging / "vtk", read_trajectory(work)) if args.vtk else []),
             *(

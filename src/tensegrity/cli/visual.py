@@ -1,9 +1,8 @@
 """The verbs that show a run: ``tensegrity animate TRAJECTORY.h5 -o motion.mp4|.webm|.gif`` (a
 video, :mod:`tensegrity.plots.animation`) and ``tensegrity view TRAJECTORY.h5 -o view.html``
-(the interactive viewer, :mod:`tensegrity.plots.viewer`; with ``--structure FILE``, a structure
-file in the material form, it colours the members by utilisation too, with the file's factors:
-a trajectory file holds its structure's stiffness and masses, not its members' materials and
-sections).
+(the interactive viewer, :mod:`tensegrity.plots.viewer`; it colours the members by utilisation
+too when they have a design: the one a designed run's trajectory carries, with its factors, or
+that of ``--structure FILE``, a structure file in the material form, in its place).
 
 Both read only as many samples of the trajectory as they show (``read_trajectory(every=)``),
 write their file atomically (nothing is left behind by a failure or an interrupt) and report a
@@ -16,8 +15,6 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 from typing import Any
-
-import numpy as np
 
 from tensegrity.cli import arguments, outputs
 from tensegrity.cli.errors import CommandError, blame
@@ -127,44 +124,48 @@ def _cmd_animate(args: argparse.Namespace) -> int:
 
 
 def _member_check(args: argparse.Namespace) -> Any:
-    """The :class:`~tensegrity.plots.motion.MemberCheck` of ``view --structure FILE`` (the
-    members' design in FILE, for the trajectory's structure, with FILE's factors unless
-    ``--safety-factor`` or ``--strength-factor`` is given; the run's largest utilisation as
-    ``simulate`` reports it), or None without ``--structure``."""
+    """The :class:`~tensegrity.plots.motion.MemberCheck` of ``view``: the members' design the
+    trajectory carries (a designed ``simulate`` run's), or that of ``--structure FILE`` (a
+    structure file in the material form, for the trajectory's structure) in its place, with its
+    factors unless ``--safety-factor`` or ``--strength-factor`` is given; the run's largest
+    utilisation as ``simulate`` reports it.  None without a design."""
     from tensegrity.cli.structures import factors_of
-    from tensegrity.design.files import read_design
+    from tensegrity.design.files import read_design, same_members, trajectory_design
     from tensegrity.design.utilisation import trajectory_utilisation
-    from tensegrity.io.trajectory import read_dataset, read_trajectory
+    from tensegrity.io.trajectory import read_dataset, read_trajectory_structure
     from tensegrity.plots.motion import MemberCheck
 
-    if args.structure is None:
-        for option, value in (("--safety-factor", args.safety_factor),
-                              ("--strength-factor", args.strength_factor)):  # fmt: skip
-            if value is not None:
-                raise CommandError(f"{option}: only with --structure (the members' design)")
-        return None
-    with blame("--structure", args.structure):
-        given = read_design(args.structure)
-    if given.design is None:
-        raise CommandError(
-            f"--structure: {shown_path(args.structure)} gives no materials and sections (a "
-            "structure file in the material form, as `tensegrity design` writes)"
-        )
+    given = None
+    if args.structure is not None:
+        with blame("--structure", args.structure):
+            given = read_design(args.structure)
+        if given.design is None:
+            raise CommandError(
+                f"--structure: {shown_path(args.structure)} gives no materials and sections (a "
+                "structure file in the material form, as `tensegrity design` writes)"
+            )
     with blame("view", args.trajectory):
-        structure = read_trajectory(args.trajectory, every=2**62).structure
+        if given is None:
+            structure, design = trajectory_design(args.trajectory)
+        else:
+            structure, design = read_trajectory_structure(args.trajectory)[0], given.design
         n_samples = read_dataset(args.trajectory, "t").size
-    same = (
-        given.structure.n_nodes == structure.n_nodes
-        and np.array_equal(given.structure.rod_nodes, structure.rod_nodes)
-        and np.array_equal(given.structure.tendon_nodes, structure.tendon_nodes)
-    )
-    if not same:
+    if given is not None and not same_members(given.structure, structure):
         raise CommandError(
             f"--structure: {shown_path(args.structure)} is not the structure of "
             f"{shown_path(args.trajectory)} (other nodes, rods or tendons)"
         )
-    factors = factors_of(args, given.design.factors)
-    members = given.design.properties(structure)
+    if design is None:
+        for option, value in (("--safety-factor", args.safety_factor),
+                              ("--strength-factor", args.strength_factor)):  # fmt: skip
+            if value is not None:
+                raise CommandError(
+                    f"{option}: needs members with a design ({shown_path(args.trajectory)} "
+                    "carries none: give --structure FILE in the material form)"
+                )
+        return None
+    factors = factors_of(args, design.factors)
+    members = design.properties(structure)
     with blame("view", args.trajectory):
         peaks = trajectory_utilisation(
             args.trajectory,
@@ -249,7 +250,8 @@ def add_parsers(sub: Any) -> None:
         help="an interactive 3-D viewer of a trajectory: one self-contained HTML file",
         description="Write one HTML file that shows a trajectory in 3-D in any browser, "
         "offline: orbit, zoom, pan, play, a time slider, tensions, slack tendons, supports; "
-        "hover a member to read its name, length and tension.",
+        "hover a member to read its name, length and tension. A designed run's trajectory "
+        "carries its members' design: the page can colour them by utilisation too.",
     )
     viewer.add_argument(
         "trajectory", type=arguments.name, help="a trajectory.h5 written by simulate"
@@ -274,10 +276,10 @@ def add_parsers(sub: Any) -> None:
         type=arguments.name,
         metavar="FILE",
         help="the run's structure file in the material form (members by material and "
-        "section, as `tensegrity design` writes): the page can colour every member by its "
-        "utilisation (the trajectory does not hold the members' design), with the file's "
-        "factors unless the options below are given. Rod forces leave out "
-        "a run's --force-table, which the trajectory does not hold either",
+        "section, as `tensegrity design` writes), in place of the design the trajectory of a "
+        "designed run carries: the page can colour every member by its utilisation, with the "
+        "design's factors unless the options below are given. Rod forces leave out "
+        "a run's --force-table, which the trajectory does not hold",
     )
     arguments.add_factors(design, from_file=True)
     viewer.set_defaults(run=_cmd_view)

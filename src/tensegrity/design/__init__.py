@@ -14,7 +14,8 @@
 - :mod:`~tensegrity.design.dynamic` — the dynamic check: a structure under each load case
   applied suddenly, the members' largest utilisation in motion.
 - :mod:`~tensegrity.design.files` — structure files in the material form (members by material
-  and section): ``read_design``, ``write_design``.
+  and section): ``read_design``, ``write_design``; ``trajectory_design`` (the design a
+  trajectory file carries).
 
 Imports model, physics, engine, io and analysis; nothing above.
 """

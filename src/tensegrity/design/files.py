@@ -24,7 +24,9 @@ given both (``mass`` and a material, say) is an error naming it.
 :func:`read_design` reads either form (and ``.npz``, numeric only) and returns the structure
 with its :class:`~tensegrity.design.materials.MemberDesign` (None for the numeric form);
 :func:`write_design` writes the material form back: reading it gives the same structure and
-design.
+design.  A trajectory file of a run whose members have a design carries that document too
+(:func:`tensegrity.io.trajectory.write_trajectory`'s ``material_form``);
+:func:`trajectory_design` reads it back.
 """
 
 from __future__ import annotations
@@ -57,6 +59,7 @@ from tensegrity.io.formats import (
     with_scene,
     write_document,
 )
+from tensegrity.io.trajectory import MATERIAL_FORM, read_trajectory_structure
 from tensegrity.model.ground import Scene
 from tensegrity.model.structure import Structure, check_keys, parse_number
 
@@ -65,6 +68,8 @@ __all__ = [
     "design_from_dict",
     "design_to_dict",
     "read_design",
+    "same_members",
+    "trajectory_design",
     "write_design",
 ]
 
@@ -111,6 +116,49 @@ def read_design(path: PathLike, *, format: str | None = None) -> Designed:
         raise file_error(path, str(exc)) from exc
     except (TypeError, KeyError, OverflowError) as exc:
         raise file_error(path, str(exc) or type(exc).__name__) from exc
+
+
+def trajectory_design(path: PathLike) -> Designed:
+    """The structure of a trajectory file and its members' design, from the material form the
+    file carries (a run whose members have a design:
+    :func:`tensegrity.io.trajectory.read_trajectory_structure`); the design is None for a file
+    without one (a run without a design, or a file written before trajectories carried it).
+
+    The structure is the trajectory's own (its exact numbers); the design's factors are those
+    the run's utilisation was computed with.
+
+    Raises
+    ------
+    ValueError
+        One line starting with the file name: the trajectory's (missing, not a trajectory, ...,
+        as :func:`~tensegrity.io.trajectory.read_trajectory`), or naming the attribute
+        ``structure_material`` if it is not the material form of the trajectory's structure.
+    """
+    structure, form = read_trajectory_structure(path)
+    if form is None:
+        return Designed(structure, None)
+    where = f"attribute {MATERIAL_FORM!r}"
+    try:
+        given = design_from_dict(form)
+    except (ValueError, TypeError, KeyError, OverflowError) as exc:
+        raise file_error(path, f"{where}: {str(exc) or type(exc).__name__}") from exc
+    if given.design is None:
+        raise file_error(path, f"{where}: gives no materials and sections")
+    if not same_members(given.structure, structure):
+        raise file_error(
+            path, f"{where}: not the structure of the trajectory (other nodes, rods or tendons)"
+        )
+    return Designed(structure, given.design)
+
+
+def same_members(one: Structure, other: Structure) -> bool:
+    """Whether ``one`` and ``other`` have the same number of nodes and the same rods and
+    tendons between the same nodes (what a design of one needs of the other)."""
+    return (
+        one.n_nodes == other.n_nodes
+        and np.array_equal(one.rod_nodes, other.rod_nodes)
+        and np.array_equal(one.tendon_nodes, other.tendon_nodes)
+    )
 
 
 def design_from_dict(data: Any) -> Designed:

@@ -44,8 +44,9 @@ segment) in chunks of about 1 MiB, each with a Fletcher-32 checksum (a damaged f
 when read, not wrong numbers; 4 bytes a chunk, and about half the time of an uncompressed write
 more: 44 -> 68 ms for 48 MB, h5py alone on a 2-core machine).  The file's ``settings`` is the
 run's record (``SimulationResult.settings``, written when the file is created) with the segment
-grid under ``stream``; ``switch_times`` is written when the run ends.  Extra root attributes:
-``complete``, ``stream_settings`` (JSON: what a resumed run must match) and
+grid under ``stream``; ``switch_times`` is written when the run ends, and so is the members'
+design (``material_form``: the attribute ``structure_material``), the finishing call's.  Extra
+root attributes: ``complete``, ``stream_settings`` (JSON: what a resumed run must match) and
 ``stream_settings_hash``; an extra group ``checkpoint`` (see :class:`Checkpoint`).
 
 A segment is stored in this order: its rows are appended to every dataset; the new checkpoint is
@@ -972,6 +973,7 @@ def simulate_to_file(
     progress: bool | Callable[[StreamProgress], None] = False,
     observe: Callable[[Samples], None] | None = None,
     stop: StopCondition | None = None,
+    material_form: Mapping[str, Any] | None = None,
     **simulate_options: Any,
 ) -> StreamSummary:
     """Simulate ``structure`` over ``t_span = (t0, t_end)`` [s], streaming samples to ``path``.
@@ -1008,6 +1010,11 @@ def simulate_to_file(
     stop : StopCondition, optional
         Ends the run at a sample (:func:`tensegrity.engine.simulate.simulate`'s ``stop``); the
         file is finished there, with status 2.  Not part of the settings a resume must match.
+    material_form : mapping, optional
+        The members' design: ``structure`` in the material form, stored in the finished file as
+        :func:`tensegrity.io.trajectory.write_trajectory` stores its ``material_form``.  Not
+        part of the settings a resume must match: the call that finishes the file writes its
+        own.
     **simulate_options
         The options of :func:`tensegrity.engine.simulate.simulate`: ``sample_dt`` [s] (default
         ``(t_end - t0) / 1000``), ``initial``, ``control``, ``external_force``, ``gravity``,
@@ -1038,6 +1045,7 @@ def simulate_to_file(
         and the run resumes from there.
     """
     plan = _plan(structure, t_span, segment, simulate_options)
+    design = tio.material_form_json(material_form)
     final = Path(path)
     partial = Path(str(final) + PARTIAL_SUFFIX)
     if not final.parent.is_dir():
@@ -1079,7 +1087,7 @@ def simulate_to_file(
             sink.finish(summary)
     finally:
         close()
-    return _rename_finished(final, partial, sink.segments_run, resumed_from)
+    return _rename_finished(final, partial, sink.segments_run, resumed_from, design)
 
 
 class _Plan(NamedTuple):
@@ -1229,15 +1237,17 @@ def _check_partial_layout(f, path: Path, structure_digest: str, checkpoint: Chec
 
 
 def _rename_finished(
-    final: Path, partial: Path, segments_run: int, resumed_from: int | None
+    final: Path, partial: Path, segments_run: int, resumed_from: int | None, design: str | None
 ) -> StreamSummary:
-    """Give the ended partial file the attributes of a complete trajectory, then its final name
-    (an atomic rename)."""
-    reserve_space(partial, METADATA_BYTES)
+    """Give the ended partial file the attributes of a complete trajectory (the members'
+    ``design``, :func:`tensegrity.io.trajectory.material_form_json`, if any), then its final
+    name (an atomic rename)."""
+    reserve_space(partial, METADATA_BYTES + 4 * len(design or ""))
     with _open_h5(partial, "a") as f:
         checkpoint = _read_checkpoint_open(f, partial)
         f.attrs["status"] = int(checkpoint.status)
         f.attrs["message"] = checkpoint.message
+        tio.write_material_form(f, design)
         f.attrs["complete"] = True
         f.attrs["format"] = tio.TRAJECTORY_FORMAT
         f.flush()

@@ -44,7 +44,14 @@ numbers a sample).  The root
 attributes are ``format``, ``version``, ``structure`` (JSON form of the structure), ``settings``
 (JSON: the result's ``settings``), ``status``, ``message``, ``nfev``, ``nsteps``,
 ``nswitches``, ``nprojections``, ``max_rod_length_error``, ``max_constraint_error`` [m]
-(joints and supports; 0 without them), ``wall_time`` [s] and ``tendon_name``.
+(joints and supports; 0 without them), ``wall_time`` [s] and ``tendon_name``.  A run whose
+members have a design also stores ``structure_material`` (:data:`MATERIAL_FORM`): its structure
+in the material form, as JSON (the document of
+:func:`tensegrity.design.files.design_to_dict`: the members' materials and sections, the
+factors of their utilisation, ``tendon_mass``; ``tensegrity simulate`` writes the same as
+``structure-material.json``), which :func:`read_trajectory_structure` gives back and
+:func:`tensegrity.design.files.trajectory_design` reads as the members' design; files without it
+are runs without a design.  It is optional, as the contact datasets are: the version stays 3.
 
 Files of earlier versions still read: version 2 stored ``tendon_length``; version 1 too, and
 ``time``, ``nodes`` and ``velocities`` for ``t``, ``node_position`` and ``node_velocity``
@@ -111,6 +118,9 @@ SAMPLE_NAMES = (*SAMPLE_DATASETS, *DERIVED, *CONTACT_DATASETS)
 VERSION1_NAMES = {"t": "time", "node_position": "nodes", "node_velocity": "velocities"}
 #: The run's counts, as root attributes: evaluations, steps, switches, projections.
 COUNT_ATTRIBUTES = ("nfev", "nsteps", "nswitches", "nprojections")
+#: The root attribute of a run whose members have a design: its structure in the material form
+#: (JSON text), absent otherwise.
+MATERIAL_FORM = "structure_material"
 
 
 # --------------------------------------------------------------------------- the layout
@@ -233,6 +243,40 @@ def settings_json(settings: Mapping[str, Any]) -> str:
     return json.dumps(settings, default=json_default)
 
 
+def material_form_json(material_form: Mapping[str, Any] | None) -> str | None:
+    """The :data:`MATERIAL_FORM` attribute of a file for ``material_form`` (a structure in the
+    material form, :func:`tensegrity.design.files.design_to_dict`), as JSON text; None for
+    None (the attribute is not written).
+
+    Raises
+    ------
+    TypeError
+        ``material_form`` is not a mapping, or holds what JSON cannot (naming the argument).
+    ValueError
+        It holds a NaN or an infinity.
+    """
+    if material_form is None:
+        return None
+    if not isinstance(material_form, Mapping):
+        raise TypeError(
+            "material_form: expected a mapping (the structure in the material form, "
+            f"tensegrity.design.files.design_to_dict), got {type(material_form).__name__}"
+        )
+    try:
+        return json.dumps(dict(material_form), allow_nan=False)
+    except (TypeError, ValueError) as exc:
+        raise type(exc)(f"material_form: {exc}") from None
+
+
+def write_material_form(f: Any, text: str | None) -> None:
+    """Store ``text`` (:func:`material_form_json`) as the attribute :data:`MATERIAL_FORM` of
+    the open file ``f``; for None, no such attribute."""
+    if text is not None:
+        f.attrs[MATERIAL_FORM] = text
+    elif MATERIAL_FORM in f.attrs:
+        del f.attrs[MATERIAL_FORM]
+
+
 def write_layout_attributes(f: Any, structure: Structure, structure_json: str) -> None:
     """The attributes every trajectory file has from its start: ``version``, ``structure``
     (``structure_json``, the JSON text of ``structure``) and ``tendon_name``."""
@@ -244,7 +288,9 @@ def write_layout_attributes(f: Any, structure: Structure, structure_json: str) -
 
 
 # --------------------------------------------------------------------------- trajectories
-def write_trajectory(path: PathLike, result: SimulationResult) -> Path:
+def write_trajectory(
+    path: PathLike, result: SimulationResult, *, material_form: Mapping[str, Any] | None = None
+) -> Path:
     """Write a simulation result to an HDF5 trajectory file, atomically.
 
     Arrays are stored exactly (float64, gzip level 4 with byte shuffle, ``h5py``'s automatic
@@ -261,6 +307,12 @@ def write_trajectory(path: PathLike, result: SimulationResult) -> Path:
         (or the older file stays).
     result : SimulationResult
         ``T`` samples of a structure with ``N`` nodes, ``R`` rods and ``S`` tendons.
+    material_form : mapping, optional
+        The members' design: ``result.structure`` in the material form,
+        ``tensegrity.design.files.design_to_dict(result.structure, design, keep_joints=True)``
+        (its nodes the structure's own); stored as the attribute :data:`MATERIAL_FORM`, so that
+        :func:`tensegrity.design.files.trajectory_design` and ``tensegrity view`` find the
+        design in the file.  Default: none.
 
     Returns
     -------
@@ -270,7 +322,7 @@ def write_trajectory(path: PathLike, result: SimulationResult) -> Path:
     Raises
     ------
     TypeError
-        ``result`` is not a :class:`SimulationResult`.
+        ``result`` is not a :class:`SimulationResult`, or ``material_form`` not a mapping.
     """
     import h5py
 
@@ -279,12 +331,14 @@ def write_trajectory(path: PathLike, result: SimulationResult) -> Path:
             f"result: expected a SimulationResult (what simulate returns), got "
             f"{type(result).__name__}"
         )
+    design = material_form_json(material_form)
     arrays = sample_columns(result) | event_columns(result)
     with atomic_path(path) as tmp, h5py.File(tmp, "w", libver=("v108", "v108")) as f:
         f.attrs["format"] = TRAJECTORY_FORMAT
         structure = result.structure
         write_layout_attributes(f, structure, json.dumps(structure.to_dict(), allow_nan=False))
         f.attrs["settings"] = settings_json(result.settings)
+        write_material_form(f, design)
         write_run_attributes(
             f,
             status=result.status,
@@ -360,6 +414,19 @@ def read_trajectory(path: PathLike, *, every: int = 1) -> SimulationResult:
     _check_every(every)
     with _open(path) as f:
         return _read_open_trajectory(f, path, every)
+
+
+def read_trajectory_structure(path: PathLike) -> tuple[Structure, dict[str, Any] | None]:
+    """The structure of a trajectory file and, if the file stores one (a run whose members have
+    a design), that structure in the material form (the document of the attribute
+    :data:`MATERIAL_FORM`; :func:`tensegrity.design.files.trajectory_design` reads it), else
+    None; no sample is read.  ``ValueError`` names the file and the problem, as
+    :func:`read_trajectory`'s."""
+    with _open(path) as f:
+        _check_format(f, path)
+        structure = _structure(f, path)
+        form = _Attributes(f, path).json(MATERIAL_FORM) if MATERIAL_FORM in f.attrs else None
+    return structure, form
 
 
 def read_dataset(path: PathLike, name: str, *, every: int = 1) -> np.ndarray:
