@@ -29,6 +29,7 @@ LAYERS: list[tuple[str, ...]] = [
     ("design",),
     ("sweep", "plots", "envs"),
     ("cli",),
+    ("__main__",),  # python -m tensegrity: the command
 ]
 RANK = {package: rank for rank, packages in enumerate(LAYERS) for package in packages}
 

@@ -279,9 +279,10 @@ def test_unstable_run_fails_with_exit_1_and_writes_nothing(tmp_path, capsys):
     assert not out.exists() or not list(out.iterdir())
 
 
-def test_console_script_errors_without_traceback(tmp_path):
+@pytest.mark.parametrize("module", ["tensegrity.cli", "tensegrity"])
+def test_console_script_errors_without_traceback(tmp_path, module):
     completed = subprocess.run(
-        [sys.executable, "-m", "tensegrity.cli", "simulate", "--n", "1"],
+        [sys.executable, "-m", module, "simulate", "--n", "1"],
         capture_output=True,
         text=True,
         cwd=tmp_path,
