@@ -370,7 +370,8 @@ def advance_stretches_parallel(
 ):  # pragma: no cover - compiled
     """:func:`advance_stretches` with the runs spread over numba's threads (each run's
     arithmetic is its own: the results are those of one thread, bit for bit)."""
-    for b in prange(len(models)):
+    for i in prange(len(models)):
+        b = np.int64(i)  # prange's index is unsigned; typed lists take a signed one
         if active[b]:
             code, check, value = advance_stretch(
                 models[b], rows[b], points[b], loops[b], commands[b], start[b], bound[b]
