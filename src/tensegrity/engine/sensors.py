@@ -61,10 +61,11 @@ from __future__ import annotations
 import bisect
 import dataclasses
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
+import scipy.interpolate
 
 from tensegrity.model.structure import Structure
 from tensegrity.physics.coordinates import nodes_from_coordinates, rod_coordinates
@@ -624,8 +625,12 @@ class SensorReader:
         self._advance(_number(t, "t", low=-math.inf), signal)
         return Reading(self._latest.copy(), self.channel)
 
-    def _advance(self, t: float, signal: np.ndarray) -> None:
-        """Time ``t`` [s] with the true ``signal`` (C,) of every channel: the samples due."""
+    def _advance(
+        self, t: float, signal: np.ndarray, exact: Callable[[float], np.ndarray] | None = None
+    ) -> None:
+        """Time ``t`` [s] with the true ``signal`` (C,) of every channel: the samples due, each
+        of the signal at its time (less the delay) by ``exact`` if given (a finished run's
+        interpolation), else as last read up to that time."""
         if self._times and t < self._times[-1]:
             raise ValueError(f"t: {t!r} is before the last time read, {self._times[-1]!r}")
         if self._t0 is None:
@@ -636,7 +641,9 @@ class SensorReader:
         for clock in self._clocks:
             span = clock.bound.span
             for sample in clock.due(t0, t):
-                clock.take(sample, self._signal_at(sample - clock.bound.sensor.delay)[span])
+                query = sample - clock.bound.sensor.delay
+                true = self._signal_at(query) if exact is None else exact(query)
+                clock.take(sample, true[span])
             if clock.value:
                 self._latest[span] = clock.value[-1]
         # forget what no sensor can ask for again
@@ -683,14 +690,54 @@ def measure(
     """
     reader = SensorReader(result.structure, sensors, planes=len(result.planes), seed=seed)
     needs = reader.needs
-    signal = _signals(
-        result.structure,
-        reader.bound,
-        np.asarray(result.q, dtype=float),
-        np.asarray(result.qdot, dtype=float),
-        result.tendon_tension if "tension" in needs else None,
-        result.contact_mode if "contact_mode" in needs else None,
-    )
-    for t, row in zip(result.t, signal, strict=True):
-        reader._advance(float(t), row)
+    t = np.asarray(result.t, dtype=float)
+    q, qdot = np.asarray(result.q, dtype=float), np.asarray(result.qdot, dtype=float)
+    tension = result.tendon_tension if "tension" in needs else None
+    modes = result.contact_mode if "contact_mode" in needs else None
+    signal = _signals(result.structure, reader.bound, q, qdot, tension, modes)
+    exact = _interpolation(result.structure, reader.bound, t, q, qdot, tension, modes)
+    for time, row in zip(t, signal, strict=True):
+        reader._advance(float(time), row, exact)
     return reader.measurements()
+
+
+def _interpolation(
+    structure: Structure,
+    bound: Sequence[_Bound],
+    t: np.ndarray,
+    q: np.ndarray,
+    qdot: np.ndarray,
+    tension: np.ndarray | None,
+    contact_mode: np.ndarray | None,
+) -> Callable[[float], np.ndarray]:
+    """The true signal (C,) at any time of a finished run sampled at ``t`` (T,): the state by
+    cubic Hermite interpolation of ``q`` with ``qdot`` (``qdot`` its derivative), tensions
+    linearly, contact modes held from the last sample; clamped to the run's span; a time within
+    :data:`TIME_TOLERANCE` of a sample's is that sample's."""
+    keep = np.concatenate([np.diff(t) > 0, [True]])  # one sample per time (the last)
+    t, q, qdot = t[keep], q[keep], qdot[keep]
+    tension = None if tension is None else np.asarray(tension, dtype=float)[keep]
+    contact_mode = None if contact_mode is None else np.asarray(contact_mode)[keep]
+    spline = scipy.interpolate.CubicHermiteSpline(t, q, qdot, axis=0) if t.size > 1 else None
+
+    def at(time: float) -> np.ndarray:
+        s = min(max(time, t[0]), t[-1])
+        k = max(int(np.searchsorted(t, s + TIME_TOLERANCE, side="right")) - 1, 0)
+        if s - t[k] <= TIME_TOLERANCE:  # a sample's time (within 1 ns): the sample itself
+            s = t[k]
+        qs, vs = (q[k], qdot[k]) if spline is None or s == t[k] else (spline(s), spline(s, 1))
+        ts = None if tension is None else tension[k]
+        if tension is not None and spline is not None and s > t[k]:
+            ts = np.array([np.interp(s, t, column) for column in tension.T])
+        ms = None if contact_mode is None else contact_mode[k]
+        row = _signals(
+            structure,
+            bound,
+            qs[None],
+            vs[None],
+            None if ts is None else ts[None],
+            None if ms is None else ms[None],
+        )
+        return row[0]
+
+    return at
