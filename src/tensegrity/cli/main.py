@@ -20,7 +20,7 @@ import sys
 from collections.abc import Sequence
 from typing import NoReturn
 
-from tensegrity.cli import analysis_verbs, design, inspection, simulate, sweep, visual
+from tensegrity.cli import analysis_verbs, design, fit, inspection, simulate, sweep, visual
 from tensegrity.cli.errors import (
     CommandError,
     report,
@@ -57,6 +57,7 @@ def build_parser() -> argparse.ArgumentParser:
     sweep.add_parser(sub)
     visual.add_parsers(sub)  # animate, view
     design.add_parsers(sub)  # design: minimal-mass members
+    fit.add_parser(sub)  # fit: parameters to measured motion
     for verb in sub.choices.values():  # after the verb too; not given there: the command's value
         _add_debug_option(verb, default=argparse.SUPPRESS)
     return parser

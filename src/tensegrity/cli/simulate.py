@@ -154,7 +154,7 @@ def _simulation_inputs(
                 f"--force-table: {shown_path(args.force_table)} has forces for {force.n_nodes} "
                 f"nodes, the structure has {structure.n_nodes}"
             )
-    force = _with_loads(args.load, structure, force)
+    force = with_loads(args.load, structure, force)
     control = None
     if args.control_table is not None:
         from tensegrity.io.tables import read_control_table
@@ -178,7 +178,7 @@ def _simulation_inputs(
     return structure, inputs, DesignedRun(structure, members, force)
 
 
-def _with_loads(
+def with_loads(
     loads: list[tuple[str, NodalLoad]], structure: Structure, force: ForceTable | None
 ) -> ForceTable | None:
     """The force table ``force`` (or None) plus the ``--load`` forces on ``structure``

@@ -71,7 +71,7 @@ def simulate_parser(sub: Any) -> argparse.ArgumentParser:
     )
     sim.add_argument(
         "--load",
-        type=_nodal_load,
+        type=nodal_load,
         action="append",
         default=[],
         metavar="NODE:FX,FY,FZ[@RAMP]",
@@ -188,7 +188,7 @@ INTEGRATION_OPTIONS = {
 SAMPLE_DT = 0.01
 
 
-def _nodal_load(text: str) -> tuple[str, NodalLoad]:
+def nodal_load(text: str) -> tuple[str, NodalLoad]:
     """``--load NODE:FX,FY,FZ[@RAMP]``: the text and its :class:`NodalLoad` (a force [N] on a
     node, a name or a 0-based index, ramped in from 0 over RAMP [s], default 0)."""
     from tensegrity.model.loads import NodalLoad

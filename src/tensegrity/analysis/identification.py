@@ -1,0 +1,519 @@
+"""Fitting a structure's parameters to measured motion (identification; ``docs/identification.md``).
+
+A fit chooses the values of some parameters of a structure -- tendon stiffness, damping and
+rest length, rod mass, each for all members or a named group -- so that simulated runs
+reproduce measured marker positions of some nodes, at the markers' own sample times, in one or
+several experiments at once:
+
+- :func:`parameter` reads a parameter's name (``"tendon_stiffness"``, ``"rod_mass"``,
+  ``"tendon_damping:t1_*"``): its kind, and the members it sets to one common value.
+- :class:`Experiment`: the markers (node name -> sample times (T,) [s] and positions (T, dim)
+  [m]), their noise (the standard deviation of a coordinate [m], the weights of the least
+  squares), and how the run is made (its start state and the keywords of
+  :func:`~tensegrity.engine.simulate.simulate`: gravity, loads, control, ground ...).
+- :func:`fit`: weighted nonlinear least squares (``scipy.optimize.least_squares``, trust-region
+  reflective, the parameters' bounds), the residuals ``(simulated - measured) / noise`` of every
+  marker coordinate.  Each run is sampled finely and read at the markers' times by cubic Hermite
+  interpolation of the node positions and velocities.
+
+The Jacobian is made of central differences of whole runs (two runs per parameter, at
+``rtol`` 1e-10); sensitivities integrated with the state are the next step (issue 31).
+
+The report (:class:`Fit`): the estimates with their standard errors and 95 % intervals (from the
+Jacobian at the optimum: ``cov = s^2 (J^T J)^-1``, ``s^2`` the residuals' variance per degree
+of freedom, Student's t quantile), the correlations, the residuals, and the fitted structure.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import fnmatch
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+import scipy.interpolate
+import scipy.optimize
+import scipy.stats
+
+from tensegrity.engine.result import SimulationResult
+from tensegrity.engine.simulate import simulate
+from tensegrity.model.structure import Structure
+from tensegrity.physics.dynamics import State
+
+__all__ = [
+    "KINDS",
+    "Experiment",
+    "Fit",
+    "Parameter",
+    "fit",
+    "parameter",
+    "simulated_markers",
+]
+
+#: What can be fitted: the field of :class:`~tensegrity.model.structure.Structure` each kind
+#: sets, its members (``"tendon"`` or ``"rod"``), and the least value it may take.
+KINDS: dict[str, tuple[str, str, float]] = {
+    "tendon_stiffness": ("tendon_stiffness", "tendon", 0.0),
+    "tendon_damping": ("tendon_damping", "tendon", 0.0),
+    "tendon_rest_length": ("tendon_rest_length", "tendon", 0.0),
+    "rod_mass": ("rod_mass", "rod", 0.0),
+}
+
+#: The run's accuracy when fitting (relative and absolute tolerances of DOP853): far below the
+#: markers' noise, and fine enough for the central differences of the Jacobian.
+RTOL, ATOL = 1e-10, 1e-13
+
+#: The fractions of the experiments' spans fitted in turn (:func:`fit`'s ``horizons``).
+HORIZONS = (0.25, 0.5, 1.0)
+
+#: Two estimates correlated beyond this are reported as not determined separately.
+CORRELATION_LIMIT = 0.99999
+
+#: The central differences' step, relative to the parameter's value.
+STEP = 1e-5
+
+
+@dataclasses.dataclass(frozen=True)
+class Parameter:
+    """A quantity of a structure to fit: ``kind`` (a key of :data:`KINDS`), the ``members``
+    (indices of tendons or rods, sorted) it sets to one value, and its ``name`` as given."""
+
+    name: str
+    kind: str
+    members: np.ndarray
+
+    @property
+    def field(self) -> str:
+        """The :class:`Structure` field it sets."""
+        return KINDS[self.kind][0]
+
+    def value(self, structure: Structure) -> float:
+        """Its value in ``structure``: the mean over its members (SI units of the field)."""
+        return float(np.mean(getattr(structure, self.field)[self.members]))
+
+    def apply(self, structure: Structure, value: float) -> Structure:
+        """``structure`` with every member of the parameter at ``value``."""
+        values = np.array(getattr(structure, self.field), dtype=float)
+        values[self.members] = value
+        return structure.replace(**{self.field: values})
+
+
+def parameter(structure: Structure, name: str) -> Parameter:
+    """The parameter ``name`` of ``structure``: ``KIND`` (every member of its kind) or
+    ``KIND:PATTERN[,PATTERN...]``, patterns of member names (shell-style wildcards, ``t1_*``;
+    rods are named by their index).
+
+    Raises
+    ------
+    ValueError
+        One line naming the unknown kind, or a pattern no member matches.
+    """
+    kind, _, patterns = name.partition(":")
+    if kind not in KINDS:
+        raise ValueError(
+            f"parameter {name!r}: unknown kind {kind!r}; expected one of {', '.join(KINDS)}"
+        )
+    member = KINDS[kind][1]
+    names = (
+        list(structure.tendon_name)
+        if member == "tendon"
+        else [str(r) for r in range(structure.n_rods)]
+    )
+    if not patterns:
+        chosen = set(range(len(names)))
+    else:
+        chosen = set()
+        for pattern in patterns.split(","):
+            found = [i for i, n in enumerate(names) if fnmatch.fnmatchcase(n, pattern.strip())]
+            if not found:
+                raise ValueError(f"parameter {name!r}: no {member} matches {pattern.strip()!r}")
+            chosen.update(found)
+    if not chosen:
+        raise ValueError(f"parameter {name!r}: the structure has no {member}s")
+    return Parameter(name, kind, np.array(sorted(chosen)))
+
+
+@dataclasses.dataclass(frozen=True)
+class Experiment:
+    """One measured run.
+
+    Attributes
+    ----------
+    markers : node name -> ``(t (T,) [s], position (T, dim) [m])``, each marker's samples,
+        strictly increasing times at or after the start.
+    noise : the standard deviation of a measured coordinate [m] (the least squares' weight
+        ``1 / noise``; the reported errors use the residuals' own spread).
+    initial : the start state (default: the structure's node positions and velocities at
+        ``t0``).
+    t0 : the start time [s].
+    options : keywords of :func:`~tensegrity.engine.simulate.simulate` for the run (``gravity``,
+        ``external_force``, ``control``, ``ground``, ...), not its span, start, accuracy or
+        sampling.
+    name : for the report.
+    """
+
+    markers: Mapping[str, tuple[np.ndarray, np.ndarray]]
+    noise: float = 1e-3
+    initial: State | None = None
+    t0: float = 0.0
+    options: Mapping[str, Any] = dataclasses.field(default_factory=dict)
+    name: str = "experiment"
+
+
+@dataclasses.dataclass(frozen=True)
+class _Bound:
+    """An experiment bound to a structure: its markers' nodes, times and measured coordinates
+    (flattened in the residuals' order), the end of its run and its sample spacing."""
+
+    experiment: Experiment
+    nodes: np.ndarray  # (markers,) node indices
+    times: list[np.ndarray]
+    measured: np.ndarray  # (coordinates,)
+    t_end: float
+    sample_dt: float
+
+
+#: The most samples of a run per marker sample interval (the finest spacing read by interpolation).
+SAMPLES_PER_INTERVAL = 4
+
+#: The least sample spacing of a fitted run [s].
+MIN_SAMPLE_DT = 1e-3
+
+
+def _bind(structure: Structure, experiment: Experiment, k: int) -> _Bound:
+    """``experiment`` (the ``k``-th) checked against ``structure``; one-line errors naming the
+    experiment, the marker and the row at fault."""
+    where = f"experiments[{k}] ({experiment.name!r})"
+    if not experiment.markers:
+        raise ValueError(f"{where}: no markers")
+    if not (math.isfinite(experiment.noise) and experiment.noise > 0):
+        raise ValueError(f"{where}: noise must be > 0 [m], got {experiment.noise!r}")
+    nodes, times, measured = [], [], []
+    t0, dim = float(experiment.t0), structure.dim
+    for name, (t, position) in experiment.markers.items():
+        marker = f"{where}: marker {name!r}"
+        try:
+            nodes.append(structure.node_index(name))
+        except KeyError:
+            raise ValueError(f"{marker}: no node of the structure has that name") from None
+        t = np.asarray(t, dtype=float)
+        position = np.asarray(position, dtype=float)
+        if t.ndim != 1 or position.shape != (t.size, dim):
+            raise ValueError(
+                f"{marker}: expected times (T,) and positions (T, {dim}), got {t.shape} and "
+                f"{position.shape}"
+            )
+        bad = np.flatnonzero(~np.isfinite(t) | ~np.isfinite(position).all(axis=1))
+        if bad.size:
+            raise ValueError(f"{marker}: row {bad[0]} is not finite (NaN or infinite)")
+        if t.size and t[0] < t0:
+            raise ValueError(f"{marker}: row 0 at t = {t[0]:g} s is before the start {t0:g} s")
+        late = np.flatnonzero(np.diff(t) <= 0)
+        if late.size:
+            raise ValueError(f"{marker}: row {late[0] + 1}: times must increase")
+        times.append(t)
+        measured.append(position.ravel())
+    t_end = max((float(t[-1]) for t in times if t.size), default=t0)
+    if t_end <= t0:
+        raise ValueError(f"{where}: the markers hold no sample after the start {t0:g} s")
+    spacing = min(
+        (float(np.min(np.diff(np.concatenate([[t0], t])))) for t in times if t.size),
+        default=t_end - t0,
+    )
+    sample_dt = max(MIN_SAMPLE_DT, spacing / SAMPLES_PER_INTERVAL)
+    sample_dt = min(sample_dt, (t_end - t0) / 4)
+    return _Bound(experiment, np.array(nodes), times, np.concatenate(measured), t_end, sample_dt)
+
+
+def simulated_markers(
+    structure: Structure, experiment: Experiment
+) -> tuple[np.ndarray, SimulationResult]:
+    """The run of ``structure`` for ``experiment`` and its markers' positions at their sample
+    times, flattened as the measured ones (marker by marker, time by time, coordinate by
+    coordinate) [m].
+
+    Raises
+    ------
+    ValueError
+        A bad experiment (as :func:`fit`).
+    RuntimeError
+        If the run fails (its message).
+    """
+    return _run(structure, _bind(structure, experiment, 0))
+
+
+def _run(structure: Structure, b: _Bound) -> tuple[np.ndarray, SimulationResult]:
+    """:func:`simulated_markers` of a bound experiment."""
+    e = b.experiment
+    result = simulate(
+        structure,
+        (e.t0, b.t_end),
+        initial=e.initial,
+        rtol=RTOL,
+        atol=ATOL,
+        sample_dt=b.sample_dt,
+        **e.options,
+    )
+    if result.status < 0 or result.t[-1] < b.t_end * (1 - 1e-12):
+        raise RuntimeError(f"experiment {e.name!r}: the run failed: {result.message}")
+    parts = []
+    for node, t in zip(b.nodes, b.times, strict=True):
+        spline = scipy.interpolate.CubicHermiteSpline(
+            result.t, result.node_position[:, node], result.node_velocity[:, node], axis=0
+        )
+        parts.append(spline(t).ravel())
+    return np.concatenate(parts), result
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Fit:
+    """The result of :func:`fit`.
+
+    Attributes
+    ----------
+    parameters : the fitted :class:`Parameter` s.  initial (P,) : their starting values.
+    estimate (P,) : the fitted values (SI units of each field).
+    standard_error (P,) : from the Jacobian at the optimum.
+    interval (P, 2) : 95 % confidence intervals (Student's t with ``n - P`` degrees of freedom).
+    correlation (P, P) : of the estimates.
+    residual (n,) : ``(simulated - measured) / noise`` of every measured coordinate at the
+        optimum.  rms_error : the root mean square of ``simulated - measured`` [m].
+    structure : the fitted structure.
+    status, message : ``scipy.optimize.least_squares``'s.  nfev, njev : residual and Jacobian
+        evaluations (a Jacobian is ``2 P`` runs per experiment).
+    """
+
+    parameters: tuple[Parameter, ...]
+    initial: np.ndarray
+    estimate: np.ndarray
+    standard_error: np.ndarray
+    interval: np.ndarray
+    correlation: np.ndarray
+    residual: np.ndarray
+    rms_error: float
+    structure: Structure
+    status: int
+    message: str
+    nfev: int
+    njev: int
+
+    @property
+    def success(self) -> bool:
+        """Whether the least squares converged."""
+        return self.status > 0
+
+    def undetermined(self) -> list[str]:
+        """Sentences naming the parameters the data do not determine: a standard error not
+        below the estimate's size (or not finite), or two estimates correlated beyond
+        :data:`CORRELATION_LIMIT` (e.g. every stiffness and mass scaled together, when no known
+        force sets the scale)."""
+        names = [p.name for p in self.parameters]
+        found = [
+            f"{name} is not determined by the data (standard error {error:.3g} against the "
+            f"estimate {value:.6g})"
+            for name, value, error in zip(names, self.estimate, self.standard_error, strict=True)
+            if not error < abs(value)
+        ]
+        for i in range(len(names)):
+            for j in range(i):
+                c = self.correlation[i, j]
+                if np.isfinite(c) and abs(c) > CORRELATION_LIMIT:
+                    found.append(
+                        f"{names[j]} and {names[i]} are not determined separately by the data "
+                        f"(correlation {c:.5f}); add a known force or mass, or fit one of them"
+                    )
+        return found
+
+    def to_dict(self) -> dict[str, Any]:
+        """A JSON-ready report."""
+        return dict(
+            success=self.success,
+            message=self.message,
+            nfev=self.nfev,
+            njev=self.njev,
+            rms_error_m=self.rms_error,
+            parameters=[
+                dict(
+                    name=p.name,
+                    kind=p.kind,
+                    members=p.members.tolist(),
+                    initial=float(self.initial[i]),
+                    estimate=float(self.estimate[i]),
+                    standard_error=_finite(self.standard_error[i]),
+                    interval_95=[_finite(x) for x in self.interval[i]],
+                )
+                for i, p in enumerate(self.parameters)
+            ],
+            correlation=[[_finite(x) for x in row] for row in self.correlation],
+            undetermined=self.undetermined(),
+        )
+
+
+def _finite(x: float) -> float | None:
+    """``x`` as a float, None if not finite (JSON has no infinity)."""
+    return float(x) if np.isfinite(x) else None
+
+
+def _until(experiment: Experiment, t: float) -> Experiment:
+    """``experiment`` with the samples of its markers up to time ``t`` [s] (markers left
+    without one are dropped)."""
+    markers = {}
+    for name, (times, position) in experiment.markers.items():
+        times = np.asarray(times, dtype=float)
+        keep = times <= t * (1 + 1e-12)
+        if keep.any():
+            markers[name] = (times[keep], np.asarray(position, dtype=float)[keep])
+    return dataclasses.replace(experiment, markers=markers)
+
+
+def fit(
+    structure: Structure,
+    experiments: Experiment | Sequence[Experiment],
+    parameters: Sequence[str | Parameter],
+    *,
+    initial: Sequence[float] | None = None,
+    bounds: Sequence[tuple[float, float]] | None = None,
+    max_nfev: int = 50,
+    horizons: Sequence[float] = HORIZONS,
+) -> Fit:
+    """Fit ``parameters`` of ``structure`` to the markers of ``experiments`` (see the module
+    docstring).
+
+    Parameters
+    ----------
+    structure : the model; its values of the parameters are the starting guess unless
+        ``initial`` gives one.
+    experiments : one or several measured runs, fitted together.
+    parameters : names (:func:`parameter`) or :class:`Parameter` s; no member may be in two of
+        the same kind.
+    initial : (P,) starting values, optional.
+    bounds : (P,) ``(low, high)`` pairs, optional; default from the least value of each kind
+        (:data:`KINDS`) to infinity.
+    max_nfev : the most residual evaluations of each least squares.
+    horizons : the fits are made in turn on the data up to these fractions of each
+        experiment's span (increasing, the last 1), each from the last one's estimate: a long
+        run's residuals have many local minima in the parameters (the motion's phase slips by
+        whole periods), a short one's few.
+
+    Raises
+    ------
+    ValueError
+        One line: a bad parameter, experiment, marker, start or bound, or fewer measured
+        coordinates than parameters.
+    RuntimeError
+        A run failed at the starting values.
+    """
+    given = [experiments] if isinstance(experiments, Experiment) else list(experiments)
+    if not given:
+        raise ValueError("experiments: give at least one")
+    chosen = tuple(p if isinstance(p, Parameter) else parameter(structure, p) for p in parameters)
+    if not chosen:
+        raise ValueError("parameters: give at least one")
+    for i, p in enumerate(chosen):
+        for q in chosen[:i]:
+            if p.kind == q.kind and np.intersect1d(p.members, q.members).size:
+                raise ValueError(f"parameters: {q.name!r} and {p.name!r} share members")
+    P = len(chosen)
+    x0 = np.array(
+        [p.value(structure) for p in chosen]
+        if initial is None
+        else np.asarray(initial, dtype=float)
+    )
+    if x0.shape != (P,) or not np.all(np.isfinite(x0)):
+        raise ValueError(f"initial: expected {P} finite values, got {initial!r}")
+    low = np.array([KINDS[p.kind][2] for p in chosen], dtype=float)
+    high = np.full(P, np.inf)
+    if bounds is not None:
+        if len(bounds) != P:
+            raise ValueError(f"bounds: expected {P} (low, high) pairs, got {len(bounds)}")
+        low, high = (np.array(side, dtype=float) for side in zip(*bounds, strict=True))
+    if np.any(low >= high) or np.any(x0 < low) or np.any(x0 > high):
+        raise ValueError("initial: each starting value must lie within its bounds (low < high)")
+    spans = np.asarray(horizons, dtype=float)
+    if not (spans.ndim == 1 and spans.size and np.all(np.diff(spans) > 0) and spans[0] > 0):
+        raise ValueError(f"horizons: expected increasing fractions in (0, 1], got {horizons!r}")
+    if spans[-1] != 1.0:
+        raise ValueError(f"horizons: the last must be 1 (all the data), got {horizons!r}")
+    bound = [_bind(structure, e, k) for k, e in enumerate(given)]
+    measured = np.concatenate([b.measured for b in bound])
+    if measured.size <= P:
+        raise ValueError(
+            f"experiments: {measured.size} measured coordinates for {P} parameters; need more"
+        )
+
+    def structure_at(x: np.ndarray) -> Structure:
+        s = structure
+        for p, value in zip(chosen, x, strict=True):
+            s = p.apply(s, float(value))
+        return s
+
+    # the size of each parameter: its start, or 1 (SI unit) for a start at 0 (e.g. damping)
+    scale = np.where(x0 != 0, np.abs(x0), 1.0)
+
+    def solve(bound: list[_Bound], start: np.ndarray) -> scipy.optimize.OptimizeResult:
+        """The weighted least squares of the bound experiments from ``start``."""
+        weights = np.concatenate([np.full(b.measured.size, 1 / b.experiment.noise) for b in bound])
+        measured = np.concatenate([b.measured for b in bound])
+
+        def simulated(x: np.ndarray) -> np.ndarray:
+            s = structure_at(x)
+            return np.concatenate([_run(s, b)[0] for b in bound])
+
+        def jacobian(x: np.ndarray) -> np.ndarray:
+            columns = []
+            for j in range(P):
+                h = STEP * max(abs(x[j]), scale[j])
+                up, down = x.copy(), x.copy()
+                up[j] = min(x[j] + h, high[j])
+                down[j] = max(x[j] - h, low[j])
+                columns.append((simulated(up) - simulated(down)) * weights / (up[j] - down[j]))
+            return np.stack(columns, axis=1)
+
+        return scipy.optimize.least_squares(
+            lambda x: (simulated(x) - measured) * weights,
+            start,
+            jac=jacobian,
+            bounds=(low, high),
+            x_scale="jac",
+            method="trf",
+            max_nfev=max_nfev,
+        )
+
+    x, nfev, njev = x0, 0, 0
+    for fraction in horizons:  # the data up to a growing horizon, each from the last estimate
+        part = [
+            _bind(structure, _until(e, e.t0 + fraction * (b.t_end - e.t0)), k)
+            for k, (e, b) in enumerate(zip(given, bound, strict=True))
+        ]
+        solution = solve(part, x)
+        x, nfev, njev = solution.x, nfev + solution.nfev, njev + solution.njev
+    weights = np.concatenate([np.full(b.measured.size, 1 / b.experiment.noise) for b in bound])
+    r, J = solution.fun, solution.jac
+    dof = max(measured.size - P, 1)
+    variance = float(r @ r) / dof  # per weighted coordinate: 1 when the noise is as given
+    try:
+        covariance = variance * np.linalg.inv(J.T @ J)
+    except np.linalg.LinAlgError:
+        covariance = np.full((P, P), np.inf)
+    error = np.sqrt(np.maximum(np.diag(covariance), 0.0))
+    quantile = float(scipy.stats.t.ppf(0.975, dof))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        correlation = covariance / np.outer(error, error)
+    x = solution.x
+    return Fit(
+        parameters=chosen,
+        initial=x0,
+        estimate=x,
+        standard_error=error,
+        interval=np.stack([x - quantile * error, x + quantile * error], axis=1),
+        correlation=correlation,
+        residual=r,
+        rms_error=float(np.sqrt(np.mean((r / weights) ** 2))),
+        structure=structure_at(x),
+        status=int(solution.status),
+        message=str(solution.message),
+        nfev=int(nfev),
+        njev=int(njev),
+    )
