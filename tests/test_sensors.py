@@ -103,7 +103,7 @@ def test_a_bias_shifts_the_measurements_by_exactly_it(ground_run):
 @pytest.fixture(scope="module")
 def fine_run(ground_run):
     """The same run sampled 6 times as often: the motion between the first's samples."""
-    run, face = ground_run
+    run, _ = ground_run
     fine = simulate(
         run.structure,
         (0.0, 1.0),

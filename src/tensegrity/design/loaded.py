@@ -588,7 +588,12 @@ def _size_at_prestress(
             held=held,
             mass_per_area=mass_per_area,
             lower=least_areas(
-                C0[None], T0[None], strength=strength, beta=beta, min_area=min_area, cases=names
+                C0[None],
+                T0[None],
+                strength=strength,
+                beta=beta,
+                min_area=min_area,
+                cases=["prestress"],
             ).area,
             max_displacement=max_displacement,
             min_frequency=min_frequency,
