@@ -232,3 +232,52 @@ def test_a_planar_structure_is_refused_in_one_line():
             load_cases=[LoadCase("down", w, None)],
             least_mass=True,
         )
+
+
+def test_the_constraints_gradient_equals_finite_differences_of_designs():
+    """The semi-analytic gradient (sensitivities, then differences along them) of every
+    constraint -- yield, buckling, displacement, frequency, stability -- against central
+    differences of designs whose load paths are solved again."""
+    from tensegrity.design.least_mass import MassProblem, _Constraints
+    from tensegrity.design.sizing import buckling_coefficient
+
+    s, case = _fixed_base_prism(), _top(100.0)
+    start = _design(max_displacement=LIMIT)
+    area, T0 = _areas(start), start.tendon_tension[0]
+    R, S = s.n_rods, s.n_tendons
+    strength = np.array([STEEL.yield_strength] * R + [DYNEEMA.yield_strength] * S)
+    length = np.concatenate([s.rod_length, dynamics.tendon_lengths(s, s.node_position)])
+    problem = MassProblem(
+        structure_at=lambda a: _sized(s, a, T0)[0],
+        geometry=s,
+        loads=[case],
+        strength=strength,
+        beta=buckling_coefficient(
+            s.rod_length, np.full(R, STEEL.youngs_modulus), wall_ratio=None, safety_factor=1.0
+        ),
+        held=np.zeros(R, dtype=bool),
+        mass_per_area=np.array([STEEL.density] * R + [DYNEEMA.density] * S) * length,
+        lower=np.full(R + S, 1e-8),
+        max_displacement=LIMIT,
+        min_frequency=1.0,
+    )
+    constraints = _Constraints(problem, area)
+    base = constraints.start
+    assert {"tension", "yield", "buckling", "displacement", "frequency", "stability"} <= set(
+        base.kinds
+    )
+    analytic = constraints.gradient(base)
+    h = 1e-4
+    numeric = np.stack(
+        [
+            (
+                constraints.design(area * np.exp(h * e), base).values
+                - constraints.design(area * np.exp(-h * e), base).values
+            )
+            / (2 * h)
+            for e in np.eye(R + S)
+        ],
+        axis=1,
+    )
+    assert np.max(np.abs(numeric)) > 0.1
+    np.testing.assert_allclose(analytic, numeric, rtol=0, atol=1e-5 * np.max(np.abs(numeric)))

@@ -184,7 +184,7 @@ def test_the_cli_fits_a_markers_file_and_writes_the_fitted_structure(tmp_path, c
 
 def test_the_cli_fits_a_trajectory_file(tmp_path, capsys):
     """A run's own trajectory (every free node a marker, from its first sample): the
-    stiffness it was made with, to 1e-6."""
+    stiffness it was made with, to 1e-6; a model with other node names is refused."""
     true = write_structure(tmp_path / "true.json", _shell(**TRUE))
     run = tmp_path / "run"
     common = ["--gravity", "9.81", "--load", "n11:5,0,0"]
@@ -198,3 +198,10 @@ def test_the_cli_fits_a_trajectory_file(tmp_path, capsys):
     capsys.readouterr()
     (fitted,) = json.loads((out / "fit.json").read_text())["parameters"]
     assert abs(fitted["estimate"] / TRUE["tendon_stiffness"] - 1) < 1e-6
+    shell = _shell()
+    renamed = shell.replace(node_name=[f"p{i}" for i in range(shell.n_nodes)])
+    other = write_structure(tmp_path / "other.json", renamed)
+    assert main(["fit", "--structure", str(other), "--data", data, "--param", "rod_mass",
+                 "--gravity", "9.81", "-o", str(tmp_path / "no")]) == 2  # fmt: skip
+    assert "is a run of another structure" in capsys.readouterr().err
+    assert not (tmp_path / "no").exists()

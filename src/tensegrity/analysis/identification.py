@@ -52,13 +52,16 @@ __all__ = [
     "simulated_markers",
 ]
 
+#: The least value of a quantity that must be > 0 (stiffness, mass, rest length).
+TINY = float(np.finfo(float).tiny)
+
 #: What can be fitted: the field of :class:`~tensegrity.model.structure.Structure` each kind
 #: sets, its members (``"tendon"`` or ``"rod"``), and the least value it may take.
 KINDS: dict[str, tuple[str, str, float]] = {
-    "tendon_stiffness": ("tendon_stiffness", "tendon", 0.0),
+    "tendon_stiffness": ("tendon_stiffness", "tendon", TINY),
     "tendon_damping": ("tendon_damping", "tendon", 0.0),
-    "tendon_rest_length": ("tendon_rest_length", "tendon", 0.0),
-    "rod_mass": ("rod_mass", "rod", 0.0),
+    "tendon_rest_length": ("tendon_rest_length", "tendon", TINY),
+    "rod_mass": ("rod_mass", "rod", TINY),
 }
 
 #: The run's accuracy when fitting (relative and absolute tolerances of DOP853): far below the
@@ -70,6 +73,9 @@ HORIZONS = (0.25, 0.5, 1.0)
 
 #: Two estimates correlated beyond this are reported as not determined separately.
 CORRELATION_LIMIT = 0.99999
+
+#: Times this close (relative, at least 1 s scale) are the same time.
+TIME_TOLERANCE = 1e-12
 
 #: The central differences' step, relative to the parameter's value.
 STEP = 1e-5
@@ -256,7 +262,7 @@ def _run(structure: Structure, b: _Bound) -> tuple[np.ndarray, SimulationResult]
         sample_dt=b.sample_dt,
         **e.options,
     )
-    if result.status < 0 or result.t[-1] < b.t_end * (1 - 1e-12):
+    if result.status < 0 or result.t[-1] < b.t_end - TIME_TOLERANCE * max(1.0, abs(b.t_end)):
         raise RuntimeError(f"experiment {e.name!r}: the run failed: {result.message}")
     parts = []
     for node, t in zip(b.nodes, b.times, strict=True):
@@ -276,7 +282,8 @@ class Fit:
     parameters : the fitted :class:`Parameter` s.  initial (P,) : their starting values.
     estimate (P,) : the fitted values (SI units of each field).
     standard_error (P,) : from the Jacobian at the optimum.
-    interval (P, 2) : 95 % confidence intervals (Student's t with ``n - P`` degrees of freedom).
+    interval (P, 2) : 95 % confidence intervals (Student's t with ``n - P`` degrees of freedom),
+        within the bounds.  bounds (P, 2) : the bounds the estimates were kept in.
     correlation (P, P) : of the estimates.
     residual (n,) : ``(simulated - measured) / noise`` of every measured coordinate at the
         optimum.  rms_error : the root mean square of ``simulated - measured`` [m].
@@ -290,6 +297,7 @@ class Fit:
     estimate: np.ndarray
     standard_error: np.ndarray
     interval: np.ndarray
+    bounds: np.ndarray
     correlation: np.ndarray
     residual: np.ndarray
     rms_error: float
@@ -305,17 +313,27 @@ class Fit:
         return self.status > 0
 
     def undetermined(self) -> list[str]:
-        """Sentences naming the parameters the data do not determine: a standard error not
-        below the estimate's size (or not finite), or two estimates correlated beyond
+        """Sentences naming the parameters the data do not determine: an estimate at a bound,
+        a standard error not below the estimate's size (or not finite), or two estimates
+        correlated beyond
         :data:`CORRELATION_LIMIT` (e.g. every stiffness and mass scaled together, when no known
         force sets the scale)."""
         names = [p.name for p in self.parameters]
-        found = [
-            f"{name} is not determined by the data (standard error {error:.3g} against the "
-            f"estimate {value:.6g})"
-            for name, value, error in zip(names, self.estimate, self.standard_error, strict=True)
-            if not error < abs(value)
-        ]
+        found = []
+        for name, value, error, (low, high) in zip(
+            names, self.estimate, self.standard_error, self.bounds, strict=True
+        ):
+            if value <= low or value >= high:
+                side = "lower" if value <= low else "upper"
+                found.append(
+                    f"{name} ended at its {side} bound {value:.6g}: the data would take it "
+                    "further (the model may lack something the data show)"
+                )
+            elif not error < abs(value):
+                found.append(
+                    f"{name} is not determined by the data (standard error {error:.3g} against "
+                    f"the estimate {value:.6g})"
+                )
         for i in range(len(names)):
             for j in range(i):
                 c = self.correlation[i, j]
@@ -351,6 +369,11 @@ class Fit:
         )
 
 
+def _samples(experiment: Experiment, t0: float) -> int:
+    """The number of ``experiment``'s marker samples after ``t0`` [s]."""
+    return sum(int(np.sum(np.asarray(t, dtype=float) > t0)) for t, _ in experiment.markers.values())
+
+
 def _finite(x: float) -> float | None:
     """``x`` as a float, None if not finite (JSON has no infinity)."""
     return float(x) if np.isfinite(x) else None
@@ -362,7 +385,7 @@ def _until(experiment: Experiment, t: float) -> Experiment:
     markers = {}
     for name, (times, position) in experiment.markers.items():
         times = np.asarray(times, dtype=float)
-        keep = times <= t * (1 + 1e-12)
+        keep = times <= t + TIME_TOLERANCE * max(1.0, abs(t))
         if keep.any():
             markers[name] = (times[keep], np.asarray(position, dtype=float)[keep])
     return dataclasses.replace(experiment, markers=markers)
@@ -484,9 +507,12 @@ def fit(
     x, nfev, njev = x0, 0, 0
     for fraction in horizons:  # the data up to a growing horizon, each from the last estimate
         part = [
-            _bind(structure, _until(e, e.t0 + fraction * (b.t_end - e.t0)), k)
+            _bind(structure, shortened, k)
             for k, (e, b) in enumerate(zip(given, bound, strict=True))
+            if _samples(shortened := _until(e, e.t0 + fraction * (b.t_end - e.t0)), e.t0)
         ]
+        if fraction < 1 and sum(b.measured.size for b in part) <= P:
+            continue  # too few samples so early: the next horizon
         solution = solve(part, x)
         x, nfev, njev = solution.x, nfev + solution.nfev, njev + solution.njev
     weights = np.concatenate([np.full(b.measured.size, 1 / b.experiment.noise) for b in bound])
@@ -507,7 +533,10 @@ def fit(
         initial=x0,
         estimate=x,
         standard_error=error,
-        interval=np.stack([x - quantile * error, x + quantile * error], axis=1),
+        interval=np.stack(
+            [np.maximum(x - quantile * error, low), np.minimum(x + quantile * error, high)], axis=1
+        ),
+        bounds=np.stack([low, high], axis=1),
         correlation=correlation,
         residual=r,
         rms_error=float(np.sqrt(np.mean((r / weights) ** 2))),

@@ -354,15 +354,21 @@ def _governing(sizing: Any) -> str:
     counts: dict[str, int] = {}
     for what in sizing.governs:
         counts[what] = counts.get(what, 0) + 1
+    least = "least mass" in sizing.message  # above its force area: set by a limit of the whole
+    stiffened = "kept above their force areas" if least else "tendons stiffened"
     words = {
         "yield": "yield",
         "buckling": "buckling",
         "min_area": "the least area (--min-area)",
-        "stability": "stability (tendons stiffened against a limit point)",
-        "displacement": "--max-displacement (tendons stiffened)",
-        "frequency": "--min-frequency (tendons stiffened)",
+        "stability": f"stability ({stiffened} against a limit point)",
+        "displacement": f"--max-displacement ({stiffened})",
+        "frequency": f"--min-frequency ({stiffened})",
+        "stiffness": "no limit of their own (kept above their force areas: little mass)",
     }
-    parts = [f"{n} by {words[what]}" for what, n in counts.items()]
+    parts = [
+        f"{n} by {' and '.join(words.get(w, w) for w in what.split('+'))}"
+        for what, n in counts.items()
+    ]
     statics = {
         "linear": "forces at the given geometry",
         "equilibrium": "forces at each case's loaded equilibrium",

@@ -22,6 +22,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from tensegrity.cli import arguments, structures
 from tensegrity.cli.errors import EXIT_FAILED, CommandError, blame, one_line
 from tensegrity.cli.simulate import with_loads
@@ -97,10 +99,20 @@ def _experiment(path: Path, structure: Any, options: dict[str, Any], noise: floa
     if path.suffix.lower() in (".h5", ".hdf5"):
         with blame("--data", path):
             run = read_trajectory(path)
-        if run.structure.n_nodes != structure.n_nodes:
+        ran = run.structure
+        if not (
+            ran.node_name == structure.node_name
+            and np.array_equal(ran.rod_nodes, structure.rod_nodes)
+            and np.array_equal(ran.tendon_nodes, structure.tendon_nodes)
+        ):
             raise CommandError(
-                f"--data: {shown_path(path)} has {run.structure.n_nodes} nodes, the structure "
-                f"{structure.n_nodes}"
+                f"--data: {shown_path(path)} is a run of another structure (other node names, "
+                "rods or tendons than the model's)"
+            )
+        if len(run.planes):
+            raise CommandError(
+                f"--data: {shown_path(path)} is a run on ground planes; fit takes runs in free "
+                "space for now (contact parameters are not fitted yet)"
             )
         markers = {
             name: (run.t[1:], run.node_position[1:, i])

@@ -101,9 +101,10 @@ class MassProblem:
 @dataclasses.dataclass(frozen=True)
 class Lightened:
     """The result of :func:`lighten`: ``area`` (R + S,) [m^2], ``mass`` [kg] (of ``area``),
-    ``start_mass`` [kg], ``iterations`` (linear programs solved), ``message``, and
-    ``active``: the limits other than a member's own strength that are met with equality at
-    the end (``"displacement"``, ``"frequency"``, ``"stability"``)."""
+    ``start_mass`` [kg], ``iterations`` (SLSQP's), ``message``, and ``active``: the limits
+    other than a member's own strength that are met with equality (within
+    :data:`ACTIVE_TOL`) by the search's lightest design (``"displacement"``, ``"frequency"``,
+    ``"stability"``)."""
 
     area: np.ndarray
     mass: float
@@ -113,7 +114,7 @@ class Lightened:
     active: tuple[str, ...]
 
     def summary(self) -> str:
-        """One line: the masses, the linear programs and how it ended."""
+        """One line: the masses, the iterations and how it ended."""
         return (
             f"least mass {self.start_mass:.4g} -> {self.mass:.4g} kg in {self.iterations} "
             f"iterations ({self.message})"
@@ -215,6 +216,8 @@ class _Constraints:
             kinds.extend([kind] * values[-1].size)
 
         final = point == len(PATH) - 1 + self.prestressed
+        if self.prestressed and point == 0 and case > 0:  # the prestressed state: once
+            return np.zeros(0), ()
         if final:
             C = np.where(p.held, 0.0, eq.rod_compression)
             add("tension", 1.0 - eq.tension / (p.strength[R:] * area[R:]))
@@ -337,14 +340,19 @@ def lighten(
     last = [constraints.start]
     counts = {"designs": 0, "gradients": 0}
 
+    failed: set[bytes] = set()
+
     def design(z: np.ndarray) -> _Design | None:
         area = np.exp(z)
         key = area.tobytes()
+        if key in failed:
+            return None
         if key not in seen:
             counts["designs"] += 1
             try:
                 seen[key] = last[0] = constraints.design(area, last[0])
             except _PathError:
+                failed.add(key)
                 return None
         return seen[key]
 
@@ -368,7 +376,7 @@ def lighten(
         options={"maxiter": max_iterations, "ftol": FTOL},
     )
     feasible = [d for d in seen.values() if _violation(d) <= FEASIBLE]
-    current = min(feasible, key=lambda d: float(weight @ d.area))
+    current = min(feasible, key=lambda d: float(weight @ d.area), default=constraints.start)
     iterations = int(fit.nit)
     message = (
         f"SLSQP: {fit.message}; {counts['designs']} designs and {counts['gradients']} "

@@ -419,6 +419,11 @@ def _size_at_prestress(
     ):
         if value is not None and not (math.isfinite(value) and value > 0):
             raise ValueError(f"{name}: must be > 0, got {value!r}")
+    if stability_margin > 1:
+        raise ValueError(
+            f"stability_margin: must be at most 1 (a fraction of the fully stressed design's "
+            f"stiffness), got {stability_margin!r}"
+        )
     if least_mass and s.dim != 3:
         raise ValueError("least_mass: only for a 3-D structure; size a planar one without it")
     cases = checked_cases(s, load_cases, prestress)
@@ -686,7 +691,11 @@ def _lightest(
                 break
             area = np.maximum(area, need * (1 + rtol))
         starts[:] = [None] * len(starts)
-        acceptable(area)
+        need = carried(acceptable(area)[0])  # afresh: every path from its start
+        if np.any(need > area):
+            raise DesignLimitError(
+                "least mass", "members do not carry the forces of their fresh load paths"
+            )
         return area
 
     tendons = np.arange(start.size) >= problem.geometry.n_rods

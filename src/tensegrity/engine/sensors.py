@@ -676,9 +676,11 @@ class SensorReader:
 def measure(
     result: SimulationResult, sensors: Sequence[Sensor], *, seed: int | None = None
 ) -> Measurements:
-    """The measurements of ``sensors`` over a finished run, each at its own sample times: what
-    a :class:`SensorReader` (with ``seed``) called at each of the run's samples gives, sample
-    for sample.
+    """The measurements of ``sensors`` over a finished run, each at its own sample times: a
+    :class:`SensorReader` (with ``seed``) called at each of the run's samples, reading the
+    signal at a sample time (less its delay) that falls between two of the run's samples by
+    interpolation (cubic Hermite of ``q`` with ``qdot``) instead of holding the earlier one; so
+    the two agree sample for sample where the sensors sample at the run's times.
 
     Parameters
     ----------
@@ -695,7 +697,7 @@ def measure(
     tension = result.tendon_tension if "tension" in needs else None
     modes = result.contact_mode if "contact_mode" in needs else None
     signal = _signals(result.structure, reader.bound, q, qdot, tension, modes)
-    exact = _interpolation(result.structure, reader.bound, t, q, qdot, tension, modes)
+    exact = _interpolation(result.structure, reader.bound, t, q, qdot, tension, modes, signal)
     for time, row in zip(t, signal, strict=True):
         reader._advance(float(time), row, exact)
     return reader.measurements()
@@ -709,13 +711,14 @@ def _interpolation(
     qdot: np.ndarray,
     tension: np.ndarray | None,
     contact_mode: np.ndarray | None,
+    signal: np.ndarray,
 ) -> Callable[[float], np.ndarray]:
     """The true signal (C,) at any time of a finished run sampled at ``t`` (T,): the state by
     cubic Hermite interpolation of ``q`` with ``qdot`` (``qdot`` its derivative), tensions
-    linearly, contact modes held from the last sample; clamped to the run's span; a time within
-    :data:`TIME_TOLERANCE` of a sample's is that sample's."""
+    linearly, contact modes held from the last sample; clamped to the run's span; at a time
+    within :data:`TIME_TOLERANCE` of a sample's, that sample's ``signal`` (T, C) row."""
     keep = np.concatenate([np.diff(t) > 0, [True]])  # one sample per time (the last)
-    t, q, qdot = t[keep], q[keep], qdot[keep]
+    t, q, qdot, signal = t[keep], q[keep], qdot[keep], signal[keep]
     tension = None if tension is None else np.asarray(tension, dtype=float)[keep]
     contact_mode = None if contact_mode is None else np.asarray(contact_mode)[keep]
     spline = scipy.interpolate.CubicHermiteSpline(t, q, qdot, axis=0) if t.size > 1 else None
@@ -723,12 +726,10 @@ def _interpolation(
     def at(time: float) -> np.ndarray:
         s = min(max(time, t[0]), t[-1])
         k = max(int(np.searchsorted(t, s + TIME_TOLERANCE, side="right")) - 1, 0)
-        if s - t[k] <= TIME_TOLERANCE:  # a sample's time (within 1 ns): the sample itself
-            s = t[k]
-        qs, vs = (q[k], qdot[k]) if spline is None or s == t[k] else (spline(s), spline(s, 1))
-        ts = None if tension is None else tension[k]
-        if tension is not None and spline is not None and s > t[k]:
-            ts = np.array([np.interp(s, t, column) for column in tension.T])
+        if spline is None or s - t[k] <= TIME_TOLERANCE:  # a sample's time (within 1 ns)
+            return signal[k]
+        qs, vs = spline(s), spline(s, 1)
+        ts = None if tension is None else np.array([np.interp(s, t, c) for c in tension.T])
         ms = None if contact_mode is None else contact_mode[k]
         row = _signals(
             structure,

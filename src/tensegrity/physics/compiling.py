@@ -73,8 +73,12 @@ def compiled_only(py_func: Callable | None = None, *, jit_options: JitOptions = 
 ROD_MASS, ROD_LENGTH, ROD_DAMPING, ROD_C1, ROD_C2, ROD_RELATIVE_DAMPING = range(6)
 
 
-#: The folders of the package that hold compiled code.
+#: The folders of the package that hold compiled code (and their numba caches).
 COMPILED_FOLDERS = ("physics", "engine")
+
+#: The folders whose sources the compiled code depends on: those, and the model's constants
+#: (e.g. the contact modes of ``model/ground.py``) that compiled code freezes.
+STAMPED_FOLDERS = ("model", *COMPILED_FOLDERS)
 
 #: The file, in each folder's numba cache directory, naming the compiled sources its cache
 #: files were made from (:func:`sources_stamp`).
@@ -83,10 +87,10 @@ STAMP_FILE = "tensegrity-sources.stamp"
 
 def sources_stamp(package: Path) -> str:
     """A digest of the compiled sources of ``package`` (the ``tensegrity`` folder): the
-    relative path and content of every ``.py`` file of :data:`COMPILED_FOLDERS` (about 0.5 MB,
+    relative path and content of every ``.py`` file of :data:`STAMPED_FOLDERS` (about 0.7 MB,
     2 ms)."""
     digest = hashlib.sha256()
-    for folder in COMPILED_FOLDERS:
+    for folder in STAMPED_FOLDERS:
         for path in sorted((package / folder).glob("*.py")):
             digest.update(f"{folder}/{path.name}\n".encode())
             digest.update(path.read_bytes())
@@ -120,7 +124,12 @@ def refresh_stale_cache(package: Path | None = None) -> int:
     sources its files were made from; when it differs (or is missing), the folder's cache files
     (``<module>.*.nbi`` and ``.nbc``) are deleted and the stamp rewritten, so that numba compiles
     afresh.  A directory that cannot be written is left to numba.  ``package``: default this
-    package's folder."""
+    package's folder.
+
+    Left open: a process still running the old sources that compiles after another has written
+    the new stamp leaves cache files of the old sources under it (an edit or upgrade while a
+    long run is going), and they stay in use until the sources change again (then delete the
+    cache by hand)."""
     package = Path(__file__).resolve().parents[1] if package is None else package
     stamp = sources_stamp(package)
     deleted = 0
