@@ -329,9 +329,9 @@ def lighten(
     """
     try:
         constraints = _Constraints(problem, np.asarray(start, dtype=float))
-    except _PathError as failed:
+    except _PathError as path:
         raise ValueError(
-            f"load case {failed.args[0]!r}: the starting design's load path fails"
+            f"load case {path.args[0]!r}: the starting design's load path fails"
         ) from None
     weight = problem.mass_per_area
     m0 = float(weight @ start)
