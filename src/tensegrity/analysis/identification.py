@@ -39,6 +39,7 @@ import scipy.stats
 
 from tensegrity.engine.result import SimulationResult
 from tensegrity.engine.simulate import simulate
+from tensegrity.model.ground import Plane, planes_of
 from tensegrity.model.structure import Structure
 from tensegrity.physics.dynamics import State
 
@@ -62,6 +63,8 @@ KINDS: dict[str, tuple[str, str, float]] = {
     "tendon_damping": ("tendon_damping", "tendon", 0.0),
     "tendon_rest_length": ("tendon_rest_length", "tendon", TINY),
     "rod_mass": ("rod_mass", "rod", TINY),
+    "friction": ("friction", "plane", 0.0),
+    "kinetic_friction": ("kinetic_friction", "plane", 0.0),
 }
 
 #: The run's accuracy when fitting (relative and absolute tolerances of DOP853): far below the
@@ -92,18 +95,50 @@ class Parameter:
 
     @property
     def field(self) -> str:
-        """The :class:`Structure` field it sets."""
+        """The :class:`Structure` field (or :class:`~tensegrity.model.ground.Plane` field) it
+        sets."""
         return KINDS[self.kind][0]
 
-    def value(self, structure: Structure) -> float:
-        """Its value in ``structure``: the mean over its members (SI units of the field)."""
+    @property
+    def scene(self) -> bool:
+        """Whether it is a property of the ground planes (an experiment's ``ground``), not of
+        the structure."""
+        return KINDS[self.kind][1] == "plane"
+
+    def value(self, structure: Structure, options: Mapping[str, Any]) -> float:
+        """Its value in ``structure`` (or in the planes of the run ``options``' ``ground``):
+        the mean over its members (SI units of the field)."""
+        if self.scene:
+            return float(np.mean([_plane_value(p, self.field) for p in _planes(options)]))
         return float(np.mean(getattr(structure, self.field)[self.members]))
 
     def apply(self, structure: Structure, value: float) -> Structure:
-        """``structure`` with every member of the parameter at ``value``."""
+        """``structure`` with every member of the parameter at ``value`` (unchanged for a
+        parameter of the planes)."""
+        if self.scene:
+            return structure
         values = np.array(getattr(structure, self.field), dtype=float)
         values[self.members] = value
         return structure.replace(**{self.field: values})
+
+    def applied(self, options: Mapping[str, Any], value: float) -> dict[str, Any]:
+        """The run ``options`` with every ground plane's field at ``value`` (unchanged for a
+        parameter of the structure)."""
+        if not self.scene:
+            return dict(options)
+        planes = [dataclasses.replace(p, **{self.field: value}) for p in _planes(options)]
+        return {**options, "ground": planes}
+
+
+def _planes(options: Mapping[str, Any]) -> tuple[Plane, ...]:
+    """The ground planes of run ``options`` (none without ``ground``)."""
+    return planes_of(options["ground"]) if options.get("ground") is not None else ()
+
+
+def _plane_value(plane: Plane, field: str) -> float:
+    """A plane's ``field``; its kinetic friction is its static one unless given."""
+    value = getattr(plane, field)
+    return float(plane.friction if value is None else value)
 
 
 def parameter(structure: Structure, name: str) -> Parameter:
@@ -122,6 +157,10 @@ def parameter(structure: Structure, name: str) -> Parameter:
             f"parameter {name!r}: unknown kind {kind!r}; expected one of {', '.join(KINDS)}"
         )
     member = KINDS[kind][1]
+    if member == "plane":
+        if patterns:
+            raise ValueError(f"parameter {name!r}: {kind} is every ground plane's; no names")
+        return Parameter(name, kind, np.zeros(0, dtype=int))
     names = (
         list(structure.tendon_name)
         if member == "tendon"
@@ -250,8 +289,11 @@ def simulated_markers(
     return _run(structure, _bind(structure, experiment, 0))
 
 
-def _run(structure: Structure, b: _Bound) -> tuple[np.ndarray, SimulationResult]:
-    """:func:`simulated_markers` of a bound experiment."""
+def _run(
+    structure: Structure, b: _Bound, options: Mapping[str, Any] | None = None
+) -> tuple[np.ndarray, SimulationResult]:
+    """:func:`simulated_markers` of a bound experiment (with other run ``options`` than its
+    own, if given)."""
     e = b.experiment
     result = simulate(
         structure,
@@ -260,7 +302,7 @@ def _run(structure: Structure, b: _Bound) -> tuple[np.ndarray, SimulationResult]
         rtol=RTOL,
         atol=ATOL,
         sample_dt=b.sample_dt,
-        **e.options,
+        **(e.options if options is None else options),
     )
     if result.status < 0 or result.t[-1] < b.t_end - TIME_TOLERANCE * max(1.0, abs(b.t_end)):
         raise RuntimeError(f"experiment {e.name!r}: the run failed: {result.message}")
@@ -287,7 +329,8 @@ class Fit:
     correlation (P, P) : of the estimates.
     residual (n,) : ``(simulated - measured) / noise`` of every measured coordinate at the
         optimum.  rms_error : the root mean square of ``simulated - measured`` [m].
-    structure : the fitted structure.
+    structure : the fitted structure.  options : each experiment's run options with the
+        fitted parameters of the ground planes (its ``ground``).
     status, message : ``scipy.optimize.least_squares``'s.  nfev, njev : residual and Jacobian
         evaluations (a Jacobian is ``2 P`` runs per experiment).
     """
@@ -302,6 +345,7 @@ class Fit:
     residual: np.ndarray
     rms_error: float
     structure: Structure
+    options: tuple[dict[str, Any], ...]
     status: int
     message: str
     nfev: int
@@ -438,9 +482,16 @@ def fit(
         for q in chosen[:i]:
             if p.kind == q.kind and np.intersect1d(p.members, q.members).size:
                 raise ValueError(f"parameters: {q.name!r} and {p.name!r} share members")
+    for p in chosen:
+        for k, e in enumerate(given):
+            if p.scene and not _planes(e.options):
+                raise ValueError(
+                    f"parameter {p.name!r}: experiments[{k}] ({e.name!r}) has no ground planes "
+                    "(its options' 'ground')"
+                )
     P = len(chosen)
     x0 = np.array(
-        [p.value(structure) for p in chosen]
+        [p.value(structure, given[0].options) for p in chosen]
         if initial is None
         else np.asarray(initial, dtype=float)
     )
@@ -472,6 +523,12 @@ def fit(
             s = p.apply(s, float(value))
         return s
 
+    def options_at(experiment: Experiment, x: np.ndarray) -> dict[str, Any]:
+        options = dict(experiment.options)
+        for p, value in zip(chosen, x, strict=True):
+            options = p.applied(options, float(value))
+        return options
+
     # the size of each parameter: its start, or 1 (SI unit) for a start at 0 (e.g. damping)
     scale = np.where(x0 != 0, np.abs(x0), 1.0)
 
@@ -482,7 +539,7 @@ def fit(
 
         def simulated(x: np.ndarray) -> np.ndarray:
             s = structure_at(x)
-            return np.concatenate([_run(s, b)[0] for b in bound])
+            return np.concatenate([_run(s, b, options_at(b.experiment, x))[0] for b in bound])
 
         def jacobian(x: np.ndarray) -> np.ndarray:
             columns = []
@@ -541,6 +598,7 @@ def fit(
         residual=r,
         rms_error=float(np.sqrt(np.mean((r / weights) ** 2))),
         structure=structure_at(x),
+        options=tuple(options_at(e, x) for e in given),
         status=int(solution.status),
         message=str(solution.message),
         nfev=int(nfev),

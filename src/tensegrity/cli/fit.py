@@ -8,7 +8,10 @@
 run starts from the structure's own node positions and velocities at t = 0) or a trajectory
 file (HDF5: every node a marker at the file's sample times after its first, the run starting
 from its first sample); repeat it for several experiments fitted together, each run with the
-same loads.  Writes ``fitted/structure.json`` (the fitted structure), ``fitted/fit.json`` (the
+same loads.  Each run is in the ``--structure`` file's scene (its ground planes, contact radius
+and gravity; ``--gravity`` replaces its gravity), so that the friction on the ground can be
+fitted (``--param kinetic_friction``: every plane's).  Writes ``fitted/structure.json`` (the
+fitted structure, with its scene and the planes' fitted values), ``fitted/fit.json`` (the
 estimates, standard errors, 95 % intervals and correlations; the settings) and
 ``fitted/fit.png`` (measured against fitted motion, of the first experiment), together or not
 at all.  Bad input is one line with exit code 2; a fit that does not converge, exit code 1.
@@ -17,6 +20,7 @@ at all.  Bad input is one line with exit code 2; a fit that does not converge, e
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 from pathlib import Path
@@ -109,10 +113,12 @@ def _experiment(path: Path, structure: Any, options: dict[str, Any], noise: floa
                 f"--data: {shown_path(path)} is a run of another structure (other node names, "
                 "rods or tendons than the model's)"
             )
-        if len(run.planes):
+        planes = options.get("ground") or ()
+        if len(run.planes) != len(planes):
             raise CommandError(
-                f"--data: {shown_path(path)} is a run on ground planes; fit takes runs in free "
-                "space for now (contact parameters are not fitted yet)"
+                f"--data: {shown_path(path)} is a run on {len(run.planes)} ground plane(s), the "
+                f"--structure file's scene has {len(planes)} (a file with a 'scene' key gives "
+                "the planes)"
             )
         markers = {
             name: (run.t[1:], run.node_position[1:, i])
@@ -130,14 +136,19 @@ def _experiment(path: Path, structure: Any, options: dict[str, Any], noise: floa
 
 def _cmd_fit(args: argparse.Namespace) -> int:
     from tensegrity.analysis.identification import fit
-    from tensegrity.io.formats import write_structure
+    from tensegrity.io.formats import read_scene, write_structure
+    from tensegrity.model.ground import Scene
     from tensegrity.model.loads import gravity_vector
     from tensegrity.plots.identification import figure_fit
 
     if args.out.exists() and not args.out.is_dir():
         raise CommandError(f"--out: {shown_path(args.out)} is a file, expected a folder")
     structure = structures.structure_of(args)
-    options: dict[str, Any] = {}
+    scene = Scene()
+    if args.structure is not None:
+        with blame("--structure", args.structure):
+            scene = read_scene(args.structure)
+    options: dict[str, Any] = {k: v for k, v in scene.simulate_options().items() if v is not None}
     force = with_loads(args.load, structure, None)
     if force is not None:
         options["external_force"] = force
@@ -160,7 +171,9 @@ def _cmd_fit(args: argparse.Namespace) -> int:
     }
 
     def write(staging: Path) -> list[Path]:
-        target = write_structure(staging / "structure.json", result.structure)
+        planes = result.options[0].get("ground") or ()
+        fitted = dataclasses.replace(scene, planes=tuple(planes))
+        target = write_structure(staging / "structure.json", result.structure, scene=fitted)
         with atomic_path(staging / "fit.json") as tmp:
             tmp.write_text(json.dumps(report, indent=2, allow_nan=False) + "\n", "utf-8")
         figure = figure_fit(result, structure, experiments[0], staging / "fit.png")
