@@ -132,6 +132,8 @@ def test_a_parameter_names_members_by_pattern():
         parameter(s, "stiffness")
     with pytest.raises(ValueError, match="no tendon matches 'x\\*'"):
         parameter(s, "tendon_damping:x*")
+    with pytest.raises(ValueError, match="'friction' and 'friction' share members"):
+        fit(s, Experiment({}, options={"ground": ground()}), ["friction", "friction"])
 
 
 @pytest.mark.parametrize(

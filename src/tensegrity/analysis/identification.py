@@ -470,7 +470,7 @@ def fit(
         One line: a bad parameter, experiment, marker, start or bound, or fewer measured
         coordinates than parameters.
     RuntimeError
-        A run failed at the starting values.
+        A run failed (at the starting values, or at values the search tried): its message.
     """
     given = [experiments] if isinstance(experiments, Experiment) else list(experiments)
     if not given:
@@ -480,7 +480,7 @@ def fit(
         raise ValueError("parameters: give at least one")
     for i, p in enumerate(chosen):
         for q in chosen[:i]:
-            if p.kind == q.kind and np.intersect1d(p.members, q.members).size:
+            if p.kind == q.kind and (p.scene or np.intersect1d(p.members, q.members).size):
                 raise ValueError(f"parameters: {q.name!r} and {p.name!r} share members")
     for p in chosen:
         for k, e in enumerate(given):
