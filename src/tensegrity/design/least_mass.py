@@ -157,7 +157,7 @@ class _Constraints:
             np.array([_lowest_omega2(first.structure, eq) for eq in path])
             for path in first.equilibria
         ]
-        self.start = self.design(start, first)
+        self.start = self.measured(start, first.structure, first.equilibria)  # with stability
 
     @property
     def prestressed(self) -> bool:
@@ -238,7 +238,13 @@ class _Constraints:
         """The design of areas ``area`` (the equilibria solved; :class:`_PathError` if a
         path fails)."""
         structure = self.problem.structure_at(area)
-        paths = self.paths(structure, warm)
+        return self.measured(area, structure, self.paths(structure, warm))
+
+    def measured(
+        self, area: np.ndarray, structure: Structure, paths: list[list[EquilibriumResult]]
+    ) -> _Design:
+        """The design of areas ``area`` (its ``structure``) with its path equilibria ``paths``
+        solved: the constraint values at every point."""
         values: list[np.ndarray] = []
         kinds: list[str] = []
         for k, path in enumerate(paths):
@@ -259,6 +265,8 @@ class _Constraints:
         rows = []
         for k, path in enumerate(design.equilibria):
             for j, eq in enumerate(path):
+                if self.prestressed and j == 0 and k > 0:
+                    continue  # the prestressed state's constraints are case 0's
                 if self.prestressed and j == 0:  # the geometry: only the structure changes
                     moves = [(eq.q, eq.q)] * z.size
                 else:
