@@ -290,6 +290,14 @@ def dop853_dense(model, data, y_old, y, h, K, F, stage):  # pragma: no cover - c
     for s in range(DOP853_STAGES + 1, DOP853_A.shape[0]):
         _combine(y_old, K, DOP853_A[s], s, h, stage)
         ode_rhs(model, data, s, stage, K[s])
+    dop853_dense_polynomial(y_old, y, h, K, F)
+
+
+@compiled_only
+def dop853_dense_polynomial(y_old, y, h, K, F):  # pragma: no cover - compiled
+    """The dense-output polynomial ``F`` (7, len(y)) of a step of ``h`` [s] from ``y_old`` to
+    ``y`` with all 16 stages ``K`` (linear in them: the sensitivities' polynomial is the same
+    formula of their derivatives)."""
     for i in range(y.shape[0]):
         delta = y[i] - y_old[i]
         F[0, i] = delta

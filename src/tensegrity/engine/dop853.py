@@ -28,7 +28,7 @@ located event being headed for).
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit
@@ -62,6 +62,14 @@ from tensegrity.engine.events import (
     set_sides,
     stick_slow_slips,
 )
+from tensegrity.engine.sensitivity import (
+    SensitivityWork,
+    advance_sensitivity,
+    dense_sensitivity,
+    event_time_derivative,
+    saltation,
+)
+from tensegrity.engine.sensitivity import interpolate as interpolate_sensitivity
 from tensegrity.engine.steppers import StepperMemory
 from tensegrity.engine.system import CompiledSystem
 from tensegrity.physics.compiling import JIT_OPTIONS
@@ -148,6 +156,9 @@ class LoopWork(NamedTuple):
     #: ``(rtol, atol, t_end [s], projection_tol, max_steps, locate, attempts)``: the call
     #: returns (``RUN_YIELD``) once it has made ``attempts`` attempts
     settings: tuple
+    #: the sensitivities integrated with the state
+    #: (:class:`~tensegrity.engine.sensitivity.SensitivityWork`), or None
+    sensitivity: Any = None
 
 
 @njit(**JIT_OPTIONS)
@@ -268,15 +279,20 @@ def dop853_run(model, rows, point, loop, bound, next_sample_t):  # pragma: no co
                 # mode change the right-hand side: the steps start anew)
                 contacts = loop.events.side.shape[0] > model.tendon_stiffness.shape[0]
                 exact = locate and bool(loop.tally[LANDING_EXACT])
-                if (
-                    contacts
-                    and exact
-                    and inputs_at(loop.clock[T]) < 0
-                    and land_contacts(
-                        model.contacts, model, point, loop.clock[T], loop.y, loop.events
+                if exact and inputs_at(loop.clock[T]) < 0:
+                    timed = event_time_derivative(  # (the sensitivities' event time)
+                        loop.sensitivity,
+                        model,
+                        point,
+                        loop.y,
+                        loop.K[0],
+                        loop.events,
                     )
-                ):
-                    loop.tally[RESTART] = 1
+                    if contacts and land_contacts(
+                        model.contacts, model, point, loop.clock[T], loop.y, loop.events
+                    ):
+                        loop.tally[RESTART] = 1
+                    saltation(loop.sensitivity, model, point, loop.y, timed)
             if (  # (the rule for slow slips, after every step)
                 loop.events.side.shape[0] > model.tendon_stiffness.shape[0]
                 and inputs_at(loop.clock[T]) < 0
@@ -373,6 +389,9 @@ def dop853_run(model, rows, point, loop, bound, next_sample_t):  # pragma: no co
         count = events_crossed(point, loop.events) if detect else 0
         if count == 0:  # the step stands: the checks, then the next step or the samples
             loop.tally[NSTEPS] += 1
+            advance_sensitivity(
+                loop.sensitivity, model, rows, loop.y_old, loop.y, loop.K, h, loop.events.side
+            )
             landed = bool(loop.tally[LANDING]) and loop.clock[T] >= loop.clock[LANDING_TIME]
             loop.tally[LANDED] = landed
             bad = inputs_at(loop.clock[T])
@@ -402,6 +421,7 @@ def dop853_run(model, rows, point, loop, bound, next_sample_t):  # pragma: no co
         loop.tally[NFEV] += 3
         loop.tally[DENSE_READY] = 1
         if count == 0:
+            dense_sensitivity(loop.sensitivity, model, rows, loop.y_old, loop.y, h, loop.K)
             return RUN_SAMPLES, CHECK_OK, 0.0
 
         # ---- the earliest event (tensegrity.engine.events.locate_event), headed for
@@ -452,9 +472,11 @@ class DOP853:
         projection_tol: float,
         locate: bool,
         memory: StepperMemory | None = None,
+        sensitivity: SensitivityWork | None = None,
     ) -> None:
         """Start at ``(t0, y0)`` with Hairer's initial step, or continue with ``memory`` (of a
-        checkpoint) exactly as the stepper that made it would have."""
+        checkpoint) exactly as the stepper that made it would have; ``sensitivity``: the
+        derivatives of the state integrated with it (:mod:`tensegrity.engine.sensitivity`)."""
         self.system, self.rtol, self.atol = system, rtol, atol
         m = system.m
         attempts = steps_per_turn(system, DOP853_STAGES)
@@ -479,6 +501,7 @@ class DOP853:
                 np.bool_(locate),
                 np.int64(attempts),
             ),
+            sensitivity=sensitivity,
         )
         self.clock, self.tally = loop.clock, loop.tally
         self.clock[T] = self.clock[T_OLD] = float(t0)
@@ -574,6 +597,18 @@ class DOP853:
             return out
 
         return at
+
+    def sensitivity_at(self, t: float) -> np.ndarray:
+        """The sensitivities ``dy/dp`` (P, m) at ``t`` [s]: the current ones at the current
+        time, else inside the last step (its dense output made by :meth:`run`)."""
+        sens = self.loop.sensitivity
+        if t >= self.t:
+            return sens.S.copy()
+        assert self.tally[DENSE_READY], "sensitivity_at: the last step's dense output was not made"
+        t_old, h = self.clock[T_OLD], self.clock[T] - self.clock[T_OLD]
+        out = np.empty_like(sens.S)
+        interpolate_sensitivity(sens, (t - t_old) / h, out)
+        return out
 
     def start_at(self, t0: float, y0: np.ndarray) -> None:
         """Start again at ``(t0, y0)`` as a new stepper would (its first call makes the first

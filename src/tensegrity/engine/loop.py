@@ -25,7 +25,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any, Protocol
 
 import numpy as np
@@ -56,6 +56,8 @@ from tensegrity.engine.result import (
     RunSummary,
     Samples,
 )
+from tensegrity.engine.sensitivity import SensitivityWork
+from tensegrity.engine.sensitivity import prepare as prepare_sensitivity
 from tensegrity.engine.steppers import (
     RK4,
     IntegrationError,
@@ -336,6 +338,10 @@ class _Run:
         self.control_log: list[np.ndarray] = []  # blocks of the actuators' updates
         self.status, self.message = STATUS_END, f"reached t_end = {t_end:g} s"
         self.last_sample_t = -np.inf
+        #: the sensitivities ``dy/dp`` (P, m) at a sample's time, when the run integrates them
+        #: (:mod:`tensegrity.engine.sensitivity`); each sample's, in order
+        self.sensitivity_at: Callable[[float], np.ndarray] | None = None
+        self.sensitivities: list[np.ndarray] = []
         self.wall_before = 0.0
         self.steps_done = 0  # "rk4"
         self.saved_at = 0  # index of the sample of the last checkpoint
@@ -359,6 +365,8 @@ class _Run:
             self.flush()
         row = self.rows
         self.system.record(self.block, row, t, y, self.system.stage_inputs(np.array([t])))
+        if self.sensitivity_at is not None:
+            self.sensitivities.append(self.sensitivity_at(t))
         self.rows += 1
         self.last_sample_t = t
         return row
@@ -673,17 +681,25 @@ _Loop = Callable[[_Run, Any, "LoopState | None"], None]
 
 
 def _method(
-    run: _Run, t: float, y: np.ndarray, memory: StepperMemory | None
+    run: _Run,
+    t: float,
+    y: np.ndarray,
+    memory: StepperMemory | None,
+    sensitivity: SensitivityWork | None = None,
 ) -> tuple[Stepper | DOP853 | RK4, _Loop]:
-    """The stepper of the run's method from ``(t, y)`` (and a checkpoint's ``memory``), and the
-    loop that drives it: the one place the method is dispatched on."""
+    """The stepper of the run's method from ``(t, y)`` (and a checkpoint's ``memory``; DOP853
+    with the ``sensitivity`` it integrates), and the loop that drives it: the one place the
+    method is dispatched on."""
     o = run.options
     if o.method == "rk4":
         return RK4(run.system, t, y), _fixed_step
     if o.method == "DOP853":
-        return dop853_stepper(run.system, t, y, o, t_end=run.t_end, memory=memory), (
-            _compiled_adaptive
+        stepper = dop853_stepper(
+            run.system, t, y, o, t_end=run.t_end, memory=memory, sensitivity=sensitivity
         )
+        if sensitivity is not None:
+            run.sensitivity_at = stepper.sensitivity_at
+        return stepper, _compiled_adaptive
     method = ScipyMethod(
         run.system, t, y, method=o.method, rtol=o.rtol, atol=o.atol, t_end=run.t_end
     )
@@ -698,9 +714,10 @@ def dop853_stepper(
     *,
     t_end: float,
     memory: StepperMemory | None = None,
+    sensitivity: SensitivityWork | None = None,
 ) -> DOP853:
     """The DOP853 stepper of a run with ``options`` from ``(t, y)`` up to ``t_end`` [s] (and a
-    checkpoint's ``memory``)."""
+    checkpoint's ``memory``, the ``sensitivity`` it integrates)."""
     return DOP853(
         system,
         t,
@@ -712,6 +729,7 @@ def dop853_stepper(
         projection_tol=options.projection_tol,
         locate=options.locate_switches,
         memory=memory,
+        sensitivity=sensitivity,
     )
 
 
@@ -1063,6 +1081,7 @@ def run(
     checkpoint: Checkpointing | None = None,
     resume: LoopState | None = None,
     stop: StopCondition | None = None,
+    sensitivity: Sequence[Any] | None = None,
 ) -> RunSummary:
     """Integrate ``structure`` over ``t_span = (t0, t_end)`` [s], handing samples to ``sink``
     (Theorem 18.1 with eqs. 18.39-18.60; the loop of the module docstring).
@@ -1077,7 +1096,10 @@ def run(
     any.  ``checkpoint`` saves the loop's state every
     ``checkpoint.every`` samples; ``resume`` continues from such a state (the same structure,
     inputs, options and controller, and no ``initial``; the samples up to it are not handed to
-    ``sink`` again).  ``stop`` (:class:`StopCondition`) may end the run at a sample.  Returns a
+    ``sink`` again).  ``stop`` (:class:`StopCondition`) may end the run at a sample.
+    ``sensitivity``: parameters (:func:`tensegrity.engine.sensitivity.prepare`) whose
+    derivatives of the state are integrated with it (DOP853; no controller, actuators or
+    checkpoints), at every sample in the summary's ``sensitivity``.  Returns a
     :class:`RunSummary`; the samples went to ``sink``, the last one at the end time, the steady
     state, the stop or the failing state.
     """
@@ -1095,6 +1117,17 @@ def run(
             "method='rk4' (--method rk4), not locate_switches=False)"
         )
     inputs.rest_length(np.array([t0]))  # a control making a rest length negative fails here
+    if sensitivity is not None and (
+        options.method != "DOP853"
+        or controller is not None
+        or inputs.actuators is not None
+        or checkpoint is not None
+        or resume is not None
+    ):
+        raise ValueError(
+            "sensitivity: integrated by method='DOP853' only, without a controller, actuators "
+            "or checkpoints"
+        )
     r = _Run(structure, t0, t_end, inputs, options, sink, controller, checkpoint, progress, stop)
     if resume is None:
         state = dynamics.initial_state(structure, t=t0) if initial is None else initial
@@ -1103,8 +1136,9 @@ def run(
         r.system.check_contacts(y0)
         if controller is not None:
             r.update_control(t0, y0)
+        work = None if sensitivity is None else prepare_sensitivity(r.system, sensitivity, y0)
         r.start_contacts(t0, y0)
-        stepper, loop = _method(r, t0, y0.copy(), None)
+        stepper, loop = _method(r, t0, y0.copy(), None, work)
         r.stopped_at(r.record(t0, y0))
     else:
         r.restore(resume)
@@ -1130,5 +1164,6 @@ def run(
         contact_events=r.contact_event_log(),
         control_updates=r.control_updates(),
         stopped_for_time=r.stopped_for_time,
+        sensitivity=None if sensitivity is None else r.system.sensitivity_layout(r.sensitivities),
         **r.counts,
     )

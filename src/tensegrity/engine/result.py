@@ -11,6 +11,7 @@ import numpy as np
 
 from tensegrity.model.ground import FREE, SLIP, STICK
 from tensegrity.model.structure import Structure
+from tensegrity.physics.coordinates import nodes_from_coordinates
 
 if TYPE_CHECKING:  # (physics loads SciPy: a reader of results need not)
     from tensegrity.physics.dynamics import State
@@ -122,6 +123,9 @@ class RunSummary:
     #: [m], the controls applied at that time [m]; (0, 1) without actuators
     control_updates: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 1)))
     stopped_for_time: bool = False  #: failed because this call used up ``max_wall_time``
+    #: (T, P, 2 n) the sensitivities ``[dq/dp, dq'/dp]`` at the samples in the layout of
+    #: ``q`` and ``qdot`` (n of their columns), or None (not asked for)
+    sensitivity: np.ndarray | None = None
 
     @property
     def evaluations_per_step(self) -> float:
@@ -182,6 +186,10 @@ class SimulationResult:
     contact_event_time, contact_event_pair, contact_event_mode : (E,) [s], (E,), (E, 2): the
         changes of a pair's mode, at located events (or at the start, from free): when, which
         pair, the modes before and after (:attr:`contact_counts` counts them).
+    q_sensitivity, qdot_sensitivity : (T, P, 6R) or None: ``dq/dp`` and ``dq'/dp`` with respect to
+        the P parameters of ``simulate(..., sensitivity=...)`` (:mod:`tensegrity.engine.sensitivity`)
+        [unit of q per unit of each parameter]; :meth:`node_position_sensitivity` and
+        :meth:`node_velocity_sensitivity` give them per node.
     control_time, control_command, control_applied : (U,) [s], (U, A) [m], (U, A) [m]: the
         actuators' updates (a controller's), when, the commands held (after the rest-length
         bounds), the controls applied at that time; A actuated tendons
@@ -225,6 +233,26 @@ class SimulationResult:
     control_time: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
     control_command: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 0)))
     control_applied: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 0)))
+    q_sensitivity: np.ndarray | None = None
+    qdot_sensitivity: np.ndarray | None = None
+
+    def node_position_sensitivity(self) -> np.ndarray:
+        """``dp/dparam`` (T, P, N, dim) [m per unit of each parameter] of the nodes' positions
+        (anchors 0), from :attr:`q_sensitivity` (``simulate(..., sensitivity=...)``)."""
+        return nodes_from_coordinates(self.structure, self._sensitivity("q"), rates=True)
+
+    def node_velocity_sensitivity(self) -> np.ndarray:
+        """``dv/dparam`` (T, P, N, dim) [m/s per unit] of the nodes' velocities."""
+        return nodes_from_coordinates(self.structure, self._sensitivity("qdot"), rates=True)
+
+    def _sensitivity(self, name: str) -> np.ndarray:
+        values = getattr(self, f"{name}_sensitivity")
+        if values is None:
+            raise ValueError(
+                f"{name}_sensitivity: the run integrated no sensitivities (give simulate "
+                "sensitivity=[...])"
+            )
+        return values
 
     @property
     def control_tendons(self) -> tuple[str, ...]:
@@ -427,7 +455,17 @@ class MemorySink:
             contact_mode=s.contact_mode,
             **contact_event_arrays(summary.contact_events),
             **control_arrays(summary.control_updates),
+            **sensitivity_arrays(structure, summary.sensitivity),
         )
+
+
+def sensitivity_arrays(structure: Structure, sensitivity: np.ndarray | None) -> dict[str, Any]:
+    """A run's sensitivities (T, P, 2 n) (:attr:`RunSummary.sensitivity`) as a result's
+    ``q_sensitivity`` and ``qdot_sensitivity`` (None when there are none)."""
+    if sensitivity is None:
+        return {"q_sensitivity": None, "qdot_sensitivity": None}
+    n = sensitivity.shape[-1] // 2
+    return {"q_sensitivity": sensitivity[..., :n], "qdot_sensitivity": sensitivity[..., n:]}
 
 
 def control_arrays(updates: np.ndarray) -> dict[str, np.ndarray]:

@@ -79,6 +79,7 @@ def simulate(
     max_samples: int = DEFAULT_MAX_SAMPLES,
     max_wall_time: float = math.inf,
     progress: bool = False,
+    sensitivity: Sequence[Any] | None = None,
 ) -> SimulationResult:
     """Simulate ``structure`` over ``t_span = (t0, t_end)`` [s] (Theorem 18.1, eqs. 18.39-18.60).
 
@@ -146,6 +147,12 @@ def simulate(
     max_wall_time : float
         A budget of wall-clock time [s]: a run still going after it stops (status -1, the
         message says where it stood), its samples so far kept.  Default: none.
+    sensitivity : sequence of parameters, optional
+        Integrate the derivatives of the trajectory with respect to these (each with a
+        ``kind`` and ``members``, e.g. :func:`tensegrity.analysis.identification.parameter`'s;
+        :func:`tensegrity.engine.sensitivity.prepare`) with the state, through the located
+        events (:mod:`tensegrity.engine.sensitivity`); the result's ``q_sensitivity`` and
+        ``qdot_sensitivity``.  DOP853 only, without a controller or actuators.
 
     Returns
     -------
@@ -192,6 +199,7 @@ def simulate(
             progress=bar,
             controller=controller,
             stop=stop,
+            sensitivity=sensitivity,
         )
     finally:
         if bar is not None:

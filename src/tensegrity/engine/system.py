@@ -151,6 +151,13 @@ class CompiledSystem:
         self._sample_maps = (kept, slot.astype(np.int64), self.tendon_position)
         self._prepare_inputs()
 
+    def sensitivity_layout(self, rows: list[np.ndarray]) -> np.ndarray:
+        """Sensitivities ``dy/dp`` (P, m) of the samples as (T, P, 2 n) ``[dq/dp, dq'/dp]`` in
+        the layout of the results' ``q`` (a planar structure's 2-D coordinates)."""
+        kept = self._sample_maps[0]
+        S = np.array(rows).reshape(len(rows), -1, self.m)
+        return np.concatenate([S[..., kept], S[..., self.n + kept]], axis=-1)
+
     # ------------------------------------------------------------------ inputs
     def _prepare_inputs(self) -> None:
         """What :meth:`stage_inputs` reuses: the data record if every input is constant; with

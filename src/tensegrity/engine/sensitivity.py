@@ -1,0 +1,534 @@
+"""Forward sensitivities of a run: the derivatives ``S = dy/dp`` (P, m) of the state ``y = [q,
+q', E_d, W_w, W_u]`` with respect to P parameters ``p``, integrated with the state inside the
+compiled DOP853 loop (:func:`tensegrity.engine.dop853.dop853_run`).
+
+**Internal differentiation** (Bock's *internal numerical differentiation*): each accepted step
+of the state is differentiated as the step it is -- the same step size, the same stages, the
+same modes -- so ``S`` is the derivative of the computed trajectory, not of a second
+integration that would choose its own steps.  Stage ``i`` of a step from ``y`` with stages
+``K_i = f(t_i, Y_i)``, ``Y_i = y + h sum_j a_ij K_j``, has the derivative
+
+    K'_i = f_y(t_i, Y_i) Y'_i + f_p(t_i, Y_i),   Y'_i = S + h sum_j a_ij K'_j,
+
+and ``S_new = S + h sum_i b_i K'_i``; ``f_y Y' + f_p`` is the directional derivative of the
+right-hand side, taken by one forward difference along ``(Y'_i, e_j)`` (a relative step of
+:data:`STEP`) from the stage already evaluated.  P parameters cost P evaluations per stage:
+with the state's own, about ``P + 1`` plain runs.  The dense output of ``S`` is the step's
+dense polynomial differentiated the same way (three more stages, only for steps with samples).
+
+**Events.**  The loop lands on every event (:mod:`tensegrity.engine.events`), so no step
+straddles one.  A tendon's slack/taut switch leaves the right-hand side continuous, and ``S``
+too: only the side matters, and a difference whose perturbed point falls past a switch the step
+does not cross (a stage at the step's end, on the event) is taken backwards instead, on the
+step's side.  A contact event changes the right-hand side from ``f-`` to ``f+``: with the event's
+indicator ``g`` (0 at the event time ``tau``), ``dtau/dp = -(g_y S + g_p) / g'`` and the
+*saltation* ``S+ = S- + (f- - f+) dtau/dp`` (the state itself does not jump); ``g_y S + g_p`` is a
+forward difference of the indicator, ``g'`` a backward one along ``f-``.
+
+What is not differentiated: the projections onto the constraints (``S`` keeps its own, tiny,
+drift), the friction's slip direction refreshed after each step (its effect on the force is
+``STICK_SPEED / |v_t|`` relative), and the slow-slip rule's mode changes, which are not located
+events (:func:`tensegrity.engine.events.stick_slow_slips`).
+
+Parameters (:data:`KIND_CODES`): a tendon's stiffness ``k`` [N/m], damping ``c`` [N s/m] and
+rest length ``L0`` [m], a rod's mass [kg], a ground plane's static and kinetic friction
+coefficients, and components of the initial state.  A parameter sets a group of members
+together (each member's value moves by the same amount).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any, NamedTuple
+
+import numpy as np
+
+from tensegrity.engine.compiled import (
+    DOP853_A,
+    DOP853_B,
+    DOP853_STAGES,
+    _combine,
+    dop853_dense_polynomial,
+    dop853_interpolate,
+    ode_rhs,
+)
+from tensegrity.engine.events import event_indicators
+from tensegrity.physics.compiling import ROD_C1, ROD_C2, ROD_LENGTH, ROD_MASS, compiled_only
+
+if TYPE_CHECKING:
+    from tensegrity.engine.system import CompiledSystem
+
+#: The parameters' kinds and their codes in compiled code.
+(
+    TENDON_STIFFNESS,
+    TENDON_DAMPING,
+    TENDON_REST_LENGTH,
+    ROD_MASS_KIND,
+    FRICTION,
+    FRICTION_TIED,
+    KINETIC_FRICTION,
+    INITIAL_STATE,
+) = range(8)
+KIND_CODES = {
+    "tendon_stiffness": TENDON_STIFFNESS,
+    "tendon_damping": TENDON_DAMPING,
+    "tendon_rest_length": TENDON_REST_LENGTH,
+    "rod_mass": ROD_MASS_KIND,
+    "friction": FRICTION,
+    "kinetic_friction": KINETIC_FRICTION,
+    "initial_state": INITIAL_STATE,
+}
+
+#: The backward steps at an event: the time in which the state moves by this fraction of its
+#: size (the state the loop landed on lies off the event by the width of its bracket,
+#: ``EVENT_RTOL`` of the time, far less).
+BACK = 1e-9
+
+#: Relative step of the central differences: about the cube root of the machine epsilon
+#: (their truncation and round-off errors balanced).
+STEP = 6e-6
+
+
+class SensitivityWork(NamedTuple):
+    """The sensitivities of a run and their scratch (``LoopWork.sensitivity``); P parameters,
+    ``m`` the length of the state."""
+
+    kind: np.ndarray  #: (P,) int64: each parameter's kind (codes of :data:`KIND_CODES`)
+    start: np.ndarray  #: (P + 1,) int64: parameter j's members are member[start[j]:start[j+1]]
+    #: (M,) int64: tendons' kernel positions, rods, planes, or indices into the state
+    member: np.ndarray
+    saved: np.ndarray  #: (max(M, 1), 3) scratch: the members' values while perturbed
+    size: np.ndarray  #: (P,) each parameter's scale (its value, or 1 at 0) [its unit]
+    S: np.ndarray  #: (P, m) ``dy/dp`` at the state
+    S_old: np.ndarray  #: (P, m) at the last step's start
+    K: np.ndarray  #: (P, 16, m) the stages' derivatives
+    F: np.ndarray  #: (P, 7, m) the dense polynomial of ``S`` over the last step
+    Y: np.ndarray  #: (16, m) scratch: the stages' states
+    v: np.ndarray  #: (m,) scratch: a stage's direction
+    y_at: np.ndarray  #: (m,) scratch
+    f_at: np.ndarray  #: (m,) scratch
+    dtau: np.ndarray  #: (P,) scratch: an event time's derivatives [s / unit]
+    side: np.ndarray  #: (E,) bool: the events' sides over the last step
+    #: scratch: the contacts' normal forces, friction forces and indicators, kept
+    kept: tuple
+
+
+def sensitivity_work(
+    kinds: Sequence[str],
+    members: Sequence[np.ndarray],
+    sizes: np.ndarray,
+    S0: np.ndarray,
+    n_tendons: int,
+    pairs: int,
+) -> SensitivityWork:
+    """New :class:`SensitivityWork`: parameter ``j`` of kind ``kinds[j]`` (a key of
+    :data:`KIND_CODES`, or ``"friction_tied"``: static and kinetic friction moved together),
+    over ``members[j]`` (indices as :class:`SensitivityWork` says), scale ``sizes[j]``; ``S0``
+    (P, m) the derivatives of the initial state; ``n_tendons`` tendons and ``pairs`` contact pairs
+    make the run's events."""
+    codes = {**KIND_CODES, "friction_tied": FRICTION_TIED}
+    P, m = S0.shape
+    start = np.zeros(P + 1, np.int64)
+    start[1:] = np.cumsum([len(x) for x in members])
+    flat = np.concatenate([np.asarray(x, np.int64) for x in members]) if P else np.zeros(0)
+    return SensitivityWork(
+        kind=np.array([codes[k] for k in kinds], np.int64),
+        start=start,
+        member=flat.astype(np.int64),
+        saved=np.zeros((max(int(start[-1]), 1), 3)),
+        size=np.asarray(sizes, dtype=float),
+        S=np.array(S0, dtype=float),
+        S_old=np.array(S0, dtype=float),
+        K=np.zeros((P, 16, m)),
+        F=np.zeros((P, 7, m)),
+        Y=np.zeros((16, m)),
+        v=np.zeros(m),
+        y_at=np.zeros(m),
+        f_at=np.zeros(m),
+        dtau=np.zeros(P),
+        side=np.zeros(n_tendons + 2 * pairs, bool),
+        kept=(np.zeros(max(pairs, 1)), np.zeros(max(3 * pairs, 1)), np.zeros(max(2 * pairs, 1))),
+    )
+
+
+# --------------------------------------------------------------------------- compiled
+@compiled_only
+def _move_damping(damping, k, delta, saved, i, restore):  # pragma: no cover - compiled
+    """Tendon ``k``'s damping moved by ``delta`` (its value kept in ``saved[i]``), or restored;
+    ``damping`` None cannot happen (:func:`tensegrity.engine.simulate` gives the records an
+    array of zeros when damping is a parameter)."""
+    if damping is None:
+        return
+    if restore:
+        damping[k] = saved[i, 0]
+    else:
+        saved[i, 0] = damping[k]
+        damping[k] += delta
+
+
+@compiled_only
+def _move_friction(contacts, kind, p, delta, saved, i, restore):  # pragma: no cover - compiled
+    """Plane ``p``'s friction coefficients of ``kind`` moved by ``delta``, or restored."""
+    if contacts is None:
+        return
+    if restore:
+        if kind != KINETIC_FRICTION:
+            contacts.friction_static[p] = saved[i, 0]
+        if kind != FRICTION:
+            contacts.friction_kinetic[p] = saved[i, 1]
+        return
+    saved[i, 0], saved[i, 1] = contacts.friction_static[p], contacts.friction_kinetic[p]
+    if kind != KINETIC_FRICTION:
+        contacts.friction_static[p] += delta
+    if kind != FRICTION:
+        contacts.friction_kinetic[p] += delta
+
+
+@compiled_only
+def _move(model, data, sens, j, s, delta, restore):  # pragma: no cover - compiled
+    """Parameter ``j``'s members moved by ``delta`` in ``model`` (and in ``data``'s inputs row of
+    stage ``s``, for rest lengths), or (``restore``) given back the values they had: the
+    records are the same objects before and after, bit for bit."""
+    kind = sens.kind[j]
+    saved = sens.saved
+    for i in range(sens.start[j], sens.start[j + 1]):
+        k = sens.member[i]
+        if kind == TENDON_STIFFNESS:
+            if restore:
+                model.tendon_stiffness[k] = saved[i, 0]
+            else:
+                saved[i, 0] = model.tendon_stiffness[k]
+                model.tendon_stiffness[k] += delta
+        elif kind == TENDON_DAMPING:
+            _move_damping(model.tendon_damping, k, delta, saved, i, restore)
+        elif kind == TENDON_REST_LENGTH:  # (Lbar = L0 - u moves with L0)
+            row = s if data.rest.shape[0] > 1 else 0
+            if restore:
+                data.rest[row, k] = saved[i, 0]
+            else:
+                saved[i, 0] = data.rest[row, k]
+                data.rest[row, k] += delta
+        elif kind == ROD_MASS_KIND:
+            rod = model.rod_param[k]
+            if restore:
+                rod[ROD_MASS], rod[ROD_C1], rod[ROD_C2] = saved[i, 0], saved[i, 1], saved[i, 2]
+            else:
+                saved[i, 0], saved[i, 1], saved[i, 2] = rod[ROD_MASS], rod[ROD_C1], rod[ROD_C2]
+                mass = rod[ROD_MASS] + delta
+                rod[ROD_MASS] = mass
+                rod[ROD_C1] = 2.0 / mass
+                rod[ROD_C2] = 6.0 / (mass * rod[ROD_LENGTH] ** 2)
+        elif kind != INITIAL_STATE:
+            _move_friction(model.contacts, kind, k, delta, saved, i, restore)
+
+
+@compiled_only
+def _on_side(data, side):  # pragma: no cover - compiled
+    """Whether every tendon of the last evaluation pulls exactly where ``side`` says it does
+    (the step's side of every slack/taut switch)."""
+    tension = data.tension
+    for e in range(tension.shape[0]):
+        if (tension[e] > 0.0) != side[e]:
+            return False
+    return True
+
+
+@compiled_only
+def _step_size(sens, j, y, v):  # pragma: no cover - compiled
+    """The step ``eps`` of the difference along ``(v, e_j)`` from ``y``: :data:`STEP` of the
+    state's size along ``v``, and of parameter ``j``'s size (0: the direction is zero)."""
+    v_size, y_size = 0.0, 1.0
+    for i in range(y.shape[0]):
+        v_size = max(v_size, abs(v[i]))
+        y_size = max(y_size, abs(y[i]))
+    eps = y_size / v_size if v_size > 0.0 else np.inf
+    if sens.kind[j] != INITIAL_STATE:
+        eps = min(eps, sens.size[j])
+    return 0.0 if eps == np.inf else STEP * eps
+
+
+@compiled_only
+def _evaluate_moved(model, data, s, sens, j, y, v, e, out, side):  # pragma: no cover - compiled
+    """``out = f(y + e v)`` with parameter ``j`` moved by ``e``, at stage ``s``; whether that
+    point is on the step's ``side`` of every slack/taut switch."""
+    for i in range(y.shape[0]):
+        sens.y_at[i] = y[i] + e * v[i]
+    _move(model, data, sens, j, s, e, False)
+    ode_rhs(model, data, s, sens.y_at, out)
+    _move(model, data, sens, j, s, e, True)
+    return _on_side(data, side)
+
+
+@compiled_only
+def directional(model, data, s, sens, j, y, v, f0, out, side):  # pragma: no cover - compiled
+    """``out = f_y(y) v + f_p_j(y)`` at stage ``s`` (``data``'s inputs row) by a central
+    difference; one-sided from ``f0 = f(y)`` where one of its points lies past a slack/taut
+    switch that ``side`` (the step's taut flags) does not."""
+    eps = _step_size(sens, j, y, v)
+    m = y.shape[0]
+    if eps == 0.0:
+        out[:] = 0.0
+        return
+    ahead = _evaluate_moved(model, data, s, sens, j, y, v, eps, out, side)
+    behind = _evaluate_moved(model, data, s, sens, j, y, v, -eps, sens.f_at, side)
+    if ahead == behind:
+        for i in range(m):
+            out[i] = (out[i] - sens.f_at[i]) / (2.0 * eps)
+    elif ahead:
+        for i in range(m):
+            out[i] = (out[i] - f0[i]) / eps
+    else:
+        for i in range(m):
+            out[i] = (f0[i] - sens.f_at[i]) / eps
+
+
+@compiled_only
+def advance_sensitivity(sens, model, data, y_old, y, K, h, side):  # pragma: no cover - compiled
+    """``S`` across the accepted step of ``h`` [s] from ``y_old`` to ``y`` with stages ``K``
+    (``data`` holding their inputs' rows) and the events' ``side`` at its start: the module
+    docstring's recursion; ``K'_12`` (at ``y``) too, for the dense output.  Afterwards
+    ``data``'s scratch holds the evaluation at ``y`` again, as the step left it.  Nothing
+    without sensitivities (``sens`` None)."""
+    if sens is None:
+        return
+    sens.side[:] = side
+    side = sens.side
+    last = np.int64(DOP853_STAGES)
+    copy = sens.S_old
+    copy[:] = sens.S
+    sens.Y[0] = y_old
+    for s in range(1, DOP853_STAGES):
+        _combine(y_old, K, DOP853_A[s], s, h, sens.Y[s])
+    sens.Y[last] = y
+    for j in range(sens.S.shape[0]):
+        Kp = sens.K[j]
+        directional(model, data, np.int64(0), sens, j, y_old, copy[j], K[0], Kp[0], side)
+        for s in range(1, DOP853_STAGES):
+            _combine(copy[j], Kp, DOP853_A[s], s, h, sens.v)
+            directional(model, data, np.int64(s), sens, j, sens.Y[s], sens.v, K[s], Kp[s], side)
+        _combine(copy[j], Kp, DOP853_B, last, h, sens.S[j])
+        directional(model, data, last, sens, j, y, sens.S[j], K[last], Kp[last], side)
+    ode_rhs(model, data, last, y, sens.f_at)  # (the scratch as the step left it)
+
+
+@compiled_only
+def dense_sensitivity(sens, model, data, y_old, y, h, K):  # pragma: no cover - compiled
+    """The dense polynomial of ``S`` over the last step into ``sens.F``: the three extra stages'
+    derivatives (``K[13:16]`` given; on the step's side, as :func:`advance_sensitivity` kept
+    it), then the state's formula
+    (:func:`tensegrity.engine.compiled.dop853_dense_polynomial`).  Nothing without
+    sensitivities."""
+    if sens is None:
+        return
+    side = sens.side
+    first = DOP853_STAGES + 1
+    for s in range(first, DOP853_A.shape[0]):
+        _combine(y_old, K, DOP853_A[s], s, h, sens.Y[s])
+    for j in range(sens.S.shape[0]):
+        Kp = sens.K[j]
+        for s in range(first, DOP853_A.shape[0]):
+            _combine(sens.S_old[j], Kp, DOP853_A[s], s, h, sens.v)
+            directional(model, data, np.int64(s), sens, j, sens.Y[s], sens.v, K[s], Kp[s], side)
+        dop853_dense_polynomial(sens.S_old[j], sens.S[j], h, Kp, sens.F[j])
+    last = np.int64(DOP853_A.shape[0] - 1)
+    ode_rhs(model, data, last, sens.Y[last], sens.f_at)  # (the scratch as the stages left it)
+
+
+@compiled_only
+def _keep_contacts(work, kept):  # pragma: no cover - compiled
+    """The contacts' scratch an event's action reads (normal and friction forces, indicators)
+    copied into ``kept`` (3 arrays), or nothing without contacts (``work`` None)."""
+    if work is None:
+        return
+    for k in range(work.normal_force.shape[0]):
+        kept[0][k] = work.normal_force[k]
+        for i in range(3):
+            kept[1][3 * k + i] = work.friction_force[k, i]
+    for k in range(work.indicator.shape[0]):
+        kept[2][k] = work.indicator[k]
+
+
+@compiled_only
+def _restore_contacts(work, kept):  # pragma: no cover - compiled
+    """:func:`_keep_contacts` undone."""
+    if work is None:
+        return
+    for k in range(work.normal_force.shape[0]):
+        work.normal_force[k] = kept[0][k]
+        for i in range(3):
+            work.friction_force[k, i] = kept[1][3 * k + i]
+    for k in range(work.indicator.shape[0]):
+        work.indicator[k] = kept[2][k]
+
+
+@compiled_only
+def _indicator(model, data, y, events, e):  # pragma: no cover - compiled
+    """Event ``e``'s indicator at ``y`` (:func:`tensegrity.engine.events.event_indicators`,
+    ``data``'s row 0 of the inputs)."""
+    event_indicators(model, data, y, events)
+    return events.indicator[e]
+
+
+@compiled_only
+def event_time_derivative(sens, model, data, y, f_end, events):  # pragma: no cover
+    """At a located event the loop landed on at ``y``, before its action (``data`` with the
+    inputs there, ``f_end`` the right-hand side the last step ended with): ``sens.dtau =
+    dtau/dp`` of the first event fired, and ``sens.f_at`` the right-hand side on the side
+    before it, extrapolated from ``y - delta f_end`` and ``y - 2 delta f_end``, ``delta`` [s]
+    the time in which the state moves by :data:`BACK` of its size (the state sits on either
+    side of the event by the width of its bracket, far less).  Nothing without sensitivities (False);
+    False if no event fired.  The scratch the action reads is left as it was."""
+    if sens is None:
+        return False
+    e = -1
+    for i in range(events.fired.shape[0]):
+        if events.fired[i]:
+            e = i
+            break
+    if e < 0:
+        return False
+    m = y.shape[0]
+    _keep_contacts(data.contact_work, sens.kept)
+    y_size, f_size = 1.0, 0.0
+    for i in range(m):
+        y_size, f_size = max(y_size, abs(y[i])), max(f_size, abs(f_end[i]))
+    delta = BACK * y_size / f_size if f_size > 0.0 else 0.0
+    for i in range(m):  # f- extrapolated from two points before: 2 f(y - d f) - f(y - 2 d f)
+        sens.v[i] = y[i] - 2.0 * delta * f_end[i]
+    ode_rhs(model, data, np.int64(0), sens.v, sens.y_at)
+    for i in range(m):
+        sens.v[i] = y[i] - delta * f_end[i]
+    ode_rhs(model, data, np.int64(0), sens.v, sens.f_at)
+    for i in range(m):
+        sens.f_at[i] = 2.0 * sens.f_at[i] - sens.y_at[i]
+    g0 = _indicator(model, data, y, events, e)
+    rate = (g0 - _indicator(model, data, sens.v, events, e)) / delta
+    for j in range(sens.S.shape[0]):
+        eps = _step_size(sens, j, y, sens.S[j])
+        if eps == 0.0 or rate == 0.0:
+            sens.dtau[j] = 0.0
+            continue
+        slope = 0.0
+        for sign in (1.0, -1.0):
+            for i in range(m):
+                sens.y_at[i] = y[i] + sign * eps * sens.S[j, i]
+            _move(model, data, sens, j, np.int64(0), sign * eps, False)
+            slope += sign * _indicator(model, data, sens.y_at, events, e)
+            _move(model, data, sens, j, np.int64(0), sign * eps, True)
+        sens.dtau[j] = -(slope / (2.0 * eps)) / rate
+    _restore_contacts(data.contact_work, sens.kept)
+    return True
+
+
+@compiled_only
+def saltation(sens, model, data, y, timed):  # pragma: no cover - compiled
+    """After the event's action (``timed``: :func:`event_time_derivative` found one):
+    ``S += (f- - f+) dtau/dp``, ``f-`` as that function left it in ``sens.f_at``, ``f+`` the
+    right-hand side at ``y`` now (``data``'s row 0).  Nothing without sensitivities."""
+    if sens is None or not timed:
+        return
+    m = y.shape[0]
+    for i in range(m):
+        sens.v[i] = sens.f_at[i]
+    ode_rhs(model, data, np.int64(0), y, sens.f_at)
+    for j in range(sens.S.shape[0]):
+        for i in range(m):
+            sens.S[j, i] += (sens.v[i] - sens.f_at[i]) * sens.dtau[j]
+
+
+def interpolate(sens: SensitivityWork, x: float, out: np.ndarray) -> None:
+    """``S`` at the fraction ``x`` (0..1) of the last step (its dense polynomial) into ``out``
+    (P, m)."""
+    for j in range(sens.S.shape[0]):
+        dop853_interpolate(sens.F[j], sens.S_old[j], x, out[j])
+
+
+
+# --------------------------------------------------------------------------- set-up
+def prepare(system: CompiledSystem, parameters: Sequence[Any], y0: np.ndarray) -> SensitivityWork:
+    """The sensitivities of a run of ``system`` from ``y0`` with respect to ``parameters``, and
+    the system's model record given arrays of its own for every field they move (so that a
+    perturbation never touches arrays shared with another run).
+
+    Each parameter has a ``kind`` (a key of :data:`KIND_CODES`) and ``members``: tendon or rod
+    indices of the structure for the structure's kinds, ignored for the planes' (every plane),
+    indices into the state ``y`` (the engine's 3-D layout ``[q, q', E_d, W_w, W_u]``) for
+    ``initial_state``; ``name`` names it in errors, if it has one.  ``ValueError`` (one line,
+    naming the parameter) for an unknown kind, no members, members out of range, or friction of
+    planes some of which give a kinetic coefficient and some not.
+    """
+    structure, model = system.structure, system.model
+    planes = tuple(system.inputs.ground or ())
+    P, m = len(parameters), system.m
+    count = {
+        "tendon": structure.n_tendons,
+        "rod": structure.n_rods,
+        "state": 2 * system.n,
+    }
+    kinds, members, sizes = [], [], np.ones(P)
+    S0 = np.zeros((P, m))
+    for j, p in enumerate(parameters):
+        name = getattr(p, "name", p.kind)
+        if p.kind not in KIND_CODES:
+            raise ValueError(
+                f"sensitivity: parameter {name!r} has kind {p.kind!r}; expected one of "
+                + ", ".join(KIND_CODES)
+            )
+        kind = p.kind
+        if kind in ("friction", "kinetic_friction"):
+            if not planes:
+                raise ValueError(f"sensitivity: parameter {name!r}: the run has no ground planes")
+            tied = [plane.kinetic_friction is None for plane in planes]
+            if kind == "friction" and any(tied):
+                if not all(tied):
+                    raise ValueError(
+                        f"sensitivity: parameter {name!r}: give every plane a kinetic friction "
+                        "or none"
+                    )
+                kind = "friction_tied"
+            index = np.arange(len(planes))
+            field = model.contacts.friction_static if p.kind == "friction" else (
+                model.contacts.friction_kinetic
+            )
+            value = float(np.mean(np.abs(field)))
+        else:
+            group = "state" if kind == "initial_state" else kind.split("_")[0]
+            index = np.asarray(p.members, dtype=np.int64).ravel()
+            if index.size == 0 or index.min() < 0 or index.max() >= count[group]:
+                raise ValueError(
+                    f"sensitivity: parameter {name!r}: members must be {group} indices in "
+                    f"0..{count[group] - 1}, got {index.tolist()}"
+                )
+            if kind == "initial_state":
+                S0[j, index] = 1.0
+                value = 1.0
+            elif group == "tendon":
+                value = float(np.mean(np.abs(getattr(structure, kind)[index])))
+                index = system.tendon_position[index]
+            else:
+                value = float(np.mean(structure.rod_mass[index]))
+        kinds.append(kind)
+        members.append(index)
+        sizes[j] = value if value > 0.0 else 1.0
+    damping = model.tendon_damping
+    if damping is None and "tendon_damping" in kinds:
+        damping = np.zeros(structure.n_tendons)
+    contacts = model.contacts
+    if contacts is not None:
+        contacts = contacts._replace(
+            friction_static=contacts.friction_static.copy(),
+            friction_kinetic=contacts.friction_kinetic.copy(),
+        )
+    system.model = model._replace(
+        tendon_stiffness=model.tendon_stiffness.copy(),
+        tendon_damping=None if damping is None else damping.copy(),
+        rod_param=model.rod_param.copy(),
+        contacts=contacts,
+    )
+    pairs = 0 if contacts is None else contacts_pairs(contacts)
+    return sensitivity_work(kinds, members, sizes, S0, structure.n_tendons, pairs)
+
+
+def contacts_pairs(contacts: Any) -> int:
+    """The contact pairs of packed ``contacts`` (points times planes)."""
+    return int(contacts.point_radius.size * contacts.plane_normal.shape[0])
