@@ -67,6 +67,7 @@ from tensegrity.engine.sensitivity import (
     advance_sensitivity,
     dense_sensitivity,
     event_time_derivative,
+    keep_state,
     saltation,
 )
 from tensegrity.engine.sensitivity import interpolate as interpolate_sensitivity
@@ -280,6 +281,7 @@ def dop853_run(model, rows, point, loop, bound, next_sample_t):  # pragma: no co
                 contacts = loop.events.side.shape[0] > model.tendon_stiffness.shape[0]
                 exact = locate and bool(loop.tally[LANDING_EXACT])
                 if exact and inputs_at(loop.clock[T]) < 0:
+                    keep_state(loop.sensitivity, loop.y)
                     timed = event_time_derivative(  # (the sensitivities' event time)
                         loop.sensitivity,
                         model,
@@ -296,11 +298,13 @@ def dop853_run(model, rows, point, loop, bound, next_sample_t):  # pragma: no co
             if (  # (the rule for slow slips, after every step)
                 loop.events.side.shape[0] > model.tendon_stiffness.shape[0]
                 and inputs_at(loop.clock[T]) < 0
-                and stick_slow_slips(
-                    model.contacts, model, point, loop.clock[T], loop.y, loop.events
-                )
             ):
-                loop.tally[RESTART] = 1
+                keep_state(loop.sensitivity, loop.y)
+                if stick_slow_slips(
+                    model.contacts, model, point, loop.clock[T], loop.y, loop.events
+                ):
+                    loop.tally[RESTART] = 1
+                    saltation(loop.sensitivity, model, point, loop.y, False)
             if loop.clock[DRIFT] > projection_tol:
                 if not system_project(model, point, loop.y[:n], loop.y[n : 2 * n])[2]:
                     return RUN_CHECK_FAILED, compiled.CHECK_PROJECTION, np.nan

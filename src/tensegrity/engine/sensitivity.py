@@ -53,6 +53,12 @@ from tensegrity.engine.compiled import (
     ode_rhs,
 )
 from tensegrity.engine.events import event_indicators
+from tensegrity.physics.contact import (
+    SLIP,
+    STICK_SPEED,
+    stick_velocities,
+    tangential_velocity,
+)
 from tensegrity.physics.compiling import ROD_C1, ROD_C2, ROD_LENGTH, ROD_MASS, compiled_only
 
 if TYPE_CHECKING:
@@ -78,6 +84,10 @@ KIND_CODES = {
     "kinetic_friction": KINETIC_FRICTION,
     "initial_state": INITIAL_STATE,
 }
+
+#: The most a central difference moves a slipping point's tangential velocity, relative to
+#: the velocity its friction's direction follows (:func:`_slip_step`).
+SLIP_STEP = 1e-3
 
 #: The backward steps at an event: the time in which the state moves by this fraction of its
 #: size (the state the loop landed on lies off the event by the width of its bracket,
@@ -109,6 +119,9 @@ class SensitivityWork(NamedTuple):
     f_at: np.ndarray  #: (m,) scratch
     dtau: np.ndarray  #: (P,) scratch: an event time's derivatives [s / unit]
     side: np.ndarray  #: (E,) bool: the events' sides over the last step
+    y_before: np.ndarray  #: (m,) the state before an event's action
+    f_before: np.ndarray  #: (m,) scratch: the right-hand side before it
+    w: np.ndarray  #: (m,) scratch
     #: scratch: the contacts' normal forces, friction forces and indicators, kept
     kept: tuple
 
@@ -147,6 +160,9 @@ def sensitivity_work(
         f_at=np.zeros(m),
         dtau=np.zeros(P),
         side=np.zeros(n_tendons + 2 * pairs, bool),
+        y_before=np.zeros(m),
+        f_before=np.zeros(m),
+        w=np.zeros(m),
         kept=(np.zeros(max(pairs, 1)), np.zeros(max(3 * pairs, 1)), np.zeros(max(2 * pairs, 1))),
     )
 
@@ -248,6 +264,31 @@ def _step_size(sens, j, y, v):  # pragma: no cover - compiled
 
 
 @compiled_only
+def _slip_step(contacts, work, y, v, eps):  # pragma: no cover - compiled
+    """``eps`` no larger than makes each slipping point's tangential velocity move by
+    :data:`SLIP_STEP` of ``|v_t + STICK_SPEED s|``, the size its friction's direction turns
+    on (a slip from rest starts at ``STICK_SPEED``: there a difference of the state's size
+    would turn the friction's direction by a finite angle); ``eps`` without contacts."""
+    if contacts is None or work is None:
+        return eps
+    n = (y.shape[0] - 3) // 2
+    u, du = np.empty(3), np.empty(3)
+    for k in range(work.mode.shape[0]):
+        if work.mode[k] != SLIP:
+            continue
+        tangential_velocity(contacts, y[n : 2 * n], k, u)
+        moved = tangential_velocity(contacts, v[n : 2 * n], k, du)
+        if moved == 0.0:
+            continue
+        s = work.slip_direction[k]
+        size = 0.0
+        for i in range(3):
+            size += (u[i] + STICK_SPEED * s[i]) ** 2
+        eps = min(eps, SLIP_STEP * np.sqrt(size) / moved)
+    return eps
+
+
+@compiled_only
 def _evaluate_moved(model, data, s, sens, j, y, v, e, out, side):  # pragma: no cover - compiled
     """``out = f(y + e v)`` with parameter ``j`` moved by ``e``, at stage ``s``; whether that
     point is on the step's ``side`` of every slack/taut switch."""
@@ -269,6 +310,7 @@ def directional(model, data, s, sens, j, y, v, f0, out, side):  # pragma: no cov
     if eps == 0.0:
         out[:] = 0.0
         return
+    eps = _slip_step(model.contacts, data.contact_work, y, v, eps)
     ahead = _evaluate_moved(model, data, s, sens, j, y, v, eps, out, side)
     behind = _evaluate_moved(model, data, s, sens, j, y, v, -eps, sens.f_at, side)
     if ahead == behind:
@@ -421,19 +463,62 @@ def event_time_derivative(sens, model, data, y, f_end, events):  # pragma: no co
 
 
 @compiled_only
+def keep_state(sens, y):  # pragma: no cover - compiled
+    """``y`` kept as the state before an event's action (:func:`saltation`); nothing without
+    sensitivities."""
+    if sens is None:
+        return
+    sens.y_before[:] = y
+
+
+@compiled_only
+def _reset_derivative(contacts, model, data, sens, j, w, out):  # pragma: no cover - compiled
+    """``out = R_y w + R_p_j``: the derivative of the contacts' reset at ``sens.y_before``
+    (:func:`tensegrity.physics.contact.stick_velocities`: the sticking points' velocities
+    removed, with the modes as they are now) along ``(w, e_j)``, by a central difference;
+    ``w`` itself without contacts."""
+    if contacts is None:
+        out[:] = w
+        return
+    y = sens.y_before
+    eps = _step_size(sens, j, y, w)
+    if eps == 0.0:
+        out[:] = 0.0
+        return
+    for sign in (1.0, -1.0):
+        e = sign * eps
+        for i in range(y.shape[0]):
+            sens.y_at[i] = y[i] + e * w[i]
+        _move(model, data, sens, j, np.int64(0), e, False)
+        stick_velocities(contacts, model, data, sens.y_at)
+        _move(model, data, sens, j, np.int64(0), e, True)
+        if sign > 0.0:
+            out[:] = sens.y_at
+    for i in range(y.shape[0]):
+        out[i] = (out[i] - sens.y_at[i]) / (2.0 * eps)
+
+
+@compiled_only
 def saltation(sens, model, data, y, timed):  # pragma: no cover - compiled
-    """After the event's action (``timed``: :func:`event_time_derivative` found one):
-    ``S += (f- - f+) dtau/dp``, ``f-`` as that function left it in ``sens.f_at``, ``f+`` the
-    right-hand side at ``y`` now (``data``'s row 0).  Nothing without sensitivities."""
-    if sens is None or not timed:
+    """After an event's action took the state from ``sens.y_before`` (:func:`keep_state`) to
+    ``y`` (``data``'s row 0 with the inputs there): ``S+ = R_y w + R_p - f+ dtau/dp`` with ``w =
+    S- + f- dtau/dp`` the derivative of the state reaching the event, ``R`` the action's reset
+    of the state (:func:`_reset_derivative`; the identity without sticks), ``f+`` the
+    right-hand side at ``y`` now.  ``timed``: :func:`event_time_derivative` gave ``dtau/dp``
+    and ``f-`` (in ``sens.f_at``); else the action came at a time that does not move with the
+    parameters (the slow-slip rule, at a step's end).  Nothing without sensitivities."""
+    if sens is None:
         return
     m = y.shape[0]
-    for i in range(m):
-        sens.v[i] = sens.f_at[i]
+    sens.f_before[:] = sens.f_at
     ode_rhs(model, data, np.int64(0), y, sens.f_at)
     for j in range(sens.S.shape[0]):
+        dtau = sens.dtau[j] if timed else 0.0
         for i in range(m):
-            sens.S[j, i] += (sens.v[i] - sens.f_at[i]) * sens.dtau[j]
+            sens.w[i] = sens.S[j, i] + sens.f_before[i] * dtau
+        _reset_derivative(model.contacts, model, data, sens, j, sens.w, sens.S[j])
+        for i in range(m):
+            sens.S[j, i] -= sens.f_at[i] * dtau
 
 
 def interpolate(sens: SensitivityWork, x: float, out: np.ndarray) -> None:
