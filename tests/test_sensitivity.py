@@ -1,0 +1,189 @@
+"""Sensitivities integrated with the state (:mod:`tensegrity.engine.sensitivity`) against
+central differences of whole runs, each run made afresh with the parameter moved (its own
+steps, its own events located): through slack/taut switches, touch-downs, lift-offs, sticks
+and slips."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from tensegrity import simulate
+from tensegrity.analysis.identification import parameter
+from tensegrity.design.catalogue import three_bar_robot
+from tensegrity.model.ground import ground
+from tensegrity.model.shell import class1_shell
+from tensegrity.physics.dynamics import State, coordinates_from_nodes, initial_state
+
+GRAVITY = np.array([0.0, 0.0, -9.81])
+#: The runs' tolerances: the references' own error (rtol / STEP) far below what is checked.
+TIGHT = {"rtol": 1e-12, "atol": 1e-15}
+#: The central differences' step, relative to the parameter.
+STEP = 1e-5
+
+
+@dataclasses.dataclass(frozen=True)
+class StateComponent:
+    """A parameter of the initial state: component ``members`` of ``y``."""
+
+    members: tuple[int, ...]
+    kind: str = "initial_state"
+    name: str = "initial_state"
+
+
+def _shell(damping: float = 0.8, *, fixed_base: bool = True):
+    s = class1_shell(3, 1, fixed_base=fixed_base)
+    return s.replace(
+        tendon_stiffness=np.full(s.n_tendons, 120.0),
+        tendon_damping=np.full(s.n_tendons, damping),
+        rod_mass=np.full(s.n_rods, 1.3),
+    )
+
+
+def _push() -> np.ndarray:
+    w = np.zeros((12, 3))
+    w[11, 0] = 5.0
+    return w
+
+
+SHELL_RUN = {"gravity": GRAVITY, "external_force": _push(), "sample_dt": 0.02, **TIGHT}
+
+
+def _central(structure, p, span, **options) -> np.ndarray:
+    """d q / d p by central differences of two whole runs."""
+    value = float(np.mean(getattr(structure, p.field)[p.members]))
+    h = STEP * value
+    up = simulate(p.apply(structure, value + h), span, **options)
+    down = simulate(p.apply(structure, value - h), span, **options)
+    return (up.q - down.q) / (2 * h)
+
+
+def _relative_error(reference: np.ndarray, sensitivity: np.ndarray) -> float:
+    return float(np.abs(reference - sensitivity).max() / np.abs(reference).max())
+
+
+def test_sensitivities_equal_central_differences_through_slack_switches():
+    """The damped (3,1) shell pushed under gravity for 0.6 s: 26 slack/taut switches, damped
+    tendons snapping taut (the tension jumps: the saltation carries it); every kind of
+    parameter, of all members and of one, within 1e-6 of the differences."""
+    shell = _shell()
+    names = [
+        "tendon_stiffness",
+        "tendon_damping",
+        "tendon_rest_length",
+        "rod_mass",
+        f"tendon_stiffness:{shell.tendon_name[3]}",
+        "rod_mass:1",
+    ]
+    params = [parameter(shell, n) for n in names]
+    run = simulate(shell, (0.0, 0.6), sensitivity=params, **SHELL_RUN)
+    assert run.nswitches > 20
+    assert run.q_sensitivity.shape == (run.t.size, len(names), run.q.shape[1])
+    for j, p in enumerate(params):
+        reference = _central(shell, p, (0.0, 0.6), **SHELL_RUN)
+        assert _relative_error(reference, run.q_sensitivity[:, j]) < 1e-6, p.name
+
+
+def test_the_run_with_sensitivities_is_the_same_run():
+    shell = _shell()
+    plain = simulate(shell, (0.0, 0.3), **SHELL_RUN)
+    run = simulate(shell, (0.0, 0.3), sensitivity=[parameter(shell, "rod_mass")], **SHELL_RUN)
+    np.testing.assert_array_equal(run.q, plain.q)
+    assert (run.nsteps, run.nswitches) == (plain.nsteps, plain.nswitches)
+    assert plain.q_sensitivity is None
+    with pytest.raises(ValueError, match="q_sensitivity: the run integrated no sensitivities"):
+        plain.node_position_sensitivity()
+
+
+def test_initial_state_and_damping_from_zero():
+    """The free undamped shell: d/d(a start velocity) against differences of the start, and
+    d/d(damping) at zero damping (the model given damping to move) against one-sided
+    second-order differences (damping cannot go below 0)."""
+    shell = _shell(damping=0.0, fixed_base=False)
+    start = initial_state(shell)
+    n = start.q.size
+    index = 0  # rod 0's q1_x rate (q1 = p_a + p_b: free of the rod's constraint)
+    params = [StateComponent((n + index,)), parameter(shell, "tendon_damping")]
+    run = simulate(shell, (0.0, 0.4), initial=start, sensitivity=params, **SHELL_RUN)
+    h = 1e-4
+    moved = []
+    for sign in (1, -1):
+        qdot = start.qdot.copy()
+        qdot[index] += sign * h
+        moved.append(simulate(shell, (0.0, 0.4), initial=State(0.0, start.q, qdot), **SHELL_RUN))
+    reference = (moved[0].q - moved[1].q) / (2 * h)
+    assert _relative_error(reference, run.q_sensitivity[:, 0]) < 1e-6
+    h = 1e-4
+    p = params[1]
+    q1, q2 = (simulate(p.apply(shell, c), (0.0, 0.4), **SHELL_RUN).q for c in (h, 2 * h))
+    reference = (-3 * run.q + 4 * q1 - q2) / (2 * h)
+    assert _relative_error(reference, run.q_sensitivity[:, 1]) < 1e-5  # (the O(h^2) of it)
+    nodes = run.node_position_sensitivity()
+    assert nodes.shape == (run.t.size, 2, shell.n_nodes, 3)
+    assert np.all(nodes[:, :, shell.anchor_nodes] == 0.0)
+
+
+@dataclasses.dataclass(frozen=True)
+class PlaneParameter:
+    kind: str
+    members: tuple[int, ...] = ()
+
+    @property
+    def name(self) -> str:
+        return self.kind
+
+
+def _robot_run(friction: float = 0.5, kinetic: float = 0.4) -> dict:
+    robot = three_bar_robot(stiffness=300.0, tension=20.0)
+    robot = robot.replace(node_position=robot.node_position + np.array([0.0, 0.0, 0.01]))
+    v = np.zeros_like(robot.node_position)
+    v[:, 0] = 1.5
+    start = State(0.0, initial_state(robot).q, coordinates_from_nodes(robot, v))
+    return {
+        "initial": start,
+        "gravity": GRAVITY,
+        "ground": ground(friction=friction, kinetic_friction=kinetic),
+        "sample_dt": 0.02,
+        **TIGHT,
+    }
+
+
+def test_sensitivities_through_touch_downs_lift_offs_sticks_and_slips():
+    """The three-bar robot dropped 1 cm onto the ground sliding at 1.5 m/s for 1 s: it
+    bounces, slides, sticks and slips again (30 located contact events).  Cable stiffness,
+    rod mass, static and kinetic friction within 1e-4 of the differences (measured: 1e-5)."""
+    robot = three_bar_robot(stiffness=300.0, tension=20.0)
+    options = _robot_run()
+    params = [
+        parameter(robot, "tendon_stiffness"),
+        parameter(robot, "rod_mass"),
+        PlaneParameter("friction"),
+        PlaneParameter("kinetic_friction"),
+    ]
+    run = simulate(robot, (0.0, 1.0), sensitivity=params, **options)
+    modes = {tuple(m) for m in run.contact_event_mode.tolist()}
+    assert {(0, 1), (1, 0), (1, 2), (2, 1)} <= modes  # touch-down, lift-off, stick, slip
+    for j, p in enumerate(params[:2]):
+        reference = _central(robot, p, (0.0, 1.0), **options)
+        assert _relative_error(reference, run.q_sensitivity[:, j]) < 1e-4, p.name
+    for j, (static, kinetic) in ((2, (STEP * 0.5, 0.0)), (3, (0.0, STEP * 0.4))):
+        up = simulate(robot, (0.0, 1.0), **_robot_run(0.5 + static, 0.4 + kinetic))
+        down = simulate(robot, (0.0, 1.0), **_robot_run(0.5 - static, 0.4 - kinetic))
+        reference = (up.q - down.q) / (2 * (static + kinetic))
+        assert _relative_error(reference, run.q_sensitivity[:, j]) < 1e-4, params[j].kind
+
+
+def test_bad_sensitivity_requests_are_refused_in_one_line():
+    shell = _shell()
+    cases = [
+        (PlaneParameter("tendon_colour", (0,)), "has kind 'tendon_colour'"),
+        (PlaneParameter("rod_mass", (6,)), r"members must be rod indices in 0..5, got \[6\]"),
+        (PlaneParameter("friction"), "the run has no ground planes"),
+    ]
+    for p, message in cases:
+        with pytest.raises(ValueError, match=message):
+            simulate(shell, (0.0, 0.01), sensitivity=[p])
+    with pytest.raises(ValueError, match="method='DOP853' only"):
+        simulate(shell, (0.0, 0.01), method="RK45", sensitivity=[parameter(shell, "rod_mass")])
