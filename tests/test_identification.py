@@ -109,7 +109,8 @@ def test_parameters_the_data_cannot_separate_are_reported():
     gravity_only = {"gravity": GRAVITY}
     truth = TRUE | {"tendon_damping": 0.0}
     run = simulate(_shell(**truth), (0.0, 0.5), sample_dt=0.01, **gravity_only)
-    (series,) = measure(run, [Sensor("position", nodes=MARKERS, noise=NOISE, rate=30.0)]).series
+    sensors = [Sensor("position", nodes=MARKERS, noise=NOISE, rate=30.0)]
+    (series,) = measure(run, sensors, seed=2).series
     markers = {n: (series.t, series.value[:, 3 * i : 3 * i + 3]) for i, n in enumerate(MARKERS)}
     result = fit(
         _shell(**truth),

@@ -16,8 +16,9 @@ several experiments at once:
   marker coordinate.  Each run is sampled finely and read at the markers' times by cubic Hermite
   interpolation of the node positions and velocities.
 
-The Jacobian is made of central differences of whole runs (two runs per parameter, at
-``rtol`` 1e-10); sensitivities integrated with the state are the next step (issue 31).
+The Jacobian is the runs' sensitivities to the parameters, integrated with the state in the
+compiled engine through every located event (:mod:`tensegrity.engine.sensitivity`): one run
+per experiment, at about ``2 P + 1`` times a plain run's evaluations.
 
 The report (:class:`Fit`): the estimates with their standard errors and 95 % intervals (from the
 Jacobian at the optimum: ``cov = s^2 (J^T J)^-1``, ``s^2`` the residuals' variance per degree
@@ -68,7 +69,7 @@ KINDS: dict[str, tuple[str, str, float]] = {
 }
 
 #: The run's accuracy when fitting (relative and absolute tolerances of DOP853): far below the
-#: markers' noise, and fine enough for the central differences of the Jacobian.
+#: markers' noise.
 RTOL, ATOL = 1e-10, 1e-13
 
 #: The fractions of the experiments' spans fitted in turn (:func:`fit`'s ``horizons``).
@@ -79,9 +80,6 @@ CORRELATION_LIMIT = 0.99999
 
 #: Times this close (relative, at least 1 s scale) are the same time.
 TIME_TOLERANCE = 1e-12
-
-#: The central differences' step, relative to the parameter's value.
-STEP = 1e-5
 
 
 @dataclasses.dataclass(frozen=True)
@@ -286,14 +284,21 @@ def simulated_markers(
     RuntimeError
         If the run fails (its message).
     """
-    return _run(structure, _bind(structure, experiment, 0))
+    markers, result, _ = _run(structure, _bind(structure, experiment, 0))
+    return markers, result
 
 
 def _run(
-    structure: Structure, b: _Bound, options: Mapping[str, Any] | None = None
-) -> tuple[np.ndarray, SimulationResult]:
+    structure: Structure,
+    b: _Bound,
+    options: Mapping[str, Any] | None = None,
+    *,
+    sensitivity: Sequence[Parameter] | None = None,
+) -> tuple[np.ndarray, SimulationResult, np.ndarray | None]:
     """:func:`simulated_markers` of a bound experiment (with other run ``options`` than its
-    own, if given)."""
+    own, if given), and with ``sensitivity`` their derivatives (coordinates, P) with respect to
+    those parameters (integrated with the run, :mod:`tensegrity.engine.sensitivity`; read at the
+    markers' times by the same interpolation)."""
     e = b.experiment
     result = simulate(
         structure,
@@ -302,17 +307,26 @@ def _run(
         rtol=RTOL,
         atol=ATOL,
         sample_dt=b.sample_dt,
+        sensitivity=sensitivity,
         **(e.options if options is None else options),
     )
     if result.status < 0 or result.t[-1] < b.t_end - TIME_TOLERANCE * max(1.0, abs(b.t_end)):
         raise RuntimeError(f"experiment {e.name!r}: the run failed: {result.message}")
-    parts = []
+    parts, derivatives = [], []
+    if sensitivity is not None:
+        position, velocity = (result.node_position_sensitivity(), result.node_velocity_sensitivity())
     for node, t in zip(b.nodes, b.times, strict=True):
         spline = scipy.interpolate.CubicHermiteSpline(
             result.t, result.node_position[:, node], result.node_velocity[:, node], axis=0
         )
         parts.append(spline(t).ravel())
-    return np.concatenate(parts), result
+        if sensitivity is not None:  # (T, P, dim) -> (T * dim, P), the residuals' order
+            spline = scipy.interpolate.CubicHermiteSpline(
+                result.t, position[:, :, node], velocity[:, :, node], axis=0
+            )
+            derivatives.append(spline(t).transpose(0, 2, 1).reshape(-1, len(sensitivity)))
+    jacobian = np.concatenate(derivatives) if sensitivity is not None else None
+    return np.concatenate(parts), result, jacobian
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -332,7 +346,7 @@ class Fit:
     structure : the fitted structure.  options : each experiment's run options with the
         fitted parameters of the ground planes (its ``ground``).
     status, message : ``scipy.optimize.least_squares``'s.  nfev, njev : residual and Jacobian
-        evaluations (a Jacobian is ``2 P`` runs per experiment).
+        evaluations (a Jacobian is one run per experiment with its sensitivities).
     """
 
     parameters: tuple[Parameter, ...]
@@ -435,6 +449,17 @@ def _until(experiment: Experiment, t: float) -> Experiment:
     return dataclasses.replace(experiment, markers=markers)
 
 
+def _inverse_normal_matrix(J: np.ndarray) -> np.ndarray:
+    """``(J^T J)^-1`` by the singular values of ``J``, those below its rank tolerance (numpy's
+    ``matrix_rank``) raised to it: along a direction the data do not determine (an exact
+    Jacobian's columns exactly dependent) the variance is then huge, and positive, instead of
+    round-off of either sign."""
+    _, sv, Vt = np.linalg.svd(J, full_matrices=False)
+    tol = sv.max(initial=0.0) * max(J.shape) * np.finfo(float).eps
+    sv = np.maximum(sv, tol if tol > 0 else np.finfo(float).tiny)
+    return (Vt.T / sv**2) @ Vt
+
+
 def fit(
     structure: Structure,
     experiments: Experiment | Sequence[Experiment],
@@ -529,9 +554,6 @@ def fit(
             options = p.applied(options, float(value))
         return options
 
-    # the size of each parameter: its start, or 1 (SI unit) for a start at 0 (e.g. damping)
-    scale = np.where(x0 != 0, np.abs(x0), 1.0)
-
     def solve(bound: list[_Bound], start: np.ndarray) -> scipy.optimize.OptimizeResult:
         """The weighted least squares of the bound experiments from ``start``."""
         weights = np.concatenate([np.full(b.measured.size, 1 / b.experiment.noise) for b in bound])
@@ -542,14 +564,9 @@ def fit(
             return np.concatenate([_run(s, b, options_at(b.experiment, x))[0] for b in bound])
 
         def jacobian(x: np.ndarray) -> np.ndarray:
-            columns = []
-            for j in range(P):
-                h = STEP * max(abs(x[j]), scale[j])
-                up, down = x.copy(), x.copy()
-                up[j] = min(x[j] + h, high[j])
-                down[j] = max(x[j] - h, low[j])
-                columns.append((simulated(up) - simulated(down)) * weights / (up[j] - down[j]))
-            return np.stack(columns, axis=1)
+            s = structure_at(x)
+            J = [_run(s, b, options_at(b.experiment, x), sensitivity=chosen)[2] for b in bound]
+            return np.concatenate(J) * weights[:, None]
 
         return scipy.optimize.least_squares(
             lambda x: (simulated(x) - measured) * weights,
@@ -576,11 +593,8 @@ def fit(
     r, J = solution.fun, solution.jac
     dof = max(measured.size - P, 1)
     variance = float(r @ r) / dof  # per weighted coordinate: 1 when the noise is as given
-    try:
-        covariance = variance * np.linalg.inv(J.T @ J)
-    except np.linalg.LinAlgError:
-        covariance = np.full((P, P), np.inf)
-    error = np.sqrt(np.maximum(np.diag(covariance), 0.0))
+    covariance = variance * _inverse_normal_matrix(J)
+    error = np.sqrt(np.diag(covariance))
     quantile = float(scipy.stats.t.ppf(0.975, dof))
     with np.errstate(invalid="ignore", divide="ignore"):
         correlation = covariance / np.outer(error, error)
