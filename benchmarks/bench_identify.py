@@ -13,9 +13,9 @@ Usage::
   250 N/m (truth 0.4 and 300 N/m).
 
 For each: the wall time of the fit (the engine's cache warm: one run first), its residual and
-Jacobian evaluations, the runs they took (a Jacobian is 2 runs per parameter), the time of one
-run, and the estimates against the truth.  The Jacobian is central differences of whole runs
-(issue 31: sensitivities in the engine are to replace it).  Results go to
+Jacobian evaluations (a Jacobian is one run with the sensitivities integrated,
+:mod:`tensegrity.engine.sensitivity`), the time of one plain run and of one with the
+sensitivities, and the estimates against the truth.  Results go to
 ``benchmarks/results-identify.md`` (or ``--output``).
 """
 
@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from tensegrity import simulate
-from tensegrity.analysis.identification import Experiment, fit
+from tensegrity.analysis.identification import Experiment, fit, parameter
 from tensegrity.design.catalogue import three_bar_robot
 from tensegrity.engine.sensors import Sensor, measure
 from tensegrity.model.ground import ground
@@ -89,17 +89,20 @@ def measure_case(name, case):
     t0 = time.perf_counter()
     simulate(model, (0.0, 1.0), initial=start, sample_dt=0.01, **options)
     one_run = time.perf_counter() - t0
+    parameters = [parameter(model, n) for n in names]
+    t0 = time.perf_counter()
+    simulate(model, (0.0, 1.0), initial=start, sample_dt=0.01, sensitivity=parameters, **options)
+    one_sensitivity_run = time.perf_counter() - t0
     t0 = time.perf_counter()
     result = fit(model, experiment, names)
     wall = time.perf_counter() - t0
-    runs = result.nfev + 2 * len(names) * result.njev
     estimates = ", ".join(
         f"{n} {e:.5g} ± {s:.2g} (truth {t:g})"
         for n, e, s, t in zip(names, result.estimate, result.standard_error, truth, strict=True)
     )
     return (
-        f"| {name} | {wall:.1f} s | {result.nfev} | {result.njev} | {runs} | "
-        f"{1e3 * one_run:.0f} ms | {estimates} |"
+        f"| {name} | {wall:.1f} s | {result.nfev} | {result.njev} | "
+        f"{1e3 * one_run:.0f} ms | {1e3 * one_sensitivity_run:.0f} ms | {estimates} |"
     )
 
 
@@ -119,10 +122,12 @@ def main() -> None:
         f"- Date: {datetime.datetime.now(datetime.UTC):%Y-%m-%d %H:%M} UTC; {platform.machine()}, "
         f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f} at the end",
         "- The fits of `docs/identification.md`'s examples (growing horizons: each of 3 least "
-        "squares counted); the Jacobian is central differences of whole runs (2 runs per "
-        "parameter); the runs with their horizons' shorter spans.",
+        "squares counted, their runs with the horizons' shorter spans); a Jacobian is one run "
+        "with the sensitivities to the P parameters integrated (`docs/identification.md`); the "
+        "runs of 1 s at the starting values, plain and with the sensitivities.",
         "",
-        "| example | fit | residual evaluations | Jacobians | runs | one full run | estimates |",
+        "| example | fit | residual evaluations | Jacobians | one run | one run with "
+        "sensitivities | estimates |",
         "|---|---:|---:|---:|---:|---:|---|",
         *rows,
         "",

@@ -314,7 +314,8 @@ def _run(
         raise RuntimeError(f"experiment {e.name!r}: the run failed: {result.message}")
     parts, derivatives = [], []
     if sensitivity is not None:
-        position, velocity = (result.node_position_sensitivity(), result.node_velocity_sensitivity())
+        position = result.node_position_sensitivity()
+        velocity = result.node_velocity_sensitivity()
     for node, t in zip(b.nodes, b.times, strict=True):
         spline = scipy.interpolate.CubicHermiteSpline(
             result.t, result.node_position[:, node], result.node_velocity[:, node], axis=0
@@ -566,7 +567,7 @@ def fit(
         def jacobian(x: np.ndarray) -> np.ndarray:
             s = structure_at(x)
             J = [_run(s, b, options_at(b.experiment, x), sensitivity=chosen)[2] for b in bound]
-            return np.concatenate(J) * weights[:, None]
+            return np.concatenate([j for j in J if j is not None]) * weights[:, None]
 
         return scipy.optimize.least_squares(
             lambda x: (simulated(x) - measured) * weights,

@@ -239,7 +239,7 @@ def ode_rhs(model, data, s, y, dy):  # pragma: no cover - compiled
 
 # --------------------------------------------------------------------------- DOP853
 @compiled_only
-def _combine(y, K, row, stages, h, out):  # pragma: no cover - compiled
+def combine_stages(y, K, row, stages, h, out):  # pragma: no cover - compiled
     """``out = y + h sum_j row[j] K[j]`` over ``j < stages``."""
     copy_values(y, out, y.shape[0])
     for j in range(stages):
@@ -258,10 +258,10 @@ def dop853_attempt(model, data, y, h, K, y_new, stage, tol):  # pragma: no cover
     ``scipy.integrate.DOP853`` (accept the step when < 1)."""
     rtol, atol = tol
     for s in range(1, DOP853_STAGES):
-        _combine(y, K, DOP853_A[s], s, h, stage)
+        combine_stages(y, K, DOP853_A[s], s, h, stage)
         ode_rhs(model, data, s, stage, K[s])
     last = np.int64(DOP853_STAGES)
-    _combine(y, K, DOP853_B, last, h, y_new)
+    combine_stages(y, K, DOP853_B, last, h, y_new)
     ode_rhs(model, data, last, y_new, K[last])
     err5 = 0.0
     err3 = 0.0
@@ -288,7 +288,7 @@ def dop853_dense(model, data, y_old, y, h, K, F, stage):  # pragma: no cover - c
     more stages (rows 13-15 of ``K`` and of the inputs).  ``K[0]`` and ``K[12]`` are f at the
     step's two ends."""
     for s in range(DOP853_STAGES + 1, DOP853_A.shape[0]):
-        _combine(y_old, K, DOP853_A[s], s, h, stage)
+        combine_stages(y_old, K, DOP853_A[s], s, h, stage)
         ode_rhs(model, data, s, stage, K[s])
     dop853_dense_polynomial(y_old, y, h, K, F)
 

@@ -67,10 +67,10 @@ from tensegrity.engine.sensitivity import (
     advance_sensitivity,
     dense_sensitivity,
     event_time_derivative,
+    interpolate as interpolate_sensitivity,
     keep_state,
     saltation,
 )
-from tensegrity.engine.sensitivity import interpolate as interpolate_sensitivity
 from tensegrity.engine.steppers import StepperMemory
 from tensegrity.engine.system import CompiledSystem
 from tensegrity.physics.compiling import JIT_OPTIONS

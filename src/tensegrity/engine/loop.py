@@ -56,8 +56,7 @@ from tensegrity.engine.result import (
     RunSummary,
     Samples,
 )
-from tensegrity.engine.sensitivity import SensitivityWork
-from tensegrity.engine.sensitivity import prepare as prepare_sensitivity
+from tensegrity.engine.sensitivity import SensitivityWork, prepare as prepare_sensitivity
 from tensegrity.engine.steppers import (
     RK4,
     IntegrationError,

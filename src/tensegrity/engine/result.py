@@ -186,10 +186,11 @@ class SimulationResult:
     contact_event_time, contact_event_pair, contact_event_mode : (E,) [s], (E,), (E, 2): the
         changes of a pair's mode, at located events (or at the start, from free): when, which
         pair, the modes before and after (:attr:`contact_counts` counts them).
-    q_sensitivity, qdot_sensitivity : (T, P, 6R) or None: ``dq/dp`` and ``dq'/dp`` with respect to
-        the P parameters of ``simulate(..., sensitivity=...)`` (:mod:`tensegrity.engine.sensitivity`)
-        [unit of q per unit of each parameter]; :meth:`node_position_sensitivity` and
-        :meth:`node_velocity_sensitivity` give them per node.
+    q_sensitivity, qdot_sensitivity : (T, P, 6R) or None: ``dq/dp`` and ``dq'/dp`` with respect
+        to the P parameters of ``simulate(..., sensitivity=...)``
+        (:mod:`tensegrity.engine.sensitivity`) [unit of q per unit of each parameter];
+        :meth:`node_position_sensitivity` and :meth:`node_velocity_sensitivity` give them per
+        node.
     control_time, control_command, control_applied : (U,) [s], (U, A) [m], (U, A) [m]: the
         actuators' updates (a controller's), when, the commands held (after the rest-length
         bounds), the controls applied at that time; A actuated tendons

@@ -47,19 +47,19 @@ from tensegrity.engine.compiled import (
     DOP853_A,
     DOP853_B,
     DOP853_STAGES,
-    _combine,
+    combine_stages,
     dop853_dense_polynomial,
     dop853_interpolate,
     ode_rhs,
 )
 from tensegrity.engine.events import event_indicators
+from tensegrity.physics.compiling import ROD_C1, ROD_C2, ROD_LENGTH, ROD_MASS, compiled_only
 from tensegrity.physics.contact import (
     SLIP,
     STICK_SPEED,
     stick_velocities,
     tangential_velocity,
 )
-from tensegrity.physics.compiling import ROD_C1, ROD_C2, ROD_LENGTH, ROD_MASS, compiled_only
 
 if TYPE_CHECKING:
     from tensegrity.engine.system import CompiledSystem
@@ -243,7 +243,7 @@ def _on_side(data, side):  # pragma: no cover - compiled
     """Whether every tendon of the last evaluation pulls exactly where ``side`` says it does
     (the step's side of every slack/taut switch)."""
     tension = data.tension
-    for e in range(tension.shape[0]):
+    for e in range(tension.shape[0]):  # noqa: SIM110 (compiled: no generators)
         if (tension[e] > 0.0) != side[e]:
             return False
     return True
@@ -340,15 +340,15 @@ def advance_sensitivity(sens, model, data, y_old, y, K, h, side):  # pragma: no 
     copy[:] = sens.S
     sens.Y[0] = y_old
     for s in range(1, DOP853_STAGES):
-        _combine(y_old, K, DOP853_A[s], s, h, sens.Y[s])
+        combine_stages(y_old, K, DOP853_A[s], s, h, sens.Y[s])
     sens.Y[last] = y
     for j in range(sens.S.shape[0]):
         Kp = sens.K[j]
         directional(model, data, np.int64(0), sens, j, y_old, copy[j], K[0], Kp[0], side)
         for s in range(1, DOP853_STAGES):
-            _combine(copy[j], Kp, DOP853_A[s], s, h, sens.v)
+            combine_stages(copy[j], Kp, DOP853_A[s], s, h, sens.v)
             directional(model, data, np.int64(s), sens, j, sens.Y[s], sens.v, K[s], Kp[s], side)
-        _combine(copy[j], Kp, DOP853_B, last, h, sens.S[j])
+        combine_stages(copy[j], Kp, DOP853_B, last, h, sens.S[j])
         directional(model, data, last, sens, j, y, sens.S[j], K[last], Kp[last], side)
     ode_rhs(model, data, last, y, sens.f_at)  # (the scratch as the step left it)
 
@@ -365,11 +365,11 @@ def dense_sensitivity(sens, model, data, y_old, y, h, K):  # pragma: no cover - 
     side = sens.side
     first = DOP853_STAGES + 1
     for s in range(first, DOP853_A.shape[0]):
-        _combine(y_old, K, DOP853_A[s], s, h, sens.Y[s])
+        combine_stages(y_old, K, DOP853_A[s], s, h, sens.Y[s])
     for j in range(sens.S.shape[0]):
         Kp = sens.K[j]
         for s in range(first, DOP853_A.shape[0]):
-            _combine(sens.S_old[j], Kp, DOP853_A[s], s, h, sens.v)
+            combine_stages(sens.S_old[j], Kp, DOP853_A[s], s, h, sens.v)
             directional(model, data, np.int64(s), sens, j, sens.Y[s], sens.v, K[s], Kp[s], side)
         dop853_dense_polynomial(sens.S_old[j], sens.S[j], h, Kp, sens.F[j])
     last = np.int64(DOP853_A.shape[0] - 1)
@@ -418,8 +418,8 @@ def event_time_derivative(sens, model, data, y, f_end, events):  # pragma: no co
     dtau/dp`` of the first event fired, and ``sens.f_at`` the right-hand side on the side
     before it, extrapolated from ``y - delta f_end`` and ``y - 2 delta f_end``, ``delta`` [s]
     the time in which the state moves by :data:`BACK` of its size (the state sits on either
-    side of the event by the width of its bracket, far less).  Nothing without sensitivities (False);
-    False if no event fired.  The scratch the action reads is left as it was."""
+    side of the event by the width of its bracket, far less).  Nothing without sensitivities
+    (False); False if no event fired.  The scratch the action reads is left as it was."""
     if sens is None:
         return False
     e = -1
@@ -528,7 +528,6 @@ def interpolate(sens: SensitivityWork, x: float, out: np.ndarray) -> None:
         dop853_interpolate(sens.F[j], sens.S_old[j], x, out[j])
 
 
-
 # --------------------------------------------------------------------------- set-up
 def prepare(system: CompiledSystem, parameters: Sequence[Any], y0: np.ndarray) -> SensitivityWork:
     """The sensitivities of a run of ``system`` from ``y0`` with respect to ``parameters``, and
@@ -572,10 +571,7 @@ def prepare(system: CompiledSystem, parameters: Sequence[Any], y0: np.ndarray) -
                     )
                 kind = "friction_tied"
             index = np.arange(len(planes))
-            field = model.contacts.friction_static if p.kind == "friction" else (
-                model.contacts.friction_kinetic
-            )
-            value = float(np.mean(np.abs(field)))
+            value = float(np.mean([_coefficient(plane, p.kind) for plane in planes]))
         else:
             group = "state" if kind == "initial_state" else kind.split("_")[0]
             index = np.asarray(p.members, dtype=np.int64).ravel()
@@ -612,6 +608,14 @@ def prepare(system: CompiledSystem, parameters: Sequence[Any], y0: np.ndarray) -
     )
     pairs = 0 if contacts is None else contacts_pairs(contacts)
     return sensitivity_work(kinds, members, sizes, S0, structure.n_tendons, pairs)
+
+
+def _coefficient(plane: Any, kind: str) -> float:
+    """A plane's static (``kind`` "friction") or kinetic friction coefficient (its static one
+    unless given)."""
+    if kind == "friction" or plane.kinetic_friction is None:
+        return float(plane.friction)
+    return float(plane.kinetic_friction)
 
 
 def contacts_pairs(contacts: Any) -> int:
