@@ -86,6 +86,27 @@ def test_sensitivities_equal_central_differences_through_slack_switches():
         assert _relative_error(reference, run.q_sensitivity[:, j]) < 1e-6, p.name
 
 
+def test_the_gradient_of_a_loss_of_the_trajectory():
+    """``L = sum over samples of |q - q_target|^2 / 2 + |qdot|^2 / 2``: its gradient in the
+    rod masses and tendon stiffness against central differences of ``L``."""
+    shell = _shell()
+    params = [parameter(shell, "rod_mass"), parameter(shell, "tendon_stiffness")]
+    run = simulate(shell, (0.0, 0.3), sensitivity=params, **SHELL_RUN)
+    target = run.q[0]
+
+    def loss(result):
+        return 0.5 * np.sum((result.q - target) ** 2) + 0.5 * np.sum(result.qdot**2)
+
+    gradient = run.gradient(run.q - target, run.qdot)
+    for j, p in enumerate(params):
+        value = float(np.mean(getattr(shell, p.field)))
+        h = STEP * value
+        up, down = (
+            simulate(p.apply(shell, v), (0.0, 0.3), **SHELL_RUN) for v in (value + h, value - h)
+        )
+        assert abs(gradient[j] - (loss(up) - loss(down)) / (2 * h)) < 1e-6 * abs(gradient[j])
+
+
 def test_the_run_with_sensitivities_is_the_same_run():
     shell = _shell()
     plain = simulate(shell, (0.0, 0.3), **SHELL_RUN)

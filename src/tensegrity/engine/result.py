@@ -246,6 +246,18 @@ class SimulationResult:
         """``dv/dparam`` (T, P, N, dim) [m/s per unit] of the nodes' velocities."""
         return nodes_from_coordinates(self.structure, self._sensitivity("qdot"), rates=True)
 
+    def gradient(self, loss_q: np.ndarray, loss_qdot: np.ndarray | None = None) -> np.ndarray:
+        """The gradient (P,) of a scalar loss of the samples, ``L(q, qdot)``, with respect to the
+        parameters of ``simulate(..., sensitivity=...)``, from the loss's partial derivatives
+        ``loss_q = dL/dq`` and ``loss_qdot = dL/dqdot`` (T, n) at the samples (the chain rule
+        through :attr:`q_sensitivity` and :attr:`qdot_sensitivity`) [unit of L per unit of each
+        parameter]."""
+        grad = np.einsum("tpn,tn->p", self._sensitivity("q"), np.asarray(loss_q, dtype=float))
+        if loss_qdot is not None:
+            qdot = np.asarray(loss_qdot, dtype=float)
+            grad = grad + np.einsum("tpn,tn->p", self._sensitivity("qdot"), qdot)
+        return grad
+
     def _sensitivity(self, name: str) -> np.ndarray:
         values = getattr(self, f"{name}_sensitivity")
         if values is None:
