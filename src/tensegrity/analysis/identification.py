@@ -1,9 +1,9 @@
 """Fitting a structure's parameters to measured motion (identification; ``docs/identification.md``).
 
 A fit chooses the values of some parameters of a structure -- tendon stiffness, damping and
-rest length, rod mass, each for all members or a named group -- so that simulated runs
-reproduce measured marker positions of some nodes, at the markers' own sample times, in one or
-several experiments at once:
+rest length, rod mass, each for all members or a named group; the ground's friction, contact
+stiffness and damping -- so that simulated runs reproduce measured marker positions of some
+nodes, at the markers' own sample times, in one or several experiments at once:
 
 - :func:`parameter` reads a parameter's name (``"tendon_stiffness"``, ``"rod_mass"``,
   ``"tendon_damping:t1_*"``): its kind, and the members it sets to one common value.
@@ -66,6 +66,8 @@ KINDS: dict[str, tuple[str, str, float]] = {
     "rod_mass": ("rod_mass", "rod", TINY),
     "friction": ("friction", "plane", 0.0),
     "kinetic_friction": ("kinetic_friction", "plane", 0.0),
+    "contact_stiffness": ("stiffness", "plane", TINY),
+    "contact_damping": ("damping", "plane", 0.0),
 }
 
 #: The run's accuracy when fitting (relative and absolute tolerances of DOP853): far below the

@@ -32,7 +32,8 @@ events (:func:`tensegrity.engine.events.stick_slow_slips`).
 
 Parameters (:data:`KIND_CODES`): a tendon's stiffness ``k`` [N/m], damping ``c`` [N s/m] and
 rest length ``L0`` [m], a rod's mass [kg], a ground plane's static and kinetic friction
-coefficients, and components of the initial state.  A parameter sets a group of members
+coefficients, its contact stiffness [N/m] and damping [N s/m], and components of the initial
+state.  A parameter sets a group of members
 together (each member's value moves by the same amount).
 """
 
@@ -73,8 +74,10 @@ if TYPE_CHECKING:
     FRICTION,
     FRICTION_TIED,
     KINETIC_FRICTION,
+    CONTACT_STIFFNESS,
+    CONTACT_DAMPING,
     INITIAL_STATE,
-) = range(8)
+) = range(10)
 KIND_CODES = {
     "tendon_stiffness": TENDON_STIFFNESS,
     "tendon_damping": TENDON_DAMPING,
@@ -82,7 +85,17 @@ KIND_CODES = {
     "rod_mass": ROD_MASS_KIND,
     "friction": FRICTION,
     "kinetic_friction": KINETIC_FRICTION,
+    "contact_stiffness": CONTACT_STIFFNESS,
+    "contact_damping": CONTACT_DAMPING,
     "initial_state": INITIAL_STATE,
+}
+#: The kinds of the ground planes' parameters, and the :class:`~tensegrity.model.ground.Plane`
+#: field each sets.
+PLANE_FIELDS = {
+    "friction": "friction",
+    "kinetic_friction": "kinetic_friction",
+    "contact_stiffness": "stiffness",
+    "contact_damping": "damping",
 }
 
 #: The most a central difference moves a slipping point's tangential velocity, relative to
@@ -183,9 +196,20 @@ def _move_damping(damping, k, delta, saved, i, restore):  # pragma: no cover - c
 
 
 @compiled_only
-def _move_friction(contacts, kind, p, delta, saved, i, restore):  # pragma: no cover - compiled
-    """Plane ``p``'s friction coefficients of ``kind`` moved by ``delta``, or restored."""
+def _move_plane(contacts, kind, p, delta, saved, i, restore):  # pragma: no cover - compiled
+    """Plane ``p``'s coefficient(s) of ``kind`` (friction, contact stiffness or damping) moved
+    by ``delta``, or restored."""
     if contacts is None:
+        return
+    if kind in (CONTACT_STIFFNESS, CONTACT_DAMPING):
+        values = (
+            contacts.contact_stiffness if kind == CONTACT_STIFFNESS else contacts.contact_damping
+        )
+        if restore:
+            values[p] = saved[i, 0]
+        else:
+            saved[i, 0] = values[p]
+            values[p] += delta
         return
     if restore:
         if kind != KINETIC_FRICTION:
@@ -235,7 +259,7 @@ def _move(model, data, sens, j, s, delta, restore):  # pragma: no cover - compil
                 rod[ROD_C1] = 2.0 / mass
                 rod[ROD_C2] = 6.0 / (mass * rod[ROD_LENGTH] ** 2)
         elif kind != INITIAL_STATE:
-            _move_friction(model.contacts, kind, k, delta, saved, i, restore)
+            _move_plane(model.contacts, kind, k, delta, saved, i, restore)
 
 
 @compiled_only
@@ -559,7 +583,7 @@ def prepare(system: CompiledSystem, parameters: Sequence[Any], y0: np.ndarray) -
                 + ", ".join(KIND_CODES)
             )
         kind = p.kind
-        if kind in ("friction", "kinetic_friction"):
+        if kind in PLANE_FIELDS:
             if not planes:
                 raise ValueError(f"sensitivity: parameter {name!r}: the run has no ground planes")
             tied = [plane.kinetic_friction is None for plane in planes]
@@ -599,6 +623,8 @@ def prepare(system: CompiledSystem, parameters: Sequence[Any], y0: np.ndarray) -
         contacts = contacts._replace(
             friction_static=contacts.friction_static.copy(),
             friction_kinetic=contacts.friction_kinetic.copy(),
+            contact_stiffness=contacts.contact_stiffness.copy(),
+            contact_damping=contacts.contact_damping.copy(),
         )
     system.model = model._replace(
         tendon_stiffness=model.tendon_stiffness.copy(),
@@ -611,11 +637,10 @@ def prepare(system: CompiledSystem, parameters: Sequence[Any], y0: np.ndarray) -
 
 
 def _coefficient(plane: Any, kind: str) -> float:
-    """A plane's static (``kind`` "friction") or kinetic friction coefficient (its static one
-    unless given)."""
-    if kind == "friction" or plane.kinetic_friction is None:
-        return float(plane.friction)
-    return float(plane.kinetic_friction)
+    """A plane's coefficient of ``kind`` (:data:`PLANE_FIELDS`; its kinetic friction is its
+    static one unless given)."""
+    value = getattr(plane, PLANE_FIELDS[kind])
+    return float(plane.friction if value is None else value)
 
 
 def contacts_pairs(contacts: Any) -> int:
