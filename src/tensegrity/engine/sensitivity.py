@@ -72,12 +72,11 @@ if TYPE_CHECKING:
     TENDON_REST_LENGTH,
     ROD_MASS_KIND,
     FRICTION,
-    FRICTION_TIED,
     KINETIC_FRICTION,
     CONTACT_STIFFNESS,
     CONTACT_DAMPING,
     INITIAL_STATE,
-) = range(10)
+) = range(9)
 KIND_CODES = {
     "tendon_stiffness": TENDON_STIFFNESS,
     "tendon_damping": TENDON_DAMPING,
@@ -148,17 +147,15 @@ def sensitivity_work(
     pairs: int,
 ) -> SensitivityWork:
     """New :class:`SensitivityWork`: parameter ``j`` of kind ``kinds[j]`` (a key of
-    :data:`KIND_CODES`, or ``"friction_tied"``: static and kinetic friction moved together),
-    over ``members[j]`` (indices as :class:`SensitivityWork` says), scale ``sizes[j]``; ``S0``
-    (P, m) the derivatives of the initial state; ``n_tendons`` tendons and ``pairs`` contact pairs
-    make the run's events."""
-    codes = {**KIND_CODES, "friction_tied": FRICTION_TIED}
+    :data:`KIND_CODES`) over ``members[j]`` (indices as :class:`SensitivityWork` says), scale
+    ``sizes[j]``; ``S0`` (P, m) the derivatives of the initial state; ``n_tendons`` tendons and
+    ``pairs`` contact pairs make the run's events."""
     P, m = S0.shape
     start = np.zeros(P + 1, np.int64)
     start[1:] = np.cumsum([len(x) for x in members])
     flat = np.concatenate([np.asarray(x, np.int64) for x in members]) if P else np.zeros(0)
     return SensitivityWork(
-        kind=np.array([codes[k] for k in kinds], np.int64),
+        kind=np.array([KIND_CODES[k] for k in kinds], np.int64),
         start=start,
         member=flat.astype(np.int64),
         saved=np.zeros((max(int(start[-1]), 1), 3)),
@@ -212,15 +209,16 @@ def _move_plane(contacts, kind, p, delta, saved, i, restore):  # pragma: no cove
             values[p] += delta
         return
     if restore:
-        if kind != KINETIC_FRICTION:
+        if kind == FRICTION:
             contacts.friction_static[p] = saved[i, 0]
-        if kind != FRICTION:
-            contacts.friction_kinetic[p] = saved[i, 1]
+        else:
+            contacts.friction_kinetic[p] = saved[i, 0]
         return
-    saved[i, 0], saved[i, 1] = contacts.friction_static[p], contacts.friction_kinetic[p]
-    if kind != KINETIC_FRICTION:
+    if kind == FRICTION:
+        saved[i, 0] = contacts.friction_static[p]
         contacts.friction_static[p] += delta
-    if kind != FRICTION:
+    else:
+        saved[i, 0] = contacts.friction_kinetic[p]
         contacts.friction_kinetic[p] += delta
 
 
@@ -562,8 +560,8 @@ def prepare(system: CompiledSystem, parameters: Sequence[Any], y0: np.ndarray) -
     indices of the structure for the structure's kinds, ignored for the planes' (every plane),
     indices into the state ``y`` (the engine's 3-D layout ``[q, q', E_d, W_w, W_u]``) for
     ``initial_state``; ``name`` names it in errors, if it has one.  ``ValueError`` (one line,
-    naming the parameter) for an unknown kind, no members, members out of range, or friction of
-    planes some of which give a kinetic coefficient and some not.
+    naming the parameter) for an unknown kind, no members, members out of range, or a plane's
+    parameter in a run without planes.
     """
     structure, model = system.structure, system.model
     planes = tuple(system.inputs.ground or ())
@@ -586,14 +584,6 @@ def prepare(system: CompiledSystem, parameters: Sequence[Any], y0: np.ndarray) -
         if kind in PLANE_FIELDS:
             if not planes:
                 raise ValueError(f"sensitivity: parameter {name!r}: the run has no ground planes")
-            tied = [plane.kinetic_friction is None for plane in planes]
-            if kind == "friction" and any(tied):
-                if not all(tied):
-                    raise ValueError(
-                        f"sensitivity: parameter {name!r}: give every plane a kinetic friction "
-                        "or none"
-                    )
-                kind = "friction_tied"
             index = np.arange(len(planes))
             value = float(np.mean([_coefficient(plane, p.kind) for plane in planes]))
         else:
@@ -637,10 +627,8 @@ def prepare(system: CompiledSystem, parameters: Sequence[Any], y0: np.ndarray) -
 
 
 def _coefficient(plane: Any, kind: str) -> float:
-    """A plane's coefficient of ``kind`` (:data:`PLANE_FIELDS`; its kinetic friction is its
-    static one unless given)."""
-    value = getattr(plane, PLANE_FIELDS[kind])
-    return float(plane.friction if value is None else value)
+    """A plane's coefficient of ``kind`` (:data:`PLANE_FIELDS`)."""
+    return float(getattr(plane, PLANE_FIELDS[kind]))
 
 
 def contacts_pairs(contacts: Any) -> int:
