@@ -485,7 +485,8 @@ def fit(
         the same kind.
     initial : (P,) starting values, optional.
     bounds : (P,) ``(low, high)`` pairs, optional; default from the least value of each kind
-        (:data:`KINDS`) to infinity.
+        (:data:`KINDS`) to infinity, a kinetic friction fitted alone up to the planes' static
+        one, a static friction fitted alone down to their kinetic one.
     max_nfev : the most residual evaluations of each least squares.
     horizons : the fits are made in turn on the data up to these fractions of each
         experiment's span (increasing, the last 1), each from the last one's estimate: a long
@@ -527,6 +528,13 @@ def fit(
         raise ValueError(f"initial: expected {P} finite values, got {initial!r}")
     low = np.array([KINDS[p.kind][2] for p in chosen], dtype=float)
     high = np.full(P, np.inf)
+    kinds = [p.kind for p in chosen]
+    planes = [plane for e in given for plane in _planes(e.options)]
+    for j, kind in enumerate(kinds):  # kinetic friction never above the static one held fixed
+        if kind == "kinetic_friction" and "friction" not in kinds:
+            high[j] = min(plane.friction for plane in planes)
+        if kind == "friction" and "kinetic_friction" not in kinds:
+            low[j] = max(plane.kinetic_friction for plane in planes)
     if bounds is not None:
         if len(bounds) != P:
             raise ValueError(f"bounds: expected {P} (low, high) pairs, got {len(bounds)}")
