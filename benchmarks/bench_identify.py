@@ -115,26 +115,40 @@ def main() -> None:
     rows = [
         measure_case(name, case) for name, case in (("shell", shell_case), ("robot", robot_case))
     ]
-    lines = [
-        "# Identification: the time of a fit",
-        "",
-        "- Command: `python benchmarks/bench_identify.py`",
-        f"- Date: {datetime.datetime.now(datetime.UTC):%Y-%m-%d %H:%M} UTC; {platform.machine()}, "
-        f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f} at the end",
-        "- The fits of `docs/identification.md`'s examples (growing horizons: each of 3 least "
+    write_report(
+        args.output,
+        title="Identification: the time of a fit",
+        command="python benchmarks/bench_identify.py",
+        note="The fits of `docs/identification.md`'s examples (growing horizons: each of 3 least "
         "squares counted, their runs with the horizons' shorter spans); a Jacobian is one run "
         "with the sensitivities to the P parameters integrated (`docs/identification.md`); the "
         "runs of 1 s at the starting values, plain and with the sensitivities.",
+        table=[
+            "| example | fit | residual evaluations | Jacobians | one run | one run with "
+            "sensitivities | estimates |",
+            "|---|---:|---:|---:|---:|---:|---|",
+            *rows,
+        ],
+    )
+
+
+def write_report(output: Path, *, title: str, command: str, note: str, table: list[str]) -> None:
+    """A results page: its title, the command, the date and machine, a note, the table;
+    printed and written to ``output``."""
+    lines = [
+        f"# {title}",
         "",
-        "| example | fit | residual evaluations | Jacobians | one run | one run with "
-        "sensitivities | estimates |",
-        "|---|---:|---:|---:|---:|---:|---|",
-        *rows,
+        f"- Command: `{command}`",
+        f"- Date: {datetime.datetime.now(datetime.UTC):%Y-%m-%d %H:%M} UTC; {platform.machine()}, "
+        f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f} at the end",
+        f"- {note}",
+        "",
+        *table,
         "",
     ]
     text = "\n".join(lines)
     print(text)
-    args.output.write_text(text)
+    output.write_text(text)
 
 
 if __name__ == "__main__":

@@ -25,14 +25,12 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import datetime
-import os
-import platform
 import statistics
 import time
 from pathlib import Path
 
 import numpy as np
+from bench_identify import write_report  # (run from this folder, as the usage says)
 
 from tensegrity import simulate
 from tensegrity.analysis.identification import parameter
@@ -162,25 +160,20 @@ def main() -> None:
         integrated(case, FIT)
         differences(case, FIT)
     rows = [measure_case(case, args.repeat) for case in cases]
-    lines = [
-        "# Gradients through a run: integrated sensitivities against differences of runs",
-        "",
-        "- Command: `python benchmarks/bench_sensitivity.py`",
-        f"- Date: {datetime.datetime.now(datetime.UTC):%Y-%m-%d %H:%M} UTC; {platform.machine()}, "
-        f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f} at the end",
-        "- At the fit's tolerances (rtol 1e-10); error against central differences of runs at "
-        "rtol 1e-12, relative to the largest derivative, worst parameter; times are medians "
+    write_report(
+        args.output,
+        title="Gradients through a run: integrated sensitivities against differences of runs",
+        command="python benchmarks/bench_sensitivity.py",
+        note="At the fit's tolerances (rtol 1e-10); error against central differences of runs "
+        "at rtol 1e-12, relative to the largest derivative, worst parameter; times are medians "
         f"of {args.repeat} (the ratio to one plain run in brackets, x).",
-        "",
-        "| run | P | plain run | with sensitivities | central differences (2 P runs) | "
-        "error, sensitivities | error, differences |",
-        "|---|---:|---:|---:|---:|---:|---:|",
-        *rows,
-        "",
-    ]
-    text = "\n".join(lines)
-    print(text)
-    args.output.write_text(text)
+        table=[
+            "| run | P | plain run | with sensitivities | central differences (2 P runs) | "
+            "error, sensitivities | error, differences |",
+            "|---|---:|---:|---:|---:|---:|---:|",
+            *rows,
+        ],
+    )
 
 
 if __name__ == "__main__":
