@@ -14,6 +14,7 @@ from tensegrity import simulate
 from tensegrity.analysis.identification import parameter
 from tensegrity.design.catalogue import three_bar_robot
 from tensegrity.model.ground import ground
+from tensegrity.model.loads import ControlTable
 from tensegrity.model.shell import class1_shell
 from tensegrity.physics.dynamics import State, coordinates_from_nodes, initial_state
 
@@ -33,8 +34,8 @@ class StateComponent:
     name: str = "initial_state"
 
 
-def _shell(damping: float = 0.8, *, fixed_base: bool = True):
-    s = class1_shell(3, 1, fixed_base=fixed_base)
+def _shell(damping: float = 0.8):
+    s = class1_shell(3, 1, fixed_base=True)
     return s.replace(
         tendon_stiffness=np.full(s.n_tendons, 120.0),
         tendon_damping=np.full(s.n_tendons, damping),
@@ -86,6 +87,23 @@ def test_sensitivities_equal_central_differences_through_slack_switches():
         assert _relative_error(reference, run.q_sensitivity[:, j]) < 1e-6, p.name
 
 
+def test_sensitivities_with_a_control_table_through_slack_switches():
+    """Rest lengths that change along the run (a control table: the events' indicators move
+    with time as well as with the state, and the stages read 16 rows of inputs): the damped
+    shell's stiffness and rest-length sensitivities within 1e-6 of the differences."""
+    shell = _shell()
+    control = ControlTable(
+        time=[0.0, 0.2, 0.4], control=np.outer([0.0, 0.02, -0.01], np.ones(shell.n_tendons))
+    )
+    options = {**SHELL_RUN, "control": control}
+    params = [parameter(shell, "tendon_stiffness"), parameter(shell, "tendon_rest_length")]
+    run = simulate(shell, (0.0, 0.4), sensitivity=params, **options)
+    assert run.nswitches > 5
+    for j, p in enumerate(params):
+        reference = _central(shell, p, (0.0, 0.4), **options)
+        assert _relative_error(reference, run.q_sensitivity[:, j]) < 1e-6, p.name
+
+
 def test_the_gradient_of_a_loss_of_the_trajectory():
     """``L = sum over samples of |q - q_target|^2 / 2 + |qdot|^2 / 2``: its gradient in the
     rod masses and tendon stiffness against central differences of ``L``."""
@@ -105,45 +123,6 @@ def test_the_gradient_of_a_loss_of_the_trajectory():
             simulate(p.apply(shell, v), (0.0, 0.3), **SHELL_RUN) for v in (value + h, value - h)
         )
         assert abs(gradient[j] - (loss(up) - loss(down)) / (2 * h)) < 1e-6 * abs(gradient[j])
-
-
-def test_the_run_with_sensitivities_is_the_same_run():
-    shell = _shell()
-    plain = simulate(shell, (0.0, 0.3), **SHELL_RUN)
-    run = simulate(shell, (0.0, 0.3), sensitivity=[parameter(shell, "rod_mass")], **SHELL_RUN)
-    np.testing.assert_array_equal(run.q, plain.q)
-    assert (run.nsteps, run.nswitches) == (plain.nsteps, plain.nswitches)
-    assert plain.q_sensitivity is None
-    with pytest.raises(ValueError, match="q_sensitivity: the run integrated no sensitivities"):
-        plain.node_position_sensitivity()
-
-
-def test_initial_state_and_damping_from_zero():
-    """The free undamped shell: d/d(a start velocity) against differences of the start, and
-    d/d(damping) at zero damping (the model given damping to move) against one-sided
-    second-order differences (damping cannot go below 0)."""
-    shell = _shell(damping=0.0, fixed_base=False)
-    start = initial_state(shell)
-    n = start.q.size
-    index = 0  # rod 0's q1_x rate (q1 = p_a + p_b: free of the rod's constraint)
-    params = [StateComponent((n + index,)), parameter(shell, "tendon_damping")]
-    run = simulate(shell, (0.0, 0.4), initial=start, sensitivity=params, **SHELL_RUN)
-    h = 1e-4
-    moved = []
-    for sign in (1, -1):
-        qdot = start.qdot.copy()
-        qdot[index] += sign * h
-        moved.append(simulate(shell, (0.0, 0.4), initial=State(0.0, start.q, qdot), **SHELL_RUN))
-    reference = (moved[0].q - moved[1].q) / (2 * h)
-    assert _relative_error(reference, run.q_sensitivity[:, 0]) < 1e-6
-    h = 1e-4
-    p = params[1]
-    q1, q2 = (simulate(p.apply(shell, c), (0.0, 0.4), **SHELL_RUN).q for c in (h, 2 * h))
-    reference = (-3 * run.q + 4 * q1 - q2) / (2 * h)
-    assert _relative_error(reference, run.q_sensitivity[:, 1]) < 1e-5  # (the O(h^2) of it)
-    nodes = run.node_position_sensitivity()
-    assert nodes.shape == (run.t.size, 2, shell.n_nodes, 3)
-    assert np.all(nodes[:, :, shell.anchor_nodes] == 0.0)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -216,5 +195,64 @@ def test_bad_sensitivity_requests_are_refused_in_one_line():
     for p, message in cases:
         with pytest.raises(ValueError, match=message):
             simulate(shell, (0.0, 0.01), sensitivity=[p])
+    mass = [parameter(shell, "rod_mass")]
     with pytest.raises(ValueError, match="method='DOP853' only"):
-        simulate(shell, (0.0, 0.01), method="RK45", sensitivity=[parameter(shell, "rod_mass")])
+        simulate(shell, (0.0, 0.01), method="RK45", sensitivity=mass)
+    with pytest.raises(ValueError, match="locating its events"):
+        simulate(shell, (0.0, 0.01), locate_switches=False, sensitivity=mass)
+
+
+def test_the_start_and_damping_from_zero_through_contact():
+    """The robot's run: d/d(its start's sliding speed) against differences of the start,
+    positions and velocities of the nodes; d/d(damping) at zero (the records carry zero
+    damping that can move) against one-sided second-order differences (damping cannot go
+    below 0).  (The speed of all three rods together: the robot lands on three ends at once,
+    and a perturbation that broke that symmetry would part the three events, which share one
+    event time here: ``docs/sensitivity.md``.)"""
+    robot = three_bar_robot(stiffness=300.0, tension=20.0)
+    options = _robot_run()
+    start = options.pop("initial")
+    n = start.q.size
+    index = [0, 6, 12]  # each rod's q1_x rate (q1 = p_a + p_b: free of the rod's constraint)
+    params = [StateComponent(tuple(n + i for i in index)), parameter(robot, "tendon_damping")]
+    run = simulate(robot, (0.0, 0.5), initial=start, sensitivity=params, **options)
+    h = 1e-4
+    moved = []
+    for sign in (1, -1):
+        qdot = start.qdot.copy()
+        qdot[index] += sign * h
+        moved.append(simulate(robot, (0.0, 0.5), initial=State(0.0, start.q, qdot), **options))
+    assert _relative_error((moved[0].q - moved[1].q) / (2 * h), run.q_sensitivity[:, 0]) < 1e-4
+    for name in ("node_position", "node_velocity"):
+        reference = (getattr(moved[0], name) - getattr(moved[1], name)) / (2 * h)
+        derivative = getattr(run, f"{name}_sensitivity")()
+        assert derivative.shape == (run.t.size, 2, robot.n_nodes, 3)
+        assert _relative_error(reference, derivative[:, 0]) < 1e-4, name
+    p = params[1]
+    q1, q2 = (
+        simulate(p.apply(robot, c), (0.0, 0.5), initial=start, **options).q for c in (h, 2 * h)
+    )
+    reference = (-3 * run.q + 4 * q1 - q2) / (2 * h)
+    assert _relative_error(reference, run.q_sensitivity[:, 1]) < 1e-4  # (the O(h^2) of it)
+
+
+def test_the_run_with_sensitivities_is_the_same_run():
+    """Samples, steps, switches, tensions and contact events identical with and without the
+    sensitivities (whose differences move the records and the scratch in place)."""
+    shell = _shell()
+    robot = three_bar_robot(stiffness=300.0, tension=20.0)
+    kinds = ["tendon_stiffness", "tendon_damping", "tendon_rest_length", "rod_mass"]
+    cases = [
+        (shell, SHELL_RUN, [parameter(shell, k) for k in kinds]),
+        (robot, _robot_run(), [parameter(robot, k) for k in kinds]
+         + [PlaneParameter(k) for k in ("friction", "kinetic_friction", "contact_stiffness")]),
+    ]  # fmt: skip
+    for structure, options, params in cases:
+        plain = simulate(structure, (0.0, 0.5), **options)
+        run = simulate(structure, (0.0, 0.5), sensitivity=params, **options)
+        for name in ("q", "qdot", "tendon_tension", "contact_event_time", "switch_times"):
+            np.testing.assert_array_equal(getattr(run, name), getattr(plain, name), err_msg=name)
+        assert (run.nsteps, run.nfev) == (plain.nsteps, plain.nfev)
+        assert plain.q_sensitivity is None
+    with pytest.raises(ValueError, match="q_sensitivity: the run integrated no sensitivities"):
+        plain.node_position_sensitivity()

@@ -534,7 +534,7 @@ def fit(
         if kind == "kinetic_friction" and "friction" not in kinds:
             high[j] = min(plane.friction for plane in planes)
         if kind == "friction" and "kinetic_friction" not in kinds:
-            low[j] = max(float(plane.kinetic_friction or 0.0) for plane in planes)
+            low[j] = max(float(plane.kinetic_friction) for plane in planes)  # type: ignore[arg-type]
     if bounds is not None:
         if len(bounds) != P:
             raise ValueError(f"bounds: expected {P} (low, high) pairs, got {len(bounds)}")

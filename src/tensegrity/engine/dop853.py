@@ -67,6 +67,7 @@ from tensegrity.engine.sensitivity import (
     advance_sensitivity,
     dense_sensitivity,
     event_time_derivative,
+    has_sensitivity,
     interpolate as interpolate_sensitivity,
     keep_state,
     saltation,
@@ -280,15 +281,18 @@ def dop853_run(model, rows, point, loop, bound, next_sample_t):  # pragma: no co
                 # mode change the right-hand side: the steps start anew)
                 contacts = loop.events.side.shape[0] > model.tendon_stiffness.shape[0]
                 exact = locate and bool(loop.tally[LANDING_EXACT])
-                if exact and inputs_at(loop.clock[T]) < 0:
+                acting = contacts or has_sensitivity(loop.sensitivity)
+                if exact and acting and inputs_at(loop.clock[T]) < 0:
                     keep_state(loop.sensitivity, loop.y)
                     timed = event_time_derivative(  # (the sensitivities' event time)
                         loop.sensitivity,
                         model,
                         point,
+                        loop.clock[T],
                         loop.y,
                         loop.K[0],
                         loop.events,
+                        varying,
                     )
                     if contacts and land_contacts(
                         model.contacts, model, point, loop.clock[T], loop.y, loop.events

@@ -1118,14 +1118,15 @@ def run(
     inputs.rest_length(np.array([t0]))  # a control making a rest length negative fails here
     if sensitivity is not None and (
         options.method != "DOP853"
+        or not options.locate_switches
         or controller is not None
         or inputs.actuators is not None
         or checkpoint is not None
         or resume is not None
     ):
         raise ValueError(
-            "sensitivity: integrated by method='DOP853' only, without a controller, actuators "
-            "or checkpoints"
+            "sensitivity: integrated by method='DOP853' only, locating its events, without a "
+            "controller, actuators or checkpoints"
         )
     r = _Run(structure, t0, t_end, inputs, options, sink, controller, checkpoint, progress, stop)
     if resume is None:

@@ -186,8 +186,8 @@ class SimulationResult:
     contact_event_time, contact_event_pair, contact_event_mode : (E,) [s], (E,), (E, 2): the
         changes of a pair's mode, at located events (or at the start, from free): when, which
         pair, the modes before and after (:attr:`contact_counts` counts them).
-    q_sensitivity, qdot_sensitivity : (T, P, 6R) or None: ``dq/dp`` and ``dq'/dp`` with respect
-        to the P parameters of ``simulate(..., sensitivity=...)``
+    q_sensitivity, qdot_sensitivity : (T, P, n) or None (n the columns of ``q``): ``dq/dp`` and
+        ``dq'/dp`` with respect to the P parameters of ``simulate(..., sensitivity=...)``
         (:mod:`tensegrity.engine.sensitivity`) [unit of q per unit of each parameter];
         :meth:`node_position_sensitivity` and :meth:`node_velocity_sensitivity` give them per
         node.

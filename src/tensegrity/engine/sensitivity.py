@@ -1,6 +1,6 @@
 """Forward sensitivities of a run: the derivatives ``S = dy/dp`` (P, m) of the state ``y = [q,
 q', E_d, W_w, W_u]`` with respect to P parameters ``p``, integrated with the state inside the
-compiled DOP853 loop (:func:`tensegrity.engine.dop853.dop853_run`).
+compiled DOP853 loop (:func:`tensegrity.engine.dop853.dop853_run`; ``docs/sensitivity.md``).
 
 **Internal differentiation** (Bock's *internal numerical differentiation*): each accepted step
 of the state is differentiated as the step it is -- the same step size, the same stages, the
@@ -11,30 +11,34 @@ integration that would choose its own steps.  Stage ``i`` of a step from ``y`` w
     K'_i = f_y(t_i, Y_i) Y'_i + f_p(t_i, Y_i),   Y'_i = S + h sum_j a_ij K'_j,
 
 and ``S_new = S + h sum_i b_i K'_i``; ``f_y Y' + f_p`` is the directional derivative of the
-right-hand side, taken by one forward difference along ``(Y'_i, e_j)`` (a relative step of
-:data:`STEP`) from the stage already evaluated.  P parameters cost P evaluations per stage:
-with the state's own, about ``P + 1`` plain runs.  The dense output of ``S`` is the step's
-dense polynomial differentiated the same way (three more stages, only for steps with samples).
+right-hand side, taken by a central difference along ``(Y'_i, e_j)`` (a relative step of
+:data:`STEP`).  P parameters cost 2 P evaluations per stage: about ``2 P + 1`` plain runs.
+The dense output of ``S`` is the step's dense polynomial differentiated the same way (three
+more stages, only for steps with samples).
 
 **Events.**  The loop lands on every event (:mod:`tensegrity.engine.events`), so no step
-straddles one.  A tendon's slack/taut switch leaves the right-hand side continuous, and ``S``
-too: only the side matters, and a difference whose perturbed point falls past a switch the step
-does not cross (a stage at the step's end, on the event) is taken backwards instead, on the
-step's side.  A contact event changes the right-hand side from ``f-`` to ``f+``: with the event's
-indicator ``g`` (0 at the event time ``tau``), ``dtau/dp = -(g_y S + g_p) / g'`` and the
-*saltation* ``S+ = S- + (f- - f+) dtau/dp`` (the state itself does not jump); ``g_y S + g_p`` is a
-forward difference of the indicator, ``g'`` a backward one along ``f-``.
+straddles one; the derivative is taken on the step's side of every slack/taut switch (a
+difference whose point falls past a switch the step does not cross, as a stage at the step's
+end on the event, is taken one-sided).  At a located event, with indicator ``g`` (0 at the
+event time ``tau``), ``dtau/dp = -(g_y S + g_p) / g'`` and the *saltation*
+
+    S+ = R_y (S- + f- dtau/dp) + R_p - f+ dtau/dp,
+
+``f-``, ``f+`` the right-hand side before and after (a damped tendon snapping taut makes its
+tension jump; a contact's mode change changes the law), ``R`` the event's reset of the state
+(the impulse that holds sticking points still; the identity elsewhere).
 
 What is not differentiated: the projections onto the constraints (``S`` keeps its own, tiny,
 drift), the friction's slip direction refreshed after each step (its effect on the force is
-``STICK_SPEED / |v_t|`` relative), and the slow-slip rule's mode changes, which are not located
-events (:func:`tensegrity.engine.events.stick_slow_slips`).
+``STICK_SPEED / |v_t|`` relative), the times of the slow-slip rule's sticks, which are not
+located events (:func:`tensegrity.engine.events.stick_slow_slips`; their reset is), and the
+sticks settled at the start (``S0`` is given).
 
 Parameters (:data:`KIND_CODES`): a tendon's stiffness ``k`` [N/m], damping ``c`` [N s/m] and
 rest length ``L0`` [m], a rod's mass [kg], a ground plane's static and kinetic friction
 coefficients, its contact stiffness [N/m] and damping [N s/m], and components of the initial
-state.  A parameter sets a group of members
-together (each member's value moves by the same amount).
+state.  A parameter sets a group of members together (each member's value moves by the same
+amount).
 """
 
 from __future__ import annotations
@@ -51,6 +55,7 @@ from tensegrity.engine.compiled import (
     combine_stages,
     dop853_dense_polynomial,
     dop853_interpolate,
+    make_inputs,
     ode_rhs,
 )
 from tensegrity.engine.events import event_indicators
@@ -130,6 +135,7 @@ class SensitivityWork(NamedTuple):
     y_at: np.ndarray  #: (m,) scratch
     f_at: np.ndarray  #: (m,) scratch
     dtau: np.ndarray  #: (P,) scratch: an event time's derivatives [s / unit]
+    time: np.ndarray  #: (1,) scratch: a time whose inputs are made [s]
     side: np.ndarray  #: (E,) bool: the events' sides over the last step
     y_before: np.ndarray  #: (m,) the state before an event's action
     f_before: np.ndarray  #: (m,) scratch: the right-hand side before it
@@ -169,6 +175,7 @@ def sensitivity_work(
         y_at=np.zeros(m),
         f_at=np.zeros(m),
         dtau=np.zeros(P),
+        time=np.zeros(1),
         side=np.zeros(n_tendons + 2 * pairs, bool),
         y_before=np.zeros(m),
         f_before=np.zeros(m),
@@ -181,8 +188,8 @@ def sensitivity_work(
 @compiled_only
 def _move_damping(damping, k, delta, saved, i, restore):  # pragma: no cover - compiled
     """Tendon ``k``'s damping moved by ``delta`` (its value kept in ``saved[i]``), or restored;
-    ``damping`` None cannot happen (:func:`tensegrity.engine.simulate` gives the records an
-    array of zeros when damping is a parameter)."""
+    ``damping`` None cannot happen (:func:`prepare` gives the records an array, of zeros
+    for undamped tendons)."""
     if damping is None:
         return
     if restore:
@@ -276,7 +283,7 @@ def _step_size(sens, j, y, v):  # pragma: no cover - compiled
     """The step ``eps`` of the difference along ``(v, e_j)`` from ``y``: :data:`STEP` of the
     state's size along ``v``, and of parameter ``j``'s size (0: the direction is zero)."""
     v_size, y_size = 0.0, 1.0
-    for i in range(y.shape[0]):
+    for i in range(y.shape[0] - 3):  # (q and q': not the energies, of another unit)
         v_size = max(v_size, abs(v[i]))
         y_size = max(y_size, abs(y[i]))
     eps = y_size / v_size if v_size > 0.0 else np.inf
@@ -434,14 +441,24 @@ def _indicator(model, data, y, events, e):  # pragma: no cover - compiled
 
 
 @compiled_only
-def event_time_derivative(sens, model, data, y, f_end, events):  # pragma: no cover
-    """At a located event the loop landed on at ``y``, before its action (``data`` with the
-    inputs there, ``f_end`` the right-hand side the last step ended with): ``sens.dtau =
-    dtau/dp`` of the first event fired, and ``sens.f_at`` the right-hand side on the side
-    before it, extrapolated from ``y - delta f_end`` and ``y - 2 delta f_end``, ``delta`` [s]
-    the time in which the state moves by :data:`BACK` of its size (the state sits on either
-    side of the event by the width of its bracket, far less).  Nothing without sensitivities
-    (False); False if no event fired.  The scratch the action reads is left as it was."""
+def _inputs_at(model, data, sens, t, varying):  # pragma: no cover - compiled
+    """``data``'s inputs (row 0) made at ``t`` [s] when they vary in time."""
+    if varying:
+        sens.time[0] = t
+        make_inputs(model.callback, model.tables, sens.time, data)
+
+
+@compiled_only
+def event_time_derivative(sens, model, data, t, y, f_end, events, varying):  # pragma: no cover
+    """At a located event the loop landed on at ``(t, y)``, before its action (``data`` with
+    the inputs there, ``varying``: they vary in time; ``f_end`` the right-hand side the last
+    step ended with): ``sens.dtau = dtau/dp`` of the first event fired, and ``sens.f_at`` the
+    right-hand side on the side before it, extrapolated from ``(t - delta, y - delta f_end)``
+    and ``(t - 2 delta, y - 2 delta f_end)``, ``delta`` [s] the time in which the state moves
+    by :data:`BACK` of its size (the state sits on either side of the event by the width of its
+    bracket, far less); the indicator's rate ``g'`` from the first of them (the inputs' own
+    change included).  Nothing without sensitivities (False); False if no event fired.  The
+    scratch the action reads, and the inputs, are left as they were."""
     if sens is None:
         return False
     e = -1
@@ -452,21 +469,29 @@ def event_time_derivative(sens, model, data, y, f_end, events):  # pragma: no co
     if e < 0:
         return False
     m = y.shape[0]
-    _keep_contacts(data.contact_work, sens.kept)
     y_size, f_size = 1.0, 0.0
-    for i in range(m):
+    for i in range(m):  # (the whole state: with q and q' alone, 4 times the error on the robot)
         y_size, f_size = max(y_size, abs(y[i])), max(f_size, abs(f_end[i]))
-    delta = BACK * y_size / f_size if f_size > 0.0 else 0.0
+    if not f_size > 0.0:  # (at rest: no event time to move)
+        sens.dtau[:] = 0.0
+        sens.f_at[:] = f_end
+        return True
+    _keep_contacts(data.contact_work, sens.kept)
+    delta = BACK * y_size / f_size
     for i in range(m):  # f- extrapolated from two points before: 2 f(y - d f) - f(y - 2 d f)
         sens.v[i] = y[i] - 2.0 * delta * f_end[i]
+    _inputs_at(model, data, sens, t - 2.0 * delta, varying)
     ode_rhs(model, data, np.int64(0), sens.v, sens.y_at)
     for i in range(m):
         sens.v[i] = y[i] - delta * f_end[i]
+    _inputs_at(model, data, sens, t - delta, varying)
     ode_rhs(model, data, np.int64(0), sens.v, sens.f_at)
     for i in range(m):
         sens.f_at[i] = 2.0 * sens.f_at[i] - sens.y_at[i]
+    g_before = _indicator(model, data, sens.v, events, e)
+    _inputs_at(model, data, sens, t, varying)
     g0 = _indicator(model, data, y, events, e)
-    rate = (g0 - _indicator(model, data, sens.v, events, e)) / delta
+    rate = (g0 - g_before) / delta
     for j in range(sens.S.shape[0]):
         eps = _step_size(sens, j, y, sens.S[j])
         if eps == 0.0 or rate == 0.0:
@@ -482,6 +507,12 @@ def event_time_derivative(sens, model, data, y, f_end, events):  # pragma: no co
         sens.dtau[j] = -(slope / (2.0 * eps)) / rate
     _restore_contacts(data.contact_work, sens.kept)
     return True
+
+
+@compiled_only
+def has_sensitivity(sens):  # pragma: no cover - compiled
+    """Whether the run integrates sensitivities (decided at compile time)."""
+    return sens is not None
 
 
 @compiled_only
@@ -588,7 +619,7 @@ def prepare(system: CompiledSystem, parameters: Sequence[Any], y0: np.ndarray) -
             value = float(np.mean([_coefficient(plane, p.kind) for plane in planes]))
         else:
             group = "state" if kind == "initial_state" else kind.split("_")[0]
-            index = np.asarray(p.members, dtype=np.int64).ravel()
+            index = np.unique(np.asarray(p.members, dtype=np.int64))
             if index.size == 0 or index.min() < 0 or index.max() >= count[group]:
                 raise ValueError(
                     f"sensitivity: parameter {name!r}: members must be {group} indices in "
@@ -605,8 +636,8 @@ def prepare(system: CompiledSystem, parameters: Sequence[Any], y0: np.ndarray) -
         kinds.append(kind)
         members.append(index)
         sizes[j] = value if value > 0.0 else 1.0
-    damping = model.tendon_damping
-    if damping is None and "tendon_damping" in kinds:
+    damping = model.tendon_damping  # (an array always: one compiled loop for every run)
+    if damping is None:
         damping = np.zeros(structure.n_tendons)
     contacts = model.contacts
     if contacts is not None:
@@ -618,7 +649,7 @@ def prepare(system: CompiledSystem, parameters: Sequence[Any], y0: np.ndarray) -
         )
     system.model = model._replace(
         tendon_stiffness=model.tendon_stiffness.copy(),
-        tendon_damping=None if damping is None else damping.copy(),
+        tendon_damping=damping.copy(),
         rod_param=model.rod_param.copy(),
         contacts=contacts,
     )
