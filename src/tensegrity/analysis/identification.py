@@ -576,8 +576,12 @@ def fit(
 
         def jacobian(x: np.ndarray) -> np.ndarray:
             s = structure_at(x)
-            J = [_run(s, b, options_at(b.experiment, x), sensitivity=chosen)[2] for b in bound]
-            return np.concatenate([j for j in J if j is not None]) * weights[:, None]
+            columns = []
+            for b in bound:
+                derivatives = _run(s, b, options_at(b.experiment, x), sensitivity=chosen)[2]
+                assert derivatives is not None  # (asked for)
+                columns.append(derivatives)
+            return np.concatenate(columns) * weights[:, None]
 
         return scipy.optimize.least_squares(
             lambda x: (simulated(x) - measured) * weights,

@@ -50,7 +50,7 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Callable
-from typing import TYPE_CHECKING, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 from numba import njit, objmode
@@ -109,7 +109,7 @@ def event_work(system: CompiledSystem) -> EventWork:
     """New :class:`EventWork` for ``system``: its events are one per tendon, then two per
     contact pair (contact, friction) if it has planes."""
     contacts = system.model.contacts
-    pairs = 0 if contacts is None else contacts.point_radius.size * contacts.plane_normal.shape[0]
+    pairs = 0 if contacts is None else contact_pairs(contacts)
     E = system.structure.n_tendons + 2 * pairs
     return EventWork(
         side=np.zeros(E, bool),
@@ -124,6 +124,12 @@ def event_work(system: CompiledSystem) -> EventWork:
         time=np.zeros(1),
         qddot=np.zeros(system.n),
     )
+
+
+def contact_pairs(contacts: Any) -> int:
+    """The contact pairs of packed ``contacts`` (:class:`~tensegrity.physics.records.Contacts`):
+    points times planes."""
+    return int(contacts.point_radius.size * contacts.plane_normal.shape[0])
 
 
 def landing_of(events: EventWork) -> tuple[np.ndarray, np.ndarray]:

@@ -58,7 +58,7 @@ from tensegrity.engine.compiled import (
     make_inputs,
     ode_rhs,
 )
-from tensegrity.engine.events import event_indicators
+from tensegrity.engine.events import contact_pairs, event_indicators
 from tensegrity.physics.compiling import ROD_C1, ROD_C2, ROD_LENGTH, ROD_MASS, compiled_only
 from tensegrity.physics.contact import (
     SLIP,
@@ -186,20 +186,6 @@ def sensitivity_work(
 
 # --------------------------------------------------------------------------- compiled
 @compiled_only
-def _move_damping(damping, k, delta, saved, i, restore):  # pragma: no cover - compiled
-    """Tendon ``k``'s damping moved by ``delta`` (its value kept in ``saved[i]``), or restored;
-    ``damping`` None cannot happen (:func:`prepare` gives the records an array, of zeros
-    for undamped tendons)."""
-    if damping is None:
-        return
-    if restore:
-        damping[k] = saved[i, 0]
-    else:
-        saved[i, 0] = damping[k]
-        damping[k] += delta
-
-
-@compiled_only
 def _move_plane(contacts, kind, p, delta, saved, i, restore):  # pragma: no cover - compiled
     """Plane ``p``'s coefficient(s) of ``kind`` (friction, contact stiffness or damping) moved
     by ``delta``, or restored."""
@@ -244,8 +230,12 @@ def _move(model, data, sens, j, s, delta, restore):  # pragma: no cover - compil
             else:
                 saved[i, 0] = model.tendon_stiffness[k]
                 model.tendon_stiffness[k] += delta
-        elif kind == TENDON_DAMPING:
-            _move_damping(model.tendon_damping, k, delta, saved, i, restore)
+        elif kind == TENDON_DAMPING:  # (an array: prepare gives one to every run)
+            if restore:
+                model.tendon_damping[k] = saved[i, 0]
+            else:
+                saved[i, 0] = model.tendon_damping[k]
+                model.tendon_damping[k] += delta
         elif kind == TENDON_REST_LENGTH:  # (Lbar = L0 - u moves with L0)
             row = s if data.rest.shape[0] > 1 else 0
             if restore:
@@ -653,7 +643,7 @@ def prepare(system: CompiledSystem, parameters: Sequence[Any], y0: np.ndarray) -
         rod_param=model.rod_param.copy(),
         contacts=contacts,
     )
-    pairs = 0 if contacts is None else contacts_pairs(contacts)
+    pairs = 0 if contacts is None else contact_pairs(contacts)
     return sensitivity_work(kinds, members, sizes, S0, structure.n_tendons, pairs)
 
 
@@ -661,7 +651,3 @@ def _coefficient(plane: Any, kind: str) -> float:
     """A plane's coefficient of ``kind`` (:data:`PLANE_FIELDS`)."""
     return float(getattr(plane, PLANE_FIELDS[kind]))
 
-
-def contacts_pairs(contacts: Any) -> int:
-    """The contact pairs of packed ``contacts`` (points times planes)."""
-    return int(contacts.point_radius.size * contacts.plane_normal.shape[0])
