@@ -650,4 +650,3 @@ def prepare(system: CompiledSystem, parameters: Sequence[Any], y0: np.ndarray) -
 def _coefficient(plane: Any, kind: str) -> float:
     """A plane's coefficient of ``kind`` (:data:`PLANE_FIELDS`)."""
     return float(getattr(plane, PLANE_FIELDS[kind]))
-
