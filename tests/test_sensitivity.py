@@ -12,7 +12,7 @@ import pytest
 
 from tensegrity import simulate
 from tensegrity.analysis.identification import parameter
-from tensegrity.design.catalogue import three_bar_robot
+from tensegrity.design.catalogue import six_bar_robot, three_bar_robot
 from tensegrity.model.ground import ground
 from tensegrity.model.loads import ControlTable
 from tensegrity.model.shell import class1_shell
@@ -104,6 +104,69 @@ def test_sensitivities_with_a_control_table_through_slack_switches():
         assert _relative_error(reference, run.q_sensitivity[:, j]) < 1e-6, p.name
 
 
+@dataclasses.dataclass(frozen=True)
+class ControlEntries:
+    """A parameter of the control table: its entries ``knot * S + tendon``."""
+
+    members: tuple[int, ...]
+    kind: str = "control"
+    name: str = "control"
+
+
+def test_sensitivities_to_the_control_tables_values_through_slack_switches():
+    """The values of a control table as parameters (what a trajectory optimisation moves): one
+    knot for every tendon, and one entry alone, through the shell's slack switches; each moves
+    the rest lengths and their rates where the interpolation weighs it (the last knot holds
+    after the table's end).  Within 1e-6 of whole runs with the table's values moved."""
+    shell = _shell()
+    S = shell.n_tendons
+    time = np.array([0.0, 0.15, 0.3])
+    values = np.outer([0.0, 0.02, -0.01], np.ones(S))
+    options = {**SHELL_RUN, "control": ControlTable(time=time, control=values)}
+    params = [ControlEntries(tuple(S + np.arange(S))), ControlEntries((2 * S + 4,))]
+    run = simulate(shell, (0.0, 0.4), sensitivity=params, **options)
+    assert run.nswitches > 5
+    for j, p in enumerate(params):
+        moved = np.zeros(values.size)
+        moved[list(p.members)] = STEP
+        up, down = (
+            simulate(
+                shell,
+                (0.0, 0.4),
+                **{
+                    **options,
+                    "control": ControlTable(
+                        time=time, control=values + sign * moved.reshape(values.shape)
+                    ),
+                },
+            )
+            for sign in (1.0, -1.0)
+        )
+        reference = (up.q - down.q) / (2 * STEP)
+        assert _relative_error(reference, run.q_sensitivity[:, j]) < 1e-6, p.members
+
+
+def test_sensitivities_to_a_point_mass():
+    """The six-bar robot's payload (a point mass held by 12 cables) thrown sideways in free
+    flight: the payload's mass, the cables' stiffness and the bars' mass within 1e-6 of the
+    differences."""
+    robot = six_bar_robot(payload_mass=0.4)
+    payload = robot.point_mass_nodes[0]
+    v = np.zeros_like(robot.node_position)
+    v[payload] = [0.8, 0.3, 0.0]
+    start = State(0.0, initial_state(robot).q, coordinates_from_nodes(robot, v))
+    options = {"initial": start, "gravity": GRAVITY, "sample_dt": 0.02, **TIGHT}
+    params = [
+        parameter(robot, "point_mass"),
+        parameter(robot, "tendon_stiffness"),
+        parameter(robot, "rod_mass"),
+    ]
+    run = simulate(robot, (0.0, 0.3), sensitivity=params, **options)
+    for j, p in enumerate(params):
+        reference = _central(robot, p, (0.0, 0.3), **options)
+        assert _relative_error(reference, run.q_sensitivity[:, j]) < 1e-6, p.name
+
+
 def test_the_gradient_of_a_loss_of_the_trajectory():
     """``L = sum over samples of |q - q_target|^2 / 2 + |qdot|^2 / 2``: its gradient in the
     rod masses and tendon stiffness against central differences of ``L``."""
@@ -191,6 +254,8 @@ def test_bad_sensitivity_requests_are_refused_in_one_line():
         (PlaneParameter("tendon_colour", (0,)), "has kind 'tendon_colour'"),
         (PlaneParameter("rod_mass", (6,)), r"members must be rod indices in 0..5, got \[6\]"),
         (PlaneParameter("friction"), "the run has no ground planes"),
+        (PlaneParameter("control", (0,)), "the run has no control table"),
+        (PlaneParameter("point_mass", (0,)), r"members must be nodes with a point mass \(\[\]\)"),
     ]
     for p, message in cases:
         with pytest.raises(ValueError, match=message):

@@ -57,13 +57,16 @@ __all__ = [
 #: The least value of a quantity that must be > 0 (stiffness, mass, rest length).
 TINY = float(np.finfo(float).tiny)
 
-#: What can be fitted: the field of :class:`~tensegrity.model.structure.Structure` each kind
-#: sets, its members (``"tendon"`` or ``"rod"``), and the least value it may take.
+#: What can be fitted: the field of :class:`~tensegrity.model.structure.Structure` (or of
+#: :class:`~tensegrity.model.ground.Plane`) each kind sets, its members (``"tendon"``,
+#: ``"rod"``, ``"node"``: the nodes carrying a point mass, or ``"plane"``: every ground plane),
+#: and the least value it may take.
 KINDS: dict[str, tuple[str, str, float]] = {
     "tendon_stiffness": ("tendon_stiffness", "tendon", TINY),
     "tendon_damping": ("tendon_damping", "tendon", 0.0),
     "tendon_rest_length": ("tendon_rest_length", "tendon", TINY),
     "rod_mass": ("rod_mass", "rod", TINY),
+    "point_mass": ("node_point_mass", "node", TINY),
     "friction": ("friction", "plane", 0.0),
     "kinetic_friction": ("kinetic_friction", "plane", 0.0),
     "contact_stiffness": ("stiffness", "plane", TINY),
@@ -144,7 +147,7 @@ def _plane_value(plane: Plane, field: str) -> float:
 def parameter(structure: Structure, name: str) -> Parameter:
     """The parameter ``name`` of ``structure``: ``KIND`` (every member of its kind) or
     ``KIND:PATTERN[,PATTERN...]``, patterns of member names (shell-style wildcards, ``t1_*``;
-    rods are named by their index).
+    rods are named by their index, point masses by their nodes' names).
 
     Raises
     ------
@@ -161,17 +164,19 @@ def parameter(structure: Structure, name: str) -> Parameter:
         if patterns:
             raise ValueError(f"parameter {name!r}: {kind} is every ground plane's; no names")
         return Parameter(name, kind, np.zeros(0, dtype=int))
-    names = (
-        list(structure.tendon_name)
-        if member == "tendon"
-        else [str(r) for r in range(structure.n_rods)]
-    )
+    if member == "tendon":
+        names = dict(enumerate(structure.tendon_name))
+    elif member == "rod":
+        names = {r: str(r) for r in range(structure.n_rods)}
+    else:  # (the nodes carrying a point mass)
+        member = "node with a point mass"
+        names = {int(i): structure.node_name[i] for i in structure.point_mass_nodes}
     if not patterns:
-        chosen = set(range(len(names)))
+        chosen = set(names)
     else:
         chosen = set()
         for pattern in patterns.split(","):
-            found = [i for i, n in enumerate(names) if fnmatch.fnmatchcase(n, pattern.strip())]
+            found = [i for i, n in names.items() if fnmatch.fnmatchcase(n, pattern.strip())]
             if not found:
                 raise ValueError(f"parameter {name!r}: no {member} matches {pattern.strip()!r}")
             chosen.update(found)

@@ -90,7 +90,7 @@ ENERGY_CHECK_EVERY = 8
 
 
 @njit(**JIT_OPTIONS)
-def _table_rows(time, values, zero_outside, times, rows, slopes):  # pragma: no cover
+def table_rows(time, values, zero_outside, times, rows, slopes):  # pragma: no cover
     """Rows (K, X) of a piecewise-linear table at ``times`` (K,) [s] into ``rows``, as
     :meth:`tensegrity.model.loads.ForceTable.at`: ``time`` (T,) strictly increasing,
     ``values`` (T, X), linear in between, outside ``[time[0], time[-1]]`` the end rows or
@@ -141,7 +141,7 @@ def fill_stage_inputs(tables, times, data):  # pragma: no cover - compiled
     control_time, control, control_zero, rest0, force_time, force_values, force_zero = tables
     first_negative = -1
     if control_time.shape[0] > 0:
-        _table_rows(control_time, control, control_zero, times, rest, rate)
+        table_rows(control_time, control, control_zero, times, rest, rate)
         for k in range(times.shape[0]):
             for s in range(rest0.shape[0]):
                 rest[k, s] = rest0[s] - rest[k, s]
@@ -149,7 +149,7 @@ def fill_stage_inputs(tables, times, data):  # pragma: no cover - compiled
                     first_negative = k
     if force_time.shape[0] > 0:
         rows = force.reshape((force.shape[0], -1))
-        _table_rows(force_time, force_values, force_zero, times, rows, None)
+        table_rows(force_time, force_values, force_zero, times, rows, None)
     return first_negative
 
 

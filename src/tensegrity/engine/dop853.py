@@ -298,7 +298,7 @@ def dop853_run(model, rows, point, loop, bound, next_sample_t):  # pragma: no co
                         model.contacts, model, point, loop.clock[T], loop.y, loop.events
                     ):
                         loop.tally[RESTART] = 1
-                    saltation(loop.sensitivity, model, point, loop.y, timed)
+                    saltation(loop.sensitivity, model, point, loop.clock[T], loop.y, timed)
             if (  # (the rule for slow slips, after every step)
                 loop.events.side.shape[0] > model.tendon_stiffness.shape[0]
                 and inputs_at(loop.clock[T]) < 0
@@ -308,7 +308,7 @@ def dop853_run(model, rows, point, loop, bound, next_sample_t):  # pragma: no co
                     model.contacts, model, point, loop.clock[T], loop.y, loop.events
                 ):
                     loop.tally[RESTART] = 1
-                    saltation(loop.sensitivity, model, point, loop.y, False)
+                    saltation(loop.sensitivity, model, point, loop.clock[T], loop.y, False)
             if loop.clock[DRIFT] > projection_tol:
                 if not system_project(model, point, loop.y[:n], loop.y[n : 2 * n])[2]:
                     return RUN_CHECK_FAILED, compiled.CHECK_PROJECTION, np.nan
@@ -398,7 +398,15 @@ def dop853_run(model, rows, point, loop, bound, next_sample_t):  # pragma: no co
         if count == 0:  # the step stands: the checks, then the next step or the samples
             loop.tally[NSTEPS] += 1
             advance_sensitivity(
-                loop.sensitivity, model, rows, loop.y_old, loop.y, loop.K, h, loop.events.side
+                loop.sensitivity,
+                model,
+                rows,
+                times,
+                loop.y_old,
+                loop.y,
+                loop.K,
+                h,
+                loop.events.side,
             )
             landed = bool(loop.tally[LANDING]) and loop.clock[T] >= loop.clock[LANDING_TIME]
             loop.tally[LANDED] = landed
@@ -429,7 +437,7 @@ def dop853_run(model, rows, point, loop, bound, next_sample_t):  # pragma: no co
         loop.tally[NFEV] += 3
         loop.tally[DENSE_READY] = 1
         if count == 0:
-            dense_sensitivity(loop.sensitivity, model, rows, loop.y_old, loop.y, h, loop.K)
+            dense_sensitivity(loop.sensitivity, model, rows, times, loop.y_old, loop.y, h, loop.K)
             return RUN_SAMPLES, CHECK_OK, 0.0
 
         # ---- the earliest event (tensegrity.engine.events.locate_event), headed for

@@ -35,10 +35,11 @@ located events (:func:`tensegrity.engine.events.stick_slow_slips`; their reset i
 sticks settled at the start (``S0`` is given).
 
 Parameters (:data:`KIND_CODES`): a tendon's stiffness ``k`` [N/m], damping ``c`` [N s/m] and
-rest length ``L0`` [m], a rod's mass [kg], a ground plane's static and kinetic friction
-coefficients, its contact stiffness [N/m] and damping [N s/m], and components of the initial
-state.  A parameter sets a group of members together (each member's value moves by the same
-amount).
+rest length ``L0`` [m], a rod's mass [kg], a point mass [kg], a ground plane's static and
+kinetic friction coefficients, its contact stiffness [N/m] and damping [N s/m], components of
+the initial state, and values of the control table [m] (each moves the rest lengths and their
+rates where the table's interpolation weighs it).  A parameter sets a group of members together
+(each member's value moves by the same amount).
 """
 
 from __future__ import annotations
@@ -57,6 +58,7 @@ from tensegrity.engine.compiled import (
     dop853_interpolate,
     make_inputs,
     ode_rhs,
+    table_rows,
 )
 from tensegrity.engine.events import contact_pairs, event_indicators
 from tensegrity.physics.compiling import ROD_C1, ROD_C2, ROD_LENGTH, ROD_MASS, compiled_only
@@ -76,22 +78,26 @@ if TYPE_CHECKING:
     TENDON_DAMPING,
     TENDON_REST_LENGTH,
     ROD_MASS_KIND,
+    POINT_MASS,
     FRICTION,
     KINETIC_FRICTION,
     CONTACT_STIFFNESS,
     CONTACT_DAMPING,
     INITIAL_STATE,
-) = range(9)
+    CONTROL,
+) = range(11)
 KIND_CODES = {
     "tendon_stiffness": TENDON_STIFFNESS,
     "tendon_damping": TENDON_DAMPING,
     "tendon_rest_length": TENDON_REST_LENGTH,
     "rod_mass": ROD_MASS_KIND,
+    "point_mass": POINT_MASS,
     "friction": FRICTION,
     "kinetic_friction": KINETIC_FRICTION,
     "contact_stiffness": CONTACT_STIFFNESS,
     "contact_damping": CONTACT_DAMPING,
     "initial_state": INITIAL_STATE,
+    "control": CONTROL,
 }
 #: The kinds of the ground planes' parameters, and the :class:`~tensegrity.model.ground.Plane`
 #: field each sets.
@@ -122,7 +128,8 @@ class SensitivityWork(NamedTuple):
 
     kind: np.ndarray  #: (P,) int64: each parameter's kind (codes of :data:`KIND_CODES`)
     start: np.ndarray  #: (P + 1,) int64: parameter j's members are member[start[j]:start[j+1]]
-    #: (M,) int64: tendons' kernel positions, rods, planes, or indices into the state
+    #: (M,) int64: tendons' kernel positions, rods, point masses, planes, indices into the
+    #: state, or control-table entries (``knot * S + kernel position``)
     member: np.ndarray
     saved: np.ndarray  #: (max(M, 1), 3) scratch: the members' values while perturbed
     size: np.ndarray  #: (P,) each parameter's scale (its value, or 1 at 0) [its unit]
@@ -135,7 +142,11 @@ class SensitivityWork(NamedTuple):
     y_at: np.ndarray  #: (m,) scratch
     f_at: np.ndarray  #: (m,) scratch
     dtau: np.ndarray  #: (P,) scratch: an event time's derivatives [s / unit]
-    time: np.ndarray  #: (1,) scratch: a time whose inputs are made [s]
+    #: (16,) the times of the inputs' rows [s]: a step's stage times, or row 0's time
+    stage_time: np.ndarray
+    knot: np.ndarray  #: (max(Tc, 1), 1) scratch: one knot of the control table at 1
+    knot_weight: np.ndarray  #: (1, 1) scratch: that knot's weight in a row of the table
+    knot_slope: np.ndarray  #: (1, 1) scratch: its weight in the row's slope [1/s]
     side: np.ndarray  #: (E,) bool: the events' sides over the last step
     y_before: np.ndarray  #: (m,) the state before an event's action
     f_before: np.ndarray  #: (m,) scratch: the right-hand side before it
@@ -151,11 +162,12 @@ def sensitivity_work(
     S0: np.ndarray,
     n_tendons: int,
     pairs: int,
+    knots: int,
 ) -> SensitivityWork:
     """New :class:`SensitivityWork`: parameter ``j`` of kind ``kinds[j]`` (a key of
     :data:`KIND_CODES`) over ``members[j]`` (indices as :class:`SensitivityWork` says), scale
     ``sizes[j]``; ``S0`` (P, m) the derivatives of the initial state; ``n_tendons`` tendons and
-    ``pairs`` contact pairs make the run's events."""
+    ``pairs`` contact pairs make the run's events; ``knots`` rows of its control table."""
     P, m = S0.shape
     start = np.zeros(P + 1, np.int64)
     start[1:] = np.cumsum([len(x) for x in members])
@@ -175,7 +187,10 @@ def sensitivity_work(
         y_at=np.zeros(m),
         f_at=np.zeros(m),
         dtau=np.zeros(P),
-        time=np.zeros(1),
+        stage_time=np.zeros(DOP853_A.shape[0]),
+        knot=np.zeros((max(knots, 1), 1)),
+        knot_weight=np.zeros((1, 1)),
+        knot_slope=np.zeros((1, 1)),
         side=np.zeros(n_tendons + 2 * pairs, bool),
         y_before=np.zeros(m),
         f_before=np.zeros(m),
@@ -216,14 +231,68 @@ def _move_plane(contacts, kind, p, delta, saved, i, restore):  # pragma: no cove
 
 
 @compiled_only
+def _move_contact_mass(contacts, c, mass):  # pragma: no cover - compiled
+    """Contact point ``c``'s mass set to ``mass`` [kg] (nothing without contacts)."""
+    if contacts is not None:
+        contacts.point_mass[c] = mass
+
+
+@compiled_only
+def _move_point_mass(constraints, contacts, k, c, delta, saved, i, restore):  # pragma: no cover
+    """Point mass ``k`` (contact point ``c``) moved by ``delta`` [kg], or restored; the
+    contacts' copy of its mass follows."""
+    if constraints is None:
+        return
+    if restore:
+        constraints.point_mass[k] = saved[i, 0]
+    else:
+        saved[i, 0] = constraints.point_mass[k]
+        constraints.point_mass[k] += delta
+    _move_contact_mass(contacts, c, constraints.point_mass[k])
+
+
+@compiled_only
+def _move_control(tables, data, sens, k, s, delta, i, restore):  # pragma: no cover - compiled
+    """Entry ``k = knot * S + position`` of the control table moved by ``delta`` [m] where it
+    acts: in ``data``'s rest length and rate of the row of stage ``s`` (time
+    ``sens.stage_time[s]``), by the knot's weight and slope there
+    (:func:`tensegrity.engine.compiled.table_rows` of the knot alone); or restored."""
+    if tables is None:
+        return
+    control_time, _, control_zero, rest0, _, _, _ = tables
+    knot, position = k // rest0.shape[0], k % rest0.shape[0]
+    row = s if data.rest.shape[0] > 1 else 0
+    saved = sens.saved
+    if restore:
+        data.rest[row, position], data.rate[row, position] = saved[i, 0], saved[i, 1]
+        return
+    saved[i, 0], saved[i, 1] = data.rest[row, position], data.rate[row, position]
+    sens.knot[knot, 0] = 1.0
+    table_rows(
+        control_time,
+        sens.knot,
+        control_zero,
+        sens.stage_time[s : s + 1],
+        sens.knot_weight,
+        sens.knot_slope,
+    )
+    sens.knot[knot, 0] = 0.0
+    data.rest[row, position] -= delta * sens.knot_weight[0, 0]  # (Lbar = L0 - u)
+    data.rate[row, position] += delta * sens.knot_slope[0, 0]
+
+
+@compiled_only
 def _move(model, data, sens, j, s, delta, restore):  # pragma: no cover - compiled
     """Parameter ``j``'s members moved by ``delta`` in ``model`` (and in ``data``'s inputs row of
     stage ``s``, for rest lengths), or (``restore``) given back the values they had: the
-    records are the same objects before and after, bit for bit."""
+    records are the same objects before and after, bit for bit.  (Row ``s``'s time is
+    ``sens.stage_time[s]``.)"""
     kind = sens.kind[j]
     saved = sens.saved
-    for i in range(sens.start[j], sens.start[j + 1]):
-        k = sens.member[i]
+    first, end = sens.start[j], sens.start[j + 1]
+    for n in range(end - first):
+        i = end - 1 - n if restore else first + n  # (restored in reverse: entries of one
+        k = sens.member[i]  # tendon at several knots move the same rest length)
         if kind == TENDON_STIFFNESS:
             if restore:
                 model.tendon_stiffness[k] = saved[i, 0]
@@ -253,6 +322,11 @@ def _move(model, data, sens, j, s, delta, restore):  # pragma: no cover - compil
                 rod[ROD_MASS] = mass
                 rod[ROD_C1] = 2.0 / mass
                 rod[ROD_C2] = 6.0 / (mass * rod[ROD_LENGTH] ** 2)
+        elif kind == POINT_MASS:
+            point = 2 * model.rod_param.shape[0] + k  # (its contact point)
+            _move_point_mass(model.constraints, model.contacts, k, point, delta, saved, i, restore)
+        elif kind == CONTROL:
+            _move_control(model.tables, data, sens, k, s, delta, i, restore)
         elif kind != INITIAL_STATE:
             _move_plane(model.contacts, kind, k, delta, saved, i, restore)
 
@@ -344,14 +418,15 @@ def directional(model, data, s, sens, j, y, v, f0, out, side):  # pragma: no cov
 
 
 @compiled_only
-def advance_sensitivity(sens, model, data, y_old, y, K, h, side):  # pragma: no cover - compiled
-    """``S`` across the accepted step of ``h`` [s] from ``y_old`` to ``y`` with stages ``K``
-    (``data`` holding their inputs' rows) and the events' ``side`` at its start: the module
-    docstring's recursion; ``K'_12`` (at ``y``) too, for the dense output.  Afterwards
+def advance_sensitivity(sens, model, data, times, y_old, y, K, h, side):  # pragma: no cover
+    """``S`` across the accepted step of ``h`` [s] from ``y_old`` to ``y`` with stages ``K`` at
+    ``times`` (``data`` holding their inputs' rows) and the events' ``side`` at its start: the
+    module docstring's recursion; ``K'_12`` (at ``y``) too, for the dense output.  Afterwards
     ``data``'s scratch holds the evaluation at ``y`` again, as the step left it.  Nothing
     without sensitivities (``sens`` None)."""
     if sens is None:
         return
+    sens.stage_time[:] = times
     sens.side[:] = side
     side = sens.side
     last = np.int64(DOP853_STAGES)
@@ -373,14 +448,15 @@ def advance_sensitivity(sens, model, data, y_old, y, K, h, side):  # pragma: no 
 
 
 @compiled_only
-def dense_sensitivity(sens, model, data, y_old, y, h, K):  # pragma: no cover - compiled
+def dense_sensitivity(sens, model, data, times, y_old, y, h, K):  # pragma: no cover - compiled
     """The dense polynomial of ``S`` over the last step into ``sens.F``: the three extra stages'
-    derivatives (``K[13:16]`` given; on the step's side, as :func:`advance_sensitivity` kept
-    it), then the state's formula
+    derivatives (``K[13:16]`` at ``times[13:16]`` given; on the step's side, as
+    :func:`advance_sensitivity` kept it), then the state's formula
     (:func:`tensegrity.engine.compiled.dop853_dense_polynomial`).  Nothing without
     sensitivities."""
     if sens is None:
         return
+    sens.stage_time[:] = times
     side = sens.side
     first = DOP853_STAGES + 1
     for s in range(first, DOP853_A.shape[0]):
@@ -432,10 +508,11 @@ def _indicator(model, data, y, events, e):  # pragma: no cover - compiled
 
 @compiled_only
 def _inputs_at(model, data, sens, t, varying):  # pragma: no cover - compiled
-    """``data``'s inputs (row 0) made at ``t`` [s] when they vary in time."""
+    """``data``'s inputs (row 0, ``sens.stage_time[0]``) made at ``t`` [s] when they vary in
+    time."""
+    sens.stage_time[0] = t
     if varying:
-        sens.time[0] = t
-        make_inputs(model.callback, model.tables, sens.time, data)
+        make_inputs(model.callback, model.tables, sens.stage_time[:1], data)
 
 
 @compiled_only
@@ -542,9 +619,10 @@ def _reset_derivative(contacts, model, data, sens, j, w, out):  # pragma: no cov
 
 
 @compiled_only
-def saltation(sens, model, data, y, timed):  # pragma: no cover - compiled
-    """After an event's action took the state from ``sens.y_before`` (:func:`keep_state`) to
-    ``y`` (``data``'s row 0 with the inputs there): ``S+ = R_y w + R_p - f+ dtau/dp`` with ``w =
+def saltation(sens, model, data, t, y, timed):  # pragma: no cover - compiled
+    """After an event's action at ``t`` [s] took the state from ``sens.y_before``
+    (:func:`keep_state`) to ``y`` (``data``'s row 0 with the inputs there): ``S+ = R_y w + R_p -
+    f+ dtau/dp`` with ``w =
     S- + f- dtau/dp`` the derivative of the state reaching the event, ``R`` the action's reset
     of the state (:func:`_reset_derivative`; the identity without sticks), ``f+`` the
     right-hand side at ``y`` now.  ``timed``: :func:`event_time_derivative` gave ``dtau/dp``
@@ -553,6 +631,7 @@ def saltation(sens, model, data, y, timed):  # pragma: no cover - compiled
     if sens is None:
         return
     m = y.shape[0]
+    sens.stage_time[0] = t
     sens.f_before[:] = sens.f_at
     ode_rhs(model, data, np.int64(0), y, sens.f_at)
     for j in range(sens.S.shape[0]):
@@ -578,19 +657,26 @@ def prepare(system: CompiledSystem, parameters: Sequence[Any], y0: np.ndarray) -
     perturbation never touches arrays shared with another run).
 
     Each parameter has a ``kind`` (a key of :data:`KIND_CODES`) and ``members``: tendon or rod
-    indices of the structure for the structure's kinds, ignored for the planes' (every plane),
-    indices into the state ``y`` (the engine's 3-D layout ``[q, q', E_d, W_w, W_u]``) for
-    ``initial_state``; ``name`` names it in errors, if it has one.  ``ValueError`` (one line,
-    naming the parameter) for an unknown kind, no members, members out of range, or a plane's
-    parameter in a run without planes.
+    indices of the structure for the structure's kinds; nodes carrying a point mass for
+    ``point_mass``; ignored for the planes' (every plane); indices into the state ``y`` (the
+    engine's 3-D layout ``[q, q', E_d, W_w, W_u]``) for ``initial_state``; entries ``knot * S +
+    tendon`` of the control table's values (its ``control`` (Tc, S), row-major, structure
+    order) for ``control``.  ``name`` names it in errors, if it has one.  ``ValueError`` (one
+    line, naming the parameter) for an unknown kind, no members, members out of range, a
+    plane's parameter in a run without planes, or ``control`` in a run without a control table.
     """
     structure, model = system.structure, system.model
     planes = tuple(system.inputs.ground or ())
+    control = system.inputs.control.value if system.inputs.control.kind == "table" else None
+    knots = 0 if control is None else len(control.time)
     P, m = len(parameters), system.m
-    count = {
-        "tendon": structure.n_tendons,
-        "rod": structure.n_rods,
-        "state": 2 * system.n,
+    mass_nodes = structure.point_mass_nodes
+    count = {  # (each kind's members: how many, of what)
+        "tendon": (structure.n_tendons, "tendon indices"),
+        "rod": (structure.n_rods, "rod indices"),
+        "point": (structure.n_nodes, "node indices"),
+        "state": (2 * system.n, "indices into the state"),
+        "control": (knots * structure.n_tendons, "control-table entries (knot * S + tendon)"),
     }
     kinds, members, sizes = [], [], np.ones(P)
     S0 = np.zeros((P, m))
@@ -608,19 +694,34 @@ def prepare(system: CompiledSystem, parameters: Sequence[Any], y0: np.ndarray) -
             index = np.arange(len(planes))
             value = float(np.mean([_coefficient(plane, p.kind) for plane in planes]))
         else:
-            group = "state" if kind == "initial_state" else kind.split("_")[0]
+            group = {"initial_state": "state", "control": "control"}.get(kind, kind.split("_")[0])
+            if kind == "control" and control is None:
+                raise ValueError(f"sensitivity: parameter {name!r}: the run has no control table")
+            size, what = count[group]
             index = np.unique(np.asarray(p.members, dtype=np.int64))
-            if index.size == 0 or index.min() < 0 or index.max() >= count[group]:
+            if index.size == 0 or index.min() < 0 or index.max() >= size:
                 raise ValueError(
-                    f"sensitivity: parameter {name!r}: members must be {group} indices in "
-                    f"0..{count[group] - 1}, got {index.tolist()}"
+                    f"sensitivity: parameter {name!r}: members must be {what} in "
+                    f"0..{size - 1}, got {index.tolist()}"
+                )
+            if kind == "point_mass" and not np.isin(index, mass_nodes).all():
+                raise ValueError(
+                    f"sensitivity: parameter {name!r}: members must be nodes with a point mass "
+                    f"({mass_nodes.tolist()}), got {index.tolist()}"
                 )
             if kind == "initial_state":
                 S0[j, index] = 1.0
                 value = 1.0
+            elif kind == "control":  # (its scale: the rest lengths it moves)
+                S = structure.n_tendons
+                value = float(np.mean(structure.tendon_rest_length[index % S]))
+                index = index // S * S + system.tendon_position[index % S]
             elif group == "tendon":
                 value = float(np.mean(np.abs(getattr(structure, kind)[index])))
                 index = system.tendon_position[index]
+            elif kind == "point_mass":
+                value = float(np.mean(structure.node_point_mass[index]))
+                index = np.searchsorted(mass_nodes, index)
             else:
                 value = float(np.mean(structure.rod_mass[index]))
         kinds.append(kind)
@@ -636,15 +737,20 @@ def prepare(system: CompiledSystem, parameters: Sequence[Any], y0: np.ndarray) -
             friction_kinetic=contacts.friction_kinetic.copy(),
             contact_stiffness=contacts.contact_stiffness.copy(),
             contact_damping=contacts.contact_damping.copy(),
+            point_mass=contacts.point_mass.copy(),
         )
+    constraints = model.constraints
+    if constraints is not None:
+        constraints = constraints._replace(point_mass=constraints.point_mass.copy())
     system.model = model._replace(
         tendon_stiffness=model.tendon_stiffness.copy(),
         tendon_damping=damping.copy(),
         rod_param=model.rod_param.copy(),
+        constraints=constraints,
         contacts=contacts,
     )
     pairs = 0 if contacts is None else contact_pairs(contacts)
-    return sensitivity_work(kinds, members, sizes, S0, structure.n_tendons, pairs)
+    return sensitivity_work(kinds, members, sizes, S0, structure.n_tendons, pairs, knots)
 
 
 def _coefficient(plane: Any, kind: str) -> float:
