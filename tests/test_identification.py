@@ -13,12 +13,18 @@ import numpy as np
 import pytest
 
 from tensegrity import simulate
-from tensegrity.analysis.identification import Experiment, fit, parameter
+from tensegrity.analysis import identification
+from tensegrity.analysis.identification import (
+    Experiment,
+    fit,
+    parameter,
+    simulated_measurements,
+)
 from tensegrity.cli.main import main
-from tensegrity.design.catalogue import three_bar_robot
+from tensegrity.design.catalogue import six_bar_robot, three_bar_robot
 from tensegrity.engine.sensors import Sensor, measure
 from tensegrity.io.formats import read_scene, write_structure
-from tensegrity.io.measurements import write_markers
+from tensegrity.io.measurements import write_markers, write_measurements
 from tensegrity.io.trajectory import write_trajectory
 from tensegrity.model.ground import Scene, ground
 from tensegrity.model.shell import class1_shell
@@ -131,6 +137,12 @@ def test_a_parameter_names_members_by_pattern():
     assert parameter(s, "rod_mass:0,5").members.tolist() == [0, 5]
     with pytest.raises(ValueError, match="unknown kind 'stiffness'"):
         parameter(s, "stiffness")
+    with pytest.raises(ValueError, match="the structure has no nodes with a point mass"):
+        parameter(s, "point_mass")
+    robot = six_bar_robot(payload_mass=0.4)
+    assert parameter(robot, "point_mass:n1*").members.tolist() == [12]  # (n12 alone)
+    with pytest.raises(ValueError, match="no node with a point mass matches 'n3'"):
+        parameter(robot, "point_mass:n3")
     with pytest.raises(ValueError, match="no tendon matches 'x\\*'"):
         parameter(s, "tendon_damping:x*")
     with pytest.raises(ValueError, match="'friction' and 'friction' share members"):
@@ -144,7 +156,7 @@ def test_a_parameter_names_members_by_pattern():
         ({"n3": (np.array([0.1, 0.2]), np.array([[0, 0, 0], [0, np.nan, 0]]))}, "row 1 is not"),
         ({"n3": (np.array([-0.1, 0.2]), np.zeros((2, 3)))}, "row 0 at t = -0.1 s is before"),
         ({"n3": (np.array([0.2, 0.1]), np.zeros((2, 3)))}, "row 1: times must increase"),
-        ({"n3": (np.array([0.1]), np.zeros((1, 3)))}, "3 measured coordinates for 3 parameters"),
+        ({"n3": (np.array([0.1]), np.zeros((1, 3)))}, "3 measured values for 3 parameters"),
         ({"n3": (np.array([0.1]), np.zeros((1, 2)))}, "expected times \\(T,\\) and positions"),
     ],
 )  # fmt: skip
@@ -187,6 +199,102 @@ def test_the_cli_fits_a_markers_file_and_writes_the_fitted_structure(tmp_path, c
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "unknown kind 'rod_masses'" in err
     assert not (tmp_path / "bad").exists()
+
+
+def test_lengths_tensions_and_their_derivatives(monkeypatch):
+    """Tendon lengths and tensions read from a run at their own times (a constant control
+    moves the rest lengths): the tensions within 1e-5 N of a run sampled at those very times
+    (the interpolation's error); their derivatives, and the lengths', within 1e-5 of central
+    differences of runs with each parameter moved (the runs at rtol 1e-12: the check is of the
+    measurements' derivatives, not of the engine's accuracy at the fit's 1e-10)."""
+    monkeypatch.setattr(identification, "RTOL", 1e-12)
+    monkeypatch.setattr(identification, "ATOL", 1e-15)
+    shell = _shell(**TRUE)
+    options = OPTIONS | {"control": np.full(shell.n_tendons, 0.01)}
+    a, b, c = (shell.tendon_name[i] for i in (0, 5, 12))
+    irregular = np.sort(np.random.default_rng(0).uniform(0.01, 0.6, 25))
+    grid = np.arange(1, 18) / 30
+    experiment = Experiment(
+        lengths={a: (irregular, np.zeros(25)), b: (grid, np.zeros(17))},
+        tensions={b: (irregular, np.zeros(25)), c: (grid, np.zeros(17))},
+        options=options,
+    )
+    names = ["tendon_stiffness", f"tendon_damping:{b}", f"tendon_rest_length:{c}", "rod_mass"]
+    simulated = simulated_measurements(shell, experiment, parameters=names)
+    assert simulated.jacobian is not None and simulated.jacobian.shape == (84, 4)
+    exact = simulate(shell, (0.0, 0.6), sample_dt=1 / 3000, **options)
+    rows = np.rint(grid * 3000).astype(int)
+    tension = exact.tendon_tension[rows, shell.tendon_index(c)]
+    assert np.abs(simulated.values[67:] - tension).max() < 1e-5
+    assert tension.min() > 0
+    for j, name in enumerate(names):
+        p = parameter(shell, name)
+        value = float(np.mean(getattr(shell, p.field)[p.members]))
+        h = 1e-5 * value
+        up, down = (
+            simulated_measurements(p.apply(shell, v), experiment).values
+            for v in (value + h, value - h)
+        )
+        reference = (up - down) / (2 * h)
+        error = np.abs(reference - simulated.jacobian[:, j]).max() / np.abs(reference).max()
+        assert error < 1e-5, name
+
+
+def test_the_cli_fits_lengths_and_tensions_from_a_measurements_file(tmp_path, capsys):
+    """No markers: three cable encoders (1 mm) and three load cells (0.1 N) at 30 Hz, the
+    file ``tensegrity simulate --sensors`` writes.  The shell's stiffness, damping and rod
+    mass from 20 % off, within 1 %."""
+    shell = _shell(**TRUE)
+    run = simulate(shell, (0.0, 1.0), sample_dt=1 / 300, **OPTIONS)
+    names = shell.tendon_name
+    sensors = [
+        Sensor("length", tendons=[names[i] for i in (3, 8, 16)], noise=NOISE, rate=30.0),
+        Sensor("tension", tendons=[names[i] for i in (0, 5, 12)], noise=0.1, rate=30.0),
+    ]
+    data = write_measurements(tmp_path / "measurements.csv", measure(run, sensors, seed=4))
+    start = _shell(tendon_stiffness=100.0, tendon_damping=0.6, rod_mass=1.0)
+    model = write_structure(tmp_path / "model.json", start)
+    out = tmp_path / "fitted"
+    args = [
+        "fit", "--structure", str(model), "--data", str(data), "--param", "tendon_stiffness",
+        "--param", "tendon_damping", "--param", "rod_mass", "--gravity", "9.81",
+        "--load", "n11:5,0,0", "--tension-noise", "0.1", "-o", str(out),
+    ]  # fmt: skip
+    assert main(args) == 0
+    printed = capsys.readouterr().out
+    assert " m, " in printed and " N over 186 measured values" in printed  # 6 x 31 samples
+    report = json.loads((out / "fit.json").read_text())
+    estimate = np.array([p["estimate"] for p in report["parameters"]])
+    np.testing.assert_allclose(estimate, list(TRUE.values()), rtol=0.01)
+    assert 0.05 < report["rms_tension_error_n"] < 0.15
+    assert (out / "fit.png").stat().st_size > 10_000
+
+
+def test_bad_tendon_data_is_one_line_naming_the_tendon_or_channel(tmp_path, capsys):
+    shell = _shell()
+    t = np.array([0.1, 0.2])
+    cases = [
+        (Experiment(tensions={"zz": (t, np.ones(2))}), "tension 'zz': no tendon of the structure"),
+        (Experiment(lengths={"t1_1_1": (t, np.ones(3))}), r"expected times \(T,\) and lengths"),
+        (Experiment(tensions={"t1_1_1": (t, [1.0, np.nan])}), "tension 't1_1_1': row 1 is not"),
+        (Experiment(tensions={"t1_1_1": (t, np.ones(2))}, tension_noise=0), "tension_noise must"),
+    ]
+    for experiment, message in cases:
+        with pytest.raises(ValueError, match=message):
+            fit(shell, experiment, ["tendon_stiffness"])
+    data = tmp_path / "measurements.csv"
+    data.write_text("time,channel,value\n0.1,velocity.n3.x,0.5\n")
+    model = write_structure(tmp_path / "model.json", shell)
+    assert main(["fit", "--structure", str(model), "--data", str(data), "--param",
+                 "rod_mass", "-o", str(tmp_path / "no")]) == 2  # fmt: skip
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1
+    assert "channel 'velocity.n3.x': not one an identification reads" in err
+    data.write_text("t,x\n")
+    assert main(["fit", "--structure", str(model), "--data", str(data), "--param",
+                 "rod_mass", "-o", str(tmp_path / "no")]) == 2  # fmt: skip
+    assert "expected the header 'time,marker,x,y,z' (markers) or" in capsys.readouterr().err
+    assert not (tmp_path / "no").exists()
 
 
 def test_the_cli_fits_a_trajectory_file(tmp_path, capsys):

@@ -1,20 +1,23 @@
 """Fitting a structure's parameters to measured motion (identification; ``docs/identification.md``).
 
 A fit chooses the values of some parameters of a structure -- tendon stiffness, damping and
-rest length, rod mass, each for all members or a named group; the ground's friction, contact
-stiffness and damping -- so that simulated runs reproduce measured marker positions of some
-nodes, at the markers' own sample times, in one or several experiments at once:
+rest length, rod and point masses, each for all members or a named group; the ground's
+friction, contact stiffness and damping -- so that simulated runs reproduce what was measured:
+marker positions of some nodes, tendon lengths, tensions, each at its own sample times, in one
+or several experiments at once:
 
 - :func:`parameter` reads a parameter's name (``"tendon_stiffness"``, ``"rod_mass"``,
   ``"tendon_damping:t1_*"``): its kind, and the members it sets to one common value.
-- :class:`Experiment`: the markers (node name -> sample times (T,) [s] and positions (T, dim)
-  [m]), their noise (the standard deviation of a coordinate [m], the weights of the least
-  squares), and how the run is made (its start state and the keywords of
-  :func:`~tensegrity.engine.simulate.simulate`: gravity, loads, control, ground ...).
+- :class:`Experiment`: the measurements (markers: node name -> sample times (T,) [s] and
+  positions (T, dim) [m]; lengths and tensions: tendon name -> times and values [m], [N]),
+  their noise (standard deviations, the weights of the least squares), and how the run is made
+  (its start state and the keywords of :func:`~tensegrity.engine.simulate.simulate`: gravity,
+  loads, control, ground ...).
 - :func:`fit`: weighted nonlinear least squares (``scipy.optimize.least_squares``, trust-region
   reflective, the parameters' bounds), the residuals ``(simulated - measured) / noise`` of every
-  marker coordinate.  Each run is sampled finely and read at the markers' times by cubic Hermite
-  interpolation of the node positions and velocities.
+  measured value.  Each run is sampled finely and read at the measurements' times by cubic
+  Hermite interpolation of the node positions and velocities; lengths and tensions follow by
+  the tension law.
 
 The Jacobian is the runs' sensitivities to the parameters, integrated with the state in the
 compiled engine through every located event (:mod:`tensegrity.engine.sensitivity`): one run
@@ -31,27 +34,30 @@ import dataclasses
 import fnmatch
 import math
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import scipy.interpolate
 import scipy.optimize
 import scipy.stats
 
+from tensegrity.engine.inputs import Inputs
 from tensegrity.engine.result import SimulationResult
 from tensegrity.engine.simulate import simulate
 from tensegrity.model.ground import Plane, planes_of
 from tensegrity.model.structure import Structure
-from tensegrity.physics.dynamics import State
+from tensegrity.physics.dynamics import State, tendon_forces
 
 __all__ = [
     "KINDS",
+    "MEASURED",
     "Experiment",
     "Fit",
     "Parameter",
+    "Simulated",
     "fit",
     "parameter",
-    "simulated_markers",
+    "simulated_measurements",
 ]
 
 #: The least value of a quantity that must be > 0 (stiffness, mass, rest length).
@@ -181,7 +187,8 @@ def parameter(structure: Structure, name: str) -> Parameter:
                 raise ValueError(f"parameter {name!r}: no {member} matches {pattern.strip()!r}")
             chosen.update(found)
     if not chosen:
-        raise ValueError(f"parameter {name!r}: the structure has no {member}s")
+        plural = member.replace("node", "nodes") if member.startswith("node") else member + "s"
+        raise ValueError(f"parameter {name!r}: the structure has no {plural}")
     return Parameter(name, kind, np.array(sorted(chosen)))
 
 
@@ -193,8 +200,8 @@ class Experiment:
     ----------
     markers : node name -> ``(t (T,) [s], position (T, dim) [m])``, each marker's samples,
         strictly increasing times at or after the start.
-    noise : the standard deviation of a measured coordinate [m] (the least squares' weight
-        ``1 / noise``; the reported errors use the residuals' own spread).
+    noise : the standard deviation of a measured coordinate or length [m] (the least squares'
+        weight ``1 / noise``; the reported errors use the residuals' own spread).
     initial : the start state (default: the structure's node positions and velocities at
         ``t0``).
     t0 : the start time [s].
@@ -202,25 +209,50 @@ class Experiment:
         ``external_force``, ``control``, ``ground``, ...), not its span, start, accuracy or
         sampling.
     name : for the report.
+    lengths : tendon name -> ``(t (T,) [s], length (T,) [m])``: measured tendon lengths (a
+        cable's encoder, a stretch sensor), weighed by ``1 / noise``.
+    tensions : tendon name -> ``(t (T,) [s], tension (T,) [N])``: measured tensions (a load
+        cell), weighed by ``1 / tension_noise``.
+    tension_noise : the standard deviation of a measured tension [N].
     """
 
-    markers: Mapping[str, tuple[np.ndarray, np.ndarray]]
+    markers: Mapping[str, tuple[np.ndarray, np.ndarray]] = dataclasses.field(default_factory=dict)
     noise: float = 1e-3
     initial: State | None = None
     t0: float = 0.0
     options: Mapping[str, Any] = dataclasses.field(default_factory=dict)
     name: str = "experiment"
+    lengths: Mapping[str, tuple[np.ndarray, np.ndarray]] = dataclasses.field(default_factory=dict)
+    tensions: Mapping[str, tuple[np.ndarray, np.ndarray]] = dataclasses.field(default_factory=dict)
+    tension_noise: float = 0.1
+
+    def series(self) -> dict[str, Mapping[str, tuple[np.ndarray, np.ndarray]]]:
+        """Its measurements by kind (:data:`MEASURED`): markers, lengths, tensions."""
+        return {"markers": self.markers, "lengths": self.lengths, "tensions": self.tensions}
+
+
+#: What an experiment measures: each kind's items (nodes or tendons), the shape of one sample
+#: (``"dim"``: the structure's dimension), and its unit.
+MEASURED = {
+    "markers": ("node", "dim", "m"),
+    "lengths": ("tendon", (), "m"),
+    "tensions": ("tendon", (), "N"),
+}
 
 
 @dataclasses.dataclass(frozen=True)
 class _Bound:
-    """An experiment bound to a structure: its markers' nodes, times and measured coordinates
-    (flattened in the residuals' order), the end of its run and its sample spacing."""
+    """An experiment bound to a structure: the nodes or tendons of its measurements of each
+    kind (:data:`MEASURED`) and their times, the measured values flattened in the residuals'
+    order (kind by kind, item by item, time by time, coordinate by coordinate) with their
+    weights, which of them are tensions, the end of its run and its sample spacing."""
 
     experiment: Experiment
-    nodes: np.ndarray  # (markers,) node indices
-    times: list[np.ndarray]
-    measured: np.ndarray  # (coordinates,)
+    items: dict[str, np.ndarray]  # kind -> (items,) node or tendon indices
+    times: dict[str, list[np.ndarray]]  # kind -> each item's times (T,) [s]
+    measured: np.ndarray  # (values,)
+    weight: np.ndarray  # (values,) 1 / noise [1/m or 1/N]
+    tension: np.ndarray  # (values,) bool
     t_end: float
     sample_dt: float
 
@@ -234,65 +266,106 @@ MIN_SAMPLE_DT = 1e-3
 
 def _bind(structure: Structure, experiment: Experiment, k: int) -> _Bound:
     """``experiment`` (the ``k``-th) checked against ``structure``; one-line errors naming the
-    experiment, the marker and the row at fault."""
+    experiment, the marker or tendon and the row at fault."""
     where = f"experiments[{k}] ({experiment.name!r})"
-    if not experiment.markers:
-        raise ValueError(f"{where}: no markers")
-    if not (math.isfinite(experiment.noise) and experiment.noise > 0):
-        raise ValueError(f"{where}: noise must be > 0 [m], got {experiment.noise!r}")
-    nodes, times, measured = [], [], []
+    if not any(experiment.series().values()):
+        raise ValueError(f"{where}: no markers, lengths or tensions")
+    for field in ("noise", "tension_noise"):
+        value = getattr(experiment, field)
+        unit = "N" if field == "tension_noise" else "m"
+        if not (math.isfinite(value) and value > 0):
+            raise ValueError(f"{where}: {field} must be > 0 [{unit}], got {value!r}")
+    items: dict[str, np.ndarray] = {}
+    times: dict[str, list[np.ndarray]] = {}
+    measured, weight, tension = [], [], []
     t0, dim = float(experiment.t0), structure.dim
-    for name, (t, position) in experiment.markers.items():
-        marker = f"{where}: marker {name!r}"
-        try:
-            nodes.append(structure.node_index(name))
-        except KeyError:
-            raise ValueError(f"{marker}: no node of the structure has that name") from None
-        t = np.asarray(t, dtype=float)
-        position = np.asarray(position, dtype=float)
-        if t.ndim != 1 or position.shape != (t.size, dim):
-            raise ValueError(
-                f"{marker}: expected times (T,) and positions (T, {dim}), got {t.shape} and "
-                f"{position.shape}"
-            )
-        bad = np.flatnonzero(~np.isfinite(t) | ~np.isfinite(position).all(axis=1))
-        if bad.size:
-            raise ValueError(f"{marker}: row {bad[0]} is not finite (NaN or infinite)")
-        if t.size and t[0] < t0:
-            raise ValueError(f"{marker}: row 0 at t = {t[0]:g} s is before the start {t0:g} s")
-        late = np.flatnonzero(np.diff(t) <= 0)
-        if late.size:
-            raise ValueError(f"{marker}: row {late[0] + 1}: times must increase")
-        times.append(t)
-        measured.append(position.ravel())
-    t_end = max((float(t[-1]) for t in times if t.size), default=t0)
+    for kind, series in experiment.series().items():
+        member, sample, _ = MEASURED[kind]
+        shape = (dim,) if sample == "dim" else ()
+        index, times[kind] = [], []
+        for name, (t, value) in series.items():
+            what = f"{where}: {'marker' if kind == 'markers' else kind[:-1]} {name!r}"
+            try:
+                index.append(
+                    structure.node_index(name) if member == "node" else structure.tendon_index(name)
+                )
+            except KeyError:
+                raise ValueError(f"{what}: no {member} of the structure has that name") from None
+            t = np.asarray(t, dtype=float)
+            value = np.asarray(value, dtype=float)
+            if t.ndim != 1 or value.shape != (t.size, *shape):
+                noun = {"markers": "positions"}.get(kind, kind)
+                raise ValueError(
+                    f"{what}: expected times (T,) and {noun} {('T', *shape)}, got {t.shape} "
+                    f"and {value.shape}".replace("'T'", "T")
+                )
+            finite = np.isfinite(value).reshape(t.size, -1).all(axis=1)
+            bad = np.flatnonzero(~np.isfinite(t) | ~finite)
+            if bad.size:
+                raise ValueError(f"{what}: row {bad[0]} is not finite (NaN or infinite)")
+            if t.size and t[0] < t0:
+                raise ValueError(f"{what}: row 0 at t = {t[0]:g} s is before the start {t0:g} s")
+            late = np.flatnonzero(np.diff(t) <= 0)
+            if late.size:
+                raise ValueError(f"{what}: row {late[0] + 1}: times must increase")
+            times[kind].append(t)
+            measured.append(value.ravel())
+            noise = experiment.tension_noise if kind == "tensions" else experiment.noise
+            weight.append(np.full(value.size, 1.0 / noise))
+            tension.append(np.full(value.size, kind == "tensions"))
+        items[kind] = np.array(index, dtype=np.int64)
+    every = [t for kind in times.values() for t in kind if t.size]
+    t_end = max((float(t[-1]) for t in every), default=t0)
     if t_end <= t0:
-        raise ValueError(f"{where}: the markers hold no sample after the start {t0:g} s")
-    spacing = min(
-        (float(np.min(np.diff(np.concatenate([[t0], t])))) for t in times if t.size),
-        default=t_end - t0,
-    )
+        raise ValueError(f"{where}: the measurements hold no sample after the start {t0:g} s")
+    spacing = min(float(np.min(np.diff(np.concatenate([[t0], t])))) for t in every)
     sample_dt = max(MIN_SAMPLE_DT, spacing / SAMPLES_PER_INTERVAL)
     sample_dt = min(sample_dt, (t_end - t0) / 4)
-    return _Bound(experiment, np.array(nodes), times, np.concatenate(measured), t_end, sample_dt)
+    return _Bound(
+        experiment,
+        items,
+        times,
+        np.concatenate(measured),
+        np.concatenate(weight),
+        np.concatenate(tension),
+        t_end,
+        sample_dt,
+    )
 
 
-def simulated_markers(
-    structure: Structure, experiment: Experiment
-) -> tuple[np.ndarray, SimulationResult]:
-    """The run of ``structure`` for ``experiment`` and its markers' positions at their sample
-    times, flattened as the measured ones (marker by marker, time by time, coordinate by
-    coordinate) [m].
+class Simulated(NamedTuple):
+    """An experiment as a model runs it (:func:`simulated_measurements`)."""
+
+    #: (values,) the measurements as simulated, flattened as the residuals (markers, lengths,
+    #: tensions; item by item, time by time, coordinate by coordinate) [m, N]
+    values: np.ndarray
+    run: SimulationResult  #: the run
+    #: (values, P) their derivatives with respect to the parameters asked for, or None
+    jacobian: np.ndarray | None
+
+
+def simulated_measurements(
+    structure: Structure,
+    experiment: Experiment,
+    *,
+    parameters: Sequence[str | Parameter] | None = None,
+) -> Simulated:
+    """The run of ``structure`` for ``experiment`` and its measurements as simulated at their
+    sample times; with ``parameters`` (names, :func:`parameter`, or :class:`Parameter` s),
+    their derivatives too (the sensitivities integrated with the run, as :func:`fit`'s
+    Jacobian).
 
     Raises
     ------
     ValueError
-        A bad experiment (as :func:`fit`).
+        A bad experiment or parameter (as :func:`fit`).
     RuntimeError
         If the run fails (its message).
     """
-    markers, result, _ = _run(structure, _bind(structure, experiment, 0))
-    return markers, result
+    chosen = None
+    if parameters is not None:
+        chosen = [p if isinstance(p, Parameter) else parameter(structure, p) for p in parameters]
+    return Simulated(*_run(structure, _bind(structure, experiment, 0), sensitivity=chosen))
 
 
 def _run(
@@ -302,11 +375,17 @@ def _run(
     *,
     sensitivity: Sequence[Parameter] | None = None,
 ) -> tuple[np.ndarray, SimulationResult, np.ndarray | None]:
-    """:func:`simulated_markers` of a bound experiment (with other run ``options`` than its
-    own, if given), and with ``sensitivity`` their derivatives (coordinates, P) with respect to
-    those parameters (integrated with the run, :mod:`tensegrity.engine.sensitivity`; read at the
-    markers' times by the same interpolation)."""
+    """:func:`simulated_measurements` of a bound experiment (with other run ``options`` than its
+    own, if given), and with ``sensitivity`` their derivatives (values, P) with respect to
+    those parameters (integrated with the run, :mod:`tensegrity.engine.sensitivity`).
+
+    The node positions between the run's samples are cubic Hermite interpolations of its
+    positions and velocities, the velocities that interpolation's derivative; their
+    sensitivities are interpolated the same way.  Lengths and tensions follow from them by the
+    tension law (:func:`~tensegrity.physics.dynamics.tendon_forces`) with the run's rest
+    lengths at those times."""
     e = b.experiment
+    options = dict(e.options if options is None else options)
     result = simulate(
         structure,
         (e.t0, b.t_end),
@@ -315,26 +394,85 @@ def _run(
         atol=ATOL,
         sample_dt=b.sample_dt,
         sensitivity=sensitivity,
-        **(e.options if options is None else options),
+        **options,
     )
     if result.status < 0 or result.t[-1] < b.t_end - TIME_TOLERANCE * max(1.0, abs(b.t_end)):
         raise RuntimeError(f"experiment {e.name!r}: the run failed: {result.message}")
-    parts, derivatives = [], []
-    if sensitivity is not None:
-        position = result.node_position_sensitivity()
-        velocity = result.node_velocity_sensitivity()
-    for node, t in zip(b.nodes, b.times, strict=True):
-        spline = scipy.interpolate.CubicHermiteSpline(
-            result.t, result.node_position[:, node], result.node_velocity[:, node], axis=0
+    nodes = scipy.interpolate.CubicHermiteSpline(
+        result.t, result.node_position, result.node_velocity, axis=0
+    )
+    moved = None
+    if sensitivity is not None:  # (T, P, N, dim)
+        moved = scipy.interpolate.CubicHermiteSpline(
+            result.t,
+            result.node_position_sensitivity(),
+            result.node_velocity_sensitivity(),
+            axis=0,
         )
-        parts.append(spline(t).ravel())
-        if sensitivity is not None:  # (T, P, dim) -> (T * dim, P), the residuals' order
-            spline = scipy.interpolate.CubicHermiteSpline(
-                result.t, position[:, :, node], velocity[:, :, node], axis=0
+    values, derivatives, dim = [], [], structure.dim
+    for node, t in zip(b.items["markers"], b.times["markers"], strict=True):
+        values.append(nodes(t)[:, node].ravel())
+        if moved is not None:  # (T, P, dim) -> (T * dim, P), the residuals' order
+            derivatives.append(moved(t)[:, :, node].transpose(0, 2, 1).reshape(t.size * dim, -1))
+    inputs = Inputs(structure, control=options.get("control"))
+    for kind in ("lengths", "tensions"):
+        for tendon, t in zip(b.items[kind], b.times[kind], strict=True):
+            value, derivative = _tendon_measurement(
+                structure, kind, tendon, inputs.rest_length(t), nodes, moved, t, sensitivity
             )
-            derivatives.append(spline(t).transpose(0, 2, 1).reshape(-1, len(sensitivity)))
+            values.append(value)
+            derivatives.append(derivative)
     jacobian = np.concatenate(derivatives) if sensitivity is not None else None
-    return np.concatenate(parts), result, jacobian
+    return np.concatenate(values), result, jacobian
+
+
+def _tendon_measurement(
+    structure: Structure,
+    kind: str,
+    tendon: int,
+    rest: np.ndarray,
+    nodes: scipy.interpolate.CubicHermiteSpline,
+    moved: scipy.interpolate.CubicHermiteSpline | None,
+    t: np.ndarray,
+    parameters: Sequence[Parameter] | None,
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """Tendon ``tendon``'s length [m] or tension [N] (``kind``: ``"lengths"``, ``"tensions"``)
+    at the times ``t`` (K,) [s]: from the node motion ``nodes`` (positions; their derivative the
+    velocities) and the rest lengths ``rest`` (K or 1, S) [m] there, by the tension law
+    (:func:`~tensegrity.physics.dynamics.tendon_forces`).  With the nodes' sensitivities
+    ``moved`` (to ``parameters``), the values' derivatives (K, P): the length's ``u . d(x_b -
+    x_a)``, the tension's ``k (dl - dLbar) + (l - Lbar) dk + c dl' + l' dc`` while it pulls (0
+    while slack), ``dk``, ``dc``, ``dLbar`` 1 for a parameter setting this tendon's stiffness,
+    damping or rest length."""
+    p, v = nodes(t), nodes(t, 1)
+    forces = tendon_forces(structure, p, v, rest)
+    a, b = structure.tendon_nodes[tendon]
+    length, direction = forces.length[:, tendon], forces.direction[:, tendon]
+    value = length if kind == "lengths" else forces.tension[:, tendon]
+    if moved is None or parameters is None:
+        return value, None
+    dp = moved(t)  # (K, P, N, dim)
+    d_span = dp[:, :, b] - dp[:, :, a]
+    d_length = np.einsum("kd,kpd->kp", direction, d_span)
+    if kind == "lengths":
+        return value, d_length
+    dv = moved(t, 1)
+    d_direction = (d_span - direction[:, None, :] * d_length[:, :, None]) / length[:, None, None]
+    d_rate = np.einsum("kpd,kd->kp", d_direction, v[:, b] - v[:, a]) + np.einsum(
+        "kd,kpd->kp", direction, dv[:, :, b] - dv[:, :, a]
+    )
+    own = {  # (P,) 1 where a parameter sets this tendon's field
+        field: np.array([q.kind == field and tendon in q.members for q in parameters], float)
+        for field in ("tendon_stiffness", "tendon_damping", "tendon_rest_length")
+    }
+    stretch = length - np.broadcast_to(rest[:, tendon], length.shape)
+    derivative = (
+        structure.tendon_stiffness[tendon] * (d_length - own["tendon_rest_length"])
+        + stretch[:, None] * own["tendon_stiffness"]
+        + structure.tendon_damping[tendon] * d_rate
+        + forces.length_rate[:, tendon, None] * own["tendon_damping"]
+    )
+    return value, np.where(value[:, None] > 0, derivative, 0.0)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -349,8 +487,10 @@ class Fit:
     interval (P, 2) : 95 % confidence intervals (Student's t with ``n - P`` degrees of freedom),
         within the bounds.  bounds (P, 2) : the bounds the estimates were kept in.
     correlation (P, P) : of the estimates.
-    residual (n,) : ``(simulated - measured) / noise`` of every measured coordinate at the
-        optimum.  rms_error : the root mean square of ``simulated - measured`` [m].
+    residual (n,) : ``(simulated - measured) / noise`` of every measured value at the
+        optimum.  rms_error : the root mean square of ``simulated - measured`` of the marker
+        coordinates and lengths [m] (NaN without any).  rms_tension_error : of the tensions [N]
+        (NaN without any).
     structure : the fitted structure.  options : each experiment's run options with the
         fitted parameters of the ground planes (its ``ground``).
     status, message : ``scipy.optimize.least_squares``'s.  nfev, njev : residual and Jacobian
@@ -366,6 +506,7 @@ class Fit:
     correlation: np.ndarray
     residual: np.ndarray
     rms_error: float
+    rms_tension_error: float
     structure: Structure
     options: tuple[dict[str, Any], ...]
     status: int
@@ -417,7 +558,8 @@ class Fit:
             message=self.message,
             nfev=self.nfev,
             njev=self.njev,
-            rms_error_m=self.rms_error,
+            rms_error_m=_finite(self.rms_error),
+            rms_tension_error_n=_finite(self.rms_tension_error),
             parameters=[
                 dict(
                     name=p.name,
@@ -437,7 +579,16 @@ class Fit:
 
 def _samples(experiment: Experiment, t0: float) -> int:
     """The number of ``experiment``'s marker samples after ``t0`` [s]."""
-    return sum(int(np.sum(np.asarray(t, dtype=float) > t0)) for t, _ in experiment.markers.values())
+    return sum(
+        int(np.sum(np.asarray(t, dtype=float) > t0))
+        for series in experiment.series().values()
+        for t, _ in series.values()
+    )
+
+
+def _rms(x: np.ndarray) -> float:
+    """The root mean square of ``x`` (NaN if empty)."""
+    return float(np.sqrt(np.mean(x**2))) if x.size else math.nan
 
 
 def _finite(x: float) -> float | None:
@@ -446,15 +597,19 @@ def _finite(x: float) -> float | None:
 
 
 def _until(experiment: Experiment, t: float) -> Experiment:
-    """``experiment`` with the samples of its markers up to time ``t`` [s] (markers left
-    without one are dropped)."""
-    markers = {}
-    for name, (times, position) in experiment.markers.items():
-        times = np.asarray(times, dtype=float)
-        keep = times <= t + TIME_TOLERANCE * max(1.0, abs(t))
-        if keep.any():
-            markers[name] = (times[keep], np.asarray(position, dtype=float)[keep])
-    return dataclasses.replace(experiment, markers=markers)
+    """``experiment`` with its samples up to time ``t`` [s] (markers and tendons left without
+    one are dropped)."""
+    kept: dict[str, dict[str, tuple[np.ndarray, np.ndarray]]] = {}
+    for kind, series in experiment.series().items():
+        kept[kind] = {}
+        for name, (times, value) in series.items():
+            times = np.asarray(times, dtype=float)
+            keep = times <= t + TIME_TOLERANCE * max(1.0, abs(t))
+            if keep.any():
+                kept[kind][name] = (times[keep], np.asarray(value, dtype=float)[keep])
+    return dataclasses.replace(
+        experiment, markers=kept["markers"], lengths=kept["lengths"], tensions=kept["tensions"]
+    )
 
 
 def _inverse_normal_matrix(J: np.ndarray) -> np.ndarray:
@@ -478,7 +633,7 @@ def fit(
     max_nfev: int = 50,
     horizons: Sequence[float] = HORIZONS,
 ) -> Fit:
-    """Fit ``parameters`` of ``structure`` to the markers of ``experiments`` (see the module
+    """Fit ``parameters`` of ``structure`` to the measurements of ``experiments`` (see the module
     docstring).
 
     Parameters
@@ -555,7 +710,7 @@ def fit(
     measured = np.concatenate([b.measured for b in bound])
     if measured.size <= P:
         raise ValueError(
-            f"experiments: {measured.size} measured coordinates for {P} parameters; need more"
+            f"experiments: {measured.size} measured values for {P} parameters; need more"
         )
 
     def structure_at(x: np.ndarray) -> Structure:
@@ -572,7 +727,7 @@ def fit(
 
     def solve(bound: list[_Bound], start: np.ndarray) -> scipy.optimize.OptimizeResult:
         """The weighted least squares of the bound experiments from ``start``."""
-        weights = np.concatenate([np.full(b.measured.size, 1 / b.experiment.noise) for b in bound])
+        weights = np.concatenate([b.weight for b in bound])
         measured = np.concatenate([b.measured for b in bound])
 
         def simulated(x: np.ndarray) -> np.ndarray:
@@ -609,7 +764,8 @@ def fit(
             continue  # too few samples so early: the next horizon
         solution = solve(part, x)
         x, nfev, njev = solution.x, nfev + solution.nfev, njev + solution.njev
-    weights = np.concatenate([np.full(b.measured.size, 1 / b.experiment.noise) for b in bound])
+    weights = np.concatenate([b.weight for b in bound])
+    tension = np.concatenate([b.tension for b in bound])
     r, J = solution.fun, solution.jac
     dof = max(measured.size - P, 1)
     variance = float(r @ r) / dof  # per weighted coordinate: 1 when the noise is as given
@@ -630,7 +786,8 @@ def fit(
         bounds=np.stack([low, high], axis=1),
         correlation=correlation,
         residual=r,
-        rms_error=float(np.sqrt(np.mean((r / weights) ** 2))),
+        rms_error=_rms(r[~tension] / weights[~tension]),
+        rms_tension_error=_rms(r[tension] / weights[tension]),
         structure=structure_at(x),
         options=tuple(options_at(e, x) for e in given),
         status=int(solution.status),

@@ -1,16 +1,20 @@
-"""``tensegrity fit``: a structure's parameters fitted to measured marker positions
-(:func:`tensegrity.analysis.identification.fit`, ``docs/identification.md``)::
+"""``tensegrity fit``: a structure's parameters fitted to measured motion: marker positions,
+tendon lengths, tensions (:func:`tensegrity.analysis.identification.fit`,
+``docs/identification.md``)::
 
     tensegrity fit --structure model.json --data markers.csv --param tendon_stiffness \\
         --param rod_mass --gravity 9.81 --load n8:5,0,0 -o fitted/
 
-``--data`` is a markers file (``time,marker,x,y,z``: :mod:`tensegrity.io.measurements`; the
-run starts from the structure's own node positions and velocities at t = 0) or a trajectory
-file (HDF5: every node a marker at the file's sample times after its first, the run starting
-from its first sample); repeat it for several experiments fitted together, each run with the
-same loads.  Each run is in the ``--structure`` file's scene (its ground planes, contact radius
-and gravity; ``--gravity`` replaces its gravity), so that the friction on the ground can be
-fitted (``--param kinetic_friction``: every plane's).  Writes ``fitted/structure.json`` (the
+``--data`` is a markers file (``time,marker,x,y,z``), a measurements file
+(``time,channel,value`` with channels ``position.NODE.x``, ``length.TENDON``,
+``tension.TENDON``; both :mod:`tensegrity.io.measurements`; the run starts from the
+structure's own node positions and velocities at t = 0) or a trajectory file (HDF5: every
+node a marker at the file's sample times after its first, the run starting from its first
+sample); repeat it for several experiments fitted together, each run with the same loads.
+Each run is in the ``--structure`` file's scene (its ground planes, contact radius and
+gravity; ``--gravity`` replaces its gravity), so that the friction on the ground can be fitted
+(``--param kinetic_friction``: every plane's).  ``--noise`` weighs positions and lengths,
+``--tension-noise`` tensions.  Writes ``fitted/structure.json`` (the
 fitted structure, with its scene and the planes' fitted values), ``fitted/fit.json`` (the
 estimates, standard errors, 95 % intervals and correlations; the settings) and
 ``fitted/fit.png`` (measured against fitted motion, of the first experiment), together or not
@@ -44,7 +48,7 @@ def add_parser(sub: Any) -> None:
 
     p = sub.add_parser(
         "fit",
-        help="fit stiffness, damping, rest lengths or masses to measured marker positions",
+        help="fit stiffness, damping, rest lengths, masses or friction to measured motion",
         description=__doc__.splitlines()[0] if __doc__ else None,
     )
     structures.add_source_options(p)
@@ -54,8 +58,9 @@ def add_parser(sub: Any) -> None:
         action="append",
         required=True,
         metavar="FILE",
-        help="measured markers: a markers CSV file (time,marker,x,y,z) or a trajectory (.h5); "
-        "repeat for several experiments",
+        help="measurements: a markers CSV file (time,marker,x,y,z), a measurements CSV file "
+        "(time,channel,value: position.NODE.x, length.TENDON, tension.TENDON) or a trajectory "
+        "(.h5); repeat for several experiments",
     )
     p.add_argument(
         "--param",
@@ -70,7 +75,14 @@ def add_parser(sub: Any) -> None:
         type=arguments.at_least(0.0, strict=True),
         default=1e-3,
         metavar="M",
-        help="standard deviation of a measured coordinate [m] (default %(default)g)",
+        help="standard deviation of a measured coordinate or length [m] (default %(default)g)",
+    )
+    p.add_argument(
+        "--tension-noise",
+        type=arguments.at_least(0.0, strict=True),
+        default=0.1,
+        metavar="N",
+        help="standard deviation of a measured tension [N] (default %(default)g)",
     )
     structures.add_gravity_option(p)
     p.add_argument(
@@ -93,10 +105,17 @@ def add_parser(sub: Any) -> None:
     p.set_defaults(run=_cmd_fit)
 
 
-def _experiment(path: Path, structure: Any, options: dict[str, Any], noise: float) -> Any:
+def _experiment(
+    path: Path, structure: Any, options: dict[str, Any], noise: float, tension_noise: float
+) -> Any:
     """The experiment of the data file ``path``."""
     from tensegrity.analysis.identification import Experiment
-    from tensegrity.io.measurements import read_markers
+    from tensegrity.io.measurements import (
+        csv_kind,
+        fitted_channels,
+        read_markers,
+        read_measurements,
+    )
     from tensegrity.io.trajectory import read_trajectory
     from tensegrity.physics.dynamics import State
 
@@ -128,10 +147,22 @@ def _experiment(path: Path, structure: Any, options: dict[str, Any], noise: floa
         initial = State(float(run.t[0]), run.q[0], run.qdot[0])
         return Experiment(markers, noise, initial, float(run.t[0]), options, name=path.name)
     with blame("--data", path):
-        series = read_markers(path)
-    d = structure.dim
-    markers = {name: (s.t, s.position[:, :d]) for name, s in series.items()}
-    return Experiment(markers, noise, None, 0.0, options, name=path.name)
+        if csv_kind(path) == "markers":
+            d = structure.dim
+            markers = {name: (s.t, s.position[:, :d]) for name, s in read_markers(path).items()}
+            return Experiment(markers, noise, None, 0.0, options, name=path.name)
+        series = fitted_channels(read_measurements(path), structure.dim)
+    return Experiment(
+        series["markers"],
+        noise,
+        None,
+        0.0,
+        options,
+        name=path.name,
+        lengths=series["lengths"],
+        tensions=series["tensions"],
+        tension_noise=tension_noise,
+    )
 
 
 def _cmd_fit(args: argparse.Namespace) -> int:
@@ -154,7 +185,9 @@ def _cmd_fit(args: argparse.Namespace) -> int:
         options["external_force"] = force
     if args.gravity is not None:
         options["gravity"] = gravity_vector(args.gravity, structure.dim)
-    experiments = [_experiment(path, structure, options, args.noise) for path in args.data]
+    experiments = [
+        _experiment(path, structure, options, args.noise, args.tension_noise) for path in args.data
+    ]
     announce_compiling()
     try:
         result = fit(structure, experiments, args.param, max_nfev=args.max_nfev)
@@ -165,6 +198,7 @@ def _cmd_fit(args: argparse.Namespace) -> int:
             structure=None if args.structure is None else str(args.structure),
             data=[str(p) for p in args.data],
             noise_m=args.noise,
+            tension_noise_n=args.tension_noise,
             gravity=args.gravity,
             load=[text for text, _ in args.load],
         )
@@ -186,8 +220,13 @@ def _cmd_fit(args: argparse.Namespace) -> int:
             f"{p.name}: {result.estimate[i]:.6g} ± {result.standard_error[i]:.2g} "
             f"(95 %: {low:.6g} .. {high:.6g}; started at {result.initial[i]:.6g})"
         )
+    errors = [
+        f"{value:.3g} {unit}"
+        for value, unit in ((result.rms_error, "m"), (result.rms_tension_error, "N"))
+        if np.isfinite(value)
+    ]
     print(
-        f"rms error {result.rms_error:.3g} m over {result.residual.size} coordinates; "
+        f"rms error {', '.join(errors)} over {result.residual.size} measured values; "
         f"{result.message} ({result.nfev} evaluations, {result.njev} Jacobians)"
     )
     print("wrote " + ", ".join(str(f) for f in written))

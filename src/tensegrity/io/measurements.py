@@ -49,6 +49,8 @@ __all__ = [
     "ChannelSeries",
     "MarkerSeries",
     "SensorFile",
+    "csv_kind",
+    "fitted_channels",
     "read_markers",
     "read_measurements",
     "read_sensors",
@@ -221,6 +223,80 @@ def read_markers(path: PathLike) -> dict[str, MarkerSeries]:
         name: MarkerSeries(np.array(t), np.array(p).reshape(-1, 3))
         for name, (t, p) in _series(path, MARKER_HEADER, "marker").items()
     }
+
+
+def csv_kind(path: PathLike) -> str:
+    """``"markers"`` or ``"measurements"``: which of the two CSV files ``path`` is, by its
+    header (its first line that is neither empty nor a ``#`` comment).
+
+    Raises
+    ------
+    ValueError
+        One line starting with the file name when the header is neither.
+    """
+    try:
+        text = read_input(path).decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise file_error(path, f"not UTF-8 text (byte {exc.start})") from None
+    for line in text.splitlines():
+        if line.strip() and not line.lstrip().startswith("#"):
+            cells = tuple(cell.strip() for cell in line.split(","))
+            if cells in (MARKER_HEADER, MEASUREMENT_HEADER):
+                return "markers" if cells == MARKER_HEADER else "measurements"
+            break
+    raise file_error(
+        path,
+        f"expected the header {','.join(MARKER_HEADER)!r} (markers) or "
+        f"{','.join(MEASUREMENT_HEADER)!r} (measurements)",
+    )
+
+
+def fitted_channels(
+    channels: dict[str, ChannelSeries], dim: int
+) -> dict[str, dict[str, tuple[np.ndarray, np.ndarray]]]:
+    """The channels of a measurements file an identification reads, by kind: ``markers``
+    (node -> times (T,) [s], positions (T, dim) [m], from the channels ``position.NODE.x``,
+    ``.y`` (and ``.z``) sampled together), ``lengths`` and ``tensions`` (tendon -> times,
+    values [m] or [N], from ``length.TENDON`` and ``tension.TENDON``): the names
+    :mod:`tensegrity.engine.sensors` gives them.
+
+    Raises
+    ------
+    ValueError
+        One line naming a channel of another kind, or a marker whose coordinates are missing or
+        sampled at other times.
+    """
+    out: dict[str, dict[str, tuple[np.ndarray, np.ndarray]]] = {
+        "markers": {},
+        "lengths": {},
+        "tensions": {},
+    }
+    axes = "xyz"[:dim]
+    for name, series in channels.items():
+        kind, _, item = name.partition(".")
+        if kind in ("length", "tension") and item:
+            out[kind + "s"][item] = (series.t, series.value)
+        elif kind == "position" and item.rpartition(".")[2] in "xyz" and "." in item:
+            node = item.rpartition(".")[0]
+            if node in out["markers"]:
+                continue
+            found: list[ChannelSeries] = []
+            for axis in axes:
+                part = channels.get(f"position.{node}.{axis}")
+                if part is None or (found and not np.array_equal(part.t, found[0].t)):
+                    raise ValueError(
+                        f"channel position.{node}.{axis}: "
+                        + ("missing" if part is None else "sampled at other times than .x")
+                        + f" (a marker needs {', '.join(axes)} at the same times)"
+                    )
+                found.append(part)
+            out["markers"][node] = (found[0].t, np.stack([p.value for p in found], axis=1))
+        else:
+            raise ValueError(
+                f"channel {name!r:.60}: not one an identification reads (position.NODE.x, "
+                "length.TENDON, tension.TENDON)"
+            )
+    return out
 
 
 def read_sensors(path: PathLike) -> SensorFile:

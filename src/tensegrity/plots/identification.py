@@ -8,40 +8,58 @@ from pathlib import Path
 
 import numpy as np
 
-from tensegrity.analysis.identification import Experiment, Fit, simulated_markers
+from tensegrity.analysis.identification import Experiment, Fit, simulated_measurements
 from tensegrity.model.structure import Structure
 from tensegrity.plots.figures import FIGURE_DPI, new_figure, save_png
 
 __all__ = ["MAX_MARKERS", "figure_fit"]
 
-#: At most this many markers (rows of the figure) are drawn.
+#: At most this many measured items (markers, then tendons: rows of the figure) are drawn.
 MAX_MARKERS = 6
 
 
 def figure_fit(fit: Fit, start: Structure, experiment: Experiment, path: str | Path) -> Path:
-    """Write ``path`` (PNG): for each of the first :data:`MAX_MARKERS` markers of
-    ``experiment``, its coordinates [m] against time [s]: the measurements (dots), the fitted
-    model (``fit.structure``, line) and the starting one (``start``, dashed)."""
-    names = list(experiment.markers)[:MAX_MARKERS]
-    dim = start.dim
-    runs = {"fitted": simulated_markers(fit.structure, experiment)[1]}
+    """Write ``path`` (PNG): for each of the first :data:`MAX_MARKERS` measured items of
+    ``experiment`` (markers, then tendons' lengths and tensions), its coordinates [m], length
+    [m] or tension [N] against time [s]: the measurements (dots), the fitted model
+    (``fit.structure``, line) and the starting one (``start``, dashed)."""
+    rows = [(kind, name) for kind, series in experiment.series().items() for name in series][
+        :MAX_MARKERS
+    ]
+    dim = start.dim if any(kind == "markers" for kind, _ in rows) else 1
+    runs = {"fitted": simulated_measurements(fit.structure, experiment).run}
     with contextlib.suppress(RuntimeError):  # a starting model whose run fails: fitted alone
-        runs["start"] = simulated_markers(start, experiment)[1]
-    figure = new_figure((3.2 * dim, 1.9 * len(names) + 0.6))
-    axes = figure.subplots(len(names), dim, squeeze=False, sharex=True)
-    for row, name in enumerate(names):
-        t, measured = (np.asarray(a, dtype=float) for a in experiment.markers[name])
-        node = start.node_index(name)
-        for c in range(dim):
+        runs["start"] = simulated_measurements(start, experiment).run
+    figure = new_figure((3.2 * dim, 1.9 * len(rows) + 0.6))
+    axes = figure.subplots(len(rows), dim, squeeze=False, sharex=True)
+    for row, (kind, name) in enumerate(rows):
+        t, measured = (np.asarray(a, dtype=float) for a in experiment.series()[kind][name])
+        if kind == "markers":
+            node = start.node_index(name)
+            curves = {which: run.node_position[:, node] for which, run in runs.items()}
+            labels = [f"{name} {'xyz'[c]} [m]" for c in range(dim)]
+        else:
+            tendon = start.tendon_index(name)
+            field = "tendon_length" if kind == "lengths" else "tendon_tension"
+            curves = {which: getattr(run, field)[:, tendon, None] for which, run in runs.items()}
+            measured = measured[:, None]
+            labels = [f"{name} {kind[:-1]} [{'m' if kind == 'lengths' else 'N'}]"]
+            for c in range(1, dim):
+                axes[row, c].set_axis_off()
+        for c, label in enumerate(labels):
             ax = axes[row, c]
             ax.plot(t, measured[:, c], ".", color="black", markersize=3, label="measured")
-            for label, style in (("fitted", "-"), ("start", "--")):
-                if label in runs:
-                    run = runs[label]
-                    ax.plot(run.t, run.node_position[:, node, c], style, lw=1.2, label=label)
-            ax.set_ylabel(f"{name} {'xyz'[c]} [m]")
+            for which, style in (("fitted", "-"), ("start", "--")):
+                if which in runs:
+                    ax.plot(runs[which].t, curves[which][:, c], style, lw=1.2, label=which)
+            ax.set_ylabel(label)
     axes[0, 0].legend(fontsize=7, loc="best")
     for c in range(dim):
         axes[-1, c].set_xlabel("t [s]")
-    figure.suptitle(f"{experiment.name}: rms error {fit.rms_error:.3g} m")
+    errors = [
+        f"{value:.3g} {unit}"
+        for value, unit in ((fit.rms_error, "m"), (fit.rms_tension_error, "N"))
+        if np.isfinite(value)
+    ]
+    figure.suptitle(f"{experiment.name}: rms error {', '.join(errors)}")
     return save_png(figure, path, dpi=FIGURE_DPI)
