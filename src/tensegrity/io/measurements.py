@@ -13,7 +13,9 @@ round-trip form (read back bit for bit), rows in time order:
   ``contact.n4``: :mod:`tensegrity.engine.sensors`) and the value in the channel's SI unit.
 
 Each channel (marker) has its own sample times, strictly increasing; lines starting with ``#``
-and empty lines are skipped.  :func:`write_measurements` and :func:`write_markers` write them
+and empty lines are skipped.  An identification (``tensegrity fit --data``) reads either file:
+:func:`csv_kind` tells them apart by the header, :func:`fitted_channels` picks the markers,
+lengths and tensions of a measurements file.  :func:`write_measurements` and :func:`write_markers` write them
 atomically; :func:`read_measurements` and :func:`read_markers` read them back, with one-line
 ``ValueError``\\ s naming the file, the line and the column at fault.
 
