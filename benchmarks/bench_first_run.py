@@ -8,8 +8,8 @@ Usage::
 Default: runs ``tensegrity simulate`` (the CLI's ``main``, the default example) in a child
 process whose numba cache is a new empty folder, and prints the wall time of the call and the
 CPU time numba spent compiling each entry point (numba's ``numba:compile`` events, outermost
-only: the time of a function includes the callees it compiled).  The numbers behind README's
-"The first run's compile" and docs/performance.md.
+only: the time of a function includes the callees it compiled).  The numbers behind
+`benchmarks/README.md`'s "The first run" and docs/performance.md.
 
 ``--viewer``: writes a (10,10) 60 s run with ``simulate_to_file`` (warm cache), then times, in
 this process, the three ways of making its viewer frames: keeping them as the samples pass

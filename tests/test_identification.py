@@ -203,7 +203,8 @@ def test_the_cli_fits_a_markers_file_and_writes_the_fitted_structure(tmp_path, c
 
 def test_lengths_tensions_and_their_derivatives(monkeypatch):
     """Tendon lengths and tensions read from a run at their own times (a constant control
-    moves the rest lengths): the tensions within 1e-5 N of a run sampled at those very times
+    moves the rest lengths; one tendon goes slack at times): the tensions within 1e-5 N of a
+    run sampled at those very times
     (the interpolation's error); their derivatives, and the lengths', within 1e-5 of central
     differences of runs with each parameter moved (the runs at rtol 1e-12: the check is of the
     measurements' derivatives, not of the engine's accuracy at the fit's 1e-10)."""
@@ -216,7 +217,7 @@ def test_lengths_tensions_and_their_derivatives(monkeypatch):
     grid = np.arange(1, 18) / 30
     experiment = Experiment(
         lengths={a: (irregular, np.zeros(25)), b: (grid, np.zeros(17))},
-        tensions={b: (irregular, np.zeros(25)), c: (grid, np.zeros(17))},
+        tensions={a: (irregular, np.zeros(25)), c: (grid, np.zeros(17))},
         options=options,
     )
     names = ["tendon_stiffness", f"tendon_damping:{b}", f"tendon_rest_length:{c}", "rod_mass"]
@@ -227,6 +228,8 @@ def test_lengths_tensions_and_their_derivatives(monkeypatch):
     tension = exact.tendon_tension[rows, shell.tendon_index(c)]
     assert np.abs(simulated.values[67:] - tension).max() < 1e-5
     assert tension.min() > 0
+    slack = simulated.values[42:67] == 0  # tendon a goes slack: there its derivatives are 0
+    assert 0 < slack.sum() < 25 and not simulated.jacobian[42:67][slack].any()
     for j, name in enumerate(names):
         p = parameter(shell, name)
         value = float(np.mean(getattr(shell, p.field)[p.members]))
@@ -278,6 +281,11 @@ def test_bad_tendon_data_is_one_line_naming_the_tendon_or_channel(tmp_path, caps
         (Experiment(lengths={"t1_1_1": (t, np.ones(3))}), r"expected times \(T,\) and lengths"),
         (Experiment(tensions={"t1_1_1": (t, [1.0, np.nan])}), "tension 't1_1_1': row 1 is not"),
         (Experiment(tensions={"t1_1_1": (t, np.ones(2))}, tension_noise=0), "tension_noise must"),
+        (Experiment({"n3": (np.zeros(0), np.zeros((0, 3)))}), "hold no sample after the start"),
+        (
+            Experiment(tensions={"t1_1_1": (t, np.ones(2))}, options={"controller": object()}),
+            r"options\['controller'\]: a fit follows runs without a controller or actuators",
+        ),
     ]
     for experiment, message in cases:
         with pytest.raises(ValueError, match=message):
@@ -290,6 +298,10 @@ def test_bad_tendon_data_is_one_line_naming_the_tendon_or_channel(tmp_path, caps
     err = capsys.readouterr().err
     assert err.count("\n") == 1
     assert "channel 'velocity.n3.x': not one an identification reads" in err
+    data.write_text("time,channel,value\n0.1,position.n3.w,0.5\n0.1,position.n3.x,0.5\n")
+    assert main(["fit", "--structure", str(model), "--data", str(data), "--param",
+                 "rod_mass", "-o", str(tmp_path / "no")]) == 2  # fmt: skip
+    assert "channel 'position.n3.w': a marker's coordinates are x, y, z" in capsys.readouterr().err
     data.write_text("t,x\n")
     assert main(["fit", "--structure", str(model), "--data", str(data), "--param",
                  "rod_mass", "-o", str(tmp_path / "no")]) == 2  # fmt: skip

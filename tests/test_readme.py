@@ -1,34 +1,41 @@
-"""Every command of the README's "The command line" block runs, in order, in an empty folder
-(issue 27: two of them needed files the README never made), so that they cannot rot."""
+"""The front door cannot rot: every command of ``docs/cli.md``'s session runs, in order, in an
+empty folder (issue 27: two of them needed files the docs never made); the README's short tour
+(its Python block and its shell block) runs; the README stays a few screens long, without the
+clock times of benchmark prose (issue 33), and its quick start is the two commands."""
 
 from __future__ import annotations
 
+import re
 import shlex
 import subprocess
 import sys
 import time
 from pathlib import Path
 
-README = Path(__file__).resolve().parents[1] / "README.md"
+ROOT = Path(__file__).resolve().parents[1]
+README = ROOT / "README.md"
+CLI_PAGE = ROOT / "docs" / "cli.md"
+
+#: The README's largest size [bytes] (issue 33: "about 10 kB at most").
+README_LIMIT = 10_000
 
 
-def command_lines() -> list[str]:
-    """The commands of the README's "The command line" block, continuation lines joined."""
-    section = README.read_text(encoding="utf-8").split("\n## The command line\n", 1)[1]
-    block = section.split("```bash\n", 1)[1].split("\n```", 1)[0]
+def blocks(path: Path, language: str) -> list[str]:
+    """The fenced ``language`` blocks of the markdown file ``path``, in order."""
+    return re.findall(rf"```{language}\n(.*?)\n```", path.read_text(encoding="utf-8"), re.S)
+
+
+def command_lines(block: str) -> list[str]:
+    """The commands of a shell ``block``, continuation lines joined."""
     return [line for line in block.replace("\\\n", " ").splitlines() if line.strip()]
 
 
-def test_the_readme_block_is_found():
-    lines = command_lines()
-    assert len(lines) >= 15
-    assert all(line.split()[0] in ("tensegrity", "python", "echo") for line in lines), lines
-
-
-def test_the_readme_command_lines_run_in_order_in_an_empty_folder(tmp_path):
+def run_in_order(lines: list[str], folder: Path) -> None:
+    """Each command line in ``folder``, in order (``tensegrity`` as this interpreter's module),
+    each to succeed."""
     python = shlex.quote(sys.executable)
     took = []
-    for line in command_lines():
+    for line in lines:
         program, rest = line.split(" ", 1)
         command = {"tensegrity": f"{python} -m tensegrity.cli", "python": python}.get(
             program, program
@@ -36,7 +43,7 @@ def test_the_readme_command_lines_run_in_order_in_an_empty_folder(tmp_path):
         started = time.perf_counter()
         done = subprocess.run(
             ["bash", "-c", f"{command} {rest}"],
-            cwd=tmp_path,
+            cwd=folder,
             capture_output=True,
             text=True,
             timeout=600,
@@ -44,3 +51,38 @@ def test_the_readme_command_lines_run_in_order_in_an_empty_folder(tmp_path):
         took.append((time.perf_counter() - started, line))
         assert done.returncode == 0, f"{line}\n{done.stderr[-3000:]}"
     print("\n".join(f"{seconds:6.1f} s  {line[:80]}" for seconds, line in took))
+
+
+def test_the_cli_page_block_is_found():
+    lines = command_lines(blocks(CLI_PAGE, "bash")[0])
+    assert len(lines) >= 15
+    assert all(line.split()[0] in ("tensegrity", "python", "echo") for line in lines), lines
+
+
+def test_the_cli_pages_command_lines_run_in_order_in_an_empty_folder(tmp_path):
+    run_in_order(command_lines(blocks(CLI_PAGE, "bash")[0]), tmp_path)
+
+
+def test_the_readmes_tour_runs(tmp_path):
+    """The Python block, then the shell block, in an empty folder."""
+    (python,) = blocks(README, "python")
+    done = subprocess.run(
+        [sys.executable, "-c", python], cwd=tmp_path, capture_output=True, text=True, timeout=600
+    )
+    assert done.returncode == 0, done.stderr[-3000:]
+    quick_start, tour = blocks(README, "bash")
+    assert command_lines(quick_start) == [
+        "pip install . && tensegrity simulate",
+        "pip install '.[test]' && pytest",
+    ]
+    run_in_order(command_lines(tour), tmp_path)
+
+
+def test_the_readme_is_short_and_has_no_clock_times():
+    text = README.read_text(encoding="utf-8")
+    assert len(text.encode()) <= README_LIMIT
+    times = re.findall(r"(?<![\d.])(?<!t = )\d+(?:\.\d+)? ?(?:ms|s|min|minutes|seconds)\b", text)
+    assert not times, times
+    assert not re.findall(r"\b\d{1,2}:\d{2}\b|\b20\d\d-\d\d-\d\d\b", text)
+    for link in re.findall(r"\]\(([^)#:]+)\)", text):  # every relative link leads to a file
+        assert (ROOT / link).exists(), link

@@ -121,7 +121,7 @@ def test_sensitivities_to_the_control_tables_values_through_slack_switches():
     shell = _shell()
     S = shell.n_tendons
     time = np.array([0.0, 0.15, 0.3])
-    values = np.outer([0.0, 0.02, -0.01], np.ones(S))
+    values = np.outer([0.0, 0.02, -0.01], np.linspace(0.5, 1.5, S))  # (each tendon its own)
     options = {**SHELL_RUN, "control": ControlTable(time=time, control=values)}
     params = [ControlEntries(tuple(S + np.arange(S))), ControlEntries((2 * S + 4,))]
     run = simulate(shell, (0.0, 0.4), sensitivity=params, **options)

@@ -37,9 +37,9 @@ from collections.abc import Mapping, Sequence
 from typing import Any, NamedTuple
 
 import numpy as np
-import scipy.interpolate
 import scipy.optimize
 import scipy.stats
+from scipy.interpolate import CubicHermiteSpline as Spline
 
 from tensegrity.engine.inputs import Inputs
 from tensegrity.engine.result import SimulationResult
@@ -80,7 +80,7 @@ KINDS: dict[str, tuple[str, str, float]] = {
 }
 
 #: The run's accuracy when fitting (relative and absolute tolerances of DOP853): far below the
-#: markers' noise.
+#: measurements' noise.
 RTOL, ATOL = 1e-10, 1e-13
 
 #: The fractions of the experiments' spans fitted in turn (:func:`fit`'s ``horizons``).
@@ -96,7 +96,8 @@ TIME_TOLERANCE = 1e-12
 @dataclasses.dataclass(frozen=True)
 class Parameter:
     """A quantity of a structure to fit: ``kind`` (a key of :data:`KINDS`), the ``members``
-    (indices of tendons or rods, sorted) it sets to one value, and its ``name`` as given."""
+    (indices of tendons, rods or nodes carrying a point mass, sorted; none for the planes') it
+    sets to one value, and its ``name`` as given."""
 
     name: str
     kind: str
@@ -232,12 +233,19 @@ class Experiment:
 
 
 #: What an experiment measures: each kind's items (nodes or tendons), the shape of one sample
-#: (``"dim"``: the structure's dimension), and its unit.
+#: (``"dim"``: the structure's dimension), and the :class:`Experiment` field of its noise.
 MEASURED = {
-    "markers": ("node", "dim", "m"),
-    "lengths": ("tendon", (), "m"),
-    "tensions": ("tendon", (), "N"),
+    "markers": ("node", "dim", "noise"),
+    "lengths": ("tendon", (), "noise"),
+    "tensions": ("tendon", (), "tension_noise"),
 }
+
+#: The unit of each noise field.
+NOISE_UNIT = {"noise": "m", "tension_noise": "N"}
+
+#: Run options whose inputs a fit cannot follow (their sensitivities are not made, and the rest
+#: lengths they set are the run's own).
+UNFITTED_OPTIONS = ("controller", "actuators")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -270,17 +278,23 @@ def _bind(structure: Structure, experiment: Experiment, k: int) -> _Bound:
     where = f"experiments[{k}] ({experiment.name!r})"
     if not any(experiment.series().values()):
         raise ValueError(f"{where}: no markers, lengths or tensions")
-    for field in ("noise", "tension_noise"):
+    for field, unit in NOISE_UNIT.items():
         value = getattr(experiment, field)
-        unit = "N" if field == "tension_noise" else "m"
         if not (math.isfinite(value) and value > 0):
             raise ValueError(f"{where}: {field} must be > 0 [{unit}], got {value!r}")
+    for option in UNFITTED_OPTIONS:
+        if experiment.options.get(option) is not None:
+            raise ValueError(
+                f"{where}: options[{option!r}]: a fit follows runs without a controller or "
+                "actuators (their sensitivities are not made); give the control as a table or "
+                "a function of time"
+            )
     items: dict[str, np.ndarray] = {}
     times: dict[str, list[np.ndarray]] = {}
     measured, weight, tension = [], [], []
     t0, dim = float(experiment.t0), structure.dim
     for kind, series in experiment.series().items():
-        member, sample, _ = MEASURED[kind]
+        member, sample, noise_field = MEASURED[kind]
         shape = (dim,) if sample == "dim" else ()
         index, times[kind] = [], []
         for name, (t, value) in series.items():
@@ -295,11 +309,12 @@ def _bind(structure: Structure, experiment: Experiment, k: int) -> _Bound:
             value = np.asarray(value, dtype=float)
             if t.ndim != 1 or value.shape != (t.size, *shape):
                 noun = {"markers": "positions"}.get(kind, kind)
+                expected = "(T, " + ", ".join(map(str, shape)) + ")" if shape else "(T,)"
                 raise ValueError(
-                    f"{what}: expected times (T,) and {noun} {('T', *shape)}, got {t.shape} "
-                    f"and {value.shape}".replace("'T'", "T")
+                    f"{what}: expected times (T,) and {noun} {expected}, got {t.shape} and "
+                    f"{value.shape}"
                 )
-            finite = np.isfinite(value).reshape(t.size, -1).all(axis=1)
+            finite = np.isfinite(value).all(axis=tuple(range(1, value.ndim)))
             bad = np.flatnonzero(~np.isfinite(t) | ~finite)
             if bad.size:
                 raise ValueError(f"{what}: row {bad[0]} is not finite (NaN or infinite)")
@@ -310,8 +325,7 @@ def _bind(structure: Structure, experiment: Experiment, k: int) -> _Bound:
                 raise ValueError(f"{what}: row {late[0] + 1}: times must increase")
             times[kind].append(t)
             measured.append(value.ravel())
-            noise = experiment.tension_noise if kind == "tensions" else experiment.noise
-            weight.append(np.full(value.size, 1.0 / noise))
+            weight.append(np.full(value.size, 1.0 / getattr(experiment, noise_field)))
             tension.append(np.full(value.size, kind == "tensions"))
         items[kind] = np.array(index, dtype=np.int64)
     every = [t for kind in times.values() for t in kind if t.size]
@@ -398,27 +412,31 @@ def _run(
     )
     if result.status < 0 or result.t[-1] < b.t_end - TIME_TOLERANCE * max(1.0, abs(b.t_end)):
         raise RuntimeError(f"experiment {e.name!r}: the run failed: {result.message}")
-    nodes = scipy.interpolate.CubicHermiteSpline(
-        result.t, result.node_position, result.node_velocity, axis=0
-    )
-    moved = None
+    position = velocity = None
     if sensitivity is not None:  # (T, P, N, dim)
-        moved = scipy.interpolate.CubicHermiteSpline(
-            result.t,
-            result.node_position_sensitivity(),
-            result.node_velocity_sensitivity(),
-            axis=0,
-        )
+        position = result.node_position_sensitivity()
+        velocity = result.node_velocity_sensitivity()
+
+    def motion(nodes: np.ndarray) -> tuple[Spline, Spline | None]:
+        """The interpolated motion of ``nodes`` (their positions; its derivative the
+        velocities) and of their sensitivities (None without)."""
+        x = Spline(result.t, result.node_position[:, nodes], result.node_velocity[:, nodes], axis=0)
+        if position is None or velocity is None:
+            return x, None
+        return x, Spline(result.t, position[:, :, nodes], velocity[:, :, nodes], axis=0)
+
     values, derivatives, dim = [], [], structure.dim
     for node, t in zip(b.items["markers"], b.times["markers"], strict=True):
-        values.append(nodes(t)[:, node].ravel())
-        if moved is not None:  # (T, P, dim) -> (T * dim, P), the residuals' order
-            derivatives.append(moved(t)[:, :, node].transpose(0, 2, 1).reshape(t.size * dim, -1))
+        x, dx = motion(np.array([node]))
+        values.append(x(t).ravel())
+        if dx is not None:  # (T, P, 1, dim) -> (T * dim, P), the residuals' order
+            derivatives.append(dx(t)[:, :, 0].transpose(0, 2, 1).reshape(t.size * dim, -1))
     inputs = Inputs(structure, control=options.get("control"))
     for kind in ("lengths", "tensions"):
         for tendon, t in zip(b.items[kind], b.times[kind], strict=True):
+            x, dx = motion(structure.tendon_nodes[tendon])
             value, derivative = _tendon_measurement(
-                structure, kind, tendon, inputs.rest_length(t), nodes, moved, t, sensitivity
+                structure, kind, tendon, inputs.rest_length(t), (x, dx), t, sensitivity
             )
             values.append(value)
             derivatives.append(derivative)
@@ -431,35 +449,38 @@ def _tendon_measurement(
     kind: str,
     tendon: int,
     rest: np.ndarray,
-    nodes: scipy.interpolate.CubicHermiteSpline,
-    moved: scipy.interpolate.CubicHermiteSpline | None,
+    motion: tuple[Spline, Spline | None],
     t: np.ndarray,
     parameters: Sequence[Parameter] | None,
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """Tendon ``tendon``'s length [m] or tension [N] (``kind``: ``"lengths"``, ``"tensions"``)
-    at the times ``t`` (K,) [s]: from the node motion ``nodes`` (positions; their derivative the
-    velocities) and the rest lengths ``rest`` (K or 1, S) [m] there, by the tension law
-    (:func:`~tensegrity.physics.dynamics.tendon_forces`).  With the nodes' sensitivities
-    ``moved`` (to ``parameters``), the values' derivatives (K, P): the length's ``u . d(x_b -
-    x_a)``, the tension's ``k (dl - dLbar) + (l - Lbar) dk + c dl' + l' dc`` while it pulls (0
-    while slack), ``dk``, ``dc``, ``dLbar`` 1 for a parameter setting this tendon's stiffness,
-    damping or rest length."""
-    p, v = nodes(t), nodes(t, 1)
+    at the times ``t`` (K,) [s]: from the motion of its two nodes (``motion``: their positions,
+    whose derivative is their velocities, and their sensitivities to ``parameters`` or None)
+    and the rest lengths ``rest`` (K or 1, S) [m] there, by the tension law
+    (:func:`~tensegrity.physics.dynamics.tendon_forces`).  With sensitivities, the values'
+    derivatives (K, P): the length's ``u . d(x_b - x_a)``, the tension's ``k (dl - dLbar) + (l -
+    Lbar) dk + c dl' + l' dc`` while it pulls (0 while slack), ``dk``, ``dc``, ``dLbar`` 1 for a
+    parameter setting this tendon's stiffness, damping or rest length; else None."""
+    x, dx = motion
+    p = np.zeros((t.size, structure.n_nodes, structure.dim))
+    v = np.zeros_like(p)
+    ends = structure.tendon_nodes[tendon]  # (tail, head)
+    p[:, ends], v[:, ends] = x(t), x(t, 1)
     forces = tendon_forces(structure, p, v, rest)
-    a, b = structure.tendon_nodes[tendon]
     length, direction = forces.length[:, tendon], forces.direction[:, tendon]
     value = length if kind == "lengths" else forces.tension[:, tendon]
-    if moved is None or parameters is None:
+    if dx is None or parameters is None:
         return value, None
-    dp = moved(t)  # (K, P, N, dim)
-    d_span = dp[:, :, b] - dp[:, :, a]
+    dp = dx(t)  # (K, P, 2, dim)
+    d_span = dp[:, :, 1] - dp[:, :, 0]
     d_length = np.einsum("kd,kpd->kp", direction, d_span)
     if kind == "lengths":
         return value, d_length
-    dv = moved(t, 1)
-    d_direction = (d_span - direction[:, None, :] * d_length[:, :, None]) / length[:, None, None]
-    d_rate = np.einsum("kpd,kd->kp", d_direction, v[:, b] - v[:, a]) + np.einsum(
-        "kd,kpd->kp", direction, dv[:, :, b] - dv[:, :, a]
+    dv = dx(t, 1)
+    with np.errstate(divide="ignore", invalid="ignore"):  # (a tendon of no length: 0 below)
+        d_direction = (d_span - direction[:, None] * d_length[:, :, None]) / length[:, None, None]
+    d_rate = np.einsum("kpd,kd->kp", d_direction, v[:, ends[1]] - v[:, ends[0]]) + np.einsum(
+        "kd,kpd->kp", direction, dv[:, :, 1] - dv[:, :, 0]
     )
     own = {  # (P,) 1 where a parameter sets this tendon's field
         field: np.array([q.kind == field and tendon in q.members for q in parameters], float)
@@ -551,6 +572,15 @@ class Fit:
                     )
         return found
 
+    def rms_summary(self) -> str:
+        """The root mean square errors in words: ``"0.000983 m, 0.115 N"`` (each kind of
+        measurement there is)."""
+        return ", ".join(
+            f"{value:.3g} {unit}"
+            for value, unit in ((self.rms_error, "m"), (self.rms_tension_error, "N"))
+            if np.isfinite(value)
+        )
+
     def to_dict(self) -> dict[str, Any]:
         """A JSON-ready report."""
         return dict(
@@ -578,7 +608,7 @@ class Fit:
 
 
 def _samples(experiment: Experiment, t0: float) -> int:
-    """The number of ``experiment``'s marker samples after ``t0`` [s]."""
+    """The number of ``experiment``'s samples (markers, lengths, tensions) after ``t0`` [s]."""
     return sum(
         int(np.sum(np.asarray(t, dtype=float) > t0))
         for series in experiment.series().values()
@@ -599,16 +629,21 @@ def _finite(x: float) -> float | None:
 def _until(experiment: Experiment, t: float) -> Experiment:
     """``experiment`` with its samples up to time ``t`` [s] (markers and tendons left without
     one are dropped)."""
-    kept: dict[str, dict[str, tuple[np.ndarray, np.ndarray]]] = {}
-    for kind, series in experiment.series().items():
-        kept[kind] = {}
+
+    def kept(series: Mapping[str, tuple[np.ndarray, np.ndarray]]) -> dict[str, Any]:
+        out = {}
         for name, (times, value) in series.items():
             times = np.asarray(times, dtype=float)
             keep = times <= t + TIME_TOLERANCE * max(1.0, abs(t))
             if keep.any():
-                kept[kind][name] = (times[keep], np.asarray(value, dtype=float)[keep])
+                out[name] = (times[keep], np.asarray(value, dtype=float)[keep])
+        return out
+
     return dataclasses.replace(
-        experiment, markers=kept["markers"], lengths=kept["lengths"], tensions=kept["tensions"]
+        experiment,
+        markers=kept(experiment.markers),
+        lengths=kept(experiment.lengths),
+        tensions=kept(experiment.tensions),
     )
 
 
@@ -656,8 +691,8 @@ def fit(
     Raises
     ------
     ValueError
-        One line: a bad parameter, experiment, marker, start or bound, or fewer measured
-        coordinates than parameters.
+        One line: a bad parameter, experiment (a controller or actuators among its options),
+        marker, tendon series, start or bound, or fewer measured values than parameters.
     RuntimeError
         A run failed (at the starting values, or at values the search tried): its message.
     """

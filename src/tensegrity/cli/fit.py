@@ -220,13 +220,8 @@ def _cmd_fit(args: argparse.Namespace) -> int:
             f"{p.name}: {result.estimate[i]:.6g} ± {result.standard_error[i]:.2g} "
             f"(95 %: {low:.6g} .. {high:.6g}; started at {result.initial[i]:.6g})"
         )
-    errors = [
-        f"{value:.3g} {unit}"
-        for value, unit in ((result.rms_error, "m"), (result.rms_tension_error, "N"))
-        if np.isfinite(value)
-    ]
     print(
-        f"rms error {', '.join(errors)} over {result.residual.size} measured values; "
+        f"rms error {result.rms_summary()} over {result.residual.size} measured values; "
         f"{result.message} ({result.nfev} evaluations, {result.njev} Jacobians)"
     )
     print("wrote " + ", ".join(str(f) for f in written))

@@ -4,10 +4,10 @@ compiled (:func:`announce_compiling`).
 
 The engine's compiled code (numba, ``cache=True``) is cached on disk; a process that finds no
 cached copy of a function it calls (a new machine, a new version, an empty
-``NUMBA_CACHE_DIR``) compiles it first, which takes tens of seconds (the README's quick start
-has measurements).  numba reports each compilation (a cache miss only) as a ``numba:compile``
-event; :func:`announce_compiling` prints one line at the first of them, so a run that loads
-everything from the cache prints nothing.
+``NUMBA_CACHE_DIR``) compiles it first, which takes tens of seconds (measured in
+``benchmarks/README.md``, "The first run").  numba reports each compilation (a cache miss
+only) as a ``numba:compile`` event; :func:`announce_compiling` prints one line at the first of
+them, so a run that loads everything from the cache prints nothing.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ _IMPORTED = time.perf_counter()
 _announcer: object | None = None
 
 #: The line :func:`announce_compiling` prints (on stderr) before the first compilation.  The
-#: span: the README's 18.9 s (an idle 2-core machine) to 59 s (the same machine, busy).
+#: span: `benchmarks/README.md`'s 18.9 s (an idle 2-core machine) to 59 s (the same machine, busy).
 COMPILING_MESSAGE = (
     "tensegrity: compiling the engine for this machine (once: about 20-60 s; later runs load it "
     "from the cache)"

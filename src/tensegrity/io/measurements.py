@@ -13,11 +13,11 @@ round-trip form (read back bit for bit), rows in time order:
   ``contact.n4``: :mod:`tensegrity.engine.sensors`) and the value in the channel's SI unit.
 
 Each channel (marker) has its own sample times, strictly increasing; lines starting with ``#``
-and empty lines are skipped.  An identification (``tensegrity fit --data``) reads either file:
-:func:`csv_kind` tells them apart by the header, :func:`fitted_channels` picks the markers,
-lengths and tensions of a measurements file.  :func:`write_measurements` and :func:`write_markers` write them
+and empty lines are skipped.  :func:`write_measurements` and :func:`write_markers` write them
 atomically; :func:`read_measurements` and :func:`read_markers` read them back, with one-line
-``ValueError``\\ s naming the file, the line and the column at fault.
+``ValueError``\\ s naming the file, the line and the column at fault.  An identification
+(``tensegrity fit --data``) reads either file: :func:`csv_kind` tells them apart by the header,
+:func:`fitted_channels` picks the markers, lengths and tensions of a measurements file.
 
 A sensor file (``tensegrity simulate --sensors FILE.json``) is a JSON object ``{"seed": 0,
 "sensors": [...]}`` (or the list alone: seed 0), each sensor an object of the fields of
@@ -278,8 +278,13 @@ def fitted_channels(
         kind, _, item = name.partition(".")
         if kind in ("length", "tension") and item:
             out[kind + "s"][item] = (series.t, series.value)
-        elif kind == "position" and item.rpartition(".")[2] in "xyz" and "." in item:
-            node = item.rpartition(".")[0]
+        elif kind == "position" and "." in item:
+            node, _, axis = item.rpartition(".")
+            if axis not in axes:
+                raise ValueError(
+                    f"channel {name!r:.60}: a marker's coordinates are {', '.join(axes)} (a "
+                    f"{dim}-D structure)"
+                )
             if node in out["markers"]:
                 continue
             found: list[ChannelSeries] = []
@@ -287,7 +292,7 @@ def fitted_channels(
                 part = channels.get(f"position.{node}.{axis}")
                 if part is None or (found and not np.array_equal(part.t, found[0].t)):
                     raise ValueError(
-                        f"channel position.{node}.{axis}: "
+                        f"channel {f'position.{node}.{axis}'!r:.60}: "
                         + ("missing" if part is None else "sampled at other times than .x")
                         + f" (a marker needs {', '.join(axes)} at the same times)"
                     )

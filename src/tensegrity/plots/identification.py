@@ -4,6 +4,7 @@ positions against the fitted model's motion, and the starting model's."""
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -14,20 +15,25 @@ from tensegrity.plots.figures import FIGURE_DPI, new_figure, save_png
 
 __all__ = ["MAX_MARKERS", "figure_fit"]
 
-#: At most this many measured items (markers, then tendons: rows of the figure) are drawn.
+#: At most this many measured items (markers, then tendons: the figure's rows) are drawn.
 MAX_MARKERS = 6
 
 
-def figure_fit(fit: Fit, start: Structure, experiment: Experiment, path: str | Path) -> Path:
+def figure_fit(
+    fit: Fit, start: Structure, experiment: Experiment, path: str | Path, *, index: int = 0
+) -> Path:
     """Write ``path`` (PNG): for each of the first :data:`MAX_MARKERS` measured items of
     ``experiment`` (markers, then tendons' lengths and tensions), its coordinates [m], length
     [m] or tension [N] against time [s]: the measurements (dots), the fitted model
-    (``fit.structure``, line) and the starting one (``start``, dashed)."""
+    (``fit.structure`` with the fitted options of the fit's experiment ``index``, which
+    ``experiment`` is: its ground's fitted friction, line) and the starting one (``start``,
+    dashed)."""
     rows = [(kind, name) for kind, series in experiment.series().items() for name in series][
         :MAX_MARKERS
     ]
     dim = start.dim if any(kind == "markers" for kind, _ in rows) else 1
-    runs = {"fitted": simulated_measurements(fit.structure, experiment).run}
+    fitted = dataclasses.replace(experiment, options=fit.options[index])
+    runs = {"fitted": simulated_measurements(fit.structure, fitted).run}
     with contextlib.suppress(RuntimeError):  # a starting model whose run fails: fitted alone
         runs["start"] = simulated_measurements(start, experiment).run
     figure = new_figure((3.2 * dim, 1.9 * len(rows) + 0.6))
@@ -56,10 +62,5 @@ def figure_fit(fit: Fit, start: Structure, experiment: Experiment, path: str | P
     axes[0, 0].legend(fontsize=7, loc="best")
     for c in range(dim):
         axes[-1, c].set_xlabel("t [s]")
-    errors = [
-        f"{value:.3g} {unit}"
-        for value, unit in ((fit.rms_error, "m"), (fit.rms_tension_error, "N"))
-        if np.isfinite(value)
-    ]
-    figure.suptitle(f"{experiment.name}: rms error {', '.join(errors)}")
+    figure.suptitle(f"{experiment.name}: rms error {fit.rms_summary()}")
     return save_png(figure, path, dpi=FIGURE_DPI)
