@@ -3,7 +3,7 @@
 Every rod ``r`` (end nodes ``a``, ``b``, length ``L``) is described by its centre ``c`` (3) and
 its unit direction ``n`` (``p_a = c - (L/2) n``, ``p_b = c + (L/2) n``, so ``q1 = 2 c`` and
 ``q2 = L n`` of :mod:`tensegrity.physics.dynamics`).  About a *base* configuration ``(c0, n0)``
-we use, per rod, the 5 numbers
+we use, per rod, the 5 numbers::
 
     x_r = [dc (3), phi (2)],   c = c0 + dc,   n = (n0 + E phi) / sqrt(1 + |phi|^2)
 

@@ -3,8 +3,9 @@
 Two routes, which agree (``tests/test_analysis_equilibrium.py``):
 
 - :func:`find_equilibrium` solves ``Q(x) = 0`` -- the generalized forces in the reduced
-  coordinates of :mod:`.coordinates`, so every rod keeps its length exactly -- with
-  ``scipy.optimize.least_squares`` and the analytic Jacobian of :mod:`.statics`, then polishes
+  coordinates of :mod:`~tensegrity.analysis.coordinates`, so every rod keeps its length
+  exactly -- with ``scipy.optimize.least_squares`` and the analytic Jacobian of
+  :mod:`.statics`, then polishes
   with Newton steps.  A free structure's equilibria come in 6-dimensional families (rigid-body
   motions); the family is gauged by Eckart's conditions with respect to the starting
   configuration (6 extra residuals: same mass centre, no mass-weighted rotation), so the solution

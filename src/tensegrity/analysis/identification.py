@@ -199,22 +199,30 @@ class Experiment:
 
     Attributes
     ----------
-    markers : node name -> ``(t (T,) [s], position (T, dim) [m])``, each marker's samples,
-        strictly increasing times at or after the start.
-    noise : the standard deviation of a measured coordinate or length [m] (the least squares'
+    markers : mapping of str to (array, array)
+        Node name -> ``(t (T,) [s], position (T, dim) [m])``: each marker's samples, strictly
+        increasing times at or after the start.
+    noise : float
+        The standard deviation of a measured coordinate or length [m] (the least squares'
         weight ``1 / noise``; the reported errors use the residuals' own spread).
-    initial : the start state (default: the structure's node positions and velocities at
-        ``t0``).
-    t0 : the start time [s].
-    options : keywords of :func:`~tensegrity.engine.simulate.simulate` for the run (``gravity``,
+    initial : State or None
+        The start state (default: the structure's node positions and velocities at ``t0``).
+    t0 : float
+        The start time [s].
+    options : mapping
+        Keywords of :func:`~tensegrity.engine.simulate.simulate` for the run (``gravity``,
         ``external_force``, ``control``, ``ground``, ...), not its span, start, accuracy or
-        sampling.
-    name : for the report.
-    lengths : tendon name -> ``(t (T,) [s], length (T,) [m])``: measured tendon lengths (a
-        cable's encoder, a stretch sensor), weighed by ``1 / noise``.
-    tensions : tendon name -> ``(t (T,) [s], tension (T,) [N])``: measured tensions (a load
-        cell), weighed by ``1 / tension_noise``.
-    tension_noise : the standard deviation of a measured tension [N].
+        sampling; no ``controller`` or ``actuators``.
+    name : str
+        For the report.
+    lengths : mapping of str to (array, array)
+        Tendon name -> ``(t (T,) [s], length (T,) [m])``: measured tendon lengths (a cable's
+        encoder, a stretch sensor), weighed by ``1 / noise``.
+    tensions : mapping of str to (array, array)
+        Tendon name -> ``(t (T,) [s], tension (T,) [N])``: measured tensions (a load cell),
+        weighed by ``1 / tension_noise``.
+    tension_noise : float
+        The standard deviation of a measured tension [N].
     """
 
     markers: Mapping[str, tuple[np.ndarray, np.ndarray]] = dataclasses.field(default_factory=dict)
@@ -502,20 +510,38 @@ class Fit:
 
     Attributes
     ----------
-    parameters : the fitted :class:`Parameter` s.  initial (P,) : their starting values.
-    estimate (P,) : the fitted values (SI units of each field).
-    standard_error (P,) : from the Jacobian at the optimum.
-    interval (P, 2) : 95 % confidence intervals (Student's t with ``n - P`` degrees of freedom),
-        within the bounds.  bounds (P, 2) : the bounds the estimates were kept in.
-    correlation (P, P) : of the estimates.
-    residual (n,) : ``(simulated - measured) / noise`` of every measured value at the
-        optimum.  rms_error : the root mean square of ``simulated - measured`` of the marker
-        coordinates and lengths [m] (NaN without any).  rms_tension_error : of the tensions [N]
-        (NaN without any).
-    structure : the fitted structure.  options : each experiment's run options with the
-        fitted parameters of the ground planes (its ``ground``).
-    status, message : ``scipy.optimize.least_squares``'s.  nfev, njev : residual and Jacobian
-        evaluations (a Jacobian is one run per experiment with its sensitivities).
+    parameters : tuple of Parameter
+        The fitted parameters.
+    initial : (P,) array
+        Their starting values.
+    estimate : (P,) array
+        The fitted values (SI units of each field).
+    standard_error : (P,) array
+        From the Jacobian at the optimum.
+    interval : (P, 2) array
+        95 % confidence intervals (Student's t with ``n - P`` degrees of freedom), within the
+        bounds.
+    bounds : (P, 2) array
+        The bounds the estimates were kept in.
+    correlation : (P, P) array
+        Of the estimates.
+    residual : (n,) array
+        ``(simulated - measured) / noise`` of every measured value at the optimum.
+    rms_error : float
+        The root mean square of ``simulated - measured`` of the marker coordinates and lengths
+        [m] (NaN without any).
+    rms_tension_error : float
+        Of the tensions [N] (NaN without any).
+    structure : Structure
+        The fitted structure.
+    options : tuple of dict
+        Each experiment's run options with the fitted parameters of the ground planes (its
+        ``ground``).
+    status, message : int, str
+        ``scipy.optimize.least_squares``'s.
+    nfev, njev : int
+        Residual and Jacobian evaluations (a Jacobian is one run per experiment with its
+        sensitivities).
     """
 
     parameters: tuple[Parameter, ...]

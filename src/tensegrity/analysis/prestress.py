@@ -1,8 +1,9 @@
 """Prestress and form-finding: self-stress states, feasible tensions, rest lengths, form-finding.
 
 At a configuration ``q`` the *equilibrium matrix* ``A`` (5R, S) maps tendon tensions to the
-generalized forces on the rods (reduced coordinates of :mod:`.coordinates`, so the rods' own
-axial forces -- whatever they must be -- never appear): ``Q = A T + J^T w``.  Then
+generalized forces on the rods (reduced coordinates of
+:mod:`~tensegrity.analysis.coordinates`, so the rods' own axial forces -- whatever they must
+be -- never appear): ``Q = A T + J^T w``.  Then
 
 - the *self-stress states* are the null space of ``A`` (tensions in equilibrium with no load),
   of dimension ``s = S - rank A``; the *infinitesimal mechanisms* are the non-rigid motions that

@@ -1,4 +1,5 @@
-"""Static forces and their analytic Jacobians in the reduced coordinates of :mod:`.coordinates`.
+"""Static forces and their analytic Jacobians in reduced coordinates
+(:mod:`~tensegrity.analysis.coordinates`).
 
 For a configuration ``x`` of a :class:`~tensegrity.analysis.coordinates.Chart`:
 

@@ -4,4 +4,5 @@ import sys
 
 from tensegrity.cli.main import main
 
-sys.exit(main())
+if __name__ == "__main__":  # (importing it, as a documentation tool does, runs nothing)
+    sys.exit(main())

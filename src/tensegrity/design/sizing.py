@@ -204,29 +204,46 @@ class Sizing:
 
     Attributes
     ----------
-    structure : the sized structure, ready to simulate: tendon stiffness ``E A / Lbar``, rod
-        mass ``rho A L``, rest lengths that give the prestressed state's tensions at the given
-        geometry (no tension without a prestress).
-    members : the members' materials and sections (:class:`MemberProperties`).
-    cases : names of the cases (``"prestress"`` first when there is a prestress).
-    rod_area (R,), tendon_area (S,) : [m^2].  rod_mass (R,), tendon_mass (S,) : ``rho A L``
-        [kg], a tendon's at its length in the geometry.
-    rod_compression (K, R), tendon_tension (K, S) : each case's member forces [N].
-    utilisation : of every member in every case, arrays (K, S) and (K, R).
-    iterations : linear programs solved (``statics="linear"``) or sizing iterations
-        (``"equilibrium"``).  message : how it ended.
-    statics : ``"linear"`` (equilibrium at the given geometry, :func:`size_members`) or
+    structure : Structure
+        The sized structure, ready to simulate: tendon stiffness ``E A / Lbar``, rod mass ``rho
+        A L``, rest lengths that give the prestressed state's tensions at the given geometry
+        (no tension without a prestress).
+    members : MemberProperties
+        The members' materials and sections.
+    cases : tuple of str
+        Names of the cases (``"prestress"`` first when there is a prestress).
+    rod_area, tendon_area : (R,), (S,) arrays
+        [m^2].
+    rod_mass, tendon_mass : (R,), (S,) arrays
+        ``rho A L`` [kg], a tendon's at its length in the geometry.
+    rod_compression, tendon_tension : (K, R), (K, S) arrays
+        Each case's member forces [N].
+    utilisation : (K, S) and (K, R) arrays
+        Of every member in every case.
+    iterations : int
+        Linear programs solved (``statics="linear"``) or sizing iterations
+        (``"equilibrium"``).
+    message : str
+        How it ended.
+    statics : str
+        ``"linear"`` (equilibrium at the given geometry, :func:`size_members`) or
         ``"equilibrium"`` (at each case's loaded equilibrium,
         :func:`~tensegrity.design.loaded.size_at_equilibrium`).
-    governs, governing_case : (R + S,), rods first: what sets each member's area (``"yield"``,
-        ``"buckling"`` or ``"min_area"``) and in which case (None for ``"min_area"``).
-    equilibria : each load case's loaded equilibrium (``"equilibrium"`` only; the prestress is
-        the given geometry).  displacement : (load cases,) each one's largest node displacement
-        from the given geometry [m] (``"equilibrium"`` only).  frequency : (K,) the lowest
-        natural frequency [Hz] in each case, the prestressed state's about the given geometry
-        (``"equilibrium"`` only).  prestress : the smallest tendon tension of the prestressed
-        state [N] (chosen, or found in a range by
-        :func:`~tensegrity.design.loaded.size_at_equilibrium`).
+    governs, governing_case : (R + S,), rods first
+        What sets each member's area (``"yield"``, ``"buckling"`` or ``"min_area"``) and in
+        which case (None for ``"min_area"``).
+    equilibria : tuple
+        Each load case's loaded equilibrium (``"equilibrium"`` only; the prestress is the
+        given geometry).
+    displacement : (load cases,) array
+        Each one's largest node displacement from the given geometry [m] (``"equilibrium"``
+        only).
+    frequency : (K,) array
+        The lowest natural frequency [Hz] in each case, the prestressed state's about the given
+        geometry (``"equilibrium"`` only).
+    prestress : float
+        The smallest tendon tension of the prestressed state [N] (chosen, or found in a range
+        by :func:`~tensegrity.design.loaded.size_at_equilibrium`).
     """
 
     structure: Structure

@@ -89,8 +89,12 @@ class Live:
         The time reached [s].
     control : (A,) array
         The command held over the last stretch [m] (after the actuators' bounds).
-    nfev, nsteps, nswitches : int
-        Right-hand-side evaluations, steps and located events since the last :meth:`reset`.
+    nfev : int
+        Right-hand-side evaluations since the last :meth:`reset`.
+    nsteps : int
+        Steps since the last :meth:`reset`.
+    nswitches : int
+        Located events since the last :meth:`reset`.
     """
 
     def __init__(

@@ -5,18 +5,18 @@ finished run (:func:`measure`), by one code.
 Kinds of sensor (:data:`KINDS`), what each measures and in what unit, each on the items of its
 field (``nodes``, ``tendons`` or ``rods``; default: all of them):
 
-================  =========  ====================================================  ===========
-kind              field      output, per item                                      channels
-================  =========  ====================================================  ===========
-``position``      nodes      a marker: the node's position ``p = P q`` [m]         x, y[, z]
-``velocity``      nodes      the node's velocity ``P q'`` [m/s]                    x, y[, z]
-``length``        tendons    the tendon's length ``|t|`` [m]                       one
-``tension``       tendons    the tendon's tension [N] (as the run's, damping in)   one
-``orientation``   rods       the rod's unit direction ``b = q2 / |q2|`` (world)    x, y, z
-``angular_rate``  rods       the rod's angular velocity ``b x b' / |b|^2`` [rad/s] x, y, z
-``contact``       nodes      the mode of a rod end (or point mass) on each plane:  one a plane
+================  =========  =====================================================  ===========
+kind              field      output, per item                                       channels
+================  =========  =====================================================  ===========
+``position``      nodes      a marker: the node's position ``p = P q`` [m]          x, y[, z]
+``velocity``      nodes      the node's velocity ``P q'`` [m/s]                     x, y[, z]
+``length``        tendons    the tendon's length ``|t|`` [m]                        one
+``tension``       tendons    the tendon's tension [N] (as the run's, damping in)    one
+``orientation``   rods       the rod's unit direction ``b = q2 / |q2|`` (world)     x, y, z
+``angular_rate``  rods       the rod's angular velocity ``b x b' / |b|^2`` [rad/s]  x, y, z
+``contact``       nodes      the mode of a rod end (or point mass) on each plane:   one a plane
                              0 free, 1 slip, 2 stick (``model.ground``)
-================  =========  ====================================================  ===========
+================  =========  =====================================================  ===========
 
 An IMU on a rod: a rod of the model is a line with no spin about its own axis (no inertia
 there, eq. 18.24), so the orientation an IMU would report has no meaning about that axis.  The

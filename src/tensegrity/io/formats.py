@@ -1,7 +1,7 @@
 """Any network (class 1 or class k): the field's ``N, C_b, C_s`` convention, readable YAML / TOML.
 
 Conventions (Skelton & de Oliveira, *Tensegrity Systems*, 2009, ch. 2)
----------------------------------------------------------------------
+----------------------------------------------------------------------
 - ``N`` is the **3 x n** node matrix: column ``i`` is node ``i``'s position [m] (**2 x n**:
   a planar structure).
 - ``C_b`` (bars x n) and ``C_s`` (strings x n) are connectivity matrices: row ``k`` has exactly
@@ -16,7 +16,7 @@ Conventions (Skelton & de Oliveira, *Tensegrity Systems*, 2009, ch. 2)
   joined nodes back into one.
 
 File formats (:func:`read_network`, :func:`write_network`, chosen by the file's suffix)
---------------------------------------------------------------------------------------
+---------------------------------------------------------------------------------------
 - ``.json``: the JSON form of :meth:`Structure.to_dict`.
 - ``.yaml`` / ``.yml`` and ``.toml``: the readable form of :func:`network_to_dict` (named nodes,
   shared parameters under ``defaults``, rest length or prestrain per tendon, supports).

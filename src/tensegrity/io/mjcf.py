@@ -93,7 +93,7 @@ The model written by :func:`to_mjcf` is the same mechanical system as Theorem 18
   keyframe: call ``mujoco.mj_resetDataKeyframe(model, data, 0)`` after creating ``MjData``.
 
 Differences from :mod:`tensegrity.physics.dynamics` that matter when comparing
-----------------------------------------------------------------------
+------------------------------------------------------------------------------
 - **Tendon damping.**  MuJoCo's tendon damping ``-c l'`` acts whether the tendon is taut or slack,
   and the total force may push; ours acts only while taut and a tendon never pushes
   (``T = max(k (l - Lbar) + c l', 0)`` while ``l > Lbar``).  Compare trajectories with damping 0:

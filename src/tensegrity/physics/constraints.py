@@ -119,12 +119,19 @@ def normals(direction: np.ndarray) -> np.ndarray:
 class LinearConstraints:
     """The constraints ``A q = b`` of a structure, with their forces and projection.
 
-    Built by :func:`constraints_of` (once per structure).  Attributes, all constant:
+    Built by :func:`constraints_of` (once per structure); its attributes are constant.
 
-    node_matrix : (c, dN) sparse ``A_n`` (independent rows only; ``d`` = ``Structure.dim``).
-    matrix : (c, n) sparse ``A = A_n P``;  rhs : (c,) ``b`` [m].
-    inverse_mass : (n,) the kinetic-energy metric's inverse: ``4/m`` on a rod's ``q1``,
-        ``12/m`` on its ``q2``, ``1/m`` on a point mass [1/kg].
+    Attributes
+    ----------
+    node_matrix : (c, dN) sparse
+        ``A_n`` (independent rows only; ``d`` = ``Structure.dim``).
+    matrix : (c, n) sparse
+        ``A = A_n P``.
+    rhs : (c,)
+        ``b`` [m].
+    inverse_mass : (n,)
+        The kinetic-energy metric's inverse: ``4/m`` on a rod's ``q1``, ``12/m`` on its
+        ``q2``, ``1/m`` on a point mass [1/kg].
     """
 
     def __init__(self, structure: Structure) -> None:

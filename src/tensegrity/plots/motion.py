@@ -221,8 +221,9 @@ class Frames:
 
     @property
     def scene_bounds(self) -> np.ndarray:
-        """Lowest and highest x, y, z [m] of what is drawn, shape (2, 3): :attr:`bounds` and
-        the corners of the planes' patches (:attr:`bounds` without planes)."""
+        """The lowest and highest x, y, z [m] of what is drawn, shape (2, 3), that is
+        :attr:`bounds` and the corners of the planes' patches (:attr:`bounds` without
+        planes)."""
         if self.contacts is None:
             return self.bounds
         corners = self.contacts.patch.reshape(-1, 3)

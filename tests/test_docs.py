@@ -1,0 +1,105 @@
+"""The documentation site (``docs/``, Sphinx): it builds with warnings as errors, its API
+reference lists every module of the library and every public function and class of each, its
+tutorials (``examples/tutorial_*.py``, run by sphinx-gallery) run and show their figures, and
+the examples in the docstrings run as doctests (issue 33)."""
+
+from __future__ import annotations
+
+import doctest
+import importlib
+import inspect
+import re
+import subprocess
+import sys
+import zlib
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+DOCS = ROOT / "docs"
+PACKAGE = ROOT / "src" / "tensegrity"
+
+pytest.importorskip("sphinx")
+pytest.importorskip("sphinx_gallery")
+
+
+def library_modules() -> list[str]:
+    """Every module of the package but the command line's (documented in ``docs/cli.md``)."""
+    names = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+        if parts[-1] == "__init__":
+            parts = parts[:-1]
+        name = ".".join(parts)
+        if not (name.startswith("tensegrity.cli") or name.endswith("__main__")):
+            names.append(name)
+    return names
+
+
+def public_names(module_name: str) -> list[str]:
+    """The functions and classes a module defines under a name without a leading underscore
+    (compiled functions by their Python function's module)."""
+    module = importlib.import_module(module_name)
+    found = []
+    for name, value in vars(module).items():
+        if name.startswith("_"):
+            continue
+        source = getattr(getattr(value, "py_func", value), "__module__", None)
+        kind = inspect.isfunction(value) or inspect.isclass(value) or hasattr(value, "py_func")
+        if source == module_name and kind:
+            found.append(name)
+    return found
+
+
+def test_the_api_reference_lists_every_module_of_the_library():
+    listed = re.findall(r"^   (tensegrity[\w.]*)$", (DOCS / "api.rst").read_text(), re.M)
+    assert sorted(listed) == sorted(library_modules())
+
+
+def test_the_examples_in_docstrings_run_as_doctests():
+    flags = doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE
+    ran = 0
+    for name in library_modules():
+        path = PACKAGE.parent.joinpath(*name.split("."))
+        source = path / "__init__.py" if path.is_dir() else path.with_suffix(".py")
+        if ">>> " not in source.read_text(encoding="utf-8"):
+            continue
+        result = doctest.testmod(importlib.import_module(name), optionflags=flags)
+        assert result.failed == 0, name
+        ran += result.attempted
+    assert ran >= 6
+
+
+def inventory(path: Path) -> set[str]:
+    """The object names of a Sphinx ``objects.inv``."""
+    data = path.read_bytes().split(b"\n", 4)[4]
+    return {line.split(" ", 1)[0] for line in zlib.decompress(data).decode().splitlines()}
+
+
+def test_the_site_builds_with_warnings_as_errors_and_documents_every_public_name(tmp_path):
+    out = tmp_path / "html"
+    done = subprocess.run(
+        [sys.executable, "-m", "sphinx", "-W", "--keep-going", "-q", "-b", "html",
+         "-d", str(tmp_path / "doctrees"), str(DOCS), str(out)],
+        capture_output=True, text=True, timeout=1200,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr[-5000:]
+    documented = inventory(out / "objects.inv")
+    missing = [
+        f"{module}.{name}"
+        for module in library_modules()
+        for name in public_names(module)
+        if f"{module}.{name}" not in documented
+    ]
+    assert not missing, missing
+    assert len(documented) > 1500
+    # every tutorial ran and shows its figures
+    tutorials = sorted((ROOT / "examples").glob("tutorial_*.py"))
+    assert tutorials
+    for script in tutorials:
+        page = (out / "tutorials" / f"{script.stem}.html").read_text(encoding="utf-8")
+        shown = re.findall(rf"sphx_glr_{script.stem}_\d+\.png", page)
+        made = r"^\w+ = (?:figure_\w+|new_figure)\("  # (each figure a tutorial makes)
+        said = len(re.findall(made, script.read_text(encoding="utf-8"), re.M))
+        assert len(set(shown)) == said, script.name
