@@ -41,6 +41,7 @@ myst_heading_anchors = 3
 autosummary_generate = True
 autosummary_ignore_module_all = False
 autodoc_typehints = "none"
+autodoc_mock_imports = ["stable_baselines3"]  # (an optional extra: tensegrity.envs.sb3 imports it)
 autodoc_member_order = "bysource"
 napoleon_numpy_docstring = True
 napoleon_google_docstring = False
@@ -56,6 +57,7 @@ sphinx_gallery_conf = {
     "download_all_examples": False,
     "remove_config_comments": True,
     "within_subsection_order": "FileNameSortKey",
+    "run_stale_examples": True,  # (every build runs every tutorial: a broken one fails it)
     "image_scrapers": ("matplotlib", "gallery_figures.figure_scraper"),
 }
 
@@ -92,7 +94,10 @@ def _literal_types(
         if match:  # (shapes in the name, ``a (N,), b (S,) : ...``, go to the type)
             name, kind = match.group(1), match.group(2)
             shapes = [f"({shape})" for shape in _SHAPE.findall(name)]
-            name = re.sub(r"\s+,", ",", re.sub(r" {2,}", " ", _SHAPE.sub("", name)))
+            indent = name[: len(name) - len(name.lstrip())]
+            name = indent + re.sub(
+                r"\s+,", ",", re.sub(r" {2,}", " ", _SHAPE.sub("", name.lstrip()))
+            )
             if shapes:
                 kind = ", ".join(shapes) + "; " + kind
             lines[i] = name + _literal(kind)

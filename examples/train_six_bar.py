@@ -12,7 +12,7 @@ script writes to ``--out`` (default ``train-six-bar``):
   :func:`tensegrity.simulate` (``TensegrityEnv.simulate``), with its cables and contacts;
 - ``roll.h5``: that run's trajectory (``tensegrity view --trajectory roll.h5``).
 
-Needs the optional extra: ``pip install 'tensegrity[rl]'``.  The default budget (100,000
+Needs the optional extra: ``pip install '.[rl]'``.  The default budget (100,000
 steps; 41 minutes on a 2-core machine shared with other work) taught the policy to move the
 robot's centre 0.705 m along the heading in an episode of 2 s, tumbling it from tip to tip
 (``docs/environments.md``); CI runs it with ``--steps 2048`` so that it does not go stale.

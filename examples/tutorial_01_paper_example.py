@@ -16,7 +16,7 @@ apart: the structure, the run, and the paper's Figures 18.10 to 18.12.
 # immutable and validated; its arrays are named ``<object>_<property>`` in SI units.
 import numpy as np
 
-from tensegrity import class1_shell, internal_damping, simulate
+from tensegrity import class1_shell, internal_damping, simulate, tendon_tensions
 from tensegrity.plots.figures import figure_structure, figure_tendon_lengths
 
 shell = class1_shell(3, 1)
@@ -26,9 +26,13 @@ k, rest = shell.tendon_stiffness[0], shell.tendon_rest_length[0]
 print("stiffness [N/m]:", k, " rest length [m]:", rest)
 
 # %%
-# Figure 18.10: the start, every node on a cylinder. Tendons are drawn by their tension
-# (all equal here: the nodes sit symmetrically).
-start = figure_structure(shell, shell.node_position, title="Initial configuration (Fig. 18.10)")
+# Figure 18.10: the start, every node on a cylinder, the tendons coloured by the tension they
+# start with (:func:`~tensegrity.tendon_tensions`: far from equal, the shell is not yet at rest).
+tension = tendon_tensions(shell, shell.node_position)
+print(f"tensions at the start: {tension.min():.1f} to {tension.max():.1f} N")
+start = figure_structure(
+    shell, shell.node_position, tension, title="Initial configuration (Fig. 18.10)"
+)
 
 # %%
 # The run

@@ -14,7 +14,7 @@ shortening one string: the rest-length control ``u`` of the paper (``Lbar = L0 -
 # ------------
 # Two triangles of radius 1 m, 1 m apart, the top one turned by 150 degrees (the prism's
 # equilibrium twist); bar ``i`` joins bottom node ``i`` to top node ``i``; the strings are the
-# two triangles and three "verticals" from bottom node ``i`` to top node ``i + 1``.
+# two triangles and three "verticals" from bottom node ``i`` to top node ``i - 1``.
 import numpy as np
 
 from tensegrity import internal_damping, simulate
@@ -36,7 +36,7 @@ def members(pairs: list[tuple[int, int]]) -> np.ndarray:
 
 
 C_b = members([(0, 3), (1, 4), (2, 5)])
-C_s = members([(0, 1), (1, 2), (2, 0), (3, 4), (4, 5), (5, 3), (0, 4), (1, 5), (2, 3)])
+C_s = members([(0, 1), (1, 2), (2, 0), (3, 4), (4, 5), (5, 3), (0, 5), (1, 3), (2, 4)])
 
 # %%
 # The structure: bars of 1 kg, strings of 500 N/m whose rest lengths are 5 % short of their

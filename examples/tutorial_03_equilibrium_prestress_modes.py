@@ -51,7 +51,8 @@ print("lowest frequencies [Hz]:", np.round(modes.frequency_hz[elastic][:5], 3))
 
 # %%
 # The lowest elastic mode, its node displacements scaled to 0.15 m at the largest and drawn on
-# the equilibrium.
+# the equilibrium (the shell's three-fold symmetry makes it one of three modes of the same
+# frequency: any combination of them is a mode too).
 first = elastic[0]
 shape = modes.node_shapes[first]
 moved = eq.node_position + 0.15 * shape / np.abs(shape).max()

@@ -40,8 +40,8 @@ landed = figure_structure(
 # %%
 # Measured motion
 # ---------------
-# Three markers on the first bar's ends and the second's, as a motion-capture system would
-# give them: 30 Hz, 1 mm of noise (:mod:`tensegrity.engine.sensors`).
+# Three markers, one on an end of each bar (the base triangle's corners), as a motion-capture
+# system would give them: 30 Hz, 1 mm of noise (:mod:`tensegrity.engine.sensors`).
 names = robot.node_name[:3]
 (series,) = measure(run, [Sensor("position", nodes=names, noise=1e-3, rate=30.0)], seed=0).series
 markers = {n: (series.t, series.value[:, 3 * i : 3 * i + 3]) for i, n in enumerate(names)}

@@ -13,7 +13,7 @@ VTK time series of the run.
 # :func:`~tensegrity.io.mjcf.to_mjcf` writes the (3,1) shell with its start on the cylinder;
 # MuJoCo's RK4 at 0.1 ms and this engine's DOP853 run the same 0.5 s of free motion.
 from pathlib import Path
-from tempfile import mkdtemp
+from tempfile import TemporaryDirectory
 
 import mujoco
 import numpy as np
@@ -45,6 +45,6 @@ ax.set_ylabel("MuJoCo against this engine [m]")
 # --------
 # :func:`~tensegrity.io.vtk.write_vtk` writes one ``.vtp`` per sample and a ``.pvd``
 # collection that ParaView opens as a time series (``tensegrity vtk FILE.h5`` from the shell).
-folder = Path(mkdtemp())
-files = write_vtk(folder, ours, every=10)
-print(len(files), "files, the collection:", files[-1].name)
+with TemporaryDirectory() as folder:
+    files = write_vtk(Path(folder), ours, every=10)
+    print(len(files), "files, the collection:", files[-1].name)

@@ -36,7 +36,7 @@ iio = pytest.importorskip("imageio.v2")
 
 @pytest.fixture(scope="module")
 def shell31():
-    """The README's example, 2 s sampled every 10 ms: it moves a lot, then settles."""
+    """The paper's example, 2 s sampled every 10 ms: it moves a lot, then settles."""
     return simulate(artificial_damping(class1_shell(3, 1)), (0.0, 2.0), sample_dt=0.01)
 
 

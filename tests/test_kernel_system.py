@@ -4,10 +4,10 @@ with it.
 
 Structures: a free class 1 shell (the existing kernel, to its last ulps), free and fixed-base
 class 2 shells (joints, fixed rod nodes), a pinned rod, a point mass between anchors, the
-README's crane (a pinned rod, a tendon to an anchor, a payload joined to its tip), the hanging
-chain (a joint to an anchor), a tripod on planes, rods and a point mass on lines, a rod held at
-both ends (redundant rows, a singular ``K``) tied to a free one, and planar structures through
-``embed_planar``.
+crane of docs/python.md (a pinned rod, a tendon to an anchor, a payload joined to its tip),
+the hanging chain (a joint to an anchor), a tripod on planes, rods and a point mass on lines, a
+rod held at both ends (redundant rows, a singular ``K``) tied to a free one, and planar
+structures through ``embed_planar``.
 States are off the constraints (positions perturbed), with random velocities, tendon and rod
 damping, a third of the tendons slack, gravity and external forces.
 """
@@ -66,8 +66,8 @@ def point_mass_between_anchors() -> Structure:
 
 
 def crane() -> Structure:
-    """The README's example: a rod pinned at node 0, a tendon to an anchor (node 2), a payload
-    (node 3) joined to the rod's tip."""
+    """The crane of docs/python.md: a rod pinned at node 0, a tendon to an anchor (node 2), a
+    payload (node 3) joined to the rod's tip."""
     return Structure(
         node_position=[[0, 0, 0], [1, 0, 0], [0, 0, 1], [1, 0, 0]],
         rod_nodes=[[0, 1]],

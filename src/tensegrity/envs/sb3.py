@@ -3,7 +3,7 @@
 with Stable-Baselines3's conventions (an ended episode resets in the same step, its last
 observation in ``infos[i]["terminal_observation"]``, ``infos[i]["TimeLimit.truncated"]``).
 
-Needs the optional extra ``rl`` (``pip install 'tensegrity[rl]'``: Stable-Baselines3 and
+Needs the optional extra ``rl`` (``pip install '.[rl]'``: Stable-Baselines3 and
 PyTorch)::
 
     from stable_baselines3 import PPO
