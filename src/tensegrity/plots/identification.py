@@ -60,7 +60,9 @@ def figure_fit(
                     ax.plot(runs[which].t, curves[which][:, c], style, lw=1.2, label=which)
             ax.set_ylabel(label)
     axes[0, 0].legend(fontsize=7, loc="best")
-    for c in range(dim):
-        axes[-1, c].set_xlabel("t [s]")
+    for c in range(dim):  # (the time axis under each column's lowest drawn plot)
+        lowest = [ax for ax in axes[:, c] if ax.axison][-1]
+        lowest.tick_params(labelbottom=True)
+        lowest.set_xlabel("t [s]")
     figure.suptitle(f"{experiment.name}: rms error {fit.rms_summary()}")
     return save_png(figure, path, dpi=FIGURE_DPI)
