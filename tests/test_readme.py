@@ -66,10 +66,17 @@ def test_the_cli_pages_command_lines_run_in_order_in_an_empty_folder(tmp_path):
 def test_the_readmes_tour_runs(tmp_path):
     """The Python block, then the shell block, in an empty folder."""
     (python,) = blocks(README, "python")
+    said = "\nprint(run.message, f'{modal_analysis(linearize(shell, eq)).frequency_hz[6]:.3f}')"
     done = subprocess.run(
-        [sys.executable, "-c", python], cwd=tmp_path, capture_output=True, text=True, timeout=600
+        [sys.executable, "-c", python + said],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=600,
     )
     assert done.returncode == 0, done.stderr[-3000:]
+    assert done.stdout.split() == ["steady", "state", "at", "t", "=", "4.04", "s", "2.129"]
+    assert "'steady state at t = 4.04 s'" in python and "2.129 Hz" in python  # (as it says)
     quick_start, tour = blocks(README, "bash")
     assert command_lines(quick_start) == [
         "pip install . && tensegrity simulate",
