@@ -563,6 +563,22 @@ def test_checkpoint_outside_the_layout_is_refused(tmp_path, secret):
     assert_refused(read_checkpoint, partial, "'current'")
 
 
+def test_a_torn_copy_of_a_checkpoint_is_refused_in_one_line(tmp_path):
+    """A partial file copied while the run wrote its checkpoint: the superblock from before the
+    write, the engine state's group grown past the end it records.  h5py raised a bare
+    ``RuntimeError`` ("Link iteration failed (addr overflow ...)") listing the group (seen in
+    CI, where ``tests/test_cli_resume.py`` reads such copies); now one line naming the file."""
+    partial, _ = _partial(tmp_path)
+    before = partial.read_bytes()
+    with h5py.File(partial, "a") as f:
+        current = "ab"[int(f["checkpoint"].attrs["current"])]
+        loop = f["checkpoint"][current]["loop"]
+        for i in range(40):  # past the compact link storage: a new heap at the end of the file
+            loop[f"extra{i}"] = np.zeros(3)
+    partial.write_bytes(before[:48] + partial.read_bytes()[48:])
+    assert_refused(read_checkpoint, partial, f"group 'checkpoint/{current}/loop'", "damaged")
+
+
 def test_resume_does_not_write_into_a_file_a_dataset_points_at(tmp_path, secret):
     """A partial file whose ``t`` is stored in another file: resuming refuses it, and the other
     file is unchanged (the run would append its samples there)."""

@@ -129,6 +129,19 @@ def _stored_object(group: Any, name: str, path: PathLike, kind: str) -> Any:
     raise file_error(path, f"{kind} {where!r} is a {type(link).__name__}, not in the file")
 
 
+def hdf5_names(group: Any, path: PathLike) -> list[str]:
+    """The names of the links in ``group``; ``ValueError`` if HDF5 cannot list them (a damaged
+    file, e.g. copied while it was written: h5py raises ``RuntimeError``)."""
+    try:
+        return list(group)
+    except (KeyError, OSError, RuntimeError) as exc:
+        problem = " ".join(str(exc).split()) or type(exc).__name__
+        where = group.name.strip("/") or "/"
+        raise file_error(
+            path, f"group {where!r} cannot be listed, the file is damaged ({problem})"
+        ) from exc
+
+
 def hdf5_group(group: Any, name: str, path: PathLike) -> Any | None:
     """The subgroup ``name`` of ``group`` stored in the file, or ``None`` if there is none.
 

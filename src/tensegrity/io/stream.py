@@ -110,6 +110,7 @@ from tensegrity.io.checked import (
     attribute_text,
     hdf5_dataset,
     hdf5_group,
+    hdf5_names,
     read_datasets,
 )
 from tensegrity.io.files import (
@@ -637,7 +638,10 @@ def _checkpoint_in(slot, path: PathLike) -> Checkpoint:
     datasets = {name: _slot_dataset(slot, name, path) for name in ("q", "qdot")}
     loop = hdf5_group(slot, "loop", path)
     if loop is not None:
-        datasets |= {f"loop/{name}": _slot_dataset(loop, name, path, NUMBERS) for name in loop}
+        datasets |= {
+            f"loop/{name}": _slot_dataset(loop, name, path, NUMBERS)
+            for name in hdf5_names(loop, path)
+        }
     arrays = read_datasets(datasets, path)
     if not (arrays["q"].ndim == 1 and arrays["q"].shape == arrays["qdot"].shape):
         raise file_error(

@@ -87,6 +87,7 @@ from tensegrity.io.checked import (
     check_attributes,
     check_read_bytes,
     hdf5_dataset,
+    hdf5_names,
     open_hdf5,
 )
 from tensegrity.io.files import file_error, read_input
@@ -649,7 +650,10 @@ def _check_sweep_file(f: Any, path: PathLike) -> None:
         raise file_error(path, "missing attribute 'spec' (not a tensegrity sweep file)")
     check_attributes(f, path)
     attribute_json(f, "spec", path)
-    datasets = [hdf5_dataset(f, name, path, kinds=SWEEP_KINDS.get(name, NUMBERS)) for name in f]
+    datasets = [
+        hdf5_dataset(f, name, path, kinds=SWEEP_KINDS.get(name, NUMBERS))
+        for name in hdf5_names(f, path)
+    ]
     for dataset in datasets:
         check_attributes(dataset, path)
     check_read_bytes(datasets, path)
