@@ -4,7 +4,8 @@ docs/_build/html``; built by ``tests/test_docs.py``).
 The pages are the markdown files of this folder (MyST), the tutorials are the scripts of
 ``examples/`` run by sphinx-gallery, and the API reference is generated from the docstrings
 (autosummary, one page per module of :data:`API_PACKAGES`, NumPy-style docstrings through
-napoleon).
+napoleon).  It needs the test extra (``pip install '.[test]'``: Sphinx, MyST, furo,
+sphinx-gallery, and what the tutorials run, Stable-Baselines3 among it).
 """
 
 from __future__ import annotations
@@ -16,6 +17,9 @@ from pathlib import Path
 from typing import Any
 
 os.environ.setdefault("MPLBACKEND", "Agg")
+# (the sweep tutorial's Dask cluster would print its start-up and shut-down lines into the
+# build's output: Dask reads its logging levels from the environment when first imported)
+os.environ.setdefault("DASK_LOGGING__DISTRIBUTED", "warning")
 sys.path.insert(0, str(Path(__file__).parent / "_ext"))  # (the gallery's figure scraper)
 
 project = "tensegrity"
@@ -41,7 +45,6 @@ myst_heading_anchors = 3
 autosummary_generate = True
 autosummary_ignore_module_all = False
 autodoc_typehints = "none"
-autodoc_mock_imports = ["stable_baselines3"]  # (an optional extra: tensegrity.envs.sb3 imports it)
 autodoc_member_order = "bysource"
 napoleon_numpy_docstring = True
 napoleon_google_docstring = False

@@ -28,7 +28,7 @@ from tensegrity.plots.motion import (
     structure_frames,
     tension_colors,
 )
-from tensegrity.plots.viewer import frame_budget, html, read_viewer_data, view
+from tensegrity.plots.viewer import frame_budget, html, notebook_html, read_viewer_data, view
 from test_kernel_system import point_mass_between_anchors
 
 iio = pytest.importorskip("imageio.v2")
@@ -473,6 +473,16 @@ def test_results_and_structures_are_shown_inline():
     for shown in (result, shell):
         inline = ipython.display_formatter.format(shown)[0]["text/html"]
         assert inline.startswith("<iframe srcdoc=") and "tensegrity-data" in inline
+
+
+def test_the_notebook_page_shows_as_html_where_a_front_end_asks_for_it():
+    """``notebook_html`` is a ``str`` that front ends without IPython's formatter (VS Code,
+    marimo, sphinx-gallery: the tutorials' inline viewer) render by its ``_repr_html_``."""
+    from tensegrity import class1_shell
+
+    page = notebook_html(class1_shell(3, 1))
+    assert isinstance(page, str) and page._repr_html_() == str(page)
+    assert page.startswith("<iframe srcdoc=") and "tensegrity-data" in page
 
 
 def test_the_package_shows_results_inline_under_ipython():

@@ -103,3 +103,35 @@ def test_the_site_builds_with_warnings_as_errors_and_documents_every_public_name
         made = r"^\w+ = (?:figure_\w+|new_figure)\("  # (each figure a tutorial makes)
         said = len(re.findall(made, script.read_text(encoding="utf-8"), re.M))
         assert len(set(shown)) == said, script.name
+
+
+#: What no page of ``docs/`` may say outside code (issue 33: clock times belong on the benchmark
+#: pages, ``benchmarks/README.md`` and ``benchmarks/history.md``): a date, a time of day, a
+#: measured wall-clock or CPU time, the host's history. Simulated times (``20 s``, ``a 5 ms
+#: lag``) match none of these.
+CLOCK_TIME = re.compile(
+    r"\b20\d\d-\d\d-\d\d\b"  # 2026-11-26
+    r"|\b\d{1,2}:\d{2}\b|\bUTC\b"  # 05:33 UTC
+    r"|\b(?:took|takes?)\s+(?:about\s+|only\s+)?\d[\d.,]*\s?(?:s|ms|µs|min|minutes|seconds|hours?)\b"
+    r"|\b\d[\d.]*\s?(?:s|ms)\s+against\s+\d[\d.]*\s?(?:s|ms)\b"  # 1.21 s against 2.14 s
+    r"|\b\d[\d.,]*\s?(?:s|ms|µs|min|minutes|seconds)\s+(?:of\s+)?(?:wall|CPU)\b"  # 29 s wall time
+    r"|\b\d[\d.,]*\s?(?:ns|µs|ms)\s+(?:a|per|each)\s+(?:frame|step|evaluation|tendon|call|sample)\b"
+    r"|\bthe host (?:was|is)\b"  # the host was about 10% faster then
+)
+
+
+def clock_times(text: str) -> list[str]:
+    """The clock times of a markdown page, its fenced code blocks and inline code left out (a
+    command's range ``load=0:20``, a message the program prints)."""
+    text = re.sub(r"^```.*?^```[ \t]*$", "", text, flags=re.M | re.S)
+    text = re.sub(r"`[^`]*`", "", text)
+    return [match.group(0) for match in CLOCK_TIME.finditer(text)]
+
+
+def test_the_pages_have_no_clock_times_outside_the_benchmark_pages():
+    found = {
+        page.name: clock_times(page.read_text(encoding="utf-8"))
+        for page in sorted(DOCS.glob("*.md"))
+    }
+    found = {name: times for name, times in found.items() if times}
+    assert not found, found

@@ -85,6 +85,19 @@ def test_the_readmes_tour_runs(tmp_path):
     run_in_order(command_lines(tour), tmp_path)
 
 
+def test_ci_runs_both_quick_start_commands_in_its_fresh_environment():
+    """``.ci/run`` runs the first command before any extra is installed (its results in a
+    scratch folder) and the second verbatim, last."""
+    first, second = command_lines(blocks(README, "bash")[0])
+    install, main_job = first.split(" && ")
+    ci = (ROOT / ".ci" / "run").read_text(encoding="utf-8").splitlines()
+    runs = [line for line in ci if line.strip() and not line.lstrip().startswith("#")]
+    first_run = next(k for k, line in enumerate(runs) if main_job in line)
+    assert runs[first_run].startswith(install.replace("pip install", "pip install --quiet"))
+    assert not any(".[" in line for line in runs[:first_run])  # (no extra installed before it)
+    assert second in runs[-8:]  # (then its exit status is CI's)
+
+
 def test_the_readme_is_short_and_has_no_clock_times():
     text = README.read_text(encoding="utf-8")
     assert len(text.encode()) <= README_LIMIT

@@ -11,6 +11,11 @@
   buckling, at a state or over a run.
 - :mod:`~tensegrity.design.sizing` — minimal-mass member sizing under yield and buckling for a
   prestress and load cases (linear programs, ``docs/design.md``).
+- :mod:`~tensegrity.design.loaded` — sizing at the loaded, deformed equilibrium (structures
+  that carry a load only after they move: prisms, towers, shells), each case followed by load
+  steps checked stable.
+- :mod:`~tensegrity.design.least_mass` — the least mass at the loaded equilibrium (lighter
+  than the fully stressed design for a statically indeterminate structure).
 - :mod:`~tensegrity.design.dynamic` — the dynamic check: a structure under each load case
   applied suddenly, the members' largest utilisation in motion.
 - :mod:`~tensegrity.design.files` — structure files in the material form (members by material

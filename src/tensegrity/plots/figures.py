@@ -73,6 +73,8 @@ MAX_TENDON_LINES = 500
 
 
 def new_figure(figsize: tuple[float, float]) -> Figure:
+    """A matplotlib ``Figure`` of ``figsize`` (width, height) [inches], constrained layout, with
+    its own Agg canvas: outside pyplot's figure manager (nothing left open, safe in threads)."""
     figure = Figure(figsize=figsize, layout="constrained")
     FigureCanvasAgg(figure)
     return figure

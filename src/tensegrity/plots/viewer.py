@@ -75,6 +75,7 @@ if TYPE_CHECKING:
 __all__ = [
     "MAX_BYTES",
     "MAX_FRAMES",
+    "HtmlText",
     "frame_budget",
     "html",
     "notebook_html",
@@ -271,6 +272,14 @@ def view(
     return path
 
 
+class HtmlText(str):
+    """Text of HTML that a notebook (Jupyter, VS Code, marimo) or a sphinx-gallery page shows
+    rendered when it is a cell's value (``_repr_html_``); otherwise a plain ``str``."""
+
+    def _repr_html_(self) -> str:
+        return str(self)
+
+
 def notebook_html(
     what: SimulationResult | Structure | Frames,
     *,
@@ -278,12 +287,13 @@ def notebook_html(
     max_bytes: int = 8_000_000,
     height: int = 520,
     check: MemberCheck | None = None,
-) -> str:
+) -> HtmlText:
     """The viewer inside an ``<iframe srcdoc>``, for Jupyter (:func:`tensegrity.plots.show_inline`):
     the page of :func:`html` (``check``: a run's members by utilisation too), with smaller default
-    limits, ``height`` pixels high."""
+    limits, ``height`` pixels high.  As a cell's value it shows as the viewer in any front end
+    that renders ``_repr_html_`` (:class:`HtmlText`)."""
     page = html(what, max_frames=max_frames, max_bytes=max_bytes, check=check)
-    return (
+    return HtmlText(
         f'<iframe srcdoc="{html_text.escape(page, quote=True)}" '
         f'style="width:100%;height:{int(height)}px;border:1px solid #ddd" '
         'sandbox="allow-scripts"></iframe>'

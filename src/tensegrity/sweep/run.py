@@ -805,6 +805,8 @@ def run_sweep(
     processes : bool
         LocalCluster workers as processes (default) or threads of this process.  Its worker
         processes ignore Ctrl-C (this process stops them) and its Dask logging is silenced.
+        They are started by ``spawn``, which imports the calling script again: a script that
+        runs a sweep with processes needs an ``if __name__ == "__main__":`` guard around it.
     progress : bool or callable
         True: a ``tqdm`` bar over cases on stderr; a callable receives ``(cases_done, cases)``.
 
