@@ -7,7 +7,7 @@ next cable triangles, along a zig-zag about a straight line.  This script simula
 draws the centre of mass's path over the ground and the faces it stood on
 (``rolling_six_bar.png`` in ``--out``, default the current folder); ``--tables`` also writes the
 robot on its face with its scene (``six_bar_roll.json``) and the control table
-(``six_bar_roll.csv``) there, as they are in ``examples/``.  Runs in about 20 s.
+(``six_bar_roll.csv``) there, as they are in ``examples/``.
 
 The same run from the shell (the structure file carries the ground, friction 0.8/0.6, contact
 radius 1 cm and gravity)::

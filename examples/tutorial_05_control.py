@@ -1,10 +1,11 @@
 """
-Controllability and an LQR controller
-=====================================
+Controllability, an LQR controller and shape control
+====================================================
 
 Which motions of the (3,1) shell can its tendons' rest lengths move, and a controller that
 damps them: a linear-quadratic regulator on the modes the controls reach, run inside the
-compiled loop through actuators with a lag, against the open loop.
+compiled loop through actuators with a lag, against the open loop. Then shape control: the
+shell shortened and twisted back by a plan of equilibria, played in time with LQR feedback.
 """
 
 # %%
@@ -20,6 +21,7 @@ from tensegrity.analysis.controllability import controllability
 from tensegrity.analysis.equilibrium import find_equilibrium
 from tensegrity.analysis.linearize import linearize
 from tensegrity.analysis.modes import modal_analysis
+from tensegrity.analysis.shape_control import closed_loop, height_twist, quasi_static, shell_rings
 from tensegrity.model.actuators import actuators
 from tensegrity.physics.dynamics import coordinates_from_nodes
 from tensegrity.plots.figures import new_figure
@@ -77,3 +79,36 @@ for label, run in runs.items():
 ax.set_xlabel("t [s]")
 ax.set_ylabel("largest tendon stretch [mm]")
 ax.legend()
+
+# %%
+# Shape control
+# -------------
+# The outputs here are the height and the twist of the top ring over the bottom one
+# (:func:`~tensegrity.analysis.shape_control.height_twist`, with analytic Jacobians).
+# :func:`~tensegrity.analysis.shape_control.quasi_static` plans a sequence of equilibria: the
+# shell shortened to 85 % of its height by the ``t1`` tendons alone (the twist left free: it
+# turns), then twisted back with every tendon, each step the least change of the rest lengths
+# that moves the outputs there, every tendon kept at 1 N or more.
+bottom, top = shell_rings(3, 1)
+output = height_twist(eq.node_position, bottom, top)
+height = output.value(eq.node_position)[0]
+phases = [{"targets": (0.85 * height, None), "actuators": "t1_*"}, (0.85 * height, 0.0)]
+plan = quasi_static(shell, output, phases, start=eq, steps=[6, 3])
+print(f"plan of {len(plan.equilibria) - 1} steps: {plan.message}")
+print(f"twist after the first phase: {plan.outputs[6][1]:.3f} rad")
+
+# %%
+# :func:`~tensegrity.analysis.shape_control.closed_loop` plays the plan in time (2 s a
+# phase, then 3 s to settle) as a feed-forward of rest lengths and states, with an LQR gain
+# designed at the final equilibrium on the deviations, on the nonlinear model with its slack
+# law.
+loop = closed_loop(plan)
+print(loop.message)
+shape = new_figure((7.0, 4.5))
+height_ax, twist_ax = shape.subplots(2, 1, sharex=True)
+for ax, k, unit in ((height_ax, 0, "height [m]"), (twist_ax, 1, "twist [rad]")):
+    ax.plot(loop.t, loop.reference_outputs[:, k], "--", color="0.5", label="plan")
+    ax.plot(loop.t, loop.outputs[:, k], label="closed loop")
+    ax.set_ylabel(unit)
+height_ax.legend()
+twist_ax.set_xlabel("t [s]")

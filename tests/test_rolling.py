@@ -4,6 +4,9 @@ rolls over the faces the plan predicts, along its heading, with the energy balan
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -74,6 +77,26 @@ def test_the_example_files_hold_the_plan(plan):
     table = read_control_table(EXAMPLES / "six_bar_roll.csv", structure)
     np.testing.assert_array_equal(table.time, plan.control.time)
     np.testing.assert_array_equal(table.control, plan.control.control)
+
+
+def test_the_example_script_writes_its_figure_and_tables_and_rolls_as_planned(tmp_path):
+    """``examples/rolling_six_bar.py`` on one step (its default is three): it writes what its
+    docstring says, and the faces of its run are the planned ones."""
+    done = subprocess.run(
+        [sys.executable, str(EXAMPLES / "rolling_six_bar.py"), "--steps", "1", "--tables"],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=600,
+        env={**os.environ, "MPLBACKEND": "Agg"},
+    )
+    assert done.returncode == 0, done.stderr[-3000:]
+    written = {"rolling_six_bar.png", "six_bar_roll.json", "six_bar_roll.csv"}
+    assert {path.name for path in tmp_path.iterdir()} == written
+    planned = done.stdout.splitlines()[0].removeprefix("planned faces: ").split(" -> ")
+    ran = done.stdout.splitlines()[1].removeprefix("faces in the run: ").split(" -> ")
+    assert len(planned) == 3  # (the face it stands on, and a step tips it twice)
+    assert [face.split(" at ")[0] for face in ran] == planned
 
 
 def test_each_step_puts_the_centre_of_mass_past_its_edge_with_the_cables_taut(robot, plan):
