@@ -214,6 +214,37 @@ def test_a_blitted_frame_is_the_whole_figure_drawn(shell31):
         np.testing.assert_array_equal(blitted, whole)
 
 
+@pytest.mark.parametrize("size", [(800, 640), (480, 384), (320, 256), (160, 160)])
+def test_a_frames_counts_stay_clear_of_its_time_and_energies(size):
+    """The counts of a run on the ground ("3 rods, 9 tendons, 0 slack, 3 ends sticking, 0
+    slipping") are broken into lines where the picture is too narrow for them beside the time
+    and energies (at 480x384 one line ran into the energies), or go under them."""
+    from tensegrity.design.catalogue import three_bar_robot
+    from tensegrity.model.ground import ground
+    from tensegrity.plots.animation import _Scene, _text_mask
+
+    run = simulate(three_bar_robot(), (0.0, 0.05), gravity=[0, 0, -9.81], ground=ground())
+    frames = make_frames(run, np.array([0, len(run.t) - 1]))
+    scene = _Scene(frames, size=size, view=None)
+    lines = ["t =    0.050 s", "E       = 28.85 J", "E_kin   = 11.55 J", "E_el    = 6.75 J"]
+    count = "3 rods, 9 tendons, 1 slack (dashed), 3 ends sticking, 0 slipping"
+    placed = scene.text_layout(lines, count)
+    boxes = [(x, y, x + mask.shape[1], y + mask.shape[0]) for mask, (x, y), _ in placed]
+    for k, a in enumerate(boxes):
+        assert 0 <= a[0] and a[2] <= size[0], (a, size)  # (within the picture's width)
+        for b in boxes[k + 1 :]:
+            assert a[2] <= b[0] or b[2] <= a[0] or a[3] <= b[1] or b[3] <= a[1], (a, b)
+    rows = len(placed) - 1
+    if size == (800, 640):
+        assert rows == 1
+    if size == (480, 384):  # (where the count on one line ran into the energies)
+        one_line = _text_mask(count, scene.fonts["sans-serif"])
+        assert scene.count_at[0] - one_line.shape[1] < boxes[0][2]
+        assert rows >= 2
+    picture = scene.show(1)  # (and the frame is drawn with it)
+    assert picture.shape == (size[1], size[0], 3)
+
+
 def test_text_beyond_the_picture_is_cut_off():
     """A text wider than the picture, or placed left of or above it, is written where it falls
     inside and nowhere else (a negative start must not wrap to the other edge)."""
