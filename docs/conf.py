@@ -4,8 +4,9 @@ docs/_build/html``; built by ``tests/test_docs.py``).
 The pages are the markdown files of this folder (MyST), the tutorials are the scripts of
 ``examples/`` run by sphinx-gallery, and the API reference is generated from the docstrings
 (autosummary, one page per module of :data:`API_PACKAGES`, NumPy-style docstrings through
-napoleon).  It needs the test extra (``pip install '.[test]'``: Sphinx, MyST, furo,
-sphinx-gallery, and what the tutorials run, Stable-Baselines3 among it).
+napoleon).  It needs the docs extra (``pip install '.[docs]'``: Sphinx, MyST, furo,
+sphinx-gallery, and what the tutorials run, MuJoCo and Stable-Baselines3; the test extra has
+them too).
 """
 
 from __future__ import annotations

@@ -12,8 +12,9 @@ apart: the structure, the run, and the paper's Figures 18.10 to 18.12.
 # The structure
 # -------------
 # :func:`~tensegrity.model.shell.class1_shell` builds the shell of ``n x m`` elements with the
-# closure rules of the paper (``docs/paper-notes.md``). A :class:`~tensegrity.Structure` is
-# immutable and validated; its arrays are named ``<object>_<property>`` in SI units.
+# closure rules of the paper (``docs/paper-notes.md``). A
+# :class:`~tensegrity.model.structure.Structure` is immutable and validated; its arrays are named
+# ``<object>_<property>`` in SI units.
 import numpy as np
 
 from tensegrity import class1_shell, internal_damping, simulate, tendon_tensions
@@ -26,8 +27,9 @@ k, rest = shell.tendon_stiffness[0], shell.tendon_rest_length[0]
 print("stiffness [N/m]:", k, " rest length [m]:", rest)
 
 # %%
-# Figure 18.10: the start, every node on a cylinder, the tendons coloured by the tension they
-# start with (:func:`~tensegrity.tendon_tensions`: far from equal, the shell is not yet at rest).
+# Figure 18.10: the start, every node on a cylinder, the tendons coloured by the tension they start
+# with (:func:`~tensegrity.physics.dynamics.tendon_tensions`: far from equal, the shell is not yet
+# at rest).
 tension = tendon_tensions(shell, shell.node_position)
 print(f"tensions at the start: {tension.min():.1f} to {tension.max():.1f} N")
 start = figure_structure(
@@ -38,8 +40,8 @@ start = figure_structure(
 # The run
 # -------
 # The paper damps the shell with an "artificial critical damping" it does not define; ours
-# (:func:`~tensegrity.internal_damping`) damps each tendon critically and the rods' motion
-# relative to the structure's rigid motion, so that nothing drags the shell through space.
+# (:func:`~tensegrity.physics.dynamics.internal_damping`) damps each tendon critically and the rods'
+# motion relative to the structure's rigid motion, so that nothing drags the shell through space.
 # ``steady_state=True`` ends the run when every node is at rest. DOP853 locates each slack/taut
 # switch of a tendon inside the step it happens in.
 run = simulate(internal_damping(shell), (0.0, 20.0), steady_state=True, sample_dt=0.01)

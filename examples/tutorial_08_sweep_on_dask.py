@@ -13,14 +13,14 @@ load=0,5,10,20,40 --t-end 5 --dt 1e-3 --sample-dt 0.05 -o sweep.nc``.
 # %%
 # The cases
 # ---------
-# :class:`~tensegrity.sweep.run.SweepSpec` names the parameters that vary and how each case
-# runs. Without ``structure`` the cases are class 1 shells; here they are copies of one
-# structure: :func:`~tensegrity.design.catalogue.prism`, prestressed to a mean tension of 5 N,
-# its three bottom nodes fixed to the ground, with :func:`~tensegrity.internal_damping` so that
-# every case settles into its loaded equilibrium. ``stiffness`` [N/m] is every tendon's;
-# ``load`` [N] is a total force down on the top nodes, shared equally (the sweep pushes the
-# lowest nodes up by as much, which the supports take here). What is not varied keeps the
-# structure's own values: its rest lengths, so the prestress grows with the stiffness.
+# :class:`~tensegrity.sweep.run.SweepSpec` names the parameters that vary and how each case runs.
+# Without ``structure`` the cases are class 1 shells; here they are copies of one structure:
+# :func:`~tensegrity.design.catalogue.prism`, prestressed to a mean tension of 5 N, its three bottom
+# nodes fixed to the ground, with :func:`~tensegrity.physics.dynamics.internal_damping` so that
+# every case settles into its loaded equilibrium. ``stiffness`` [N/m] is every tendon's; ``load``
+# [N] is a total force down on the top nodes, shared equally (the sweep pushes the lowest nodes up
+# by as much, which the supports take here). What is not varied keeps the structure's own values:
+# its rest lengths, so the prestress grows with the stiffness.
 from pathlib import Path
 from tempfile import TemporaryDirectory
 
@@ -44,7 +44,7 @@ print(spec.n_cases, "cases; case 7:", cases[7])
 # %%
 # :func:`~tensegrity.sweep.run.plan` says how the cases become Dask tasks for a cluster of two
 # worker threads: free class 1 structures run in batches, one per thread; a structure with
-# supports runs one :func:`~tensegrity.simulate` task per case.
+# supports runs one :func:`~tensegrity.engine.simulate.simulate` task per case.
 tasks = plan(spec, cases, 2)
 print(len(tasks), "tasks; the first:", tasks[0])
 
@@ -108,12 +108,12 @@ print(f"(200 N/m, 10 N) against (100 N/m, 5 N): {float(same):.1e} mm apart")
 # %%
 # On the way there
 # ----------------
-# The series keep the time. The damping is the structure's own in every case (``damping`` is
-# not varied): :func:`~tensegrity.internal_damping` made it critical for 100 N/m, so the
-# stiffer prisms are less than critically damped and overshoot. Two summaries from the series,
-# by reductions over ``t``: the largest displacement over the settled one, and the time after
-# which each loaded case stays within 1 % of its settled displacement. The figure shows the
-# cases of 200 N/m, each load a line.
+# The series keep the time. The damping is the structure's own in every case (``damping`` is not
+# varied): :func:`~tensegrity.physics.dynamics.internal_damping` made it critical for 100 N/m, so
+# the stiffer prisms are less than critically damped and overshoot. Two summaries from the series,
+# by reductions over ``t``: the largest displacement over the settled one, and the time after which
+# each loaded case stays within 1 % of its settled displacement. The figure shows the cases of 200
+# N/m, each load a line.
 left = float(ds.kinetic_energy.isel(t=-1).max())
 print(f"kinetic energy left at {float(ds.t[-1]):g} s, the most of any case: {left:.1e} J")
 loaded = grid.max_displacement.sel(load=[5.0, 10.0, 20.0, 40.0])

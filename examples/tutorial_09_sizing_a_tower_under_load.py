@@ -129,11 +129,11 @@ ax.legend(loc="lower right")
 # %%
 # Checked in motion
 # -----------------
-# The sizing's equilibria come from the nonlinear statics; the engine checks them
-# independently. The sized structure (:attr:`~tensegrity.design.sizing.Sizing.structure`),
-# damped by :func:`~tensegrity.internal_damping`, stands under gravity while the top load
-# grows over 2 s and is then held, until it comes to rest; its members' utilisation at every
-# sample comes from :func:`~tensegrity.design.utilisation.run_utilisation`.
+# The sizing's equilibria come from the nonlinear statics; the engine checks them independently. The
+# sized structure (:attr:`~tensegrity.design.sizing.Sizing.structure`), damped by
+# :func:`~tensegrity.physics.dynamics.internal_damping`, stands under gravity while the top load
+# grows over 2 s and is then held, until it comes to rest; its members' utilisation at every sample
+# comes from :func:`~tensegrity.design.utilisation.run_utilisation`.
 def slowly(t: float) -> np.ndarray:
     """The top load, grown linearly over 2 s [N]."""
     return min(t / 2.0, 1.0) * down

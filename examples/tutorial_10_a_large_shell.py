@@ -11,8 +11,8 @@ at a time, and the analyses that need dense matrices kept to smaller shells.
 # %%
 # The structure
 # -------------
-# :func:`~tensegrity.class1_shell` builds any ``n x m`` shell by the paper's closure rules;
-# its nodes start on a cylinder. The engine packs the tendons once for the compiled kernel,
+# :func:`~tensegrity.model.shell.class1_shell` builds any ``n x m`` shell by the paper's closure
+# rules; its nodes start on a cylinder. The engine packs the tendons once for the compiled kernel,
 # whatever their number.
 from pathlib import Path
 from tempfile import TemporaryDirectory
@@ -54,15 +54,9 @@ slack = (tension <= 0.0).sum(axis=1)
 print(f"tensions {tension.shape}: slack tendons from {slack[0]} to {slack[-1]}")
 overview = read_trajectory(path, every=25)
 print(f"overview: {overview.t.size} samples at t = {np.round(overview.t, 2)}")
-energy = overview.energy
-balance = (
-    energy["kinetic"]
-    + energy["elastic"]
-    + energy["dissipated"]
-    - energy["external_work"]
-    - energy["control_work"]
-)
-print(f"energy balance held to {np.ptp(balance) / energy['elastic'][0]:.1e} of the elastic energy")
+balance = overview.total_energy  # E_kin + E_el + E_grav + E_d - W_w - W_u [J]
+elastic = overview.energy["elastic"][0]
+print(f"energy balance held to {np.ptp(balance) / elastic:.1e} of the elastic energy")
 
 curves = new_figure((7.0, 3.0))
 ax = curves.subplots()
@@ -73,9 +67,10 @@ ax.set_ylabel("slack tendons")
 # %%
 # The shell after 1 s
 # -------------------
-# Drawn with its tendons coloured by tension (slack ones dashed red); the viewer and the
-# animations take the file as they take a run in memory, keeping at most a budget of frames
-# (:doc:`tutorial_11_viewer_and_animations`).
+# Drawn with its tendons coloured by tension (slack ones dashed red). The viewer and the
+# videos read such a file a part at a time (``tensegrity view run.h5``, ``tensegrity animate
+# run.h5``; :func:`~tensegrity.plots.motion.read_frames` in Python), keeping at most a budget
+# of frames (:doc:`tutorial_11_viewer_and_animations`).
 last = overview.node_position[-1]
 picture = figure_structure(
     shell, last, overview.tendon_tension[-1], title="The (30,30) shell after 1 s"

@@ -84,9 +84,9 @@ print(f"learned for {agent.num_timesteps} steps")
 # The policy in a whole run
 # -------------------------
 # :meth:`~tensegrity.envs.base.TensegrityEnv.simulate` runs a policy in
-# :func:`~tensegrity.simulate` from a reset: the whole run (every sample's nodes, tensions,
-# energies and contact modes), for the viewer, the videos and the files, ending each control
-# period where :meth:`~tensegrity.envs.base.TensegrityEnv.step` would.
+# :func:`~tensegrity.engine.simulate.simulate` from a reset: the whole run (every sample's nodes,
+# tensions, energies and contact modes), for the viewer, the videos and the files, ending each
+# control period where :meth:`~tensegrity.envs.base.TensegrityEnv.step` would.
 single = vector.venv.vector.envs[0]  # (copy 0's environment)
 run = single.simulate(lambda obs: agent.predict(obs, deterministic=True)[0], 0.5, seed=0)
 moved = run.node_position[-1].mean(axis=0) - run.node_position[0].mean(axis=0)

@@ -218,10 +218,11 @@ def test_a_blitted_frame_is_the_whole_figure_drawn(shell31):
 def test_a_frames_counts_stay_clear_of_its_time_and_energies(size):
     """The counts of a run on the ground ("3 rods, 9 tendons, 0 slack, 3 ends sticking, 0
     slipping") are broken into lines where the picture is too narrow for them beside the time
-    and energies (at 480x384 one line ran into the energies), or go under them."""
+    and energies (at 480x384 one line ran into the energies), or go under them; clear of the
+    colour bar either way."""
     from tensegrity.design.catalogue import three_bar_robot
     from tensegrity.model.ground import ground
-    from tensegrity.plots.animation import _Scene, _text_mask
+    from tensegrity.plots.animation import COLOUR_BAR, _Scene, _text_mask
 
     run = simulate(three_bar_robot(), (0.0, 0.05), gravity=[0, 0, -9.81], ground=ground())
     frames = make_frames(run, np.array([0, len(run.t) - 1]))
@@ -230,9 +231,11 @@ def test_a_frames_counts_stay_clear_of_its_time_and_energies(size):
     count = "3 rods, 9 tendons, 1 slack (dashed), 3 ends sticking, 0 slipping"
     placed = scene.text_layout(lines, count)
     boxes = [(x, y, x + mask.shape[1], y + mask.shape[0]) for mask, (x, y), _ in placed]
+    left, bottom, width, _ = COLOUR_BAR
+    bar = (*scene.colour_at, (left + width) * size[0], (1.0 - bottom) * size[1])
     for k, a in enumerate(boxes):
         assert 0 <= a[0] and a[2] <= size[0], (a, size)  # (within the picture's width)
-        for b in boxes[k + 1 :]:
+        for b in [*boxes[k + 1 :], bar]:
             assert a[2] <= b[0] or b[2] <= a[0] or a[3] <= b[1] or b[3] <= a[1], (a, b)
     rows = len(placed) - 1
     if size == (800, 640):

@@ -117,6 +117,7 @@ CLOCK_TIME = re.compile(
     r"|\b\d[\d.,]*\s?(?:s|ms|µs|min|minutes|seconds)\s+(?:of\s+)?(?:wall|CPU)\b"  # 29 s wall time
     r"|\b\d[\d.,]*\s?(?:ns|µs|ms)\s+(?:a|per|each)\s+(?:frame|step|evaluation|tendon|call|sample)\b"
     r"|\bthe host (?:was|is)\b"  # the host was about 10% faster then
+    r"|\b\d[\d.,]*\s?(?:min|minutes|hours?)\b"  # (no simulated run here lasts minutes)
 )
 
 
@@ -126,6 +127,21 @@ def clock_times(text: str) -> list[str]:
     text = re.sub(r"^```.*?^```[ \t]*$", "", text, flags=re.M | re.S)
     text = re.sub(r"`[^`]*`", "", text)
     return [match.group(0) for match in CLOCK_TIME.finditer(text)]
+
+
+def test_the_clock_time_pattern_tells_wall_clock_from_simulated_times():
+    said = [
+        "2026-11-26",
+        "05:33 UTC",
+        "took 21 s",
+        "1.21 s against 2.14 s",
+        "29 s wall time",
+        "5 ms a frame",
+        "41 minutes on a 2-core machine",
+    ]
+    physics = ["simulate 20 s", "a 10 ms lag", "t = 4.04 s", "every 2 ms", "`load=0:20`"]
+    assert all(clock_times(text) for text in said), [t for t in said if not clock_times(t)]
+    assert not any(clock_times(text) for text in physics)
 
 
 def test_the_pages_have_no_clock_times_outside_the_benchmark_pages():

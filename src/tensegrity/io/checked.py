@@ -101,6 +101,16 @@ def _name(group: Any, name: str) -> str:
     return f"{parent}/{name}" if parent else name
 
 
+#: What h5py raises reading a damaged file (e.g. copied while it was written).
+_DAMAGED = (KeyError, OSError, RuntimeError)
+
+
+def _damaged(path: PathLike, what: str, exc: BaseException) -> ValueError:
+    """The one-line error for ``what`` failing on a damaged file, with h5py's reason."""
+    problem = " ".join(str(exc).split()) or type(exc).__name__
+    return file_error(path, f"{what}, the file is damaged ({problem})")
+
+
 def _stored_object(group: Any, name: str, path: PathLike, kind: str) -> Any:
     """The object ``name`` of ``group`` if it is a hard link (in the file), else ``None`` if
     absent; ``ValueError`` for an external or soft link, or an object HDF5 cannot open (a
@@ -112,11 +122,8 @@ def _stored_object(group: Any, name: str, path: PathLike, kind: str) -> Any:
         link = group.get(name, getlink=True)
         if link is None or isinstance(link, h5py.HardLink):
             return None if link is None else group[name]
-    except (KeyError, OSError, RuntimeError) as exc:
-        problem = " ".join(str(exc).split()) or type(exc).__name__
-        raise file_error(
-            path, f"{kind} {where!r} cannot be opened, the file is damaged ({problem})"
-        ) from exc
+    except _DAMAGED as exc:
+        raise _damaged(path, f"{kind} {where!r} cannot be opened", exc) from exc
     if isinstance(link, h5py.ExternalLink):
         target = f"{shown_path(link.filename)}:{shown_path(link.path)}"
         raise file_error(
@@ -130,16 +137,19 @@ def _stored_object(group: Any, name: str, path: PathLike, kind: str) -> Any:
 
 
 def hdf5_names(group: Any, path: PathLike) -> list[str]:
-    """The names of the links in ``group``; ``ValueError`` if HDF5 cannot list them (a damaged
-    file, e.g. copied while it was written: h5py raises ``RuntimeError``)."""
+    """The names of the links in ``group``.
+
+    Raises
+    ------
+    ValueError
+        One line naming the file and the group if HDF5 cannot list them (a damaged file, e.g.
+        copied while it was written: h5py raises ``RuntimeError``).
+    """
     try:
         return list(group)
-    except (KeyError, OSError, RuntimeError) as exc:
-        problem = " ".join(str(exc).split()) or type(exc).__name__
+    except _DAMAGED as exc:
         where = group.name.strip("/") or "/"
-        raise file_error(
-            path, f"group {where!r} cannot be listed, the file is damaged ({problem})"
-        ) from exc
+        raise _damaged(path, f"group {where!r} cannot be listed", exc) from exc
 
 
 def hdf5_group(group: Any, name: str, path: PathLike) -> Any | None:

@@ -77,6 +77,8 @@ VIEW_PLANAR = (90.0, -90.0)
 #: Size of a frame's text [points] (matplotlib's "small"), and the grey of its counts.
 TEXT_POINTS = 10 / 1.2
 TEXT_GREY = 77
+#: The colour bar's axes in a video frame: left, bottom, width, height (fractions of the frame).
+COLOUR_BAR = (0.86, 0.2, 0.025, 0.6)
 
 
 def _video_format(path: Path) -> str:
@@ -162,7 +164,12 @@ class _Scene:
                 self.contacts.append(ax.plot([], [], [], **style)[0])
                 keys.append(Line2D([], [], label=name, **style))
             figure.legend(handles=keys, loc="lower left", fontsize="small", frameon=False)
-        colour_axes = figure.add_axes((0.86, 0.2, 0.025, 0.6))
+        colour_axes = figure.add_axes(COLOUR_BAR)
+        # its top left [pixels], which the frame's text keeps clear of
+        self.colour_at = (
+            round(COLOUR_BAR[0] * width),
+            round((1.0 - sum(COLOUR_BAR[1::2])) * height),
+        )
         mappable = ScalarMappable(Normalize(*frames.tension_range), tension_colormap())
         figure.colorbar(mappable, cax=colour_axes, label="tendon tension [N]")
         # the frame's text is drawn with Pillow: matplotlib's text took 9 ms of a frame's 16
@@ -246,21 +253,26 @@ class _Scene:
     ) -> list[tuple[np.ndarray, tuple[int, int], int]]:
         """Where a frame's text goes, as ``(coverage mask, top left [pixels], grey)``: the
         ``lines`` (time, energies) at the top left; the ``count`` right-aligned at the top
-        right, broken after commas into lines narrow enough to stay clear of them, or under
-        them where even one part of it is not (a small picture)."""
+        right, broken after commas into lines narrow enough to stay clear of them and few enough
+        to end above the colour bar, or else left-aligned under them, as wide as the colour bar
+        leaves room for (a small picture)."""
+        font = self.fonts["sans-serif"]
         block = _text_mask("\n".join(lines), self.fonts["monospace"])
         left, top = self.text_at
         right, count_top = self.count_at
+        bar_left, bar_top = self.colour_at
         margin = left
-        rows = _rows(count, self.fonts["sans-serif"], right - (left + block.shape[1]) - margin)
-        if rows is None:  # (under the time and energies, as wide as the picture allows)
-            rows = _rows(count, self.fonts["sans-serif"], right - left) or [count]
+        step = round(1.25 * font.size)
+        rows = _rows(count, font, right - (left + block.shape[1]) - margin)
+        beside = rows is not None and count_top + len(rows) * step <= bar_top
+        if not beside:
+            rows = _rows(count, font, bar_left - margin - left) or [count]
             count_top = top + block.shape[0] + margin
-        step = round(1.25 * self.fonts["sans-serif"].size)
         placed = [(block, (left, top), 0)]
-        for k, row in enumerate(rows):
-            mask = _text_mask(row, self.fonts["sans-serif"])  # (the same over many frames)
-            placed.append((mask, (right - mask.shape[1], count_top + k * step), TEXT_GREY))
+        for k, row in enumerate(rows or ()):
+            mask = _text_mask(row, font)  # (the same over many frames)
+            x = right - mask.shape[1] if beside else left
+            placed.append((mask, (x, count_top + k * step), TEXT_GREY))
         return placed
 
 
