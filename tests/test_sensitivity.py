@@ -14,8 +14,9 @@ from tensegrity import simulate
 from tensegrity.analysis.identification import parameter
 from tensegrity.design.catalogue import six_bar_robot, three_bar_robot
 from tensegrity.model.ground import ground
-from tensegrity.model.loads import ControlTable
+from tensegrity.model.loads import ControlTable, ForceTable
 from tensegrity.model.shell import class1_shell
+from tensegrity.model.structure import Structure
 from tensegrity.physics.dynamics import State, coordinates_from_nodes, initial_state
 
 GRAVITY = np.array([0.0, 0.0, -9.81])
@@ -247,6 +248,70 @@ def test_sensitivities_through_touch_downs_lift_offs_sticks_and_slips():
         h[j] = STEP * plane[j]
         up = simulate(robot, (0.0, 1.0), **_robot_run(*(plane + h)))
         down = simulate(robot, (0.0, 1.0), **_robot_run(*(plane - h)))
+        reference = (up.q - down.q) / (2 * h[j])
+        assert _relative_error(reference, run.q_sensitivity[:, 2 + j]) < 1e-4, params[2 + j].kind
+
+
+def _sled_run(friction: float = 0.5, kinetic: float = 0.4) -> dict:
+    """A point mass on the ground between two anchors (a sled on two springs), started sliding
+    sideways and pushed along y by a force growing at 4 N/s: its run's options."""
+    start = State(0.0, np.array([0.3, 0.2, 0.0]), np.array([0.0, 1.2, 0.0]))
+    plane = ground(friction=friction, kinetic_friction=kinetic, stiffness=1e5, damping=50.0)
+    push = np.zeros((2, 3, 3))
+    push[1, 2, 1] = 4.0 * SLED_SPAN[1]
+    return {
+        "initial": start,
+        "gravity": GRAVITY,
+        "ground": plane,
+        "external_force": ForceTable(time=np.array(SLED_SPAN), force=push),
+        "sample_dt": 0.02,
+        **TIGHT,
+    }
+
+
+#: The sled's run [s]: it slides to and fro, sticks (at 1.32 s) and slips again (at 1.57 s).
+SLED_SPAN = (0.0, 2.0)
+
+
+def _sled(mass: float = 0.3, stiffness: float = 20.0) -> Structure:
+    return Structure(
+        node_position=[[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.3, 0.2, 0.0]],
+        rod_nodes=np.zeros((0, 2), int),
+        rod_mass=[],
+        rod_length=[],
+        node_fixed=[True, True, False],
+        node_point_mass=[0.0, 0.0, mass],
+        tendon_nodes=[[0, 2], [2, 1]],
+        tendon_stiffness=[stiffness, 1.5 * stiffness],
+        tendon_rest_length=[0.9, 0.9],
+    )
+
+
+def test_sensitivities_of_a_point_mass_sliding_and_sticking_on_the_ground():
+    """The sled pressed on the ground by gravity slides to and fro, sticks, and slips again as
+    the push grows: its mass (which the contacts hold a copy of: the sticking force is ``m``
+    times the acceleration it cancels), the springs' stiffness and both friction coefficients
+    within 1e-4 of the differences."""
+    sled = _sled()
+    options = _sled_run()
+    params = [
+        parameter(sled, "point_mass"),
+        parameter(sled, "tendon_stiffness:s1"),
+        PlaneParameter("friction"),
+        PlaneParameter("kinetic_friction"),
+    ]
+    run = simulate(sled, SLED_SPAN, sensitivity=params, **options)
+    assert run.status == 0, run.message
+    assert run.contact_counts == {"touch_down": 1, "lift_off": 0, "slip": 1, "stick": 1}
+    for j, p in enumerate(params[:2]):
+        reference = _central(sled, p, SLED_SPAN, **options)
+        assert _relative_error(reference, run.q_sensitivity[:, j]) < 1e-4, p.name
+    plane = np.array([0.5, 0.4])
+    for j in range(2):
+        h = np.zeros(2)
+        h[j] = STEP * plane[j]
+        up = simulate(sled, SLED_SPAN, **_sled_run(*(plane + h)))
+        down = simulate(sled, SLED_SPAN, **_sled_run(*(plane - h)))
         reference = (up.q - down.q) / (2 * h[j])
         assert _relative_error(reference, run.q_sensitivity[:, 2 + j]) < 1e-4, params[2 + j].kind
 

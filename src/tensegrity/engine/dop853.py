@@ -91,9 +91,10 @@ YIELD_WORK = 2_000_000
 #: Indices of ``clock`` (float64): time [s], start of the last step [s], the next step size
 #: [s], the step size before heading for a switch [s], the time of the switch headed for [s],
 #: the last step's largest constraint drift (rod relative, joints [m]), the time whose inputs
-#: could not be made [s].
-T, T_OLD, STEP, STEP_BEFORE, LANDING_TIME, DRIFT, INPUT_TIME = range(7)
-N_CLOCK = 7
+#: could not be made [s], the time since which the motion has been smooth (the run's start, the
+#: last event landed on or the last restart) [s].
+T, T_OLD, STEP, STEP_BEFORE, LANDING_TIME, DRIFT, INPUT_TIME, SMOOTH_SINCE = range(8)
+N_CLOCK = 8
 #: Indices of ``tally`` (int64): evaluations, accepted steps, located switches, projections;
 #: flags: the last step is a provisional (rejected) attempt, its dense output is ready, a
 #: provisional step may be taken, a switch is headed for, it was located exactly, the last step
@@ -288,7 +289,7 @@ def dop853_run(model, rows, point, loop, bound, next_sample_t):  # pragma: no co
                         loop.sensitivity,
                         model,
                         point,
-                        loop.clock[T],
+                        (loop.clock[SMOOTH_SINCE], loop.clock[T]),
                         loop.y,
                         loop.K[0],
                         loop.events,
@@ -299,6 +300,7 @@ def dop853_run(model, rows, point, loop, bound, next_sample_t):  # pragma: no co
                     ):
                         loop.tally[RESTART] = 1
                     saltation(loop.sensitivity, model, point, loop.clock[T], loop.y, timed)
+                loop.clock[SMOOTH_SINCE] = loop.clock[T]
             if (  # (the rule for slow slips, after every step)
                 loop.events.side.shape[0] > model.tendon_stiffness.shape[0]
                 and inputs_at(loop.clock[T]) < 0
@@ -331,6 +333,7 @@ def dop853_run(model, rows, point, loop, bound, next_sample_t):  # pragma: no co
             loop.tally[RESTART] or loop.tally[START]
         ):  # the state changed, or the run starts: its first
             loop.tally[RESTART] = 0  # stage and taut flags anew
+            loop.clock[SMOOTH_SINCE] = loop.clock[T]
             bad = inputs_at(loop.clock[T])
             if bad >= 0:
                 loop.clock[INPUT_TIME] = loop.clock[T]
@@ -520,7 +523,7 @@ class DOP853:
             sensitivity=sensitivity,
         )
         self.clock, self.tally = loop.clock, loop.tally
-        self.clock[T] = self.clock[T_OLD] = float(t0)
+        self.clock[T] = self.clock[T_OLD] = self.clock[SMOOTH_SINCE] = float(t0)
         if memory is None:  # (the first call makes the first stage and the initial step)
             self.tally[START] = 1
         else:

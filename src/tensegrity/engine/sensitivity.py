@@ -516,16 +516,22 @@ def _inputs_at(model, data, sens, t, varying):  # pragma: no cover - compiled
 
 
 @compiled_only
-def event_time_derivative(sens, model, data, t, y, f_end, events, varying):  # pragma: no cover
-    """At a located event the loop landed on at ``(t, y)``, before its action (``data`` with
-    the inputs there, ``varying``: they vary in time; ``f_end`` the right-hand side the last
+def event_time_derivative(sens, model, data, times, y, f_end, events, varying):  # pragma: no cover
+    """At a located event the loop landed on at ``(t, y)``, before its action, ``times = (t0,
+    t)`` [s] with the motion smooth since ``t0`` (the last event or restart; ``data`` with the
+    inputs at ``t``, ``varying``: they vary in time; ``f_end`` the right-hand side the last
     step ended with): ``sens.dtau = dtau/dp`` of the first event fired, and ``sens.f_at`` the
     right-hand side on the side before it, extrapolated from ``(t - delta, y - delta f_end)``
-    and ``(t - 2 delta, y - 2 delta f_end)``, ``delta`` [s] the time in which the state moves
-    by :data:`BACK` of its size (the state sits on either side of the event by the width of its
-    bracket, far less); the indicator's rate ``g'`` from the first of them (the inputs' own
-    change included).  Nothing without sensitivities (False); False if no event fired.  The
-    scratch the action reads, and the inputs, are left as they were."""
+    and ``(t - 2 delta, y - 2 delta f_end)``; the indicator's rate ``g'`` from the first of them
+    (the inputs' own change included).  Nothing without sensitivities (False); False if no
+    event fired.  The scratch the action reads, and the inputs, are left as they were.
+
+    ``delta`` [s] is the time in which the state moves by :data:`BACK` of its size (the state
+    sits on either side of the event by the width of its bracket, far less), but at most a
+    quarter of the smooth stretch ``t - t0``, so that both points lie after the event before:
+    a state at rest (a point stuck until a growing load makes it slip) would take them back
+    seconds, across the stick, with ``g'`` and ``f-`` of another motion.  Not below
+    :data:`BACK` of the time (events that come together), where round-off would rule."""
     if sens is None:
         return False
     e = -1
@@ -539,12 +545,11 @@ def event_time_derivative(sens, model, data, t, y, f_end, events, varying):  # p
     y_size, f_size = 1.0, 0.0
     for i in range(m):  # (the whole state: with q and q' alone, 4 times the error on the robot)
         y_size, f_size = max(y_size, abs(y[i])), max(f_size, abs(f_end[i]))
-    if not f_size > 0.0:  # (at rest: no event time to move)
-        sens.dtau[:] = 0.0
-        sens.f_at[:] = f_end
-        return True
+    t0, t = times
+    delta = max((t - t0) / 4.0, BACK * max(1.0, abs(t)))
+    if BACK * y_size < delta * f_size:
+        delta = BACK * y_size / f_size
     _keep_contacts(data.contact_work, sens.kept)
-    delta = BACK * y_size / f_size
     for i in range(m):  # f- extrapolated from two points before: 2 f(y - d f) - f(y - 2 d f)
         sens.v[i] = y[i] - 2.0 * delta * f_end[i]
     _inputs_at(model, data, sens, t - 2.0 * delta, varying)
