@@ -492,6 +492,21 @@ def test_sweep_arrays_and_attributes_count_against_the_limit(tmp_path, sweep_fil
     assert_refused(read_sweep, path, "attribute 'note' of 'stiffness'", "TENSEGRITY_MAX_ARRAY")
 
 
+def test_a_torn_copy_of_a_sweep_is_refused_in_one_line(tmp_path, sweep_file):
+    """A sweep file copied while it was written: the superblock from before the write, the
+    root group grown past the end it records (as the torn checkpoint below): one line naming
+    the file and the group, not h5py's bare ``RuntimeError``."""
+    from tensegrity.sweep import read_sweep
+
+    path = crafted_sweep(tmp_path, sweep_file, lambda f: None)
+    before = path.read_bytes()
+    with h5py.File(path, "a") as f:
+        for i in range(40):  # past the compact link storage: a new heap at the end of the file
+            f[f"extra{i}"] = np.zeros(3)
+    path.write_bytes(before[:48] + path.read_bytes()[48:])
+    assert_refused(read_sweep, path, "group '/'", "damaged")
+
+
 def test_sweep_not_hdf5_is_refused(tmp_path):
     from tensegrity.sweep import read_sweep
 
