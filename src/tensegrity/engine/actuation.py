@@ -32,6 +32,16 @@ LOG_ROWS = 256
 
 
 @njit(**JIT_OPTIONS)
+def ramp_time(act, a):  # pragma: no cover - compiled
+    """How long [s] actuator ``a`` ramps at its rate limit after its last command: while the
+    distance to the command exceeds ``r tau`` (0 without a rate limit)."""
+    r = act.max_rate[a]
+    if not np.isfinite(r):
+        return 0.0
+    return max(abs(act.command[a] - act.applied[a]) - r * act.time_constant[a], 0.0) / r
+
+
+@njit(**JIT_OPTIONS)
 def control_at(act, a, t):  # pragma: no cover - compiled
     """``(u [m], du/dt [m/s])`` of actuator ``a`` at time ``t`` [s] (``t >= act.start``; before
     it, the control at the start and no rate)."""
@@ -44,9 +54,7 @@ def control_at(act, a, t):  # pragma: no cover - compiled
     if s < 0.0:
         return u0, 0.0
     direction = 1.0 if d >= 0.0 else -1.0
-    ramp = 0.0  # time at the rate limit
-    if np.isfinite(r):
-        ramp = max(abs(d) - r * tau, 0.0) / r
+    ramp = ramp_time(act, a)
     if s < ramp:
         return u0 + direction * r * s, direction * r
     if tau == 0.0:
@@ -54,6 +62,22 @@ def control_at(act, a, t):  # pragma: no cover - compiled
     left = d - direction * r * ramp if ramp > 0.0 else d
     decay = np.exp(-(s - ramp) / tau)
     return target - left * decay, left * decay / tau
+
+
+@njit(**JIT_OPTIONS)
+def next_ramp_end(act, t):  # pragma: no cover - compiled
+    """The first time [s] after ``t`` at which an actuator with a lag leaves its ramp at the
+    rate limit (inf if none does; ``act`` None).  The control's rate is continuous there but
+    its slope jumps (from 0 to ``-r / tau``): a step across it loses DOP853's order, so the
+    adaptive loop ends a step there (``benchmarks/bench_actuator_steps.py``)."""
+    end = np.inf
+    if act is None:
+        return end
+    for a in range(act.position.shape[0]):
+        ramp = ramp_time(act, a)
+        if act.time_constant[a] > 0.0 and ramp > 0.0 and act.start[0] + ramp > t:
+            end = min(end, act.start[0] + ramp)
+    return end
 
 
 @njit(**JIT_OPTIONS)

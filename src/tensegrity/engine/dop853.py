@@ -34,7 +34,7 @@ import numpy as np
 from numba import njit
 
 from tensegrity.engine import compiled
-from tensegrity.engine.actuation import log_full as actuation_log_full
+from tensegrity.engine.actuation import log_full as actuation_log_full, next_ramp_end
 from tensegrity.engine.compiled import (
     CHECK_OK,
     DOP853_C,
@@ -356,7 +356,8 @@ def dop853_run(model, rows, point, loop, bound, next_sample_t):  # pragma: no co
             return RUN_BOUNDARY, CHECK_OK, 0.0
         heading = bool(loop.tally[LANDING])
         detect = locate and not (heading and loop.tally[LANDING_EXACT])
-        stop = min(bound, update)  # (a feedback law's update ends a step too)
+        # (a feedback law's update ends a step too, and an actuator's ramp ending into its lag)
+        stop = min(bound, update, next_ramp_end(point.actuation, loop.clock[T]))
         target = min(stop, loop.clock[LANDING_TIME]) if heading else stop
         use_taut = locate and bool(loop.tally[ALLOW_PROVISIONAL]) and not heading
 
