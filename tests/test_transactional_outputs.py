@@ -106,6 +106,70 @@ def test_outputs_replace_the_old_ones_together(tmp_path):
     assert _contents(out) == {"a.txt": b"new a", "keep.txt": b"kept", "sub/b.txt": b"new b"}
 
 
+def test_outputs_an_earlier_write_listed_and_this_one_does_not_are_removed(tmp_path):
+    """With a record, the folder holds one write's outputs: what the earlier write of that
+    record listed and this one does not write goes (its emptied folder too); a file the verb
+    never wrote, and another record's outputs, stay."""
+    out = tmp_path / "out"
+    write_staged(out, _writer({"a.txt": "old a", "sub/b.txt": "b", "c.txt": "c"}), record="run")
+    write_staged(out, _writer({"other.txt": "other's"}), record="other")
+    (out / "mine.txt").write_text("the user's")
+    written = write_staged(out, _writer({"a.txt": "new a"}), record="run")
+    assert written == [out / "a.txt"]
+    assert _contents(out) == {
+        "a.txt": b"new a",
+        "mine.txt": b"the user's",
+        "other.txt": b"other's",
+        ".run-outputs": b"a.txt\n",
+        ".other-outputs": b"other.txt\n",
+    }
+
+
+def test_a_listing_naming_files_outside_the_folder_removes_nothing_there(tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    (tmp_path / "outside.txt").write_text("kept")
+    (out / "sub").mkdir()
+    (out / ".run-outputs").write_text(f"../outside.txt\n{tmp_path / 'outside.txt'}\nsub\n")
+    write_staged(out, _writer({"a.txt": "a"}), record="run")
+    assert (tmp_path / "outside.txt").read_text() == "kept" and (out / "sub").is_dir()
+
+
+def test_a_failed_move_puts_the_superseded_outputs_back(tmp_path, monkeypatch):
+    out = tmp_path / "out"
+    write_staged(out, _writer({"a.txt": "old a", "sub/b.txt": "b"}), record="run")
+    before = _contents(out)
+    replace = os.replace
+
+    def failing(source, target):
+        if Path(source).name == "b.txt" and ".replaced" in Path(target).parts:
+            raise OSError(28, "No space left on device")
+        return replace(source, target)
+
+    monkeypatch.setattr(files.os, "replace", failing)
+    with pytest.raises(OSError, match="No space"):
+        write_staged(out, _writer({"a.txt": "new a"}), record="run")
+    monkeypatch.setattr(files.os, "replace", replace)
+    assert _contents(out) == before
+
+
+def test_simulate_into_an_earlier_runs_folder_leaves_none_of_its_files(tmp_path, capsys):
+    """``simulate`` again into the folder of a run with a viewer page and a video, now without
+    them: they are gone (before, the earlier run's stayed beside the new one's files, looking
+    like its own); a file of the user's stays."""
+    out = tmp_path / "out"
+    base = ["simulate", "--t-end", "0.2", "--no-steady-state", "--out", str(out)]
+    assert main(base) == 0
+    assert (out / "view.html").exists() and (out / "motion.gif").exists()
+    (out / "notes.txt").write_text("the user's")
+    assert main([*base, "--no-view", "--no-animation"]) == 0
+    written = capsys.readouterr().out.rsplit("\nwrote ", 1)[1].strip().split(", ")
+    assert sorted(p.name for p in out.iterdir() if not p.name.startswith(".")) == sorted(
+        [Path(f).name for f in written] + ["notes.txt"]
+    )
+    assert not (out / "view.html").exists() and not (out / "motion.gif").exists()
+
+
 def test_what_a_killed_run_left_is_removed_by_the_next(tmp_path):
     """Staging folders and temporary files of processes that have ended are removed by the next
     write into the folder; those of a live process (another run going on), and names of other
@@ -196,7 +260,11 @@ def test_analysis_verbs_compute_outside_the_output_folder(tmp_path, monkeypatch,
     assert {name for name, _ in seen} == {name for _, name in computations}
     assert all(inside == [] for _, inside in seen), seen
     written = capsys.readouterr().out.rsplit("\nwrote ", 1)[1].strip().split(", ")
-    assert sorted(p.name for p in out.iterdir()) == sorted(Path(f).name for f in written)
+    listing = f".{verb}-outputs"  # (write_staged's record of them)
+    assert sorted(p.name for p in out.iterdir() if p.name != listing) == sorted(
+        Path(f).name for f in written
+    )
+    assert (out / listing).read_text().split() == [Path(f).name for f in written]
 
 
 def _check_complete(path: Path, content: bytes) -> None:

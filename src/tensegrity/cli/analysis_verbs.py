@@ -84,7 +84,7 @@ def _analysis_and_write(args: argparse.Namespace, run: Callable, drawing: Drawin
         raise CommandError(f"{exc} (nothing written)", EXIT_FAILED) from None
     except KeyError as exc:  # a tendon or output pattern that matches nothing
         raise CommandError(str(exc.args[0])) from None
-    written = _write_all(args.out, drawing.writing(output.write))
+    written = _write_all(args.out, drawing.writing(output.write), record=args.command)
     print(output.text)
     print("\nwrote " + ", ".join(str(f) for f in written))
     if output.problem:

@@ -275,7 +275,7 @@ def write_run(
         return [target, *outputs, *drawn]
 
     balance = _energy_balance_error(work)
-    written = _write_all(files.out, drawing.writing(write))
+    written = _write_all(files.out, drawing.writing(write), record="simulate")
     work.unlink(missing_ok=True)  # a second name of trajectory.h5, if linked
     return trajectory, balance, written, peaks
 

@@ -230,7 +230,9 @@ def os_problem(exc: OSError) -> str:
 STAGING_PREFIX = ".staging-"
 
 
-def write_staged(out: Path, write: Callable[[Path], list[Path]]) -> list[Path]:
+def write_staged(
+    out: Path, write: Callable[[Path], list[Path]], *, record: str | None = None
+) -> list[Path]:
     """Write a set of outputs into ``out`` all together, or not at all.
 
     ``write(staging)`` writes the files into a new staging folder inside ``out`` (the same file
@@ -244,6 +246,12 @@ def write_staged(out: Path, write: Callable[[Path], list[Path]]) -> list[Path]:
     removed again.  What a killed run left in ``out`` (staging folders and temporary files of
     processes that no longer exist) is removed first (:func:`remove_stale`).
 
+    With ``record`` (a verb's name) the outputs are listed in ``out/.<record>-outputs``, and
+    those an earlier write of that record listed there and this one does not write (the video
+    of a run that now has none, the files of an option not given this time) are removed with
+    the move (put back if it fails): ``out`` then holds one run's outputs, never an older
+    run's beside them, and nothing this verb did not write is touched.
+
     Raises
     ------
     ValueError
@@ -255,11 +263,41 @@ def write_staged(out: Path, write: Callable[[Path], list[Path]]) -> list[Path]:
         with tempfile.TemporaryDirectory(
             dir=out, prefix=f"{STAGING_PREFIX}{os.getpid()}-"
         ) as staging:
-            moves = [
-                (Path(path), out / Path(path).relative_to(staging)) for path in write(Path(staging))
-            ]
+            written = [*write(Path(staging))]
+            if record is not None:
+                written.append(_listing(Path(staging), out, written, record))
+            moves = [(Path(path), out / Path(path).relative_to(staging)) for path in written]
             check_targets(out, [target for _, target in moves])
-            return _move_all(moves, Path(staging) / ".replaced", out, created)
+            aside = Path(staging) / ".replaced"
+            earlier = [] if record is None else _listed(out, record)
+            superseded = [out / name for name in earlier if out / name not in dict(moves).values()]
+            targets = _move_all(moves, aside, out, created, superseded)
+            return targets[:-1] if record is not None else targets
+
+
+def _listing(staging: Path, out: Path, written: list[Path], record: str) -> Path:
+    """``staging/.<record>-outputs``: the names of ``written`` (files in ``staging``) relative
+    to ``out``, one a line."""
+    listing = staging / f".{record}-outputs"
+    names = [Path(path).relative_to(staging).as_posix() for path in written]
+    listing.write_text("".join(f"{name}\n" for name in names), "utf-8")
+    return listing
+
+
+def _listed(out: Path, record: str) -> list[str]:
+    """The names ``out/.<record>-outputs`` lists: those of plain files inside ``out`` only (a
+    line naming anything else, as ``../x``, an absolute path or a folder, is passed over)."""
+    try:
+        text = (out / f".{record}-outputs").read_text("utf-8")
+    except (OSError, UnicodeDecodeError):
+        return []
+    names = []
+    for line in text.splitlines():
+        name = Path(line)
+        inside = line and not name.is_absolute() and ".." not in name.parts
+        if inside and (out / name).is_file() and not (out / name).is_symlink():
+            names.append(line)
+    return names
 
 
 @contextlib.contextmanager
@@ -297,25 +335,36 @@ def check_targets(out: Path, targets: list[Path]) -> None:
 
 
 def _move_all(
-    moves: list[tuple[Path, Path]], aside: Path, out: Path, created: list[Path]
+    moves: list[tuple[Path, Path]],
+    aside: Path,
+    out: Path,
+    created: list[Path],
+    superseded: list[Path],
 ) -> list[Path]:
-    """Move each ``(source, target)``, the file a target replaces moved into ``aside`` first;
-    on any failure put everything back (the folders made for targets are added to
+    """Move each ``(source, target)``, the file a target replaces moved into ``aside`` first,
+    then the ``superseded`` files into ``aside`` too (their folders removed if that empties
+    them); on any failure put everything back (the folders made for targets are added to
     ``created``)."""
     done: list[tuple[Path, Path | None]] = []
+
+    def set_aside(target: Path) -> Path | None:
+        if not (target.exists() or target.is_symlink()):
+            return None
+        kept = aside / target.relative_to(out)
+        kept.parent.mkdir(parents=True, exist_ok=True)
+        os.replace(target, kept)
+        return kept
+
     try:
         for source, target in moves:
             for folder in reversed(target.relative_to(out).parents):
                 if not (out / folder).exists():
                     (out / folder).mkdir()
                     created.append(out / folder)
-            kept = None
-            if target.exists() or target.is_symlink():
-                kept = aside / target.relative_to(out)
-                kept.parent.mkdir(parents=True, exist_ok=True)
-                os.replace(target, kept)
-            done.append((target, kept))
+            done.append((target, set_aside(target)))
             os.replace(source, target)
+        for target in superseded:
+            done.append((target, set_aside(target)))
     except BaseException:
         for target, kept in reversed(done):  # roll back, last move first
             with contextlib.suppress(OSError):
@@ -324,6 +373,7 @@ def _move_all(
                 else:
                     target.unlink()
         raise
+    _remove_folders([path.parent for path in superseded if path.parent != out])
     return [target for _, target in moves]
 
 
