@@ -70,10 +70,20 @@ def test_files_npz_and_csv(tmp_path):
         again = read_force_table(tmp_path / name)
         np.testing.assert_array_equal(again.time, f.time)
         np.testing.assert_array_equal(again.force, f.force)
+    names = ",".join(["t"] + [f"f{k}{x}" for k in range(f.force.shape[1]) for x in "xyz"])
+    (tmp_path / "named.csv").write_text(
+        names + "\n" + "\n".join(",".join(map(str, row.tolist())) for row in rows) + "\n"
+    )
+    again = read_force_table(tmp_path / "named.csv")  # (a first row of column names, skipped)
+    np.testing.assert_array_equal(again.force, f.force)
     (tmp_path / "bad.csv").write_text("0, 1, 2\n")
+    (tmp_path / "blank.csv").write_text(",0,0,0\n1,0,0,0\n")
+    (tmp_path / "names.csv").write_text("t,f0x,f0y,f0z\n")
     np.savez(tmp_path / "bad.npz", time=f.time)
     for name, words in (
         ("bad.csv", "expected rows of 1 + 3N numbers"),
+        ("blank.csv", "row 0, column 1"),
+        ("names.csv", "no rows of numbers"),
         ("bad.npz", "missing array 'force'"),
         ("none.csv", "no such file"),
         ("f.txt", "unknown force table suffix"),

@@ -67,7 +67,7 @@ def simulate_parser(sub: Any) -> argparse.ArgumentParser:
         metavar="FILE.npz|FILE.csv",
         help="external nodal forces [N] from a time table, linear in between, held "
         "after its end (.npz: time (T,), force (T, N, 3); .csv: rows t, f0x, "
-        "f0y, f0z, f1x, ...)",
+        "f0y, f0z, f1x, ... for every node, after an optional row of column names)",
     )
     sim.add_argument(
         "--load",

@@ -24,9 +24,11 @@ _announcer: object | None = None
 
 #: The line :func:`announce_compiling` prints (on stderr) before the first compilation.  The
 #: span: `benchmarks/README.md`'s 18.9 s (an idle 2-core machine) to 59 s (the same machine, busy).
+#: The engine is compiled for each kind of run it meets (ground contact, a controller, fixed
+#: steps, force tables...: each a specialization of its own), so a new kind says it again.
 COMPILING_MESSAGE = (
-    "tensegrity: compiling the engine for this machine (once: about 20-60 s; later runs load it "
-    "from the cache)"
+    "tensegrity: compiling the engine for this kind of run (about 20-60 s, once per machine "
+    "and kind of run; later runs of the kind load it from the cache)"
 )
 
 

@@ -3,6 +3,10 @@
 forces [N]), :func:`read_control_table` into a :class:`~tensegrity.model.loads.ControlTable`
 (the tendons' rest-length changes ``u`` [m], ``Lbar = L0 - u``).
 
+A force table's ``.csv`` has a row of numbers per time: ``t`` [s] and the force [N] on every
+node, ``f0x, f0y, f0z, f1x, ...``; a first row of column names (``t,f0x,f0y,f0z,...``) may come
+before them and is skipped.  Its ``.npz`` has ``time (T,)`` and ``force (T, N, 3)``.
+
 A control table's ``.csv`` has a header row, ``t`` and then tendon names (the structure's
 ``tendon_name``), and a row of numbers per time: ``t`` [s] and ``u`` [m] of each tendon named;
 a tendon not named has ``u = 0``.  Its ``.npz`` has ``time (T,)`` and ``control (T, S)`` (every
@@ -15,7 +19,6 @@ from __future__ import annotations
 
 import csv
 import difflib
-import io
 import math
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -44,7 +47,17 @@ def read_force_table(path: PathLike, *, outside: str = "hold") -> ForceTable:
     try:
         if Path(path).suffix.lower() == ".npz":
             return _npz_table(raw, outside)
-        rows = np.loadtxt(io.StringIO(raw.decode("utf-8")), delimiter=",", comments="#", ndmin=2)
+        lines = [
+            line
+            for line in raw.decode("utf-8").splitlines()
+            if line.strip() and not line.lstrip().startswith("#")
+        ]
+        first = lines[0].split(",")[0].strip() if lines else ""
+        if first[:1].isalpha() and not _number(first):
+            lines = lines[1:]  # (the column names: t, f0x, ...)
+        if not lines:
+            raise ValueError("no rows of numbers (expected rows t, f0x, f0y, f0z, ...)")
+        rows = np.loadtxt(lines, delimiter=",", ndmin=2)
         if (rows.shape[1] - 1) % 3 or rows.shape[1] < 4:
             raise ValueError(
                 f"expected rows of 1 + 3N numbers (t, f0x, f0y, f0z, ...), got {rows.shape[1]}"
@@ -52,6 +65,15 @@ def read_force_table(path: PathLike, *, outside: str = "hold") -> ForceTable:
         return ForceTable(rows[:, 0], rows[:, 1:].reshape(rows.shape[0], -1, 3), outside)
     except ValueError as exc:
         raise file_error(path, str(exc)) from exc
+
+
+def _number(text: str) -> bool:
+    """Whether ``text`` reads as a number."""
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
 
 
 def _npz_table(raw: bytes, outside: str) -> ForceTable:
