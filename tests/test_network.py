@@ -271,7 +271,8 @@ BASE = {
         ),
         (
             {"nodes": {"a": [0, 0], "b": [0, 0, 1], "c": [1, 0, 0], "d": [1, 0, 1]}},
-            r"^nodes\.b: expected a list of 2 numbers \[x, y\] \(the structure is planar\)",
+            r"^nodes\.b: expected a list of 2 numbers \[x, y\] \(planar, as the first node has two "
+            r"coordinates\)",
         ),
         (
             {"tendons": [{"nodes": ["a", ["c"]], "rest_length": 0.9}]},

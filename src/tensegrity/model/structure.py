@@ -962,7 +962,9 @@ def node_dimension(nodes: Sequence[Any]) -> int:
 def parse_vector(value: Any, where: str, dim: int) -> list[float]:
     """A JSON list of ``dim`` numbers (3, or 2 in a planar structure)."""
     if not isinstance(value, Sequence) or isinstance(value, str) or len(value) != dim:
-        pretty = "[x, y, z]" if dim == 3 else "[x, y] (the structure is planar)"
+        pretty = (
+            "[x, y, z]" if dim == 3 else "[x, y] (planar, as the first node has two coordinates)"
+        )
         raise ValueError(f"{where}: expected a list of {dim} numbers {pretty}, got {_shown(value)}")
     return [parse_number(x, f"{where}[{k}]") for k, x in enumerate(value)]
 
