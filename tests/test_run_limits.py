@@ -85,8 +85,24 @@ def test_a_stiff_adaptive_run_stops_at_its_step_budget():
     assert result.status == -1 and result.nsteps == 2000
     assert result.message.startswith("stopped after max_steps (--max-steps) = 2,000 steps at t = ")
     assert "raise max_steps (--max-steps)" in result.message
+    assert _steps_needed(result.message) > 1e6  # (steps of ~1e-8 s over 1 s)
     assert 0 < result.t[-1] < 1e-3 and np.all(np.isfinite(result.q))
     assert simulate(stiff, (0.0, 1e-5), max_steps=2000).status == 0  # a short span: within it
+
+
+def _steps_needed(message: str) -> float:
+    """The whole run's steps a ``max_steps`` message estimates."""
+    return float(message.split("the whole run takes about ")[1].split(" steps")[0].replace(",", ""))
+
+
+def test_a_small_step_budget_says_how_many_steps_the_run_needs():
+    """A budget too small for an ordinary run: the message estimates the steps the whole run
+    takes from those it made (before, it said the steps had become tiny)."""
+    shell = class1_shell(3, 1)
+    whole = simulate(shell, (0.0, 1.0))
+    short = simulate(shell, (0.0, 1.0), max_steps=50)
+    assert short.status == -1 and "became tiny" not in short.message
+    assert whole.nsteps / 3 < _steps_needed(short.message) < 3 * whole.nsteps
 
 
 def test_cli_refuses_a_step_that_cannot_advance_in_one_line(tmp_path, capsys):
