@@ -97,7 +97,10 @@ def test_default_example_prints_a_summary(tmp_path, capsys):
 
 @pytest.mark.parametrize(
     "t_end, sample_dt, shown",
-    [("0.01", "0.01", "1 segment of 1 sample"), ("0.5", "0.05", "10 segments of 1 sample")],
+    [
+        ("0.01", "0.01", "1 segment of up to 1 sample"),
+        ("0.5", "0.05", "10 segments of up to 1 sample"),
+    ],
 )
 def test_the_summary_counts_checkpoints_in_the_singular_and_plural(
     t_end, sample_dt, shown, tmp_path, capsys

@@ -329,8 +329,8 @@ def _video_format(
         return "gif"
     print(
         f"tensegrity: motion.gif not drawn: {frames:,} frames of {members:,} members would take "
-        f"about {seconds:.0f} s (--animation gif draws it; `tensegrity animate` draws any part "
-        "of trajectory.h5)",
+        f"about {seconds:.1f} s, more than {DEFAULT_VIDEO_SECONDS:g} s (--animation gif draws "
+        "it; `tensegrity animate` draws any part of trajectory.h5)",
         file=sys.stderr,
     )
     return None

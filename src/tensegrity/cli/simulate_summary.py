@@ -70,7 +70,7 @@ def print_summary(
         ),
         (
             "checkpoints",
-            f"{_counted(summary.segments_stored, 'segment')} of "
+            f"{_counted(summary.segments_stored, 'segment')} of up to "
             f"{_counted(summary.samples_per_segment, 'sample')}",
         ),
         *([("resumed", _resumed(summary))] if resume else []),
