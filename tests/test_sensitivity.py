@@ -221,6 +221,22 @@ def _robot_run(
     }
 
 
+def _check_plane_parameters(structure, span, options_of, plane, run, params) -> None:
+    """The ground's parameters, the last ``len(plane)`` of ``params`` (their values ``plane``):
+    ``run``'s sensitivities to them within 1e-4 of central differences of runs with the options
+    ``options_of(*plane)`` made for the moved values."""
+    plane = np.asarray(plane, dtype=float)
+    first = len(params) - plane.size
+    for j in range(plane.size):
+        h = np.zeros(plane.size)
+        h[j] = STEP * plane[j]
+        up = simulate(structure, span, **options_of(*(plane + h)))
+        down = simulate(structure, span, **options_of(*(plane - h)))
+        reference = (up.q - down.q) / (2 * h[j])
+        error = _relative_error(reference, run.q_sensitivity[:, first + j])
+        assert error < 1e-4, params[first + j].kind
+
+
 def test_sensitivities_through_touch_downs_lift_offs_sticks_and_slips():
     """The three-bar robot dropped 1 cm onto the ground sliding at 1.5 m/s for 1 s: it
     bounces, slides, sticks and slips again (30 located contact events).  Cable stiffness,
@@ -242,14 +258,7 @@ def test_sensitivities_through_touch_downs_lift_offs_sticks_and_slips():
     for j, p in enumerate(params[:2]):
         reference = _central(robot, p, (0.0, 1.0), **options)
         assert _relative_error(reference, run.q_sensitivity[:, j]) < 1e-4, p.name
-    plane = np.array([0.5, 0.4, 1e5, 100.0])
-    for j in range(4):
-        h = np.zeros(4)
-        h[j] = STEP * plane[j]
-        up = simulate(robot, (0.0, 1.0), **_robot_run(*(plane + h)))
-        down = simulate(robot, (0.0, 1.0), **_robot_run(*(plane - h)))
-        reference = (up.q - down.q) / (2 * h[j])
-        assert _relative_error(reference, run.q_sensitivity[:, 2 + j]) < 1e-4, params[2 + j].kind
+    _check_plane_parameters(robot, (0.0, 1.0), _robot_run, [0.5, 0.4, 1e5, 100.0], run, params)
 
 
 def _sled_run(friction: float = 0.5, kinetic: float = 0.4) -> dict:
@@ -306,14 +315,7 @@ def test_sensitivities_of_a_point_mass_sliding_and_sticking_on_the_ground():
     for j, p in enumerate(params[:2]):
         reference = _central(sled, p, SLED_SPAN, **options)
         assert _relative_error(reference, run.q_sensitivity[:, j]) < 1e-4, p.name
-    plane = np.array([0.5, 0.4])
-    for j in range(2):
-        h = np.zeros(2)
-        h[j] = STEP * plane[j]
-        up = simulate(sled, SLED_SPAN, **_sled_run(*(plane + h)))
-        down = simulate(sled, SLED_SPAN, **_sled_run(*(plane - h)))
-        reference = (up.q - down.q) / (2 * h[j])
-        assert _relative_error(reference, run.q_sensitivity[:, 2 + j]) < 1e-4, params[2 + j].kind
+    _check_plane_parameters(sled, SLED_SPAN, _sled_run, [0.5, 0.4], run, params)
 
 
 def test_bad_sensitivity_requests_are_refused_in_one_line():
