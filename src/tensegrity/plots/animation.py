@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from matplotlib import rc_context, rcParams
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.cm import ScalarMappable
 from matplotlib.colors import Normalize, to_rgb
@@ -77,6 +78,9 @@ VIEW_PLANAR = (90.0, -90.0)
 #: Size of a frame's text [points] (matplotlib's "small"), and the grey of its counts.
 TEXT_POINTS = 10 / 1.2
 TEXT_GREY = 77
+#: The narrowest frame [pixels] whose text is drawn at full size; a narrower one's is scaled
+#: down with its width.
+LAYOUT_WIDTH = 640
 #: The colour bar's axes in a video frame: left, bottom, width, height (fractions of the frame).
 COLOUR_BAR = (0.86, 0.2, 0.025, 0.6)
 
@@ -100,12 +104,28 @@ class _Scene:
     def __init__(
         self, frames: Frames, *, size: tuple[int, int], view: tuple[float, float] | None
     ) -> None:
+        self.frames = frames
+        width = size[0]
+        dpi = 100
+        # a small frame's text as a LAYOUT_WIDTH frame's, scaled down (at full size the labels,
+        # the colour bar and the counts ran into each other below about 480 pixels)
+        scale = min(1.0, width / LAYOUT_WIDTH)
+        with rc_context({"font.size": rcParams["font.size"] * scale}):
+            self._draw_background(frames, size, view, dpi, scale)
+
+    def _draw_background(
+        self,
+        frames: Frames,
+        size: tuple[int, int],
+        view: tuple[float, float] | None,
+        dpi: float,
+        scale: float,
+    ) -> None:
+        """:meth:`__init__`'s figure, its text ``scale`` times matplotlib's size."""
         from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
 
-        self.frames = frames
         structure = frames.structure
         width, height = size
-        dpi = 100
         self.figure = figure = Figure(figsize=(width / dpi, height / dpi), dpi=dpi)
         FigureCanvasAgg(figure)
         figure.set_facecolor("white")
@@ -174,7 +194,7 @@ class _Scene:
         figure.colorbar(mappable, cax=colour_axes, label="tendon tension [N]")
         # the frame's text is drawn with Pillow: matplotlib's text took 9 ms of a frame's 16
         self.fonts = {
-            family: _font(family, pixels=round(TEXT_POINTS * dpi / 72))
+            family: _font(family, pixels=round(TEXT_POINTS * scale * dpi / 72))
             for family in ("monospace", "sans-serif")
         }
         self.text_at = (round(0.02 * width), round(0.03 * height))  # (top left)
