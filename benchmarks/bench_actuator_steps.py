@@ -10,7 +10,9 @@ Usage::
 Prints for each: DOP853's steps and evaluations, the wall time (best of three, after a run that
 loads the compiled code), the control work ``W_u`` at the end and, with the rate limit, its
 difference from a run at ``rtol`` 1e-12 (the energy integrals' accuracy at the default 1e-9).
-A finding of session 12: with the limit, about 5 times the steps and 9 times the evaluations.
+A finding of session 12: with the limit, about 5 times the steps and 9 times the evaluations;
+since the loop ends a step where a ramp meets the lag, about 2 times each
+(``benchmarks/history.md``).
 """
 
 from __future__ import annotations
