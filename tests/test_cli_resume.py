@@ -40,6 +40,7 @@ FINAL_NAMES = {
     "tendon_lengths.png",
     "view.html",
     "motion.gif",
+    ".simulate-outputs",  # (their list: tensegrity.io.files.write_staged)
 }
 PARTIAL = ".trajectory.h5.partial"
 DATASETS = (

@@ -226,7 +226,7 @@ def test_cli_lqr_writes_a_controller_file(tmp_path, capsys):
     code = main([*argv, "--out", str(out)])
     printed = capsys.readouterr().out
     assert code == 0
-    assert sorted(p.name for p in out.iterdir()) == ["controller.npz", "lqr.json"]
+    assert sorted(p.name for p in out.iterdir()) == [".lqr-outputs", "controller.npz", "lqr.json"]
     feedback = read_controller(out / "controller.npz")
     s = generate("shell", n=3, m=1)
     assert feedback.check(s).tolist() == list(range(s.n_tendons))

@@ -49,6 +49,16 @@ def test_the_command_line_loads_no_heavy_package_before_a_verb_runs():
     assert not loaded & set(HEAVY)
 
 
+@pytest.mark.parametrize("verb", ["", "simulate", "info", "modes", "sweep", "view"])
+def test_the_parser_of_a_command_line_loads_no_heavy_package(verb):
+    """The parser a command line needs (every verb's options but those of ``design`` and
+    ``fit``, which only name theirs unless asked for) comes without SciPy, numba, matplotlib
+    or h5py.  Before, building it imported the design and identification packages for their
+    options' defaults: SciPy's optimisation and statistics, 0.4 s of every command's start."""
+    code = f"from tensegrity.cli.main import build_parser\nbuild_parser({verb!r})"
+    assert not {m.split(".")[0] for m in loaded_after(code)} & set(HEAVY)
+
+
 @pytest.mark.parametrize("name", tensegrity.__all__)
 def test_each_name_of_the_package_is_its_module_s(name):
     """Each name of ``__all__`` resolves, on first use, to the object of the module that

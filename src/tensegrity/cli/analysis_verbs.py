@@ -145,7 +145,10 @@ def _add_equilibrium_options(p: argparse.ArgumentParser) -> None:
         "or both and their agreement (default both)",
     )
     p.add_argument(
-        "--t-end", type=arguments.positive, default=60.0, help="longest damped simulation [s]"
+        "--t-end",
+        type=arguments.positive,
+        default=60.0,
+        help="longest damped simulation [s] (default %(default)g)",
     )
     p.add_argument(
         "--velocity-tol",
@@ -240,6 +243,10 @@ def _add_lqr_options(p: argparse.ArgumentParser) -> None:
     )
 
 
+#: ``control --steps``' default: quasi-static steps shortening, twisting back.
+_STEPS = (8, 4)
+
+
 def _add_control_options(p: argparse.ArgumentParser) -> None:
     """``control``: the targets, the actuators, the steps and the rings."""
     p.add_argument(
@@ -264,9 +271,9 @@ def _add_control_options(p: argparse.ArgumentParser) -> None:
         "--steps",
         type=int,
         nargs=2,
-        default=(8, 4),
+        default=_STEPS,
         metavar=("SHORTEN", "TWIST"),
-        help="quasi-static steps per phase (default 8 4)",
+        help=f"quasi-static steps per phase (default {_STEPS[0]} {_STEPS[1]})",
     )
     p.add_argument(
         "--bottom",
@@ -293,13 +300,16 @@ def _add_closed_loop_options(p: argparse.ArgumentParser) -> None:
         help="open loop only (no LQR simulation)",
     )
     p.add_argument(
-        "--move-time", type=arguments.positive, default=2.0, help="closed loop: time per phase [s]"
+        "--move-time",
+        type=arguments.positive,
+        default=2.0,
+        help="closed loop: time per phase [s] (default %(default)g)",
     )
     p.add_argument(
         "--settle-time",
         type=arguments.positive,
         default=4.0,
-        help="closed loop: time at the final target [s]",
+        help="closed loop: time at the final target [s] (default %(default)g)",
     )
     p.add_argument(
         "--min-rest-length",

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -14,6 +15,7 @@ from typing import Any
 __all__ = [
     "add_factors",
     "at_least",
+    "description",
     "finite",
     "name",
     "node_force",
@@ -23,6 +25,24 @@ __all__ = [
     "whole_non_negative",
     "whole_positive",
 ]
+
+
+def description(doc: str | None) -> str | None:
+    """A verb's ``--help`` description from its module's docstring ``doc``: the whole first
+    paragraph as one line of plain text, its reST markup removed (````code```` and
+    ``:func:`~a.b``` as ``code`` and ``b``; a closing ``::``, whose literal block the help does
+    not show, as a full stop), and a leading ````tensegrity VERB``:`` (the usage line names the
+    verb) left out."""
+    if not doc:
+        return None
+    text = " ".join(doc.strip().split("\n\n")[0].split())
+    text = re.sub(  # a role: its target, only the last name after a ~
+        r":[a-z]+:`(~?)([^`]*)`", lambda m: m[2].rpartition(".")[2] if m[1] else m[2], text
+    )
+    text = re.sub(r"``(.*?)``", r"\1", text)
+    text = re.sub(r"::$", ".", text)
+    text = re.sub(r"^tensegrity [a-z-]+: ", "", text)
+    return text[:1].upper() + text[1:]
 
 
 def finite(text: str) -> float:

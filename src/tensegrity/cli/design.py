@@ -1,6 +1,6 @@
 """``tensegrity design``: minimal-mass members for a structure's geometry under load cases, at
 the given geometry or at each case's loaded equilibrium (:func:`tensegrity.design.loaded.size`,
-``docs/design.md``)::
+``docs/design.md``); writes the sized structure and a report to ``--out``::
 
     tensegrity design --structure crane.json --material steel,dyneema \\
         --load down:1:0,0,-1000 --load side:1:0,-1000,-1000 --prestress 0 -o out/
@@ -14,7 +14,8 @@ together or not at all (:func:`tensegrity.io.files.write_staged`), and prints a 
 numeric form is written: every verb reads the material form (in Python,
 :func:`~tensegrity.design.files.read_design`; ``Structure.to_dict`` of its structure is the
 numeric form).  Bad input and a load case the structure cannot carry are one line with exit
-code 2.
+code 2.  The first paragraph is the verb's ``--help`` description
+(:func:`tensegrity.cli.arguments.description`).
 """
 
 from __future__ import annotations
@@ -82,16 +83,21 @@ def _shape(text: str) -> float | None:
     return value
 
 
+#: The verb's line in ``tensegrity --help``.
+HELP = "minimal-mass rods and tendons under yield and buckling for load cases"
+
+
 def add_parsers(sub: Any) -> None:
     """Add the ``design`` verb to the ``tensegrity`` subcommands ``sub``."""
+    from tensegrity.design.dynamic import DAMPING_RATIO
     from tensegrity.design.loaded import STATICS
     from tensegrity.design.materials import MATERIALS
 
     names = ", ".join(sorted(MATERIALS))
     p = sub.add_parser(
         "design",
-        help="minimal-mass rods and tendons under yield and buckling for load cases",
-        description=__doc__.splitlines()[0] if __doc__ else None,
+        help=HELP,
+        description=arguments.description(__doc__),
     )
     structures.add_source_options(p)
     p.add_argument(
@@ -139,7 +145,8 @@ def add_parsers(sub: Any) -> None:
         type=arguments.at_least(0.0, strict=False),
         default=0.0,
         metavar="G",
-        help="gravity [m/s^2] down the last axis on the members' weight in every load case",
+        help="gravity [m/s^2] down the last axis on the members' weight in every load case "
+        "(default %(default)g: none)",
     )
     p.add_argument(
         "--prestress",
@@ -155,14 +162,14 @@ def add_parsers(sub: Any) -> None:
         type=arguments.at_least(0.0, strict=True),
         metavar="M",
         help="the largest node displacement [m] allowed under each load case (at the loaded "
-        "equilibrium)",
+        "equilibrium; default: no limit)",
     )
     p.add_argument(
         "--min-frequency",
         type=arguments.at_least(0.0, strict=True),
         metavar="HZ",
         help="the lowest natural frequency [Hz] allowed, prestressed and under each load case "
-        "(at the loaded equilibrium)",
+        "(at the loaded equilibrium; default: no limit)",
     )
     p.add_argument(
         "--least-mass",
@@ -201,7 +208,7 @@ def add_parsers(sub: Any) -> None:
         default=None,
         metavar="ZETA",
         help="with --check-dynamics: each tendon's damping as a fraction of its critical "
-        "damping (default 0.02; 0: undamped)",
+        f"damping (default {DAMPING_RATIO:g}; 0: undamped)",
     )
     p.add_argument("-o", "--out", type=Path, required=True, help="output folder")
     p.set_defaults(run=_cmd_design)

@@ -1,6 +1,7 @@
 """``tensegrity fit``: a structure's parameters fitted to measured motion: marker positions,
 tendon lengths, tensions (:func:`tensegrity.analysis.identification.fit`,
-``docs/identification.md``)::
+``docs/identification.md``); writes the fitted structure, the estimates and a figure to
+``--out``::
 
     tensegrity fit --structure model.json --data markers.csv --param tendon_stiffness \\
         --param rod_mass --gravity 9.81 --load n8:5,0,0 -o fitted/
@@ -19,6 +20,8 @@ fitted structure, with its scene and the planes' fitted values), ``fitted/fit.js
 estimates, standard errors, 95 % intervals and correlations; the settings) and
 ``fitted/fit.png`` (measured against fitted motion, of the first experiment), together or not
 at all.  Bad input is one line with exit code 2; a fit that does not converge, exit code 1.
+The first paragraph is the verb's ``--help`` description
+(:func:`tensegrity.cli.arguments.description`).
 """
 
 from __future__ import annotations
@@ -42,14 +45,18 @@ from tensegrity.io.files import atomic_path, shown_path, write_staged
 __all__ = ["add_parser"]
 
 
+#: The verb's line in ``tensegrity --help``.
+HELP = "fit stiffness, damping, rest lengths, masses or friction to measured motion"
+
+
 def add_parser(sub: Any) -> None:
     """Add the ``fit`` verb to the ``tensegrity`` subcommands ``sub``."""
     from tensegrity.analysis.identification import KINDS
 
     p = sub.add_parser(
         "fit",
-        help="fit stiffness, damping, rest lengths, masses or friction to measured motion",
-        description=__doc__.splitlines()[0] if __doc__ else None,
+        help=HELP,
+        description=arguments.description(__doc__),
     )
     structures.add_source_options(p)
     p.add_argument(

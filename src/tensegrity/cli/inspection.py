@@ -129,9 +129,11 @@ def _cmd_matrices(args: argparse.Namespace) -> int:
     from tensegrity.engine.simulate import simulate
     from tensegrity.io.matrices import write_matrices
 
+    _check_shell_options(args)
     outputs.check_folder(args.out, "--out")
     structure = dynamics.undamped(structure_of(args))
     _check_matrix_size(structure)
+    _check_shell(structure, args)
     if args.at == "equilibrium":
         announce_compiling()
         check_run_cost(
@@ -175,6 +177,34 @@ def _cmd_matrices(args: argparse.Namespace) -> int:
     return 0
 
 
+#: What ``matrices`` takes, after the option that asks for something else.
+_SHELLS_ONLY = (
+    "the matrix model: supports only free 3-D class 1 shells (--kind shell, the default, with "
+    "or without --primal; not --fixed-base)"
+)
+
+
+def _check_shell_options(args: argparse.Namespace) -> None:
+    """Refuse a generated structure other than a free class 1 shell before any work, naming
+    the option that asks for it."""
+    if args.structure is not None:
+        return  # a file: :func:`_check_shell` once it is read
+    if args.kind not in (None, "shell"):
+        raise CommandError(f"--kind {args.kind}: {_SHELLS_ONLY}")
+    if args.fixed_base:
+        raise CommandError(f"--fixed-base: {_SHELLS_ONLY}")
+
+
+def _check_shell(structure: Structure, args: argparse.Namespace) -> None:
+    """Refuse ``structure`` up front (before a damped simulation to the equilibrium) if it is
+    not a class 1 shell the matrix model takes."""
+    from tensegrity.physics.matrix_form import shell_size
+
+    source = "matrices" if args.structure is None else "--structure"
+    with blame(source, args.structure):
+        shell_size(structure)
+
+
 #: ``matrices`` builds dense (nodes x nodes) arrays: at most this many nodes (0.5 GiB each).
 _MATRICES_NODE_LIMIT = 8192
 
@@ -192,7 +222,13 @@ def _check_matrix_size(structure: Structure) -> None:
 
 def _add_info_parser(sub: Any) -> None:
     """``info``: counts and sizes of a structure."""
-    info = sub.add_parser("info", help="print counts and sizes of a structure")
+    info = sub.add_parser(
+        "info",
+        help="print counts and sizes of a structure",
+        description="Print the counts and sizes of a structure: nodes, rods, tendons, degrees "
+        "of freedom, coordinates, mass, lengths, stiffnesses, damping, slack tendons, bounding "
+        "box, and its joints, supports and point masses.",
+    )
     add_structure_options(info)
     info.set_defaults(run=_cmd_info)
 
@@ -200,7 +236,11 @@ def _add_info_parser(sub: Any) -> None:
 def _add_export_parser(sub: Any) -> None:
     """``export``: a structure to a file in any format."""
     export = sub.add_parser(
-        "export", help="write a generated structure or a structure file to a file (any format)"
+        "export",
+        help="write a generated structure or a structure file to a file (any format)",
+        description="Write a generated structure or a structure file to a structure file: JSON, "
+        "YAML, TOML, connectivity .npz or MuJoCo MJCF (.xml), by --format or the suffix of "
+        "--output.",
     )
     add_structure_options(export)
     export.add_argument(
@@ -257,13 +297,13 @@ def _add_matrices_parser(sub: Any) -> None:
         choices=("initial", "equilibrium"),
         default="initial",
         help="state at which the state-dependent matrices are evaluated: the "
-        "initial layout, or the equilibrium reached by damped simulation",
+        "initial layout, or the equilibrium reached by damped simulation (default %(default)s)",
     )
     matrices.add_argument(
         "--t-end",
         type=arguments.positive,
         default=60.0,
-        help="longest damped simulation when looking for the equilibrium [s]",
+        help="longest damped simulation when looking for the equilibrium [s] (default %(default)g)",
     )
     matrices.add_argument(
         "--out",

@@ -1,10 +1,11 @@
 """Command-line interface: ``tensegrity VERB``, one verb a subcommand (:func:`build_parser`;
-``--help`` says what it does: :data:`DESCRIPTION`).  This module assembles the parser and
-dispatches to the verbs, each in its own module: :mod:`~tensegrity.cli.simulate`,
-:mod:`~tensegrity.cli.inspection` (``info``, ``export``, ``vtk``, ``matrices``),
-:mod:`~tensegrity.cli.analysis_verbs` (``equilibrium``, ``modes``, ``controllability``,
-``lqr``, ``control``), :mod:`~tensegrity.cli.sweep`, :mod:`~tensegrity.cli.visual` (``animate``,
-``view``) and :mod:`~tensegrity.cli.design`; a verb imports what it needs when it runs.
+``--help`` says what it does: :data:`DESCRIPTION`; ``--version`` prints the installed version).
+This module assembles the parser and dispatches to the verbs, each in its own module:
+:mod:`~tensegrity.cli.simulate`, :mod:`~tensegrity.cli.inspection` (``info``, ``export``,
+``vtk``, ``matrices``), :mod:`~tensegrity.cli.analysis_verbs` (``equilibrium``, ``modes``,
+``controllability``, ``lqr``, ``control``), :mod:`~tensegrity.cli.sweep`,
+:mod:`~tensegrity.cli.visual` (``animate``, ``view``), :mod:`~tensegrity.cli.design` and
+:mod:`~tensegrity.cli.fit`; a verb imports what it needs when it runs.
 
 A thin layer over the library.  Every error is one line on stderr with exit code 2 (bad
 input), 1 (the computation failed, or an internal error: rerun with ``--debug`` for the trace) or
@@ -40,26 +41,68 @@ DESCRIPTION = (
 )
 
 
+#: The distribution whose version ``tensegrity --version`` prints.
+DISTRIBUTION = "tensegrity-dynamics"
+
+
+def version() -> str:
+    """The installed version of the package (:data:`DISTRIBUTION`)."""
+    import importlib.metadata
+
+    try:
+        return importlib.metadata.version(DISTRIBUTION)
+    except importlib.metadata.PackageNotFoundError:
+        return f"unknown ({DISTRIBUTION} is not installed)"
+
+
+class _Version(argparse.Action):
+    """``--version``: print ``tensegrity VERSION`` and exit 0 (the version looked up only
+    then)."""
+
+    def __init__(self, option_strings: Sequence[str], dest: str, help: str | None = None) -> None:
+        super().__init__(option_strings, dest=dest, default=argparse.SUPPRESS, nargs=0, help=help)
+
+    def __call__(self, parser: argparse.ArgumentParser, *_: object) -> NoReturn:
+        print(f"{PROG} {version()}")
+        parser.exit()
+
+
 class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> NoReturn:  # one line, not usage + error
         verb = self.prog.removeprefix(PROG).strip()  # "" for the command's own parser
         raise CommandError(f"{verb}: {message}" if verb else message)
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The parser of the ``tensegrity`` command: one subcommand per verb, and ``--debug``."""
+#: Verbs whose options import large parts of the library (their defaults and choices come from
+#: it: scipy's optimisation and statistics, the design and identification packages) and their
+#: one-line help: named only, without their options, unless the command line asks for them.
+DEFERRED = {"design": design.HELP, "fit": fit.HELP}
+
+
+def build_parser(verb: str | None = None) -> argparse.ArgumentParser:
+    """The parser of the ``tensegrity`` command: one subcommand per verb, ``--debug`` and
+    ``--version``.  ``verb``: the verb of the command line ("" for none): a verb of
+    :data:`DEFERRED` other than it is named with its help only (``tensegrity simulate`` does
+    not import the design package, 0.3 s); None: every verb with its options."""
     parser = _Parser(prog=PROG, description=DESCRIPTION)
+    parser.add_argument(
+        "--version", action=_Version, help=f"print the installed version ({PROG} VERSION) and exit"
+    )
     _add_debug_option(parser, default=False)
-    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    # not required: without a verb, _parse says so in its own words
+    sub = parser.add_subparsers(dest="command", parser_class=_Parser)
     simulate.add_parser(sub)
     inspection.add_parsers(sub)  # info, export, vtk, matrices
     analysis_verbs.add_parsers(sub)  # equilibrium, modes, controllability, lqr, control
     sweep.add_parser(sub)
     visual.add_parsers(sub)  # animate, view
-    design.add_parsers(sub)  # design: minimal-mass members
-    fit.add_parser(sub)  # fit: parameters to measured motion
-    for verb in sub.choices.values():  # after the verb too; not given there: the command's value
-        _add_debug_option(verb, default=argparse.SUPPRESS)
+    for name, add in (("design", design.add_parsers), ("fit", fit.add_parser)):
+        if verb is None or verb == name:
+            add(sub)  # design: minimal-mass members; fit: parameters to measured motion
+        else:
+            sub.add_parser(name, help=DEFERRED[name])
+    for verb_parser in sub.choices.values():  # after the verb too; not given: the command's
+        _add_debug_option(verb_parser, default=argparse.SUPPRESS)
     return parser
 
 
@@ -75,13 +118,30 @@ def _add_debug_option(parser: argparse.ArgumentParser, default: object) -> None:
 
 def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
     """The options of ``argv``; an unknown option fails in one line naming the verb."""
-    args, unknown = build_parser().parse_known_args(argv)
+    words = sys.argv[1:] if argv is None else list(argv)
+    parser = build_parser(next((word for word in words if not word.startswith("-")), ""))
+    args, unknown = parser.parse_known_args(words)
+    if args.command is None:
+        given = f"unrecognized arguments: {' '.join(unknown)}; " if unknown else ""
+        raise CommandError(
+            f"{given}a verb is required ({', '.join(_verbs(parser))}): see {PROG} --help"
+        )
     if unknown:
         raise CommandError(
             f"{args.command}: unrecognized arguments: {' '.join(unknown)} "
             f"(see {PROG} {args.command} --help)"
         )
     return args
+
+
+def _verbs(parser: argparse.ArgumentParser) -> list[str]:
+    """The verbs of the command's ``parser``, in the order of its help."""
+    return [
+        verb
+        for action in parser._actions
+        if isinstance(action, argparse._SubParsersAction)
+        for verb in action.choices
+    ]
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -140,6 +140,10 @@ def _in_sweep_options() -> Iterator[None]:
 
 def add_parser(sub: Any) -> None:
     """``sweep``: a parameter sweep on Dask."""
+    from tensegrity.sweep.run import DEFAULTS, SweepSpec
+
+    # SweepSpec's, not the options' defaults: an option given may not go with --spec
+    spec = {field.name: field.default for field in dataclasses.fields(SweepSpec)}
     sweep = sub.add_parser(
         "sweep",
         help="simulate many shells or copies of a structure file (a grid or Monte Carlo "
@@ -162,19 +166,35 @@ def add_parser(sub: Any) -> None:
         type=_sweep_parameter,
         action="append",
         metavar="NAME=VALUES",
-        help="vary NAME (n, m, stiffness, rest_scale, damping, load): V1,V2,... "
-        "for a grid, LOW:HIGH with --samples; repeatable",
+        help="vary NAME: n, m (the shell's elements around, stages), stiffness [N/m], "
+        "rest_scale (every tendon's rest length over its initial length), damping [N s/m] or "
+        "load [N] (an axial compression: the top nodes pushed down, the bottom ones up): "
+        "V1,V2,... for a grid, LOW:HIGH with --samples; repeatable. A parameter not varied is "
+        f"{', '.join(f'{name} = {value:g}' for name, value in DEFAULTS.items())} (with "
+        "--structure: the file's values, and no load)",
     )
-    sweep.add_argument("--samples", type=int, help="Monte Carlo sample of this many cases")
-    sweep.add_argument("--seed", type=int, help="Monte Carlo seed (default 0)")
     sweep.add_argument(
-        "--t-end", type=arguments.positive, help="simulated time per case [s] (default 0.1)"
+        "--samples",
+        type=int,
+        help="Monte Carlo sample of this many cases (default: none, a grid of the --param values)",
+    )
+    sweep.add_argument("--seed", type=int, help=f"Monte Carlo seed (default {spec['seed']})")
+    sweep.add_argument(
+        "--t-end",
+        type=arguments.positive,
+        help=f"simulated time per case [s] (default {spec['t_end']:g})",
     )
     sweep.add_argument(
-        "--sample-dt", type=arguments.positive, help="output spacing [s] (default 1e-3)"
+        "--sample-dt",
+        type=arguments.positive,
+        help=f"output spacing [s] (default {spec['sample_dt']:g})",
     )
-    sweep.add_argument("--method", help="rk4 (default) or an adaptive scipy method")
-    sweep.add_argument("--dt", type=arguments.positive, help="rk4 step [s] (default 1e-4)")
+    sweep.add_argument(
+        "--method", help=f"{spec['method']} (default) or an adaptive scipy method, e.g. DOP853"
+    )
+    sweep.add_argument(
+        "--dt", type=arguments.positive, help=f"{spec['method']} step [s] (default {spec['dt']:g})"
+    )
     sweep.add_argument(
         "--no-batch",
         action="store_true",

@@ -23,6 +23,10 @@ from tensegrity.io.files import byte_text, folders_made, shown_path
 __all__ = ["add_parsers"]
 
 
+#: ``animate --size``' default: the video's width and height [pixels].
+_SIZE = (800, 640)
+
+
 def _size(text: str) -> tuple[int, int]:
     try:
         width, height = (int(part) for part in text.lower().split("x"))
@@ -223,16 +227,26 @@ def add_parsers(sub: Any) -> None:
         "--fps",
         type=arguments.positive,
         default=30.0,
-        help="frames per second (30; a GIF's delays are whole hundredths of a second: 33.3 for 30)",
+        help="frames per second (default %(default)g; a GIF's delays are whole hundredths of a "
+        "second: 33.3 for 30)",
     )
-    animate.add_argument("--duration", type=arguments.positive, help="length of the video [s]")
+    animate.add_argument(
+        "--duration",
+        type=arguments.positive,
+        help="length of the video [s] (default: as long as the run, at most "
+        f"{MAX_REAL_TIME:g} s; with --speed, the run's length over SPEED)",
+    )
     animate.add_argument(
         "--speed",
         type=arguments.positive,
-        help="simulated seconds per second of video (1: real time)",
+        help="simulated seconds per second of video (1: real time; default 1, or what plays "
+        f"a run longer than {MAX_REAL_TIME:g} s in {MAX_REAL_TIME:g} s)",
     )
     animate.add_argument(
-        "--size", type=_size, default=(800, 640), help="WIDTHxHEIGHT in pixels (800x640)"
+        "--size",
+        type=_size,
+        default=_SIZE,
+        help=f"WIDTHxHEIGHT in pixels, multiples of 16, >= 160 (default {_SIZE[0]}x{_SIZE[1]})",
     )
     animate.add_argument(
         "--view", type=_view, help="camera ELEV,AZIM in degrees (default 22,-58; planar: 90,-90)"
@@ -261,13 +275,13 @@ def add_parsers(sub: Any) -> None:
         "--max-frames",
         type=arguments.whole_positive,
         default=MAX_FRAMES,
-        help=f"at most this many frames, spread over the run ({MAX_FRAMES})",
+        help="at most this many frames, spread over the run (default %(default)d)",
     )
     viewer.add_argument(
         "--max-mb",
         type=arguments.positive,
         default=MAX_BYTES / 1e6,
-        help=f"at most this many MB of positions and tensions ({MAX_BYTES / 1e6:g})",
+        help="at most this many MB of positions and tensions (default %(default)g)",
     )
     viewer.add_argument("--title", help="the page's title (default: the structure's counts)")
     design = viewer.add_argument_group("members by utilisation")
