@@ -33,7 +33,7 @@ def _check_files(out, names):
     """Exactly ``names`` in ``out`` (no staging or temporary leftovers) and the verb's listing
     of them (``.VERB-outputs``, :func:`tensegrity.io.files.write_staged`), PNGs real images."""
     listings = [p for p in out.iterdir() if p.name.endswith("-outputs")]
-    assert len(listings) == 1 and sorted(listings[0].read_text().split()) == sorted(names)
+    assert len(listings) == 1 and sorted(json.loads(listings[0].read_text())) == sorted(names)
     assert sorted(p.name for p in out.iterdir()) == sorted([*names, listings[0].name])
     for name in names:
         data = (out / name).read_bytes()

@@ -242,3 +242,11 @@ def test_matrices_of_a_structure_file_not_a_shell_is_refused_before_the_simulati
     assert err.startswith("tensegrity: error: --structure: ") and "prism.json" in err, err
     assert "the matrix model needs a class 1 shell" in err, err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("argv", [["design"], ["--debug", "fit"], ["sweep"]])
+def test_a_verb_whose_options_are_built_on_demand_shows_them(argv, capsys):
+    """``sweep``, ``design`` and ``fit`` are only named until the command line asks for one
+    (their options import SciPy): then its help lists its options."""
+    printed = _help(argv, capsys)
+    assert "options:" in printed and "--out" in printed and "--structure" in printed, printed

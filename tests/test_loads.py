@@ -71,8 +71,8 @@ def test_files_npz_and_csv(tmp_path):
         np.testing.assert_array_equal(again.time, f.time)
         np.testing.assert_array_equal(again.force, f.force)
     names = ",".join(["t"] + [f"f{k}{x}" for k in range(f.force.shape[1]) for x in "xyz"])
-    (tmp_path / "named.csv").write_text(
-        names + "\n" + "\n".join(",".join(map(str, row.tolist())) for row in rows) + "\n"
+    (tmp_path / "named.csv").write_text(  # (as a spreadsheet saves it: a byte-order mark first)
+        "\ufeff" + names + "\n" + "\n".join(",".join(map(str, row.tolist())) for row in rows) + "\n"
     )
     again = read_force_table(tmp_path / "named.csv")  # (a first row of column names, skipped)
     np.testing.assert_array_equal(again.force, f.force)

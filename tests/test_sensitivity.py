@@ -299,7 +299,7 @@ def _sled(mass: float = 0.3, stiffness: float = 20.0) -> Structure:
 def test_sensitivities_of_a_point_mass_sliding_and_sticking_on_the_ground():
     """The sled pressed on the ground by gravity slides to and fro, sticks, and slips again as
     the push grows: its mass (which the contacts hold a copy of: the sticking force is ``m``
-    times the acceleration it cancels), the springs' stiffness and both friction coefficients
+    times the acceleration it cancels), a spring's stiffness and both friction coefficients
     within 1e-4 of the differences."""
     sled = _sled()
     options = _sled_run()

@@ -106,51 +106,84 @@ def test_outputs_replace_the_old_ones_together(tmp_path):
     assert _contents(out) == {"a.txt": b"new a", "keep.txt": b"kept", "sub/b.txt": b"new b"}
 
 
+def _listing(folder: Path, record: str) -> dict:
+    return json.loads((folder / f".{record}-outputs").read_text())
+
+
 def test_outputs_an_earlier_write_listed_and_this_one_does_not_are_removed(tmp_path):
     """With a record, the folder holds one write's outputs: what the earlier write of that
-    record listed and this one does not write goes (its emptied folder too); a file the verb
+    record listed and this one does not write goes (its emptied folders too); a file the verb
     never wrote, and another record's outputs, stay."""
     out = tmp_path / "out"
-    write_staged(out, _writer({"a.txt": "old a", "sub/b.txt": "b", "c.txt": "c"}), record="run")
+    earlier = {"a.txt": "old a", "sub/deeper/b.txt": "b", "c.txt": "c"}
+    write_staged(out, _writer(earlier), record="run")
+    assert sorted(_listing(out, "run")) == sorted(earlier)
     write_staged(out, _writer({"other.txt": "other's"}), record="other")
     (out / "mine.txt").write_text("the user's")
     written = write_staged(out, _writer({"a.txt": "new a"}), record="run")
-    assert written == [out / "a.txt"]
-    assert _contents(out) == {
+    assert written == [out / "a.txt"] and list(_listing(out, "run")) == ["a.txt"]
+    assert not (out / "sub").exists()
+    assert {k: v for k, v in _contents(out).items() if not k.startswith(".")} == {
         "a.txt": b"new a",
         "mine.txt": b"the user's",
         "other.txt": b"other's",
-        ".run-outputs": b"a.txt\n",
-        ".other-outputs": b"other.txt\n",
     }
 
 
-def test_a_listing_naming_files_outside_the_folder_removes_nothing_there(tmp_path):
+def test_a_listed_file_changed_since_or_behind_a_link_stays(tmp_path):
+    """A listed file the user rewrote, one reached through a symbolic link to another folder,
+    and names outside the folder are not removed."""
     out = tmp_path / "out"
-    out.mkdir()
+    write_staged(out, _writer({"a.txt": "a", "b.txt": "b", "sub/c.txt": "c"}), record="run")
+    (out / "a.txt").write_text("the user's own a")
+    elsewhere = tmp_path / "elsewhere"
+    (out / "sub").rename(elsewhere)
+    (out / "sub").symlink_to(elsewhere)
     (tmp_path / "outside.txt").write_text("kept")
-    (out / "sub").mkdir()
-    (out / ".run-outputs").write_text(f"../outside.txt\n{tmp_path / 'outside.txt'}\nsub\n")
-    write_staged(out, _writer({"a.txt": "a"}), record="run")
-    assert (tmp_path / "outside.txt").read_text() == "kept" and (out / "sub").is_dir()
+    listing = _listing(out, "run")
+    listing.update({"../outside.txt": [4, 0], str(tmp_path / "outside.txt"): [4, 0]})
+    (out / ".run-outputs").write_text(json.dumps(listing))
+    write_staged(out, _writer({"d.txt": "d"}), record="run")
+    assert (out / "a.txt").read_text() == "the user's own a" and not (out / "b.txt").exists()
+    assert (elsewhere / "c.txt").read_text() == "c" and (tmp_path / "outside.txt").exists()
 
 
-def test_a_failed_move_puts_the_superseded_outputs_back(tmp_path, monkeypatch):
+def test_a_listed_file_that_cannot_be_moved_stays(tmp_path, monkeypatch):
     out = tmp_path / "out"
-    write_staged(out, _writer({"a.txt": "old a", "sub/b.txt": "b"}), record="run")
-    before = _contents(out)
+    write_staged(out, _writer({"a.txt": "a", "b.txt": "b"}), record="run")
     replace = os.replace
 
     def failing(source, target):
         if Path(source).name == "b.txt" and ".replaced" in Path(target).parts:
-            raise OSError(28, "No space left on device")
+            raise OSError(18, "Invalid cross-device link")
         return replace(source, target)
 
     monkeypatch.setattr(files.os, "replace", failing)
-    with pytest.raises(OSError, match="No space"):
+    write_staged(out, _writer({"c.txt": "c"}), record="run")
+    assert sorted(p.name for p in out.iterdir()) == [".run-outputs", "b.txt", "c.txt"]
+
+
+def test_an_interrupted_move_puts_the_superseded_outputs_back(tmp_path, monkeypatch):
+    """Interrupted while setting the earlier write's second file aside: the first is back,
+    and everything is as before."""
+    out = tmp_path / "out"
+    write_staged(out, _writer({"a.txt": "old a", "b.txt": "b", "sub/c.txt": "c"}), record="run")
+    before = _contents(out)
+    replace = os.replace
+    aside = []
+
+    def interrupted(source, target):
+        if ".replaced" in Path(target).parts and Path(source).name in ("b.txt", "c.txt"):
+            aside.append(Path(source).name)
+            if len(aside) == 2:
+                raise KeyboardInterrupt
+        return replace(source, target)
+
+    monkeypatch.setattr(files.os, "replace", interrupted)
+    with pytest.raises(KeyboardInterrupt):
         write_staged(out, _writer({"a.txt": "new a"}), record="run")
     monkeypatch.setattr(files.os, "replace", replace)
-    assert _contents(out) == before
+    assert len(aside) == 2 and _contents(out) == before
 
 
 def test_simulate_into_an_earlier_runs_folder_leaves_none_of_its_files(tmp_path, capsys):
@@ -264,7 +297,7 @@ def test_analysis_verbs_compute_outside_the_output_folder(tmp_path, monkeypatch,
     assert sorted(p.name for p in out.iterdir() if p.name != listing) == sorted(
         Path(f).name for f in written
     )
-    assert (out / listing).read_text().split() == [Path(f).name for f in written]
+    assert list(json.loads((out / listing).read_text())) == [Path(f).name for f in written]
 
 
 def _check_complete(path: Path, content: bytes) -> None:

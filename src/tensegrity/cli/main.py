@@ -74,16 +74,22 @@ class _Parser(argparse.ArgumentParser):
 
 
 #: Verbs whose options import large parts of the library (their defaults and choices come from
-#: it: scipy's optimisation and statistics, the design and identification packages) and their
-#: one-line help: named only, without their options, unless the command line asks for them.
-DEFERRED = {"design": design.HELP, "fit": fit.HELP}
+#: it: SciPy's optimisation and statistics, the design, identification and sweep packages), by
+#: name: their one-line help and what adds them with their options; named only, without them,
+#: unless the command line asks for the verb.
+DEFERRED = {
+    "sweep": (sweep.HELP, sweep.add_parser),
+    "design": (design.HELP, design.add_parsers),
+    "fit": (fit.HELP, fit.add_parser),
+}
 
 
 def build_parser(verb: str | None = None) -> argparse.ArgumentParser:
     """The parser of the ``tensegrity`` command: one subcommand per verb, ``--debug`` and
     ``--version``.  ``verb``: the verb of the command line ("" for none): a verb of
     :data:`DEFERRED` other than it is named with its help only (``tensegrity simulate`` does
-    not import the design package, 0.3 s); None: every verb with its options."""
+    not import the design package, 0.3 s); None: every verb with its options.  :func:`_parse`
+    parses with the verbs named only, then again with the one the command line gives."""
     parser = _Parser(prog=PROG, description=DESCRIPTION)
     parser.add_argument(
         "--version", action=_Version, help=f"print the installed version ({PROG} VERSION) and exit"
@@ -94,13 +100,12 @@ def build_parser(verb: str | None = None) -> argparse.ArgumentParser:
     simulate.add_parser(sub)
     inspection.add_parsers(sub)  # info, export, vtk, matrices
     analysis_verbs.add_parsers(sub)  # equilibrium, modes, controllability, lqr, control
-    sweep.add_parser(sub)
     visual.add_parsers(sub)  # animate, view
-    for name, add in (("design", design.add_parsers), ("fit", fit.add_parser)):
+    for name, (line, add) in DEFERRED.items():  # sweep on Dask, design, fit to measured motion
         if verb is None or verb == name:
-            add(sub)  # design: minimal-mass members; fit: parameters to measured motion
-        else:
-            sub.add_parser(name, help=DEFERRED[name])
+            add(sub)
+        else:  # (its --help too is left to the parse with its options)
+            sub.add_parser(name, help=line, add_help=False)
     for verb_parser in sub.choices.values():  # after the verb too; not given: the command's
         _add_debug_option(verb_parser, default=argparse.SUPPRESS)
     return parser
@@ -119,8 +124,11 @@ def _add_debug_option(parser: argparse.ArgumentParser, default: object) -> None:
 def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
     """The options of ``argv``; an unknown option fails in one line naming the verb."""
     words = sys.argv[1:] if argv is None else list(argv)
-    parser = build_parser(next((word for word in words if not word.startswith("-")), ""))
+    parser = build_parser("")
     args, unknown = parser.parse_known_args(words)
+    if args.command in DEFERRED:  # (named only: now with its options)
+        parser = build_parser(args.command)
+        args, unknown = parser.parse_known_args(words)
     if args.command is None:
         given = f"unrecognized arguments: {' '.join(unknown)}; " if unknown else ""
         raise CommandError(

@@ -138,6 +138,13 @@ def _in_sweep_options() -> Iterator[None]:
         raise CommandError(message) from exc
 
 
+#: The verb's line in ``tensegrity --help``.
+HELP = (
+    "simulate many shells or copies of a structure file (a grid or Monte Carlo sample of "
+    "parameters) on Dask"
+)
+
+
 def add_parser(sub: Any) -> None:
     """``sweep``: a parameter sweep on Dask."""
     from tensegrity.sweep.run import DEFAULTS, SweepSpec
@@ -146,8 +153,7 @@ def add_parser(sub: Any) -> None:
     spec = {field.name: field.default for field in dataclasses.fields(SweepSpec)}
     sweep = sub.add_parser(
         "sweep",
-        help="simulate many shells or copies of a structure file (a grid or Monte Carlo "
-        "sample of parameters) on Dask",
+        help=HELP,
         description="Run a parameter sweep on Dask and write one netCDF/HDF5 dataset; exit code 1 "
         "if some case failed (reported per case, the others are kept).",
     )

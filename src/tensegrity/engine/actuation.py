@@ -69,7 +69,10 @@ def next_ramp_end(act, t):  # pragma: no cover - compiled
     """The first time [s] after ``t`` at which an actuator with a lag leaves its ramp at the
     rate limit (inf if none does; ``act`` None).  The control's rate is continuous there but
     its slope jumps (from 0 to ``-r / tau``): a step across it loses DOP853's order, so the
-    adaptive loop ends a step there (``benchmarks/bench_actuator_steps.py``)."""
+    adaptive loop ends a step there (``benchmarks/bench_actuator_steps.py``).  Without a lag the
+    rate itself jumps there (from ``r`` to 0), and a step ending on that time would take its
+    last stages, at the step's end, on either side of the jump by round-off; that case is left
+    to the step-size control, as a table's knots are."""
     end = np.inf
     if act is None:
         return end

@@ -416,10 +416,11 @@ class _Run:
         """Fail the run at ``t`` [s] for its step budget, saying how many steps the whole run
         would take at the mean step so far (a small budget, or steps that became tiny)."""
         self.status = STATUS_FAILED
-        steps = self.options.max_steps
+        steps = self.counts["nsteps"] or self.options.max_steps
         needed = steps * (self.t_end - self.t0) / (t - self.t0) if t > self.t0 else math.inf
         self.message = (
-            f"stopped after max_steps (--max-steps) = {steps:,} steps at t = {t:.6g} s of "
+            f"stopped after max_steps (--max-steps) = {self.options.max_steps:,} steps at "
+            f"t = {t:.6g} s of "
             f"{self.t_end:g} s (at their mean step of {(t - self.t0) / steps:.3g} s, the whole "
             f"run takes about {needed:,.0f} steps); raise max_steps (--max-steps), or if the "
             "steps are far smaller than the motion needs (a stiff or unstable structure?), "

@@ -530,8 +530,10 @@ def event_time_derivative(sens, model, data, times, y, f_end, events, varying): 
     sits on either side of the event by the width of its bracket, far less), but at most a
     quarter of the smooth stretch ``t - t0``, so that both points lie after the event before:
     a state at rest (a point stuck until a growing load makes it slip) would take them back
-    seconds, across the stick, with ``g'`` and ``f-`` of another motion.  Not below
-    :data:`BACK` of the time (events that come together), where round-off would rule."""
+    seconds, across the stick, with ``g'`` and ``f-`` of another motion.  That bound is not
+    taken below :data:`BACK` of the time (at least 1 s; events that come together), where
+    round-off would rule.  (A control or force table's knot is no restart: a point at rest may
+    look back across one.)"""
     if sens is None:
         return False
     e = -1

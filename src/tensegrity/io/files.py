@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import json
 import os
 import shutil
 import stat
@@ -246,11 +247,13 @@ def write_staged(
     removed again.  What a killed run left in ``out`` (staging folders and temporary files of
     processes that no longer exist) is removed first (:func:`remove_stale`).
 
-    With ``record`` (a verb's name) the outputs are listed in ``out/.<record>-outputs``, and
-    those an earlier write of that record listed there and this one does not write (the video
-    of a run that now has none, the files of an option not given this time) are removed with
-    the move (put back if it fails): ``out`` then holds one run's outputs, never an older
-    run's beside them, and nothing this verb did not write is touched.
+    With ``record`` (a verb's name) the outputs are listed in ``out/.<record>-outputs`` with
+    their sizes and times, and those an earlier write of that record listed there and this one
+    does not write (the video of a run that now has none, the files of an option not given this
+    time) are removed with the move (put back if it fails; one that cannot be moved stays):
+    ``out`` then holds one run's outputs, not an older run's beside them.  Only files as that
+    write left them are removed (:func:`_listed`); two runs writing into one folder at once
+    are not supported.
 
     Raises
     ------
@@ -265,7 +268,7 @@ def write_staged(
         ) as staging:
             written = [*write(Path(staging))]
             if record is not None:
-                written.append(_listing(Path(staging), out, written, record))
+                written.append(_listing(Path(staging), written, record))
             moves = [(Path(path), out / Path(path).relative_to(staging)) for path in written]
             check_targets(out, [target for _, target in moves])
             aside = Path(staging) / ".replaced"
@@ -275,28 +278,43 @@ def write_staged(
             return targets[:-1] if record is not None else targets
 
 
-def _listing(staging: Path, out: Path, written: list[Path], record: str) -> Path:
-    """``staging/.<record>-outputs``: the names of ``written`` (files in ``staging``) relative
-    to ``out``, one a line."""
+def _listing(staging: Path, written: list[Path], record: str) -> Path:
+    """``staging/.<record>-outputs``: JSON of the ``written`` files (in ``staging``) by their
+    names relative to the output folder, each with its size [bytes] and modification time
+    [ns] (a move keeps both)."""
     listing = staging / f".{record}-outputs"
-    names = [Path(path).relative_to(staging).as_posix() for path in written]
-    listing.write_text("".join(f"{name}\n" for name in names), "utf-8")
+    files = {}
+    for path in written:
+        status = os.lstat(path)
+        files[Path(path).relative_to(staging).as_posix()] = [status.st_size, status.st_mtime_ns]
+    listing.write_text(json.dumps(files, indent=0) + "\n", "utf-8")
     return listing
 
 
 def _listed(out: Path, record: str) -> list[str]:
-    """The names ``out/.<record>-outputs`` lists: those of plain files inside ``out`` only (a
-    line naming anything else, as ``../x``, an absolute path or a folder, is passed over)."""
+    """The names ``out/.<record>-outputs`` lists whose files are still those it wrote: plain
+    files inside ``out`` (no ``..``, absolute path or symbolic link on the way) of the size and
+    modification time listed.  A file changed, replaced or moved since (by the user, another
+    verb) is passed over, as is a listing that does not read."""
     try:
-        text = (out / f".{record}-outputs").read_text("utf-8")
-    except (OSError, UnicodeDecodeError):
+        files = json.loads((out / f".{record}-outputs").read_text("utf-8"))
+    except (OSError, ValueError):
+        return []
+    if not isinstance(files, dict):
         return []
     names = []
-    for line in text.splitlines():
-        name = Path(line)
-        inside = line and not name.is_absolute() and ".." not in name.parts
-        if inside and (out / name).is_file() and not (out / name).is_symlink():
-            names.append(line)
+    for name, recorded in files.items():
+        path = Path(name)
+        if not name or path.is_absolute() or ".." in path.parts:
+            continue
+        try:
+            steps = [os.lstat(out.joinpath(*path.parts[: k + 1])) for k in range(len(path.parts))]
+        except OSError:
+            continue  # gone
+        if any(stat.S_ISLNK(step.st_mode) for step in steps) or not stat.S_ISREG(steps[-1].st_mode):
+            continue
+        if recorded == [steps[-1].st_size, steps[-1].st_mtime_ns]:
+            names.append(name)
     return names
 
 
@@ -363,8 +381,11 @@ def _move_all(
                     created.append(out / folder)
             done.append((target, set_aside(target)))
             os.replace(source, target)
-        for target in superseded:
-            done.append((target, set_aside(target)))
+        for target in superseded:  # (at best: one that cannot be moved stays)
+            try:
+                done.append((target, set_aside(target)))
+            except OSError:
+                continue
     except BaseException:
         for target, kept in reversed(done):  # roll back, last move first
             with contextlib.suppress(OSError):
@@ -373,7 +394,9 @@ def _move_all(
                 else:
                     target.unlink()
         raise
-    _remove_folders([path.parent for path in superseded if path.parent != out])
+    _remove_folders(
+        [folder for path in superseded for folder in path.parents if out in folder.parents]
+    )
     return [target for _, target in moves]
 
 

@@ -49,7 +49,7 @@ def read_force_table(path: PathLike, *, outside: str = "hold") -> ForceTable:
             return _npz_table(raw, outside)
         lines = [
             line
-            for line in raw.decode("utf-8").splitlines()
+            for line in raw.decode("utf-8-sig").splitlines()
             if line.strip() and not line.lstrip().startswith("#")
         ]
         first = lines[0].split(",")[0].strip() if lines else ""
