@@ -101,7 +101,10 @@ def test_analysis_verbs_draw_the_same_files_in_workers(tmp_path, monkeypatch, ca
     drawn = sorted(p.name for p in (tmp_path / "workers").iterdir())
     assert drawn == sorted(p.name for p in (tmp_path / "alone").iterdir())
     assert any(name.endswith(".png") for name in drawn) and any(".html" in n for n in drawn)
+    assert f".{verb}-outputs" in drawn  # (its list of the files, with their times: not drawn)
     for name in drawn:
+        if name.startswith("."):
+            continue
         workers, alone = (tmp_path / folder / name for folder in ("workers", "alone"))
         assert workers.read_bytes() == alone.read_bytes(), name
 
