@@ -47,11 +47,7 @@ def read_force_table(path: PathLike, *, outside: str = "hold") -> ForceTable:
     try:
         if Path(path).suffix.lower() == ".npz":
             return _npz_table(raw, outside)
-        lines = [
-            line
-            for line in raw.decode("utf-8-sig").splitlines()
-            if line.strip() and not line.lstrip().startswith("#")
-        ]
+        lines = [line for _, line in _csv_lines(raw)]
         first = lines[0].split(",")[0].strip() if lines else ""
         if first[:1].isalpha() and not _number(first):
             lines = lines[1:]  # (the column names: t, f0x, ...)
@@ -65,6 +61,20 @@ def read_force_table(path: PathLike, *, outside: str = "hold") -> ForceTable:
         return ForceTable(rows[:, 0], rows[:, 1:].reshape(rows.shape[0], -1, 3), outside)
     except ValueError as exc:
         raise file_error(path, str(exc)) from exc
+
+
+def _csv_lines(raw: bytes) -> list[tuple[int, str]]:
+    """The lines of a table's ``.csv`` (UTF-8, a byte-order mark allowed) with their numbers
+    (from 1), empty lines and ``#`` comments left out (``ValueError`` without the file name)."""
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"not UTF-8 text (byte {exc.start})") from exc
+    return [
+        (number, line)
+        for number, line in enumerate(text.splitlines(), 1)
+        if line.strip() and not line.lstrip().startswith("#")
+    ]
 
 
 def _number(text: str) -> bool:
@@ -185,15 +195,7 @@ def _tendon_columns(
 def _csv_control(raw: bytes, names: Sequence[str]) -> tuple[np.ndarray, list[int], np.ndarray]:
     """Times (T,), the tendons of the columns (K) and their ``u`` (T, K) of a ``.csv`` control
     table (``ValueError`` without the file name)."""
-    try:
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise ValueError(f"not UTF-8 text (byte {exc.start})") from exc
-    lines = [
-        (number, line)
-        for number, line in enumerate(text.splitlines(), 1)
-        if line.strip() and not line.lstrip().startswith("#")
-    ]
+    lines = _csv_lines(raw)
     if not lines:
         raise ValueError("no header row (expected t, then tendon names)")
     (_, head), *rows = [(number, next(csv.reader([line]))) for number, line in lines]
