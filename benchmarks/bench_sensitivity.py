@@ -13,6 +13,9 @@ Usage::
   (touch-downs, lift-offs, sticks, slips); 4 parameters: cable stiffness, rod mass, static
   and kinetic friction.
 
+Then the cost against the number of parameters: both runs with P = 1, 2, 4, 8 parameters, each
+one tendon's stiffness.
+
 Both at the fit's tolerances (``rtol`` 1e-10, ``atol`` 1e-13).  The reference is central
 differences of whole runs at ``rtol`` 1e-12 (step 1e-5 of each parameter); the error is the
 largest over samples and coordinates of ``|dq/dp - reference|``, relative to the largest
@@ -25,6 +28,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import functools
 import statistics
 import time
 from pathlib import Path
@@ -150,6 +154,25 @@ def measure_case(case: Case, repeat: int) -> str:
     )
 
 
+def cost_rows(case: Case, repeat: int) -> list[str]:
+    """The run with sensitivities to P = 1, 2, 4, 8 parameters (each one tendon's stiffness)
+    against the plain run: how the cost grows with P."""
+    s, options = case.options(case.values)
+    plain = timed(lambda: simulate(s, (0.0, 1.0), **options, **FIT), repeat)
+    cells = []
+    for P in COUNTS:
+        params = [parameter(s, f"tendon_stiffness:{name}") for name in s.tendon_name[:P]]
+        run = functools.partial(simulate, s, (0.0, 1.0), sensitivity=params, **options, **FIT)
+        run()  # (numba's cache)
+        cost = timed(run, repeat)
+        cells.append(f"{1e3 * cost:.0f} ms ({cost / plain:.1f}x)")
+    return [f"| {case.name} | {1e3 * plain:.0f} ms | " + " | ".join(cells) + " |"]
+
+
+#: The numbers of parameters of :func:`cost_rows`.
+COUNTS = (1, 2, 4, 8)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--output", type=Path, default=HERE / "results-sensitivity.md")
@@ -160,6 +183,7 @@ def main() -> None:
         integrated(case, FIT)
         differences(case, FIT)
     rows = [measure_case(case, args.repeat) for case in cases]
+    costs = [row for case in cases for row in cost_rows(case, args.repeat)]
     write_report(
         args.output,
         title="Gradients through a run: integrated sensitivities against differences of runs",
@@ -172,6 +196,13 @@ def main() -> None:
             "error, sensitivities | error, differences |",
             "|---|---:|---:|---:|---:|---:|---:|",
             *rows,
+            "",
+            "The cost against the number of parameters P (each one tendon's stiffness): the run "
+            "with sensitivities, and its ratio to the plain run.",
+            "",
+            "| run | plain run | " + " | ".join(f"P = {P}" for P in COUNTS) + " |",
+            "|---|---:|" + "---:|" * len(COUNTS),
+            *costs,
         ],
     )
 

@@ -21,7 +21,8 @@ or several experiments at once:
 
 The Jacobian is the runs' sensitivities to the parameters, integrated with the state in the
 compiled engine through every located event (:mod:`tensegrity.engine.sensitivity`): one run
-per experiment, at about ``2 P + 1`` times a plain run's evaluations.
+per experiment, costing less than ``P + 1`` plain runs (the right-hand side's analytic tangent,
+:mod:`tensegrity.engine.tangent`).
 
 The report (:class:`Fit`): the estimates with their standard errors and 95 % intervals (from the
 Jacobian at the optimum: ``cov = s^2 (J^T J)^-1``, ``s^2`` the residuals' variance per degree

@@ -10,16 +10,19 @@ integration that would choose its own steps.  Stage ``i`` of a step from ``y`` w
 
     K'_i = f_y(t_i, Y_i) Y'_i + f_p(t_i, Y_i),   Y'_i = S + h sum_j a_ij K'_j,
 
-and ``S_new = S + h sum_i b_i K'_i``; ``f_y Y' + f_p`` is the directional derivative of the
-right-hand side, taken by a central difference along ``(Y'_i, e_j)`` (a relative step of
-:data:`STEP`).  P parameters cost 2 P evaluations per stage: about ``2 P + 1`` plain runs.
-The dense output of ``S`` is the step's dense polynomial differentiated the same way (three
-more stages, only for steps with samples).
+and ``S_new = S + h sum_i b_i K'_i``; ``f_y Y' + f_p`` is the tangent of the right-hand side,
+analytic (:mod:`tensegrity.engine.tangent`): one evaluation per stage, whose values serve all P
+parameters at once, and a tangent pass for each.  A run with a rod's relative damping (which
+the tangent does not cover) takes it by central differences along ``(Y'_i, e_j)`` instead
+(:func:`directional`, a relative step of :data:`STEP`; 2 P evaluations per stage).  The dense
+output of ``S`` is the step's dense polynomial differentiated the same way (three more stages,
+only for steps with samples).
 
 **Events.**  The loop lands on every event (:mod:`tensegrity.engine.events`), so no step
-straddles one; the derivative is taken on the step's side of every slack/taut switch (a
-difference whose point falls past a switch the step does not cross, as a stage at the step's
-end on the event, is taken one-sided).  At a located event, with indicator ``g`` (0 at the
+straddles one; the derivative is taken on the step's side of every slack/taut switch (the
+tangent takes each tendon as the step's taut flags say; a difference whose point falls past a
+switch the step does not cross, as a stage at the step's end on the event, is taken
+one-sided).  At a located event, with indicator ``g`` (0 at the
 event time ``tau``), ``dtau/dp = -(g_y S + g_p) / g'`` and the *saltation*
 
     S+ = R_y (S- + f- dtau/dp) + R_p - f+ dtau/dp,
@@ -48,6 +51,7 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
+from numba import njit
 
 from tensegrity.engine.compiled import (
     DOP853_A,
@@ -61,7 +65,22 @@ from tensegrity.engine.compiled import (
     table_rows,
 )
 from tensegrity.engine.events import contact_pairs, event_indicators
-from tensegrity.physics.compiling import ROD_C1, ROD_C2, ROD_LENGTH, ROD_MASS, compiled_only
+from tensegrity.engine.tangent import (
+    PLANE_DAMPING,
+    PLANE_KINETIC_FRICTION,
+    PLANE_STIFFNESS,
+    rhs_tangent,
+    tangent_work,
+)
+from tensegrity.physics.compiling import (
+    JIT_OPTIONS,
+    ROD_C1,
+    ROD_C2,
+    ROD_LENGTH,
+    ROD_MASS,
+    ROD_RELATIVE_DAMPING,
+    compiled_only,
+)
 from tensegrity.physics.contact import (
     SLIP,
     STICK_SPEED,
@@ -153,6 +172,9 @@ class SensitivityWork(NamedTuple):
     w: np.ndarray  #: (m,) scratch
     #: scratch: the contacts' normal forces, friction forces and indicators, kept
     kept: tuple
+    #: the right-hand side's analytic tangent (:class:`tensegrity.engine.tangent.TangentWork`),
+    #: or None: central differences (:func:`directional`; a rod with relative damping)
+    tangent: Any = None
 
 
 def sensitivity_work(
@@ -163,11 +185,13 @@ def sensitivity_work(
     n_tendons: int,
     pairs: int,
     knots: int,
+    tangent: Any = None,
 ) -> SensitivityWork:
     """New :class:`SensitivityWork`: parameter ``j`` of kind ``kinds[j]`` (a key of
     :data:`KIND_CODES`) over ``members[j]`` (indices as :class:`SensitivityWork` says), scale
     ``sizes[j]``; ``S0`` (P, m) the derivatives of the initial state; ``n_tendons`` tendons and
-    ``pairs`` contact pairs make the run's events; ``knots`` rows of its control table."""
+    ``pairs`` contact pairs make the run's events; ``knots`` rows of its control table;
+    ``tangent`` the right-hand side's tangent's work, or None (central differences)."""
     P, m = S0.shape
     start = np.zeros(P + 1, np.int64)
     start[1:] = np.cumsum([len(x) for x in members])
@@ -196,6 +220,7 @@ def sensitivity_work(
         f_before=np.zeros(m),
         w=np.zeros(m),
         kept=(np.zeros(max(pairs, 1)), np.zeros(max(3 * pairs, 1)), np.zeros(max(2 * pairs, 1))),
+        tangent=tangent,
     )
 
 
@@ -252,21 +277,13 @@ def _move_point_mass(constraints, contacts, k, c, delta, saved, i, restore):  # 
 
 
 @compiled_only
-def _move_control(tables, data, sens, k, s, delta, i, restore):  # pragma: no cover - compiled
-    """Entry ``k = knot * S + position`` of the control table moved by ``delta`` [m] where it
-    acts: in ``data``'s rest length and rate of the row of stage ``s`` (time
-    ``sens.stage_time[s]``), by the knot's weight and slope there
-    (:func:`tensegrity.engine.compiled.table_rows` of the knot alone); or restored."""
-    if tables is None:
-        return
+def _knot_weight(tables, sens, k, s):  # pragma: no cover - compiled
+    """Entry ``k = knot * S + position`` of the control table: ``(position, weight, slope
+    [1/s])``, the knot's weight in the table's row at stage ``s``'s time ``sens.stage_time[s]``
+    and in that row's slope (:func:`tensegrity.engine.compiled.table_rows` of the knot
+    alone)."""
     control_time, _, control_zero, rest0, _, _, _ = tables
     knot, position = k // rest0.shape[0], k % rest0.shape[0]
-    row = s if data.rest.shape[0] > 1 else 0
-    saved = sens.saved
-    if restore:
-        data.rest[row, position], data.rate[row, position] = saved[i, 0], saved[i, 1]
-        return
-    saved[i, 0], saved[i, 1] = data.rest[row, position], data.rate[row, position]
     sens.knot[knot, 0] = 1.0
     table_rows(
         control_time,
@@ -277,8 +294,60 @@ def _move_control(tables, data, sens, k, s, delta, i, restore):  # pragma: no co
         sens.knot_slope,
     )
     sens.knot[knot, 0] = 0.0
-    data.rest[row, position] -= delta * sens.knot_weight[0, 0]  # (Lbar = L0 - u)
-    data.rate[row, position] += delta * sens.knot_slope[0, 0]
+    return position, sens.knot_weight[0, 0], sens.knot_slope[0, 0]
+
+
+@compiled_only
+def _move_control(tables, data, sens, k, s, delta, i, restore):  # pragma: no cover - compiled
+    """Entry ``k`` of the control table moved by ``delta`` [m] where it acts: in ``data``'s
+    rest length and rate of the row of stage ``s``, by its weight and slope there
+    (:func:`_knot_weight`); or restored."""
+    if tables is None:
+        return
+    position = k % tables[3].shape[0]
+    row = s if data.rest.shape[0] > 1 else 0
+    saved = sens.saved
+    if restore:
+        data.rest[row, position], data.rate[row, position] = saved[i, 0], saved[i, 1]
+        return
+    saved[i, 0], saved[i, 1] = data.rest[row, position], data.rate[row, position]
+    _, weight, slope = _knot_weight(tables, sens, k, s)
+    data.rest[row, position] -= delta * weight  # (Lbar = L0 - u)
+    data.rate[row, position] += delta * slope
+
+
+@compiled_only
+def _stage_parameters(tables, sens, tw, s):  # pragma: no cover - compiled
+    """The tangent's ``tw.rest`` and ``tw.rate`` at stage ``s``: the rest-length parameters',
+    and each control-table entry's weight and slope there (:func:`_knot_weight`; ``Lbar = L0 -
+    u``: an entry moves the rest length by minus its weight).  Nothing without control-table
+    parameters (``tw.rest`` is then ``tw.rest_length`` itself)."""
+    if tables is None or not tw.has_control:
+        return
+    tw.rest[:] = tw.rest_length
+    tw.rate[:] = 0.0
+    for j in range(sens.kind.shape[0]):
+        if sens.kind[j] != CONTROL:
+            continue
+        for i in range(sens.start[j], sens.start[j + 1]):
+            position, weight, slope = _knot_weight(tables, sens, sens.member[i], s)
+            tw.rest[j, position] -= weight
+            tw.rate[j, position] += slope
+
+
+@njit(**JIT_OPTIONS)
+def stage_tangent_entry(model, data, s, sens, side, y):  # pragma: no cover - compiled
+    """:func:`_stage_tangent` with ``sens.tangent``, called from Python."""
+    _stage_tangent(model, data, s, sens, sens.tangent, side, y)
+
+
+@compiled_only
+def _stage_tangent(model, data, s, sens, tw, side, y):  # pragma: no cover - compiled
+    """``sens.K[:, s]`` from the directions ``tw.direction`` at stage ``s`` from ``y``: the
+    evaluation there, then its tangent (:func:`tensegrity.engine.tangent.rhs_tangent`)."""
+    _stage_parameters(model.tables, sens, tw, s)
+    ode_rhs(model, data, s, y, sens.f_at)
+    rhs_tangent(model, data, s, tw, side, y, sens.K)
 
 
 @compiled_only
@@ -436,6 +505,28 @@ def advance_sensitivity(sens, model, data, times, y_old, y, K, h, side):  # prag
     for s in range(1, DOP853_STAGES):
         combine_stages(y_old, K, DOP853_A[s], s, h, sens.Y[s])
     sens.Y[last] = y
+    _advance_stages(sens.tangent, sens, model, data, K, h, side)
+
+
+@compiled_only
+def _advance_stages(tw, sens, model, data, K, h, side):  # pragma: no cover - compiled
+    """The stages' derivatives ``sens.K`` and ``S`` at the step's end, from ``sens.S_old`` and
+    the stages' states ``sens.Y`` and right-hand sides ``K`` (:func:`advance_sensitivity`): by
+    the analytic tangent, stage by stage for every parameter (``tw``), or by central
+    differences, parameter by parameter (``tw`` None)."""
+    last = np.int64(DOP853_STAGES)
+    copy, Y = sens.S_old, sens.Y
+    if tw is not None:
+        for s in range(last + 1):
+            for j in range(copy.shape[0]):
+                if s == last:
+                    combine_stages(copy[j], sens.K[j], DOP853_B, last, h, sens.S[j])
+                    tw.direction[j] = sens.S[j]
+                else:
+                    combine_stages(copy[j], sens.K[j], DOP853_A[s], s, h, tw.direction[j])
+            _stage_tangent(model, data, np.int64(s), sens, tw, side, Y[s])
+        return
+    y_old, y = Y[0], Y[last]
     for j in range(sens.S.shape[0]):
         Kp = sens.K[j]
         directional(model, data, np.int64(0), sens, j, y_old, copy[j], K[0], Kp[0], side)
@@ -461,13 +552,28 @@ def dense_sensitivity(sens, model, data, times, y_old, y, h, K):  # pragma: no c
     first = DOP853_STAGES + 1
     for s in range(first, DOP853_A.shape[0]):
         combine_stages(y_old, K, DOP853_A[s], s, h, sens.Y[s])
+    _dense_stages(sens.tangent, sens, model, data, K, h, side)
+    for j in range(sens.S.shape[0]):
+        dop853_dense_polynomial(sens.S_old[j], sens.S[j], h, sens.K[j], sens.F[j])
+
+
+@compiled_only
+def _dense_stages(tw, sens, model, data, K, h, side):  # pragma: no cover - compiled
+    """The three extra stages' derivatives into ``sens.K`` (:func:`dense_sensitivity`), as
+    :func:`_advance_stages` takes them; ``data``'s scratch left as the last stage's
+    evaluation."""
+    first, last = DOP853_STAGES + 1, np.int64(DOP853_A.shape[0] - 1)
+    if tw is not None:
+        for s in range(first, last + 1):
+            for j in range(sens.S.shape[0]):
+                combine_stages(sens.S_old[j], sens.K[j], DOP853_A[s], s, h, tw.direction[j])
+            _stage_tangent(model, data, np.int64(s), sens, tw, side, sens.Y[s])
+        return
     for j in range(sens.S.shape[0]):
         Kp = sens.K[j]
-        for s in range(first, DOP853_A.shape[0]):
+        for s in range(first, last + 1):
             combine_stages(sens.S_old[j], Kp, DOP853_A[s], s, h, sens.v)
             directional(model, data, np.int64(s), sens, j, sens.Y[s], sens.v, K[s], Kp[s], side)
-        dop853_dense_polynomial(sens.S_old[j], sens.S[j], h, Kp, sens.F[j])
-    last = np.int64(DOP853_A.shape[0] - 1)
     ode_rhs(model, data, last, sens.Y[last], sens.f_at)  # (the scratch as the stages left it)
 
 
@@ -757,7 +863,45 @@ def prepare(system: CompiledSystem, parameters: Sequence[Any], y0: np.ndarray) -
         contacts=contacts,
     )
     pairs = 0 if contacts is None else contact_pairs(contacts)
-    return sensitivity_work(kinds, members, sizes, S0, structure.n_tendons, pairs, knots)
+    tangent = None
+    if not np.any(model.rod_param[:, ROD_RELATIVE_DAMPING]):
+        tangent = _tangent_parameters(system, kinds, members, len(planes))
+    return sensitivity_work(kinds, members, sizes, S0, structure.n_tendons, pairs, knots, tangent)
+
+
+def _tangent_parameters(
+    system: CompiledSystem, kinds: list[str], members: list[np.ndarray], n_planes: int
+) -> Any:
+    """The analytic tangent's work (:func:`tensegrity.engine.tangent.tangent_work`) with each
+    parameter's derivative of the model's values: 1 at its members (each moves by the
+    parameter's change), for the kinds that enter the right-hand side."""
+    constraints = system.model.constraints
+    masses = 0 if constraints is None else constraints.point_mass.shape[0]
+    rows = 0 if constraints is None else constraints.constraint_rhs.shape[0]
+    tw = tangent_work(
+        len(kinds), system.m, system.data.node_force.shape[1], system.structure.n_tendons,
+        system.structure.n_rods, masses, n_planes, rows,
+    )  # fmt: skip
+    by_kind = {
+        "tendon_stiffness": tw.tendon_stiffness,
+        "tendon_damping": tw.tendon_damping,
+        "tendon_rest_length": tw.rest_length,
+        "rod_mass": tw.rod_mass,
+        "point_mass": tw.point_mass,
+    }
+    plane_rows = {
+        "contact_stiffness": PLANE_STIFFNESS,
+        "contact_damping": PLANE_DAMPING,
+        "kinetic_friction": PLANE_KINETIC_FRICTION,
+    }
+    for j, (kind, index) in enumerate(zip(kinds, members, strict=True)):
+        if kind in by_kind:
+            by_kind[kind][j, index] = 1.0
+        elif kind in plane_rows:
+            tw.plane[j, plane_rows[kind], :] = 1.0
+    if "control" in kinds:
+        tw = tw._replace(has_control=True, rest=tw.rest_length.copy())
+    return tw
 
 
 def _coefficient(plane: Any, kind: str) -> float:

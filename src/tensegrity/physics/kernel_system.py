@@ -445,25 +445,32 @@ def _rows_times(x, n_rods, constraints, out):  # pragma: no cover - compiled
 
 
 @compiled_only
+def body_forces(constraints, multiplier, body, fa, fb):  # pragma: no cover - compiled
+    """The forces ``A_n^T multiplier`` [N] on body ``body``'s nodes: at a rod's end a into
+    ``fa`` and end b into ``fb`` (3,), at a point mass into ``fa``."""
+    start, rows = constraints.body_start, constraints.entry_row
+    sign, coef = constraints.entry_sign, constraints.entry_coef
+    fa[:] = 0.0
+    fb[:] = 0.0
+    for e in range(start[body], start[body + 1]):
+        lam = multiplier[rows[e]]
+        for i in range(3):
+            if sign[e] > 0.0:
+                fb[i] += coef[e, i] * lam
+            else:
+                fa[i] += coef[e, i] * lam
+
+
+@compiled_only
 def _add_response(q, multiplier, rod_param, constraints, qddot):  # pragma: no cover - compiled
     """``qddot += G(q) A_n^T multiplier``: the constraint forces ``A_n^T lambda`` [N] applied by
     Theorem 18.1 (eqs. 18.17, 18.20: ``q1'' = (2/m)(f_a + f_b)``, ``q2'' = (6/(m L^2))
     skew(q2)^2 (f_a - f_b)``; ``x'' = f / m``); forces on anchors move nothing."""
-    start, rows = constraints.body_start, constraints.entry_row
-    sign, coef = constraints.entry_sign, constraints.entry_coef
     n_rods = rod_param.shape[0]
     fa = np.zeros(3)
     fb = np.zeros(3)
-    for body in range(start.shape[0] - 1):
-        fa[:] = 0.0
-        fb[:] = 0.0
-        for e in range(start[body], start[body + 1]):
-            lam = multiplier[rows[e]]
-            for i in range(3):
-                if sign[e] > 0.0:
-                    fb[i] += coef[e, i] * lam
-                else:
-                    fa[i] += coef[e, i] * lam
+    for body in range(constraints.body_start.shape[0] - 1):
+        body_forces(constraints, multiplier, body, fa, fb)
         if body < n_rods:
             o = 6 * body
             c1 = rod_param[body, ROD_C1]
