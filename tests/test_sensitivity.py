@@ -354,6 +354,15 @@ def test_bad_sensitivity_requests_are_refused_in_one_line():
         simulate(shell, (0.0, 0.01), method="RK45", sensitivity=mass)
     with pytest.raises(ValueError, match="locating its events"):
         simulate(shell, (0.0, 0.01), locate_switches=False, sensitivity=mass)
+    table = ControlTable(time=np.array([0.0, 1.0]), control=np.zeros((2, shell.n_tendons)))
+    with pytest.raises(ValueError, match=r"other inputs as tables too \(its external force"):
+        simulate(
+            shell,
+            (0.0, 0.01),
+            control=table,
+            external_force=lambda t: np.zeros((shell.n_nodes, 3)),
+            sensitivity=[PlaneParameter("control", (0,))],
+        )
 
 
 def test_the_start_and_damping_from_zero_through_contact():

@@ -16,7 +16,8 @@ from tensegrity.engine.compiled import ode_rhs_entry
 from tensegrity.engine.inputs import Inputs
 from tensegrity.engine.sensitivity import prepare, stage_tangent_entry
 from tensegrity.engine.system import CompiledSystem
-from tensegrity.model.ground import SLIP, STICK, ground
+from tensegrity.model.ground import FREE, SLIP, STICK, ground
+from tensegrity.model.loads import ControlTable
 from tensegrity.model.shell import class1_shell
 from tensegrity.model.structure import Structure
 from tensegrity.physics.compiling import ROD_C1, ROD_C2, ROD_LENGTH, ROD_MASS
@@ -72,21 +73,34 @@ def _rhs(system: CompiledSystem, y: np.ndarray) -> np.ndarray:
     return out
 
 
+def _directions(params: list[Param], y: np.ndarray, seed: int) -> np.ndarray:
+    """Random directions (P, m) of the state's size over each parameter's scale."""
+    rng = np.random.default_rng(seed)
+    n = (y.size - 3) // 2
+    V = np.zeros((len(params), y.size))
+    for j, p in enumerate(params):
+        V[j, : 2 * n] = rng.normal(size=2 * n) * np.abs(y[: 2 * n]).max() / p.scale
+    return V
+
+
+def _tangent(system, params, y, V, side=None) -> np.ndarray:
+    """The tangent (P, m) at ``y`` along ``V``, the tendons taut where ``side`` says (as the
+    evaluation at ``y`` finds them: None); the records as they were after it."""
+    sens = prepare(system, params, y)
+    f = _rhs(system, y)
+    sens.tangent.direction[:] = V
+    side = system.data.tension > 0.0 if side is None else side
+    stage_tangent_entry(system.model, system.data, np.int64(0), sens, side, y)
+    assert np.array_equal(_rhs(system, y), f)
+    return sens.K[:, 0].copy()
+
+
 def _check(system: CompiledSystem, params: list[Param], y: np.ndarray, seed: int = 0) -> None:
     """The tangent at ``y`` along random directions against central differences, each
     direction's rows of ``q'``, ``q''`` and the three powers within 1e-6 of its largest."""
-    sens = prepare(system, params, y)
-    rng = np.random.default_rng(seed)
     m, n = y.size, (y.size - 3) // 2
-    V = np.zeros((len(params), m))
-    size = np.abs(y[: 2 * n]).max()
-    for j, p in enumerate(params):
-        V[j, : 2 * n] = rng.normal(size=2 * n) * size / p.scale
-    f = _rhs(system, y)
-    side = system.data.tension > 0.0
-    sens.tangent.direction[:] = V
-    stage_tangent_entry(system.model, system.data, np.int64(0), sens, side, y)
-    assert np.array_equal(_rhs(system, y), f)  # (the records as they were)
+    V = _directions(params, y, seed)
+    tangents = _tangent(system, params, y, V)
     for j, p in enumerate(params):
         h = STEP * p.scale
         _move(system, p, h)
@@ -95,10 +109,32 @@ def _check(system: CompiledSystem, params: list[Param], y: np.ndarray, seed: int
         down = _rhs(system, y - h * V[j])
         _move(system, p, h)
         reference = (up - down) / (2.0 * h)
-        tangent = sens.K[j, 0]
+        tangent = tangents[j]
         for rows in (slice(0, n), slice(n, 2 * n), slice(2 * n, m)):
             scale = np.abs(reference[rows]).max()
             assert np.abs(tangent[rows] - reference[rows]).max() <= 1e-6 * scale, (p.kind, rows)
+
+
+def test_a_tendon_a_round_off_short_of_its_switch_is_taken_on_the_steps_side():
+    """A state landed on a slack/taut switch may sit a round-off short of it: the step's side
+    (taut) rules, and the tangent there is the taut tendon's, as 2e-12 m further on."""
+    shell = class1_shell(3, 1, fixed_base=True)
+    ends = shell.node_position[shell.tendon_nodes]
+    length = np.linalg.norm(ends[:, 1] - ends[:, 0], axis=1)
+    y = _state(shell, np.random.default_rng(7), 0.0, 0.2)
+    params = [Param("tendon_stiffness", (4,), 1.0), Param("tendon_rest_length", (4,), 0.1)]
+    V = _directions(params, y, seed=8)
+    tangents = []
+    for stretch in (-1e-12, 1e-12):
+        rest = shell.tendon_rest_length.copy()
+        rest[4] = length[4] - stretch
+        moved = shell.replace(tendon_rest_length=rest)
+        system = CompiledSystem(moved, Inputs(moved, gravity=GRAVITY))
+        taut = np.ones(shell.n_tendons, bool)
+        tangents.append(_tangent(system, params, y, V, taut))
+    n = (y.size - 3) // 2
+    short, on = tangents[0][:, n : 2 * n], tangents[1][:, n : 2 * n]
+    assert np.abs(short - on).max() <= 1e-6 * np.abs(on).max()
 
 
 def _state(structure: Structure, rng: np.random.Generator, moved: float, speed: float):
@@ -113,6 +149,9 @@ def test_the_tangent_of_a_damped_shell_on_supports_under_gravity_and_a_push():
     shell = class1_shell(3, 1, fixed_base=True)
     rest = shell.tendon_rest_length.copy()
     rest[[3, 9, 15]] *= 3.0  # (slack)
+    ends = shell.node_position[shell.tendon_nodes]
+    near = [0, 6, 7, 12, 13, 18, 19, 21]  # (stretched 0.2 mm: some held at zero by damping)
+    rest[near] = np.linalg.norm(ends[:, 1] - ends[:, 0], axis=1)[near] - 2e-4
     shell = shell.replace(
         tendon_rest_length=rest,
         tendon_stiffness=np.full(shell.n_tendons, 120.0),
@@ -123,7 +162,7 @@ def test_the_tangent_of_a_damped_shell_on_supports_under_gravity_and_a_push():
     push = np.zeros((shell.n_nodes, 3))
     push[11] = [5.0, -2.0, 1.0]
     system = CompiledSystem(shell, Inputs(shell, gravity=GRAVITY, external_force=push))
-    y = _state(shell, np.random.default_rng(1), 1e-3, 0.2)
+    y = _state(shell, np.random.default_rng(1), 1e-5, 0.2)
     params = [
         Param("tendon_stiffness", tuple(range(0, shell.n_tendons, 2)), 120.0),
         Param("tendon_damping", (1, 4, 7), 0.8),
@@ -131,19 +170,19 @@ def test_the_tangent_of_a_damped_shell_on_supports_under_gravity_and_a_push():
         Param("rod_mass", (0, 2), 1.3),
         Param("initial_state", (3,)),
     ]
-    _, counts = np.unique(_side(system, y), return_counts=True)
-    assert counts.size == 2  # (some tendons slack, some taut)
-    _check(system, params, y)
-
-
-def _side(system: CompiledSystem, y: np.ndarray) -> np.ndarray:
     _rhs(system, y)
-    return system.data.tension > 0.0
+    tension, elastic = system.data.tension, system.data.elastic_tension
+    assert np.any(tension > 0.0) and np.any(elastic == 0.0)  # (taut, and slack)
+    assert np.any((tension == 0.0) & (elastic > 0.0))  # (stretched, held at zero by damping)
+    _check(system, params, y)
 
 
 def test_the_tangent_of_a_robot_with_a_point_mass():
     robot = six_bar_robot(payload_mass=0.4)
-    system = CompiledSystem(robot, Inputs(robot, gravity=GRAVITY))
+    push = np.zeros((robot.n_nodes, 3))
+    push[robot.point_mass_nodes[0]] = [1.0, -0.5, 2.0]
+    push[0] = [0.0, 3.0, 0.0]
+    system = CompiledSystem(robot, Inputs(robot, gravity=GRAVITY, external_force=push))
     y = _state(robot, np.random.default_rng(2), 1e-3, 0.3)
     params = [
         Param("point_mass", tuple(robot.point_mass_nodes), 0.4),
@@ -155,8 +194,9 @@ def test_the_tangent_of_a_robot_with_a_point_mass():
 
 @pytest.mark.parametrize("stuck", [False, True], ids=["slipping", "one-end-sticking"])
 def test_the_tangent_of_a_robot_on_the_ground(stuck: bool):
-    """The three-bar robot pressed 1 mm into the ground: its ends on the ground slip (each
-    its own way) or one sticks."""
+    """The three-bar robot pressed 1 mm into the ground: of its ends on the ground, two slip
+    (each its own way) or one sticks and one slips, and one is free (lifting off: no force,
+    but its spring's energy still counts)."""
     robot = three_bar_robot(stiffness=300.0, tension=20.0, damping=2.0)
     plane = ground(friction=0.5, kinetic_friction=0.4, stiffness=1e5, damping=100.0)
     lowered = robot.node_position[:, 2].min() + 1e-3
@@ -168,7 +208,7 @@ def test_the_tangent_of_a_robot_on_the_ground(stuck: bool):
     assert touching.size == 3
     for i, node in enumerate(touching):
         k = _contact_point(robot, node)
-        work.mode[k] = STICK if stuck and i == 0 else SLIP
+        work.mode[k] = (STICK if stuck else SLIP, SLIP, FREE)[i]
         angle = 2.0 * np.pi * i / 3.0
         work.slip_direction[k] = [np.cos(angle), np.sin(angle), 0.0]
     params = [
@@ -211,3 +251,87 @@ def test_the_tangent_of_a_sticking_point_mass():
         Param("contact_stiffness", (0,), 1e5),
     ]
     _check(system, params, y)
+
+
+def test_the_tangent_of_a_rod_lying_with_both_ends_stuck():
+    """A rod lying on the ground, pulled sideways by a cable from an anchor, both ends
+    sticking: its ends' forces along its axis move nothing (the sticking solve drops that
+    direction, tilted 1e-4 rad: an eigenvalue 1e-8 of the largest)."""
+    rod = Structure(
+        node_position=[[0.0, 0.0, -1e-4], [1.0, 0.0, -2e-4], [0.2, 0.8, 0.3]],
+        rod_nodes=[[0, 1]],
+        rod_mass=[0.7],
+        rod_length=[float(np.hypot(1.0, 1e-4))],
+        node_fixed=[False, False, True],
+        tendon_nodes=[[2, 1]],
+        tendon_stiffness=[50.0],
+        tendon_rest_length=[0.7],
+    )
+    plane = ground(friction=0.5, kinetic_friction=0.4, stiffness=1e5, damping=50.0)
+    system = CompiledSystem(rod, Inputs(rod, gravity=GRAVITY, ground=plane))
+    y = _state(rod, np.random.default_rng(4), 0.0, 1e-3)
+    system.data.contact_work.mode[:2] = STICK
+    params = [
+        Param("rod_mass", (0,), 0.7),
+        Param("tendon_stiffness", (0,), 50.0),
+        Param("contact_stiffness", (0,), 1e5),
+        Param("initial_state", (4,)),
+    ]
+    _check(system, params, y)
+
+
+def test_the_tangent_of_a_control_tables_values_and_their_work():
+    """A control table moving rest lengths at the time of a stage: an entry's value moves the
+    rest length by its weight there and the rate by its slope (``W_u' = sum T_el u'``);
+    the references are the right-hand sides of systems made with the table moved."""
+    shell = class1_shell(3, 1, fixed_base=True)
+    shell = shell.replace(tendon_damping=np.full(shell.n_tendons, 0.5))
+    S = shell.n_tendons
+    control = np.zeros((3, S))
+    control[1, :6] = [0.02, -0.01, 0.03, 0.0, 0.01, -0.02]
+    control[2, :6] = [0.04, 0.01, -0.02, 0.03, 0.0, 0.01]
+    time = np.array([0.0, 0.5, 1.0])
+    t = 0.3
+
+    def stage(values: np.ndarray) -> tuple[CompiledSystem, object]:
+        system = CompiledSystem(shell, Inputs(shell, control=ControlTable(time, values)))
+        return system, system.stage_inputs(np.array([t]))
+
+    system, data = stage(control)
+    assert data.has_rate
+    y = _state(shell, np.random.default_rng(5), 1e-5, 0.1)
+    entries = [(1, 0), (1, 2), (2, 4)]  # (knot, tendon)
+    params = [Param("control", (knot * S + e,), 0.01) for knot, e in entries]
+    params.append(Param("tendon_stiffness", (0, 2, 4), float(shell.tendon_stiffness[0])))
+    sens = prepare(system, params, y)
+    sens.stage_time[0] = t
+    rng = np.random.default_rng(6)
+    V = rng.normal(size=(len(params), y.size)) * 0.1
+    V[:, -3:] = 0.0
+    out = np.empty_like(y)
+    ode_rhs_entry(system.model, data, np.int64(0), y, out)
+    sens.tangent.direction[:] = V
+    stage_tangent_entry(system.model, data, np.int64(0), sens, data.tension > 0.0, y)
+    for j, p in enumerate(params):
+        h = STEP * p.scale
+        moved = []
+        for sign in (1.0, -1.0):
+            if p.kind == "control":
+                values = control.copy()
+                knot, e = entries[j]
+                values[knot, e] += sign * h
+                other, other_data = stage(values)
+                model = other.model
+            else:
+                model, other_data = system.model, data
+                model.tendon_stiffness[system.tendon_position[list(p.members)]] += sign * h
+            ode_rhs_entry(model, other_data, np.int64(0), y + sign * h * V[j], out)
+            moved.append(out.copy())
+            if p.kind != "control":
+                model.tendon_stiffness[system.tendon_position[list(p.members)]] -= sign * h
+        reference = (moved[0] - moved[1]) / (2.0 * h)
+        n = (y.size - 3) // 2
+        for rows in (slice(n, 2 * n), slice(2 * n, y.size)):
+            scale = np.abs(reference[rows]).max()
+            assert scale > 0.0
+            assert np.abs(sens.K[j, 0, rows] - reference[rows]).max() <= 1e-6 * scale, (p, rows)

@@ -516,7 +516,7 @@ def _advance_stages(tw, sens, model, data, K, h, side):  # pragma: no cover - co
     differences, parameter by parameter (``tw`` None)."""
     last = np.int64(DOP853_STAGES)
     copy, Y = sens.S_old, sens.Y
-    if tw is not None:
+    if tw is not None:  # (numba compiles one branch: tw's type decides)
         for s in range(last + 1):
             for j in range(copy.shape[0]):
                 if s == last:
@@ -525,17 +525,17 @@ def _advance_stages(tw, sens, model, data, K, h, side):  # pragma: no cover - co
                 else:
                     combine_stages(copy[j], sens.K[j], DOP853_A[s], s, h, tw.direction[j])
             _stage_tangent(model, data, np.int64(s), sens, tw, side, Y[s])
-        return
-    y_old, y = Y[0], Y[last]
-    for j in range(sens.S.shape[0]):
-        Kp = sens.K[j]
-        directional(model, data, np.int64(0), sens, j, y_old, copy[j], K[0], Kp[0], side)
-        for s in range(1, DOP853_STAGES):
-            combine_stages(copy[j], Kp, DOP853_A[s], s, h, sens.v)
-            directional(model, data, np.int64(s), sens, j, sens.Y[s], sens.v, K[s], Kp[s], side)
-        combine_stages(copy[j], Kp, DOP853_B, last, h, sens.S[j])
-        directional(model, data, last, sens, j, y, sens.S[j], K[last], Kp[last], side)
-    ode_rhs(model, data, last, y, sens.f_at)  # (the scratch as the step left it)
+    else:
+        y_old, y = Y[0], Y[last]
+        for j in range(sens.S.shape[0]):
+            Kp = sens.K[j]
+            directional(model, data, np.int64(0), sens, j, y_old, copy[j], K[0], Kp[0], side)
+            for s in range(1, DOP853_STAGES):
+                combine_stages(copy[j], Kp, DOP853_A[s], s, h, sens.v)
+                directional(model, data, np.int64(s), sens, j, Y[s], sens.v, K[s], Kp[s], side)
+            combine_stages(copy[j], Kp, DOP853_B, last, h, sens.S[j])
+            directional(model, data, last, sens, j, y, sens.S[j], K[last], Kp[last], side)
+        ode_rhs(model, data, last, y, sens.f_at)  # (the scratch as the step left it)
 
 
 @compiled_only
@@ -563,18 +563,18 @@ def _dense_stages(tw, sens, model, data, K, h, side):  # pragma: no cover - comp
     :func:`_advance_stages` takes them; ``data``'s scratch left as the last stage's
     evaluation."""
     first, last = DOP853_STAGES + 1, np.int64(DOP853_A.shape[0] - 1)
-    if tw is not None:
+    if tw is not None:  # (numba compiles one branch: tw's type decides)
         for s in range(first, last + 1):
             for j in range(sens.S.shape[0]):
                 combine_stages(sens.S_old[j], sens.K[j], DOP853_A[s], s, h, tw.direction[j])
             _stage_tangent(model, data, np.int64(s), sens, tw, side, sens.Y[s])
-        return
-    for j in range(sens.S.shape[0]):
-        Kp = sens.K[j]
-        for s in range(first, last + 1):
-            combine_stages(sens.S_old[j], Kp, DOP853_A[s], s, h, sens.v)
-            directional(model, data, np.int64(s), sens, j, sens.Y[s], sens.v, K[s], Kp[s], side)
-    ode_rhs(model, data, last, sens.Y[last], sens.f_at)  # (the scratch as the stages left it)
+    else:
+        for j in range(sens.S.shape[0]):
+            Kp = sens.K[j]
+            for s in range(first, last + 1):
+                combine_stages(sens.S_old[j], Kp, DOP853_A[s], s, h, sens.v)
+                directional(model, data, np.int64(s), sens, j, sens.Y[s], sens.v, K[s], Kp[s], side)
+        ode_rhs(model, data, last, sens.Y[last], sens.f_at)  # (the scratch as the stages left it)
 
 
 @compiled_only
@@ -810,6 +810,11 @@ def prepare(system: CompiledSystem, parameters: Sequence[Any], y0: np.ndarray) -
             group = {"initial_state": "state", "control": "control"}.get(kind, kind.split("_")[0])
             if kind == "control" and control is None:
                 raise ValueError(f"sensitivity: parameter {name!r}: the run has no control table")
+            if kind == "control" and model.tables is None:
+                raise ValueError(
+                    f"sensitivity: parameter {name!r}: the control table's values need the "
+                    "run's other inputs as tables too (its external force is a Python function)"
+                )
             size, what = count[group]
             index = np.unique(np.asarray(p.members, dtype=np.int64))
             if index.size == 0 or index.min() < 0 or index.max() >= size:

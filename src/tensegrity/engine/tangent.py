@@ -5,9 +5,9 @@ directions ``V_j`` of a stage at once (the sensitivities' stages,
 Each pass of the right-hand side (:func:`tensegrity.physics.kernel_system.system_rhs`) has its
 tangent here, in the same order: the node positions and velocities (eq. 18.26); the tendons'
 forces ``T t / l`` with ``T = k (l - Lbar) + c l'`` (the step's side of every slack/taut
-switch, as the sensitivities' steps keep it; a tension cap's tension is constant); the
-contacts' normal law and kinetic friction along ``v_t + STICK_SPEED s``; Theorem 18.1 for
-every rod (eqs. 18.17, 18.20, with gravity, the external forces and mass-proportional damping);
+switch, as the sensitivities' steps keep it); the contacts' normal law and kinetic friction
+(:func:`~tensegrity.physics.contact.friction_direction`); Theorem 18.1 for every rod (eqs.
+18.17, 18.20, with gravity, the external forces and mass-proportional damping);
 the point masses; the forces that hold sticking points; the joint and support forces; and the
 three powers (``E_d'``, ``W_w'``, ``W_u'``).  The primal values come once per stage and serve
 every direction, so a direction costs a fraction of an evaluation (the central differences
@@ -16,10 +16,10 @@ this replaces took two).
 The joint and support forces: with ``lambda`` the stage's multiplier, ``q'' = a + G A^T
 lambda`` and ``K lambda = -A a``, so the tangent is that same projection applied to ``a' + G'
 A^T lambda`` (``G'`` the derivative of ``G(q)`` and of the masses in it).  The forces that
-hold a rod's sticking ends (:func:`tensegrity.physics.contact.rod_stick`, a small eigenvalue
-solve) are differentiated by a central difference of that solve alone along ``(q', m', a')``
-(exact in ``a'``, in which it is linear); a point mass's are a projection of its acceleration
-that its mass does not enter, applied to ``a'`` exactly.
+hold a rod's sticking ends (:func:`tensegrity.physics.contact.rod_stick`, a small solve on the
+eigenvectors it keeps) are differentiated with that set of eigenvectors
+(:func:`_stick_tangents`); a point mass's are a projection of its acceleration that its mass
+does not enter, applied to ``a'``.
 
 Not covered: a rod's damping relative to the rigid motion (``beta``, a fit of the whole
 structure's motion); a run with it takes the central differences
@@ -45,13 +45,15 @@ from tensegrity.physics.compiling import (
     ROD_MASS,
     compiled_only,
 )
-from tensegrity.physics.contact import STICK_SPEED, point_motion, point_stick, rod_stick
+from tensegrity.physics.contact import (
+    STICK_NULL,
+    friction_direction,
+    point_motion,
+    point_stick,
+    sum_end,
+)
 from tensegrity.physics.kernel import end_values, stage_row, tendon_vector
 from tensegrity.physics.kernel_system import _add_response, _rows_times, _solve_psd, body_forces
-
-#: Relative step of the central difference of a rod's sticking forces in its ``q2`` and mass
-#: (about the cube root of the machine epsilon).
-STICK_STEP = 6e-6
 
 #: The rows of :attr:`TangentWork.plane`: the planes' parameters that enter the right-hand side.
 PLANE_STIFFNESS, PLANE_DAMPING, PLANE_KINETIC_FRICTION = range(3)
@@ -136,7 +138,7 @@ def rhs_tangent(model, data, s, tw, side, y, K):  # pragma: no cover - compiled
     tw.force[:] = 0.0
     tw.node_force[:] = 0.0
     tw.power[:] = 0.0
-    _tendon_tangents(model.tendon_max_tension, model, data, s, tw, side)
+    _tendon_tangents(model, data, s, tw, side)
     _contact_tangents(model.contacts, data, tw, q, qdot)
     _rod_tangents(model, data, s, tw, q, qdot, K)
     _stick_tangents(model.contacts, model, data, tw, q, qdot, K, s)
@@ -170,37 +172,38 @@ def _node_tangents(constraints, model, tw, n):  # pragma: no cover - compiled
 
 
 @compiled_only
-def _tendon_tangents(tendon_cap, model, data, s, tw, side):  # pragma: no cover - compiled
+def _tendon_tangents(model, data, s, tw, side):  # pragma: no cover - compiled
     """The tendons' forces into ``tw.force`` and their tangents into ``tw.node_force``; the
     tangents of the power of their damping (``tw.power[:, 0]``) and of the control's
-    (``[:, 2]``).  A tendon pulls where ``side`` says (the step's side of its switch);
-    ``tendon_cap`` None: no caps."""
+    (``[:, 2]``).  A tendon pulls where ``side`` says (the step's side of its switch): its
+    force's tangent is zero where it does not, but a stretched tendon whose damping holds it at
+    zero tension keeps its elastic tension ``k (l - Lbar)`` in both powers.  (No tension caps:
+    they come with actuators, which a run with sensitivities refuses.)"""
     p, v = data.node_position, data.node_velocity
     rest = stage_row(data.rest, s)
     rate_u = stage_row(data.rate, s)
     stiffness, damping = model.tendon_stiffness, model.tendon_damping
     for e in range(model.tendon_slots.shape[0]):
-        if not side[e]:
-            continue
         tail, head, tx, ty, tz = tendon_vector(p, model.tendon_slots, e)
         length = np.sqrt(tx * tx + ty * ty + tz * tz)
-        if not length > 0.0:
+        stretch = length - rest[e]
+        pulling = side[e]
+        if not (stretch > 0.0 or pulling) or not length > 0.0:
             continue
         ex, ey, ez = tx / length, ty / length, tz / length
         wx, wy, wz = v[0, head] - v[0, tail], v[1, head] - v[1, tail], v[2, head] - v[2, tail]
         rate = ex * wx + ey * wy + ez * wz
-        stretch = length - rest[e]
         k, c = stiffness[e], damping[e]
-        cap = np.inf if tendon_cap is None else tendon_cap[e]
-        elastic_held = k * stretch > cap  # (a capped tension does not move)
-        total_held = k * stretch + c * rate > cap
-        total, elastic = data.tension[e], data.elastic_tension[e]
+        total = data.tension[e]
+        elastic = k * stretch if stretch > 0.0 else 0.0
         tw.force[0, tail] += total * ex
         tw.force[1, tail] += total * ey
         tw.force[2, tail] += total * ez
         tw.force[0, head] -= total * ex
         tw.force[1, head] -= total * ey
         tw.force[2, head] -= total * ez
+        if not pulling:
+            total = 0.0  # (the step's side)
         for j in range(tw.direction.shape[0]):
             dp, dv = tw.node_position[j], tw.node_velocity[j]
             dtx, dty, dtz = (
@@ -217,20 +220,23 @@ def _tendon_tangents(tendon_cap, model, data, s, tw, side):  # pragma: no cover 
             d_rate = (
                 dtx * wx + dty * wy + dtz * wz + tx * dwx + ty * dwy + tz * dwz - rate * d_length
             ) / length
-            d_spring = tw.tendon_stiffness[j, e] * stretch + k * (d_length - tw.rest[j, e])
-            d_elastic = 0.0 if elastic_held else d_spring
-            d_total = 0.0 if total_held else d_spring + tw.tendon_damping[j, e] * rate + c * d_rate
-            turn = total / length  # (d(t / l) = (dt - e dl) / l)
-            fx = d_total * ex + turn * (dtx - ex * d_length)
-            fy = d_total * ey + turn * (dty - ey * d_length)
-            fz = d_total * ez + turn * (dtz - ez * d_length)
-            f = tw.node_force[j]
-            f[0, tail] += fx
-            f[1, tail] += fy
-            f[2, tail] += fz
-            f[0, head] -= fx
-            f[1, head] -= fy
-            f[2, head] -= fz
+            # (pulling, or stretched: the spring's side, though a state landed on its switch
+            # may sit a round-off short of it)
+            d_elastic = tw.tendon_stiffness[j, e] * stretch + k * (d_length - tw.rest[j, e])
+            d_total = 0.0
+            if pulling:
+                d_total = d_elastic + tw.tendon_damping[j, e] * rate + c * d_rate
+                turn = total / length  # (d(t / l) = (dt - e dl) / l)
+                fx = d_total * ex + turn * (dtx - ex * d_length)
+                fy = d_total * ey + turn * (dty - ey * d_length)
+                fz = d_total * ez + turn * (dtz - ez * d_length)
+                f = tw.node_force[j]
+                f[0, tail] += fx
+                f[1, tail] += fy
+                f[2, tail] += fz
+                f[0, head] -= fx
+                f[1, head] -= fy
+                f[2, head] -= fz
             tw.power[j, 0] += (d_total - d_elastic) * rate + (total - elastic) * d_rate
             if data.has_rate:
                 tw.power[j, 2] += d_elastic * rate_u[e] + elastic * tw.rate[j, e]
@@ -240,7 +246,9 @@ def _tendon_tangents(tendon_cap, model, data, s, tw, side):  # pragma: no cover 
 def _contact_tangents(contacts, data, tw, q, qdot):  # pragma: no cover - compiled
     """The pairs' normal forces and kinetic friction into ``tw.force``, their tangents into
     ``tw.node_force``, and those of the power they dissipate into ``tw.power[:, 0]``, each pair
-    in its mode (:func:`tensegrity.physics.contact.contact_pass`); nothing without contacts."""
+    in its mode (:func:`tensegrity.physics.contact.contact_pass`: a free pair has no force, but
+    while it penetrates, the power stored in its spring is taken from the dissipated one as
+    in every mode); nothing without contacts."""
     if contacts is None:
         return
     work = data.contact_work
@@ -255,8 +263,6 @@ def _contact_tangents(contacts, data, tw, q, qdot):  # pragma: no cover - compil
         for p in range(planes):
             k = c * planes + p
             mode = work.mode[k]
-            if mode == FREE:
-                continue
             nx, ny, nz = normal[p, 0], normal[p, 1], normal[p, 2]
             height = (
                 nx * (x[0] - point[p, 0]) + ny * (x[1] - point[p, 1]) + nz * (x[2] - point[p, 2])
@@ -265,20 +271,14 @@ def _contact_tangents(contacts, data, tw, q, qdot):  # pragma: no cover - compil
             delta = contacts.point_radius[c] - height
             stiffness, damping = contacts.contact_stiffness[p], contacts.contact_damping[p]
             mu = contacts.friction_kinetic[p]
-            force = stiffness * delta + damping * rate
+            if mode == FREE and not delta > 0.0:
+                continue
+            force = stiffness * delta + damping * rate if mode != FREE else 0.0
             ux, uy, uz = v[0] + rate * nx, v[1] + rate * ny, v[2] + rate * nz  # (v_t)
             size, scale = 0.0, 0.0
             gx = gy = gz = 0.0  # (the friction's direction: none at size 0)
             if mode == SLIP:
-                sd = work.slip_direction[k]
-                gx, gy, gz = (
-                    ux + STICK_SPEED * sd[0],
-                    uy + STICK_SPEED * sd[1],
-                    uz + STICK_SPEED * sd[2],
-                )
-                size = np.sqrt(gx * gx + gy * gy + gz * gz)
-                if size > 0.0:
-                    gx, gy, gz = gx / size, gy / size, gz / size
+                gx, gy, gz, size = friction_direction(ux, uy, uz, work.slip_direction[k])
                 scale = -mu * force
             tw.force[0, slot] += force * nx + scale * gx
             tw.force[1, slot] += force * ny + scale * gy
@@ -291,6 +291,8 @@ def _contact_tangents(contacts, data, tw, q, qdot):  # pragma: no cover - compil
                 dk = tw.plane[j, PLANE_STIFFNESS, p]
                 d_force = stiffness * d_delta + damping * d_rate + dk * delta
                 d_force += tw.plane[j, PLANE_DAMPING, p] * rate
+                if mode == FREE:
+                    d_force = 0.0
                 d_stored = 0.0
                 if delta > 0.0:
                     d_stored = dk * delta * rate + stiffness * (d_delta * rate + delta * d_rate)
@@ -321,10 +323,11 @@ def _contact_tangents(contacts, data, tw, q, qdot):  # pragma: no cover - compil
 
 @compiled_only
 def _response_tangent(q, dq, o, c1, c2, dc1, dc2, forces, out):  # pragma: no cover - compiled
-    """``out[o:o + 6] +=`` the tangent of a rod's response to its end forces (eqs. 18.17,
-    18.20: ``q1'' = c1 (f_a + f_b)``, ``q2'' = c2 skew(q2)^2 (f_a - f_b)``), the rod's
-    coordinates at ``q[o:o + 6]`` moving along ``dq[o:o + 6]`` and ``c1``, ``c2`` along ``dc1``,
-    ``dc2``; ``forces`` (4, 3): ``f_a + f_b``, ``f_a - f_b`` and their tangents."""
+    """``out`` (6,) ``+=`` the tangent of a rod's response to its end forces (eqs. 18.17, 18.20:
+    ``q1'' = c1 (f_a + f_b)``, ``q2'' = c2 skew(q2)^2 (f_a - f_b)``), the rod's coordinates at
+    ``q[o:o + 6]`` moving along ``dq[o:o + 6]`` and ``c1``, ``c2`` along ``dc1``, ``dc2``;
+    ``forces`` (4, 3): ``f_a + f_b``, ``f_a - f_b`` and their tangents.  (With ``c1 = c2 =
+    0``, ``dc1``, ``dc2`` the rod's own and the tangents zero: the response itself.)"""
     sum_, diff, d_sum, d_diff = forces[0], forces[1], forces[2], forces[3]
     q2_d = q2_sq = dq2_d = q2_dd = q2_dq2 = 0.0
     for i in range(3):
@@ -336,8 +339,8 @@ def _response_tangent(q, dq, o, c1, c2, dc1, dc2, forces, out):  # pragma: no co
         q2_dq2 += q2 * dq2
     for i in range(3):  # skew(q2)^2 d = q2 (q2 . d) - |q2|^2 d
         q2, dq2 = q[o + 3 + i], dq[o + 3 + i]
-        out[o + i] += dc1 * sum_[i] + c1 * d_sum[i]
-        out[o + 3 + i] += dc2 * (q2 * q2_d - q2_sq * diff[i]) + c2 * (
+        out[i] += dc1 * sum_[i] + c1 * d_sum[i]
+        out[3 + i] += dc2 * (q2 * q2_d - q2_sq * diff[i]) + c2 * (
             dq2 * q2_d + q2 * (dq2_d + q2_dd) - 2.0 * q2_dq2 * diff[i] - q2_sq * d_diff[i]
         )
 
@@ -370,8 +373,7 @@ def _rod_tangents(model, data, s, tw, q, qdot, K):  # pragma: no cover - compile
             v2_sq += qdot[o + 3 + i] ** 2
         acceleration = tw.acceleration
         acceleration[o : o + 6] = 0.0
-        # the response itself: the tangent's terms in dc1, dc2, with c1 = c2 = 0
-        _response_tangent(q, q, o, 0.0, 0.0, c1, c2, forces, acceleration)
+        _response_tangent(q, q, o, 0.0, 0.0, c1, c2, forces, acceleration[o : o + 6])
         for i in range(3):
             acceleration[o + i] -= alpha * qdot[o + i]
             acceleration[o + 3 + i] -= v2_sq / L2 * q[o + 3 + i] + alpha * qdot[o + 3 + i]
@@ -383,7 +385,8 @@ def _rod_tangents(model, data, s, tw, q, qdot, K):  # pragma: no cover - compile
                 dfb = f[i, b] + 0.5 * dm * g * gravity[i]
                 forces[2, i], forces[3, i] = dfa + dfb, dfa - dfb
             out[n + o : n + o + 6] = 0.0
-            _response_tangent(q, v, o, c1, c2, -c1 * dm / mass, -c2 * dm / mass, forces, out[n:])
+            dc1, dc2 = -c1 * dm / mass, -c2 * dm / mass
+            _response_tangent(q, v, o, c1, c2, dc1, dc2, forces, out[n + o : n + o + 6])
             u1_du1 = u2_du2 = 0.0
             for i in range(3):
                 u1, u2 = qdot[o + i], qdot[o + 3 + i]
@@ -405,70 +408,124 @@ def _rod_tangents(model, data, s, tw, q, qdot, K):  # pragma: no cover - compile
 
 @compiled_only
 def _stick_tangents(contacts, model, data, tw, q, qdot, K, s):  # pragma: no cover - compiled
-    """The tangents of the forces that hold each rod's sticking ends
-    (:func:`tensegrity.physics.contact.rod_stick` on the accelerations before them), added to
-    ``K[:, s]``: a central difference of that solve alone along ``(q2', m', a')``; the tangent of
-    their power ``-F_t . v`` into ``tw.power[:, 0]``.  The forces the evaluation left in
-    ``data.contact_work`` stay as they were.  Nothing without contacts."""
+    """The tangents of the forces that hold each rod's sticking ends, added to ``K[:, s]``, and
+    of their power ``-F_t . v`` (``tw.power[:, 0]``); nothing without contacts.
+
+    :func:`tensegrity.physics.contact.rod_stick` solves ``M x = b`` for the ends' tangential
+    forces ``x``: ``R`` (2c, 6) the rod's response to each unit force (eqs. 18.17, 18.20),
+    ``T`` the ends' tangential accelerations, ``M = T R^T`` (symmetric), ``b = -T a`` from the
+    accelerations ``a`` before them, on the eigenvectors of ``M`` above :data:`STICK_NULL` of
+    its largest eigenvalue; the accelerations change by ``R^T x``.  With that set of
+    eigenvectors kept (``M+`` the solve on it),
+
+        x' = M+ (b' - M' x) + sum_(k kept, g not) (v_g (v_k . b) + v_k (v_g . b))
+             (v_g . M' v_k) / ((lambda_k - lambda_g) lambda_k),
+
+    ``M' = T R'^T``, ``b' = -T a'``, ``R'`` from the rod's ``q2'`` and mass (the eigenvectors'
+    turn into the dropped ones; within the kept ones it cancels)."""
     if contacts is None:
         return
     work = data.contact_work
-    n, planes = q.shape[0], contacts.plane_normal.shape[0]
+    n, planes, tangent = q.shape[0], contacts.plane_normal.shape[0], contacts.plane_tangent
     rod_param = model.rod_param
-    moved, values, plus, minus = tw.q, tw.vectors[0], tw.vectors[1], tw.vectors[2]
-    v, dv = tw.vectors[3, :3], tw.vectors[4, :3]
-    moved[:n] = q
+    forces, v, dv = tw.vectors[:4, :3], tw.vectors[6, :3], tw.vectors[7, :3]
+    pairs = np.empty(2 * planes, np.int64)
     for r in range(rod_param.shape[0]):
-        first = 2 * r * planes
-        sticking = False
-        for k in range(first, first + 2 * planes):
-            sticking = sticking or work.mode[k] == STICK
-            tw.kept[k - first] = work.friction_force[k]
-        if not sticking:
+        count = 0
+        for k in range(2 * r * planes, 2 * (r + 1) * planes):
+            if work.mode[k] == STICK:
+                pairs[count] = k
+                count += 1
+        if count == 0:
             continue
-        o = 6 * r
-        mass, length = rod_param[r, ROD_MASS], rod_param[r, ROD_LENGTH]
-        kept_c1, kept_c2 = rod_param[r, ROD_C1], rod_param[r, ROD_C2]
+        m, o = 2 * count, 6 * r
+        mass, c1, c2 = rod_param[r, ROD_MASS], rod_param[r, ROD_C1], rod_param[r, ROD_C2]
+        sign, axis = np.empty(m), np.empty((m, 3))  # (each force's end, and direction)
+        response, d_response = np.zeros((m, 6)), np.empty((m, 6))
+        matrix, d_matrix, b = np.empty((m, m)), np.empty((m, m)), np.empty(m)
+        for i in range(m):
+            k = pairs[i // 2]
+            sign[i] = 2.0 * ((k // planes) % 2) - 1.0
+            axis[i] = tangent[k % planes, i % 2]
+            _unit_forces(forces, axis[i], sign[i])
+            _response_tangent(q, q, o, 0.0, 0.0, c1, c2, forces, response[i])
+        for i in range(m):
+            b[i] = -0.5 * sum_end(axis[i], tw.acceleration[o : o + 6], sign[i])
+            for g in range(m):
+                matrix[i, g] = 0.5 * sum_end(axis[i], response[g], sign[i])
+        values, vectors = np.linalg.eigh(matrix)
+        kept = values > STICK_NULL * values[-1]
+        along, projected = np.empty(m), np.empty(m)
+        _in_basis(vectors, b, along)  # (v_k . b)
+        x = np.zeros(m)
+        for k in range(m):
+            if kept[k]:
+                x += vectors[:, k] * (along[k] / values[k])
         for j in range(K.shape[0]):
-            out, dm = K[j, s], tw.rod_mass[j, r]
-            dq2 = 0.0
-            for i in range(3):
-                dq2 = max(dq2, abs(tw.direction[j, o + 3 + i]))
-            eps = 1.0  # (a' alone: the solve is linear in it)
-            if dq2 > 0.0:
-                eps = min(eps, STICK_STEP * length / dq2)
-            if dm != 0.0:
-                eps = min(eps, STICK_STEP * mass / abs(dm))
-            power, held = 0.0, 0.0  # (-dF_t . v by the difference; -F_t . dv)
-            for sign in (1.0, -1.0):
-                e = sign * eps
-                for i in range(6):
-                    moved[o + i] = q[o + i] + e * tw.direction[j, o + i]
-                    values[i] = tw.acceleration[o + i] + e * out[n + o + i]
-                rod_param[r, ROD_C1] = 2.0 / (mass + e * dm)
-                rod_param[r, ROD_C2] = 6.0 / ((mass + e * dm) * length * length)
-                rod_stick(contacts, model, work, r, moved, values, plus if sign > 0.0 else minus)
-                for end in range(2):  # (-dF_t . v, v the point's velocity)
-                    point_motion(contacts, qdot, 2 * r + end, v)
-                    for p in range(planes):
-                        k = (2 * r + end) * planes + p
-                        if work.mode[k] == STICK:
-                            f = work.friction_force[k]
-                            power -= sign * (f[0] * v[0] + f[1] * v[1] + f[2] * v[2])
-            rod_param[r, ROD_C1], rod_param[r, ROD_C2] = kept_c1, kept_c2
-            moved[o : o + 6] = q[o : o + 6]
+            out, dm = K[j, s, n + o : n + o + 6], tw.rod_mass[j, r]
+            for i in range(m):
+                _unit_forces(forces, axis[i], sign[i])
+                d_response[i] = 0.0
+                _response_tangent(
+                    q,
+                    tw.direction[j],
+                    o,
+                    c1,
+                    c2,
+                    -c1 * dm / mass,
+                    -c2 * dm / mass,
+                    forces,
+                    d_response[i],
+                )
+            for i in range(m):
+                b_i = -0.5 * sum_end(axis[i], out, sign[i])  # (out: a' before the forces)
+                for g in range(m):
+                    d_matrix[i, g] = 0.5 * sum_end(axis[i], d_response[g], sign[i])
+                    b_i -= d_matrix[i, g] * x[g]
+                b[i] = b_i  # (b' - M' x)
+            _in_basis(vectors, b, projected)
+            dx = np.zeros(m)
+            for k in range(m):
+                if not kept[k]:
+                    continue
+                dx += vectors[:, k] * (projected[k] / values[k])
+                for g in range(m):
+                    if not kept[g]:
+                        turned = 0.0  # (v_g . M' v_k)
+                        for i in range(m):
+                            for h in range(m):
+                                turned += vectors[i, g] * d_matrix[i, h] * vectors[h, k]
+                        weight = turned / ((values[k] - values[g]) * values[k])
+                        dx += weight * (vectors[:, g] * along[k] + vectors[:, k] * along[g])
             for i in range(6):
-                out[n + o + i] += (plus[i] - minus[i]) / (2.0 * eps)
-            for end in range(2):  # (-F_t . dv)
-                point_motion(contacts, tw.direction[j, n : 2 * n], 2 * r + end, dv)
-                for p in range(planes):
-                    k = (2 * r + end) * planes + p
-                    if work.mode[k] == STICK:
-                        f = tw.kept[k - first]
-                        held -= f[0] * dv[0] + f[1] * dv[1] + f[2] * dv[2]
-            tw.power[j, 0] += power / (2.0 * eps) + held
-        for k in range(first, first + 2 * planes):
-            work.friction_force[k] = tw.kept[k - first]
+                for g in range(m):
+                    out[i] += d_response[g, i] * x[g] + response[g, i] * dx[g]
+            for a in range(count):  # the power: -(dF_t . v + F_t . dv), per sticking pair
+                point = pairs[a] // planes
+                point_motion(contacts, qdot, point, v)
+                point_motion(contacts, tw.direction[j, n : 2 * n], point, dv)
+                for i in range(3):
+                    force = x[2 * a] * axis[2 * a, i] + x[2 * a + 1] * axis[2 * a + 1, i]
+                    d_force = dx[2 * a] * axis[2 * a, i] + dx[2 * a + 1] * axis[2 * a + 1, i]
+                    tw.power[j, 0] -= d_force * v[i] + force * dv[i]
+
+
+@compiled_only
+def _in_basis(vectors, b, out):  # pragma: no cover - compiled
+    """``out[k] = vectors[:, k] . b``: ``b`` in the eigenvectors' basis."""
+    for k in range(b.shape[0]):
+        out[k] = 0.0
+        for i in range(b.shape[0]):
+            out[k] += vectors[i, k] * b[i]
+
+
+@compiled_only
+def _unit_forces(forces, axis, sign):  # pragma: no cover - compiled
+    """``forces`` (4, 3) of :func:`_response_tangent` for a unit force along ``axis`` at a
+    rod's end ``sign`` (-1: a, +1: b; ``f_a - f_b = -sign axis``), constant."""
+    for i in range(3):
+        forces[0, i], forces[1, i] = axis[i], -sign * axis[i]
+        forces[2, i], forces[3, i] = 0.0, 0.0
 
 
 @compiled_only
@@ -560,9 +617,9 @@ def _constraint_tangents(constraints, model, data, tw, q, K, s):  # pragma: no c
                 for i in range(3):
                     forces[0, i], forces[1, i] = fa[i] + fb[i], fa[i] - fb[i]
                     forces[2, i], forces[3, i] = 0.0, 0.0
-                _response_tangent(
-                    q, dq, 6 * body, c1, c2, -c1 * dm / mass, -c2 * dm / mass, forces, b
-                )
+                o = 6 * body
+                dc1, dc2 = -c1 * dm / mass, -c2 * dm / mass
+                _response_tangent(q, dq, o, c1, c2, dc1, dc2, forces, b[o : o + 6])
             else:
                 k = body - n_rods
                 mass, dm = constraints.point_mass[k], tw.point_mass[j, k]

@@ -141,16 +141,7 @@ def contact_pass(contacts, model, data, q, qdot):  # pragma: no cover - compiled
             friction[0], friction[1], friction[2] = 0.0, 0.0, 0.0
             if mode == SLIP:
                 s = work.slip_direction[k]
-                # the direction of v_t + STICK_SPEED s: of v_t once it moves, s from rest,
-                # continuous in between
-                dx, dy, dz = (
-                    tx + STICK_SPEED * s[0],
-                    ty + STICK_SPEED * s[1],
-                    tz + STICK_SPEED * s[2],
-                )
-                size = np.sqrt(dx * dx + dy * dy + dz * dz)
-                if size > 0.0:
-                    dx, dy, dz = dx / size, dy / size, dz / size
+                dx, dy, dz, _ = friction_direction(tx, ty, tz, s)
                 scale = -contacts.friction_kinetic[p] * force
                 friction[0], friction[1], friction[2] = scale * dx, scale * dy, scale * dz
                 work.indicator[2 * k + 1] = -(tx * s[0] + ty * s[1] + tz * s[2]) - REVERSAL_SPEED
@@ -160,6 +151,19 @@ def contact_pass(contacts, model, data, q, qdot):  # pragma: no cover - compiled
             for i in range(3):
                 data.node_force[i, slot] += force * normal[p, i] + friction[i]
     return dissipated
+
+
+@compiled_only
+def friction_direction(tx, ty, tz, s):  # pragma: no cover - compiled
+    """A slipping point's kinetic friction opposes the unit direction ``(dx, dy, dz)`` of ``v_t
+    + STICK_SPEED s`` (``v_t = (tx, ty, tz)`` [m/s], ``s`` (3,) the slip's direction): of
+    ``v_t`` once it moves, ``s`` from rest, continuous in between.  Returns ``(dx, dy, dz,
+    size)``, ``size`` that vector's length [m/s] (zero: no direction, zeros)."""
+    dx, dy, dz = tx + STICK_SPEED * s[0], ty + STICK_SPEED * s[1], tz + STICK_SPEED * s[2]
+    size = np.sqrt(dx * dx + dy * dy + dz * dz)
+    if size > 0.0:
+        dx, dy, dz = dx / size, dy / size, dz / size
+    return dx, dy, dz, size
 
 
 @compiled_only
