@@ -53,7 +53,12 @@ from tensegrity.physics.contact import (
     sum_end,
 )
 from tensegrity.physics.kernel import end_values, stage_row, tendon_vector
-from tensegrity.physics.kernel_system import _add_response, _rows_times, _solve_psd, body_forces
+from tensegrity.physics.kernel_system import (
+    add_constraint_response,
+    body_forces,
+    constraint_rows_times,
+    solve_envelope_psd,
+)
 
 #: The rows of :attr:`TangentWork.plane`: the planes' parameters that enter the right-hand side.
 PLANE_STIFFNESS, PLANE_DAMPING, PLANE_KINETIC_FRICTION = range(3)
@@ -80,11 +85,11 @@ class TangentWork(NamedTuple):
     node_velocity: np.ndarray  #: (P, 3, n_slots) [m/s per unit]
     node_force: np.ndarray  #: (P, 3, n_slots) the tendon and contact forces' [N per unit]
     force: np.ndarray  #: (3, n_slots) those forces themselves [N]
-    acceleration: np.ndarray  #: (m,) the accelerations before the sticking forces [m/s^2]
-    q: np.ndarray  #: (m,) scratch: the coordinates, a rod's moved
+    #: (m,) the rods' accelerations before the sticking forces [m/s^2] (rows 0..6R)
+    acceleration: np.ndarray
     power: np.ndarray  #: (P, 3) the powers' tangents [W per unit]
     vectors: np.ndarray  #: (8, 6) scratch
-    kept: np.ndarray  #: (max(2 Pl, 1), 3) scratch: a rod's sticking forces [N]
+    kept: np.ndarray  #: (max(Pl, 1), 3) scratch: a point mass's sticking forces [N]
     solve: np.ndarray  #: (4, max(c, 1)) scratch of the joint and support forces
 
 
@@ -116,10 +121,9 @@ def tangent_work(
         node_force=np.zeros((P, 3, n_slots)),
         force=np.zeros((3, n_slots)),
         acceleration=np.zeros(m),
-        q=np.zeros(m),
         power=np.zeros((P, 3)),
         vectors=np.zeros((8, 6)),
-        kept=np.zeros((max(2 * n_planes, 1), 3)),
+        kept=np.zeros((max(n_planes, 1), 3)),
         solve=np.zeros((4, max(constraint_rows, 1))),
     )
 
@@ -530,20 +534,18 @@ def _unit_forces(forces, axis, sign):  # pragma: no cover - compiled
 
 @compiled_only
 def _point_mass_tangents(constraints, model, data, s, tw, qdot, K):  # pragma: no cover - compiled
-    """Every point mass's acceleration ``(f + w) / m + g`` into ``tw.acceleration`` and its
-    tangent into ``K[:, s]``; that of the power of ``w`` into ``tw.power[:, 1]``.  Nothing
-    without point masses (``constraints`` None)."""
+    """The tangent of every point mass's acceleration ``(f + w) / m + g`` into ``K[:, s]``; that
+    of the power of ``w`` into ``tw.power[:, 1]``.  Nothing without point masses
+    (``constraints`` None)."""
     if constraints is None:
         return
     n = qdot.shape[0]
-    external, gravity = stage_row(data.force, s), model.gravity
-    g = 1.0 if model.has_gravity else 0.0
+    external = stage_row(data.force, s)
     first = 6 * model.rod_slots.shape[0]
     for k in range(constraints.mass_slots.shape[0]):
         slot, o, mass = constraints.mass_slots[k], first + 3 * k, constraints.point_mass[k]
         for i in range(3):
             force = tw.force[i, slot] + (external[i, slot] if data.has_external else 0.0)
-            tw.acceleration[o + i] = force / mass + g * gravity[i]
             for j in range(K.shape[0]):
                 dm = tw.point_mass[j, k]
                 K[j, s, n + o + i] = (tw.node_force[j, i, slot] - force * dm / mass) / mass
@@ -625,10 +627,10 @@ def _constraint_tangents(constraints, model, data, tw, q, K, s):  # pragma: no c
                 mass, dm = constraints.point_mass[k], tw.point_mass[j, k]
                 for i in range(3):
                     b[6 * n_rods + 3 * k + i] -= fa[i] * dm / (mass * mass)
-        _rows_times(b, n_rods, constraints, rhs)
+        constraint_rows_times(b, n_rods, constraints, rhs)
         for i in range(c):
             rhs[i] = -rhs[i]
-        _solve_psd(
+        solve_envelope_psd(
             work.k_values, work.k_factor, constraints.k_first, constraints.k_offset, rhs, x, scratch
         )
-        _add_response(q, x, rod_param, constraints, b)
+        add_constraint_response(q, x, rod_param, constraints, b)

@@ -431,7 +431,7 @@ def _entry_value(x, n_rods, body, sign, i):  # pragma: no cover - compiled
 
 
 @compiled_only
-def _rows_times(x, n_rods, constraints, out):  # pragma: no cover - compiled
+def constraint_rows_times(x, n_rods, constraints, out):  # pragma: no cover - compiled
     """``out = A x`` (c,) for ``x`` = ``q``, ``q'`` or ``q''`` (``A = A_n P``), row by entry."""
     out[:] = 0.0
     start, rows = constraints.body_start, constraints.entry_row
@@ -462,7 +462,9 @@ def body_forces(constraints, multiplier, body, fa, fb):  # pragma: no cover - co
 
 
 @compiled_only
-def _add_response(q, multiplier, rod_param, constraints, qddot):  # pragma: no cover - compiled
+def add_constraint_response(
+    q, multiplier, rod_param, constraints, qddot
+):  # pragma: no cover - compiled
     """``qddot += G(q) A_n^T multiplier``: the constraint forces ``A_n^T lambda`` [N] applied by
     Theorem 18.1 (eqs. 18.17, 18.20: ``q1'' = (2/m)(f_a + f_b)``, ``q2'' = (6/(m L^2))
     skew(q2)^2 (f_a - f_b)``; ``x'' = f / m``); forces on anchors move nothing."""
@@ -553,7 +555,9 @@ def _env_residual(values, first, offset, x, rhs, out):  # pragma: no cover - com
 
 
 @njit(**JIT_OPTIONS)
-def _solve_psd(values, factor, first, offset, rhs, x, scratch):  # pragma: no cover - compiled
+def solve_envelope_psd(
+    values, factor, first, offset, rhs, x, scratch
+):  # pragma: no cover - compiled
     """``x = M^-1 rhs`` for a symmetric positive semi-definite ``M`` (envelope storage), as
     :func:`tensegrity.physics.constraints.solve_psd`: factorize ``M + delta I`` (``delta =
     REGULARIZATION max(diag M)``) and refine twice against ``M``."""
@@ -653,11 +657,11 @@ def _constraint_pass(model, data, q, qddot):  # pragma: no cover - compiled
     c = constraints.constraint_rhs.shape[0]
     vectors = work.vectors
     rhs_, multiplier, scratch = vectors[0, :c], vectors[1, :c], vectors[2, :c]
-    _rows_times(qddot, rod_param.shape[0], constraints, rhs_)
+    constraint_rows_times(qddot, rod_param.shape[0], constraints, rhs_)
     for i in range(c):
         rhs_[i] = -rhs_[i]
     _assemble_coupling(model, data, q)
-    _solve_psd(
+    solve_envelope_psd(
         work.k_values,
         work.k_factor,
         constraints.k_first,
@@ -666,7 +670,7 @@ def _constraint_pass(model, data, q, qddot):  # pragma: no cover - compiled
         multiplier,
         scratch,
     )
-    _add_response(q, multiplier, rod_param, constraints, qddot)
+    add_constraint_response(q, multiplier, rod_param, constraints, qddot)
 
 
 @njit(inline="always", **JIT_OPTIONS)
@@ -732,7 +736,7 @@ def _rod_error(q, rod_param):  # pragma: no cover - compiled
 @compiled_only
 def _constraint_error(q, n_rods, constraints, residual):  # pragma: no cover - compiled
     """``residual = A q - b`` (c,) [m]; returns ``max |A q - b|`` (NaN if not finite)."""
-    _rows_times(q, n_rods, constraints, residual)
+    constraint_rows_times(q, n_rods, constraints, residual)
     worst = 0.0
     for i in range(residual.shape[0]):
         residual[i] -= constraints.constraint_rhs[i]
@@ -876,7 +880,7 @@ def _normal_solve(constraints, work, rod_param, q, violation, y):  # pragma: no 
     """``y = (J W^-1 J^T)^-1 violation`` at ``q``."""
     _assemble_normal(constraints, work, rod_param, q)
     work = work
-    _solve_psd(
+    solve_envelope_psd(
         work.n_values,
         work.n_factor,
         constraints.n_first,
@@ -918,7 +922,7 @@ def _project_constrained(constraints, work, rod_param, q, qdot):  # pragma: no c
         return False
     c = constraints.constraint_rhs.shape[0]
     rates = vectors[3, :c]
-    _rows_times(qdot, n_rods, constraints, rates)
+    constraint_rows_times(qdot, n_rods, constraints, rates)
     for i in range(c):
         violation[constraints.constraint_prow[i]] = rates[i]
     for r in range(n_rods):
